@@ -1,0 +1,1 @@
+//! # drive: the F2812 serial protocol, client and simulator

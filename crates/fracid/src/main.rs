@@ -1,0 +1,2 @@
+//! The `fracid` command line.
+fn main() {}

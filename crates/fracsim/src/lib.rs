@@ -1,0 +1,21 @@
+//! # fracsim: fractional operators and simulation
+//!
+//! - [`FracTf`]: fractional transfer functions `sum b_i s^beta_i / sum a_j s^alpha_j * exp(-tau s)`,
+//!   their exact frequency response and a parser.
+//! - [`approx`]: rational approximations of `s^nu`: Oustaloup (Oustaloup et al. 2000), refined
+//!   Oustaloup (Xue, Zhao & Chen 2006), the Poinot-Trigeassou (alpha, eta) integrator
+//!   (Poinot & Trigeassou 2004).
+//! - [`discrete`]: recursive discrete filters (cascades of first-order sections, bilinear with
+//!   prewarping or ZOH) and [`Simulator`], which runs a fractional transfer function sample by sample.
+//! - [`gl`]: Grunwald-Letnikov, the reference simulator.
+//! - [`prbs`]: maximum-length pseudo-random binary sequences.
+//! - [`special`]: the Mittag-Leffler function and the exact step response of `K/(a s^q + 1)`.
+//! - [`scalar`]: `f64` and forward-mode [`Dual`] numbers: every simulation is generic over them.
+
+mod error;
+pub mod scalar;
+pub mod tf;
+
+pub use error::{Error, Result};
+pub use scalar::{Dual, Real};
+pub use tf::{jw_pow, FracTf, Term};

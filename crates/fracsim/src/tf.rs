@@ -1,0 +1,685 @@
+//! Fractional transfer functions `G(s) = (sum_i b_i s^beta_i) / (sum_j a_j s^alpha_j) exp(-tau s)`
+//! (FOMCON's `fotf`), their exact frequency response and a parser for the form people write.
+
+use crate::error::{finite, invalid, Error, Result};
+use num_complex::Complex64;
+use std::fmt;
+use std::str::FromStr;
+
+/// One term `coef * s^order` of a fractional polynomial.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Term {
+    /// The coefficient.
+    pub coef: f64,
+    /// The (real, non-negative) order of `s`.
+    pub order: f64,
+}
+
+impl Term {
+    /// `coef * s^order`.
+    pub const fn new(coef: f64, order: f64) -> Self {
+        Self { coef, order }
+    }
+}
+
+/// A fractional transfer function with input delay:
+/// `G(s) = (sum_i num_i.coef s^num_i.order) / (sum_j den_j.coef s^den_j.order) * exp(-delay s)`.
+///
+/// Terms are kept sorted by decreasing order, like orders merged, zero coefficients dropped.
+///
+/// ```
+/// use fracsim::FracTf;
+/// let g: FracTf = "6.77/(0.000028 s^1.78 + 0.0064 s^0.89 + 1)".parse().unwrap();
+/// assert!((g.dc_gain() - 6.77).abs() < 1e-12);
+/// let h = g.freq_response(100.0); // omega in rad/s
+/// assert!(h.norm() < 6.77);
+/// ```
+#[derive(Debug, Clone, PartialEq)]
+pub struct FracTf {
+    /// Numerator terms `b_i s^beta_i`.
+    pub num: Vec<Term>,
+    /// Denominator terms `a_j s^alpha_j`.
+    pub den: Vec<Term>,
+    /// Input delay `tau` in seconds.
+    pub delay: f64,
+}
+
+fn normalise(what: &'static str, terms: &[Term]) -> Result<Vec<Term>> {
+    let mut out: Vec<Term> = Vec::with_capacity(terms.len());
+    for t in terms {
+        finite(what, t.coef)?;
+        finite("order", t.order)?;
+        if t.order < 0.0 {
+            return invalid(
+                "order",
+                format!("{} is negative; move s^{} to the other side", t.order, -t.order),
+            );
+        }
+        if t.order > 20.0 {
+            return invalid("order", format!("{} is larger than 20", t.order));
+        }
+        if t.coef == 0.0 {
+            continue;
+        }
+        match out.iter_mut().find(|o| (o.order - t.order).abs() < 1e-12) {
+            Some(o) => o.coef += t.coef,
+            None => out.push(*t),
+        }
+    }
+    out.retain(|t| t.coef != 0.0);
+    out.sort_by(|a, b| b.order.total_cmp(&a.order));
+    Ok(out)
+}
+
+impl FracTf {
+    /// Build and validate a transfer function.
+    ///
+    /// # Errors
+    /// Non-finite coefficients, orders or delay; negative orders or delay; a denominator with no
+    /// nonzero term ([`Error::ZeroDenominator`]).
+    pub fn new(num: Vec<Term>, den: Vec<Term>, delay: f64) -> Result<Self> {
+        let num = normalise("numerator coefficient", &num)?;
+        let den = normalise("denominator coefficient", &den)?;
+        if den.is_empty() {
+            return Err(Error::ZeroDenominator);
+        }
+        finite("delay", delay)?;
+        if delay < 0.0 {
+            return invalid("delay", format!("{delay} s is negative (a non-causal model)"));
+        }
+        Ok(Self { num, den, delay })
+    }
+
+    /// The PMSM structure of the reference paper (eq. 10):
+    /// `K / (a2 s^(zeta+theta) + a1 s^zeta + 1)`.
+    ///
+    /// ```
+    /// let g = fracsim::FracTf::pmsm(6.82, 0.0059, 2.655e-5, 0.92, 0.8252).unwrap();
+    /// assert_eq!(g.den.len(), 3);
+    /// assert!((g.den[0].order - 1.7452).abs() < 1e-12);
+    /// ```
+    ///
+    /// # Errors
+    /// As [`FracTf::new`].
+    pub fn pmsm(k: f64, a1: f64, a2: f64, zeta: f64, theta: f64) -> Result<Self> {
+        Self::new(
+            vec![Term::new(k, 0.0)],
+            vec![
+                Term::new(a2, zeta + theta),
+                Term::new(a1, zeta),
+                Term::new(1.0, 0.0),
+            ],
+            0.0,
+        )
+    }
+
+    /// The same model with another input delay (seconds).
+    ///
+    /// # Errors
+    /// A negative or non-finite delay.
+    pub fn with_delay(mut self, delay: f64) -> Result<Self> {
+        finite("delay", delay)?;
+        if delay < 0.0 {
+            return invalid("delay", format!("{delay} s is negative"));
+        }
+        self.delay = delay;
+        Ok(self)
+    }
+
+    /// The exact frequency response `G(j omega)`, omega in rad/s, with
+    /// `(j w)^a = w^a (cos(a pi/2) + j sin(a pi/2))`.
+    pub fn freq_response(&self, omega: f64) -> Complex64 {
+        let eval = |terms: &[Term]| -> Complex64 {
+            terms
+                .iter()
+                .map(|t| jw_pow(omega, t.order) * t.coef)
+                .sum()
+        };
+        let g = eval(&self.num) / eval(&self.den);
+        if self.delay != 0.0 {
+            g * Complex64::from_polar(1.0, -omega * self.delay)
+        } else {
+            g
+        }
+    }
+
+    /// [`FracTf::freq_response`] at each omega (rad/s).
+    pub fn bode(&self, omega: &[f64]) -> Vec<Complex64> {
+        omega.iter().map(|&w| self.freq_response(w)).collect()
+    }
+
+    /// The static gain `G(0)`: `b_0 / a_0` from the order-zero terms; `+-inf` for a model that
+    /// integrates (no order-zero denominator term), `0` for one that differentiates.
+    pub fn dc_gain(&self) -> f64 {
+        let at0 = |terms: &[Term]| -> f64 {
+            terms
+                .iter()
+                .filter(|t| t.order == 0.0)
+                .map(|t| t.coef)
+                .sum()
+        };
+        let (b, a) = (at0(&self.num), at0(&self.den));
+        if a == 0.0 {
+            if b == 0.0 {
+                let lowest = |t: &[Term]| t.iter().map(|t| t.order).fold(f64::INFINITY, f64::min);
+                if lowest(&self.num) > lowest(&self.den) {
+                    0.0
+                } else {
+                    f64::INFINITY
+                }
+            } else {
+                f64::INFINITY.copysign(b * self.den.last().map_or(1.0, |t| t.coef))
+            }
+        } else {
+            b / a
+        }
+    }
+
+    /// The highest order in the denominator.
+    pub fn den_order(&self) -> f64 {
+        self.den.first().map_or(0.0, |t| t.order)
+    }
+}
+
+/// `(j omega)^a = omega^a (cos(a pi/2) + j sin(a pi/2))`.
+pub fn jw_pow(omega: f64, a: f64) -> Complex64 {
+    if a == 0.0 {
+        return Complex64::new(1.0, 0.0);
+    }
+    Complex64::from_polar(omega.powf(a), a * std::f64::consts::FRAC_PI_2)
+}
+
+fn fmt_num(x: f64) -> String {
+    format!("{x}")
+}
+
+fn fmt_poly(terms: &[Term]) -> String {
+    if terms.is_empty() {
+        return "0".into();
+    }
+    let mut s = String::new();
+    for (i, t) in terms.iter().enumerate() {
+        let (sign, c) = if t.coef < 0.0 { ("-", -t.coef) } else { ("+", t.coef) };
+        if i > 0 {
+            s.push_str(&format!(" {sign} "));
+        } else if sign == "-" {
+            s.push('-');
+        }
+        if t.order == 0.0 {
+            s.push_str(&fmt_num(c));
+        } else {
+            if c != 1.0 {
+                s.push_str(&fmt_num(c));
+                s.push(' ');
+            }
+            if t.order == 1.0 {
+                s.push('s');
+            } else {
+                s.push_str(&format!("s^{}", fmt_num(t.order)));
+            }
+        }
+    }
+    s
+}
+
+impl fmt::Display for FracTf {
+    /// The form [`FracTf::from_str`] reads back: `6.82/(2.655e-5 s^1.7452 + 0.0059 s^0.92 + 1)`.
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let num = fmt_poly(&self.num);
+        if self.num.len() > 1 {
+            write!(f, "({num})")?;
+        } else {
+            write!(f, "{num}")?;
+        }
+        write!(f, "/({})", fmt_poly(&self.den))?;
+        if self.delay != 0.0 {
+            write!(f, " exp(-{} s)", fmt_num(self.delay))?;
+        }
+        Ok(())
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Parser: a small recursive-descent parser over rational expressions in `s` with fractional
+// powers, products, quotients and `exp(-tau s)` factors. Values are kept as (num, den, delay).
+
+#[derive(Debug, Clone, PartialEq)]
+enum Tok {
+    Num(f64),
+    S,
+    Exp,
+    Plus,
+    Minus,
+    Star,
+    Slash,
+    Caret,
+    LParen,
+    RParen,
+}
+
+fn perr<T>(pos: usize, msg: impl Into<String>) -> Result<T> {
+    Err(Error::Parse {
+        pos,
+        msg: msg.into(),
+    })
+}
+
+fn lex(src: &str) -> Result<Vec<(usize, Tok)>> {
+    let b = src.as_bytes();
+    let mut out = Vec::new();
+    let mut i = 0;
+    while i < b.len() {
+        let c = b[i];
+        let start = i;
+        match c {
+            b' ' | b'\t' | b'\n' | b'\r' => {
+                i += 1;
+                continue;
+            }
+            b'+' => out.push((i, Tok::Plus)),
+            b'-' => out.push((i, Tok::Minus)),
+            b'*' => out.push((i, Tok::Star)),
+            b'/' => out.push((i, Tok::Slash)),
+            b'^' => out.push((i, Tok::Caret)),
+            b'(' | b'[' => out.push((i, Tok::LParen)),
+            b')' | b']' => out.push((i, Tok::RParen)),
+            b'0'..=b'9' | b'.' => {
+                while i < b.len() && (b[i].is_ascii_digit() || b[i] == b'.') {
+                    i += 1;
+                }
+                // exponent: e or E followed by optional sign and at least one digit
+                if i < b.len() && (b[i] == b'e' || b[i] == b'E') {
+                    let mut j = i + 1;
+                    if j < b.len() && (b[j] == b'+' || b[j] == b'-') {
+                        j += 1;
+                    }
+                    if j < b.len() && b[j].is_ascii_digit() {
+                        while j < b.len() && b[j].is_ascii_digit() {
+                            j += 1;
+                        }
+                        i = j;
+                    }
+                }
+                let text = &src[start..i];
+                let v: f64 = match text.parse() {
+                    Ok(v) => v,
+                    Err(_) => return perr(start, format!("bad number '{text}'")),
+                };
+                if !v.is_finite() {
+                    return perr(start, format!("number '{text}' is not finite"));
+                }
+                out.push((start, Tok::Num(v)));
+                continue;
+            }
+            c if c.is_ascii_alphabetic() => {
+                while i < b.len() && b[i].is_ascii_alphanumeric() {
+                    i += 1;
+                }
+                let word = &src[start..i];
+                match word {
+                    "s" => out.push((start, Tok::S)),
+                    "exp" => out.push((start, Tok::Exp)),
+                    "inf" | "nan" | "NaN" | "Inf" | "infinity" => {
+                        return perr(start, format!("'{word}' is not a finite number"))
+                    }
+                    _ => {
+                        return perr(
+                            start,
+                            format!("unknown name '{word}' (the variable is 's'; 'exp' is the only function)"),
+                        )
+                    }
+                }
+                continue;
+            }
+            _ => {
+                return perr(
+                    start,
+                    format!("unexpected character '{}'", src[start..].chars().next().unwrap_or('?')),
+                )
+            }
+        }
+        i += 1;
+    }
+    Ok(out)
+}
+
+/// A rational expression being built: `num / den * exp(-delay s)`.
+#[derive(Debug, Clone)]
+struct Val {
+    num: Vec<Term>,
+    den: Vec<Term>,
+    delay: f64,
+}
+
+fn poly_mul(a: &[Term], b: &[Term]) -> Vec<Term> {
+    let mut out: Vec<Term> = Vec::new();
+    for x in a {
+        for y in b {
+            let t = Term::new(x.coef * y.coef, x.order + y.order);
+            match out.iter_mut().find(|o| (o.order - t.order).abs() < 1e-12) {
+                Some(o) => o.coef += t.coef,
+                None => out.push(t),
+            }
+        }
+    }
+    out
+}
+
+impl Val {
+    fn constant(c: f64) -> Self {
+        Self {
+            num: vec![Term::new(c, 0.0)],
+            den: vec![Term::new(1.0, 0.0)],
+            delay: 0.0,
+        }
+    }
+    fn is_poly(&self) -> bool {
+        self.delay == 0.0 && self.den.len() == 1 && self.den[0].order == 0.0
+    }
+    /// Fold a constant denominator into the numerator.
+    fn as_poly(&self) -> Option<Vec<Term>> {
+        if !self.is_poly() {
+            return None;
+        }
+        let d = self.den[0].coef;
+        Some(self.num.iter().map(|t| Term::new(t.coef / d, t.order)).collect())
+    }
+    fn mul(self, o: Val) -> Val {
+        Val {
+            num: poly_mul(&self.num, &o.num),
+            den: poly_mul(&self.den, &o.den),
+            delay: self.delay + o.delay,
+        }
+    }
+    fn div(self, o: Val) -> Val {
+        Val {
+            num: poly_mul(&self.num, &o.den),
+            den: poly_mul(&self.den, &o.num),
+            delay: self.delay - o.delay,
+        }
+    }
+}
+
+struct Parser<'a> {
+    toks: &'a [(usize, Tok)],
+    i: usize,
+    end: usize,
+}
+
+impl Parser<'_> {
+    fn peek(&self) -> Option<&Tok> {
+        self.toks.get(self.i).map(|t| &t.1)
+    }
+    fn pos(&self) -> usize {
+        self.toks.get(self.i).map_or(self.end, |t| t.0)
+    }
+    fn eat(&mut self, t: &Tok) -> bool {
+        if self.peek() == Some(t) {
+            self.i += 1;
+            true
+        } else {
+            false
+        }
+    }
+    fn expr(&mut self) -> Result<Val> {
+        let start = self.pos();
+        let mut acc = self.term()?;
+        loop {
+            let sign = if self.eat(&Tok::Plus) {
+                1.0
+            } else if self.eat(&Tok::Minus) {
+                -1.0
+            } else {
+                return Ok(acc);
+            };
+            let pos = self.pos();
+            let rhs = self.term()?;
+            let (Some(a), Some(b)) = (acc.as_poly(), rhs.as_poly()) else {
+                return perr(
+                    pos.min(start.max(pos)),
+                    "only polynomials in s can be added (write the model as one fraction)",
+                );
+            };
+            let mut sum = a;
+            sum.extend(b.into_iter().map(|t| Term::new(sign * t.coef, t.order)));
+            acc = Val {
+                num: sum,
+                den: vec![Term::new(1.0, 0.0)],
+                delay: 0.0,
+            };
+        }
+    }
+    fn term(&mut self) -> Result<Val> {
+        let mut acc = self.unary()?;
+        loop {
+            match self.peek() {
+                Some(Tok::Star) => {
+                    self.i += 1;
+                    acc = acc.mul(self.unary()?);
+                }
+                Some(Tok::Slash) => {
+                    self.i += 1;
+                    let pos = self.pos();
+                    let rhs = self.unary()?;
+                    if rhs.num.iter().all(|t| t.coef == 0.0) {
+                        return perr(pos, "division by zero");
+                    }
+                    acc = acc.div(rhs);
+                }
+                // implicit multiplication: "0.0059 s^0.92", "2 (s + 1)", "6.8 exp(-0.01 s)"
+                Some(Tok::Num(_) | Tok::S | Tok::LParen | Tok::Exp) => {
+                    acc = acc.mul(self.power()?);
+                }
+                _ => return Ok(acc),
+            }
+        }
+    }
+    fn unary(&mut self) -> Result<Val> {
+        if self.eat(&Tok::Minus) {
+            let v = self.unary()?;
+            return Ok(Val::constant(-1.0).mul(v));
+        }
+        if self.eat(&Tok::Plus) {
+            return self.unary();
+        }
+        self.power()
+    }
+    fn signed_number(&mut self) -> Result<f64> {
+        let pos = self.pos();
+        let mut sign = 1.0;
+        let paren = self.eat(&Tok::LParen);
+        if self.eat(&Tok::Minus) {
+            sign = -1.0;
+        } else {
+            self.eat(&Tok::Plus);
+        }
+        let v = match self.peek() {
+            Some(Tok::Num(v)) => *v,
+            _ => return perr(pos, "expected a number after '^'"),
+        };
+        self.i += 1;
+        if paren && !self.eat(&Tok::RParen) {
+            return perr(self.pos(), "expected ')'");
+        }
+        Ok(sign * v)
+    }
+    fn power(&mut self) -> Result<Val> {
+        let pos = self.pos();
+        let atom = self.atom()?;
+        if !self.eat(&Tok::Caret) {
+            return Ok(atom);
+        }
+        let p = self.signed_number()?;
+        // Only a single term (c s^a) can be raised to a real power.
+        match atom.as_poly().as_deref() {
+            Some([t]) if t.coef > 0.0 || p.fract() == 0.0 => {
+                let coef = t.coef.powf(p);
+                if !coef.is_finite() {
+                    return perr(pos, "power is not finite");
+                }
+                let order = t.order * p;
+                if order < 0.0 {
+                    Ok(Val {
+                        num: vec![Term::new(1.0, 0.0)],
+                        den: vec![Term::new(1.0 / coef, -order)],
+                        delay: 0.0,
+                    })
+                } else {
+                    Ok(Val {
+                        num: vec![Term::new(coef, order)],
+                        den: vec![Term::new(1.0, 0.0)],
+                        delay: 0.0,
+                    })
+                }
+            }
+            _ => perr(pos, "only a single term like 's' or '2 s^0.5' can be raised to a power"),
+        }
+    }
+    fn atom(&mut self) -> Result<Val> {
+        let pos = self.pos();
+        match self.peek().cloned() {
+            Some(Tok::Num(v)) => {
+                self.i += 1;
+                Ok(Val::constant(v))
+            }
+            Some(Tok::S) => {
+                self.i += 1;
+                Ok(Val {
+                    num: vec![Term::new(1.0, 1.0)],
+                    den: vec![Term::new(1.0, 0.0)],
+                    delay: 0.0,
+                })
+            }
+            Some(Tok::LParen) => {
+                self.i += 1;
+                let v = self.expr()?;
+                if !self.eat(&Tok::RParen) {
+                    return perr(self.pos(), "expected ')'");
+                }
+                Ok(v)
+            }
+            Some(Tok::Exp) => {
+                self.i += 1;
+                if !self.eat(&Tok::LParen) {
+                    return perr(self.pos(), "expected '(' after exp");
+                }
+                let apos = self.pos();
+                let arg = self.expr()?;
+                if !self.eat(&Tok::RParen) {
+                    return perr(self.pos(), "expected ')'");
+                }
+                match arg.as_poly().as_deref() {
+                    Some([t]) if t.order == 1.0 => Ok(Val {
+                        num: vec![Term::new(1.0, 0.0)],
+                        den: vec![Term::new(1.0, 0.0)],
+                        delay: -t.coef,
+                    }),
+                    Some([]) => Ok(Val::constant(1.0)),
+                    _ => perr(apos, "exp() takes a delay term like '-0.001 s'"),
+                }
+            }
+            Some(t) => perr(pos, format!("unexpected {t:?}")),
+            None => perr(pos, "unexpected end of input"),
+        }
+    }
+}
+
+impl FromStr for FracTf {
+    type Err = Error;
+    /// Parse `6.82/(2.655e-5 s^1.7452 + 0.0059 s^0.92 + 1)`, `exp(-0.001 s)` allowed as a factor.
+    ///
+    /// # Errors
+    /// [`Error::Parse`] with the position for malformed input; the errors of [`FracTf::new`].
+    fn from_str(src: &str) -> Result<Self> {
+        let toks = lex(src)?;
+        if toks.is_empty() {
+            return perr(0, "empty model");
+        }
+        let mut p = Parser {
+            toks: &toks,
+            i: 0,
+            end: src.len(),
+        };
+        let v = p.expr()?;
+        if p.i != toks.len() {
+            return perr(p.pos(), "unexpected text after the model");
+        }
+        // Normalise so that the denominator's order-zero term (or its lowest term) is the
+        // scale the user wrote: keep coefficients as given.
+        FracTf::new(v.num, v.den, v.delay)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use approx::assert_relative_eq;
+
+    #[test]
+    fn parses_the_paper_models() {
+        let g: FracTf = "6.82/(0.00002655 s^1.7452 + 0.0059 s^0.92 + 1)".parse().unwrap();
+        assert_eq!(g.num, vec![Term::new(6.82, 0.0)]);
+        assert_eq!(g.den.len(), 3);
+        assert_relative_eq!(g.den[0].coef, 2.655e-5);
+        assert_relative_eq!(g.den[0].order, 1.7452);
+        assert_relative_eq!(g.den[1].coef, 0.0059);
+        assert_relative_eq!(g.den[2].coef, 1.0);
+        let d: FracTf = "exp(-0.001 s) * 6.77/(2.8e-5s^1.78+6.4e-3*s^0.89+1)".parse().unwrap();
+        assert_relative_eq!(d.delay, 0.001);
+        assert_relative_eq!(d.den[0].coef, 2.8e-5);
+    }
+
+    #[test]
+    fn display_round_trips() {
+        for src in [
+            "6.82/(2.655e-5 s^1.7452 + 0.0059 s^0.92 + 1)",
+            "(2 s^0.5 + 1)/(s^1.5 - 0.3 s + 4) exp(-0.02 s)",
+            "1/(s + 1)",
+        ] {
+            let g: FracTf = src.parse().unwrap();
+            let again: FracTf = g.to_string().parse().unwrap();
+            assert_eq!(g, again, "{src} -> {g}");
+        }
+    }
+
+    #[test]
+    fn products_and_quotients_multiply_out() {
+        let g: FracTf = "2/((s^0.5 + 1)(s^0.5 + 2))".parse().unwrap();
+        // (s^.5+1)(s^.5+2) = s + 3 s^.5 + 2
+        assert_eq!(g.den, vec![Term::new(1.0, 1.0), Term::new(3.0, 0.5), Term::new(2.0, 0.0)]);
+        assert_relative_eq!(g.dc_gain(), 1.0);
+    }
+
+    #[test]
+    fn bad_models_are_errors() {
+        for bad in [
+            "", "6.8/(", "6.8/(s^ * 1)", "6.8/(x + 1)", "6.8/0", "1/(0 s + 0)", "1e400/(s+1)",
+            "nan/(s+1)", "1/(s+1) + 1/(s+2)", "exp(s^2)/(s+1)", "1/(s+1))", "1/(s^-0.5 + 1)*s^-2",
+            "exp(0.1 s)/(s+1)", "1/(s^30+1)", "(1)", "s^0.5",
+        ] {
+            let r: Result<FracTf> = bad.parse();
+            // "(1)" and "s^0.5" are valid (constant gain, a differentiator): skip them.
+            if bad == "(1)" || bad == "s^0.5" {
+                assert!(r.is_ok(), "{bad}");
+                continue;
+            }
+            assert!(r.is_err(), "{bad} parsed as {:?}", r.unwrap());
+        }
+    }
+
+    #[test]
+    fn frequency_response_of_first_order() {
+        let g: FracTf = "1/(0.1 s + 1)".parse().unwrap();
+        let h = g.freq_response(10.0);
+        assert_relative_eq!(h.norm(), 1.0 / 2f64.sqrt(), epsilon = 1e-14);
+        assert_relative_eq!(h.arg(), -std::f64::consts::FRAC_PI_4, epsilon = 1e-14);
+        let d = g.clone().with_delay(0.01).unwrap().freq_response(10.0);
+        assert_relative_eq!(d.arg(), -std::f64::consts::FRAC_PI_4 - 0.1, epsilon = 1e-14);
+    }
+
+    #[test]
+    fn dc_gain_of_integrator_is_infinite() {
+        let g: FracTf = "1/s^0.5".parse().unwrap();
+        assert!(g.dc_gain().is_infinite());
+    }
+}

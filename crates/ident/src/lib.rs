@@ -1,0 +1,1 @@
+//! # ident: fractional-order system identification

@@ -1,0 +1,1 @@
+//! Workspace-level end-to-end tests: the fracid binary on real files.
