@@ -1,2 +1,68 @@
-//! The `fracid` command line.
-fn main() {}
+//! `fracid`: fractional-order identification of electric drives, from the command line.
+//!
+//! Subcommands live in [`cmd`]; errors from every layer are mapped to exit codes in one place,
+//! [`exit_code`].
+
+mod cmd;
+mod plot;
+
+use clap::{Parser, Subcommand};
+use std::process::ExitCode;
+
+/// Fractional-order system identification of electric drives.
+#[derive(Debug, Parser)]
+#[command(name = "fracid", version, about, long_about = None)]
+struct Cli {
+    #[command(subcommand)]
+    command: Commands,
+}
+
+#[derive(Debug, Subcommand)]
+enum Commands {
+    /// Simulate a fractional transfer function on a step, a PRBS or a recorded input.
+    Sim(cmd::sim::SimArgs),
+    // -- more subcommands are added below, one line each --
+}
+
+/// Exit codes: 0 success, 1 runtime failure (numerical breakdown, fit failure, drive fault),
+/// 2 bad input (malformed model, data or options; clap also uses 2 for usage errors),
+/// 3 I/O (a file or port that cannot be opened or written).
+fn exit_code(err: &anyhow::Error) -> u8 {
+    for cause in err.chain() {
+        if cause.downcast_ref::<std::io::Error>().is_some() {
+            return 3;
+        }
+        if let Some(e) = cause.downcast_ref::<fracsim::Error>() {
+            return match e {
+                fracsim::Error::Numerical(_) => 1,
+                _ => 2,
+            };
+        }
+        if let Some(e) = cause.downcast_ref::<ident::Error>() {
+            return match e {
+                ident::Error::Numerical(_) => 1,
+                ident::Error::Sim(fracsim::Error::Numerical(_)) => 1,
+                _ => 2,
+            };
+        }
+        if cause.downcast_ref::<cmd::BadInput>().is_some() {
+            return 2;
+        }
+    }
+    1
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Commands::Sim(a) => cmd::sim::run(a),
+        // -- more dispatch arms are added below, one line each --
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::from(exit_code(&e))
+        }
+    }
+}

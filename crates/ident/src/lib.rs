@@ -1,1 +1,16 @@
 //! # ident: fractional-order system identification
+//!
+//! - [`levy`]: weighted Levy least squares (Levy 1959) with Vinagre weights (Vinagre 2001) and a
+//!   commensurate-order search; Sanathanan-Koerner iterations; a nonlinear refit of the PMSM
+//!   structure in the frequency domain.
+//! - [`lm`]: a Levenberg-Marquardt solver (Marquardt 1963) with a report of why it stopped.
+//! - [`oe`]: output-error identification in the time domain with exact sensitivities.
+//! - [`metrics`]: fit measures (NRMSE, RMSE), residual correlations with their bounds.
+
+mod error;
+pub mod levy;
+pub mod lm;
+pub mod metrics;
+pub mod oe;
+
+pub use error::{Error, Result};

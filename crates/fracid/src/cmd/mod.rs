@@ -1,0 +1,16 @@
+//! The subcommands, one module each.
+
+pub mod sim;
+
+/// Bad user input found by the CLI itself (as opposed to the library crates): exit code 2.
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub struct BadInput(pub String);
+
+/// Return early with a [`BadInput`] error.
+#[macro_export]
+macro_rules! bad_input {
+    ($($arg:tt)*) => {
+        return Err(anyhow::Error::new($crate::cmd::BadInput(format!($($arg)*))))
+    };
+}
