@@ -1,1 +1,683 @@
-//! (being written)
+//! A Levenberg-Marquardt least-squares solver (Levenberg 1944, Marquardt 1963) for any residual
+//! vector with a Jacobian: the frequency-domain refit ([`crate::levy`]) and the time-domain
+//! output-error fit ([`crate::oe`]) both use it.
+//!
+//! It minimises the cost `C(p) = 1/2 sum_i r_i(p)^2`. Each iteration solves the damped
+//! linearised problem
+//!
+//! `min_d || J d + r ||^2 + lambda || D d ||^2`,
+//!
+//! i.e. `(J^T J + lambda D^2) d = -J^T r` (Marquardt's eq. with the scaling `D`), but never forms
+//! `J^T J`: `[J r]` is factored once per iteration by Householder QR (faer), giving `R` and
+//! `Q^T r`, and each trial `lambda` solves the small stacked system `[R; sqrt(lambda) D] d =
+//! [-Q^T r; 0]` by QR again. `D = diag(d_i)` with `d_i` the largest Euclidean norm of column `i`
+//! of `J` seen so far (Moré 1978), which makes the method invariant to the units of each
+//! parameter. The Marquardt factor `lambda` follows Nielsen's (1999) rule: with the gain ratio
+//! `rho = (actual reduction)/(predicted reduction)`, an accepted step (`rho > 0`) sets
+//! `lambda *= max(1/3, 1 - (2 rho - 1)^3)`, a rejected one `lambda *= nu, nu *= 2`.
+//!
+//! A fit that runs but does not converge is not an error: [`minimize`] returns a [`LmReport`]
+//! with `converged == false` and the [`Termination`] reason.
+
+use crate::{Error, Result};
+use faer::prelude::*;
+use faer::Mat;
+
+/// A nonlinear least-squares problem: residuals `r(p)` and their Jacobian `dr/dp`.
+///
+/// The cost minimised is `1/2 sum r_i^2`: put weights in the residuals (`sqrt(w_i) e_i`).
+pub trait Problem {
+    /// Number of parameters `n` (the length of `p`).
+    fn n_params(&self) -> usize;
+    /// Number of residuals `m` (the length of `r`).
+    fn n_residuals(&self) -> usize;
+    /// Evaluate the residuals `r(p)` into `r` (length [`Problem::n_residuals`]) and, when `jac`
+    /// is `Some`, the Jacobian `J_ij = d r_i / d p_j` into it (an `m x n` faer matrix, already
+    /// sized; every entry must be written).
+    ///
+    /// # Errors
+    /// Any error: at the starting point it is returned by [`minimize`]; at a trial point it only
+    /// makes [`minimize`] reject that step (as a non-finite residual does).
+    fn eval(&mut self, p: &[f64], r: &mut [f64], jac: Option<&mut Mat<f64>>) -> Result<()>;
+}
+
+/// Wraps a [`Problem`] whose Jacobian is not available (or not trusted) and replaces it with
+/// central finite differences, step `h_j = rel_step * max(|p_j|, 1)`.
+///
+/// The inner problem is always called with `jac = None`. Costs `2 n` extra residual evaluations
+/// per Jacobian.
+#[derive(Debug, Clone)]
+pub struct FiniteDiff<P> {
+    /// The problem whose residuals are differentiated.
+    pub inner: P,
+    /// Relative step; `6e-6` (about the cube root of machine epsilon) is right for central
+    /// differences of smooth residuals.
+    pub rel_step: f64,
+}
+
+impl<P: Problem> FiniteDiff<P> {
+    /// Wrap `inner` with the default relative step `6e-6`.
+    pub fn new(inner: P) -> Self {
+        Self {
+            inner,
+            rel_step: 6e-6,
+        }
+    }
+}
+
+impl<P: Problem> Problem for FiniteDiff<P> {
+    fn n_params(&self) -> usize {
+        self.inner.n_params()
+    }
+    fn n_residuals(&self) -> usize {
+        self.inner.n_residuals()
+    }
+    fn eval(&mut self, p: &[f64], r: &mut [f64], jac: Option<&mut Mat<f64>>) -> Result<()> {
+        self.inner.eval(p, r, None)?;
+        if let Some(jac) = jac {
+            let m = r.len();
+            let mut pp = p.to_vec();
+            let (mut rp, mut rm) = (vec![0.0; m], vec![0.0; m]);
+            for j in 0..p.len() {
+                let h = self.rel_step * p[j].abs().max(1.0);
+                pp[j] = p[j] + h;
+                self.inner.eval(&pp, &mut rp, None)?;
+                pp[j] = p[j] - h;
+                self.inner.eval(&pp, &mut rm, None)?;
+                pp[j] = p[j];
+                for i in 0..m {
+                    jac[(i, j)] = (rp[i] - rm[i]) / (2.0 * h);
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Options of [`minimize`]. `LmOptions::default()` suits most problems.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LmOptions {
+    /// Stop after this many iterations (Jacobian evaluations). Default 200.
+    pub max_iterations: usize,
+    /// Stop after this many residual evaluations (0: `100 (n + 1)` plus the iterations). Default 0.
+    pub max_evaluations: usize,
+    /// Gradient test: stop when `max_j |g_j| / (||J_j|| ||r||) <= gtol`, `g = J^T r` (the cosine
+    /// between the residual and each Jacobian column). Default 1e-10.
+    pub gtol: f64,
+    /// Step test: stop when `||D d|| <= xtol (||D p|| + xtol)`. Default 1e-10.
+    pub xtol: f64,
+    /// Cost test: stop when the actual and the predicted relative reductions of the cost are both
+    /// `<= ftol`. Default 1e-12.
+    pub ftol: f64,
+    /// Starting Marquardt factor, relative to `D^2 = diag(J^T J)` (Marquardt's 1963 scaling).
+    /// Default 1e-3.
+    pub initial_lambda: f64,
+    /// Scale the damping by the Jacobian column norms (Moré). If false, `D = I`. Default true.
+    pub scale: bool,
+    /// Compute the covariance and standard errors at the solution. Default true.
+    pub covariance: bool,
+}
+
+impl Default for LmOptions {
+    fn default() -> Self {
+        Self {
+            max_iterations: 200,
+            max_evaluations: 0,
+            gtol: 1e-10,
+            xtol: 1e-10,
+            ftol: 1e-12,
+            initial_lambda: 1e-3,
+            scale: true,
+            covariance: true,
+        }
+    }
+}
+
+/// Why [`minimize`] stopped.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[non_exhaustive]
+pub enum Termination {
+    /// The residuals are exactly zero.
+    ZeroResidual,
+    /// The gradient test ([`LmOptions::gtol`]) passed: a stationary point.
+    SmallGradient,
+    /// The step test ([`LmOptions::xtol`]) passed.
+    SmallStep,
+    /// The cost test ([`LmOptions::ftol`]) passed.
+    SmallCostChange,
+    /// No step lowers the cost even with a very large `lambda` (the minimum at the working
+    /// precision, or a badly wrong Jacobian). Not counted as converged.
+    NoProgress,
+    /// [`LmOptions::max_iterations`] reached.
+    MaxIterations,
+    /// [`LmOptions::max_evaluations`] reached.
+    MaxEvaluations,
+}
+
+impl Termination {
+    /// Whether this reason counts as convergence.
+    pub fn is_converged(self) -> bool {
+        matches!(
+            self,
+            Self::ZeroResidual | Self::SmallGradient | Self::SmallStep | Self::SmallCostChange
+        )
+    }
+}
+
+/// The result of [`minimize`] (like scipy's `OptimizeResult`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct LmReport {
+    /// The parameters at the end (the best point found).
+    pub params: Vec<f64>,
+    /// The cost `1/2 sum r_i^2` at `params` (half the sum of squared residuals).
+    pub cost: f64,
+    /// The residuals at `params`.
+    pub residuals: Vec<f64>,
+    /// Iterations done (Jacobian evaluations after the first).
+    pub iterations: usize,
+    /// Residual evaluations done (including the first).
+    pub evaluations: usize,
+    /// Why it stopped.
+    pub termination: Termination,
+    /// `termination.is_converged()`.
+    pub converged: bool,
+    /// Parameter covariance `sigma^2 (J^T J)^-1`, `sigma^2 = SSR/(m - n)`, row-major `n x n`; `None`
+    /// if not asked, if `m <= n`, or if `J` is rank deficient at the solution.
+    pub covariance: Option<Vec<f64>>,
+    /// Standard errors `sqrt(diag(covariance))`.
+    pub std_errors: Option<Vec<f64>>,
+    /// The Marquardt factor at the end (relative to `D^2`).
+    pub lambda: f64,
+    /// `max_j |g_j| / (||J_j|| ||r||)` at the end (see [`LmOptions::gtol`]).
+    pub gradient_cosine: f64,
+}
+
+impl LmReport {
+    /// The covariance entry `(i, j)`, if computed.
+    pub fn cov(&self, i: usize, j: usize) -> Option<f64> {
+        let n = self.params.len();
+        self.covariance.as_ref().map(|c| c[i * n + j])
+    }
+
+    /// The sum of squared residuals `2 cost`.
+    pub fn ssr(&self) -> f64 {
+        2.0 * self.cost
+    }
+}
+
+fn sumsq(r: &[f64]) -> f64 {
+    r.iter().map(|x| x * x).sum()
+}
+
+fn norm(v: &[f64]) -> f64 {
+    sumsq(v).sqrt()
+}
+
+/// Minimise `1/2 sum_i r_i(p)^2` from `p0` by Levenberg-Marquardt (see the [module docs](self)).
+///
+/// ```
+/// use ident::lm::{minimize, LmOptions, Problem};
+/// use faer::Mat;
+///
+/// // Fit y = a exp(-b t) to exact data with a = 2, b = 0.5.
+/// struct Exp { t: Vec<f64>, y: Vec<f64> }
+/// impl Problem for Exp {
+///     fn n_params(&self) -> usize { 2 }
+///     fn n_residuals(&self) -> usize { self.t.len() }
+///     fn eval(&mut self, p: &[f64], r: &mut [f64], jac: Option<&mut Mat<f64>>) -> ident::Result<()> {
+///         for (i, (&t, &y)) in self.t.iter().zip(&self.y).enumerate() {
+///             r[i] = p[0] * (-p[1] * t).exp() - y;
+///         }
+///         if let Some(j) = jac {
+///             for (i, &t) in self.t.iter().enumerate() {
+///                 j[(i, 0)] = (-p[1] * t).exp();
+///                 j[(i, 1)] = -p[0] * t * (-p[1] * t).exp();
+///             }
+///         }
+///         Ok(())
+///     }
+/// }
+/// let t: Vec<f64> = (0..20).map(|i| i as f64 * 0.5).collect();
+/// let y = t.iter().map(|t| 2.0 * (-0.5 * t).exp()).collect();
+/// let rep = minimize(&mut Exp { t, y }, &[1.0, 1.0], &LmOptions::default()).unwrap();
+/// assert!(rep.converged);
+/// assert!((rep.params[0] - 2.0).abs() < 1e-8 && (rep.params[1] - 0.5).abs() < 1e-8);
+/// ```
+///
+/// # Errors
+/// [`Error::Options`] for a wrong `p0` length, no parameters, no residuals or bad options;
+/// [`Error::Numerical`] for non-finite residuals or Jacobian at `p0` (or later at an accepted
+/// point); any error of [`Problem::eval`] at `p0`. Non-convergence is *not* an error.
+pub fn minimize(problem: &mut impl Problem, p0: &[f64], opts: &LmOptions) -> Result<LmReport> {
+    let n = problem.n_params();
+    let m = problem.n_residuals();
+    if n == 0 || m == 0 {
+        return Err(Error::Options(format!(
+            "Levenberg-Marquardt needs at least one parameter and one residual (got {n} and {m})"
+        )));
+    }
+    if p0.len() != n {
+        return Err(Error::Options(format!(
+            "starting point has {} parameters, the problem {n}",
+            p0.len()
+        )));
+    }
+    if let Some(i) = p0.iter().position(|v| !v.is_finite()) {
+        return Err(Error::Options(format!(
+            "starting parameter {i} is {}",
+            p0[i]
+        )));
+    }
+    let tols = [opts.gtol, opts.xtol, opts.ftol, opts.initial_lambda];
+    if tols.iter().any(|t| !t.is_finite() || *t < 0.0) || opts.initial_lambda <= 0.0 {
+        return Err(Error::Options(
+            "tolerances must be finite and >= 0, initial_lambda > 0".into(),
+        ));
+    }
+    let max_evals = if opts.max_evaluations == 0 {
+        100 * (n + 1) + opts.max_iterations
+    } else {
+        opts.max_evaluations
+    };
+
+    let mut p = p0.to_vec();
+    let mut r = vec![0.0; m];
+    let mut jac = Mat::<f64>::zeros(m, n);
+    problem.eval(&p, &mut r, Some(&mut jac))?;
+    let mut evaluations = 1;
+    check_finite(&r, &jac, "at the starting point")?;
+    let mut cost = 0.5 * sumsq(&r);
+
+    let mut diag = vec![0.0f64; n];
+    let mut lambda = opts.initial_lambda;
+    let mut nu = 2.0;
+    let mut iterations = 0;
+    let mut r_trial = vec![0.0; m];
+    let mut p_trial = vec![0.0; n];
+    let mut gcos;
+
+    let termination = 'outer: loop {
+        // -- gradient test and scaling --
+        let col_norms: Vec<f64> = (0..n).map(|j| norm(jac.col_as_slice(j))).collect();
+        let rnorm = norm(&r);
+        gcos = gradient_cosine(&jac, &r, &col_norms, rnorm);
+        if cost == 0.0 {
+            break Termination::ZeroResidual;
+        }
+        if gcos <= opts.gtol {
+            break Termination::SmallGradient;
+        }
+        for j in 0..n {
+            diag[j] = if opts.scale {
+                diag[j].max(col_norms[j])
+            } else {
+                1.0
+            };
+            if diag[j] == 0.0 {
+                diag[j] = 1.0; // a parameter with no influence: damp it with unit weight
+            }
+        }
+        if iterations >= opts.max_iterations {
+            break Termination::MaxIterations;
+        }
+        iterations += 1;
+
+        // -- one QR of [J r] per iteration: R and Q^T r --
+        let (rmat, qtr) = qr_of_jr(&jac, &r);
+
+        // -- inner loop over lambda until a step lowers the cost --
+        loop {
+            if evaluations >= max_evals {
+                break 'outer Termination::MaxEvaluations;
+            }
+            if lambda > 1e30 {
+                break 'outer Termination::NoProgress;
+            }
+            let d = damped_step(&rmat, &qtr, &diag, lambda);
+            let dnorm = norm(&d.iter().zip(&diag).map(|(a, b)| a * b).collect::<Vec<_>>());
+            let pnorm = norm(&p.iter().zip(&diag).map(|(a, b)| a * b).collect::<Vec<_>>());
+            // predicted cost: 1/2 ||r + J d||^2
+            let mut lin = r.clone();
+            for j in 0..n {
+                let col = jac.col_as_slice(j);
+                for i in 0..m {
+                    lin[i] += col[i] * d[j];
+                }
+            }
+            let pred = cost - 0.5 * sumsq(&lin);
+            for j in 0..n {
+                p_trial[j] = p[j] + d[j];
+            }
+            evaluations += 1;
+            let ok = d.iter().all(|v| v.is_finite())
+                && problem.eval(&p_trial, &mut r_trial, None).is_ok()
+                && r_trial.iter().all(|v| v.is_finite());
+            let cost_trial = if ok {
+                0.5 * sumsq(&r_trial)
+            } else {
+                f64::INFINITY
+            };
+            let actual = cost - cost_trial;
+            let rho = if pred > 0.0 { actual / pred } else { -1.0 };
+
+            let small_cost =
+                ok && actual.abs() <= opts.ftol * cost && pred <= opts.ftol * cost && rho <= 2.0;
+            let small_step = dnorm <= opts.xtol * (pnorm + opts.xtol);
+
+            if ok && rho > 0.0 && actual > 0.0 {
+                // accept
+                std::mem::swap(&mut p, &mut p_trial);
+                cost = cost_trial;
+                problem.eval(&p, &mut r, Some(&mut jac))?;
+                evaluations += 1;
+                check_finite(&r, &jac, "at an accepted point")?;
+                cost = cost.min(0.5 * sumsq(&r)).max(0.0);
+                let t = 2.0 * rho - 1.0;
+                lambda *= (1.0 - t * t * t).max(1.0 / 3.0);
+                nu = 2.0;
+                if small_cost {
+                    let cn: Vec<f64> = (0..n).map(|j| norm(jac.col_as_slice(j))).collect();
+                    gcos = gradient_cosine(&jac, &r, &cn, norm(&r));
+                    break 'outer Termination::SmallCostChange;
+                }
+                if small_step {
+                    let cn: Vec<f64> = (0..n).map(|j| norm(jac.col_as_slice(j))).collect();
+                    gcos = gradient_cosine(&jac, &r, &cn, norm(&r));
+                    break 'outer Termination::SmallStep;
+                }
+                break;
+            }
+            // reject
+            if small_cost {
+                break 'outer Termination::SmallCostChange;
+            }
+            if small_step && ok {
+                break 'outer Termination::SmallStep;
+            }
+            lambda *= nu;
+            nu *= 2.0;
+        }
+    };
+
+    let (covariance, std_errors) = if opts.covariance && m > n {
+        match covariance(&jac, sumsq(&r) / (m - n) as f64) {
+            Some(c) => {
+                let se = (0..n).map(|i| c[i * n + i].max(0.0).sqrt()).collect();
+                (Some(c), Some(se))
+            }
+            None => (None, None),
+        }
+    } else {
+        (None, None)
+    };
+
+    Ok(LmReport {
+        params: p,
+        cost,
+        residuals: r,
+        iterations,
+        evaluations,
+        termination,
+        converged: termination.is_converged(),
+        covariance,
+        std_errors,
+        lambda,
+        gradient_cosine: gcos,
+    })
+}
+
+fn check_finite(r: &[f64], jac: &Mat<f64>, when: &str) -> Result<()> {
+    if let Some(i) = r.iter().position(|v| !v.is_finite()) {
+        return Err(Error::Numerical(format!("residual {i} is {} {when}", r[i])));
+    }
+    for j in 0..jac.ncols() {
+        if let Some(i) = jac.col_as_slice(j).iter().position(|v| !v.is_finite()) {
+            return Err(Error::Numerical(format!(
+                "Jacobian entry ({i}, {j}) is {} {when}",
+                jac[(i, j)]
+            )));
+        }
+    }
+    Ok(())
+}
+
+fn gradient_cosine(jac: &Mat<f64>, r: &[f64], col_norms: &[f64], rnorm: f64) -> f64 {
+    if rnorm == 0.0 {
+        return 0.0;
+    }
+    (0..jac.ncols())
+        .map(|j| {
+            if col_norms[j] == 0.0 {
+                0.0
+            } else {
+                let g: f64 = jac.col_as_slice(j).iter().zip(r).map(|(a, b)| a * b).sum();
+                g.abs() / (col_norms[j] * rnorm)
+            }
+        })
+        .fold(0.0, f64::max)
+}
+
+/// QR of `[J r]`: returns the `k x n` upper-trapezoidal `R` (k = min(m, n)) and `Q^T r` (length k).
+fn qr_of_jr(jac: &Mat<f64>, r: &[f64]) -> (Mat<f64>, Vec<f64>) {
+    let (m, n) = (jac.nrows(), jac.ncols());
+    let a = Mat::<f64>::from_fn(m, n + 1, |i, j| if j < n { jac[(i, j)] } else { r[i] });
+    let qr = a.qr();
+    let rr = qr.thin_R();
+    let k = m.min(n);
+    let rmat = Mat::<f64>::from_fn(k, n, |i, j| rr[(i, j)]);
+    let qtr = (0..k).map(|i| rr[(i, n)]).collect();
+    (rmat, qtr)
+}
+
+/// Solve `min || R d + Q^T r ||^2 + lambda || D d ||^2` by QR of `[R; sqrt(lambda) D]`.
+fn damped_step(rmat: &Mat<f64>, qtr: &[f64], diag: &[f64], lambda: f64) -> Vec<f64> {
+    let (k, n) = (rmat.nrows(), rmat.ncols());
+    let sl = lambda.sqrt();
+    let a = Mat::<f64>::from_fn(k + n, n, |i, j| {
+        if i < k {
+            rmat[(i, j)]
+        } else if i - k == j {
+            sl * diag[j]
+        } else {
+            0.0
+        }
+    });
+    let b = Mat::<f64>::from_fn(k + n, 1, |i, _| if i < k { -qtr[i] } else { 0.0 });
+    let x = a.qr().solve_lstsq(&b);
+    (0..n).map(|j| x[(j, 0)]).collect()
+}
+
+/// `sigma2 (J^T J)^-1 = sigma2 R^-1 R^-T` from the QR of `J`, row-major; `None` if `R` is
+/// numerically singular (a diagonal entry below `1e-13` times the largest).
+fn covariance(jac: &Mat<f64>, sigma2: f64) -> Option<Vec<f64>> {
+    let n = jac.ncols();
+    let qr = jac.qr();
+    let r = qr.thin_R();
+    let rmax = (0..n).map(|i| r[(i, i)].abs()).fold(0.0, f64::max);
+    // 1e-13: about 500 ulp relative; below this the inverse is dominated by rounding.
+    if rmax == 0.0 || (0..n).any(|i| r[(i, i)].abs() <= 1e-13 * rmax) {
+        return None;
+    }
+    // Rinv, upper triangular, by back substitution column by column.
+    let mut rinv = vec![0.0; n * n]; // row-major
+    for c in 0..n {
+        for i in (0..=c).rev() {
+            let mut s = if i == c { 1.0 } else { 0.0 };
+            for k in i + 1..=c {
+                s -= r[(i, k)] * rinv[k * n + c];
+            }
+            rinv[i * n + c] = s / r[(i, i)];
+        }
+    }
+    let mut cov = vec![0.0; n * n];
+    for i in 0..n {
+        for j in 0..n {
+            let s: f64 = (i.max(j)..n)
+                .map(|k| rinv[i * n + k] * rinv[j * n + k])
+                .sum();
+            cov[i * n + j] = sigma2 * s;
+        }
+    }
+    if cov.iter().all(|v| v.is_finite()) {
+        Some(cov)
+    } else {
+        None
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Linear model y = a + b t: LM must give the OLS solution and its textbook covariance.
+    struct Line {
+        t: Vec<f64>,
+        y: Vec<f64>,
+    }
+    impl Problem for Line {
+        fn n_params(&self) -> usize {
+            2
+        }
+        fn n_residuals(&self) -> usize {
+            self.t.len()
+        }
+        fn eval(&mut self, p: &[f64], r: &mut [f64], jac: Option<&mut Mat<f64>>) -> Result<()> {
+            for i in 0..self.t.len() {
+                r[i] = p[0] + p[1] * self.t[i] - self.y[i];
+            }
+            if let Some(j) = jac {
+                for i in 0..self.t.len() {
+                    j[(i, 0)] = 1.0;
+                    j[(i, 1)] = self.t[i];
+                }
+            }
+            Ok(())
+        }
+    }
+
+    #[test]
+    fn linear_fit_and_covariance_match_ols() {
+        let t: Vec<f64> = (0..12).map(|i| i as f64).collect();
+        // deterministic "noise"
+        let y: Vec<f64> = t
+            .iter()
+            .enumerate()
+            .map(|(i, t)| 1.5 + 0.7 * t + 0.1 * ((i * 7 % 5) as f64 - 2.0))
+            .collect();
+        let rep = minimize(
+            &mut Line {
+                t: t.clone(),
+                y: y.clone(),
+            },
+            &[0.0, 0.0],
+            &LmOptions::default(),
+        )
+        .unwrap();
+        assert!(rep.converged, "{:?}", rep.termination);
+        // closed-form OLS
+        let nn = t.len() as f64;
+        let tm = t.iter().sum::<f64>() / nn;
+        let ym = y.iter().sum::<f64>() / nn;
+        let sxx: f64 = t.iter().map(|t| (t - tm).powi(2)).sum();
+        let sxy: f64 = t.iter().zip(&y).map(|(t, y)| (t - tm) * (y - ym)).sum();
+        let b = sxy / sxx;
+        let a = ym - b * tm;
+        // 1e-9: the problem is linear, LM must land on the OLS solution to rounding level.
+        assert!((rep.params[0] - a).abs() < 1e-9 && (rep.params[1] - b).abs() < 1e-9);
+        let ssr: f64 = t.iter().zip(&y).map(|(t, y)| (a + b * t - y).powi(2)).sum();
+        let s2 = ssr / (nn - 2.0);
+        let var_b = s2 / sxx;
+        let var_a = s2 * (1.0 / nn + tm * tm / sxx);
+        let cov_ab = -s2 * tm / sxx;
+        let rel = |x: f64, y: f64| ((x - y) / y).abs();
+        // 1e-9 relative: the covariance comes from the same QR; only rounding differs.
+        assert!(rel(rep.cov(0, 0).unwrap(), var_a) < 1e-9);
+        assert!(rel(rep.cov(1, 1).unwrap(), var_b) < 1e-9);
+        assert!(rel(rep.cov(0, 1).unwrap(), cov_ab) < 1e-9);
+        assert!(rel(rep.std_errors.as_ref().unwrap()[1], var_b.sqrt()) < 1e-9);
+        assert!((rep.ssr() - ssr).abs() < 1e-9 * ssr);
+    }
+
+    /// Rosenbrock as residuals r = (10 (y - x^2), 1 - x): a curved valley, minimum at (1, 1).
+    struct Rosen;
+    impl Problem for Rosen {
+        fn n_params(&self) -> usize {
+            2
+        }
+        fn n_residuals(&self) -> usize {
+            2
+        }
+        fn eval(&mut self, p: &[f64], r: &mut [f64], jac: Option<&mut Mat<f64>>) -> Result<()> {
+            r[0] = 10.0 * (p[1] - p[0] * p[0]);
+            r[1] = 1.0 - p[0];
+            if let Some(j) = jac {
+                j[(0, 0)] = -20.0 * p[0];
+                j[(0, 1)] = 10.0;
+                j[(1, 0)] = -1.0;
+                j[(1, 1)] = 0.0;
+            }
+            Ok(())
+        }
+    }
+
+    #[test]
+    fn rosenbrock_converges() {
+        let rep = minimize(&mut Rosen, &[-1.2, 1.0], &LmOptions::default()).unwrap();
+        assert!(rep.converged, "{:?}", rep.termination);
+        // 1e-8: zero-residual problem, LM converges quadratically to the exact minimum.
+        assert!((rep.params[0] - 1.0).abs() < 1e-8 && (rep.params[1] - 1.0).abs() < 1e-8);
+        assert!(rep.covariance.is_none()); // m == n: no degrees of freedom
+    }
+
+    #[test]
+    fn finite_diff_matches_and_max_iterations_reports() {
+        let mut fd = FiniteDiff::new(Rosen);
+        let rep = minimize(&mut fd, &[-1.2, 1.0], &LmOptions::default()).unwrap();
+        assert!(rep.converged);
+        assert!((rep.params[0] - 1.0).abs() < 1e-6);
+        let opts = LmOptions {
+            max_iterations: 2,
+            ..LmOptions::default()
+        };
+        let rep = minimize(&mut Rosen, &[-1.2, 1.0], &opts).unwrap();
+        assert!(!rep.converged);
+        assert_eq!(rep.termination, Termination::MaxIterations);
+    }
+
+    struct Bad;
+    impl Problem for Bad {
+        fn n_params(&self) -> usize {
+            1
+        }
+        fn n_residuals(&self) -> usize {
+            1
+        }
+        fn eval(&mut self, p: &[f64], r: &mut [f64], jac: Option<&mut Mat<f64>>) -> Result<()> {
+            r[0] = if p[0] > 0.0 { f64::NAN } else { p[0] + 1.0 };
+            if let Some(j) = jac {
+                j[(0, 0)] = 1.0;
+            }
+            Ok(())
+        }
+    }
+
+    #[test]
+    fn bad_input_is_error() {
+        assert!(matches!(
+            minimize(&mut Bad, &[1.0], &LmOptions::default()),
+            Err(Error::Numerical(_))
+        ));
+        assert!(matches!(
+            minimize(&mut Bad, &[1.0, 2.0], &LmOptions::default()),
+            Err(Error::Options(_))
+        ));
+        assert!(matches!(
+            minimize(&mut Bad, &[f64::NAN], &LmOptions::default()),
+            Err(Error::Options(_))
+        ));
+        // NaN at trial points is only a rejected step: minimum at p = -1 from the left
+        let rep = minimize(&mut Bad, &[-3.0], &LmOptions::default()).unwrap();
+        assert!(rep.converged);
+        assert!((rep.params[0] + 1.0).abs() < 1e-10);
+    }
+}
