@@ -19,3 +19,11 @@ pub mod tf;
 pub use error::{Error, Result};
 pub use scalar::{Dual, Real};
 pub use tf::{jw_pow, FracTf, Term};
+pub mod approx;
+pub mod discrete;
+pub mod gl;
+pub mod prbs;
+pub mod special;
+
+pub use approx::{ApproxSpec, Discretization, Method};
+pub use discrete::{lsim, Simulator};

@@ -269,7 +269,8 @@ mod tests {
 
     #[test]
     fn dual_derivatives_match_finite_differences() {
-        let f = |x: Dual<2>, y: Dual<2>| (x * y).exp() / (y + 1.0) + x.powr(y) - y.sqrt().tan() * 3.0;
+        let f =
+            |x: Dual<2>, y: Dual<2>| (x * y).exp() / (y + 1.0) + x.powr(y) - y.sqrt().tan() * 3.0;
         let (x0, y0) = (0.7, 1.3);
         let r = f(Dual::var(x0, 0), Dual::var(y0, 1));
         let h = 1e-6;

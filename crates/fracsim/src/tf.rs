@@ -52,7 +52,10 @@ fn normalise(what: &'static str, terms: &[Term]) -> Result<Vec<Term>> {
         if t.order < 0.0 {
             return invalid(
                 "order",
-                format!("{} is negative; move s^{} to the other side", t.order, -t.order),
+                format!(
+                    "{} is negative; move s^{} to the other side",
+                    t.order, -t.order
+                ),
             );
         }
         if t.order > 20.0 {
@@ -85,7 +88,10 @@ impl FracTf {
         }
         finite("delay", delay)?;
         if delay < 0.0 {
-            return invalid("delay", format!("{delay} s is negative (a non-causal model)"));
+            return invalid(
+                "delay",
+                format!("{delay} s is negative (a non-causal model)"),
+            );
         }
         Ok(Self { num, den, delay })
     }
@@ -130,10 +136,7 @@ impl FracTf {
     /// `(j w)^a = w^a (cos(a pi/2) + j sin(a pi/2))`.
     pub fn freq_response(&self, omega: f64) -> Complex64 {
         let eval = |terms: &[Term]| -> Complex64 {
-            terms
-                .iter()
-                .map(|t| jw_pow(omega, t.order) * t.coef)
-                .sum()
+            terms.iter().map(|t| jw_pow(omega, t.order) * t.coef).sum()
         };
         let g = eval(&self.num) / eval(&self.den);
         if self.delay != 0.0 {
@@ -199,7 +202,11 @@ fn fmt_poly(terms: &[Term]) -> String {
     }
     let mut s = String::new();
     for (i, t) in terms.iter().enumerate() {
-        let (sign, c) = if t.coef < 0.0 { ("-", -t.coef) } else { ("+", t.coef) };
+        let (sign, c) = if t.coef < 0.0 {
+            ("-", -t.coef)
+        } else {
+            ("+", t.coef)
+        };
         if i > 0 {
             s.push_str(&format!(" {sign} "));
         } else if sign == "-" {
@@ -334,7 +341,10 @@ fn lex(src: &str) -> Result<Vec<(usize, Tok)>> {
             _ => {
                 return perr(
                     start,
-                    format!("unexpected character '{}'", src[start..].chars().next().unwrap_or('?')),
+                    format!(
+                        "unexpected character '{}'",
+                        src[start..].chars().next().unwrap_or('?')
+                    ),
                 )
             }
         }
@@ -382,7 +392,12 @@ impl Val {
             return None;
         }
         let d = self.den[0].coef;
-        Some(self.num.iter().map(|t| Term::new(t.coef / d, t.order)).collect())
+        Some(
+            self.num
+                .iter()
+                .map(|t| Term::new(t.coef / d, t.order))
+                .collect(),
+        )
     }
     fn mul(self, o: Val) -> Val {
         Val {
@@ -532,7 +547,10 @@ impl Parser<'_> {
                     })
                 }
             }
-            _ => perr(pos, "only a single term like 's' or '2 s^0.5' can be raised to a power"),
+            _ => perr(
+                pos,
+                "only a single term like 's' or '2 s^0.5' can be raised to a power",
+            ),
         }
     }
     fn atom(&mut self) -> Result<Val> {
@@ -617,14 +635,18 @@ mod tests {
 
     #[test]
     fn parses_the_paper_models() {
-        let g: FracTf = "6.82/(0.00002655 s^1.7452 + 0.0059 s^0.92 + 1)".parse().unwrap();
+        let g: FracTf = "6.82/(0.00002655 s^1.7452 + 0.0059 s^0.92 + 1)"
+            .parse()
+            .unwrap();
         assert_eq!(g.num, vec![Term::new(6.82, 0.0)]);
         assert_eq!(g.den.len(), 3);
         assert_relative_eq!(g.den[0].coef, 2.655e-5);
         assert_relative_eq!(g.den[0].order, 1.7452);
         assert_relative_eq!(g.den[1].coef, 0.0059);
         assert_relative_eq!(g.den[2].coef, 1.0);
-        let d: FracTf = "exp(-0.001 s) * 6.77/(2.8e-5s^1.78+6.4e-3*s^0.89+1)".parse().unwrap();
+        let d: FracTf = "exp(-0.001 s) * 6.77/(2.8e-5s^1.78+6.4e-3*s^0.89+1)"
+            .parse()
+            .unwrap();
         assert_relative_eq!(d.delay, 0.001);
         assert_relative_eq!(d.den[0].coef, 2.8e-5);
     }
@@ -646,16 +668,36 @@ mod tests {
     fn products_and_quotients_multiply_out() {
         let g: FracTf = "2/((s^0.5 + 1)(s^0.5 + 2))".parse().unwrap();
         // (s^.5+1)(s^.5+2) = s + 3 s^.5 + 2
-        assert_eq!(g.den, vec![Term::new(1.0, 1.0), Term::new(3.0, 0.5), Term::new(2.0, 0.0)]);
+        assert_eq!(
+            g.den,
+            vec![
+                Term::new(1.0, 1.0),
+                Term::new(3.0, 0.5),
+                Term::new(2.0, 0.0)
+            ]
+        );
         assert_relative_eq!(g.dc_gain(), 1.0);
     }
 
     #[test]
     fn bad_models_are_errors() {
         for bad in [
-            "", "6.8/(", "6.8/(s^ * 1)", "6.8/(x + 1)", "6.8/0", "1/(0 s + 0)", "1e400/(s+1)",
-            "nan/(s+1)", "1/(s+1) + 1/(s+2)", "exp(s^2)/(s+1)", "1/(s+1))", "1/(s^-0.5 + 1)*s^-2",
-            "exp(0.1 s)/(s+1)", "1/(s^30+1)", "(1)", "s^0.5",
+            "",
+            "6.8/(",
+            "6.8/(s^ * 1)",
+            "6.8/(x + 1)",
+            "6.8/0",
+            "1/(0 s + 0)",
+            "1e400/(s+1)",
+            "nan/(s+1)",
+            "1/(s+1) + 1/(s+2)",
+            "exp(s^2)/(s+1)",
+            "1/(s+1))",
+            "1/(s^-0.5 + 1)*s^-2",
+            "exp(0.1 s)/(s+1)",
+            "1/(s^30+1)",
+            "(1)",
+            "s^0.5",
         ] {
             let r: Result<FracTf> = bad.parse();
             // "(1)" and "s^0.5" are valid (constant gain, a differentiator): skip them.
