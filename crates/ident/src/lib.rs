@@ -5,8 +5,10 @@
 //!   structure in the frequency domain.
 //! - [`lm`]: a Levenberg-Marquardt solver (Marquardt 1963) with a report of why it stopped.
 //! - [`oe`]: output-error identification in the time domain with exact sensitivities.
+//! - [`data`]: records `t, u, y` from delimited text, sampling checks, operating point, split.
 //! - [`metrics`]: fit measures (NRMSE, RMSE), residual correlations with their bounds.
 
+pub mod data;
 mod error;
 pub mod levy;
 pub mod lm;

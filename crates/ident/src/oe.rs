@@ -1,1 +1,474 @@
-//! (being written)
+//! Output-error identification of fractional transfer functions in the time domain
+//! (DESIGN §5; Poinot & Trigeassou 2004; the reference paper's eqs. 12-18).
+//!
+//! The residual is `e_k = y_k - yhat_k(theta)` with `yhat` the simulated output of the model on the
+//! measured input; `theta` minimises `sum e_k^2` by Levenberg-Marquardt (Marquardt 1963). The
+//! output sensitivities `d yhat_k / d theta` are exact for the discretised model: the simulation
+//! runs with forward-mode dual numbers ([`fracsim::Dual`]), which is the paper's sensitivity
+//! systems (eqs. 14-18) differentiated through the discrete recursion.
+//!
+//! - [`FracModel`]: a fractional transfer function whose coefficients and orders are linear
+//!   expressions ([`Expr`]) of named parameters ([`Param`]), with an optional input delay and
+//!   per-sample [`Effect`]s (offsets, friction, saturation, ...). Presets: [`FracModel::pmsm`]
+//!   (paper eq. 10), [`FracModel::commensurate`] (eq. 20), [`FracModel::fopdt`].
+//! - [`Structure`]: the extension point. Anything that can simulate its output for parameters of
+//!   any [`Real`] type can be fitted by [`fit`].
+//! - [`fit`]: the OE-LM fit on plain slices (deviations); [`identify`]: the whole procedure on a
+//!   [`Record`] (operating point, split, automatic start, metrics).
+//! - [`init`]: a start that needs no guess (frequency response from the data, then a commensurate
+//!   Levy fit).
+//!
+//! Bounds are kept by reparametrisation ([`Bounds`]): positive coefficients as `exp(theta)`,
+//! bounded quantities (orders in `(0, 2)`, the delay) as `lo + (hi - lo) sigmoid(theta)`. Standard
+//! errors come from `sigma_e^2 (J^T J)^-1` in `theta` and are carried to the parameters by the
+//! delta method.
+//!
+//! ```no_run
+//! use ident::oe::{identify, FracModel, IdentOptions};
+//! let rec = ident::data::Record::parse(&std::fs::read_to_string("data.csv").unwrap(),
+//!                                      &Default::default()).unwrap();
+//! let id = identify(&rec, &FracModel::pmsm(1.0, 0.01, 1e-4, 0.9, 0.9), &IdentOptions::default())
+//!     .unwrap();
+//! println!("{} fit {:.1}%", id.tf, id.validation.unwrap().nrmse_percent);
+//! ```
+
+mod effects;
+mod fit;
+pub mod init;
+
+pub use effects::Effect;
+pub use fit::{
+    check_params, fit, fit_with_progress, identify, identify_with_progress, sensitivities, FitOptions,
+    FitReport, IdentOptions, Identification, ParamEstimate, StartMode,
+};
+
+use crate::{Error, Result};
+use fracsim::{ApproxSpec, FracTf, Real, Simulator, Term};
+
+/// How a parameter is kept in its range by reparametrisation (the solver works on `theta`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Bounds {
+    /// Unbounded: `p = theta`.
+    Free,
+    /// Positive: `p = exp(theta)`.
+    Positive,
+    /// Open interval: `p = lo + (hi - lo) / (1 + exp(-theta))`.
+    Interval(f64, f64),
+}
+
+impl Bounds {
+    /// `p(theta)`.
+    #[inline]
+    pub fn to_param<T: Real>(self, theta: T) -> T {
+        match self {
+            Bounds::Free => theta,
+            Bounds::Positive => theta.exp(),
+            Bounds::Interval(lo, hi) => T::from(1.0) / ((-theta).exp() + 1.0) * (hi - lo) + lo,
+        }
+    }
+
+    /// `theta(p)`.
+    ///
+    /// # Errors
+    /// [`Error::Options`] when `p` is outside the open range.
+    pub fn to_theta(self, p: f64, name: &str) -> Result<f64> {
+        match self {
+            Bounds::Free => Ok(p),
+            Bounds::Positive if p > 0.0 => Ok(p.ln()),
+            Bounds::Interval(lo, hi) if p > lo && p < hi => {
+                let s = (p - lo) / (hi - lo);
+                Ok((s / (1.0 - s)).ln())
+            }
+            _ => Err(Error::Options(format!(
+                "starting value {p} of {name} is outside its range {self:?}"
+            ))),
+        }
+    }
+
+    /// Clamp a starting value strictly inside the range (1e-6 of the width from an edge).
+    pub fn clamp_inside(self, p: f64) -> f64 {
+        match self {
+            Bounds::Free => p,
+            Bounds::Positive => p.max(1e-300),
+            Bounds::Interval(lo, hi) => {
+                let m = 1e-6 * (hi - lo);
+                p.clamp(lo + m, hi - m)
+            }
+        }
+    }
+
+    /// Whether `p` is within 0.5% of the width of an interval edge (a fit that ran to a bound).
+    pub fn at_edge(self, p: f64) -> bool {
+        match self {
+            Bounds::Interval(lo, hi) => {
+                let m = 5e-3 * (hi - lo);
+                p < lo + m || p > hi - m
+            }
+            _ => false,
+        }
+    }
+}
+
+/// A named model parameter: its (starting) value, its range, and whether it is fitted.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Param {
+    /// Name used in reports (`K`, `a1`, `zeta`, ...).
+    pub name: String,
+    /// Starting value (or the fixed value).
+    pub value: f64,
+    /// Range kept by reparametrisation.
+    pub bounds: Bounds,
+    /// Fitted (true) or held at `value`.
+    pub free: bool,
+}
+
+impl Param {
+    /// A free parameter.
+    pub fn new(name: &str, value: f64, bounds: Bounds) -> Self {
+        Self {
+            name: name.into(),
+            value,
+            bounds,
+            free: true,
+        }
+    }
+    /// A free positive coefficient (`exp` parametrisation).
+    pub fn positive(name: &str, value: f64) -> Self {
+        Self::new(name, value, Bounds::Positive)
+    }
+    /// A free order in `(0, 2)` (`2 sigmoid` parametrisation).
+    pub fn order(name: &str, value: f64) -> Self {
+        Self::new(name, value, Bounds::Interval(0.0, 2.0))
+    }
+    /// The same parameter, held fixed.
+    pub fn fixed(mut self) -> Self {
+        self.free = false;
+        self
+    }
+}
+
+/// A linear expression `constant + sum_i c_i p_i` of the parameters, for coefficients and orders
+/// (the PMSM's highest order is `zeta + theta`, the commensurate model's `2 q`).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Expr {
+    /// The constant part.
+    pub constant: f64,
+    /// `(parameter index, factor)` pairs.
+    pub terms: Vec<(usize, f64)>,
+}
+
+impl Expr {
+    /// A constant.
+    pub fn cst(c: f64) -> Self {
+        Self {
+            constant: c,
+            terms: vec![],
+        }
+    }
+    /// Parameter `i`.
+    pub fn p(i: usize) -> Self {
+        Self {
+            constant: 0.0,
+            terms: vec![(i, 1.0)],
+        }
+    }
+    /// `sum_i c_i p_i`.
+    pub fn sum(terms: &[(usize, f64)]) -> Self {
+        Self {
+            constant: 0.0,
+            terms: terms.to_vec(),
+        }
+    }
+    /// The value for parameters `p`.
+    #[inline]
+    pub fn eval<T: Real>(&self, p: &[T]) -> T {
+        let mut v = T::from(self.constant);
+        for &(i, c) in &self.terms {
+            v += p[i] * c;
+        }
+        v
+    }
+}
+
+/// A model that [`fit`] can identify: a parameter list and a simulation generic over [`Real`].
+///
+/// Implement this to fit any model by output error; [`FracModel`] is the fractional transfer
+/// function with effects. `simulate` is called with `T = f64` for the output and with
+/// `T = Dual<N>` for the output and its exact sensitivities, so it must use only [`Real`]
+/// operations on parameter-dependent values, and should not allocate per sample.
+pub trait Structure: Sync {
+    /// All parameters (free and fixed), with starting values.
+    fn params(&self) -> &[Param];
+    /// Simulate the output deviation `y[k]` (same length as `u`) for the input deviation `u`,
+    /// sampled every `dt` seconds from rest, for parameter values `p` (one per [`Structure::params`]).
+    ///
+    /// # Errors
+    /// Parameter values the model cannot simulate (a simulation error, a non-finite output).
+    fn simulate<T: Real>(&self, p: &[T], u: &[f64], dt: f64, y: &mut [T]) -> Result<()>;
+}
+
+/// The kind of a [`FracModel`], which decides how an automatic start is made.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Kind {
+    /// `K / (a2 s^(zeta+theta) + a1 s^zeta + 1)`, parameters `K, a1, a2, zeta, theta`.
+    Pmsm,
+    /// `K / (a2 s^(2q) + a1 s^q + 1)`, parameters `K, a1, a2, q`.
+    Commensurate,
+    /// `K / (T s + 1)` with delay, parameters `K, T, tau`.
+    Fopdt,
+    /// Anything else: starts from the given values.
+    General,
+}
+
+/// A fractional transfer function
+/// `sum_i b_i s^beta_i / sum_j a_j s^alpha_j * exp(-tau s)` whose coefficients and orders are
+/// [`Expr`]essions of [`Param`]s, with per-sample [`Effect`]s, simulated with the
+/// [`ApproxSpec`] approximation (Oustaloup, refined Oustaloup or Poinot-Trigeassou).
+///
+/// ```
+/// use ident::oe::{Effect, FracModel, Param};
+/// let mut m = FracModel::pmsm(6.8, 0.006, 2.7e-5, 0.92, 0.82);
+/// m.with_delay(0.0005, 0.01);
+/// let vc = m.add_param(Param::positive("Vc", 0.1));
+/// m.effects.push(Effect::Coulomb { vc });
+/// assert_eq!(m.params.len(), 7);
+/// ```
+#[derive(Debug, Clone, PartialEq)]
+pub struct FracModel {
+    /// The parameters.
+    pub params: Vec<Param>,
+    /// Numerator terms `(coefficient, order)`.
+    pub num: Vec<(Expr, Expr)>,
+    /// Denominator terms `(coefficient, order)`.
+    pub den: Vec<(Expr, Expr)>,
+    /// Parameter index of the input delay (seconds), if any.
+    pub delay: Option<usize>,
+    /// Effects around the linear part, see [`effects`](Effect).
+    pub effects: Vec<Effect>,
+    /// The approximation of the fractional operators.
+    pub approx: ApproxSpec,
+    /// The operating point `(u0, y0)` the effects see (set by [`identify`]).
+    pub operating_point: crate::data::Offsets,
+    /// The kind (for the automatic start and reports).
+    pub kind: Kind,
+}
+
+impl FracModel {
+    /// The PMSM structure (paper eq. 10) `K / (a2 s^(zeta+theta) + a1 s^zeta + 1)`; `K, a1, a2`
+    /// positive, `zeta, theta` in `(0, 2)`.
+    pub fn pmsm(k: f64, a1: f64, a2: f64, zeta: f64, theta: f64) -> Self {
+        Self {
+            params: vec![
+                Param::positive("K", k),
+                Param::positive("a1", a1),
+                Param::positive("a2", a2),
+                Param::order("zeta", zeta),
+                Param::order("theta", theta),
+            ],
+            num: vec![(Expr::p(0), Expr::cst(0.0))],
+            den: vec![
+                (Expr::p(2), Expr::sum(&[(3, 1.0), (4, 1.0)])),
+                (Expr::p(1), Expr::p(3)),
+                (Expr::cst(1.0), Expr::cst(0.0)),
+            ],
+            delay: None,
+            effects: vec![],
+            approx: ApproxSpec::default(),
+            operating_point: Default::default(),
+            kind: Kind::Pmsm,
+        }
+    }
+
+    /// The commensurate structure (paper eq. 20) `K / (a2 s^(2q) + a1 s^q + 1)`, `q` in `(0, 1)`.
+    pub fn commensurate(k: f64, a1: f64, a2: f64, q: f64) -> Self {
+        Self {
+            params: vec![
+                Param::positive("K", k),
+                Param::positive("a1", a1),
+                Param::positive("a2", a2),
+                Param::new("q", q, Bounds::Interval(0.0, 1.0)),
+            ],
+            num: vec![(Expr::p(0), Expr::cst(0.0))],
+            den: vec![
+                (Expr::p(2), Expr::sum(&[(3, 2.0)])),
+                (Expr::p(1), Expr::p(3)),
+                (Expr::cst(1.0), Expr::cst(0.0)),
+            ],
+            kind: Kind::Commensurate,
+            ..Self::pmsm(1.0, 1.0, 1.0, 1.0, 1.0)
+        }
+    }
+
+    /// The integer first-order-plus-delay model `K e^(-tau s) / (T s + 1)`, `tau` in
+    /// `(0, max_delay)` seconds.
+    pub fn fopdt(k: f64, t: f64, tau: f64, max_delay: f64) -> Self {
+        let mut m = Self {
+            params: vec![Param::positive("K", k), Param::positive("T", t)],
+            num: vec![(Expr::p(0), Expr::cst(0.0))],
+            den: vec![(Expr::p(1), Expr::cst(1.0)), (Expr::cst(1.0), Expr::cst(0.0))],
+            kind: Kind::Fopdt,
+            ..Self::pmsm(1.0, 1.0, 1.0, 1.0, 1.0)
+        };
+        m.with_delay(tau, max_delay);
+        m
+    }
+
+    /// Any fractional transfer function; `free_coefs` and `free_orders` say which of its
+    /// coefficients and orders are fitted (coefficients keep their sign: a negative one is
+    /// parametrised as `-exp(theta)`; orders in `(0, 2)` when free). The delay is fixed at its
+    /// value unless [`FracModel::with_delay`] is called.
+    pub fn from_tf(tf: &FracTf, free_coefs: bool, free_orders: bool) -> Self {
+        let mut m = Self {
+            params: vec![],
+            num: vec![],
+            den: vec![],
+            kind: Kind::General,
+            ..Self::pmsm(1.0, 1.0, 1.0, 1.0, 1.0)
+        };
+        let add = |m: &mut Self, terms: &[Term], tag: &str, is_num: bool| {
+            for (j, t) in terms.iter().enumerate() {
+                let c = m.add_param(Param {
+                    name: format!("{tag}{j}"),
+                    value: t.coef.abs(),
+                    bounds: Bounds::Positive,
+                    free: free_coefs && t.coef != 0.0,
+                });
+                let mut ce = Expr::p(c);
+                if t.coef < 0.0 {
+                    ce.terms[0].1 = -1.0;
+                }
+                let oe = if t.order == 0.0 || !free_orders || t.order >= 2.0 {
+                    Expr::cst(t.order)
+                } else {
+                    Expr::p(m.add_param(Param::order(&format!("{tag}{j}_order"), t.order)))
+                };
+                if is_num {
+                    m.num.push((ce, oe));
+                } else {
+                    m.den.push((ce, oe));
+                }
+            }
+        };
+        add(&mut m, &tf.num, "b", true);
+        add(&mut m, &tf.den, "a", false);
+        // The denominator's scale is not identifiable together with the numerator's: hold the
+        // lowest-order denominator coefficient fixed.
+        if let Some((Expr { terms, .. }, _)) = m.den.last() {
+            let i = terms[0].0;
+            m.params[i].free = false;
+        }
+        if tf.delay > 0.0 {
+            let i = m.add_param(Param::new("tau", tf.delay, Bounds::Positive).fixed());
+            m.delay = Some(i);
+        }
+        m
+    }
+
+    /// Add a parameter, returning its index (for [`Expr`]s and [`Effect`]s).
+    pub fn add_param(&mut self, p: Param) -> usize {
+        self.params.push(p);
+        self.params.len() - 1
+    }
+
+    /// Add (or reset) a fitted input delay `tau` in `(0, max_delay)` seconds.
+    pub fn with_delay(&mut self, tau: f64, max_delay: f64) -> &mut Self {
+        let p = Param::new("tau", tau, Bounds::Interval(0.0, max_delay));
+        match self.delay {
+            Some(i) => self.params[i] = p,
+            None => self.delay = Some(self.add_param(p)),
+        }
+        self
+    }
+
+    /// Add a fitted constant output offset (returns its parameter index).
+    pub fn with_output_offset(&mut self, c: f64) -> usize {
+        let i = self.add_param(Param::new("y_offset", c, Bounds::Free));
+        self.effects.push(Effect::OutputOffset { c: i });
+        i
+    }
+
+    /// Index of the parameter called `name`.
+    pub fn index_of(&self, name: &str) -> Option<usize> {
+        self.params.iter().position(|p| p.name == name)
+    }
+
+    /// The linear part as a [`FracTf`] for parameter values `p` (effects not included).
+    ///
+    /// # Errors
+    /// As [`FracTf::new`].
+    pub fn tf(&self, p: &[f64]) -> Result<FracTf> {
+        let terms = |t: &[(Expr, Expr)]| -> Vec<Term> {
+            t.iter()
+                .map(|(c, o)| Term::new(c.eval(p), o.eval(p)))
+                .collect()
+        };
+        let delay = self.delay.map_or(0.0, |i| p[i]);
+        Ok(FracTf::new(terms(&self.num), terms(&self.den), delay)?)
+    }
+
+    /// The current parameter values.
+    pub fn values(&self) -> Vec<f64> {
+        self.params.iter().map(|p| p.value).collect()
+    }
+
+    /// The non-integer orders of the linear part with the Poinot-Trigeassou `(alpha, eta)` of
+    /// the integrator `I_(1-f)` of their fractional part `f` (Poinot & Trigeassou 2004), for the
+    /// band and order of [`FracModel::approx`] at step `dt`.
+    pub fn alpha_eta(&self, p: &[f64], dt: f64) -> Vec<(f64, f64, f64)> {
+        let Ok((w_b, w_h)) = self.approx.band_for(dt) else {
+            return vec![];
+        };
+        let n = self.approx.order.max(1);
+        let mut out = vec![];
+        for (_, o) in self.num.iter().chain(&self.den) {
+            let nu = o.eval(p);
+            let f = nu - nu.floor();
+            if f > 1e-12 {
+                if let Ok((a, e)) = fracsim::approx::alpha_eta(1.0 - f, w_b, w_h, n) {
+                    out.push((nu, a, e));
+                }
+            }
+        }
+        out
+    }
+}
+
+impl Structure for FracModel {
+    fn params(&self) -> &[Param] {
+        &self.params
+    }
+
+    fn simulate<T: Real>(&self, p: &[T], u: &[f64], dt: f64, y: &mut [T]) -> Result<()> {
+        let terms = |t: &[(Expr, Expr)]| -> Vec<(T, T)> {
+            t.iter().map(|(c, o)| (c.eval(p), o.eval(p))).collect()
+        };
+        let delay = self.delay.map_or(T::from(0.0), |i| p[i]);
+        let mut sim = Simulator::from_terms(&terms(&self.num), &terms(&self.den), delay, dt, &self.approx)?;
+        let (u0, y0) = (self.operating_point.u0, self.operating_point.y0);
+        let plain = self.effects.is_empty();
+        let mut y_prev = T::from(y0);
+        for (k, (yk, &uk)) in y.iter_mut().zip(u).enumerate() {
+            if plain {
+                *yk = sim.step(T::from(uk));
+                continue;
+            }
+            let t = k as f64 * dt;
+            let mut ua = T::from(u0 + uk);
+            for e in &self.effects {
+                ua = e.input(p, ua, y_prev, t);
+            }
+            let mut ya = sim.step(ua - u0) + y0;
+            for e in &self.effects {
+                ya = e.output(p, ya, t);
+            }
+            y_prev = ya;
+            *yk = ya - y0;
+        }
+        if let Some(k) = y.iter().position(|v| !v.re().is_finite()) {
+            return Err(Error::Numerical(format!(
+                "the model output is not finite at sample {k}"
+            )));
+        }
+        Ok(())
+    }
+}

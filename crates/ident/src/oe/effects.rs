@@ -1,0 +1,132 @@
+//! Effects added around the linear fractional model, per sample and generic over [`Real`], so the
+//! same output-error machinery fits their parameters with exact sensitivities (DESIGN §6).
+//!
+//! Effects act on **absolute** signals: at sample `k` the input transform sees `u0 + u_k` (the
+//! measured input) and the previous model output `y0 + yhat_(k-1)`; the linear model is driven by
+//! the transformed input minus `u0`. The output transform sees `y0 + x_k` (the linear model's
+//! output on the absolute scale) and the model output is its result minus `y0`. `(u0, y0)` is the
+//! operating point removed from the data ([`crate::data::Offsets`]). Input effects are applied in
+//! list order before the model's input delay, output effects in list order after the model.
+
+use fracsim::Real;
+
+/// Where an effect's parameters live: indices into the model's parameter vector
+/// ([`super::FracModel::params`]).
+#[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
+pub enum Effect {
+    /// Constant input offset: `u + c` (`c` = parameter `c`).
+    InputOffset {
+        /// Parameter index of the offset.
+        c: usize,
+    },
+    /// Constant output offset: `y + c`.
+    OutputOffset {
+        /// Parameter index of the offset.
+        c: usize,
+    },
+    /// Coulomb friction as an equivalent input voltage: `u - vc sign(y_prev)`.
+    Coulomb {
+        /// Parameter index of `Vc`.
+        vc: usize,
+    },
+    /// Input clipping: `clamp(u, -level, level)`.
+    Saturation {
+        /// Parameter index of the level.
+        level: usize,
+    },
+    /// Input dead band: `0` for `|u| < width`, else `u - width sign(u)`.
+    Deadzone {
+        /// Parameter index of the half width.
+        width: usize,
+    },
+    /// The sensor measures the magnitude: `y -> |y|`.
+    AbsSensor,
+    /// An additive output sinusoid `a cos(2 pi f t) + b sin(2 pi f t)` at a fixed frequency.
+    Sinusoid {
+        /// Frequency in Hz (fixed).
+        freq_hz: f64,
+        /// Parameter index of the cosine amplitude.
+        a: usize,
+        /// Parameter index of the sine amplitude.
+        b: usize,
+    },
+}
+
+fn sign<T: Real>(x: T) -> f64 {
+    let v = x.re();
+    if v > 0.0 {
+        1.0
+    } else if v < 0.0 {
+        -1.0
+    } else {
+        0.0
+    }
+}
+
+impl Effect {
+    /// Transform the absolute input `u` at time `t` given the previous absolute model output.
+    #[inline]
+    pub fn input<T: Real>(&self, p: &[T], u: T, y_prev: T, _t: f64) -> T {
+        match *self {
+            Effect::InputOffset { c } => u + p[c],
+            Effect::Coulomb { vc } => u - p[vc] * sign(y_prev),
+            Effect::Saturation { level } => {
+                let l = p[level];
+                if u.re() > l.re() {
+                    l
+                } else if u.re() < -l.re() {
+                    -l
+                } else {
+                    u
+                }
+            }
+            Effect::Deadzone { width } => {
+                let w = p[width];
+                if u.re().abs() < w.re() {
+                    T::from(0.0)
+                } else {
+                    u - w * sign(u)
+                }
+            }
+            _ => u,
+        }
+    }
+
+    /// Transform the absolute output `y` at time `t`.
+    #[inline]
+    pub fn output<T: Real>(&self, p: &[T], y: T, t: f64) -> T {
+        match *self {
+            Effect::OutputOffset { c } => y + p[c],
+            Effect::AbsSensor => y.abs(),
+            Effect::Sinusoid { freq_hz, a, b } => {
+                let w = 2.0 * std::f64::consts::PI * freq_hz * t;
+                y + p[a] * w.cos() + p[b] * w.sin()
+            }
+            _ => y,
+        }
+    }
+
+    /// Whether this effect transforms the input (else the output).
+    pub fn is_input(&self) -> bool {
+        matches!(
+            self,
+            Effect::InputOffset { .. }
+                | Effect::Coulomb { .. }
+                | Effect::Saturation { .. }
+                | Effect::Deadzone { .. }
+        )
+    }
+
+    /// A short report name (DESIGN §6 table).
+    pub fn name(&self) -> &'static str {
+        match self {
+            Effect::InputOffset { .. } | Effect::OutputOffset { .. } => "offset",
+            Effect::Coulomb { .. } => "coulomb_friction",
+            Effect::Saturation { .. } => "saturation",
+            Effect::Deadzone { .. } => "deadzone",
+            Effect::AbsSensor => "abs_sensor",
+            Effect::Sinusoid { .. } => "periodic",
+        }
+    }
+}

@@ -1,0 +1,506 @@
+//! The output-error fit: residuals, exact sensitivities by dual numbers, the Levenberg-Marquardt
+//! driver ([`crate::lm`]), standard errors by the delta method, and the whole procedure on a record.
+
+use super::{init, Bounds, FracModel, Param, Structure};
+use crate::data::{OffsetMode, Offsets, Record};
+use crate::lm::{minimize, LmOptions, Problem, Termination};
+use crate::metrics::Fit;
+use crate::{Error, Result};
+use faer::Mat;
+use fracsim::{Dual, FracTf};
+use std::time::{Duration, Instant};
+
+/// Options of [`fit`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct FitOptions {
+    /// The Levenberg-Marquardt options (iterations, tolerances). The default allows 100
+    /// iterations and stops when the relative cost change falls below `1e-10`.
+    pub lm: LmOptions,
+    /// Leading samples left out of the residual (a start-up transient the model cannot explain).
+    pub skip: usize,
+}
+
+impl Default for FitOptions {
+    fn default() -> Self {
+        Self {
+            lm: LmOptions {
+                max_iterations: 100,
+                // A relative cost change of 1e-10 is far below the noise of any measured record.
+                ftol: 1e-10,
+                xtol: 1e-8,
+                ..LmOptions::default()
+            },
+            skip: 0,
+        }
+    }
+}
+
+/// One fitted parameter.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct ParamEstimate {
+    /// Its name.
+    pub name: String,
+    /// The estimate.
+    pub value: f64,
+    /// Standard error by the delta method (`None` when fixed or when the covariance is singular).
+    pub std_error: Option<f64>,
+    /// Whether it was fitted.
+    pub free: bool,
+    /// Whether it ended within 0.5% of a bound of its range (the data push it out of range).
+    pub at_bound: bool,
+}
+
+/// The result of [`fit`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct FitReport {
+    /// All parameters (free and fixed) at the end.
+    pub params: Vec<ParamEstimate>,
+    /// The values of all parameters, in order (for [`Structure::simulate`]).
+    pub values: Vec<f64>,
+    /// The values at the start.
+    pub start: Vec<f64>,
+    /// RMSE of the fitted residual (estimation samples after `skip`).
+    pub rmse: f64,
+    /// LM iterations.
+    pub iterations: usize,
+    /// Residual evaluations (simulations).
+    pub evaluations: usize,
+    /// Why LM stopped.
+    pub termination: Termination,
+    /// Whether that counts as convergence.
+    pub converged: bool,
+    /// Wall-clock time of the fit.
+    pub elapsed: Duration,
+    /// Warnings (parameters at a bound, no covariance).
+    pub warnings: Vec<String>,
+}
+
+impl FitReport {
+    /// A sentence saying why the fit stopped.
+    pub fn stop_reason(&self) -> &'static str {
+        match self.termination {
+            Termination::ZeroResidual => "residual is zero",
+            Termination::SmallGradient => "gradient is orthogonal to the residual (stationary point)",
+            Termination::SmallStep => "parameter step below tolerance",
+            Termination::SmallCostChange => "relative cost change below tolerance",
+            Termination::NoProgress => "no step lowers the cost (precision limit)",
+            Termination::MaxIterations => "maximum number of iterations reached",
+            Termination::MaxEvaluations => "maximum number of simulations reached",
+        }
+    }
+}
+
+/// Runs `$f::<N, _>($args)` with the smallest supported dual size `N >= $n`.
+macro_rules! with_dual {
+    ($n:expr, $f:ident($($a:expr),*)) => {
+        match $n {
+            0..=1 => $f::<1, _>($($a),*),
+            2 => $f::<2, _>($($a),*),
+            3 => $f::<3, _>($($a),*),
+            4 => $f::<4, _>($($a),*),
+            5 => $f::<5, _>($($a),*),
+            6 => $f::<6, _>($($a),*),
+            7 => $f::<7, _>($($a),*),
+            8 => $f::<8, _>($($a),*),
+            9..=10 => $f::<10, _>($($a),*),
+            11..=12 => $f::<12, _>($($a),*),
+            13..=16 => $f::<16, _>($($a),*),
+            n => Err(Error::Options(format!("{n} free parameters: at most 16 are supported"))),
+        }
+    };
+}
+
+/// Simulate with `Dual<N>`: free parameter `i` is `to_param(Dual::var(theta_i, i))` (or the plain
+/// variable when `transform` is false). Writes `yhat` and `jac[(k - skip, i)] = d yhat_k / d theta_i`.
+fn eval_dual<const N: usize, S: Structure>(
+    s: &S,
+    base: &[f64],
+    free: &[usize],
+    theta: &[f64],
+    transform: bool,
+    u: &[f64],
+    dt: f64,
+    skip: usize,
+    yhat: &mut [f64],
+    jac: &mut Mat<f64>,
+) -> Result<()> {
+    let mut p: Vec<Dual<N>> = base.iter().map(|&v| Dual::cst(v)).collect();
+    let params = s.params();
+    for (i, (&j, &th)) in free.iter().zip(theta).enumerate() {
+        let x = Dual::var(th, i);
+        p[j] = if transform { params[j].bounds.to_param(x) } else { x };
+    }
+    let mut y = vec![Dual::<N>::cst(0.0); u.len()];
+    s.simulate(&p, u, dt, &mut y)?;
+    for (k, v) in y.iter().enumerate() {
+        yhat[k] = v.v;
+        if k >= skip {
+            for i in 0..free.len() {
+                jac[(k - skip, i)] = v.d[i];
+            }
+        }
+    }
+    Ok(())
+}
+
+struct OeProblem<'a, S: Structure> {
+    s: &'a S,
+    u: &'a [f64],
+    y: &'a [f64],
+    dt: f64,
+    skip: usize,
+    free: Vec<usize>,
+    base: Vec<f64>,
+    yhat: Vec<f64>,
+    pbuf: Vec<f64>,
+    progress: &'a mut dyn FnMut(usize, f64),
+    jac_evals: usize,
+}
+
+impl<S: Structure> OeProblem<'_, S> {
+    fn params_of(&mut self, theta: &[f64]) {
+        self.pbuf.copy_from_slice(&self.base);
+        let ps = self.s.params();
+        for (&j, &th) in self.free.iter().zip(theta) {
+            self.pbuf[j] = ps[j].bounds.to_param(th);
+        }
+    }
+}
+
+impl<S: Structure> Problem for OeProblem<'_, S> {
+    fn n_params(&self) -> usize {
+        self.free.len()
+    }
+    fn n_residuals(&self) -> usize {
+        self.y.len() - self.skip
+    }
+    fn eval(&mut self, theta: &[f64], r: &mut [f64], jac: Option<&mut Mat<f64>>) -> Result<()> {
+        match jac {
+            None => {
+                self.params_of(theta);
+                let mut y = vec![0.0; self.u.len()];
+                self.s.simulate(&self.pbuf, self.u, self.dt, &mut y)?;
+                self.yhat = y;
+            }
+            Some(jac) => {
+                let (s, base, free, u, dt, skip) =
+                    (self.s, &self.base, &self.free, self.u, self.dt, self.skip);
+                with_dual!(
+                    free.len(),
+                    eval_dual(s, base, free, theta, true, u, dt, skip, &mut self.yhat, jac)
+                )?;
+            }
+        }
+        let mut ssr = 0.0;
+        for (k, rk) in r.iter_mut().enumerate() {
+            *rk = self.yhat[k + self.skip] - self.y[k + self.skip];
+            ssr += *rk * *rk;
+        }
+        self.jac_evals += 1;
+        (self.progress)(self.jac_evals, (ssr / r.len().max(1) as f64).sqrt());
+        Ok(())
+    }
+}
+
+/// The output and its exact sensitivities `d yhat_k / d p_j` with respect to the free parameters
+/// `p_j` (physical, not reparametrised), by forward-mode dual numbers through the discrete
+/// simulation. Returns `(yhat, S)` with `S` of size `len(u) x n_free`.
+///
+/// # Errors
+/// As [`Structure::simulate`]; more than 16 free parameters.
+pub fn sensitivities<S: Structure>(s: &S, p: &[f64], u: &[f64], dt: f64) -> Result<(Vec<f64>, Mat<f64>)> {
+    let free: Vec<usize> = (0..s.params().len()).filter(|&j| s.params()[j].free).collect();
+    let theta: Vec<f64> = free.iter().map(|&j| p[j]).collect();
+    let mut yhat = vec![0.0; u.len()];
+    let mut jac = Mat::<f64>::zeros(u.len(), free.len());
+    with_dual!(
+        free.len(),
+        eval_dual(s, p, &free, &theta, false, u, dt, 0, &mut yhat, &mut jac)
+    )?;
+    Ok((yhat, jac))
+}
+
+/// Fit the free parameters of `s` to the output deviation `y` from the input deviation `u`
+/// (plain slices, same length, step `dt` seconds, from rest) by output error and
+/// Levenberg-Marquardt (Marquardt 1963) with exact sensitivities, starting from the values in
+/// [`Structure::params`].
+///
+/// Minimises `1/2 sum_(k >= skip) (yhat_k - y_k)^2` over `theta` (the reparametrised free
+/// parameters, see [`Bounds`]); standard errors are `sqrt(diag(sigma^2 (J^T J)^-1))` in `theta`,
+/// `sigma^2 = SSR/(m - n)`, times `|dp/dtheta|` (delta method).
+///
+/// ```
+/// use ident::oe::{fit, FitOptions, FracModel, Structure};
+/// let truth = FracModel::commensurate(2.0, 0.05, 1e-3, 0.8);
+/// let u: Vec<f64> = (0..400).map(|k| if (k / 25) % 2 == 0 { 1.0 } else { -1.0 }).collect();
+/// let mut y = vec![0.0; u.len()];
+/// truth.simulate(&truth.values(), &u, 1e-3, &mut y).unwrap();
+/// let start = FracModel::commensurate(1.0, 0.02, 5e-3, 0.6);
+/// let rep = fit(&start, &u, &y, 1e-3, &FitOptions::default()).unwrap();
+/// assert!((rep.values[0] - 2.0).abs() < 1e-4);
+/// ```
+///
+/// # Errors
+/// [`Error::Data`] for lengths that differ, non-finite data; [`Error::NotEnoughData`] for fewer
+/// samples than free parameters; [`Error::Options`] for a start outside a range or no free
+/// parameter; a simulation error at the start. Non-convergence is not an error (see the report).
+pub fn fit<S: Structure>(s: &S, u: &[f64], y: &[f64], dt: f64, opts: &FitOptions) -> Result<FitReport> {
+    fit_with_progress(s, u, y, dt, opts, &mut |_, _| {})
+}
+
+/// [`fit`] calling `progress(jacobian_evaluations, rmse)` after every simulation (for a progress
+/// bar).
+///
+/// # Errors
+/// As [`fit`].
+pub fn fit_with_progress<S: Structure>(
+    s: &S,
+    u: &[f64],
+    y: &[f64],
+    dt: f64,
+    opts: &FitOptions,
+    progress: &mut dyn FnMut(usize, f64),
+) -> Result<FitReport> {
+    let t0 = Instant::now();
+    if u.len() != y.len() {
+        return Err(Error::Data(format!(
+            "u has {} samples, y {}",
+            u.len(),
+            y.len()
+        )));
+    }
+    if u.iter().chain(y).any(|v| !v.is_finite()) {
+        return Err(Error::Data("the data contain NaN or infinite values".into()));
+    }
+    if !(dt > 0.0 && dt.is_finite()) {
+        return Err(Error::Data(format!("sampling step {dt} must be positive")));
+    }
+    let params = s.params();
+    let free: Vec<usize> = (0..params.len()).filter(|&j| params[j].free).collect();
+    if free.is_empty() {
+        return Err(Error::Options("no free parameter to fit".into()));
+    }
+    let m = y.len().saturating_sub(opts.skip);
+    if m <= free.len() {
+        return Err(Error::NotEnoughData(format!(
+            "{m} samples for {} free parameters",
+            free.len()
+        )));
+    }
+    let base: Vec<f64> = params.iter().map(|p| p.value).collect();
+    let theta0 = free
+        .iter()
+        .map(|&j| params[j].bounds.to_theta(params[j].value, &params[j].name))
+        .collect::<Result<Vec<f64>>>()?;
+    let mut prob = OeProblem {
+        s,
+        u,
+        y,
+        dt,
+        skip: opts.skip,
+        free: free.clone(),
+        pbuf: base.clone(),
+        base: base.clone(),
+        yhat: vec![0.0; u.len()],
+        progress,
+        jac_evals: 0,
+    };
+    let rep = minimize(&mut prob, &theta0, &opts.lm)?;
+    let mut values = base.clone();
+    let mut ests: Vec<ParamEstimate> = params
+        .iter()
+        .map(|p| ParamEstimate {
+            name: p.name.clone(),
+            value: p.value,
+            std_error: None,
+            free: p.free,
+            at_bound: false,
+        })
+        .collect();
+    let mut warnings = vec![];
+    for (i, &j) in free.iter().enumerate() {
+        let b = params[j].bounds;
+        let th = rep.params[i];
+        let v = b.to_param(th);
+        values[j] = v;
+        let dp = match b {
+            Bounds::Free => 1.0,
+            Bounds::Positive => v,
+            Bounds::Interval(lo, hi) => {
+                let sg = (v - lo) / (hi - lo);
+                (hi - lo) * sg * (1.0 - sg)
+            }
+        };
+        ests[j].value = v;
+        ests[j].std_error = rep.std_errors.as_ref().map(|se| se[i] * dp.abs());
+        ests[j].at_bound = b.at_edge(v);
+        if ests[j].at_bound {
+            warnings.push(format!(
+                "{} = {v:.4} ran to a bound of its range {b:?}: the data do not support this structure \
+                 (try fixing it, another structure or another band)",
+                params[j].name
+            ));
+        }
+    }
+    if rep.std_errors.is_none() {
+        warnings.push(
+            "the covariance is singular: some parameters are not identifiable from these data".into(),
+        );
+    }
+    Ok(FitReport {
+        params: ests,
+        values,
+        start: base,
+        rmse: (rep.ssr() / m as f64).sqrt(),
+        iterations: rep.iterations,
+        evaluations: rep.evaluations,
+        termination: rep.termination,
+        converged: rep.converged,
+        elapsed: t0.elapsed(),
+        warnings,
+    })
+}
+
+/// How [`identify`] starts.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum StartMode {
+    /// From the data: frequency response, then a commensurate Levy fit ([`init::auto_start`]).
+    #[default]
+    Auto,
+    /// From the values in the model.
+    Given,
+}
+
+/// Options of [`identify`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct IdentOptions {
+    /// Operating point removal (default [`OffsetMode::Initial`]).
+    pub offsets: OffsetMode,
+    /// Fraction of the record held out for validation at the end (default 0.3).
+    pub holdout: f64,
+    /// Fit a constant output offset (default true: the operating point estimate is never exact).
+    pub fit_offset: bool,
+    /// The start.
+    pub start: StartMode,
+    /// Fit options.
+    pub fit: FitOptions,
+}
+
+impl Default for IdentOptions {
+    fn default() -> Self {
+        Self {
+            offsets: OffsetMode::Initial,
+            holdout: 0.3,
+            fit_offset: true,
+            start: StartMode::Auto,
+            fit: FitOptions::default(),
+        }
+    }
+}
+
+/// The result of [`identify`].
+#[derive(Debug, Clone)]
+pub struct Identification {
+    /// The model with the fitted values (and the operating point).
+    pub model: FracModel,
+    /// The fit report.
+    pub report: FitReport,
+    /// The fitted linear part.
+    pub tf: FracTf,
+    /// The operating point removed.
+    pub offsets: Offsets,
+    /// Index of the first validation sample (`len` when there is none).
+    pub split: usize,
+    /// The model output on the absolute scale (`y0 + yhat`), over the whole record.
+    pub yhat: Vec<f64>,
+    /// Fit on the estimation part.
+    pub estimation: Fit,
+    /// Fit on the validation part (simulated from the start of the record, scored after `split`).
+    pub validation: Option<Fit>,
+    /// `(order, alpha, eta)` of each non-integer order (Poinot & Trigeassou 2004).
+    pub alpha_eta: Vec<(f64, f64, f64)>,
+    /// The parameter values the fit started from.
+    pub start: Vec<f64>,
+}
+
+/// The whole time-domain identification on a record: remove the operating point, split
+/// (estimation first, validation last), make a start from the data (or take the given one), fit by
+/// output error ([`fit`]), simulate the whole record and score both parts.
+///
+/// # Errors
+/// [`Error::NotEnoughData`] for no excitation or fewer than `max(20, 10 n_free)` estimation
+/// samples; [`Error::Options`] for a bad holdout or start; errors of [`fit`].
+pub fn identify(rec: &Record, model: &FracModel, opts: &IdentOptions) -> Result<Identification> {
+    identify_with_progress(rec, model, opts, &mut |_, _| {})
+}
+
+/// [`identify`] with a progress callback as in [`fit_with_progress`].
+///
+/// # Errors
+/// As [`identify`].
+pub fn identify_with_progress(
+    rec: &Record,
+    model: &FracModel,
+    opts: &IdentOptions,
+    progress: &mut dyn FnMut(usize, f64),
+) -> Result<Identification> {
+    let n = rec.len();
+    let split = rec.split_index(opts.holdout)?;
+    let mut m = model.clone();
+    let n_free = m.params.iter().filter(|p| p.free).count() + usize::from(opts.fit_offset);
+    let need = (10 * n_free).max(20);
+    if split < need {
+        return Err(Error::NotEnoughData(format!(
+            "{split} estimation samples for {n_free} free parameters (need at least {need})"
+        )));
+    }
+    rec.check_excitation(split)?;
+    let offsets = rec.offsets(opts.offsets, split);
+    let u: Vec<f64> = rec.u.iter().map(|v| v - offsets.u0).collect();
+    let y: Vec<f64> = rec.y.iter().map(|v| v - offsets.y0).collect();
+    m.operating_point = offsets;
+    if opts.start == StartMode::Auto {
+        init::auto_start(&mut m, &u[..split], &y[..split], rec.dt)?;
+    }
+    if opts.fit_offset && m.index_of("y_offset").is_none() {
+        m.with_output_offset(0.0);
+    }
+    for p in &mut m.params {
+        p.value = p.bounds.clamp_inside(p.value);
+    }
+    let start = m.values();
+    let report = fit_with_progress(&m, &u[..split], &y[..split], rec.dt, &opts.fit, progress)?;
+    for (p, v) in m.params.iter_mut().zip(&report.values) {
+        p.value = *v;
+    }
+    let mut yd = vec![0.0; n];
+    m.simulate(&report.values, &u, rec.dt, &mut yd)?;
+    let yhat: Vec<f64> = yd.iter().map(|v| v + offsets.y0).collect();
+    let estimation = Fit::of(&rec.y[..split], &yhat[..split]);
+    let validation = (split < n).then(|| Fit::of(&rec.y[split..], &yhat[split..]));
+    let tf = m.tf(&report.values)?;
+    let alpha_eta = m.alpha_eta(&report.values, rec.dt);
+    Ok(Identification {
+        model: m,
+        report,
+        tf,
+        offsets,
+        split,
+        yhat,
+        estimation,
+        validation,
+        alpha_eta,
+        start,
+    })
+}
+
+/// Make sure a [`Param`] list is usable (kept for the diagnosis layer: checks starting values).
+///
+/// # Errors
+/// [`Error::Options`] for a start outside its range.
+pub fn check_params(params: &[Param]) -> Result<()> {
+    for p in params {
+        p.bounds.to_theta(p.value, &p.name)?;
+    }
+    Ok(())
+}
