@@ -1,1 +1,724 @@
-//! (being written)
+//! Frequency-domain identification of fractional transfer functions from Bode data.
+//!
+//! The model (commensurate order `q`):
+//!
+//! `Ghat(jw) = N(jw)/D(jw)`, `N = sum_{u=0..m} b_u (jw)^(u q)`, `D = 1 + sum_{p=1..n} a_p (jw)^(p q)`,
+//!
+//! with `omega` in rad/s and `(jw)^a = w^a (cos(a pi/2) + j sin(a pi/2))`.
+//!
+//! - [`levy_fixed_q`]: Levy's (1959) linearised least squares for a fixed `q`: minimise
+//!   `sum_g w_g |G(jw_g) D(jw_g) - N(jw_g)|^2`, linear in `(b, a)`, solved as the stacked real and
+//!   imaginary system by Householder QR (faer) with column scaling, never by the normal equations
+//!   (their condition number is about 3e7 on the paper's Table 1).
+//! - Weights ([`Weights`]): Vinagre's (2001, the paper's eq. 29)
+//!   `w_1 = (w_2 - w_1)/(2 w_1^2)`, `w_g = (w_{g+1} - w_{g-1})/(2 w_g^2)`, `w_f = (w_f - w_{f-1})/(2 w_f^2)`
+//!   ([`vinagre_weights`]), none, or per point.
+//! - Sanathanan & Koerner (1963) iterations: refit with weights `w_g / |D_prev(jw_g)|^2`, which
+//!   removes the `|D|^2` bias of Levy's linearisation.
+//! - [`search_q`]: the order `q` on a grid over `(0, q_max]` (step 0.01, as the paper) then a
+//!   golden-section refinement of `J(q)` around the best grid point; the `J(q)` curve is kept.
+//! - [`refine::refine_pmsm`]: a nonlinear least-squares refit (Levenberg-Marquardt, [`crate::lm`])
+//!   of the PMSM structure with two free orders `K/(a2 s^(zeta+theta) + a1 s^zeta + 1)` started
+//!   from a Levy fit, minimising the complex output error.
+//! - [`fit_bode`]: all of the above in one call, as `fracid freq` and the Python bindings use it.
+//!
+//! Every fit is scored by the error index of the paper's eq. 30 ([`error_index`]):
+//! `J = (1/f) sum_g |G(jw_g) - Ghat(jw_g)|^2`, omega in rad/s.
+//!
+//! ```
+//! use ident::levy::{fit_bode, FreqOptions};
+//! use fracsim::FracTf;
+//! let truth = FracTf::pmsm(3.0, 0.05, 0.002, 0.8, 0.8).unwrap();
+//! let omega: Vec<f64> = (0..30).map(|i| 10f64.powf(-1.0 + 4.0 * i as f64 / 29.0)).collect();
+//! let h = truth.bode(&omega);
+//! let fit = fit_bode(&omega, &h, &FreqOptions::default()).unwrap();
+//! assert!((fit.levy.q - 0.8).abs() < 1e-3);
+//! assert!(fit.levy.j < 1e-10);
+//! ```
+
+pub mod refine;
+
+use crate::{Error, Result};
+use faer::prelude::*;
+use faer::Mat;
+use fracsim::{jw_pow, FracTf, Term};
+use num_complex::Complex64;
+
+pub use refine::{refine_pmsm, PmsmFit, RefineOptions};
+
+/// Weights of the Levy least squares.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub enum Weights {
+    /// Vinagre's weights, the paper's eq. 29 ([`vinagre_weights`]). The default.
+    #[default]
+    Vinagre,
+    /// All weights 1 (Levy's original method).
+    Uniform,
+    /// One non-negative weight per point.
+    PerPoint(Vec<f64>),
+}
+
+impl Weights {
+    /// The weight of each point for `omega` (rad/s, validated).
+    ///
+    /// # Errors
+    /// [`Error::Data`] for per-point weights of the wrong length, negative or non-finite, or all zero.
+    pub fn values(&self, omega_rad_s: &[f64]) -> Result<Vec<f64>> {
+        match self {
+            Self::Vinagre => Ok(vinagre_weights(omega_rad_s)),
+            Self::Uniform => Ok(vec![1.0; omega_rad_s.len()]),
+            Self::PerPoint(w) => {
+                if w.len() != omega_rad_s.len() {
+                    return Err(Error::Data(format!(
+                        "{} weights for {} frequency points",
+                        w.len(),
+                        omega_rad_s.len()
+                    )));
+                }
+                if let Some(i) = w.iter().position(|v| !v.is_finite() || *v < 0.0) {
+                    return Err(Error::Data(format!(
+                        "weight {} (point {}) must be finite and >= 0",
+                        w[i],
+                        i + 1
+                    )));
+                }
+                if w.iter().all(|v| *v == 0.0) {
+                    return Err(Error::Data("all weights are zero".into()));
+                }
+                Ok(w.clone())
+            }
+        }
+    }
+}
+
+/// Vinagre's weights (Vinagre 2001; the paper's eq. 29), omega in rad/s, sorted increasing:
+///
+/// `w_1 = (w_2 - w_1)/(2 w_1^2)`, `w_g = (w_{g+1} - w_{g-1})/(2 w_g^2)` for `1 < g < f`,
+/// `w_f = (w_f - w_{f-1})/(2 w_f^2)`.
+///
+/// They approximate `integral |e|^2 d(omega)/omega^2`. One point gets weight `1/omega^2`.
+///
+/// ```
+/// let w = ident::levy::vinagre_weights(&[1.0, 2.0, 4.0]);
+/// assert_eq!(w, vec![0.5, 3.0 / 8.0, 2.0 / 32.0]);
+/// ```
+pub fn vinagre_weights(omega_rad_s: &[f64]) -> Vec<f64> {
+    let f = omega_rad_s.len();
+    let w = omega_rad_s;
+    if f == 1 {
+        return vec![1.0 / (w[0] * w[0])];
+    }
+    (0..f)
+        .map(|g| {
+            let (lo, hi) = (g.saturating_sub(1), (g + 1).min(f - 1));
+            (w[hi] - w[lo]) / (2.0 * w[g] * w[g])
+        })
+        .collect()
+}
+
+/// The error index of the paper's eq. 30: `J = (1/f) sum_g |G(jw_g) - Ghat(jw_g)|^2`, omega in rad/s.
+///
+/// ```
+/// let g: fracsim::FracTf = "2/(s + 1)".parse().unwrap();
+/// let omega = [1.0, 10.0];
+/// let h = g.bode(&omega);
+/// assert_eq!(ident::levy::error_index(&omega, &h, &g), 0.0);
+/// ```
+pub fn error_index(omega_rad_s: &[f64], h: &[Complex64], model: &FracTf) -> f64 {
+    let f = omega_rad_s.len().min(h.len());
+    if f == 0 {
+        return f64::NAN;
+    }
+    omega_rad_s
+        .iter()
+        .zip(h)
+        .map(|(&w, &g)| (g - model.freq_response(w)).norm_sqr())
+        .sum::<f64>()
+        / f as f64
+}
+
+/// Check Bode data: same lengths, at least one point, omega finite, > 0 and strictly increasing,
+/// responses finite.
+///
+/// # Errors
+/// [`Error::Data`] naming the first bad point (1-based).
+pub fn check_bode(omega_rad_s: &[f64], h: &[Complex64]) -> Result<()> {
+    if omega_rad_s.len() != h.len() {
+        return Err(Error::Data(format!(
+            "{} frequencies but {} responses",
+            omega_rad_s.len(),
+            h.len()
+        )));
+    }
+    if omega_rad_s.is_empty() {
+        return Err(Error::Data("no frequency points".into()));
+    }
+    for (i, (&w, g)) in omega_rad_s.iter().zip(h).enumerate() {
+        if !w.is_finite() || w <= 0.0 {
+            return Err(Error::Data(format!(
+                "frequency {w} at point {} must be finite and > 0",
+                i + 1
+            )));
+        }
+        if !g.re.is_finite() || !g.im.is_finite() {
+            return Err(Error::Data(format!(
+                "response {g} at point {} is not finite",
+                i + 1
+            )));
+        }
+        if i > 0 {
+            let prev = omega_rad_s[i - 1];
+            if w == prev {
+                return Err(Error::Data(format!(
+                    "frequency {w} is repeated (points {} and {})",
+                    i,
+                    i + 1
+                )));
+            }
+            if w < prev {
+                return Err(Error::Data(format!(
+                    "frequencies must increase: {w} at point {} follows {prev}",
+                    i + 1
+                )));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// A fitted commensurate-order model `N(jw)/D(jw)` (see the [module docs](self)).
+#[derive(Debug, Clone, PartialEq)]
+pub struct LevyFit {
+    /// The commensurate order `q`.
+    pub q: f64,
+    /// Numerator coefficients `b_0..b_m` (of `(jw)^(u q)`).
+    pub b: Vec<f64>,
+    /// Denominator coefficients `a_1..a_n` (of `(jw)^(p q)`); `a_0 = 1`.
+    pub a: Vec<f64>,
+    /// The model as a fractional transfer function.
+    pub model: FracTf,
+    /// The error index `J` (eq. 30) on the data.
+    pub j: f64,
+    /// The weighted Levy cost `sum_g w_g |G D - N|^2` that was minimised (last iteration's weights).
+    pub levy_cost: f64,
+    /// Sanathanan-Koerner iterations done after the first Levy solve.
+    pub sk_iterations: usize,
+}
+
+/// The model `(sum_u b_u s^(u q)) / (1 + sum_p a_p s^(p q))` as a [`FracTf`].
+///
+/// # Errors
+/// Non-finite coefficients or an order above 20 (from [`FracTf::new`]).
+pub fn commensurate_tf(q: f64, b: &[f64], a: &[f64]) -> Result<FracTf> {
+    let num = b
+        .iter()
+        .enumerate()
+        .map(|(u, &c)| Term::new(c, u as f64 * q))
+        .collect();
+    let mut den = vec![Term::new(1.0, 0.0)];
+    den.extend(
+        a.iter()
+            .enumerate()
+            .map(|(p, &c)| Term::new(c, (p + 1) as f64 * q)),
+    );
+    Ok(FracTf::new(num, den, 0.0)?)
+}
+
+/// Levy's weighted linear least squares (Levy 1959) at a fixed order `q`, with `sk_iterations`
+/// Sanathanan-Koerner (1963) reweightings `w_g / |D_prev(jw_g)|^2`.
+///
+/// Unknowns `x = (b_0..b_m, a_1..a_n)`; each point gives the complex equation
+/// `sum_p a_p G s^(p q) - sum_u b_u s^(u q) = -G`, weighted by `sqrt(w_g)`, split into its real
+/// and imaginary rows; columns are scaled to unit norm and the system is solved by QR (faer).
+///
+/// ```
+/// use ident::levy::{levy_fixed_q, vinagre_weights};
+/// let g: fracsim::FracTf = "5/(0.01 s^1.6 + 0.2 s^0.8 + 1)".parse().unwrap();
+/// let omega = [0.1, 1.0, 3.0, 10.0, 30.0, 100.0];
+/// let fit = levy_fixed_q(&omega, &g.bode(&omega), 0.8, 0, 2, &vinagre_weights(&omega), 0).unwrap();
+/// assert!((fit.b[0] - 5.0).abs() < 1e-9 && (fit.a[1] - 0.01).abs() < 1e-12);
+/// ```
+///
+/// # Errors
+/// [`Error::Data`] for bad data ([`check_bode`]) or weights; [`Error::NotEnoughData`] with fewer
+/// points than unknowns `m + 1 + n`; [`Error::Options`] for `q` outside `(0, 2]`;
+/// [`Error::Numerical`] if the least-squares solution is not finite (a rank-deficient system).
+pub fn levy_fixed_q(
+    omega_rad_s: &[f64],
+    h: &[Complex64],
+    q: f64,
+    m: usize,
+    n: usize,
+    weights: &[f64],
+    sk_iterations: usize,
+) -> Result<LevyFit> {
+    check_bode(omega_rad_s, h)?;
+    check_sizes(omega_rad_s.len(), m, n)?;
+    if !(q > 0.0 && q <= 2.0) {
+        return Err(Error::Options(format!("order q = {q} must be in (0, 2]")));
+    }
+    if weights.len() != omega_rad_s.len() {
+        return Err(Error::Data(format!(
+            "{} weights for {} points",
+            weights.len(),
+            omega_rad_s.len()
+        )));
+    }
+    let f = omega_rad_s.len();
+    // powers s_k = (jw)^(k q), k = 0..max(m, n)
+    let kmax = m.max(n);
+    let pows: Vec<Vec<Complex64>> = omega_rad_s
+        .iter()
+        .map(|&w| (0..=kmax).map(|k| jw_pow(w, k as f64 * q)).collect())
+        .collect();
+    let mut w_eff = weights.to_vec();
+    let mut x = Vec::new();
+    let mut levy_cost = 0.0;
+    for it in 0..=sk_iterations {
+        if it > 0 {
+            // Sanathanan-Koerner: divide by |D_prev|^2
+            for g in 0..f {
+                let d = den_at(&pows[g], &x[m + 1..]);
+                w_eff[g] = weights[g] / d.norm_sqr().max(f64::MIN_POSITIVE);
+            }
+        }
+        let (sol, cost) = solve_levy(&pows, h, m, n, &w_eff)?;
+        x = sol;
+        levy_cost = cost;
+    }
+    let b = x[..=m].to_vec();
+    let a = x[m + 1..].to_vec();
+    let model = commensurate_tf(q, &b, &a)?;
+    let j = error_index(omega_rad_s, h, &model);
+    Ok(LevyFit {
+        q,
+        b,
+        a,
+        model,
+        j,
+        levy_cost,
+        sk_iterations,
+    })
+}
+
+fn check_sizes(f: usize, m: usize, n: usize) -> Result<()> {
+    let unknowns = m + 1 + n;
+    if f < unknowns.max(2) {
+        return Err(Error::NotEnoughData(format!(
+            "{f} frequency points for {unknowns} unknowns (m = {m}, n = {n}); need at least {}",
+            unknowns.max(2)
+        )));
+    }
+    Ok(())
+}
+
+fn den_at(pows: &[Complex64], a: &[f64]) -> Complex64 {
+    let mut d = Complex64::new(1.0, 0.0);
+    for (p, &ap) in a.iter().enumerate() {
+        d += pows[p + 1] * ap;
+    }
+    d
+}
+
+/// One weighted, column-scaled QR least-squares solve. Returns (x, weighted Levy cost).
+fn solve_levy(
+    pows: &[Vec<Complex64>],
+    h: &[Complex64],
+    m: usize,
+    n: usize,
+    w: &[f64],
+) -> Result<(Vec<f64>, f64)> {
+    let f = h.len();
+    let k = m + 1 + n;
+    // complex coefficient of unknown `c` at point g
+    let coef = |g: usize, c: usize| -> Complex64 {
+        if c <= m {
+            -pows[g][c]
+        } else {
+            h[g] * pows[g][c - m]
+        }
+    };
+    let mut a = Mat::<f64>::zeros(2 * f, k);
+    let mut rhs = Mat::<f64>::zeros(2 * f, 1);
+    for g in 0..f {
+        let sw = w[g].sqrt();
+        for c in 0..k {
+            let z = coef(g, c) * sw;
+            a[(2 * g, c)] = z.re;
+            a[(2 * g + 1, c)] = z.im;
+        }
+        rhs[(2 * g, 0)] = -h[g].re * sw;
+        rhs[(2 * g + 1, 0)] = -h[g].im * sw;
+    }
+    // column scaling to unit norm: the columns differ by orders of magnitude (w^(pq))
+    let mut scale = vec![1.0; k];
+    for c in 0..k {
+        let nrm = a.col_as_slice(c).iter().map(|v| v * v).sum::<f64>().sqrt();
+        if nrm > 0.0 && nrm.is_finite() {
+            scale[c] = nrm;
+            for v in a.col_as_slice_mut(c) {
+                *v /= nrm;
+            }
+        }
+    }
+    let sol = a.col_piv_qr().solve_lstsq(&rhs);
+    let x: Vec<f64> = (0..k).map(|c| sol[(c, 0)] / scale[c]).collect();
+    if x.iter().any(|v| !v.is_finite()) {
+        return Err(Error::Numerical(
+            "the Levy least-squares system is rank deficient".into(),
+        ));
+    }
+    // weighted cost at the solution
+    let mut cost = 0.0;
+    for g in 0..f {
+        let mut e = h[g];
+        for c in 0..k {
+            e += coef(g, c) * x[c];
+        }
+        cost += w[g] * e.norm_sqr();
+    }
+    Ok((x, cost))
+}
+
+/// How the commensurate order `q` is chosen.
+#[derive(Debug, Clone, PartialEq)]
+pub enum OrderChoice {
+    /// Use this `q` (in `(0, 2]`).
+    Fixed(f64),
+    /// Grid `q = step, 2 step, ..., <= q_max`, then (if `refine`) a golden-section search of
+    /// `J(q)` on `[q* - step, q* + step]` around the best grid point `q*`.
+    Search {
+        /// Grid step (the paper: 0.01).
+        step: f64,
+        /// Largest `q` of the grid (the paper: 1).
+        q_max: f64,
+        /// Refine the best grid point by golden-section search.
+        refine: bool,
+    },
+}
+
+impl Default for OrderChoice {
+    fn default() -> Self {
+        Self::Search {
+            step: 0.01,
+            q_max: 1.0,
+            refine: true,
+        }
+    }
+}
+
+/// One point of the `J(q)` curve.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct QPoint {
+    /// The order.
+    pub q: f64,
+    /// The error index `J` (eq. 30) of the fit at this `q` (`inf` where the solve broke down).
+    pub j: f64,
+}
+
+/// The result of [`search_q`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct QSearch {
+    /// The best fit (after refinement if asked).
+    pub best: LevyFit,
+    /// The best fit on the grid (the paper's answer).
+    pub grid_best: LevyFit,
+    /// `J(q)` on the grid, increasing `q` (a single point for a fixed `q`).
+    pub curve: Vec<QPoint>,
+}
+
+/// Levy (plus `sk_iterations` Sanathanan-Koerner steps) at every `q` of the grid, the best by `J`
+/// (eq. 30), then a golden-section refinement of `J(q)`.
+///
+/// # Errors
+/// As [`levy_fixed_q`]; [`Error::Options`] for a bad grid; [`Error::Numerical`] when no `q`
+/// of the grid gives a finite fit.
+pub fn search_q(
+    omega_rad_s: &[f64],
+    h: &[Complex64],
+    m: usize,
+    n: usize,
+    weights: &[f64],
+    sk_iterations: usize,
+    order: &OrderChoice,
+) -> Result<QSearch> {
+    check_bode(omega_rad_s, h)?;
+    check_sizes(omega_rad_s.len(), m, n)?;
+    let fit = |q: f64| levy_fixed_q(omega_rad_s, h, q, m, n, weights, sk_iterations);
+    match *order {
+        OrderChoice::Fixed(q) => {
+            let best = fit(q)?;
+            Ok(QSearch {
+                grid_best: best.clone(),
+                curve: vec![QPoint { q, j: best.j }],
+                best,
+            })
+        }
+        OrderChoice::Search {
+            step,
+            q_max,
+            refine,
+        } => {
+            if !(step > 0.0 && step.is_finite() && q_max > 0.0 && q_max <= 2.0 && step <= q_max) {
+                return Err(Error::Options(format!(
+                    "q grid step {step} and maximum {q_max} must satisfy 0 < step <= q_max <= 2"
+                )));
+            }
+            // q_k = k step, k = 1..K, with a tolerance so that 1.0 is on a 0.01 grid
+            let count = ((q_max / step) * (1.0 + 1e-12)).floor() as usize;
+            if count > 100_000 {
+                return Err(Error::Options(format!(
+                    "q grid of {count} points is too fine"
+                )));
+            }
+            let mut curve = Vec::with_capacity(count);
+            let mut grid_best: Option<LevyFit> = None;
+            for k in 1..=count {
+                // round to 12 digits so that 0.91 prints and compares as 0.91
+                let q = ((k as f64 * step) * 1e12).round() / 1e12;
+                match fit(q) {
+                    Ok(ft) if ft.j.is_finite() => {
+                        curve.push(QPoint { q, j: ft.j });
+                        if grid_best.as_ref().map_or(true, |b| ft.j < b.j) {
+                            grid_best = Some(ft);
+                        }
+                    }
+                    Ok(_) | Err(Error::Numerical(_)) | Err(Error::Sim(_)) => curve.push(QPoint {
+                        q,
+                        j: f64::INFINITY,
+                    }),
+                    Err(e) => return Err(e),
+                }
+            }
+            let grid_best = grid_best.ok_or_else(|| {
+                Error::Numerical("no order q on the grid gives a finite Levy fit".into())
+            })?;
+            let mut best = grid_best.clone();
+            if refine {
+                let lo = (grid_best.q - step).max(step * 1e-3);
+                let hi = (grid_best.q + step).min(q_max.max(grid_best.q));
+                let jq = |q: f64| fit(q).map(|f| f.j).unwrap_or(f64::INFINITY);
+                let qr = golden_section(jq, lo, hi, 1e-7);
+                if let Ok(fr) = fit(qr) {
+                    if fr.j < best.j {
+                        best = fr;
+                    }
+                }
+            }
+            Ok(QSearch {
+                best,
+                grid_best,
+                curve,
+            })
+        }
+    }
+}
+
+/// Golden-section minimisation of `f` on `[a, b]` down to an interval of width `tol`.
+fn golden_section(f: impl Fn(f64) -> f64, mut a: f64, mut b: f64, tol: f64) -> f64 {
+    let r = 0.5 * (5f64.sqrt() - 1.0);
+    let mut c = b - r * (b - a);
+    let mut d = a + r * (b - a);
+    let (mut fc, mut fd) = (f(c), f(d));
+    for _ in 0..200 {
+        if (b - a).abs() <= tol {
+            break;
+        }
+        if fc < fd {
+            b = d;
+            d = c;
+            fd = fc;
+            c = b - r * (b - a);
+            fc = f(c);
+        } else {
+            a = c;
+            c = d;
+            fc = fd;
+            d = a + r * (b - a);
+            fd = f(d);
+        }
+    }
+    if fc < fd {
+        c
+    } else {
+        d
+    }
+}
+
+/// Options of [`fit_bode`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct FreqOptions {
+    /// Denominator degree `n` (in powers of `s^q`). Default 2.
+    pub n: usize,
+    /// Numerator degree `m`. Default 0.
+    pub m: usize,
+    /// The order `q`: fixed or searched. Default: grid step 0.01 on `(0, 1]`, refined.
+    pub order: OrderChoice,
+    /// Weights of the Levy least squares. Default Vinagre.
+    pub weights: Weights,
+    /// Sanathanan-Koerner iterations (0: none). Default 0. With `> 0` the result has an `sk` fit.
+    pub sk_iterations: usize,
+    /// Refit the PMSM structure with two free orders by Levenberg-Marquardt (needs `n = 2`,
+    /// `m = 0`). Default false.
+    pub refine: bool,
+}
+
+impl Default for FreqOptions {
+    fn default() -> Self {
+        Self {
+            n: 2,
+            m: 0,
+            order: OrderChoice::default(),
+            weights: Weights::Vinagre,
+            sk_iterations: 0,
+            refine: false,
+        }
+    }
+}
+
+/// The result of [`fit_bode`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct FreqFit {
+    /// Levy's fit (weighted, no SK) at the chosen `q` (refined `q` if the search refines).
+    pub levy: LevyFit,
+    /// Levy's fit at the best grid `q` (the paper's procedure); equal to `levy` for a fixed `q`.
+    pub levy_grid: LevyFit,
+    /// `J(q)` of the Levy fit on the grid.
+    pub curve: Vec<QPoint>,
+    /// The Sanathanan-Koerner fit (its own `q` search), if `sk_iterations > 0`.
+    pub sk: Option<LevyFit>,
+    /// `J(q)` of the SK fit on the grid (empty without SK).
+    pub sk_curve: Vec<QPoint>,
+    /// The nonlinear PMSM refit, if asked.
+    pub refined: Option<PmsmFit>,
+}
+
+impl FreqFit {
+    /// The best model by `J` among Levy, SK and the refit.
+    pub fn best_model(&self) -> &FracTf {
+        let mut best = (&self.levy.model, self.levy.j);
+        if let Some(s) = &self.sk {
+            if s.j < best.1 {
+                best = (&s.model, s.j);
+            }
+        }
+        if let Some(r) = &self.refined {
+            if r.j < best.1 {
+                best = (&r.model, r.j);
+            }
+        }
+        best.0
+    }
+}
+
+/// Identify a fractional model from Bode data: Levy with an order search, optionally
+/// Sanathanan-Koerner iterations and the nonlinear PMSM refit (started from the better of Levy
+/// and SK by `J`). The single entry point of `fracid freq` and the Python bindings.
+///
+/// `omega_rad_s` strictly increasing, > 0; `h[g] = G(j omega_g)` (complex, linear gain).
+///
+/// # Errors
+/// As [`check_bode`], [`search_q`], [`refine_pmsm`]; [`Error::Options`] for `refine` with a
+/// structure other than `n = 2`, `m = 0`.
+pub fn fit_bode(omega_rad_s: &[f64], h: &[Complex64], opts: &FreqOptions) -> Result<FreqFit> {
+    check_bode(omega_rad_s, h)?;
+    check_sizes(omega_rad_s.len(), opts.m, opts.n)?;
+    if opts.refine && (opts.n != 2 || opts.m != 0) {
+        return Err(Error::Options(format!(
+            "the refit is of the PMSM structure K/(a2 s^(zeta+theta) + a1 s^zeta + 1): needs n = 2, \
+             m = 0 (got n = {}, m = {})",
+            opts.n, opts.m
+        )));
+    }
+    let w = opts.weights.values(omega_rad_s)?;
+    let levy = search_q(omega_rad_s, h, opts.m, opts.n, &w, 0, &opts.order)?;
+    let (sk, sk_curve) = if opts.sk_iterations > 0 {
+        let s = search_q(
+            omega_rad_s,
+            h,
+            opts.m,
+            opts.n,
+            &w,
+            opts.sk_iterations,
+            &opts.order,
+        )?;
+        (Some(s.best), s.curve)
+    } else {
+        (None, Vec::new())
+    };
+    let refined = if opts.refine {
+        let start = match &sk {
+            Some(s) if s.j < levy.best.j => s,
+            _ => &levy.best,
+        };
+        Some(refine_pmsm(
+            omega_rad_s,
+            h,
+            start,
+            &RefineOptions::default(),
+        )?)
+    } else {
+        None
+    };
+    Ok(FreqFit {
+        levy: levy.best,
+        levy_grid: levy.grid_best,
+        curve: levy.curve,
+        sk,
+        sk_curve,
+        refined,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn vinagre_ends_and_middle() {
+        let w = vinagre_weights(&[1.0, 3.0, 4.0, 10.0]);
+        assert_eq!(w[0], 2.0 / 2.0);
+        assert_eq!(w[1], 3.0 / 18.0);
+        assert_eq!(w[2], 7.0 / 32.0);
+        assert_eq!(w[3], 6.0 / 200.0);
+    }
+
+    #[test]
+    fn golden_finds_parabola_minimum() {
+        let x = golden_section(|x| (x - 0.3).powi(2), 0.0, 1.0, 1e-9);
+        assert!((x - 0.3).abs() < 1e-8);
+    }
+
+    #[test]
+    fn grid_includes_q_max() {
+        let g = FracTf::pmsm(2.0, 0.1, 0.01, 0.5, 0.5).unwrap();
+        let omega: Vec<f64> = (0..8).map(|i| 10f64.powi(i - 2)).collect();
+        let s = search_q(
+            &omega,
+            &g.bode(&omega),
+            0,
+            2,
+            &vinagre_weights(&omega),
+            0,
+            &OrderChoice::default(),
+        )
+        .unwrap();
+        assert_eq!(s.curve.len(), 100);
+        assert_eq!(s.curve[99].q, 1.0);
+        assert_eq!(s.grid_best.q, 0.5);
+    }
+
+    #[test]
+    fn sizes_checked() {
+        let omega = [1.0, 2.0];
+        let h = [Complex64::new(1.0, 0.0); 2];
+        assert!(matches!(
+            levy_fixed_q(&omega, &h, 0.5, 0, 2, &[1.0, 1.0], 0),
+            Err(Error::NotEnoughData(_))
+        ));
+        assert!(matches!(
+            levy_fixed_q(&omega, &h, 0.0, 0, 1, &[1.0, 1.0], 0),
+            Err(Error::Options(_))
+        ));
+    }
+}

@@ -1,0 +1,1 @@
+//! Bad input is an error, never a panic.

@@ -1,0 +1,1 @@
+//! Round trips: Bode data from known models, fitted back.
