@@ -45,12 +45,15 @@ impl std::str::FromStr for Method {
 /// How each first-order cell is turned into a discrete section.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Discretization {
-    /// Bilinear (Tustin) with each corner frequency prewarped, `w -> (2/dt) tan(w dt/2)`
-    /// (corners above 0.9 Nyquist are clamped there).
+    /// Plain bilinear (Tustin), the default: the discrete response at low frequency is the
+    /// continuous one, including the effect of cells above Nyquist, so the band can (and should)
+    /// extend well beyond Nyquist.
     #[default]
-    BilinearPrewarp,
-    /// Plain bilinear (Tustin).
     Bilinear,
+    /// Bilinear with each corner frequency prewarped, `w -> (2/dt) tan(w dt/2)`. Corners above
+    /// 0.9 Nyquist are clamped there, which distorts the gain: use only with a band well inside
+    /// Nyquist.
+    BilinearPrewarp,
     /// Exact zero-order-hold discretisation of each cell's state space. Integer powers of `s`
     /// (which have no ZOH equivalent) stay bilinear.
     Zoh,
@@ -79,7 +82,7 @@ pub struct ApproxSpec {
     /// The band `[w_b, w_h]` in rad/s; `None` chooses it from the sampling step, see
     /// [`ApproxSpec::band_for`].
     pub band: Option<(f64, f64)>,
-    /// The order: `2N+1` cells for Oustaloup, `N` cells for Poinot-Trigeassou.
+    /// The order `N`: every method uses `2N+1` cells.
     pub order: usize,
     /// The discretisation of each cell.
     pub discretization: Discretization,
@@ -90,16 +93,18 @@ impl Default for ApproxSpec {
         Self {
             method: Method::Oustaloup,
             band: None,
-            order: 6,
-            discretization: Discretization::BilinearPrewarp,
+            order: 8,
+            discretization: Discretization::Bilinear,
         }
     }
 }
 
 impl ApproxSpec {
     /// The band used at sampling step `dt` (seconds): the given one, or by default
-    /// `[1e-3, min(1e4, 0.5 pi/dt)]` rad/s: from well below any record length up to half the
-    /// Nyquist frequency (cells above Nyquist cannot be represented by a discrete filter).
+    /// `[1e-3, 30 pi/dt]` rad/s: from well below any record's lowest frequency to 30 times Nyquist.
+    /// Oustaloup-type approximations err near the band edges by roughly `nu w/w_h` (the cells
+    /// missing above `w_h`), so the top edge must sit far above the highest frequency the samples
+    /// carry; the bilinear map keeps the low-frequency effect of those cells.
     ///
     /// # Errors
     /// An invalid band ([`Error::Band`]) or step.
@@ -110,7 +115,7 @@ impl ApproxSpec {
         }
         let (w_b, w_h) = self
             .band
-            .unwrap_or_else(|| (1e-3, (0.5 * std::f64::consts::PI / dt).min(1e4)));
+            .unwrap_or_else(|| (1e-3, 30.0 * std::f64::consts::PI / dt));
         check_band(w_b, w_h)?;
         Ok((w_b, w_h))
     }
@@ -385,7 +390,7 @@ pub fn approximate<T: Real>(nu: T, band: (f64, f64), spec: &ApproxSpec) -> Resul
                     poles: vec![],
                 });
             }
-            let mut r = trigeassou_integrator(-f + 1.0, w_b, w_h, spec.order.max(1))?;
+            let mut r = trigeassou_integrator(-f + 1.0, w_b, w_h, 2 * spec.order + 1)?;
             r.int_order = int;
             Ok(r)
         }
@@ -417,7 +422,7 @@ mod tests {
             let r = refined_oustaloup(nu, w_b, w_h, 6).unwrap();
             let spec = ApproxSpec {
                 method: Method::Trigeassou,
-                order: 14,
+                order: 6,
                 ..Default::default()
             };
             let t = approximate(nu, (w_b, w_h), &spec).unwrap();
