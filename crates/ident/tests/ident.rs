@@ -1,3 +1,4 @@
 //! Integration tests of `ident`.
 
+mod freq;
 mod time;
