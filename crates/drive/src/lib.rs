@@ -1,1 +1,11 @@
-//! # drive: the F2812 serial protocol, client and simulator
+#![doc = include_str!("../PROTOCOL.md")]
+
+pub mod bode;
+pub mod client;
+pub mod codec;
+mod error;
+pub mod prbs;
+pub mod protocol;
+pub mod sim;
+
+pub use error::{Error, Result};

@@ -1,0 +1,942 @@
+//! The host side: a client over `serialport` (crate docs, section 8).
+//!
+//! ```no_run
+//! use drive::client::{Client, ClientConfig, CsvSink, PrbsTest};
+//! let mut c = Client::open("/dev/ttyUSB0", ClientConfig::default())?;
+//! c.configure(&drive::protocol::Configure::default())?;
+//! let mut sink = CsvSink::new(std::fs::File::create("prbs.csv")?);
+//! let acq = c.run_prbs(&PrbsTest::paper(), &mut sink)?;
+//! if !acq.complete { eprintln!("incomplete: missing {:?}", acq.missing); }
+//! # Ok::<(), drive::Error>(())
+//! ```
+
+use crate::bode::{self, BodePoint};
+use crate::codec::{self, StreamDecoder};
+use crate::error::{Error, Result};
+use crate::protocol::*;
+use serialport::{SerialPort, TTYPort};
+use std::collections::VecDeque;
+use std::io::{self, Write};
+use std::ops::Range;
+use std::time::{Duration, Instant};
+
+/// Client settings.
+#[derive(Debug, Clone)]
+pub struct ClientConfig {
+    /// Line rate, baud.
+    pub baud: u32,
+    /// Time to wait for an answer before resending; None = 100 ms + 3 longest frame times.
+    pub timeout: Option<Duration>,
+    /// Resends after the first attempt.
+    pub retries: u32,
+    /// Interval between KEEPALIVE frames during a run.
+    pub keepalive: Duration,
+    /// Silence on the stream before the client polls the drive; None = max(400 ms, 4 blocks).
+    pub stream_timeout: Option<Duration>,
+    /// How long to keep trying to reopen a port that failed.
+    pub reconnect_timeout: Duration,
+    /// Open the port exclusively (TIOCEXCL); released when the client closes it.
+    pub exclusive: bool,
+}
+
+impl Default for ClientConfig {
+    fn default() -> Self {
+        Self {
+            baud: 115_200,
+            timeout: None,
+            retries: 5,
+            keepalive: Duration::from_millis(150),
+            stream_timeout: None,
+            reconnect_timeout: Duration::from_secs(3),
+            exclusive: true,
+        }
+    }
+}
+
+/// Counters kept by the client.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct ClientStats {
+    /// Commands sent (first attempts).
+    pub commands: u64,
+    /// Resends.
+    pub retries: u64,
+    /// Port reopenings.
+    pub reconnects: u64,
+    /// Stream recoveries (silence on the stream).
+    pub recoveries: u64,
+    /// Valid frames received.
+    pub frames: u64,
+    /// Received frames discarded by the decoder.
+    pub bad_frames: u64,
+}
+
+/// What a run is about, given to the sink before the first sample.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RunInfo {
+    /// Run id assigned by the drive.
+    pub run_id: u16,
+    /// Planned number of samples.
+    pub total_samples: u64,
+    /// Sample rate, Hz.
+    pub sample_rate_hz: u32,
+    /// A one-line description of the experiment.
+    pub description: String,
+}
+
+/// Receives samples as they arrive.
+pub trait SampleSink {
+    /// Called once before the first sample.
+    fn begin(&mut self, info: &RunInfo) -> io::Result<()>;
+    /// One sample: index, time (s), u (V), y (rad/s), i (A). Indices only increase.
+    fn sample(&mut self, index: u64, t: f64, u: f64, y: f64, i: f64) -> io::Result<()>;
+    /// Called once at the end with the result.
+    fn finish(&mut self, acq: &Acquisition) -> io::Result<()>;
+}
+
+/// A sink that discards everything.
+#[derive(Debug, Default, Clone, Copy)]
+pub struct NullSink;
+
+impl SampleSink for NullSink {
+    fn begin(&mut self, _: &RunInfo) -> io::Result<()> {
+        Ok(())
+    }
+    fn sample(&mut self, _: u64, _: f64, _: f64, _: f64, _: f64) -> io::Result<()> {
+        Ok(())
+    }
+    fn finish(&mut self, _: &Acquisition) -> io::Result<()> {
+        Ok(())
+    }
+}
+
+/// Writes `t,u,y,i` CSV rows as samples arrive, flushing every block; a `#` header with the run
+/// parameters and a last line `# complete: N samples` or `# incomplete: missing samples a..b, ...
+/// (reason)`. A file without such a footer was interrupted.
+#[derive(Debug)]
+pub struct CsvSink<W: Write> {
+    w: io::BufWriter<W>,
+    rows: u64,
+}
+
+impl<W: Write> CsvSink<W> {
+    /// A sink writing to `w`.
+    pub fn new(w: W) -> Self {
+        Self {
+            w: io::BufWriter::new(w),
+            rows: 0,
+        }
+    }
+    /// Unwrap the writer.
+    pub fn into_inner(self) -> io::Result<W> {
+        self.w.into_inner().map_err(|e| e.into_error())
+    }
+}
+
+impl<W: Write> SampleSink for CsvSink<W> {
+    fn begin(&mut self, info: &RunInfo) -> io::Result<()> {
+        writeln!(self.w, "# fracid drive acquisition: {}", info.description)?;
+        writeln!(
+            self.w,
+            "# run_id {}, {} samples planned at {} Hz; units: t s, u V, y rad/s, i A",
+            info.run_id, info.total_samples, info.sample_rate_hz
+        )?;
+        writeln!(self.w, "t,u,y,i")?;
+        self.w.flush()
+    }
+    fn sample(&mut self, _index: u64, t: f64, u: f64, y: f64, i: f64) -> io::Result<()> {
+        writeln!(self.w, "{t:.6},{u},{y},{i}")?;
+        self.rows += 1;
+        if self.rows % 64 == 0 {
+            self.w.flush()?;
+        }
+        Ok(())
+    }
+    fn finish(&mut self, acq: &Acquisition) -> io::Result<()> {
+        writeln!(self.w, "{}", acq.footer())?;
+        self.w.flush()
+    }
+}
+
+/// The result of a streamed run. Samples that arrived are kept whatever happened.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Acquisition {
+    /// Run id.
+    pub run_id: u16,
+    /// Sample rate, Hz.
+    pub sample_rate_hz: u32,
+    /// Sample indices received (increasing).
+    pub index: Vec<u64>,
+    /// Time of each sample, s (index / sample rate).
+    pub t: Vec<f64>,
+    /// Voltage command, V.
+    pub u: Vec<f64>,
+    /// Speed, rad/s.
+    pub y: Vec<f64>,
+    /// Current, A.
+    pub i: Vec<f64>,
+    /// Raw samples `[u, y, i]` as received.
+    pub raw: Vec<[i16; 3]>,
+    /// Samples the run should have (from STREAM_END if it arrived, else as planned).
+    pub total_samples: u64,
+    /// True only if every index in `0..total_samples` arrived and the run ended normally.
+    pub complete: bool,
+    /// Missing sample ranges (half-open).
+    pub missing: Vec<Range<u64>>,
+    /// The drive's end-of-run summary, if obtained.
+    pub end: Option<StreamEnd>,
+    /// Why the run is incomplete (empty when complete).
+    pub problems: Vec<String>,
+    /// Blocks with a clamped command sample.
+    pub clamped_blocks: u64,
+    /// The drive's single-bin DFT (sine runs).
+    pub sine: Option<SineResult>,
+}
+
+impl Acquisition {
+    /// The footer line written by [`CsvSink`].
+    pub fn footer(&self) -> String {
+        if self.complete {
+            format!("# complete: {} samples", self.index.len())
+        } else {
+            let ranges: Vec<String> = self.missing.iter().map(|r| format!("{}..{}", r.start, r.end)).collect();
+            format!(
+                "# incomplete: missing samples {} ({})",
+                if ranges.is_empty() { "none".to_string() } else { ranges.join(", ") },
+                self.problems.join("; ")
+            )
+        }
+    }
+}
+
+/// A PRBS experiment in physical units.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PrbsTest {
+    /// LFSR length (2..=16 with default taps).
+    pub order: u8,
+    /// Seed (nonzero).
+    pub seed: u32,
+    /// Bit duration, s (a whole number of samples).
+    pub clock_s: f64,
+    /// Amplitude, V.
+    pub amplitude_v: f64,
+    /// Offset (operating point), V.
+    pub offset_v: f64,
+    /// Periods.
+    pub periods: u16,
+    /// Settling time at the offset before the PRBS, s.
+    pub settle_s: f64,
+}
+
+impl PrbsTest {
+    /// The paper's experiment: order 7, 3 ms clock, one period, 1 V around a 6 V operating
+    /// point reached during 0.3 s.
+    pub fn paper() -> Self {
+        Self {
+            order: 7,
+            seed: 1,
+            clock_s: 0.003,
+            amplitude_v: 1.0,
+            offset_v: 6.0,
+            periods: 1,
+            settle_s: 0.3,
+        }
+    }
+
+    /// The START_PRBS command for a configuration.
+    pub fn to_command(&self, c: &Configure) -> Result<StartPrbs> {
+        let fs = c.sample_rate_hz as f64;
+        let clock = (self.clock_s * fs).round();
+        if !(1.0..=65535.0).contains(&clock) || ((self.clock_s * fs) - clock).abs() > 1e-6 * clock {
+            return Err(Error::InvalidParam(format!(
+                "PRBS clock {} s is not a whole number of samples at {} Hz",
+                self.clock_s, c.sample_rate_hz
+            )));
+        }
+        let taps = crate::prbs::default_taps(self.order)
+            .ok_or_else(|| Error::InvalidParam(format!("PRBS order {} (2..=16)", self.order)))?;
+        let raw = |v: f64, what: &str| -> Result<i16> {
+            let r = (v / c.u_lsb()).round();
+            if !r.is_finite() || r.abs() > 32767.0 {
+                return Err(Error::InvalidParam(format!("{what} {v} V out of range")));
+            }
+            Ok(r as i16)
+        };
+        let settle = (self.settle_s * fs).round();
+        if !(0.0..=u32::MAX as f64).contains(&settle) {
+            return Err(Error::InvalidParam("settle time out of range".into()));
+        }
+        let cmd = StartPrbs {
+            order: self.order,
+            taps,
+            seed: self.seed,
+            clock_samples: clock as u16,
+            amplitude: raw(self.amplitude_v.abs(), "amplitude")?,
+            offset: raw(self.offset_v, "offset")?,
+            periods: self.periods.max(1),
+            settle_samples: settle as u32,
+        };
+        crate::prbs::Lfsr::new(cmd.order, cmd.taps, cmd.seed)
+            .ok_or_else(|| Error::InvalidParam(format!("PRBS seed {} for order {}", self.seed, self.order)))?;
+        cmd.total_samples()
+            .ok_or_else(|| Error::InvalidParam("PRBS run too long".into()))?;
+        Ok(cmd)
+    }
+}
+
+/// A sine sweep in physical units.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SineSweep {
+    /// Frequencies, Hz.
+    pub freqs_hz: Vec<f64>,
+    /// Amplitude, V.
+    pub amplitude_v: f64,
+    /// Offset (operating point), V.
+    pub offset_v: f64,
+    /// Cycles before measuring.
+    pub settle_cycles: u16,
+    /// Cycles measured.
+    pub cycles: u16,
+    /// Minimum settling time, s (more settle cycles at high frequencies).
+    pub min_settle_s: f64,
+    /// Stream the samples too (and compute the DFT on the host from them).
+    pub stream: bool,
+    /// Attempts per frequency when a point is lost.
+    pub attempts: u32,
+}
+
+impl SineSweep {
+    /// `n` log-spaced frequencies from `f0_hz` to `f1_hz`, 1 V around 6 V, 2 settle cycles (at
+    /// least 0.2 s), 4 measured cycles, DFT on the drive.
+    pub fn log(f0_hz: f64, f1_hz: f64, n: usize) -> Self {
+        let freqs_hz = (0..n)
+            .map(|k| {
+                if n <= 1 {
+                    f0_hz
+                } else {
+                    f0_hz * (f1_hz / f0_hz).powf(k as f64 / (n - 1) as f64)
+                }
+            })
+            .collect();
+        Self {
+            freqs_hz,
+            amplitude_v: 1.0,
+            offset_v: 6.0,
+            settle_cycles: 2,
+            cycles: 4,
+            min_settle_s: 0.2,
+            stream: false,
+            attempts: 3,
+        }
+    }
+}
+
+/// Progress of a run, for a progress bar.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Progress {
+    /// Samples (or sweep points) done.
+    pub done: u64,
+    /// Samples (or sweep points) planned.
+    pub total: u64,
+}
+
+/// A connection to a drive (or the simulator).
+pub struct Client {
+    path: String,
+    cfg: ClientConfig,
+    port: Option<TTYPort>,
+    dec: StreamDecoder,
+    seq: u16,
+    hello: Option<HelloReply>,
+    conf: Option<Configure>,
+    inbox: VecDeque<Frame>,
+    last_tx: Instant,
+    stats: ClientStats,
+    progress: Option<Box<dyn FnMut(Progress) + Send>>,
+}
+
+impl std::fmt::Debug for Client {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Client")
+            .field("path", &self.path)
+            .field("hello", &self.hello)
+            .field("stats", &self.stats)
+            .finish()
+    }
+}
+
+fn port_err(path: &str, e: serialport::Error) -> Error {
+    Error::Port {
+        path: path.to_string(),
+        source: e,
+    }
+}
+
+impl Client {
+    /// Open the port, say HELLO and check the protocol version.
+    pub fn open(path: &str, cfg: ClientConfig) -> Result<Self> {
+        let mut c = Self {
+            path: path.to_string(),
+            cfg,
+            port: None,
+            dec: StreamDecoder::new(),
+            seq: rand::random(),
+            hello: None,
+            conf: None,
+            inbox: VecDeque::new(),
+            last_tx: Instant::now(),
+            stats: ClientStats::default(),
+            progress: None,
+        };
+        c.port = Some(c.open_port()?);
+        c.hello()?;
+        Ok(c)
+    }
+
+    /// Report progress to `f` during runs.
+    pub fn set_progress(&mut self, f: impl FnMut(Progress) + Send + 'static) {
+        self.progress = Some(Box::new(f));
+    }
+
+    /// The drive's HELLO_REPLY.
+    pub fn drive_info(&self) -> Option<HelloReply> {
+        self.hello
+    }
+
+    /// Counters.
+    pub fn stats(&self) -> ClientStats {
+        let mut s = self.stats;
+        s.bad_frames = self.dec.stats().errors;
+        s
+    }
+
+    /// The port path.
+    pub fn path(&self) -> &str {
+        &self.path
+    }
+
+    fn open_port(&self) -> Result<TTYPort> {
+        let p = serialport::new(&self.path, self.cfg.baud)
+            .timeout(Duration::from_millis(10))
+            .exclusive(self.cfg.exclusive)
+            .open_native()
+            .map_err(|e| port_err(&self.path, e))?;
+        let _ = p.clear(serialport::ClearBuffer::All);
+        Ok(p)
+    }
+
+    fn close_port(&mut self) {
+        if let Some(mut p) = self.port.take() {
+            // Release TIOCEXCL explicitly: on a pty the flag can outlive our descriptor.
+            if self.cfg.exclusive {
+                let _ = p.set_exclusive(false);
+            }
+        }
+    }
+
+    /// Reopen the port path until it works or the reconnect timeout passes.
+    pub fn reconnect(&mut self) -> Result<()> {
+        self.close_port();
+        self.dec.reset();
+        self.stats.reconnects += 1;
+        let deadline = Instant::now() + self.cfg.reconnect_timeout;
+        loop {
+            match self.open_port() {
+                Ok(p) => {
+                    self.port = Some(p);
+                    return Ok(());
+                }
+                Err(e) => {
+                    if Instant::now() >= deadline {
+                        return Err(e);
+                    }
+                    std::thread::sleep(Duration::from_millis(20));
+                }
+            }
+        }
+    }
+
+    fn timeout(&self) -> Duration {
+        self.cfg.timeout.unwrap_or_else(|| {
+            let frame_s = 3.0 * (codec::MAX_ENCODED + 2) as f64 * 10.0 / self.cfg.baud.max(1) as f64;
+            Duration::from_millis(100) + Duration::from_secs_f64(frame_s)
+        })
+    }
+
+    fn stream_timeout(&self) -> Duration {
+        self.cfg.stream_timeout.unwrap_or_else(|| {
+            let block = self
+                .conf
+                .map(|c| c.block_samples as f64 / c.sample_rate_hz.max(1) as f64)
+                .unwrap_or(0.0);
+            Duration::from_millis(400).max(Duration::from_secs_f64(4.0 * block))
+        })
+    }
+
+    fn send(&mut self, frame: &Frame) -> Result<()> {
+        let bytes = codec::encode(frame);
+        self.last_tx = Instant::now();
+        if self.port.is_none() {
+            self.reconnect()?;
+        }
+        let r = match self.port.as_mut() {
+            Some(p) => p.write_all(&bytes).and_then(|_| p.flush().or(Ok(()))),
+            None => Ok(()),
+        };
+        if r.is_err() {
+            // The port is gone: reopen it; the caller's retry logic resends.
+            self.reconnect()?;
+        }
+        Ok(())
+    }
+
+    /// Read for up to `wait`; valid frames go to the inbox. Reopens the port if it failed.
+    fn pump(&mut self, wait: Duration) -> Result<()> {
+        if self.port.is_none() {
+            self.reconnect()?;
+        }
+        let Some(p) = self.port.as_mut() else { return Ok(()) };
+        let _ = p.set_timeout(wait.max(Duration::from_millis(1)));
+        let mut buf = [0u8; 2048];
+        match p.read(&mut buf) {
+            Ok(0) => {
+                // EOF on a tty: the other side hung up.
+                self.reconnect()?;
+            }
+            Ok(n) => {
+                let before = self.inbox.len();
+                let inbox = &mut self.inbox;
+                self.dec.push_with(&buf[..n], |f| inbox.push_back(f));
+                self.stats.frames += (self.inbox.len() - before) as u64;
+            }
+            Err(e) if e.kind() == io::ErrorKind::TimedOut || e.kind() == io::ErrorKind::Interrupted => {}
+            Err(_) => {
+                std::thread::sleep(Duration::from_millis(5));
+                self.reconnect()?;
+            }
+        }
+        Ok(())
+    }
+
+    fn next_seq(&mut self) -> u16 {
+        self.seq = self.seq.wrapping_add(1);
+        self.seq
+    }
+
+    /// Send a command and wait for its answer (ACK, NAK, HELLO_REPLY, STATUS_REPLY or
+    /// STREAM_END for END_QUERY), resending with the same seq on timeout. A NAK is an error.
+    pub fn request(&mut self, msg: Message) -> Result<Message> {
+        let seq = self.next_seq();
+        let what = msg.name();
+        let frame = Frame { seq, msg };
+        let attempts = self.cfg.retries + 1;
+        self.stats.commands += 1;
+        for attempt in 0..attempts {
+            if attempt > 0 {
+                self.stats.retries += 1;
+            }
+            self.send(&frame)?;
+            let deadline = Instant::now() + self.timeout();
+            while Instant::now() < deadline {
+                if let Some(ans) = self.take_answer(seq, &frame.msg) {
+                    if let Message::Nak(n) = ans {
+                        return Err(Error::Nak {
+                            what,
+                            code: n.code,
+                            detail: n.detail,
+                        });
+                    }
+                    return Ok(ans);
+                }
+                let left = deadline.saturating_duration_since(Instant::now());
+                self.pump(left.min(Duration::from_millis(20)))?;
+            }
+        }
+        Err(Error::Timeout { what, attempts })
+    }
+
+    /// Remove the answer to (seq, msg) from the inbox, if there.
+    fn take_answer(&mut self, seq: u16, msg: &Message) -> Option<Message> {
+        let pos = self.inbox.iter().position(|f| {
+            f.seq == seq
+                && match (&f.msg, msg) {
+                    (Message::Ack(a), m) => a.acked_type == m.type_code(),
+                    (Message::Nak(n), m) => n.nak_type == m.type_code(),
+                    (Message::HelloReply(_), Message::Hello) => true,
+                    (Message::StatusReply(_), Message::Status) => true,
+                    (Message::StreamEnd(e), Message::EndQuery(id)) => e.run_id == *id,
+                    _ => false,
+                }
+        })?;
+        self.inbox.remove(pos).map(|f| f.msg)
+    }
+
+    /// HELLO: check the version, remember the boot id.
+    pub fn hello(&mut self) -> Result<HelloReply> {
+        match self.request(Message::Hello)? {
+            Message::HelloReply(h) => {
+                if h.proto_version != PROTO_VERSION {
+                    return Err(Error::Version {
+                        drive: h.proto_version,
+                        host: PROTO_VERSION,
+                    });
+                }
+                if let Some(old) = self.hello {
+                    if old.boot_id != h.boot_id {
+                        self.conf = None;
+                    }
+                }
+                self.hello = Some(h);
+                Ok(h)
+            }
+            other => Err(Error::Protocol(format!("HELLO answered by {}", other.name()))),
+        }
+    }
+
+    /// CONFIGURE.
+    pub fn configure(&mut self, c: &Configure) -> Result<()> {
+        if c.block_samples == 0 || c.block_samples > MAX_BLOCK_SAMPLES {
+            return Err(Error::InvalidParam(format!("block_samples {}", c.block_samples)));
+        }
+        self.request(Message::Configure(*c))?;
+        self.conf = Some(*c);
+        Ok(())
+    }
+
+    /// STATUS.
+    pub fn status(&mut self) -> Result<StatusReply> {
+        match self.request(Message::Status)? {
+            Message::StatusReply(s) => Ok(s),
+            other => Err(Error::Protocol(format!("STATUS answered by {}", other.name()))),
+        }
+    }
+
+    /// STOP the current run.
+    pub fn stop(&mut self) -> Result<()> {
+        self.request(Message::Stop).map(|_| ())
+    }
+
+    /// Emergency stop (latched until the next CONFIGURE).
+    pub fn estop(&mut self) -> Result<()> {
+        self.request(Message::Estop).map(|_| ())
+    }
+
+    fn conf(&self) -> Result<Configure> {
+        self.conf
+            .ok_or_else(|| Error::InvalidParam("configure the drive first".into()))
+    }
+
+    /// Run a PRBS experiment, streaming samples into `sink` as they arrive.
+    pub fn run_prbs(&mut self, test: &PrbsTest, sink: &mut dyn SampleSink) -> Result<Acquisition> {
+        let conf = self.conf()?;
+        let cmd = test.to_command(&conf)?;
+        let desc = format!(
+            "PRBS order {} taps {:#x} seed {} clock {} s ({} samples), amplitude {} V, offset {} V, {} periods, settle {} s",
+            cmd.order, cmd.taps, cmd.seed, test.clock_s, cmd.clock_samples, test.amplitude_v, test.offset_v, cmd.periods, test.settle_s
+        );
+        self.run(Message::StartPrbs(cmd), desc, sink)
+    }
+
+    /// Run one START_SINE and stream into `sink`.
+    pub fn run_sine(&mut self, cmd: &StartSine, sink: &mut dyn SampleSink) -> Result<Acquisition> {
+        let desc = format!(
+            "sine {} Hz, amplitude {} raw, offset {} raw, {}+{} cycles",
+            cmd.freq_mhz as f64 / 1000.0,
+            cmd.amplitude,
+            cmd.offset,
+            cmd.settle_cycles,
+            cmd.cycles
+        );
+        self.run(Message::StartSine(*cmd), desc, sink)
+    }
+
+    fn run(&mut self, start: Message, description: String, sink: &mut dyn SampleSink) -> Result<Acquisition> {
+        let conf = self.conf()?;
+        let boot = self.hello.map(|h| h.boot_id);
+        let ack = match self.request(start)? {
+            Message::Ack(a) => a,
+            other => return Err(Error::Protocol(format!("START answered by {}", other.name()))),
+        };
+        let fs = conf.sample_rate_hz;
+        let mut acq = Acquisition {
+            run_id: ack.run_id,
+            sample_rate_hz: fs,
+            total_samples: ack.total_samples as u64,
+            ..Default::default()
+        };
+        sink.begin(&RunInfo {
+            run_id: ack.run_id,
+            total_samples: ack.total_samples as u64,
+            sample_rate_hz: fs,
+            description,
+        })?;
+        let (ul, yl, il) = (conf.u_lsb(), conf.y_lsb(), conf.i_lsb());
+        let mut next: u64 = 0; // next expected index
+        let mut last_data = Instant::now();
+        let stream_timeout = self.stream_timeout();
+        let expected = Duration::from_secs_f64(ack.total_samples as f64 / fs.max(1) as f64);
+        let hard_deadline = Instant::now() + expected * 3 + Duration::from_secs(10);
+        let mut last_progress = 0u64;
+        let mut stalled_polls = 0u32;
+        let mut last_done = 0u32;
+        loop {
+            if self.last_tx.elapsed() >= self.cfg.keepalive {
+                let seq = self.next_seq();
+                self.send(&Frame {
+                    seq,
+                    msg: Message::Keepalive,
+                })?;
+            }
+            self.pump(Duration::from_millis(20))?;
+            let mut ended = false;
+            while let Some(f) = self.inbox.pop_front() {
+                match f.msg {
+                    Message::Data(d) if d.run_id == acq.run_id => {
+                        last_data = Instant::now();
+                        let first = d.first_index as u64;
+                        if d.flags & 1 != 0 {
+                            acq.clamped_blocks += 1;
+                        }
+                        for (k, s) in d.samples.iter().enumerate() {
+                            let idx = first + k as u64;
+                            if idx < next || idx >= acq.total_samples.max(next + 1) + 1_000_000 {
+                                continue; // duplicate or absurd
+                            }
+                            next = idx + 1;
+                            let t = idx as f64 / fs as f64;
+                            let (u, y, i) = (s[0] as f64 * ul, s[1] as f64 * yl, s[2] as f64 * il);
+                            acq.index.push(idx);
+                            acq.t.push(t);
+                            acq.u.push(u);
+                            acq.y.push(y);
+                            acq.i.push(i);
+                            acq.raw.push(*s);
+                            sink.sample(idx, t, u, y, i)?;
+                        }
+                    }
+                    Message::StreamEnd(e) if e.run_id == acq.run_id => {
+                        acq.end = Some(e);
+                        ended = true;
+                    }
+                    Message::SineResult(s) if s.run_id == acq.run_id => acq.sine = Some(s),
+                    _ => {} // stale answers, other runs
+                }
+            }
+            if let Some(p) = self.progress.as_mut() {
+                if next >= last_progress + 256 || ended {
+                    last_progress = next;
+                    p(Progress {
+                        done: next.min(acq.total_samples),
+                        total: acq.total_samples,
+                    });
+                }
+            }
+            if ended {
+                break;
+            }
+            if Instant::now() > hard_deadline {
+                acq.problems.push("run took too long; gave up".into());
+                break;
+            }
+            if last_data.elapsed() < stream_timeout {
+                continue;
+            }
+            // Silence: ask the drive what is going on.
+            self.stats.recoveries += 1;
+            let st = match self.status() {
+                Ok(s) => s,
+                Err(Error::Timeout { .. }) | Err(Error::Port { .. }) | Err(Error::Io(_)) => {
+                    acq.problems.push("drive stopped answering".into());
+                    break;
+                }
+                Err(e) => return Err(e),
+            };
+            if boot.is_some_and(|b| b != st.boot_id) {
+                acq.problems.push(format!(
+                    "drive reset during the run (boot id {:#06x} -> {:#06x})",
+                    boot.unwrap_or(0),
+                    st.boot_id
+                ));
+                self.conf = None;
+                if let Some(h) = self.hello.as_mut() {
+                    h.boot_id = st.boot_id;
+                }
+                break;
+            }
+            if st.run_id != acq.run_id {
+                acq.problems.push(format!("drive is on run {} instead of {}", st.run_id, acq.run_id));
+                break;
+            }
+            if st.state == DriveState::Running {
+                if st.samples_done == last_done {
+                    stalled_polls += 1;
+                    if stalled_polls > 5 {
+                        acq.problems.push("drive reports a run that makes no progress".into());
+                        break;
+                    }
+                }
+                last_done = st.samples_done;
+                last_data = Instant::now();
+                continue;
+            }
+            // The run is over and we missed STREAM_END: fetch it.
+            match self.request(Message::EndQuery(acq.run_id)) {
+                Ok(Message::StreamEnd(e)) => {
+                    acq.end = Some(e);
+                    // SINE_RESULT precedes STREAM_END; give stragglers a moment.
+                    break;
+                }
+                Ok(_) | Err(_) => {
+                    acq.problems.push("end-of-run summary unavailable".into());
+                    break;
+                }
+            }
+        }
+        self.finish(&mut acq, next);
+        sink.finish(&acq)?;
+        Ok(acq)
+    }
+
+    fn finish(&mut self, acq: &mut Acquisition, _next: u64) {
+        if let Some(e) = acq.end {
+            acq.total_samples = e.total_samples as u64;
+            if e.reason != EndReason::Complete {
+                acq.problems.push(format!("run ended early: {:?}", e.reason));
+            }
+            if e.blocks_dropped > 0 {
+                acq.problems.push(format!("drive dropped {} blocks", e.blocks_dropped));
+            }
+        } else if acq.problems.is_empty() {
+            acq.problems.push("no end-of-run summary".into());
+        }
+        // Missing ranges: complement of received indices in 0..total.
+        let mut missing = Vec::new();
+        let mut expect = 0u64;
+        for &i in &acq.index {
+            if i > expect {
+                missing.push(expect..i.min(acq.total_samples));
+            }
+            expect = i + 1;
+        }
+        if expect < acq.total_samples {
+            missing.push(expect..acq.total_samples);
+        }
+        missing.retain(|r| r.start < r.end);
+        if acq.index.last().is_some_and(|&l| l >= acq.total_samples) {
+            acq.problems.push("samples beyond the announced end".into());
+        }
+        if let Some(e) = acq.end {
+            let got = acq.index.len() as u64;
+            if missing.is_empty() && got != e.samples_sent as u64 {
+                acq.problems.push(format!("drive sent {} samples, host got {}", e.samples_sent, got));
+            }
+        }
+        if !missing.is_empty() {
+            let n: u64 = missing.iter().map(|r| r.end - r.start).sum();
+            acq.problems.push(format!("{n} samples missing"));
+        }
+        acq.missing = missing;
+        acq.complete = acq.problems.is_empty();
+    }
+
+    /// Run a sine sweep and return the frequency response. Points whose measurement was
+    /// damaged are measured again (up to `attempts` times); points that never succeed are left out
+    /// and reported in the error list returned alongside.
+    pub fn run_sine_sweep(&mut self, sweep: &SineSweep) -> Result<(Vec<BodePoint>, Vec<String>)> {
+        let conf = self.conf()?;
+        let fs = conf.sample_rate_hz as f64;
+        let mut points = Vec::new();
+        let mut problems = Vec::new();
+        let total = sweep.freqs_hz.len() as u64;
+        let mut prog = self.progress.take();
+        for (k, &f) in sweep.freqs_hz.iter().enumerate() {
+            if !(f > 0.0 && f < fs / 2.0) {
+                problems.push(format!("{f} Hz skipped: outside (0, {}) Hz", fs / 2.0));
+                continue;
+            }
+            let settle_cycles = sweep
+                .settle_cycles
+                .max((sweep.min_settle_s * f).ceil().min(65535.0) as u16);
+            let cmd = StartSine {
+                freq_mhz: (f * 1000.0).round() as u32,
+                amplitude: (sweep.amplitude_v.abs() / conf.u_lsb()).round().min(32767.0) as i16,
+                offset: (sweep.offset_v / conf.u_lsb()).round().clamp(-32767.0, 32767.0) as i16,
+                settle_cycles,
+                cycles: sweep.cycles.max(1),
+                flags: SINE_DFT | if sweep.stream { SINE_STREAM } else { 0 },
+            };
+            let mut done = false;
+            for _ in 0..sweep.attempts.max(1) {
+                let acq = match self.run_sine(&cmd, &mut NullSink) {
+                    Ok(a) => a,
+                    Err(e @ Error::Nak { .. }) | Err(e @ Error::InvalidParam(_)) => {
+                        self.progress = prog;
+                        return Err(e);
+                    }
+                    Err(e) => {
+                        problems.push(format!("{f} Hz: {e}"));
+                        continue;
+                    }
+                };
+                if let Some(p) = sine_point(&acq, &cmd, &conf) {
+                    points.push(p);
+                    done = true;
+                    break;
+                }
+                problems.push(format!("{f} Hz: measurement damaged ({}), repeating", acq.problems.join("; ")));
+            }
+            if !done {
+                problems.push(format!("{f} Hz: no valid measurement"));
+            }
+            if let Some(p) = prog.as_mut() {
+                p(Progress { done: k as u64 + 1, total });
+            }
+        }
+        self.progress = prog;
+        bode::unwrap_deg(&mut points);
+        Ok((points, problems))
+    }
+}
+
+/// A Bode point from a sine run: the drive's DFT if the run ended normally, else (streamed and
+/// complete) the host's DFT over the measurement window.
+fn sine_point(acq: &Acquisition, cmd: &StartSine, conf: &Configure) -> Option<BodePoint> {
+    let end = acq.end?;
+    if end.reason != EndReason::Complete {
+        return None;
+    }
+    let freq_hz = cmd.freq_mhz as f64 / 1000.0;
+    let scale = conf.y_lsb() / conf.u_lsb();
+    let (ratio, n, on_drive) = if let Some(s) = acq.sine {
+        let r = bode::ratio((s.u_re as f64, s.u_im as f64), (s.y_re as f64, s.y_im as f64))?;
+        (r, s.n, true)
+    } else if acq.complete {
+        let (settle, measure) = cmd.sample_counts(conf.sample_rate_hz)?;
+        let fs = conf.sample_rate_hz as u64;
+        let inc = ((((cmd.freq_mhz as u128) << 32) + 500 * fs as u128) / (1000 * fs as u128)) as u32;
+        let w = settle as usize..(settle + measure) as usize;
+        let ph = |k: usize| {
+            let p = ((settle as u64 + k as u64) * inc as u64) as u32;
+            p as f64 / 4294967296.0 * std::f64::consts::TAU
+        };
+        let u: Vec<f64> = acq.raw.get(w.clone())?.iter().map(|s| s[0] as f64).collect();
+        let y: Vec<f64> = acq.raw.get(w)?.iter().map(|s| s[1] as f64).collect();
+        let r = bode::ratio(bode::single_bin(&u, ph), bode::single_bin(&y, ph))?;
+        (r, measure, false)
+    } else {
+        return None;
+    };
+    let (gain, phase) = ratio;
+    Some(BodePoint {
+        freq_hz,
+        gain_db: 20.0 * (gain * scale).log10(),
+        phase_deg: phase.to_degrees(),
+        n_samples: n,
+        on_drive,
+    })
+}
+
+impl Drop for Client {
+    fn drop(&mut self) {
+        self.close_port();
+    }
+}

@@ -1,0 +1,107 @@
+//! The crate's error type.
+
+use std::ops::Range;
+
+/// Everything that can go wrong in the drive crate.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum Error {
+    /// A frame failed to decode (COBS, header, length or CRC). Carries a short description.
+    #[error("bad frame: {0}")]
+    Frame(#[from] FrameError),
+    /// An I/O error on the serial port or a file.
+    #[error("I/O error: {0}")]
+    Io(#[from] std::io::Error),
+    /// The serial port could not be opened or configured.
+    #[error("serial port {path}: {source}")]
+    Port {
+        /// The port path.
+        path: String,
+        /// The underlying error.
+        source: serialport::Error,
+    },
+    /// The drive did not answer a command after all retries.
+    #[error("drive did not answer {what} after {attempts} attempts")]
+    Timeout {
+        /// The command that went unanswered.
+        what: &'static str,
+        /// How many times it was sent.
+        attempts: u32,
+    },
+    /// The drive rejected a command.
+    #[error("drive rejected {what}: {code:?} (detail {detail})")]
+    Nak {
+        /// The rejected command.
+        what: &'static str,
+        /// The NAK code.
+        code: crate::protocol::NakCode,
+        /// The NAK detail field.
+        detail: u16,
+    },
+    /// The drive speaks another protocol version.
+    #[error("drive speaks protocol version {drive}, this host speaks {host}")]
+    Version {
+        /// The drive's version.
+        drive: u8,
+        /// Ours.
+        host: u8,
+    },
+    /// The drive reset (its boot id changed) and lost its state.
+    #[error("drive reset (boot id {old:#06x} -> {new:#06x})")]
+    DriveReset {
+        /// Boot id before.
+        old: u16,
+        /// Boot id after.
+        new: u16,
+    },
+    /// An invalid parameter (host side).
+    #[error("invalid parameter: {0}")]
+    InvalidParam(String),
+    /// The drive answered with something unexpected.
+    #[error("protocol violation: {0}")]
+    Protocol(String),
+    /// A run ended with samples missing (used where a complete run is required).
+    #[error("incomplete run: missing {missing:?}")]
+    Incomplete {
+        /// Missing sample ranges.
+        missing: Vec<Range<u64>>,
+    },
+}
+
+/// Why a received frame was discarded.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+#[non_exhaustive]
+pub enum FrameError {
+    /// The bytes between two delimiters are not valid (canonical) COBS.
+    #[error("invalid COBS encoding")]
+    Cobs,
+    /// The frame exceeded the maximum body length.
+    #[error("frame too long")]
+    TooLong,
+    /// The body is shorter than header plus CRC.
+    #[error("frame too short")]
+    TooShort,
+    /// CRC mismatch.
+    #[error("CRC mismatch")]
+    Crc,
+    /// Unsupported version or reserved bits set.
+    #[error("unsupported version/flags byte {0:#04x}")]
+    Version(u8),
+    /// Unknown message type.
+    #[error("unknown message type {0:#04x}")]
+    UnknownType(u8),
+    /// The payload length does not match the message type.
+    #[error("bad payload length {len} for type {ty:#04x}")]
+    Length {
+        /// Message type.
+        ty: u8,
+        /// Payload length received.
+        len: usize,
+    },
+    /// A field has an impossible value (reserved bits set, n out of range).
+    #[error("bad field in type {0:#04x}")]
+    Field(u8),
+}
+
+/// The crate's result type.
+pub type Result<T, E = Error> = std::result::Result<T, E>;

@@ -1,0 +1,840 @@
+//! Messages and their payload layouts (see the crate docs, section 3). No I/O, no framing: the
+//! [`codec`](crate::codec) wraps a [`Frame`] into bytes.
+
+use crate::error::FrameError;
+
+/// Protocol version carried in the low nibble of the first body byte.
+pub const PROTO_VERSION: u8 = 1;
+/// Number of channels per sample (u, y, i).
+pub const N_CHANNELS: usize = 3;
+/// Largest number of samples in one DATA block.
+pub const MAX_BLOCK_SAMPLES: u8 = 66;
+
+/// Message type codes.
+pub mod ty {
+    /// HELLO.
+    pub const HELLO: u8 = 0x01;
+    /// CONFIGURE.
+    pub const CONFIGURE: u8 = 0x02;
+    /// START_PRBS.
+    pub const START_PRBS: u8 = 0x03;
+    /// START_SINE.
+    pub const START_SINE: u8 = 0x04;
+    /// STOP.
+    pub const STOP: u8 = 0x05;
+    /// ESTOP.
+    pub const ESTOP: u8 = 0x06;
+    /// STATUS.
+    pub const STATUS: u8 = 0x07;
+    /// KEEPALIVE.
+    pub const KEEPALIVE: u8 = 0x08;
+    /// END_QUERY.
+    pub const END_QUERY: u8 = 0x09;
+    /// ACK.
+    pub const ACK: u8 = 0x80;
+    /// HELLO_REPLY.
+    pub const HELLO_REPLY: u8 = 0x81;
+    /// STATUS_REPLY.
+    pub const STATUS_REPLY: u8 = 0x87;
+    /// NAK.
+    pub const NAK: u8 = 0x8F;
+    /// DATA.
+    pub const DATA: u8 = 0x90;
+    /// STREAM_END.
+    pub const STREAM_END: u8 = 0x91;
+    /// SINE_RESULT.
+    pub const SINE_RESULT: u8 = 0x92;
+}
+
+/// HELLO_REPLY payload.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct HelloReply {
+    /// Protocol version the drive speaks.
+    pub proto_version: u8,
+    /// Firmware major version.
+    pub fw_major: u8,
+    /// Firmware minor version.
+    pub fw_minor: u8,
+    /// Channels per sample (3).
+    pub n_channels: u8,
+    /// Largest DATA block the drive sends.
+    pub max_block_samples: u8,
+    /// Random id drawn at power-up; changes on every reset.
+    pub boot_id: u16,
+    /// Highest sample rate the drive accepts, Hz.
+    pub max_sample_rate_hz: u32,
+}
+
+/// CONFIGURE payload.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Configure {
+    /// Sample rate, Hz.
+    pub sample_rate_hz: u32,
+    /// Samples per DATA block.
+    pub block_samples: u8,
+    /// Keepalive timeout, ms.
+    pub keepalive_ms: u16,
+    /// Voltage channel scale, microvolts per LSB.
+    pub scale_u_uv: u32,
+    /// Speed channel scale, micro-rad/s per LSB.
+    pub scale_y_urad_s: u32,
+    /// Current channel scale, microamperes per LSB.
+    pub scale_i_ua: u32,
+    /// Voltage clamp, raw.
+    pub u_limit: i16,
+    /// Speed trip, raw.
+    pub y_limit: i16,
+    /// Current trip, raw.
+    pub i_limit: i16,
+}
+
+impl Default for Configure {
+    /// 1 kHz, 32-sample blocks, 500 ms keepalive, 1 mV / 10 mrad/s / 1 mA per LSB, limits 24 V,
+    /// 300 rad/s, 30 A.
+    fn default() -> Self {
+        Self {
+            sample_rate_hz: 1000,
+            block_samples: 32,
+            keepalive_ms: 500,
+            scale_u_uv: 1000,
+            scale_y_urad_s: 10_000,
+            scale_i_ua: 1000,
+            u_limit: 24_000,
+            y_limit: 30_000,
+            i_limit: 30_000,
+        }
+    }
+}
+
+impl Configure {
+    /// Voltage per LSB, V.
+    pub fn u_lsb(&self) -> f64 {
+        self.scale_u_uv as f64 * 1e-6
+    }
+    /// Speed per LSB, rad/s.
+    pub fn y_lsb(&self) -> f64 {
+        self.scale_y_urad_s as f64 * 1e-6
+    }
+    /// Current per LSB, A.
+    pub fn i_lsb(&self) -> f64 {
+        self.scale_i_ua as f64 * 1e-6
+    }
+}
+
+/// START_PRBS payload.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct StartPrbs {
+    /// LFSR length, 2..=31.
+    pub order: u8,
+    /// Feedback mask.
+    pub taps: u32,
+    /// Initial LFSR state, nonzero.
+    pub seed: u32,
+    /// Samples per PRBS bit.
+    pub clock_samples: u16,
+    /// Amplitude, raw.
+    pub amplitude: i16,
+    /// Offset, raw.
+    pub offset: i16,
+    /// Number of periods.
+    pub periods: u16,
+    /// Samples at the offset before the first bit.
+    pub settle_samples: u32,
+}
+
+impl StartPrbs {
+    /// Total samples of the run, or None if it overflows u32 or the order is out of range.
+    pub fn total_samples(&self) -> Option<u32> {
+        if !(2..=31).contains(&self.order) {
+            return None;
+        }
+        let period = (1u64 << self.order) - 1;
+        let n = self.settle_samples as u64 + self.periods as u64 * period * self.clock_samples as u64;
+        u32::try_from(n).ok()
+    }
+}
+
+/// START_SINE flag: stream DATA blocks.
+pub const SINE_STREAM: u8 = 0x01;
+/// START_SINE flag: compute the single-bin DFT on the drive.
+pub const SINE_DFT: u8 = 0x02;
+
+/// START_SINE payload.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct StartSine {
+    /// Frequency, millihertz.
+    pub freq_mhz: u32,
+    /// Amplitude, raw.
+    pub amplitude: i16,
+    /// Offset, raw.
+    pub offset: i16,
+    /// Cycles before the measurement window.
+    pub settle_cycles: u16,
+    /// Cycles in the measurement window.
+    pub cycles: u16,
+    /// [`SINE_STREAM`] | [`SINE_DFT`].
+    pub flags: u8,
+}
+
+impl StartSine {
+    /// (settle samples, measurement samples) at the sample rate, as the drive computes them.
+    pub fn sample_counts(&self, sample_rate_hz: u32) -> Option<(u32, u32)> {
+        if self.freq_mhz == 0 {
+            return None;
+        }
+        let f = self.freq_mhz as u64;
+        let fs = sample_rate_hz as u64;
+        let settle = (self.settle_cycles as u64 * fs * 1000 + f / 2) / f;
+        let measure = (self.cycles as u64 * fs * 1000 + f / 2) / f;
+        if settle + measure > u32::MAX as u64 {
+            return None;
+        }
+        Some((settle as u32, measure as u32))
+    }
+}
+
+/// ACK payload.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Ack {
+    /// The type acknowledged.
+    pub acked_type: u8,
+    /// Run id (START only).
+    pub run_id: u16,
+    /// Total samples of the run (START only).
+    pub total_samples: u32,
+}
+
+/// NAK codes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum NakCode {
+    /// 1: unknown type.
+    UnknownType,
+    /// 2: bad length.
+    BadLength,
+    /// 3: a field out of range; detail = its payload offset.
+    BadValue,
+    /// 4: a run is active.
+    Busy,
+    /// 5: no configuration yet.
+    NotConfigured,
+    /// 6: a fault is latched; detail = fault code.
+    Fault,
+    /// 7: version mismatch.
+    Version,
+    /// Any other code.
+    Other(u8),
+}
+
+impl NakCode {
+    /// Wire value.
+    pub fn code(self) -> u8 {
+        match self {
+            NakCode::UnknownType => 1,
+            NakCode::BadLength => 2,
+            NakCode::BadValue => 3,
+            NakCode::Busy => 4,
+            NakCode::NotConfigured => 5,
+            NakCode::Fault => 6,
+            NakCode::Version => 7,
+            NakCode::Other(c) => c,
+        }
+    }
+    /// From the wire value.
+    pub fn from_code(c: u8) -> Self {
+        match c {
+            1 => NakCode::UnknownType,
+            2 => NakCode::BadLength,
+            3 => NakCode::BadValue,
+            4 => NakCode::Busy,
+            5 => NakCode::NotConfigured,
+            6 => NakCode::Fault,
+            7 => NakCode::Version,
+            c => NakCode::Other(c),
+        }
+    }
+}
+
+/// NAK payload.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Nak {
+    /// The rejected type.
+    pub nak_type: u8,
+    /// Why.
+    pub code: NakCode,
+    /// Code-specific detail.
+    pub detail: u16,
+}
+
+/// Drive state in STATUS_REPLY.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum DriveState {
+    /// 0: no configuration since boot.
+    Unconfigured,
+    /// 1: configured, idle.
+    Idle,
+    /// 2: a run is active.
+    Running,
+    /// 3: a fault is latched.
+    Fault,
+}
+
+impl DriveState {
+    fn code(self) -> u8 {
+        self as u8
+    }
+    fn from_code(c: u8) -> Option<Self> {
+        Some(match c {
+            0 => DriveState::Unconfigured,
+            1 => DriveState::Idle,
+            2 => DriveState::Running,
+            3 => DriveState::Fault,
+            _ => return None,
+        })
+    }
+}
+
+/// Fault codes in STATUS_REPLY.
+pub mod fault {
+    /// No fault.
+    pub const NONE: u8 = 0;
+    /// Emergency stop.
+    pub const ESTOP: u8 = 1;
+    /// Keepalive expired.
+    pub const KEEPALIVE: u8 = 2;
+    /// Speed trip.
+    pub const SPEED_LIMIT: u8 = 3;
+    /// Current trip.
+    pub const CURRENT_LIMIT: u8 = 4;
+}
+
+/// STATUS_REPLY payload.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct StatusReply {
+    /// Drive state.
+    pub state: DriveState,
+    /// Latched fault ([`fault`]).
+    pub fault: u8,
+    /// Current or last run id (0 = none).
+    pub run_id: u16,
+    /// Samples produced in the current/last run.
+    pub samples_done: u32,
+    /// Blocks dropped in the current/last run.
+    pub blocks_dropped: u16,
+    /// Boot id.
+    pub boot_id: u16,
+    /// Frames discarded since boot.
+    pub rx_errors: u16,
+    /// Clamped samples in the current/last run.
+    pub clamped: u16,
+}
+
+/// DATA payload: one block of samples.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct DataBlock {
+    /// Run id.
+    pub run_id: u16,
+    /// Sample index of the first sample.
+    pub first_index: u32,
+    /// Bit 0: a sample was clamped.
+    pub flags: u8,
+    /// Samples, raw `[u, y, i]`.
+    pub samples: Vec<[i16; 3]>,
+}
+
+/// STREAM_END reasons.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum EndReason {
+    /// 0: ran to the end.
+    Complete,
+    /// 1: host STOP.
+    Stopped,
+    /// 2: ESTOP.
+    Estop,
+    /// 3: keepalive expired.
+    Keepalive,
+    /// 4: speed or current trip.
+    Limit,
+    /// Any other code.
+    Other(u8),
+}
+
+impl EndReason {
+    /// Wire value.
+    pub fn code(self) -> u8 {
+        match self {
+            EndReason::Complete => 0,
+            EndReason::Stopped => 1,
+            EndReason::Estop => 2,
+            EndReason::Keepalive => 3,
+            EndReason::Limit => 4,
+            EndReason::Other(c) => c,
+        }
+    }
+    /// From the wire value.
+    pub fn from_code(c: u8) -> Self {
+        match c {
+            0 => EndReason::Complete,
+            1 => EndReason::Stopped,
+            2 => EndReason::Estop,
+            3 => EndReason::Keepalive,
+            4 => EndReason::Limit,
+            c => EndReason::Other(c),
+        }
+    }
+}
+
+/// STREAM_END payload.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct StreamEnd {
+    /// Run id.
+    pub run_id: u16,
+    /// Why the run ended.
+    pub reason: EndReason,
+    /// Samples produced (indices 0..total_samples).
+    pub total_samples: u32,
+    /// Samples in transmitted blocks.
+    pub samples_sent: u32,
+    /// Blocks dropped by the drive.
+    pub blocks_dropped: u16,
+}
+
+/// SINE_RESULT payload: single-bin DFT, raw LSB in Q8.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SineResult {
+    /// Run id.
+    pub run_id: u16,
+    /// Samples in the measurement window.
+    pub n: u32,
+    /// Re U, Q8 raw.
+    pub u_re: i32,
+    /// Im U, Q8 raw.
+    pub u_im: i32,
+    /// Re Y, Q8 raw.
+    pub y_re: i32,
+    /// Im Y, Q8 raw.
+    pub y_im: i32,
+}
+
+/// A protocol message.
+#[derive(Debug, Clone, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum Message {
+    /// HELLO.
+    Hello,
+    /// CONFIGURE.
+    Configure(Configure),
+    /// START_PRBS.
+    StartPrbs(StartPrbs),
+    /// START_SINE.
+    StartSine(StartSine),
+    /// STOP.
+    Stop,
+    /// ESTOP.
+    Estop,
+    /// STATUS.
+    Status,
+    /// KEEPALIVE.
+    Keepalive,
+    /// END_QUERY for a run id.
+    EndQuery(u16),
+    /// ACK.
+    Ack(Ack),
+    /// HELLO_REPLY.
+    HelloReply(HelloReply),
+    /// STATUS_REPLY.
+    StatusReply(StatusReply),
+    /// NAK.
+    Nak(Nak),
+    /// DATA.
+    Data(DataBlock),
+    /// STREAM_END.
+    StreamEnd(StreamEnd),
+    /// SINE_RESULT.
+    SineResult(SineResult),
+}
+
+/// A frame: seq plus message.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Frame {
+    /// Sequence number.
+    pub seq: u16,
+    /// The message.
+    pub msg: Message,
+}
+
+/// Little-endian writer.
+struct W<'a>(&'a mut Vec<u8>);
+impl W<'_> {
+    fn u8(&mut self, v: u8) {
+        self.0.push(v);
+    }
+    fn u16(&mut self, v: u16) {
+        self.0.extend_from_slice(&v.to_le_bytes());
+    }
+    fn i16(&mut self, v: i16) {
+        self.0.extend_from_slice(&v.to_le_bytes());
+    }
+    fn u32(&mut self, v: u32) {
+        self.0.extend_from_slice(&v.to_le_bytes());
+    }
+    fn i32(&mut self, v: i32) {
+        self.0.extend_from_slice(&v.to_le_bytes());
+    }
+}
+
+/// Little-endian reader over an exactly-sized payload (lengths are checked before reading).
+struct R<'a>(&'a [u8], usize);
+impl R<'_> {
+    fn u8(&mut self) -> u8 {
+        let v = self.0[self.1];
+        self.1 += 1;
+        v
+    }
+    fn u16(&mut self) -> u16 {
+        let v = u16::from_le_bytes([self.0[self.1], self.0[self.1 + 1]]);
+        self.1 += 2;
+        v
+    }
+    fn i16(&mut self) -> i16 {
+        self.u16() as i16
+    }
+    fn u32(&mut self) -> u32 {
+        let b = &self.0[self.1..self.1 + 4];
+        self.1 += 4;
+        u32::from_le_bytes([b[0], b[1], b[2], b[3]])
+    }
+    fn i32(&mut self) -> i32 {
+        self.u32() as i32
+    }
+}
+
+impl Message {
+    /// The type code.
+    pub fn type_code(&self) -> u8 {
+        match self {
+            Message::Hello => ty::HELLO,
+            Message::Configure(_) => ty::CONFIGURE,
+            Message::StartPrbs(_) => ty::START_PRBS,
+            Message::StartSine(_) => ty::START_SINE,
+            Message::Stop => ty::STOP,
+            Message::Estop => ty::ESTOP,
+            Message::Status => ty::STATUS,
+            Message::Keepalive => ty::KEEPALIVE,
+            Message::EndQuery(_) => ty::END_QUERY,
+            Message::Ack(_) => ty::ACK,
+            Message::HelloReply(_) => ty::HELLO_REPLY,
+            Message::StatusReply(_) => ty::STATUS_REPLY,
+            Message::Nak(_) => ty::NAK,
+            Message::Data(_) => ty::DATA,
+            Message::StreamEnd(_) => ty::STREAM_END,
+            Message::SineResult(_) => ty::SINE_RESULT,
+        }
+    }
+
+    /// Short upper-case name, as in the specification.
+    pub fn name(&self) -> &'static str {
+        type_name(self.type_code())
+    }
+
+    /// The exact payload length for a type, given the first payload bytes where it depends on
+    /// them (DATA: n at offset 6). None for unknown types.
+    pub fn payload_len(ty: u8, payload: &[u8]) -> Option<usize> {
+        Some(match ty {
+            ty::HELLO | ty::STOP | ty::ESTOP | ty::STATUS | ty::KEEPALIVE => 0,
+            ty::CONFIGURE => 26,
+            ty::START_PRBS => 22,
+            ty::START_SINE => 14,
+            ty::END_QUERY => 2,
+            ty::ACK => 8,
+            ty::HELLO_REPLY => 12,
+            ty::STATUS_REPLY => 16,
+            ty::NAK => 4,
+            ty::DATA => 8 + 6 * *payload.get(6)? as usize,
+            ty::STREAM_END => 14,
+            ty::SINE_RESULT => 22,
+            _ => return None,
+        })
+    }
+
+    /// Append the payload bytes.
+    pub fn write_payload(&self, out: &mut Vec<u8>) {
+        let mut w = W(out);
+        match self {
+            Message::Hello
+            | Message::Stop
+            | Message::Estop
+            | Message::Status
+            | Message::Keepalive => {}
+            Message::Configure(c) => {
+                w.u32(c.sample_rate_hz);
+                w.u8(c.block_samples);
+                w.u8(0);
+                w.u16(c.keepalive_ms);
+                w.u32(c.scale_u_uv);
+                w.u32(c.scale_y_urad_s);
+                w.u32(c.scale_i_ua);
+                w.i16(c.u_limit);
+                w.i16(c.y_limit);
+                w.i16(c.i_limit);
+            }
+            Message::StartPrbs(p) => {
+                w.u8(p.order);
+                w.u8(0);
+                w.u32(p.taps);
+                w.u32(p.seed);
+                w.u16(p.clock_samples);
+                w.i16(p.amplitude);
+                w.i16(p.offset);
+                w.u16(p.periods);
+                w.u32(p.settle_samples);
+            }
+            Message::StartSine(s) => {
+                w.u32(s.freq_mhz);
+                w.i16(s.amplitude);
+                w.i16(s.offset);
+                w.u16(s.settle_cycles);
+                w.u16(s.cycles);
+                w.u8(s.flags);
+                w.u8(0);
+            }
+            Message::EndQuery(r) => w.u16(*r),
+            Message::Ack(a) => {
+                w.u8(a.acked_type);
+                w.u8(0);
+                w.u16(a.run_id);
+                w.u32(a.total_samples);
+            }
+            Message::HelloReply(h) => {
+                w.u8(h.proto_version);
+                w.u8(h.fw_major);
+                w.u8(h.fw_minor);
+                w.u8(h.n_channels);
+                w.u8(h.max_block_samples);
+                w.u8(0);
+                w.u16(h.boot_id);
+                w.u32(h.max_sample_rate_hz);
+            }
+            Message::StatusReply(s) => {
+                w.u8(s.state.code());
+                w.u8(s.fault);
+                w.u16(s.run_id);
+                w.u32(s.samples_done);
+                w.u16(s.blocks_dropped);
+                w.u16(s.boot_id);
+                w.u16(s.rx_errors);
+                w.u16(s.clamped);
+            }
+            Message::Nak(n) => {
+                w.u8(n.nak_type);
+                w.u8(n.code.code());
+                w.u16(n.detail);
+            }
+            Message::Data(d) => {
+                w.u16(d.run_id);
+                w.u32(d.first_index);
+                w.u8(d.samples.len() as u8);
+                w.u8(d.flags);
+                for s in &d.samples {
+                    for &c in s {
+                        w.i16(c);
+                    }
+                }
+            }
+            Message::StreamEnd(e) => {
+                w.u16(e.run_id);
+                w.u8(e.reason.code());
+                w.u8(0);
+                w.u32(e.total_samples);
+                w.u32(e.samples_sent);
+                w.u16(e.blocks_dropped);
+            }
+            Message::SineResult(s) => {
+                w.u16(s.run_id);
+                w.u32(s.n);
+                w.i32(s.u_re);
+                w.i32(s.u_im);
+                w.i32(s.y_re);
+                w.i32(s.y_im);
+            }
+        }
+    }
+
+    /// Parse a payload of type `ty`. Checks the exact length and reserved fields; never panics.
+    pub fn parse(ty: u8, p: &[u8]) -> Result<Message, FrameError> {
+        let want = Message::payload_len(ty, p).ok_or(if matches!(ty, ty::DATA) {
+            FrameError::Length { ty, len: p.len() }
+        } else {
+            FrameError::UnknownType(ty)
+        })?;
+        if p.len() != want {
+            return Err(FrameError::Length { ty, len: p.len() });
+        }
+        let bad = FrameError::Field(ty);
+        let mut r = R(p, 0);
+        Ok(match ty {
+            ty::HELLO => Message::Hello,
+            ty::STOP => Message::Stop,
+            ty::ESTOP => Message::Estop,
+            ty::STATUS => Message::Status,
+            ty::KEEPALIVE => Message::Keepalive,
+            ty::CONFIGURE => {
+                let sample_rate_hz = r.u32();
+                let block_samples = r.u8();
+                if r.u8() != 0 {
+                    return Err(bad);
+                }
+                Message::Configure(Configure {
+                    sample_rate_hz,
+                    block_samples,
+                    keepalive_ms: r.u16(),
+                    scale_u_uv: r.u32(),
+                    scale_y_urad_s: r.u32(),
+                    scale_i_ua: r.u32(),
+                    u_limit: r.i16(),
+                    y_limit: r.i16(),
+                    i_limit: r.i16(),
+                })
+            }
+            ty::START_PRBS => {
+                let order = r.u8();
+                if r.u8() != 0 {
+                    return Err(bad);
+                }
+                Message::StartPrbs(StartPrbs {
+                    order,
+                    taps: r.u32(),
+                    seed: r.u32(),
+                    clock_samples: r.u16(),
+                    amplitude: r.i16(),
+                    offset: r.i16(),
+                    periods: r.u16(),
+                    settle_samples: r.u32(),
+                })
+            }
+            ty::START_SINE => {
+                let s = StartSine {
+                    freq_mhz: r.u32(),
+                    amplitude: r.i16(),
+                    offset: r.i16(),
+                    settle_cycles: r.u16(),
+                    cycles: r.u16(),
+                    flags: r.u8(),
+                };
+                if r.u8() != 0 || s.flags & !(SINE_STREAM | SINE_DFT) != 0 {
+                    return Err(bad);
+                }
+                Message::StartSine(s)
+            }
+            ty::END_QUERY => Message::EndQuery(r.u16()),
+            ty::ACK => {
+                let acked_type = r.u8();
+                if r.u8() != 0 {
+                    return Err(bad);
+                }
+                Message::Ack(Ack {
+                    acked_type,
+                    run_id: r.u16(),
+                    total_samples: r.u32(),
+                })
+            }
+            ty::HELLO_REPLY => {
+                let proto_version = r.u8();
+                let fw_major = r.u8();
+                let fw_minor = r.u8();
+                let n_channels = r.u8();
+                let max_block_samples = r.u8();
+                if r.u8() != 0 {
+                    return Err(bad);
+                }
+                Message::HelloReply(HelloReply {
+                    proto_version,
+                    fw_major,
+                    fw_minor,
+                    n_channels,
+                    max_block_samples,
+                    boot_id: r.u16(),
+                    max_sample_rate_hz: r.u32(),
+                })
+            }
+            ty::STATUS_REPLY => Message::StatusReply(StatusReply {
+                state: DriveState::from_code(r.u8()).ok_or(bad)?,
+                fault: r.u8(),
+                run_id: r.u16(),
+                samples_done: r.u32(),
+                blocks_dropped: r.u16(),
+                boot_id: r.u16(),
+                rx_errors: r.u16(),
+                clamped: r.u16(),
+            }),
+            ty::NAK => Message::Nak(Nak {
+                nak_type: r.u8(),
+                code: NakCode::from_code(r.u8()),
+                detail: r.u16(),
+            }),
+            ty::DATA => {
+                let run_id = r.u16();
+                let first_index = r.u32();
+                let n = r.u8();
+                let flags = r.u8();
+                if n == 0 || n > MAX_BLOCK_SAMPLES || flags & !1 != 0 {
+                    return Err(bad);
+                }
+                let samples = (0..n).map(|_| [r.i16(), r.i16(), r.i16()]).collect();
+                Message::Data(DataBlock {
+                    run_id,
+                    first_index,
+                    flags,
+                    samples,
+                })
+            }
+            ty::STREAM_END => {
+                let run_id = r.u16();
+                let reason = EndReason::from_code(r.u8());
+                if r.u8() != 0 {
+                    return Err(bad);
+                }
+                Message::StreamEnd(StreamEnd {
+                    run_id,
+                    reason,
+                    total_samples: r.u32(),
+                    samples_sent: r.u32(),
+                    blocks_dropped: r.u16(),
+                })
+            }
+            ty::SINE_RESULT => Message::SineResult(SineResult {
+                run_id: r.u16(),
+                n: r.u32(),
+                u_re: r.i32(),
+                u_im: r.i32(),
+                y_re: r.i32(),
+                y_im: r.i32(),
+            }),
+            other => return Err(FrameError::UnknownType(other)),
+        })
+    }
+}
+
+/// The specification's name of a type code ("?" if unknown).
+pub fn type_name(t: u8) -> &'static str {
+    match t {
+        ty::HELLO => "HELLO",
+        ty::CONFIGURE => "CONFIGURE",
+        ty::START_PRBS => "START_PRBS",
+        ty::START_SINE => "START_SINE",
+        ty::STOP => "STOP",
+        ty::ESTOP => "ESTOP",
+        ty::STATUS => "STATUS",
+        ty::KEEPALIVE => "KEEPALIVE",
+        ty::END_QUERY => "END_QUERY",
+        ty::ACK => "ACK",
+        ty::HELLO_REPLY => "HELLO_REPLY",
+        ty::STATUS_REPLY => "STATUS_REPLY",
+        ty::NAK => "NAK",
+        ty::DATA => "DATA",
+        ty::STREAM_END => "STREAM_END",
+        ty::SINE_RESULT => "SINE_RESULT",
+        _ => "?",
+    }
+}

@@ -1,0 +1,1193 @@
+//! A simulated F2812 drive speaking the protocol on a pseudo-terminal.
+//!
+//! [`DriveSim::spawn`] opens a pty pair (`serialport::TTYPort::pair()`), keeps the master side and
+//! runs the "firmware" in a thread; a host opens [`DriveSim::port_path`] (the slave side, or a
+//! stable symlink to it when [`SimConfig::link`] is set) like any serial port. The simulator
+//! models:
+//!
+//! - the motor: a fractional PMSM model simulated by [`fracsim::Simulator`] (default: the paper's
+//!   time-domain model `6.82 / (2.655e-5 s^1.7452 + 0.0059 s^0.92 + 1)`), with hidden effects
+//!   ([`Effects`]): Coulomb friction, input delay, torque ripple, measurement noise, speed
+//!   quantisation;
+//! - the line: baud-rate pacing in both directions (a pty paces nothing), a 16-byte receive FIFO
+//!   that overflows while the firmware's communication task is stalled, a transmit buffer of a few
+//!   DATA blocks (whole blocks dropped and counted when full);
+//! - faults ([`Faults`]): bit flips, dropped bytes, bursts, whole-frame corruption, a stall, a
+//!   disconnect and reconnect, a drive reset.
+//!
+//! It runs in real time (wall clock); samples are produced in batches every ~0.5 ms.
+
+use crate::codec::{self, StreamDecoder};
+use crate::error::{Error, Result};
+use crate::prbs::Lfsr;
+use crate::protocol::*;
+use rand::rngs::StdRng;
+use rand::{Rng, SeedableRng};
+use rand_distr::{Distribution, Normal};
+use serialport::{SerialPort, TTYPort};
+use std::collections::VecDeque;
+use std::io::{Read, Write};
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+/// Hidden physical effects of the simulated drive (all off by default).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Effects {
+    /// Coulomb friction as a voltage equivalent at the input, V (`Vc sign(speed)`).
+    pub coulomb_v: f64,
+    /// Input (transport) delay, s.
+    pub delay_s: f64,
+    /// Periodic disturbance (torque ripple) as a voltage at the input: amplitude, V.
+    pub ripple_v: f64,
+    /// Ripple frequency, Hz.
+    pub ripple_hz: f64,
+    /// Gaussian measurement noise on the speed, standard deviation in rad/s.
+    pub noise_std: f64,
+    /// Speed quantisation step (encoder resolution), rad/s; 0 = none beyond the channel LSB.
+    pub speed_quant: f64,
+    /// Winding resistance for the indicative current channel, ohm.
+    pub r_ohm: f64,
+}
+
+impl Default for Effects {
+    fn default() -> Self {
+        Self {
+            coulomb_v: 0.0,
+            delay_s: 0.0,
+            ripple_v: 0.0,
+            ripple_hz: 0.0,
+            noise_std: 0.0,
+            speed_quant: 0.0,
+            r_ohm: 1.0,
+        }
+    }
+}
+
+/// A fault that happens once, when the drive has produced `at_sample` run samples (counted over
+/// all runs since the simulator started), and lasts `duration`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct FaultAt {
+    /// Trigger: run samples produced since start.
+    pub at_sample: u64,
+    /// How long it lasts.
+    pub duration: Duration,
+}
+
+/// Faults injected by the simulator (all off by default).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Faults {
+    /// Probability per bit of a flip, both directions.
+    pub bit_error_rate: f64,
+    /// Probability per byte of losing it, both directions.
+    pub drop_rate: f64,
+    /// Probability per byte of starting a burst of `burst_len` random bytes (drive to host).
+    pub burst_rate: f64,
+    /// Burst length, bytes.
+    pub burst_len: usize,
+    /// Probability per drive-to-host frame of corrupting it (1 to 3 random bit flips).
+    pub frame_corrupt_rate: f64,
+    /// The communication task stalls: no transmission, receive FIFO overflows; control continues.
+    pub stall: Option<FaultAt>,
+    /// Disconnect: with [`SimConfig::link`] the pty is closed and a new one appears behind the
+    /// link after `duration` (like a USB adapter unplugged and plugged in); without a link the line
+    /// goes dead (bytes lost both ways) for `duration`.
+    pub disconnect: Option<FaultAt>,
+    /// The drive resets (boot id changes, run and configuration lost); `duration` is the boot time.
+    pub reset: Option<FaultAt>,
+    /// RNG seed for the faults and the noise.
+    pub seed: u64,
+}
+
+/// Simulator configuration.
+#[derive(Debug, Clone)]
+pub struct SimConfig {
+    /// Motor model, voltage (V) to speed (rad/s).
+    pub model: fracsim::FracTf,
+    /// Approximation used to simulate it.
+    pub approx: fracsim::ApproxSpec,
+    /// Line rate the simulator paces to, baud (8N1: 10 bits per byte).
+    pub baud: u32,
+    /// Hidden effects.
+    pub effects: Effects,
+    /// Faults.
+    pub faults: Faults,
+    /// If set, a symlink at this path points to the current pty (needed for a real disconnect).
+    pub link: Option<PathBuf>,
+    /// Highest sample rate accepted, Hz.
+    pub max_sample_rate_hz: u32,
+    /// Transmit buffer capacity in DATA blocks.
+    pub tx_blocks: usize,
+    /// Receive FIFO depth, bytes.
+    pub rx_fifo: usize,
+    /// Print events to stderr.
+    pub verbose: bool,
+}
+
+impl Default for SimConfig {
+    fn default() -> Self {
+        Self {
+            model: fracsim::FracTf::pmsm(6.82, 0.0059, 2.655e-5, 0.92, 0.8252)
+                .expect("the paper's model is valid"),
+            approx: fracsim::ApproxSpec::default(),
+            baud: 115_200,
+            effects: Effects::default(),
+            faults: Faults::default(),
+            link: None,
+            max_sample_rate_hz: 20_000,
+            tx_blocks: 4,
+            rx_fifo: 16,
+            verbose: false,
+        }
+    }
+}
+
+/// Counters and ground truth from the simulator (for tests and measurements).
+#[derive(Debug, Clone, Default)]
+pub struct SimStats {
+    /// Frames transmitted (all types).
+    pub frames_sent: u64,
+    /// Frames transmitted with at least one corrupted, dropped or injected byte.
+    pub frames_damaged: u64,
+    /// Bytes transmitted.
+    pub bytes_sent: u64,
+    /// DATA blocks dropped because the transmit buffer was full.
+    pub blocks_dropped: u64,
+    /// Received bytes lost to receive FIFO overruns.
+    pub rx_overruns: u64,
+    /// Valid frames received.
+    pub frames_received: u64,
+    /// Received frames discarded.
+    pub rx_errors: u64,
+    /// Commands answered from the replay cache.
+    pub replays: u64,
+    /// Runs started.
+    pub runs_started: u64,
+    /// The samples of the last run as produced (raw u, y, i), index = sample index.
+    pub truth: Vec<[i16; 3]>,
+    /// Run id of `truth`.
+    pub truth_run_id: u16,
+    /// Events, in order (fault injections, resets, runs).
+    pub events: Vec<String>,
+}
+
+/// A running simulator. Dropping it stops the thread.
+#[derive(Debug)]
+pub struct DriveSim {
+    path: String,
+    stop: Arc<AtomicBool>,
+    stats: Arc<Mutex<SimStats>>,
+    thread: Option<JoinHandle<()>>,
+}
+
+impl DriveSim {
+    /// Open a pty pair and start the firmware thread.
+    pub fn spawn(cfg: SimConfig) -> Result<Self> {
+        let (master, slave_name) = open_pty()?;
+        let path = match &cfg.link {
+            Some(link) => {
+                retarget_link(link, &slave_name)?;
+                link.to_string_lossy().into_owned()
+            }
+            None => slave_name,
+        };
+        let stop = Arc::new(AtomicBool::new(false));
+        let stats = Arc::new(Mutex::new(SimStats::default()));
+        let mut fw = Firmware::new(cfg, master, stats.clone())?;
+        let stop2 = stop.clone();
+        let thread = std::thread::Builder::new()
+            .name("drive-sim".into())
+            .spawn(move || fw.run(&stop2))
+            .map_err(Error::Io)?;
+        Ok(Self {
+            path,
+            stop,
+            stats,
+            thread: Some(thread),
+        })
+    }
+
+    /// The path a host opens (the pty slave, or the link).
+    pub fn port_path(&self) -> &str {
+        &self.path
+    }
+
+    /// A snapshot of the counters.
+    pub fn stats(&self) -> SimStats {
+        self.stats.lock().map(|s| s.clone()).unwrap_or_default()
+    }
+
+    /// Whether the firmware thread is still running.
+    pub fn is_running(&self) -> bool {
+        self.thread.as_ref().is_some_and(|t| !t.is_finished())
+    }
+
+    /// Stop the simulator and wait for its thread.
+    pub fn stop(mut self) {
+        self.shutdown();
+    }
+
+    fn shutdown(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+impl Drop for DriveSim {
+    fn drop(&mut self) {
+        self.shutdown();
+    }
+}
+
+/// Open a pty pair; keep the master, close the slave (the host opens it by name).
+fn open_pty() -> Result<(TTYPort, String)> {
+    let (mut master, slave) = TTYPort::pair().map_err(|e| Error::Port {
+        path: "pty".into(),
+        source: e,
+    })?;
+    let name = slave
+        .name()
+        .ok_or_else(|| Error::Protocol("pty slave has no name".into()))?;
+    drop(slave);
+    let _ = master.set_timeout(Duration::ZERO);
+    Ok((master, name))
+}
+
+fn retarget_link(link: &std::path::Path, target: &str) -> Result<()> {
+    let tmp = link.with_extension("tmp-link");
+    let _ = std::fs::remove_file(&tmp);
+    std::os::unix::fs::symlink(target, &tmp)?;
+    std::fs::rename(&tmp, link)?;
+    Ok(())
+}
+
+/// The motor with its hidden effects.
+struct Plant {
+    sim: fracsim::Simulator<f64>,
+    dc_gain: f64,
+    fx: Effects,
+    delay: VecDeque<f64>,
+    y: f64,
+    k: u64,
+    dt: f64,
+    noise: Normal<f64>,
+}
+
+impl Plant {
+    fn new(cfg: &SimConfig, fs: u32) -> Result<Self> {
+        let dt = 1.0 / fs as f64;
+        let sim = fracsim::Simulator::<f64>::new(&cfg.model, dt, &cfg.approx)
+            .map_err(|e| Error::InvalidParam(format!("motor model: {e}")))?;
+        let dc_gain = cfg.model.num.iter().map(|t| t.coef).sum::<f64>()
+            / cfg
+                .model
+                .den
+                .iter()
+                .filter(|t| t.order == 0.0)
+                .map(|t| t.coef)
+                .sum::<f64>();
+        let nd = (cfg.effects.delay_s.max(0.0) * fs as f64).round() as usize;
+        Ok(Self {
+            sim,
+            dc_gain: if dc_gain.is_finite() && dc_gain != 0.0 { dc_gain } else { 1.0 },
+            fx: cfg.effects,
+            delay: std::iter::repeat_n(0.0, nd).collect(),
+            y: 0.0,
+            k: 0,
+            dt,
+            noise: Normal::new(0.0, cfg.effects.noise_std.max(0.0)).unwrap_or(Normal::new(0.0, 0.0).expect("valid")),
+        })
+    }
+
+    /// One sample: command u (V) -> (measured speed rad/s, current A).
+    fn step(&mut self, u: f64, rng: &mut StdRng) -> (f64, f64) {
+        self.delay.push_back(u);
+        let ud = self.delay.pop_front().unwrap_or(u);
+        let fx = &self.fx;
+        let mut ue = ud;
+        if fx.coulomb_v > 0.0 {
+            if self.y.abs() > 1e-3 {
+                ue -= fx.coulomb_v * self.y.signum();
+            } else if ud.abs() <= fx.coulomb_v {
+                ue = 0.0;
+            } else {
+                ue -= fx.coulomb_v * ud.signum();
+            }
+        }
+        if fx.ripple_v != 0.0 {
+            ue += fx.ripple_v * (2.0 * std::f64::consts::PI * fx.ripple_hz * self.k as f64 * self.dt).sin();
+        }
+        self.k += 1;
+        let y = self.sim.step(ue);
+        self.y = if y.is_finite() { y } else { 0.0 };
+        let mut ym = self.y;
+        if fx.noise_std > 0.0 {
+            ym += self.noise.sample(rng);
+        }
+        if fx.speed_quant > 0.0 {
+            ym = (ym / fx.speed_quant).round() * fx.speed_quant;
+        }
+        let i = (ue - self.y / self.dc_gain) / fx.r_ohm.max(1e-6);
+        (ym, i)
+    }
+
+    fn reset(&mut self) {
+        self.sim.reset();
+        for d in &mut self.delay {
+            *d = 0.0;
+        }
+        self.y = 0.0;
+        self.k = 0;
+    }
+}
+
+enum Excitation {
+    Prbs {
+        lfsr: Lfsr,
+        p: StartPrbs,
+        bit: bool,
+    },
+    Sine {
+        s: StartSine,
+        phase: u32,
+        inc: u32,
+        settle: u32,
+        measure: u32,
+        acc: [f64; 4],
+    },
+}
+
+struct Run {
+    id: u16,
+    total: u32,
+    done: u32,
+    sent: u32,
+    dropped: u16,
+    clamped: u16,
+    start: Instant,
+    block: Vec<[i16; 3]>,
+    block_first: u32,
+    block_flags: u8,
+    exc: Excitation,
+    ramp: Option<(u32, u32, EndReason)>, // (samples left, ramp length, reason)
+    last_u: f64,
+}
+
+struct Firmware {
+    cfg: SimConfig,
+    master: Option<TTYPort>,
+    stats: Arc<Mutex<SimStats>>,
+    rng: StdRng,
+    boot_id: u16,
+    conf: Option<Configure>,
+    plant: Option<Plant>,
+    run: Option<Run>,
+    last_run: Option<(u16, u32, u16, u16)>, // id, done, dropped, clamped
+    last_end: Option<StreamEnd>,
+    fault: u8,
+    next_run_id: u16,
+    tx_seq: u16,
+    cache: Option<(u16, u8, Vec<u8>)>,
+    dec: StreamDecoder,
+    // line model
+    rx_pending: VecDeque<u8>,
+    rx_fifo: VecDeque<u8>,
+    rx_budget: f64,
+    tx_prio: VecDeque<Vec<u8>>,
+    tx_data: VecDeque<Vec<u8>>,
+    tx_bytes: VecDeque<u8>,
+    tx_budget: f64,
+    burst_left: usize,
+    last_tick: Instant,
+    last_rx_frame: Instant,
+    rx_errors: u16,
+    // faults
+    run_samples_total: u64,
+    stall_until: Option<Instant>,
+    dead_until: Option<Instant>,
+    reopen_at: Option<Instant>,
+    boot_until: Option<Instant>,
+    fired: [bool; 3],
+}
+
+const FW_MAJOR: u8 = 1;
+const FW_MINOR: u8 = 0;
+
+impl Firmware {
+    fn new(cfg: SimConfig, master: TTYPort, stats: Arc<Mutex<SimStats>>) -> Result<Self> {
+        let mut rng = StdRng::seed_from_u64(cfg.faults.seed);
+        let boot_id = rng.gen();
+        let now = Instant::now();
+        Ok(Self {
+            cfg,
+            master: Some(master),
+            stats,
+            rng,
+            boot_id,
+            conf: None,
+            plant: None,
+            run: None,
+            last_run: None,
+            last_end: None,
+            fault: fault::NONE,
+            next_run_id: 1,
+            tx_seq: 0,
+            cache: None,
+            dec: StreamDecoder::new(),
+            rx_pending: VecDeque::new(),
+            rx_fifo: VecDeque::new(),
+            rx_budget: 0.0,
+            tx_prio: VecDeque::new(),
+            tx_data: VecDeque::new(),
+            tx_bytes: VecDeque::new(),
+            tx_budget: 0.0,
+            burst_left: 0,
+            last_tick: now,
+            last_rx_frame: now,
+            rx_errors: 0,
+            run_samples_total: 0,
+            stall_until: None,
+            dead_until: None,
+            reopen_at: None,
+            boot_until: None,
+            fired: [false; 3],
+        })
+    }
+
+    fn event(&self, s: String) {
+        if self.cfg.verbose {
+            eprintln!("drive-sim: {s}");
+        }
+        if let Ok(mut st) = self.stats.lock() {
+            st.events.push(s);
+        }
+    }
+
+    fn with_stats(&self, f: impl FnOnce(&mut SimStats)) {
+        if let Ok(mut s) = self.stats.lock() {
+            f(&mut s);
+        }
+    }
+
+    fn run(&mut self, stop: &AtomicBool) {
+        while !stop.load(Ordering::Relaxed) {
+            let now = Instant::now();
+            let elapsed = now.duration_since(self.last_tick).as_secs_f64().min(0.05);
+            self.last_tick = now;
+            self.line_state(now);
+            if self.boot_until.is_some_and(|t| now < t) {
+                // Booting: nothing runs, bytes arriving are lost.
+                self.drain_input_lost();
+            } else {
+                self.boot_until = None;
+                self.receive(elapsed, now);
+                self.control(now);
+                self.transmit(elapsed, now);
+            }
+            std::thread::sleep(Duration::from_micros(400));
+        }
+    }
+
+    fn byte_rate(&self) -> f64 {
+        self.cfg.baud as f64 / 10.0
+    }
+
+    fn line_state(&mut self, now: Instant) {
+        if let Some(t) = self.stall_until {
+            if now >= t {
+                self.stall_until = None;
+                self.event("stall ends".into());
+            }
+        }
+        if let Some(t) = self.dead_until {
+            if now >= t {
+                self.dead_until = None;
+                self.event("line back".into());
+            }
+        }
+        if let Some(t) = self.reopen_at {
+            if now >= t {
+                self.reopen_at = None;
+                match (open_pty(), &self.cfg.link) {
+                    (Ok((m, name)), Some(link)) => {
+                        if retarget_link(link, &name).is_ok() {
+                            self.master = Some(m);
+                            self.event(format!("reconnected as {name}"));
+                        }
+                    }
+                    _ => self.event("reconnect failed".into()),
+                }
+            }
+        }
+    }
+
+    fn drain_input_lost(&mut self) {
+        if let Some(m) = self.master.as_mut() {
+            let mut buf = [0u8; 512];
+            let _ = m.read(&mut buf);
+        }
+    }
+
+    /// Read what the host sent, pace it to the line rate, pass it through the FIFO model.
+    fn receive(&mut self, elapsed: f64, now: Instant) {
+        let mut buf = [0u8; 1024];
+        if let Some(m) = self.master.as_mut() {
+            match m.read(&mut buf) {
+                Ok(n) if n > 0 => {
+                    let dead = self.dead_until.is_some();
+                    if !dead {
+                        for &b in &buf[..n] {
+                            self.rx_pending.push_back(b);
+                        }
+                    }
+                }
+                _ => {}
+            }
+        }
+        // Bytes arrive at the line rate.
+        self.rx_budget = (self.rx_budget + elapsed * self.byte_rate()).min(4096.0);
+        let stalled = self.stall_until.is_some();
+        while self.rx_budget >= 1.0 {
+            let Some(mut b) = self.rx_pending.pop_front() else {
+                self.rx_budget = self.rx_budget.min(1.0);
+                break;
+            };
+            self.rx_budget -= 1.0;
+            // Line faults, host -> drive.
+            let f = self.cfg.faults;
+            if f.drop_rate > 0.0 && self.rng.gen_bool(f.drop_rate.min(1.0)) {
+                continue;
+            }
+            b = self.flip_bits(b);
+            if self.rx_fifo.len() < self.cfg.rx_fifo.max(1) {
+                self.rx_fifo.push_back(b);
+            } else {
+                self.with_stats(|s| s.rx_overruns += 1);
+            }
+            if !stalled {
+                self.service_fifo(now);
+            }
+        }
+        if !stalled {
+            self.service_fifo(now);
+        }
+    }
+
+    fn flip_bits(&mut self, mut b: u8) -> u8 {
+        let ber = self.cfg.faults.bit_error_rate;
+        if ber > 0.0 {
+            let p_byte = 1.0 - (1.0 - ber.min(1.0)).powi(8);
+            if self.rng.gen_bool(p_byte) {
+                b ^= 1 << self.rng.gen_range(0..8);
+            }
+        }
+        b
+    }
+
+    fn service_fifo(&mut self, now: Instant) {
+        if self.rx_fifo.is_empty() {
+            return;
+        }
+        let bytes: Vec<u8> = self.rx_fifo.drain(..).collect();
+        let before = self.dec.stats().errors;
+        let frames = self.dec.push(&bytes);
+        let errs = self.dec.stats().errors - before;
+        if errs > 0 {
+            self.rx_errors = self.rx_errors.saturating_add(errs as u16);
+            self.with_stats(|s| s.rx_errors += errs);
+        }
+        for f in frames {
+            self.last_rx_frame = now;
+            self.with_stats(|s| s.frames_received += 1);
+            self.handle(f, now);
+        }
+    }
+
+    fn reply(&mut self, seq: u16, msg: Message) -> Vec<u8> {
+        let bytes = codec::encode(&Frame { seq, msg });
+        self.tx_prio.push_back(bytes.clone());
+        bytes
+    }
+
+    fn nak(&mut self, f: &Frame, code: NakCode, detail: u16) -> Vec<u8> {
+        self.reply(
+            f.seq,
+            Message::Nak(Nak {
+                nak_type: f.msg.type_code(),
+                code,
+                detail,
+            }),
+        )
+    }
+
+    fn ack(&mut self, f: &Frame, run_id: u16, total_samples: u32) -> Vec<u8> {
+        self.reply(
+            f.seq,
+            Message::Ack(Ack {
+                acked_type: f.msg.type_code(),
+                run_id,
+                total_samples,
+            }),
+        )
+    }
+
+    fn handle(&mut self, f: Frame, now: Instant) {
+        let t = f.msg.type_code();
+        match f.msg {
+            Message::Keepalive => return,
+            Message::Hello => {
+                self.cache = None;
+                let r = Message::HelloReply(HelloReply {
+                    proto_version: PROTO_VERSION,
+                    fw_major: FW_MAJOR,
+                    fw_minor: FW_MINOR,
+                    n_channels: N_CHANNELS as u8,
+                    max_block_samples: MAX_BLOCK_SAMPLES,
+                    boot_id: self.boot_id,
+                    max_sample_rate_hz: self.cfg.max_sample_rate_hz,
+                });
+                self.reply(f.seq, r);
+                return;
+            }
+            _ => {}
+        }
+        if t >= 0x80 {
+            return; // drive-to-host types are ignored by the drive
+        }
+        if let Some((seq, ty, bytes)) = &self.cache {
+            if *seq == f.seq && *ty == t {
+                let b = bytes.clone();
+                self.tx_prio.push_back(b);
+                self.with_stats(|s| s.replays += 1);
+                return;
+            }
+        }
+        let answer = self.execute(&f, now);
+        self.cache = Some((f.seq, t, answer));
+    }
+
+    fn status(&self) -> StatusReply {
+        let (state, run_id, done, dropped, clamped) = match (&self.run, self.last_run) {
+            (Some(r), _) => (DriveState::Running, r.id, r.done, r.dropped, r.clamped),
+            (None, Some((id, d, dr, c))) => (self.idle_state(), id, d, dr, c),
+            (None, None) => (self.idle_state(), 0, 0, 0, 0),
+        };
+        StatusReply {
+            state,
+            fault: self.fault,
+            run_id,
+            samples_done: done,
+            blocks_dropped: dropped,
+            boot_id: self.boot_id,
+            rx_errors: self.rx_errors,
+            clamped,
+        }
+    }
+
+    fn idle_state(&self) -> DriveState {
+        if self.fault != fault::NONE {
+            DriveState::Fault
+        } else if self.conf.is_some() {
+            DriveState::Idle
+        } else {
+            DriveState::Unconfigured
+        }
+    }
+
+    fn execute(&mut self, f: &Frame, now: Instant) -> Vec<u8> {
+        match &f.msg {
+            Message::Status => {
+                let s = self.status();
+                self.reply(f.seq, Message::StatusReply(s))
+            }
+            Message::Configure(c) => {
+                if self.run.is_some() {
+                    return self.nak(f, NakCode::Busy, 0);
+                }
+                if let Some(off) = check_configure(c, self.cfg.max_sample_rate_hz) {
+                    return self.nak(f, NakCode::BadValue, off);
+                }
+                match Plant::new(&self.cfg, c.sample_rate_hz) {
+                    Ok(p) => self.plant = Some(p),
+                    Err(_) => return self.nak(f, NakCode::BadValue, 0),
+                }
+                self.conf = Some(*c);
+                self.fault = fault::NONE;
+                self.ack(f, 0, 0)
+            }
+            Message::StartPrbs(p) => {
+                if let Some(a) = self.start_check(f) {
+                    return a;
+                }
+                let Some(total) = p.total_samples() else {
+                    return self.nak(f, NakCode::BadValue, 0);
+                };
+                let Some(lfsr) = Lfsr::new(p.order, p.taps, p.seed) else {
+                    return self.nak(f, NakCode::BadValue, 2);
+                };
+                if p.clock_samples == 0 || p.periods == 0 || p.amplitude < 0 || total == 0 {
+                    return self.nak(f, NakCode::BadValue, 10);
+                }
+                let exc = Excitation::Prbs {
+                    lfsr,
+                    p: *p,
+                    bit: false,
+                };
+                self.start_run(f, total, exc, now)
+            }
+            Message::StartSine(s) => {
+                if let Some(a) = self.start_check(f) {
+                    return a;
+                }
+                let fs = self.conf.map(|c| c.sample_rate_hz).unwrap_or(1);
+                let counts = s.sample_counts(fs);
+                let bad = s.freq_mhz == 0
+                    || s.freq_mhz as u64 > fs as u64 * 500
+                    || s.amplitude < 0
+                    || s.cycles == 0
+                    || s.flags & (SINE_STREAM | SINE_DFT) == 0;
+                let Some((settle, measure)) = counts.filter(|c| !bad && c.1 > 0) else {
+                    return self.nak(f, NakCode::BadValue, 0);
+                };
+                let inc = (((s.freq_mhz as u128) << 32) + 500 * fs as u128) / (1000 * fs as u128);
+                let exc = Excitation::Sine {
+                    s: *s,
+                    phase: 0,
+                    inc: inc as u32,
+                    settle,
+                    measure,
+                    acc: [0.0; 4],
+                };
+                self.start_run(f, settle + measure, exc, now)
+            }
+            Message::Stop => {
+                if let Some(r) = self.run.as_mut() {
+                    if r.ramp.is_none() {
+                        r.ramp = Some((1, 1, EndReason::Stopped));
+                    }
+                }
+                self.ack(f, 0, 0)
+            }
+            Message::Estop => {
+                if self.run.is_some() {
+                    self.end_run(EndReason::Estop);
+                }
+                self.fault = fault::ESTOP;
+                self.ack(f, 0, 0)
+            }
+            Message::EndQuery(id) => match self.last_end {
+                Some(e) if e.run_id == *id && self.run.as_ref().is_none_or(|r| r.id != *id) => {
+                    self.reply(f.seq, Message::StreamEnd(e))
+                }
+                _ => self.nak(f, NakCode::BadValue, 0),
+            },
+            _ => self.nak(f, NakCode::UnknownType, 0),
+        }
+    }
+
+    fn start_check(&mut self, f: &Frame) -> Option<Vec<u8>> {
+        if self.run.is_some() {
+            return Some(self.nak(f, NakCode::Busy, 0));
+        }
+        if self.fault != fault::NONE {
+            let d = self.fault as u16;
+            return Some(self.nak(f, NakCode::Fault, d));
+        }
+        if self.conf.is_none() {
+            return Some(self.nak(f, NakCode::NotConfigured, 0));
+        }
+        None
+    }
+
+    fn start_run(&mut self, f: &Frame, total: u32, exc: Excitation, now: Instant) -> Vec<u8> {
+        let id = self.next_run_id;
+        self.next_run_id = self.next_run_id.wrapping_add(1).max(1);
+        if let Some(p) = self.plant.as_mut() {
+            p.reset();
+        }
+        self.run = Some(Run {
+            id,
+            total,
+            done: 0,
+            sent: 0,
+            dropped: 0,
+            clamped: 0,
+            start: now,
+            block: Vec::new(),
+            block_first: 0,
+            block_flags: 0,
+            exc,
+            ramp: None,
+            last_u: 0.0,
+        });
+        self.last_end = None;
+        self.last_rx_frame = now;
+        self.with_stats(|s| {
+            s.runs_started += 1;
+            s.truth.clear();
+            s.truth_run_id = id;
+        });
+        self.event(format!("run {id} started, {total} samples"));
+        self.ack(f, id, total)
+    }
+
+    fn next_tx_seq(&mut self) -> u16 {
+        self.tx_seq = self.tx_seq.wrapping_add(1);
+        self.tx_seq
+    }
+
+    fn end_run(&mut self, reason: EndReason) {
+        let Some(mut r) = self.run.take() else { return };
+        self.flush_block(&mut r);
+        if let Excitation::Sine { acc, measure, s, .. } = &r.exc {
+            if s.flags & SINE_DFT != 0 && reason == EndReason::Complete {
+                let n = *measure as f64;
+                let q = |v: f64| (v * 2.0 / n * 256.0).round().clamp(i32::MIN as f64, i32::MAX as f64) as i32;
+                let res = SineResult {
+                    run_id: r.id,
+                    n: *measure,
+                    u_re: q(acc[0]),
+                    u_im: q(acc[1]),
+                    y_re: q(acc[2]),
+                    y_im: q(acc[3]),
+                };
+                let seq = self.next_tx_seq();
+                self.tx_data.push_back(codec::encode(&Frame {
+                    seq,
+                    msg: Message::SineResult(res),
+                }));
+            }
+        }
+        let end = StreamEnd {
+            run_id: r.id,
+            reason,
+            total_samples: r.done,
+            samples_sent: r.sent,
+            blocks_dropped: r.dropped,
+        };
+        let seq = self.next_tx_seq();
+        // STREAM_END always fits: it goes behind the queued DATA, never dropped.
+        self.tx_data.push_back(codec::encode(&Frame {
+            seq,
+            msg: Message::StreamEnd(end),
+        }));
+        self.last_end = Some(end);
+        self.last_run = Some((r.id, r.done, r.dropped, r.clamped));
+        self.event(format!("run {} ended: {reason:?}, {} samples, {} blocks dropped", r.id, r.done, r.dropped));
+    }
+
+    fn flush_block(&mut self, r: &mut Run) {
+        if r.block.is_empty() {
+            return;
+        }
+        let samples = std::mem::take(&mut r.block);
+        let n = samples.len() as u32;
+        if self.tx_data.len() >= self.cfg.tx_blocks.max(1) || self.stall_until.is_some() && self.tx_data.len() >= 1 {
+            r.dropped = r.dropped.saturating_add(1);
+            self.with_stats(|s| s.blocks_dropped += 1);
+        } else {
+            let seq = self.next_tx_seq();
+            let msg = Message::Data(DataBlock {
+                run_id: r.id,
+                first_index: r.block_first,
+                flags: r.block_flags,
+                samples,
+            });
+            self.tx_data.push_back(codec::encode(&Frame { seq, msg }));
+            r.sent += n;
+        }
+        r.block_flags = 0;
+    }
+
+    /// Produce the samples due by now.
+    fn control(&mut self, now: Instant) {
+        let Some(conf) = self.conf else { return };
+        let Some(mut r) = self.run.take() else { return };
+        let fs = conf.sample_rate_hz as f64;
+        let due = ((now.duration_since(r.start).as_secs_f64() * fs) as u64).min(r.total as u64) as u32;
+        let keepalive = Duration::from_millis(conf.keepalive_ms as u64);
+        let mut end: Option<EndReason> = None;
+        while r.done < due || (r.ramp.is_some() && end.is_none()) {
+            if r.ramp.is_none() && now.duration_since(self.last_rx_frame) > keepalive {
+                let n = (fs * 0.05).ceil().max(1.0) as u32;
+                r.ramp = Some((n, n, EndReason::Keepalive));
+                self.fault = fault::KEEPALIVE;
+                self.event("keepalive expired: ramping down".into());
+            }
+            if r.done >= due && r.ramp.is_none() {
+                break;
+            }
+            if r.done >= due && r.ramp.is_some() && r.done >= r.total {
+                // ramp samples are beyond the planned run; allow them
+            }
+            let (u_raw_cmd, measuring) = match &mut r.ramp {
+                Some((left, len, reason)) => {
+                    if *left == 0 {
+                        end = Some(*reason);
+                        break;
+                    }
+                    *left -= 1;
+                    let v = r.last_u * (*left as f64) / (*len as f64);
+                    ((v / conf.u_lsb()).round(), None)
+                }
+                None => {
+                    let k = r.done;
+                    match &mut r.exc {
+                        Excitation::Prbs { lfsr, p, bit } => {
+                            let v = if k < p.settle_samples {
+                                p.offset as f64
+                            } else {
+                                let j = k - p.settle_samples;
+                                if j % (p.clock_samples as u32) == 0 {
+                                    let b = j / p.clock_samples as u32;
+                                    if b as u64 % lfsr.period() == 0 {
+                                        lfsr.restart();
+                                    }
+                                    *bit = lfsr.next_bit();
+                                }
+                                if *bit {
+                                    p.offset as f64 + p.amplitude as f64
+                                } else {
+                                    p.offset as f64 - p.amplitude as f64
+                                }
+                            };
+                            (v, None)
+                        }
+                        Excitation::Sine {
+                            s, phase, inc, settle, ..
+                        } => {
+                            let th = *phase as f64 / 4294967296.0 * std::f64::consts::TAU;
+                            let v = s.offset as f64 + (s.amplitude as f64 * th.sin()).round();
+                            let m = if k >= *settle { Some(th) } else { None };
+                            *phase = phase.wrapping_add(*inc);
+                            (v, m)
+                        }
+                    }
+                }
+            };
+            let lim = conf.u_limit as f64;
+            let mut flags = 0;
+            let u_raw = if u_raw_cmd.abs() > lim {
+                r.clamped = r.clamped.saturating_add(1);
+                flags |= 1;
+                u_raw_cmd.clamp(-lim, lim)
+            } else {
+                u_raw_cmd
+            };
+            let u = u_raw * conf.u_lsb();
+            if r.ramp.is_none() {
+                r.last_u = u;
+            }
+            let (y, i) = match self.plant.as_mut() {
+                Some(p) => p.step(u, &mut self.rng),
+                None => (0.0, 0.0),
+            };
+            let sat = |v: f64| v.round().clamp(-32767.0, 32767.0) as i16;
+            let raw = [sat(u_raw), sat(y / conf.y_lsb()), sat(i / conf.i_lsb())];
+            if let (Some(th), Excitation::Sine { acc, .. }) = (measuring, &mut r.exc) {
+                acc[0] += raw[0] as f64 * th.cos();
+                acc[1] -= raw[0] as f64 * th.sin();
+                acc[2] += raw[1] as f64 * th.cos();
+                acc[3] -= raw[1] as f64 * th.sin();
+            }
+            if r.block.is_empty() {
+                r.block_first = r.done;
+            }
+            r.block.push(raw);
+            r.block_flags |= flags;
+            r.done += 1;
+            self.run_samples_total += 1;
+            self.with_stats(|s| s.truth.push(raw));
+            if raw[1].unsigned_abs() > conf.y_limit.unsigned_abs() || raw[2].unsigned_abs() > conf.i_limit.unsigned_abs() {
+                if r.ramp.is_none() {
+                    self.fault = if raw[1].unsigned_abs() > conf.y_limit.unsigned_abs() {
+                        fault::SPEED_LIMIT
+                    } else {
+                        fault::CURRENT_LIMIT
+                    };
+                    self.flush_block(&mut r);
+                    end = Some(EndReason::Limit);
+                    break;
+                }
+            }
+            if r.block.len() >= conf.block_samples as usize {
+                self.flush_block(&mut r);
+            }
+            if r.done >= r.total && r.ramp.is_none() {
+                end = Some(EndReason::Complete);
+                break;
+            }
+            if self.check_faults(now) {
+                // reset: the run is gone
+                return;
+            }
+        }
+        self.run = Some(r);
+        if let Some(reason) = end {
+            self.end_run(reason);
+        }
+    }
+
+    /// Trigger scheduled faults; returns true if the drive reset.
+    fn check_faults(&mut self, now: Instant) -> bool {
+        let f = self.cfg.faults;
+        let n = self.run_samples_total;
+        if let Some(s) = f.stall.filter(|s| !self.fired[0] && n >= s.at_sample) {
+            self.fired[0] = true;
+            self.stall_until = Some(now + s.duration);
+            self.event(format!("stall for {:?} at sample {n}", s.duration));
+        }
+        if let Some(d) = f.disconnect.filter(|d| !self.fired[1] && n >= d.at_sample) {
+            self.fired[1] = true;
+            if self.cfg.link.is_some() {
+                self.master = None; // closes the pty: the host's port hangs up
+                self.reopen_at = Some(now + d.duration);
+                self.event(format!("disconnect (pty closed) for {:?} at sample {n}", d.duration));
+            } else {
+                self.dead_until = Some(now + d.duration);
+                self.event(format!("line dead for {:?} at sample {n}", d.duration));
+            }
+        }
+        if let Some(r) = f.reset.filter(|r| !self.fired[2] && n >= r.at_sample) {
+            self.fired[2] = true;
+            self.event(format!("drive reset at sample {n}"));
+            self.reset(now + r.duration);
+            return true;
+        }
+        false
+    }
+
+    fn reset(&mut self, boot_until: Instant) {
+        let old = self.boot_id;
+        while self.boot_id == old {
+            self.boot_id = self.rng.gen();
+        }
+        self.conf = None;
+        self.plant = None;
+        self.run = None;
+        self.last_run = None;
+        self.last_end = None;
+        self.fault = fault::NONE;
+        self.cache = None;
+        self.tx_seq = 0;
+        self.dec.reset();
+        self.rx_fifo.clear();
+        self.rx_pending.clear();
+        self.tx_prio.clear();
+        self.tx_data.clear();
+        self.tx_bytes.clear();
+        self.stall_until = None;
+        self.boot_until = Some(boot_until);
+    }
+
+    /// Send bytes at the line rate; responses go before queued DATA.
+    fn transmit(&mut self, elapsed: f64, _now: Instant) {
+        if self.stall_until.is_some() {
+            return;
+        }
+        self.tx_budget = (self.tx_budget + elapsed * self.byte_rate()).min(self.byte_rate() * 0.01 + 64.0);
+        let mut out = Vec::new();
+        while self.tx_budget >= 1.0 {
+            if self.tx_bytes.is_empty() {
+                let Some(frame) = self.tx_prio.pop_front().or_else(|| self.tx_data.pop_front()) else {
+                    self.tx_budget = self.tx_budget.min(1.0);
+                    break;
+                };
+                let damaged = self.damage_frame(frame);
+                self.tx_bytes.extend(damaged);
+            }
+            if let Some(b) = self.tx_bytes.pop_front() {
+                out.push(b);
+                self.tx_budget -= 1.0;
+            }
+        }
+        if out.is_empty() {
+            return;
+        }
+        let n = out.len() as u64;
+        self.with_stats(|s| s.bytes_sent += n);
+        if self.dead_until.is_some() {
+            return;
+        }
+        if let Some(m) = self.master.as_mut() {
+            // A full pty buffer or an absent host loses the bytes, as a real line would.
+            let _ = m.write_all(&out);
+        }
+    }
+
+    /// Apply line faults to one outgoing frame.
+    fn damage_frame(&mut self, frame: Vec<u8>) -> Vec<u8> {
+        let f = self.cfg.faults;
+        let mut out = Vec::with_capacity(frame.len());
+        let mut damaged = false;
+        for b in frame {
+            if self.burst_left > 0 {
+                self.burst_left -= 1;
+                out.push(self.rng.gen());
+                damaged = true;
+                continue;
+            }
+            if f.burst_rate > 0.0 && self.rng.gen_bool(f.burst_rate.min(1.0)) {
+                self.burst_left = f.burst_len.max(1);
+            }
+            if f.drop_rate > 0.0 && self.rng.gen_bool(f.drop_rate.min(1.0)) {
+                damaged = true;
+                continue;
+            }
+            let c = self.flip_bits(b);
+            damaged |= c != b;
+            out.push(c);
+        }
+        if f.frame_corrupt_rate > 0.0 && !out.is_empty() && self.rng.gen_bool(f.frame_corrupt_rate.min(1.0)) {
+            let flips = self.rng.gen_range(1..=3);
+            for _ in 0..flips {
+                let i = self.rng.gen_range(0..out.len());
+                out[i] ^= 1 << self.rng.gen_range(0..8);
+            }
+            damaged = true;
+        }
+        self.with_stats(|s| {
+            s.frames_sent += 1;
+            if damaged {
+                s.frames_damaged += 1;
+            }
+        });
+        out
+    }
+}
+
+/// Offset of the first invalid CONFIGURE field, if any.
+fn check_configure(c: &Configure, max_fs: u32) -> Option<u16> {
+    if c.sample_rate_hz == 0 || c.sample_rate_hz > max_fs {
+        return Some(0);
+    }
+    if c.block_samples == 0 || c.block_samples > MAX_BLOCK_SAMPLES {
+        return Some(4);
+    }
+    if !(50..=5000).contains(&c.keepalive_ms) {
+        return Some(6);
+    }
+    if c.scale_u_uv == 0 {
+        return Some(8);
+    }
+    if c.scale_y_urad_s == 0 {
+        return Some(12);
+    }
+    if c.scale_i_ua == 0 {
+        return Some(16);
+    }
+    if c.u_limit <= 0 {
+        return Some(20);
+    }
+    if c.y_limit <= 0 {
+        return Some(22);
+    }
+    if c.i_limit <= 0 {
+        return Some(24);
+    }
+    None
+}
