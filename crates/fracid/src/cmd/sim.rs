@@ -1,11 +1,229 @@
-//! `fracid sim` (being written).
-use anyhow::Result;
+//! `fracid sim`: simulate a fractional transfer function on a step, a PRBS or a recorded input.
+
+use crate::bad_input;
+use crate::plot::{self, Figure};
+use anyhow::{Context, Result};
+use fracsim::prbs::Prbs;
+use fracsim::{gl, lsim, ApproxSpec, Discretization, FracTf, Method};
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use std::io::Write;
+use std::path::PathBuf;
+
+/// The paper's model in the frequency domain, simulated when no `--model` is given.
+pub const DEFAULT_MODEL: &str = "6.77/(0.000028 s^1.78 + 0.0064 s^0.89 + 1)";
 
 /// Options of `fracid sim`.
 #[derive(Debug, clap::Args)]
-pub struct SimArgs {}
+pub struct SimArgs {
+    /// The model, e.g. "6.82/(2.655e-5 s^1.7452 + 0.0059 s^0.92 + 1)"; `exp(-0.001 s)` may be a
+    /// factor. Default: the paper's PMSM model.
+    #[arg(long, default_value = DEFAULT_MODEL)]
+    pub model: String,
+    /// Step input of this amplitude (the default input, amplitude 1).
+    #[arg(long, num_args = 0..=1, default_missing_value = "1.0", group = "source")]
+    pub step: Option<f64>,
+    /// PRBS input: the paper's experiment (order 7, 3 ms clock), see --prbs-order and --prbs-clock.
+    #[arg(long, group = "source")]
+    pub prbs: bool,
+    /// Recorded input: a CSV file with columns t,u (see --t-col, --u-col).
+    #[arg(long, value_name = "FILE", group = "source")]
+    pub input: Option<PathBuf>,
+    /// Time column of --input.
+    #[arg(long, default_value = "t")]
+    pub t_col: String,
+    /// Input column of --input.
+    #[arg(long, default_value = "u")]
+    pub u_col: String,
+    /// PRBS register order (2..16): the period is 2^order - 1 bits.
+    #[arg(long, default_value_t = 7)]
+    pub prbs_order: u32,
+    /// PRBS bit duration in seconds (a whole multiple of --dt).
+    #[arg(long, default_value_t = 0.003)]
+    pub prbs_clock: f64,
+    /// PRBS amplitude (levels +-amplitude).
+    #[arg(long, default_value_t = 1.0)]
+    pub prbs_amplitude: f64,
+    /// Sampling step in seconds (ignored with --input, whose time column sets it).
+    #[arg(long, default_value_t = 1e-4)]
+    pub dt: f64,
+    /// End time in seconds (default: 0.05 for a step, one period for a PRBS).
+    #[arg(long)]
+    pub t_end: Option<f64>,
+    /// Method: oustaloup, refined, trigeassou (recursive discrete filters) or gl
+    /// (Grunwald-Letnikov, exact in the limit but O(N^2)).
+    #[arg(long, default_value = "oustaloup")]
+    pub method: String,
+    /// Approximation band "w_b,w_h" in rad/s (default: 1e-3 to 30 x Nyquist).
+    #[arg(long, value_name = "W_B,W_H")]
+    pub band: Option<String>,
+    /// Approximation order N (2N+1 cells).
+    #[arg(long, default_value_t = 8)]
+    pub order: usize,
+    /// Discretisation of the cells: bilinear, prewarp or zoh.
+    #[arg(long, default_value = "bilinear")]
+    pub discretization: String,
+    /// Write the CSV (t,u,y) here instead of stdout.
+    #[arg(short, long, value_name = "FILE")]
+    pub output: Option<PathBuf>,
+    /// Plot input and output to this PNG or SVG file.
+    #[arg(long, value_name = "FILE")]
+    pub plot: Option<PathBuf>,
+}
+
+/// Parse "w_b,w_h" (rad/s).
+pub fn parse_band(s: &str) -> Result<(f64, f64)> {
+    let parts: Vec<&str> = s.split(',').map(str::trim).collect();
+    let [a, b] = parts.as_slice() else {
+        bad_input!("--band wants two numbers 'w_b,w_h', got '{s}'");
+    };
+    let (Ok(w_b), Ok(w_h)) = (a.parse::<f64>(), b.parse::<f64>()) else {
+        bad_input!("--band wants two numbers 'w_b,w_h', got '{s}'");
+    };
+    fracsim::approx::check_band(w_b, w_h)?;
+    Ok((w_b, w_h))
+}
+
+/// The input signal and its step.
+fn build_input(a: &SimArgs) -> Result<(Vec<f64>, f64)> {
+    if let Some(path) = &a.input {
+        let text = std::fs::read_to_string(path)
+            .with_context(|| format!("cannot read input file {}", path.display()))?;
+        let cols = ident::data::Columns {
+            t: a.t_col.clone(),
+            u: a.u_col.clone(),
+            y: a.u_col.clone(),
+        };
+        let rec = ident::data::Record::parse(&text, &cols)
+            .with_context(|| format!("in {}", path.display()))?;
+        return Ok((rec.u, rec.dt));
+    }
+    if !(a.dt.is_finite() && a.dt > 0.0) {
+        bad_input!("--dt must be a positive number of seconds, got {}", a.dt);
+    }
+    if a.prbs {
+        let prbs = Prbs {
+            order: a.prbs_order,
+            clock: a.prbs_clock,
+            amplitude: a.prbs_amplitude,
+            ..Prbs::paper()
+        };
+        let period = prbs.signal(a.dt)?;
+        let n = match a.t_end {
+            Some(t) => samples_until(t, a.dt)?,
+            None => period.len(),
+        };
+        return Ok((period.iter().copied().cycle().take(n).collect(), a.dt));
+    }
+    let amp = a.step.unwrap_or(1.0);
+    if !amp.is_finite() {
+        bad_input!("--step amplitude must be finite");
+    }
+    let n = samples_until(a.t_end.unwrap_or(0.05), a.dt)?;
+    Ok((vec![amp; n], a.dt))
+}
+
+fn samples_until(t_end: f64, dt: f64) -> Result<usize> {
+    if !(t_end.is_finite() && t_end > 0.0) {
+        bad_input!("--t-end must be a positive number of seconds, got {t_end}");
+    }
+    let n = (t_end / dt).round() + 1.0;
+    if n > 1e8 {
+        bad_input!("--t-end/--dt asks for {n} samples (at most 1e8)");
+    }
+    Ok(n as usize)
+}
 
 /// Run `fracid sim`.
-pub fn run(_a: SimArgs) -> Result<()> {
-    anyhow::bail!("fracid sim is not built yet")
+pub fn run(a: SimArgs) -> Result<()> {
+    let tf: FracTf = a.model.parse().context("bad --model")?;
+    let (u, dt) = build_input(&a)?;
+    let y = if a.method.eq_ignore_ascii_case("gl") {
+        gl::simulate(&tf, &u, dt)?
+    } else {
+        let spec = ApproxSpec {
+            method: a.method.parse::<Method>()?,
+            band: a.band.as_deref().map(parse_band).transpose()?,
+            order: a.order,
+            discretization: a.discretization.parse::<Discretization>()?,
+        };
+        lsim(&tf, &u, dt, &spec)?
+    };
+    // Time stamps rounded to 1e-12 s so that 0.03 prints as 0.03, not 0.030000000000000002.
+    let t: Vec<f64> = (0..u.len())
+        .map(|k| (k as f64 * dt * 1e12).round() / 1e12)
+        .collect();
+    let mut out: Box<dyn Write> = match &a.output {
+        Some(p) => Box::new(std::io::BufWriter::new(
+            std::fs::File::create(p).with_context(|| format!("cannot create {}", p.display()))?,
+        )),
+        None => Box::new(std::io::BufWriter::new(std::io::stdout().lock())),
+    };
+    writeln!(out, "# fracid sim: {tf}, method {}, dt {dt} s", a.method)?;
+    writeln!(out, "t,u,y")?;
+    for k in 0..u.len() {
+        writeln!(out, "{},{},{}", t[k], u[k], y[k])?;
+    }
+    out.flush()?;
+    if let Some(p) = &a.plot {
+        let fig = SimFigure {
+            title: format!("{tf}"),
+            t: &t,
+            u: &u,
+            y: &y,
+        };
+        plot::save(p, (1000, 700), &fig)?;
+        eprintln!("plot written to {}", p.display());
+    }
+    Ok(())
+}
+
+/// Input and output against time, in two panels.
+struct SimFigure<'a> {
+    title: String,
+    t: &'a [f64],
+    u: &'a [f64],
+    y: &'a [f64],
+}
+
+impl Figure for SimFigure<'_> {
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<()>
+    where
+        DB::ErrorType: 'static,
+    {
+        let root = root.titled(&self.title, ("sans-serif", 20))?;
+        let (top, bottom) = root.split_vertically((root.dim_in_pixel().1 as f64 * 0.35) as u32);
+        let t_max = self.t.last().copied().unwrap_or(1.0).max(1e-12);
+        for (area, data, name, color) in [
+            (&top, self.u, "input u", BLUE),
+            (&bottom, self.y, "output y", RED),
+        ] {
+            let (lo, hi) = plot::range_of(data);
+            let mut chart = ChartBuilder::on(area)
+                .margin(10)
+                .x_label_area_size(40)
+                .y_label_area_size(60)
+                .build_cartesian_2d(0.0..t_max, lo..hi)?;
+            chart
+                .configure_mesh()
+                .x_desc("time [s]")
+                .y_desc(name)
+                .label_style(("sans-serif", 14))
+                .draw()?;
+            chart
+                .draw_series(LineSeries::new(
+                    self.t.iter().copied().zip(data.iter().copied()),
+                    color.stroke_width(2),
+                ))?
+                .label(name)
+                .legend(move |(x, y)| PathElement::new([(x, y), (x + 20, y)], color));
+            chart
+                .configure_series_labels()
+                .background_style(WHITE.mix(0.8))
+                .border_style(BLACK)
+                .label_font(("sans-serif", 14))
+                .draw()?;
+        }
+        Ok(())
+    }
 }
