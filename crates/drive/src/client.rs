@@ -16,7 +16,7 @@ use crate::error::{Error, Result};
 use crate::protocol::*;
 use serialport::{SerialPort, TTYPort};
 use std::collections::VecDeque;
-use std::io::{self, Write};
+use std::io::{self, Read, Write};
 use std::ops::Range;
 use std::time::{Duration, Instant};
 

@@ -1,0 +1,259 @@
+//! End-to-end over a real pseudo-terminal: simulator thread + client. Serialised with a lock (the
+//! simulator runs in real time; two at once on a 2-core machine would distort timing).
+
+use drive::client::{Acquisition, Client, ClientConfig, CsvSink, NullSink, PrbsTest, SineSweep};
+use drive::protocol::Configure;
+use drive::sim::{DriveSim, FaultAt, Faults, SimConfig};
+use std::sync::Mutex;
+use std::time::Duration;
+
+static SERIAL: Mutex<()> = Mutex::new(());
+
+fn lock() -> std::sync::MutexGuard<'static, ()> {
+    SERIAL.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// A short PRBS run: 1 kHz, order 7, clock 2 samples, 2 periods: 100 + 508 samples, ~0.6 s.
+fn short_prbs() -> PrbsTest {
+    PrbsTest {
+        order: 7,
+        seed: 1,
+        clock_s: 0.002,
+        amplitude_v: 1.0,
+        offset_v: 3.0,
+        periods: 2,
+        settle_s: 0.1,
+    }
+}
+
+fn sim(faults: Faults, baud: u32, link: Option<std::path::PathBuf>) -> DriveSim {
+    DriveSim::spawn(SimConfig {
+        baud,
+        faults,
+        link,
+        ..SimConfig::default()
+    })
+    .expect("simulator starts")
+}
+
+fn client(path: &str, baud: u32) -> Client {
+    let mut c = Client::open(
+        path,
+        ClientConfig {
+            baud,
+            ..ClientConfig::default()
+        },
+    )
+    .expect("client opens");
+    c.configure(&Configure::default()).expect("configure");
+    c
+}
+
+/// Every received sample must equal what the drive produced: never silently wrong data.
+fn check_truth(acq: &Acquisition, sim: &DriveSim) {
+    let st = sim.stats();
+    if st.truth_run_id != acq.run_id {
+        return; // the drive reset: the truth of that run was discarded with it
+    }
+    for (k, &idx) in acq.index.iter().enumerate() {
+        assert_eq!(
+            Some(&acq.raw[k]),
+            st.truth.get(idx as usize),
+            "sample {idx} differs from what the drive produced"
+        );
+    }
+}
+
+fn check_consistent(acq: &Acquisition) {
+    // missing + received = total, and they are disjoint
+    let missing: u64 = acq.missing.iter().map(|r| r.end - r.start).sum();
+    assert_eq!(missing + acq.index.len() as u64, acq.total_samples, "{acq:?}");
+    assert_eq!(acq.complete, acq.missing.is_empty() && acq.problems.is_empty());
+    for r in &acq.missing {
+        assert!(acq.index.iter().all(|i| !r.contains(i)));
+    }
+}
+
+#[test]
+fn clean_run_is_complete() {
+    let _g = lock();
+    let s = sim(Faults::default(), 115_200, None);
+    let mut c = client(s.port_path(), 115_200);
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("prbs.csv");
+    let mut sink = CsvSink::new(std::fs::File::create(&path).unwrap());
+    let acq = c.run_prbs(&short_prbs(), &mut sink).unwrap();
+    drop(sink);
+    assert!(acq.complete, "{:?}", acq.problems);
+    assert_eq!(acq.total_samples, 100 + 2 * 127 * 2);
+    assert_eq!(acq.index.len() as u64, acq.total_samples);
+    check_truth(&acq, &s);
+    // the excitation is the PRBS of fracsim, sample for sample
+    let p = fracsim::prbs::Prbs {
+        order: 7,
+        clock: 0.002,
+        amplitude: 1.0,
+        offset: 3.0,
+        periods: 2,
+        seed: 1,
+    };
+    let u = p.signal(1e-3).unwrap();
+    for (k, &v) in u.iter().enumerate() {
+        assert!((acq.u[100 + k] - v).abs() < 1e-9, "u[{k}]");
+    }
+    // the speed responds: mean speed near 6.82 * 3 V at the end of the settle
+    assert!(acq.y[99] > 10.0, "y = {}", acq.y[99]);
+    let text = std::fs::read_to_string(&path).unwrap();
+    assert!(text.contains("\nt,u,y,i\n"));
+    assert!(text.trim_end().ends_with(&format!("# complete: {} samples", acq.total_samples)));
+    let st = c.status().unwrap();
+    assert_eq!(st.samples_done as u64, acq.total_samples);
+}
+
+fn faulty_run(faults: Faults, link: bool) -> (Acquisition, DriveSim, Client) {
+    let dir = tempfile::tempdir().unwrap();
+    let link = link.then(|| dir.path().join("drive-tty"));
+    let s = sim(faults, 115_200, link);
+    let mut c = client(s.port_path(), 115_200);
+    let acq = c.run_prbs(&short_prbs(), &mut NullSink).unwrap();
+    check_consistent(&acq);
+    check_truth(&acq, &s);
+    // keep the tempdir alive until the run is over
+    drop(dir);
+    (acq, s, c)
+}
+
+#[test]
+fn bit_errors_1e4() {
+    let _g = lock();
+    let (acq, s, c) = faulty_run(
+        Faults {
+            bit_error_rate: 1e-4,
+            seed: 11,
+            ..Faults::default()
+        },
+        false,
+    );
+    let st = s.stats();
+    eprintln!(
+        "ber 1e-4: complete {}, missing {:?}, damaged frames {}/{}, client {:?}",
+        acq.complete,
+        acq.missing,
+        st.frames_damaged,
+        st.frames_sent,
+        c.stats()
+    );
+    // damaged frames are lost, never accepted: the truth check above found no wrong sample
+    if st.frames_damaged == 0 {
+        assert!(acq.complete);
+    }
+}
+
+#[test]
+fn dropped_bytes() {
+    let _g = lock();
+    let (acq, s, _c) = faulty_run(
+        Faults {
+            drop_rate: 2e-4,
+            seed: 3,
+            ..Faults::default()
+        },
+        false,
+    );
+    let st = s.stats();
+    assert!(st.frames_damaged > 0, "the test should drop something");
+    eprintln!("drops: complete {}, missing {:?}, problems {:?}", acq.complete, acq.missing, acq.problems);
+}
+
+#[test]
+fn stall_longer_than_timeout() {
+    let _g = lock();
+    let (acq, s, c) = faulty_run(
+        Faults {
+            stall: Some(FaultAt {
+                at_sample: 300,
+                duration: Duration::from_millis(300),
+            }),
+            ..Faults::default()
+        },
+        false,
+    );
+    assert!(!acq.complete);
+    assert!(!acq.missing.is_empty());
+    assert!(acq.missing[0].start >= 250, "{:?}", acq.missing);
+    assert!(s.stats().blocks_dropped > 0);
+    assert!(acq.end.is_some(), "the summary arrives after the stall");
+    eprintln!("stall: missing {:?}, problems {:?}, client {:?}", acq.missing, acq.problems, c.stats());
+}
+
+#[test]
+fn disconnect_and_reconnect() {
+    let _g = lock();
+    let (acq, s, c) = faulty_run(
+        Faults {
+            disconnect: Some(FaultAt {
+                at_sample: 300,
+                duration: Duration::from_millis(300),
+            }),
+            ..Faults::default()
+        },
+        true,
+    );
+    assert!(!acq.complete);
+    assert!(c.stats().reconnects >= 1, "{:?}", c.stats());
+    assert!(acq.index.len() >= 250);
+    eprintln!(
+        "disconnect: missing {:?}, problems {:?}, client {:?}, events {:?}",
+        acq.missing,
+        acq.problems,
+        c.stats(),
+        s.stats().events
+    );
+}
+
+#[test]
+fn drive_reset_mid_run() {
+    let _g = lock();
+    let (acq, s, mut c) = faulty_run(
+        Faults {
+            reset: Some(FaultAt {
+                at_sample: 300,
+                duration: Duration::from_millis(50),
+            }),
+            ..Faults::default()
+        },
+        false,
+    );
+    assert!(!acq.complete);
+    assert!(acq.problems.iter().any(|p| p.contains("reset")), "{:?}", acq.problems);
+    assert_eq!(acq.missing.last().map(|r| r.end), Some(acq.total_samples));
+    assert!(acq.index.len() >= 250 && acq.index.len() <= 300, "{}", acq.index.len());
+    // after a reset the drive must be configured again, then it works
+    c.hello().unwrap();
+    c.configure(&Configure::default()).unwrap();
+    let acq2 = c.run_prbs(&short_prbs(), &mut NullSink).unwrap();
+    assert!(acq2.complete, "{:?}", acq2.problems);
+    check_truth(&acq2, &s);
+}
+
+#[test]
+fn sine_sweep_matches_the_model() {
+    let _g = lock();
+    let s = sim(Faults::default(), 115_200, None);
+    let mut c = client(s.port_path(), 115_200);
+    let mut sweep = SineSweep::log(5.0, 40.0, 3);
+    sweep.min_settle_s = 0.1;
+    sweep.cycles = 3;
+    let (pts, problems) = c.run_sine_sweep(&sweep).unwrap();
+    assert!(problems.is_empty(), "{problems:?}");
+    assert_eq!(pts.len(), 3);
+    let g = fracsim::FracTf::pmsm(6.82, 0.0059, 2.655e-5, 0.92, 0.8252).unwrap();
+    for p in &pts {
+        let h = g.freq_response(2.0 * std::f64::consts::PI * p.freq_hz);
+        let gain_db = 20.0 * h.norm().log10();
+        let phase = h.arg().to_degrees();
+        eprintln!("{p:?} model {gain_db:.2} dB {phase:.1} deg");
+        assert!((p.gain_db - gain_db).abs() < 0.5, "{p:?} vs {gain_db}");
+        assert!((p.phase_deg - phase).abs() < 5.0, "{p:?} vs {phase}");
+    }
+}

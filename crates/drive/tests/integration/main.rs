@@ -1,0 +1,6 @@
+//! Integration tests of the drive crate: test vectors, codec properties, and end-to-end runs over
+//! a real pseudo-terminal.
+
+mod e2e;
+mod props;
+mod vectors;
