@@ -2,10 +2,10 @@
 //! (DejaVu Sans, see `assets/DejaVuSans-LICENSE.txt`) so that no system font library is needed.
 
 use anyhow::{Context, Result};
+use plotters::coord::Shift;
 use plotters::prelude::*;
 use std::path::Path;
 use std::sync::Once;
-use plotters::coord::Shift;
 
 static FONT: Once = Once::new();
 
@@ -97,6 +97,10 @@ pub fn range_of<'a>(values: impl IntoIterator<Item = &'a f64>) -> (f64, f64) {
     if !lo.is_finite() {
         return (-1.0, 1.0);
     }
-    let pad = if hi > lo { 0.05 * (hi - lo) } else { 0.5 * lo.abs().max(1.0) };
+    let pad = if hi > lo {
+        0.05 * (hi - lo)
+    } else {
+        0.5 * lo.abs().max(1.0)
+    };
     (lo - pad, hi + pad)
 }
