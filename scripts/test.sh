@@ -1,0 +1,13 @@
+#!/usr/bin/env bash
+# The whole test suite: Rust unit, integration, doc and end-to-end tests, then the Python package
+# built as a wheel, installed into a fresh virtual environment and tested with pytest.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+echo "== cargo test (workspace)"
+cargo test --no-fail-fast   # the default members: every crate but the pyo3 extension
+
+if [ -f python/pyproject.toml ] && [ -x python/ci.sh ]; then
+    echo "== python: build the wheel, install it in a fresh venv, pytest"
+    bash python/ci.sh
+fi
