@@ -1,0 +1,166 @@
+//! End-to-end tests: the `fracid` binary on real files, as a user runs it.
+//!
+//! The binary is the one cargo builds for the workspace's default members (`target/<profile>/fracid`),
+//! found beside this test executable.
+
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+fn fracid_bin() -> PathBuf {
+    let exe = std::env::current_exe().expect("test executable path");
+    // target/<profile>/deps/e2e-<hash> -> target/<profile>/fracid
+    let dir = exe.parent().and_then(|d| d.parent()).expect("target dir");
+    let bin = dir.join(format!("fracid{}", std::env::consts::EXE_SUFFIX));
+    assert!(
+        bin.exists(),
+        "{} not built: run `cargo test` at the workspace root",
+        bin.display()
+    );
+    bin
+}
+
+fn fracid(args: &[&str]) -> Output {
+    Command::new(fracid_bin())
+        .args(args)
+        .env("RUST_BACKTRACE", "0")
+        .output()
+        .expect("run fracid")
+}
+
+#[test]
+fn sim_step_matches_the_mittag_leffler_oracle_within_half_a_percent() {
+    let out = fracid(&[
+        "sim",
+        "--model",
+        "6.77/(0.0064 s^0.89 + 1)",
+        "--step",
+        "--dt",
+        "1e-4",
+        "--t-end",
+        "0.05",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8(out.stdout).unwrap();
+    let rows: Vec<(f64, f64)> = text
+        .lines()
+        .filter(|l| !l.starts_with('#') && !l.starts_with('t'))
+        .map(|l| {
+            let f: Vec<f64> = l.split(',').map(|x| x.parse().unwrap()).collect();
+            (f[0], f[2])
+        })
+        .collect();
+    assert_eq!(rows.len(), 501);
+    for (t, exact) in [
+        (0.001, 1.958077),
+        (0.003, 3.943589),
+        (0.010, 6.018918),
+        (0.030, 6.615241),
+    ] {
+        let (_, y) = rows
+            .iter()
+            .find(|(tt, _)| (tt - t).abs() < 1e-9)
+            .expect("time row");
+        let rel = (y - exact).abs() / exact;
+        // Measured: 1.6e-4, 5.7e-5, 7e-7, 2e-5 (see the note on issue 2); the promise is 0.5%.
+        assert!(rel < 5e-3, "t = {t}: {y} vs {exact}");
+    }
+}
+
+#[test]
+fn sim_methods_agree_with_grunwald_letnikov() {
+    let run = |method: &str| -> Vec<f64> {
+        let out = fracid(&[
+            "sim", "--prbs", "--dt", "1e-4", "--t-end", "0.1", "--method", method,
+        ]);
+        assert!(
+            out.status.success(),
+            "{method}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        String::from_utf8(out.stdout)
+            .unwrap()
+            .lines()
+            .skip(2)
+            .map(|l| l.rsplit(',').next().unwrap().parse().unwrap())
+            .collect()
+    };
+    let gl = run("gl");
+    for method in ["oustaloup", "refined", "trigeassou"] {
+        let y = run(method);
+        let num: f64 = y.iter().zip(&gl).map(|(a, b)| (a - b).powi(2)).sum();
+        let den: f64 = gl.iter().map(|b| b * b).sum();
+        let rel = (num / den).sqrt();
+        // GL at dt = 1e-4 is itself first-order accurate (about 1e-2 at the start of a step).
+        assert!(rel < 3e-2, "{method}: relative RMS difference {rel}");
+    }
+}
+
+#[test]
+fn bad_input_gives_a_clear_error_and_a_nonzero_exit() {
+    for (args, code, needle) in [
+        (vec!["sim", "--model", "6.8/(x + 1)"], 2, "unknown name"),
+        (vec!["sim", "--model", "1/(0 s + 0)"], 2, "division by zero"),
+        (vec!["sim", "--model", "1e999/(s+1)"], 2, "not finite"),
+        (vec!["sim", "--band", "10,1"], 2, "band"),
+        (vec!["sim", "--band", "1,inf"], 2, "band"),
+        (vec!["sim", "--dt", "0"], 2, "dt"),
+        (
+            vec!["sim", "--input", "/nonexistent/file.csv"],
+            3,
+            "cannot read",
+        ),
+        (vec!["sim", "--method", "magic"], 2, "method"),
+    ] {
+        let out = fracid(&args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(code), "{args:?}: {err}");
+        assert!(err.contains(needle), "{args:?}: {err}");
+        assert!(!err.contains("panicked"), "{args:?}: {err}");
+    }
+}
+
+#[test]
+fn sim_reads_a_recorded_input_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("u.csv");
+    let mut text = String::from("# a recorded input\nt;u\n");
+    for k in 0..200 {
+        text.push_str(&format!(
+            "{};{}\n",
+            k as f64 * 1e-3,
+            if k >= 10 { 1.0 } else { 0.0 }
+        ));
+    }
+    std::fs::write(&input, text).unwrap();
+    let out_csv = dir.path().join("y.csv");
+    let out = fracid(&[
+        "sim",
+        "--model",
+        "2/(0.01 s + 1)",
+        "--input",
+        input.to_str().unwrap(),
+        "-o",
+        out_csv.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let last: f64 = std::fs::read_to_string(&out_csv)
+        .unwrap()
+        .lines()
+        .last()
+        .unwrap()
+        .rsplit(',')
+        .next()
+        .unwrap()
+        .parse()
+        .unwrap();
+    // 190 ms after the step, 19 time constants: the DC gain 2 to 1e-6.
+    assert!((last - 2.0).abs() < 1e-6, "{last}");
+}
