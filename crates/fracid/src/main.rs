@@ -22,6 +22,8 @@ enum Commands {
     /// Simulate a fractional transfer function on a step, a PRBS or a recorded input.
     Sim(cmd::sim::SimArgs),
     // -- more subcommands are added below, one line each --
+    /// Identify a fractional model from Bode data (weighted Levy, order search, refit).
+    Freq(cmd::freq::FreqArgs),
 }
 
 /// Exit codes: 0 success, 1 runtime failure (numerical breakdown, fit failure, drive fault),
@@ -57,6 +59,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Commands::Sim(a) => cmd::sim::run(a),
         // -- more dispatch arms are added below, one line each --
+        Commands::Freq(a) => cmd::freq::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -1,5 +1,6 @@
 //! The subcommands, one module each.
 
+pub mod freq;
 pub mod sim;
 
 /// Bad user input found by the CLI itself (as opposed to the library crates): exit code 2.

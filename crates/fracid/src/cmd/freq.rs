@@ -1,0 +1,987 @@
+//! `fracid freq FILE`: identify a fractional model from Bode data (DESIGN section 4).
+//!
+//! Reads `freq_hz,gain_db,phase_deg` (other units and names by flags), fits Levy's weighted least
+//! squares with an order search ([`ident::levy::fit_bode`]), optionally Sanathanan-Koerner
+//! iterations and the nonlinear PMSM refit, prints a side-by-side table (or `--json`), and draws
+//! the Bode plot with the `J(q)` curve (`--plot`).
+
+use crate::bad_input;
+use crate::plot::{self, Figure};
+use anyhow::{Context, Result};
+use fracsim::FracTf;
+use ident::levy::{error_index, fit_bode, FreqFit, FreqOptions, OrderChoice, QPoint, Weights};
+use num_complex::Complex64;
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use serde_json::{json, Value};
+use std::f64::consts::PI;
+use std::path::{Path, PathBuf};
+
+/// Options of `fracid freq`.
+#[derive(Debug, clap::Args)]
+pub struct FreqArgs {
+    /// Bode data: CSV with a header, columns `freq_hz,gain_db,phase_deg` by default; `,` `;` or
+    /// tab separated; `#` starts a comment. A file without a header is read by position.
+    pub file: PathBuf,
+    /// The frequency column is omega in rad/s (default name `omega_rad_s`), not Hz.
+    #[arg(long)]
+    pub rad_s: bool,
+    /// The gain column is linear (|G|, default name `gain`), not dB.
+    #[arg(long)]
+    pub linear_gain: bool,
+    /// The phase column is in radians (default name `phase_rad`), not degrees.
+    #[arg(long)]
+    pub radians: bool,
+    /// Column names: FREQ,GAIN,PHASE.
+    #[arg(long, value_name = "FREQ,GAIN,PHASE")]
+    pub columns: Option<String>,
+    /// Denominator degree n (in powers of s^q).
+    #[arg(long, default_value_t = 2)]
+    pub n: usize,
+    /// Numerator degree m (in powers of s^q).
+    #[arg(long, default_value_t = 0)]
+    pub m: usize,
+    /// Fix the commensurate order q instead of searching it.
+    #[arg(long, conflicts_with_all = ["q_step", "q_max"])]
+    pub q: Option<f64>,
+    /// Step of the q grid over (0, q-max] (the paper: 0.01).
+    #[arg(long, default_value_t = 0.01)]
+    pub q_step: f64,
+    /// Largest q of the grid.
+    #[arg(long, default_value_t = 1.0)]
+    pub q_max: f64,
+    /// Keep the best grid q (the paper's procedure) instead of refining it by golden section.
+    #[arg(long)]
+    pub no_q_refine: bool,
+    /// Weights of the Levy least squares: `vinagre` (the paper's eq. 29), `none`, a column name of
+    /// FILE, or a file with one weight per line.
+    #[arg(long, default_value = "vinagre")]
+    pub weights: String,
+    /// Refit the PMSM structure K/(a2 s^(zeta+theta) + a1 s^zeta + 1) with two free orders by
+    /// Levenberg-Marquardt (needs n = 2, m = 0).
+    #[arg(long)]
+    pub refine: bool,
+    /// Sanathanan-Koerner iterations after Levy (0: none).
+    #[arg(long, default_value_t = 0, value_name = "N")]
+    pub sk: usize,
+    /// Also evaluate J for this model (e.g. a published one); repeatable.
+    #[arg(long, value_name = "MODEL")]
+    pub compare: Vec<String>,
+    /// Print JSON (DESIGN section 7) instead of the table.
+    #[arg(long)]
+    pub json: bool,
+    /// Draw the Bode plot (magnitude, phase) with each model, and J(q), to FILE (.png or .svg).
+    #[arg(long, value_name = "FILE")]
+    pub plot: Option<PathBuf>,
+}
+
+/// Bode data read from a file.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BodeData {
+    /// Frequencies in rad/s.
+    pub omega_rad_s: Vec<f64>,
+    /// The measured response `G(j omega)`.
+    pub h: Vec<Complex64>,
+    /// Per-point weights from a column, if asked.
+    pub weights: Option<Vec<f64>>,
+}
+
+/// Units of the three columns.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Units {
+    /// Frequency in rad/s (else Hz).
+    pub rad_s: bool,
+    /// Linear gain (else dB).
+    pub linear_gain: bool,
+    /// Phase in radians (else degrees).
+    pub radians: bool,
+}
+
+fn detect_delimiter(text: &str) -> u8 {
+    let line = text
+        .lines()
+        .map(str::trim)
+        .find(|l| !l.is_empty() && !l.starts_with('#'))
+        .unwrap_or("");
+    [b'\t', b';', b',']
+        .into_iter()
+        .max_by_key(|d| line.bytes().filter(|b| b == d).count())
+        .filter(|d| line.bytes().any(|b| b == *d))
+        .unwrap_or(b',')
+}
+
+/// Read Bode data from CSV text. `columns` names (freq, gain, phase); `weight_column` an extra
+/// column of per-point weights.
+///
+/// # Errors
+/// A [`super::BadInput`] naming the line: no rows, a missing column, a non-numeric or non-finite
+/// value, a frequency <= 0, unsorted or repeated frequencies, a negative linear gain.
+pub fn parse_bode(
+    text: &str,
+    columns: Option<[&str; 3]>,
+    units: Units,
+    weight_column: Option<&str>,
+) -> Result<BodeData> {
+    let delim = detect_delimiter(text);
+    let mut rdr = csv::ReaderBuilder::new()
+        .delimiter(delim)
+        .comment(Some(b'#'))
+        .has_headers(false)
+        .trim(csv::Trim::All)
+        .flexible(true)
+        .from_reader(text.as_bytes());
+    let mut records = Vec::new();
+    for rec in rdr.records() {
+        let rec = match rec {
+            Ok(r) => r,
+            Err(e) => bad_input!("cannot read the CSV: {e}"),
+        };
+        if rec.iter().all(|f| f.is_empty()) {
+            continue;
+        }
+        let line = rec.position().map_or(0, |p| p.line());
+        records.push((line, rec));
+    }
+    if records.is_empty() {
+        bad_input!("no data rows (an empty file?)");
+    }
+    let first = &records[0].1;
+    let has_header = first.iter().any(|f| f.parse::<f64>().is_err());
+    let defaults = [
+        if units.rad_s {
+            &["omega_rad_s", "omega", "w_rad_s"][..]
+        } else {
+            &["freq_hz", "frequency_hz", "freq", "f_hz"][..]
+        },
+        if units.linear_gain {
+            &["gain", "mag", "magnitude", "gain_abs"][..]
+        } else {
+            &["gain_db", "mag_db", "magnitude_db"][..]
+        },
+        if units.radians {
+            &["phase_rad", "phase"][..]
+        } else {
+            &["phase_deg", "phase"][..]
+        },
+    ];
+    let (idx, widx, body) = if has_header {
+        let header: Vec<String> = first.iter().map(|s| s.to_ascii_lowercase()).collect();
+        let find = |names: &[&str], role: &str| -> Result<usize> {
+            for n in names {
+                if let Some(i) = header.iter().position(|h| h == &n.to_ascii_lowercase()) {
+                    return Ok(i);
+                }
+            }
+            bad_input!(
+                "no {role} column {} in the header [{}]; name the columns with --columns FREQ,GAIN,PHASE \
+                 (units by --rad-s, --linear-gain, --radians)",
+                names.iter().map(|n| format!("'{n}'")).collect::<Vec<_>>().join(" or "),
+                header.join(", ")
+            )
+        };
+        let idx = match columns {
+            Some(c) => [
+                find(&[c[0]], "frequency")?,
+                find(&[c[1]], "gain")?,
+                find(&[c[2]], "phase")?,
+            ],
+            None => [
+                find(defaults[0], "frequency")?,
+                find(defaults[1], "gain")?,
+                find(defaults[2], "phase")?,
+            ],
+        };
+        let widx = match weight_column {
+            Some(w) => Some(find(&[w], "weight")?),
+            None => None,
+        };
+        (idx, widx, &records[1..])
+    } else {
+        if columns.is_some() || weight_column.is_some() {
+            bad_input!("--columns or a weight column need a header line in the file");
+        }
+        (([0, 1, 2]), None, &records[..])
+    };
+    if body.is_empty() {
+        bad_input!("a header but no data rows");
+    }
+    let mut omega = Vec::with_capacity(body.len());
+    let mut h = Vec::with_capacity(body.len());
+    let mut weights = Vec::new();
+    let names = ["frequency", "gain", "phase", "weight"];
+    for (line, rec) in body {
+        let get = |i: usize, role: usize| -> Result<f64> {
+            let Some(s) = rec.get(i) else {
+                bad_input!(
+                    "line {line}: no {} value (only {} fields)",
+                    names[role],
+                    rec.len()
+                )
+            };
+            match s.parse::<f64>() {
+                Ok(v) if v.is_finite() => Ok(v),
+                Ok(v) => bad_input!("line {line}: {} is {v}", names[role]),
+                Err(_) => bad_input!("line {line}: {} '{s}' is not a number", names[role]),
+            }
+        };
+        let f = get(idx[0], 0)?;
+        let g = get(idx[1], 1)?;
+        let ph = get(idx[2], 2)?;
+        if f <= 0.0 {
+            bad_input!("line {line}: frequency {f} must be > 0");
+        }
+        let w = if units.rad_s { f } else { 2.0 * PI * f };
+        if let Some(&prev) = omega.last() {
+            if w == prev {
+                bad_input!("line {line}: frequency {f} is repeated");
+            }
+            if w < prev {
+                bad_input!("line {line}: frequencies must increase ({f} follows a larger one)");
+            }
+        }
+        let mag = if units.linear_gain {
+            if g < 0.0 {
+                bad_input!("line {line}: linear gain {g} is negative (give the sign in the phase)");
+            }
+            g
+        } else {
+            10f64.powf(g / 20.0)
+        };
+        let ph_rad = if units.radians { ph } else { ph.to_radians() };
+        omega.push(w);
+        h.push(Complex64::from_polar(mag, ph_rad));
+        if let Some(wi) = widx {
+            weights.push(get(wi, 3)?);
+        }
+    }
+    Ok(BodeData {
+        omega_rad_s: omega,
+        h,
+        weights: widx.map(|_| weights),
+    })
+}
+
+fn read_weight_file(path: &Path) -> Result<Vec<f64>> {
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("cannot read weights {}", path.display()))?;
+    let mut w = Vec::new();
+    for (i, line) in text.lines().enumerate() {
+        let l = line.split('#').next().unwrap_or("").trim();
+        if l.is_empty() {
+            continue;
+        }
+        let field = l.split([',', ';', '\t', ' ']).next().unwrap_or("");
+        match field.parse::<f64>() {
+            Ok(v) => w.push(v),
+            Err(_) if w.is_empty() => continue, // a header line
+            Err(_) => bad_input!(
+                "{} line {}: weight '{field}' is not a number",
+                path.display(),
+                i + 1
+            ),
+        }
+    }
+    Ok(w)
+}
+
+/// Run `fracid freq`.
+///
+/// # Errors
+/// Unreadable files (exit 3), bad data or options (exit 2), a numerical breakdown (exit 1).
+pub fn run(a: FreqArgs) -> Result<()> {
+    let text = std::fs::read_to_string(&a.file)
+        .with_context(|| format!("cannot read {}", a.file.display()))?;
+    let units = Units {
+        rad_s: a.rad_s,
+        linear_gain: a.linear_gain,
+        radians: a.radians,
+    };
+    let cols: Option<Vec<String>> = a
+        .columns
+        .as_ref()
+        .map(|c| c.split(',').map(|s| s.trim().to_string()).collect());
+    let cols3 = match &cols {
+        Some(c) if c.len() == 3 && c.iter().all(|s| !s.is_empty()) => {
+            Some([c[0].as_str(), c[1].as_str(), c[2].as_str()])
+        }
+        Some(c) => bad_input!(
+            "--columns needs three names FREQ,GAIN,PHASE, got {}",
+            c.join(",")
+        ),
+        None => None,
+    };
+    let wkey = a.weights.trim().to_string();
+    let (weights, weight_label, weight_column) = match wkey.to_ascii_lowercase().as_str() {
+        "vinagre" => (Some(Weights::Vinagre), "vinagre (eq. 29)".to_string(), None),
+        "none" | "uniform" | "1" => (Some(Weights::Uniform), "none".to_string(), None),
+        _ => {
+            // a column of the data file, else a file of weights
+            let header_has = text
+                .lines()
+                .map(str::trim)
+                .find(|l| !l.is_empty() && !l.starts_with('#'))
+                .is_some_and(|l| {
+                    l.split([',', ';', '\t'])
+                        .any(|f| f.trim().eq_ignore_ascii_case(&wkey))
+                });
+            if header_has {
+                (None, format!("column '{wkey}'"), Some(wkey.clone()))
+            } else if Path::new(&wkey).is_file() {
+                let w = read_weight_file(Path::new(&wkey))?;
+                (Some(Weights::PerPoint(w)), format!("file {wkey}"), None)
+            } else {
+                bad_input!(
+                    "--weights '{wkey}' is neither vinagre, none, a column of {} nor a file",
+                    a.file.display()
+                )
+            }
+        }
+    };
+    let data = parse_bode(&text, cols3, units, weight_column.as_deref())
+        .with_context(|| format!("in {}", a.file.display()))?;
+    let weights = match (weights, &data.weights) {
+        (Some(w), _) => w,
+        (None, Some(w)) => Weights::PerPoint(w.clone()),
+        (None, None) => Weights::Vinagre, // unreachable: a weight column always yields weights
+    };
+    let order = match a.q {
+        Some(q) => OrderChoice::Fixed(q),
+        None => OrderChoice::Search {
+            step: a.q_step,
+            q_max: a.q_max,
+            refine: !a.no_q_refine,
+        },
+    };
+    let opts = FreqOptions {
+        n: a.n,
+        m: a.m,
+        order,
+        weights,
+        sk_iterations: a.sk,
+        refine: a.refine,
+    };
+    let mut compare = Vec::new();
+    for s in &a.compare {
+        let g: FracTf = s
+            .parse()
+            .with_context(|| format!("--compare model '{s}'"))?;
+        let j = error_index(&data.omega_rad_s, &data.h, &g);
+        compare.push((g, j));
+    }
+    let fit = fit_bode(&data.omega_rad_s, &data.h, &opts)
+        .with_context(|| format!("identifying {}", a.file.display()))?;
+
+    if a.json {
+        let v = to_json(&fit, &compare, &data, &weight_label);
+        println!("{}", serde_json::to_string_pretty(&v)?);
+    } else {
+        print!("{}", table(&fit, &compare, &data, &weight_label, &opts));
+    }
+    if let Some(path) = &a.plot {
+        let fig = BodeFigure {
+            data: &data,
+            fit: &fit,
+            compare: &compare,
+        };
+        plot::save(path, (1400, 900), &fig)?;
+        if !a.json {
+            println!("plot: {}", path.display());
+        }
+    }
+    Ok(())
+}
+
+/// `{"num": [{"coef","order"}], "den": [...], "delay", "text"}`.
+fn model_json(g: &FracTf) -> Value {
+    let terms = |t: &[fracsim::Term]| -> Vec<Value> {
+        t.iter()
+            .map(|t| json!({"coef": t.coef, "order": t.order}))
+            .collect()
+    };
+    json!({"num": terms(&g.num), "den": terms(&g.den), "delay": g.delay, "text": g.to_string()})
+}
+
+fn levy_json(f: &ident::levy::LevyFit) -> Value {
+    json!({"model": model_json(&f.model), "q": f.q, "J": f.j, "b": f.b, "a": f.a,
+           "sk_iterations": f.sk_iterations})
+}
+
+fn curve_json(c: &[QPoint]) -> Value {
+    Value::Array(
+        c.iter()
+            .map(|p| json!({"q": p.q, "J": if p.j.is_finite() { json!(p.j) } else { Value::Null }}))
+            .collect(),
+    )
+}
+
+fn to_json(fit: &FreqFit, compare: &[(FracTf, f64)], data: &BodeData, weights: &str) -> Value {
+    let mut v = json!({
+        "model": model_json(&fit.levy.model),
+        "q": fit.levy.q,
+        "J": fit.levy.j,
+        "J_definition": "(1/f) sum_g |G(j w_g) - Ghat(j w_g)|^2, w in rad/s (paper eq. 30)",
+        "method": "levy",
+        "weights": weights,
+        "points": data.omega_rad_s.len(),
+        "levy": levy_json(&fit.levy),
+        "levy_grid": levy_json(&fit.levy_grid),
+        "curve": curve_json(&fit.curve),
+        "compare": compare.iter().map(|(g, j)| json!({"model": model_json(g), "J": j})).collect::<Vec<_>>(),
+    });
+    if let Some(sk) = &fit.sk {
+        v["sk"] = levy_json(sk);
+        v["sk_curve"] = curve_json(&fit.sk_curve);
+    }
+    if let Some(r) = &fit.refined {
+        v["refined"] = json!({
+            "model": model_json(&r.model),
+            "J": r.j,
+            "K": r.k, "a1": r.a1, "a2": r.a2, "zeta": r.zeta, "theta": r.theta,
+            "std_errors": r.std_errors.map(|s| json!({"K": s[0], "a1": s[1], "a2": s[2], "zeta": s[3], "theta": s[4]})),
+            "converged": r.report.converged,
+            "termination": format!("{:?}", r.report.termination),
+            "iterations": r.report.iterations,
+        });
+    }
+    v
+}
+
+/// `x` to `sig` significant digits, plain or scientific as fits.
+fn sig(x: f64, digits: usize) -> String {
+    if x == 0.0 || !x.is_finite() {
+        return format!("{x}");
+    }
+    let e = x.abs().log10().floor() as i32;
+    if (-2..5).contains(&e) {
+        let dec = (digits as i32 - 1 - e).max(0) as usize;
+        format!("{x:.dec$}")
+    } else {
+        format!("{x:.*e}", digits - 1)
+    }
+}
+
+/// `x` in scientific notation with `digits` significant digits.
+fn sci(x: f64, digits: usize) -> String {
+    format!("{x:.*e}", digits.max(1) - 1)
+}
+
+/// A model with rounded coefficients, for reading.
+fn short_tf(g: &FracTf, digits: usize) -> String {
+    let poly = |t: &[fracsim::Term]| -> String {
+        t.iter()
+            .map(|t| {
+                if t.order == 0.0 && t.coef == 1.0 {
+                    "1".to_string()
+                } else if t.order == 0.0 {
+                    sig(t.coef, digits)
+                } else {
+                    format!("{} s^{}", sig(t.coef, digits), sig(t.order, digits.min(4)))
+                }
+            })
+            .collect::<Vec<_>>()
+            .join(" + ")
+            .replace("+ -", "- ")
+    };
+    let num = if g.num.len() > 1 {
+        format!("({})", poly(&g.num))
+    } else {
+        poly(&g.num)
+    };
+    format!("{num}/({})", poly(&g.den))
+}
+
+fn table(
+    fit: &FreqFit,
+    compare: &[(FracTf, f64)],
+    data: &BodeData,
+    weights: &str,
+    opts: &FreqOptions,
+) -> String {
+    use std::fmt::Write;
+    let mut out = String::new();
+    let w0 = data.omega_rad_s[0];
+    let w1 = *data.omega_rad_s.last().unwrap_or(&w0);
+    let _ = writeln!(
+        out,
+        "fracid freq: {} points, {} .. {} Hz ({} .. {} rad/s); n = {}, m = {}, weights {}",
+        data.omega_rad_s.len(),
+        sig(w0 / (2.0 * PI), 4),
+        sig(w1 / (2.0 * PI), 4),
+        sig(w0, 4),
+        sig(w1, 4),
+        opts.n,
+        opts.m,
+        weights
+    );
+    let _ = writeln!(
+        out,
+        "J = (1/f) sum |G(jw) - Ghat(jw)|^2, w in rad/s (paper eq. 30)\n"
+    );
+    // columns
+    let mut heads: Vec<String> = Vec::new();
+    let mut colv: Vec<Vec<(String, String)>> = Vec::new();
+    let levy_col = |f: &ident::levy::LevyFit| -> Vec<(String, String)> {
+        let mut c = vec![("q (zeta)".to_string(), sig(f.q, 4))];
+        for (u, b) in f.b.iter().enumerate() {
+            c.push((format!("b{u}"), sig(*b, 5)));
+        }
+        for (p, a) in f.a.iter().enumerate() {
+            c.push((format!("a{}", p + 1), sig(*a, 5)));
+        }
+        c.push(("J".into(), sci(f.j, 4)));
+        c
+    };
+    let grid_differs = fit.levy_grid.q != fit.levy.q;
+    if grid_differs {
+        heads.push("Levy, grid q".into());
+        colv.push(levy_col(&fit.levy_grid));
+        heads.push("Levy, refined q".into());
+    } else {
+        heads.push("Levy".into());
+    }
+    colv.push(levy_col(&fit.levy));
+    if let Some(sk) = &fit.sk {
+        heads.push(format!("SK ({} it.)", sk.sk_iterations));
+        colv.push(levy_col(sk));
+    }
+    if let Some(r) = &fit.refined {
+        heads.push("refined (LM)".into());
+        let pm = |x: f64, i: usize| match r.std_errors {
+            Some(s) => format!("{} ± {}", sig(x, 5), sig(s[i], 2)),
+            None => sig(x, 5),
+        };
+        colv.push(vec![
+            ("q (zeta)".into(), pm(r.zeta, 3)),
+            ("theta".into(), pm(r.theta, 4)),
+            ("b0".into(), pm(r.k, 0)),
+            ("a1".into(), pm(r.a1, 1)),
+            ("a2".into(), pm(r.a2, 2)),
+            ("J".into(), sci(r.j, 4)),
+        ]);
+    }
+    // rows: the orders, then b_u, a_p, J
+    let mut rows: Vec<String> = vec!["q (zeta)".into()];
+    if fit.refined.is_some() {
+        rows.push("theta".into());
+    }
+    for c in &colv {
+        for (k, _) in c {
+            if !rows.contains(k) && k != "J" {
+                rows.push(k.clone());
+            }
+        }
+    }
+    rows.push("J".into());
+    let width = |i: usize| {
+        colv[i]
+            .iter()
+            .map(|(_, v)| v.chars().count())
+            .chain([heads[i].chars().count()])
+            .max()
+            .unwrap_or(8)
+            + 2
+    };
+    let widths: Vec<usize> = (0..heads.len()).map(width).collect();
+    let _ = write!(out, "{:<10}", "");
+    for (h, w) in heads.iter().zip(&widths) {
+        let _ = write!(out, "{h:>w$}");
+    }
+    out.push('\n');
+    for r in &rows {
+        let _ = write!(out, "{r:<10}");
+        for (c, w) in colv.iter().zip(&widths) {
+            let v = c
+                .iter()
+                .find(|(k, _)| k == r)
+                .map_or("-".to_string(), |(_, v)| v.clone());
+            let _ = write!(out, "{v:>w$}");
+        }
+        out.push('\n');
+    }
+    out.push('\n');
+    let _ = writeln!(out, "Levy:     {}", short_tf(&fit.levy.model, 5));
+    if let Some(sk) = &fit.sk {
+        let _ = writeln!(out, "SK:       {}", short_tf(&sk.model, 5));
+    }
+    if let Some(r) = &fit.refined {
+        let _ = writeln!(
+            out,
+            "refined:  {}   ({}, {} iterations)",
+            short_tf(&r.model, 5),
+            if r.report.converged {
+                "converged"
+            } else {
+                "NOT converged"
+            },
+            r.report.iterations
+        );
+    }
+    for (g, j) in compare {
+        let _ = writeln!(out, "compare:  {}   J = {}", short_tf(g, 5), sci(*j, 4));
+    }
+    out
+}
+
+// ------------------------------------------------------------------------------------------------
+// The plot
+
+struct BodeFigure<'a> {
+    data: &'a BodeData,
+    fit: &'a FreqFit,
+    compare: &'a [(FracTf, f64)],
+}
+
+/// Unwrap a phase sequence (degrees) so that steps stay below 180.
+fn unwrap_deg(ph: &mut [f64]) {
+    for i in 1..ph.len() {
+        while ph[i] - ph[i - 1] > 180.0 {
+            ph[i] -= 360.0;
+        }
+        while ph[i] - ph[i - 1] < -180.0 {
+            ph[i] += 360.0;
+        }
+    }
+}
+
+fn mag_phase(h: &[Complex64]) -> (Vec<f64>, Vec<f64>) {
+    let mag = h.iter().map(|g| 20.0 * g.norm().log10()).collect();
+    let mut ph: Vec<f64> = h.iter().map(|g| g.arg().to_degrees()).collect();
+    unwrap_deg(&mut ph);
+    (mag, ph)
+}
+
+impl Figure for BodeFigure<'_> {
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<()>
+    where
+        DB::ErrorType: 'static,
+    {
+        let e = |e: DrawingAreaErrorKind<DB::ErrorType>| anyhow::anyhow!("drawing failed: {e}");
+        let (left, right) = root.split_horizontally(880);
+        let (top, bottom) = left.split_vertically(450);
+
+        // frequency range: whole decades around the data
+        let f_hz: Vec<f64> = self
+            .data
+            .omega_rad_s
+            .iter()
+            .map(|w| w / (2.0 * PI))
+            .collect();
+        // a little room beyond the data on the log axis
+        let f_lo = f_hz[0] / 1.5;
+        let f_hi = (f_hz[f_hz.len() - 1] * 1.5).max(f_lo * 10.0);
+        let dense: Vec<f64> = (0..=400)
+            .map(|i| f_lo * (f_hi / f_lo).powf(i as f64 / 400.0))
+            .collect();
+        let dense_w: Vec<f64> = dense.iter().map(|f| 2.0 * PI * f).collect();
+
+        let (meas_mag, mut meas_ph) = mag_phase(&self.data.h);
+        unwrap_deg(&mut meas_ph);
+
+        // (label, color, dashed, magnitude, phase)
+        let mut curves: Vec<(String, RGBColor, bool, Vec<f64>, Vec<f64>)> = Vec::new();
+        let mut add = |label: String, color: RGBColor, dashed: bool, g: &FracTf| {
+            let (m, p) = mag_phase(&g.bode(&dense_w));
+            curves.push((label, color, dashed, m, p));
+        };
+        let levy = &self.fit.levy;
+        add(
+            format!("Levy, q = {}: J = {}", sig(levy.q, 4), sig(levy.j, 3)),
+            RGBColor(31, 119, 180),
+            false,
+            &levy.model,
+        );
+        if let Some(sk) = &self.fit.sk {
+            add(
+                format!(
+                    "Sanathanan-Koerner, q = {}: J = {}",
+                    sig(sk.q, 4),
+                    sig(sk.j, 3)
+                ),
+                RGBColor(44, 160, 44),
+                false,
+                &sk.model,
+            );
+        }
+        if let Some(r) = &self.fit.refined {
+            add(
+                format!(
+                    "refined, zeta = {}, theta = {}: J = {}",
+                    sig(r.zeta, 3),
+                    sig(r.theta, 3),
+                    sig(r.j, 3)
+                ),
+                RGBColor(214, 39, 40),
+                false,
+                &r.model,
+            );
+        }
+        let others = [
+            RGBColor(255, 127, 14),
+            RGBColor(148, 103, 189),
+            RGBColor(127, 127, 127),
+        ];
+        for (i, (g, j)) in self.compare.iter().enumerate() {
+            let mut label = short_tf(g, 3);
+            if label.chars().count() > 50 {
+                label = format!("compare {}", i + 1);
+            }
+            add(
+                format!("{label}: J = {}", sig(*j, 3)),
+                others[i % others.len()],
+                true,
+                g,
+            );
+        }
+
+        // ranges: the data plus the models, within reason
+        let mag_all: Vec<f64> = meas_mag
+            .iter()
+            .chain(curves.iter().flat_map(|c| c.3.iter()))
+            .copied()
+            .collect();
+        let ph_all: Vec<f64> = meas_ph
+            .iter()
+            .chain(curves.iter().flat_map(|c| c.4.iter()))
+            .copied()
+            .collect();
+        let (mlo, mhi) = plot::range_of(&mag_all);
+        let (plo, phi) = plot::range_of(&ph_all);
+
+        let font = ("sans-serif", 20);
+        let label_font = ("sans-serif", 17);
+        for (area, is_mag) in [(&top, true), (&bottom, false)] {
+            let (ylo, yhi) = if is_mag { (mlo, mhi) } else { (plo, phi) };
+            let mut chart = ChartBuilder::on(area)
+                .caption(
+                    if is_mag {
+                        "Bode magnitude"
+                    } else {
+                        "Bode phase"
+                    },
+                    font,
+                )
+                .margin(12)
+                .x_label_area_size(45)
+                .y_label_area_size(70)
+                .build_cartesian_2d((f_lo..f_hi).log_scale(), ylo..yhi)
+                .map_err(e)?;
+            chart
+                .configure_mesh()
+                .x_desc("frequency (Hz)")
+                .y_desc(if is_mag {
+                    "magnitude (dB)"
+                } else {
+                    "phase (deg)"
+                })
+                .label_style(label_font)
+                .axis_desc_style(label_font)
+                .x_label_formatter(&|v| sig(*v, 2))
+                .draw()
+                .map_err(e)?;
+            for (label, color, dashed, m, p) in &curves {
+                let ys = if is_mag { m } else { p };
+                let pts: Vec<(f64, f64)> = dense.iter().copied().zip(ys.iter().copied()).collect();
+                let style = color.stroke_width(2);
+                let c = *color;
+                if *dashed {
+                    chart
+                        .draw_series(DashedLineSeries::new(pts, 8, 5, style))
+                        .map_err(e)?
+                        .label(label.as_str())
+                        .legend(move |(x, y)| {
+                            PathElement::new(vec![(x, y), (x + 24, y)], c.stroke_width(2))
+                        });
+                } else {
+                    chart
+                        .draw_series(LineSeries::new(pts, style))
+                        .map_err(e)?
+                        .label(label.as_str())
+                        .legend(move |(x, y)| {
+                            PathElement::new(vec![(x, y), (x + 24, y)], c.stroke_width(2))
+                        });
+                }
+            }
+            let meas = if is_mag { &meas_mag } else { &meas_ph };
+            chart
+                .draw_series(
+                    f_hz.iter()
+                        .zip(meas)
+                        .map(|(&f, &y)| Circle::new((f, y), 5, BLACK.filled())),
+                )
+                .map_err(e)?
+                .label("measured")
+                .legend(|(x, y)| Circle::new((x + 12, y), 5, BLACK.filled()));
+            if !is_mag {
+                continue; // one legend (on the magnitude) serves both panels
+            }
+            chart
+                .configure_series_labels()
+                .position(SeriesLabelPosition::LowerLeft)
+                .background_style(WHITE.mix(0.85))
+                .border_style(BLACK)
+                .label_font(("sans-serif", 15))
+                .draw()
+                .map_err(e)?;
+        }
+
+        // J(q)
+        let finite: Vec<&QPoint> = self
+            .fit
+            .curve
+            .iter()
+            .chain(&self.fit.sk_curve)
+            .filter(|p| p.j.is_finite() && p.j > 0.0)
+            .collect();
+        if finite.len() >= 2 {
+            let jlo = finite.iter().map(|p| p.j).fold(f64::INFINITY, f64::min);
+            let jhi = finite.iter().map(|p| p.j).fold(0.0, f64::max);
+            let (jlo, jhi) = (jlo / 2.0, (jhi * 2.0).max(jlo * 10.0));
+            let qhi = finite.iter().map(|p| p.q).fold(0.0, f64::max);
+            let mut chart = ChartBuilder::on(&right)
+                .caption("Levy error index J(q)", font)
+                .margin(12)
+                .x_label_area_size(45)
+                .y_label_area_size(80)
+                .build_cartesian_2d(0.0..qhi * 1.02, (jlo..jhi).log_scale())
+                .map_err(e)?;
+            chart
+                .configure_mesh()
+                .x_desc("commensurate order q")
+                .y_desc("J (eq. 30)")
+                .label_style(label_font)
+                .axis_desc_style(label_font)
+                .y_label_formatter(&|v| format!("{v:.0e}"))
+                .draw()
+                .map_err(e)?;
+            let blue = RGBColor(31, 119, 180);
+            let pts: Vec<(f64, f64)> = self
+                .fit
+                .curve
+                .iter()
+                .filter(|p| p.j.is_finite() && p.j > 0.0)
+                .map(|p| (p.q, p.j))
+                .collect();
+            chart
+                .draw_series(LineSeries::new(pts, blue.stroke_width(2)))
+                .map_err(e)?
+                .label("Levy")
+                .legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 24, y)], blue.stroke_width(2))
+                });
+            if !self.fit.sk_curve.is_empty() {
+                let green = RGBColor(44, 160, 44);
+                let pts: Vec<(f64, f64)> = self
+                    .fit
+                    .sk_curve
+                    .iter()
+                    .filter(|p| p.j.is_finite() && p.j > 0.0)
+                    .map(|p| (p.q, p.j))
+                    .collect();
+                chart
+                    .draw_series(LineSeries::new(pts, green.stroke_width(2)))
+                    .map_err(e)?
+                    .label("Sanathanan-Koerner")
+                    .legend(move |(x, y)| {
+                        PathElement::new(vec![(x, y), (x + 24, y)], green.stroke_width(2))
+                    });
+            }
+            let best = (self.fit.levy.q, self.fit.levy.j);
+            chart
+                .draw_series(std::iter::once(Circle::new(best, 6, BLACK.filled())))
+                .map_err(e)?
+                .label(format!("chosen q = {}", sig(best.0, 4)))
+                .legend(|(x, y)| Circle::new((x + 12, y), 5, BLACK.filled()));
+            if let Some(r) = &self.fit.refined {
+                let red = RGBColor(214, 39, 40);
+                let jr = r.j.max(jlo * 1.01);
+                chart
+                    .draw_series(DashedLineSeries::new(
+                        vec![(0.0, jr), (qhi * 1.02, jr)],
+                        8,
+                        5,
+                        red.stroke_width(2),
+                    ))
+                    .map_err(e)?
+                    .label(format!("refined J = {}", sig(r.j, 3)))
+                    .legend(move |(x, y)| {
+                        PathElement::new(vec![(x, y), (x + 24, y)], red.stroke_width(2))
+                    });
+            }
+            chart
+                .configure_series_labels()
+                .position(SeriesLabelPosition::UpperRight)
+                .background_style(WHITE.mix(0.85))
+                .border_style(BLACK)
+                .label_font(("sans-serif", 15))
+                .draw()
+                .map_err(e)?;
+        } else {
+            right
+                .draw_text(
+                    "J(q): fixed q, no curve",
+                    &("sans-serif", 18).into_text_style(&right),
+                    (40, 60),
+                )
+                .map_err(e)?;
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parses_semicolon_with_comments() {
+        let t = "# Bode\nfreq_hz; gain_db; phase_deg\n1;0;0\n# mid\n2;-6.0206;-90\n";
+        let d = parse_bode(t, None, Units::default(), None).unwrap();
+        assert_eq!(d.omega_rad_s.len(), 2);
+        assert!((d.omega_rad_s[1] - 4.0 * PI).abs() < 1e-12);
+        // 1e-4: -6.0206 dB is 0.5 to 5 digits
+        assert!((d.h[1].im + 0.5).abs() < 1e-4 && d.h[1].re.abs() < 1e-12);
+    }
+
+    #[test]
+    fn headerless_tab_and_units() {
+        let t = "1\t2\t0.5\n3\t1\t1.0\n";
+        let u = Units {
+            rad_s: true,
+            linear_gain: true,
+            radians: true,
+        };
+        let d = parse_bode(t, None, u, None).unwrap();
+        assert_eq!(d.omega_rad_s, vec![1.0, 3.0]);
+        assert!((d.h[0] - Complex64::from_polar(2.0, 0.5)).norm() < 1e-15);
+    }
+
+    #[test]
+    fn bad_rows_are_named() {
+        let u = Units::default();
+        let cases = [
+            ("", "no data"),
+            ("freq_hz,gain_db,phase_deg\n", "no data"),
+            ("freq_hz,gain_db\n1,2\n", "phase"),
+            ("freq_hz,gain_db,phase_deg\n1,2,x\n", "not a number"),
+            ("freq_hz,gain_db,phase_deg\n1,2,NaN\n", "NaN"),
+            ("freq_hz,gain_db,phase_deg\n0,2,1\n", "> 0"),
+            ("freq_hz,gain_db,phase_deg\n2,2,1\n1,2,1\n", "increase"),
+            ("freq_hz,gain_db,phase_deg\n2,2,1\n2,2,1\n", "repeated"),
+            ("freq_hz,gain_db,phase_deg\n2,2\n", "no phase"),
+        ];
+        for (t, want) in cases {
+            let err = parse_bode(t, None, u, None).unwrap_err();
+            assert!(err.to_string().contains(want), "{t:?}: {err}");
+            assert!(err.downcast_ref::<crate::cmd::BadInput>().is_some());
+        }
+    }
+
+    #[test]
+    fn sig_formats() {
+        assert_eq!(sig(6.78532, 5), "6.7853");
+        assert_eq!(sig(2.5906e-5, 5), "2.5906e-5");
+        assert_eq!(sig(0.006632, 4), "6.632e-3");
+        assert_eq!(sig(0.9053, 4), "0.9053");
+        assert_eq!(sci(0.003555, 4), "3.555e-3");
+    }
+}
