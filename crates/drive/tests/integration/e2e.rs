@@ -172,12 +172,14 @@ fn stall_longer_than_timeout() {
         Faults {
             stall: Some(FaultAt {
                 at_sample: 300,
-                duration: Duration::from_millis(300),
+                duration: Duration::from_millis(450),
             }),
             ..Faults::default()
         },
         false,
     );
+    // longer than the stream timeout (400 ms) and the command timeout: the client polls, retries
+    assert!(c.stats().retries > 0, "{:?}", c.stats());
     assert!(!acq.complete);
     assert!(!acq.missing.is_empty());
     assert!(acq.missing[0].start >= 250, "{:?}", acq.missing);
@@ -251,9 +253,10 @@ fn sine_sweep_matches_the_model() {
     for p in &pts {
         let h = g.freq_response(2.0 * std::f64::consts::PI * p.freq_hz);
         let gain_db = 20.0 * h.norm().log10();
-        let phase = h.arg().to_degrees();
+        // the sampled (zero-order hold) loop adds half a sample of delay
+        let phase = h.arg().to_degrees() - 360.0 * p.freq_hz * 0.5e-3;
         eprintln!("{p:?} model {gain_db:.2} dB {phase:.1} deg");
         assert!((p.gain_db - gain_db).abs() < 0.5, "{p:?} vs {gain_db}");
-        assert!((p.phase_deg - phase).abs() < 5.0, "{p:?} vs {phase}");
+        assert!((p.phase_deg - phase).abs() < 1.5, "{p:?} vs {phase}");
     }
 }
