@@ -22,6 +22,8 @@ enum Commands {
     /// Simulate a fractional transfer function on a step, a PRBS or a recorded input.
     Sim(cmd::sim::SimArgs),
     // -- more subcommands are added below, one line each --
+    /// Talk to an F2812 servo drive (or its simulator): acquisition, status, the simulator.
+    Drive(cmd::drive::DriveArgs),
     /// Identify a fractional model from Bode data (weighted Levy, order search, refit).
     Freq(cmd::freq::FreqArgs),
 }
@@ -59,6 +61,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Commands::Sim(a) => cmd::sim::run(a),
         // -- more dispatch arms are added below, one line each --
+        Commands::Drive(a) => cmd::drive::run(a),
         Commands::Freq(a) => cmd::freq::run(a),
     };
     match result {
