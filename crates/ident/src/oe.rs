@@ -38,8 +38,8 @@ pub mod init;
 
 pub use effects::Effect;
 pub use fit::{
-    check_params, fit, fit_with_progress, identify, identify_with_progress, sensitivities, FitOptions,
-    FitReport, IdentOptions, Identification, ParamEstimate, StartMode,
+    check_params, default_band, fit, fit_with_progress, identify, identify_with_progress,
+    sensitivities, FitOptions, FitReport, IdentOptions, Identification, ParamEstimate, StartMode,
 };
 
 use crate::{Error, Result};
@@ -63,7 +63,16 @@ impl Bounds {
         match self {
             Bounds::Free => theta,
             Bounds::Positive => theta.exp(),
-            Bounds::Interval(lo, hi) => T::from(1.0) / ((-theta).exp() + 1.0) * (hi - lo) + lo,
+            Bounds::Interval(lo, hi) => {
+                // Logistic function written so that exp never overflows (a NaN derivative would).
+                let s = if theta.re() >= 0.0 {
+                    T::from(1.0) / ((-theta).exp() + 1.0)
+                } else {
+                    let e = theta.exp();
+                    e / (e + 1.0)
+                };
+                s * (hi - lo) + lo
+            }
         }
     }
 
@@ -305,7 +314,10 @@ impl FracModel {
         let mut m = Self {
             params: vec![Param::positive("K", k), Param::positive("T", t)],
             num: vec![(Expr::p(0), Expr::cst(0.0))],
-            den: vec![(Expr::p(1), Expr::cst(1.0)), (Expr::cst(1.0), Expr::cst(0.0))],
+            den: vec![
+                (Expr::p(1), Expr::cst(1.0)),
+                (Expr::cst(1.0), Expr::cst(0.0)),
+            ],
             kind: Kind::Fopdt,
             ..Self::pmsm(1.0, 1.0, 1.0, 1.0, 1.0)
         };
@@ -443,7 +455,13 @@ impl Structure for FracModel {
             t.iter().map(|(c, o)| (c.eval(p), o.eval(p))).collect()
         };
         let delay = self.delay.map_or(T::from(0.0), |i| p[i]);
-        let mut sim = Simulator::from_terms(&terms(&self.num), &terms(&self.den), delay, dt, &self.approx)?;
+        let mut sim = Simulator::from_terms(
+            &terms(&self.num),
+            &terms(&self.den),
+            delay,
+            dt,
+            &self.approx,
+        )?;
         let (u0, y0) = (self.operating_point.u0, self.operating_point.y0);
         let plain = self.effects.is_empty();
         let mut y_prev = T::from(y0);

@@ -1,0 +1,5 @@
+//! Time-domain identification tests (output error, `ident::oe`, `ident::data`, `ident::metrics`).
+
+mod bad_input;
+mod roundtrip;
+mod sensitivity;
