@@ -271,7 +271,9 @@ impl Record {
         let u = &self.u[..n.clamp(1, self.len())];
         let (lo, hi) = u
             .iter()
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| (a.min(v), b.max(v)));
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+                (a.min(v), b.max(v))
+            });
         if hi - lo <= 1e-9 * hi.abs().max(lo.abs()).max(1e-300) {
             return Err(Error::NotEnoughData(format!(
                 "the input is constant ({lo}) over the estimation part: no excitation"
@@ -289,12 +291,18 @@ mod tests {
     fn parse_and_check() {
         let r = Record::parse("t,u,y\n0,1,2\n0.5,1,3\n1.0,2,3\n", &Columns::default()).unwrap();
         assert_eq!(r.u, vec![1.0, 1.0, 2.0]);
-        assert_eq!(r.offsets(OffsetMode::Initial, 3), Offsets { u0: 1.0, y0: 2.5 });
-        let tab = Record::parse("time\tv\tw\n0\t1\t2\n1\t1\t3\n", &Columns {
-            t: "0".into(),
-            u: "v".into(),
-            y: "2".into(),
-        })
+        assert_eq!(
+            r.offsets(OffsetMode::Initial, 3),
+            Offsets { u0: 1.0, y0: 2.5 }
+        );
+        let tab = Record::parse(
+            "time\tv\tw\n0\t1\t2\n1\t1\t3\n",
+            &Columns {
+                t: "0".into(),
+                u: "v".into(),
+                y: "2".into(),
+            },
+        )
         .unwrap();
         assert_eq!(tab.y, vec![2.0, 3.0]);
     }

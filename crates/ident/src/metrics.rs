@@ -65,7 +65,11 @@ pub fn nrmse_percent(y: &[f64], yhat: &[f64]) -> f64 {
         .map(|(a, b)| (a - b) * (a - b))
         .sum::<f64>()
         .sqrt();
-    let den: f64 = y.iter().map(|a| (a - mean) * (a - mean)).sum::<f64>().sqrt();
+    let den: f64 = y
+        .iter()
+        .map(|a| (a - mean) * (a - mean))
+        .sum::<f64>()
+        .sqrt();
     if den == 0.0 {
         return if num == 0.0 { 100.0 } else { f64::NEG_INFINITY };
     }
@@ -103,7 +107,12 @@ pub fn autocorr(e: &[f64], max_lag: usize) -> Vec<f64> {
             } else if k >= n || r0 == 0.0 {
                 0.0
             } else {
-                e[..n - k].iter().zip(&e[k..]).map(|(a, b)| a * b).sum::<f64>() / r0
+                e[..n - k]
+                    .iter()
+                    .zip(&e[k..])
+                    .map(|(a, b)| a * b)
+                    .sum::<f64>()
+                    / r0
             }
         })
         .collect()
@@ -196,11 +205,15 @@ mod tests {
         let mut s = 12345u64;
         let u: Vec<f64> = (0..2000)
             .map(|_| {
-                s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                s = s
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
                 ((s >> 33) as f64 / (1u64 << 31) as f64) - 0.5
             })
             .collect();
-        let e: Vec<f64> = (0..u.len()).map(|k| if k >= 3 { u[k - 3] } else { 0.0 }).collect();
+        let e: Vec<f64> = (0..u.len())
+            .map(|k| if k >= 3 { u[k - 3] } else { 0.0 })
+            .collect();
         let rc = crosscorr(&e, &u, 10);
         assert_eq!(rc.len(), 21);
         let t = residual_test(&e, &u, 10);
