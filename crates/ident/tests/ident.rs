@@ -1,4 +1,5 @@
 //! Integration tests of `ident`.
 
+mod diagnose;
 mod freq;
 mod time;
