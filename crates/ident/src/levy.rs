@@ -479,7 +479,7 @@ pub fn search_q(
                 match fit(q) {
                     Ok(ft) if ft.j.is_finite() => {
                         curve.push(QPoint { q, j: ft.j });
-                        if grid_best.as_ref().map_or(true, |b| ft.j < b.j) {
+                        if !matches!(&grid_best, Some(b) if b.j <= ft.j) {
                             grid_best = Some(ft);
                         }
                     }

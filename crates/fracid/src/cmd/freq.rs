@@ -289,6 +289,9 @@ fn read_weight_file(path: &Path) -> Result<Vec<f64>> {
 /// # Errors
 /// Unreadable files (exit 3), bad data or options (exit 2), a numerical breakdown (exit 1).
 pub fn run(a: FreqArgs) -> Result<()> {
+    if let Some(path) = &a.plot {
+        plot::format_of(path)?; // a bad extension fails before the work
+    }
     let text = std::fs::read_to_string(&a.file)
         .with_context(|| format!("cannot read {}", a.file.display()))?;
     let units = Units {
@@ -373,9 +376,9 @@ pub fn run(a: FreqArgs) -> Result<()> {
 
     if a.json {
         let v = to_json(&fit, &compare, &data, &weight_label);
-        println!("{}", serde_json::to_string_pretty(&v)?);
+        emit(&(serde_json::to_string_pretty(&v)? + "\n"))?;
     } else {
-        print!("{}", table(&fit, &compare, &data, &weight_label, &opts));
+        emit(&table(&fit, &compare, &data, &weight_label, &opts))?;
     }
     if let Some(path) = &a.plot {
         let fig = BodeFigure {
@@ -385,10 +388,19 @@ pub fn run(a: FreqArgs) -> Result<()> {
         };
         plot::save(path, (1400, 900), &fig)?;
         if !a.json {
-            println!("plot: {}", path.display());
+            emit(&format!("plot: {}\n", path.display()))?;
         }
     }
     Ok(())
+}
+
+/// Write to stdout; a closed pipe (`fracid freq ... | head`) is not an error.
+fn emit(text: &str) -> Result<()> {
+    use std::io::Write;
+    match std::io::stdout().lock().write_all(text.as_bytes()) {
+        Err(e) if e.kind() != std::io::ErrorKind::BrokenPipe => Err(e.into()),
+        _ => Ok(()),
+    }
 }
 
 /// `{"num": [{"coef","order"}], "den": [...], "delay", "text"}`.
@@ -625,6 +637,9 @@ fn table(
 // ------------------------------------------------------------------------------------------------
 // The plot
 
+/// A model curve of the Bode plot: (label, color, dashed, magnitude dB, phase deg).
+type Curve = (String, RGBColor, bool, Vec<f64>, Vec<f64>);
+
 struct BodeFigure<'a> {
     data: &'a BodeData,
     fit: &'a FreqFit,
@@ -677,8 +692,7 @@ impl Figure for BodeFigure<'_> {
         let (meas_mag, mut meas_ph) = mag_phase(&self.data.h);
         unwrap_deg(&mut meas_ph);
 
-        // (label, color, dashed, magnitude, phase)
-        let mut curves: Vec<(String, RGBColor, bool, Vec<f64>, Vec<f64>)> = Vec::new();
+        let mut curves: Vec<Curve> = Vec::new();
         let mut add = |label: String, color: RGBColor, dashed: bool, g: &FracTf| {
             let (m, p) = mag_phase(&g.bode(&dense_w));
             curves.push((label, color, dashed, m, p));

@@ -171,7 +171,7 @@ pub fn refine_pmsm(
         let p0 = [k0.abs().ln(), a1.ln(), a2.ln(), u_of(zeta), u_of(theta)];
         match minimize(&mut problem, &p0, &opts.lm) {
             Ok(rep) => {
-                if best.as_ref().map_or(true, |b| rep.cost < b.cost) {
+                if !matches!(&best, Some(b) if b.cost <= rep.cost) {
                     best = Some(rep);
                 }
             }

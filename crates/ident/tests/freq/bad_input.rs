@@ -45,31 +45,51 @@ fn unsorted_repeated_nonpositive_nan() {
 #[test]
 fn too_few_points_and_bad_options() {
     let (omega, h) = data();
-    assert!(matches!(fit(&omega[..2], &h[..2]), Err(Error::NotEnoughData(_))));
+    assert!(matches!(
+        fit(&omega[..2], &h[..2]),
+        Err(Error::NotEnoughData(_))
+    ));
     let opts = FreqOptions {
         n: 3,
         m: 2,
         ..FreqOptions::default()
     };
-    assert!(matches!(fit_bode(&omega, &h, &opts), Err(Error::NotEnoughData(_))));
+    assert!(matches!(
+        fit_bode(&omega, &h, &opts),
+        Err(Error::NotEnoughData(_))
+    ));
     let opts = FreqOptions {
         n: 1,
         refine: true,
         ..FreqOptions::default()
     };
-    assert!(matches!(fit_bode(&omega, &h, &opts), Err(Error::Options(_))));
+    assert!(matches!(
+        fit_bode(&omega, &h, &opts),
+        Err(Error::Options(_))
+    ));
     for order in [
         OrderChoice::Fixed(0.0),
         OrderChoice::Fixed(f64::NAN),
         OrderChoice::Fixed(2.5),
-        OrderChoice::Search { step: 0.0, q_max: 1.0, refine: true },
-        OrderChoice::Search { step: 0.01, q_max: 3.0, refine: true },
+        OrderChoice::Search {
+            step: 0.0,
+            q_max: 1.0,
+            refine: true,
+        },
+        OrderChoice::Search {
+            step: 0.01,
+            q_max: 3.0,
+            refine: true,
+        },
     ] {
         let opts = FreqOptions {
             order,
             ..FreqOptions::default()
         };
-        assert!(matches!(fit_bode(&omega, &h, &opts), Err(Error::Options(_))));
+        assert!(matches!(
+            fit_bode(&omega, &h, &opts),
+            Err(Error::Options(_))
+        ));
     }
     assert!(matches!(
         levy_fixed_q(&omega, &h, 0.5, 0, 2, &[1.0; 3], 0),
@@ -80,7 +100,12 @@ fn too_few_points_and_bad_options() {
 #[test]
 fn bad_weights() {
     let (omega, h) = data();
-    for w in [vec![1.0; 4], vec![1.0, -1.0, 1.0, 1.0, 1.0], vec![0.0; 5], vec![f64::NAN; 5]] {
+    for w in [
+        vec![1.0; 4],
+        vec![1.0, -1.0, 1.0, 1.0, 1.0],
+        vec![0.0; 5],
+        vec![f64::NAN; 5],
+    ] {
         let opts = FreqOptions {
             weights: Weights::PerPoint(w),
             ..FreqOptions::default()

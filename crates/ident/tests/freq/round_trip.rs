@@ -47,7 +47,11 @@ fn commensurate_n3_m1_noise_free_uniform_weights_and_sk() {
         .parse()
         .unwrap();
     let omega = logspace(-2.0, 3.0, 40);
-    for (weights, sk) in [(Weights::Vinagre, 0), (Weights::Uniform, 0), (Weights::Vinagre, 3)] {
+    for (weights, sk) in [
+        (Weights::Vinagre, 0),
+        (Weights::Uniform, 0),
+        (Weights::Vinagre, 3),
+    ] {
         let opts = FreqOptions {
             n: 3,
             m: 1,
@@ -140,6 +144,9 @@ fn noisy_pmsm_refit_with_standard_errors() {
         (r.zeta, 0.92, se[3]),
         (r.theta, 0.8252, se[4]),
     ] {
-        assert!(s > 0.0 && (est - want).abs() < 4.0 * s, "{est} vs {want} (se {s})");
+        assert!(
+            s > 0.0 && (est - want).abs() < 4.0 * s,
+            "{est} vs {want} (se {s})"
+        );
     }
 }

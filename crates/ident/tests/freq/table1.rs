@@ -2,9 +2,7 @@
 
 use super::from_hz_db_deg;
 use fracsim::FracTf;
-use ident::levy::{
-    error_index, fit_bode, levy_fixed_q, vinagre_weights, FreqOptions, OrderChoice,
-};
+use ident::levy::{error_index, fit_bode, levy_fixed_q, vinagre_weights, FreqOptions, OrderChoice};
 
 /// Table 1 of the paper, as in `shared/data/paper_table1_bode.csv`.
 pub const TABLE1: [(f64, f64, f64); 10] = [
@@ -49,7 +47,11 @@ fn grid_picks_q_091() {
     };
     let fit = fit_bode(&omega, &h, &opts).unwrap();
     assert_eq!(fit.levy_grid.q, 0.91);
-    assert!(rel(fit.levy_grid.j, 3.555e-3) < 1e-2, "J = {}", fit.levy_grid.j);
+    assert!(
+        rel(fit.levy_grid.j, 3.555e-3) < 1e-2,
+        "J = {}",
+        fit.levy_grid.j
+    );
     assert!(rel(fit.levy_grid.b[0], 6.7832) < 5e-3);
     assert!(rel(fit.levy_grid.a[0], 6.208e-3) < 5e-3);
     assert!(rel(fit.levy_grid.a[1], 1.9176e-5) < 5e-3);
@@ -72,7 +74,9 @@ fn refined_fit_beats_levy_and_paper() {
     assert!(r.j <= 2.0e-3, "refined J = {}", r.j);
     assert!(r.j < fit.levy.j);
     assert!(r.zeta > 0.0 && r.zeta < 2.0 && r.theta > 0.0 && r.theta < 2.0);
-    let paper: FracTf = "6.77/(0.000028 s^1.78 + 0.0064 s^0.89 + 1)".parse().unwrap();
+    let paper: FracTf = "6.77/(0.000028 s^1.78 + 0.0064 s^0.89 + 1)"
+        .parse()
+        .unwrap();
     let jp = error_index(&omega, &h, &paper);
     // 1 %: DESIGN quotes 2.06e-2 to three digits.
     assert!(rel(jp, 2.06e-2) < 1e-2, "paper J = {jp}");

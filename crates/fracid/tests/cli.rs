@@ -1,0 +1,13 @@
+//! End-to-end tests of the `fracid` binary, one module per subcommand.
+
+mod freq;
+
+use std::process::{Command, Output};
+
+/// Run the built `fracid` with `args`.
+pub fn fracid(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_fracid"))
+        .args(args)
+        .output()
+        .expect("the fracid binary runs")
+}
