@@ -51,8 +51,6 @@ pub fn unwrap_deg(points: &mut [BodePoint]) {
             while p.phase_deg - q < -180.0 {
                 p.phase_deg += 360.0;
             }
-        } else if p.phase_deg > 0.0 {
-            // A lag system starts near 0 from below; keep the first point in (-180, 180].
         }
         prev = Some(p.phase_deg);
     }

@@ -144,7 +144,8 @@ impl<W: Write> SampleSink for CsvSink<W> {
         self.w.flush()
     }
     fn sample(&mut self, _index: u64, t: f64, u: f64, y: f64, i: f64) -> io::Result<()> {
-        writeln!(self.w, "{t:.6},{u},{y},{i}")?;
+        let r = |v: f64| (v * 1e6).round() / 1e6;
+        writeln!(self.w, "{t:.6},{},{},{}", r(u), r(y), r(i))?;
         self.rows += 1;
         if self.rows % 64 == 0 {
             self.w.flush()?;
@@ -198,10 +199,18 @@ impl Acquisition {
         if self.complete {
             format!("# complete: {} samples", self.index.len())
         } else {
-            let ranges: Vec<String> = self.missing.iter().map(|r| format!("{}..{}", r.start, r.end)).collect();
+            let ranges: Vec<String> = self
+                .missing
+                .iter()
+                .map(|r| format!("{}..{}", r.start, r.end))
+                .collect();
             format!(
                 "# incomplete: missing samples {} ({})",
-                if ranges.is_empty() { "none".to_string() } else { ranges.join(", ") },
+                if ranges.is_empty() {
+                    "none".to_string()
+                } else {
+                    ranges.join(", ")
+                },
                 self.problems.join("; ")
             )
         }
@@ -275,8 +284,9 @@ impl PrbsTest {
             periods: self.periods.max(1),
             settle_samples: settle as u32,
         };
-        crate::prbs::Lfsr::new(cmd.order, cmd.taps, cmd.seed)
-            .ok_or_else(|| Error::InvalidParam(format!("PRBS seed {} for order {}", self.seed, self.order)))?;
+        crate::prbs::Lfsr::new(cmd.order, cmd.taps, cmd.seed).ok_or_else(|| {
+            Error::InvalidParam(format!("PRBS seed {} for order {}", self.seed, self.order))
+        })?;
         cmd.total_samples()
             .ok_or_else(|| Error::InvalidParam("PRBS run too long".into()))?;
         Ok(cmd)
@@ -457,7 +467,8 @@ impl Client {
 
     fn timeout(&self) -> Duration {
         self.cfg.timeout.unwrap_or_else(|| {
-            let frame_s = 3.0 * (codec::MAX_ENCODED + 2) as f64 * 10.0 / self.cfg.baud.max(1) as f64;
+            let frame_s =
+                3.0 * (codec::MAX_ENCODED + 2) as f64 * 10.0 / self.cfg.baud.max(1) as f64;
             Duration::from_millis(100) + Duration::from_secs_f64(frame_s)
         })
     }
@@ -494,7 +505,9 @@ impl Client {
         if self.port.is_none() {
             self.reconnect()?;
         }
-        let Some(p) = self.port.as_mut() else { return Ok(()) };
+        let Some(p) = self.port.as_mut() else {
+            return Ok(());
+        };
         let _ = p.set_timeout(wait.max(Duration::from_millis(1)));
         let mut buf = [0u8; 2048];
         match p.read(&mut buf) {
@@ -508,7 +521,9 @@ impl Client {
                 self.dec.push_with(&buf[..n], |f| inbox.push_back(f));
                 self.stats.frames += (self.inbox.len() - before) as u64;
             }
-            Err(e) if e.kind() == io::ErrorKind::TimedOut || e.kind() == io::ErrorKind::Interrupted => {}
+            Err(e)
+                if e.kind() == io::ErrorKind::TimedOut
+                    || e.kind() == io::ErrorKind::Interrupted => {}
             Err(_) => {
                 std::thread::sleep(Duration::from_millis(5));
                 self.reconnect()?;
@@ -588,14 +603,20 @@ impl Client {
                 self.hello = Some(h);
                 Ok(h)
             }
-            other => Err(Error::Protocol(format!("HELLO answered by {}", other.name()))),
+            other => Err(Error::Protocol(format!(
+                "HELLO answered by {}",
+                other.name()
+            ))),
         }
     }
 
     /// CONFIGURE.
     pub fn configure(&mut self, c: &Configure) -> Result<()> {
         if c.block_samples == 0 || c.block_samples > MAX_BLOCK_SAMPLES {
-            return Err(Error::InvalidParam(format!("block_samples {}", c.block_samples)));
+            return Err(Error::InvalidParam(format!(
+                "block_samples {}",
+                c.block_samples
+            )));
         }
         self.request(Message::Configure(*c))?;
         self.conf = Some(*c);
@@ -606,7 +627,10 @@ impl Client {
     pub fn status(&mut self) -> Result<StatusReply> {
         match self.request(Message::Status)? {
             Message::StatusReply(s) => Ok(s),
-            other => Err(Error::Protocol(format!("STATUS answered by {}", other.name()))),
+            other => Err(Error::Protocol(format!(
+                "STATUS answered by {}",
+                other.name()
+            ))),
         }
     }
 
@@ -649,12 +673,22 @@ impl Client {
         self.run(Message::StartSine(*cmd), desc, sink)
     }
 
-    fn run(&mut self, start: Message, description: String, sink: &mut dyn SampleSink) -> Result<Acquisition> {
+    fn run(
+        &mut self,
+        start: Message,
+        description: String,
+        sink: &mut dyn SampleSink,
+    ) -> Result<Acquisition> {
         let conf = self.conf()?;
         let boot = self.hello.map(|h| h.boot_id);
         let ack = match self.request(start)? {
             Message::Ack(a) => a,
-            other => return Err(Error::Protocol(format!("START answered by {}", other.name()))),
+            other => {
+                return Err(Error::Protocol(format!(
+                    "START answered by {}",
+                    other.name()
+                )))
+            }
         };
         let fs = conf.sample_rate_hz;
         let mut acq = Acquisition {
@@ -763,14 +797,18 @@ impl Client {
                 break;
             }
             if st.run_id != acq.run_id {
-                acq.problems.push(format!("drive is on run {} instead of {}", st.run_id, acq.run_id));
+                acq.problems.push(format!(
+                    "drive is on run {} instead of {}",
+                    st.run_id, acq.run_id
+                ));
                 break;
             }
             if st.state == DriveState::Running {
                 if st.samples_done == last_done {
                     stalled_polls += 1;
                     if stalled_polls > 5 {
-                        acq.problems.push("drive reports a run that makes no progress".into());
+                        acq.problems
+                            .push("drive reports a run that makes no progress".into());
                         break;
                     }
                 }
@@ -800,10 +838,12 @@ impl Client {
         if let Some(e) = acq.end {
             acq.total_samples = e.total_samples as u64;
             if e.reason != EndReason::Complete {
-                acq.problems.push(format!("run ended early: {:?}", e.reason));
+                acq.problems
+                    .push(format!("run ended early: {:?}", e.reason));
             }
             if e.blocks_dropped > 0 {
-                acq.problems.push(format!("drive dropped {} blocks", e.blocks_dropped));
+                acq.problems
+                    .push(format!("drive dropped {} blocks", e.blocks_dropped));
             }
         } else if acq.problems.is_empty() {
             acq.problems.push("no end-of-run summary".into());
@@ -827,7 +867,10 @@ impl Client {
         if let Some(e) = acq.end {
             let got = acq.index.len() as u64;
             if missing.is_empty() && got != e.samples_sent as u64 {
-                acq.problems.push(format!("drive sent {} samples, host got {}", e.samples_sent, got));
+                acq.problems.push(format!(
+                    "drive sent {} samples, host got {}",
+                    e.samples_sent, got
+                ));
             }
         }
         if !missing.is_empty() {
@@ -858,8 +901,12 @@ impl Client {
                 .max((sweep.min_settle_s * f).ceil().min(65535.0) as u16);
             let cmd = StartSine {
                 freq_mhz: (f * 1000.0).round() as u32,
-                amplitude: (sweep.amplitude_v.abs() / conf.u_lsb()).round().min(32767.0) as i16,
-                offset: (sweep.offset_v / conf.u_lsb()).round().clamp(-32767.0, 32767.0) as i16,
+                amplitude: (sweep.amplitude_v.abs() / conf.u_lsb())
+                    .round()
+                    .min(32767.0) as i16,
+                offset: (sweep.offset_v / conf.u_lsb())
+                    .round()
+                    .clamp(-32767.0, 32767.0) as i16,
                 settle_cycles,
                 cycles: sweep.cycles.max(1),
                 flags: SINE_DFT | if sweep.stream { SINE_STREAM } else { 0 },
@@ -882,13 +929,19 @@ impl Client {
                     done = true;
                     break;
                 }
-                problems.push(format!("{f} Hz: measurement damaged ({}), repeating", acq.problems.join("; ")));
+                problems.push(format!(
+                    "{f} Hz: measurement damaged ({}), repeating",
+                    acq.problems.join("; ")
+                ));
             }
             if !done {
                 problems.push(format!("{f} Hz: no valid measurement"));
             }
             if let Some(p) = prog.as_mut() {
-                p(Progress { done: k as u64 + 1, total });
+                p(Progress {
+                    done: k as u64 + 1,
+                    total,
+                });
             }
         }
         self.progress = prog;
@@ -907,18 +960,27 @@ fn sine_point(acq: &Acquisition, cmd: &StartSine, conf: &Configure) -> Option<Bo
     let freq_hz = cmd.freq_mhz as f64 / 1000.0;
     let scale = conf.y_lsb() / conf.u_lsb();
     let (ratio, n, on_drive) = if let Some(s) = acq.sine {
-        let r = bode::ratio((s.u_re as f64, s.u_im as f64), (s.y_re as f64, s.y_im as f64))?;
+        let r = bode::ratio(
+            (s.u_re as f64, s.u_im as f64),
+            (s.y_re as f64, s.y_im as f64),
+        )?;
         (r, s.n, true)
     } else if acq.complete {
         let (settle, measure) = cmd.sample_counts(conf.sample_rate_hz)?;
         let fs = conf.sample_rate_hz as u64;
-        let inc = ((((cmd.freq_mhz as u128) << 32) + 500 * fs as u128) / (1000 * fs as u128)) as u32;
+        let inc =
+            ((((cmd.freq_mhz as u128) << 32) + 500 * fs as u128) / (1000 * fs as u128)) as u32;
         let w = settle as usize..(settle + measure) as usize;
         let ph = |k: usize| {
             let p = ((settle as u64 + k as u64) * inc as u64) as u32;
             p as f64 / 4294967296.0 * std::f64::consts::TAU
         };
-        let u: Vec<f64> = acq.raw.get(w.clone())?.iter().map(|s| s[0] as f64).collect();
+        let u: Vec<f64> = acq
+            .raw
+            .get(w.clone())?
+            .iter()
+            .map(|s| s[0] as f64)
+            .collect();
         let y: Vec<f64> = acq.raw.get(w)?.iter().map(|s| s[1] as f64).collect();
         let r = bode::ratio(bode::single_bin(&u, ph), bode::single_bin(&y, ph))?;
         (r, measure, false)

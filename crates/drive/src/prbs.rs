@@ -69,7 +69,10 @@ mod tests {
     fn same_sequence_as_fracsim() {
         for order in 2..=16u8 {
             let taps = default_taps(order).unwrap();
-            for seed in [1u32, 5, (1 << order) - 1].into_iter().filter(|&s| s < (1 << order)) {
+            for seed in [1u32, 5, (1 << order) - 1]
+                .into_iter()
+                .filter(|&s| s < (1 << order))
+            {
                 let mut a = Lfsr::new(order, taps, seed).unwrap();
                 let mut b = fracsim::prbs::Lfsr::new(order as u32, seed).unwrap();
                 for _ in 0..(2 * a.period() + 3) {

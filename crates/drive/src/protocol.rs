@@ -149,7 +149,8 @@ impl StartPrbs {
             return None;
         }
         let period = (1u64 << self.order) - 1;
-        let n = self.settle_samples as u64 + self.periods as u64 * period * self.clock_samples as u64;
+        let n =
+            self.settle_samples as u64 + self.periods as u64 * period * self.clock_samples as u64;
         u32::try_from(n).ok()
     }
 }

@@ -293,13 +293,18 @@ impl Plant {
         let nd = (cfg.effects.delay_s.max(0.0) * fs as f64).round() as usize;
         Ok(Self {
             sim,
-            dc_gain: if dc_gain.is_finite() && dc_gain != 0.0 { dc_gain } else { 1.0 },
+            dc_gain: if dc_gain.is_finite() && dc_gain != 0.0 {
+                dc_gain
+            } else {
+                1.0
+            },
             fx: cfg.effects,
             delay: std::iter::repeat_n(0.0, nd).collect(),
             y: 0.0,
             k: 0,
             dt,
-            noise: Normal::new(0.0, cfg.effects.noise_std.max(0.0)).unwrap_or(Normal::new(0.0, 0.0).expect("valid")),
+            noise: Normal::new(0.0, cfg.effects.noise_std.max(0.0))
+                .unwrap_or(Normal::new(0.0, 0.0).expect("valid")),
         })
     }
 
@@ -319,7 +324,8 @@ impl Plant {
             }
         }
         if fx.ripple_v != 0.0 {
-            ue += fx.ripple_v * (2.0 * std::f64::consts::PI * fx.ripple_hz * self.k as f64 * self.dt).sin();
+            ue += fx.ripple_v
+                * (2.0 * std::f64::consts::PI * fx.ripple_hz * self.k as f64 * self.dt).sin();
         }
         self.k += 1;
         let y = self.sim.step(ue);
@@ -843,10 +849,17 @@ impl Firmware {
     fn end_run(&mut self, reason: EndReason) {
         let Some(mut r) = self.run.take() else { return };
         self.flush_block(&mut r);
-        if let Excitation::Sine { acc, measure, s, .. } = &r.exc {
+        if let Excitation::Sine {
+            acc, measure, s, ..
+        } = &r.exc
+        {
             if s.flags & SINE_DFT != 0 && reason == EndReason::Complete {
                 let n = *measure as f64;
-                let q = |v: f64| (v * 2.0 / n * 256.0).round().clamp(i32::MIN as f64, i32::MAX as f64) as i32;
+                let q = |v: f64| {
+                    (v * 2.0 / n * 256.0)
+                        .round()
+                        .clamp(i32::MIN as f64, i32::MAX as f64) as i32
+                };
                 let res = SineResult {
                     run_id: r.id,
                     n: *measure,
@@ -877,7 +890,10 @@ impl Firmware {
         }));
         self.last_end = Some(end);
         self.last_run = Some((r.id, r.done, r.dropped, r.clamped));
-        self.event(format!("run {} ended: {reason:?}, {} samples, {} blocks dropped", r.id, r.done, r.dropped));
+        self.event(format!(
+            "run {} ended: {reason:?}, {} samples, {} blocks dropped",
+            r.id, r.done, r.dropped
+        ));
     }
 
     fn flush_block(&mut self, r: &mut Run) {
@@ -886,7 +902,7 @@ impl Firmware {
         }
         let samples = std::mem::take(&mut r.block);
         let n = samples.len() as u32;
-        if self.tx_data.len() >= self.cfg.tx_blocks.max(1) || self.stall_until.is_some() && self.tx_data.len() >= 1 {
+        if self.tx_data.len() >= self.cfg.tx_blocks.max(1) {
             r.dropped = r.dropped.saturating_add(1);
             self.with_stats(|s| s.blocks_dropped += 1);
         } else {
@@ -908,7 +924,8 @@ impl Firmware {
         let Some(conf) = self.conf else { return };
         let Some(mut r) = self.run.take() else { return };
         let fs = conf.sample_rate_hz as f64;
-        let due = ((now.duration_since(r.start).as_secs_f64() * fs) as u64).min(r.total as u64) as u32;
+        let due =
+            ((now.duration_since(r.start).as_secs_f64() * fs) as u64).min(r.total as u64) as u32;
         let keepalive = Duration::from_millis(conf.keepalive_ms as u64);
         let mut end: Option<EndReason> = None;
         while r.done < due || (r.ramp.is_some() && end.is_none()) {
@@ -920,9 +937,6 @@ impl Firmware {
             }
             if r.done >= due && r.ramp.is_none() {
                 break;
-            }
-            if r.done >= due && r.ramp.is_some() && r.done >= r.total {
-                // ramp samples are beyond the planned run; allow them
             }
             let (u_raw_cmd, measuring) = match &mut r.ramp {
                 Some((left, len, reason)) => {
@@ -958,7 +972,11 @@ impl Firmware {
                             (v, None)
                         }
                         Excitation::Sine {
-                            s, phase, inc, settle, ..
+                            s,
+                            phase,
+                            inc,
+                            settle,
+                            ..
                         } => {
                             let th = *phase as f64 / 4294967296.0 * std::f64::consts::TAU;
                             let v = s.offset as f64 + (s.amplitude as f64 * th.sin()).round();
@@ -1002,17 +1020,17 @@ impl Firmware {
             r.done += 1;
             self.run_samples_total += 1;
             self.with_stats(|s| s.truth.push(raw));
-            if raw[1].unsigned_abs() > conf.y_limit.unsigned_abs() || raw[2].unsigned_abs() > conf.i_limit.unsigned_abs() {
-                if r.ramp.is_none() {
-                    self.fault = if raw[1].unsigned_abs() > conf.y_limit.unsigned_abs() {
-                        fault::SPEED_LIMIT
-                    } else {
-                        fault::CURRENT_LIMIT
-                    };
-                    self.flush_block(&mut r);
-                    end = Some(EndReason::Limit);
-                    break;
-                }
+            let speed_trip = raw[1].unsigned_abs() > conf.y_limit.unsigned_abs();
+            let current_trip = raw[2].unsigned_abs() > conf.i_limit.unsigned_abs();
+            if (speed_trip || current_trip) && r.ramp.is_none() {
+                self.fault = if speed_trip {
+                    fault::SPEED_LIMIT
+                } else {
+                    fault::CURRENT_LIMIT
+                };
+                self.flush_block(&mut r);
+                end = Some(EndReason::Limit);
+                break;
             }
             if r.block.len() >= conf.block_samples as usize {
                 self.flush_block(&mut r);
@@ -1046,7 +1064,10 @@ impl Firmware {
             if self.cfg.link.is_some() {
                 self.master = None; // closes the pty: the host's port hangs up
                 self.reopen_at = Some(now + d.duration);
-                self.event(format!("disconnect (pty closed) for {:?} at sample {n}", d.duration));
+                self.event(format!(
+                    "disconnect (pty closed) for {:?} at sample {n}",
+                    d.duration
+                ));
             } else {
                 self.dead_until = Some(now + d.duration);
                 self.event(format!("line dead for {:?} at sample {n}", d.duration));
@@ -1089,11 +1110,16 @@ impl Firmware {
         if self.stall_until.is_some() {
             return;
         }
-        self.tx_budget = (self.tx_budget + elapsed * self.byte_rate()).min(self.byte_rate() * 0.01 + 64.0);
+        self.tx_budget =
+            (self.tx_budget + elapsed * self.byte_rate()).min(self.byte_rate() * 0.01 + 64.0);
         let mut out = Vec::new();
         while self.tx_budget >= 1.0 {
             if self.tx_bytes.is_empty() {
-                let Some(frame) = self.tx_prio.pop_front().or_else(|| self.tx_data.pop_front()) else {
+                let Some(frame) = self
+                    .tx_prio
+                    .pop_front()
+                    .or_else(|| self.tx_data.pop_front())
+                else {
                     self.tx_budget = self.tx_budget.min(1.0);
                     break;
                 };
@@ -1142,7 +1168,10 @@ impl Firmware {
             damaged |= c != b;
             out.push(c);
         }
-        if f.frame_corrupt_rate > 0.0 && !out.is_empty() && self.rng.gen_bool(f.frame_corrupt_rate.min(1.0)) {
+        if f.frame_corrupt_rate > 0.0
+            && !out.is_empty()
+            && self.rng.gen_bool(f.frame_corrupt_rate.min(1.0))
+        {
             let flips = self.rng.gen_range(1..=3);
             for _ in 0..flips {
                 let i = self.rng.gen_range(0..out.len());

@@ -67,8 +67,15 @@ fn check_truth(acq: &Acquisition, sim: &DriveSim) {
 fn check_consistent(acq: &Acquisition) {
     // missing + received = total, and they are disjoint
     let missing: u64 = acq.missing.iter().map(|r| r.end - r.start).sum();
-    assert_eq!(missing + acq.index.len() as u64, acq.total_samples, "{acq:?}");
-    assert_eq!(acq.complete, acq.missing.is_empty() && acq.problems.is_empty());
+    assert_eq!(
+        missing + acq.index.len() as u64,
+        acq.total_samples,
+        "{acq:?}"
+    );
+    assert_eq!(
+        acq.complete,
+        acq.missing.is_empty() && acq.problems.is_empty()
+    );
     for r in &acq.missing {
         assert!(acq.index.iter().all(|i| !r.contains(i)));
     }
@@ -105,7 +112,9 @@ fn clean_run_is_complete() {
     assert!(acq.y[99] > 10.0, "y = {}", acq.y[99]);
     let text = std::fs::read_to_string(&path).unwrap();
     assert!(text.contains("\nt,u,y,i\n"));
-    assert!(text.trim_end().ends_with(&format!("# complete: {} samples", acq.total_samples)));
+    assert!(text
+        .trim_end()
+        .ends_with(&format!("# complete: {} samples", acq.total_samples)));
     let st = c.status().unwrap();
     assert_eq!(st.samples_done as u64, acq.total_samples);
 }
@@ -162,7 +171,10 @@ fn dropped_bytes() {
     );
     let st = s.stats();
     assert!(st.frames_damaged > 0, "the test should drop something");
-    eprintln!("drops: complete {}, missing {:?}, problems {:?}", acq.complete, acq.missing, acq.problems);
+    eprintln!(
+        "drops: complete {}, missing {:?}, problems {:?}",
+        acq.complete, acq.missing, acq.problems
+    );
 }
 
 #[test]
@@ -185,7 +197,12 @@ fn stall_longer_than_timeout() {
     assert!(acq.missing[0].start >= 250, "{:?}", acq.missing);
     assert!(s.stats().blocks_dropped > 0);
     assert!(acq.end.is_some(), "the summary arrives after the stall");
-    eprintln!("stall: missing {:?}, problems {:?}, client {:?}", acq.missing, acq.problems, c.stats());
+    eprintln!(
+        "stall: missing {:?}, problems {:?}, client {:?}",
+        acq.missing,
+        acq.problems,
+        c.stats()
+    );
 }
 
 #[test]
@@ -227,9 +244,17 @@ fn drive_reset_mid_run() {
         false,
     );
     assert!(!acq.complete);
-    assert!(acq.problems.iter().any(|p| p.contains("reset")), "{:?}", acq.problems);
+    assert!(
+        acq.problems.iter().any(|p| p.contains("reset")),
+        "{:?}",
+        acq.problems
+    );
     assert_eq!(acq.missing.last().map(|r| r.end), Some(acq.total_samples));
-    assert!(acq.index.len() >= 250 && acq.index.len() <= 300, "{}", acq.index.len());
+    assert!(
+        acq.index.len() >= 250 && acq.index.len() <= 300,
+        "{}",
+        acq.index.len()
+    );
     // after a reset the drive must be configured again, then it works
     c.hello().unwrap();
     c.configure(&Configure::default()).unwrap();

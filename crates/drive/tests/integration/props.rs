@@ -12,40 +12,122 @@ fn arb_msg() -> impl Strategy<Value = Message> {
         Just(Message::Status),
         Just(Message::Keepalive),
         any::<u16>().prop_map(Message::EndQuery),
-        (any::<u32>(), 1u8..=66, any::<u16>(), any::<[u32; 3]>(), any::<[i16; 3]>()).prop_map(|(fs, b, ka, sc, l)| {
-            Message::Configure(Configure {
-                sample_rate_hz: fs,
-                block_samples: b,
-                keepalive_ms: ka,
-                scale_u_uv: sc[0],
-                scale_y_urad_s: sc[1],
-                scale_i_ua: sc[2],
-                u_limit: l[0],
-                y_limit: l[1],
-                i_limit: l[2],
+        (
+            any::<u32>(),
+            1u8..=66,
+            any::<u16>(),
+            any::<[u32; 3]>(),
+            any::<[i16; 3]>()
+        )
+            .prop_map(|(fs, b, ka, sc, l)| {
+                Message::Configure(Configure {
+                    sample_rate_hz: fs,
+                    block_samples: b,
+                    keepalive_ms: ka,
+                    scale_u_uv: sc[0],
+                    scale_y_urad_s: sc[1],
+                    scale_i_ua: sc[2],
+                    u_limit: l[0],
+                    y_limit: l[1],
+                    i_limit: l[2],
+                })
+            }),
+        (
+            any::<u8>(),
+            any::<u32>(),
+            any::<u32>(),
+            any::<u16>(),
+            any::<i16>(),
+            any::<i16>(),
+            any::<u16>(),
+            any::<u32>()
+        )
+            .prop_map(
+                |(order, taps, seed, clock_samples, amplitude, offset, periods, settle_samples)| {
+                    Message::StartPrbs(StartPrbs {
+                        order,
+                        taps,
+                        seed,
+                        clock_samples,
+                        amplitude,
+                        offset,
+                        periods,
+                        settle_samples,
+                    })
+                }
+            ),
+        (
+            any::<u32>(),
+            any::<i16>(),
+            any::<i16>(),
+            any::<u16>(),
+            any::<u16>(),
+            0u8..4
+        )
+            .prop_map(|(f, a, o, s, c, fl)| {
+                Message::StartSine(StartSine {
+                    freq_mhz: f,
+                    amplitude: a,
+                    offset: o,
+                    settle_cycles: s,
+                    cycles: c,
+                    flags: fl,
+                })
+            }),
+        (any::<u8>(), any::<u16>(), any::<u32>()).prop_map(|(t, r, n)| Message::Ack(Ack {
+            acked_type: t,
+            run_id: r,
+            total_samples: n
+        })),
+        (1u8..8, any::<u8>(), any::<u16>()).prop_map(|(c, t, d)| Message::Nak(Nak {
+            nak_type: t,
+            code: NakCode::from_code(c),
+            detail: d
+        })),
+        (any::<u16>(), any::<u32>(), any::<u32>(), any::<u16>()).prop_map(|(r, t, s, d)| {
+            Message::StreamEnd(StreamEnd {
+                run_id: r,
+                reason: EndReason::from_code((t % 5) as u8),
+                total_samples: t,
+                samples_sent: s,
+                blocks_dropped: d,
             })
         }),
-        (any::<u8>(), any::<u32>(), any::<u32>(), any::<u16>(), any::<i16>(), any::<i16>(), any::<u16>(), any::<u32>())
-            .prop_map(|(order, taps, seed, clock_samples, amplitude, offset, periods, settle_samples)| {
-                Message::StartPrbs(StartPrbs { order, taps, seed, clock_samples, amplitude, offset, periods, settle_samples })
+        (
+            any::<u16>(),
+            any::<u32>(),
+            0u8..2,
+            prop::collection::vec(any::<[i16; 3]>(), 1..=66)
+        )
+            .prop_map(|(r, f, fl, s)| {
+                Message::Data(DataBlock {
+                    run_id: r,
+                    first_index: f,
+                    flags: fl,
+                    samples: s,
+                })
             }),
-        (any::<u32>(), any::<i16>(), any::<i16>(), any::<u16>(), any::<u16>(), 0u8..4).prop_map(|(f, a, o, s, c, fl)| {
-            Message::StartSine(StartSine { freq_mhz: f, amplitude: a, offset: o, settle_cycles: s, cycles: c, flags: fl })
-        }),
-        (any::<u8>(), any::<u16>(), any::<u32>()).prop_map(|(t, r, n)| Message::Ack(Ack { acked_type: t, run_id: r, total_samples: n })),
-        (1u8..8, any::<u8>(), any::<u16>()).prop_map(|(c, t, d)| Message::Nak(Nak { nak_type: t, code: NakCode::from_code(c), detail: d })),
-        (any::<u16>(), any::<u32>(), any::<u32>(), any::<u16>()).prop_map(|(r, t, s, d)| Message::StreamEnd(StreamEnd {
-            run_id: r, reason: EndReason::from_code((t % 5) as u8), total_samples: t, samples_sent: s, blocks_dropped: d
-        })),
-        (any::<u16>(), any::<u32>(), 0u8..2, prop::collection::vec(any::<[i16; 3]>(), 1..=66)).prop_map(|(r, f, fl, s)| {
-            Message::Data(DataBlock { run_id: r, first_index: f, flags: fl, samples: s })
-        }),
-        (any::<u16>(), any::<u32>(), any::<[i32; 4]>()).prop_map(|(r, n, v)| Message::SineResult(SineResult {
-            run_id: r, n, u_re: v[0], u_im: v[1], y_re: v[2], y_im: v[3]
-        })),
-        (any::<u16>(), any::<u32>(), any::<u8>()).prop_map(|(b, f, m)| Message::HelloReply(HelloReply {
-            proto_version: 1, fw_major: m, fw_minor: 0, n_channels: 3, max_block_samples: 66, boot_id: b, max_sample_rate_hz: f
-        })),
+        (any::<u16>(), any::<u32>(), any::<[i32; 4]>()).prop_map(|(r, n, v)| Message::SineResult(
+            SineResult {
+                run_id: r,
+                n,
+                u_re: v[0],
+                u_im: v[1],
+                y_re: v[2],
+                y_im: v[3]
+            }
+        )),
+        (any::<u16>(), any::<u32>(), any::<u8>()).prop_map(|(b, f, m)| Message::HelloReply(
+            HelloReply {
+                proto_version: 1,
+                fw_major: m,
+                fw_minor: 0,
+                n_channels: 3,
+                max_block_samples: 66,
+                boot_id: b,
+                max_sample_rate_hz: f
+            }
+        )),
     ]
 }
 
@@ -144,9 +226,32 @@ fn exhaustive_single_bit_flips() {
     let mut rng = rand::rngs::StdRng::seed_from_u64(1);
     let mut flips = 0u64;
     for n in 0..400 {
-        let samples = (0..rng.gen_range(1..=66)).map(|_| [rng.gen(), rng.gen(), rng.gen::<i16>() & if n % 2 == 0 { 0xFF } else { -1 }]).collect();
-        let f = Frame { seq: rng.gen(), msg: Message::Data(DataBlock { run_id: rng.gen(), first_index: rng.gen(), flags: 0, samples }) };
-        let g = Frame { seq: rng.gen(), msg: Message::Ack(Ack { acked_type: 3, run_id: 0, total_samples: rng.gen() }) };
+        let samples = (0..rng.gen_range(1..=66))
+            .map(|_| {
+                [
+                    rng.gen(),
+                    rng.gen(),
+                    rng.gen::<i16>() & if n % 2 == 0 { 0xFF } else { -1 },
+                ]
+            })
+            .collect();
+        let f = Frame {
+            seq: rng.gen(),
+            msg: Message::Data(DataBlock {
+                run_id: rng.gen(),
+                first_index: rng.gen(),
+                flags: 0,
+                samples,
+            }),
+        };
+        let g = Frame {
+            seq: rng.gen(),
+            msg: Message::Ack(Ack {
+                acked_type: 3,
+                run_id: 0,
+                total_samples: rng.gen(),
+            }),
+        };
         let w = wire(&[f.clone(), g.clone()]);
         for k in 0..w.len() {
             for b in 0..8 {

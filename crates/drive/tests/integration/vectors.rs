@@ -17,15 +17,30 @@ fn unhex(s: &str) -> Vec<u8> {
     if s == "-" {
         return Vec::new();
     }
-    (0..s.len()).step_by(2).map(|i| u8::from_str_radix(&s[i..i + 2], 16).unwrap()).collect()
+    (0..s.len())
+        .step_by(2)
+        .map(|i| u8::from_str_radix(&s[i..i + 2], 16).unwrap())
+        .collect()
 }
 
 /// The named frames of `frames.txt`, one or more per message type.
 fn named_frames() -> Vec<(&'static str, Frame)> {
     let c = Configure::default();
     vec![
-        ("HELLO", Frame { seq: 0x0001, msg: Message::Hello }),
-        ("CONFIGURE", Frame { seq: 0x0002, msg: Message::Configure(c) }),
+        (
+            "HELLO",
+            Frame {
+                seq: 0x0001,
+                msg: Message::Hello,
+            },
+        ),
+        (
+            "CONFIGURE",
+            Frame {
+                seq: 0x0002,
+                msg: Message::Configure(c),
+            },
+        ),
         (
             "START_PRBS",
             Frame {
@@ -56,16 +71,50 @@ fn named_frames() -> Vec<(&'static str, Frame)> {
                 }),
             },
         ),
-        ("STOP", Frame { seq: 0x0005, msg: Message::Stop }),
-        ("ESTOP", Frame { seq: 0x0006, msg: Message::Estop }),
-        ("STATUS", Frame { seq: 0x0007, msg: Message::Status }),
-        ("KEEPALIVE", Frame { seq: 0x0008, msg: Message::Keepalive }),
-        ("END_QUERY", Frame { seq: 0x0009, msg: Message::EndQuery(1) }),
+        (
+            "STOP",
+            Frame {
+                seq: 0x0005,
+                msg: Message::Stop,
+            },
+        ),
+        (
+            "ESTOP",
+            Frame {
+                seq: 0x0006,
+                msg: Message::Estop,
+            },
+        ),
+        (
+            "STATUS",
+            Frame {
+                seq: 0x0007,
+                msg: Message::Status,
+            },
+        ),
+        (
+            "KEEPALIVE",
+            Frame {
+                seq: 0x0008,
+                msg: Message::Keepalive,
+            },
+        ),
+        (
+            "END_QUERY",
+            Frame {
+                seq: 0x0009,
+                msg: Message::EndQuery(1),
+            },
+        ),
         (
             "ACK",
             Frame {
                 seq: 0x0003,
-                msg: Message::Ack(Ack { acked_type: ty::START_PRBS, run_id: 1, total_samples: 681 }),
+                msg: Message::Ack(Ack {
+                    acked_type: ty::START_PRBS,
+                    run_id: 1,
+                    total_samples: 681,
+                }),
             },
         ),
         (
@@ -99,7 +148,17 @@ fn named_frames() -> Vec<(&'static str, Frame)> {
                 }),
             },
         ),
-        ("NAK", Frame { seq: 0x0003, msg: Message::Nak(Nak { nak_type: ty::START_PRBS, code: NakCode::Busy, detail: 0 }) }),
+        (
+            "NAK",
+            Frame {
+                seq: 0x0003,
+                msg: Message::Nak(Nak {
+                    nak_type: ty::START_PRBS,
+                    code: NakCode::Busy,
+                    detail: 0,
+                }),
+            },
+        ),
         (
             "DATA",
             Frame {
@@ -146,7 +205,10 @@ fn named_frames() -> Vec<(&'static str, Frame)> {
 fn crc_check_value() {
     let text = std::fs::read_to_string(dir().join("crc.txt")).unwrap();
     let mut n = 0;
-    for line in text.lines().filter(|l| !l.starts_with('#') && !l.trim().is_empty()) {
+    for line in text
+        .lines()
+        .filter(|l| !l.starts_with('#') && !l.trim().is_empty())
+    {
         let mut it = line.split_whitespace();
         let data = unhex(it.next().unwrap());
         let crc = u16::from_str_radix(it.next().unwrap(), 16).unwrap();
@@ -161,7 +223,10 @@ fn crc_check_value() {
 fn cobs_edge_cases() {
     let text = std::fs::read_to_string(dir().join("cobs.txt")).unwrap();
     let mut n = 0;
-    for line in text.lines().filter(|l| !l.starts_with('#') && !l.trim().is_empty()) {
+    for line in text
+        .lines()
+        .filter(|l| !l.starts_with('#') && !l.trim().is_empty())
+    {
         let mut it = line.split_whitespace();
         let raw = unhex(it.next().unwrap());
         let enc = unhex(it.next().unwrap());
@@ -188,14 +253,28 @@ fn frames() {
     }
     let text = std::fs::read_to_string(&path).unwrap();
     let mut seen = 0;
-    for line in text.lines().filter(|l| !l.starts_with('#') && !l.trim().is_empty()) {
+    for line in text
+        .lines()
+        .filter(|l| !l.starts_with('#') && !l.trim().is_empty())
+    {
         let mut it = line.split_whitespace();
         let name = it.next().unwrap();
         let _seq = it.next().unwrap();
         let wire = unhex(it.next().unwrap());
-        let (_, f) = named.iter().find(|(n, _)| *n == name).unwrap_or_else(|| panic!("unknown {name}"));
-        assert_eq!(hex(&codec::encode(f)), hex(&wire), "{name}: encoder differs from the vector");
-        assert_eq!(StreamDecoder::new().push(&wire), vec![f.clone()], "{name}: decoder");
+        let (_, f) = named
+            .iter()
+            .find(|(n, _)| *n == name)
+            .unwrap_or_else(|| panic!("unknown {name}"));
+        assert_eq!(
+            hex(&codec::encode(f)),
+            hex(&wire),
+            "{name}: encoder differs from the vector"
+        );
+        assert_eq!(
+            StreamDecoder::new().push(&wire),
+            vec![f.clone()],
+            "{name}: decoder"
+        );
         assert_eq!(f.msg.name(), name);
         seen += 1;
     }
@@ -206,17 +285,24 @@ fn frames() {
 fn prbs_first_bits() {
     let text = std::fs::read_to_string(dir().join("prbs.txt")).unwrap();
     let mut n = 0;
-    for line in text.lines().filter(|l| !l.starts_with('#') && !l.trim().is_empty()) {
+    for line in text
+        .lines()
+        .filter(|l| !l.starts_with('#') && !l.trim().is_empty())
+    {
         let f: Vec<&str> = line.split_whitespace().collect();
         let order: u8 = f[0].parse().unwrap();
         let taps = u32::from_str_radix(f[1].trim_start_matches("0x"), 16).unwrap();
         let seed: u32 = f[2].parse().unwrap();
         assert_eq!(drive::prbs::default_taps(order), Some(taps), "{line}");
         let mut l = drive::prbs::Lfsr::new(order, taps, seed).unwrap();
-        let bits: String = (0..f[3].len()).map(|_| if l.next_bit() { '1' } else { '0' }).collect();
+        let bits: String = (0..f[3].len())
+            .map(|_| if l.next_bit() { '1' } else { '0' })
+            .collect();
         assert_eq!(bits, f[3], "{line}");
         let mut r = fracsim::prbs::Lfsr::new(order as u32, seed).unwrap();
-        let bits2: String = (0..f[3].len()).map(|_| if r.next_bit() { '1' } else { '0' }).collect();
+        let bits2: String = (0..f[3].len())
+            .map(|_| if r.next_bit() { '1' } else { '0' })
+            .collect();
         assert_eq!(bits2, f[3], "fracsim: {line}");
         n += 1;
     }
