@@ -1,0 +1,32 @@
+"""The exception hierarchy of fracid.
+
+Every error raised by the Rust core reaches Python as one of these classes, with the message of the
+Rust error unchanged.
+
+- :class:`FracidError` -- the base of all of them.
+- :class:`ParseError` -- a model expression that does not parse (also a :class:`ValueError`).
+- :class:`DataError` -- unusable data or arguments: NaN, empty or mismatched arrays, bad options
+  (also a :class:`ValueError`).
+- :class:`NumericalError` -- a numerical breakdown: a singular solve, a simulation that diverges
+  (also an :class:`ArithmeticError`).
+"""
+
+from __future__ import annotations
+
+__all__ = ["FracidError", "ParseError", "DataError", "NumericalError"]
+
+
+class FracidError(Exception):
+    """Base class of every fracid error."""
+
+
+class ParseError(FracidError, ValueError):
+    """A model expression could not be parsed; the message gives the position."""
+
+
+class DataError(FracidError, ValueError):
+    """The data or an argument is unusable (NaN, empty, mismatched lengths, out of range)."""
+
+
+class NumericalError(FracidError, ArithmeticError):
+    """A computation broke down numerically (singular system, non-finite simulation)."""

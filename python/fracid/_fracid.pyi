@@ -1,0 +1,149 @@
+"""Type stubs of the Rust extension module ``fracid._fracid``."""
+
+from typing import Any, Dict, List, Optional, Tuple, Union
+
+import numpy as np
+import numpy.typing as npt
+
+__version__: str
+
+class FracTf:
+    """A fractional transfer function ``sum_i b_i s^beta_i / sum_j a_j s^alpha_j * exp(-delay s)``.
+
+    Parameters
+    ----------
+    num, den : list of (float, float)
+        Terms ``(coef, order)`` of numerator and denominator; orders >= 0.
+    delay : float
+        Input delay in seconds (>= 0).
+
+    Raises
+    ------
+    DataError
+        Non-finite or negative values, a zero denominator.
+    """
+
+    def __init__(
+        self,
+        num: List[Tuple[float, float]],
+        den: List[Tuple[float, float]],
+        delay: float = 0.0,
+    ) -> None: ...
+    @staticmethod
+    def parse(text: str) -> "FracTf":
+        """Parse e.g. ``"6.77/(0.000028 s^1.78 + 0.0064 s^0.89 + 1)"`` (``exp(-0.001 s)`` may be
+        a factor).
+
+        Raises
+        ------
+        ParseError
+            With the position of the problem.
+        """
+    @staticmethod
+    def pmsm(k: float, a1: float, a2: float, zeta: float, theta: float) -> "FracTf":
+        """The PMSM structure ``k / (a2 s^(zeta+theta) + a1 s^zeta + 1)`` (paper eq. 10)."""
+    @property
+    def num(self) -> List[Tuple[float, float]]:
+        """Numerator terms ``(coef, order)``, decreasing order."""
+    @property
+    def den(self) -> List[Tuple[float, float]]:
+        """Denominator terms ``(coef, order)``, decreasing order."""
+    @property
+    def delay(self) -> float:
+        """Input delay in seconds."""
+    def dc_gain(self) -> float:
+        """The static gain ``G(0)`` (``inf`` for an integrating model)."""
+    def with_delay(self, delay: float) -> "FracTf":
+        """The same model with another input delay (seconds)."""
+    def freq_response(self, omega: npt.ArrayLike) -> npt.NDArray[np.complex128]:
+        """``G(j omega)`` at each omega in rad/s, exact: ``(jw)^a = w^a e^(j a pi/2)``."""
+    def bode(
+        self, omega: npt.ArrayLike
+    ) -> Tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+        """Magnitude in dB and unwrapped phase in degrees at each omega (rad/s)."""
+    def simulate(
+        self,
+        u: npt.ArrayLike,
+        dt: float,
+        method: str = "oustaloup",
+        band: Optional[Tuple[float, float]] = None,
+        order: int = 8,
+        discretization: str = "bilinear",
+    ) -> npt.NDArray[np.float64]:
+        """Simulate from rest on input ``u`` sampled every ``dt`` seconds.
+
+        Parameters
+        ----------
+        u : array_like
+            Input samples (finite, at least one).
+        dt : float
+            Sampling step in seconds.
+        method : {"oustaloup", "refined", "trigeassou", "gl"}
+            Recursive discrete filters of an Oustaloup, refined Oustaloup or Poinot-Trigeassou
+            approximation, or the Grunwald-Letnikov scheme (O(N^2), at most 2e5 samples).
+        band : (float, float), optional
+            Approximation band in rad/s (default ``[1e-3, 30 pi/dt]``).
+        order : int
+            Approximation order N (2N+1 cells).
+        discretization : {"bilinear", "prewarp", "zoh"}
+            Discretisation of each cell.
+
+        Returns
+        -------
+        numpy.ndarray
+            The output, same length as ``u``.
+        """
+    def to_dict(self) -> Dict[str, Any]:
+        """``{"num": [{"coef", "order"}], "den": [...], "delay", "text"}`` (DESIGN section 7)."""
+    def __eq__(self, other: object) -> bool: ...
+    def __reduce__(self) -> Any: ...
+
+def gl_simulate(tf: FracTf, u: npt.ArrayLike, dt: float) -> npt.NDArray[np.float64]:
+    """Grunwald-Letnikov simulation of ``tf`` (the implicit reference scheme)."""
+
+def prbs(
+    dt: float,
+    order: int = 7,
+    clock: float = 0.003,
+    amplitude: float = 1.0,
+    offset: float = 0.0,
+    periods: int = 1,
+    seed: int = 1,
+) -> npt.NDArray[np.float64]:
+    """A PRBS: a maximum-length sequence of ``2^order - 1`` bits held ``clock`` seconds each,
+    levels ``offset +- amplitude``, ``periods`` periods, sampled every ``dt`` (``clock`` must be a
+    whole multiple of ``dt``)."""
+
+def error_index(omega: npt.ArrayLike, h: npt.ArrayLike, model: FracTf) -> float:
+    """The error index ``J = (1/f) sum |G(j w) - Ghat(j w)|^2`` (paper eq. 30), w in rad/s."""
+
+def _fit_bode(
+    omega: npt.ArrayLike,
+    h: npt.ArrayLike,
+    n: int = 2,
+    m: int = 0,
+    q: Optional[float] = None,
+    q_step: float = 0.01,
+    q_max: float = 1.0,
+    refine_q: bool = True,
+    weights: Union[str, npt.ArrayLike, None] = None,
+    sk_iterations: int = 0,
+    refine: bool = False,
+) -> Dict[str, Any]: ...
+def _fit_time(
+    u: npt.ArrayLike,
+    y: npt.ArrayLike,
+    dt: float,
+    structure: Union[str, FracTf],
+    start: Optional[Dict[str, float]] = None,
+    holdout: float = 0.3,
+    offsets: str = "initial",
+    fit_offset: bool = True,
+    max_iterations: int = 100,
+    skip: int = 0,
+    method: str = "oustaloup",
+    band: Optional[Tuple[float, float]] = None,
+    order: int = 8,
+    discretization: str = "bilinear",
+    max_lag: int = 25,
+) -> Dict[str, Any]: ...

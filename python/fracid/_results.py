@@ -1,0 +1,331 @@
+"""Typed result objects of the fits. Every one is a frozen dataclass with ``to_dict()``, which
+returns plain Python types (numpy arrays become lists, models become the DESIGN section 7 JSON
+object) so that ``json.dumps(result.to_dict())`` works."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, fields
+from typing import Any, Dict, List, Optional, Tuple
+
+import numpy as np
+
+from ._fracid import FracTf
+
+__all__ = [
+    "LevyFit",
+    "PmsmFit",
+    "QCurve",
+    "FreqFit",
+    "ParamEstimate",
+    "FitMetrics",
+    "ResidualTest",
+    "TimeFit",
+]
+
+
+def _plain(v: Any) -> Any:
+    if isinstance(v, FracTf):
+        return v.to_dict()
+    if isinstance(v, np.ndarray):
+        return v.tolist()
+    if isinstance(v, (np.floating, np.integer)):
+        return v.item()
+    if hasattr(v, "to_dict"):
+        return v.to_dict()
+    if isinstance(v, dict):
+        return {k: _plain(x) for k, x in v.items()}
+    if isinstance(v, (list, tuple)):
+        return [_plain(x) for x in v]
+    return v
+
+
+class _ToDict:
+    def to_dict(self) -> Dict[str, Any]:
+        """The fields as plain Python types (JSON-serialisable)."""
+        return {f.name: _plain(getattr(self, f.name)) for f in fields(self)}  # type: ignore[arg-type]
+
+
+@dataclass(frozen=True)
+class LevyFit(_ToDict):
+    """A commensurate-order Levy fit ``sum_u b_u s^(u q) / (1 + sum_p a_p s^(p q))``.
+
+    Attributes
+    ----------
+    q : float
+        The commensurate order.
+    b : list of float
+        Numerator coefficients ``b_0 .. b_m``.
+    a : list of float
+        Denominator coefficients ``a_1 .. a_n`` (``a_0 = 1``).
+    model : FracTf
+        The fitted model.
+    J : float
+        Error index of the paper's eq. 30, ``(1/f) sum |G(jw) - Ghat(jw)|^2`` (w in rad/s).
+    levy_cost : float
+        The weighted Levy cost that was minimised.
+    sk_iterations : int
+        Sanathanan-Koerner iterations done after the first solve.
+    """
+
+    q: float
+    b: List[float]
+    a: List[float]
+    model: FracTf
+    J: float
+    levy_cost: float
+    sk_iterations: int
+
+
+@dataclass(frozen=True)
+class PmsmFit(_ToDict):
+    """The nonlinear refit of ``K / (a2 s^(zeta+theta) + a1 s^zeta + 1)`` (two free orders).
+
+    Attributes
+    ----------
+    model : FracTf
+        The refitted model.
+    K, a1, a2, zeta, theta : float
+        Its parameters.
+    J : float
+        Error index (eq. 30) on the data.
+    std_errors : dict or None
+        Standard errors by name (``None`` when the Jacobian is singular).
+    converged : bool
+        Whether Levenberg-Marquardt converged.
+    termination : str
+        Why it stopped.
+    iterations : int
+        Levenberg-Marquardt iterations.
+    """
+
+    model: FracTf
+    K: float
+    a1: float
+    a2: float
+    zeta: float
+    theta: float
+    J: float
+    std_errors: Optional[Dict[str, float]]
+    converged: bool
+    termination: str
+    iterations: int
+
+
+@dataclass(frozen=True)
+class QCurve(_ToDict):
+    """The error index ``J`` of the Levy fit at each order ``q`` of the grid.
+
+    Attributes
+    ----------
+    q : numpy.ndarray
+        The orders, increasing.
+    J : numpy.ndarray
+        ``J(q)`` (``inf`` where the solve broke down).
+    """
+
+    q: np.ndarray
+    J: np.ndarray
+
+
+@dataclass(frozen=True)
+class FreqFit(_ToDict):
+    """The result of :func:`fracid.fit_bode`.
+
+    Attributes
+    ----------
+    levy : LevyFit
+        Levy's fit at the chosen order (refined by golden section unless ``refine_q=False``).
+    levy_grid : LevyFit
+        Levy's fit at the best order of the grid (the paper's procedure).
+    curve : QCurve
+        ``J(q)`` on the grid.
+    sk : LevyFit or None
+        The Sanathanan-Koerner fit, with ``sk_iterations > 0``.
+    sk_curve : QCurve
+        ``J(q)`` of the SK fit (empty without SK).
+    refined : PmsmFit or None
+        The PMSM refit, with ``refine=True``.
+    best_model : FracTf
+        The best model by ``J`` among the above.
+    """
+
+    levy: LevyFit
+    levy_grid: LevyFit
+    curve: QCurve
+    sk: Optional[LevyFit]
+    sk_curve: QCurve
+    refined: Optional[PmsmFit]
+    best_model: FracTf
+
+    @property
+    def J(self) -> float:
+        """The error index of the best model."""
+        cands = [self.levy.J]
+        if self.sk is not None:
+            cands.append(self.sk.J)
+        if self.refined is not None:
+            cands.append(self.refined.J)
+        return min(cands)
+
+    @classmethod
+    def _from_raw(cls, d: Dict[str, Any]) -> "FreqFit":
+        return cls(
+            levy=LevyFit(**d["levy"]),
+            levy_grid=LevyFit(**d["levy_grid"]),
+            curve=QCurve(**d["curve"]),
+            sk=None if d["sk"] is None else LevyFit(**d["sk"]),
+            sk_curve=QCurve(**d["sk_curve"]),
+            refined=None if d["refined"] is None else PmsmFit(**d["refined"]),
+            best_model=d["best_model"],
+        )
+
+
+@dataclass(frozen=True)
+class ParamEstimate(_ToDict):
+    """One parameter of a time-domain fit.
+
+    Attributes
+    ----------
+    name : str
+        Its name (``K``, ``a1``, ``a2``, ``zeta``, ``theta``, ``q``, ``tau``, ``y_offset``, ...).
+    value : float
+        The estimate.
+    std_error : float or None
+        Standard error by the delta method (``None`` when fixed or the covariance is singular).
+    free : bool
+        Whether it was fitted.
+    at_bound : bool
+        Whether it ended at a bound of its range.
+    """
+
+    name: str
+    value: float
+    std_error: Optional[float]
+    free: bool
+    at_bound: bool
+
+
+@dataclass(frozen=True)
+class FitMetrics(_ToDict):
+    """Fit of a model output to data, as MATLAB's ``compare``.
+
+    Attributes
+    ----------
+    rmse : float
+        Root-mean-square error, in the unit of ``y``.
+    nrmse_percent : float
+        ``100 (1 - ||y - yhat|| / ||y - mean(y)||)``: 100 is perfect.
+    """
+
+    rmse: float
+    nrmse_percent: float
+
+
+@dataclass(frozen=True)
+class ResidualTest(_ToDict):
+    """Whiteness and input-independence of the estimation residual at the 99% level.
+
+    Attributes
+    ----------
+    bound : float
+        ``2.58 / sqrt(N)``.
+    auto_outside : int
+        Autocorrelation lags ``1..max_lag`` outside the bound.
+    cross_outside : int
+        Residual-input cross-correlation lags ``-max_lag..max_lag`` outside the bound.
+    cross_peak_lag : int
+        Lag of the largest cross-correlation.
+    cross_peak : float
+        The largest cross-correlation.
+    """
+
+    bound: float
+    auto_outside: int
+    cross_outside: int
+    cross_peak_lag: int
+    cross_peak: float
+
+
+@dataclass(frozen=True)
+class TimeFit(_ToDict):
+    """The result of :func:`fracid.fit_time`.
+
+    Attributes
+    ----------
+    model : FracTf
+        The fitted linear model (offsets not included).
+    params : list of ParamEstimate
+        Every parameter with its standard error; also by name with :meth:`param`.
+    estimation : FitMetrics
+        Fit on the estimation part (the first ``1 - holdout`` of the record).
+    validation : FitMetrics or None
+        Fit on the held-out part (simulated from the start of the record).
+    yhat : numpy.ndarray
+        Model output on the absolute scale over the whole record.
+    split : int
+        Index of the first validation sample.
+    offsets : dict
+        The operating point removed, ``{"u0": .., "y0": ..}``.
+    converged : bool
+        Whether Levenberg-Marquardt converged.
+    termination, stop_reason : str
+        Why it stopped (code and sentence).
+    iterations, evaluations : int
+        Levenberg-Marquardt iterations and simulations.
+    elapsed_s : float
+        Wall time of the fit in seconds.
+    warnings : list of str
+        Parameters at a bound, missing covariance.
+    alpha_eta : list of (float, float, float)
+        ``(order, alpha, eta)`` of each non-integer order (Poinot-Trigeassou).
+    start : dict
+        The values the fit started from.
+    residual_test : ResidualTest
+        Residual whiteness and independence from the input (estimation part).
+    """
+
+    model: FracTf
+    params: List[ParamEstimate]
+    estimation: FitMetrics
+    validation: Optional[FitMetrics]
+    yhat: np.ndarray = field(repr=False)
+    split: int
+    offsets: Dict[str, float]
+    converged: bool
+    termination: str
+    stop_reason: str
+    iterations: int
+    evaluations: int
+    elapsed_s: float
+    warnings: List[str]
+    alpha_eta: List[Tuple[float, float, float]]
+    start: Dict[str, float]
+    residual_test: ResidualTest
+
+    def param(self, name: str) -> ParamEstimate:
+        """The parameter called ``name``.
+
+        Raises
+        ------
+        KeyError
+            If there is none.
+        """
+        for p in self.params:
+            if p.name == name:
+                return p
+        raise KeyError(f"no parameter {name!r}; have {[p.name for p in self.params]}")
+
+    @property
+    def values(self) -> Dict[str, float]:
+        """Parameter values by name."""
+        return {p.name: p.value for p in self.params}
+
+    @classmethod
+    def _from_raw(cls, d: Dict[str, Any]) -> "TimeFit":
+        d = dict(d)
+        d["params"] = [ParamEstimate(**p) for p in d["params"]]
+        d["estimation"] = FitMetrics(**d["estimation"])
+        d["validation"] = None if d["validation"] is None else FitMetrics(**d["validation"])
+        d["residual_test"] = ResidualTest(**d["residual_test"])
+        d["alpha_eta"] = [tuple(x) for x in d["alpha_eta"]]
+        return cls(**d)

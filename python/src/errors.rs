@@ -1,0 +1,67 @@
+//! Rust errors to the Python exception hierarchy defined in `fracid/_errors.py`:
+//! `FracidError` (base), `ParseError`, `DataError` (both also `ValueError`), `NumericalError`
+//! (also `ArithmeticError`). The message of the Rust error is kept as it is.
+
+use pyo3::exceptions::PyRuntimeError;
+use pyo3::prelude::*;
+use pyo3::types::PyType;
+
+/// Which exception class of the hierarchy.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Kind {
+    /// A model expression that does not parse.
+    Parse,
+    /// Unusable data or arguments.
+    Data,
+    /// A numerical breakdown.
+    Numerical,
+}
+
+impl Kind {
+    fn class_name(self) -> &'static str {
+        match self {
+            Self::Parse => "ParseError",
+            Self::Data => "DataError",
+            Self::Numerical => "NumericalError",
+        }
+    }
+}
+
+fn class<'py>(py: Python<'py>, kind: Kind) -> PyResult<Bound<'py, PyType>> {
+    let m = py.import("fracid._errors")?;
+    Ok(m.getattr(kind.class_name())?.downcast_into::<PyType>()?)
+}
+
+/// A Python exception of `kind` with `msg`.
+pub(crate) fn error(kind: Kind, msg: impl Into<String>) -> PyErr {
+    let msg = msg.into();
+    Python::with_gil(|py| match class(py, kind) {
+        Ok(t) => PyErr::from_type(t, msg),
+        // The package is broken (the errors module is missing): still say what went wrong.
+        Err(_) => PyRuntimeError::new_err(format!("{}: {msg}", kind.class_name())),
+    })
+}
+
+/// A `DataError` with `msg`.
+pub(crate) fn data(msg: impl Into<String>) -> PyErr {
+    error(Kind::Data, msg)
+}
+
+/// Map a simulation-layer error.
+pub(crate) fn sim(e: fracsim::Error) -> PyErr {
+    let kind = match &e {
+        fracsim::Error::Parse { .. } => Kind::Parse,
+        fracsim::Error::Numerical(_) => Kind::Numerical,
+        _ => Kind::Data,
+    };
+    error(kind, e.to_string())
+}
+
+/// Map an identification-layer error.
+pub(crate) fn ident(e: ident::Error) -> PyErr {
+    match e {
+        ident::Error::Sim(s) => sim(s),
+        ident::Error::Numerical(_) => error(Kind::Numerical, e.to_string()),
+        _ => error(Kind::Data, e.to_string()),
+    }
+}

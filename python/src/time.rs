@@ -1,0 +1,187 @@
+//! The time-domain output-error fit (Levenberg-Marquardt with exact sensitivities):
+//! `fracid._fracid._fit_time`, wrapped by `fracid.fit_time` in Python.
+
+use crate::arrays::{floats, positive, same_len, FloatArray};
+use crate::errors;
+use crate::tf::{approx_spec, PyFracTf};
+use ident::data::{OffsetMode, Record};
+use ident::metrics::{residual_test, Fit};
+use ident::oe::{identify, FracModel, IdentOptions, StartMode};
+use numpy::IntoPyArray;
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyString};
+use std::collections::HashMap;
+
+fn fit_dict<'py>(py: Python<'py>, f: &Fit) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("rmse", f.rmse)?;
+    d.set_item("nrmse_percent", f.nrmse_percent)?;
+    Ok(d)
+}
+
+/// The model to fit: a named structure or a `FracTf` whose coefficients and orders are all fitted.
+fn structure_of(s: &Bound<'_, PyAny>, duration: f64) -> PyResult<(FracModel, bool)> {
+    if let Ok(tf) = s.downcast::<PyFracTf>() {
+        return Ok((FracModel::from_tf(&tf.get().inner, true, true), true));
+    }
+    if let Ok(name) = s.downcast::<PyString>() {
+        let name = name.to_cow()?;
+        return match name.to_ascii_lowercase().as_str() {
+            "pmsm" => Ok((FracModel::pmsm(1.0, 0.01, 1e-4, 0.9, 0.9), false)),
+            "commensurate" => Ok((FracModel::commensurate(1.0, 0.01, 1e-4, 0.9), false)),
+            "fopdt" => Ok((
+                FracModel::fopdt(1.0, 0.1 * duration, 0.01 * duration, 0.2 * duration),
+                false,
+            )),
+            _ => Err(errors::data(format!(
+                "structure '{name}': expected 'pmsm', 'commensurate', 'fopdt' or a FracTf"
+            ))),
+        };
+    }
+    Err(errors::data(
+        "structure must be 'pmsm', 'commensurate', 'fopdt' or a FracTf",
+    ))
+}
+
+/// Output-error identification on sampled `u`, `y`; returns a dict the Python layer turns into
+/// `TimeFit`.
+#[pyfunction]
+#[pyo3(signature = (u, y, dt, structure, start = None, holdout = 0.3, offsets = "initial", fit_offset = true, max_iterations = 100, skip = 0, method = "oustaloup", band = None, order = 8, discretization = "bilinear", max_lag = 25))]
+pub(crate) fn _fit_time<'py>(
+    py: Python<'py>,
+    u: FloatArray<'py>,
+    y: FloatArray<'py>,
+    dt: f64,
+    structure: Bound<'py, PyAny>,
+    start: Option<HashMap<String, f64>>,
+    holdout: f64,
+    offsets: &str,
+    fit_offset: bool,
+    max_iterations: usize,
+    skip: usize,
+    method: &str,
+    band: Option<(f64, f64)>,
+    order: usize,
+    discretization: &str,
+    max_lag: usize,
+) -> PyResult<Bound<'py, PyDict>> {
+    let u = floats("u", &u, 2)?;
+    let y = floats("y", &y, 2)?;
+    same_len(("u", u.len()), ("y", y.len()))?;
+    let dt = positive("dt", dt)?;
+    if !(0.0..1.0).contains(&holdout) {
+        return Err(errors::data(format!("holdout = {holdout} must be in [0, 1)")));
+    }
+    if max_iterations == 0 {
+        return Err(errors::data("max_iterations must be at least 1"));
+    }
+    if skip >= u.len() {
+        return Err(errors::data(format!(
+            "skip = {skip} leaves no sample of {}",
+            u.len()
+        )));
+    }
+    let offsets = match offsets.to_ascii_lowercase().as_str() {
+        "initial" => OffsetMode::Initial,
+        "mean" => OffsetMode::Mean,
+        "none" => OffsetMode::None,
+        _ => {
+            return Err(errors::data(format!(
+                "offsets '{offsets}': expected 'initial', 'mean' or 'none'"
+            )))
+        }
+    };
+    let (mut model, general) = structure_of(&structure, dt * u.len() as f64)?;
+    model.approx = approx_spec(method, band, order, discretization)?;
+    let mode = if general || start.is_some() {
+        StartMode::Given
+    } else {
+        StartMode::Auto
+    };
+    if let Some(start) = &start {
+        for (name, v) in start {
+            let Some(i) = model.index_of(name) else {
+                let names: Vec<&str> = model.params.iter().map(|p| p.name.as_str()).collect();
+                return Err(errors::data(format!(
+                    "start: no parameter '{name}' (the model has {})",
+                    names.join(", ")
+                )));
+            };
+            if !v.is_finite() {
+                return Err(errors::data(format!("start: {name} = {v} must be finite")));
+            }
+            model.params[i].value = *v;
+        }
+        ident::oe::check_params(&model.params).map_err(errors::ident)?;
+    }
+    let mut opts = IdentOptions {
+        offsets,
+        holdout,
+        fit_offset,
+        start: mode,
+        ..IdentOptions::default()
+    };
+    opts.fit.lm.max_iterations = max_iterations;
+    opts.fit.skip = skip;
+    let rec = Record::from_samples(&u, &y, dt).map_err(errors::ident)?;
+    let (id, rt) = py
+        .allow_threads(|| {
+            let id = identify(&rec, &model, &opts)?;
+            let split = id.split;
+            let e: Vec<f64> = rec.y[..split]
+                .iter()
+                .zip(&id.yhat[..split])
+                .map(|(a, b)| a - b)
+                .collect();
+            let ud: Vec<f64> = rec.u[..split].iter().map(|v| v - id.offsets.u0).collect();
+            let rt = residual_test(&e, &ud, max_lag.min(split.saturating_sub(1)));
+            Ok::<_, ident::Error>((id, rt))
+        })
+        .map_err(errors::ident)?;
+
+    let d = PyDict::new(py);
+    d.set_item("model", PyFracTf::from(id.tf.clone()))?;
+    let params = pyo3::types::PyList::empty(py);
+    for p in &id.report.params {
+        let e = PyDict::new(py);
+        e.set_item("name", &p.name)?;
+        e.set_item("value", p.value)?;
+        e.set_item("std_error", p.std_error)?;
+        e.set_item("free", p.free)?;
+        e.set_item("at_bound", p.at_bound)?;
+        params.append(e)?;
+    }
+    d.set_item("params", params)?;
+    d.set_item("estimation", fit_dict(py, &id.estimation)?)?;
+    match &id.validation {
+        Some(v) => d.set_item("validation", fit_dict(py, v)?)?,
+        None => d.set_item("validation", py.None())?,
+    }
+    d.set_item("yhat", id.yhat.clone().into_pyarray(py))?;
+    d.set_item("split", id.split)?;
+    let off = PyDict::new(py);
+    off.set_item("u0", id.offsets.u0)?;
+    off.set_item("y0", id.offsets.y0)?;
+    d.set_item("offsets", off)?;
+    d.set_item("converged", id.report.converged)?;
+    d.set_item("termination", format!("{:?}", id.report.termination))?;
+    d.set_item("stop_reason", id.report.stop_reason())?;
+    d.set_item("iterations", id.report.iterations)?;
+    d.set_item("evaluations", id.report.evaluations)?;
+    d.set_item("elapsed_s", id.report.elapsed.as_secs_f64())?;
+    d.set_item("warnings", id.report.warnings.clone())?;
+    d.set_item("alpha_eta", id.alpha_eta.clone())?;
+    let st = PyDict::new(py);
+    for (p, v) in id.model.params.iter().zip(&id.start) {
+        st.set_item(&p.name, v)?;
+    }
+    d.set_item("start", st)?;
+    let r = PyDict::new(py);
+    r.set_item("bound", rt.bound)?;
+    r.set_item("auto_outside", rt.auto_outside)?;
+    r.set_item("cross_outside", rt.cross_outside)?;
+    r.set_item("cross_peak_lag", rt.cross_peak_lag)?;
+    r.set_item("cross_peak", rt.cross_peak)?;
+    d.set_item("residual_test", r)?;
+    Ok(d)
+}
