@@ -1,0 +1,316 @@
+//! `fracid time FILE`: time-domain identification by output error (DESIGN §5, `ident::oe`).
+
+use crate::plot::{self, Figure};
+use anyhow::{Context, Result};
+use ident::data::{Columns, OffsetMode, Record};
+use ident::metrics;
+use ident::oe::{identify_with_progress, FracModel, IdentOptions, Identification, StartMode};
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use std::io::IsTerminal;
+use std::path::PathBuf;
+
+/// Options of `fracid time`.
+#[derive(Debug, clap::Args)]
+pub struct TimeArgs {
+    /// CSV file with columns t, u, y (`,` `;` or tab; `#` comments).
+    pub file: PathBuf,
+    /// Time column (name or 0-based index).
+    #[arg(long, default_value = "t")]
+    pub t_col: String,
+    /// Input column.
+    #[arg(long, default_value = "u")]
+    pub u_col: String,
+    /// Output column.
+    #[arg(long, default_value = "y")]
+    pub y_col: String,
+    /// Model structure: pmsm (K/(a2 s^(zeta+theta) + a1 s^zeta + 1)), commensurate, fopdt, or a
+    /// transfer function such as "6.8/(3e-5 s^1.75 + 0.006 s^0.9 + 1)" used as the start.
+    #[arg(long, default_value = "pmsm")]
+    pub structure: String,
+    /// Approximation: oustaloup, refined, trigeassou.
+    #[arg(long, default_value = "oustaloup")]
+    pub approx: String,
+    /// Approximation band "w_b,w_h" in rad/s (default [2 pi/(10 T), 2 pi/dt]).
+    #[arg(long)]
+    pub band: Option<String>,
+    /// Approximation order N.
+    #[arg(long, default_value_t = 6)]
+    pub order: usize,
+    /// Fit an input delay (seconds, up to --max-delay).
+    #[arg(long)]
+    pub delay: bool,
+    /// Largest input delay (seconds) for --delay and fopdt.
+    #[arg(long, default_value_t = 1.0)]
+    pub max_delay: f64,
+    /// Fraction of the record held out for validation (at the end).
+    #[arg(long, default_value_t = 0.3)]
+    pub holdout: f64,
+    /// Operating point removal: initial (u[0], median y before the first input change), mean, none.
+    #[arg(long, default_value = "initial")]
+    pub offsets: String,
+    /// Do not fit a constant output offset.
+    #[arg(long)]
+    pub no_offset: bool,
+    /// Maximum Levenberg-Marquardt iterations.
+    #[arg(long, default_value_t = 100)]
+    pub max_iter: usize,
+    /// Start from the given structure's values instead of the automatic start.
+    #[arg(long)]
+    pub no_auto_start: bool,
+    /// Print JSON (DESIGN §7) instead of text.
+    #[arg(long)]
+    pub json: bool,
+    /// Write a plot (.png or .svg).
+    #[arg(long)]
+    pub plot: Option<PathBuf>,
+    /// No progress bar.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+fn model_of(a: &TimeArgs) -> Result<FracModel> {
+    let mut m = match a.structure.to_ascii_lowercase().as_str() {
+        "pmsm" => FracModel::pmsm(1.0, 0.01, 1e-4, 0.9, 0.9),
+        "commensurate" => FracModel::commensurate(1.0, 0.01, 1e-4, 0.9),
+        "fopdt" => FracModel::fopdt(1.0, 0.1, 0.01, a.max_delay),
+        s => {
+            let tf: fracsim::FracTf = s
+                .parse()
+                .with_context(|| format!("--structure '{s}' is not pmsm, commensurate, fopdt or a model"))?;
+            FracModel::from_tf(&tf, true, true)
+        }
+    };
+    m.approx.method = a.approx.parse()?;
+    m.approx.order = a.order;
+    if let Some(b) = &a.band {
+        let v: Vec<f64> = b.split(',').filter_map(|x| x.trim().parse().ok()).collect();
+        if v.len() != 2 {
+            crate::bad_input!("--band must be \"w_b,w_h\" in rad/s, got '{b}'");
+        }
+        fracsim::approx::check_band(v[0], v[1])?;
+        m.approx.band = Some((v[0], v[1]));
+    }
+    if a.delay && m.delay.is_none() {
+        if !(a.max_delay > 0.0) {
+            crate::bad_input!("--max-delay must be positive");
+        }
+        m.with_delay(0.05 * a.max_delay, a.max_delay);
+    }
+    Ok(m)
+}
+
+/// Run `fracid time`.
+///
+/// # Errors
+/// Unreadable file (exit 3), bad data or options (exit 2), numerical breakdown (exit 1).
+pub fn run(a: TimeArgs) -> Result<()> {
+    if let Some(p) = &a.plot {
+        plot::format_of(p)?;
+    }
+    let text = std::fs::read_to_string(&a.file)
+        .with_context(|| format!("cannot read {}", a.file.display()))?;
+    let cols = Columns {
+        t: a.t_col.clone(),
+        u: a.u_col.clone(),
+        y: a.y_col.clone(),
+    };
+    let rec = Record::parse(&text, &cols).with_context(|| format!("in {}", a.file.display()))?;
+    let model = model_of(&a)?;
+    let offsets = match a.offsets.as_str() {
+        "initial" => OffsetMode::Initial,
+        "mean" => OffsetMode::Mean,
+        "none" => OffsetMode::None,
+        o => crate::bad_input!("--offsets must be initial, mean or none, got '{o}'"),
+    };
+    let mut opts = IdentOptions {
+        offsets,
+        holdout: a.holdout,
+        fit_offset: !a.no_offset,
+        start: if a.no_auto_start {
+            StartMode::Given
+        } else {
+            StartMode::Auto
+        },
+        ..Default::default()
+    };
+    opts.fit.lm.max_iterations = a.max_iter;
+    let bar = if a.quiet || !std::io::stderr().is_terminal() {
+        indicatif::ProgressBar::hidden()
+    } else {
+        let b = indicatif::ProgressBar::new_spinner();
+        b.set_draw_target(indicatif::ProgressDrawTarget::stderr());
+        b
+    };
+    let id = identify_with_progress(&rec, &model, &opts, &mut |k, rmse| {
+        bar.set_message(format!("simulation {k}, rmse {rmse:.4e}"));
+        bar.tick();
+    })?;
+    bar.finish_and_clear();
+    for w in &id.report.warnings {
+        eprintln!("warning: {w}");
+    }
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&json_of(&id, &rec))?);
+    } else {
+        print_text(&id, &rec);
+    }
+    if let Some(p) = &a.plot {
+        plot::save(p, (1400, 1000), &TimeFigure { id: &id, rec: &rec })?;
+    }
+    Ok(())
+}
+
+fn json_of(id: &Identification, rec: &Record) -> serde_json::Value {
+    let terms = |t: &[fracsim::Term]| -> Vec<serde_json::Value> {
+        t.iter()
+            .map(|t| serde_json::json!({"coef": t.coef, "order": t.order}))
+            .collect()
+    };
+    let fit = |f: Option<metrics::Fit>| f.map(|f| serde_json::json!({"rmse": f.rmse, "nrmse_percent": f.nrmse_percent}));
+    serde_json::json!({
+        "model": {"num": terms(&id.tf.num), "den": terms(&id.tf.den), "delay": id.tf.delay},
+        "fit": {"estimation": fit(Some(id.estimation)), "validation": fit(id.validation)},
+        "params": id.report.params,
+        "alpha_eta": id.alpha_eta.iter().map(|(o, a, e)| serde_json::json!({"order": o, "alpha": a, "eta": e})).collect::<Vec<_>>(),
+        "offsets": id.offsets,
+        "split": {"estimation_samples": id.split, "validation_samples": rec.len() - id.split},
+        "iterations": id.report.iterations,
+        "converged": id.report.converged,
+        "termination": id.report.termination,
+        "stop_reason": id.report.stop_reason(),
+        "seconds": id.report.elapsed.as_secs_f64(),
+        "warnings": id.report.warnings,
+    })
+}
+
+fn print_text(id: &Identification, rec: &Record) {
+    println!("model: {}", id.tf);
+    println!(
+        "operating point: u0 = {:.6}, y0 = {:.6}; {} estimation + {} validation samples, dt = {} s",
+        id.offsets.u0,
+        id.offsets.y0,
+        id.split,
+        rec.len() - id.split,
+        rec.dt
+    );
+    println!("parameters (+- standard error):");
+    for p in &id.report.params {
+        let se = p.std_error.map_or("-".to_string(), |s| format!("{s:.3e}"));
+        let tag = if !p.free { " (fixed)" } else if p.at_bound { " (AT BOUND)" } else { "" };
+        println!("  {:<10} {:>14.6e} +- {se}{tag}", p.name, p.value);
+    }
+    for (o, al, et) in &id.alpha_eta {
+        println!("  order {o:.4}: Poinot-Trigeassou alpha = {al:.5}, eta = {et:.5}");
+    }
+    println!(
+        "fit estimation: NRMSE {:.2}%, RMSE {:.5}",
+        id.estimation.nrmse_percent, id.estimation.rmse
+    );
+    if let Some(v) = id.validation {
+        println!("fit validation: NRMSE {:.2}%, RMSE {:.5}", v.nrmse_percent, v.rmse);
+    }
+    println!(
+        "{} iterations, {} simulations, {:.3} s; stopped: {}{}",
+        id.report.iterations,
+        id.report.evaluations,
+        id.report.elapsed.as_secs_f64(),
+        id.report.stop_reason(),
+        if id.report.converged { "" } else { " (NOT converged)" }
+    );
+}
+
+struct TimeFigure<'a> {
+    id: &'a Identification,
+    rec: &'a Record,
+}
+
+impl Figure for TimeFigure<'_> {
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<()>
+    where
+        DB::ErrorType: 'static,
+    {
+        let e = |e: DrawingAreaErrorKind<DB::ErrorType>| anyhow::anyhow!("drawing failed: {e}");
+        let (rec, id) = (self.rec, self.id);
+        let areas = root.split_evenly((2, 2));
+        let font = ("sans-serif", 18);
+        let t_split = rec.t[id.split.min(rec.len() - 1)];
+        let (t0, t1) = (rec.t[0], rec.t[rec.len() - 1]);
+        // 1: measured vs model
+        let (lo, hi) = plot::range_of(rec.y.iter().chain(&id.yhat));
+        let mut c = ChartBuilder::on(&areas[0])
+            .caption("measured and model output", font)
+            .margin(10)
+            .x_label_area_size(35)
+            .y_label_area_size(60)
+            .build_cartesian_2d(t0..t1, lo..hi)
+            .map_err(e)?;
+        c.configure_mesh().x_desc("t [s]").draw().map_err(e)?;
+        c.draw_series(LineSeries::new(rec.t.iter().copied().zip(rec.y.iter().copied()), &BLACK))
+            .map_err(e)?
+            .label("measured")
+            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK));
+        c.draw_series(LineSeries::new(rec.t.iter().copied().zip(id.yhat.iter().copied()), &RED))
+            .map_err(e)?
+            .label("model")
+            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED));
+        c.draw_series(std::iter::once(PathElement::new(vec![(t_split, lo), (t_split, hi)], BLUE)))
+            .map_err(e)?
+            .label("validation starts")
+            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE));
+        c.configure_series_labels().background_style(WHITE.mix(0.8)).border_style(BLACK).draw().map_err(e)?;
+        // 2: residual
+        let res: Vec<f64> = rec.y.iter().zip(&id.yhat).map(|(a, b)| a - b).collect();
+        let (lo, hi) = plot::range_of(&res);
+        let mut c = ChartBuilder::on(&areas[1])
+            .caption("residual y - yhat", font)
+            .margin(10)
+            .x_label_area_size(35)
+            .y_label_area_size(60)
+            .build_cartesian_2d(t0..t1, lo..hi)
+            .map_err(e)?;
+        c.configure_mesh().x_desc("t [s]").draw().map_err(e)?;
+        c.draw_series(LineSeries::new(rec.t.iter().copied().zip(res.iter().copied()), &BLACK))
+            .map_err(e)?;
+        // 3 and 4: correlations on the validation part (estimation if none)
+        let (a, b) = if id.split < rec.len() { (id.split, rec.len()) } else { (0, id.split) };
+        let e_part = &res[a..b];
+        let u_part = &rec.u[a..b];
+        let lags = 25usize.min(e_part.len().saturating_sub(1)).max(1);
+        let bound = metrics::bound99(e_part.len());
+        let ra = metrics::autocorr(e_part, lags);
+        let rc = metrics::crosscorr(e_part, u_part, lags);
+        let part = if a > 0 { "validation" } else { "estimation" };
+        for (k, (title, vals, first)) in [
+            (format!("residual autocorrelation ({part}), 99% bounds"), ra, 0i32),
+            (format!("residual-input cross-correlation ({part}), 99% bounds"), rc, -(lags as i32)),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let ymax = vals.iter().fold(bound * 1.5, |m, v| m.max(v.abs())).min(1.05);
+            let last = first + vals.len() as i32 - 1;
+            let mut c = ChartBuilder::on(&areas[2 + k])
+                .caption(title, font)
+                .margin(10)
+                .x_label_area_size(35)
+                .y_label_area_size(60)
+                .build_cartesian_2d((first - 1)..(last + 1), -ymax..ymax)
+                .map_err(e)?;
+            c.configure_mesh().x_desc("lag [samples]").draw().map_err(e)?;
+            c.draw_series(vals.iter().enumerate().map(|(i, v)| {
+                let x = first + i as i32;
+                PathElement::new(vec![(x, 0.0), (x, *v)], BLACK.stroke_width(2))
+            }))
+            .map_err(e)?;
+            for s in [bound, -bound] {
+                c.draw_series(std::iter::once(PathElement::new(
+                    vec![(first - 1, s), (last + 1, s)],
+                    RED,
+                )))
+                .map_err(e)?;
+            }
+        }
+        Ok(())
+    }
+}
