@@ -26,6 +26,8 @@ enum Commands {
     Drive(cmd::drive::DriveArgs),
     /// Identify a fractional model from Bode data (weighted Levy, order search, refit).
     Freq(cmd::freq::FreqArgs),
+    /// Identify a fractional model from a time record by output error (Levenberg-Marquardt).
+    Time(cmd::time::TimeArgs),
 }
 
 /// Exit codes: 0 success, 1 runtime failure (numerical breakdown, fit failure, drive fault),
@@ -63,6 +65,7 @@ fn main() -> ExitCode {
         // -- more dispatch arms are added below, one line each --
         Commands::Drive(a) => cmd::drive::run(a),
         Commands::Freq(a) => cmd::freq::run(a),
+        Commands::Time(a) => cmd::time::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -3,6 +3,7 @@
 pub mod drive;
 pub mod freq;
 pub mod sim;
+pub mod time;
 
 /// Bad user input found by the CLI itself (as opposed to the library crates): exit code 2.
 #[derive(Debug, thiserror::Error)]
