@@ -281,7 +281,7 @@ pub fn commensurate_fit(frf: &Frf, two_poles: bool) -> Result<LevyFit> {
     let mut best: Option<LevyFit> = None;
     let consider = |q: f64, best: &mut Option<LevyFit>| {
         if let Some(f) = levy_at(frf, q, two_poles, 2) {
-            if ok(&f) && best.map_or(true, |b| f.j < b.j) {
+            if ok(&f) && best.is_none_or(|b| f.j < b.j) {
                 *best = Some(f);
             }
         }
@@ -392,7 +392,7 @@ trait BetterThan {
 
 impl BetterThan for Option<(f64, f64, f64, f64)> {
     fn is_none_or_better(&self, sse: f64) -> bool {
-        self.map_or(true, |b| sse < b.0)
+        self.is_none_or(|b| sse < b.0)
     }
 }
 
