@@ -216,6 +216,8 @@ struct Ctx<'a> {
     dt: f64,
     u0: f64,
     y0: f64,
+    /// The base fit's starting values.
+    start: Vec<f64>,
     opts: &'a DiagnoseOptions,
 }
 
@@ -256,7 +258,16 @@ impl Ctx<'_> {
 
     /// Refit `model` (its values are the start) on the estimation part.
     fn refit(&self, mut model: FracModel) -> Result<State> {
-        for p in &mut model.params {
+        for (i, p) in model.params.iter_mut().enumerate() {
+            // A parameter the base fit drove to a bound (the missing effect distorted it) restarts
+            // from the base fit's own start, or mid-range.
+            if p.free && p.bounds.at_edge(p.value) {
+                p.value = match (self.start.get(i), p.bounds) {
+                    (Some(&v), b) if !b.at_edge(v) => v,
+                    (_, Bounds::Interval(lo, hi)) => 0.5 * (lo + hi),
+                    _ => p.value,
+                };
+            }
             p.value = p.bounds.clamp_inside(p.value);
         }
         let s = self.split;
@@ -631,14 +642,8 @@ fn candidates(
             // A second start with the gain flipped away from zero (a linear fit of rectified data
             // tends to a small gain): rescale the numerator so the rectified output matches.
             let mut starts = vec![m.clone()];
-            if let Some(k) = m.index_of("K") {
-                let mean_abs_y = ctx.y[..s].iter().map(|v| v.abs()).sum::<f64>() / s as f64;
-                let mean_abs_m = st.yhat[..s].iter().map(|v| v.abs()).sum::<f64>() / s as f64;
-                if mean_abs_m > 0.0 && mean_abs_y > 2.0 * mean_abs_m {
-                    let mut m2 = m.clone();
-                    m2.params[k].value *= mean_abs_y / mean_abs_m;
-                    starts.push(m2);
-                }
+            if !model_reverses {
+                starts.extend(abs_starts(ctx, &m));
             }
             out.push(Candidate {
                 name: "abs_sensor",
@@ -761,6 +766,50 @@ fn candidates(
     Ok(out)
 }
 
+/// Starts for the `abs_sensor` refit when the base model could not follow the rectified data
+/// (a linear fit of `|y|` tends to a zero gain): the sign is restored from a first-order low-pass
+/// of the input, `y_s = |y| sign(lp_T(u))`, for `T` on a log grid of 8 values from `2 dt` to a
+/// twentieth of the record, and the automatic start ([`crate::oe::init::auto_start`]) is made on
+/// `(u, y_s)`; the 2 starts whose rectified output is closest to the data are returned.
+fn abs_starts(ctx: &Ctx<'_>, m: &FracModel) -> Vec<FracModel> {
+    let s = ctx.split;
+    let dt = ctx.dt;
+    let ya = &ctx.rec.y[..s];
+    let tmax = (s as f64 * dt / 20.0).max(4.0 * dt);
+    let mut scored: Vec<(f64, FracModel)> = vec![];
+    for i in 0..8 {
+        let t = 2.0 * dt * (tmax / (2.0 * dt)).powf(i as f64 / 7.0);
+        let a = (-dt / t).exp();
+        let mut lp = 0.0;
+        let ys: Vec<f64> = (0..s)
+            .map(|k| {
+                lp = a * lp + (1.0 - a) * ctx.u[k];
+                let v = ya[k].abs() * if lp < 0.0 { -1.0 } else { 1.0 };
+                v - ctx.y0
+            })
+            .collect();
+        let mut c = m.clone();
+        if crate::oe::init::auto_start(&mut c, &ctx.u[..s], &ys, dt).is_err() {
+            continue;
+        }
+        if let Some(i) = c.index_of("y_offset") {
+            c.params[i].value = 0.0;
+        }
+        for p in &mut c.params {
+            p.value = p.bounds.clamp_inside(p.value);
+        }
+        let mut y = vec![0.0; s];
+        if c.simulate(&c.values(), &ctx.u[..s], dt, &mut y).is_ok() {
+            let ssr: f64 = (0..s).map(|k| (ctx.y[k] - y[k]).powi(2)).sum();
+            if ssr.is_finite() {
+                scored.push((ssr, c));
+            }
+        }
+    }
+    scored.sort_by(|a, b| a.0.total_cmp(&b.0));
+    scored.into_iter().take(2).map(|(_, c)| c).collect()
+}
+
 fn remaining_structure(an: &ResidualAnalysis, q: Option<Quantization>) -> Vec<String> {
     let mut out = vec![];
     let at_floor = q.is_some_and(|q| an.rms <= 1.5 * q.noise_floor_rms);
@@ -819,6 +868,7 @@ pub fn diagnose(rec: &Record, id: &Identification, opts: &DiagnoseOptions) -> Re
         dt: rec.dt,
         u0,
         y0,
+        start: id.start.clone(),
         opts,
     };
     let base = ctx.state(id.model.clone(), id.report.values.clone())?;
@@ -872,12 +922,20 @@ pub fn diagnose(rec: &Record, id: &Identification, opts: &DiagnoseOptions) -> Re
             let params = params_of(&ns.model, &ns.values, c.name);
             let change = ctx.score(&ns) / ctx.score(&st) - 1.0;
             let dbic = ctx.bic(&ns) - ctx.bic(&st);
+            // Parameters at a bound the current model already had there do not count against
+            // the effect (the data push them out of this structure either way).
             let at_bound: Vec<String> = ns
                 .model
                 .params
                 .iter()
                 .zip(&ns.values)
-                .filter(|(p, v)| p.free && p.bounds.at_edge(**v))
+                .enumerate()
+                .filter(|(i, (p, v))| {
+                    p.free
+                        && p.bounds.at_edge(**v)
+                        && st.values.get(*i).map_or(true, |w| !p.bounds.at_edge(*w))
+                })
+                .map(|(_, pv)| pv)
                 .map(|(p, v)| format!("{} = {v:.3e}", p.name))
                 .collect();
             let part = if ns.val.is_some() {
