@@ -97,8 +97,13 @@ def load_bode(path: Union[str, "os.PathLike[str]"]) -> Tuple[np.ndarray, np.ndar
     DataError
         If a column is missing or a value is not a finite number.
     """
+    with open(os.fspath(path), encoding="utf-8") as f:
+        lines = [ln.split("#", 1)[0].strip() for ln in f]
+    lines = [ln for ln in lines if ln]
+    if len(lines) < 2:
+        raise DataError(f"{os.fspath(path)}: no header and data rows")
     try:
-        data = np.genfromtxt(os.fspath(path), delimiter=",", names=True, comments="#")
+        data = np.genfromtxt(lines, delimiter=",", names=True)
     except ValueError as e:  # ragged rows
         raise DataError(f"{os.fspath(path)}: {e}") from None
     names = data.dtype.names or ()

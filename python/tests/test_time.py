@@ -1,0 +1,74 @@
+"""Time-domain round trips: simulate a known model with fracid, add seeded noise, fit, compare."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+import fracid
+
+DT = 1e-4  # the model's corners (~150 and 650 rad/s) far below the sampling frequency
+
+
+def record(model: fracid.FracTf, noise: float, seed: int):
+    """4 periods of the paper's PRBS (order 7, 3 ms clock); noise as a fraction of std(y)."""
+    u = fracid.prbs(dt=DT, order=7, clock=0.003, periods=4)
+    y = model.simulate(u, DT)
+    rng = np.random.default_rng(seed)
+    return u, y + noise * y.std() * rng.standard_normal(y.size)
+
+
+def test_commensurate_round_trip():
+    truth = fracid.FracTf.parse("6.77/(0.000028 s^1.78 + 0.0064 s^0.89 + 1)")
+    u, y = record(truth, 0.01, seed=7)
+    fit = fracid.fit_time(u, y, DT, "commensurate", offsets="none", fit_offset=False)
+    v = fit.values
+    assert v["K"] == pytest.approx(6.77, rel=0.01)
+    assert v["a1"] == pytest.approx(0.0064, rel=0.05)
+    assert v["a2"] == pytest.approx(2.8e-5, rel=0.10)
+    assert v["q"] == pytest.approx(0.89, abs=0.015)
+    assert fit.converged
+    assert fit.validation is not None and fit.validation.nrmse_percent > 98.0
+    assert fit.estimation.nrmse_percent > 98.0
+    for p in fit.params:
+        assert p.free and p.std_error is not None and 0 < p.std_error < 0.05 * abs(p.value)
+    assert fit.model.den[0][1] == pytest.approx(2 * v["q"], rel=1e-12)
+    assert fit.yhat.shape == y.shape
+    assert fit.split == int(round(0.7 * y.size)) or abs(fit.split - 0.7 * y.size) <= 1
+
+
+def test_general_model_round_trip_and_to_dict():
+    truth = fracid.FracTf.parse("6.77/(0.0064 s^0.89 + 1)")
+    u, y = record(truth, 0.01, seed=11)
+    start = fracid.FracTf.parse("5/(0.01 s^0.7 + 1)")
+    fit = fracid.fit_time(u, y, DT, start, offsets="none", fit_offset=False)
+    g = fit.model
+    assert g.dc_gain() == pytest.approx(6.77, rel=0.01)
+    (coef, order), _ = g.den
+    assert coef == pytest.approx(0.0064, rel=0.05)
+    assert order == pytest.approx(0.89, abs=0.01)
+    d = fit.to_dict()
+    s = json.dumps(d)
+    assert '"nrmse_percent"' in s
+    assert d["model"]["num"][0]["order"] == 0.0
+    assert isinstance(d["yhat"], list) and len(d["yhat"]) == y.size
+    assert {p["name"] for p in d["params"]} >= {"b0", "a0", "a0_order"}
+
+
+def test_operating_point_and_offset():
+    truth = fracid.FracTf.parse("6.77/(0.000028 s^1.78 + 0.0064 s^0.89 + 1)")
+    # at rest at u = 2 (y = 2 K) for 50 ms, then the PRBS around it
+    prbs = fracid.prbs(dt=DT, periods=4)
+    u = np.concatenate([np.zeros(500), prbs]) + 2.0
+    y = truth.simulate(u - 2.0, DT) + 2.0 * 6.77
+    y += 0.01 * y.std() * np.random.default_rng(3).standard_normal(y.size)
+    fit = fracid.fit_time(u, y, DT, "commensurate")
+    assert fit.offsets["u0"] == 2.0
+    assert fit.offsets["y0"] == pytest.approx(2 * 6.77, abs=0.05)
+    assert fit.param("K").value == pytest.approx(6.77, rel=0.01)
+    assert fit.param("y_offset").value == pytest.approx(0.0, abs=0.05)
+    assert fit.validation.nrmse_percent > 98.0
+    with pytest.raises(KeyError):
+        fit.param("zeta")
