@@ -67,6 +67,10 @@ pub struct FreqArgs {
     /// Also evaluate J for this model (e.g. a published one); repeatable.
     #[arg(long, value_name = "MODEL")]
     pub compare: Vec<String>,
+    /// Diagnose the residual of the best model (delay, extra pole; DESIGN section 6) and refit
+    /// with what pays.
+    #[arg(long)]
+    pub diagnose: bool,
     /// Print JSON (DESIGN section 7) instead of the table.
     #[arg(long)]
     pub json: bool,
@@ -374,11 +378,31 @@ pub fn run(a: FreqArgs) -> Result<()> {
     let fit = fit_bode(&data.omega_rad_s, &data.h, &opts)
         .with_context(|| format!("identifying {}", a.file.display()))?;
 
+    let diagnosis = if a.diagnose {
+        Some(
+            ident::diagnose::freq::diagnose_bode(
+                &data.omega_rad_s,
+                &data.h,
+                fit.best_model(),
+                &ident::diagnose::freq::BodeDiagnoseOptions::default(),
+            )
+            .context("diagnosing the residual")?,
+        )
+    } else {
+        None
+    };
     if a.json {
-        let v = to_json(&fit, &compare, &data, &weight_label);
+        let mut v = to_json(&fit, &compare, &data, &weight_label);
+        if let Some(d) = &diagnosis {
+            v["diagnosis"] = serde_json::to_value(d)?;
+            v["diagnosis"]["model"] = model_json(&d.model);
+        }
         emit(&(serde_json::to_string_pretty(&v)? + "\n"))?;
     } else {
         emit(&table(&fit, &compare, &data, &weight_label, &opts))?;
+        if let Some(d) = &diagnosis {
+            emit(&diagnosis_text(d))?;
+        }
     }
     if let Some(path) = &a.plot {
         let fig = BodeFigure {
@@ -611,6 +635,14 @@ fn table(
         out.push('\n');
     }
     out.push('\n');
+    if let OrderChoice::Search { step, q_max, .. } = opts.order {
+        if fit.levy_grid.q + step > q_max {
+            let _ = writeln!(
+                out,
+                "note: the best grid q is at the end of the grid (q-max = {q_max}); try a larger --q-max\n"
+            );
+        }
+    }
     let _ = writeln!(out, "Levy:     {}", short_tf(&fit.levy.model, 5));
     if let Some(sk) = &fit.sk {
         let _ = writeln!(out, "SK:       {}", short_tf(&sk.model, 5));
@@ -630,6 +662,58 @@ fn table(
     }
     for (g, j) in compare {
         let _ = writeln!(out, "compare:  {}   J = {}", short_tf(g, 5), sci(*j, 4));
+    }
+    out
+}
+
+fn diagnosis_text(d: &ident::diagnose::freq::BodeDiagnosis) -> String {
+    use std::fmt::Write;
+    let mut out = String::from("\nresidual diagnosis of the best model (DESIGN section 6):\n");
+    let row = |e: &ident::diagnose::freq::BodeError| {
+        format!(
+            "J = {}, magnitude RMS {} dB, phase RMS {} deg",
+            sci(e.j, 4),
+            sig(e.mag_rms_db, 3),
+            sig(e.phase_rms_deg, 3)
+        )
+    };
+    let _ = writeln!(out, "  before:  {}", row(&d.before));
+    if let Some(r) = &d.refit_without_effect {
+        let _ = writeln!(out, "  refit without effect: {}", row(r));
+    }
+    let _ = writeln!(out, "  after:   {}", row(&d.after));
+    for e in &d.effects {
+        let params: Vec<String> = e
+            .params
+            .iter()
+            .map(|(k, v)| format!("{k} = {}", sig(*v, 4)))
+            .collect();
+        let _ = writeln!(
+            out,
+            "  kept {}: {} ({})",
+            e.name,
+            params.join(", "),
+            e.evidence
+        );
+    }
+    for r in &d.rejected {
+        let _ = writeln!(out, "  rejected {}: {}", r.name, r.reason);
+    }
+    if d.effects.is_empty() {
+        let _ = writeln!(out, "  no effect kept");
+    }
+    let _ = writeln!(
+        out,
+        "  unexplained structure: {}{}",
+        if d.unexplained { "yes" } else { "no" },
+        if d.remaining.is_empty() {
+            String::new()
+        } else {
+            format!(" ({})", d.remaining.join("; "))
+        }
+    );
+    if !d.effects.is_empty() {
+        let _ = writeln!(out, "  final model: {}", short_tf(&d.model, 5));
     }
     out
 }
@@ -849,6 +933,10 @@ impl Figure for BodeFigure<'_> {
         if finite.len() >= 2 {
             let jlo = finite.iter().map(|p| p.j).fold(f64::INFINITY, f64::min);
             let jhi = finite.iter().map(|p| p.j).fold(0.0, f64::max);
+            let jlo = match &self.fit.refined {
+                Some(r) if r.j > 0.0 => jlo.min(r.j),
+                _ => jlo,
+            };
             let (jlo, jhi) = (jlo / 2.0, (jhi * 2.0).max(jlo * 10.0));
             let qhi = finite.iter().map(|p| p.q).fold(0.0, f64::max);
             let mut chart = ChartBuilder::on(&right)

@@ -214,3 +214,23 @@ fn bad_input_exits_2_with_a_message() {
     let o = fracid(&["freq", "/nonexistent/bode.csv"]);
     assert_eq!(o.status.code(), Some(3));
 }
+
+#[test]
+fn diagnose_adds_the_diagnosis_keys() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = file_with(&dir, "t1.csv", TABLE1);
+    let o = fracid(&[
+        "freq",
+        data.to_str().unwrap(),
+        "--refine",
+        "--diagnose",
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    let d = &v["diagnosis"];
+    assert!(d["before"]["J"].as_f64().unwrap() <= 2.0e-3);
+    assert!(d["after"]["J"].is_number());
+    assert!(d["effects"].is_array() && d["unexplained"].is_boolean());
+    assert!(d["model"]["den"].is_array());
+}
