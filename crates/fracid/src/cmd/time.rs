@@ -67,6 +67,11 @@ pub struct TimeArgs {
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
+    /// Diagnose the residual, add the physical effects that pay on held-out data, report the
+    /// error before and after (DESIGN §6); with --plot also draws the residual before and after
+    /// to PLOT_diagnosis.EXT.
+    #[arg(long)]
+    pub diagnose: bool,
 }
 
 fn model_of(a: &TimeArgs) -> Result<FracModel> {
@@ -150,13 +155,32 @@ pub fn run(a: TimeArgs) -> Result<()> {
     for w in &id.report.warnings {
         eprintln!("warning: {w}");
     }
+    let diagnosis = if a.diagnose {
+        Some(super::diagnose::run_time(&rec, &id)?)
+    } else {
+        None
+    };
     if a.json {
-        println!("{}", serde_json::to_string_pretty(&json_of(&id, &rec))?);
+        let mut v = json_of(&id, &rec);
+        if let Some(d) = &diagnosis {
+            v["diagnosis"] = super::diagnose::json(d)?;
+        }
+        println!("{}", serde_json::to_string_pretty(&v)?);
     } else {
         print_text(&id, &rec);
+        if let Some(d) = &diagnosis {
+            print!("{}", super::diagnose::text(d));
+        }
     }
     if let Some(p) = &a.plot {
         plot::save(p, (1400, 1000), &TimeFigure { id: &id, rec: &rec })?;
+        if let Some(d) = &diagnosis {
+            let dp = super::diagnose::residual_plot_path(p);
+            super::diagnose::plot_time(&dp, &rec, d)?;
+            if !a.json {
+                println!("residual plot: {}", dp.display());
+            }
+        }
     }
     Ok(())
 }

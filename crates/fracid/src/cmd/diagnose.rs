@@ -1,0 +1,255 @@
+//! `--diagnose` for `fracid time` and `fracid freq`: the readable report, the DESIGN §7
+//! `diagnosis` JSON object, and the residual before/after plot. The subcommands call these.
+
+use crate::plot::{self, Figure};
+use anyhow::{Context, Result};
+use ident::data::Record;
+use ident::diagnose::freq::BodeDiagnosis;
+use ident::diagnose::{diagnose, DiagnoseOptions, Diagnosis};
+use ident::oe::Identification;
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use std::fmt::Write;
+use std::path::{Path, PathBuf};
+
+/// Run the time-domain diagnosis with the default options (see `ident::diagnose`).
+///
+/// # Errors
+/// A record that does not match the identification; a simulation error of the base model.
+pub fn run_time(rec: &Record, id: &Identification) -> Result<Diagnosis> {
+    diagnose(rec, id, &DiagnoseOptions::default()).context("diagnosing the residual")
+}
+
+/// The `diagnosis` JSON object (DESIGN §7) with the final model (`model`: num, den, delay and the
+/// effects' names).
+///
+/// # Errors
+/// Serialisation (not expected).
+pub fn json(d: &Diagnosis) -> Result<serde_json::Value> {
+    let mut v = serde_json::to_value(d)?;
+    let p: Vec<f64> = d.model.params.iter().map(|p| p.value).collect();
+    if let Ok(tf) = d.model.tf(&p) {
+        let terms = |t: &[fracsim::Term]| -> Vec<serde_json::Value> {
+            t.iter()
+                .map(|t| serde_json::json!({"coef": t.coef, "order": t.order}))
+                .collect()
+        };
+        v["model"] = serde_json::json!({
+            "num": terms(&tf.num), "den": terms(&tf.den), "delay": tf.delay, "text": tf.to_string(),
+            "effects": d.model.effects.iter().map(|e| e.name()).collect::<Vec<_>>(),
+        });
+    }
+    Ok(v)
+}
+
+fn fit_row(f: &ident::metrics::Fit) -> String {
+    format!("RMSE {:.4e}, fit {:.2}%", f.rmse, f.nrmse_percent)
+}
+
+/// The readable report of a time-domain diagnosis.
+pub fn text(d: &Diagnosis) -> String {
+    let mut o = String::from("\nresidual diagnosis (DESIGN section 6):\n");
+    let _ = writeln!(
+        o,
+        "  estimation: before {} -> after {}",
+        fit_row(&d.estimation.before),
+        fit_row(&d.estimation.after)
+    );
+    if let Some(v) = &d.validation {
+        let _ = writeln!(
+            o,
+            "  validation: before {} -> after {}",
+            fit_row(&v.before),
+            fit_row(&v.after)
+        );
+    }
+    let r = &d.residual_before;
+    let _ = writeln!(
+        o,
+        "  base residual: Ljung-Box Q = {:.1} ({} lags, p = {:.2e}), {} autocorrelation and {} \
+         cross-correlation lags outside +-{:.3}, {} spectral peak(s)",
+        r.ljung_box_q,
+        r.lags,
+        r.ljung_box_p,
+        r.auto_outside,
+        r.cross_outside,
+        r.bound,
+        r.peaks.len()
+    );
+    if let Some(q) = &d.quantization {
+        let _ = writeln!(
+            o,
+            "  quantization (not fitted): {} output levels, step {:.4e}: noise floor {:.4e} RMS",
+            q.levels, q.step, q.noise_floor_rms
+        );
+    }
+    if d.effects.is_empty() {
+        let _ = writeln!(o, "  no effect kept");
+    }
+    for e in &d.effects {
+        let p: Vec<String> = e.params.iter().map(|(k, v)| format!("{k} = {v:.4e}")).collect();
+        let _ = writeln!(o, "  kept {}: {}\n      evidence: {}", e.name, p.join(", "), e.evidence);
+    }
+    for a in &d.ambiguous {
+        let _ = writeln!(
+            o,
+            "  ambiguous {} (cannot be told from {}): {}",
+            a.name, a.confused_with, a.reason
+        );
+    }
+    for r in &d.rejected {
+        let _ = writeln!(o, "  rejected {}: {}", r.name, r.reason);
+    }
+    let _ = writeln!(
+        o,
+        "  unexplained structure: {}",
+        if d.unexplained { "yes" } else { "no" }
+    );
+    for r in &d.remaining {
+        let _ = writeln!(o, "    - {r}");
+    }
+    o
+}
+
+/// Where the residual plot goes: next to `plot`, with `_diagnosis` added to the stem.
+pub fn residual_plot_path(plot: &Path) -> PathBuf {
+    let stem = plot.file_stem().and_then(|s| s.to_str()).unwrap_or("plot");
+    let ext = plot.extension().and_then(|s| s.to_str()).unwrap_or("png");
+    plot.with_file_name(format!("{stem}_diagnosis.{ext}"))
+}
+
+struct TimeResidual<'a> {
+    rec: &'a Record,
+    d: &'a Diagnosis,
+}
+
+impl Figure for TimeResidual<'_> {
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<()>
+    where
+        DB::ErrorType: 'static,
+    {
+        let (rec, d) = (self.rec, self.d);
+        let before: Vec<f64> = rec.y.iter().zip(&d.yhat_before).map(|(a, b)| a - b).collect();
+        let after: Vec<f64> = rec.y.iter().zip(&d.yhat_after).map(|(a, b)| a - b).collect();
+        let (t0, t1) = (rec.t[0], rec.t[rec.len() - 1]);
+        let (lo, hi) = plot::range_of(before.iter().chain(&after));
+        let kept: Vec<&str> = d.effects.iter().map(|e| e.name.as_str()).collect();
+        let title = format!(
+            "residual y - yhat: before (RMSE {:.3e}) and after (RMSE {:.3e}){}",
+            d.before.rmse,
+            d.after.rmse,
+            if kept.is_empty() {
+                String::from(", no effect kept")
+            } else {
+                format!(" with {}", kept.join(", "))
+            }
+        );
+        let mut ch = ChartBuilder::on(root)
+            .caption(title, ("sans-serif", 22))
+            .margin(15)
+            .x_label_area_size(45)
+            .y_label_area_size(80)
+            .build_cartesian_2d(t0..t1, lo..hi)?;
+        ch.configure_mesh()
+            .x_desc("t [s]")
+            .y_desc("residual")
+            .label_style(("sans-serif", 15))
+            .draw()?;
+        let ts = rec.t[d.split.min(rec.len() - 1)];
+        ch.draw_series(std::iter::once(PathElement::new(
+            vec![(ts, lo), (ts, hi)],
+            BLACK.mix(0.5),
+        )))?
+        .label("validation starts")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK.mix(0.5)));
+        ch.draw_series(LineSeries::new(
+            rec.t.iter().copied().zip(before.iter().copied()),
+            RED.mix(0.6),
+        ))?
+        .label("before (base model)")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED));
+        ch.draw_series(LineSeries::new(
+            rec.t.iter().copied().zip(after.iter().copied()),
+            BLUE.mix(0.8),
+        ))?
+        .label("after (with the kept effects)")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE));
+        ch.configure_series_labels()
+            .background_style(WHITE.mix(0.8))
+            .border_style(BLACK)
+            .label_font(("sans-serif", 15))
+            .draw()?;
+        Ok(())
+    }
+}
+
+/// Draw the time-domain residual before and after to `path` (.png or .svg).
+///
+/// # Errors
+/// A bad extension, a drawing or file error.
+pub fn plot_time(path: &Path, rec: &Record, d: &Diagnosis) -> Result<()> {
+    plot::save(path, (1400, 600), &TimeResidual { rec, d })
+}
+
+struct BodeResidual<'a> {
+    d: &'a BodeDiagnosis,
+}
+
+impl Figure for BodeResidual<'_> {
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<()>
+    where
+        DB::ErrorType: 'static,
+    {
+        let d = self.d;
+        let (top, bottom) = root.split_vertically(root.dim_in_pixel().1 / 2);
+        let w: Vec<f64> = d.residual_before.iter().map(|r| r.0).collect();
+        let wl = w.iter().copied().fold(f64::INFINITY, f64::min) * 0.8;
+        let wh = w.iter().copied().fold(0.0, f64::max) * 1.25;
+        for (area, idx, unit) in [(&top, 1usize, "magnitude residual [dB]"), (&bottom, 2, "phase residual [deg]")] {
+            let get = |r: &(f64, f64, f64)| if idx == 1 { r.1 } else { r.2 };
+            let vals: Vec<f64> = d.residual_before.iter().chain(&d.residual_after).map(get).collect();
+            let (lo, hi) = plot::range_of(&vals);
+            let mut ch = ChartBuilder::on(area)
+                .caption(
+                    if idx == 1 {
+                        format!("Bode residual H/Hhat: J before {:.3e}, after {:.3e}", d.before.j, d.after.j)
+                    } else {
+                        String::new()
+                    },
+                    ("sans-serif", 20),
+                )
+                .margin(12)
+                .x_label_area_size(40)
+                .y_label_area_size(70)
+                .build_cartesian_2d((wl..wh).log_scale(), lo..hi)?;
+            ch.configure_mesh()
+                .x_desc("w [rad/s]")
+                .y_desc(unit)
+                .label_style(("sans-serif", 14))
+                .draw()?;
+            for (res, color, label) in [
+                (&d.residual_before, RED, "before"),
+                (&d.residual_after, BLUE, "after"),
+            ] {
+                ch.draw_series(LineSeries::new(res.iter().map(|r| (r.0, get(r))), color))?
+                    .label(label)
+                    .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color));
+                ch.draw_series(res.iter().map(|r| Circle::new((r.0, get(r)), 4, color.filled())))?;
+            }
+            ch.configure_series_labels()
+                .background_style(WHITE.mix(0.8))
+                .border_style(BLACK)
+                .label_font(("sans-serif", 14))
+                .draw()?;
+        }
+        Ok(())
+    }
+}
+
+/// Draw the frequency-domain residual (magnitude and phase of `H/Hhat`) before and after.
+///
+/// # Errors
+/// A bad extension, a drawing or file error.
+pub fn plot_bode(path: &Path, d: &BodeDiagnosis) -> Result<()> {
+    plot::save(path, (1200, 800), &BodeResidual { d })
+}
