@@ -278,9 +278,9 @@ impl<T: Real> Operator<T> {
             -1 => {
                 factors.push(Factor::Integ);
                 sections.push(Section {
-                b0: T::from(1.0 / c),
-                b1: T::from(1.0 / c),
-                a1: T::from(-1.0),
+                    b0: T::from(1.0 / c),
+                    b1: T::from(1.0 / c),
+                    a1: T::from(-1.0),
                 })
             }
             n => return invalid("order", format!("integer part {n} below -1")),
@@ -570,7 +570,11 @@ mod tests {
                         },
                         ..ApproxSpec::default()
                     };
-                    let nu = if method == Method::Trigeassou { nu.min(1.0) } else { nu };
+                    let nu = if method == Method::Trigeassou {
+                        nu.min(1.0)
+                    } else {
+                        nu
+                    };
                     let band = spec.band_for(dt).unwrap();
                     let r = approximate(nu, band, &spec).unwrap();
                     let mut modal = Operator::from_rational(&r, dt, disc).unwrap();
@@ -584,7 +588,10 @@ mod tests {
                         worst = worst.max((a - b).abs()).max((h1 - h2).abs());
                         scale = scale.max(b.abs());
                     }
-                    assert!(worst <= 1e-9 * scale, "{method:?} {disc:?} {nu}: {worst} of {scale}");
+                    assert!(
+                        worst <= 1e-9 * scale,
+                        "{method:?} {disc:?} {nu}: {worst} of {scale}"
+                    );
                 }
             }
         }
