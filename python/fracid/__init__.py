@@ -41,6 +41,8 @@ from ._errors import DataError, FracidError, NumericalError, ParseError
 from ._fracid import FracTf, __version__, error_index, gl_simulate, prbs
 from ._fracid import _fit_bode, _fit_time
 from ._results import (
+    Diagnosis,
+    Effect,
     FitMetrics,
     FreqFit,
     LevyFit,
@@ -67,6 +69,9 @@ __all__ = [
     "ParamEstimate",
     "FitMetrics",
     "ResidualTest",
+    "Diagnosis",
+    "Effect",
+    "diagnose",
     "FracidError",
     "ParseError",
     "DataError",
@@ -207,6 +212,10 @@ def fit_time(
     order: int = 8,
     discretization: str = "bilinear",
     max_lag: int = 25,
+    diagnose: bool = False,
+    margin: float = 0.05,
+    min_r2: float = 0.005,
+    max_rounds: int = 3,
 ) -> TimeFit:
     """Identify a fractional model from sampled input and output by output error.
 
@@ -244,6 +253,17 @@ def fit_time(
         The approximation of the fractional operators (as :meth:`FracTf.simulate`).
     max_lag : int
         Lags of the residual correlation test.
+    diagnose : bool
+        Also run the residual diagnosis (DESIGN section 6): test the residual for the signature
+        of each effect (delay, Coulomb friction, offset, periodic, abs sensor, saturation, dead
+        zone, quantization), refit with each strong candidate, keep those that lower the
+        validation error by ``margin`` and lower BIC. The result is in ``TimeFit.diagnosis``.
+    margin : float
+        Relative fall of the validation RMSE an effect must bring to be kept.
+    min_r2 : float
+        Evidence (fraction of the residual explained) a candidate needs to be refitted.
+    max_rounds : int
+        Rounds of the diagnosis loop.
 
     Returns
     -------
@@ -273,5 +293,33 @@ def fit_time(
         order=order,
         discretization=discretization,
         max_lag=max_lag,
+        diagnose=diagnose,
+        margin=margin,
+        min_r2=min_r2,
+        max_rounds=max_rounds,
     )
     return TimeFit._from_raw(raw)
+
+
+def diagnose(
+    u: ArrayLike,
+    y: ArrayLike,
+    dt: float,
+    structure: Union[str, FracTf] = "pmsm",
+    **kwargs: object,
+) -> Diagnosis:
+    """Fit ``structure`` by output error and diagnose what the fit cannot explain.
+
+    The same as ``fit_time(u, y, dt, structure, diagnose=True, **kwargs).diagnosis``; see
+    :func:`fit_time` for the parameters.
+
+    Returns
+    -------
+    Diagnosis
+        The error before and after, the effects kept with their parameters and evidence, the
+        candidates rejected and why, ambiguities, and whether structure remains unexplained.
+    """
+    kwargs["diagnose"] = True
+    fit = fit_time(u, y, dt, structure, **kwargs)  # type: ignore[arg-type]
+    assert fit.diagnosis is not None
+    return fit.diagnosis

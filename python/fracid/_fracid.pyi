@@ -146,4 +146,8 @@ def _fit_time(
     order: int = 8,
     discretization: str = "bilinear",
     max_lag: int = 25,
+    diagnose: bool = False,
+    margin: float = 0.05,
+    min_r2: float = 0.005,
+    max_rounds: int = 3,
 ) -> Dict[str, Any]: ...

@@ -20,6 +20,8 @@ __all__ = [
     "FitMetrics",
     "ResidualTest",
     "TimeFit",
+    "Effect",
+    "Diagnosis",
 ]
 
 
@@ -247,6 +249,106 @@ class ResidualTest(_ToDict):
 
 
 @dataclass(frozen=True)
+class Effect(_ToDict):
+    """An effect the diagnosis kept (DESIGN section 6).
+
+    Attributes
+    ----------
+    name : str
+        Report name: ``delay``, ``coulomb_friction``, ``offset``, ``periodic``, ``abs_sensor``,
+        ``saturation``, ``deadzone``.
+    params : dict
+        Its fitted parameters (e.g. ``{"tau": 0.012}``, ``{"Vc": 0.15}``).
+    evidence : str
+        What in the residual pointed to it and what the refit gained.
+    r2 : float
+        Fraction of the residual's sum of squares its signature explains.
+    rmse_change_percent : float
+        Relative change of the validation RMSE, percent (negative is better).
+    bic_change : float
+        Change of BIC on the estimation part (negative is better).
+    """
+
+    name: str
+    params: Dict[str, float]
+    evidence: str
+    r2: float
+    rmse_change_percent: float
+    bic_change: float
+
+
+@dataclass(frozen=True)
+class Diagnosis(_ToDict):
+    """The residual diagnosis of a time-domain fit (``fit_time(..., diagnose=True)``).
+
+    Attributes
+    ----------
+    before, after : FitMetrics
+        Validation fit (estimation fit without a validation part) of the base model and of the
+        model with the kept effects.
+    estimation, validation : dict
+        ``{"before": FitMetrics, "after": FitMetrics}`` per part (``validation`` may be ``None``).
+    effects : list of Effect
+        Effects kept, in the order they were added.
+    rejected : list of dict
+        Candidates tested and not kept: ``name``, ``reason``, ``params``.
+    ambiguous : list of dict
+        Effects these data cannot identify: ``name``, ``confused_with``, ``reason``.
+    quantization : dict or None
+        Output quantization found (``step``, ``levels``, ``noise_floor_rms``).
+    unexplained : bool
+        Whether structure remains in the residual that no effect explains.
+    remaining : list of str
+        What remains.
+    residual_before, residual_after : dict
+        Residual tests of the base and final model (estimation part).
+    model : FracTf
+        The final linear part.
+    params : dict
+        Every parameter of the final model (effects included) by name.
+    yhat_before, yhat_after : numpy.ndarray
+        Model outputs on the absolute scale, whole record.
+    split : int
+        First validation sample.
+    """
+
+    before: FitMetrics
+    after: FitMetrics
+    estimation: Dict[str, FitMetrics]
+    validation: Optional[Dict[str, FitMetrics]]
+    effects: List[Effect]
+    rejected: List[Dict[str, Any]]
+    ambiguous: List[Dict[str, Any]]
+    quantization: Optional[Dict[str, Any]]
+    unexplained: bool
+    remaining: List[str]
+    residual_before: Dict[str, Any]
+    residual_after: Dict[str, Any]
+    model: FracTf
+    params: Dict[str, float]
+    yhat_before: np.ndarray = field(repr=False)
+    yhat_after: np.ndarray = field(repr=False)
+    split: int = 0
+
+    @property
+    def names(self) -> List[str]:
+        """Names of the kept effects."""
+        return [e.name for e in self.effects]
+
+    @classmethod
+    def _from_raw(cls, d: Dict[str, Any]) -> "Diagnosis":
+        d = dict(d)
+        ba = lambda x: None if x is None else {k: FitMetrics(**v) for k, v in x.items()}  # noqa: E731
+        d["before"] = FitMetrics(**d["before"])
+        d["after"] = FitMetrics(**d["after"])
+        d["estimation"] = ba(d["estimation"])
+        d["validation"] = ba(d["validation"])
+        d["effects"] = [Effect(**e) for e in d["effects"]]
+        known = {f.name for f in fields(cls)}
+        return cls(**{k: v for k, v in d.items() if k in known})
+
+
+@dataclass(frozen=True)
 class TimeFit(_ToDict):
     """The result of :func:`fracid.fit_time`.
 
@@ -282,6 +384,8 @@ class TimeFit(_ToDict):
         The values the fit started from.
     residual_test : ResidualTest
         Residual whiteness and independence from the input (estimation part).
+    diagnosis : Diagnosis or None
+        The residual diagnosis, with ``diagnose=True``.
     """
 
     model: FracTf
@@ -301,6 +405,7 @@ class TimeFit(_ToDict):
     alpha_eta: List[Tuple[float, float, float]]
     start: Dict[str, float]
     residual_test: ResidualTest
+    diagnosis: Optional[Diagnosis] = None
 
     def param(self, name: str) -> ParamEstimate:
         """The parameter called ``name``.
@@ -328,4 +433,6 @@ class TimeFit(_ToDict):
         d["validation"] = None if d["validation"] is None else FitMetrics(**d["validation"])
         d["residual_test"] = ResidualTest(**d["residual_test"])
         d["alpha_eta"] = [tuple(x) for x in d["alpha_eta"]]
+        if d.get("diagnosis") is not None:
+            d["diagnosis"] = Diagnosis._from_raw(d["diagnosis"])
         return cls(**d)

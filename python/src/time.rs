@@ -5,6 +5,7 @@ use crate::arrays::{floats, positive, same_len, FloatArray};
 use crate::errors;
 use crate::tf::{approx_spec, PyFracTf};
 use ident::data::{OffsetMode, Record};
+use ident::diagnose::{DiagnoseOptions, Diagnosis};
 use ident::metrics::{residual_test, Fit};
 use ident::oe::{identify, FracModel, IdentOptions, StartMode};
 use numpy::IntoPyArray;
@@ -46,7 +47,7 @@ fn structure_of(s: &Bound<'_, PyAny>, duration: f64) -> PyResult<(FracModel, boo
 /// Output-error identification on sampled `u`, `y`; returns a dict the Python layer turns into
 /// `TimeFit`.
 #[pyfunction]
-#[pyo3(signature = (u, y, dt, structure, start = None, holdout = 0.3, offsets = "initial", fit_offset = true, max_iterations = 100, skip = 0, method = "oustaloup", band = None, order = 8, discretization = "bilinear", max_lag = 25))]
+#[pyo3(signature = (u, y, dt, structure, start = None, holdout = 0.3, offsets = "initial", fit_offset = true, max_iterations = 100, skip = 0, method = "oustaloup", band = None, order = 8, discretization = "bilinear", max_lag = 25, diagnose = false, margin = 0.05, min_r2 = 0.005, max_rounds = 3))]
 pub(crate) fn _fit_time<'py>(
     py: Python<'py>,
     u: FloatArray<'py>,
@@ -64,6 +65,10 @@ pub(crate) fn _fit_time<'py>(
     order: usize,
     discretization: &str,
     max_lag: usize,
+    diagnose: bool,
+    margin: f64,
+    min_r2: f64,
+    max_rounds: usize,
 ) -> PyResult<Bound<'py, PyDict>> {
     let u = floats("u", &u, 2)?;
     let y = floats("y", &y, 2)?;
@@ -124,7 +129,13 @@ pub(crate) fn _fit_time<'py>(
     opts.fit.lm.max_iterations = max_iterations;
     opts.fit.skip = skip;
     let rec = Record::from_samples(&u, &y, dt).map_err(errors::ident)?;
-    let (id, rt) = py
+    let dopts = DiagnoseOptions {
+        margin,
+        min_r2,
+        max_rounds,
+        ..DiagnoseOptions::default()
+    };
+    let (id, rt, diag) = py
         .allow_threads(|| {
             let id = identify(&rec, &model, &opts)?;
             let split = id.split;
@@ -135,7 +146,12 @@ pub(crate) fn _fit_time<'py>(
                 .collect();
             let ud: Vec<f64> = rec.u[..split].iter().map(|v| v - id.offsets.u0).collect();
             let rt = residual_test(&e, &ud, max_lag.min(split.saturating_sub(1)));
-            Ok::<_, ident::Error>((id, rt))
+            let diag = if diagnose {
+                Some(ident::diagnose::diagnose(&rec, &id, &dopts)?)
+            } else {
+                None
+            };
+            Ok::<_, ident::Error>((id, rt, diag))
         })
         .map_err(errors::ident)?;
 
@@ -183,5 +199,32 @@ pub(crate) fn _fit_time<'py>(
     r.set_item("cross_peak_lag", rt.cross_peak_lag)?;
     r.set_item("cross_peak", rt.cross_peak)?;
     d.set_item("residual_test", r)?;
+    match diag {
+        Some(g) => d.set_item("diagnosis", diagnosis_dict(py, &g)?)?,
+        None => d.set_item("diagnosis", py.None())?,
+    }
+    Ok(d)
+}
+
+/// The diagnosis as a dict: its serde form (the DESIGN §7 `diagnosis` object and more), the final
+/// linear model and the model outputs before and after.
+fn diagnosis_dict<'py>(py: Python<'py>, g: &Diagnosis) -> PyResult<Bound<'py, PyDict>> {
+    let text = serde_json::to_string(g)
+        .map_err(|e| errors::error(errors::Kind::Numerical, format!("diagnosis: {e}")))?;
+    let d = py
+        .import("json")?
+        .call_method1("loads", (text,))?
+        .downcast_into::<PyDict>()?;
+    let values = g.model.values();
+    d.set_item("model", PyFracTf::from(g.model.tf(&values).map_err(errors::ident)?))?;
+    let names: Vec<&str> = g.model.params.iter().map(|p| p.name.as_str()).collect();
+    let pv = PyDict::new(py);
+    for (n, v) in names.iter().zip(&values) {
+        pv.set_item(*n, v)?;
+    }
+    d.set_item("params", pv)?;
+    d.set_item("yhat_before", g.yhat_before.clone().into_pyarray(py))?;
+    d.set_item("yhat_after", g.yhat_after.clone().into_pyarray(py))?;
+    d.set_item("split", g.split)?;
     Ok(d)
 }
