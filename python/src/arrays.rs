@@ -42,7 +42,10 @@ pub(crate) fn complexes(
             v.len()
         )));
     }
-    if let Some(i) = v.iter().position(|x| !x.re.is_finite() || !x.im.is_finite()) {
+    if let Some(i) = v
+        .iter()
+        .position(|x| !x.re.is_finite() || !x.im.is_finite())
+    {
         return Err(errors::data(format!(
             "{name}[{i}] is {} (must be finite)",
             v[i]

@@ -48,8 +48,14 @@ fn pmsm_dict<'py>(py: Python<'py>, f: &PmsmFit) -> PyResult<Bound<'py, PyDict>> 
 
 fn curve_dict<'py>(py: Python<'py>, c: &[QPoint]) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);
-    d.set_item("q", c.iter().map(|p| p.q).collect::<Vec<_>>().into_pyarray(py))?;
-    d.set_item("J", c.iter().map(|p| p.j).collect::<Vec<_>>().into_pyarray(py))?;
+    d.set_item(
+        "q",
+        c.iter().map(|p| p.q).collect::<Vec<_>>().into_pyarray(py),
+    )?;
+    d.set_item(
+        "J",
+        c.iter().map(|p| p.j).collect::<Vec<_>>().into_pyarray(py),
+    )?;
     Ok(d)
 }
 

@@ -116,9 +116,7 @@ impl PyFracTf {
     /// Parse a model such as `"6.77/(0.000028 s^1.78 + 0.0064 s^0.89 + 1)"`.
     #[staticmethod]
     fn parse(text: &str) -> PyResult<Self> {
-        text.parse::<FracTf>()
-            .map(Self::from)
-            .map_err(errors::sim)
+        text.parse::<FracTf>().map(Self::from).map_err(errors::sim)
     }
 
     /// The PMSM structure `k / (a2 s^(zeta+theta) + a1 s^zeta + 1)` (paper eq. 10).
@@ -172,11 +170,7 @@ impl PyFracTf {
     }
 
     /// Magnitude in dB and unwrapped phase in degrees at each omega (rad/s).
-    fn bode<'py>(
-        &self,
-        py: Python<'py>,
-        omega: FloatArray<'py>,
-    ) -> PyResult<ArrayPair<'py>> {
+    fn bode<'py>(&self, py: Python<'py>, omega: FloatArray<'py>) -> PyResult<ArrayPair<'py>> {
         let w = floats("omega", &omega, 0)?;
         let (m, p) = mag_phase(&self.inner.bode(&w));
         Ok((m.into_pyarray(py), p.into_pyarray(py)))
@@ -220,9 +214,7 @@ impl PyFracTf {
         format!("FracTf.parse({:?})", self.inner.to_string())
     }
 
-    fn __reduce__<'py>(
-        slf: &Bound<'py, Self>,
-    ) -> PyResult<(Bound<'py, PyAny>, TfArgs)> {
+    fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<(Bound<'py, PyAny>, TfArgs)> {
         let g = &slf.get().inner;
         Ok((
             slf.get_type().into_any(),

@@ -75,7 +75,9 @@ pub(crate) fn _fit_time<'py>(
     same_len(("u", u.len()), ("y", y.len()))?;
     let dt = positive("dt", dt)?;
     if !(0.0..1.0).contains(&holdout) {
-        return Err(errors::data(format!("holdout = {holdout} must be in [0, 1)")));
+        return Err(errors::data(format!(
+            "holdout = {holdout} must be in [0, 1)"
+        )));
     }
     if max_iterations == 0 {
         return Err(errors::data("max_iterations must be at least 1"));
@@ -216,7 +218,10 @@ fn diagnosis_dict<'py>(py: Python<'py>, g: &Diagnosis) -> PyResult<Bound<'py, Py
         .call_method1("loads", (text,))?
         .downcast_into::<PyDict>()?;
     let values = g.model.values();
-    d.set_item("model", PyFracTf::from(g.model.tf(&values).map_err(errors::ident)?))?;
+    d.set_item(
+        "model",
+        PyFracTf::from(g.model.tf(&values).map_err(errors::ident)?),
+    )?;
     let names: Vec<&str> = g.model.params.iter().map(|p| p.name.as_str()).collect();
     let pv = PyDict::new(py);
     for (n, v) in names.iter().zip(&values) {
