@@ -208,9 +208,14 @@ struct State {
     ssr: f64,
 }
 
+#[derive(Clone)]
 struct Ctx<'a> {
     rec: &'a Record,
+    /// Input deviations, advanced by `lead` samples.
     u: Vec<f64>,
+    /// Samples by which the recorded input is advanced (a negative delay: the recorded input
+    /// lags the output, a time-stamp skew of the logger).
+    lead: usize,
     y: Vec<f64>,
     split: usize,
     dt: f64,
@@ -222,6 +227,18 @@ struct Ctx<'a> {
 }
 
 impl Ctx<'_> {
+    /// The same context with the recorded input advanced by `lead` samples
+    /// (`u'_k = u_(k + lead)`, the last value held).
+    fn with_lead(&self, lead: usize) -> Self {
+        let n = self.rec.len();
+        let mut c = self.clone();
+        c.lead = lead;
+        c.u = (0..n)
+            .map(|k| self.rec.u[(k + lead).min(n - 1)] - self.u0)
+            .collect();
+        c
+    }
+
     fn state(&self, model: FracModel, values: Vec<f64>) -> Result<State> {
         let mut yhat = vec![0.0; self.u.len()];
         model.simulate(&values, &self.u, self.dt, &mut yhat)?;
@@ -282,6 +299,8 @@ impl Ctx<'_> {
 /// A candidate: its evidence and the model(s) to refit from.
 struct Candidate {
     name: &'static str,
+    /// For a negative delay: the input advance in samples.
+    lead: Option<usize>,
     key: String,
     r2: f64,
     evidence: String,
@@ -444,6 +463,7 @@ fn candidates(
         let mut m = st.model.clone();
         m.with_delay(best.1.min((max as f64 - 0.5) * dt), max as f64 * dt);
         out.push(Candidate {
+            lead: None,
             name: "delay",
             key: "delay".into(),
             r2,
@@ -455,6 +475,63 @@ fn candidates(
             ),
             starts: vec![m],
         });
+    }
+
+    // A negative delay: the residual follows the input before it changes (cross-correlation
+    // outside the bound at negative lags). Integer advances of the recorded input are searched.
+    if ctx.lead == 0 {
+        let h = ctx.opts.max_delay_samples.max(1);
+        let rc = crate::metrics::crosscorr(&e, &ctx.u[..s], h);
+        let bound = crate::metrics::bound99(s);
+        // rc[i] is lag i - h: negative lags are i < h.
+        let (peak_i, neg_peak) = rc[..h]
+            .iter()
+            .enumerate()
+            .fold((h, 0.0f64), |(bi, m), (i, v)| {
+                if v.abs() > m {
+                    (i, v.abs())
+                } else {
+                    (bi, m)
+                }
+            });
+        let peak_lag = h - peak_i;
+        if neg_peak > bound {
+            let mut best = (f64::INFINITY, 0usize);
+            let mut y = vec![0.0; s];
+            for m in 1..=h {
+                let c = ctx.with_lead(m);
+                if st.model.simulate(&st.values, &c.u[..s], dt, &mut y).is_ok() {
+                    let ssr: f64 = (0..s).map(|k| (ctx.y[k] - y[k]).powi(2)).sum();
+                    if ssr < best.0 {
+                        best = (ssr, m);
+                    }
+                }
+            }
+            let mut r2 = (1.0 - best.0 / ee.max(1e-300)).max(0.0);
+            // The model fitted to the skewed record has bent its dynamics to follow it, so the
+            // advance alone may gain nothing before the refit: a cross-correlation beyond three
+            // times the bound is evidence enough to refit, at the peak's lag.
+            if neg_peak > 3.0 * bound && r2 < ctx.opts.min_r2 {
+                r2 = ctx.opts.min_r2;
+                best.1 = peak_lag;
+            }
+            out.push(Candidate {
+                lead: Some(best.1),
+                name: "delay",
+                key: "delay<0".into(),
+                r2,
+                evidence: format!(
+                    "the residual correlates with the input up to {neg_peak:.3} at lag -{peak_lag} \
+                     (bound {bound:.3}): the output moves before the recorded input; advancing the \
+                     input by {} samples ({:.3e} s, a time-stamp skew) alone explains {:.1}% of the \
+                     residual sum of squares before the refit",
+                    best.1,
+                    best.1 as f64 * dt,
+                    100.0 * r2
+                ),
+                starts: vec![st.model.clone()],
+            });
+        }
     }
 
     // Coulomb friction.
@@ -499,6 +576,7 @@ fn candidates(
                 let vc = m.add_param(Param::positive("Vc", beta[0]));
                 m.effects.insert(0, Effect::Coulomb { vc });
                 out.push(Candidate {
+                    lead: None,
                     name: "coulomb_friction",
                     key: "coulomb_friction".into(),
                     r2,
@@ -547,6 +625,7 @@ fn candidates(
             r2 = r2.max(r2i);
         }
         out.push(Candidate {
+            lead: None,
             name: "offset",
             key: "offset".into(),
             r2,
@@ -606,6 +685,7 @@ fn candidates(
             b,
         });
         out.push(Candidate {
+            lead: None,
             name: "periodic",
             key,
             r2,
@@ -646,6 +726,7 @@ fn candidates(
                 starts.extend(abs_starts(ctx, &m));
             }
             out.push(Candidate {
+                lead: None,
                 name: "abs_sensor",
                 key: "abs_sensor".into(),
                 r2: if model_reverses {
@@ -742,6 +823,7 @@ fn candidates(
                 },
             );
             out.push(Candidate {
+                lead: None,
                 name,
                 key: name.into(),
                 r2: best.0,
@@ -860,10 +942,11 @@ pub fn diagnose(rec: &Record, id: &Identification, opts: &DiagnoseOptions) -> Re
         )));
     }
     let (u0, y0) = (id.offsets.u0, id.offsets.y0);
-    let ctx = Ctx {
+    let mut ctx = Ctx {
         rec,
         u: rec.u.iter().map(|v| v - u0).collect(),
         y: rec.y.iter().map(|v| v - y0).collect(),
+        lead: 0,
         split: id.split,
         dt: rec.dt,
         u0,
@@ -885,7 +968,7 @@ pub fn diagnose(rec: &Record, id: &Identification, opts: &DiagnoseOptions) -> Re
         if round == 0 {
             ambiguous = amb;
         }
-        let mut best: Option<(State, KeptEffect, String)> = None;
+        let mut best: Option<(State, KeptEffect, String, Option<usize>)> = None;
         for (i, c) in cands.into_iter().enumerate() {
             if c.r2 < opts.min_r2 || i >= opts.max_refits {
                 rejected.entry(c.key.clone()).or_insert(RejectedEffect {
@@ -901,8 +984,10 @@ pub fn diagnose(rec: &Record, id: &Identification, opts: &DiagnoseOptions) -> Re
             }
             let mut fitted: Option<State> = None;
             let mut errs = vec![];
+            let lead_ctx = c.lead.map(|l| ctx.with_lead(l));
+            let rctx = lead_ctx.as_ref().unwrap_or(&ctx);
             for m in c.starts {
-                match ctx.refit(m) {
+                match rctx.refit(m) {
                     Ok(s) if fitted.as_ref().map_or(true, |f| s.ssr < f.ssr) => fitted = Some(s),
                     Ok(_) => {}
                     Err(e) => errs.push(e.to_string()),
@@ -919,7 +1004,10 @@ pub fn diagnose(rec: &Record, id: &Identification, opts: &DiagnoseOptions) -> Re
                 );
                 continue;
             };
-            let params = params_of(&ns.model, &ns.values, c.name);
+            let mut params = params_of(&ns.model, &ns.values, c.name);
+            if let Some(l) = c.lead {
+                params.insert("tau".into(), -(l as f64) * ctx.dt);
+            }
             let change = ctx.score(&ns) / ctx.score(&st) - 1.0;
             let dbic = ctx.bic(&ns) - ctx.bic(&st);
             // Parameters at a bound the current model already had there do not count against
@@ -979,7 +1067,7 @@ pub fn diagnose(rec: &Record, id: &Identification, opts: &DiagnoseOptions) -> Re
                 None => {
                     if best
                         .as_ref()
-                        .map_or(true, |(b, _, _)| ctx.score(&ns) < ctx.score(b))
+                        .map_or(true, |(b, _, _, _)| ctx.score(&ns) < ctx.score(b))
                     {
                         let k = KeptEffect {
                             name: c.name.into(),
@@ -989,13 +1077,16 @@ pub fn diagnose(rec: &Record, id: &Identification, opts: &DiagnoseOptions) -> Re
                             rmse_change_percent: 100.0 * change,
                             bic_change: dbic,
                         };
-                        best = Some((ns, k, c.key.clone()));
+                        best = Some((ns, k, c.key.clone(), c.lead));
                     }
                 }
             }
         }
         match best {
-            Some((ns, k, key)) => {
+            Some((ns, k, key, lead)) => {
+                if let Some(l) = lead {
+                    ctx = ctx.with_lead(l);
+                }
                 rejected.remove(&key);
                 rejected.remove(&k.name);
                 kept.push(k);

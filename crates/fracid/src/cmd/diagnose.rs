@@ -87,8 +87,18 @@ pub fn text(d: &Diagnosis) -> String {
         let _ = writeln!(o, "  no effect kept");
     }
     for e in &d.effects {
-        let p: Vec<String> = e.params.iter().map(|(k, v)| format!("{k} = {v:.4e}")).collect();
-        let _ = writeln!(o, "  kept {}: {}\n      evidence: {}", e.name, p.join(", "), e.evidence);
+        let p: Vec<String> = e
+            .params
+            .iter()
+            .map(|(k, v)| format!("{k} = {v:.4e}"))
+            .collect();
+        let _ = writeln!(
+            o,
+            "  kept {}: {}\n      evidence: {}",
+            e.name,
+            p.join(", "),
+            e.evidence
+        );
     }
     for a in &d.ambiguous {
         let _ = writeln!(
@@ -129,8 +139,18 @@ impl Figure for TimeResidual<'_> {
         DB::ErrorType: 'static,
     {
         let (rec, d) = (self.rec, self.d);
-        let before: Vec<f64> = rec.y.iter().zip(&d.yhat_before).map(|(a, b)| a - b).collect();
-        let after: Vec<f64> = rec.y.iter().zip(&d.yhat_after).map(|(a, b)| a - b).collect();
+        let before: Vec<f64> = rec
+            .y
+            .iter()
+            .zip(&d.yhat_before)
+            .map(|(a, b)| a - b)
+            .collect();
+        let after: Vec<f64> = rec
+            .y
+            .iter()
+            .zip(&d.yhat_after)
+            .map(|(a, b)| a - b)
+            .collect();
         let (t0, t1) = (rec.t[0], rec.t[rec.len() - 1]);
         let (lo, hi) = plot::range_of(before.iter().chain(&after));
         let kept: Vec<&str> = d.effects.iter().map(|e| e.name.as_str()).collect();
@@ -205,14 +225,25 @@ impl Figure for BodeResidual<'_> {
         let w: Vec<f64> = d.residual_before.iter().map(|r| r.0).collect();
         let wl = w.iter().copied().fold(f64::INFINITY, f64::min) * 0.8;
         let wh = w.iter().copied().fold(0.0, f64::max) * 1.25;
-        for (area, idx, unit) in [(&top, 1usize, "magnitude residual [dB]"), (&bottom, 2, "phase residual [deg]")] {
+        for (area, idx, unit) in [
+            (&top, 1usize, "magnitude residual [dB]"),
+            (&bottom, 2, "phase residual [deg]"),
+        ] {
             let get = |r: &(f64, f64, f64)| if idx == 1 { r.1 } else { r.2 };
-            let vals: Vec<f64> = d.residual_before.iter().chain(&d.residual_after).map(get).collect();
+            let vals: Vec<f64> = d
+                .residual_before
+                .iter()
+                .chain(&d.residual_after)
+                .map(get)
+                .collect();
             let (lo, hi) = plot::range_of(&vals);
             let mut ch = ChartBuilder::on(area)
                 .caption(
                     if idx == 1 {
-                        format!("Bode residual H/Hhat: J before {:.3e}, after {:.3e}", d.before.j, d.after.j)
+                        format!(
+                            "Bode residual H/Hhat: J before {:.3e}, after {:.3e}",
+                            d.before.j, d.after.j
+                        )
                     } else {
                         String::new()
                     },
@@ -234,7 +265,10 @@ impl Figure for BodeResidual<'_> {
                 ch.draw_series(LineSeries::new(res.iter().map(|r| (r.0, get(r))), color))?
                     .label(label)
                     .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color));
-                ch.draw_series(res.iter().map(|r| Circle::new((r.0, get(r)), 4, color.filled())))?;
+                ch.draw_series(
+                    res.iter()
+                        .map(|r| Circle::new((r.0, get(r)), 4, color.filled())),
+                )?;
             }
             ch.configure_series_labels()
                 .background_style(WHITE.mix(0.8))

@@ -397,7 +397,21 @@ pub fn diagnose_bode(
                 params,
             })
         };
-        if r2 < opts.min_r2 || !(x0 > 0.0) {
+        if !(x0 > 0.0) {
+            reject(
+                match extra {
+                    Extra::Delay => format!(
+                        "the phase residual is a lead (tau = {tau0:.3e} s < 0), not a delay"
+                    ),
+                    _ => {
+                        "no single corner in or near the measured band reduces the residual".into()
+                    }
+                },
+                BTreeMap::new(),
+            );
+            continue;
+        }
+        if r2 < opts.min_r2 {
             reject(
                 format!(
                     "weak evidence: {evidence} (below the {:.0}% needed)",
