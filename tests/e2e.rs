@@ -164,3 +164,50 @@ fn sim_reads_a_recorded_input_file() {
     // 190 ms after the step, 19 time constants: the DC gain 2 to 1e-6.
     assert!((last - 2.0).abs() < 1e-6, "{last}");
 }
+
+#[test]
+fn demo_acquires_identifies_diagnoses_and_reports() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = fracid(&["demo", "--out", dir.path().to_str().unwrap()]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    for f in [
+        "prbs.csv",
+        "prbs_steady.csv",
+        "bode.csv",
+        "time.png",
+        "bode.png",
+        "time.json",
+        "freq.json",
+        "report.md",
+    ] {
+        let p = dir.path().join(f);
+        assert!(
+            p.exists() && std::fs::metadata(&p).unwrap().len() > 0,
+            "{f} missing or empty"
+        );
+    }
+    let raw = std::fs::read_to_string(dir.path().join("prbs.csv")).unwrap();
+    assert!(
+        raw.trim_end().ends_with("# complete: 1824 samples"),
+        "acquisition not complete"
+    );
+    let time: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("time.json")).unwrap())
+            .unwrap();
+    let val = time["fit"]["validation"]["nrmse_percent"].as_f64().unwrap();
+    // The hidden 1 ms delay is not in the base model; even so the fit must be a useful model.
+    assert!(val > 85.0, "validation fit {val}%");
+    assert!(time["diagnosis"]["after"]["rmse"].as_f64().is_some());
+    let freq: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("freq.json")).unwrap())
+            .unwrap();
+    let dc = freq["model"]["num"][0]["coef"].as_f64().unwrap();
+    // DC gain of the simulated motor: 6.82 (rad/s)/V.
+    assert!((dc - 6.82).abs() < 0.2, "b0 = {dc}");
+    let report = std::fs::read_to_string(dir.path().join("report.md")).unwrap();
+    assert!(report.contains("## The hidden truth"));
+}

@@ -21,6 +21,8 @@ struct Cli {
 enum Commands {
     /// Simulate a fractional transfer function on a step, a PRBS or a recorded input.
     Sim(cmd::sim::SimArgs),
+    /// The main job end to end: simulated drive, acquisition, identification, diagnosis, report.
+    Demo(cmd::demo::DemoArgs),
     // -- more subcommands are added below, one line each --
     /// Talk to an F2812 servo drive (or its simulator): acquisition, status, the simulator.
     Drive(cmd::drive::DriveArgs),
@@ -32,7 +34,8 @@ enum Commands {
 
 /// Exit codes: 0 success, 1 runtime failure (numerical breakdown, fit failure, drive fault),
 /// 2 bad input (malformed model, data or options; clap also uses 2 for usage errors),
-/// 3 I/O (a file or port that cannot be opened or written).
+/// 3 I/O (a file or port that cannot be opened or written). Drive faults (timeouts, NAKs, protocol
+/// violations, a reset) are runtime failures.
 fn exit_code(err: &anyhow::Error) -> u8 {
     for cause in err.chain() {
         if cause.downcast_ref::<std::io::Error>().is_some() {
@@ -51,6 +54,13 @@ fn exit_code(err: &anyhow::Error) -> u8 {
                 _ => 2,
             };
         }
+        if let Some(e) = cause.downcast_ref::<drive::Error>() {
+            return match e {
+                drive::Error::InvalidParam(_) => 2,
+                drive::Error::Io(_) | drive::Error::Port { .. } => 3,
+                _ => 1,
+            };
+        }
         if cause.downcast_ref::<cmd::BadInput>().is_some() {
             return 2;
         }
@@ -62,6 +72,7 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Commands::Sim(a) => cmd::sim::run(a),
+        Commands::Demo(a) => cmd::demo::run(a),
         // -- more dispatch arms are added below, one line each --
         Commands::Drive(a) => cmd::drive::run(a),
         Commands::Freq(a) => cmd::freq::run(a),
