@@ -247,7 +247,12 @@ fn fault_at(at: Option<u64>, ms: u64) -> Option<FaultAt> {
 
 fn sim(a: SimArgs) -> Result<()> {
     let model: fracsim::FracTf = a.model.parse().context("--model")?;
-    for (name, v) in [("--ber", a.ber), ("--drop-rate", a.drop_rate), ("--burst-rate", a.burst_rate), ("--corrupt-frames", a.corrupt_frames)] {
+    for (name, v) in [
+        ("--ber", a.ber),
+        ("--drop-rate", a.drop_rate),
+        ("--burst-rate", a.burst_rate),
+        ("--corrupt-frames", a.corrupt_frames),
+    ] {
         if !(0.0..=1.0).contains(&v) {
             crate::bad_input!("{name} must be in [0, 1], got {v}");
         }
@@ -287,10 +292,16 @@ fn sim(a: SimArgs) -> Result<()> {
     writeln!(out, "{}", s.port_path())?;
     out.flush()?;
     drop(out);
-    eprintln!("drive simulator at {} ({} baud); stop with Ctrl-C", s.port_path(), a.baud);
+    eprintln!(
+        "drive simulator at {} ({} baud); stop with Ctrl-C",
+        s.port_path(),
+        a.baud
+    );
     let start = std::time::Instant::now();
     while s.is_running() {
-        if a.duration.is_some_and(|d| start.elapsed().as_secs_f64() >= d) {
+        if a.duration
+            .is_some_and(|d| start.elapsed().as_secs_f64() >= d)
+        {
             break;
         }
         std::thread::sleep(Duration::from_millis(50));
@@ -323,7 +334,9 @@ fn connect(p: &PortArgs) -> Result<(Client, Configure)> {
         u_limit: (p.u_limit * 1000.0).round() as i16,
         ..Configure::default()
     };
-    c.configure(&conf).map_err(lib_err).context("configuring the drive")?;
+    c.configure(&conf)
+        .map_err(lib_err)
+        .context("configuring the drive")?;
     Ok((c, conf))
 }
 
@@ -333,7 +346,9 @@ fn progress_bar(quiet: bool, unit: &str) -> Option<indicatif::ProgressBar> {
     }
     let pb = indicatif::ProgressBar::new(0);
     pb.set_draw_target(indicatif::ProgressDrawTarget::stderr());
-    if let Ok(st) = indicatif::ProgressStyle::with_template(&format!("{{bar:40}} {{pos}}/{{len}} {unit} {{elapsed}}")) {
+    if let Ok(st) = indicatif::ProgressStyle::with_template(&format!(
+        "{{bar:40}} {{pos}}/{{len}} {unit} {{elapsed}}"
+    )) {
         pb.set_style(st);
     }
     Some(pb)
@@ -359,7 +374,8 @@ fn prbs(a: PrbsArgs) -> Result<()> {
         periods: a.periods,
         settle_s: a.settle,
     };
-    let file = std::fs::File::create(&a.output).with_context(|| format!("creating {}", a.output.display()))?;
+    let file = std::fs::File::create(&a.output)
+        .with_context(|| format!("creating {}", a.output.display()))?;
     let mut sink = CsvSink::new(file);
     let pb = progress_bar(a.port.quiet, "samples");
     attach(&mut c, &pb);
@@ -367,9 +383,14 @@ fn prbs(a: PrbsArgs) -> Result<()> {
     if let Some(pb) = pb {
         pb.finish_and_clear();
     }
-    sink.into_inner().with_context(|| format!("writing {}", a.output.display()))?;
+    sink.into_inner()
+        .with_context(|| format!("writing {}", a.output.display()))?;
     if acq.complete {
-        eprintln!("{}: {} samples, complete", a.output.display(), acq.index.len());
+        eprintln!(
+            "{}: {} samples, complete",
+            a.output.display(),
+            acq.index.len()
+        );
         Ok(())
     } else {
         let msg = format!(
@@ -399,7 +420,10 @@ fn sine(a: SineArgs) -> Result<()> {
     }
     let nyq = conf.sample_rate_hz as f64 / 2.0;
     if let Some(f) = sweep.freqs_hz.iter().find(|&&f| f >= nyq) {
-        crate::bad_input!("{f} Hz is at or above Nyquist ({nyq} Hz at --sample-rate {})", conf.sample_rate_hz);
+        crate::bad_input!(
+            "{f} Hz is at or above Nyquist ({nyq} Hz at --sample-rate {})",
+            conf.sample_rate_hz
+        );
     }
     sweep.amplitude_v = a.amplitude;
     sweep.offset_v = a.offset;
@@ -413,7 +437,8 @@ fn sine(a: SineArgs) -> Result<()> {
     if let Some(pb) = pb {
         pb.finish_and_clear();
     }
-    let file = std::fs::File::create(&a.output).with_context(|| format!("creating {}", a.output.display()))?;
+    let file = std::fs::File::create(&a.output)
+        .with_context(|| format!("creating {}", a.output.display()))?;
     let mut comment = format!(
         "fracid drive sine sweep: {} V around {} V, {} cycles, {} Hz sampling; gain (rad/s)/V",
         a.amplitude, a.offset, a.cycles, conf.sample_rate_hz
@@ -427,9 +452,16 @@ fn sine(a: SineArgs) -> Result<()> {
         eprintln!("warning: {p}");
     }
     let missing = sweep.freqs_hz.len() - points.len();
-    eprintln!("{}: {} of {} frequencies", a.output.display(), points.len(), sweep.freqs_hz.len());
+    eprintln!(
+        "{}: {} of {} frequencies",
+        a.output.display(),
+        points.len(),
+        sweep.freqs_hz.len()
+    );
     if missing > 0 {
-        return Err(anyhow::anyhow!("{missing} frequencies could not be measured"));
+        return Err(anyhow::anyhow!(
+            "{missing} frequencies could not be measured"
+        ));
     }
     Ok(())
 }
@@ -439,7 +471,9 @@ fn status(a: StatusArgs) -> Result<()> {
         baud: a.baud,
         ..ClientConfig::default()
     };
-    let mut c = Client::open(&a.port, cfg).map_err(lib_err).with_context(|| format!("connecting to {}", a.port))?;
+    let mut c = Client::open(&a.port, cfg)
+        .map_err(lib_err)
+        .with_context(|| format!("connecting to {}", a.port))?;
     let h = c.drive_info().context("no HELLO reply")?;
     let s = c.status().map_err(lib_err)?;
     println!(
