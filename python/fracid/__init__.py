@@ -9,9 +9,10 @@ Examples
 >>> g = fracid.FracTf.parse("6.77/(0.000028 s^1.78 + 0.0064 s^0.89 + 1)")
 >>> round(g.dc_gain(), 2)
 6.77
->>> u = fracid.prbs(dt=1e-3, order=7, clock=0.003, periods=2)
->>> y = g.simulate(u, dt=1e-3)
->>> fit = fracid.fit_time(u, y, dt=1e-3, structure="commensurate")
+>>> u = fracid.prbs(dt=1e-4, order=7, clock=0.003, periods=2)
+>>> y = g.simulate(u, dt=1e-4)
+>>> fit = fracid.fit_time(u, y, dt=1e-4, structure="commensurate", offsets="none",
+...                       fit_offset=False)
 >>> fit.validation.nrmse_percent > 99
 True
 
