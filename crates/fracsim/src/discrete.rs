@@ -55,11 +55,23 @@ pub struct Operator<T> {
 /// `lambda = r = 0` so the update runs in independent lanes.
 #[derive(Debug, Clone)]
 struct Modes<T> {
-    lam: Vec<T>,
-    res: Vec<T>,
-    m: Vec<T>,
+    /// The modes in blocks of four lanes (contiguous, so the update vectorises).
+    blocks: Vec<Block<T>>,
+    /// `sum_i r_i`.
+    res_sum: T,
     /// `sum_i r_i m_i` for the current state (the operator's history).
     hist: T,
+}
+
+/// Four modes: poles, `r_i lambda_i` and states.
+///
+/// `res_lam`: the history after an update is `sum_i r_i lambda_i m_i + (sum_i r_i) x`, whose
+/// first part does not wait for the input `x` (the output just solved for).
+#[derive(Debug, Clone, Copy)]
+struct Block<T> {
+    lam: [T; 4],
+    res_lam: [T; 4],
+    m: [T; 4],
 }
 
 /// One factor of a rational approximation, for the modal form.
@@ -135,7 +147,7 @@ impl<T: Real> Modes<T> {
                 }
             }
             if let Factor::Cell(_, p) = factors[i] {
-                if !(p.re() > 0.0) {
+                if p.re().is_nan() || p.re() <= 0.0 {
                     return None;
                 }
             }
@@ -158,36 +170,46 @@ impl<T: Real> Modes<T> {
         let padded = n.next_multiple_of(4);
         lam.resize(padded, T::from(0.0));
         res.resize(padded, T::from(0.0));
+        let mut res_sum = T::from(0.0);
+        for &r in &res {
+            res_sum += r;
+        }
+        let zero = T::from(0.0);
+        let blocks = lam
+            .chunks_exact(4)
+            .zip(res.chunks_exact(4))
+            .map(|(l, r)| Block {
+                lam: [l[0], l[1], l[2], l[3]],
+                res_lam: [r[0] * l[0], r[1] * l[1], r[2] * l[2], r[3] * l[3]],
+                m: [zero; 4],
+            })
+            .collect();
         Some(Self {
-            m: vec![T::from(0.0); padded],
-            lam,
-            res,
-            hist: T::from(0.0),
+            blocks,
+            res_sum,
+            hist: zero,
         })
     }
 
-    /// `m_i <- lambda_i m_i + x`, then the new history `sum_i r_i m_i` (four independent lanes).
+    /// `m_i <- lambda_i m_i + x` and the new history `sum_i r_i m_i`, computed as
+    /// `sum_i (r_i lambda_i) m_i(old) + (sum_i r_i) x` in four independent lanes, so that only
+    /// one multiply-add waits for `x`.
     #[inline]
     fn advance(&mut self, x: T) {
         let zero = T::from(0.0);
         let mut acc = [zero; 4];
-        for ((m, l), r) in self
-            .m
-            .chunks_exact_mut(4)
-            .zip(self.lam.chunks_exact(4))
-            .zip(self.res.chunks_exact(4))
-        {
+        for b in &mut self.blocks {
             for k in 0..4 {
-                m[k] = l[k] * m[k] + x;
-                acc[k] += r[k] * m[k];
+                acc[k] += b.res_lam[k] * b.m[k];
+                b.m[k] = b.lam[k] * b.m[k] + x;
             }
         }
-        self.hist = (acc[0] + acc[1]) + (acc[2] + acc[3]);
+        self.hist = (acc[0] + acc[1]) + (acc[2] + acc[3]) + self.res_sum * x;
     }
 
     fn reset(&mut self) {
-        for m in &mut self.m {
-            *m = T::from(0.0);
+        for b in &mut self.blocks {
+            b.m = [T::from(0.0); 4];
         }
         self.hist = T::from(0.0);
     }
@@ -382,7 +404,8 @@ impl<T: Real> Operator<T> {
 pub struct Simulator<T> {
     num: Vec<(T, Operator<T>)>,
     den: Vec<(T, Operator<T>)>,
-    den_feed: T,
+    /// `1 / sum_j a_j d_j`, the inverse of the denominator's feed-through (a multiply instead of a divide on the critical path of every step).
+    den_feed_inv: T,
     delay_whole: usize,
     delay_frac: T,
     /// Ring buffer of past inputs for the delay.
@@ -466,7 +489,7 @@ impl<T: Real> Simulator<T> {
         Ok(Self {
             num,
             den,
-            den_feed,
+            den_feed_inv: T::from(1.0) / den_feed,
             delay_whole: whole as usize,
             delay_frac: samples - whole,
             hist: vec![T::from(0.0); whole as usize + 2],
@@ -481,10 +504,12 @@ impl<T: Real> Simulator<T> {
             u
         } else {
             let n = self.hist.len();
-            self.pos = (self.pos + 1) % n;
+            // Ring buffer indices without integer division (`delay_whole <= n - 2`).
+            let wrap = |i: usize| if i >= n { i - n } else { i };
+            self.pos = wrap(self.pos + 1);
             self.hist[self.pos] = u;
-            let a = self.hist[(self.pos + n - self.delay_whole) % n];
-            let b = self.hist[(self.pos + n - self.delay_whole - 1) % n];
+            let a = self.hist[wrap(self.pos + n - self.delay_whole)];
+            let b = self.hist[wrap(self.pos + n - self.delay_whole - 1)];
             a + (b - a) * self.delay_frac
         };
         let mut rhs = T::from(0.0);
@@ -494,7 +519,7 @@ impl<T: Real> Simulator<T> {
         for (a, op) in &self.den {
             rhs -= *a * op.history();
         }
-        let y = rhs / self.den_feed;
+        let y = rhs * self.den_feed_inv;
         for (_, op) in &mut self.den {
             op.step(y);
         }
