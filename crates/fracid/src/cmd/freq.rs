@@ -414,6 +414,13 @@ pub fn run(a: FreqArgs) -> Result<()> {
         if !a.json {
             emit(&format!("plot: {}\n", path.display()))?;
         }
+        if let Some(d) = &diagnosis {
+            let dp = super::diagnose::residual_plot_path(path);
+            super::diagnose::plot_bode(&dp, d)?;
+            if !a.json {
+                emit(&format!("residual plot: {}\n", dp.display()))?;
+            }
+        }
     }
     Ok(())
 }
