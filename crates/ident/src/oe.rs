@@ -15,8 +15,8 @@
 //!   any [`Real`] type can be fitted by [`fit`].
 //! - [`fit`]: the OE-LM fit on plain slices (deviations); [`identify`]: the whole procedure on a
 //!   [`Record`] (operating point, split, automatic start, metrics).
-//! - [`init`]: a start that needs no guess (frequency response from the data, then a commensurate
-//!   Levy fit).
+//! - [`init`]: a start that needs no guess (the frequency response of a periodic input, then a
+//!   Levy fit with an order search; a coarse search otherwise), reported in [`StartReport`].
 //!
 //! Bounds are kept by reparametrisation ([`Bounds`]): positive coefficients as `exp(theta)`,
 //! bounded quantities (orders in `(0, 2)`, the delay) as `lo + (hi - lo) sigmoid(theta)`. Standard
@@ -41,6 +41,7 @@ pub use fit::{
     check_params, default_band, fit, fit_with_progress, identify, identify_with_progress,
     sensitivities, FitOptions, FitReport, IdentOptions, Identification, ParamEstimate, StartMode,
 };
+pub use init::{StartMethod, StartReport};
 
 use crate::{Error, Result};
 use fracsim::{ApproxSpec, FracTf, Real, Simulator, Term};

@@ -386,7 +386,8 @@ pub fn fit_with_progress<S: Structure>(
 /// How [`identify`] starts.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum StartMode {
-    /// From the data: frequency response, then a commensurate Levy fit ([`init::auto_start`]).
+    /// From the data ([`init::auto_start`]): a Levy fit of the frequency response when the input
+    /// is periodic, else a coarse search.
     #[default]
     Auto,
     /// From the values in the model.
@@ -443,6 +444,8 @@ pub struct Identification {
     pub alpha_eta: Vec<(f64, f64, f64)>,
     /// The parameter values the fit started from.
     pub start: Vec<f64>,
+    /// How the start was made (Levy, coarse search or given) and why.
+    pub start_report: init::StartReport,
 }
 
 /// The approximation band [`identify`] uses when the model has none:
@@ -497,9 +500,11 @@ pub fn identify_with_progress(
     if m.approx.band.is_none() {
         m.approx.band = Some(default_band(split, rec.dt));
     }
-    if opts.start == StartMode::Auto {
-        init::auto_start(&mut m, &u[..split], &y[..split], rec.dt)?;
-    }
+    let start_report = if opts.start == StartMode::Auto {
+        init::auto_start(&mut m, &u[..split], &y[..split], rec.dt)?
+    } else {
+        init::StartReport::given("the given values")
+    };
     if opts.fit_offset && m.index_of("y_offset").is_none() {
         m.with_output_offset(0.0);
     }
@@ -529,6 +534,7 @@ pub fn identify_with_progress(
         validation,
         alpha_eta,
         start,
+        start_report,
     })
 }
 

@@ -5,7 +5,8 @@
 use fracsim::prbs::Prbs;
 use fracsim::FracTf;
 use ident::data::{OffsetMode, Record};
-use ident::oe::{identify, FracModel, IdentOptions, StartMode};
+use ident::oe::init::auto_start;
+use ident::oe::{identify, FracModel, IdentOptions, StartMethod, StartMode};
 use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
 
@@ -94,6 +95,30 @@ fn paper_model_from_the_automatic_start() {
         ..Default::default()
     };
     let id = identify(rec, &FracModel::pmsm(1.0, 1.0, 1.0, 1.0, 1.0), &opts).unwrap();
-    eprintln!("start {:?}", id.start);
+    eprintln!("start {:?} {:?}", id.start, id.start_report);
+    assert_eq!(id.start_report.method, StartMethod::Levy);
     check(&id, "auto start");
+}
+
+/// The Levy start alone, on the estimation part (2 whole periods: 1 averaged after the transient)
+/// and on the whole record (3 averaged, so the noise is measured across periods).
+#[test]
+fn levy_start_lands_close() {
+    let rec = record();
+    let (k, _, _, z, th) = TRUTH;
+    for (label, n) in [
+        ("estimation part", rec.split_index(0.3).unwrap()),
+        ("whole record", rec.len()),
+    ] {
+        let mut m = FracModel::pmsm(1.0, 1.0, 1.0, 1.0, 1.0);
+        let r = auto_start(&mut m, &rec.u[..n], &rec.y[..n], rec.dt).unwrap();
+        let v = m.values();
+        eprintln!("{label}: {v:?} {r:?}");
+        assert_eq!(r.method, StartMethod::Levy, "{label}: {r:?}");
+        // A start, not a fit: K within 5%, orders within 0.1 (the OE fit then meets the issue's
+        // tolerances). Measured: see the note in the module documentation.
+        assert!((v[0] / k - 1.0).abs() < 0.05, "{label}: K = {}", v[0]);
+        assert!((v[3] - z).abs() < 0.1, "{label}: zeta = {}", v[3]);
+        assert!((v[4] - th).abs() < 0.1, "{label}: theta = {}", v[4]);
+    }
 }
