@@ -194,6 +194,25 @@ fn delay_is_found() {
 }
 
 #[test]
+fn a_delay_of_one_sample_is_found() {
+    // One sample (2 ms): too small for the held-parameter grid to pay (the base fit bends its
+    // orders to mimic it); found from the residual-input correlation at lag 0 and a joint refit.
+    let tau = 0.002;
+    let rec = generate(
+        &input(0.0, false),
+        Hidden {
+            delay: tau,
+            ..Default::default()
+        },
+        4,
+    );
+    let (_, d) = run(&rec, true);
+    assert_eq!(names(&d), ["delay"]);
+    assert!(close(param(&d, "delay", "tau"), tau));
+    assert!(falls(&d));
+}
+
+#[test]
 fn coulomb_friction_is_found() {
     let vc = 0.15;
     let rec = generate(
