@@ -38,8 +38,8 @@ pub mod init;
 
 pub use effects::Effect;
 pub use fit::{
-    check_params, default_band, fit, fit_with_progress, identify, identify_with_progress,
-    sensitivities, FitOptions, FitReport, IdentOptions, Identification, ParamEstimate, StartMode,
+    check_params, fit, fit_with_progress, identify, identify_with_progress, sensitivities,
+    FitOptions, FitReport, IdentOptions, Identification, ParamEstimate, StartMode,
 };
 pub use init::{StartMethod, StartReport};
 
