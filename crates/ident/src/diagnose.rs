@@ -738,7 +738,7 @@ fn candidates(
         let u_neg = ua.iter().filter(|v| **v < 0.0).count() as f64 / ua.len() as f64;
         let u_pos = ua.iter().filter(|v| **v > 0.0).count() as f64 / ua.len() as f64;
         let model_reverses = npos.min(nneg) >= 0.02;
-        let data_one_signed = yd_neg < 0.01 || yd_neg > 0.99;
+        let data_one_signed = !(0.01..=0.99).contains(&yd_neg);
         let input_reverses = u_neg.min(u_pos) >= 0.1;
         if data_one_signed && (model_reverses || input_reverses) {
             let sig: Vec<f64> = ya[..s].iter().map(|v| v.abs() - v).collect();
@@ -1014,7 +1014,7 @@ pub fn diagnose(rec: &Record, id: &Identification, opts: &DiagnoseOptions) -> Re
             let rctx = lead_ctx.as_ref().unwrap_or(&ctx);
             for m in c.starts {
                 match rctx.refit(m) {
-                    Ok(s) if fitted.as_ref().map_or(true, |f| s.ssr < f.ssr) => fitted = Some(s),
+                    Ok(s) if fitted.as_ref().is_none_or(|f| s.ssr < f.ssr) => fitted = Some(s),
                     Ok(_) => {}
                     Err(e) => errs.push(e.to_string()),
                 }
@@ -1047,7 +1047,7 @@ pub fn diagnose(rec: &Record, id: &Identification, opts: &DiagnoseOptions) -> Re
                 .filter(|(i, (p, v))| {
                     p.free
                         && p.bounds.at_edge(**v)
-                        && st.values.get(*i).map_or(true, |w| !p.bounds.at_edge(*w))
+                        && st.values.get(*i).is_none_or(|w| !p.bounds.at_edge(*w))
                 })
                 .map(|(_, pv)| pv)
                 .map(|(p, v)| format!("{} = {v:.3e}", p.name))
@@ -1093,7 +1093,7 @@ pub fn diagnose(rec: &Record, id: &Identification, opts: &DiagnoseOptions) -> Re
                 None => {
                     if best
                         .as_ref()
-                        .map_or(true, |(b, _, _, _)| ctx.score(&ns) < ctx.score(b))
+                        .is_none_or(|(b, _, _, _)| ctx.score(&ns) < ctx.score(b))
                     {
                         let k = KeptEffect {
                             name: c.name.into(),

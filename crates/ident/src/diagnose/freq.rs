@@ -413,7 +413,7 @@ pub fn diagnose_bode(
                         let err = error_of(omega, h, &m);
                         let mut params = BTreeMap::new();
                         params.insert("tau".to_string(), x);
-                        if best.as_ref().map_or(true, |b| err.j < b.1.j) {
+                        if best.as_ref().is_none_or(|b| err.j < b.1.j) {
                             best = Some((
                                 m,
                                 err,
@@ -504,7 +504,7 @@ pub fn diagnose_bode(
                         format!("{gain}, but the fitted parameter is outside the measured band"),
                         params,
                     );
-                } else if best.as_ref().map_or(true, |b| err.j < b.1.j) {
+                } else if best.as_ref().is_none_or(|b| err.j < b.1.j) {
                     let k = KeptEffect {
                         name: name.into(),
                         params,
