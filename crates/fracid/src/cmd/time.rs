@@ -31,12 +31,12 @@ pub struct TimeArgs {
     /// Approximation: oustaloup, refined, trigeassou.
     #[arg(long, default_value = "oustaloup")]
     pub approx: String,
-    /// Approximation band "w_b,w_h" in rad/s (default [2 pi/(10 T), 2 pi/dt]).
+    /// Approximation band "w_b,w_h" in rad/s (default fracsim's [1e-3, 30 pi/dt]).
     #[arg(long)]
     pub band: Option<String>,
-    /// Approximation order N.
-    #[arg(long, default_value_t = 6)]
-    pub order: usize,
+    /// Approximation order N (2N+1 cells; default fracsim's, 8).
+    #[arg(long)]
+    pub order: Option<usize>,
     /// Fit an input delay (seconds, up to --max-delay).
     #[arg(long)]
     pub delay: bool,
@@ -80,14 +80,16 @@ fn model_of(a: &TimeArgs) -> Result<FracModel> {
         "commensurate" => FracModel::commensurate(1.0, 0.01, 1e-4, 0.9),
         "fopdt" => FracModel::fopdt(1.0, 0.1, 0.01, a.max_delay),
         s => {
-            let tf: fracsim::FracTf = s
-                .parse()
-                .with_context(|| format!("--structure '{s}' is not pmsm, commensurate, fopdt or a model"))?;
+            let tf: fracsim::FracTf = s.parse().with_context(|| {
+                format!("--structure '{s}' is not pmsm, commensurate, fopdt or a model")
+            })?;
             FracModel::from_tf(&tf, true, true)
         }
     };
     m.approx.method = a.approx.parse()?;
-    m.approx.order = a.order;
+    if let Some(n) = a.order {
+        m.approx.order = n;
+    }
     if let Some(b) = &a.band {
         let v: Vec<f64> = b.split(',').filter_map(|x| x.trim().parse().ok()).collect();
         if v.len() != 2 {
@@ -191,11 +193,14 @@ fn json_of(id: &Identification, rec: &Record) -> serde_json::Value {
             .map(|t| serde_json::json!({"coef": t.coef, "order": t.order}))
             .collect()
     };
-    let fit = |f: Option<metrics::Fit>| f.map(|f| serde_json::json!({"rmse": f.rmse, "nrmse_percent": f.nrmse_percent}));
+    let fit = |f: Option<metrics::Fit>| {
+        f.map(|f| serde_json::json!({"rmse": f.rmse, "nrmse_percent": f.nrmse_percent}))
+    };
     serde_json::json!({
         "model": {"num": terms(&id.tf.num), "den": terms(&id.tf.den), "delay": id.tf.delay},
         "fit": {"estimation": fit(Some(id.estimation)), "validation": fit(id.validation)},
         "params": id.report.params,
+        "start": id.start_report,
         "alpha_eta": id.alpha_eta.iter().map(|(o, a, e)| serde_json::json!({"order": o, "alpha": a, "eta": e})).collect::<Vec<_>>(),
         "offsets": id.offsets,
         "split": {"estimation_samples": id.split, "validation_samples": rec.len() - id.split},
@@ -218,10 +223,23 @@ fn print_text(id: &Identification, rec: &Record) {
         rec.len() - id.split,
         rec.dt
     );
+    let sr = &id.start_report;
+    println!(
+        "start: {}{}",
+        sr.note,
+        sr.fit_percent
+            .map_or(String::new(), |f| format!(" (start fits {f:.1}%)"))
+    );
     println!("parameters (+- standard error):");
     for p in &id.report.params {
         let se = p.std_error.map_or("-".to_string(), |s| format!("{s:.3e}"));
-        let tag = if !p.free { " (fixed)" } else if p.at_bound { " (AT BOUND)" } else { "" };
+        let tag = if !p.free {
+            " (fixed)"
+        } else if p.at_bound {
+            " (AT BOUND)"
+        } else {
+            ""
+        };
         println!("  {:<10} {:>14.6e} +- {se}{tag}", p.name, p.value);
     }
     for (o, al, et) in &id.alpha_eta {
@@ -232,7 +250,10 @@ fn print_text(id: &Identification, rec: &Record) {
         id.estimation.nrmse_percent, id.estimation.rmse
     );
     if let Some(v) = id.validation {
-        println!("fit validation: NRMSE {:.2}%, RMSE {:.5}", v.nrmse_percent, v.rmse);
+        println!(
+            "fit validation: NRMSE {:.2}%, RMSE {:.5}",
+            v.nrmse_percent, v.rmse
+        );
     }
     println!(
         "{} iterations, {} simulations, {:.3} s; stopped: {}{}",
@@ -240,7 +261,11 @@ fn print_text(id: &Identification, rec: &Record) {
         id.report.evaluations,
         id.report.elapsed.as_secs_f64(),
         id.report.stop_reason(),
-        if id.report.converged { "" } else { " (NOT converged)" }
+        if id.report.converged {
+            ""
+        } else {
+            " (NOT converged)"
+        }
     );
 }
 
@@ -270,19 +295,32 @@ impl Figure for TimeFigure<'_> {
             .build_cartesian_2d(t0..t1, lo..hi)
             .map_err(e)?;
         c.configure_mesh().x_desc("t [s]").draw().map_err(e)?;
-        c.draw_series(LineSeries::new(rec.t.iter().copied().zip(rec.y.iter().copied()), &BLACK))
-            .map_err(e)?
-            .label("measured")
-            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK));
-        c.draw_series(LineSeries::new(rec.t.iter().copied().zip(id.yhat.iter().copied()), &RED))
-            .map_err(e)?
-            .label("model")
-            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED));
-        c.draw_series(std::iter::once(PathElement::new(vec![(t_split, lo), (t_split, hi)], BLUE)))
-            .map_err(e)?
-            .label("validation starts")
-            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE));
-        c.configure_series_labels().background_style(WHITE.mix(0.8)).border_style(BLACK).draw().map_err(e)?;
+        c.draw_series(LineSeries::new(
+            rec.t.iter().copied().zip(rec.y.iter().copied()),
+            &BLACK,
+        ))
+        .map_err(e)?
+        .label("measured")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK));
+        c.draw_series(LineSeries::new(
+            rec.t.iter().copied().zip(id.yhat.iter().copied()),
+            &RED,
+        ))
+        .map_err(e)?
+        .label("model")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED));
+        c.draw_series(std::iter::once(PathElement::new(
+            vec![(t_split, lo), (t_split, hi)],
+            BLUE,
+        )))
+        .map_err(e)?
+        .label("validation starts")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE));
+        c.configure_series_labels()
+            .background_style(WHITE.mix(0.8))
+            .border_style(BLACK)
+            .draw()
+            .map_err(e)?;
         // 2: residual
         let res: Vec<f64> = rec.y.iter().zip(&id.yhat).map(|(a, b)| a - b).collect();
         let (lo, hi) = plot::range_of(&res);
@@ -294,10 +332,17 @@ impl Figure for TimeFigure<'_> {
             .build_cartesian_2d(t0..t1, lo..hi)
             .map_err(e)?;
         c.configure_mesh().x_desc("t [s]").draw().map_err(e)?;
-        c.draw_series(LineSeries::new(rec.t.iter().copied().zip(res.iter().copied()), &BLACK))
-            .map_err(e)?;
+        c.draw_series(LineSeries::new(
+            rec.t.iter().copied().zip(res.iter().copied()),
+            &BLACK,
+        ))
+        .map_err(e)?;
         // 3 and 4: correlations on the validation part (estimation if none)
-        let (a, b) = if id.split < rec.len() { (id.split, rec.len()) } else { (0, id.split) };
+        let (a, b) = if id.split < rec.len() {
+            (id.split, rec.len())
+        } else {
+            (0, id.split)
+        };
         let e_part = &res[a..b];
         let u_part = &rec.u[a..b];
         let lags = 25usize.min(e_part.len().saturating_sub(1)).max(1);
@@ -306,13 +351,24 @@ impl Figure for TimeFigure<'_> {
         let rc = metrics::crosscorr(e_part, u_part, lags);
         let part = if a > 0 { "validation" } else { "estimation" };
         for (k, (title, vals, first)) in [
-            (format!("residual autocorrelation ({part}), 99% bounds"), ra, 0i32),
-            (format!("residual-input cross-correlation ({part}), 99% bounds"), rc, -(lags as i32)),
+            (
+                format!("residual autocorrelation ({part}), 99% bounds"),
+                ra,
+                0i32,
+            ),
+            (
+                format!("residual-input cross-correlation ({part}), 99% bounds"),
+                rc,
+                -(lags as i32),
+            ),
         ]
         .into_iter()
         .enumerate()
         {
-            let ymax = vals.iter().fold(bound * 1.5, |m, v| m.max(v.abs())).min(1.05);
+            let ymax = vals
+                .iter()
+                .fold(bound * 1.5, |m, v| m.max(v.abs()))
+                .min(1.05);
             let last = first + vals.len() as i32 - 1;
             let mut c = ChartBuilder::on(&areas[2 + k])
                 .caption(title, font)
@@ -321,7 +377,10 @@ impl Figure for TimeFigure<'_> {
                 .y_label_area_size(60)
                 .build_cartesian_2d((first - 1)..(last + 1), -ymax..ymax)
                 .map_err(e)?;
-            c.configure_mesh().x_desc("lag [samples]").draw().map_err(e)?;
+            c.configure_mesh()
+                .x_desc("lag [samples]")
+                .draw()
+                .map_err(e)?;
             c.draw_series(vals.iter().enumerate().map(|(i, v)| {
                 let x = first + i as i32;
                 PathElement::new(vec![(x, 0.0), (x, *v)], BLACK.stroke_width(2))

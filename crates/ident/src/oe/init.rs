@@ -488,10 +488,13 @@ fn coarse_start(lin: &FracModel, u: &[f64], y: &[f64], dt: f64) -> Option<(f64, 
     best.map(|(sse, q, wc, k)| (sse, values(q, wc, k)))
 }
 
+/// A candidate start: parameter values and a label for the report.
+type Candidate = (Vec<f64>, String);
+
 /// Levy-start candidates for the PMSM or commensurate model: the commensurate fit, and for the
-/// PMSM its refit with two free orders ([`levy::refine_pmsm`]). Returns `(values, label)` pairs,
-/// the order and the number of harmonics.
-fn levy_candidates(lin: &FracModel, frf: &Frf, dt: f64) -> Result<(Vec<(Vec<f64>, String)>, f64)> {
+/// PMSM its refit with two free orders ([`levy::refine_pmsm`]). Returns the candidates and the
+/// commensurate order.
+fn levy_candidates(lin: &FracModel, frf: &Frf, dt: f64) -> Result<(Vec<Candidate>, f64)> {
     let (fit, err) = levy_start(frf, true)?;
     let (k, a1, a2, q) = (fit.b[0], fit.a[0], fit.a[1], fit.q);
     let mut out = vec![(
