@@ -307,15 +307,7 @@ struct Candidate {
     starts: Vec<FracModel>,
 }
 
-fn sign(v: f64) -> f64 {
-    if v > 0.0 {
-        1.0
-    } else if v < 0.0 {
-        -1.0
-    } else {
-        0.0
-    }
-}
+use crate::oe::effects::sign;
 
 /// Find output quantization: at most `N/5` distinct values lying on a grid (90% of the gaps
 /// between consecutive levels within 5% of a whole multiple of the smallest gap).

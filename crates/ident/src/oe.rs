@@ -32,7 +32,7 @@
 //! println!("{} fit {:.1}%", id.tf, id.validation.unwrap().nrmse_percent);
 //! ```
 
-mod effects;
+pub(crate) mod effects;
 mod fit;
 pub mod init;
 

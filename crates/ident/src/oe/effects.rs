@@ -53,7 +53,8 @@ pub enum Effect {
     },
 }
 
-fn sign<T: Real>(x: T) -> f64 {
+/// The sign of the value: -1, 0 or +1 (0 at 0, unlike `f64::signum`).
+pub(crate) fn sign<T: Real>(x: T) -> f64 {
     let v = x.re();
     if v > 0.0 {
         1.0
