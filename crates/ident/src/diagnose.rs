@@ -458,16 +458,22 @@ fn candidates(
         // squared peak stands for the evidence), and the refit starts at that lag as well.
         let bound = crate::metrics::bound99(s);
         let signature = lag >= 0 && peak.abs() > bound;
+        // Without the signature the delay is still probed (a joint refit from one and two
+        // samples): a base fit with free orders can absorb a delay so well that neither test
+        // above sees it. It ranks last, and the held-out margin and BIC decide as for any effect.
         let r2 = if signature {
             r2_held.max(peak * peak)
         } else {
-            r2_held
+            r2_held.max(ctx.opts.min_r2)
         };
         let mut starts = vec![];
         let mut taus = vec![best.1];
         if signature {
             taus.push(lag.max(1) as f64 * dt);
             taus.push((lag as f64 - 0.5).max(0.5) * dt);
+        } else {
+            taus.push(dt);
+            taus.push(2.0 * dt);
         }
         for tau in taus {
             let mut m = st.model.clone();
@@ -488,7 +494,7 @@ fn candidates(
                 if signature {
                     ": the input acts later than the model assumes"
                 } else {
-                    ""
+                    "; probed by a joint refit from 1 and 2 samples"
                 }
             ),
             starts,
