@@ -201,7 +201,17 @@ fn demo_acquires_identifies_diagnoses_and_reports() {
     let val = time["fit"]["validation"]["nrmse_percent"].as_f64().unwrap();
     // The hidden 1 ms delay is not in the base model; even so the fit must be a useful model.
     assert!(val > 85.0, "validation fit {val}%");
-    assert!(time["diagnosis"]["after"]["rmse"].as_f64().is_some());
+    // The hidden 1 ms input delay is what the time-domain diagnosis must find and add.
+    let effects = time["diagnosis"]["effects"].as_array().expect("effects");
+    let delay = effects
+        .iter()
+        .find(|e| e["name"] == "delay")
+        .unwrap_or_else(|| panic!("no delay found: {effects:?}"));
+    let tau = delay["params"]["tau"].as_f64().unwrap();
+    assert!((tau - 1e-3).abs() < 0.2e-3, "tau = {tau}");
+    let before = time["diagnosis"]["before"]["rmse"].as_f64().unwrap();
+    let after = time["diagnosis"]["after"]["rmse"].as_f64().unwrap();
+    assert!(after < 0.5 * before, "RMSE {before} -> {after}");
     let freq: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.path().join("freq.json")).unwrap())
             .unwrap();
