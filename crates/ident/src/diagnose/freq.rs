@@ -444,7 +444,9 @@ pub fn diagnose_bode(
             reject(
                 match extra {
                     Extra::Delay => format!(
-                        "the phase residual is a lead (tau = {tau0:.3e} s < 0), not a delay"
+                        "the phase residual is a lead (tau = {tau0:.3e} s < 0), not a delay, and joint \
+                         refits from probe delays do not lower J by the {:.0}% margin with AIC",
+                        100.0 * opts.margin
                     ),
                     _ => {
                         "no single corner in or near the measured band reduces the residual".into()
@@ -457,8 +459,13 @@ pub fn diagnose_bode(
         if r2 < opts.min_r2 {
             reject(
                 format!(
-                    "weak evidence: {evidence} (below the {:.0}% needed)",
-                    100.0 * opts.min_r2
+                    "weak evidence: {evidence} (below the {:.0}% needed){}",
+                    100.0 * opts.min_r2,
+                    if extra == Extra::Delay {
+                        "; joint refits from probe delays do not pass the margin and AIC either"
+                    } else {
+                        ""
+                    }
                 ),
                 BTreeMap::new(),
             );
