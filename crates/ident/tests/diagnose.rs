@@ -91,7 +91,11 @@ fn generate(u: &[f64], h: Hidden, seed: u64) -> Record {
         // The implicit GL step at t_i uses x(t_i): a held input u_m acts on (m DT, (m+1) DT], so
         // the sample at t_i comes from one fine step earlier (else the data lead the convention
         // of the simulator, and of a drive's PWM, by one fine step).
-        let mut x = if i > dly { u[(i - dly - 1) / FINE] } else { 0.0 };
+        let mut x = if i > dly {
+            u[(i - dly - 1) / FINE]
+        } else {
+            0.0
+        };
         if let Some(l) = h.sat {
             x = x.clamp(-l, l);
         }
