@@ -8,9 +8,8 @@
 //!
 //! - [`levy_fixed_q`]: Levy's (1959) linearised least squares for a fixed `q`: minimise
 //!   `sum_g w_g |G(jw_g) D(jw_g) - N(jw_g)|^2`, linear in `(b, a)`, solved as the stacked real and
-//!   imaginary system with column scaling by Householder QR with column pivoting (written for the
-//!   few columns of this tall system), never by the normal equations (their condition number is
-//!   about 3e7 on the paper's Table 1).
+//!   imaginary system with column scaling by column-pivoted QR (faer), never by the normal
+//!   equations (their condition number is about 3e7 on the paper's Table 1).
 //! - Weights ([`Weights`]): Vinagre's (2001, the paper's eq. 29)
 //!   `w_1 = (w_2 - w_1)/(2 w_1^2)`, `w_g = (w_{g+1} - w_{g-1})/(2 w_g^2)`, `w_f = (w_f - w_{f-1})/(2 w_f^2)`
 //!   ([`vinagre_weights`]), none, or per point.
@@ -229,8 +228,8 @@ pub fn commensurate_tf(q: f64, b: &[f64], a: &[f64]) -> Result<FracTf> {
 ///
 /// Unknowns `x = (b_0..b_m, a_1..a_n)`; each point gives the complex equation
 /// `sum_p a_p G s^(p q) - sum_u b_u s^(u q) = -G`, weighted by `sqrt(w_g)`, split into its real
-/// and imaginary rows; columns are scaled to unit norm and the system is solved by Householder QR
-/// with column pivoting.
+/// and imaginary rows; columns are scaled to unit norm and the system is solved by column-pivoted
+/// QR (faer).
 ///
 /// ```
 /// use ident::levy::{levy_fixed_q, vinagre_weights};
@@ -308,7 +307,6 @@ struct LevyKernel<'a> {
     /// Its right-hand side (`2f`), reused.
     rhs: Vec<f64>,
     /// The QR's per-column work.
-    qr: QrWork,
     /// The column scales.
     scale: Vec<f64>,
     /// The solution `(b_0..b_m, a_1..a_n)` of the last solve.
@@ -333,7 +331,6 @@ impl<'a> LevyKernel<'a> {
             sw: vec![0.0; f],
             a: vec![0.0; 2 * f * k],
             rhs: vec![0.0; 2 * f],
-            qr: QrWork::new(k),
             scale: vec![1.0; k],
             x: vec![0.0; k],
         }
@@ -422,7 +419,18 @@ impl<'a> LevyKernel<'a> {
             pair[0] = -hg.re * sw;
             pair[1] = -hg.im * sw;
         }
-        householder_lstsq(&mut self.a, &mut self.rhs, &mut self.qr, &mut self.x);
+        // Column-pivoted QR (faer) of the scaled, weighted system: an orthogonal factorisation,
+        // never the normal equations.
+        {
+            use faer::prelude::*;
+            let k = self.x.len();
+            let am = faer::MatRef::from_column_major_slice(&self.a, rows, k);
+            let bm = faer::MatRef::from_column_major_slice(&self.rhs, rows, 1);
+            let sol = am.col_piv_qr().solve_lstsq(bm);
+            for (i, x) in self.x.iter_mut().enumerate() {
+                *x = sol[(i, 0)];
+            }
+        }
         for (x, s) in self.x.iter_mut().zip(&self.scale) {
             *x /= s;
         }
@@ -500,142 +508,6 @@ fn dot(x: &[f64], y: &[f64]) -> f64 {
         }
     }
     (acc[0] + acc[1]) + (acc[2] + acc[3]) + tail
-}
-
-/// `y += alpha x`.
-fn axpy(alpha: f64, x: &[f64], y: &mut [f64]) {
-    for (y, x) in y.iter_mut().zip(x) {
-        *y += alpha * x;
-    }
-}
-
-/// Per-column work of [`householder_lstsq`], reused between solves.
-#[derive(Debug, Clone)]
-struct QrWork {
-    /// `perm[j]`: the column of `a` in position `j` of the factorisation.
-    perm: Vec<usize>,
-    /// Partial column norms (of the rows not yet reduced), and their last exact values.
-    vn1: Vec<f64>,
-    vn2: Vec<f64>,
-    /// The upper triangle's solution in pivoted order.
-    y: Vec<f64>,
-}
-
-impl QrWork {
-    fn new(k: usize) -> Self {
-        Self {
-            perm: vec![0; k],
-            vn1: vec![0.0; k],
-            vn2: vec![0.0; k],
-            y: vec![0.0; k],
-        }
-    }
-}
-
-/// Least squares `min ||A x - b||_2` by Householder QR with column pivoting (LAPACK's `dgeqp2`
-/// with `dlarfg` reflectors and its norm downdating), written for the few columns of Levy's
-/// system: `a` is column-major `rows x k` (`k = x.len()`), overwritten by the reflectors and `R`;
-/// `b` is overwritten by `Q^T b`. An orthogonal factorisation, never the normal equations (their
-/// condition number is the square of the system's, about 3e7 on the paper's Table 1). A
-/// numerically singular `R` gives a non-finite or huge `x` (the caller checks).
-fn householder_lstsq(a: &mut [f64], b: &mut [f64], w: &mut QrWork, x: &mut [f64]) {
-    let k = x.len();
-    let rows = b.len();
-    debug_assert!(a.len() == rows * k && rows >= k);
-    // below this relative size of a downdated norm, recompute it (LAPACK's tol3z)
-    let tol3z = f64::EPSILON.sqrt();
-    for c in 0..k {
-        w.perm[c] = c;
-        let col = &a[c * rows..(c + 1) * rows];
-        w.vn1[c] = dot(col, col).sqrt();
-        w.vn2[c] = w.vn1[c];
-    }
-    for j in 0..k {
-        // pivot: the largest remaining partial norm (the first on ties, NaN never wins)
-        let mut p = j;
-        for c in j + 1..k {
-            if w.vn1[c] > w.vn1[p] {
-                p = c;
-            }
-        }
-        w.perm.swap(j, p);
-        w.vn1.swap(j, p);
-        w.vn2.swap(j, p);
-        let pj = w.perm[j];
-        // the reflector H = I - tau v v^T with v = (1, v_rest), H x = (beta, 0, ..., 0)
-        let tau = {
-            let col = &mut a[pj * rows + j..(pj + 1) * rows];
-            let (alpha, rest) = col.split_first_mut().expect("j < rows");
-            let xnorm2 = dot(rest, rest);
-            if xnorm2 == 0.0 {
-                0.0
-            } else {
-                let beta = -(*alpha * *alpha + xnorm2).sqrt().copysign(*alpha);
-                let tau = (beta - *alpha) / beta;
-                let inv = 1.0 / (*alpha - beta);
-                for v in rest.iter_mut() {
-                    *v *= inv;
-                }
-                *alpha = beta;
-                tau
-            }
-        };
-        // apply H to the remaining columns and to b
-        let (v_start, v_end) = (pj * rows + j + 1, (pj + 1) * rows);
-        let apply = |v: &[f64], y: &mut [f64]| {
-            let (y0, yr) = y.split_first_mut().expect("j < rows");
-            let s = tau * (*y0 + dot(v, yr));
-            *y0 -= s;
-            axpy(-s, v, yr);
-        };
-        if tau != 0.0 {
-            for c in j + 1..k {
-                let pc = w.perm[c];
-                let (v, y) = two_slices(a, (v_start, v_end), (pc * rows + j, (pc + 1) * rows));
-                apply(v, y);
-            }
-            apply(&a[v_start..v_end], &mut b[j..]);
-        }
-        // downdate the partial norms of the remaining columns
-        for c in j + 1..k {
-            let pc = w.perm[c];
-            if w.vn1[c] != 0.0 {
-                let r = a[pc * rows + j].abs() / w.vn1[c];
-                let t = (1.0 - r * r).max(0.0);
-                let ratio = w.vn1[c] / w.vn2[c];
-                if t * ratio * ratio <= tol3z {
-                    let rest = &a[pc * rows + j + 1..(pc + 1) * rows];
-                    w.vn1[c] = dot(rest, rest).sqrt();
-                    w.vn2[c] = w.vn1[c];
-                } else {
-                    w.vn1[c] *= t.sqrt();
-                }
-            }
-        }
-    }
-    // back substitution R y = (Q^T b)[..k], then x[perm[j]] = y_j
-    for j in (0..k).rev() {
-        let mut s = b[j];
-        for c in j + 1..k {
-            s -= a[w.perm[c] * rows + j] * w.y[c];
-        }
-        w.y[j] = s / a[w.perm[j] * rows + j];
-    }
-    for j in 0..k {
-        x[w.perm[j]] = w.y[j];
-    }
-}
-
-/// `(&s[r1], &mut s[r2])` for two non-overlapping ranges of `s`.
-fn two_slices(s: &mut [f64], r1: (usize, usize), r2: (usize, usize)) -> (&[f64], &mut [f64]) {
-    if r1.1 <= r2.0 {
-        let (lo, hi) = s.split_at_mut(r2.0);
-        (&lo[r1.0..r1.1], &mut hi[..r2.1 - r2.0])
-    } else {
-        debug_assert!(r2.1 <= r1.0);
-        let (lo, hi) = s.split_at_mut(r1.0);
-        (&hi[..r1.1 - r1.0], &mut lo[r2.0..r2.1])
-    }
 }
 
 /// How the commensurate order `q` is chosen.
@@ -976,58 +848,6 @@ mod tests {
         assert_eq!(s.curve.len(), 100);
         assert_eq!(s.curve[99].q, 1.0);
         assert_eq!(s.grid_best.q, 0.5);
-    }
-
-    /// The hand-written QR against faer's column-pivoted QR on a graded, ill-conditioned tall
-    /// system, and a zero column reported as non-finite.
-    #[test]
-    fn householder_matches_faer_and_flags_a_zero_column() {
-        use faer::prelude::*;
-        let (rows, k) = (40, 4);
-        // columns t^0..t^3 (t in [0.1, 1.1)) scaled by 1, 1e3, 1e-3, 1e6: graded by 1e9
-        let col_scale = [1.0, 1e3, 1e-3, 1e6];
-        let a: Vec<f64> = (0..k)
-            .flat_map(|c| {
-                (0..rows).map(move |i| {
-                    let t = 0.1 + i as f64 / rows as f64;
-                    t.powi(c as i32) * col_scale[c]
-                })
-            })
-            .collect();
-        let b: Vec<f64> = (0..rows).map(|i| (i as f64 * 0.37).sin()).collect();
-        let am = Mat::<f64>::from_fn(rows, k, |i, c| a[c * rows + i]);
-        let bm = Mat::<f64>::from_fn(rows, 1, |i, _| b[i]);
-        let reference = am.col_piv_qr().solve_lstsq(&bm);
-        let (mut aw, mut bw, mut x) = (a.clone(), b.clone(), vec![0.0; k]);
-        householder_lstsq(&mut aw, &mut bw, &mut QrWork::new(k), &mut x);
-        for c in 0..k {
-            // 1e-10 relative: both are backward stable; they agree to ~1e-14 here, the margin
-            // covers another summation order or libm
-            let r = reference[(c, 0)];
-            assert!(
-                (x[c] - r).abs() <= 1e-10 * r.abs(),
-                "x[{c}] = {} vs {r}",
-                x[c]
-            );
-        }
-        // residual orthogonal to the columns (the least-squares optimality condition)
-        for c in 0..k {
-            let col = &a[c * rows..(c + 1) * rows];
-            let g: f64 = (0..rows)
-                .map(|i| {
-                    let ax: f64 = (0..k).map(|d| a[d * rows + i] * x[d]).sum();
-                    col[i] * (ax - b[i])
-                })
-                .sum();
-            let cn = dot(col, col).sqrt();
-            // measured ~2e-15 |col|; 1e-12 leaves room for another libm or summation order
-            assert!(g.abs() <= 1e-12 * cn, "column {c}: A^T r = {g}");
-        }
-        let mut az = a.clone();
-        az[rows..2 * rows].fill(0.0);
-        let mut bz = b.clone();
-        householder_lstsq(&mut az, &mut bz, &mut QrWork::new(k), &mut x);
-        assert!(x.iter().any(|v| !v.is_finite()));
     }
 
     #[test]
