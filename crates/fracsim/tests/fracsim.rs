@@ -164,3 +164,186 @@ fn bad_inputs_are_errors_not_panics() {
     assert!(FracTf::pmsm(1.0, f64::INFINITY, 1.0, 0.9, 0.9).is_err());
     assert!("1/(0 s + 0)".parse::<FracTf>().is_err());
 }
+
+// ---------------------------------------------------------------------------------------------
+// Property tests: the model parser and `Display` as a codec, and the invariants of the simulator.
+
+use fracsim::Term;
+use num_complex::Complex64;
+use proptest::prelude::*;
+
+/// Tokens of the model grammar and near misses, glued into arbitrary sequences.
+fn model_ish() -> impl Strategy<Value = String> {
+    let token = prop_oneof![
+        Just("s".to_string()),
+        Just("^".to_string()),
+        Just("exp(".to_string()),
+        Just("(".to_string()),
+        Just(")".to_string()),
+        Just("[".to_string()),
+        Just("]".to_string()),
+        Just("+".to_string()),
+        Just("-".to_string()),
+        Just("*".to_string()),
+        Just("/".to_string()),
+        Just(" ".to_string()),
+        Just(".".to_string()),
+        Just("e".to_string()),
+        Just("0".to_string()),
+        Just("1e400".to_string()),
+        Just("1e-400".to_string()),
+        Just("nan".to_string()),
+        Just("é".to_string()),
+        (0.0f64..1e3).prop_map(|x| x.to_string()),
+        (-30.0f64..30.0).prop_map(|x| format!("{x:e}")),
+        (0u32..100).prop_map(|x| x.to_string()),
+    ];
+    prop::collection::vec(token, 0..40).prop_map(|t| t.concat())
+}
+
+/// `coef * s^order` terms with positive coefficients and orders in [0, 2], some of them the
+/// special cases `Display` writes differently (order 0 and 1, coefficient 1).
+fn terms(max: usize) -> impl Strategy<Value = Vec<Term>> {
+    let coef = prop_oneof![1 => Just(1.0), 4 => 1e-6f64..1e4];
+    let order = prop_oneof![1 => Just(0.0), 1 => Just(1.0), 1 => Just(2.0), 5 => 0.0f64..=2.0];
+    prop::collection::vec((coef, order).prop_map(|(c, o)| Term::new(c, o)), 1..=max)
+}
+
+fn delay() -> impl Strategy<Value = f64> {
+    prop_oneof![Just(0.0), 1e-6f64..1.0]
+}
+
+/// `G(j w)` from the terms directly, with num-complex's own complex power.
+fn direct(num: &[Term], den: &[Term], delay: f64, w: f64) -> Complex64 {
+    let jw = Complex64::new(0.0, w);
+    let poly = |t: &[Term]| -> Complex64 { t.iter().map(|t| jw.powf(t.order) * t.coef).sum() };
+    poly(num) / poly(den) * (-jw * delay).exp()
+}
+
+/// A model written the way the test (not `Display`) spells it.
+fn spell(num: &[Term], den: &[Term], delay: f64) -> String {
+    let poly = |t: &[Term]| {
+        t.iter()
+            .map(|t| format!("{:e}*s^{}", t.coef, t.order))
+            .collect::<Vec<_>>()
+            .join(" + ")
+    };
+    format!("({}) / ({}) * exp(-{delay:e} s)", poly(num), poly(den))
+}
+
+proptest! {
+    #[test]
+    fn parser_never_panics_on_arbitrary_text(src in ".*") {
+        let _ = src.parse::<FracTf>();
+    }
+
+    #[test]
+    fn parser_never_panics_on_token_soup(src in model_ish()) {
+        if let Ok(g) = src.parse::<FracTf>() {
+            // whatever parses is a valid model: it displays and parses back to itself
+            let again: FracTf = g.to_string().parse().unwrap();
+            prop_assert_eq!(again, g);
+        }
+    }
+
+    #[test]
+    fn display_then_parse_is_the_identity(num in terms(4), den in terms(4), tau in delay()) {
+        let g = FracTf::new(num, den, tau).unwrap();
+        let text = g.to_string();
+        let again: FracTf = text.parse().unwrap();
+        prop_assert_eq!(&again, &g, "{}", text);
+    }
+
+    #[test]
+    fn parsed_frequency_response_is_the_direct_evaluation(
+        num in terms(3),
+        den in terms(3),
+        tau in delay(),
+        w in 1e-3f64..1e5,
+    ) {
+        let g: FracTf = spell(&num, &den, tau).parse().unwrap();
+        let (h, exact) = (g.freq_response(w), direct(&num, &den, tau, w));
+        // The parser merges and reorders terms: the rounding is a few ulps of the largest term,
+        // relative to the sum it cancels down to (its condition number), in each polynomial.
+        let one = [Term::new(1.0, 0.0)];
+        let cond = |t: &[Term]| {
+            t.iter().map(|t| t.coef * w.powf(t.order)).sum::<f64>() / direct(t, &one, 0.0, w).norm()
+        };
+        let tol = 1e-12 * exact.norm() * cond(&num) * cond(&den);
+        prop_assert!((h - exact).norm() <= tol.max(1e-300), "{h} vs {exact} (tol {tol})");
+    }
+}
+
+/// Stable models for simulation: `(K + sum b_i s^beta_i) / (1 + sum a_j s^alpha_j) exp(-tau s)`
+/// with positive coefficients (`a_j` and `b_i / K` at most `small`), denominator orders in
+/// `[lo, 1.9]` (no poles in the closed right half-plane) and numerator orders in `[lo, top]`, `top`
+/// the highest order of the denominator.
+fn stable_model(lo: f64, small: f64) -> impl Strategy<Value = FracTf> {
+    let den = prop::collection::vec((1e-4..small, lo..1.9), 1..=3);
+    let num = prop::collection::vec((1e-3..small, 0.0f64..=1.0), 0..=1);
+    (den, 0.1f64..10.0, num, 0.0f64..5e-3).prop_map(move |(den, k, num, tau)| {
+        let top = den.iter().map(|d| d.1).fold(0.0, f64::max);
+        let mut d: Vec<Term> = den.into_iter().map(|(c, o)| Term::new(c, o)).collect();
+        d.push(Term::new(1.0, 0.0));
+        let mut n = vec![Term::new(k, 0.0)];
+        n.extend(
+            num.into_iter()
+                .map(|(c, f)| Term::new(c * k, lo + f * (top - lo))),
+        );
+        FracTf::new(n, d, tau).unwrap()
+    })
+}
+
+fn signal(len: usize) -> impl Strategy<Value = Vec<f64>> {
+    prop::collection::vec(-10.0f64..10.0, len)
+}
+
+fn max_abs(v: &[f64]) -> f64 {
+    v.iter().fold(0.0, |m, x| m.max(x.abs()))
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(48))]
+
+    #[test]
+    fn simulation_is_linear(
+        g in stable_model(0.05, 0.1),
+        u1 in signal(300),
+        u2 in signal(300),
+        a in -5.0f64..5.0,
+        b in -5.0f64..5.0,
+    ) {
+        let (dt, spec) = (1e-3, ApproxSpec::default());
+        let mix: Vec<f64> = u1.iter().zip(&u2).map(|(x, y)| a * x + b * y).collect();
+        let y1 = lsim(&g, &u1, dt, &spec).unwrap();
+        let y2 = lsim(&g, &u2, dt, &spec).unwrap();
+        let y = lsim(&g, &mix, dt, &spec).unwrap();
+        let scale = a.abs() * max_abs(&y1) + b.abs() * max_abs(&y2);
+        for k in 0..y.len() {
+            let want = a * y1[k] + b * y2[k];
+            prop_assert!((y[k] - want).abs() <= 1e-9 * scale, "{g}: sample {k}: {} vs {want}", y[k]);
+        }
+    }
+
+    #[test]
+    fn simulation_is_time_invariant(g in stable_model(0.05, 0.1), u in signal(200), shift in 1usize..100) {
+        let (dt, spec) = (1e-3, ApproxSpec::default());
+        let mut shifted = vec![0.0; shift];
+        shifted.extend_from_slice(&u);
+        let y = lsim(&g, &u, dt, &spec).unwrap();
+        let ys = lsim(&g, &shifted, dt, &spec).unwrap();
+        // From rest, zeros in give exact zeros out: the states after the shift are the same.
+        prop_assert!(ys[..shift].iter().all(|&v| v == 0.0), "{g}: output before the input");
+        prop_assert_eq!(&ys[shift..], &y[..], "{}", g);
+    }
+
+    #[test]
+    fn step_response_settles_at_the_dc_gain(g in stable_model(0.7, 0.03)) {
+        // 20 s at 1 ms. Each term c s^a (a >= 0.7, c <= 0.03 relative) leaves a tail
+        // c t^-a / Gamma(1 - a) <= 1.3e-3 at 20 s, at most four of them; the default band's lower
+        // edge, 1e-3 rad/s, costs c 1e-3^a < 3e-4 each.
+        let y = lsim(&g, &vec![1.0; 20_001], 1e-3, &ApproxSpec::default()).unwrap();
+        let (end, dc) = (y[20_000], g.dc_gain());
+        prop_assert!(((end - dc) / dc).abs() < 1e-2, "{g}: step ends at {end}, DC gain {dc}");
+    }
+}
