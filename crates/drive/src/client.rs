@@ -18,6 +18,8 @@ use serialport::{SerialPort, TTYPort};
 use std::collections::VecDeque;
 use std::io::{self, Read, Write};
 use std::ops::Range;
+use std::sync::atomic::{AtomicU8, Ordering};
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 /// Client settings.
@@ -177,11 +179,15 @@ pub struct Acquisition {
     pub i: Vec<f64>,
     /// Raw samples `[u, y, i]` as received.
     pub raw: Vec<[i16; 3]>,
-    /// Samples the run should have (from STREAM_END if it arrived, else as planned).
+    /// Samples the drive produced (from STREAM_END if it arrived, else as planned).
     pub total_samples: u64,
+    /// Samples the run was to have (the START's ACK).
+    pub planned_samples: u64,
     /// True only if every index in `0..total_samples` arrived and the run ended normally.
     pub complete: bool,
-    /// Missing sample ranges (half-open).
+    /// Missing sample ranges (half-open) in `0..max(total_samples, planned_samples)`: samples lost
+    /// on the way and, for a run that ended early, the planned samples never produced. Empty for
+    /// a sine run without streaming (nothing was to arrive).
     pub missing: Vec<Range<u64>>,
     /// The drive's end-of-run summary, if obtained.
     pub end: Option<StreamEnd>,
@@ -349,6 +355,34 @@ pub struct Progress {
     pub total: u64,
 }
 
+/// Asks the run in progress on a [`Client`] to end, from another thread or a progress callback
+/// ([`Client::stop_handle`]). The client sends STOP (or ESTOP) at its next turn, keeps what
+/// arrives and returns the acquisition marked incomplete with the reason.
+#[derive(Debug, Clone, Default)]
+pub struct StopHandle(Arc<AtomicU8>);
+
+const STOP_NONE: u8 = 0;
+const STOP_STOP: u8 = 1;
+const STOP_ESTOP: u8 = 2;
+
+impl StopHandle {
+    /// Request a STOP (the output ramps to zero, the run ends with reason STOPPED).
+    pub fn stop(&self) {
+        self.0.fetch_max(STOP_STOP, Ordering::SeqCst);
+    }
+    /// Request an ESTOP (output off at once, fault latched until the next CONFIGURE).
+    pub fn estop(&self) {
+        self.0.store(STOP_ESTOP, Ordering::SeqCst);
+    }
+    /// Whether a request is pending (not yet sent to the drive).
+    pub fn is_pending(&self) -> bool {
+        self.0.load(Ordering::SeqCst) != STOP_NONE
+    }
+    fn take(&self) -> u8 {
+        self.0.swap(STOP_NONE, Ordering::SeqCst)
+    }
+}
+
 /// A connection to a drive (or the simulator).
 pub struct Client {
     path: String,
@@ -362,6 +396,7 @@ pub struct Client {
     last_tx: Instant,
     stats: ClientStats,
     progress: Option<Box<dyn FnMut(Progress) + Send>>,
+    stop_req: StopHandle,
 }
 
 impl std::fmt::Debug for Client {
@@ -396,6 +431,7 @@ impl Client {
             last_tx: Instant::now(),
             stats: ClientStats::default(),
             progress: None,
+            stop_req: StopHandle::default(),
         };
         c.port = Some(c.open_port()?);
         c.hello()?;
@@ -405,6 +441,12 @@ impl Client {
     /// Report progress to `f` during runs.
     pub fn set_progress(&mut self, f: impl FnMut(Progress) + Send + 'static) {
         self.progress = Some(Box::new(f));
+    }
+
+    /// A handle to stop the run in progress (see [`StopHandle`]). A request made while no run is
+    /// active ends the next run as soon as it has started.
+    pub fn stop_handle(&self) -> StopHandle {
+        self.stop_req.clone()
     }
 
     /// The drive's HELLO_REPLY.
@@ -657,7 +699,7 @@ impl Client {
             "PRBS order {} taps {:#x} seed {} clock {} s ({} samples), amplitude {} V, offset {} V, {} periods, settle {} s",
             cmd.order, cmd.taps, cmd.seed, test.clock_s, cmd.clock_samples, test.amplitude_v, test.offset_v, cmd.periods, test.settle_s
         );
-        self.run(Message::StartPrbs(cmd), desc, sink)
+        self.run(Message::StartPrbs(cmd), desc, true, sink)
     }
 
     /// Run one START_SINE and stream into `sink`.
@@ -670,15 +712,24 @@ impl Client {
             cmd.settle_cycles,
             cmd.cycles
         );
-        self.run(Message::StartSine(*cmd), desc, sink)
+        self.run(
+            Message::StartSine(*cmd),
+            desc,
+            cmd.flags & SINE_STREAM != 0,
+            sink,
+        )
     }
 
+    /// Run a started experiment to its end. `streamed`: DATA blocks are to arrive (a sine run
+    /// without streaming sends only SINE_RESULT and STREAM_END).
     fn run(
         &mut self,
         start: Message,
         description: String,
+        streamed: bool,
         sink: &mut dyn SampleSink,
     ) -> Result<Acquisition> {
+        let want_dft = matches!(start, Message::StartSine(s) if s.flags & SINE_DFT != 0);
         let conf = self.conf()?;
         let boot = self.hello.map(|h| h.boot_id);
         let ack = match self.request(start)? {
@@ -695,6 +746,7 @@ impl Client {
             run_id: ack.run_id,
             sample_rate_hz: fs,
             total_samples: ack.total_samples as u64,
+            planned_samples: ack.total_samples as u64,
             ..Default::default()
         };
         sink.begin(&RunInfo {
@@ -713,6 +765,18 @@ impl Client {
         let mut stalled_polls = 0u32;
         let mut last_done = 0u32;
         loop {
+            let req = self.stop_req.take();
+            if req != STOP_NONE {
+                let (msg, name) = if req == STOP_ESTOP {
+                    (Message::Estop, "ESTOP")
+                } else {
+                    (Message::Stop, "STOP")
+                };
+                if let Err(e) = self.request(msg) {
+                    // The stream recovery below finds out what the drive did.
+                    acq.problems.push(format!("{name} not acknowledged: {e}"));
+                }
+            }
             if self.last_tx.elapsed() >= self.cfg.keepalive {
                 let seq = self.next_seq();
                 self.send(&Frame {
@@ -829,56 +893,9 @@ impl Client {
                 }
             }
         }
-        self.finish(&mut acq, next);
+        finish(&mut acq, streamed, want_dft);
         sink.finish(&acq)?;
         Ok(acq)
-    }
-
-    fn finish(&mut self, acq: &mut Acquisition, _next: u64) {
-        if let Some(e) = acq.end {
-            acq.total_samples = e.total_samples as u64;
-            if e.reason != EndReason::Complete {
-                acq.problems
-                    .push(format!("run ended early: {:?}", e.reason));
-            }
-            if e.blocks_dropped > 0 {
-                acq.problems
-                    .push(format!("drive dropped {} blocks", e.blocks_dropped));
-            }
-        } else if acq.problems.is_empty() {
-            acq.problems.push("no end-of-run summary".into());
-        }
-        // Missing ranges: complement of received indices in 0..total.
-        let mut missing = Vec::new();
-        let mut expect = 0u64;
-        for &i in &acq.index {
-            if i > expect {
-                missing.push(expect..i.min(acq.total_samples));
-            }
-            expect = i + 1;
-        }
-        if expect < acq.total_samples {
-            missing.push(expect..acq.total_samples);
-        }
-        missing.retain(|r| r.start < r.end);
-        if acq.index.last().is_some_and(|&l| l >= acq.total_samples) {
-            acq.problems.push("samples beyond the announced end".into());
-        }
-        if let Some(e) = acq.end {
-            let got = acq.index.len() as u64;
-            if missing.is_empty() && got != e.samples_sent as u64 {
-                acq.problems.push(format!(
-                    "drive sent {} samples, host got {}",
-                    e.samples_sent, got
-                ));
-            }
-        }
-        if !missing.is_empty() {
-            let n: u64 = missing.iter().map(|r| r.end - r.start).sum();
-            acq.problems.push(format!("{n} samples missing"));
-        }
-        acq.missing = missing;
-        acq.complete = acq.problems.is_empty();
     }
 
     /// Run a sine sweep and return the frequency response. Points whose measurement was
@@ -929,6 +946,17 @@ impl Client {
                     done = true;
                     break;
                 }
+                if let Some(r) = acq
+                    .end
+                    .map(|e| e.reason)
+                    .filter(|r| matches!(r, EndReason::Stopped | EndReason::Estop))
+                {
+                    // Stopped on the host's request: the sweep ends here.
+                    problems.push(format!("{f} Hz: {r:?}; sweep stopped"));
+                    self.progress = prog;
+                    bode::unwrap_deg(&mut points);
+                    return Ok((points, problems));
+                }
                 problems.push(format!(
                     "{f} Hz: measurement damaged ({}), repeating",
                     acq.problems.join("; ")
@@ -950,51 +978,151 @@ impl Client {
     }
 }
 
-/// A Bode point from a sine run: the drive's DFT if the run ended normally, else (streamed and
-/// complete) the host's DFT over the measurement window.
-fn sine_point(acq: &Acquisition, cmd: &StartSine, conf: &Configure) -> Option<BodePoint> {
+/// Judge a run at its end: the summary, the missing ranges, completeness.
+fn finish(acq: &mut Acquisition, streamed: bool, want_dft: bool) {
+    if let Some(e) = acq.end {
+        acq.total_samples = e.total_samples as u64;
+        if e.reason != EndReason::Complete {
+            acq.problems.push(format!(
+                "run ended early: {:?} after {} of {} samples",
+                e.reason, e.total_samples, acq.planned_samples
+            ));
+        }
+        if e.blocks_dropped > 0 {
+            acq.problems
+                .push(format!("drive dropped {} blocks", e.blocks_dropped));
+        }
+    } else if acq.problems.is_empty() {
+        acq.problems.push("no end-of-run summary".into());
+    }
+    if want_dft && acq.sine.is_none() && acq.end.is_some_and(|e| e.reason == EndReason::Complete) {
+        acq.problems.push("no SINE_RESULT".into());
+    }
+    if !streamed {
+        // Nothing was to arrive but the summary (and the DFT).
+        if !acq.index.is_empty() {
+            acq.problems
+                .push("DATA from a run that does not stream".into());
+        }
+        acq.missing.clear();
+        acq.complete = acq.problems.is_empty();
+        return;
+    }
+    // Missing ranges: complement of the received indices in 0..span, where span covers both what
+    // the drive produced and what was planned (a run that ended early misses its planned rest).
+    let span = acq.total_samples.max(acq.planned_samples);
+    let mut missing = Vec::new();
+    let mut expect = 0u64;
+    for &i in &acq.index {
+        if i > expect {
+            missing.push(expect..i.min(span));
+        }
+        expect = i + 1;
+    }
+    if expect < span {
+        missing.push(expect..span);
+    }
+    missing.retain(|r| r.start < r.end);
+    if acq.index.last().is_some_and(|&l| l >= acq.total_samples) {
+        acq.problems.push("samples beyond the announced end".into());
+    }
+    // Lost on the way (within what the drive produced), as opposed to never produced.
+    let lost: u64 = missing
+        .iter()
+        .map(|r| r.end.min(acq.total_samples).saturating_sub(r.start))
+        .sum();
+    if let Some(e) = acq.end {
+        let got = acq.index.len() as u64;
+        if lost == 0 && got != e.samples_sent as u64 {
+            acq.problems.push(format!(
+                "drive sent {} samples, host got {}",
+                e.samples_sent, got
+            ));
+        }
+    }
+    if lost > 0 {
+        acq.problems.push(format!("{lost} samples lost"));
+    }
+    acq.missing = missing;
+    acq.complete = acq.problems.is_empty();
+}
+
+/// The drive's single-bin DFT of a sine run (SINE_RESULT) as `[u, y]` phasors `(re, im)` in raw
+/// LSB (the Q8 values / 256).
+pub fn drive_dft(acq: &Acquisition) -> Option<[(f64, f64); 2]> {
+    let s = acq.sine?;
+    let q = |v: i32| v as f64 / 256.0;
+    Some([(q(s.u_re), q(s.u_im)), (q(s.y_re), q(s.y_im))])
+}
+
+/// The same single-bin DFT computed on the host from the streamed samples of a sine run
+/// (section 3, SINE_RESULT): `[u, y]` phasors `(re, im)` in raw LSB over the measurement window,
+/// with the drive's phase accumulator. None unless every sample of the window arrived.
+pub fn host_dft(
+    acq: &Acquisition,
+    cmd: &StartSine,
+    sample_rate_hz: u32,
+) -> Option<[(f64, f64); 2]> {
+    let (settle, measure) = cmd.sample_counts(sample_rate_hz)?;
+    if measure == 0 {
+        return None;
+    }
+    let fs = sample_rate_hz as u64;
+    let inc = ((((cmd.freq_mhz as u128) << 32) + 500 * fs as u128) / (1000 * fs as u128)) as u32;
+    // The window settle..settle+measure, all there: indices increase, so it is contiguous iff
+    // its first and last indices are `measure - 1` apart.
+    let first = acq.index.binary_search(&(settle as u64)).ok()?;
+    let last = first + measure as usize - 1;
+    if acq.index.get(last) != Some(&(settle as u64 + measure as u64 - 1)) {
+        return None;
+    }
+    let ph = |k: usize| {
+        let p = ((settle as u64 + k as u64).wrapping_mul(inc as u64)) as u32;
+        p as f64 / 4294967296.0 * std::f64::consts::TAU
+    };
+    let w = &acq.raw[first..=last];
+    let u: Vec<f64> = w.iter().map(|s| s[0] as f64).collect();
+    let y: Vec<f64> = w.iter().map(|s| s[1] as f64).collect();
+    Some([bode::single_bin(&u, ph), bode::single_bin(&y, ph)])
+}
+
+/// A Bode point from `[u, y]` phasors in raw LSB.
+pub fn bode_point(
+    freq_hz: f64,
+    dft: [(f64, f64); 2],
+    n_samples: u32,
+    on_drive: bool,
+    conf: &Configure,
+) -> Option<BodePoint> {
+    let (gain, phase) = bode::ratio(dft[0], dft[1])?;
+    Some(BodePoint {
+        freq_hz,
+        gain_db: 20.0 * (gain * conf.y_lsb() / conf.u_lsb()).log10(),
+        phase_deg: phase.to_degrees(),
+        n_samples,
+        on_drive,
+    })
+}
+
+/// A Bode point from a sine run that ended normally: the drive's DFT if it arrived, else the
+/// host's DFT over the streamed measurement window.
+pub fn sine_point(acq: &Acquisition, cmd: &StartSine, conf: &Configure) -> Option<BodePoint> {
     let end = acq.end?;
     if end.reason != EndReason::Complete {
         return None;
     }
     let freq_hz = cmd.freq_mhz as f64 / 1000.0;
-    let scale = conf.y_lsb() / conf.u_lsb();
-    let (ratio, n, on_drive) = if let Some(s) = acq.sine {
-        let r = bode::ratio(
-            (s.u_re as f64, s.u_im as f64),
-            (s.y_re as f64, s.y_im as f64),
-        )?;
-        (r, s.n, true)
-    } else if acq.complete {
-        let (settle, measure) = cmd.sample_counts(conf.sample_rate_hz)?;
-        let fs = conf.sample_rate_hz as u64;
-        let inc =
-            ((((cmd.freq_mhz as u128) << 32) + 500 * fs as u128) / (1000 * fs as u128)) as u32;
-        let w = settle as usize..(settle + measure) as usize;
-        let ph = |k: usize| {
-            let p = ((settle as u64 + k as u64) * inc as u64) as u32;
-            p as f64 / 4294967296.0 * std::f64::consts::TAU
-        };
-        let u: Vec<f64> = acq
-            .raw
-            .get(w.clone())?
-            .iter()
-            .map(|s| s[0] as f64)
-            .collect();
-        let y: Vec<f64> = acq.raw.get(w)?.iter().map(|s| s[1] as f64).collect();
-        let r = bode::ratio(bode::single_bin(&u, ph), bode::single_bin(&y, ph))?;
-        (r, measure, false)
-    } else {
-        return None;
-    };
-    let (gain, phase) = ratio;
-    Some(BodePoint {
+    if let (Some(d), Some(s)) = (drive_dft(acq), acq.sine) {
+        return bode_point(freq_hz, d, s.n, true, conf);
+    }
+    let (_, measure) = cmd.sample_counts(conf.sample_rate_hz)?;
+    bode_point(
         freq_hz,
-        gain_db: 20.0 * (gain * scale).log10(),
-        phase_deg: phase.to_degrees(),
-        n_samples: n,
-        on_drive,
-    })
+        host_dft(acq, cmd, conf.sample_rate_hz)?,
+        measure,
+        false,
+        conf,
+    )
 }
 
 impl Drop for Client {

@@ -13,7 +13,7 @@
 //!   that overflows while the firmware's communication task is stalled, a transmit buffer of a few
 //!   DATA blocks (whole blocks dropped and counted when full);
 //! - faults ([`Faults`]): bit flips, dropped bytes, bursts, whole-frame corruption, a stall, a
-//!   disconnect and reconnect, a drive reset.
+//!   disconnect and reconnect, a drive reset; and one lost answer ([`DriveSim::lose_next_answer`]).
 //!
 //! It runs in real time (wall clock); samples are produced in batches every ~0.5 ms.
 
@@ -28,7 +28,7 @@ use serialport::{SerialPort, TTYPort};
 use std::collections::VecDeque;
 use std::io::{Read, Write};
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU16, Ordering};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
@@ -167,6 +167,11 @@ pub struct SimStats {
     pub runs_started: u64,
     /// The samples of the last run as produced (raw u, y, i), index = sample index.
     pub truth: Vec<[i16; 3]>,
+    /// The voltage command applied to the inverter now, raw (0 when no run is active: idle,
+    /// stopped, tripped, emergency-stopped).
+    pub output: i16,
+    /// Answers deliberately lost by [`DriveSim::lose_next_answer`].
+    pub answers_lost: u64,
     /// Run id of `truth`.
     pub truth_run_id: u16,
     /// Events, in order (fault injections, resets, runs).
@@ -179,6 +184,7 @@ pub struct DriveSim {
     path: String,
     stop: Arc<AtomicBool>,
     stats: Arc<Mutex<SimStats>>,
+    lose_answer: Arc<AtomicU16>,
     thread: Option<JoinHandle<()>>,
 }
 
@@ -196,6 +202,7 @@ impl DriveSim {
         let stop = Arc::new(AtomicBool::new(false));
         let stats = Arc::new(Mutex::new(SimStats::default()));
         let mut fw = Firmware::new(cfg, master, stats.clone())?;
+        let lose_answer = fw.lose_answer.clone();
         let stop2 = stop.clone();
         let thread = std::thread::Builder::new()
             .name("drive-sim".into())
@@ -205,8 +212,16 @@ impl DriveSim {
             path,
             stop,
             stats,
+            lose_answer,
             thread: Some(thread),
         })
+    }
+
+    /// Fault injection: the drive's next answer to a command of type `ty` (a [`ty`] code) is
+    /// lost on the line, once: the command is executed (and its answer cached for a replay) but
+    /// the answer never reaches the host, as if the line ate it.
+    pub fn lose_next_answer(&self, ty: u8) {
+        self.lose_answer.store(0x100 | ty as u16, Ordering::Relaxed);
     }
 
     /// The path a host opens (the pty slave, or the link).
@@ -379,6 +394,8 @@ struct Run {
     block_first: u32,
     block_flags: u8,
     exc: Excitation,
+    /// Streams DATA blocks (always for PRBS; START_SINE flag bit 0).
+    stream: bool,
     ramp: Option<(u32, u32, EndReason)>, // (samples left, ramp length, reason)
     last_u: f64,
 }
@@ -387,6 +404,10 @@ struct Firmware {
     cfg: SimConfig,
     master: Option<TTYPort>,
     stats: Arc<Mutex<SimStats>>,
+    /// 0, or 0x100 | the command type whose next answer is lost.
+    lose_answer: Arc<AtomicU16>,
+    /// The answer being produced now is to be lost.
+    losing: bool,
     rng: StdRng,
     boot_id: u16,
     conf: Option<Configure>,
@@ -432,6 +453,8 @@ impl Firmware {
             cfg,
             master: Some(master),
             stats,
+            lose_answer: Arc::new(AtomicU16::new(0)),
+            losing: false,
             rng,
             boot_id,
             conf: None,
@@ -614,9 +637,20 @@ impl Firmware {
     }
 
     fn reply(&mut self, seq: u16, msg: Message) -> Vec<u8> {
+        let name = msg.name();
         let bytes = codec::encode(&Frame { seq, msg });
-        self.tx_prio.push_back(bytes.clone());
+        self.push_answer(bytes.clone(), name, seq);
         bytes
+    }
+
+    /// Queue an answer ahead of DATA, unless it is to be lost ([`DriveSim::lose_next_answer`]).
+    fn push_answer(&mut self, bytes: Vec<u8>, name: &str, seq: u16) {
+        if std::mem::take(&mut self.losing) {
+            self.with_stats(|s| s.answers_lost += 1);
+            self.event(format!("answer {name} (seq {seq}) lost on the line"));
+        } else {
+            self.tx_prio.push_back(bytes);
+        }
     }
 
     fn nak(&mut self, f: &Frame, code: NakCode, detail: u16) -> Vec<u8> {
@@ -643,6 +677,17 @@ impl Firmware {
 
     fn handle(&mut self, f: Frame, now: Instant) {
         let t = f.msg.type_code();
+        let lose = 0x100 | t as u16;
+        self.losing = self
+            .lose_answer
+            .compare_exchange(lose, 0, Ordering::Relaxed, Ordering::Relaxed)
+            .is_ok();
+        self.handle_command(f, now);
+        self.losing = false;
+    }
+
+    fn handle_command(&mut self, f: Frame, now: Instant) {
+        let t = f.msg.type_code();
         match f.msg {
             Message::Keepalive => return,
             Message::Hello => {
@@ -667,7 +712,7 @@ impl Firmware {
         if let Some((seq, ty, bytes)) = &self.cache {
             if *seq == f.seq && *ty == t {
                 let b = bytes.clone();
-                self.tx_prio.push_back(b);
+                self.push_answer(b, "replay", f.seq);
                 self.with_stats(|s| s.replays += 1);
                 return;
             }
@@ -743,7 +788,7 @@ impl Firmware {
                     p: *p,
                     bit: false,
                 };
-                self.start_run(f, total, exc, now)
+                self.start_run(f, total, exc, true, now)
             }
             Message::StartSine(s) => {
                 if let Some(a) = self.start_check(f) {
@@ -768,7 +813,8 @@ impl Firmware {
                     measure,
                     acc: [0.0; 4],
                 };
-                self.start_run(f, settle + measure, exc, now)
+                let stream = s.flags & SINE_STREAM != 0;
+                self.start_run(f, settle + measure, exc, stream, now)
             }
             Message::Stop => {
                 if let Some(r) = self.run.as_mut() {
@@ -809,7 +855,14 @@ impl Firmware {
         None
     }
 
-    fn start_run(&mut self, f: &Frame, total: u32, exc: Excitation, now: Instant) -> Vec<u8> {
+    fn start_run(
+        &mut self,
+        f: &Frame,
+        total: u32,
+        exc: Excitation,
+        stream: bool,
+        now: Instant,
+    ) -> Vec<u8> {
         let id = self.next_run_id;
         self.next_run_id = self.next_run_id.wrapping_add(1).max(1);
         if let Some(p) = self.plant.as_mut() {
@@ -827,6 +880,7 @@ impl Firmware {
             block_first: 0,
             block_flags: 0,
             exc,
+            stream,
             ramp: None,
             last_u: 0.0,
         });
@@ -848,6 +902,8 @@ impl Firmware {
 
     fn end_run(&mut self, reason: EndReason) {
         let Some(mut r) = self.run.take() else { return };
+        // The inverter is off from here on.
+        self.with_stats(|s| s.output = 0);
         self.flush_block(&mut r);
         if let Excitation::Sine {
             acc, measure, s, ..
@@ -924,26 +980,31 @@ impl Firmware {
         let Some(conf) = self.conf else { return };
         let Some(mut r) = self.run.take() else { return };
         let fs = conf.sample_rate_hz as f64;
-        let due =
-            ((now.duration_since(r.start).as_secs_f64() * fs) as u64).min(r.total as u64) as u32;
+        // Samples due by the wall clock; the planned run stops at `total`, a ramp-down may run on.
+        let wall = (now.duration_since(r.start).as_secs_f64() * fs) as u64;
+        let due = wall.min(r.total as u64);
         let keepalive = Duration::from_millis(conf.keepalive_ms as u64);
         let mut end: Option<EndReason> = None;
-        while r.done < due || (r.ramp.is_some() && end.is_none()) {
+        loop {
             if r.ramp.is_none() && now.duration_since(self.last_rx_frame) > keepalive {
                 let n = (fs * 0.05).ceil().max(1.0) as u32;
                 r.ramp = Some((n, n, EndReason::Keepalive));
                 self.fault = fault::KEEPALIVE;
-                self.event("keepalive expired: ramping down".into());
+                self.event(format!(
+                    "keepalive expired at sample {}: ramping down",
+                    r.done
+                ));
             }
-            if r.done >= due && r.ramp.is_none() {
+            if let Some((0, _, reason)) = r.ramp {
+                end = Some(reason);
+                break;
+            }
+            // A ramp-down is paced like the run: one sample per sample period.
+            if r.done as u64 >= if r.ramp.is_some() { wall } else { due } {
                 break;
             }
             let (u_raw_cmd, measuring) = match &mut r.ramp {
-                Some((left, len, reason)) => {
-                    if *left == 0 {
-                        end = Some(*reason);
-                        break;
-                    }
+                Some((left, len, _)) => {
                     *left -= 1;
                     let v = r.last_u * (*left as f64) / (*len as f64);
                     ((v / conf.u_lsb()).round(), None)
@@ -1012,14 +1073,19 @@ impl Firmware {
                 acc[2] += raw[1] as f64 * th.cos();
                 acc[3] -= raw[1] as f64 * th.sin();
             }
-            if r.block.is_empty() {
-                r.block_first = r.done;
+            if r.stream {
+                if r.block.is_empty() {
+                    r.block_first = r.done;
+                }
+                r.block.push(raw);
+                r.block_flags |= flags;
             }
-            r.block.push(raw);
-            r.block_flags |= flags;
             r.done += 1;
             self.run_samples_total += 1;
-            self.with_stats(|s| s.truth.push(raw));
+            self.with_stats(|s| {
+                s.truth.push(raw);
+                s.output = raw[0];
+            });
             let speed_trip = raw[1].unsigned_abs() > conf.y_limit.unsigned_abs();
             let current_trip = raw[2].unsigned_abs() > conf.i_limit.unsigned_abs();
             if (speed_trip || current_trip) && r.ramp.is_none() {
@@ -1090,6 +1156,7 @@ impl Firmware {
         self.conf = None;
         self.plant = None;
         self.run = None;
+        self.with_stats(|s| s.output = 0);
         self.last_run = None;
         self.last_end = None;
         self.fault = fault::NONE;

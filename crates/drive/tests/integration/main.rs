@@ -2,5 +2,6 @@
 //! a real pseudo-terminal.
 
 mod e2e;
+mod e2e_control;
 mod props;
 mod vectors;

@@ -1,0 +1,470 @@
+//! End-to-end over a real pseudo-terminal: the run-control and safety paths of the protocol
+//! (STOP, ESTOP, keepalive expiry, speed and current trips, a retried START), and the sine DFT
+//! computed on the host from streamed samples against the drive's. Serialised with the lock of
+//! [`super::e2e`]; 921600 baud and short runs keep each test to about a second.
+
+use super::e2e::{check_consistent, check_truth, lock, short_prbs};
+use drive::client::{
+    drive_dft, host_dft, Acquisition, Client, ClientConfig, CsvSink, NullSink, PrbsTest, RunInfo,
+    SampleSink,
+};
+use drive::protocol::{
+    fault, ty, Configure, DriveState, EndReason, NakCode, StartSine, StreamEnd, SINE_DFT,
+    SINE_STREAM,
+};
+use drive::sim::{DriveSim, SimConfig};
+use drive::Error;
+use std::io;
+use std::time::{Duration, Instant};
+
+const BAUD: u32 = 921_600;
+
+fn fast_sim() -> DriveSim {
+    DriveSim::spawn(SimConfig {
+        baud: BAUD,
+        ..SimConfig::default()
+    })
+    .expect("simulator starts")
+}
+
+fn fast_client(path: &str, cfg: ClientConfig, conf: &Configure) -> Client {
+    let mut c = Client::open(path, ClientConfig { baud: BAUD, ..cfg }).expect("client opens");
+    c.configure(conf).expect("configure");
+    c
+}
+
+/// The run's summary, which must have arrived.
+fn end_of(acq: &Acquisition) -> StreamEnd {
+    acq.end.expect("STREAM_END arrived")
+}
+
+/// Every index of `0..n` arrived, in order (a clean line loses nothing).
+fn assert_prefix(acq: &Acquisition, n: u64) {
+    assert_eq!(acq.index.len() as u64, n, "{:?}", acq.missing);
+    assert!(acq.index.iter().copied().eq(0..n));
+}
+
+/// Stop (or emergency-stop) the run once `at` samples have arrived, from the progress callback.
+fn stop_at(c: &mut Client, at: u64, estop: bool) {
+    let mut h = Some(c.stop_handle());
+    c.set_progress(move |p| {
+        if p.done >= at {
+            if let Some(h) = h.take() {
+                if estop {
+                    h.estop()
+                } else {
+                    h.stop()
+                }
+            }
+        }
+    });
+}
+
+fn assert_nak_fault(r: drive::Result<Acquisition>, code: u8) {
+    match r {
+        Err(Error::Nak {
+            code: NakCode::Fault,
+            detail,
+            ..
+        }) => assert_eq!(detail, code as u16),
+        other => panic!("START must be refused with NAK FAULT {code}: {other:?}"),
+    }
+}
+
+#[test]
+fn stop_mid_run_keeps_what_arrived() {
+    let _g = lock();
+    let t0 = Instant::now();
+    let s = fast_sim();
+    let mut c = fast_client(
+        s.port_path(),
+        ClientConfig::default(),
+        &Configure::default(),
+    );
+    stop_at(&mut c, 250, false);
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("stopped.csv");
+    let mut sink = CsvSink::new(std::fs::File::create(&path).unwrap());
+    let acq = c.run_prbs(&short_prbs(), &mut sink).unwrap();
+    drop(sink);
+    let planned = 100 + 2 * 127 * 2;
+    let end = end_of(&acq);
+    let n = end.total_samples as u64;
+    eprintln!(
+        "stop: {n} of {planned} samples, missing {:?}, problems {:?}",
+        acq.missing, acq.problems
+    );
+    assert_eq!(end.reason, EndReason::Stopped);
+    assert_eq!(acq.planned_samples, planned);
+    assert!((250..planned).contains(&n), "{n}");
+    // what the drive produced all arrived and is what it produced; the rest is marked missing
+    assert!(!acq.complete);
+    assert_prefix(&acq, n);
+    assert_eq!(acq.missing, vec![n..planned]);
+    assert!(
+        acq.problems.iter().any(|p| p.contains("Stopped")),
+        "{:?}",
+        acq.problems
+    );
+    check_consistent(&acq);
+    check_truth(&acq, &s);
+    let st = s.stats();
+    assert_eq!(st.truth.len() as u64, n);
+    // STOP ends the run at the next sample with the command at zero
+    assert_eq!(acq.raw.last().map(|r| r[0]), Some(0));
+    assert!(acq.raw[..acq.raw.len() - 1].iter().all(|r| r[0] != 0));
+    assert_eq!(st.output, 0);
+    // the CSV says so in its footer
+    let text = std::fs::read_to_string(&path).unwrap();
+    let footer = text.trim_end().lines().last().unwrap();
+    assert!(
+        footer.starts_with(&format!("# incomplete: missing samples {n}..{planned} (")),
+        "{footer}"
+    );
+    assert_eq!(
+        text.lines().filter(|l| !l.starts_with('#')).count() as u64,
+        n + 1
+    );
+    // STOP latches nothing: the drive is idle and runs again without a new CONFIGURE
+    let status = c.status().unwrap();
+    assert_eq!(status.state, DriveState::Idle);
+    assert_eq!(status.fault, fault::NONE);
+    assert_eq!(status.samples_done, end.total_samples);
+    let acq2 = c.run_prbs(&short_prbs(), &mut NullSink).unwrap();
+    assert!(acq2.complete, "{:?}", acq2.problems);
+    check_truth(&acq2, &s);
+    eprintln!("stop test: {:?}", t0.elapsed());
+}
+
+#[test]
+fn estop_latches_until_configure() {
+    let _g = lock();
+    let t0 = Instant::now();
+    let s = fast_sim();
+    let mut c = fast_client(
+        s.port_path(),
+        ClientConfig::default(),
+        &Configure::default(),
+    );
+    stop_at(&mut c, 250, true);
+    let acq = c.run_prbs(&short_prbs(), &mut NullSink).unwrap();
+    let end = end_of(&acq);
+    let n = end.total_samples as u64;
+    eprintln!(
+        "estop: {n} samples, missing {:?}, problems {:?}",
+        acq.missing, acq.problems
+    );
+    assert_eq!(end.reason, EndReason::Estop);
+    assert!(!acq.complete);
+    assert_prefix(&acq, n);
+    assert_eq!(acq.missing, vec![n..acq.planned_samples]);
+    check_consistent(&acq);
+    check_truth(&acq, &s);
+    // immediate: no ramp sample, the last sample is the excitation's; the output is off
+    assert!(acq.raw.iter().all(|r| r[0] != 0));
+    let st = s.stats();
+    assert_eq!(st.truth.len() as u64, n);
+    assert_eq!(st.output, 0);
+    // the drive reports the latched fault and refuses to start
+    let status = c.status().unwrap();
+    assert_eq!(status.state, DriveState::Fault);
+    assert_eq!(status.fault, fault::ESTOP);
+    assert_eq!(status.samples_done, end.total_samples);
+    assert_nak_fault(c.run_prbs(&short_prbs(), &mut NullSink), fault::ESTOP);
+    // neither STOP (ACKed when idle) nor a new HELLO clears it; ESTOP when idle is ACKed too
+    c.stop().unwrap();
+    c.estop().unwrap();
+    c.hello().unwrap();
+    assert_eq!(c.status().unwrap().fault, fault::ESTOP);
+    assert_nak_fault(c.run_prbs(&short_prbs(), &mut NullSink), fault::ESTOP);
+    assert_eq!(s.stats().runs_started, 1);
+    // CONFIGURE re-enables the drive
+    c.configure(&Configure::default()).unwrap();
+    let status = c.status().unwrap();
+    assert_eq!(
+        (status.state, status.fault),
+        (DriveState::Idle, fault::NONE)
+    );
+    let acq2 = c.run_prbs(&short_prbs(), &mut NullSink).unwrap();
+    assert!(acq2.complete, "{:?}", acq2.problems);
+    check_truth(&acq2, &s);
+    eprintln!("estop test: {:?}", t0.elapsed());
+}
+
+/// Records when each sample arrived.
+#[derive(Default)]
+struct ArrivalSink(Vec<(u64, Instant)>);
+
+impl SampleSink for ArrivalSink {
+    fn begin(&mut self, _: &RunInfo) -> io::Result<()> {
+        Ok(())
+    }
+    fn sample(&mut self, index: u64, _: f64, _: f64, _: f64, _: f64) -> io::Result<()> {
+        self.0.push((index, Instant::now()));
+        Ok(())
+    }
+    fn finish(&mut self, _: &Acquisition) -> io::Result<()> {
+        Ok(())
+    }
+}
+
+#[test]
+fn keepalive_expiry_ramps_down() {
+    let _g = lock();
+    let t0 = Instant::now();
+    let s = fast_sim();
+    // The host goes silent during the run: no KEEPALIVE, and DATA keep flowing so it never polls.
+    let conf = Configure {
+        block_samples: 10,
+        ..Configure::default()
+    };
+    let silent = ClientConfig {
+        keepalive: Duration::from_secs(3600),
+        ..ClientConfig::default()
+    };
+    let mut c = fast_client(s.port_path(), silent, &conf);
+    let test = PrbsTest {
+        periods: 4,
+        ..short_prbs()
+    };
+    let mut sink = ArrivalSink::default();
+    let started = Instant::now();
+    let acq = c.run_prbs(&test, &mut sink).unwrap();
+    let took = started.elapsed();
+    let end = end_of(&acq);
+    let n = end.total_samples as u64;
+    let planned = 100 + 4 * 127 * 2;
+    assert_eq!(end.reason, EndReason::Keepalive);
+    // the ramp: 50 ms (50 samples at 1 kHz) from the last command down to zero
+    let ramp = 50;
+    let k0 = n - ramp;
+    eprintln!(
+        "keepalive: expired at sample {k0}, run ended at {n} of {planned} after {took:?}; problems {:?}",
+        acq.problems
+    );
+    assert!((490..=530).contains(&k0), "expired at sample {k0}");
+    assert!(took >= Duration::from_millis(550), "{took:?}");
+    assert!(!acq.complete);
+    assert_prefix(&acq, n);
+    assert_eq!(acq.missing, vec![n..planned]);
+    assert!(
+        acq.problems.iter().any(|p| p.contains("Keepalive")),
+        "{:?}",
+        acq.problems
+    );
+    check_consistent(&acq);
+    check_truth(&acq, &s);
+    let u_last = acq.raw[k0 as usize - 1][0] as f64;
+    for j in 0..ramp {
+        let want = (u_last * (ramp - 1 - j) as f64 / ramp as f64).round();
+        let got = acq.raw[(k0 + j) as usize][0] as f64;
+        assert!(
+            (got - want).abs() <= 1.0,
+            "ramp sample {j}: {got} vs {want}"
+        );
+    }
+    assert_eq!(acq.raw.last().map(|r| r[0]), Some(0));
+    assert_eq!(s.stats().output, 0);
+    // paced in real time: the ramp's samples arrive over its 50 ms (blocks of 10 samples)
+    let at = |k: u64| {
+        sink.0
+            .iter()
+            .find(|(i, _)| *i == k)
+            .map(|(_, t)| *t)
+            .unwrap()
+    };
+    let spread = at(n - 1).duration_since(at(k0));
+    eprintln!("keepalive: ramp arrived over {spread:?}");
+    assert!(spread >= Duration::from_millis(20), "{spread:?}");
+    // the fault is latched and reported
+    let status = c.status().unwrap();
+    assert_eq!(status.state, DriveState::Fault);
+    assert_eq!(status.fault, fault::KEEPALIVE);
+    assert_nak_fault(c.run_prbs(&test, &mut NullSink), fault::KEEPALIVE);
+    c.configure(&conf).unwrap();
+    assert_eq!(c.status().unwrap().state, DriveState::Idle);
+    eprintln!("keepalive test: {:?}", t0.elapsed());
+}
+
+/// A run that trips: ends with LIMIT at the first sample beyond the limit, which is kept.
+fn trip(conf: Configure, test: PrbsTest, channel: usize, limit: i16, code: u8) -> u64 {
+    let s = fast_sim();
+    let mut c = fast_client(s.port_path(), ClientConfig::default(), &conf);
+    let acq = c.run_prbs(&test, &mut NullSink).unwrap();
+    let end = end_of(&acq);
+    let n = end.total_samples as u64;
+    eprintln!(
+        "trip (channel {channel}, limit {limit}): {n} of {} samples, last {:?}, problems {:?}",
+        acq.planned_samples,
+        acq.raw.last(),
+        acq.problems
+    );
+    assert_eq!(end.reason, EndReason::Limit);
+    assert!(n >= 1 && n < acq.planned_samples);
+    assert!(!acq.complete);
+    assert_prefix(&acq, n);
+    assert_eq!(acq.missing, vec![n..acq.planned_samples]);
+    check_consistent(&acq);
+    check_truth(&acq, &s);
+    assert_eq!(s.stats().truth.len() as u64, n);
+    // the last sample is the first beyond the limit
+    let (last, before) = acq.raw.split_last().unwrap();
+    assert!(last[channel].unsigned_abs() > limit as u16, "{last:?}");
+    assert!(before
+        .iter()
+        .all(|r| r[channel].unsigned_abs() <= limit as u16));
+    assert_eq!(s.stats().output, 0);
+    let status = c.status().unwrap();
+    assert_eq!((status.state, status.fault), (DriveState::Fault, code));
+    assert_nak_fault(c.run_prbs(&test, &mut NullSink), code);
+    c.configure(&Configure::default()).unwrap();
+    assert_eq!(c.status().unwrap().state, DriveState::Idle);
+    n
+}
+
+#[test]
+fn speed_limit_trips() {
+    let _g = lock();
+    let t0 = Instant::now();
+    // 3 V drives the motor towards 20 rad/s; the trip is at 10 rad/s, during the settle
+    let conf = Configure {
+        y_limit: 1000,
+        ..Configure::default()
+    };
+    let n = trip(conf, short_prbs(), 1, 1000, fault::SPEED_LIMIT);
+    assert!(n < 100, "{n}");
+    eprintln!("speed trip test: {:?}", t0.elapsed());
+}
+
+#[test]
+fn current_limit_trips() {
+    let _g = lock();
+    let t0 = Instant::now();
+    // 50 samples at 0 V (no current), then the PRBS's first bit (a 0, seed 1) steps to -3 V:
+    // -3 A at standstill, beyond the 2 A trip at once
+    let conf = Configure {
+        i_limit: 2000,
+        ..Configure::default()
+    };
+    let test = PrbsTest {
+        amplitude_v: 3.0,
+        offset_v: 0.0,
+        settle_s: 0.05,
+        ..short_prbs()
+    };
+    let n = trip(conf, test, 2, 2000, fault::CURRENT_LIMIT);
+    assert_eq!(n, 51);
+    eprintln!("current trip test: {:?}", t0.elapsed());
+}
+
+#[test]
+fn streamed_sine_dft_matches_the_drive() {
+    let _g = lock();
+    let t0 = Instant::now();
+    let s = fast_sim();
+    let conf = Configure::default();
+    let mut c = fast_client(s.port_path(), ClientConfig::default(), &conf);
+    let fs = conf.sample_rate_hz;
+    let mut worst_phasor: f64 = 0.0;
+    let (mut worst_db, mut worst_deg): (f64, f64) = (0.0, 0.0);
+    // 7 Hz and 130 Hz: measurement windows that are not whole periods of the sample clock
+    for (f_mhz, settle, cycles) in [
+        (5_000, 1, 2),
+        (7_000, 1, 2),
+        (20_000, 4, 4),
+        (130_000, 8, 8),
+    ] {
+        let cmd = StartSine {
+            freq_mhz: f_mhz,
+            amplitude: 1000,
+            offset: 3000,
+            settle_cycles: settle,
+            cycles,
+            flags: SINE_STREAM | SINE_DFT,
+        };
+        let acq = c.run_sine(&cmd, &mut NullSink).unwrap();
+        assert!(acq.complete, "{:?}", acq.problems);
+        check_truth(&acq, &s);
+        let (settle_n, measure_n) = cmd.sample_counts(fs).unwrap();
+        assert_eq!(acq.index.len() as u32, settle_n + measure_n);
+        assert_eq!(acq.sine.map(|r| r.n), Some(measure_n));
+        let d = drive_dft(&acq).unwrap();
+        let h = host_dft(&acq, &cmd, fs).unwrap();
+        for k in 0..2 {
+            worst_phasor = worst_phasor
+                .max((d[k].0 - h[k].0).abs())
+                .max((d[k].1 - h[k].1).abs());
+        }
+        let f = f_mhz as f64 / 1000.0;
+        let pd = drive::client::bode_point(f, d, measure_n, true, &conf).unwrap();
+        let ph = drive::client::bode_point(f, h, measure_n, false, &conf).unwrap();
+        worst_db = worst_db.max((pd.gain_db - ph.gain_db).abs());
+        let mut dp = pd.phase_deg - ph.phase_deg;
+        dp -= 360.0 * (dp / 360.0).round();
+        worst_deg = worst_deg.max(dp.abs());
+        eprintln!(
+            "{f} Hz: drive {:.4} dB {:.4} deg, host {:.4} dB {:.4} deg (U {:?} vs {:?})",
+            pd.gain_db, pd.phase_deg, ph.gain_db, ph.phase_deg, d[0], h[0]
+        );
+        if f_mhz == 130_000 {
+            // the same point with the DFT only: nothing streamed, the same measurement
+            let quiet = StartSine {
+                flags: SINE_DFT,
+                ..cmd
+            };
+            let acq_q = c.run_sine(&quiet, &mut NullSink).unwrap();
+            assert!(acq_q.complete, "{:?}", acq_q.problems);
+            assert!(acq_q.index.is_empty() && acq_q.missing.is_empty());
+            let e = end_of(&acq_q);
+            assert_eq!((e.samples_sent, e.blocks_dropped), (0, 0));
+            assert_eq!(acq_q.sine.map(|r| (r.u_re, r.u_im, r.y_re, r.y_im)), {
+                acq.sine.map(|r| (r.u_re, r.u_im, r.y_re, r.y_im))
+            });
+        }
+    }
+    eprintln!(
+        "host vs drive DFT: worst phasor difference {worst_phasor:.2e} LSB, gain {worst_db:.2e} dB, phase {worst_deg:.2e} deg"
+    );
+    // The drive sends the DFT in Q8: each component is within 0.5/256 LSB of the exact sum.
+    assert!(worst_phasor <= 0.5 / 256.0 + 1e-9, "{worst_phasor}");
+    assert!(worst_db < 1e-3, "{worst_db}");
+    assert!(worst_deg < 1e-2, "{worst_deg}");
+    eprintln!("sine stream test: {:?}", t0.elapsed());
+}
+
+#[test]
+fn retried_start_runs_once() {
+    let _g = lock();
+    let t0 = Instant::now();
+    let s = fast_sim();
+    let mut c = fast_client(
+        s.port_path(),
+        ClientConfig::default(),
+        &Configure::default(),
+    );
+    // the drive starts the run but its ACK is lost: the client resends START with the same seq
+    s.lose_next_answer(ty::START_PRBS);
+    let acq = c.run_prbs(&short_prbs(), &mut NullSink).unwrap();
+    let st = s.stats();
+    eprintln!(
+        "retried START: client {:?}, sim runs {} replays {} lost {}, events {:?}",
+        c.stats(),
+        st.runs_started,
+        st.replays,
+        st.answers_lost,
+        st.events
+    );
+    assert_eq!(st.answers_lost, 1);
+    assert_eq!(c.stats().retries, 1);
+    assert_eq!(st.replays, 1, "the retry is answered from the replay cache");
+    assert_eq!(
+        st.runs_started, 1,
+        "the retried START must not start a second run"
+    );
+    assert!(acq.complete, "{:?}", acq.problems);
+    check_truth(&acq, &s);
+    let status = c.status().unwrap();
+    assert_eq!(status.run_id, acq.run_id);
+    assert_eq!(status.samples_done as u64, acq.total_samples);
+    eprintln!("retried START test: {:?}", t0.elapsed());
+}
