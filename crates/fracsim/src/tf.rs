@@ -361,18 +361,32 @@ struct Val {
     delay: f64,
 }
 
-fn poly_mul(a: &[Term], b: &[Term]) -> Vec<Term> {
+/// The most terms a multiplied-out polynomial may have: products of sums with unrelated orders
+/// double the count with every factor, so a short input could otherwise ask for billions.
+const MAX_TERMS: usize = 1000;
+
+/// The deepest nesting of parentheses, `exp(...)` and signs: the parser recurses on each, and the
+/// stack is finite.
+const MAX_DEPTH: usize = 100;
+
+fn poly_mul(a: &[Term], b: &[Term], pos: usize) -> Result<Vec<Term>> {
     let mut out: Vec<Term> = Vec::new();
     for x in a {
         for y in b {
             let t = Term::new(x.coef * y.coef, x.order + y.order);
-            match out.iter_mut().find(|o| (o.order - t.order).abs() < 1e-12) {
-                Some(o) => o.coef += t.coef,
+            match out.iter().position(|o| (o.order - t.order).abs() < 1e-12) {
+                Some(i) => out[i].coef += t.coef,
+                None if out.len() == MAX_TERMS => {
+                    return perr(
+                        pos,
+                        format!("the product has more than {MAX_TERMS} terms in s"),
+                    )
+                }
                 None => out.push(t),
             }
         }
     }
-    out
+    Ok(out)
 }
 
 impl Val {
@@ -399,19 +413,21 @@ impl Val {
                 .collect(),
         )
     }
-    fn mul(self, o: Val) -> Val {
-        Val {
-            num: poly_mul(&self.num, &o.num),
-            den: poly_mul(&self.den, &o.den),
+    /// `self * o`; `pos` is where `o` starts, for the error.
+    fn mul(self, o: Val, pos: usize) -> Result<Val> {
+        Ok(Val {
+            num: poly_mul(&self.num, &o.num, pos)?,
+            den: poly_mul(&self.den, &o.den, pos)?,
             delay: self.delay + o.delay,
-        }
+        })
     }
-    fn div(self, o: Val) -> Val {
-        Val {
-            num: poly_mul(&self.num, &o.den),
-            den: poly_mul(&self.den, &o.num),
+    /// `self / o`; `pos` is where `o` starts, for the error.
+    fn div(self, o: Val, pos: usize) -> Result<Val> {
+        Ok(Val {
+            num: poly_mul(&self.num, &o.den, pos)?,
+            den: poly_mul(&self.den, &o.num, pos)?,
             delay: self.delay - o.delay,
-        }
+        })
     }
 }
 
@@ -419,6 +435,8 @@ struct Parser<'a> {
     toks: &'a [(usize, Tok)],
     i: usize,
     end: usize,
+    /// Current nesting depth (see [`MAX_DEPTH`]).
+    depth: usize,
 }
 
 impl Parser<'_> {
@@ -436,7 +454,23 @@ impl Parser<'_> {
             false
         }
     }
+    /// Run `f` one nesting level deeper, or fail past [`MAX_DEPTH`].
+    fn nested(&mut self, f: impl FnOnce(&mut Self) -> Result<Val>) -> Result<Val> {
+        if self.depth == MAX_DEPTH {
+            return perr(
+                self.pos(),
+                format!("nested more than {MAX_DEPTH} levels deep"),
+            );
+        }
+        self.depth += 1;
+        let v = f(self);
+        self.depth -= 1;
+        v
+    }
     fn expr(&mut self) -> Result<Val> {
+        self.nested(Self::expr_inner)
+    }
+    fn expr_inner(&mut self) -> Result<Val> {
         let start = self.pos();
         let mut acc = self.term()?;
         loop {
@@ -470,7 +504,8 @@ impl Parser<'_> {
             match self.peek() {
                 Some(Tok::Star) => {
                     self.i += 1;
-                    acc = acc.mul(self.unary()?);
+                    let pos = self.pos();
+                    acc = acc.mul(self.unary()?, pos)?;
                 }
                 Some(Tok::Slash) => {
                     self.i += 1;
@@ -479,23 +514,25 @@ impl Parser<'_> {
                     if rhs.num.iter().all(|t| t.coef == 0.0) {
                         return perr(pos, "division by zero");
                     }
-                    acc = acc.div(rhs);
+                    acc = acc.div(rhs, pos)?;
                 }
                 // implicit multiplication: "0.0059 s^0.92", "2 (s + 1)", "6.8 exp(-0.01 s)"
                 Some(Tok::Num(_) | Tok::S | Tok::LParen | Tok::Exp) => {
-                    acc = acc.mul(self.power()?);
+                    let pos = self.pos();
+                    acc = acc.mul(self.power()?, pos)?;
                 }
                 _ => return Ok(acc),
             }
         }
     }
     fn unary(&mut self) -> Result<Val> {
+        let pos = self.pos();
         if self.eat(&Tok::Minus) {
-            let v = self.unary()?;
-            return Ok(Val::constant(-1.0).mul(v));
+            let v = self.nested(Self::unary)?;
+            return Val::constant(-1.0).mul(v, pos);
         }
         if self.eat(&Tok::Plus) {
-            return self.unary();
+            return self.nested(Self::unary);
         }
         self.power()
     }
@@ -617,6 +654,7 @@ impl FromStr for FracTf {
             toks: &toks,
             i: 0,
             end: src.len(),
+            depth: 0,
         };
         let v = p.expr()?;
         if p.i != toks.len() {
@@ -707,6 +745,30 @@ mod tests {
             }
             assert!(r.is_err(), "{bad} parsed as {:?}", r.unwrap());
         }
+    }
+
+    #[test]
+    fn deep_nesting_and_huge_products_are_errors_not_crashes() {
+        // 20000 parentheses overflowed the stack (an abort, not even a panic).
+        let deep = format!("{}1{}", "(".repeat(20_000), ")".repeat(20_000));
+        let err = deep.parse::<FracTf>().unwrap_err().to_string();
+        assert!(err.contains("nested more than 100 levels"), "{err}");
+        for deep in [
+            format!("1{}", "(1".repeat(20_000)),
+            format!("1*{}1", "-".repeat(20_000)),
+            format!("{}1/(s+1){}", "exp(-s)*(".repeat(5_000), ")".repeat(5_000)),
+        ] {
+            assert!(deep.parse::<FracTf>().is_err());
+        }
+        // but 100 levels are fine
+        let ok = format!("{}1/(s+1){}", "(".repeat(98), ")".repeat(98));
+        assert_eq!(ok.parse::<FracTf>().unwrap().dc_gain(), 1.0);
+        // 30 factors with unrelated orders: 2^30 terms, which took forever.
+        let product: String = (1..=30)
+            .map(|k| format!("(s^{} + 1)", 0.5 / f64::from(k).sqrt()))
+            .collect();
+        let err = format!("1/{product}").parse::<FracTf>().unwrap_err();
+        assert!(err.to_string().contains("more than 1000 terms"), "{err}");
     }
 
     #[test]
