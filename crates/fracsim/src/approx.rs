@@ -107,15 +107,25 @@ impl ApproxSpec {
     /// carry; the bilinear map keeps the low-frequency effect of those cells.
     ///
     /// # Errors
-    /// An invalid band ([`Error::Band`]) or step.
+    /// An invalid band ([`Error::Band`]) or step; a step so long that the default band is empty.
     pub fn band_for(&self, dt: f64) -> Result<(f64, f64)> {
         finite("dt", dt)?;
         if dt <= 0.0 {
             return invalid("dt", format!("{dt} s must be positive"));
         }
-        let (w_b, w_h) = self
-            .band
-            .unwrap_or_else(|| (1e-3, 30.0 * std::f64::consts::PI / dt));
+        let Some((w_b, w_h)) = self.band else {
+            let w_h = 30.0 * std::f64::consts::PI / dt;
+            if w_h <= 1e-3 {
+                return invalid(
+                    "dt",
+                    format!(
+                        "{dt:e} s is too long for the default band [1e-3, 30 pi/dt] rad/s: \
+                         give the band"
+                    ),
+                );
+            }
+            return Ok((1e-3, w_h));
+        };
         check_band(w_b, w_h)?;
         Ok((w_b, w_h))
     }
@@ -167,6 +177,21 @@ fn check_nu<T: Real>(nu: T) -> Result<f64> {
     Ok(v)
 }
 
+/// The most cells an approximation may have (`N = 1000` for Oustaloup): far beyond any use (the
+/// cells crowd a band of a few decades), and a bound on the work and memory a setting can ask for.
+pub const MAX_CELLS: usize = 2001;
+
+/// `2N + 1`, the cells of order `N`, if at most [`MAX_CELLS`].
+fn cells(n: usize) -> Result<usize> {
+    match n.checked_mul(2).and_then(|c| c.checked_add(1)) {
+        Some(c) if c <= MAX_CELLS => Ok(c),
+        _ => invalid(
+            "order N",
+            format!("{n} is too large: at most {} (2N+1 cells)", MAX_CELLS / 2),
+        ),
+    }
+}
+
 /// Split `nu` into integer part `n` and fraction `f` in `[0, 1)`.
 fn split<T: Real>(nu: T) -> (i32, T) {
     let n = nu.re().floor();
@@ -176,9 +201,9 @@ fn split<T: Real>(nu: T) -> (i32, T) {
 /// Oustaloup's approximation of `s^f`, `0 <= f < 1`, without integer part:
 /// `w'_k = w_b (w_h/w_b)^((k+N+(1-f)/2)/(2N+1))`, `w_k = w_b (w_h/w_b)^((k+N+(1+f)/2)/(2N+1))`,
 /// `K = w_h^f`.
-fn oustaloup_frac<T: Real>(f: T, w_b: f64, w_h: f64, n: usize) -> Rational<T> {
+fn oustaloup_frac<T: Real>(f: T, w_b: f64, w_h: f64, n: usize) -> Result<Rational<T>> {
     let mu = w_h / w_b;
-    let cells = 2 * n + 1;
+    let cells = cells(n)?;
     let ln_mu = mu.ln();
     let mut zeros = Vec::with_capacity(cells);
     let mut poles = Vec::with_capacity(cells);
@@ -188,12 +213,12 @@ fn oustaloup_frac<T: Real>(f: T, w_b: f64, w_h: f64, n: usize) -> Rational<T> {
         zeros.push(((-f * 0.5 + base) * (ln_mu / cells as f64)).exp() * w_b);
         poles.push(((f * 0.5 + base) * (ln_mu / cells as f64)).exp() * w_b);
     }
-    Rational {
+    Ok(Rational {
         int_order: 0,
         gain: (f * w_h.ln()).exp(),
         zeros,
         poles,
-    }
+    })
 }
 
 /// Oustaloup's approximation of `s^nu` over `[w_b, w_h]` rad/s with `2N+1` cells
@@ -208,12 +233,13 @@ fn oustaloup_frac<T: Real>(f: T, w_b: f64, w_h: f64, n: usize) -> Rational<T> {
 /// ```
 ///
 /// # Errors
-/// A non-finite or negative order (above 20), an invalid band, `N = 0` is allowed (one cell).
+/// A non-finite or negative order (above 20), an invalid band, more than [`MAX_CELLS`] cells;
+/// `N = 0` is allowed (one cell).
 pub fn oustaloup<T: Real>(nu: T, w_b: f64, w_h: f64, n: usize) -> Result<Rational<T>> {
     check_nu(nu)?;
     check_band(w_b, w_h)?;
     let (int, f) = split(nu);
-    let mut r = oustaloup_frac(f, w_b, w_h, n);
+    let mut r = oustaloup_frac(f, w_b, w_h, n)?;
     r.int_order = int;
     Ok(r)
 }
@@ -237,7 +263,7 @@ pub fn refined_oustaloup<T: Real>(nu: T, w_b: f64, w_h: f64, n: usize) -> Result
     let (int, f) = split(nu);
     let (b, d) = (10.0, 9.0);
     // Cells over Xue's widened band [d w_b / b, b w_h / d].
-    let mut r = oustaloup_frac(f, d * w_b / b, b * w_h / d, n);
+    let mut r = oustaloup_frac(f, d * w_b / b, b * w_h / d, n)?;
     r.int_order = int;
     if f.re() == 0.0 {
         return Ok(r);
@@ -300,10 +326,10 @@ pub fn trigeassou_integrator<T: Real>(nu: T, w_b: f64, w_h: f64, n: usize) -> Re
         return invalid("order", format!("integrator order {v} must be in (0, 1]"));
     }
     check_band(w_b, w_h)?;
-    if n == 0 {
+    if n == 0 || n > MAX_CELLS {
         return invalid(
             "order N",
-            "the Poinot-Trigeassou integrator needs at least one cell",
+            format!("the Poinot-Trigeassou integrator needs 1 to {MAX_CELLS} cells, got {n}"),
         );
     }
     let (zeros, poles) = trigeassou_cells(nu, w_b, w_h, n);
@@ -390,7 +416,7 @@ pub fn approximate<T: Real>(nu: T, band: (f64, f64), spec: &ApproxSpec) -> Resul
                     poles: vec![],
                 });
             }
-            let mut r = trigeassou_integrator(-f + 1.0, w_b, w_h, 2 * spec.order + 1)?;
+            let mut r = trigeassou_integrator(-f + 1.0, w_b, w_h, cells(spec.order)?)?;
             r.int_order = int;
             Ok(r)
         }

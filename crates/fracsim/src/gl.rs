@@ -68,8 +68,14 @@ pub fn simulate(tf: &FracTf, u: &[f64], dt: f64) -> Result<Vec<f64>> {
     }
     let n = u.len();
     // delayed input
+    // A delay longer than the record (however large, even an infinite ratio) delays everything
+    // out of it: m = n gives an all-zero input without overflowing m + 1.
     let d = tf.delay / dt;
-    let (m, phi) = (d.floor() as usize, d - d.floor());
+    let (m, phi) = if d < n as f64 {
+        (d.floor() as usize, d - d.floor())
+    } else {
+        (n, 0.0)
+    };
     let x: Vec<f64> = (0..n)
         .map(|k| {
             let at = |i: usize| if i <= k { u[k - i] } else { 0.0 };

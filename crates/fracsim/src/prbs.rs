@@ -158,10 +158,21 @@ impl Prbs {
         finite("PRBS offset", self.offset)?;
         let spb = self.samples_per_bit(dt)?;
         let bits = self.bits()?;
-        let total = bits.len() * spb * self.periods;
-        if total > 100_000_000 {
-            return invalid("PRBS", format!("{total} samples is too many"));
-        }
+        const MAX: usize = 100_000_000;
+        let total = match bits
+            .len()
+            .checked_mul(spb)
+            .and_then(|n| n.checked_mul(self.periods))
+        {
+            Some(total) if total <= MAX => total,
+            _ => {
+                let total = bits.len() as f64 * spb as f64 * self.periods as f64;
+                return invalid(
+                    "PRBS",
+                    format!("{total:.3e} samples is too many (at most {MAX:.0e})"),
+                );
+            }
+        };
         let mut u = Vec::with_capacity(total);
         for _ in 0..self.periods {
             for &b in &bits {
@@ -207,5 +218,17 @@ mod tests {
         let p = Prbs::paper();
         assert!(p.signal(0.0007).is_err());
         assert!(p.signal(-1.0).is_err());
+        // clock/dt saturates usize: the sample count overflowed (a panic) before it was checked
+        let huge = Prbs {
+            clock: 1e300,
+            ..Prbs::paper()
+        };
+        let err = huge.signal(1e-4).unwrap_err().to_string();
+        assert!(err.contains("samples is too many"), "{err}");
+        let many = Prbs {
+            periods: usize::MAX,
+            ..Prbs::paper()
+        };
+        assert!(many.signal(1e-3).is_err());
     }
 }

@@ -165,6 +165,46 @@ fn bad_inputs_are_errors_not_panics() {
     assert!("1/(0 s + 0)".parse::<FracTf>().is_err());
 }
 
+#[test]
+fn extreme_settings_are_errors_not_panics_or_hangs() {
+    let g = first_order();
+    // A delay of 1e300 s: delay/dt saturated usize and the interpolation index overflowed.
+    let far = g.clone().with_delay(1e300).unwrap();
+    for dt in [1e-3, 1e-300] {
+        assert_eq!(gl::simulate(&far, &[1.0; 50], dt).unwrap(), vec![0.0; 50]);
+    }
+    // a delay just past the record, with a fractional part
+    let past = g.clone().with_delay(0.0505).unwrap();
+    assert_eq!(
+        gl::simulate(&past, &[1.0; 50], 1e-3).unwrap(),
+        vec![0.0; 50]
+    );
+    // N = 1e8 built 2e8 cells (minutes and gigabytes); usize::MAX overflowed 2N + 1.
+    for method in [Method::Oustaloup, Method::Refined, Method::Trigeassou] {
+        for order in [100_000_000, usize::MAX] {
+            let spec = ApproxSpec {
+                method,
+                order,
+                ..ApproxSpec::default()
+            };
+            let err = lsim(&g, &[1.0; 10], 1e-3, &spec).unwrap_err().to_string();
+            assert!(err.contains("order N"), "{method:?} N = {order}: {err}");
+        }
+    }
+    // ...while N = 0 (one cell) still simulates
+    let one_cell = ApproxSpec {
+        order: 0,
+        ..ApproxSpec::default()
+    };
+    assert!(lsim(&g, &[1.0; 10], 1e-3, &one_cell).is_ok());
+    // dt = 1e300 s: the default band [1e-3, 30 pi/dt] is empty; the error says so, not
+    // "invalid band [0.001, 0.0000...(300 digits)]"
+    let err = lsim(&g, &[1.0; 10], 1e300, &ApproxSpec::default())
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("default band") && err.len() < 200, "{err}");
+}
+
 // ---------------------------------------------------------------------------------------------
 // Property tests: the model parser and `Display` as a codec, and the invariants of the simulator.
 
