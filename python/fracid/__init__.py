@@ -26,7 +26,10 @@ fit_bode, error_index, load_bode
     Frequency-domain identification (weighted Levy, order search, SK, PMSM refit).
 fit_time
     Time-domain output-error identification (Levenberg-Marquardt, exact sensitivities).
-FracidError, ParseError, DataError, NumericalError
+DriveClient, DriveSimulator, Acquisition, BodeSweep
+    Acquisition from the servo drive over its serial protocol (PRBS records, sine sweeps), and a
+    simulated drive on a pseudo-terminal.
+FracidError, ParseError, DataError, NumericalError, DriveError
     The exceptions.
 """
 
@@ -38,10 +41,13 @@ from typing import Dict, Optional, Tuple, Union
 import numpy as np
 import numpy.typing as npt
 
-from ._errors import DataError, FracidError, NumericalError, ParseError
-from ._fracid import FracTf, __version__, error_index, gl_simulate, prbs
+from ._drive import DriveClient
+from ._errors import DataError, DriveError, FracidError, NumericalError, ParseError
+from ._fracid import DriveSimulator, FracTf, __version__, error_index, gl_simulate, prbs
 from ._fracid import _fit_bode, _fit_time
 from ._results import (
+    Acquisition,
+    BodeSweep,
     Diagnosis,
     Effect,
     FitMetrics,
@@ -73,10 +79,15 @@ __all__ = [
     "Diagnosis",
     "Effect",
     "diagnose",
+    "DriveClient",
+    "DriveSimulator",
+    "Acquisition",
+    "BodeSweep",
     "FracidError",
     "ParseError",
     "DataError",
     "NumericalError",
+    "DriveError",
     "__version__",
 ]
 

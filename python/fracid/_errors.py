@@ -9,11 +9,13 @@ Rust error unchanged.
   (also a :class:`ValueError`).
 - :class:`NumericalError` -- a numerical breakdown: a singular solve, a simulation that diverges
   (also an :class:`ArithmeticError`).
+- :class:`DriveError` -- the drive or the serial link: a port that cannot be opened, a drive that
+  does not answer, rejects a command or resets, a run before ``configure()``.
 """
 
 from __future__ import annotations
 
-__all__ = ["FracidError", "ParseError", "DataError", "NumericalError"]
+__all__ = ["FracidError", "ParseError", "DataError", "NumericalError", "DriveError"]
 
 
 class FracidError(Exception):
@@ -30,3 +32,9 @@ class DataError(FracidError, ValueError):
 
 class NumericalError(FracidError, ArithmeticError):
     """A computation broke down numerically (singular system, non-finite simulation)."""
+
+
+class DriveError(FracidError):
+    """The drive or the serial link failed: the port cannot be opened, the drive does not answer
+    (after the retries), rejects a command, speaks another protocol version or reset; or the
+    client is used before ``configure()`` or after ``close()``."""

@@ -151,3 +151,133 @@ def _fit_time(
     min_r2: float = 0.005,
     max_rounds: int = 3,
 ) -> Dict[str, Any]: ...
+
+class DriveSimulator:
+    """A simulated TI F2812 servo drive on a pseudo-terminal, speaking the fracid serial protocol.
+
+    The firmware runs in a Rust thread in real time: the motor is a fractional model simulated
+    at the configured sample rate, with hidden effects the identification is not told about; the
+    line is paced to ``baud``. Open :attr:`port` with :class:`fracid.DriveClient`. Use it as a
+    context manager, or call :meth:`stop`; it also stops when garbage-collected.
+
+    Parameters
+    ----------
+    model : FracTf or str, optional
+        The motor, voltage (V) to speed (rad/s). Default: the paper's time-domain model
+        ``6.82 / (2.655e-5 s^1.7452 + 0.0059 s^0.92 + 1)``.
+    baud : int
+        Line rate the simulator paces to (921600 keeps runs fast).
+    delay_s : float
+        Hidden input (transport) delay, s.
+    coulomb_v : float
+        Hidden Coulomb friction as a voltage at the input, V.
+    noise_std : float
+        Hidden speed-measurement noise, standard deviation in rad/s.
+    speed_quant : float
+        Speed quantisation step (encoder resolution), rad/s; 0 for none.
+    ripple_v, ripple_hz : float
+        Hidden periodic disturbance at the input: amplitude (V) and frequency (Hz).
+    seed : int
+        Seed of the noise.
+
+    Raises
+    ------
+    ParseError
+        If ``model`` is a string that does not parse.
+    DataError
+        For a negative or non-finite effect, a bad ``baud``, a model that cannot be simulated.
+    DriveError
+        If the pseudo-terminal cannot be opened.
+
+    Examples
+    --------
+    >>> import fracid
+    >>> with fracid.DriveSimulator(baud=921600, noise_std=0.05) as sim:
+    ...     with fracid.DriveClient(sim.port, baud=921600) as drive:
+    ...         drive.configure(sample_rate_hz=1000)
+    ...         rec = drive.run_prbs()
+    """
+
+    def __init__(
+        self,
+        model: Union[FracTf, str, None] = None,
+        baud: int = 115200,
+        delay_s: float = 0.0,
+        coulomb_v: float = 0.0,
+        noise_std: float = 0.0,
+        speed_quant: float = 0.0,
+        ripple_v: float = 0.0,
+        ripple_hz: float = 0.0,
+        seed: int = 1,
+    ) -> None: ...
+    @property
+    def port(self) -> str:
+        """The path of the simulated serial port (a pty), for :class:`fracid.DriveClient`."""
+    @property
+    def baud(self) -> int:
+        """The line rate the simulator paces to, baud."""
+    @property
+    def model(self) -> FracTf:
+        """The simulated motor model (the hidden effects are not part of it)."""
+    @property
+    def running(self) -> bool:
+        """Whether the simulator thread runs."""
+    def stats(self) -> Dict[str, Any]:
+        """Counters: ``frames_sent``, ``frames_damaged``, ``bytes_sent``, ``blocks_dropped``,
+        ``rx_overruns``, ``frames_received``, ``rx_errors``, ``replays``, ``runs_started``,
+        ``events`` (list of str)."""
+    def stop(self) -> None:
+        """Stop the simulator and wait for its thread (idempotent)."""
+    def __enter__(self) -> "DriveSimulator": ...
+    def __exit__(self, *args: object) -> bool: ...
+
+class _DriveClient:
+    def __init__(
+        self,
+        port: str,
+        baud: int = 115200,
+        timeout_s: Optional[float] = None,
+        retries: int = 5,
+    ) -> None: ...
+    @property
+    def port(self) -> str: ...
+    @property
+    def baud(self) -> int: ...
+    @property
+    def is_open(self) -> bool: ...
+    @property
+    def sample_rate_hz(self) -> Optional[int]: ...
+    def hello(self) -> Dict[str, int]: ...
+    def configure(
+        self, sample_rate_hz: int = 1000, block_samples: int = 32, keepalive_ms: int = 500
+    ) -> None: ...
+    def status(self) -> Dict[str, Any]: ...
+    def stats(self) -> Dict[str, int]: ...
+    def run_prbs(
+        self,
+        order: int = 7,
+        clock_s: float = 0.003,
+        amplitude_v: float = 1.0,
+        offset_v: float = 6.0,
+        periods: int = 1,
+        settle_s: float = 0.3,
+        seed: int = 1,
+        csv_path: Optional[str] = None,
+    ) -> Dict[str, Any]: ...
+    def run_sine_sweep(
+        self,
+        f0_hz: float,
+        f1_hz: float,
+        n: int,
+        amplitude_v: float = 1.0,
+        offset_v: float = 6.0,
+        cycles: int = 4,
+        settle_cycles: int = 2,
+        min_settle_s: float = 0.2,
+        attempts: int = 3,
+    ) -> Tuple[
+        npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64], List[str]
+    ]: ...
+    def stop(self) -> None: ...
+    def estop(self) -> None: ...
+    def close(self) -> None: ...

@@ -1,11 +1,11 @@
-"""Typed result objects of the fits. Every one is a frozen dataclass with ``to_dict()``, which
+"""Typed result objects of the fits and of the drive client. Every one is a frozen dataclass with ``to_dict()``, which
 returns plain Python types (numpy arrays become lists, models become the DESIGN section 7 JSON
 object) so that ``json.dumps(result.to_dict())`` works."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field, fields
-from typing import Any, Dict, List, Optional, Tuple
+from typing import Any, Dict, List, NamedTuple, Optional, Tuple
 
 import numpy as np
 
@@ -22,6 +22,8 @@ __all__ = [
     "TimeFit",
     "Effect",
     "Diagnosis",
+    "Acquisition",
+    "BodeSweep",
 ]
 
 
@@ -436,3 +438,107 @@ class TimeFit(_ToDict):
         if d.get("diagnosis") is not None:
             d["diagnosis"] = Diagnosis._from_raw(d["diagnosis"])
         return cls(**d)
+
+
+@dataclass(frozen=True)
+class Acquisition(_ToDict):
+    """A record streamed from the drive by :meth:`DriveClient.run_prbs`.
+
+    Samples that arrived are kept whatever happened; ``complete`` says whether all did. Time is
+    ``index / sample_rate_hz``, so a gap in ``index`` (see ``missing``) is a gap in ``t``.
+
+    Attributes
+    ----------
+    run_id : int
+        The drive's id of the run.
+    sample_rate_hz : int
+        Sample rate in Hz.
+    total_samples : int
+        Samples the run should have.
+    index : numpy.ndarray
+        Sample index of each sample received (int, increasing).
+    t : numpy.ndarray
+        Time of each sample in seconds, from the start of the run.
+    u : numpy.ndarray
+        The voltage command in V (the drive's input).
+    y : numpy.ndarray
+        The measured speed in rad/s (the output).
+    i : numpy.ndarray
+        The current in A.
+    complete : bool
+        True only if every sample ``0 .. total_samples - 1`` arrived and the run ended normally.
+    missing : list of (int, int)
+        Missing sample ranges, half-open ``[start, end)``.
+    problems : list of str
+        Why the run is incomplete (empty when complete).
+    clamped_blocks : int
+        Data blocks in which the drive clamped the command.
+    end_reason : str or None
+        How the drive ended the run (``"complete"``, ``"stopped"``, ``"estop"``, ``"keepalive"``,
+        ``"limit"``), ``None`` without an end-of-run summary.
+    """
+
+    run_id: int
+    sample_rate_hz: int
+    total_samples: int
+    index: np.ndarray = field(repr=False)
+    t: np.ndarray = field(repr=False)
+    u: np.ndarray = field(repr=False)
+    y: np.ndarray = field(repr=False)
+    i: np.ndarray = field(repr=False)
+    complete: bool = False
+    missing: List[Tuple[int, int]] = field(default_factory=list)
+    problems: List[str] = field(default_factory=list)
+    clamped_blocks: int = 0
+    end_reason: Optional[str] = None
+
+    @property
+    def dt(self) -> float:
+        """The sampling step in seconds, ``1 / sample_rate_hz``."""
+        return 1.0 / self.sample_rate_hz
+
+    def __len__(self) -> int:
+        return len(self.index)
+
+    @classmethod
+    def _from_raw(cls, d: Dict[str, Any]) -> "Acquisition":
+        d = dict(d)
+        d["missing"] = [(int(a), int(b)) for a, b in d["missing"]]
+        return cls(**d)
+
+
+class BodeSweep(NamedTuple):
+    """A frequency response measured by :meth:`DriveClient.run_sine_sweep`.
+
+    A named tuple: ``freq_hz, gain_db, phase_deg, lost = client.run_sine_sweep(...)`` works.
+
+    Attributes
+    ----------
+    freq_hz : numpy.ndarray
+        Frequencies of the points measured, Hz (lost points are left out).
+    gain_db : numpy.ndarray
+        Gain ``|Y/U|`` in dB, physical units ((rad/s)/V).
+    phase_deg : numpy.ndarray
+        Phase of ``Y/U`` in degrees, unwrapped along the sweep.
+    lost : list of str
+        What went wrong: points measured again, points given up, frequencies skipped.
+    """
+
+    freq_hz: np.ndarray
+    gain_db: np.ndarray
+    phase_deg: np.ndarray
+    lost: List[str]
+
+    @property
+    def omega(self) -> np.ndarray:
+        """Angular frequencies in rad/s (for :func:`fracid.fit_bode`)."""
+        return 2 * np.pi * np.asarray(self.freq_hz)
+
+    @property
+    def h(self) -> np.ndarray:
+        """The complex response ``10^(gain_db/20) exp(j phase)`` (for :func:`fracid.fit_bode`)."""
+        return 10 ** (np.asarray(self.gain_db) / 20) * np.exp(1j * np.deg2rad(self.phase_deg))
+
+    def to_dict(self) -> Dict[str, Any]:
+        """The fields as plain Python types (JSON-serialisable)."""
+        return {k: _plain(v) for k, v in zip(self._fields, self)}

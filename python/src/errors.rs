@@ -1,6 +1,7 @@
 //! Rust errors to the Python exception hierarchy defined in `fracid/_errors.py`:
 //! `FracidError` (base), `ParseError`, `DataError` (both also `ValueError`), `NumericalError`
-//! (also `ArithmeticError`). The message of the Rust error is kept as it is.
+//! (also `ArithmeticError`), `DriveError` (the drive or the serial link). The message of the Rust
+//! error is kept as it is.
 
 use pyo3::exceptions::PyRuntimeError;
 use pyo3::prelude::*;
@@ -15,6 +16,8 @@ pub(crate) enum Kind {
     Data,
     /// A numerical breakdown.
     Numerical,
+    /// The drive or the serial link failed (port, timeout, rejected command, reset).
+    Drive,
 }
 
 impl Kind {
@@ -23,6 +26,7 @@ impl Kind {
             Self::Parse => "ParseError",
             Self::Data => "DataError",
             Self::Numerical => "NumericalError",
+            Self::Drive => "DriveError",
         }
     }
 }
@@ -64,4 +68,15 @@ pub(crate) fn ident(e: ident::Error) -> PyErr {
         ident::Error::Numerical(_) => error(Kind::Numerical, e.to_string()),
         _ => error(Kind::Data, e.to_string()),
     }
+}
+
+/// Map a drive-crate error: a bad host-side parameter is a `DataError`, the rest (the port, the
+/// link, the drive's answers) a `DriveError`.
+pub(crate) fn drive(e: drive::Error) -> PyErr {
+    let kind = match &e {
+        // "configure the drive first" is a state, not a value: a DriveError.
+        drive::Error::InvalidParam(m) if !m.starts_with("configure") => Kind::Data,
+        _ => Kind::Drive,
+    };
+    error(kind, e.to_string())
 }

@@ -4,9 +4,11 @@
 //!
 //! The library crates (`fracsim`, `ident`, `drive`) know nothing of Python: this crate converts
 //! numpy arrays to checked slices, maps their errors to Python exceptions with the message kept,
-//! and releases the GIL around every simulation and fit so threads run them in parallel.
+//! and releases the GIL around every simulation and fit so threads run them in parallel, and around
+//! every exchange with a drive.
 
 mod arrays;
+mod drive_client;
 mod errors;
 mod freq;
 mod tf;
@@ -23,6 +25,8 @@ fn _fracid(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(freq::_fit_bode, m)?)?;
     m.add_function(wrap_pyfunction!(freq::error_index, m)?)?;
     m.add_function(wrap_pyfunction!(time::_fit_time, m)?)?;
+    m.add_class::<drive_client::PyDriveSimulator>()?;
+    m.add_class::<drive_client::PyDriveClient>()?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }
