@@ -147,13 +147,16 @@ impl Record {
     }
 
     /// Parse delimited text: `,`, `;` or tab (detected from the header line), `#` comments and
-    /// blank lines skipped, one header line naming the columns. Columns are chosen by name, or by
-    /// 0-based index when the name is a number. Then checked as in [`Record::new`].
+    /// blank lines skipped, one header line naming the columns, a UTF-8 byte-order mark (as
+    /// Windows tools write) ignored. Columns are chosen by name, or by 0-based index when the name
+    /// is a number. Then checked as in [`Record::new`].
     ///
     /// # Errors
-    /// [`Error::Data`] for a missing header or column (listing those found), a field that is not a
-    /// number (with its line), or any check of [`Record::new`].
+    /// [`Error::Data`] for a missing header or column (listing those found), a name that appears
+    /// twice in the header, a field that is not a number (with its line), or any check of
+    /// [`Record::new`].
     pub fn parse(text: &str, cols: &Columns) -> Result<Self> {
+        let text = text.strip_prefix('\u{feff}').unwrap_or(text);
         let mut lines = text
             .lines()
             .enumerate()
@@ -168,7 +171,14 @@ impl Record {
             .unwrap_or(',');
         let names = split_line(header, delim);
         let find = |want: &str| -> Result<usize> {
-            if let Some(i) = names.iter().position(|n| n.eq_ignore_ascii_case(want)) {
+            let mut hits = (0..names.len()).filter(|&i| names[i].eq_ignore_ascii_case(want));
+            if let Some(i) = hits.next() {
+                if let Some(j) = hits.next() {
+                    return Err(Error::Data(format!(
+                        "column '{want}' appears twice in the header (columns {i} and {j}): \
+                         rename one or choose by index"
+                    )));
+                }
                 return Ok(i);
             }
             if let Ok(i) = want.parse::<usize>() {

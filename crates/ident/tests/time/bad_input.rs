@@ -41,6 +41,26 @@ fn missing_columns_are_named() {
 }
 
 #[test]
+fn windows_files_and_ambiguous_headers() {
+    // Excel's "CSV UTF-8" starts with a byte-order mark and ends lines with CRLF: the BOM was
+    // read as part of the first name ("no column 't' (found: \u{feff}t, u, y)").
+    let rec = parse("\u{feff}t,u,y\r\n0,0,0\r\n0.1,1,0\r\n0.2,1,0.5\r\n").unwrap();
+    assert_eq!(rec.t, vec![0.0, 0.1, 0.2]);
+    assert_eq!(rec.y, vec![0.0, 0.0, 0.5]);
+    // A name twice in the header silently took the first.
+    let e = parse("t,u,y,y\n0,0,0,5\n1,1,0,6\n").unwrap_err();
+    assert!(matches!(e, Error::Data(_)), "{e:?}");
+    assert!(e.to_string().contains("'y' appears twice"), "{e}");
+    // ...by index it is unambiguous
+    let cols = Columns {
+        y: "3".into(),
+        ..Columns::default()
+    };
+    let rec = Record::parse("t,u,y,y\n0,0,0,5\n1,1,0,6\n", &cols).unwrap();
+    assert_eq!(rec.y, vec![5.0, 6.0]);
+}
+
+#[test]
 fn nan_and_text_are_errors() {
     for (text, want) in [
         ("t,u,y\n0,1,2\n1,1,NaN\n2,1,2\n", "not finite"),
