@@ -124,6 +124,99 @@ fn bad_input_gives_a_clear_error_and_a_nonzero_exit() {
 }
 
 #[test]
+fn extreme_input_is_an_error_not_a_crash_or_a_hang() {
+    let deep = format!("{}1{}", "(".repeat(20_000), ")".repeat(20_000));
+    for (args, code, needle) in [
+        // stack overflow: the process aborted
+        (vec!["sim", "--model", deep.as_str()], 2, "nested more than"),
+        // overflow panics
+        (
+            vec!["sim", "--prbs", "--prbs-clock", "1e300"],
+            2,
+            "too many",
+        ),
+        (vec!["sim", "--order", "18446744073709551615"], 2, "order N"),
+        // hung building 2e8 cells
+        (vec!["sim", "--order", "100000000"], 2, "order N"),
+        // printed a band edge with 300 decimal digits
+        (
+            vec!["sim", "--dt", "1e300"],
+            2,
+            "too long for the default band",
+        ),
+    ] {
+        let out = fracid(&args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        let shown: Vec<&str> = args.iter().map(|a| &a[..a.len().min(40)]).collect();
+        assert_eq!(out.status.code(), Some(code), "{shown:?}: {err}");
+        assert!(err.contains(needle), "{shown:?}: {err}");
+        assert!(
+            !err.contains("panicked") && err.len() < 400,
+            "{shown:?}: {err}"
+        );
+    }
+    // A delay far past the record: Grunwald-Letnikov overflowed its index; the output is zero.
+    let out = fracid(&[
+        "sim",
+        "--method",
+        "gl",
+        "--model",
+        "1/(s+1) exp(-1e300 s)",
+        "--t-end",
+        "0.001",
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    let text = String::from_utf8(out.stdout).unwrap();
+    let y: Vec<&str> = text
+        .lines()
+        .filter(|l| !l.starts_with('#') && !l.starts_with('t'))
+        .map(|l| l.rsplit(',').next().unwrap())
+        .collect();
+    assert_eq!(y.len(), 11);
+    assert!(y.iter().all(|v| v.parse::<f64>() == Ok(0.0)), "{y:?}");
+}
+
+#[test]
+fn windows_csv_files_are_read() {
+    // Excel's "CSV UTF-8": a byte-order mark and CRLF line ends.
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("u.csv");
+    let mut text = String::from("\u{feff}t,u\r\n");
+    for k in 0..100 {
+        text.push_str(&format!("{},{}\r\n", k as f64 * 1e-3, 1.0));
+    }
+    std::fs::write(&input, text).unwrap();
+    let out = fracid(&[
+        "sim",
+        "--model",
+        "2/(0.001 s + 1)",
+        "--input",
+        input.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    let last: f64 = String::from_utf8(out.stdout)
+        .unwrap()
+        .lines()
+        .last()
+        .unwrap()
+        .rsplit(',')
+        .next()
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert!((last - 2.0).abs() < 1e-6, "{last}");
+    // A duplicated column name is ambiguous: an error naming it, not the first silently.
+    let dup = dir.path().join("dup.csv");
+    std::fs::write(&dup, "t,u,u\n0,1,2\n0.001,1,2\n").unwrap();
+    let out = fracid(&["sim", "--input", dup.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains("'u' appears twice"), "{err}");
+}
+
+#[test]
 fn sim_reads_a_recorded_input_file() {
     let dir = tempfile::tempdir().unwrap();
     let input = dir.path().join("u.csv");
