@@ -79,6 +79,15 @@ pub struct Offsets {
     pub y0: f64,
 }
 
+/// The delimiter of a header line: whichever of tab, `;` and `,` it holds most often, `,` on a tie
+/// or when it has none.
+pub fn delimiter(header: &str) -> char {
+    ['\t', ';', ',']
+        .into_iter()
+        .max_by_key(|d| header.matches(*d).count())
+        .unwrap_or(',')
+}
+
 fn split_line(line: &str, delim: char) -> Vec<&str> {
     line.split(delim).map(|s| s.trim()).collect()
 }
@@ -165,10 +174,7 @@ impl Record {
         let (_, header) = lines
             .next()
             .ok_or_else(|| Error::Data("empty file: no header line".into()))?;
-        let delim = [',', ';', '\t']
-            .into_iter()
-            .max_by_key(|d| header.matches(*d).count())
-            .unwrap_or(',');
+        let delim = delimiter(header);
         let names = split_line(header, delim);
         let find = |want: &str| -> Result<usize> {
             let mut hits = (0..names.len()).filter(|&i| names[i].eq_ignore_ascii_case(want));
@@ -315,6 +321,17 @@ mod tests {
         )
         .unwrap();
         assert_eq!(tab.y, vec![2.0, 3.0]);
+    }
+
+    #[test]
+    fn delimiter_is_the_most_frequent() {
+        assert_eq!(delimiter("t;u;y"), ';');
+        assert_eq!(delimiter("t\tu\ty"), '\t');
+        assert_eq!(delimiter("t,u,y"), ',');
+        assert_eq!(delimiter("a;b,c;d"), ';');
+        // ties and single columns: ','
+        assert_eq!(delimiter("a;b,c"), ',');
+        assert_eq!(delimiter("t"), ',');
     }
 
     #[test]

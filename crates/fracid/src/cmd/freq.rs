@@ -101,17 +101,15 @@ pub struct Units {
     pub radians: bool,
 }
 
+/// The delimiter of the first line that is not blank or a comment.
 fn detect_delimiter(text: &str) -> u8 {
     let line = text
         .lines()
         .map(str::trim)
         .find(|l| !l.is_empty() && !l.starts_with('#'))
         .unwrap_or("");
-    [b'\t', b';', b',']
-        .into_iter()
-        .max_by_key(|d| line.bytes().filter(|b| b == d).count())
-        .filter(|d| line.bytes().any(|b| b == *d))
-        .unwrap_or(b',')
+    // tab, ';' or ',': all ASCII
+    ident::data::delimiter(line) as u8
 }
 
 /// Read Bode data from CSV text. `columns` names (freq, gain, phase); `weight_column` an extra
