@@ -27,6 +27,12 @@ fn fracid(args: &[&str]) -> Output {
         .expect("run fracid")
 }
 
+/// The output (last column) of the last row of `fracid sim`'s CSV.
+fn last_output(csv: &str) -> f64 {
+    let row = csv.lines().last().expect("an output row");
+    row.rsplit(',').next().unwrap().parse().expect("a number")
+}
+
 #[test]
 fn sim_step_matches_the_mittag_leffler_oracle_within_half_a_percent() {
     let out = fracid(&[
@@ -196,16 +202,7 @@ fn windows_csv_files_are_read() {
     ]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{err}");
-    let last: f64 = String::from_utf8(out.stdout)
-        .unwrap()
-        .lines()
-        .last()
-        .unwrap()
-        .rsplit(',')
-        .next()
-        .unwrap()
-        .parse()
-        .unwrap();
+    let last = last_output(&String::from_utf8(out.stdout).unwrap());
     assert!((last - 2.0).abs() < 1e-6, "{last}");
     // A duplicated column name is ambiguous: an error naming it, not the first silently.
     let dup = dir.path().join("dup.csv");
@@ -244,16 +241,7 @@ fn sim_reads_a_recorded_input_file() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    let last: f64 = std::fs::read_to_string(&out_csv)
-        .unwrap()
-        .lines()
-        .last()
-        .unwrap()
-        .rsplit(',')
-        .next()
-        .unwrap()
-        .parse()
-        .unwrap();
+    let last = last_output(&std::fs::read_to_string(&out_csv).unwrap());
     // 190 ms after the step, 19 time constants: the DC gain 2 to 1e-6.
     assert!((last - 2.0).abs() < 1e-6, "{last}");
 }
