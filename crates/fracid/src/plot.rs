@@ -104,3 +104,156 @@ pub fn range_of<'a>(values: impl IntoIterator<Item = &'a f64>) -> (f64, f64) {
     };
     (lo - pad, hi + pad)
 }
+
+/// Sizes of a chart's text and frame, in pixels.
+#[derive(Debug, Clone, Copy)]
+pub struct Look {
+    /// Caption font size.
+    pub caption: u32,
+    /// Tick-label and legend font size (`None`: plotters' defaults).
+    pub labels: Option<u32>,
+    /// Margin around the chart.
+    pub margin: u32,
+    /// Height of the x label area.
+    pub x_area: u32,
+    /// Width of the y label area.
+    pub y_area: u32,
+}
+
+/// One curve of a [`TimeChart`].
+pub struct Line<'a> {
+    /// Legend entry (`None`: not in the legend).
+    pub label: Option<&'a str>,
+    /// One value per time stamp.
+    pub values: &'a [f64],
+    /// Line style, also used for the legend entry.
+    pub style: ShapeStyle,
+}
+
+/// Curves against time on one panel: the y range covers every curve, the x range the time stamps.
+pub struct TimeChart<'a> {
+    /// Caption (`None`: no caption and no room kept for one).
+    pub title: Option<&'a str>,
+    /// Text of the time axis.
+    pub x_desc: &'a str,
+    /// Text of the value axis.
+    pub y_desc: Option<&'a str>,
+    /// Time stamps.
+    pub t: &'a [f64],
+    /// The curves, drawn in order.
+    pub lines: &'a [Line<'a>],
+    /// A labelled vertical line at a time (such as where validation starts), drawn after the curves.
+    pub marker: Option<(f64, &'a str, ShapeStyle)>,
+    /// Sizes.
+    pub look: Look,
+}
+
+/// Draw `c` on `area`, with a legend when a curve or the marker has a label.
+///
+/// # Errors
+/// A drawing error.
+pub fn time_series_chart<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    c: &TimeChart<'_>,
+) -> Result<()>
+where
+    DB::ErrorType: 'static,
+{
+    let look = c.look;
+    let t0 = c.t.first().copied().unwrap_or(0.0);
+    let t1 = c.t.last().copied().unwrap_or(1.0);
+    let t1 = if t1 > t0 { t1 } else { t0 + 1e-12 };
+    let (lo, hi) = range_of(c.lines.iter().flat_map(|l| l.values));
+    let mut builder = ChartBuilder::on(area);
+    builder
+        .margin(look.margin)
+        .x_label_area_size(look.x_area)
+        .y_label_area_size(look.y_area);
+    if let Some(title) = c.title {
+        builder.caption(title, ("sans-serif", look.caption));
+    }
+    let mut ch = builder.build_cartesian_2d(t0..t1, lo..hi)?;
+    let mut mesh = ch.configure_mesh();
+    mesh.x_desc(c.x_desc);
+    if let Some(y) = c.y_desc {
+        mesh.y_desc(y);
+    }
+    if let Some(size) = look.labels {
+        mesh.label_style(("sans-serif", size));
+    }
+    mesh.draw()?;
+    let legend =
+        |style: ShapeStyle| move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], style);
+    for l in c.lines {
+        let s = ch.draw_series(LineSeries::new(
+            c.t.iter().copied().zip(l.values.iter().copied()),
+            l.style,
+        ))?;
+        if let Some(label) = l.label {
+            s.label(label).legend(legend(l.style));
+        }
+    }
+    if let Some((at, label, style)) = c.marker {
+        ch.draw_series(std::iter::once(PathElement::new(
+            vec![(at, lo), (at, hi)],
+            style,
+        )))?
+        .label(label)
+        .legend(legend(style));
+    }
+    if c.marker.is_some() || c.lines.iter().any(|l| l.label.is_some()) {
+        let mut labels = ch.configure_series_labels();
+        labels.background_style(WHITE.mix(0.8)).border_style(BLACK);
+        if let Some(size) = look.labels {
+            labels.label_font(("sans-serif", size));
+        }
+        labels.draw()?;
+    }
+    Ok(())
+}
+
+/// Correlation coefficients as bars against the lag (the first bar at lag `first`), with the
+/// confidence band `+-bound` in red; the value axis spans at least `1.5 bound`, at most 1.05.
+///
+/// # Errors
+/// A drawing error.
+pub fn correlation_chart<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    title: &str,
+    first: i32,
+    values: &[f64],
+    bound: f64,
+    look: Look,
+) -> Result<()>
+where
+    DB::ErrorType: 'static,
+{
+    let ymax = values
+        .iter()
+        .fold(bound * 1.5, |m, v| m.max(v.abs()))
+        .min(1.05);
+    let last = first + values.len() as i32 - 1;
+    let mut c = ChartBuilder::on(area)
+        .caption(title, ("sans-serif", look.caption))
+        .margin(look.margin)
+        .x_label_area_size(look.x_area)
+        .y_label_area_size(look.y_area)
+        .build_cartesian_2d((first - 1)..(last + 1), -ymax..ymax)?;
+    let mut mesh = c.configure_mesh();
+    mesh.x_desc("lag [samples]");
+    if let Some(size) = look.labels {
+        mesh.label_style(("sans-serif", size));
+    }
+    mesh.draw()?;
+    c.draw_series(values.iter().enumerate().map(|(i, v)| {
+        let x = first + i as i32;
+        PathElement::new(vec![(x, 0.0), (x, *v)], BLACK.stroke_width(2))
+    }))?;
+    for s in [bound, -bound] {
+        c.draw_series(std::iter::once(PathElement::new(
+            vec![(first - 1, s), (last + 1, s)],
+            RED,
+        )))?;
+    }
+    Ok(())
+}

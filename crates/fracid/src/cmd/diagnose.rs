@@ -151,8 +151,6 @@ impl Figure for TimeResidual<'_> {
             .zip(&d.yhat_after)
             .map(|(a, b)| a - b)
             .collect();
-        let (t0, t1) = (rec.t[0], rec.t[rec.len() - 1]);
-        let (lo, hi) = plot::range_of(before.iter().chain(&after));
         let kept: Vec<&str> = d.effects.iter().map(|e| e.name.as_str()).collect();
         let title = format!(
             "residual y - yhat: before (RMSE {:.3e}) and after (RMSE {:.3e}){}",
@@ -164,41 +162,36 @@ impl Figure for TimeResidual<'_> {
                 format!(" with {}", kept.join(", "))
             }
         );
-        let mut ch = ChartBuilder::on(root)
-            .caption(title, ("sans-serif", 22))
-            .margin(15)
-            .x_label_area_size(45)
-            .y_label_area_size(80)
-            .build_cartesian_2d(t0..t1, lo..hi)?;
-        ch.configure_mesh()
-            .x_desc("t [s]")
-            .y_desc("residual")
-            .label_style(("sans-serif", 15))
-            .draw()?;
         let ts = rec.t[d.split.min(rec.len() - 1)];
-        ch.draw_series(std::iter::once(PathElement::new(
-            vec![(ts, lo), (ts, hi)],
-            BLACK.mix(0.5),
-        )))?
-        .label("validation starts")
-        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK.mix(0.5)));
-        ch.draw_series(LineSeries::new(
-            rec.t.iter().copied().zip(before.iter().copied()),
-            RED.mix(0.6),
-        ))?
-        .label("before (base model)")
-        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED));
-        ch.draw_series(LineSeries::new(
-            rec.t.iter().copied().zip(after.iter().copied()),
-            BLUE.mix(0.8),
-        ))?
-        .label("after (with the kept effects)")
-        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE));
-        ch.configure_series_labels()
-            .background_style(WHITE.mix(0.8))
-            .border_style(BLACK)
-            .label_font(("sans-serif", 15))
-            .draw()?;
+        plot::time_series_chart(
+            root,
+            &plot::TimeChart {
+                title: Some(&title),
+                x_desc: "t [s]",
+                y_desc: Some("residual"),
+                t: &rec.t,
+                lines: &[
+                    plot::Line {
+                        label: Some("before (base model)"),
+                        values: &before,
+                        style: RED.mix(0.6).into(),
+                    },
+                    plot::Line {
+                        label: Some("after (with the kept effects)"),
+                        values: &after,
+                        style: BLUE.mix(0.8).into(),
+                    },
+                ],
+                marker: Some((ts, "validation starts", BLACK.mix(0.5).into())),
+                look: plot::Look {
+                    caption: 22,
+                    labels: Some(15),
+                    margin: 15,
+                    x_area: 45,
+                    y_area: 80,
+                },
+            },
+        )?;
         Ok(())
     }
 }

@@ -960,36 +960,28 @@ impl Figure for BodeFigure<'_> {
                 .y_label_formatter(&|v| format!("{v:.0e}"))
                 .draw()
                 .map_err(e)?;
-            let blue = RGBColor(31, 119, 180);
-            let pts: Vec<(f64, f64)> = self
-                .fit
-                .curve
-                .iter()
-                .filter(|p| p.j.is_finite() && p.j > 0.0)
-                .map(|p| (p.q, p.j))
-                .collect();
-            chart
-                .draw_series(LineSeries::new(pts, blue.stroke_width(2)))
-                .map_err(e)?
-                .label("Levy")
-                .legend(move |(x, y)| {
-                    PathElement::new(vec![(x, y), (x + 24, y)], blue.stroke_width(2))
-                });
-            if !self.fit.sk_curve.is_empty() {
-                let green = RGBColor(44, 160, 44);
-                let pts: Vec<(f64, f64)> = self
-                    .fit
-                    .sk_curve
+            for (curve, label, color) in [
+                (&self.fit.curve, "Levy", RGBColor(31, 119, 180)),
+                (
+                    &self.fit.sk_curve,
+                    "Sanathanan-Koerner",
+                    RGBColor(44, 160, 44),
+                ),
+            ] {
+                if curve.is_empty() {
+                    continue;
+                }
+                let pts: Vec<(f64, f64)> = curve
                     .iter()
                     .filter(|p| p.j.is_finite() && p.j > 0.0)
                     .map(|p| (p.q, p.j))
                     .collect();
                 chart
-                    .draw_series(LineSeries::new(pts, green.stroke_width(2)))
+                    .draw_series(LineSeries::new(pts, color.stroke_width(2)))
                     .map_err(e)?
-                    .label("Sanathanan-Koerner")
+                    .label(label)
                     .legend(move |(x, y)| {
-                        PathElement::new(vec![(x, y), (x + 24, y)], green.stroke_width(2))
+                        PathElement::new(vec![(x, y), (x + 24, y)], color.stroke_width(2))
                     });
             }
             let best = (self.fit.levy.q, self.fit.levy.j);

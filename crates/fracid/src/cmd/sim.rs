@@ -193,36 +193,32 @@ impl Figure for SimFigure<'_> {
     {
         let root = root.titled(&self.title, ("sans-serif", 20))?;
         let (top, bottom) = root.split_vertically((root.dim_in_pixel().1 as f64 * 0.35) as u32);
-        let t_max = self.t.last().copied().unwrap_or(1.0).max(1e-12);
         for (area, data, name, color) in [
             (&top, self.u, "input u", BLUE),
             (&bottom, self.y, "output y", RED),
         ] {
-            let (lo, hi) = plot::range_of(data);
-            let mut chart = ChartBuilder::on(area)
-                .margin(10)
-                .x_label_area_size(40)
-                .y_label_area_size(60)
-                .build_cartesian_2d(0.0..t_max, lo..hi)?;
-            chart
-                .configure_mesh()
-                .x_desc("time [s]")
-                .y_desc(name)
-                .label_style(("sans-serif", 14))
-                .draw()?;
-            chart
-                .draw_series(LineSeries::new(
-                    self.t.iter().copied().zip(data.iter().copied()),
-                    color.stroke_width(2),
-                ))?
-                .label(name)
-                .legend(move |(x, y)| PathElement::new([(x, y), (x + 20, y)], color));
-            chart
-                .configure_series_labels()
-                .background_style(WHITE.mix(0.8))
-                .border_style(BLACK)
-                .label_font(("sans-serif", 14))
-                .draw()?;
+            plot::time_series_chart(
+                area,
+                &plot::TimeChart {
+                    title: None,
+                    x_desc: "time [s]",
+                    y_desc: Some(name),
+                    t: self.t,
+                    lines: &[plot::Line {
+                        label: Some(name),
+                        values: data,
+                        style: color.stroke_width(2),
+                    }],
+                    marker: None,
+                    look: plot::Look {
+                        caption: 20,
+                        labels: Some(14),
+                        margin: 10,
+                        x_area: 40,
+                        y_area: 60,
+                    },
+                },
+            )?;
         }
         Ok(())
     }

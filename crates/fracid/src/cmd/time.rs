@@ -279,64 +279,58 @@ impl Figure for TimeFigure<'_> {
     where
         DB::ErrorType: 'static,
     {
-        let e = |e: DrawingAreaErrorKind<DB::ErrorType>| anyhow::anyhow!("drawing failed: {e}");
         let (rec, id) = (self.rec, self.id);
         let areas = root.split_evenly((2, 2));
-        let font = ("sans-serif", 18);
         let t_split = rec.t[id.split.min(rec.len() - 1)];
-        let (t0, t1) = (rec.t[0], rec.t[rec.len() - 1]);
+        let look = plot::Look {
+            caption: 18,
+            labels: None,
+            margin: 10,
+            x_area: 35,
+            y_area: 60,
+        };
         // 1: measured vs model
-        let (lo, hi) = plot::range_of(rec.y.iter().chain(&id.yhat));
-        let mut c = ChartBuilder::on(&areas[0])
-            .caption("measured and model output", font)
-            .margin(10)
-            .x_label_area_size(35)
-            .y_label_area_size(60)
-            .build_cartesian_2d(t0..t1, lo..hi)
-            .map_err(e)?;
-        c.configure_mesh().x_desc("t [s]").draw().map_err(e)?;
-        c.draw_series(LineSeries::new(
-            rec.t.iter().copied().zip(rec.y.iter().copied()),
-            &BLACK,
-        ))
-        .map_err(e)?
-        .label("measured")
-        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK));
-        c.draw_series(LineSeries::new(
-            rec.t.iter().copied().zip(id.yhat.iter().copied()),
-            &RED,
-        ))
-        .map_err(e)?
-        .label("model")
-        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED));
-        c.draw_series(std::iter::once(PathElement::new(
-            vec![(t_split, lo), (t_split, hi)],
-            BLUE,
-        )))
-        .map_err(e)?
-        .label("validation starts")
-        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE));
-        c.configure_series_labels()
-            .background_style(WHITE.mix(0.8))
-            .border_style(BLACK)
-            .draw()
-            .map_err(e)?;
+        plot::time_series_chart(
+            &areas[0],
+            &plot::TimeChart {
+                title: Some("measured and model output"),
+                x_desc: "t [s]",
+                y_desc: None,
+                t: &rec.t,
+                lines: &[
+                    plot::Line {
+                        label: Some("measured"),
+                        values: &rec.y,
+                        style: BLACK.into(),
+                    },
+                    plot::Line {
+                        label: Some("model"),
+                        values: &id.yhat,
+                        style: RED.into(),
+                    },
+                ],
+                marker: Some((t_split, "validation starts", BLUE.into())),
+                look,
+            },
+        )?;
         // 2: residual
         let res: Vec<f64> = rec.y.iter().zip(&id.yhat).map(|(a, b)| a - b).collect();
-        let (lo, hi) = plot::range_of(&res);
-        let mut c = ChartBuilder::on(&areas[1])
-            .caption("residual y - yhat", font)
-            .margin(10)
-            .x_label_area_size(35)
-            .y_label_area_size(60)
-            .build_cartesian_2d(t0..t1, lo..hi)
-            .map_err(e)?;
-        c.configure_mesh().x_desc("t [s]").draw().map_err(e)?;
-        c.draw_series(LineSeries::new(
-            rec.t.iter().copied().zip(res.iter().copied()),
-            &BLACK,
-        ))
-        .map_err(e)?;
+        plot::time_series_chart(
+            &areas[1],
+            &plot::TimeChart {
+                title: Some("residual y - yhat"),
+                x_desc: "t [s]",
+                y_desc: None,
+                t: &rec.t,
+                lines: &[plot::Line {
+                    label: None,
+                    values: &res,
+                    style: BLACK.into(),
+                }],
+                marker: None,
+                look,
+            },
+        )?;
         // 3 and 4: correlations on the validation part (estimation if none)
         let (a, b) = if id.split < rec.len() {
             (id.split, rec.len())
@@ -365,34 +359,7 @@ impl Figure for TimeFigure<'_> {
         .into_iter()
         .enumerate()
         {
-            let ymax = vals
-                .iter()
-                .fold(bound * 1.5, |m, v| m.max(v.abs()))
-                .min(1.05);
-            let last = first + vals.len() as i32 - 1;
-            let mut c = ChartBuilder::on(&areas[2 + k])
-                .caption(title, font)
-                .margin(10)
-                .x_label_area_size(35)
-                .y_label_area_size(60)
-                .build_cartesian_2d((first - 1)..(last + 1), -ymax..ymax)
-                .map_err(e)?;
-            c.configure_mesh()
-                .x_desc("lag [samples]")
-                .draw()
-                .map_err(e)?;
-            c.draw_series(vals.iter().enumerate().map(|(i, v)| {
-                let x = first + i as i32;
-                PathElement::new(vec![(x, 0.0), (x, *v)], BLACK.stroke_width(2))
-            }))
-            .map_err(e)?;
-            for s in [bound, -bound] {
-                c.draw_series(std::iter::once(PathElement::new(
-                    vec![(first - 1, s), (last + 1, s)],
-                    RED,
-                )))
-                .map_err(e)?;
-            }
+            plot::correlation_chart(&areas[2 + k], &title, first, &vals, bound, look)?;
         }
         Ok(())
     }
