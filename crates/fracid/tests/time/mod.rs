@@ -91,6 +91,30 @@ fn bad_data_exit_2() {
 }
 
 #[test]
+fn a_delay_not_shorter_than_the_record_exits_2() {
+    // 3.86 s of record, 2.702 s for estimation: a delay of 10 s ran and reported a fit with
+    // only a singular-covariance warning.
+    let dir = tempfile::tempdir().unwrap();
+    let csv = pmsm_csv(&dir);
+    for args in [
+        vec!["--structure", "1/(s+1) exp(-10 s)"],
+        vec!["--structure", "fopdt", "--max-delay", "3"],
+        vec!["--delay", "--max-delay", "2.8"],
+    ] {
+        let mut a = vec!["time", csv.to_str().unwrap(), "--quiet"];
+        a.extend(&args);
+        let o = fracid(&a);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));
+        assert!(
+            stderr(&o).contains("not shorter than the estimation record"),
+            "{args:?}: {}",
+            stderr(&o)
+        );
+        assert!(!stderr(&o).contains("panicked"), "{args:?}: {}", stderr(&o));
+    }
+}
+
+#[test]
 fn json_has_the_design_keys_and_the_plot_is_a_png() {
     let dir = tempfile::tempdir().unwrap();
     let csv = pmsm_csv(&dir);

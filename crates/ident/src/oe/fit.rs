@@ -477,7 +477,8 @@ pub struct Identification {
 ///
 /// # Errors
 /// [`Error::NotEnoughData`] for no excitation or fewer than `max(20, 10 n_free)` estimation
-/// samples; [`Error::Options`] for a bad holdout or start; errors of [`fit`].
+/// samples; [`Error::Options`] for a bad holdout or start, or an input delay (its start, or the
+/// upper bound of a fitted one) not shorter than the estimation record; errors of [`fit`].
 pub fn identify(rec: &Record, model: &FracModel, opts: &IdentOptions) -> Result<Identification> {
     identify_with_progress(rec, model, opts, &mut |_, _| {})
 }
@@ -503,6 +504,7 @@ pub fn identify_with_progress(
         )));
     }
     rec.check_excitation(split)?;
+    check_delay(&m, split, rec.dt)?;
     let offsets = rec.offsets(opts.offsets, split);
     let u: Vec<f64> = rec.u.iter().map(|v| v - offsets.u0).collect();
     let y: Vec<f64> = rec.y.iter().map(|v| v - offsets.y0).collect();
@@ -543,6 +545,32 @@ pub fn identify_with_progress(
         start,
         start_report,
     })
+}
+
+/// Refuse an input delay (its start, or when it is fitted its upper bound) that is not shorter
+/// than the estimation record of `split` samples of `dt` s: the model output there would not
+/// depend on the input at all (the fit ran and reported only a singular covariance).
+fn check_delay(m: &FracModel, split: usize, dt: f64) -> Result<()> {
+    let Some(p) = m.delay.map(|i| &m.params[i]) else {
+        return Ok(());
+    };
+    let record = split as f64 * dt;
+    let what = if !(p.value < record) {
+        format!("the delay {} = {} s", p.name, p.value)
+    } else {
+        match p.bounds {
+            Bounds::Interval(_, hi) if p.free && !(hi < record) => {
+                format!("the largest delay (the upper bound of {}) {hi} s", p.name)
+            }
+            _ => return Ok(()),
+        }
+    };
+    // 10 significant digits: 2667 samples of 1 ms print as 2.667 s, not 2.6670000000000003 s.
+    let shown: f64 = format!("{record:.9e}").parse().unwrap_or(record);
+    Err(Error::Options(format!(
+        "{what} is not shorter than the estimation record, {shown} s ({split} samples of {dt} s): \
+         the model output would not depend on the input"
+    )))
 }
 
 /// Make sure a [`Param`] list is usable (kept for the diagnosis layer: checks starting values).

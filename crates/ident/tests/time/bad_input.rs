@@ -178,3 +178,29 @@ fn an_order_at_its_bound_is_a_warning() {
     assert!(id.estimation.nrmse_percent > 90.0, "{:?}", id.estimation);
     assert_eq!(id.start_report.method, StartMethod::Levy);
 }
+
+#[test]
+fn a_delay_not_shorter_than_the_estimation_record_is_refused() {
+    // 3 periods of 1270 samples at 1 ms: 3.81 s, 2.667 s of it for estimation (holdout 0.3).
+    let rec = record_of(&FracTf::pmsm(2.0, 0.05, 1e-3, 0.9, 0.8).unwrap());
+    let opts = IdentOptions::default();
+    // A fixed delay from a transfer function: the fit ran and only warned of a singular
+    // covariance.
+    let g: FracTf = "1/(s+1) exp(-10 s)".parse().unwrap();
+    let e = identify(&rec, &FracModel::from_tf(&g, true, true), &opts).unwrap_err();
+    assert!(matches!(e, Error::Options(_)), "{e:?}");
+    let msg = e.to_string();
+    assert!(msg.contains("tau = 10 s"), "{msg}");
+    assert!(
+        msg.contains("not shorter than the estimation record"),
+        "{msg}"
+    );
+    assert!(msg.contains("2.667 s (2667 samples of 0.001 s)"), "{msg}");
+    // A fitted delay whose upper bound reaches the record, even from a short start.
+    let e = identify(&rec, &FracModel::fopdt(1.0, 0.1, 0.01, 2.7), &opts).unwrap_err();
+    assert!(matches!(e, Error::Options(_)), "{e:?}");
+    assert!(e.to_string().contains("upper bound of tau"), "{e}");
+    // A bound just inside the record is accepted.
+    let id = identify(&rec, &FracModel::fopdt(1.0, 0.1, 0.01, 2.6), &opts).unwrap();
+    assert!(id.tf.delay < 2.6, "{}", id.tf);
+}
