@@ -92,6 +92,75 @@ fn split_line(line: &str, delim: char) -> Vec<&str> {
     line.split(delim).map(|s| s.trim()).collect()
 }
 
+/// The lines of delimited text that hold something, with their 1-based numbers: a UTF-8
+/// byte-order mark (as Windows tools write) skipped, `#` comments cut, blank lines left out.
+fn content_lines(text: &str) -> impl Iterator<Item = (usize, &str)> {
+    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
+    text.lines()
+        .enumerate()
+        .map(|(i, l)| (i + 1, l.split('#').next().unwrap_or("").trim()))
+        .filter(|(_, l)| !l.is_empty())
+}
+
+/// The first line of delimited text that holds something (see [`Record::parse`]), split at its
+/// [`delimiter`]: the header's names (trimmed), or `None` for a text with no such line.
+pub fn header(text: &str) -> Option<Vec<&str>> {
+    content_lines(text)
+        .next()
+        .map(|(_, l)| split_line(l, delimiter(l)))
+}
+
+/// Where column `want` is among the header's `names`: by name (ASCII case ignored), or by 0-based
+/// index when `want` is a number that no name matches.
+///
+/// # Errors
+/// [`Error::Data`] for a name that appears twice in the header (choosing it would silently take
+/// the first), or no such column (listing those found).
+pub fn column_index(names: &[&str], want: &str) -> Result<usize> {
+    let mut hits = (0..names.len()).filter(|&i| names[i].eq_ignore_ascii_case(want));
+    if let Some(i) = hits.next() {
+        if let Some(j) = hits.next() {
+            return Err(Error::Data(format!(
+                "column '{want}' appears twice in the header (columns {i} and {j}): \
+                 rename one or choose by index"
+            )));
+        }
+        return Ok(i);
+    }
+    if let Ok(i) = want.parse::<usize>() {
+        if i < names.len() {
+            return Ok(i);
+        }
+    }
+    Err(Error::Data(format!(
+        "no column '{want}' (found: {})",
+        names.join(", ")
+    )))
+}
+
+/// [`column_index`] of each of `wants`, refusing one column chosen twice.
+///
+/// # Errors
+/// As [`column_index`], and [`Error::Data`] when two of `wants` name the same column.
+pub fn column_indices(names: &[&str], wants: &[&str]) -> Result<Vec<usize>> {
+    let idx = wants
+        .iter()
+        .map(|w| column_index(names, w))
+        .collect::<Result<Vec<_>>>()?;
+    for (k, i) in idx.iter().enumerate() {
+        if let Some(j) = idx[..k].iter().position(|x| x == i) {
+            return Err(Error::Data(format!(
+                "column '{}' is chosen twice ('{}' and '{}' in [{}])",
+                names[*i],
+                wants[j],
+                wants[k],
+                wants.join(", ")
+            )));
+        }
+    }
+    Ok(idx)
+}
+
 impl Record {
     /// Build a record from columns and check it: equal lengths, at least 2 samples, finite values,
     /// strictly increasing and uniform time.
@@ -165,38 +234,13 @@ impl Record {
     /// twice in the header, a field that is not a number (with its line), or any check of
     /// [`Record::new`].
     pub fn parse(text: &str, cols: &Columns) -> Result<Self> {
-        let text = text.strip_prefix('\u{feff}').unwrap_or(text);
-        let mut lines = text
-            .lines()
-            .enumerate()
-            .map(|(i, l)| (i + 1, l.split('#').next().unwrap_or("").trim()))
-            .filter(|(_, l)| !l.is_empty());
+        let mut lines = content_lines(text);
         let (_, header) = lines
             .next()
             .ok_or_else(|| Error::Data("empty file: no header line".into()))?;
         let delim = delimiter(header);
         let names = split_line(header, delim);
-        let find = |want: &str| -> Result<usize> {
-            let mut hits = (0..names.len()).filter(|&i| names[i].eq_ignore_ascii_case(want));
-            if let Some(i) = hits.next() {
-                if let Some(j) = hits.next() {
-                    return Err(Error::Data(format!(
-                        "column '{want}' appears twice in the header (columns {i} and {j}): \
-                         rename one or choose by index"
-                    )));
-                }
-                return Ok(i);
-            }
-            if let Ok(i) = want.parse::<usize>() {
-                if i < names.len() {
-                    return Ok(i);
-                }
-            }
-            Err(Error::Data(format!(
-                "no column '{want}' (found: {})",
-                names.join(", ")
-            )))
-        };
+        let find = |want: &str| column_index(&names, want);
         let idx = [find(&cols.t)?, find(&cols.u)?, find(&cols.y)?];
         let (mut t, mut u, mut y) = (Vec::new(), Vec::new(), Vec::new());
         for (lineno, line) in lines {

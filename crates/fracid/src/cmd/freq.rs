@@ -167,36 +167,35 @@ pub fn parse_bode(
         },
     ];
     let (idx, widx, body) = if has_header {
-        let header: Vec<String> = first.iter().map(|s| s.to_ascii_lowercase()).collect();
-        let find = |names: &[&str], role: &str| -> Result<usize> {
-            for n in names {
-                if let Some(i) = header.iter().position(|h| h == &n.to_ascii_lowercase()) {
-                    return Ok(i);
-                }
+        let header: Vec<&str> = first.iter().collect();
+        // The first of a role's names that the header has (else a message naming the flags).
+        let pick = |names: &[&'static str], role: &str| -> Result<&'static str> {
+            match names
+                .iter()
+                .find(|n| header.iter().any(|h| h.eq_ignore_ascii_case(n)))
+            {
+                Some(n) => Ok(n),
+                None => bad_input!(
+                    "no {role} column {} in the header [{}]; name the columns with --columns FREQ,GAIN,PHASE \
+                     (units by --rad-s, --linear-gain, --radians)",
+                    names.iter().map(|n| format!("'{n}'")).collect::<Vec<_>>().join(" or "),
+                    header.join(", ")
+                ),
             }
-            bad_input!(
-                "no {role} column {} in the header [{}]; name the columns with --columns FREQ,GAIN,PHASE \
-                 (units by --rad-s, --linear-gain, --radians)",
-                names.iter().map(|n| format!("'{n}'")).collect::<Vec<_>>().join(" or "),
-                header.join(", ")
-            )
         };
-        let idx = match columns {
-            Some(c) => [
-                find(&[c[0]], "frequency")?,
-                find(&[c[1]], "gain")?,
-                find(&[c[2]], "phase")?,
-            ],
-            None => [
-                find(defaults[0], "frequency")?,
-                find(defaults[1], "gain")?,
-                find(defaults[2], "phase")?,
+        let mut wants = match columns {
+            Some(c) => c.to_vec(),
+            None => vec![
+                pick(defaults[0], "frequency")?,
+                pick(defaults[1], "gain")?,
+                pick(defaults[2], "phase")?,
             ],
         };
-        let widx = match weight_column {
-            Some(w) => Some(find(&[w], "weight")?),
-            None => None,
-        };
+        wants.extend(weight_column);
+        // The time reader's checks: a name twice in the header, one column chosen twice.
+        let found = ident::data::column_indices(&header, &wants)?;
+        let idx = [found[0], found[1], found[2]];
+        let widx = found.get(3).copied();
         (idx, widx, &records[1..])
     } else {
         if columns.is_some() || weight_column.is_some() {
@@ -321,14 +320,8 @@ pub fn run(a: FreqArgs) -> Result<()> {
         "none" | "uniform" | "1" => (Some(Weights::Uniform), "none".to_string(), None),
         _ => {
             // a column of the data file, else a file of weights
-            let header_has = text
-                .lines()
-                .map(str::trim)
-                .find(|l| !l.is_empty() && !l.starts_with('#'))
-                .is_some_and(|l| {
-                    l.split([',', ';', '\t'])
-                        .any(|f| f.trim().eq_ignore_ascii_case(&wkey))
-                });
+            let header_has = ident::data::header(&text)
+                .is_some_and(|h| h.iter().any(|f| f.eq_ignore_ascii_case(&wkey)));
             if header_has {
                 (None, format!("column '{wkey}'"), Some(wkey.clone()))
             } else if Path::new(&wkey).is_file() {

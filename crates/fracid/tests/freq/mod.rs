@@ -164,6 +164,63 @@ fn weights_none_and_column() {
 }
 
 #[test]
+fn duplicated_columns_are_errors_and_a_bom_is_skipped() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut dup = String::from("freq_hz,freq_hz,gain_db,phase_deg\n");
+    let mut bom = String::from("\u{feff}wt,freq_hz,gain_db,phase_deg\r\n");
+    for line in TABLE1.lines().skip(1) {
+        let f = line.split(',').next().unwrap();
+        dup += &format!("{f},{line}\n");
+        bom += &format!("1,{line}\r\n");
+    }
+    // A name twice in the header silently took the first.
+    let data = file_with(&dir, "dup.csv", &dup);
+    let o = fracid(&["freq", data.to_str().unwrap(), "--q", "0.9"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("column 'freq_hz' appears twice"),
+        "{}",
+        stderr(&o)
+    );
+    // One column for the three roles was read as frequency, gain and phase.
+    let data = file_with(&dir, "ok.csv", TABLE1);
+    let o = fracid(&[
+        "freq",
+        data.to_str().unwrap(),
+        "--columns",
+        "freq_hz,freq_hz,freq_hz",
+    ]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("column 'freq_hz' is chosen twice"),
+        "{}",
+        stderr(&o)
+    );
+    // A weight column that is also a role.
+    let o = fracid(&["freq", data.to_str().unwrap(), "--weights", "gain_db"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("chosen twice"), "{}", stderr(&o));
+    // Excel's CSV UTF-8 (byte-order mark, CRLF) with the weight column first: --weights read
+    // the header on its own and saw '\u{feff}wt', so 'wt' was "neither ... a column nor a file".
+    let data = file_with(&dir, "bom.csv", &bom);
+    let j = |w: &str| -> f64 {
+        let o = fracid(&[
+            "freq",
+            data.to_str().unwrap(),
+            "--weights",
+            w,
+            "--q",
+            "0.9",
+            "--json",
+        ]);
+        assert!(o.status.success(), "{w}: {}", stderr(&o));
+        let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+        v["J"].as_f64().unwrap()
+    };
+    assert_eq!(j("wt"), j("none"));
+}
+
+#[test]
 fn bad_input_exits_2_with_a_message() {
     let dir = tempfile::tempdir().unwrap();
     let cases: &[(&str, &str)] = &[

@@ -204,3 +204,21 @@ fn a_delay_not_shorter_than_the_estimation_record_is_refused() {
     let id = identify(&rec, &FracModel::fopdt(1.0, 0.1, 0.01, 2.6), &opts).unwrap();
     assert!(id.tf.delay < 2.6, "{}", id.tf);
 }
+
+#[test]
+fn header_lookup_is_shared() {
+    use ident::data::{column_indices, header};
+    // The header as every reader sees it: byte-order mark, comments and blank lines skipped.
+    let names = header("\u{feff}# Bode\n\nfreq_hz; gain_db ;phase_deg\n1;2;3\n").unwrap();
+    assert_eq!(names, ["freq_hz", "gain_db", "phase_deg"]);
+    assert_eq!(header("# only a comment\n\n"), None);
+    assert_eq!(
+        column_indices(&names, &["PHASE_DEG", "0", "gain_db"]).unwrap(),
+        [2, 0, 1]
+    );
+    let e = column_indices(&names, &["freq_hz", "freq_hz", "phase_deg"]).unwrap_err();
+    assert!(matches!(e, Error::Data(_)), "{e:?}");
+    assert!(e.to_string().contains("'freq_hz' is chosen twice"), "{e}");
+    let e = column_indices(&["f", "f", "g"], &["f"]).unwrap_err();
+    assert!(e.to_string().contains("'f' appears twice"), "{e}");
+}
