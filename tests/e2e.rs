@@ -247,6 +247,52 @@ fn sim_reads_a_recorded_input_file() {
 }
 
 #[test]
+fn sim_input_columns_are_chosen_and_checked() {
+    // sim --input read its column through the t,u,y record reader, passing u as y too.
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("u.csv");
+    let mut text = String::from("time;volts;note\n");
+    for k in 0..100 {
+        text.push_str(&format!("{};{};x\n", k as f64 * 1e-3, 1.0));
+    }
+    std::fs::write(&input, text).unwrap();
+    let f = input.to_str().unwrap();
+    let out = fracid(&[
+        "sim",
+        "--model",
+        "2/(0.001 s + 1)",
+        "--input",
+        f,
+        "--t-col",
+        "time",
+        "--u-col",
+        "volts",
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    let last = last_output(&String::from_utf8(out.stdout).unwrap());
+    assert!((last - 2.0).abs() < 1e-6, "{last}");
+    for (args, want) in [
+        (vec!["--t-col", "time", "--u-col", "time"], "chosen twice"),
+        (vec!["--t-col", "time", "--u-col", "note"], "not a number"),
+        (vec!["--t-col", "time"], "no column 'u'"),
+    ] {
+        let mut a = vec!["sim", "--input", f];
+        a.extend(&args);
+        let out = fracid(&a);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains(want), "{args:?}: {err}");
+    }
+    let nan = dir.path().join("nan.csv");
+    std::fs::write(&nan, "t,u\n0,1\n0.001,NaN\n0.002,1\n").unwrap();
+    let out = fracid(&["sim", "--input", nan.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains("u is not finite (NaN) at sample 1"), "{err}");
+}
+
+#[test]
 fn demo_acquires_identifies_diagnoses_and_reports() {
     let dir = tempfile::tempdir().unwrap();
     let out = fracid(&["demo", "--out", dir.path().to_str().unwrap()]);

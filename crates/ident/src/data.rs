@@ -161,6 +161,98 @@ pub fn column_indices(names: &[&str], wants: &[&str]) -> Result<Vec<usize>> {
     Ok(idx)
 }
 
+/// Refuse a non-finite sample of the column `name`.
+///
+/// # Errors
+/// [`Error::Data`] naming the first NaN or infinite sample.
+pub fn check_finite(name: &str, col: &[f64]) -> Result<()> {
+    match col.iter().position(|v| !v.is_finite()) {
+        Some(i) => Err(Error::Data(format!(
+            "{name} is not finite ({}) at sample {i}",
+            col[i]
+        ))),
+        None => Ok(()),
+    }
+}
+
+/// The sampling step of the time stamps `t`: the mean step, after checking that there are at
+/// least 2, finite, strictly increasing and uniform (every step within 1% of the mean).
+///
+/// # Errors
+/// [`Error::NotEnoughData`] for fewer than 2 samples; [`Error::Data`] for a non-finite,
+/// non-increasing or non-uniform time stamp (with its sample).
+pub fn sampling_step(t: &[f64]) -> Result<f64> {
+    if t.len() < 2 {
+        return Err(Error::NotEnoughData(format!("{} samples", t.len())));
+    }
+    check_finite("t", t)?;
+    if let Some(i) = t.windows(2).position(|w| w[1] <= w[0]) {
+        return Err(Error::Data(format!(
+            "time is not strictly increasing at sample {} (t = {} then {})",
+            i + 1,
+            t[i],
+            t[i + 1]
+        )));
+    }
+    let dt = (t[t.len() - 1] - t[0]) / (t.len() - 1) as f64;
+    // 1% tolerance: time stamps printed with 6+ significant digits jitter far less; a
+    // missing sample or a changed rate shows as a 100% deviation.
+    if let Some(i) = t
+        .windows(2)
+        .position(|w| ((w[1] - w[0]) - dt).abs() > 0.01 * dt)
+    {
+        return Err(Error::Data(format!(
+            "non-uniform sampling at sample {}: step {} s, mean step {dt} s (resample first)",
+            i + 1,
+            t[i + 1] - t[i]
+        )));
+    }
+    Ok(dt)
+}
+
+/// Read the columns `wants` of delimited text: `,`, `;` or tab (detected from the header line),
+/// `#` comments and blank lines skipped, one header line naming the columns, a UTF-8 byte-order
+/// mark (as Windows tools write) ignored. Columns are chosen as in [`column_indices`] (by name, or
+/// by 0-based index when the name is a number). Returns the header's names and the values of
+/// each wanted column, in the order of `wants`.
+///
+/// # Errors
+/// [`Error::Data`] for a missing header or column (listing those found), a name that appears
+/// twice in the header, a column chosen twice, or a field that is missing or not a number (with
+/// its line).
+pub fn read_columns<const N: usize>(
+    text: &str,
+    wants: [&str; N],
+) -> Result<(Vec<String>, [Vec<f64>; N])> {
+    let mut lines = content_lines(text);
+    let (_, header) = lines
+        .next()
+        .ok_or_else(|| Error::Data("empty file: no header line".into()))?;
+    let delim = delimiter(header);
+    let names = split_line(header, delim);
+    let idx = column_indices(&names, &wants)?;
+    let mut cols: [Vec<f64>; N] = std::array::from_fn(|_| Vec::new());
+    for (lineno, line) in lines {
+        let f = split_line(line, delim);
+        for (col, &i) in cols.iter_mut().zip(&idx) {
+            let s = f.get(i).ok_or_else(|| {
+                Error::Data(format!(
+                    "line {lineno}: {} fields, column {} missing",
+                    f.len(),
+                    names[i]
+                ))
+            })?;
+            col.push(s.parse::<f64>().map_err(|_| {
+                Error::Data(format!(
+                    "line {lineno}: '{s}' in column {} is not a number",
+                    names[i]
+                ))
+            })?);
+        }
+    }
+    Ok((names.into_iter().map(String::from).collect(), cols))
+}
+
 impl Record {
     /// Build a record from columns and check it: equal lengths, at least 2 samples, finite values,
     /// strictly increasing and uniform time.
@@ -177,38 +269,9 @@ impl Record {
                 y.len()
             )));
         }
-        if t.len() < 2 {
-            return Err(Error::NotEnoughData(format!("{} samples", t.len())));
-        }
-        for (name, col) in [("t", &t), ("u", &u), ("y", &y)] {
-            if let Some(i) = col.iter().position(|v| !v.is_finite()) {
-                return Err(Error::Data(format!(
-                    "{name} is not finite ({}) at sample {i}",
-                    col[i]
-                )));
-            }
-        }
-        if let Some(i) = t.windows(2).position(|w| w[1] <= w[0]) {
-            return Err(Error::Data(format!(
-                "time is not strictly increasing at sample {} (t = {} then {})",
-                i + 1,
-                t[i],
-                t[i + 1]
-            )));
-        }
-        let dt = (t[t.len() - 1] - t[0]) / (t.len() - 1) as f64;
-        // 1% tolerance: time stamps printed with 6+ significant digits jitter far less; a
-        // missing sample or a changed rate shows as a 100% deviation.
-        if let Some(i) = t
-            .windows(2)
-            .position(|w| ((w[1] - w[0]) - dt).abs() > 0.01 * dt)
-        {
-            return Err(Error::Data(format!(
-                "non-uniform sampling at sample {}: step {} s, mean step {dt} s (resample first)",
-                i + 1,
-                t[i + 1] - t[i]
-            )));
-        }
+        let dt = sampling_step(&t)?;
+        check_finite("u", &u)?;
+        check_finite("y", &y)?;
         Ok(Self { t, u, y, dt })
     }
 
@@ -224,47 +287,14 @@ impl Record {
         Self::new(t, u.to_vec(), y.to_vec())
     }
 
-    /// Parse delimited text: `,`, `;` or tab (detected from the header line), `#` comments and
-    /// blank lines skipped, one header line naming the columns, a UTF-8 byte-order mark (as
-    /// Windows tools write) ignored. Columns are chosen by name, or by 0-based index when the name
-    /// is a number. Then checked as in [`Record::new`].
+    /// Parse delimited text with [`read_columns`] (columns `t`, `u`, `y` by name or 0-based
+    /// index), then check as in [`Record::new`].
     ///
     /// # Errors
-    /// [`Error::Data`] for a missing header or column (listing those found), a name that appears
-    /// twice in the header, a field that is not a number (with its line), or any check of
-    /// [`Record::new`].
+    /// Those of [`read_columns`] (including one column chosen for two of `t`, `u`, `y`), or any
+    /// check of [`Record::new`].
     pub fn parse(text: &str, cols: &Columns) -> Result<Self> {
-        let mut lines = content_lines(text);
-        let (_, header) = lines
-            .next()
-            .ok_or_else(|| Error::Data("empty file: no header line".into()))?;
-        let delim = delimiter(header);
-        let names = split_line(header, delim);
-        let find = |want: &str| column_index(&names, want);
-        let idx = [find(&cols.t)?, find(&cols.u)?, find(&cols.y)?];
-        let (mut t, mut u, mut y) = (Vec::new(), Vec::new(), Vec::new());
-        for (lineno, line) in lines {
-            let f = split_line(line, delim);
-            let mut vals = [0.0; 3];
-            for (v, &i) in vals.iter_mut().zip(&idx) {
-                let s = f.get(i).ok_or_else(|| {
-                    Error::Data(format!(
-                        "line {lineno}: {} fields, column {} missing",
-                        f.len(),
-                        names[i]
-                    ))
-                })?;
-                *v = s.parse::<f64>().map_err(|_| {
-                    Error::Data(format!(
-                        "line {lineno}: '{s}' in column {} is not a number",
-                        names[i]
-                    ))
-                })?;
-            }
-            t.push(vals[0]);
-            u.push(vals[1]);
-            y.push(vals[2]);
-        }
+        let (_, [t, u, y]) = read_columns(text, [&cols.t, &cols.u, &cols.y])?;
         Self::new(t, u, y)
     }
 

@@ -89,14 +89,13 @@ fn build_input(a: &SimArgs) -> Result<(Vec<f64>, f64)> {
     if let Some(path) = &a.input {
         let text = std::fs::read_to_string(path)
             .with_context(|| format!("cannot read input file {}", path.display()))?;
-        let cols = ident::data::Columns {
-            t: a.t_col.clone(),
-            u: a.u_col.clone(),
-            y: a.u_col.clone(),
+        let read = || -> ident::Result<(Vec<f64>, f64)> {
+            let (_, [t, u]) = ident::data::read_columns(&text, [&a.t_col, &a.u_col])?;
+            let dt = ident::data::sampling_step(&t)?;
+            ident::data::check_finite(&a.u_col, &u)?;
+            Ok((u, dt))
         };
-        let rec = ident::data::Record::parse(&text, &cols)
-            .with_context(|| format!("in {}", path.display()))?;
-        return Ok((rec.u, rec.dt));
+        return read().with_context(|| format!("in {}", path.display()));
     }
     if !(a.dt.is_finite() && a.dt > 0.0) {
         bad_input!("--dt must be a positive number of seconds, got {}", a.dt);

@@ -222,3 +222,30 @@ fn header_lookup_is_shared() {
     let e = column_indices(&["f", "f", "g"], &["f"]).unwrap_err();
     assert!(e.to_string().contains("'f' appears twice"), "{e}");
 }
+
+#[test]
+fn read_columns_is_the_one_reader() {
+    use ident::data::read_columns;
+    let text = "\u{feff}# rig 2\ntime;volts;y\n0;1;5 # start\n\n0.1;2;6\n";
+    let (names, [u, t]) = read_columns(text, ["volts", "0"]).unwrap();
+    assert_eq!(names, ["time", "volts", "y"]);
+    assert_eq!((t, u), (vec![0.0, 0.1], vec![1.0, 2.0]));
+    // The same checks as the record's.
+    for (wants, want) in [
+        (["time", "time"], "chosen twice"),
+        (["time", "u"], "no column 'u'"),
+    ] {
+        let e = read_columns(text, wants).unwrap_err();
+        assert!(e.to_string().contains(want), "{wants:?}: {e}");
+    }
+    let e = read_columns("t,u\n0,1\n1\n", ["t", "u"]).unwrap_err();
+    assert!(e.to_string().contains("line 3"), "{e}");
+    // A record with one column for two of t, u, y.
+    let cols = Columns {
+        y: "u".into(),
+        ..Columns::default()
+    };
+    let e = Record::parse("t,u,y\n0,0,0\n1,1,1\n", &cols).unwrap_err();
+    assert!(matches!(e, Error::Data(_)), "{e:?}");
+    assert!(e.to_string().contains("chosen twice"), "{e}");
+}
