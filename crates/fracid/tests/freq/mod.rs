@@ -35,6 +35,22 @@ fn stderr(o: &std::process::Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }
 
+/// J of `fracid freq DATA --weights W --q 0.9` (which must succeed).
+fn j_with_weights(data: &std::path::Path, w: &str) -> f64 {
+    let o = fracid(&[
+        "freq",
+        data.to_str().unwrap(),
+        "--weights",
+        w,
+        "--q",
+        "0.9",
+        "--json",
+    ]);
+    assert!(o.status.success(), "{w}: {}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    v["J"].as_f64().unwrap()
+}
+
 fn rel(x: f64, y: f64) -> f64 {
     ((x - y) / y).abs()
 }
@@ -144,20 +160,7 @@ fn weights_none_and_column() {
         text += &format!("{line},1\n");
     }
     let data = file_with(&dir, "t1w.csv", &text);
-    let get_j = |w: &str| -> f64 {
-        let o = fracid(&[
-            "freq",
-            data.to_str().unwrap(),
-            "--weights",
-            w,
-            "--q",
-            "0.9",
-            "--json",
-        ]);
-        assert!(o.status.success(), "{}", stderr(&o));
-        let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
-        v["J"].as_f64().unwrap()
-    };
+    let get_j = |w: &str| j_with_weights(&data, w);
     // a column of ones is the unweighted fit
     assert_eq!(get_j("none"), get_j("wt"));
     assert_ne!(get_j("none"), get_j("vinagre"));
@@ -203,21 +206,7 @@ fn duplicated_columns_are_errors_and_a_bom_is_skipped() {
     // Excel's CSV UTF-8 (byte-order mark, CRLF) with the weight column first: --weights read
     // the header on its own and saw '\u{feff}wt', so 'wt' was "neither ... a column nor a file".
     let data = file_with(&dir, "bom.csv", &bom);
-    let j = |w: &str| -> f64 {
-        let o = fracid(&[
-            "freq",
-            data.to_str().unwrap(),
-            "--weights",
-            w,
-            "--q",
-            "0.9",
-            "--json",
-        ]);
-        assert!(o.status.success(), "{w}: {}", stderr(&o));
-        let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
-        v["J"].as_f64().unwrap()
-    };
-    assert_eq!(j("wt"), j("none"));
+    assert_eq!(j_with_weights(&data, "wt"), j_with_weights(&data, "none"));
 }
 
 #[test]
