@@ -425,3 +425,72 @@ fn diagnosis_of_the_paper_table_adds_nothing() {
     let refined_j = j["refined"]["J"].as_f64().unwrap();
     assert!(refined_j <= 2.0e-3, "{refined_j}");
 }
+
+#[test]
+fn a_closed_stdout_ends_quietly() {
+    use std::io::{BufRead, BufReader};
+    use std::process::Stdio;
+    // `fracid sim ... | head -1`: the reader goes away after one line.
+    let mut child = Command::new(fracid_bin())
+        .args(["sim", "--prbs", "--t-end", "20"])
+        .env("RUST_BACKTRACE", "0")
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("run fracid");
+    let mut first = String::new();
+    BufReader::new(child.stdout.take().unwrap())
+        .read_line(&mut first)
+        .unwrap();
+    assert!(first.starts_with("# fracid sim"), "{first}");
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!err.contains("panicked"), "{err}");
+}
+
+#[test]
+fn time_defaults_the_largest_delay_to_a_fifth_of_a_short_record() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("short.csv");
+    // 0.8 s of a first-order plant (T = 50 ms, gain 2) with a 20 ms delay, dt = 1 ms, on a
+    // random telegraph input (an aperiodic one: a periodic input leaves the delay ambiguous).
+    let mut seed = 12345u64;
+    let mut level = 1.0;
+    let u: Vec<f64> = (0..800)
+        .map(|k| {
+            if k % 10 == 0 {
+                seed = seed
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                if seed >> 63 == 1 {
+                    level = -level;
+                }
+            }
+            level
+        })
+        .collect();
+    let mut text = String::from("t,u,y\n");
+    let mut x = 0.0_f64;
+    for k in 0..800 {
+        text.push_str(&format!("{},{},{}\n", k as f64 * 1e-3, u[k], x));
+        let ud = if k >= 20 { u[k - 20] } else { 0.0 };
+        x += 1e-3 / 0.05 * (2.0 * ud - x);
+    }
+    std::fs::write(&path, text).unwrap();
+    let out = fracid(&[
+        "time",
+        path.to_str().unwrap(),
+        "--structure",
+        "fopdt",
+        "--quiet",
+        "--json",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let tau = j["model"]["delay"].as_f64().unwrap();
+    assert!((tau - 0.02).abs() < 0.005, "tau = {tau}");
+}

@@ -69,6 +69,13 @@ fn exit_code(err: &anyhow::Error) -> u8 {
 }
 
 fn main() -> ExitCode {
+    // Like every Unix filter: a closed stdout (`fracid time FILE | head`) ends the process
+    // quietly by SIGPIPE instead of making the next print panic.
+    #[cfg(unix)]
+    // SAFETY: restoring the default disposition of SIGPIPE at start-up, before any thread exists.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
     let cli = Cli::parse();
     let result = match cli.command {
         Commands::Sim(a) => cmd::sim::run(a),

@@ -40,9 +40,10 @@ pub struct TimeArgs {
     /// Fit an input delay (seconds, up to --max-delay).
     #[arg(long)]
     pub delay: bool,
-    /// Largest input delay (seconds) for --delay and fopdt.
-    #[arg(long, default_value_t = 1.0)]
-    pub max_delay: f64,
+    /// Largest input delay (seconds) for --delay and fopdt (default: 1 s, at most a fifth of the
+    /// record).
+    #[arg(long)]
+    pub max_delay: Option<f64>,
     /// Fraction of the record held out for validation (at the end).
     #[arg(long, default_value_t = 0.3)]
     pub holdout: f64,
@@ -74,11 +75,18 @@ pub struct TimeArgs {
     pub diagnose: bool,
 }
 
-fn model_of(a: &TimeArgs) -> Result<FracModel> {
+fn model_of(a: &TimeArgs, duration: f64) -> Result<FracModel> {
+    let max_delay = match a.max_delay {
+        Some(d) if !(d > 0.0 && d.is_finite()) => {
+            crate::bad_input!("--max-delay must be a positive number of seconds, got {d}")
+        }
+        Some(d) => d,
+        None => (0.2 * duration).min(1.0),
+    };
     let mut m = match a.structure.to_ascii_lowercase().as_str() {
         "pmsm" => FracModel::pmsm(1.0, 0.01, 1e-4, 0.9, 0.9),
         "commensurate" => FracModel::commensurate(1.0, 0.01, 1e-4, 0.9),
-        "fopdt" => FracModel::fopdt(1.0, 0.1, 0.01, a.max_delay),
+        "fopdt" => FracModel::fopdt(1.0, 0.1, 0.01, max_delay),
         s => {
             let tf: fracsim::FracTf = s.parse().with_context(|| {
                 format!("--structure '{s}' is not pmsm, commensurate, fopdt or a model")
@@ -99,10 +107,7 @@ fn model_of(a: &TimeArgs) -> Result<FracModel> {
         m.approx.band = Some((v[0], v[1]));
     }
     if a.delay && m.delay.is_none() {
-        if !(a.max_delay > 0.0) {
-            crate::bad_input!("--max-delay must be positive");
-        }
-        m.with_delay(0.05 * a.max_delay, a.max_delay);
+        m.with_delay(0.05 * max_delay, max_delay);
     }
     Ok(m)
 }
@@ -123,7 +128,8 @@ pub fn run(a: TimeArgs) -> Result<()> {
         y: a.y_col.clone(),
     };
     let rec = Record::parse(&text, &cols).with_context(|| format!("in {}", a.file.display()))?;
-    let model = model_of(&a)?;
+    let duration = rec.t.last().copied().unwrap_or(0.0) - rec.t.first().copied().unwrap_or(0.0);
+    let model = model_of(&a, duration)?;
     let offsets = match a.offsets.as_str() {
         "initial" => OffsetMode::Initial,
         "mean" => OffsetMode::Mean,
