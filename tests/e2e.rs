@@ -494,3 +494,132 @@ fn time_defaults_the_largest_delay_to_a_fifth_of_a_short_record() {
     let tau = j["model"]["delay"].as_f64().unwrap();
     assert!((tau - 0.02).abs() < 0.005, "tau = {tau}");
 }
+
+/// A child process killed when the guard goes, also when the test fails.
+struct KillOnDrop(std::process::Child);
+
+impl Drop for KillOnDrop {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+#[cfg(unix)]
+#[test]
+fn ctrl_c_stops_a_prbs_run_and_the_record_says_what_is_missing() {
+    use std::io::{BufRead, BufReader};
+    use std::process::Stdio;
+    use std::time::{Duration, Instant};
+
+    let mut sim = KillOnDrop(
+        Command::new(fracid_bin())
+            .args(["drive", "sim", "--baud", "921600", "--duration", "120"])
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("start the drive simulator"),
+    );
+    let mut port = String::new();
+    // kept open to the end: the simulator's stdout stays a live pipe
+    let mut sim_out = BufReader::new(sim.0.stdout.take().expect("sim stdout"));
+    sim_out
+        .read_line(&mut port)
+        .expect("the simulator prints its port");
+    let port = port.trim().to_string();
+    assert!(!port.is_empty(), "no port from the simulator");
+
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("prbs.csv");
+    // 20 periods of 127 bits at 3 ms: about 8 s of run, far more than the test waits.
+    let mut prbs = KillOnDrop(
+        Command::new(fracid_bin())
+            .args([
+                "drive",
+                "prbs",
+                "--port",
+                &port,
+                "--baud",
+                "921600",
+                "--periods",
+                "20",
+            ])
+            .arg("-o")
+            .arg(&out)
+            .arg("--quiet")
+            .env("RUST_BACKTRACE", "0")
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("start fracid drive prbs"),
+    );
+    let data_rows = |text: &str| {
+        text.lines()
+            .filter(|l| l.starts_with(|c: char| c.is_ascii_digit()))
+            .count()
+    };
+    let t0 = Instant::now();
+    loop {
+        let text = std::fs::read_to_string(&out).unwrap_or_default();
+        if data_rows(&text) >= 200 {
+            break;
+        }
+        assert!(
+            prbs.0.try_wait().unwrap().is_none(),
+            "prbs ended before Ctrl-C: {text}"
+        );
+        assert!(t0.elapsed() < Duration::from_secs(20), "no data: {text}");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let pid = prbs.0.id() as libc::pid_t;
+    // SAFETY: signalling our own child, which has not been reaped yet.
+    assert_eq!(unsafe { libc::kill(pid, libc::SIGINT) }, 0);
+    let t1 = Instant::now();
+    let status = loop {
+        if let Some(s) = prbs.0.try_wait().unwrap() {
+            break s;
+        }
+        assert!(
+            t1.elapsed() < Duration::from_secs(10),
+            "prbs still running after Ctrl-C"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    let mut stderr = String::new();
+    std::io::Read::read_to_string(&mut prbs.0.stderr.take().unwrap(), &mut stderr).unwrap();
+    // it ended by itself, on an error exit (not killed by the signal)
+    assert_eq!(status.code(), Some(1), "{status:?}: {stderr}");
+    assert!(stderr.contains("interrupted"), "{stderr}");
+    assert!(stderr.contains("missing samples"), "{stderr}");
+
+    let text = std::fs::read_to_string(&out).unwrap();
+    let footer = text.trim_end().lines().last().unwrap();
+    assert!(
+        footer.starts_with("# incomplete: missing samples "),
+        "{footer}"
+    );
+    assert!(footer.contains("Stopped"), "{footer}");
+    let rows: Vec<&str> = text
+        .lines()
+        .filter(|l| !l.starts_with('#') && !l.starts_with("t,"))
+        .collect();
+    assert!(rows.len() >= 200, "{} rows", rows.len());
+    for row in &rows {
+        let v: Vec<f64> = row
+            .split(',')
+            .map(|x| {
+                x.parse()
+                    .unwrap_or_else(|_| panic!("not a number in {row:?}"))
+            })
+            .collect();
+        assert_eq!(v.len(), 4, "{row}");
+    }
+    // the footer's first missing sample is the count of samples kept
+    let first_missing: usize = footer["# incomplete: missing samples ".len()..]
+        .split("..")
+        .next()
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert_eq!(first_missing, rows.len(), "{footer}");
+}

@@ -4,6 +4,7 @@
 //! [`exit_code`].
 
 mod cmd;
+mod interrupt;
 mod plot;
 
 use clap::{Parser, Subcommand};

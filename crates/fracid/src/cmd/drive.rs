@@ -1,6 +1,7 @@
 //! `fracid drive ...`: the drive simulator and acquisition from a drive over a serial port.
 
 use crate::cmd::BadInput;
+use crate::interrupt::StopOnInterrupt;
 use anyhow::{Context, Result};
 use drive::client::{Client, ClientConfig, CsvSink, PrbsTest, Progress, SineSweep};
 use drive::protocol::Configure;
@@ -379,7 +380,12 @@ fn prbs(a: PrbsArgs) -> Result<()> {
     let mut sink = CsvSink::new(file);
     let pb = progress_bar(a.port.quiet, "samples");
     attach(&mut c, &pb);
-    let acq = c.run_prbs(&test, &mut sink).map_err(lib_err)?;
+    // Ctrl-C stops the drive; the record keeps what arrived and its footer says what is missing.
+    let ctrl_c = StopOnInterrupt::arm(c.stop_handle());
+    let acq = c.run_prbs(&test, &mut sink).map_err(lib_err);
+    let interrupted = ctrl_c.interrupted();
+    drop(ctrl_c);
+    let acq = acq?;
     if let Some(pb) = pb {
         pb.finish_and_clear();
     }
@@ -387,18 +393,37 @@ fn prbs(a: PrbsArgs) -> Result<()> {
         .with_context(|| format!("writing {}", a.output.display()))?;
     if acq.complete {
         eprintln!(
-            "{}: {} samples, complete",
+            "{}: {} samples, complete{}",
             a.output.display(),
-            acq.index.len()
+            acq.index.len(),
+            if interrupted {
+                " (interrupted after the run had ended)"
+            } else {
+                ""
+            }
         );
         Ok(())
     } else {
+        let missing: Vec<String> = acq
+            .missing
+            .iter()
+            .map(|r| format!("{}..{}", r.start, r.end))
+            .collect();
         let msg = format!(
-            "{}: run incomplete ({}); {} samples kept, missing {:?}",
+            "{}: {}run incomplete ({}); {} samples kept, missing samples {}",
             a.output.display(),
+            if interrupted {
+                "interrupted (Ctrl-C), drive stopped; "
+            } else {
+                ""
+            },
             acq.problems.join("; "),
             acq.index.len(),
-            acq.missing
+            if missing.is_empty() {
+                "none".to_string()
+            } else {
+                missing.join(", ")
+            }
         );
         if a.allow_incomplete {
             eprintln!("warning: {msg}");
@@ -433,7 +458,26 @@ fn sine(a: SineArgs) -> Result<()> {
     sweep.stream = a.stream;
     let pb = progress_bar(a.port.quiet, "frequencies");
     attach(&mut c, &pb);
-    let (points, problems) = c.run_sine_sweep(&sweep).map_err(lib_err)?;
+    // Ctrl-C stops the drive; the frequencies measured so far are written, the rest listed.
+    let ctrl_c = StopOnInterrupt::arm(c.stop_handle());
+    let swept = c.run_sine_sweep(&sweep).map_err(lib_err);
+    let interrupted = ctrl_c.interrupted();
+    drop(ctrl_c);
+    let (points, mut problems) = swept?;
+    if interrupted {
+        problems.push("interrupted (Ctrl-C): sweep stopped".into());
+    }
+    let unmeasured: Vec<String> = sweep
+        .freqs_hz
+        .iter()
+        .filter(|f| {
+            // The drive measures at whole mHz.
+            !points
+                .iter()
+                .any(|p| (p.freq_hz * 1000.0).round() == (**f * 1000.0).round())
+        })
+        .map(|f| ((f * 1000.0).round() / 1000.0).to_string())
+        .collect();
     if let Some(pb) = pb {
         pb.finish_and_clear();
     }
@@ -446,21 +490,30 @@ fn sine(a: SineArgs) -> Result<()> {
     for p in &problems {
         comment += &format!("\nproblem: {p}");
     }
+    if !unmeasured.is_empty() {
+        comment += &format!("\nmissing frequencies (Hz): {}", unmeasured.join(", "));
+    }
     drive::bode::write_csv(std::io::BufWriter::new(file), &points, &comment)
         .with_context(|| format!("writing {}", a.output.display()))?;
     for p in &problems {
         eprintln!("warning: {p}");
     }
-    let missing = sweep.freqs_hz.len() - points.len();
     eprintln!(
         "{}: {} of {} frequencies",
         a.output.display(),
         points.len(),
         sweep.freqs_hz.len()
     );
-    if missing > 0 {
+    if !unmeasured.is_empty() {
         return Err(anyhow::anyhow!(
-            "{missing} frequencies could not be measured"
+            "{}{} frequencies could not be measured ({} Hz)",
+            if interrupted {
+                "interrupted (Ctrl-C), drive stopped: "
+            } else {
+                ""
+            },
+            unmeasured.len(),
+            unmeasured.join(", ")
         ));
     }
     Ok(())
