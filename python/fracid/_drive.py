@@ -272,14 +272,33 @@ class DriveClient:
     def stop(self) -> None:
         """Send STOP: a run going on in the drive ramps down and ends.
 
-        The client does one thing at a time, so this is for a run the drive is still doing (one
-        started by an earlier client, say); called from another thread during :meth:`run_prbs`,
-        it waits for that run to end.
+        Called from another thread during :meth:`run_prbs` (or :meth:`run_sine_sweep`), it returns
+        at once and the run ends at the client's next turn: ``run_prbs`` then returns the samples
+        that arrived as an :class:`Acquisition` with ``complete`` False, ``end_reason``
+        ``"stopped"`` and the samples never produced in ``missing`` (and the CSV footer says so);
+        a sweep returns the frequencies measured so far. A ``stop()`` that comes as the run ends
+        anyway does not stop the next one. Without a run of this client, STOP goes to the drive at
+        once (for a run the drive is still doing, one started by an earlier client, say).
 
         Raises
         ------
         DriveError
-            If the drive does not answer.
+            If the drive does not answer (only without a run of this client: during one, a STOP
+            that is not acknowledged is listed in the acquisition's ``problems``).
+
+        Examples
+        --------
+        >>> import threading, time
+        >>> import fracid
+        >>> with fracid.DriveSimulator(baud=921600) as sim, \\
+        ...         fracid.DriveClient(sim.port, baud=921600) as drive:
+        ...     drive.configure(sample_rate_hz=1000)
+        ...     timer = threading.Timer(0.3, drive.stop)
+        ...     timer.start()
+        ...     rec = drive.run_prbs(periods=20)
+        ...     timer.join()
+        >>> rec.complete, rec.end_reason
+        (False, 'stopped')
         """
         self._c.stop()
 

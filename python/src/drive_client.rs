@@ -4,11 +4,14 @@
 //!
 //! Every call that talks to the serial port (or waits for the simulator's thread) releases the
 //! GIL. The Rust objects sit behind a mutex, so one client shared by several Python threads
-//! serialises its commands instead of interleaving them on the line.
+//! serialises its commands instead of interleaving them on the line. The client's
+//! [`StopHandle`] sits outside that mutex: `stop()` from another thread ends a run in progress.
 
 use crate::errors;
 use crate::tf::PyFracTf;
-use drive::client::{Acquisition, Client, ClientConfig, CsvSink, NullSink, PrbsTest, SineSweep};
+use drive::client::{
+    Acquisition, Client, ClientConfig, CsvSink, NullSink, PrbsTest, SineSweep, StopHandle,
+};
 use drive::protocol::{fault, Configure, DriveState, HelloReply, MAX_BLOCK_SAMPLES};
 use drive::sim::{DriveSim, Effects, Faults, SimConfig};
 use numpy::IntoPyArray;
@@ -16,6 +19,7 @@ use pyo3::exceptions::PyOSError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyString};
 use std::path::PathBuf;
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Mutex, MutexGuard};
 use std::time::Duration;
 
@@ -231,8 +235,30 @@ struct ClientState {
 #[pyclass(name = "_DriveClient", module = "fracid._fracid", frozen)]
 pub struct PyDriveClient {
     state: Mutex<ClientState>,
+    /// Stops the client's run from any thread, without the lock a run holds.
+    stop_req: StopHandle,
+    /// Runs in progress or waiting for the lock.
+    running: AtomicUsize,
     port: String,
     baud: u32,
+}
+
+/// Counts a run (from before it waits for the client's lock) for `stop()`; at its end, withdraws a
+/// stop request that came too late for it, so that it does not end the next run.
+struct RunGuard<'a>(&'a PyDriveClient);
+
+impl<'a> RunGuard<'a> {
+    fn new(c: &'a PyDriveClient) -> Self {
+        c.running.fetch_add(1, Ordering::SeqCst);
+        Self(c)
+    }
+}
+
+impl Drop for RunGuard<'_> {
+    fn drop(&mut self) {
+        self.0.stop_req.cancel();
+        self.0.running.fetch_sub(1, Ordering::SeqCst);
+    }
 }
 
 /// A failure while the GIL is released (turned into a Python exception once it is held again:
@@ -410,6 +436,8 @@ impl PyDriveClient {
             .allow_threads(|| Client::open(&port, cfg))
             .map_err(errors::drive)?;
         Ok(Self {
+            stop_req: client.stop_handle(),
+            running: AtomicUsize::new(0),
             state: Mutex::new(ClientState {
                 client: Some(client),
                 conf: None,
@@ -525,6 +553,7 @@ impl PyDriveClient {
             periods: int_in("periods", periods, 1, u16::MAX as i64)?,
             settle_s: non_negative("settle_s", settle_s)?,
         };
+        let _run = RunGuard::new(self);
         let acq = self.with(py, |c, conf| {
             let conf = configured(conf)?;
             volts("offset_v + amplitude_v", offset_v + amplitude_v, &conf)?;
@@ -573,6 +602,7 @@ impl PyDriveClient {
         sweep.settle_cycles = int_in("settle_cycles", settle_cycles, 0, u16::MAX as i64)?;
         sweep.min_settle_s = non_negative("min_settle_s", min_settle_s)?;
         sweep.attempts = int_in("attempts", attempts, 1, 100)?;
+        let _run = RunGuard::new(self);
         let (points, lost) = self.with(py, |c, conf| {
             let conf = configured(conf)?;
             let nyquist = conf.sample_rate_hz as f64 / 2.0;
@@ -597,9 +627,18 @@ impl PyDriveClient {
         ))
     }
 
-    /// STOP the current run.
+    /// STOP: a run of this client in progress (from any thread) ends at its next turn and returns
+    /// what arrived, marked incomplete; without one, STOP goes to the drive at once.
     fn stop(&self, py: Python<'_>) -> PyResult<()> {
-        self.with(py, |c, _| Ok(c.stop()?))
+        self.stop_req.stop();
+        if self.running.load(Ordering::SeqCst) > 0 {
+            return Ok(());
+        }
+        self.with(py, |c, _| {
+            // No run holds the lock: the request is not for a run of ours; send STOP itself.
+            self.stop_req.cancel();
+            Ok(c.stop()?)
+        })
     }
 
     /// Emergency stop (latched until the next `configure`).

@@ -138,6 +138,49 @@ def test_run_releases_the_gil(drive):
     assert gap < 0.2
 
 
+def test_stop_from_another_thread_ends_a_run_and_keeps_what_arrived(drive, tmp_path):
+    csv = tmp_path / "stopped.csv"
+    out = {}
+
+    def run():
+        try:
+            # 20 periods: 0.3 s + 20 * 127 * 3 ms, about 7.9 s unless stopped
+            out["acq"] = drive.run_prbs(**{**PRBS, "periods": 20}, csv_path=csv)
+        except BaseException as e:  # noqa: BLE001 - reported by the assertion below
+            out["error"] = e
+
+    th = threading.Thread(target=run)
+    t0 = time.perf_counter()
+    th.start()
+    time.sleep(0.2)
+    drive.stop()
+    th.join(timeout=5)
+    assert not th.is_alive(), "the run did not stop"
+    elapsed = time.perf_counter() - t0
+    assert "error" not in out, out.get("error")
+    acq = out["acq"]
+    planned = round(PRBS["settle_s"] * FS) + 20 * 127 * 3
+    n = acq.total_samples  # what the drive produced before STOP
+    assert not acq.complete
+    assert acq.end_reason == "stopped"
+    assert 0 < n < planned and elapsed < 2
+    assert acq.missing == [(n, planned)]
+    assert any("Stopped" in p for p in acq.problems), acq.problems
+    # every sample produced arrived, in order; the record is the one the run was making
+    np.testing.assert_array_equal(acq.index, np.arange(n))
+    for a in (acq.t, acq.u, acq.y, acq.i):
+        assert len(a) == n
+    np.testing.assert_allclose(acq.t, np.arange(n) / FS)
+    assert np.all(acq.u[: n - 1] != 0) and acq.u[-1] == 0  # STOP ramps the output to zero
+    lines = csv.read_text().splitlines()
+    assert lines[-1].startswith(f"# incomplete: missing samples {n}..{planned} ("), lines[-1]
+    assert sum(1 for x in lines if not x.startswith("#") and not x.startswith("t,")) == n
+    # the next run is not stopped by the request, and stop() without a run sends STOP at once
+    assert drive.run_prbs(order=5, settle_s=0.05).complete
+    drive.stop()
+    assert drive.status()["state"] == "idle"
+
+
 @pytest.fixture
 def free_sim():
     """A simulator of its own (the module's client holds the other one's port exclusively)."""

@@ -378,6 +378,11 @@ impl StopHandle {
     pub fn is_pending(&self) -> bool {
         self.0.load(Ordering::SeqCst) != STOP_NONE
     }
+    /// Withdraw a request not yet sent (one that came too late for the run it was meant for,
+    /// so that it does not end the next one). Returns whether one was pending.
+    pub fn cancel(&self) -> bool {
+        self.take() != STOP_NONE
+    }
     fn take(&self) -> u8 {
         self.0.swap(STOP_NONE, Ordering::SeqCst)
     }
