@@ -27,6 +27,17 @@ fn fracid(args: &[&str]) -> Output {
         .expect("run fracid")
 }
 
+/// Run fracid with `--json` among `args`; it must succeed; its stdout parsed.
+fn fracid_json(args: &[&str]) -> serde_json::Value {
+    let out = fracid(args);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).expect("JSON on stdout")
+}
+
 /// The output (last column) of the last row of `fracid sim`'s CSV.
 fn last_output(csv: &str) -> f64 {
     let row = csv.lines().last().expect("an output row");
@@ -369,19 +380,13 @@ fn diagnosis_of_the_real_dc_motor_finds_its_transport_delay() {
     let Some(f) = shared_data("unal_dcmotor/DCmotor_prbs_open_exp.csv") else {
         return;
     };
-    let out = fracid(&[
+    let j = fracid_json(&[
         "time",
         f.to_str().unwrap(),
         "--quiet",
         "--diagnose",
         "--json",
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     let d = &j["diagnosis"];
     let delay = d["effects"]
         .as_array()
@@ -406,19 +411,13 @@ fn diagnosis_of_the_paper_table_adds_nothing() {
     let Some(f) = shared_data("paper_table1_bode.csv") else {
         return;
     };
-    let out = fracid(&[
+    let j = fracid_json(&[
         "freq",
         f.to_str().unwrap(),
         "--refine",
         "--diagnose",
         "--json",
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     let d = &j["diagnosis"];
     assert_eq!(d["effects"].as_array().map(Vec::len), Some(0), "{d}");
     assert_eq!(d["unexplained"], false, "{d}");
@@ -477,7 +476,7 @@ fn time_defaults_the_largest_delay_to_a_fifth_of_a_short_record() {
         x += 1e-3 / 0.05 * (2.0 * ud - x);
     }
     std::fs::write(&path, text).unwrap();
-    let out = fracid(&[
+    let j = fracid_json(&[
         "time",
         path.to_str().unwrap(),
         "--structure",
@@ -485,12 +484,6 @@ fn time_defaults_the_largest_delay_to_a_fifth_of_a_short_record() {
         "--quiet",
         "--json",
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     let tau = j["model"]["delay"].as_f64().unwrap();
     assert!((tau - 0.02).abs() < 0.005, "tau = {tau}");
 }
