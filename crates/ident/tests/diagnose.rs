@@ -175,6 +175,17 @@ fn falls(d: &Diagnosis) -> bool {
     d.after.rmse < 0.95 * d.before.rmse
 }
 
+/// Generate a record (multi-level input if asked) with one hidden effect, diagnose it, and check that exactly that effect is
+/// kept, with its parameter `(name, key, truth)` within the tolerance of `close`, and that the
+/// validation error falls.
+fn finds_only(multi_level: bool, hidden: Hidden, seed: u64, (name, key, truth): (&str, &str, f64)) {
+    let rec = generate(&input(0.0, multi_level), hidden, seed);
+    let (_, d) = run(&rec, true);
+    assert_eq!(names(&d), [name]);
+    assert!(close(param(&d, name, key), truth));
+    assert!(falls(&d));
+}
+
 #[test]
 fn clean_data_add_nothing() {
     let rec = generate(&input(0.0, false), Hidden::default(), 1);
@@ -185,55 +196,43 @@ fn clean_data_add_nothing() {
 
 #[test]
 fn delay_is_found() {
-    let tau = 0.012;
-    let rec = generate(
-        &input(0.0, false),
+    finds_only(
+        false,
         Hidden {
-            delay: tau,
+            delay: 0.012,
             ..Default::default()
         },
         2,
+        ("delay", "tau", 0.012),
     );
-    let (_, d) = run(&rec, true);
-    assert_eq!(names(&d), ["delay"]);
-    assert!(close(param(&d, "delay", "tau"), tau));
-    assert!(falls(&d));
 }
 
 #[test]
 fn a_delay_of_one_sample_is_found() {
     // One sample (2 ms): too small for the held-parameter grid to pay (the base fit bends its
     // orders to mimic it); found from the residual-input correlation at lag 0 and a joint refit.
-    let tau = 0.002;
-    let rec = generate(
-        &input(0.0, false),
+    finds_only(
+        false,
         Hidden {
-            delay: tau,
+            delay: 0.002,
             ..Default::default()
         },
         4,
+        ("delay", "tau", 0.002),
     );
-    let (_, d) = run(&rec, true);
-    assert_eq!(names(&d), ["delay"]);
-    assert!(close(param(&d, "delay", "tau"), tau));
-    assert!(falls(&d));
 }
 
 #[test]
 fn coulomb_friction_is_found() {
-    let vc = 0.15;
-    let rec = generate(
-        &input(0.0, false),
+    finds_only(
+        false,
         Hidden {
-            coulomb: vc,
+            coulomb: 0.15,
             ..Default::default()
         },
         3,
+        ("coulomb_friction", "Vc", 0.15),
     );
-    let (_, d) = run(&rec, true);
-    assert_eq!(names(&d), ["coulomb_friction"]);
-    assert!(close(param(&d, "coulomb_friction", "Vc"), vc));
-    assert!(falls(&d));
 }
 
 #[test]
@@ -297,36 +296,28 @@ fn abs_sensor_is_found() {
 
 #[test]
 fn saturation_is_found() {
-    let l = 0.6;
-    let rec = generate(
-        &input(0.0, true),
+    finds_only(
+        true,
         Hidden {
-            sat: Some(l),
+            sat: Some(0.6),
             ..Default::default()
         },
         7,
+        ("saturation", "level", 0.6),
     );
-    let (_, d) = run(&rec, true);
-    assert_eq!(names(&d), ["saturation"]);
-    assert!(close(param(&d, "saturation", "level"), l));
-    assert!(falls(&d));
 }
 
 #[test]
 fn deadzone_is_found() {
-    let w = 0.15;
-    let rec = generate(
-        &input(0.0, true),
+    finds_only(
+        true,
         Hidden {
-            dz: Some(w),
+            dz: Some(0.15),
             ..Default::default()
         },
         8,
+        ("deadzone", "width", 0.15),
     );
-    let (_, d) = run(&rec, true);
-    assert_eq!(names(&d), ["deadzone"]);
-    assert!(close(param(&d, "deadzone", "width"), w));
-    assert!(falls(&d));
 }
 
 #[test]
