@@ -175,9 +175,9 @@ fn falls(d: &Diagnosis) -> bool {
     d.after.rmse < 0.95 * d.before.rmse
 }
 
-/// Generate a record (multi-level input if asked) with one hidden effect, diagnose it, and check that exactly that effect is
-/// kept, with its parameter `(name, key, truth)` within the tolerance of `close`, and that the
-/// validation error falls.
+/// Generate a record (multi-level input if asked) with one hidden effect, diagnose it, and
+/// check that exactly that effect is kept, with its parameter `(name, key, truth)` within the
+/// tolerance of `close`, and that the validation error falls.
 fn finds_only(multi_level: bool, hidden: Hidden, seed: u64, (name, key, truth): (&str, &str, f64)) {
     let rec = generate(&input(0.0, multi_level), hidden, seed);
     let (_, d) = run(&rec, true);
