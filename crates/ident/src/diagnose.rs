@@ -54,6 +54,7 @@ pub mod residual;
 
 use crate::data::Record;
 use crate::metrics::Fit;
+use crate::oe::effects::sign;
 use crate::oe::{
     fit, sensitivities, Bounds, Effect, FitOptions, FracModel, Identification, Param, Structure,
 };
@@ -306,8 +307,6 @@ struct Candidate {
     evidence: String,
     starts: Vec<FracModel>,
 }
-
-use crate::oe::effects::sign;
 
 /// Find output quantization: at most `N/5` distinct values lying on a grid (90% of the gaps
 /// between consecutive levels within 5% of a whole multiple of the smallest gap).
