@@ -219,10 +219,9 @@ def fit_time(
     fit_offset: bool = True,
     max_iterations: int = 100,
     skip: int = 0,
-    method: str = "oustaloup",
+    method: str = "refined",
     band: Optional[Tuple[float, float]] = None,
     order: int = 8,
-    discretization: str = "bilinear",
     max_lag: int = 25,
     diagnose: bool = False,
     margin: float = 0.05,
@@ -261,7 +260,7 @@ def fit_time(
         Levenberg-Marquardt iterations at most.
     skip : int
         Leading samples left out of the residual.
-    method, band, order, discretization
+    method, band, order
         The approximation of the fractional operators (as :meth:`FracTf.simulate`).
     max_lag : int
         Lags of the residual correlation test.
@@ -303,7 +302,6 @@ def fit_time(
         method=method,
         band=band,
         order=order,
-        discretization=discretization,
         max_lag=max_lag,
         diagnose=diagnose,
         margin=margin,

@@ -65,12 +65,12 @@ class FracTf:
         self,
         u: npt.ArrayLike,
         dt: float,
-        method: str = "oustaloup",
+        method: str = "refined",
         band: Optional[Tuple[float, float]] = None,
         order: int = 8,
-        discretization: str = "bilinear",
     ) -> npt.NDArray[np.float64]:
-        """Simulate from rest on input ``u`` sampled every ``dt`` seconds.
+        """Simulate from rest on input ``u`` sampled every ``dt`` seconds and held between samples
+        (``u[k]`` acts on ``[t_k, t_(k+1))``, ``y[k]`` is the output at ``t_k``).
 
         Parameters
         ----------
@@ -79,14 +79,14 @@ class FracTf:
         dt : float
             Sampling step in seconds.
         method : {"oustaloup", "refined", "trigeassou", "gl"}
-            Recursive discrete filters of an Oustaloup, refined Oustaloup or Poinot-Trigeassou
-            approximation, or the Grunwald-Letnikov scheme (O(N^2), at most 2e5 samples).
+            An Oustaloup, refined Oustaloup or Poinot-Trigeassou approximation of each operator,
+            the whole model discretised exactly for the held input; or ``"gl"``, the
+            Grunwald-Letnikov reference at dt/10 and dt/20, Richardson-extrapolated (O(N^2), at
+            most 10000 samples).
         band : (float, float), optional
             Approximation band in rad/s (default ``[1e-3, 30 pi/dt]``).
         order : int
             Approximation order N (2N+1 cells).
-        discretization : {"bilinear", "prewarp", "zoh"}
-            Discretisation of each cell.
 
         Returns
         -------
@@ -141,10 +141,9 @@ def _fit_time(
     fit_offset: bool = True,
     max_iterations: int = 100,
     skip: int = 0,
-    method: str = "oustaloup",
+    method: str = "refined",
     band: Optional[Tuple[float, float]] = None,
     order: int = 8,
-    discretization: str = "bilinear",
     max_lag: int = 25,
     diagnose: bool = False,
     margin: float = 0.05,

@@ -4,7 +4,7 @@
 use crate::arrays::{floats, positive, FloatArray};
 use crate::errors;
 use fracsim::prbs::Prbs;
-use fracsim::{gl, lsim, ApproxSpec, Discretization, FracTf, Method, Term};
+use fracsim::{gl, lsim, ApproxSpec, FracTf, Method, Term};
 use num_complex::Complex64;
 use numpy::{IntoPyArray, PyArray1};
 use pyo3::prelude::*;
@@ -43,10 +43,8 @@ pub(crate) fn approx_spec(
     method: &str,
     band: Option<(f64, f64)>,
     order: usize,
-    discretization: &str,
 ) -> PyResult<ApproxSpec> {
     let method: Method = method.parse().map_err(errors::sim)?;
-    let discretization: Discretization = discretization.parse().map_err(errors::sim)?;
     if let Some((w_b, w_h)) = band {
         fracsim::approx::check_band(w_b, w_h).map_err(errors::sim)?;
     }
@@ -59,7 +57,6 @@ pub(crate) fn approx_spec(
         method,
         band,
         order,
-        discretization,
     })
 }
 
@@ -177,7 +174,7 @@ impl PyFracTf {
     }
 
     /// Simulate from rest on input `u` sampled every `dt` seconds.
-    #[pyo3(signature = (u, dt, method = "oustaloup", band = None, order = 8, discretization = "bilinear"))]
+    #[pyo3(signature = (u, dt, method = "refined", band = None, order = 8))]
     fn simulate<'py>(
         &self,
         py: Python<'py>,
@@ -186,15 +183,14 @@ impl PyFracTf {
         method: &str,
         band: Option<(f64, f64)>,
         order: usize,
-        discretization: &str,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
         let u = floats("u", &u, 1)?;
         let dt = positive("dt", dt)?;
         let tf = self.inner.clone();
         let y = if method.eq_ignore_ascii_case("gl") || method.eq_ignore_ascii_case("grunwald") {
-            py.allow_threads(|| gl::simulate(&tf, &u, dt))
+            py.allow_threads(|| gl::simulate_held(&tf, &u, dt, gl::HELD_SUBSTEPS))
         } else {
-            let spec = approx_spec(method, band, order, discretization)?;
+            let spec = approx_spec(method, band, order)?;
             py.allow_threads(|| lsim(&tf, &u, dt, &spec))
         }
         .map_err(errors::sim)?;

@@ -47,7 +47,7 @@ fn structure_of(s: &Bound<'_, PyAny>, duration: f64) -> PyResult<(FracModel, boo
 /// Output-error identification on sampled `u`, `y`; returns a dict the Python layer turns into
 /// `TimeFit`.
 #[pyfunction]
-#[pyo3(signature = (u, y, dt, structure, start = None, holdout = 0.3, offsets = "initial", fit_offset = true, max_iterations = 100, skip = 0, method = "oustaloup", band = None, order = 8, discretization = "bilinear", max_lag = 25, diagnose = false, margin = 0.05, min_r2 = 0.005, max_rounds = 3))]
+#[pyo3(signature = (u, y, dt, structure, start = None, holdout = 0.3, offsets = "initial", fit_offset = true, max_iterations = 100, skip = 0, method = "refined", band = None, order = 8, max_lag = 25, diagnose = false, margin = 0.05, min_r2 = 0.005, max_rounds = 3))]
 pub(crate) fn _fit_time<'py>(
     py: Python<'py>,
     u: FloatArray<'py>,
@@ -63,7 +63,6 @@ pub(crate) fn _fit_time<'py>(
     method: &str,
     band: Option<(f64, f64)>,
     order: usize,
-    discretization: &str,
     max_lag: usize,
     diagnose: bool,
     margin: f64,
@@ -99,7 +98,7 @@ pub(crate) fn _fit_time<'py>(
         }
     };
     let (mut model, general) = structure_of(&structure, dt * u.len() as f64)?;
-    model.approx = approx_spec(method, band, order, discretization)?;
+    model.approx = approx_spec(method, band, order)?;
     let mode = if general || start.is_some() {
         StartMode::Given
     } else {

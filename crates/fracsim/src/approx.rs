@@ -19,9 +19,11 @@ use num_complex::Complex64;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Method {
     /// Oustaloup's recursive filter (Oustaloup et al. 2000).
-    #[default]
     Oustaloup,
-    /// Xue's refined Oustaloup filter (Xue, Zhao & Chen 2006), better near the band edges.
+    /// Xue's refined Oustaloup filter (Xue, Zhao & Chen 2006), better near the band edges: the
+    /// default, about ten times closer to the exact response than Oustaloup's with the same cells
+    /// (on the paper's PMSM and PRBS at 0.5 ms, 5.0e-5 against 3.9e-4 of the output swing RMS).
+    #[default]
     Refined,
     /// The Poinot-Trigeassou (alpha, eta) integrator (Poinot & Trigeassou 2004), as in the paper.
     Trigeassou,
@@ -42,39 +44,7 @@ impl std::str::FromStr for Method {
     }
 }
 
-/// How each first-order cell is turned into a discrete section.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum Discretization {
-    /// Plain bilinear (Tustin), the default: the discrete response at low frequency is the
-    /// continuous one, including the effect of cells above Nyquist, so the band can (and should)
-    /// extend well beyond Nyquist.
-    #[default]
-    Bilinear,
-    /// Bilinear with each corner frequency prewarped, `w -> (2/dt) tan(w dt/2)`. Corners above
-    /// 0.9 Nyquist are clamped there, which distorts the gain: use only with a band well inside
-    /// Nyquist.
-    BilinearPrewarp,
-    /// Exact zero-order-hold discretisation of each cell's state space. Integer powers of `s`
-    /// (which have no ZOH equivalent) stay bilinear.
-    Zoh,
-}
-
-impl std::str::FromStr for Discretization {
-    type Err = Error;
-    fn from_str(s: &str) -> Result<Self> {
-        match s.to_ascii_lowercase().as_str() {
-            "tustin" | "bilinear-prewarp" | "prewarp" => Ok(Self::BilinearPrewarp),
-            "bilinear" => Ok(Self::Bilinear),
-            "zoh" => Ok(Self::Zoh),
-            _ => invalid(
-                "discretization",
-                format!("'{s}' (expected prewarp, bilinear or zoh)"),
-            ),
-        }
-    }
-}
-
-/// How to approximate and discretise fractional operators.
+/// How to approximate fractional operators (the simulation is then exact for a held input).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ApproxSpec {
     /// The approximation method.
@@ -84,17 +54,14 @@ pub struct ApproxSpec {
     pub band: Option<(f64, f64)>,
     /// The order `N`: every method uses `2N+1` cells.
     pub order: usize,
-    /// The discretisation of each cell.
-    pub discretization: Discretization,
 }
 
 impl Default for ApproxSpec {
     fn default() -> Self {
         Self {
-            method: Method::Oustaloup,
+            method: Method::Refined,
             band: None,
             order: 8,
-            discretization: Discretization::Bilinear,
         }
     }
 }
@@ -171,8 +138,8 @@ impl<T: Real> Rational<T> {
 
 fn check_nu<T: Real>(nu: T) -> Result<f64> {
     let v = finite("order", nu.re())?;
-    if !(0.0..=20.0).contains(&v) {
-        return invalid("order", format!("{v} must be in [0, 20]"));
+    if !(-20.0..=20.0).contains(&v) {
+        return invalid("order", format!("{v} must be in [-20, 20]"));
     }
     Ok(v)
 }
@@ -393,7 +360,7 @@ pub fn order_from_alpha_eta(alpha: f64, eta: f64) -> Result<f64> {
     Ok(1.0 - alpha.ln() / (alpha * eta).ln())
 }
 
-/// The approximation of `s^nu`, `nu >= 0`, chosen by `spec` over `band` (rad/s).
+/// The approximation of `s^nu` (`-20 <= nu <= 20`), chosen by `spec` over `band` (rad/s).
 ///
 /// For Poinot-Trigeassou the fractional part `f` of `nu` is written `s^f = s * I_(1-f)(s)`, so the
 /// operator is the paper's integrator cells with the `1/s` cancelled exactly.

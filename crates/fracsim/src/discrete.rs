@@ -1,396 +1,34 @@
-//! Recursive discrete filters: each rational approximation of `s^nu` becomes a cascade of
-//! first-order sections (never one multiplied-out polynomial, which is ill-conditioned), and
-//! [`Simulator`] combines the operators of a fractional transfer function implicitly, sample by
-//! sample.
+//! Exact sampled-data simulation: the whole approximated model (every fractional operator and
+//! their interconnection) discretised as one system for a zero-order-hold input, and run as a bank
+//! of first-order recursive filters (its modes).
 //!
-//! With every operator written `D^a x_k = d_a x_k + h_a(k)` (feed-through `d_a`, history `h_a`),
-//! the model `sum_j a_j D^(alpha_j) y = sum_i b_i D^(beta_i) u` gives at each step
-//! `y_k = (sum_i b_i D^(beta_i) u_k - sum_j a_j h_(alpha_j)(k)) / sum_j a_j d_(alpha_j)`.
+//! A drive holds its command over each sample period and reads the output at the sample instants:
+//! `u_k` acts on `[t_k, t_(k+1))`, `y_k` is the output at `t_k`. Once the operators are
+//! approximated the model is a rational system `G~(s) = direct + sum_i r_i/(s - lambda_i)`
+//! ([`crate::modal`]). Its exact discrete equivalent for a held input, with the input delayed by
+//! `tau = m dt + eps` (`m` whole samples, `0 <= eps < dt`; the modified z-transform), is per mode
+//!
+//! `x_(k+1) = e^(lambda dt) x_k + beta0 u_(k-m) + beta1 u_(k-m-1)`,
+//! `beta0 = r (dt - eps) phi1(lambda (dt - eps))`, `beta1 = r e^(lambda (dt - eps)) eps phi1(lambda eps)`,
+//!
+//! with `phi1(z) = (e^z - 1)/z`, and `y_k = sum_i x_k + direct u(t_k - tau)`. This is the matrix
+//! exponential of `[[A, B], [0, 0]] dt` in the modal coordinates of `A`, so the only error left is
+//! the approximation of each `s^nu`, not the discretisation. Complex modes come in conjugate pairs
+//! and are run once, their real part doubled.
 
-use crate::approx::{approximate, ApproxSpec, Discretization, Rational};
+use crate::approx::ApproxSpec;
+use crate::cx::Cx;
 use crate::error::{finite, invalid, Error, Result};
+use crate::modal::{pole_residue, PoleResidue};
 use crate::scalar::Real;
 use crate::tf::FracTf;
 
-/// A first-order section `y = (b0 + b1 z^-1)/(1 + a1 z^-1) x` in transposed direct form II.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Section<T> {
-    /// Feed-through coefficient.
-    pub b0: T,
-    /// Delayed input coefficient.
-    pub b1: T,
-    /// Delayed output coefficient (pole at `z = -a1`).
-    pub a1: T,
-}
-
-/// The discrete version of one fractional operator: `gain * s_1 * s_2 * ...` with state.
-///
-/// The cascade of sections defines the operator ([`Operator::sections`]). When its poles are
-/// distinct (bilinear discretisation, at most one integer differentiator or integrator), it runs
-/// in the equivalent modal (partial-fraction) form instead: the cascade's recursion is a serial
-/// chain through every section, twice per sample, while the modes update independently of each
-/// other, which is several times faster; see [`Modes`].
-#[derive(Debug, Clone)]
-pub struct Operator<T> {
-    gain: T,
-    sections: Vec<Section<T>>,
-    state: Vec<T>,
-    /// Total feed-through `gain * prod b0`.
-    feed: T,
-    /// The modal form, when the poles allow it.
-    modes: Option<Modes<T>>,
-}
-
-/// The modal (diagonal state-space) form of a cascade with distinct poles `lambda_i`:
-/// `H(z) = feed + sum_i r_i / (z - lambda_i)`, run as `m_i(k+1) = lambda_i m_i(k) + x_k`,
-/// `out_k = feed x_k + sum_i r_i m_i(k)`.
-///
-/// The residues come from the continuous cells, not from the discrete coefficients: the bilinear
-/// map is a substitution `s = c (z - 1)/(z + 1)`, so a section evaluated at the discrete pole
-/// `lambda_i` equals its continuous cell at the continuous pole `-p_i`, and
-/// `r_i = gain (b0_i lambda_i + b1_i) prod_(j != i) (z_j - p_i)/(p_j - p_i)` with
-/// `b0_i lambda_i + b1_i = 2c (z_i - p_i)/(c + p_i)^2`. This avoids the cancellation of
-/// `1 + a1_j/a1_i` between discrete poles crowded near `z = 1` (every pole far below Nyquist),
-/// so the residues are accurate to a few ulps. The vectors are padded to a multiple of 4 with
-/// `lambda = r = 0` so the update runs in independent lanes.
-#[derive(Debug, Clone)]
-struct Modes<T> {
-    /// The modes in blocks of four lanes (contiguous, so the update vectorises).
-    blocks: Vec<Block<T>>,
-    /// `sum_i r_i`.
-    res_sum: T,
-    /// `sum_i r_i m_i` for the current state (the operator's history).
-    hist: T,
-}
-
-/// Four modes: poles, `r_i lambda_i` and states.
-///
-/// `res_lam`: the history after an update is `sum_i r_i lambda_i m_i + (sum_i r_i) x`, whose
-/// first part does not wait for the input `x` (the output just solved for).
-#[derive(Debug, Clone, Copy)]
-struct Block<T> {
-    lam: [T; 4],
-    res_lam: [T; 4],
-    m: [T; 4],
-}
-
-/// One factor of a rational approximation, for the modal form.
-#[derive(Clone, Copy)]
-enum Factor<T> {
-    /// `(s + z)/(s + p)`.
-    Cell(T, T),
-    /// `s` (bilinear differentiator, discrete pole `-1`).
-    Diff,
-    /// `1/s` (bilinear integrator, discrete pole `1`).
-    Integ,
-}
-
-/// Where a factor's pole sits in the continuous domain.
-#[derive(Clone, Copy)]
-enum At<T> {
-    /// `s = -p`.
-    Minus(T),
-    /// `s = infinity` (the differentiator's pole).
-    Infinity,
-    /// `s = 0` (the integrator's pole).
-    Zero,
-}
-
-impl<T: Real> Factor<T> {
-    fn pole(self) -> At<T> {
-        match self {
-            Factor::Cell(_, p) => At::Minus(p),
-            Factor::Diff => At::Infinity,
-            Factor::Integ => At::Zero,
-        }
-    }
-    /// The factor's value at another factor's pole.
-    fn at(self, s: At<T>) -> T {
-        match (self, s) {
-            (Factor::Cell(z, p), At::Minus(q)) => (z - q) / (p - q),
-            (Factor::Cell(..), At::Infinity) => T::from(1.0),
-            (Factor::Cell(z, p), At::Zero) => z / p,
-            (Factor::Diff, At::Minus(q)) => -q,
-            (Factor::Integ, At::Minus(q)) => -(T::from(1.0) / q),
-            (Factor::Diff, _) | (Factor::Integ, _) => T::from(0.0),
-        }
-    }
-    /// `b0 lambda + b1` of its own bilinear section (`c = 2/dt`).
-    fn own(self, c: f64) -> T {
-        match self {
-            Factor::Cell(z, p) => {
-                let d = p + c;
-                (z - p) * (2.0 * c) / (d * d)
-            }
-            Factor::Diff => T::from(-2.0 * c),
-            Factor::Integ => T::from(2.0 / c),
-        }
-    }
-}
-
-impl<T: Real> Modes<T> {
-    /// The modal form of `gain * prod factors`, whose discrete poles are `lam` (in the same
-    /// order), or `None` when two poles are too close for a partial-fraction expansion.
-    fn new(gain: T, factors: &[Factor<T>], lam: &[T], c: f64) -> Option<Self> {
-        let n = factors.len();
-        for i in 0..n {
-            for j in 0..i {
-                let (a, b) = (lam[i].re(), lam[j].re());
-                if (a - b).abs() <= 1e-9 {
-                    return None;
-                }
-                if let (Factor::Cell(_, p), Factor::Cell(_, q)) = (factors[i], factors[j]) {
-                    let (p, q) = (p.re(), q.re());
-                    if (p - q).abs() <= 1e-9 * p.abs().max(q.abs()) {
-                        return None;
-                    }
-                }
-            }
-            if let Factor::Cell(_, p) = factors[i] {
-                if p.re().is_nan() || p.re() <= 0.0 {
-                    return None;
-                }
-            }
-        }
-        let mut res = Vec::with_capacity(n.next_multiple_of(4));
-        for (i, f) in factors.iter().enumerate() {
-            let s = f.pole();
-            let mut r = gain * f.own(c);
-            for (j, g) in factors.iter().enumerate() {
-                if j != i {
-                    r *= g.at(s);
-                }
-            }
-            if !r.re().is_finite() {
-                return None;
-            }
-            res.push(r);
-        }
-        let mut lam = lam.to_vec();
-        let padded = n.next_multiple_of(4);
-        lam.resize(padded, T::from(0.0));
-        res.resize(padded, T::from(0.0));
-        let mut res_sum = T::from(0.0);
-        for &r in &res {
-            res_sum += r;
-        }
-        let zero = T::from(0.0);
-        let blocks = lam
-            .chunks_exact(4)
-            .zip(res.chunks_exact(4))
-            .map(|(l, r)| Block {
-                lam: [l[0], l[1], l[2], l[3]],
-                res_lam: [r[0] * l[0], r[1] * l[1], r[2] * l[2], r[3] * l[3]],
-                m: [zero; 4],
-            })
-            .collect();
-        Some(Self {
-            blocks,
-            res_sum,
-            hist: zero,
-        })
-    }
-
-    /// `m_i <- lambda_i m_i + x` and the new history `sum_i r_i m_i`, computed as
-    /// `sum_i (r_i lambda_i) m_i(old) + (sum_i r_i) x` in four independent lanes, so that only
-    /// one multiply-add waits for `x`.
-    #[inline]
-    fn advance(&mut self, x: T) {
-        let zero = T::from(0.0);
-        let mut acc = [zero; 4];
-        for b in &mut self.blocks {
-            for k in 0..4 {
-                acc[k] += b.res_lam[k] * b.m[k];
-                b.m[k] = b.lam[k] * b.m[k] + x;
-            }
-        }
-        self.hist = (acc[0] + acc[1]) + (acc[2] + acc[3]) + self.res_sum * x;
-    }
-
-    fn reset(&mut self) {
-        for b in &mut self.blocks {
-            b.m = [T::from(0.0); 4];
-        }
-        self.hist = T::from(0.0);
-    }
-}
-
-fn prewarp(w: f64, dt: f64) -> f64 {
-    let cap = 0.9 * std::f64::consts::FRAC_PI_2;
-    (2.0 / dt) * (0.5 * w * dt).min(cap).tan()
-}
-
-fn prewarp_t<T: Real>(w: T, dt: f64) -> T {
-    let cap = 0.9 * std::f64::consts::FRAC_PI_2;
-    if 0.5 * w.re() * dt >= cap {
-        T::from(prewarp(w.re(), dt))
-    } else {
-        (w * (0.5 * dt)).tan() * (2.0 / dt)
-    }
-}
-
-impl<T: Real> Operator<T> {
-    /// The identity operator (order 0).
-    pub fn identity() -> Self {
-        Self {
-            gain: T::from(1.0),
-            sections: vec![],
-            state: vec![],
-            feed: T::from(1.0),
-            modes: None,
-        }
-    }
-
-    /// Discretise a rational approximation with step `dt` (seconds).
-    ///
-    /// Cells `(s + z)/(s + p)`: bilinear `c = 2/dt`: `b0 = (c+z)/(c+p)`, `b1 = -(c-z)/(c+p)`,
-    /// `a1 = -(c-p)/(c+p)` (corners prewarped when asked); ZOH: `b0 = 1`, `a1 = -e^(-p dt)`,
-    /// `b1 = (z-p)(1-e^(-p dt))/p - e^(-p dt)`. Integer powers `s^n`: `n` bilinear differentiators
-    /// `c (1 - z^-1)/(1 + z^-1)`; `s^-1`: the bilinear integrator.
-    ///
-    /// # Errors
-    /// A non-positive step, an integer order below -1.
-    pub fn from_rational(r: &Rational<T>, dt: f64, disc: Discretization) -> Result<Self> {
-        finite("dt", dt)?;
-        if dt <= 0.0 {
-            return invalid("dt", format!("{dt} s must be positive"));
-        }
-        let c = 2.0 / dt;
-        let mut sections = Vec::with_capacity(r.zeros.len() + r.int_order.unsigned_abs() as usize);
-        // The continuous factors behind the sections (bilinear only), for the modal form.
-        let mut factors = Vec::with_capacity(sections.capacity());
-        for (&z, &p) in r.zeros.iter().zip(&r.poles) {
-            sections.push(match disc {
-                Discretization::Zoh => {
-                    let e = (-p * dt).exp();
-                    let g = (z - p) * (-e + 1.0) / p;
-                    Section {
-                        b0: T::from(1.0),
-                        b1: g - e,
-                        a1: -e,
-                    }
-                }
-                Discretization::Bilinear | Discretization::BilinearPrewarp => {
-                    let (z, p) = if disc == Discretization::BilinearPrewarp {
-                        (prewarp_t(z, dt), prewarp_t(p, dt))
-                    } else {
-                        (z, p)
-                    };
-                    factors.push(Factor::Cell(z, p));
-                    let den = p + c;
-                    Section {
-                        b0: (z + c) / den,
-                        b1: -(-z + c) / den,
-                        a1: -(-p + c) / den,
-                    }
-                }
-            });
-        }
-        match r.int_order {
-            n if n >= 0 => {
-                for _ in 0..n {
-                    factors.push(Factor::Diff);
-                    sections.push(Section {
-                        b0: T::from(c),
-                        b1: T::from(-c),
-                        a1: T::from(1.0),
-                    });
-                }
-            }
-            -1 => {
-                factors.push(Factor::Integ);
-                sections.push(Section {
-                    b0: T::from(1.0 / c),
-                    b1: T::from(1.0 / c),
-                    a1: T::from(-1.0),
-                })
-            }
-            n => return invalid("order", format!("integer part {n} below -1")),
-        }
-        let mut feed = r.gain;
-        for s in &sections {
-            feed *= s.b0;
-        }
-        let modes = if disc == Discretization::Zoh || r.int_order.abs() > 1 {
-            None
-        } else {
-            let lam: Vec<T> = sections.iter().map(|s| -s.a1).collect();
-            Modes::new(r.gain, &factors, &lam, c)
-        };
-        Ok(Self {
-            gain: r.gain,
-            state: vec![T::from(0.0); sections.len()],
-            sections,
-            feed,
-            modes,
-        })
-    }
-
-    /// The feed-through `d`: the output is `d x_k + history`.
-    #[inline]
-    pub fn feed(&self) -> T {
-        self.feed
-    }
-
-    /// The part of the next output that does not depend on the next input.
-    #[inline]
-    pub fn history(&self) -> T {
-        if let Some(md) = &self.modes {
-            return md.hist;
-        }
-        let mut h = T::from(0.0);
-        for (s, &st) in self.sections.iter().zip(&self.state) {
-            h = s.b0 * h + st;
-        }
-        h * self.gain
-    }
-
-    /// Apply to the next input, advance the state, return the output.
-    #[inline]
-    pub fn step(&mut self, x: T) -> T {
-        if let Some(md) = &mut self.modes {
-            let out = self.feed * x + md.hist;
-            md.advance(x);
-            return out;
-        }
-        let mut v = x;
-        for (s, st) in self.sections.iter().zip(self.state.iter_mut()) {
-            let y = s.b0 * v + *st;
-            *st = s.b1 * v - s.a1 * y;
-            v = y;
-        }
-        v * self.gain
-    }
-
-    /// Zero the state.
-    pub fn reset(&mut self) {
-        for s in &mut self.state {
-            *s = T::from(0.0);
-        }
-        if let Some(md) = &mut self.modes {
-            md.reset();
-        }
-    }
-
-    /// The sections of the cascade.
-    pub fn sections(&self) -> &[Section<T>] {
-        &self.sections
-    }
-}
-
-/// Runs a fractional transfer function on a sampled input, one sample at a time, through the
-/// recursive discrete filters of its fractional operators (implicit in the output).
+/// Runs a fractional transfer function on a held (zero-order-hold) input, exactly for its
+/// rational approximation: `u_k` acts on `[t_k, t_(k+1))` and `y_k` is the output at `t_k`.
 ///
 /// Generic over [`Real`]: with [`crate::Dual`] coefficients, orders and delay it returns the exact
-/// derivatives of the discrete simulation (forward-mode sensitivities).
-///
-/// The input is taken as held constant over each step (as a drive's PWM holds it): `u_k` acts on
-/// `[t_k, t_(k+1))` and `y_k` is the output at `t_k`. The bilinear map treats samples as a
-/// piecewise-linear signal, which would advance a held input by half a step, so bilinear
-/// simulations delay the input by `dt/2` to compensate (this cuts the error at the first samples of
-/// a step tenfold). The input delay `tau` (plus that half step) is `m + phi` samples (`m` whole,
-/// `0 <= phi < 1`); the delayed input is interpolated linearly, `(1 - phi) u_(k-m) + phi u_(k-m-1)`,
-/// which keeps it differentiable in `tau`.
+/// derivatives of the simulated output (forward-mode sensitivities through the poles, residues
+/// and their discretisation).
 ///
 /// ```
 /// use fracsim::{ApproxSpec, FracTf, Simulator};
@@ -402,15 +40,35 @@ impl<T: Real> Operator<T> {
 /// ```
 #[derive(Debug, Clone)]
 pub struct Simulator<T> {
-    num: Vec<(T, Operator<T>)>,
-    den: Vec<(T, Operator<T>)>,
-    /// `1 / sum_j a_j d_j`, the inverse of the denominator's feed-through (a multiply instead of a divide on the critical path of every step).
-    den_feed_inv: T,
+    model: PoleResidue<T>,
+    /// Real modes: `e^(lambda dt)`, `beta0`, `beta1`, state.
+    re_phi: Vec<T>,
+    re_b0: Vec<T>,
+    re_b1: Vec<T>,
+    re_x: Vec<T>,
+    /// Complex modes (one of each conjugate pair).
+    cx_phi: Vec<Cx<T>>,
+    cx_b0: Vec<Cx<T>>,
+    cx_b1: Vec<Cx<T>>,
+    cx_x: Vec<Cx<T>>,
+    /// Whether any `beta1` is nonzero (a fractional-sample delay, or its derivative).
+    has_b1: bool,
+    direct: T,
+    /// The feed-through sees `u(t_k - tau)`: `u_(k-m-1)` when `eps > 0`, else `u_(k-m)`.
+    direct_prev: bool,
     delay_whole: usize,
-    delay_frac: T,
-    /// Ring buffer of past inputs for the delay.
+    /// Ring buffer of past inputs for the delay (`m + 2` long).
     hist: Vec<T>,
     pos: usize,
+}
+
+/// `(phi, beta0, beta1)` of a mode `r/(s - lambda)` for step `dt` and fractional delay `eps` (s).
+fn discretise<T: Real>(lam: Cx<T>, r: Cx<T>, dt: f64, eps: T) -> (Cx<T>, Cx<T>, Cx<T>) {
+    let rest = -eps + dt;
+    let phi = lam.scale(T::from(dt)).exp();
+    let b0 = r * lam.scale(rest).phi1().scale(rest);
+    let b1 = r * lam.scale(rest).exp() * lam.scale(eps).phi1().scale(eps);
+    (phi, b0, b1)
 }
 
 impl<T: Real> Simulator<T> {
@@ -427,11 +85,12 @@ impl<T: Real> Simulator<T> {
         Self::from_terms(&conv(&tf.num), &conv(&tf.den), T::from(tf.delay), dt, spec)
     }
 
-    /// Build from `(coef, order)` terms of numerator and denominator and a delay in seconds.
+    /// Build from `(coef, order)` terms of numerator and denominator and an input delay in
+    /// seconds, approximated as `spec` says over `spec.band_for(dt)`.
     ///
     /// # Errors
-    /// Non-finite values, negative orders or delay, a bad band or step, a denominator whose
-    /// discrete feed-through vanishes (the implicit step would divide by zero).
+    /// Non-finite values, a negative delay or one over 1e8 samples, a bad band or step, an
+    /// improper model, and the errors of [`crate::modal::pole_residue`].
     pub fn from_terms(
         num: &[(T, T)],
         den: &[(T, T)],
@@ -440,88 +99,97 @@ impl<T: Real> Simulator<T> {
         spec: &ApproxSpec,
     ) -> Result<Self> {
         let band = spec.band_for(dt)?;
-        let build = |terms: &[(T, T)], what: &'static str| -> Result<Vec<(T, Operator<T>)>> {
-            terms
-                .iter()
-                .map(|&(c, o)| {
-                    finite(what, c.re())?;
-                    let op = if o.re() == 0.0 {
-                        Operator::identity()
-                    } else {
-                        Operator::from_rational(
-                            &approximate(o, band, spec)?,
-                            dt,
-                            spec.discretization,
-                        )?
-                    };
-                    Ok((c, op))
-                })
-                .collect()
-        };
-        let num = build(num, "numerator coefficient")?;
-        let den = build(den, "denominator coefficient")?;
-        if den.iter().all(|(c, _)| c.re() == 0.0) {
-            return Err(Error::ZeroDenominator);
-        }
-        let mut den_feed = T::from(0.0);
-        for (a, op) in &den {
-            den_feed += *a * op.feed();
-        }
-        let df = den_feed.re();
-        if !df.is_finite() || df.abs() < 1e-300 {
-            return Err(Error::Numerical(format!(
-                "the discrete denominator has feed-through {df}: the implicit step is singular"
-            )));
-        }
         let d = finite("delay", delay.re())?;
         if d < 0.0 {
             return invalid("delay", format!("{d} s is negative"));
         }
-        let hold = match spec.discretization {
-            crate::Discretization::Zoh => 0.0,
-            _ => 0.5,
-        };
-        let samples = delay / dt + hold;
-        let whole = samples.re().floor();
-        if whole > 1e8 {
+        let samples = d / dt;
+        if samples > 1e8 {
             return invalid("delay", format!("{d} s is more than 1e8 samples"));
         }
-        Ok(Self {
-            num,
-            den,
-            den_feed_inv: T::from(1.0) / den_feed,
-            delay_whole: whole as usize,
-            delay_frac: samples - whole,
-            hist: vec![T::from(0.0); whole as usize + 2],
+        let model = pole_residue(num, den, band, spec)?;
+        let m = samples.floor();
+        let eps = delay - m * dt;
+        let mut s = Self {
+            re_phi: vec![],
+            re_b0: vec![],
+            re_b1: vec![],
+            re_x: vec![],
+            cx_phi: vec![],
+            cx_b0: vec![],
+            cx_b1: vec![],
+            cx_x: vec![],
+            has_b1: false,
+            direct: model.direct,
+            direct_prev: eps.re() > 0.0,
+            delay_whole: m as usize,
+            hist: vec![T::from(0.0); m as usize + 2],
             pos: 0,
-        })
+            model,
+        };
+        let zero = T::from(0.0);
+        for &(lam, r) in &s.model.real {
+            let (phi, b0, b1) = discretise(Cx::real(lam), Cx::real(r), dt, eps);
+            s.re_phi.push(phi.re);
+            s.re_b0.push(b0.re);
+            s.re_b1.push(b1.re);
+            s.has_b1 |= b1.re != zero;
+        }
+        for &(lam, r) in &s.model.complex {
+            let (phi, b0, b1) = discretise(lam, r, dt, eps);
+            // Doubled: each complex mode stands for its conjugate pair.
+            let two = T::from(2.0);
+            s.cx_phi.push(phi);
+            s.cx_b0.push(b0.scale(two));
+            s.cx_b1.push(b1.scale(two));
+            s.has_b1 |= b1.re != zero || b1.im != zero;
+        }
+        s.re_x = vec![zero; s.re_phi.len()];
+        s.cx_x = vec![Cx::real(zero); s.cx_phi.len()];
+        Ok(s)
     }
 
-    /// Advance one sample with input `u`, return the output.
+    /// The continuous model this simulator discretises (poles and residues, rad/s).
+    pub fn model(&self) -> &PoleResidue<T> {
+        &self.model
+    }
+
+    /// Advance one sample: `u` is held over `[t_k, t_(k+1))`; returns `y_k`, the output at `t_k`.
     #[inline]
     pub fn step(&mut self, u: T) -> T {
-        let x = if self.hist.len() == 2 && self.delay_frac == T::from(0.0) {
-            u
+        let n = self.hist.len();
+        self.pos = if self.pos + 1 == n { 0 } else { self.pos + 1 };
+        self.hist[self.pos] = u;
+        let back = |j: usize| (self.pos + n - j) % n;
+        let a = self.hist[back(self.delay_whole)];
+        let b = self.hist[back(self.delay_whole + 1)];
+        let zero = T::from(0.0);
+        let mut y = self.direct * if self.direct_prev { b } else { a };
+        // Real modes in four independent lanes.
+        let mut acc = [zero; 4];
+        let nr = self.re_x.len();
+        let (x, phi, b0) = (&mut self.re_x, &self.re_phi, &self.re_b0);
+        if self.has_b1 {
+            let b1 = &self.re_b1;
+            for i in 0..nr {
+                acc[i & 3] += x[i];
+                x[i] = phi[i] * x[i] + b0[i] * a + b1[i] * b;
+            }
         } else {
-            let n = self.hist.len();
-            // Ring buffer indices without integer division (`delay_whole <= n - 2`).
-            let wrap = |i: usize| if i >= n { i - n } else { i };
-            self.pos = wrap(self.pos + 1);
-            self.hist[self.pos] = u;
-            let a = self.hist[wrap(self.pos + n - self.delay_whole)];
-            let b = self.hist[wrap(self.pos + n - self.delay_whole - 1)];
-            a + (b - a) * self.delay_frac
-        };
-        let mut rhs = T::from(0.0);
-        for (b, op) in &mut self.num {
-            rhs += *b * op.step(x);
+            for i in 0..nr {
+                acc[i & 3] += x[i];
+                x[i] = phi[i] * x[i] + b0[i] * a;
+            }
         }
-        for (a, op) in &self.den {
-            rhs -= *a * op.history();
-        }
-        let y = rhs * self.den_feed_inv;
-        for (_, op) in &mut self.den {
-            op.step(y);
+        y += (acc[0] + acc[1]) + (acc[2] + acc[3]);
+        for i in 0..self.cx_x.len() {
+            let x = self.cx_x[i];
+            y += x.re;
+            let mut nx = self.cx_phi[i] * x + self.cx_b0[i].scale(a);
+            if self.has_b1 {
+                nx += self.cx_b1[i].scale(b);
+            }
+            self.cx_x[i] = nx;
         }
         y
     }
@@ -534,23 +202,23 @@ impl<T: Real> Simulator<T> {
 
     /// Back to rest: all states and the delay line zeroed.
     pub fn reset(&mut self) {
-        for (_, op) in self.num.iter_mut().chain(self.den.iter_mut()) {
-            op.reset();
-        }
-        for h in &mut self.hist {
-            *h = T::from(0.0);
-        }
+        let zero = T::from(0.0);
+        self.re_x.iter_mut().for_each(|x| *x = zero);
+        self.cx_x.iter_mut().for_each(|x| *x = Cx::real(zero));
+        self.hist.iter_mut().for_each(|x| *x = zero);
         self.pos = 0;
     }
 }
 
-/// Simulate `tf` on input `u` sampled every `dt` seconds, from rest.
+/// Simulate `tf` on input `u` sampled every `dt` seconds and held between samples, from rest.
 ///
 /// ```
 /// use fracsim::{lsim, ApproxSpec, FracTf};
 /// let g: FracTf = "1/(0.1 s + 1)".parse().unwrap();
 /// let y = lsim(&g, &vec![1.0; 2000], 1e-3, &ApproxSpec::default()).unwrap();
-/// assert!((y[1999] - 1.0).abs() < 1e-6);
+/// // exact for a held step: 1 - e^(-t/0.1) at t = 1.999 s
+/// assert!((y[1999] - (1.0 - (-19.99f64).exp())).abs() < 1e-12);
+/// assert!((y[1] - (1.0 - (-0.01f64).exp())).abs() < 1e-12);
 /// ```
 ///
 /// # Errors
@@ -563,7 +231,7 @@ pub fn lsim(tf: &FracTf, u: &[f64], dt: f64, spec: &ApproxSpec) -> Result<Vec<f6
     let y = sim.simulate(u);
     if let Some(i) = y.iter().position(|x| !x.is_finite()) {
         return Err(Error::Numerical(format!(
-            "the output is not finite at sample {i}"
+            "the output is not finite at sample {i} (is the model unstable?)"
         )));
     }
     Ok(y)
@@ -572,73 +240,96 @@ pub fn lsim(tf: &FracTf, u: &[f64], dt: f64, spec: &ApproxSpec) -> Result<Vec<f6
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::approx::Method;
     use crate::scalar::Dual;
 
-    /// The modal form runs the same filter as the cascade it is expanded from.
+    /// A first-order lag with a fractional-sample delay against its closed form.
     #[test]
-    fn modal_form_matches_the_cascade() {
-        let dt = 1e-4;
-        let u: Vec<f64> = (0..20_000)
-            .map(|k| if (k / 37) % 3 == 0 { 1.0 } else { -0.5 })
-            .collect();
-        for method in [Method::Oustaloup, Method::Refined, Method::Trigeassou] {
-            for disc in [Discretization::Bilinear, Discretization::BilinearPrewarp] {
-                for nu in [0.3f64, 0.92, 1.7452] {
-                    let spec = ApproxSpec {
-                        method,
-                        discretization: disc,
-                        band: if disc == Discretization::Bilinear {
-                            None
-                        } else {
-                            Some((1e-2, 1e4))
-                        },
-                        ..ApproxSpec::default()
-                    };
-                    let nu = if method == Method::Trigeassou {
-                        nu.min(1.0)
-                    } else {
-                        nu
-                    };
-                    let band = spec.band_for(dt).unwrap();
-                    let r = approximate(nu, band, &spec).unwrap();
-                    let mut modal = Operator::from_rational(&r, dt, disc).unwrap();
-                    assert!(modal.modes.is_some(), "{method:?} {disc:?} {nu}");
-                    let mut cascade = modal.clone();
-                    cascade.modes = None;
-                    let (mut worst, mut scale) = (0.0f64, 0.0f64);
-                    for &x in &u {
-                        let (h1, h2) = (modal.history(), cascade.history());
-                        let (a, b) = (modal.step(x), cascade.step(x));
-                        worst = worst.max((a - b).abs()).max((h1 - h2).abs());
-                        scale = scale.max(b.abs());
-                    }
-                    assert!(
-                        worst <= 1e-9 * scale,
-                        "{method:?} {disc:?} {nu}: {worst} of {scale}"
-                    );
-                }
-            }
+    fn held_step_through_a_lag_with_a_fractional_delay_is_exact() {
+        let g: FracTf = "2/(0.05 s + 1)".parse().unwrap();
+        let (dt, tau) = (1e-3, 2.37e-3);
+        let g = g.with_delay(tau).unwrap();
+        let u: Vec<f64> = (0..400).map(|k| if k >= 10 { 1.0 } else { 0.0 }).collect();
+        let y = lsim(&g, &u, dt, &ApproxSpec::default()).unwrap();
+        for (k, &yk) in y.iter().enumerate() {
+            let t = k as f64 * dt - 10.0 * dt - tau;
+            let want = if t > 0.0 {
+                2.0 * (1.0 - (-t / 0.05).exp())
+            } else {
+                0.0
+            };
+            assert!((yk - want).abs() < 1e-12, "k={k}: {yk} vs {want}");
         }
     }
 
-    /// The derivatives through the modal form equal those through the cascade.
+    /// A free integrator `K/(s (T s + 1))` (a position output) against its closed form.
     #[test]
-    fn modal_form_derivatives_match_the_cascade() {
-        let dt = 1e-4;
-        let spec = ApproxSpec::default();
-        let band = spec.band_for(dt).unwrap();
-        let r = approximate(Dual::<1>::var(0.92, 0), band, &spec).unwrap();
-        let mut modal = Operator::from_rational(&r, dt, spec.discretization).unwrap();
-        let mut cascade = modal.clone();
-        cascade.modes = None;
-        let (mut worst, mut scale) = (0.0f64, 0.0f64);
-        for k in 0..5000 {
-            let x = Dual::cst(if (k / 30) % 2 == 0 { 1.0 } else { -1.0 });
-            let (a, b) = (modal.step(x), cascade.step(x));
-            worst = worst.max((a.d[0] - b.d[0]).abs());
-            scale = scale.max(b.d[0].abs());
+    fn an_integrating_model_is_exact() {
+        let g: FracTf = "3/(0.02 s^2 + s)".parse().unwrap();
+        let dt = 1e-3;
+        let y = lsim(&g, &vec![1.0; 300], dt, &ApproxSpec::default()).unwrap();
+        for (k, &yk) in y.iter().enumerate() {
+            let t = k as f64 * dt;
+            let want = 3.0 * (t - 0.02 * (1.0 - (-t / 0.02).exp()));
+            assert!((yk - want).abs() < 1e-11, "k={k}: {yk} vs {want}");
         }
-        assert!(worst <= 1e-9 * scale, "{worst} of {scale}");
+    }
+
+    /// An underdamped second-order system (complex poles) against its closed form.
+    #[test]
+    fn complex_poles_are_exact() {
+        // wn = 100 rad/s, zeta = 0.2: 1/(1e-4 s^2 + 4e-3 s + 1)
+        let g: FracTf = "1/(1e-4 s^2 + 4e-3 s + 1)".parse().unwrap();
+        let dt = 1e-3;
+        let y = lsim(&g, &vec![1.0; 200], dt, &ApproxSpec::default()).unwrap();
+        let (wn, z) = (100.0f64, 0.2f64);
+        let wd = wn * (1.0 - z * z).sqrt();
+        for (k, &yk) in y.iter().enumerate() {
+            let t = k as f64 * dt;
+            let want = 1.0 - (-z * wn * t).exp() * ((wd * t).cos() + z * wn / wd * (wd * t).sin());
+            assert!((yk - want).abs() < 1e-11, "k={k}: {yk} vs {want}");
+        }
+    }
+
+    /// Dual sensitivities of the simulated output equal central finite differences, for
+    /// coefficients, orders and a fractional delay.
+    #[test]
+    fn sensitivities_match_finite_differences() {
+        let p0 = [6.82, 2.655e-5, 1.7452, 0.0059, 0.92, 0.7e-3];
+        let dt = 5e-4;
+        let u: Vec<f64> = (0..600)
+            .map(|k| if (k / 6) % 3 == 1 { 13.0 } else { 7.0 })
+            .collect();
+        let sim = |p: [Dual<6>; 6]| -> Vec<Dual<6>> {
+            let one = Dual::cst(1.0);
+            let zero = Dual::cst(0.0);
+            Simulator::from_terms(
+                &[(p[0], zero)],
+                &[(p[1], p[2]), (p[3], p[4]), (one, zero)],
+                p[5],
+                dt,
+                &ApproxSpec::default(),
+            )
+            .unwrap()
+            .simulate(&u)
+        };
+        let y = sim(std::array::from_fn(|i| Dual::var(p0[i], i)));
+        for i in 0..6 {
+            let h = 1e-6 * p0[i];
+            let at = |s: f64| {
+                let mut p = p0;
+                p[i] += s * h;
+                sim(std::array::from_fn(|j| Dual::cst(p[j])))
+            };
+            let (yp, ym) = (at(1.0), at(-1.0));
+            let scale = y.iter().map(|v| v.d[i].abs()).fold(0.0, f64::max);
+            for k in 0..u.len() {
+                let fd = (yp[k].v - ym[k].v) / (2.0 * h);
+                assert!(
+                    (y[k].d[i] - fd).abs() <= 1e-5 * scale,
+                    "param {i} sample {k}: {} vs {fd} (scale {scale})",
+                    y[k].d[i]
+                );
+            }
+        }
     }
 }

@@ -5,8 +5,10 @@
 //! - [`approx`]: rational approximations of `s^nu`: Oustaloup (Oustaloup et al. 2000), refined
 //!   Oustaloup (Xue, Zhao & Chen 2006), the Poinot-Trigeassou (alpha, eta) integrator
 //!   (Poinot & Trigeassou 2004).
-//! - [`discrete`]: recursive discrete filters (cascades of first-order sections, bilinear with
-//!   prewarping or ZOH) and [`Simulator`], which runs a fractional transfer function sample by sample.
+//! - [`modal`]: the approximated model in pole-residue form (every operator and their
+//!   interconnection as one rational system, never multiplied out).
+//! - [`discrete`]: [`Simulator`], its exact discretisation for a held (zero-order-hold) input,
+//!   fractional-sample delays included, run as a bank of first-order recursive filters.
 //! - [`gl`]: Grunwald-Letnikov, the reference simulator.
 //! - [`prbs`]: maximum-length pseudo-random binary sequences.
 //! - [`special`]: the Mittag-Leffler function and the exact step response of `K/(a s^q + 1)`.
@@ -20,10 +22,12 @@ pub use error::{Error, Result};
 pub use scalar::{Dual, Real};
 pub use tf::{jw_pow, FracTf, Term};
 pub mod approx;
+pub mod cx;
 pub mod discrete;
 pub mod gl;
+pub mod modal;
 pub mod prbs;
 pub mod special;
 
-pub use approx::{ApproxSpec, Discretization, Method};
+pub use approx::{ApproxSpec, Method};
 pub use discrete::{lsim, Simulator};

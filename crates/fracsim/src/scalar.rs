@@ -40,6 +40,8 @@ pub trait Real:
     fn sqrt(self) -> Self;
     /// Tangent.
     fn tan(self) -> Self;
+    /// Sine and cosine.
+    fn sin_cos(self) -> (Self, Self);
     /// `self^e` for a positive base (computed as `exp(e ln self)`).
     fn powr(self, e: Self) -> Self {
         (e * self.ln()).exp()
@@ -76,6 +78,10 @@ impl Real for f64 {
     #[inline]
     fn tan(self) -> Self {
         f64::tan(self)
+    }
+    #[inline]
+    fn sin_cos(self) -> (Self, Self) {
+        f64::sin_cos(self)
     }
     #[inline]
     fn powr(self, e: Self) -> Self {
@@ -261,6 +267,10 @@ impl<const N: usize> Real for Dual<N> {
         let p = self.v.powf(e);
         self.chain(p, e * self.v.powf(e - 1.0))
     }
+    fn sin_cos(self) -> (Self, Self) {
+        let (s, c) = self.v.sin_cos();
+        (self.chain(s, c), self.chain(c, -s))
+    }
 }
 
 #[cfg(test)]
@@ -269,8 +279,10 @@ mod tests {
 
     #[test]
     fn dual_derivatives_match_finite_differences() {
-        let f =
-            |x: Dual<2>, y: Dual<2>| (x * y).exp() / (y + 1.0) + x.powr(y) - y.sqrt().tan() * 3.0;
+        let f = |x: Dual<2>, y: Dual<2>| {
+            (x * y).exp() / (y + 1.0) + x.powr(y) - y.sqrt().tan() * 3.0
+                + (x * y).sin_cos().0 * (x - y).sin_cos().1
+        };
         let (x0, y0) = (0.7, 1.3);
         let r = f(Dual::var(x0, 0), Dual::var(y0, 1));
         let h = 1e-6;

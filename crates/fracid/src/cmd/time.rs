@@ -28,8 +28,10 @@ pub struct TimeArgs {
     /// transfer function such as "6.8/(3e-5 s^1.75 + 0.006 s^0.9 + 1)" used as the start.
     #[arg(long, default_value = "pmsm")]
     pub structure: String,
-    /// Approximation: oustaloup, refined, trigeassou.
-    #[arg(long, default_value = "oustaloup")]
+    /// Approximation of the fractional operators: refined (Xue's refined Oustaloup, the default),
+    /// oustaloup or trigeassou (Poinot-Trigeassou); the model is then simulated exactly for the
+    /// held input (see `fracid sim --help`).
+    #[arg(long, default_value = "refined")]
     pub approx: String,
     /// Approximation band "w_b,w_h" in rad/s (default fracsim's [1e-3, 30 pi/dt]).
     #[arg(long)]

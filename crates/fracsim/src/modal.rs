@@ -1,0 +1,526 @@
+//! The approximated model in pole-residue (modal) form: the continuous rational system that the
+//! rational approximations of every fractional operator make together, written
+//! `G~(s) = direct + sum_i r_i / (s - lambda_i)`, without ever multiplying a polynomial out.
+//!
+//! With each operator approximated as `R_nu(s) = g s^n prod_k (s + z_k)/(s + p_k)` (see
+//! [`crate::approx`]), the model is `G~ = N~/D~` with `N~ = sum_i b_i R_(beta_i)` and
+//! `D~ = sum_j a_j R_(alpha_j)`. Dividing both by `s^n_max` (`n_max` the largest integer part in
+//! the denominator) makes them proper: `G~ = N_H/H` with
+//! `H(s) = sum_groups P_g(1/s) prod_(k in g) (s + z_k)/(s + p_k)`, where terms sharing the same
+//! cells are one group and `P_g` a polynomial in `1/s` (its constant term `d = H(infinity)`).
+//!
+//! - The poles of `G~` are the zeros of `H`: the eigenvalues of a state-space realisation of `H`
+//!   closed around its feed-through (`A - B C/d`, balanced, real Schur form by nalgebra), each
+//!   polished by Newton's method on `H` evaluated in factored form, plus the poles of `N_H` that
+//!   `H` does not cancel (a free integrator, numerator cells).
+//! - The residues are `r_i = N_H(lambda_i)/H'(lambda_i)`, with `H'` from the logarithmic
+//!   derivative of the factored form.
+//! - Everything after the (value-only) eigenvalue problem is generic over [`Real`]: one last
+//!   Newton step in dual arithmetic from the converged root gives the exact derivative of each pole
+//!   (`d lambda = -dH/H'`, the implicit function theorem), and the residues follow.
+//!
+//! The expansion is checked by evaluating both forms at test frequencies.
+
+use crate::approx::{approximate, ApproxSpec, Rational};
+use crate::cx::Cx;
+use crate::error::{finite, invalid, Error, Result};
+use crate::scalar::Real;
+use nalgebra::{DMatrix, DVector};
+use num_complex::Complex64;
+
+/// Terms that share the same cells: `sum_k coef[k] s^-k prod (s + z)/(s + p)`.
+#[derive(Debug, Clone)]
+struct Group<T> {
+    zeros: Vec<T>,
+    poles: Vec<T>,
+    coef: Vec<T>,
+}
+
+impl<T: Real> Group<T> {
+    fn same_cells(&self, zeros: &[T], poles: &[T]) -> bool {
+        self.zeros.len() == zeros.len()
+            && self.zeros.iter().zip(zeros).all(|(a, b)| a.re() == b.re())
+            && self.poles.iter().zip(poles).all(|(a, b)| a.re() == b.re())
+    }
+
+    fn same_as(&self, o: &Self) -> bool {
+        self.same_cells(&o.zeros, &o.poles)
+    }
+
+    /// The group's value and its derivative with respect to `s`, at `s != 0`.
+    fn eval(&self, s: Cx<T>) -> (Cx<T>, Cx<T>) {
+        let zero = Cx::real(T::from(0.0));
+        let mut cells = Cx::real(T::from(1.0));
+        let mut logd = zero;
+        for (&z, &p) in self.zeros.iter().zip(&self.poles) {
+            let a = s + Cx::real(z);
+            let b = s + Cx::real(p);
+            cells = cells * a / b;
+            logd += a.recip() - b.recip();
+        }
+        // P(x) = sum_k c_k x^k at x = 1/s, and P'(x) (Horner).
+        let x = s.recip();
+        let (mut p, mut dp) = (zero, zero);
+        for &c in self.coef.iter().rev() {
+            dp = dp * x + p;
+            p = p * x + Cx::real(c);
+        }
+        // d/ds P(1/s) = -P'(x) x^2
+        let dps = -(dp * x * x);
+        (cells * p, cells * (logd * p + dps))
+    }
+
+    /// `prod (s + z)/(s + p)` at `s = 0`.
+    fn cells_at_zero(&self) -> T {
+        let mut v = T::from(1.0);
+        for (&z, &p) in self.zeros.iter().zip(&self.poles) {
+            v = v * z / p;
+        }
+        v
+    }
+
+    /// The residue of `prod (s + z)/(s + p)` at its pole `-p_i`:
+    /// `(z_i - p_i) prod_(l != i) (z_l - p_i)/(p_l - p_i)`.
+    fn cell_residue(&self, i: usize) -> T {
+        let pi = self.poles[i];
+        let mut r = self.zeros[i] - pi;
+        for (l, (&z, &p)) in self.zeros.iter().zip(&self.poles).enumerate() {
+            if l != i {
+                r = r * (z - pi) / (p - pi);
+            }
+        }
+        r
+    }
+}
+
+/// A sum of groups, evaluated with its `s`-derivative.
+fn eval_sum<T: Real>(groups: &[Group<T>], s: Cx<T>) -> (Cx<T>, Cx<T>) {
+    let zero = Cx::real(T::from(0.0));
+    groups.iter().fold((zero, zero), |(v, d), g| {
+        let (gv, gd) = g.eval(s);
+        (v + gv, d + gd)
+    })
+}
+
+/// The continuous approximated model `direct + sum r/(s - lambda)`: real poles, and complex poles
+/// of positive imaginary part (each standing for its conjugate pair: `2 Re(r/(s - lambda))` on
+/// the real axis).
+#[derive(Debug, Clone)]
+pub struct PoleResidue<T> {
+    /// Real poles `(lambda, r)`, rad/s.
+    pub real: Vec<(T, T)>,
+    /// Complex poles with positive imaginary part `(lambda, r)`, each with its conjugate.
+    pub complex: Vec<(Cx<T>, Cx<T>)>,
+    /// The feed-through `G~(infinity)`.
+    pub direct: T,
+}
+
+impl<T: Real> PoleResidue<T> {
+    /// The frequency response at `omega` rad/s (values only).
+    pub fn freq_response(&self, omega: f64) -> Complex64 {
+        let s = Complex64::new(0.0, omega);
+        let mut h = Complex64::new(self.direct.re(), 0.0);
+        for &(l, r) in &self.real {
+            h += r.re() / (s - l.re());
+        }
+        for &(l, r) in &self.complex {
+            let (l, r) = (l.val(), r.val());
+            h += r / (s - l) + r.conj() / (s - l.conj());
+        }
+        h
+    }
+
+    /// The number of states (a complex pair counts two).
+    pub fn order(&self) -> usize {
+        self.real.len() + 2 * self.complex.len()
+    }
+}
+
+/// The approximation of one term's operator, with cells that cancel exactly (an integer order)
+/// removed.
+fn operator<T: Real>(order: T, band: (f64, f64), spec: &ApproxSpec) -> Result<Rational<T>> {
+    if order.re() == 0.0 {
+        return Ok(Rational {
+            int_order: 0,
+            gain: T::from(1.0),
+            zeros: vec![],
+            poles: vec![],
+        });
+    }
+    let mut r = approximate(order, band, spec)?;
+    let keep: Vec<bool> = r
+        .zeros
+        .iter()
+        .zip(&r.poles)
+        .map(|(z, p)| z.re() != p.re())
+        .collect();
+    let mut it = keep.iter();
+    r.zeros.retain(|_| *it.next().unwrap_or(&true));
+    let mut it = keep.iter();
+    r.poles.retain(|_| *it.next().unwrap_or(&true));
+    Ok(r)
+}
+
+/// Collect terms into groups: each term `c s^(n - n_max) R` adds `c g` to `coef[n_max - n]` of the
+/// group with its cells.
+fn groups<T: Real>(terms: &[(T, Rational<T>)], n_max: i32) -> Vec<Group<T>> {
+    let mut out: Vec<Group<T>> = vec![];
+    for (c, r) in terms {
+        let k = (n_max - r.int_order) as usize;
+        let gi = match out.iter().position(|g| g.same_cells(&r.zeros, &r.poles)) {
+            Some(i) => i,
+            None => {
+                out.push(Group {
+                    zeros: r.zeros.clone(),
+                    poles: r.poles.clone(),
+                    coef: vec![],
+                });
+                out.len() - 1
+            }
+        };
+        let g = &mut out[gi];
+        if g.coef.len() <= k {
+            g.coef.resize(k + 1, T::from(0.0));
+        }
+        g.coef[k] += *c * r.gain;
+    }
+    out
+}
+
+/// The zeros of `H` (values): eigenvalues of the closed realisation `A - B C/d`.
+fn zeros_of_h(groups: &[Group<f64>], d: f64) -> Result<Vec<Complex64>> {
+    let k_max = groups.iter().map(|g| g.coef.len()).max().unwrap_or(1) - 1;
+    let n_cells: usize = groups.iter().map(|g| g.zeros.len()).sum();
+    let n = n_cells + k_max;
+    if n == 0 {
+        return Ok(vec![]);
+    }
+    let mut a = DMatrix::<f64>::zeros(n, n);
+    let mut b = DVector::<f64>::zeros(n);
+    let mut c = DVector::<f64>::zeros(n);
+    let mut off = 0;
+    for g in groups {
+        let m = g.zeros.len();
+        // Cascade of cells driven by y: x_i' = -p_i x_i + v_(i-1), v_i = v_(i-1) + (z_i - p_i) x_i.
+        for i in 0..m {
+            a[(off + i, off + i)] = -g.poles[i];
+            for l in 0..i {
+                a[(off + i, off + l)] = g.zeros[l] - g.poles[l];
+            }
+            b[off + i] = 1.0;
+        }
+        // The group's output w = y + sum (z_l - p_l) x_l enters P(1/s): coef[0] the output,
+        // coef[k] the k-th integrator.
+        for (k, &ck) in g.coef.iter().enumerate() {
+            if k == 0 {
+                for l in 0..m {
+                    c[off + l] += ck * (g.zeros[l] - g.poles[l]);
+                }
+            } else {
+                let row = n_cells + k - 1;
+                for l in 0..m {
+                    a[(row, off + l)] += ck * (g.zeros[l] - g.poles[l]);
+                }
+                b[row] += ck;
+            }
+        }
+        off += m;
+    }
+    for k in 1..k_max {
+        a[(n_cells + k - 1, n_cells + k)] = 1.0;
+    }
+    if k_max >= 1 {
+        c[n_cells] = 1.0;
+    }
+    let mut acl = a - (&b * c.transpose()) / d;
+    if acl.iter().any(|v| !v.is_finite()) {
+        return Err(Error::Numerical(
+            "the approximated model's state space is not finite".into(),
+        ));
+    }
+    nalgebra::linalg::balancing::balance_parlett_reinsch(&mut acl);
+    let schur = nalgebra::Schur::try_new(acl, f64::EPSILON, 100 * n).ok_or_else(|| {
+        Error::Numerical("the eigenvalues of the approximated model did not converge".into())
+    })?;
+    Ok(schur.complex_eigenvalues().iter().copied().collect())
+}
+
+/// Newton's method for a zero of `H` from `s0` (values only); `None` if it does not converge.
+///
+/// The iteration runs on `F(s) = H(s) prod_k (s + p_k) c_k` over every cell of the denominator
+/// (`c_k = 1/(|s0| + p_k)`, a constant scale), which has the zeros of `H` but not its poles: the slow
+/// zeros sit a hair away from cell poles, where Newton on `H` itself jumps across the pole.
+fn polish(groups: &[Group<f64>], s0: Complex64) -> Option<Complex64> {
+    let one = Cx::<f64>::real(1.0);
+    let scale = |p: f64| 1.0 / (s0.norm() + p);
+    let mut s = Cx::<f64>::cst(s0);
+    let f_and_df = |s: Cx<f64>| -> (Cx<f64>, Cx<f64>) {
+        let (mut f, mut df) = (Cx::real(0.0), Cx::real(0.0));
+        for (gi, g) in groups.iter().enumerate() {
+            // term_g = P_g(1/s) prod_(k in g) (s + z_k) c_k prod_(k not in g) (s + p_k) c_k
+            let mut t = one;
+            let mut logd = Cx::real(0.0);
+            for (hi, h) in groups.iter().enumerate() {
+                let own = hi == gi;
+                for (&z, &p) in h.zeros.iter().zip(&h.poles) {
+                    let a = s + Cx::real(if own { z } else { p });
+                    t = t * a.scale(scale(p));
+                    logd += a.recip();
+                }
+            }
+            let x = s.recip();
+            let (mut pv, mut dp) = (Cx::real(0.0), Cx::real(0.0));
+            for &c in g.coef.iter().rev() {
+                dp = dp * x + pv;
+                pv = pv * x + Cx::real(c);
+            }
+            let dps = -(dp * x * x);
+            f += t * pv;
+            df += t * (logd * pv + dps);
+        }
+        (f, df)
+    };
+    for _ in 0..40 {
+        let (f, df) = f_and_df(s);
+        let step = f / df;
+        if !(step.re.is_finite() && step.im.is_finite()) {
+            return None;
+        }
+        s = s - step;
+        if step.val().norm() <= 4.0 * f64::EPSILON * s.val().norm() {
+            return Some(s.val());
+        }
+    }
+    // Accept a root that stalls within rounding of F.
+    let (f, df) = f_and_df(s);
+    (f.val().norm() <= 1e-10 * (df.val() * s.val()).norm().max(1e-300)).then(|| s.val())
+}
+
+/// Every zero of `H` (values), each polished by [`polish`]. Newton starts from the eigenvalues of
+/// the realisation and from every cell pole: the slow zeros sit a hair away from cell poles, where
+/// the eigenvalues of the (non-normal) realisation are too coarse to tell neighbours apart. The
+/// distinct roots must number the states of the realisation.
+fn roots_of_h(groups: &[Group<f64>], d: f64) -> Result<Vec<Complex64>> {
+    let k_max = groups.iter().map(|g| g.coef.len()).max().unwrap_or(1) - 1;
+    let n_states: usize = groups.iter().map(|g| g.zeros.len()).sum::<usize>() + k_max;
+    let mut starts = zeros_of_h(groups, d)?;
+    for g in groups {
+        // A hair off the pole: `F` is smooth there, but its log-derivative is not at the pole.
+        starts.extend(
+            g.poles
+                .iter()
+                .map(|&p| Complex64::new(-p * (1.0 + 1e-10), 0.0)),
+        );
+    }
+    let mut roots: Vec<Complex64> = vec![];
+    for &e in &starts {
+        let Some(mut r) = polish(groups, e) else {
+            continue;
+        };
+        if r.im.abs() <= 1e-12 * r.norm() {
+            r.im = 0.0;
+        }
+        let tol = 1e-9 * r.norm().max(1e-300);
+        if !roots.iter().any(|q| (q - r).norm() <= tol) {
+            roots.push(r);
+        }
+    }
+    // A complex root's conjugate is a root too.
+    let conj: Vec<Complex64> = roots
+        .iter()
+        .filter(|r| r.im != 0.0)
+        .map(|r| r.conj())
+        .filter(|c| {
+            !roots
+                .iter()
+                .any(|q| (q - c).norm() <= 1e-9 * c.norm().max(1e-300))
+        })
+        .collect();
+    roots.extend(conj);
+    if roots.len() != n_states {
+        return Err(Error::Numerical(format!(
+            "found {} of the {n_states} poles of the approximated model (repeated or clustered \
+             poles?)",
+            roots.len()
+        )));
+    }
+    Ok(roots)
+}
+
+/// The pole-residue form of `sum b_i s^beta_i / sum a_j s^alpha_j` with every operator approximated
+/// as `spec` says over `band` (rad/s).
+///
+/// ```
+/// use fracsim::{modal::pole_residue, ApproxSpec};
+/// // 1/(0.1 s + 1): one real pole at -10 with residue 10.
+/// let pr = pole_residue::<f64>(&[(1.0, 0.0)], &[(0.1, 1.0), (1.0, 0.0)], (1e-3, 1e4),
+///                              &ApproxSpec::default()).unwrap();
+/// assert_eq!(pr.real.len(), 1);
+/// assert!((pr.real[0].0 + 10.0).abs() < 1e-12 && (pr.real[0].1 - 10.0).abs() < 1e-12);
+/// ```
+///
+/// # Errors
+/// Non-finite terms, an all-zero denominator, an improper model (a numerator integer part above
+/// the denominator's), a denominator that vanishes at high frequency, more than one free
+/// integrator, repeated poles, or an expansion that fails its check.
+pub fn pole_residue<T: Real>(
+    num: &[(T, T)],
+    den: &[(T, T)],
+    band: (f64, f64),
+    spec: &ApproxSpec,
+) -> Result<PoleResidue<T>> {
+    let approx = |terms: &[(T, T)], what: &'static str| -> Result<Vec<(T, Rational<T>)>> {
+        terms
+            .iter()
+            .filter(|(c, _)| c.re() != 0.0)
+            .map(|&(c, o)| {
+                finite(what, c.re())?;
+                finite("order", o.re())?;
+                Ok((c, operator(o, band, spec)?))
+            })
+            .collect()
+    };
+    let den_ops = approx(den, "denominator coefficient")?;
+    let num_ops = approx(num, "numerator coefficient")?;
+    let Some(n_max) = den_ops.iter().map(|(_, r)| r.int_order).max() else {
+        return Err(Error::ZeroDenominator);
+    };
+    if let Some(n) = num_ops.iter().map(|(_, r)| r.int_order).max() {
+        if n > n_max {
+            return invalid(
+                "model",
+                "improper: the numerator's order exceeds the denominator's by an integer \
+                 or more (it differentiates the input)",
+            );
+        }
+    }
+    let hg = groups(&den_ops, n_max);
+    let ng = groups(&num_ops, n_max);
+    let d = hg.iter().fold(T::from(0.0), |acc, g| acc + g.coef[0]);
+    let scale: f64 = den_ops
+        .iter()
+        .map(|(c, r)| (c.re() * r.gain.re()).abs())
+        .sum();
+    if !(d.re().abs() > 1e-13 * scale) {
+        return invalid(
+            "model",
+            "the denominator's highest-order terms cancel: the model is improper",
+        );
+    }
+    let values = |gs: &[Group<T>]| -> Vec<Group<f64>> {
+        gs.iter()
+            .map(|g| Group {
+                zeros: g.zeros.iter().map(|v| v.re()).collect(),
+                poles: g.poles.iter().map(|v| v.re()).collect(),
+                coef: g.coef.iter().map(|v| v.re()).collect(),
+            })
+            .collect()
+    };
+    let hg64 = values(&hg);
+    let roots = roots_of_h(&hg64, d.re())?;
+    let mut out = PoleResidue {
+        real: vec![],
+        complex: vec![],
+        direct: T::from(0.0),
+    };
+    for &r in roots.iter().filter(|r| r.im >= 0.0) {
+        // One Newton step in the scalar type: exact derivatives of the root.
+        let s0 = Cx::<T>::cst(r);
+        let (h, dh) = eval_sum(&hg, s0);
+        let lam = s0 - h / dh;
+        let (_, dh) = eval_sum(&hg, lam);
+        let (nv, _) = eval_sum(&ng, lam);
+        let res = nv / dh;
+        if r.im == 0.0 {
+            out.real.push((lam.re, res.re));
+        } else {
+            out.complex.push((lam, res));
+        }
+    }
+    numerator_poles(&mut out, &hg, &ng)?;
+    let n_inf = ng.iter().fold(T::from(0.0), |acc, g| acc + g.coef[0]);
+    out.direct = n_inf / d;
+    check(&out, &hg64, &values(&ng), band)?;
+    Ok(out)
+}
+
+/// The poles of `N_H` that `H` does not cancel: a free integrator at `s = 0`, and the cells of
+/// numerator groups that are not denominator cells.
+fn numerator_poles<T: Real>(
+    out: &mut PoleResidue<T>,
+    hg: &[Group<T>],
+    ng: &[Group<T>],
+) -> Result<()> {
+    // Pole order at 0: N_H has coef up to k_n, H up to k_h.
+    let order = |gs: &[Group<T>]| -> usize {
+        gs.iter()
+            .filter_map(|g| {
+                g.coef
+                    .iter()
+                    .rposition(|c| c.re() != 0.0)
+                    .filter(|_| g.cells_at_zero().re() != 0.0)
+            })
+            .max()
+            .unwrap_or(0)
+    };
+    let (k_n, k_h) = (order(ng), order(hg));
+    if k_n > k_h + 1 {
+        return invalid(
+            "model",
+            format!(
+                "{} integrators: at most one free integrator is supported",
+                k_n - k_h
+            ),
+        );
+    }
+    if k_n == k_h + 1 {
+        let lead = |gs: &[Group<T>], k: usize| {
+            gs.iter()
+                .filter(|g| g.coef.len() > k)
+                .fold(T::from(0.0), |acc, g| acc + g.coef[k] * g.cells_at_zero())
+        };
+        let r = lead(ng, k_n) / lead(hg, k_h);
+        out.real.push((T::from(0.0), r));
+    }
+    for g in ng {
+        if g.zeros.is_empty() || hg.iter().any(|h| h.same_as(g)) {
+            continue;
+        }
+        for i in 0..g.poles.len() {
+            let s = Cx::real(-g.poles[i]);
+            let x = s.recip();
+            let mut p = Cx::real(T::from(0.0));
+            for &c in g.coef.iter().rev() {
+                p = p * x + Cx::real(c);
+            }
+            let (h, _) = eval_sum(hg, s);
+            let r = p.scale(g.cell_residue(i)) / h;
+            out.real.push((-g.poles[i], r.re));
+        }
+    }
+    Ok(())
+}
+
+/// Compare the expansion with the factored model at test frequencies across the band.
+fn check<T: Real>(
+    pr: &PoleResidue<T>,
+    hg: &[Group<f64>],
+    ng: &[Group<f64>],
+    band: (f64, f64),
+) -> Result<()> {
+    let (w_b, w_h) = band;
+    for i in 0..7 {
+        let w = w_b * (w_h / w_b).powf((i as f64 + 0.5) / 7.0);
+        let s = Cx::<f64>::cst(Complex64::new(0.0, w));
+        let want = (eval_sum(ng, s).0 / eval_sum(hg, s).0).val();
+        let got = pr.freq_response(w);
+        if !((got - want).norm() <= 1e-6 * want.norm() + 1e-12 * pr.direct.re().abs()) {
+            return Err(Error::Numerical(format!(
+                "the modal form of the approximated model is off by {:.2e} (relative) at \
+                 {w:.3e} rad/s",
+                (got - want).norm() / want.norm()
+            )));
+        }
+    }
+    Ok(())
+}
