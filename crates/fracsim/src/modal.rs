@@ -187,6 +187,89 @@ fn groups<T: Real>(terms: &[(T, Rational<T>)], n_max: i32) -> Vec<Group<T>> {
     out
 }
 
+/// The zeros of `H` (values) from its partial fractions
+/// `H(s) = d + sum_k h_k/(s + p_k) + e_1/s + e_2/s^2`: the closed realisation `A - B C/d` is
+/// diagonal plus rank one (with a Jordan block at 0), whose eigenvalues are well conditioned even
+/// where they crowd the cell poles. `None` when the partial fractions do not apply (more than two
+/// powers of `1/s`, repeated cell poles).
+fn zeros_of_h_modal(groups: &[Group<f64>], d: f64) -> Option<Vec<Complex64>> {
+    let k_max = groups.iter().map(|g| g.coef.len()).max().unwrap_or(1) - 1;
+    if k_max > 2 {
+        return None;
+    }
+    let mut poles = vec![];
+    let mut h = vec![];
+    let (mut e1, mut e2) = (0.0, 0.0);
+    for g in groups {
+        for k in 0..g.poles.len() {
+            let x = -1.0 / g.poles[k];
+            let pv = g.coef.iter().rev().fold(0.0, |acc, &c| acc * x + c);
+            poles.push(-g.poles[k]);
+            h.push(pv * g.cell_residue(k));
+        }
+        let c0 = g.cells_at_zero();
+        // d/ds prod (s+z)/(s+p) at 0 = sum_k (p_k - z_k)/p_k^2 prod_(l != k) z_l/p_l
+        let dc0: f64 = (0..g.poles.len())
+            .map(|k| {
+                let mut t = (g.poles[k] - g.zeros[k]) / (g.poles[k] * g.poles[k]);
+                for l in (0..g.poles.len()).filter(|&l| l != k) {
+                    t *= g.zeros[l] / g.poles[l];
+                }
+                t
+            })
+            .sum();
+        let c = |k: usize| g.coef.get(k).copied().unwrap_or(0.0);
+        e1 += c(1) * c0 + c(2) * dc0;
+        e2 += c(2) * c0;
+    }
+    if h.iter().any(|v| !v.is_finite()) {
+        return None;
+    }
+    let n = poles.len() + k_max;
+    let mut a = DMatrix::<f64>::zeros(n, n);
+    let mut b = DVector::<f64>::zeros(n);
+    let mut c = DVector::<f64>::zeros(n);
+    for (i, (&p, &hk)) in poles.iter().zip(&h).enumerate() {
+        a[(i, i)] = p;
+        b[i] = 1.0;
+        c[i] = hk;
+    }
+    let m = poles.len();
+    match k_max {
+        1 => {
+            b[m] = 1.0;
+            c[m] = e1;
+        }
+        2 => {
+            // xi1' = xi2, xi2' = y: xi1 = y/s^2, xi2 = y/s
+            a[(m, m + 1)] = 1.0;
+            b[m + 1] = 1.0;
+            c[m] = e2;
+            c[m + 1] = e1;
+        }
+        _ => {}
+    }
+    eigenvalues(a - (&b * c.transpose()) / d).ok()
+}
+
+/// The eigenvalues of `m` after balancing (real Schur form).
+fn eigenvalues(mut m: DMatrix<f64>) -> Result<Vec<Complex64>> {
+    if m.nrows() == 0 {
+        return Ok(vec![]);
+    }
+    if m.iter().any(|v| !v.is_finite()) {
+        return Err(Error::Numerical(
+            "the approximated model's state space is not finite".into(),
+        ));
+    }
+    let n = m.nrows();
+    nalgebra::linalg::balancing::balance_parlett_reinsch(&mut m);
+    let schur = nalgebra::Schur::try_new(m, f64::EPSILON, 100 * n).ok_or_else(|| {
+        Error::Numerical("the eigenvalues of the approximated model did not converge".into())
+    })?;
+    Ok(schur.complex_eigenvalues().iter().copied().collect())
+}
+
 /// The zeros of `H` (values): eigenvalues of the closed realisation `A - B C/d`.
 fn zeros_of_h(groups: &[Group<f64>], d: f64) -> Result<Vec<Complex64>> {
     let k_max = groups.iter().map(|g| g.coef.len()).max().unwrap_or(1) - 1;
@@ -232,25 +315,16 @@ fn zeros_of_h(groups: &[Group<f64>], d: f64) -> Result<Vec<Complex64>> {
     if k_max >= 1 {
         c[n_cells] = 1.0;
     }
-    let mut acl = a - (&b * c.transpose()) / d;
-    if acl.iter().any(|v| !v.is_finite()) {
-        return Err(Error::Numerical(
-            "the approximated model's state space is not finite".into(),
-        ));
-    }
-    nalgebra::linalg::balancing::balance_parlett_reinsch(&mut acl);
-    let schur = nalgebra::Schur::try_new(acl, f64::EPSILON, 100 * n).ok_or_else(|| {
-        Error::Numerical("the eigenvalues of the approximated model did not converge".into())
-    })?;
-    Ok(schur.complex_eigenvalues().iter().copied().collect())
+    eigenvalues(a - (&b * c.transpose()) / d)
 }
 
-/// Newton's method for a zero of `H` from `s0` (values only); `None` if it does not converge.
+/// Newton's method for a zero of `H` from `s0` (values only), deflated by the roots `found`
+/// already (Maehly); `None` if it does not converge.
 ///
 /// The iteration runs on `F(s) = H(s) prod_k (s + p_k) c_k` over every cell of the denominator
 /// (`c_k = 1/(|s0| + p_k)`, a constant scale), which has the zeros of `H` but not its poles: the slow
 /// zeros sit a hair away from cell poles, where Newton on `H` itself jumps across the pole.
-fn polish(groups: &[Group<f64>], s0: Complex64) -> Option<Complex64> {
+fn polish(groups: &[Group<f64>], s0: Complex64, found: &[Complex64]) -> Option<Complex64> {
     let one = Cx::<f64>::real(1.0);
     let scale = |p: f64| 1.0 / (s0.norm() + p);
     let mut s = Cx::<f64>::cst(s0);
@@ -280,9 +354,13 @@ fn polish(groups: &[Group<f64>], s0: Complex64) -> Option<Complex64> {
         }
         (f, df)
     };
-    for _ in 0..40 {
+    for _ in 0..60 {
         let (f, df) = f_and_df(s);
-        let step = f / df;
+        // Maehly's deflation: the roots found already repel the iteration.
+        let sv = s.val();
+        let defl: Complex64 = found.iter().map(|r| 1.0 / (sv - r)).sum();
+        let q = (f / df).val();
+        let step = Cx::<f64>::cst(q / (1.0 - q * defl));
         if !(step.re.is_finite() && step.im.is_finite()) {
             return None;
         }
@@ -303,7 +381,10 @@ fn polish(groups: &[Group<f64>], s0: Complex64) -> Option<Complex64> {
 fn roots_of_h(groups: &[Group<f64>], d: f64) -> Result<Vec<Complex64>> {
     let k_max = groups.iter().map(|g| g.coef.len()).max().unwrap_or(1) - 1;
     let n_states: usize = groups.iter().map(|g| g.zeros.len()).sum::<usize>() + k_max;
-    let mut starts = zeros_of_h(groups, d)?;
+    let mut starts = match zeros_of_h_modal(groups, d) {
+        Some(z) => z,
+        None => zeros_of_h(groups, d)?,
+    };
     for g in groups {
         // A hair off the pole: `F` is smooth there, but its log-derivative is not at the pole.
         starts.extend(
@@ -314,29 +395,32 @@ fn roots_of_h(groups: &[Group<f64>], d: f64) -> Result<Vec<Complex64>> {
     }
     let mut roots: Vec<Complex64> = vec![];
     for &e in &starts {
-        let Some(mut r) = polish(groups, e) else {
+        if roots.len() >= n_states {
+            break;
+        }
+        let tol = |r: Complex64| 1e-9 * r.norm().max(1e-300);
+        let is_new =
+            |r: Complex64, roots: &[Complex64]| !roots.iter().any(|q| (q - r).norm() <= tol(r));
+        // Plain Newton first; from a start that leads to a known root, Newton deflated by the
+        // known roots, then plain Newton again from there for full accuracy.
+        let r = match polish(groups, e, &[]) {
+            Some(r) if is_new(r, &roots) => Some(r),
+            _ => polish(groups, e, &roots)
+                .and_then(|r| polish(groups, r, &[]))
+                .filter(|&r| is_new(r, &roots)),
+        };
+        let Some(mut r) = r else {
             continue;
         };
         if r.im.abs() <= 1e-12 * r.norm() {
             r.im = 0.0;
         }
-        let tol = 1e-9 * r.norm().max(1e-300);
-        if !roots.iter().any(|q| (q - r).norm() <= tol) {
-            roots.push(r);
+        roots.push(r);
+        // A complex root's conjugate is a root too.
+        if r.im != 0.0 {
+            roots.push(r.conj());
         }
     }
-    // A complex root's conjugate is a root too.
-    let conj: Vec<Complex64> = roots
-        .iter()
-        .filter(|r| r.im != 0.0)
-        .map(|r| r.conj())
-        .filter(|c| {
-            !roots
-                .iter()
-                .any(|q| (q - c).norm() <= 1e-9 * c.norm().max(1e-300))
-        })
-        .collect();
-    roots.extend(conj);
     if roots.len() != n_states {
         return Err(Error::Numerical(format!(
             "found {} of the {n_states} poles of the approximated model (repeated or clustered \
