@@ -1,5 +1,6 @@
 //! Time-domain identification tests (output error, `ident::oe`, `ident::data`, `ident::metrics`).
 
 mod bad_input;
+mod held;
 mod roundtrip;
 mod sensitivity;
