@@ -67,3 +67,16 @@ pub fn write_csv(mut w: impl Write, points: &[BodePoint], comment: &str) -> std:
     }
     Ok(())
 }
+
+/// The comment line that states the convention of a table measured through the drive's sampled,
+/// held loop: the ratio of the DFTs of the sampled output and the held input is the discrete
+/// response `G_d(e^(j w T))`, which for a continuous plant `G` is `G(j w) (1 - e^(-j w T))/(j w T)`
+/// (the zero-order hold: half a sample of delay and a sinc droop) plus aliases of `G` around
+/// multiples of the sampling frequency. `fracid freq` reads this line and divides the hold out.
+///
+/// ```
+/// assert_eq!(drive::bode::hold_line(1e-3), "hold: zero-order, sample period 0.001 s");
+/// ```
+pub fn hold_line(sample_period_s: f64) -> String {
+    format!("hold: zero-order, sample period {sample_period_s} s")
+}

@@ -12,6 +12,7 @@
 pub mod data;
 pub mod diagnose;
 mod error;
+pub mod hold;
 pub mod levy;
 pub mod lm;
 pub mod metrics;

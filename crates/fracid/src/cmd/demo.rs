@@ -196,7 +196,11 @@ pub fn run(a: DemoArgs) -> Result<()> {
     let bode_path = dir.join("bode.csv");
     let bode_file = std::fs::File::create(&bode_path)
         .with_context(|| format!("cannot create {}", bode_path.display()))?;
-    drive::bode::write_csv(bode_file, &points, "fracid demo sine sweep")?;
+    let comment = format!(
+        "fracid demo sine sweep\n{}",
+        drive::bode::hold_line(1.0 / f64::from(a.sample_rate_hz))
+    );
+    drive::bode::write_csv(bode_file, &points, &comment)?;
     step(&format!(
         "Bode table: {} points -> {}",
         points.len(),

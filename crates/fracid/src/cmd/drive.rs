@@ -487,6 +487,10 @@ fn sine(a: SineArgs) -> Result<()> {
         "fracid drive sine sweep: {} V around {} V, {} cycles, {} Hz sampling; gain (rad/s)/V",
         a.amplitude, a.offset, a.cycles, conf.sample_rate_hz
     );
+    comment += &format!(
+        "\n{}",
+        drive::bode::hold_line(1.0 / f64::from(conf.sample_rate_hz))
+    );
     for p in &problems {
         comment += &format!("\nproblem: {p}");
     }

@@ -71,6 +71,13 @@ pub struct FreqArgs {
     /// with what pays.
     #[arg(long)]
     pub diagnose: bool,
+    /// The table was measured through a sampled loop with a zero-order hold of this period
+    /// (seconds): the hold `(1 - e^(-j w T))/(j w T)` (half a sample of delay, a sinc droop) is
+    /// divided out before the fit, so a fitted delay is the plant's. `auto` (default): the period
+    /// stated by a `# hold: zero-order, sample period T s` comment (as `fracid drive sine` writes),
+    /// else none; `none`: the table is the plant's continuous response.
+    #[arg(long, default_value = "auto", value_name = "SECONDS|auto|none")]
+    pub hold: String,
     /// Print JSON (DESIGN section 7) instead of the table.
     #[arg(long)]
     pub json: bool,
@@ -335,8 +342,23 @@ pub fn run(a: FreqArgs) -> Result<()> {
             }
         }
     };
-    let data = parse_bode(&text, cols3, units, weight_column.as_deref())
+    let mut data = parse_bode(&text, cols3, units, weight_column.as_deref())
         .with_context(|| format!("in {}", a.file.display()))?;
+    let hold = match a.hold.trim().to_ascii_lowercase().as_str() {
+        "auto" => ident::hold::sample_period_from_comments(&text),
+        "none" => None,
+        v => match v.parse::<f64>() {
+            Ok(t) if t.is_finite() && t > 0.0 => Some(t),
+            _ => bad_input!("--hold wants a sample period in seconds, auto or none, got '{v}'"),
+        },
+    };
+    if let Some(t) = hold {
+        ident::hold::divide_hold(&data.omega_rad_s, &mut data.h, t)
+            .with_context(|| format!("in {}", a.file.display()))?;
+        if !a.json {
+            println!("hold: the zero-order hold of a {t} s sampled loop divided out of the table");
+        }
+    }
     let weights = match (weights, &data.weights) {
         (Some(w), _) => w,
         (None, Some(w)) => Weights::PerPoint(w.clone()),
@@ -384,6 +406,7 @@ pub fn run(a: FreqArgs) -> Result<()> {
     };
     if a.json {
         let mut v = to_json(&fit, &compare, &data, &weight_label);
+        v["hold_s"] = json!(hold);
         if let Some(d) = &diagnosis {
             v["diagnosis"] = serde_json::to_value(d)?;
             v["diagnosis"]["model"] = model_json(&d.model);
