@@ -1,6 +1,8 @@
 //! Simulation throughput of the PMSM model `6.82/(2.655e-5 s^1.7452 + 0.0059 s^0.92 + 1)`
-//! (recursive discrete filters, default `ApproxSpec`: Oustaloup N = 8, bilinear), against the
-//! number of samples and against the approximation order N; Grunwald-Letnikov for reference.
+//! (default `ApproxSpec`: refined Oustaloup, N = 8, the whole model discretised exactly for the held
+//! input and run in modal form), against the number of samples and against the approximation order
+//! N; the cost of building the modal form (poles, residues, discretisation), which every
+//! output-error evaluation pays once; Grunwald-Letnikov for reference.
 //!
 //! `cargo bench -p fracid-benches --bench sim`
 
@@ -43,6 +45,21 @@ fn dual5(b: Bencher<'_, '_>) {
         let mut sim = Simulator::<Dual<5>>::new(&g, DT, &spec).unwrap();
         black_box(sim.simulate(black_box(&u)))
     });
+}
+
+/// Building the simulator: the approximated model's poles and residues and their exact
+/// discretisation, in `f64` and with 5 dual parts (one output-error Jacobian's worth).
+#[divan::bench(sample_count = 20, sample_size = 1)]
+fn build(b: Bencher<'_, '_>) {
+    let g = pmsm();
+    b.bench(|| Simulator::<f64>::new(black_box(&g), DT, &ApproxSpec::default()).unwrap());
+}
+
+/// As [`build`], with 5 dual parts.
+#[divan::bench(sample_count = 20, sample_size = 1)]
+fn build_dual5(b: Bencher<'_, '_>) {
+    let g = pmsm();
+    b.bench(|| Simulator::<Dual<5>>::new(black_box(&g), DT, &ApproxSpec::default()).unwrap());
 }
 
 /// Grunwald-Letnikov (the O(n^2) reference), 10k samples.

@@ -159,7 +159,11 @@ impl<T: Real> Div for Cx<T> {
     type Output = Self;
     #[inline]
     fn div(self, o: Self) -> Self {
-        self * o.recip()
+        let d = o.norm_sqr();
+        Self {
+            re: (self.re * o.re + self.im * o.im) / d,
+            im: (self.im * o.re - self.re * o.im) / d,
+        }
     }
 }
 
