@@ -452,28 +452,13 @@ pub struct Identification {
 /// (estimation first, validation last), make a start from the data (or take the given one), fit
 /// by output error ([`fit`]), simulate the whole record and score both parts.
 ///
-/// The approximation is the model's [`fracsim::ApproxSpec`]; without a band, fracsim's default
-/// `[1e-3, 30 pi/dt]` rad/s (with `N = 8`, plain bilinear cells and the half-step hold
-/// compensation). It was chosen over the band `[2 pi/(10 T), 2 pi/dt]` used before by the
-/// round trip of the paper's model (PRBS order 7, 3 ms clock, 4 periods, 1% noise, poor start),
-/// parameter errors (K, a1, a2 relative; zeta, theta absolute) and validation fit, `N = 8` for
-/// both:
-///
-/// | truth | band | K | a1 | a2 | zeta | theta | val |
-/// |---|---|---|---|---|---|---|---|
-/// | exact held-input response, dt 0.2 ms | fracsim | -0.04% | -2.1% | -6.7% | +0.005 | +0.003 | 98.98% |
-/// | | old | +0.05% | -6.0% | -24.3% | +0.016 | +0.024 | 98.95% |
-/// | exact held-input response, dt 0.1 ms | fracsim | -0.01% | -0.4% | -1.7% | +0.001 | +0.001 | 99.00% |
-/// | | old | +0.17% | -2.0% | -10.7% | +0.006 | +0.011 | 98.99% |
-/// | Grunwald-Letnikov at dt/10, dt 0.2 ms | fracsim | -0.01% | -0.6% | -0.2% | +0.002 | -0.002 | 98.98% |
-/// | | old | +0.09% | -4.5% | -18.9% | +0.013 | +0.018 | 98.96% |
-/// | Grunwald-Letnikov at dt/20, dt 0.2 ms | fracsim | -0.04% | -1.4% | -3.5% | +0.003 | +0.001 | 98.98% |
-/// | | old | +0.07% | -5.3% | -21.6% | +0.015 | +0.021 | 98.96% |
-///
-/// ("exact held-input response": the periodic steady state of the continuous model with the
-/// input held over each step, computed in the frequency domain with 600 aliases.) The old band
-/// had looked better (a2 -1.3% against +22%) only on Grunwald-Letnikov data whose input led the
-/// held-input convention by one fine step, an error its phase lead happened to cancel.
+/// The approximation is the model's [`fracsim::ApproxSpec`] (default: refined Oustaloup, `N = 8`,
+/// band `[1e-3, 30 pi/dt]` rad/s), and the approximated model is simulated exactly for the held
+/// input ([`fracsim::Simulator`]), so the fit sees only the approximation's error, not a
+/// discretisation's. On the paper's PMSM with a held PRBS at 0.5 ms and noise sigma = 0.1 (an
+/// independent Grunwald-Letnikov truth, `tests/time/held.rs`) the fit reaches the noise floor
+/// (validation RMSE 0.1001 against the noise's 0.0996 there) with every parameter within 1.4
+/// standard errors of the truth.
 ///
 /// # Errors
 /// [`Error::NotEnoughData`] for no excitation or fewer than `max(20, 10 n_free)` estimation

@@ -23,9 +23,9 @@ use crate::{Error, Result};
 use num_complex::Complex64;
 use std::f64::consts::PI;
 
-/// Only frequencies up to this fraction of the Nyquist frequency are used: above it aliasing and
-/// the discretisation of the simulator (bilinear cells) make the sampled response depart from the
-/// continuous model by more than the noise of a typical record.
+/// Only frequencies up to this fraction of the Nyquist frequency are used: above it aliasing makes
+/// the sampled response depart from the continuous model (with the hold divided out) by more than
+/// the noise of a typical record.
 const MAX_FRACTION_OF_NYQUIST: f64 = 0.25;
 
 /// Harmonics whose input amplitude is below this fraction of the largest one are left out: a
@@ -203,10 +203,9 @@ pub fn periodic_frf(u: &[f64], y: &[f64], dt: f64) -> Result<Frf> {
         if noisy && h.y.norm_sqr() < MIN_SNR * var {
             continue;
         }
-        let wd = 2.0 * PI * h.k as f64 / p as f64;
-        let hold = Complex64::from_polar((wd / 2.0).sin() / (wd / 2.0), -wd / 2.0);
-        out.omega.push(wd / dt);
-        out.h.push(h.y / h.u / hold);
+        let w = 2.0 * PI * h.k as f64 / p as f64 / dt;
+        out.omega.push(w);
+        out.h.push(h.y / h.u / crate::hold::zoh(w, dt));
         // Inverse variance of Y/U; without a noise estimate, white output noise is assumed.
         out.weight.push(if noisy {
             h.u.norm_sqr() / var.max(f64::MIN_POSITIVE)
