@@ -385,17 +385,31 @@ fn roots_of_h(groups: &[Group<f64>], d: f64) -> Result<Vec<Complex64>> {
         Some(z) => z,
         None => zeros_of_h(groups, d)?,
     };
-    let mut starts = eig.clone();
-    for g in groups {
-        // A hair off the pole: `F` is smooth there, but its log-derivative is not at the pole.
-        starts.extend(
-            g.poles
-                .iter()
-                .map(|&p| Complex64::new(-p * (1.0 + 1e-10), 0.0)),
-        );
-    }
+    // Starts in rounds, used only while roots are missing: the eigenvalues; a hair off every
+    // cell pole (`F` is smooth there, its log-derivative is not at the pole); the cell zeros (where
+    // a pole and a zero nearly cancel, an order close to an integer, a root can hide between them).
+    let rounds: [Vec<Complex64>; 3] = [
+        // one of each conjugate pair: the other is added with its root
+        eig.iter().copied().filter(|e| e.im >= 0.0).collect(),
+        groups
+            .iter()
+            .flat_map(|g| {
+                g.poles
+                    .iter()
+                    .map(|&p| Complex64::new(-p * (1.0 + 1e-10), 0.0))
+            })
+            .collect(),
+        groups
+            .iter()
+            .flat_map(|g| {
+                g.zeros
+                    .iter()
+                    .map(|&z| Complex64::new(-z * (1.0 + 1e-10), 0.0))
+            })
+            .collect(),
+    ];
     let mut roots: Vec<Complex64> = vec![];
-    for &e in &starts {
+    for &e in rounds.iter().flatten() {
         if roots.len() >= n_states {
             break;
         }

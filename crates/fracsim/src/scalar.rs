@@ -48,6 +48,12 @@ pub trait Real:
     }
     /// `self^e` for a constant exponent.
     fn powf(self, e: f64) -> Self;
+    /// Run a simulator over a block of samples ([`crate::Simulator::run_into`]); `f64` uses a
+    /// kernel compiled for the CPU's vector instructions.
+    #[doc(hidden)]
+    fn run_simulator(sim: &mut crate::Simulator<Self>, u: &[f64], y: &mut [Self]) {
+        sim.run_generic(u, y);
+    }
     /// Absolute value.
     fn abs(self) -> Self {
         if self.re() < 0.0 {
@@ -82,6 +88,9 @@ impl Real for f64 {
     #[inline]
     fn sin_cos(self) -> (Self, Self) {
         f64::sin_cos(self)
+    }
+    fn run_simulator(sim: &mut crate::Simulator<Self>, u: &[f64], y: &mut [Self]) {
+        crate::discrete::run_f64(sim, u, y);
     }
     #[inline]
     fn powr(self, e: Self) -> Self {

@@ -464,24 +464,23 @@ impl Structure for FracModel {
             &self.approx,
         )?;
         let (u0, y0) = (self.operating_point.u0, self.operating_point.y0);
-        let plain = self.effects.is_empty();
-        let mut y_prev = T::from(y0);
-        for (k, (yk, &uk)) in y.iter_mut().zip(u).enumerate() {
-            if plain {
-                *yk = sim.step(T::from(uk));
-                continue;
+        if self.effects.is_empty() {
+            sim.run_into(u, y);
+        } else {
+            let mut y_prev = T::from(y0);
+            for (k, (yk, &uk)) in y.iter_mut().zip(u).enumerate() {
+                let t = k as f64 * dt;
+                let mut ua = T::from(u0 + uk);
+                for e in &self.effects {
+                    ua = e.input(p, ua, y_prev, t);
+                }
+                let mut ya = sim.step(ua - u0) + y0;
+                for e in &self.effects {
+                    ya = e.output(p, ya, t);
+                }
+                y_prev = ya;
+                *yk = ya - y0;
             }
-            let t = k as f64 * dt;
-            let mut ua = T::from(u0 + uk);
-            for e in &self.effects {
-                ua = e.input(p, ua, y_prev, t);
-            }
-            let mut ya = sim.step(ua - u0) + y0;
-            for e in &self.effects {
-                ya = e.output(p, ya, t);
-            }
-            y_prev = ya;
-            *yk = ya - y0;
         }
         if let Some(k) = y.iter().position(|v| !v.re().is_finite()) {
             return Err(Error::Numerical(format!(
