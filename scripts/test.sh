@@ -4,6 +4,9 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
+echo "== firmware (C): unit tests and shared vectors, 8-bit and 16-bit octets, ASan/UBSan"
+bash firmware/test.sh
+
 echo "== cargo test (workspace)"
 cargo test --no-fail-fast   # the default members: every crate but the pyo3 extension
 
