@@ -10,6 +10,9 @@ bash firmware/test.sh
 echo "== cargo test (workspace)"
 cargo test --no-fail-fast   # the default members: every crate but the pyo3 extension
 
+echo "== drive end-to-end tests again, against the C firmware (firmware/) behind the pty"
+FRACID_SIM_FIRMWARE=c cargo test -p drive --test integration e2e
+
 if [ -f python/pyproject.toml ] && [ -x python/ci.sh ]; then
     echo "== python: build the wheel, install it in a fresh venv, pytest"
     bash python/ci.sh

@@ -259,6 +259,12 @@ void fw_get_counters(const fw_t *fw, fw_counters *out);
 /** Frames discarded since boot (saturating), as STATUS_REPLY reports. */
 uint16_t fw_rx_errors(const fw_t *fw);
 
+/** The active configuration (all zero when unconfigured). */
+void fw_get_config(const fw_t *fw, fw_config *out);
+
+/** Id of the current run, or of the last one (0: none since boot). */
+uint16_t fw_run_id(const fw_t *fw);
+
 /** Number of bytes (host octets) of fw_t, for a host that allocates it opaquely. */
 uint32_t fw_sizeof(void);
 

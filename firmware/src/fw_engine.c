@@ -50,6 +50,10 @@ void fw_get_counters(const fw_t *fw, fw_counters *out) { *out = fw->cnt; }
 
 uint16_t fw_rx_errors(const fw_t *fw) { return fw->rx_errors; }
 
+void fw_get_config(const fw_t *fw, fw_config *out) { *out = fw->conf; }
+
+uint16_t fw_run_id(const fw_t *fw) { return fw->running ? fw->run_id : (fw->last_valid ? fw->last_id : 0u); }
+
 int fw_running(const fw_t *fw) { return fw->running != 0u; }
 
 uint32_t fw_sample_rate(const fw_t *fw) { return fw->configured ? fw->conf.sample_rate_hz : 0ul; }
