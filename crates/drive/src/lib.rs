@@ -1,6 +1,7 @@
 #![doc = include_str!("../PROTOCOL.md")]
 
 pub mod bode;
+pub mod cfw;
 pub mod client;
 pub mod codec;
 mod error;

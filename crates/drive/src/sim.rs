@@ -101,9 +101,34 @@ pub struct Faults {
     pub seed: u64,
 }
 
+/// Which firmware runs behind the pty.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum FirmwareKind {
+    /// The simulator's own Rust implementation of the protocol.
+    #[default]
+    Rust,
+    /// The C firmware of `firmware/` (fracfw, as flashed on the F2812), linked in through
+    /// [`crate::cfw`]: protocol, experiments, streaming, keepalive and trips are the C code's;
+    /// motor, hidden effects, line model and fault injection stay the simulator's.
+    C,
+}
+
+impl FirmwareKind {
+    /// `FRACID_SIM_FIRMWARE`: `c` (or `C`) selects [`FirmwareKind::C`]; anything else, or unset,
+    /// [`FirmwareKind::Rust`].
+    pub fn from_env() -> Self {
+        match std::env::var("FRACID_SIM_FIRMWARE") {
+            Ok(v) if v.eq_ignore_ascii_case("c") => FirmwareKind::C,
+            _ => FirmwareKind::Rust,
+        }
+    }
+}
+
 /// Simulator configuration.
 #[derive(Debug, Clone)]
 pub struct SimConfig {
+    /// The firmware behind the line.
+    pub firmware: FirmwareKind,
     /// Motor model, voltage (V) to speed (rad/s).
     pub model: fracsim::FracTf,
     /// Approximation used to simulate it.
@@ -127,8 +152,13 @@ pub struct SimConfig {
 }
 
 impl Default for SimConfig {
+    /// The paper's motor, 115200 baud, no effects, no faults. The firmware is the Rust one unless
+    /// the environment variable `FRACID_SIM_FIRMWARE` is `c` ([`FirmwareKind::from_env`]), which
+    /// runs every simulator built from defaults (tests, `fracid drive sim`, the demo, the
+    /// Python package's) on the C firmware.
     fn default() -> Self {
         Self {
+            firmware: FirmwareKind::from_env(),
             model: fracsim::FracTf::pmsm(6.82, 0.0059, 2.655e-5, 0.92, 0.8252)
                 .expect("the paper's model is valid"),
             approx: fracsim::ApproxSpec::default(),
@@ -439,6 +469,19 @@ struct Firmware {
     reopen_at: Option<Instant>,
     boot_until: Option<Instant>,
     fired: [bool; 3],
+    /// The C firmware, when [`FirmwareKind::C`].
+    c: Option<CState>,
+}
+
+/// The C engine and what the simulator tracks around it.
+struct CState {
+    eng: crate::cfw::CEngine,
+    /// Wall-clock start of the current run and the samples produced in it.
+    start: Instant,
+    ticks: u64,
+    /// Counters already added to [`SimStats`].
+    seen: crate::cfw::CCounters,
+    seen_rx_errors: u16,
 }
 
 const FW_MAJOR: u8 = 1;
@@ -449,7 +492,14 @@ impl Firmware {
         let mut rng = StdRng::seed_from_u64(cfg.faults.seed);
         let boot_id = rng.gen();
         let now = Instant::now();
-        Ok(Self {
+        let c = (cfg.firmware == FirmwareKind::C).then(|| CState {
+            eng: crate::cfw::CEngine::new(boot_id, cfg.max_sample_rate_hz),
+            start: now,
+            ticks: 0,
+            seen: Default::default(),
+            seen_rx_errors: 0,
+        });
+        let fw = Self {
             cfg,
             master: Some(master),
             stats,
@@ -484,7 +534,9 @@ impl Firmware {
             reopen_at: None,
             boot_until: None,
             fired: [false; 3],
-        })
+            c: None,
+        };
+        Ok(Self { c, ..fw })
     }
 
     fn event(&self, s: String) {
@@ -620,6 +672,9 @@ impl Firmware {
     fn service_fifo(&mut self, now: Instant) {
         if self.rx_fifo.is_empty() {
             return;
+        }
+        if self.c.is_some() {
+            return self.c_service_fifo(now);
         }
         let bytes: Vec<u8> = self.rx_fifo.drain(..).collect();
         let before = self.dec.stats().errors;
@@ -977,6 +1032,9 @@ impl Firmware {
 
     /// Produce the samples due by now.
     fn control(&mut self, now: Instant) {
+        if self.c.is_some() {
+            return self.c_control(now);
+        }
         let Some(conf) = self.conf else { return };
         let Some(mut r) = self.run.take() else { return };
         let fs = conf.sample_rate_hz as f64;
@@ -1040,7 +1098,9 @@ impl Firmware {
                             ..
                         } => {
                             let th = *phase as f64 / 4294967296.0 * std::f64::consts::TAU;
-                            let v = s.offset as f64 + (s.amplitude as f64 * th.sin()).round();
+                            // the firmware's Q30 sine table (as the C firmware): same samples
+                            let v =
+                                crate::cfw::sine_command_rs(*phase, s.amplitude, s.offset) as f64;
                             let m = if k >= *settle { Some(th) } else { None };
                             *phase = phase.wrapping_add(*inc);
                             (v, m)
@@ -1170,6 +1230,12 @@ impl Firmware {
         self.tx_bytes.clear();
         self.stall_until = None;
         self.boot_until = Some(boot_until);
+        let (boot_id, max_fs) = (self.boot_id, self.cfg.max_sample_rate_hz);
+        if let Some(c) = self.c.as_mut() {
+            c.eng.init(boot_id, max_fs);
+            c.seen = Default::default();
+            c.seen_rx_errors = 0;
+        }
     }
 
     /// Send bytes at the line rate; responses go before queued DATA.
@@ -1182,11 +1248,14 @@ impl Firmware {
         let mut out = Vec::new();
         while self.tx_budget >= 1.0 {
             if self.tx_bytes.is_empty() {
-                let Some(frame) = self
-                    .tx_prio
-                    .pop_front()
-                    .or_else(|| self.tx_data.pop_front())
-                else {
+                let next = match self.c.as_mut() {
+                    Some(c) => c.eng.tx_frame(),
+                    None => self
+                        .tx_prio
+                        .pop_front()
+                        .or_else(|| self.tx_data.pop_front()),
+                };
+                let Some(frame) = next else {
                     self.tx_budget = self.tx_budget.min(1.0);
                     break;
                 };
@@ -1253,6 +1322,114 @@ impl Firmware {
             }
         });
         out
+    }
+}
+
+/// The C firmware behind the line model ([`FirmwareKind::C`]).
+impl Firmware {
+    /// Feed the receive FIFO to the C engine; mirror its events into the stats and the plant.
+    fn c_service_fifo(&mut self, now: Instant) {
+        let bytes: Vec<u8> = self.rx_fifo.drain(..).collect();
+        let Some(mut c) = self.c.take() else { return };
+        for b in bytes {
+            let Some(t) = c.eng.rx(b) else { continue };
+            self.last_rx_frame = now;
+            self.with_stats(|s| s.frames_received += 1);
+            let lose = 0x100 | t as u16;
+            if self
+                .lose_answer
+                .compare_exchange(lose, 0, Ordering::Relaxed, Ordering::Relaxed)
+                .is_ok()
+                && c.eng.drop_last_answer()
+            {
+                self.with_stats(|s| s.answers_lost += 1);
+                self.event(format!("answer to type {t:#04x} lost on the line"));
+            }
+            let k = c.eng.counters();
+            if k.configs != c.seen.configs {
+                // a CONFIGURE was accepted: a motor at its sample rate
+                self.plant = c
+                    .eng
+                    .config()
+                    .and_then(|cc| Plant::new(&self.cfg, cc.sample_rate_hz).ok());
+            }
+            if k.runs_started != c.seen.runs_started {
+                if let Some(p) = self.plant.as_mut() {
+                    p.reset();
+                }
+                c.start = now;
+                c.ticks = 0;
+                let id = c.eng.run_id();
+                self.with_stats(|s| {
+                    s.truth.clear();
+                    s.truth_run_id = id;
+                });
+                self.event(format!("run {id} started (C firmware)"));
+            }
+            self.c_sync(&mut c, k);
+        }
+        self.c = Some(c);
+    }
+
+    /// Add the C engine's counter increments to the stats.
+    fn c_sync(&mut self, c: &mut CState, k: crate::cfw::CCounters) {
+        let e = c.eng.rx_errors();
+        let d_err = e.wrapping_sub(c.seen_rx_errors) as u64;
+        self.rx_errors = e;
+        let s0 = c.seen;
+        self.with_stats(|s| {
+            s.rx_errors += d_err;
+            s.replays += (k.replays - s0.replays) as u64;
+            s.runs_started += (k.runs_started - s0.runs_started) as u64;
+            s.blocks_dropped += (k.blocks_dropped - s0.blocks_dropped) as u64;
+        });
+        c.seen = k;
+        c.seen_rx_errors = e;
+    }
+
+    /// Run the C engine's samples due by the wall clock, with the simulator's motor.
+    fn c_control(&mut self, now: Instant) {
+        let Some(mut c) = self.c.take() else { return };
+        let mut reset = false;
+        if let (Some(cc), true) = (c.eng.config(), c.eng.running()) {
+            let fs = cc.sample_rate_hz as f64;
+            let lsb = cc.scales.map(|v| v as f64 * 1e-6);
+            let wall = (now.duration_since(c.start).as_secs_f64() * fs) as u64;
+            while c.ticks < wall {
+                let Some(u_raw) = c.eng.sample_begin() else {
+                    break;
+                };
+                let (y, i) = match self.plant.as_mut() {
+                    Some(p) => p.step(u_raw as f64 * lsb[0], &mut self.rng),
+                    None => (0.0, 0.0),
+                };
+                let sat = |v: f64| v.round().clamp(-32767.0, 32767.0) as i16;
+                let raw = [u_raw, sat(y / lsb[1]), sat(i / lsb[2])];
+                c.eng.sample_end(raw[1], raw[2]);
+                c.ticks += 1;
+                self.run_samples_total += 1;
+                self.with_stats(|s| {
+                    s.truth.push(raw);
+                    s.output = raw[0];
+                });
+                if self.check_faults(now) {
+                    reset = true;
+                    break;
+                }
+            }
+        }
+        if !reset && !c.eng.running() {
+            self.with_stats(|s| s.output = 0);
+        }
+        let k = c.eng.counters();
+        self.c_sync(&mut c, k);
+        if reset {
+            // Firmware::reset re-initialised self.c, which is taken: do it here.
+            c.eng.init(self.boot_id, self.cfg.max_sample_rate_hz);
+            c.seen = Default::default();
+            c.seen_rx_errors = 0;
+        }
+        self.c = Some(c);
     }
 }
 

@@ -3,5 +3,6 @@
 
 mod e2e;
 mod e2e_control;
+mod firmware_c;
 mod props;
 mod vectors;

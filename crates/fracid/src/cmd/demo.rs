@@ -43,6 +43,10 @@ pub struct DemoArgs {
     /// Seed of the simulator's noise.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Run the C drive firmware (`firmware/`, as flashed on the F2812) in the simulated drive
+    /// instead of the simulator's Rust firmware (also: FRACID_SIM_FIRMWARE=c).
+    #[arg(long)]
+    pub firmware: bool,
 }
 
 fn step(msg: &str) {
@@ -104,10 +108,20 @@ pub fn run(a: DemoArgs) -> Result<()> {
         },
         ..SimConfig::default()
     };
+    let sim_cfg = SimConfig {
+        firmware: if a.firmware {
+            drive::sim::FirmwareKind::C
+        } else {
+            sim_cfg.firmware
+        },
+        ..sim_cfg
+    };
     let true_model = sim_cfg.model.clone();
+    let firmware_c = sim_cfg.firmware == drive::sim::FirmwareKind::C;
     let sim = DriveSim::spawn(sim_cfg).context("cannot start the drive simulator")?;
     step(&format!(
-        "drive simulator on {} at {} baud",
+        "drive simulator ({} firmware) on {} at {} baud",
+        if firmware_c { "C" } else { "Rust" },
         sim.port_path(),
         a.baud
     ));

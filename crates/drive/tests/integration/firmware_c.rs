@@ -1,0 +1,98 @@
+//! The C firmware (`firmware/`, linked through `drive::cfw`) behind the simulator's pty, against
+//! the Rust firmware: the same motor, effects and seed must give the same records, sample for
+//! sample. (The fault scenarios of `e2e` and `e2e_control` run against the C firmware with
+//! `FRACID_SIM_FIRMWARE=c`, as scripts/test.sh does.)
+
+use super::e2e::{check_consistent, check_truth, client, lock, short_prbs};
+use drive::client::{Acquisition, NullSink};
+use drive::protocol::{StartSine, SINE_DFT, SINE_STREAM};
+use drive::sim::{DriveSim, Effects, Faults, FirmwareKind, SimConfig};
+
+const BAUD: u32 = 921_600;
+
+fn spawn(firmware: FirmwareKind) -> DriveSim {
+    DriveSim::spawn(SimConfig {
+        firmware,
+        baud: BAUD,
+        // every hidden effect that is deterministic for a seed
+        effects: Effects {
+            coulomb_v: 0.2,
+            delay_s: 0.002,
+            ripple_v: 0.1,
+            ripple_hz: 37.0,
+            noise_std: 0.05,
+            speed_quant: 0.01,
+            r_ohm: 1.0,
+        },
+        faults: Faults {
+            seed: 7,
+            ..Faults::default()
+        },
+        ..SimConfig::default()
+    })
+    .expect("simulator starts")
+}
+
+/// A PRBS run and a streamed sine with the DFT, on one firmware.
+fn record(firmware: FirmwareKind) -> (Acquisition, Acquisition, Vec<String>) {
+    let s = spawn(firmware);
+    let mut c = client(s.port_path(), BAUD);
+    let prbs = c.run_prbs(&short_prbs(), &mut NullSink).unwrap();
+    assert!(prbs.complete, "{firmware:?}: {:?}", prbs.problems);
+    check_consistent(&prbs);
+    check_truth(&prbs, &s);
+    let sine = StartSine {
+        freq_mhz: 13_000,
+        amplitude: 1500,
+        offset: 2000,
+        settle_cycles: 2,
+        cycles: 3,
+        flags: SINE_STREAM | SINE_DFT,
+    };
+    let sine = c.run_sine(&sine, &mut NullSink).unwrap();
+    assert!(sine.complete, "{firmware:?}: {:?}", sine.problems);
+    check_consistent(&sine);
+    check_truth(&sine, &s);
+    (prbs, sine, s.stats().events)
+}
+
+#[test]
+fn c_firmware_records_equal_the_rust_firmware() {
+    let _g = lock();
+    let (pr, sr, ev_r) = record(FirmwareKind::Rust);
+    let (pc, sc, ev_c) = record(FirmwareKind::C);
+    // the C engine really ran (its runs are logged as such), the Rust one did not
+    assert!(ev_c.iter().any(|e| e.contains("(C firmware)")), "{ev_c:?}");
+    assert!(!ev_r.iter().any(|e| e.contains("(C firmware)")), "{ev_r:?}");
+    for (r, c) in [(&pr, &pc), (&sr, &sc)] {
+        assert_eq!(r.total_samples, c.total_samples);
+        assert_eq!(r.index, c.index);
+        assert_eq!(r.raw.len(), c.raw.len());
+        for (k, (a, b)) in r.raw.iter().zip(&c.raw).enumerate() {
+            assert_eq!(
+                a, b,
+                "sample {k} differs between the Rust and the C firmware"
+            );
+        }
+    }
+    // The DFT: Rust sums in f64, C in 64-bit fixed point (Q30 sine, terms in 2^-22 LSB); both
+    // round to Q8. They may differ by one Q8 unit where the exact value is near a rounding tie.
+    let (a, b) = (
+        sr.sine.expect("Rust SINE_RESULT"),
+        sc.sine.expect("C SINE_RESULT"),
+    );
+    assert_eq!(a.n, b.n);
+    for (x, y) in [
+        (a.u_re, b.u_re),
+        (a.u_im, b.u_im),
+        (a.y_re, b.y_re),
+        (a.y_im, b.y_im),
+    ] {
+        assert!((x - y).abs() <= 1, "Rust {a:?} vs C {b:?}");
+    }
+    eprintln!(
+        "Rust vs C firmware: {} PRBS + {} sine samples identical; DFT Rust {a:?} C {b:?}",
+        pr.raw.len(),
+        sr.raw.len()
+    );
+}

@@ -1,0 +1,274 @@
+/*
+ * fracfw: the drive side of the fracid serial protocol (crates/drive/PROTOCOL.md), portable C99 for
+ * the TI C28x (TMS320F2812) and any host.
+ *
+ * - No dynamic memory: one fw_t, allocated by the integrator (statically), holds everything.
+ * - No floating point: the sample path is integer/fixed-point only (Q30 sine, 64-bit DFT sums).
+ * - 16-bit char: an octet is stored in an fw_octet (unsigned char, which is 16 bits on the C28x)
+ *   and every octet is masked with 0xFF; multi-byte fields are packed explicitly little-endian.
+ *   Define FW_OCTET16 to store octets in uint16_t on a host with 8-bit char (emulates the C28x).
+ * - int may be 16 bits (C28x): all arithmetic that can exceed 16 bits uses int32_t/int64_t.
+ *
+ * Calling contexts (see firmware/README.md): fw_rx_octet() from the SCI receive FIFO interrupt,
+ * fw_sample_begin()/fw_sample_end() from the sample-rate timer interrupt, fw_tx_octet() from the SCI
+ * transmit FIFO interrupt or the background loop. They must not preempt each other (C28x PIE
+ * interrupts do not nest unless the integrator re-enables INTM inside an ISR).
+ */
+#ifndef FRACFW_H
+#define FRACFW_H
+
+#include <stdint.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#ifdef FW_OCTET16
+/** One octet in a 16-bit storage unit (host emulation of the C28x). */
+typedef uint16_t fw_octet;
+#else
+/** One octet (in the low 8 bits; unsigned char is 16 bits wide on the C28x). */
+typedef unsigned char fw_octet;
+#endif
+
+#define FW_PROTO_VERSION 1u
+#define FW_MAJOR 1u
+#define FW_MINOR 0u
+#define FW_N_CHANNELS 3u
+/** Samples per DATA block at most (PROTOCOL.md: 66). */
+#define FW_MAX_BLOCK 66u
+/** Largest frame body: ver, type, seq (4) + DATA payload 8 + 6*66 + crc (2). */
+#define FW_MAX_BODY 410u
+/** Largest COBS-encoded body (without delimiters). */
+#define FW_MAX_ENCODED (FW_MAX_BODY + FW_MAX_BODY / 254u + 1u)
+/** Longest sine measurement window the fixed-point DFT accepts, samples (2^26). */
+#define FW_MAX_DFT_SAMPLES 67108864ul
+
+#ifndef FW_TX_BLOCKS
+/** DATA blocks the transmit buffer holds (PROTOCOL.md: at least 2). */
+#define FW_TX_BLOCKS 4u
+#endif
+/** Data-ring slots: the queued blocks, the one being sent, the one being filled, end frames. */
+#define FW_TX_SLOTS (FW_TX_BLOCKS + 5u)
+/** Answers queued ahead of data (stop-and-wait: one, plus a HELLO that crosses it). */
+#define FW_ANSWER_SLOTS 2u
+/** Longest answer body (SINE_RESULT/STATUS sized: 6 + 22). */
+#define FW_ANSWER_BODY 28u
+
+/* message types */
+#define FW_T_HELLO 0x01u
+#define FW_T_CONFIGURE 0x02u
+#define FW_T_START_PRBS 0x03u
+#define FW_T_START_SINE 0x04u
+#define FW_T_STOP 0x05u
+#define FW_T_ESTOP 0x06u
+#define FW_T_STATUS 0x07u
+#define FW_T_KEEPALIVE 0x08u
+#define FW_T_END_QUERY 0x09u
+#define FW_T_ACK 0x80u
+#define FW_T_HELLO_REPLY 0x81u
+#define FW_T_STATUS_REPLY 0x87u
+#define FW_T_NAK 0x8Fu
+#define FW_T_DATA 0x90u
+#define FW_T_STREAM_END 0x91u
+#define FW_T_SINE_RESULT 0x92u
+
+/* NAK codes, faults, end reasons, states (PROTOCOL.md section 3) */
+#define FW_NAK_UNKNOWN_TYPE 1u
+#define FW_NAK_BAD_LENGTH 2u
+#define FW_NAK_BAD_VALUE 3u
+#define FW_NAK_BUSY 4u
+#define FW_NAK_NOT_CONFIGURED 5u
+#define FW_NAK_FAULT 6u
+#define FW_FAULT_NONE 0u
+#define FW_FAULT_ESTOP 1u
+#define FW_FAULT_KEEPALIVE 2u
+#define FW_FAULT_SPEED 3u
+#define FW_FAULT_CURRENT 4u
+#define FW_END_COMPLETE 0u
+#define FW_END_STOPPED 1u
+#define FW_END_ESTOP 2u
+#define FW_END_KEEPALIVE 3u
+#define FW_END_LIMIT 4u
+
+/** A frame body being queued or sent (not yet COBS-encoded; the CRC is added when sending). */
+typedef struct {
+    fw_octet b[FW_MAX_BODY];
+    uint16_t len; /**< body length without the CRC */
+} fw_slot;
+
+/** A short answer body. */
+typedef struct {
+    fw_octet b[FW_ANSWER_BODY];
+    uint16_t len; /**< body length without the CRC */
+} fw_answer;
+
+/** CONFIGURE payload, decoded. */
+typedef struct {
+    uint32_t sample_rate_hz;
+    uint16_t block_samples;
+    uint16_t keepalive_ms;
+    uint32_t scale_u_uv, scale_y_urad_s, scale_i_ua;
+    int16_t u_limit, y_limit, i_limit;
+} fw_config;
+
+/** Counters for tests and diagnostics (not on the wire except rx_errors). */
+typedef struct {
+    uint32_t frames_received; /**< valid frames */
+    uint32_t replays;         /**< commands answered from the replay cache */
+    uint32_t runs_started;
+    uint32_t blocks_dropped; /**< since boot */
+    uint32_t end_frames_lost; /**< STREAM_END/SINE_RESULT that found no slot (END_QUERY recovers) */
+    uint32_t configs;         /**< accepted CONFIGUREs */
+} fw_counters;
+
+/** The whole drive-side state. Allocate one (statically) and call fw_init(). */
+typedef struct {
+    /* identity and configuration */
+    uint16_t boot_id;
+    uint32_t max_sample_rate_hz;
+    uint16_t configured;
+    fw_config conf;
+    uint16_t fault;
+    uint16_t rx_errors;
+    uint16_t next_run_id;
+    uint16_t tx_seq;
+    fw_counters cnt;
+    /* receiver: the encoded frame since the last 0x00 */
+    fw_octet rx[FW_MAX_ENCODED];
+    uint16_t rx_len;
+    uint16_t rx_overflow;
+    /* replay cache: the last answer and the (seq, type) it answered */
+    uint16_t cache_valid, cache_seq, cache_type;
+    fw_answer cache;
+    /* answers, sent before data */
+    fw_answer ans[FW_ANSWER_SLOTS];
+    uint16_t ans_head, ans_count;
+    /* data ring: DATA, SINE_RESULT, STREAM_END */
+    fw_slot slot[FW_TX_SLOTS];
+    uint16_t data_head, data_count;
+    /* transmitter: streaming COBS of the current frame */
+    uint16_t tx_active;   /* 0 idle, 1 answer, 2 data slot */
+    uint16_t tx_phase;    /* 0 leading 0x00, 1 block start, 2 in block, 3 trailing 0x00 */
+    uint16_t tx_pos, tx_len, tx_left, tx_pending, tx_run;
+    const fw_octet *tx_src;
+    fw_octet tx_crc[2];
+    /* the run */
+    uint16_t running;
+    uint16_t run_id;
+    uint16_t kind; /* 1 PRBS, 2 sine */
+    uint32_t total, done, sent;
+    uint16_t dropped, clamped;
+    uint16_t stream;
+    uint16_t building; /* a block is being filled in slot (data_head + data_count) */
+    uint16_t block_n;
+    uint16_t block_flags;
+    uint32_t block_first;
+    int16_t last_u;
+    int16_t cur_u; /* command of the sample in progress */
+    uint16_t cur_flags;
+    uint16_t ramp_left, ramp_len, ramp_reason, ramping;
+    uint32_t quiet_samples, keepalive_samples;
+    uint16_t end_pending; /* reason + 1 when the run must end at the next sample */
+    /* PRBS */
+    uint32_t lfsr, lfsr_seed, lfsr_taps, lfsr_mask, lfsr_period, prbs_bit_index;
+    uint16_t lfsr_order, prbs_bit;
+    uint32_t prbs_settle, prbs_clock, prbs_clock_count;
+    int16_t prbs_amp, prbs_off;
+    /* sine */
+    uint32_t phase, inc, sine_settle, sine_measure;
+    int16_t sine_amp, sine_off;
+    uint16_t sine_flags;
+    int32_t cur_cos, cur_sin;
+    uint16_t measuring;
+    int64_t acc[4];
+    /* last run, for STATUS and END_QUERY */
+    uint16_t last_valid;
+    uint16_t last_id;
+    uint32_t last_done;
+    uint16_t last_dropped, last_clamped;
+    uint16_t end_valid;
+    fw_octet end_payload[14];
+} fw_t;
+
+/** Reset everything (power-up): no configuration, no run, empty buffers, the given boot id. */
+void fw_init(fw_t *fw, uint16_t boot_id, uint32_t max_sample_rate_hz);
+
+/**
+ * One received octet (low 8 bits of `octet`; higher bits are ignored). Returns 0, or, when the
+ * octet completed a valid frame, 0x100 | its type (for test hooks such as fw_drop_last_answer).
+ */
+uint16_t fw_rx_octet(fw_t *fw, uint16_t octet);
+
+/**
+ * The next octet to transmit, or -1 when there is nothing to send. Answers go before queued
+ * data, between frames. The CRC of a data frame is computed when it starts (background work).
+ */
+int32_t fw_tx_octet(fw_t *fw);
+
+/** Whether a frame is in the middle of being transmitted. */
+int fw_tx_busy(const fw_t *fw);
+
+/**
+ * Start one sample (sample-rate interrupt). Returns 1 with *u_raw = the voltage command (raw
+ * channel-0 LSBs, already clamped) when a run is active: apply it, measure, call fw_sample_end().
+ * Returns 0 (and *u_raw = 0: the inverter command is zero) when no run is active.
+ */
+int fw_sample_begin(fw_t *fw, int16_t *u_raw);
+
+/** Finish the sample started by fw_sample_begin() with the measured speed and current (raw). */
+void fw_sample_end(fw_t *fw, int16_t y_raw, int16_t i_raw);
+
+/** Whether a run is active. */
+int fw_running(const fw_t *fw);
+
+/** The sample rate of the configuration (0 when unconfigured): program the timer with it. */
+uint32_t fw_sample_rate(const fw_t *fw);
+
+/**
+ * Test hook (host fault injection): discard the answer queued last if it is not being sent yet.
+ * It stays in the replay cache, as if the line had lost it. Returns 1 if one was discarded.
+ */
+int fw_drop_last_answer(fw_t *fw);
+
+/** CRC-16/MCRF4XX of n octets, continuing from crc (start with 0xFFFF). */
+uint16_t fw_crc16(uint16_t crc, const fw_octet *p, uint16_t n);
+
+/** COBS-encode n octets (canonical); returns the encoded length (out: n + n/254 + 1 octets). */
+uint16_t fw_cobs_encode(const fw_octet *in, uint16_t n, fw_octet *out);
+
+/**
+ * COBS-decode n octets in place (canonical encodings only); returns the decoded length, or -1 if
+ * the input is not a canonical COBS encoding (a zero octet, a code past the end, a redundant
+ * trailing empty block).
+ */
+int32_t fw_cobs_decode(fw_octet *buf, uint16_t n);
+
+/** Fibonacci LFSR step as in PROTOCOL.md section 5: returns the output bit, updates *state. */
+uint16_t fw_lfsr_next(uint32_t *state, uint32_t taps, uint16_t order);
+
+/** sin and cos of 2 pi phase / 2^32 in Q30 (table + second-order correction, error < 1e-7). */
+void fw_sincos_q30(uint32_t phase, int32_t *s, int32_t *c);
+
+/** The sine command: offset + round(amplitude * sin(2 pi phase / 2^32)), before clamping. */
+int32_t fw_sine_command(uint32_t phase, int16_t amplitude, int16_t offset);
+
+/** Copy the diagnostic counters. */
+void fw_get_counters(const fw_t *fw, fw_counters *out);
+
+/** Frames discarded since boot (saturating), as STATUS_REPLY reports. */
+uint16_t fw_rx_errors(const fw_t *fw);
+
+/** The active configuration (all zero when unconfigured). */
+void fw_get_config(const fw_t *fw, fw_config *out);
+
+/** Id of the current run, or of the last one (0: none since boot). */
+uint16_t fw_run_id(const fw_t *fw);
+
+/** Number of bytes (host octets) of fw_t, for a host that allocates it opaquely. */
+uint32_t fw_sizeof(void);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

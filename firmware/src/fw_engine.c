@@ -1,0 +1,842 @@
+/* The protocol engine: receiver, commands, replay cache, experiments, streaming, safety. */
+#include "fracfw.h"
+
+/* ---- little-endian packing into octet arrays (no memcpy: octets may be 16-bit words) ---- */
+
+static void put8(fw_octet *p, uint16_t v) { p[0] = (fw_octet)(v & 0xFFu); }
+static void put16(fw_octet *p, uint16_t v)
+{
+    p[0] = (fw_octet)(v & 0xFFu);
+    p[1] = (fw_octet)((v >> 8) & 0xFFu);
+}
+static void put32(fw_octet *p, uint32_t v)
+{
+    put16(p, (uint16_t)(v & 0xFFFFul));
+    put16(p + 2, (uint16_t)(v >> 16));
+}
+static uint16_t get8(const fw_octet *p) { return (uint16_t)(p[0] & 0xFFu); }
+static uint16_t get16(const fw_octet *p)
+{
+    return (uint16_t)((p[0] & 0xFFu) | ((uint16_t)(p[1] & 0xFFu) << 8));
+}
+static uint32_t get32(const fw_octet *p)
+{
+    return (uint32_t)get16(p) | ((uint32_t)get16(p + 2) << 16);
+}
+static int16_t geti16(const fw_octet *p)
+{
+    uint16_t u = get16(p);
+    return (u & 0x8000u) ? (int16_t)(-(int32_t)(uint16_t)(~u) - 1) : (int16_t)u;
+}
+
+static uint16_t sat_add16(uint16_t a) { return (uint16_t)(a == 0xFFFFu ? a : a + 1u); }
+
+void fw_init(fw_t *fw, uint16_t boot_id, uint32_t max_sample_rate_hz)
+{
+    /* field by field would be long; a byte loop works for any CHAR_BIT */
+    unsigned char *p = (unsigned char *)fw;
+    uint32_t k;
+    for (k = 0; k < (uint32_t)sizeof(*fw); k++) {
+        p[k] = 0;
+    }
+    fw->boot_id = boot_id;
+    fw->max_sample_rate_hz = max_sample_rate_hz;
+    fw->next_run_id = 1;
+}
+
+uint32_t fw_sizeof(void) { return (uint32_t)sizeof(fw_t); }
+
+void fw_get_counters(const fw_t *fw, fw_counters *out) { *out = fw->cnt; }
+
+uint16_t fw_rx_errors(const fw_t *fw) { return fw->rx_errors; }
+
+void fw_get_config(const fw_t *fw, fw_config *out) { *out = fw->conf; }
+
+uint16_t fw_run_id(const fw_t *fw) { return fw->running ? fw->run_id : (fw->last_valid ? fw->last_id : 0u); }
+
+int fw_running(const fw_t *fw) { return fw->running != 0u; }
+
+uint32_t fw_sample_rate(const fw_t *fw) { return fw->configured ? fw->conf.sample_rate_hz : 0ul; }
+
+int fw_tx_busy(const fw_t *fw) { return fw->tx_active != 0u; }
+
+/* ---- transmit queues ---- */
+
+static uint16_t next_tx_seq(fw_t *fw)
+{
+    fw->tx_seq = (uint16_t)(fw->tx_seq + 1u);
+    return fw->tx_seq;
+}
+
+static void header(fw_octet *b, uint16_t type, uint16_t seq)
+{
+    put8(b, FW_PROTO_VERSION);
+    put8(b + 1, type);
+    put16(b + 2, seq);
+}
+
+/* Queue an answer (ahead of data) and keep it in the replay cache if `cache` is set. */
+static fw_answer *answer(fw_t *fw, uint16_t type, uint16_t seq, uint16_t payload_len)
+{
+    fw_answer *a;
+    uint16_t idx;
+    if (fw->ans_count < FW_ANSWER_SLOTS) {
+        idx = (uint16_t)((fw->ans_head + fw->ans_count) % FW_ANSWER_SLOTS);
+        fw->ans_count++;
+    } else {
+        /* full (a host that does not wait): replace the newest one not being sent */
+        idx = (uint16_t)((fw->ans_head + fw->ans_count - 1u) % FW_ANSWER_SLOTS);
+        if (fw->tx_active == 1u && idx == fw->ans_head) {
+            idx = (uint16_t)((idx + 1u) % FW_ANSWER_SLOTS);
+        }
+    }
+    a = &fw->ans[idx];
+    header(a->b, type, seq);
+    a->len = (uint16_t)(4u + payload_len);
+    return a;
+}
+
+static void ack(fw_t *fw, uint16_t type, uint16_t seq, uint16_t run_id, uint32_t total)
+{
+    fw_answer *a = answer(fw, FW_T_ACK, seq, 8u);
+    put8(a->b + 4, type);
+    put8(a->b + 5, 0u);
+    put16(a->b + 6, run_id);
+    put32(a->b + 8, total);
+}
+
+static void nak(fw_t *fw, uint16_t type, uint16_t seq, uint16_t code, uint16_t detail)
+{
+    fw_answer *a = answer(fw, FW_T_NAK, seq, 4u);
+    put8(a->b + 4, type);
+    put8(a->b + 5, code);
+    put16(a->b + 6, detail);
+}
+
+int fw_drop_last_answer(fw_t *fw)
+{
+    if (fw->ans_count == 0u || (fw->tx_active == 1u && fw->ans_count == 1u)) {
+        return 0;
+    }
+    fw->ans_count--;
+    return 1;
+}
+
+/* The data-ring slot being filled / next to fill. */
+static fw_slot *build_slot(fw_t *fw)
+{
+    return &fw->slot[(fw->data_head + fw->data_count) % FW_TX_SLOTS];
+}
+
+/* Queue an unsolicited end frame (SINE_RESULT, STREAM_END): never dropped for lack of block room,
+ * only if the ring itself is full (the host then asks END_QUERY). Keeps one slot for building. */
+static fw_slot *end_frame(fw_t *fw, uint16_t type, uint16_t payload_len)
+{
+    fw_slot *s;
+    if (fw->data_count + 1u >= FW_TX_SLOTS) {
+        fw->cnt.end_frames_lost++;
+        return 0;
+    }
+    s = build_slot(fw);
+    header(s->b, type, next_tx_seq(fw));
+    s->len = (uint16_t)(4u + payload_len);
+    fw->data_count++;
+    return s;
+}
+
+/* ---- the run ---- */
+
+static void flush_block(fw_t *fw)
+{
+    fw_slot *s;
+    uint16_t queued;
+    if (!fw->building || fw->block_n == 0u) {
+        fw->building = 0;
+        return;
+    }
+    queued = (uint16_t)(fw->data_count - (fw->tx_active == 2u ? 1u : 0u));
+    if (queued >= FW_TX_BLOCKS) {
+        fw->dropped = sat_add16(fw->dropped);
+        fw->cnt.blocks_dropped++;
+    } else {
+        s = build_slot(fw);
+        header(s->b, FW_T_DATA, next_tx_seq(fw));
+        put16(s->b + 4, fw->run_id);
+        put32(s->b + 6, fw->block_first);
+        put8(s->b + 10, fw->block_n);
+        put8(s->b + 11, fw->block_flags);
+        s->len = (uint16_t)(12u + 6u * fw->block_n);
+        fw->data_count++;
+        fw->sent += fw->block_n;
+    }
+    fw->building = 0;
+    fw->block_n = 0;
+    fw->block_flags = 0;
+}
+
+static int32_t q8_result(int64_t acc, uint32_t n)
+{
+    /* X = (2/n) sum x e^{-j theta} in Q8: acc is in units of 2^-22 LSB -> acc * 512 / (n 2^22) */
+    int64_t den = (int64_t)n << 13;
+    int64_t q;
+    if (acc >= 0) {
+        q = (acc + den / 2) / den;
+    } else {
+        q = -((-acc + den / 2) / den);
+    }
+    if (q > 2147483647ll) {
+        q = 2147483647ll;
+    }
+    if (q < -2147483647ll - 1) {
+        q = -2147483647ll - 1;
+    }
+    return (int32_t)q;
+}
+
+static void end_run(fw_t *fw, uint16_t reason)
+{
+    fw_slot *s;
+    if (!fw->running) {
+        return;
+    }
+    flush_block(fw);
+    if (fw->kind == 2u && (fw->sine_flags & 2u) && reason == FW_END_COMPLETE) {
+        s = end_frame(fw, FW_T_SINE_RESULT, 22u);
+        if (s) {
+            put16(s->b + 4, fw->run_id);
+            put32(s->b + 6, fw->sine_measure);
+            put32(s->b + 10, (uint32_t)q8_result(fw->acc[0], fw->sine_measure));
+            put32(s->b + 14, (uint32_t)q8_result(fw->acc[1], fw->sine_measure));
+            put32(s->b + 18, (uint32_t)q8_result(fw->acc[2], fw->sine_measure));
+            put32(s->b + 22, (uint32_t)q8_result(fw->acc[3], fw->sine_measure));
+        }
+    }
+    put16(fw->end_payload, fw->run_id);
+    put8(fw->end_payload + 2, reason);
+    put8(fw->end_payload + 3, 0u);
+    put32(fw->end_payload + 4, fw->done);
+    put32(fw->end_payload + 8, fw->sent);
+    put16(fw->end_payload + 12, fw->dropped);
+    fw->end_valid = 1;
+    s = end_frame(fw, FW_T_STREAM_END, 14u);
+    if (s) {
+        uint16_t k;
+        for (k = 0; k < 14u; k++) {
+            s->b[4u + k] = fw->end_payload[k];
+        }
+    }
+    fw->last_valid = 1;
+    fw->last_id = fw->run_id;
+    fw->last_done = fw->done;
+    fw->last_dropped = fw->dropped;
+    fw->last_clamped = fw->clamped;
+    fw->running = 0;
+    fw->cur_u = 0;
+}
+
+static void begin_run(fw_t *fw, uint16_t kind, uint32_t total, uint16_t stream)
+{
+    fw->running = 1;
+    fw->kind = kind;
+    fw->run_id = fw->next_run_id;
+    fw->next_run_id = (uint16_t)(fw->next_run_id + 1u);
+    if (fw->next_run_id == 0u) {
+        fw->next_run_id = 1;
+    }
+    fw->total = total;
+    fw->done = 0;
+    fw->sent = 0;
+    fw->dropped = 0;
+    fw->clamped = 0;
+    fw->stream = stream;
+    fw->building = 0;
+    fw->block_n = 0;
+    fw->block_flags = 0;
+    fw->last_u = 0;
+    fw->ramping = 0;
+    fw->ramp_left = 0;
+    fw->quiet_samples = 0;
+    fw->keepalive_samples =
+        (uint32_t)(((uint64_t)fw->conf.keepalive_ms * fw->conf.sample_rate_hz) / 1000u);
+    fw->end_valid = 0;
+    fw->cnt.runs_started++;
+}
+
+int fw_sample_begin(fw_t *fw, int16_t *u_raw)
+{
+    int32_t v;
+    int32_t lim;
+    *u_raw = 0;
+    if (!fw->running) {
+        return 0;
+    }
+    if (!fw->ramping && fw->quiet_samples > fw->keepalive_samples) {
+        uint16_t n = (uint16_t)((fw->conf.sample_rate_hz + 19ul) / 20ul); /* 50 ms */
+        fw->ramping = 1;
+        fw->ramp_left = n ? n : 1u;
+        fw->ramp_len = fw->ramp_left;
+        fw->ramp_reason = FW_END_KEEPALIVE;
+        fw->fault = FW_FAULT_KEEPALIVE;
+    }
+    if (fw->ramping && fw->ramp_left == 0u) {
+        end_run(fw, fw->ramp_reason);
+        return 0;
+    }
+    fw->measuring = 0;
+    if (fw->ramping) {
+        int64_t p;
+        fw->ramp_left--;
+        /* round(last_u * left / len), half away from zero */
+        p = (int64_t)fw->last_u * fw->ramp_left * 2;
+        if (p >= 0) {
+            v = (int32_t)((p + fw->ramp_len) / (2 * (int64_t)fw->ramp_len));
+        } else {
+            v = -(int32_t)((-p + fw->ramp_len) / (2 * (int64_t)fw->ramp_len));
+        }
+    } else if (fw->kind == 1u) {
+        if (fw->done < fw->prbs_settle) {
+            v = fw->prbs_off;
+        } else {
+            if (fw->prbs_clock_count == 0u) {
+                if (fw->prbs_bit_index == fw->lfsr_period) {
+                    fw->lfsr = fw->lfsr_seed;
+                    fw->prbs_bit_index = 0;
+                }
+                fw->prbs_bit = fw_lfsr_next(&fw->lfsr, fw->lfsr_taps, fw->lfsr_order);
+                fw->prbs_bit_index++;
+            }
+            fw->prbs_clock_count++;
+            if (fw->prbs_clock_count >= fw->prbs_clock) {
+                fw->prbs_clock_count = 0;
+            }
+            v = fw->prbs_bit ? (int32_t)fw->prbs_off + fw->prbs_amp
+                             : (int32_t)fw->prbs_off - fw->prbs_amp;
+        }
+    } else {
+        v = fw_sine_command(fw->phase, fw->sine_amp, fw->sine_off);
+        if (fw->done >= fw->sine_settle) {
+            fw->measuring = 1;
+            fw_sincos_q30(fw->phase, &fw->cur_sin, &fw->cur_cos);
+        }
+        fw->phase += fw->inc;
+    }
+    lim = fw->conf.u_limit;
+    fw->cur_flags = 0;
+    if (v > lim || v < -lim) {
+        fw->clamped = sat_add16(fw->clamped);
+        fw->cur_flags = 1;
+        v = v > lim ? lim : -lim;
+    }
+    fw->cur_u = (int16_t)v;
+    if (!fw->ramping) {
+        fw->last_u = fw->cur_u;
+    }
+    if (fw->quiet_samples != 0xFFFFFFFFul) {
+        fw->quiet_samples++;
+    }
+    *u_raw = fw->cur_u;
+    return 1;
+}
+
+void fw_sample_end(fw_t *fw, int16_t y_raw, int16_t i_raw)
+{
+    int32_t ya, ia;
+    if (!fw->running) {
+        return;
+    }
+    if (fw->measuring) {
+        fw->acc[0] += ((int64_t)fw->cur_u * fw->cur_cos) >> 8;
+        fw->acc[1] -= ((int64_t)fw->cur_u * fw->cur_sin) >> 8;
+        fw->acc[2] += ((int64_t)y_raw * fw->cur_cos) >> 8;
+        fw->acc[3] -= ((int64_t)y_raw * fw->cur_sin) >> 8;
+    }
+    if (fw->stream) {
+        fw_slot *s = build_slot(fw);
+        fw_octet *p;
+        if (!fw->building) {
+            fw->building = 1;
+            fw->block_n = 0;
+            fw->block_first = fw->done;
+        }
+        p = s->b + 12u + 6u * fw->block_n;
+        put16(p, (uint16_t)fw->cur_u);
+        put16(p + 2, (uint16_t)y_raw);
+        put16(p + 4, (uint16_t)i_raw);
+        fw->block_n++;
+        fw->block_flags |= fw->cur_flags;
+    }
+    fw->done++;
+    ya = y_raw < 0 ? -(int32_t)y_raw : y_raw;
+    ia = i_raw < 0 ? -(int32_t)i_raw : i_raw;
+    if (!fw->ramping && (ya > fw->conf.y_limit || ia > fw->conf.i_limit)) {
+        fw->fault = ya > fw->conf.y_limit ? FW_FAULT_SPEED : FW_FAULT_CURRENT;
+        end_run(fw, FW_END_LIMIT);
+        return;
+    }
+    if (fw->block_n >= fw->conf.block_samples) {
+        flush_block(fw);
+    }
+    if (!fw->ramping && fw->done >= fw->total) {
+        end_run(fw, FW_END_COMPLETE);
+    }
+}
+
+/* ---- commands ---- */
+
+static int start_check(fw_t *fw, uint16_t type, uint16_t seq)
+{
+    if (fw->running) {
+        nak(fw, type, seq, FW_NAK_BUSY, 0);
+        return 0;
+    }
+    if (fw->fault != FW_FAULT_NONE) {
+        nak(fw, type, seq, FW_NAK_FAULT, fw->fault);
+        return 0;
+    }
+    if (!fw->configured) {
+        nak(fw, type, seq, FW_NAK_NOT_CONFIGURED, 0);
+        return 0;
+    }
+    return 1;
+}
+
+static void cmd_configure(fw_t *fw, uint16_t seq, const fw_octet *p)
+{
+    fw_config c;
+    uint16_t bad = 0xFFFFu;
+    c.sample_rate_hz = get32(p);
+    c.block_samples = get8(p + 4);
+    c.keepalive_ms = get16(p + 6);
+    c.scale_u_uv = get32(p + 8);
+    c.scale_y_urad_s = get32(p + 12);
+    c.scale_i_ua = get32(p + 16);
+    c.u_limit = geti16(p + 20);
+    c.y_limit = geti16(p + 22);
+    c.i_limit = geti16(p + 24);
+    if (fw->running) {
+        nak(fw, FW_T_CONFIGURE, seq, FW_NAK_BUSY, 0);
+        return;
+    }
+    if (c.sample_rate_hz == 0ul || c.sample_rate_hz > fw->max_sample_rate_hz) {
+        bad = 0;
+    } else if (c.block_samples == 0u || c.block_samples > FW_MAX_BLOCK) {
+        bad = 4;
+    } else if (c.keepalive_ms < 50u || c.keepalive_ms > 5000u) {
+        bad = 6;
+    } else if (c.scale_u_uv == 0ul) {
+        bad = 8;
+    } else if (c.scale_y_urad_s == 0ul) {
+        bad = 12;
+    } else if (c.scale_i_ua == 0ul) {
+        bad = 16;
+    } else if (c.u_limit <= 0) {
+        bad = 20;
+    } else if (c.y_limit <= 0) {
+        bad = 22;
+    } else if (c.i_limit <= 0) {
+        bad = 24;
+    }
+    if (bad != 0xFFFFu) {
+        nak(fw, FW_T_CONFIGURE, seq, FW_NAK_BAD_VALUE, bad);
+        return;
+    }
+    fw->conf = c;
+    fw->configured = 1;
+    fw->fault = FW_FAULT_NONE;
+    fw->cnt.configs++;
+    ack(fw, FW_T_CONFIGURE, seq, 0, 0);
+}
+
+static void cmd_prbs(fw_t *fw, uint16_t seq, const fw_octet *p)
+{
+    uint16_t order = get8(p);
+    uint32_t taps = get32(p + 2), seed = get32(p + 6);
+    uint16_t clock = get16(p + 10);
+    int16_t amp = geti16(p + 12), off = geti16(p + 14);
+    uint16_t periods = get16(p + 16);
+    uint32_t settle = get32(p + 18);
+    uint32_t mask;
+    uint64_t total;
+    if (!start_check(fw, FW_T_START_PRBS, seq)) {
+        return;
+    }
+    if (order < 2u || order > 31u) {
+        nak(fw, FW_T_START_PRBS, seq, FW_NAK_BAD_VALUE, 0);
+        return;
+    }
+    mask = (1ul << order) - 1ul;
+    total = (uint64_t)settle + (uint64_t)periods * mask * clock;
+    if (total > 0xFFFFFFFFull) {
+        nak(fw, FW_T_START_PRBS, seq, FW_NAK_BAD_VALUE, 0);
+        return;
+    }
+    if (seed == 0ul || (seed & ~mask) != 0ul || (taps & (1ul << (order - 1u))) == 0ul ||
+        (taps & ~mask) != 0ul) {
+        nak(fw, FW_T_START_PRBS, seq, FW_NAK_BAD_VALUE, 2);
+        return;
+    }
+    if (clock == 0u || periods == 0u || amp < 0 || total == 0u) {
+        nak(fw, FW_T_START_PRBS, seq, FW_NAK_BAD_VALUE, 10);
+        return;
+    }
+    begin_run(fw, 1u, (uint32_t)total, 1u);
+    fw->lfsr_order = order;
+    fw->lfsr_taps = taps;
+    fw->lfsr_seed = seed;
+    fw->lfsr = seed;
+    fw->lfsr_mask = mask;
+    fw->lfsr_period = mask;
+    fw->prbs_bit_index = 0;
+    fw->prbs_bit = 0;
+    fw->prbs_settle = settle;
+    fw->prbs_clock = clock;
+    fw->prbs_clock_count = 0;
+    fw->prbs_amp = amp;
+    fw->prbs_off = off;
+    ack(fw, FW_T_START_PRBS, seq, fw->run_id, fw->total);
+}
+
+static void cmd_sine(fw_t *fw, uint16_t seq, const fw_octet *p)
+{
+    uint32_t f = get32(p);
+    int16_t amp = geti16(p + 4), off = geti16(p + 6);
+    uint16_t settle_c = get16(p + 8), cycles = get16(p + 10), flags = get8(p + 12);
+    uint64_t fs, settle, measure;
+    if (!start_check(fw, FW_T_START_SINE, seq)) {
+        return;
+    }
+    fs = fw->conf.sample_rate_hz;
+    if (f == 0ul || (uint64_t)f > fs * 500u || amp < 0 || cycles == 0u || (flags & 3u) == 0u) {
+        nak(fw, FW_T_START_SINE, seq, FW_NAK_BAD_VALUE, 0);
+        return;
+    }
+    settle = ((uint64_t)settle_c * fs * 1000u + f / 2u) / f;
+    measure = ((uint64_t)cycles * fs * 1000u + f / 2u) / f;
+    if (settle + measure > 0xFFFFFFFFull || measure == 0u) {
+        nak(fw, FW_T_START_SINE, seq, FW_NAK_BAD_VALUE, 0);
+        return;
+    }
+    if ((flags & 2u) && measure > FW_MAX_DFT_SAMPLES) {
+        nak(fw, FW_T_START_SINE, seq, FW_NAK_BAD_VALUE, 10);
+        return;
+    }
+    begin_run(fw, 2u, (uint32_t)(settle + measure), (uint16_t)(flags & 1u));
+    fw->phase = 0;
+    fw->inc = (uint32_t)((((uint64_t)f << 32) + 500u * fs) / (1000u * fs));
+    fw->sine_settle = (uint32_t)settle;
+    fw->sine_measure = (uint32_t)measure;
+    fw->sine_amp = amp;
+    fw->sine_off = off;
+    fw->sine_flags = flags;
+    fw->acc[0] = fw->acc[1] = fw->acc[2] = fw->acc[3] = 0;
+    ack(fw, FW_T_START_SINE, seq, fw->run_id, fw->total);
+}
+
+static void cmd_status(fw_t *fw, uint16_t seq)
+{
+    fw_answer *a = answer(fw, FW_T_STATUS_REPLY, seq, 16u);
+    uint16_t state, id = 0, dropped = 0, clamped = 0;
+    uint32_t done = 0;
+    if (fw->running) {
+        state = 2;
+        id = fw->run_id;
+        done = fw->done;
+        dropped = fw->dropped;
+        clamped = fw->clamped;
+    } else {
+        state = fw->fault != FW_FAULT_NONE ? 3u : (fw->configured ? 1u : 0u);
+        if (fw->last_valid) {
+            id = fw->last_id;
+            done = fw->last_done;
+            dropped = fw->last_dropped;
+            clamped = fw->last_clamped;
+        }
+    }
+    put8(a->b + 4, state);
+    put8(a->b + 5, fw->fault);
+    put16(a->b + 6, id);
+    put32(a->b + 8, done);
+    put16(a->b + 12, dropped);
+    put16(a->b + 14, fw->boot_id);
+    put16(a->b + 16, fw->rx_errors);
+    put16(a->b + 18, clamped);
+}
+
+static void execute(fw_t *fw, uint16_t type, uint16_t seq, const fw_octet *p)
+{
+    switch (type) {
+    case FW_T_STATUS:
+        cmd_status(fw, seq);
+        break;
+    case FW_T_CONFIGURE:
+        cmd_configure(fw, seq, p);
+        break;
+    case FW_T_START_PRBS:
+        cmd_prbs(fw, seq, p);
+        break;
+    case FW_T_START_SINE:
+        cmd_sine(fw, seq, p);
+        break;
+    case FW_T_STOP:
+        if (fw->running && !fw->ramping) {
+            fw->ramping = 1;
+            fw->ramp_left = 1;
+            fw->ramp_len = 1;
+            fw->ramp_reason = FW_END_STOPPED;
+        }
+        ack(fw, type, seq, 0, 0);
+        break;
+    case FW_T_ESTOP:
+        end_run(fw, FW_END_ESTOP);
+        fw->fault = FW_FAULT_ESTOP;
+        ack(fw, type, seq, 0, 0);
+        break;
+    case FW_T_END_QUERY: {
+        uint16_t id = get16(p);
+        if (fw->end_valid && get16(fw->end_payload) == id && !(fw->running && fw->run_id == id)) {
+            fw_answer *a = answer(fw, FW_T_STREAM_END, seq, 14u);
+            uint16_t k;
+            for (k = 0; k < 14u; k++) {
+                a->b[4u + k] = fw->end_payload[k];
+            }
+        } else {
+            nak(fw, type, seq, FW_NAK_BAD_VALUE, 0);
+        }
+        break;
+    }
+    default:
+        nak(fw, type, seq, FW_NAK_UNKNOWN_TYPE, 0);
+        break;
+    }
+}
+
+/* Payload length of a type, -1 if unknown; DATA is checked separately. */
+static int32_t payload_len(uint16_t type)
+{
+    switch (type) {
+    case FW_T_HELLO:
+    case FW_T_STOP:
+    case FW_T_ESTOP:
+    case FW_T_STATUS:
+    case FW_T_KEEPALIVE:
+        return 0;
+    case FW_T_CONFIGURE:
+        return 26;
+    case FW_T_START_PRBS:
+        return 22;
+    case FW_T_START_SINE:
+        return 14;
+    case FW_T_END_QUERY:
+        return 2;
+    case FW_T_ACK:
+        return 8;
+    case FW_T_HELLO_REPLY:
+        return 12;
+    case FW_T_STATUS_REPLY:
+        return 16;
+    case FW_T_NAK:
+        return 4;
+    case FW_T_STREAM_END:
+        return 14;
+    case FW_T_SINE_RESULT:
+        return 22;
+    default:
+        return -1;
+    }
+}
+
+static void rx_error(fw_t *fw) { fw->rx_errors = sat_add16(fw->rx_errors); }
+
+/* A decoded body: validate, then execute or replay. Returns 0x100 | type for a valid frame. */
+static uint16_t handle_body(fw_t *fw, const fw_octet *b, uint16_t len)
+{
+    uint16_t type, seq, plen;
+    int32_t want;
+    const fw_octet *p;
+    if (len < 6u || len > FW_MAX_BODY || fw_crc16(0xFFFFu, b, len) != 0u) {
+        rx_error(fw);
+        return 0;
+    }
+    if (get8(b) != FW_PROTO_VERSION) {
+        rx_error(fw);
+        return 0;
+    }
+    type = get8(b + 1);
+    seq = get16(b + 2);
+    p = b + 4;
+    plen = (uint16_t)(len - 6u);
+    want = payload_len(type);
+    if (type == FW_T_DATA) {
+        uint16_t n = plen >= 8u ? get8(p + 6) : 0u;
+        want = (n >= 1u && n <= FW_MAX_BLOCK) ? (int32_t)(8u + 6u * n) : -2;
+    }
+    if (want == -1 && type >= 0x80u) {
+        rx_error(fw); /* unknown drive-to-host type */
+        return 0;
+    }
+    if (want >= 0 && (uint16_t)want != plen) {
+        rx_error(fw); /* wrong length: discarded */
+        return 0;
+    }
+    if (want == -2) {
+        rx_error(fw);
+        return 0;
+    }
+    /* reserved fields must be zero */
+    if ((type == FW_T_CONFIGURE && get8(p + 5) != 0u) ||
+        (type == FW_T_START_PRBS && get8(p + 1) != 0u) ||
+        (type == FW_T_START_SINE && (get8(p + 13) != 0u || (get8(p + 12) & ~3u) != 0u))) {
+        rx_error(fw);
+        return 0;
+    }
+    /* a valid frame */
+    fw->cnt.frames_received++;
+    fw->quiet_samples = 0;
+    if (type >= 0x80u || type == FW_T_KEEPALIVE) {
+        return (uint16_t)(0x100u | type);
+    }
+    if (type == FW_T_HELLO) {
+        fw_answer *a;
+        fw->cache_valid = 0;
+        a = answer(fw, FW_T_HELLO_REPLY, seq, 12u);
+        put8(a->b + 4, FW_PROTO_VERSION);
+        put8(a->b + 5, FW_MAJOR);
+        put8(a->b + 6, FW_MINOR);
+        put8(a->b + 7, FW_N_CHANNELS);
+        put8(a->b + 8, FW_MAX_BLOCK);
+        put8(a->b + 9, 0u);
+        put16(a->b + 10, fw->boot_id);
+        put32(a->b + 12, fw->max_sample_rate_hz);
+        return (uint16_t)(0x100u | type);
+    }
+    if (fw->cache_valid && fw->cache_seq == seq && fw->cache_type == type) {
+        fw_answer *a = answer(fw, 0, 0, 0);
+        *a = fw->cache;
+        fw->cnt.replays++;
+        return (uint16_t)(0x100u | type);
+    }
+    execute(fw, type, seq, p);
+    /* the answer just queued is the newest one */
+    fw->cache = fw->ans[(fw->ans_head + fw->ans_count - 1u) % FW_ANSWER_SLOTS];
+    fw->cache_valid = 1;
+    fw->cache_seq = seq;
+    fw->cache_type = type;
+    return (uint16_t)(0x100u | type);
+}
+
+uint16_t fw_rx_octet(fw_t *fw, uint16_t octet)
+{
+    uint16_t o = (uint16_t)(octet & 0xFFu);
+    int32_t n;
+    uint16_t r;
+    if (o != 0u) {
+        if (fw->rx_len < FW_MAX_ENCODED) {
+            fw->rx[fw->rx_len++] = (fw_octet)o;
+        } else {
+            fw->rx_overflow = 1;
+        }
+        return 0;
+    }
+    if (fw->rx_overflow) {
+        rx_error(fw);
+        r = 0;
+    } else if (fw->rx_len == 0u) {
+        r = 0; /* empty frame: ignored */
+    } else {
+        n = fw_cobs_decode(fw->rx, fw->rx_len);
+        if (n < 0) {
+            rx_error(fw);
+            r = 0;
+        } else {
+            r = handle_body(fw, fw->rx, (uint16_t)n);
+        }
+    }
+    fw->rx_len = 0;
+    fw->rx_overflow = 0;
+    return r;
+}
+
+/* ---- transmitter: COBS on the fly, CRC computed at the start of the frame ---- */
+
+static uint16_t tx_at(const fw_t *fw, uint16_t i)
+{
+    uint16_t body = (uint16_t)(fw->tx_len - 2u);
+    return (uint16_t)((i < body ? fw->tx_src[i] : fw->tx_crc[i - body]) & 0xFFu);
+}
+
+static void tx_block_end(fw_t *fw)
+{
+    if (fw->tx_run == 254u) {
+        fw->tx_pending = 0;
+    } else if (fw->tx_pos < fw->tx_len) {
+        fw->tx_pos++; /* the zero ending this block */
+        fw->tx_pending = 1;
+    } else {
+        fw->tx_pending = 0;
+    }
+    fw->tx_phase = 1;
+}
+
+int32_t fw_tx_octet(fw_t *fw)
+{
+    uint16_t v;
+    if (!fw->tx_active) {
+        uint16_t len, crc;
+        if (fw->ans_count) {
+            fw->tx_active = 1;
+            fw->tx_src = fw->ans[fw->ans_head].b;
+            len = fw->ans[fw->ans_head].len;
+        } else if (fw->data_count) {
+            fw->tx_active = 2;
+            fw->tx_src = fw->slot[fw->data_head].b;
+            len = fw->slot[fw->data_head].len;
+        } else {
+            return -1;
+        }
+        crc = fw_crc16(0xFFFFu, fw->tx_src, len);
+        fw->tx_crc[0] = (fw_octet)(crc & 0xFFu);
+        fw->tx_crc[1] = (fw_octet)(crc >> 8);
+        fw->tx_len = (uint16_t)(len + 2u);
+        fw->tx_pos = 0;
+        fw->tx_pending = 1;
+        fw->tx_phase = 0;
+    }
+    switch (fw->tx_phase) {
+    case 0:
+        fw->tx_phase = 1;
+        return 0;
+    case 1:
+        if (fw->tx_pos == fw->tx_len && !fw->tx_pending) {
+            /* trailing delimiter: the frame is done */
+            if (fw->tx_active == 1u) {
+                fw->ans_head = (uint16_t)((fw->ans_head + 1u) % FW_ANSWER_SLOTS);
+                fw->ans_count--;
+            } else {
+                fw->data_head = (uint16_t)((fw->data_head + 1u) % FW_TX_SLOTS);
+                fw->data_count--;
+            }
+            fw->tx_active = 0;
+            return 0;
+        }
+        fw->tx_run = 0;
+        while (fw->tx_pos + fw->tx_run < fw->tx_len && fw->tx_run < 254u &&
+               tx_at(fw, (uint16_t)(fw->tx_pos + fw->tx_run)) != 0u) {
+            fw->tx_run++;
+        }
+        fw->tx_left = fw->tx_run;
+        if (fw->tx_run == 0u) {
+            tx_block_end(fw);
+        } else {
+            fw->tx_phase = 2;
+        }
+        return (int32_t)(fw->tx_run + 1u);
+    default:
+        v = tx_at(fw, fw->tx_pos);
+        fw->tx_pos++;
+        fw->tx_left--;
+        if (fw->tx_left == 0u) {
+            tx_block_end(fw);
+        }
+        return (int32_t)v;
+    }
+}

@@ -1,0 +1,479 @@
+/* fracfw unit tests: the shared test vectors (crates/drive/testvectors) and engine scenarios.
+ * Usage: test_fw TESTVECTOR_DIR. Built by firmware/test.sh with 8-bit and 16-bit octet storage. */
+#include "fracfw.h"
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+static int failures = 0;
+#define CHECK(c, ...)                                                                              \
+    do {                                                                                           \
+        if (!(c)) {                                                                                \
+            failures++;                                                                            \
+            fprintf(stderr, "FAIL %s:%d: ", __FILE__, __LINE__);                                   \
+            fprintf(stderr, __VA_ARGS__);                                                          \
+            fprintf(stderr, "\n");                                                                 \
+        }                                                                                          \
+    } while (0)
+
+/* Octets fed to the engine carry garbage in bits 8..15 in the 16-bit mode: they must be ignored. */
+#ifdef FW_OCTET16
+#define HI 0xA500u
+#else
+#define HI 0u
+#endif
+
+static int hexval(int c)
+{
+    if (c >= '0' && c <= '9') return c - '0';
+    if (c >= 'a' && c <= 'f') return c - 'a' + 10;
+    if (c >= 'A' && c <= 'F') return c - 'A' + 10;
+    return -1;
+}
+
+/* Parse hex ('-' = empty) into out; returns length. */
+static int parse_hex(const char *s, fw_octet *out, int cap)
+{
+    int n = 0;
+    if (strcmp(s, "-") == 0) return 0;
+    while (s[0] && s[1] && n < cap) {
+        out[n++] = (fw_octet)(hexval(s[0]) * 16 + hexval(s[1]));
+        s += 2;
+    }
+    return n;
+}
+
+static FILE *open_vec(const char *dir, const char *name)
+{
+    char path[1024];
+    FILE *f;
+    snprintf(path, sizeof path, "%s/%s", dir, name);
+    f = fopen(path, "r");
+    if (!f) {
+        fprintf(stderr, "cannot open %s\n", path);
+        exit(3);
+    }
+    return f;
+}
+
+static char line[8192], a[4096], b[4096], c[4096], d[4096];
+static fw_octet x[2048], y[2048], z[2048];
+static fw_t fw;
+
+static void test_crc(const char *dir)
+{
+    FILE *f = open_vec(dir, "crc.txt");
+    int count = 0;
+    while (fgets(line, sizeof line, f)) {
+        unsigned want;
+        int n;
+        if (line[0] == '#' || sscanf(line, "%4095s %4095s", a, b) != 2) continue;
+        n = parse_hex(a, x, 2048);
+        want = (unsigned)strtoul(b, 0, 16);
+        CHECK(fw_crc16(0xFFFFu, x, (uint16_t)n) == want, "crc of %s", a);
+        count++;
+    }
+    fclose(f);
+    CHECK(count >= 5, "crc vectors read: %d", count);
+}
+
+static void test_cobs(const char *dir)
+{
+    FILE *f = open_vec(dir, "cobs.txt");
+    int count = 0;
+    while (fgets(line, sizeof line, f)) {
+        int n, m, e, k;
+        int32_t dn;
+        if (line[0] == '#' || sscanf(line, "%4095s %4095s", a, b) != 2) continue;
+        n = parse_hex(a, x, 2048);
+        m = parse_hex(b, y, 2048);
+        e = fw_cobs_encode(x, (uint16_t)n, z);
+        CHECK(e == m && memcmp(z, y, (size_t)m * sizeof(fw_octet)) == 0, "cobs encode %s", a);
+        for (k = 0; k < m; k++) z[k] = (fw_octet)(y[k] | HI);
+        dn = fw_cobs_decode(z, (uint16_t)m);
+        CHECK(dn == n, "cobs decode length %s: %ld", b, (long)dn);
+        for (k = 0; k < n && dn == n; k++) CHECK((z[k] & 0xFF) == x[k], "cobs decode %s", b);
+        count++;
+    }
+    fclose(f);
+    CHECK(count >= 8, "cobs vectors read: %d", count);
+    /* non-canonical and invalid encodings are rejected */
+    {
+        int k;
+        y[0] = 0xFF;
+        for (k = 1; k < 255; k++) y[k] = (fw_octet)k;
+        y[255] = 0x01; /* redundant empty block after a full one */
+        CHECK(fw_cobs_decode(y, 256) == -1, "non-canonical trailing 01 accepted");
+        y[0] = 0x05, y[1] = 1, y[2] = 2;
+        CHECK(fw_cobs_decode(y, 3) == -1, "code past the end accepted");
+        y[0] = 0x03, y[1] = 0, y[2] = 2;
+        CHECK(fw_cobs_decode(y, 3) == -1, "zero inside a block accepted");
+    }
+    /* round trip of bodies with zeros at every position mod 7 */
+    {
+        int n, k;
+        for (n = 0; n < 600; n += 37) {
+            int32_t dn;
+            int e;
+            for (k = 0; k < n; k++) x[k] = (fw_octet)((k % 7) ? (k * 13 + 1) & 0xFF : 0);
+            e = fw_cobs_encode(x, (uint16_t)n, z);
+            CHECK(e <= n + n / 254 + 1, "cobs overhead %d", n);
+            dn = fw_cobs_decode(z, (uint16_t)e);
+            CHECK(dn == n && memcmp(z, x, (size_t)n * sizeof(fw_octet)) == 0, "round trip %d", n);
+        }
+    }
+}
+
+static void test_prbs(const char *dir)
+{
+    FILE *f = open_vec(dir, "prbs.txt");
+    int count = 0;
+    while (fgets(line, sizeof line, f)) {
+        unsigned order;
+        unsigned long taps, seed;
+        uint32_t s;
+        size_t k;
+        if (line[0] == '#' || sscanf(line, "%u %lx %lu %4095s", &order, &taps, &seed, a) != 4)
+            continue;
+        s = (uint32_t)seed;
+        for (k = 0; a[k]; k++) {
+            uint16_t bit = fw_lfsr_next(&s, (uint32_t)taps, (uint16_t)order);
+            CHECK(bit == (uint16_t)(a[k] - '0'), "prbs order %u bit %lu", order, (unsigned long)k);
+        }
+        count++;
+    }
+    fclose(f);
+    CHECK(count >= 4, "prbs vectors read: %d", count);
+}
+
+/* Pull one whole frame from the transmitter; returns its length (with both delimiters) or 0. */
+static int pull_frame(fw_t *e, fw_octet *out)
+{
+    int n = 0;
+    int32_t v = fw_tx_octet(e);
+    if (v < 0) return 0;
+    out[n++] = (fw_octet)v;
+    do {
+        v = fw_tx_octet(e);
+        CHECK(v >= 0, "frame ended early");
+        if (v < 0) break;
+        out[n++] = (fw_octet)v;
+    } while (fw_tx_busy(e));
+    return n;
+}
+
+static uint16_t feed(fw_t *e, const fw_octet *w, int n)
+{
+    uint16_t r = 0;
+    int k;
+    for (k = 0; k < n; k++) {
+        uint16_t q = fw_rx_octet(e, (uint16_t)(w[k] | HI));
+        if (q) r = q;
+    }
+    return r;
+}
+
+/* Decode a pulled frame into a body (without CRC); returns payload pointer via body + 4. */
+static int decode_frame(const fw_octet *w, int n, fw_octet *body)
+{
+    int k;
+    int32_t dn;
+    CHECK(n >= 2 && w[0] == 0 && w[n - 1] == 0, "delimiters");
+    for (k = 1; k < n - 1; k++) body[k - 1] = w[k];
+    dn = fw_cobs_decode(body, (uint16_t)(n - 2));
+    CHECK(dn >= 6, "decodes");
+    if (dn < 6) return -1;
+    CHECK(fw_crc16(0xFFFFu, body, (uint16_t)dn) == 0, "crc residue");
+    return (int)dn - 2;
+}
+
+static void test_frames(const char *dir)
+{
+    FILE *f = open_vec(dir, "frames.txt");
+    int count = 0;
+    while (fgets(line, sizeof line, f)) {
+        int n, len;
+        unsigned seq;
+        if (line[0] == '#' || sscanf(line, "%4095s %x %4095s", a, &seq, b) != 3) continue;
+        n = parse_hex(b, x, 2048);
+        len = decode_frame(x, n, y);
+        if (len < 0) continue;
+        CHECK((y[2] | (y[3] << 8)) == (int)seq, "%s seq", a);
+        if ((y[1] & 0xFF) < 0x80) {
+            /* host to drive: the engine accepts it as a valid frame of that type */
+            fw_init(&fw, 0xBEEF, 20000);
+            CHECK(feed(&fw, x, n) == (0x100u | y[1]), "%s not accepted", a);
+            CHECK(fw_rx_errors(&fw) == 0, "%s counted as error", a);
+        } else {
+            /* drive to host: the transmitter produces these exact wire bytes from the body */
+            int k, m;
+            fw_init(&fw, 0xBEEF, 20000);
+            if (len > (int)FW_ANSWER_BODY) {
+                for (k = 0; k < len; k++) fw.slot[0].b[k] = y[k];
+                fw.slot[0].len = (uint16_t)len;
+                fw.data_count = 1;
+            } else {
+                for (k = 0; k < len; k++) fw.ans[0].b[k] = y[k];
+                fw.ans[0].len = (uint16_t)len;
+                fw.ans_count = 1;
+            }
+            m = pull_frame(&fw, z);
+            CHECK(m == n && memcmp(z, x, (size_t)n * sizeof(fw_octet)) == 0, "%s wire bytes", a);
+            CHECK(fw_tx_octet(&fw) == -1, "%s: nothing more to send", a);
+        }
+        if (strcmp(a, "HELLO") == 0) {
+            /* the engine's own HELLO_REPLY for boot id 0xBEEF, 20 kHz: the HELLO_REPLY vector */
+            fw_init(&fw, 0xBEEF, 20000);
+            feed(&fw, x, n);
+            {
+                int m = pull_frame(&fw, z);
+                FILE *g = open_vec(dir, "frames.txt");
+                int found = 0;
+                while (fgets(line, sizeof line, g)) {
+                    if (sscanf(line, "%4095s %x %4095s", d, &seq, c) == 3 &&
+                        strcmp(d, "HELLO_REPLY") == 0) {
+                        int w = parse_hex(c, y, 2048);
+                        found = 1;
+                        CHECK(m == w && memcmp(z, y, (size_t)w * sizeof(fw_octet)) == 0,
+                              "HELLO_REPLY differs from the vector");
+                    }
+                }
+                fclose(g);
+                CHECK(found, "HELLO_REPLY vector");
+            }
+        }
+        count++;
+    }
+    fclose(f);
+    CHECK(count >= 16, "frame vectors read: %d", count);
+}
+
+/* ---- engine scenarios ---- */
+
+static uint16_t host_seq = 100;
+
+static void send_cmd(fw_t *e, uint16_t type, const fw_octet *payload, int plen, uint16_t seq)
+{
+    fw_octet body[64], wire[80];
+    int n = 0, k, m;
+    uint16_t crc;
+    body[n++] = 1;
+    body[n++] = (fw_octet)type;
+    body[n++] = (fw_octet)(seq & 0xFF);
+    body[n++] = (fw_octet)(seq >> 8);
+    for (k = 0; k < plen; k++) body[n++] = payload[k];
+    crc = fw_crc16(0xFFFFu, body, (uint16_t)n);
+    body[n++] = (fw_octet)(crc & 0xFF);
+    body[n++] = (fw_octet)(crc >> 8);
+    wire[0] = 0;
+    m = fw_cobs_encode(body, (uint16_t)n, wire + 1);
+    wire[m + 1] = 0;
+    feed(e, wire, m + 2);
+}
+
+/* Send a command and return the answer's body (type at [1]); drains queued data first. */
+static int command(fw_t *e, uint16_t type, const fw_octet *p, int plen, fw_octet *ans)
+{
+    int n;
+    uint16_t seq = host_seq++;
+    send_cmd(e, type, p, plen, seq);
+    for (;;) {
+        n = pull_frame(e, z);
+        if (n == 0) return -1;
+        n = decode_frame(z, n, ans);
+        if (n < 0) return -1;
+        if ((ans[1] & 0xFF) != FW_T_DATA && (ans[1] & 0xFF) != FW_T_STREAM_END &&
+            (ans[1] & 0xFF) != FW_T_SINE_RESULT)
+            return n;
+    }
+}
+
+static void le16(fw_octet *p, unsigned v) { p[0] = (fw_octet)(v & 0xFF), p[1] = (fw_octet)((v >> 8) & 0xFF); }
+static void le32(fw_octet *p, unsigned long v) { le16(p, (unsigned)(v & 0xFFFF)), le16(p + 2, (unsigned)(v >> 16)); }
+static unsigned g16(const fw_octet *p) { return (unsigned)((p[0] & 0xFF) | ((p[1] & 0xFF) << 8)); }
+static unsigned long g32(const fw_octet *p) { return g16(p) | ((unsigned long)g16(p + 2) << 16); }
+static int s16(const fw_octet *p) { unsigned v = g16(p); return v >= 0x8000u ? (int)v - 0x10000 : (int)v; }
+
+static void configure(fw_t *e, unsigned fs, unsigned block, int ulim, int ylim)
+{
+    fw_octet p[26], r[512];
+    int n;
+    memset(p, 0, sizeof p);
+    le32(p, fs);
+    p[4] = (fw_octet)block;
+    le16(p + 6, 500);
+    le32(p + 8, 1000), le32(p + 12, 10000), le32(p + 16, 1000);
+    le16(p + 20, (unsigned)ulim), le16(p + 22, (unsigned)ylim), le16(p + 24, 30000);
+    n = command(e, FW_T_CONFIGURE, p, 26, r);
+    CHECK(n == 12 && (r[1] & 0xFF) == FW_T_ACK, "configure acked");
+}
+
+static void prbs_payload(fw_octet *p, unsigned periods, int amp, int off, unsigned long settle)
+{
+    memset(p, 0, 22);
+    p[0] = 7;
+    le32(p + 2, 0x60), le32(p + 6, 1), le16(p + 10, 2), le16(p + 12, (unsigned)amp);
+    le16(p + 14, (unsigned)off), le16(p + 16, periods), le32(p + 18, settle);
+}
+
+/* Run samples with a plant y = u/2 (i = u/4), collecting DATA into u/y arrays; returns when the
+ * run ended (STREAM_END seen) or after max samples. */
+static int16_t got_u[4096];
+static int got_n, end_reason, end_total, end_sent;
+
+static void run_samples(fw_t *e, int max, int drain)
+{
+    int k;
+    got_n = 0, end_reason = -1;
+    for (k = 0; k < max; k++) {
+        int16_t u;
+        int n;
+        if (fw_sample_begin(e, &u)) fw_sample_end(e, (int16_t)(u / 2), (int16_t)(u / 4));
+        while (drain && (n = pull_frame(e, z)) > 0) {
+            fw_octet body[512];
+            int len = decode_frame(z, n, body);
+            if (len < 0) continue;
+            if ((body[1] & 0xFF) == FW_T_DATA) {
+                unsigned long first = g32(body + 6);
+                int cnt = body[10] & 0xFF, j;
+                CHECK((int)first == got_n, "DATA first_index %lu, expected %d", first, got_n);
+                for (j = 0; j < cnt && got_n < 4096; j++) {
+                    got_u[got_n++] = (int16_t)s16(body + 12 + 6 * j);
+                    CHECK(s16(body + 14 + 6 * j) == s16(body + 12 + 6 * j) / 2, "y sample");
+                }
+            } else if ((body[1] & 0xFF) == FW_T_STREAM_END) {
+                end_reason = body[6] & 0xFF;
+                end_total = (int)g32(body + 8);
+                end_sent = (int)g32(body + 12);
+            }
+        }
+    }
+}
+
+static void test_engine(void)
+{
+    fw_octet p[32], r[512];
+    int n, k;
+    uint32_t s = 1;
+    uint16_t bit = 0;
+    fw_init(&fw, 0x1234, 20000);
+    /* unconfigured: START is refused */
+    prbs_payload(p, 1, 1000, 3000, 10);
+    n = command(&fw, FW_T_START_PRBS, p, 22, r);
+    CHECK(n == 8 && (r[1] & 0xFF) == FW_T_NAK && (r[5] & 0xFF) == FW_NAK_NOT_CONFIGURED, "nak");
+    configure(&fw, 1000, 32, 3500, 30000);
+    /* a PRBS run: 10 settle + 127 * 2 samples, u = 3000 +- 1000 clamped to 3500 */
+    n = command(&fw, FW_T_START_PRBS, p, 22, r);
+    CHECK(n == 12 && (r[1] & 0xFF) == FW_T_ACK && g32(r + 8) == 264, "start acked, total 264");
+    run_samples(&fw, 400, 1);
+    CHECK(got_n == 264 && end_reason == 0 && end_total == 264 && end_sent == 264,
+          "complete run: %d samples, reason %d", got_n, end_reason);
+    for (k = 0; k < got_n; k++) {
+        int want;
+        if (k < 10) {
+            want = 3000;
+        } else {
+            if ((k - 10) % 2 == 0) bit = fw_lfsr_next(&s, 0x60, 7);
+            want = bit ? 3500 : 2000; /* 4000 clamped */
+        }
+        CHECK(got_u[k] == want, "u[%d] = %d, want %d", k, got_u[k], want);
+    }
+    /* STATUS: idle, run 1, 264 done, clamped = number of 1 bits * 2 = 64 * 2 */
+    n = command(&fw, FW_T_STATUS, 0, 0, r);
+    CHECK(n == 20 && (r[4] & 0xFF) == 1 && g16(r + 6) == 1 && g32(r + 8) == 264 &&
+              g16(r + 14) == 0x1234 && g16(r + 18) == 128,
+          "status after the run (clamped %u)", g16(r + 18));
+    /* a duplicated START (same seq) is answered from the cache and never runs twice */
+    {
+        fw_counters cnt;
+        uint16_t seq = host_seq++;
+        send_cmd(&fw, FW_T_START_PRBS, p, 22, seq);
+        send_cmd(&fw, FW_T_START_PRBS, p, 22, seq);
+        fw_get_counters(&fw, &cnt);
+        CHECK(cnt.runs_started == 2 && cnt.replays == 1, "replay: runs %lu replays %lu",
+              (unsigned long)cnt.runs_started, (unsigned long)cnt.replays);
+        n = pull_frame(&fw, z), n = decode_frame(z, n, r);
+        n = pull_frame(&fw, z), n = decode_frame(z, n, y);
+        CHECK(memcmp(r, y, 14 * sizeof(fw_octet)) == 0, "replayed ACK identical");
+        /* ESTOP: run aborted, fault latched, START refused with FAULT until CONFIGURE */
+        run_samples(&fw, 20, 1);
+        n = command(&fw, FW_T_ESTOP, 0, 0, r);
+        CHECK((r[1] & 0xFF) == FW_T_ACK && !fw_running(&fw), "estop");
+        n = command(&fw, FW_T_START_PRBS, p, 22, r);
+        CHECK((r[1] & 0xFF) == FW_T_NAK && (r[5] & 0xFF) == FW_NAK_FAULT && g16(r + 6) == 1,
+              "start after estop: fault");
+        le16(p + 30 - 30, 2); /* END_QUERY of run 2 */
+        n = command(&fw, FW_T_END_QUERY, p, 2, r);
+        CHECK((r[1] & 0xFF) == FW_T_STREAM_END && (r[6] & 0xFF) == FW_END_ESTOP, "end query");
+    }
+    /* keepalive: 500 ms at 1 kHz without frames ramps down over 50 samples, reason KEEPALIVE */
+    configure(&fw, 1000, 32, 3500, 30000);
+    prbs_payload(p, 40, 1000, 3000, 10);
+    n = command(&fw, FW_T_START_PRBS, p, 22, r);
+    CHECK((r[1] & 0xFF) == FW_T_ACK, "start");
+    run_samples(&fw, 700, 1);
+    CHECK(end_reason == FW_END_KEEPALIVE && got_n == 501 + 50, "keepalive: reason %d after %d",
+          end_reason, got_n);
+    CHECK(got_u[got_n - 1] == 0, "ramped to zero");
+    /* speed trip: y = u/2 beyond 1400 trips at the first sample with u = 3000 */
+    configure(&fw, 1000, 32, 3500, 1400);
+    prbs_payload(p, 1, 1000, 3000, 10);
+    n = command(&fw, FW_T_START_PRBS, p, 22, r);
+    run_samples(&fw, 50, 1);
+    CHECK(end_reason == FW_END_LIMIT && got_n == 1, "trip: reason %d after %d", end_reason, got_n);
+    n = command(&fw, FW_T_STATUS, 0, 0, r);
+    CHECK((r[4] & 0xFF) == 3 && (r[5] & 0xFF) == FW_FAULT_SPEED, "speed fault latched");
+    /* a corrupted frame is counted and not answered */
+    {
+        fw_octet w[] = {0, 0x04, 0x01, 0x07, 0x07, 0x03, 0x97, 0xDF, 0};
+        uint16_t before = fw_rx_errors(&fw);
+        feed(&fw, w, 9);
+        CHECK(fw_rx_errors(&fw) == before + 1 && fw_tx_octet(&fw) == -1, "crc error counted");
+    }
+    /* blocks dropped when nobody drains the line: whole blocks, counted in STREAM_END */
+    configure(&fw, 1000, 10, 3500, 30000);
+    prbs_payload(p, 1, 1000, 3000, 6);
+    n = command(&fw, FW_T_START_PRBS, p, 22, r);
+    run_samples(&fw, 300, 0);
+    run_samples(&fw, 1, 1);
+    CHECK(end_reason == 0 && end_total == 260 && end_sent == (int)FW_TX_BLOCKS * 10,
+          "drops: sent %d", end_sent);
+}
+
+static void test_sine(void)
+{
+    /* the Q30 sine is within 1e-7 of sin() over the circle (checked on a grid) */
+    int32_t s, c;
+    uint32_t ph;
+    int worst = 0;
+    for (ph = 0; ph < 0xFFFFF000u; ph += 0x000FF0F1u) {
+        double t = (double)ph / 4294967296.0 * 6.283185307179586;
+        double es, ec;
+        fw_sincos_q30(ph, &s, &c);
+        es = s / 1073741824.0 - __builtin_sin(t);
+        ec = c / 1073741824.0 - __builtin_cos(t);
+        if (es < 0) es = -es;
+        if (ec < 0) ec = -ec;
+        if (es > 1e-7 || ec > 1e-7) worst++;
+    }
+    CHECK(worst == 0, "sine error above 1e-7 at %d points", worst);
+}
+
+int main(int argc, char **argv)
+{
+    const char *dir = argc > 1 ? argv[1] : "../crates/drive/testvectors";
+    test_crc(dir);
+    test_cobs(dir);
+    test_prbs(dir);
+    test_frames(dir);
+    test_engine();
+    test_sine();
+#ifdef FW_OCTET16
+    printf("fracfw tests (16-bit octet storage, sizeof(fw_t) = %lu): %s\n",
+           (unsigned long)sizeof(fw_t), failures ? "FAILED" : "ok");
+#else
+    printf("fracfw tests (8-bit octets, sizeof(fw_t) = %lu): %s\n", (unsigned long)sizeof(fw_t),
+           failures ? "FAILED" : "ok");
+#endif
+    return failures ? 1 : 0;
+}
