@@ -217,8 +217,9 @@ def fit_time(
     holdout: float = 0.3,
     offsets: str = "initial",
     fit_offset: bool = True,
-    max_iterations: int = 100,
+    max_iterations: int = 500,
     skip: int = 0,
+    initial: str = "estimate",
     method: str = "refined",
     band: Optional[Tuple[float, float]] = None,
     order: int = 8,
@@ -251,7 +252,8 @@ def fit_time(
         start is made from the data: parameters not named keep the structure's defaults
         (``K=1, a1=0.01, a2=1e-4``, orders 0.9).
     holdout : float
-        Fraction of the record held out for validation, in [0, 1).
+        Fraction of the record held out for validation, in [0, 0.9]. When the input does not
+        change there, the window is moved to where it does (with a warning).
     offsets : {"initial", "mean", "none"}
         How the operating point is removed.
     fit_offset : bool
@@ -260,6 +262,10 @@ def fit_time(
         Levenberg-Marquardt iterations at most.
     skip : int
         Leading samples left out of the residual.
+    initial : {"estimate", "rest"}
+        The plant's state at the first sample: ``"estimate"`` (the state a past held input left,
+        fitted with the model, so a record that starts in motion, mid-transient or on a ramp fits
+        as one at rest does) or ``"rest"``.
     method, band, order
         The approximation of the fractional operators (as :meth:`FracTf.simulate`).
     max_lag : int
@@ -299,6 +305,7 @@ def fit_time(
         fit_offset=fit_offset,
         max_iterations=max_iterations,
         skip=skip,
+        initial=initial,
         method=method,
         band=band,
         order=order,

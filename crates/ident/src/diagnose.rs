@@ -276,7 +276,17 @@ impl Ctx<'_> {
 
     /// Refit `model` (its values are the start) on the estimation part.
     fn refit(&self, mut model: FracModel) -> Result<State> {
+        let levels = model
+            .past
+            .as_ref()
+            .map(|p| p.levels.clone())
+            .unwrap_or_default();
         for (i, p) in model.params.iter_mut().enumerate() {
+            // The initial state restarts from rest: the base fit's levels took up what the
+            // missing effect left in the residual.
+            if levels.contains(&i) {
+                p.value = 0.0;
+            }
             // A parameter the base fit drove to a bound (the missing effect distorted it) restarts
             // from the base fit's own start, or mid-range.
             if p.free && p.bounds.at_edge(p.value) {

@@ -29,15 +29,9 @@ pub fn json(d: &Diagnosis) -> Result<serde_json::Value> {
     let mut v = serde_json::to_value(d)?;
     let p: Vec<f64> = d.model.params.iter().map(|p| p.value).collect();
     if let Ok(tf) = d.model.tf(&p) {
-        let terms = |t: &[fracsim::Term]| -> Vec<serde_json::Value> {
-            t.iter()
-                .map(|t| serde_json::json!({"coef": t.coef, "order": t.order}))
-                .collect()
-        };
-        v["model"] = serde_json::json!({
-            "num": terms(&tf.num), "den": terms(&tf.den), "delay": tf.delay, "text": tf.to_string(),
-            "effects": d.model.effects.iter().map(|e| e.name()).collect::<Vec<_>>(),
-        });
+        v["model"] = serde_json::to_value(ident::app::ModelReport::from(&tf))?;
+        v["model"]["effects"] =
+            serde_json::json!(d.model.effects.iter().map(|e| e.name()).collect::<Vec<_>>());
     }
     Ok(v)
 }

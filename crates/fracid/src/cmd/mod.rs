@@ -4,6 +4,7 @@ pub mod demo;
 pub mod diagnose;
 pub mod drive;
 pub mod freq;
+pub mod score;
 pub mod sim;
 pub mod time;
 

@@ -2,5 +2,8 @@
 
 mod bad_input;
 mod held;
+mod records;
 mod roundtrip;
 mod sensitivity;
+mod starts;
+mod truth;
