@@ -4,7 +4,7 @@
 use crate::arrays::{floats, positive, same_len, FloatArray};
 use crate::errors;
 use crate::tf::{approx_spec, PyFracTf};
-use ident::data::{OffsetMode, Record};
+use ident::data::Record;
 use ident::diagnose::{DiagnoseOptions, Diagnosis};
 use ident::metrics::{residual_test, Fit};
 use ident::oe::{identify, FracModel, IdentOptions, StartMode};

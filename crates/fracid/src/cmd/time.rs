@@ -260,7 +260,7 @@ pub fn run(a: TimeArgs) -> Result<()> {
 pub(crate) fn read_record(path: &std::path::Path, cols: &Columns) -> Result<Record> {
     let text =
         std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
-    Ok(Record::parse(&text, cols).with_context(|| format!("in {}", path.display()))?)
+    Record::parse(&text, cols).with_context(|| format!("in {}", path.display()))
 }
 
 /// The joint fit of several records, as text or JSON.
@@ -403,7 +403,7 @@ fn print_text(id: &Identification, rec: &Record) {
             .iter()
             .map(|(_, p)| format!("{:.4}", p.value))
             .collect();
-        let edges: Vec<String> = past.edges.iter().map(|e| format!("{e:.4g}")).collect();
+        let edges: Vec<String> = past.edges.iter().map(|e| format!("{e:.4}")).collect();
         println!(
             "initial state: the past input's deviation (newest first) {} on windows ending {} s \
              before the record",

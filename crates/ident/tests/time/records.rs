@@ -141,3 +141,35 @@ fn a_separate_validation_record_is_scored_with_its_own_initial_state() {
     assert!(s.fit.rmse < 0.105, "{}", s.fit.rmse);
     assert!(rest.fit.rmse > 0.2, "{}", rest.fit.rmse);
 }
+
+/// Two short records of one plant at different operating points, one starting in motion, fitted
+/// jointly: one model (gain within 2%, orders within 0.05), each record at its noise floor with
+/// its own offset and initial state.
+#[test]
+fn two_records_are_fitted_jointly() {
+    let u1: Vec<f64> = prbs(1, 1).iter().map(|v| v + 10.0).collect();
+    let rec1 = Record::from_samples(&u1, &noisy(response(&PMSM, &u1, DT), 0.1, 35), DT).unwrap();
+    let u2: Vec<f64> = prbs(1, 77).iter().map(|v| v + 6.0).collect();
+    let mut full = vec![6.0; 300];
+    full.extend(&u2);
+    let y2 = noisy(response(&PMSM, &full, DT)[300..].to_vec(), 0.1, 36);
+    let rec2 = Record::from_samples(&u2, &y2, DT).unwrap();
+    let j = ident::oe::identify_joint(
+        &[rec1, rec2],
+        &FracModel::pmsm(1.0, 0.01, 1e-4, 0.9, 0.9),
+        &IdentOptions::default(),
+    )
+    .unwrap();
+    let v = |n: &str| j.report.params[j.model.index_of(n).unwrap()].value;
+    eprintln!(
+        "joint: {} fits {:?}",
+        j.tf,
+        j.records.iter().map(|r| r.1.rmse).collect::<Vec<_>>()
+    );
+    assert!((v("K") / 6.82 - 1.0).abs() < 0.02, "K {}", v("K"));
+    assert!((v("zeta") - 0.92).abs() < 0.05, "zeta {}", v("zeta"));
+    assert!((v("theta") - 0.8252).abs() < 0.05, "theta {}", v("theta"));
+    for (_, fit, _) in &j.records {
+        assert!(fit.rmse < 0.105, "{}", fit.rmse);
+    }
+}

@@ -23,7 +23,7 @@ pub const PMSM: Plant<'static> = Plant {
 
 /// GL at `dt/n` from rest, the input held and delayed by `plant.delay_s` (a whole number of fine
 /// steps), read at the sample instants.
-fn gl_held(plant: &Plant, u: &[f64], dt: f64, n: usize) -> Vec<f64> {
+fn gl_held(plant: &Plant<'_>, u: &[f64], dt: f64, n: usize) -> Vec<f64> {
     let h = dt / n as f64;
     let m = u.len() * n;
     let shift = (plant.delay_s / h).round() as usize;
@@ -53,7 +53,7 @@ fn gl_held(plant: &Plant, u: &[f64], dt: f64, n: usize) -> Vec<f64> {
 
 /// The response to the held input `u` sampled every `dt`, from rest at `t = 0`
 /// (Richardson of `dt/10` and `dt/20`).
-pub fn response(plant: &Plant, u: &[f64], dt: f64) -> Vec<f64> {
+pub fn response(plant: &Plant<'_>, u: &[f64], dt: f64) -> Vec<f64> {
     let (c, f) = (gl_held(plant, u, dt, 10), gl_held(plant, u, dt, 20));
     c.iter().zip(&f).map(|(c, f)| 2.0 * f - c).collect()
 }
