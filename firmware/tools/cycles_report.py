@@ -17,7 +17,6 @@ DIV32 = C28X_DIV32 (100).
 from __future__ import annotations
 
 import glob
-import math
 import os
 import re
 import statistics
