@@ -303,15 +303,23 @@ fn sim_input_columns_are_chosen_and_checked() {
     assert!(err.contains("u is not finite (NaN) at sample 1"), "{err}");
 }
 
-#[test]
-fn demo_acquires_identifies_diagnoses_and_reports() {
+/// Tests that run the drive simulator in real time take turns (two at once on a 2-core machine
+/// would distort their timing).
+fn realtime_lock() -> std::sync::MutexGuard<'static, ()> {
+    static LOCK: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    LOCK.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// Run `fracid demo` with `extra` args and check its files, the hidden delay it must find and its
+/// models; returns its stderr (the progress lines).
+fn demo_checks(extra: &[&str]) -> String {
+    let _g = realtime_lock();
     let dir = tempfile::tempdir().unwrap();
-    let out = fracid(&["demo", "--out", dir.path().to_str().unwrap()]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let mut args = vec!["demo", "--out", dir.path().to_str().unwrap()];
+    args.extend(extra);
+    let out = fracid(&args);
+    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(out.status.success(), "{stderr}");
     for f in [
         "prbs.csv",
         "prbs_steady.csv",
@@ -358,6 +366,20 @@ fn demo_acquires_identifies_diagnoses_and_reports() {
     assert!((dc - 6.82).abs() < 0.2, "b0 = {dc}");
     let report = std::fs::read_to_string(dir.path().join("report.md")).unwrap();
     assert!(report.contains("## The hidden truth"));
+    stderr
+}
+
+#[test]
+fn demo_acquires_identifies_diagnoses_and_reports() {
+    demo_checks(&[]);
+}
+
+/// The whole demo with the C drive firmware (`firmware/`) behind the simulated drive's pty: the
+/// same record length, the same delay found, the same models (about 50 s, as the default demo).
+#[test]
+fn demo_with_the_c_firmware_finds_the_hidden_delay() {
+    let stderr = demo_checks(&["--firmware"]);
+    assert!(stderr.contains("(C firmware)"), "{stderr}");
 }
 
 fn shared_data(name: &str) -> Option<PathBuf> {
@@ -505,6 +527,7 @@ fn ctrl_c_stops_a_prbs_run_and_the_record_says_what_is_missing() {
     use std::process::Stdio;
     use std::time::{Duration, Instant};
 
+    let _g = realtime_lock();
     let mut sim = KillOnDrop(
         Command::new(fracid_bin())
             .args(["drive", "sim", "--baud", "921600", "--duration", "120"])
@@ -615,4 +638,180 @@ fn ctrl_c_stops_a_prbs_run_and_the_record_says_what_is_missing() {
         .parse()
         .unwrap();
     assert_eq!(first_missing, rows.len(), "{footer}");
+}
+
+/// `fracid drive sim` with `extra` args, at 921600 baud with deterministic hidden effects: the
+/// process (killed on drop), the port it prints and its first stderr line (which names the firmware).
+#[cfg(unix)]
+fn drive_sim(extra: &[&str]) -> (KillOnDrop, String, String) {
+    use std::io::{BufRead, BufReader};
+    use std::process::Stdio;
+    let mut args = vec![
+        "drive",
+        "sim",
+        "--baud",
+        "921600",
+        "--duration",
+        "120",
+        "--delay",
+        "0.002",
+        "--noise",
+        "0.05",
+        "--seed",
+        "7",
+    ];
+    args.extend(extra);
+    let mut sim = KillOnDrop(
+        Command::new(fracid_bin())
+            .args(&args)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("start the drive simulator"),
+    );
+    let mut port = String::new();
+    BufReader::new(sim.0.stdout.take().expect("sim stdout"))
+        .read_line(&mut port)
+        .expect("the simulator prints its port");
+    let mut banner = String::new();
+    BufReader::new(sim.0.stderr.take().expect("sim stderr"))
+        .read_line(&mut banner)
+        .expect("the simulator says what it runs");
+    assert!(!port.trim().is_empty(), "no port from the simulator");
+    (sim, port.trim().to_string(), banner)
+}
+
+/// `fracid drive prbs` and `fracid drive sine` against a simulator: the PRBS CSV and the Bode CSV.
+#[cfg(unix)]
+fn drive_records(port: &str, dir: &std::path::Path, tag: &str) -> (String, String) {
+    let prbs = dir.join(format!("prbs_{tag}.csv"));
+    let bode = dir.join(format!("bode_{tag}.csv"));
+    let common = ["--port", port, "--baud", "921600", "--quiet"];
+    let mut a = vec!["drive", "prbs", "--settle", "0.1", "-o"];
+    a.push(prbs.to_str().unwrap());
+    a.extend(common);
+    let out = fracid(&a);
+    assert!(
+        out.status.success(),
+        "{tag}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let mut a = vec![
+        "drive",
+        "sine",
+        "--freqs",
+        "20,70",
+        "--min-settle",
+        "0.05",
+        "-o",
+    ];
+    a.push(bode.to_str().unwrap());
+    a.extend(common);
+    let out = fracid(&a);
+    assert!(
+        out.status.success(),
+        "{tag}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    (
+        std::fs::read_to_string(prbs).unwrap(),
+        std::fs::read_to_string(bode).unwrap(),
+    )
+}
+
+#[cfg(unix)]
+#[test]
+fn drive_sim_firmware_c_gives_the_rust_firmware_records() {
+    let _g = realtime_lock();
+    let dir = tempfile::tempdir().unwrap();
+    let (sim_c, port_c, banner_c) = drive_sim(&["--firmware", "c"]);
+    assert!(banner_c.contains("(C firmware)"), "{banner_c}");
+    let (prbs_c, bode_c) = drive_records(&port_c, dir.path(), "c");
+    drop(sim_c);
+    let (sim_r, port_r, banner_r) = drive_sim(&["--firmware", "rust"]);
+    assert!(banner_r.contains("(Rust firmware)"), "{banner_r}");
+    let (prbs_r, bode_r) = drive_records(&port_r, dir.path(), "rust");
+    drop(sim_r);
+    // The PRBS record: complete, and the same text row for row (t, u, y, i; y with the seeded
+    // noise and the hidden delay), footer included.
+    assert!(
+        prbs_c.trim_end().ends_with("# complete: 481 samples"),
+        "{}",
+        prbs_c.lines().last().unwrap_or("")
+    );
+    assert_eq!(prbs_c.lines().count(), prbs_r.lines().count());
+    for (k, (c, r)) in prbs_c.lines().zip(prbs_r.lines()).enumerate() {
+        assert_eq!(
+            c, r,
+            "PRBS line {k} differs between the C and the Rust firmware"
+        );
+    }
+    // The Bode table from the drive's DFT: the C firmware sums in 64-bit fixed point, the Rust one
+    // in f64, both rounded to Q8 (1/256 LSB): they may differ by one Q8 unit, far below 1e-3 dB
+    // and 1e-3 degrees at these amplitudes.
+    let rows = |t: &str| -> Vec<Vec<f64>> {
+        t.lines()
+            .filter(|l| l.starts_with(|c: char| c.is_ascii_digit()))
+            .map(|l| l.split(',').map(|x| x.parse().unwrap()).collect())
+            .collect()
+    };
+    let (bc, br) = (rows(&bode_c), rows(&bode_r));
+    assert_eq!(bc.len(), 2, "{bode_c}");
+    assert_eq!(br.len(), 2, "{bode_r}");
+    for (c, r) in bc.iter().zip(&br) {
+        assert_eq!(c[0], r[0]);
+        assert!((c[1] - r[1]).abs() < 1e-3, "gain: C {c:?} vs Rust {r:?}");
+        assert!((c[2] - r[2]).abs() < 1e-3, "phase: C {c:?} vs Rust {r:?}");
+    }
+    // A wrong value is bad input (exit 2), with the choices in the message.
+    let out = fracid(&["drive", "sim", "--firmware", "asm"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains("[possible values: rust, c]"), "{err}");
+}
+
+/// The simulator process paused for 0.8 s in the middle of a PRBS run (as a loaded machine can
+/// pause it), while the client goes on sending keepalives: the run must not end on the keepalive,
+/// with either firmware. (The C engine counts its keepalive in samples; the simulator used to run
+/// the whole backlog of samples at once after such a pause, and the C run expired.)
+#[cfg(unix)]
+#[test]
+fn a_paused_simulator_does_not_expire_the_keepalive() {
+    use std::process::Stdio;
+    use std::time::Duration;
+    let _g = realtime_lock();
+    let dir = tempfile::tempdir().unwrap();
+    for fw in ["c", "rust"] {
+        let (sim, port, _) = drive_sim(&["--firmware", fw]);
+        let out = dir.path().join(format!("prbs_{fw}.csv"));
+        let mut prbs = KillOnDrop(
+            Command::new(fracid_bin())
+                .args(["drive", "prbs", "--port", &port, "--baud", "921600"])
+                .args(["--periods", "4", "--quiet", "--allow-incomplete", "-o"])
+                .arg(&out)
+                .stdout(Stdio::null())
+                .stderr(Stdio::piped())
+                .spawn()
+                .expect("start fracid drive prbs"),
+        );
+        std::thread::sleep(Duration::from_millis(700));
+        let pid = sim.0.id() as libc::pid_t;
+        // SAFETY: signalling our own child, which has not been reaped yet.
+        assert_eq!(unsafe { libc::kill(pid, libc::SIGSTOP) }, 0);
+        std::thread::sleep(Duration::from_millis(800));
+        // SAFETY: as above.
+        assert_eq!(unsafe { libc::kill(pid, libc::SIGCONT) }, 0);
+        let status = prbs.0.wait().unwrap();
+        let mut stderr = String::new();
+        std::io::Read::read_to_string(&mut prbs.0.stderr.take().unwrap(), &mut stderr).unwrap();
+        assert!(status.success(), "{fw}: {status:?} {stderr}");
+        let text = std::fs::read_to_string(&out).unwrap();
+        let footer = text.trim_end().lines().last().unwrap();
+        assert!(footer.starts_with("# "), "{fw}: {footer}");
+        assert!(
+            !footer.contains("Keepalive") && !footer.contains("ended early"),
+            "{fw}: {footer}"
+        );
+        drop(sim);
+    }
 }

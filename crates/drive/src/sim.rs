@@ -1394,7 +1394,18 @@ impl Firmware {
         if let (Some(cc), true) = (c.eng.config(), c.eng.running()) {
             let fs = cc.sample_rate_hz as f64;
             let lsb = cc.scales.map(|v| v as f64 * 1e-6);
-            let wall = (now.duration_since(c.start).as_secs_f64() * fs) as u64;
+            let mut wall = (now.duration_since(c.start).as_secs_f64() * fs) as u64;
+            // This thread can fall behind the wall clock on a loaded machine; a real drive does
+            // not (its sample and receive interrupts interleave). Catching up a long backlog at
+            // once would run its samples without the frames that arrived meanwhile, and the C
+            // engine, which counts its keepalive in samples, would expire. So a backlog beyond
+            // 20 ms is dropped: the run goes on later, the same sample for sample.
+            let max_behind = (fs / 50.0).ceil() as u64;
+            if wall > c.ticks + max_behind {
+                let skip = wall - c.ticks - max_behind;
+                c.start += Duration::from_secs_f64(skip as f64 / fs);
+                wall = c.ticks + max_behind;
+            }
             while c.ticks < wall {
                 let Some(u_raw) = c.eng.sample_begin() else {
                     break;

@@ -5,7 +5,7 @@ use crate::interrupt::StopOnInterrupt;
 use anyhow::{Context, Result};
 use drive::client::{Client, ClientConfig, CsvSink, PrbsTest, Progress, SineSweep};
 use drive::protocol::Configure;
-use drive::sim::{DriveSim, Effects, FaultAt, Faults, SimConfig};
+use drive::sim::{DriveSim, Effects, FaultAt, Faults, FirmwareKind, SimConfig};
 use std::io::{IsTerminal, Write};
 use std::path::PathBuf;
 use std::time::Duration;
@@ -129,6 +129,19 @@ pub struct SimArgs {
     /// Log simulator events to stderr.
     #[arg(long, short)]
     pub verbose: bool,
+    /// Firmware behind the pty: `rust` (the simulator's own) or `c` (the C firmware of
+    /// `firmware/`, as flashed on the F2812). Default: rust, or `c` if FRACID_SIM_FIRMWARE=c.
+    #[arg(long, value_enum)]
+    pub firmware: Option<SimFirmware>,
+}
+
+/// The firmware of `fracid drive sim --firmware`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum SimFirmware {
+    /// The simulator's Rust implementation of the protocol.
+    Rust,
+    /// The C firmware (`firmware/`, fracfw) linked into the simulator.
+    C,
 }
 
 /// Options of `fracid drive prbs`.
@@ -286,7 +299,16 @@ fn sim(a: SimArgs) -> Result<()> {
         },
         link: a.link,
         verbose: a.verbose,
+        firmware: match a.firmware {
+            Some(SimFirmware::Rust) => FirmwareKind::Rust,
+            Some(SimFirmware::C) => FirmwareKind::C,
+            None => FirmwareKind::from_env(),
+        },
         ..SimConfig::default()
+    };
+    let firmware = match cfg.firmware {
+        FirmwareKind::C => "C",
+        FirmwareKind::Rust => "Rust",
     };
     let s = DriveSim::spawn(cfg).map_err(lib_err)?;
     let mut out = std::io::stdout().lock();
@@ -294,7 +316,7 @@ fn sim(a: SimArgs) -> Result<()> {
     out.flush()?;
     drop(out);
     eprintln!(
-        "drive simulator at {} ({} baud); stop with Ctrl-C",
+        "drive simulator ({firmware} firmware) at {} ({} baud); stop with Ctrl-C",
         s.port_path(),
         a.baud
     );
