@@ -575,7 +575,7 @@ impl PyDriveClient {
                     let acq = c.run_prbs(&test, &mut sink);
                     let written = sink
                         .into_inner()
-                        .and_then(|mut f| f.flush())
+                        .and_then(|mut f| std::io::Write::flush(&mut f))
                         .map_err(|e| Fail::Os(format!("cannot write {}: {e}", p.display())));
                     let acq = acq?;
                     written?;

@@ -68,9 +68,9 @@ impl Default for Effects {
 
 impl Effects {
     /// Check the ranges: every value finite; friction, ripple frequency, noise and quantisation
-    /// >= 0 (the ripple amplitude may be negative: a phase shift); the
-    /// delay in `0..=MAX_DELAY_S` (the simulator holds the delayed commands in memory); the
-    /// winding resistance > 0.
+    /// not negative (the ripple amplitude may be: a phase shift); the delay in
+    /// `0..=MAX_DELAY_S` (the simulator holds the delayed commands in memory); the winding
+    /// resistance positive.
     ///
     /// # Errors
     /// [`Error::InvalidParam`] naming the first bad value.
