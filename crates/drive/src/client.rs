@@ -439,12 +439,16 @@ impl PrbsTest {
                 self.clock_s, c.sample_rate_hz
             )));
         }
-        let taps = crate::prbs::default_taps(self.order)
-            .ok_or_else(|| Error::InvalidParam(format!("PRBS order {} (2..=16)", self.order)))?;
+        let taps = crate::prbs::default_taps(self.order).ok_or_else(|| {
+            Error::InvalidParam(format!("PRBS order {} is not in 2..=16", self.order))
+        })?;
         let raw = |v: f64, what: &str| -> Result<i16> {
             let r = (v / c.u_lsb()).round();
             if !r.is_finite() || r.abs() > 32767.0 {
-                return Err(Error::InvalidParam(format!("{what} {v} V out of range")));
+                return Err(Error::InvalidParam(format!(
+                    "{what} {v} V is out of the command range (+-{} V)",
+                    32767.0 * c.u_lsb()
+                )));
             }
             Ok(r as i16)
         };
@@ -463,7 +467,12 @@ impl PrbsTest {
             settle_samples: settle as u32,
         };
         crate::prbs::Lfsr::new(cmd.order, cmd.taps, cmd.seed).ok_or_else(|| {
-            Error::InvalidParam(format!("PRBS seed {} for order {}", self.seed, self.order))
+            Error::InvalidParam(format!(
+                "PRBS seed {} is not valid for order {} (1..={})",
+                self.seed,
+                self.order,
+                (1u32 << self.order) - 1
+            ))
         })?;
         cmd.total_samples()
             .ok_or_else(|| Error::InvalidParam("PRBS run too long".into()))?;

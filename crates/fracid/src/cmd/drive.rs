@@ -370,7 +370,7 @@ fn connect(p: &PortArgs, conf: &Configure) -> Result<Client> {
 /// The output file, created only when the run's first data arrive ([`LazyFile`]); a path that
 /// cannot be written fails here, before the drive is asked anything (exit 3).
 fn output_file(path: &std::path::Path) -> Result<LazyFile> {
-    LazyFile::new(path).with_context(|| format!("cannot write the output {}", path.display()))
+    LazyFile::new(path).context("cannot write the output file")
 }
 
 /// The voltage levels a command holds (raw units), against the drive's clamp: exit 2 when every
