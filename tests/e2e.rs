@@ -520,14 +520,15 @@ impl Drop for KillOnDrop {
     }
 }
 
+/// `fracid drive sim` on a pty, fast line; its port path. The child is kept for its stdout pipe.
 #[cfg(unix)]
-#[test]
-fn ctrl_c_stops_a_prbs_run_and_the_record_says_what_is_missing() {
+fn drive_sim_piped() -> (
+    KillOnDrop,
+    String,
+    std::io::BufReader<std::process::ChildStdout>,
+) {
     use std::io::{BufRead, BufReader};
     use std::process::Stdio;
-    use std::time::{Duration, Instant};
-
-    let _g = realtime_lock();
     let mut sim = KillOnDrop(
         Command::new(fracid_bin())
             .args(["drive", "sim", "--baud", "921600", "--duration", "120"])
@@ -544,82 +545,87 @@ fn ctrl_c_stops_a_prbs_run_and_the_record_says_what_is_missing() {
         .expect("the simulator prints its port");
     let port = port.trim().to_string();
     assert!(!port.is_empty(), "no port from the simulator");
+    (sim, port, sim_out)
+}
 
-    let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("prbs.csv");
-    // 20 periods of 127 bits at 3 ms: about 8 s of run, far more than the test waits.
-    let mut prbs = KillOnDrop(
+/// `fracid drive ARGS --port PORT --baud 921600 -o OUT --quiet`, stderr piped.
+#[cfg(unix)]
+fn drive_cmd(args: &[&str], port: &str, out: &std::path::Path) -> KillOnDrop {
+    use std::process::Stdio;
+    KillOnDrop(
         Command::new(fracid_bin())
-            .args([
-                "drive",
-                "prbs",
-                "--port",
-                &port,
-                "--baud",
-                "921600",
-                "--periods",
-                "20",
-            ])
+            .arg("drive")
+            .args(args)
+            .args(["--port", port, "--baud", "921600", "--quiet"])
             .arg("-o")
-            .arg(&out)
-            .arg("--quiet")
+            .arg(out)
             .env("RUST_BACKTRACE", "0")
             .stdout(Stdio::null())
             .stderr(Stdio::piped())
             .spawn()
-            .expect("start fracid drive prbs"),
-    );
-    let data_rows = |text: &str| {
-        text.lines()
-            .filter(|l| l.starts_with(|c: char| c.is_ascii_digit()))
-            .count()
-    };
+            .expect("start fracid drive"),
+    )
+}
+
+/// Rows of a CSV that start with a digit (data, not header or comments).
+fn data_rows(text: &str) -> usize {
+    text.lines()
+        .filter(|l| l.starts_with(|c: char| c.is_ascii_digit()))
+        .count()
+}
+
+/// Wait until `path` has `rows` data rows (the child still running), at most 20 s.
+#[cfg(unix)]
+fn wait_rows(child: &mut KillOnDrop, path: &std::path::Path, rows: usize) {
+    use std::time::{Duration, Instant};
     let t0 = Instant::now();
     loop {
-        let text = std::fs::read_to_string(&out).unwrap_or_default();
-        if data_rows(&text) >= 200 {
-            break;
+        let text = std::fs::read_to_string(path).unwrap_or_default();
+        if data_rows(&text) >= rows {
+            return;
         }
         assert!(
-            prbs.0.try_wait().unwrap().is_none(),
-            "prbs ended before Ctrl-C: {text}"
+            child.0.try_wait().unwrap().is_none(),
+            "ended before the test acted: {text}"
         );
         assert!(t0.elapsed() < Duration::from_secs(20), "no data: {text}");
         std::thread::sleep(Duration::from_millis(20));
     }
-    let pid = prbs.0.id() as libc::pid_t;
-    // SAFETY: signalling our own child, which has not been reaped yet.
-    assert_eq!(unsafe { libc::kill(pid, libc::SIGINT) }, 0);
+}
+
+/// Wait for the child to end by itself (at most `secs`); its status and stderr.
+#[cfg(unix)]
+fn wait_end(child: &mut KillOnDrop, secs: u64) -> (std::process::ExitStatus, String) {
+    use std::time::{Duration, Instant};
     let t1 = Instant::now();
     let status = loop {
-        if let Some(s) = prbs.0.try_wait().unwrap() {
+        if let Some(s) = child.0.try_wait().unwrap() {
             break s;
         }
         assert!(
-            t1.elapsed() < Duration::from_secs(10),
-            "prbs still running after Ctrl-C"
+            t1.elapsed() < Duration::from_secs(secs),
+            "still running after {secs} s"
         );
         std::thread::sleep(Duration::from_millis(20));
     };
     let mut stderr = String::new();
-    std::io::Read::read_to_string(&mut prbs.0.stderr.take().unwrap(), &mut stderr).unwrap();
-    // it ended by itself, on an error exit (not killed by the signal)
-    assert_eq!(status.code(), Some(1), "{status:?}: {stderr}");
-    assert!(stderr.contains("interrupted"), "{stderr}");
-    assert!(stderr.contains("missing samples"), "{stderr}");
+    std::io::Read::read_to_string(&mut child.0.stderr.take().unwrap(), &mut stderr).unwrap();
+    (status, stderr)
+}
 
-    let text = std::fs::read_to_string(&out).unwrap();
-    let footer = text.trim_end().lines().last().unwrap();
-    assert!(
-        footer.starts_with("# incomplete: missing samples "),
-        "{footer}"
-    );
-    assert!(footer.contains("Stopped"), "{footer}");
+#[cfg(unix)]
+fn signal(child: &KillOnDrop, sig: libc::c_int) {
+    let pid = child.0.id() as libc::pid_t;
+    // SAFETY: signalling our own child, which has not been reaped yet.
+    assert_eq!(unsafe { libc::kill(pid, sig) }, 0);
+}
+
+/// Every data row of a `t,u,y,i` record has four numbers; their count.
+fn check_record_rows(text: &str) -> usize {
     let rows: Vec<&str> = text
         .lines()
         .filter(|l| !l.starts_with('#') && !l.starts_with("t,"))
         .collect();
-    assert!(rows.len() >= 200, "{} rows", rows.len());
     for row in &rows {
         let v: Vec<f64> = row
             .split(',')
@@ -630,14 +636,231 @@ fn ctrl_c_stops_a_prbs_run_and_the_record_says_what_is_missing() {
             .collect();
         assert_eq!(v.len(), 4, "{row}");
     }
-    // the footer's first missing sample is the count of samples kept
-    let first_missing: usize = footer["# incomplete: missing samples ".len()..]
+    rows.len()
+}
+
+/// The first missing sample of an `# incomplete: missing samples a..b` footer.
+fn first_missing(footer: &str) -> usize {
+    footer["# incomplete: missing samples ".len()..]
         .split("..")
         .next()
         .unwrap()
         .parse()
-        .unwrap();
-    assert_eq!(first_missing, rows.len(), "{footer}");
+        .unwrap()
+}
+
+/// A signal during `fracid drive prbs`: STOP to the drive, the record finished with a footer,
+/// exit 128 + the signal.
+#[cfg(unix)]
+fn a_signal_stops_a_prbs_run(sig: libc::c_int, code: i32, name: &str) {
+    let (_sim, port, _sim_out) = drive_sim_piped();
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("prbs.csv");
+    // 20 periods of 127 bits at 3 ms: about 8 s of run, far more than the test waits.
+    let mut prbs = drive_cmd(&["prbs", "--periods", "20"], &port, &out);
+    wait_rows(&mut prbs, &out, 200);
+    signal(&prbs, sig);
+    let (status, stderr) = wait_end(&mut prbs, 10);
+    // it ended by itself (not killed by the signal), with the signal's exit code
+    assert_eq!(status.code(), Some(code), "{status:?}: {stderr}");
+    assert!(
+        stderr.contains(&format!("interrupted by {name}")),
+        "{stderr}"
+    );
+    assert!(stderr.contains("missing samples"), "{stderr}");
+
+    let text = std::fs::read_to_string(&out).unwrap();
+    let footer = text.trim_end().lines().last().unwrap();
+    assert!(
+        footer.starts_with("# incomplete: missing samples "),
+        "{footer}"
+    );
+    // the drive acknowledged the STOP and ended the run for that reason
+    assert!(footer.contains("Stopped"), "{footer}");
+    let rows = check_record_rows(&text);
+    assert!(rows >= 200, "{rows} rows");
+    // the footer's first missing sample is the count of samples kept
+    assert_eq!(first_missing(footer), rows, "{footer}");
+}
+
+#[cfg(unix)]
+#[test]
+fn ctrl_c_stops_a_prbs_run_and_the_record_says_what_is_missing() {
+    a_signal_stops_a_prbs_run(libc::SIGINT, 130, "SIGINT");
+}
+
+#[cfg(unix)]
+#[test]
+fn sigterm_and_sighup_stop_a_prbs_run_like_ctrl_c() {
+    a_signal_stops_a_prbs_run(libc::SIGTERM, 143, "SIGTERM");
+    a_signal_stops_a_prbs_run(libc::SIGHUP, 129, "SIGHUP");
+}
+
+#[cfg(unix)]
+#[test]
+fn killing_the_drive_mid_run_leaves_a_finished_record() {
+    let (mut sim, port, _sim_out) = drive_sim_piped();
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("prbs.csv");
+    let mut prbs = drive_cmd(&["prbs", "--periods", "20"], &port, &out);
+    wait_rows(&mut prbs, &out, 200);
+    // kill -9 of the simulator: the pty goes away for good
+    sim.0.kill().unwrap();
+    sim.0.wait().unwrap();
+    // the reconnect window (3 s) and a little
+    let (status, stderr) = wait_end(&mut prbs, 15);
+    assert_eq!(status.code(), Some(1), "{status:?}: {stderr}");
+    assert!(stderr.contains("lost the port"), "{stderr}");
+    let text = std::fs::read_to_string(&out).unwrap();
+    let footer = text.trim_end().lines().last().unwrap();
+    assert!(
+        footer.starts_with("# incomplete: missing samples "),
+        "{footer}"
+    );
+    assert!(footer.contains("lost the port"), "{footer}");
+    let rows = check_record_rows(&text);
+    assert!(rows >= 200, "{rows} rows");
+    assert_eq!(first_missing(footer), rows, "{footer}");
+    // ... up to the planned end: 0.3 s settle + 20 x 127 x 3 ms at 1 kHz = 300 + 7620 samples
+    assert!(footer.contains(&format!("{rows}..7920 (")), "{footer}");
+}
+
+#[cfg(unix)]
+#[test]
+fn a_signal_during_a_sine_sweep_keeps_the_measured_points() {
+    let (_sim, port, _sim_out) = drive_sim_piped();
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("bode.csv");
+    let freqs = "20,25,30,35,40,45,50,55,60,65,70,75,80,85,90,95";
+    let mut sine = drive_cmd(
+        &["sine", "--freqs", freqs, "--min-settle", "0.05"],
+        &port,
+        &out,
+    );
+    // written as measured: two points in the file while the sweep goes on
+    wait_rows(&mut sine, &out, 2);
+    signal(&sine, libc::SIGTERM);
+    let (status, stderr) = wait_end(&mut sine, 10);
+    assert_eq!(status.code(), Some(143), "{status:?}: {stderr}");
+    let text = std::fs::read_to_string(&out).unwrap();
+    let rows = data_rows(&text);
+    assert!((2..16).contains(&rows), "{rows}: {text}");
+    assert!(text.contains("# hold: zero-order"), "{text}");
+    let footer = text.trim_end().lines().last().unwrap();
+    assert!(
+        footer.starts_with("# incomplete: missing frequencies (Hz) "),
+        "{footer}"
+    );
+    // the missing ones are exactly those not in the table
+    let listed: Vec<&str> = footer["# incomplete: missing frequencies (Hz) ".len()..]
+        .split(" (")
+        .next()
+        .unwrap()
+        .split(", ")
+        .collect();
+    assert_eq!(listed.len() + rows, 16, "{footer}");
+    for f in &listed {
+        assert!(
+            !text.lines().any(|l| l.starts_with(&format!("{f},"))),
+            "{f} listed as missing but in the table"
+        );
+    }
+}
+
+#[test]
+fn bad_drive_options_fail_before_the_drive_and_leave_the_output_untouched() {
+    let dir = tempfile::tempdir().unwrap();
+    let keep = dir.path().join("keep.csv");
+    let old = "# an earlier recording\nt,u,y,i\n0,6,0,0\n";
+    std::fs::write(&keep, old).unwrap();
+    let keep_s = keep.to_str().unwrap();
+    // No drive at that port: an exit 2 proves the options were checked before it was opened.
+    for bad in [
+        &["--seed", "0"][..],
+        &["--order", "1"],
+        &["--amplitude", "100"],
+        &["--sample-rate", "0"],
+        &["--block", "0"],
+        &["--clock", "0.0025"],
+        &["--offset", "30"],
+        &["--settle", "nan"],
+    ] {
+        let mut args = vec!["drive", "prbs", "--port", "/nonexistent/tty", "-o", keep_s];
+        args.extend_from_slice(bad);
+        let out = fracid(&args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{bad:?}: {err}");
+        assert!(!err.contains("panicked"), "{err}");
+        assert_eq!(std::fs::read_to_string(&keep).unwrap(), old, "{bad:?}");
+    }
+    // A port that cannot be opened: exit 3, the file untouched.
+    let out = fracid(&["drive", "prbs", "--port", "/nonexistent/tty", "-o", keep_s]);
+    assert_eq!(out.status.code(), Some(3));
+    assert_eq!(std::fs::read_to_string(&keep).unwrap(), old);
+    // An output that cannot be written fails at once, before the drive (the port is named
+    // nowhere in the message: it was not tried).
+    for cmd in ["prbs", "sine"] {
+        let out = fracid(&[
+            "drive",
+            cmd,
+            "--port",
+            "/nonexistent/tty",
+            "-o",
+            "/nonexistent/x.csv",
+        ]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(3), "{cmd}: {err}");
+        assert!(err.contains("/nonexistent/x.csv"), "{err}");
+        assert!(!err.contains("/nonexistent/tty"), "{err}");
+    }
+    // sine options
+    for bad in [
+        &["--freqs", "600"][..],
+        &["--sample-rate", "0"],
+        &["--amplitude", "0"],
+        &["--offset", "40", "--amplitude", "1"],
+        &["--cycles", "0"],
+    ] {
+        let mut args = vec!["drive", "sine", "--port", "/nonexistent/tty", "-o", keep_s];
+        args.extend_from_slice(bad);
+        let out = fracid(&args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{bad:?}: {err}");
+        assert_eq!(std::fs::read_to_string(&keep).unwrap(), old, "{bad:?}");
+    }
+}
+
+#[test]
+fn bad_simulator_options_are_refused_with_exit_2() {
+    // --duration 1: an option wrongly accepted would start the simulator and exit 0 after 1 s
+    for bad in [
+        &["--delay", "1e9"][..],
+        &["--delay=-1"],
+        &["--noise", "nan"],
+        &["--noise=-1"],
+        &["--coulomb", "inf"],
+        &["--ripple-hz", "nan"],
+        &["--speed-quant=-0.1"],
+        &["--ber", "2"],
+        &["--drop-rate", "nan"],
+        &["--burst-len", "100000000"],
+        &["--stall-ms", "100000000000", "--stall-at", "10"],
+        &["--baud", "0"],
+    ] {
+        let mut args = vec!["drive", "sim", "--duration", "1"];
+        args.extend_from_slice(bad);
+        let out = fracid(&args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{bad:?}: {err}");
+        assert!(err.starts_with("error: "), "{bad:?}: {err}");
+        assert!(!err.contains("cannot be used multiple times"), "{err}");
+    }
+    for d in ["nan", "0", "-1"] {
+        let arg = format!("--duration={d}");
+        let out = fracid(&["drive", "sim", &arg]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "--duration {d}: {err}");
+    }
 }
 
 /// `fracid drive sim` with `extra` args, at 921600 baud with deterministic hidden effects: the

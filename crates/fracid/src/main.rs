@@ -37,10 +37,14 @@ enum Commands {
 
 /// Exit codes: 0 success, 1 runtime failure (numerical breakdown, fit failure, drive fault),
 /// 2 bad input (malformed model, data or options; clap also uses 2 for usage errors),
-/// 3 I/O (a file or port that cannot be opened or written). Drive faults (timeouts, NAKs, protocol
+/// 3 I/O (a file or port that cannot be opened or written), 128 + N for a drive run ended by
+/// signal N after its record was finished (130 Ctrl-C, 143 SIGTERM, 129 SIGHUP). Drive faults (timeouts, NAKs, protocol
 /// violations, a reset) are runtime failures.
 fn exit_code(err: &anyhow::Error) -> u8 {
     for cause in err.chain() {
+        if let Some(i) = cause.downcast_ref::<interrupt::Interrupted>() {
+            return i.exit_code();
+        }
         if cause.downcast_ref::<std::io::Error>().is_some() {
             return 3;
         }

@@ -4,5 +4,6 @@
 mod e2e;
 mod e2e_control;
 mod firmware_c;
+mod loss;
 mod props;
 mod vectors;
