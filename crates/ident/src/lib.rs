@@ -9,12 +9,14 @@
 //! - [`diagnose`]: residual diagnosis, the effect library, error before and after.
 //! - [`metrics`]: fit measures (NRMSE, RMSE), residual correlations with their bounds.
 
+pub mod bodefile;
 pub mod data;
 pub mod diagnose;
 mod error;
 pub mod hold;
 pub mod levy;
 pub mod lm;
+pub mod matfile;
 pub mod metrics;
 pub mod oe;
 

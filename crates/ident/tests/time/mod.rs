@@ -2,5 +2,6 @@
 
 mod bad_input;
 mod held;
+mod readers;
 mod roundtrip;
 mod sensitivity;
