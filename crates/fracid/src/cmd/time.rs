@@ -2,7 +2,7 @@
 
 use crate::plot::{self, Figure};
 use anyhow::{Context, Result};
-use ident::data::{Columns, OffsetMode, Record};
+use ident::data::{Columns, OffsetMode, ReadOptions, Record};
 use ident::metrics;
 use ident::oe::{identify_with_progress, FracModel, IdentOptions, Identification, StartMode};
 use plotters::coord::Shift;
@@ -24,6 +24,9 @@ pub struct TimeArgs {
     /// Output column.
     #[arg(long, default_value = "y")]
     pub y_col: String,
+    /// Sampling step in seconds, for a file with no time column (t = k dt; --t-col is not read).
+    #[arg(long)]
+    pub dt: Option<f64>,
     /// Model structure: pmsm (K/(a2 s^(zeta+theta) + a1 s^zeta + 1)), commensurate, fopdt, or a
     /// transfer function such as "6.8/(3e-5 s^1.75 + 0.006 s^0.9 + 1)" used as the start.
     #[arg(long, default_value = "pmsm")]
@@ -122,14 +125,19 @@ pub fn run(a: TimeArgs) -> Result<()> {
     if let Some(p) = &a.plot {
         plot::format_of(p)?;
     }
-    let text = std::fs::read_to_string(&a.file)
-        .with_context(|| format!("cannot read {}", a.file.display()))?;
-    let cols = Columns {
-        t: a.t_col.clone(),
-        u: a.u_col.clone(),
-        y: a.y_col.clone(),
+    let read = ReadOptions {
+        columns: Columns {
+            t: a.t_col.clone(),
+            u: a.u_col.clone(),
+            y: a.y_col.clone(),
+        },
+        dt: a.dt,
     };
-    let rec = Record::parse(&text, &cols).with_context(|| format!("in {}", a.file.display()))?;
+    let loaded = crate::cmd::load_record(&a.file, &read)?;
+    for w in &loaded.warnings {
+        eprintln!("warning: {}: {w}", a.file.display());
+    }
+    let rec = loaded.record;
     let duration = rec.t.last().copied().unwrap_or(0.0) - rec.t.first().copied().unwrap_or(0.0);
     let model = model_of(&a, duration)?;
     let offsets = match a.offsets.as_str() {
