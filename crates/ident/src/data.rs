@@ -337,14 +337,14 @@ pub fn read_columns<const N: usize>(
     read_columns_at(text, wants).map(|(names, cols, _)| (names, cols))
 }
 
+/// Columns read by [`read_columns_at`]: the header's names, the columns, the line of each row.
+pub type ColumnsAt<const N: usize> = (Vec<String>, [Vec<f64>; N], Vec<usize>);
+
 /// [`read_columns`], also returning the 1-based line number of each row.
 ///
 /// # Errors
 /// As [`read_columns`].
-pub fn read_columns_at<const N: usize>(
-    text: &str,
-    wants: [&str; N],
-) -> Result<(Vec<String>, [Vec<f64>; N], Vec<usize>)> {
+pub fn read_columns_at<const N: usize>(text: &str, wants: [&str; N]) -> Result<ColumnsAt<N>> {
     let tab = table(text)?;
     let index_names: Vec<String>;
     let names: Vec<&str> = if tab.has_header {
