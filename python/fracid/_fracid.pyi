@@ -130,6 +130,17 @@ def _fit_bode(
     sk_iterations: int = 0,
     refine: bool = False,
 ) -> Dict[str, Any]: ...
+def _load_csv(
+    path: str, t: Union[str, int], u: Union[str, int], y: Union[str, int], dt: Optional[float] = ...
+) -> Dict[str, Any]: ...
+def _load_bode(
+    path: str,
+    columns: Optional[Tuple[Union[str, int], Union[str, int], Union[str, int]]] = ...,
+    rad_s: bool = ...,
+    linear_gain: bool = ...,
+    radians: bool = ...,
+    weights: Optional[Union[str, int]] = ...,
+) -> Tuple[npt.NDArray[np.float64], npt.NDArray[np.complex128], Optional[npt.NDArray[np.float64]]]: ...
 def _fit_time(
     u: npt.ArrayLike,
     y: npt.ArrayLike,

@@ -1,7 +1,7 @@
 //! `fracid.FracTf`: fractional transfer functions, their frequency response and simulation;
 //! PRBS generation.
 
-use crate::arrays::{floats, positive, FloatArray};
+use crate::arrays::{count, floats, positive, FloatArray};
 use crate::errors;
 use fracsim::prbs::Prbs;
 use fracsim::{gl, lsim, ApproxSpec, FracTf, Method, Term};
@@ -182,10 +182,12 @@ impl PyFracTf {
         dt: f64,
         method: &str,
         band: Option<(f64, f64)>,
-        order: usize,
+        order: i64,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let order = count("order", order)?;
         let u = floats("u", &u, 1)?;
         let dt = positive("dt", dt)?;
+        self.inner.check_proper().map_err(errors::sim)?;
         let tf = self.inner.clone();
         let y = if method.eq_ignore_ascii_case("gl") || method.eq_ignore_ascii_case("grunwald") {
             py.allow_threads(|| gl::simulate_held(&tf, &u, dt, gl::HELD_SUBSTEPS))
@@ -229,6 +231,7 @@ pub(crate) fn gl_simulate<'py>(
 ) -> PyResult<Bound<'py, PyArray1<f64>>> {
     let u = floats("u", &u, 1)?;
     let dt = positive("dt", dt)?;
+    tf.inner.check_proper().map_err(errors::sim)?;
     let g = tf.inner.clone();
     let y = py
         .allow_threads(|| gl::simulate(&g, &u, dt))
@@ -242,13 +245,18 @@ pub(crate) fn gl_simulate<'py>(
 pub(crate) fn prbs<'py>(
     py: Python<'py>,
     dt: f64,
-    order: u32,
+    order: i64,
     clock: f64,
     amplitude: f64,
     offset: f64,
-    periods: usize,
-    seed: u32,
+    periods: i64,
+    seed: i64,
 ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    let periods = count("periods", periods)?;
+    let order = u32::try_from(order)
+        .map_err(|_| errors::data(format!("order = {order} must be in 2..=16")))?;
+    let seed = u32::try_from(seed)
+        .map_err(|_| errors::data(format!("seed = {seed} must be an integer in 1..2^order")))?;
     if periods == 0 {
         return Err(errors::data("periods must be at least 1"));
     }

@@ -1,6 +1,7 @@
 //! End-to-end tests of the `fracid` binary, one module per subcommand.
 
 mod freq;
+mod reliability;
 mod time;
 
 use std::process::{Command, Output};

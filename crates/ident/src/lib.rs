@@ -11,12 +11,14 @@
 //! - [`metrics`]: fit measures (NRMSE, RMSE), residual correlations with their bounds.
 
 pub mod app;
+pub mod bodefile;
 pub mod data;
 pub mod diagnose;
 mod error;
 pub mod hold;
 pub mod levy;
 pub mod lm;
+pub mod matfile;
 pub mod metrics;
 pub mod oe;
 

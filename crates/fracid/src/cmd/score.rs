@@ -3,7 +3,7 @@
 
 use super::time::{print_score, read_record, score_json};
 use anyhow::{Context, Result};
-use ident::data::Columns;
+use ident::data::{Columns, ReadOptions};
 use ident::oe::{score, FracModel, InitialState};
 use std::path::PathBuf;
 
@@ -57,12 +57,15 @@ fn model_tf(s: &str) -> Result<fracsim::FracTf> {
 /// Unreadable file (exit 3), bad model, data or options (exit 2), numerical breakdown (exit 1).
 pub fn run(a: ScoreArgs) -> Result<()> {
     let tf = model_tf(&a.model)?;
-    let cols = Columns {
-        t: a.t_col.clone(),
-        u: a.u_col.clone(),
-        y: a.y_col.clone(),
+    let read = ReadOptions {
+        columns: Columns {
+            t: a.t_col.clone(),
+            u: a.u_col.clone(),
+            y: a.y_col.clone(),
+        },
+        dt: None,
     };
-    let rec = read_record(&a.file, &cols)?;
+    let rec = read_record(&a.file, &read)?;
     let offsets = ident::app::offsets(&a.offsets)?;
     let initial: InitialState = a.initial.parse()?;
     let mut m = FracModel::from_tf(&tf, false, false);

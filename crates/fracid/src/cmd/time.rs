@@ -2,7 +2,7 @@
 
 use crate::plot::{self, Figure};
 use anyhow::{Context, Result};
-use ident::data::{Columns, Record};
+use ident::data::{Columns, ReadOptions, Record};
 use ident::metrics;
 use ident::oe::{identify_with_progress, FracModel, IdentOptions, Identification, StartMode};
 use plotters::coord::Shift;
@@ -24,6 +24,9 @@ pub struct TimeArgs {
     /// Output column.
     #[arg(long, default_value = "y")]
     pub y_col: String,
+    /// Sampling step in seconds, for a file with no time column (t = k dt; --t-col is not read).
+    #[arg(long)]
+    pub dt: Option<f64>,
     /// Model structure: pmsm (K/(a2 s^(zeta+theta) + a1 s^zeta + 1)), commensurate, fopdt, or a
     /// transfer function such as "6.8/(3e-5 s^1.75 + 0.006 s^0.9 + 1)" used as the start.
     #[arg(long, default_value = "pmsm")]
@@ -148,14 +151,17 @@ pub fn run(a: TimeArgs) -> Result<()> {
     if let Some(p) = &a.plot {
         plot::format_of(p)?;
     }
-    let cols = Columns {
-        t: a.t_col.clone(),
-        u: a.u_col.clone(),
-        y: a.y_col.clone(),
+    let read = ReadOptions {
+        columns: Columns {
+            t: a.t_col.clone(),
+            u: a.u_col.clone(),
+            y: a.y_col.clone(),
+        },
+        dt: a.dt,
     };
-    let rec = read_record(&a.file, &cols)?;
+    let rec = read_record(&a.file, &read)?;
     let validation = match &a.validate {
-        Some(p) => Some((p, read_record(p, &cols)?)),
+        Some(p) => Some((p, read_record(p, &read)?)),
         None => None,
     };
     let duration = rec.t.last().copied().unwrap_or(0.0) - rec.t.first().copied().unwrap_or(0.0);
@@ -182,7 +188,7 @@ pub fn run(a: TimeArgs) -> Result<()> {
         }
         let mut recs = vec![rec];
         for p in &a.joint {
-            recs.push(read_record(p, &cols)?);
+            recs.push(read_record(p, &read)?);
         }
         let j = ident::oe::identify_joint(&recs, &model, &opts)?;
         let scored = match &validation {
@@ -256,63 +262,14 @@ pub fn run(a: TimeArgs) -> Result<()> {
     Ok(())
 }
 
-/// Read a time record (t, u, y) from a file.
-pub(crate) fn read_record(path: &std::path::Path, cols: &Columns) -> Result<Record> {
-    let text =
-        std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
-    Record::parse(&text, cols).with_context(|| format!("in {}", path.display()))
-}
-
-/// The joint fit of several records, as text or JSON.
-fn print_joint(
-    a: &TimeArgs,
-    j: &ident::oe::JointIdentification,
-    files: &[&PathBuf],
-    scored: Option<(&PathBuf, &ident::oe::Scored)>,
-) -> Result<()> {
-    if a.json {
-        let records: Vec<serde_json::Value> = files
-            .iter()
-            .zip(&j.records)
-            .map(|(f, (op, fit, _))| {
-                serde_json::json!({"file": f.display().to_string(), "offsets": op,
-                    "rmse": fit.rmse, "nrmse_percent": fit.nrmse_percent})
-            })
-            .collect();
-        let mut v = serde_json::json!({
-            "model": ident::app::ModelReport::from(&j.tf),
-            "params": j.report.params,
-            "records": records,
-            "converged": j.report.converged,
-            "warnings": j.report.warnings,
-        });
-        if let Some((p, sc)) = scored {
-            v["fit"] = serde_json::json!({"validation_file": score_json(p, sc)});
-        }
-        println!("{}", serde_json::to_string_pretty(&v)?);
-        return Ok(());
+/// Read a time record (t, u, y) from a file, its warnings (an incomplete acquisition fitted on
+/// its longest complete part, ...) on stderr.
+pub(crate) fn read_record(path: &std::path::Path, read: &ReadOptions) -> Result<Record> {
+    let loaded = crate::cmd::load_record(path, read)?;
+    for w in &loaded.warnings {
+        eprintln!("warning: {}: {w}", path.display());
     }
-    println!("model: {}", j.tf);
-    println!("parameters (+- standard error):");
-    for p in j.report.params.iter().filter(|p| p.free) {
-        let se = p.std_error.map_or("-".to_string(), |s| format!("{s:.3e}"));
-        println!("  {:<12} {:>14.6e} +- {se}", p.name, p.value);
-    }
-    for (f, (_, fit, _)) in files.iter().zip(&j.records) {
-        println!(
-            "fit on {}: NRMSE {:.2}%, RMSE {:.5}",
-            f.display(),
-            fit.nrmse_percent,
-            fit.rmse
-        );
-    }
-    if let Some((p, sc)) = scored {
-        print_score(p, sc);
-    }
-    for w in &j.report.warnings {
-        eprintln!("warning: {w}");
-    }
-    Ok(())
+    Ok(loaded.record)
 }
 
 /// A model scored on a record, as JSON.

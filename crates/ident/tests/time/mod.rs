@@ -3,6 +3,7 @@
 mod bad_input;
 mod held;
 mod records;
+mod readers;
 mod roundtrip;
 mod sensitivity;
 mod starts;
