@@ -4,7 +4,7 @@ use super::from_hz_db_deg;
 use fracsim::FracTf;
 use ident::levy::{error_index, fit_bode, levy_fixed_q, vinagre_weights, FreqOptions, OrderChoice};
 
-/// Table 1 of the paper, as in `shared/data/paper_table1_bode.csv`.
+/// Table 1 of the paper, as in `data/paper_table1_bode.csv`.
 pub const TABLE1: [(f64, f64, f64); 10] = [
     (0.1, 16.62, -0.23),
     (0.5, 16.63, -0.95),
