@@ -1,4 +1,4 @@
-//! `fracid time`: exit codes, JSON keys (DESIGN §7), the plot, the start report, the UNAL record.
+//! `fracid time`: exit codes, JSON keys (docs/design.md §7), the plot, the start report, the UNAL record.
 
 use super::fracid;
 use std::fmt::Write as _;

@@ -1,4 +1,4 @@
-//! The paper's Table 1 (Yu, Pi, Wang): reference values of DESIGN section 4.
+//! The paper's Table 1 (Yu, Pi, Wang): reference values of docs/design.md §4.
 
 use super::from_hz_db_deg;
 use fracsim::FracTf;
@@ -78,7 +78,7 @@ fn refined_fit_beats_levy_and_paper() {
         .parse()
         .unwrap();
     let jp = error_index(&omega, &h, &paper);
-    // 1 %: DESIGN quotes 2.06e-2 to three digits.
+    // 1 %: docs/design.md quotes 2.06e-2 to three digits.
     assert!(rel(jp, 2.06e-2) < 1e-2, "paper J = {jp}");
     eprintln!(
         "Table 1: Levy grid q = {} J = {:.4e}; Levy refined q = {:.4} J = {:.4e}; SK J = {:.4e}; \
