@@ -31,6 +31,9 @@ enum Commands {
     Freq(cmd::freq::FreqArgs),
     /// Identify a fractional model from a time record by output error (Levenberg-Marquardt).
     Time(cmd::time::TimeArgs),
+    /// Export a model's approximation as a state space (continuous, or discrete with the exact
+    /// hold) to JSON or a MATLAB script.
+    Export(cmd::export::ExportArgs),
 }
 
 /// Exit codes: 0 success, 1 runtime failure (numerical breakdown, fit failure, drive fault),
@@ -85,6 +88,7 @@ fn main() -> ExitCode {
         Commands::Drive(a) => cmd::drive::run(a),
         Commands::Freq(a) => cmd::freq::run(a),
         Commands::Time(a) => cmd::time::run(a),
+        Commands::Export(a) => cmd::export::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
