@@ -29,7 +29,9 @@ import fracid
 
 def read_record(path: str) -> Dict[str, np.ndarray]:
     """``t, u, y`` columns of a CSV record (header line, ``#`` comments allowed)."""
-    data = np.genfromtxt(path, delimiter=",", names=True, comments="#")
+    with open(path, encoding="utf-8") as f:  # comments cut first: genfromtxt would take a
+        lines = [ln.split("#", 1)[0].strip() for ln in f]  # leading comment for the header
+    data = np.genfromtxt([ln for ln in lines if ln], delimiter=",", names=True)
     return {k: np.asarray(data[k], dtype=float) for k in ("t", "u", "y")}
 
 
