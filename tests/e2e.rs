@@ -382,26 +382,23 @@ fn demo_with_the_c_firmware_finds_the_hidden_delay() {
     assert!(stderr.contains("(C firmware)"), "{stderr}");
 }
 
-fn shared_data(name: &str) -> Option<PathBuf> {
+/// A file of the repository's example data (`data/` at the root). A missing file is a failure:
+/// the data ships with the repository, so no test skips on a clean clone.
+fn repo_data(name: &str) -> PathBuf {
     let p = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../shared/data")
+        .join("../data")
         .join(name);
-    if p.exists() {
-        Some(p)
-    } else {
-        eprintln!(
-            "skipped: {} is not there (shared/ must sit beside the repository)",
-            p.display()
-        );
-        None
-    }
+    assert!(
+        p.is_file(),
+        "{} is missing: the example data lives in data/ at the repository root",
+        p.display()
+    );
+    p
 }
 
 #[test]
 fn diagnosis_of_the_real_dc_motor_finds_its_transport_delay() {
-    let Some(f) = shared_data("unal_dcmotor/DCmotor_prbs_open_exp.csv") else {
-        return;
-    };
+    let f = repo_data("unal_dcmotor/DCmotor_prbs_open_exp.csv");
     let j = fracid_json(&[
         "time",
         f.to_str().unwrap(),
@@ -430,9 +427,7 @@ fn diagnosis_of_the_real_dc_motor_finds_its_transport_delay() {
 
 #[test]
 fn diagnosis_of_the_paper_table_adds_nothing() {
-    let Some(f) = shared_data("paper_table1_bode.csv") else {
-        return;
-    };
+    let f = repo_data("paper_table1_bode.csv");
     let j = fracid_json(&[
         "freq",
         f.to_str().unwrap(),

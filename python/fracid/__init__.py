@@ -19,7 +19,8 @@ True
 Contents
 --------
 FracTf
-    Fractional transfer functions: parse, frequency response, Bode, simulation.
+    Fractional transfer functions: parse, frequency response, Bode, simulation, and
+    ``to_state_space`` (a :class:`StateSpace` with ``to_scipy()`` and ``to_control()``).
 prbs, gl_simulate
     PRBS input signals; the Grunwald-Letnikov reference simulation.
 fit_bode, error_index, load_bode
@@ -46,6 +47,7 @@ from ._drive import DriveClient
 from ._errors import DataError, DriveError, FracidError, NumericalError, ParseError
 from ._fracid import DriveSimulator, FracTf, __version__, error_index, gl_simulate, prbs
 from ._fracid import _fit_bode, _fit_time, _load_bode, _load_csv
+from ._export import StateSpace
 from ._results import (
     Acquisition,
     BodeSweep,
@@ -63,6 +65,7 @@ from ._results import (
 
 __all__ = [
     "FracTf",
+    "StateSpace",
     "prbs",
     "gl_simulate",
     "fit_bode",
@@ -379,7 +382,7 @@ def fit_time(
     max_lag : int
         Lags of the residual correlation test.
     diagnose : bool
-        Also run the residual diagnosis (DESIGN section 6): test the residual for the signature
+        Also run the residual diagnosis (docs/design.md §6): test the residual for the signature
         of each effect (delay, Coulomb friction, offset, periodic, abs sensor, saturation, dead
         zone, quantization), refit with each strong candidate, keep those that lower the
         validation error by ``margin`` and lower BIC. The result is in ``TimeFit.diagnosis``.

@@ -93,8 +93,40 @@ class FracTf:
         numpy.ndarray
             The output, same length as ``u``.
         """
+    def to_state_space(
+        self,
+        dt: Optional[float] = None,
+        method: str = "refined",
+        band: Optional[Tuple[float, float]] = None,
+        order: int = 8,
+        continuous: bool = False,
+    ) -> Any:
+        """The approximation as a :class:`fracid.StateSpace` (numpy ``a, b, c, d``).
+
+        Parameters
+        ----------
+        dt : float, optional
+            Sample period in seconds: the discrete model, exact for an input held over each
+            period (the same discretisation as :meth:`simulate`), its input delay as extra
+            states. ``None``: the continuous model (then ``band`` is needed), its delay in
+            ``input_delay``.
+        method, band, order
+            The approximation (as :meth:`simulate`; band default ``[1e-3, 30 pi/dt]``).
+        continuous : bool
+            With ``dt``: the continuous model anyway (``dt`` only sets the default band).
+
+        Returns
+        -------
+        fracid.StateSpace
+            ``A, B, C, D = ss``; ``ss.to_scipy()``, ``ss.to_control()``.
+
+        Raises
+        ------
+        DataError
+            Bad band, order or dt, a continuous export without a band, an improper model.
+        """
     def to_dict(self) -> Dict[str, Any]:
-        """``{"num": [{"coef", "order"}], "den": [...], "delay", "text"}`` (DESIGN section 7)."""
+        """``{"num": [{"coef", "order"}], "den": [...], "delay", "text"}`` (docs/design.md §7)."""
     def __eq__(self, other: object) -> bool: ...
     def __reduce__(self) -> Any: ...
 

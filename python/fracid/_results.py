@@ -1,5 +1,5 @@
 """Typed result objects of the fits and of the drive client. Every one is a frozen dataclass with ``to_dict()``, which
-returns plain Python types (numpy arrays become lists, models become the DESIGN section 7 JSON
+returns plain Python types (numpy arrays become lists, models become the docs/design.md §7 JSON
 object) so that ``json.dumps(result.to_dict())`` works."""
 
 from __future__ import annotations
@@ -252,7 +252,7 @@ class ResidualTest(_ToDict):
 
 @dataclass(frozen=True)
 class Effect(_ToDict):
-    """An effect the diagnosis kept (DESIGN section 6).
+    """An effect the diagnosis kept (docs/design.md §6).
 
     Attributes
     ----------

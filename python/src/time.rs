@@ -190,7 +190,7 @@ pub(crate) fn _fit_time<'py>(
     Ok(d)
 }
 
-/// The diagnosis as a dict: its serde form (the DESIGN §7 `diagnosis` object and more), the final
+/// The diagnosis as a dict: its serde form (the docs/design.md §7 `diagnosis` object and more), the final
 /// linear model and the model outputs before and after.
 fn diagnosis_dict<'py>(py: Python<'py>, g: &Diagnosis) -> PyResult<Bound<'py, PyDict>> {
     let text = serde_json::to_string(g)

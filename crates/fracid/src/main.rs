@@ -33,6 +33,9 @@ enum Commands {
     Time(cmd::time::TimeArgs),
     /// Score a given model on a time record (its own initial state and output offset estimated).
     Score(cmd::score::ScoreArgs),
+    /// Export a model's approximation as a state space (continuous, or discrete with the exact
+    /// hold) to JSON or a MATLAB script.
+    Export(cmd::export::ExportArgs),
 }
 
 /// Exit codes: 0 success, 1 runtime failure (numerical breakdown, fit failure, drive fault),
@@ -121,6 +124,7 @@ fn main() -> ExitCode {
         Commands::Freq(a) => cmd::freq::run(a),
         Commands::Time(a) => cmd::time::run(a),
         Commands::Score(a) => cmd::score::run(a),
+        Commands::Export(a) => cmd::export::run(a),
     });
     let result = match std::panic::catch_unwind(run) {
         Ok(r) => r,

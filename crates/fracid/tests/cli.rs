@@ -1,5 +1,7 @@
 //! End-to-end tests of the `fracid` binary, one module per subcommand.
 
+mod export;
+mod fleet;
 mod freq;
 mod reliability;
 mod time;

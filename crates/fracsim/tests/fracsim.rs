@@ -6,7 +6,7 @@ use fracsim::{gl, lsim, ApproxSpec, FracTf, Method, Simulator};
 const K: f64 = 6.77;
 const A: f64 = 0.0064;
 const Q: f64 = 0.89;
-/// DESIGN §3: the oracle values at 1, 3, 10 and 30 ms.
+/// docs/design.md §3: the oracle values at 1, 3, 10 and 30 ms.
 const ORACLE: [(f64, f64); 4] = [
     (0.001, 1.958077),
     (0.003, 3.943589),

@@ -1,5 +1,5 @@
 //! Output-error identification of fractional transfer functions in the time domain
-//! (DESIGN §5; Poinot & Trigeassou 2004; the reference paper's eqs. 12-18).
+//! (docs/design.md §5; Poinot & Trigeassou 2004; the reference paper's eqs. 12-18).
 //!
 //! The residual is `e_k = y_k - yhat_k(theta)` with `yhat` the simulated output of the model on the
 //! measured input; `theta` minimises `sum e_k^2` by Levenberg-Marquardt (Marquardt 1963). The

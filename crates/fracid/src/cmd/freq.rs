@@ -1,4 +1,4 @@
-//! `fracid freq FILE`: identify a fractional model from Bode data (DESIGN section 4).
+//! `fracid freq FILE`: identify a fractional model from Bode data (docs/design.md §4).
 //!
 //! Reads `freq_hz,gain_db,phase_deg` (other units and names by flags), fits Levy's weighted least
 //! squares with an order search ([`ident::levy::fit_bode`]), optionally Sanathanan-Koerner
@@ -69,7 +69,7 @@ pub struct FreqArgs {
     /// Also evaluate J for this model (e.g. a published one); repeatable.
     #[arg(long, value_name = "MODEL")]
     pub compare: Vec<String>,
-    /// Diagnose the residual of the best model (delay, extra pole; DESIGN section 6) and refit
+    /// Diagnose the residual of the best model (delay, extra pole; docs/design.md §6) and refit
     /// with what pays.
     #[arg(long)]
     pub diagnose: bool,
@@ -80,12 +80,15 @@ pub struct FreqArgs {
     /// else none; `none`: the table is the plant's continuous response.
     #[arg(long, default_value = "auto", value_name = "SECONDS|auto|none")]
     pub hold: String,
-    /// Print JSON (DESIGN section 7) instead of the table.
+    /// Print JSON (docs/design.md §7) instead of the table.
     #[arg(long)]
     pub json: bool,
     /// Draw the Bode plot (magnitude, phase) with each model, and J(q), to FILE (.png or .svg).
     #[arg(long, value_name = "FILE")]
     pub plot: Option<PathBuf>,
+    /// Fleet mode (many files at once): see `fracid::cmd::fleet`.
+    #[command(flatten)]
+    pub fleet: super::fleet::FleetArgs,
 }
 
 /// Bode data read from a file.
@@ -175,6 +178,9 @@ fn read_weight_file(path: &Path) -> Result<Vec<f64>> {
 /// # Errors
 /// Unreadable files (exit 3), bad data or options (exit 2), a numerical breakdown (exit 1).
 pub fn run(a: FreqArgs) -> Result<()> {
+    if a.fleet.active(&a.file) {
+        return super::fleet::run_freq(&a);
+    }
     if let Some(path) = &a.plot {
         plot::format_of(path)?; // a bad extension fails before the work
     }
@@ -583,7 +589,7 @@ fn table(
 
 fn diagnosis_text(d: &ident::diagnose::freq::BodeDiagnosis) -> String {
     use std::fmt::Write;
-    let mut out = String::from("\nresidual diagnosis of the best model (DESIGN section 6):\n");
+    let mut out = String::from("\nresidual diagnosis of the best model (docs/design.md §6):\n");
     let row = |e: &ident::diagnose::freq::BodeError| {
         format!(
             "J = {}, magnitude RMS {} dB, phase RMS {} deg",

@@ -3,6 +3,8 @@
 pub mod demo;
 pub mod diagnose;
 pub mod drive;
+pub mod export;
+pub mod fleet;
 pub mod freq;
 pub mod score;
 pub mod sim;

@@ -1,4 +1,4 @@
-//! `fracid time FILE`: time-domain identification by output error (DESIGN §5, `ident::oe`).
+//! `fracid time FILE`: time-domain identification by output error (docs/design.md §5, `ident::oe`).
 
 use crate::plot::{self, Figure};
 use anyhow::{Context, Result};
@@ -91,7 +91,7 @@ pub struct TimeArgs {
     /// Start from the given structure's values instead of the automatic start.
     #[arg(long)]
     pub no_auto_start: bool,
-    /// Print JSON (DESIGN §7) instead of text.
+    /// Print JSON (docs/design.md §7) instead of text.
     #[arg(long)]
     pub json: bool,
     /// Write a plot (.png or .svg).
@@ -101,13 +101,16 @@ pub struct TimeArgs {
     #[arg(long)]
     pub quiet: bool,
     /// Diagnose the residual, add the physical effects that pay on held-out data, report the
-    /// error before and after (DESIGN §6); with --plot also draws the residual before and after
+    /// error before and after (docs/design.md §6); with --plot also draws the residual before and after
     /// to PLOT_diagnosis.EXT.
     #[arg(long)]
     pub diagnose: bool,
+    /// Fleet mode (many files at once): see `fracid::cmd::fleet`.
+    #[command(flatten)]
+    pub fleet: super::fleet::FleetArgs,
 }
 
-fn model_of(a: &TimeArgs, duration: f64) -> Result<FracModel> {
+pub(crate) fn model_of(a: &TimeArgs, duration: f64) -> Result<FracModel> {
     let max_delay = match a.max_delay {
         Some(d) if !(d > 0.0 && d.is_finite()) => {
             crate::bad_input!("--max-delay must be a positive number of seconds, got {d}")
@@ -148,6 +151,9 @@ fn model_of(a: &TimeArgs, duration: f64) -> Result<FracModel> {
 /// # Errors
 /// Unreadable file (exit 3), bad data or options (exit 2), numerical breakdown (exit 1).
 pub fn run(a: TimeArgs) -> Result<()> {
+    if a.fleet.active(&a.file) {
+        return super::fleet::run_time(a);
+    }
     if let Some(p) = &a.plot {
         plot::format_of(p)?;
     }
@@ -297,7 +303,7 @@ pub(crate) fn print_score(path: &std::path::Path, sc: &ident::oe::Scored) {
     }
 }
 
-fn json_of(id: &Identification, rec: &Record) -> serde_json::Value {
+pub(crate) fn json_of(id: &Identification, rec: &Record) -> serde_json::Value {
     let fit = |f: Option<metrics::Fit>| {
         f.map(|f| serde_json::json!({"rmse": f.rmse, "nrmse_percent": f.nrmse_percent}))
     };
