@@ -30,7 +30,7 @@ enum Commands {
     /// Identify a fractional model from Bode data (weighted Levy, order search, refit).
     Freq(cmd::freq::FreqArgs),
     /// Identify a fractional model from a time record by output error (Levenberg-Marquardt).
-    Time(cmd::time::TimeArgs),
+    Time(Box<cmd::time::TimeArgs>),
     /// Score a given model on a time record (its own initial state and output offset estimated).
     Score(cmd::score::ScoreArgs),
     /// Export a model's approximation as a state space (continuous, or discrete with the exact
@@ -122,7 +122,7 @@ fn main() -> ExitCode {
         // -- more dispatch arms are added below, one line each --
         Commands::Drive(a) => cmd::drive::run(a),
         Commands::Freq(a) => cmd::freq::run(a),
-        Commands::Time(a) => cmd::time::run(a),
+        Commands::Time(a) => cmd::time::run(*a),
         Commands::Score(a) => cmd::score::run(a),
         Commands::Export(a) => cmd::export::run(a),
     });

@@ -464,36 +464,11 @@ pub fn run_time(a: super::time::TimeArgs) -> Result<()> {
 /// One file's `fracid time --json` report, with the options of `a` (the steps of
 /// `time::run` without its printing).
 fn time_report(a: &super::time::TimeArgs, file: &Path) -> Result<Value> {
-    use ident::data::{Columns, OffsetMode, Record};
-    use ident::oe::{identify_with_progress, IdentOptions, StartMode};
-    let text =
-        std::fs::read_to_string(file).with_context(|| format!("cannot read {}", file.display()))?;
-    let cols = Columns {
-        t: a.t_col.clone(),
-        u: a.u_col.clone(),
-        y: a.y_col.clone(),
-    };
-    let rec = Record::parse(&text, &cols).with_context(|| format!("in {}", file.display()))?;
+    use ident::oe::identify_with_progress;
+    let rec = super::time::read_record(file, &super::time::read_options(a))?;
     let duration = rec.t.last().copied().unwrap_or(0.0) - rec.t.first().copied().unwrap_or(0.0);
     let model = super::time::model_of(a, duration)?;
-    let offsets = match a.offsets.as_str() {
-        "initial" => OffsetMode::Initial,
-        "mean" => OffsetMode::Mean,
-        "none" => OffsetMode::None,
-        o => crate::bad_input!("--offsets must be initial, mean or none, got '{o}'"),
-    };
-    let mut opts = IdentOptions {
-        offsets,
-        holdout: a.holdout,
-        fit_offset: !a.no_offset,
-        start: if a.no_auto_start {
-            StartMode::Given
-        } else {
-            StartMode::Auto
-        },
-        ..Default::default()
-    };
-    opts.fit.lm.max_iterations = a.max_iter;
+    let opts = super::time::ident_options(a)?;
     let id = identify_with_progress(&rec, &model, &opts, &mut |_, _| {})
         .with_context(|| format!("identifying {}", file.display()))?;
     let mut v = super::time::json_of(&id, &rec);

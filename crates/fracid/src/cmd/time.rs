@@ -1,7 +1,7 @@
 //! `fracid time FILE`: time-domain identification by output error (docs/design.md §5, `ident::oe`).
 
 use crate::plot::{self, Figure};
-use anyhow::{Context, Result};
+use anyhow::Result;
 use ident::data::{Columns, ReadOptions, Record};
 use ident::metrics;
 use ident::oe::{identify_with_progress, FracModel, IdentOptions, Identification, StartMode};
@@ -146,35 +146,22 @@ pub(crate) fn model_of(a: &TimeArgs, duration: f64) -> Result<FracModel> {
     Ok(m)
 }
 
-/// Run `fracid time`.
-///
-/// # Errors
-/// Unreadable file (exit 3), bad data or options (exit 2), numerical breakdown (exit 1).
-pub fn run(a: TimeArgs) -> Result<()> {
-    if a.fleet.active(&a.file) {
-        return super::fleet::run_time(a);
-    }
-    if let Some(p) = &a.plot {
-        plot::format_of(p)?;
-    }
-    let read = ReadOptions {
+/// The reader options of `fracid time` (columns, `--dt`).
+pub(crate) fn read_options(a: &TimeArgs) -> ReadOptions {
+    ReadOptions {
         columns: Columns {
             t: a.t_col.clone(),
             u: a.u_col.clone(),
             y: a.y_col.clone(),
         },
         dt: a.dt,
-    };
-    let rec = read_record(&a.file, &read)?;
-    let validation = match &a.validate {
-        Some(p) => Some((p, read_record(p, &read)?)),
-        None => None,
-    };
-    let duration = rec.t.last().copied().unwrap_or(0.0) - rec.t.first().copied().unwrap_or(0.0);
-    let model = model_of(&a, duration)?;
-    let offsets = ident::app::offsets(&a.offsets)?;
+    }
+}
+
+/// The identification options of `fracid time`.
+pub(crate) fn ident_options(a: &TimeArgs) -> Result<IdentOptions> {
     let mut opts = IdentOptions {
-        offsets,
+        offsets: ident::app::offsets(&a.offsets)?,
         holdout: a
             .holdout
             .unwrap_or(if a.validate.is_some() { 0.0 } else { 0.3 }),
@@ -188,6 +175,30 @@ pub fn run(a: TimeArgs) -> Result<()> {
         ..Default::default()
     };
     opts.fit.lm.max_iterations = a.max_iter;
+    Ok(opts)
+}
+
+/// Run `fracid time`.
+///
+/// # Errors
+/// Unreadable file (exit 3), bad data or options (exit 2), numerical breakdown (exit 1).
+pub fn run(a: TimeArgs) -> Result<()> {
+    if a.fleet.active(&a.file) {
+        return super::fleet::run_time(a);
+    }
+    if let Some(p) = &a.plot {
+        plot::format_of(p)?;
+    }
+    let read = read_options(&a);
+    let rec = read_record(&a.file, &read)?;
+    let validation = match &a.validate {
+        Some(p) => Some((p, read_record(p, &read)?)),
+        None => None,
+    };
+    let duration = rec.t.last().copied().unwrap_or(0.0) - rec.t.first().copied().unwrap_or(0.0);
+    let model = model_of(&a, duration)?;
+    let opts = ident_options(&a)?;
+    let offsets = opts.offsets;
     if !a.joint.is_empty() {
         if a.diagnose || a.plot.is_some() {
             crate::bad_input!("--joint does not go with --diagnose or --plot");
@@ -276,6 +287,58 @@ pub(crate) fn read_record(path: &std::path::Path, read: &ReadOptions) -> Result<
         eprintln!("warning: {}: {w}", path.display());
     }
     Ok(loaded.record)
+}
+
+/// The joint fit of several records, as text or JSON.
+fn print_joint(
+    a: &TimeArgs,
+    j: &ident::oe::JointIdentification,
+    files: &[&PathBuf],
+    scored: Option<(&PathBuf, &ident::oe::Scored)>,
+) -> Result<()> {
+    if a.json {
+        let records: Vec<serde_json::Value> = files
+            .iter()
+            .zip(&j.records)
+            .map(|(f, (op, fit, _))| {
+                serde_json::json!({"file": f.display().to_string(), "offsets": op,
+                    "rmse": fit.rmse, "nrmse_percent": fit.nrmse_percent})
+            })
+            .collect();
+        let mut v = serde_json::json!({
+            "model": ident::app::ModelReport::from(&j.tf),
+            "params": j.report.params,
+            "records": records,
+            "converged": j.report.converged,
+            "warnings": j.report.warnings,
+        });
+        if let Some((p, sc)) = scored {
+            v["fit"] = serde_json::json!({"validation_file": score_json(p, sc)});
+        }
+        println!("{}", serde_json::to_string_pretty(&v)?);
+        return Ok(());
+    }
+    println!("model: {}", j.tf);
+    println!("parameters (+- standard error):");
+    for p in j.report.params.iter().filter(|p| p.free) {
+        let se = p.std_error.map_or("-".to_string(), |s| format!("{s:.3e}"));
+        println!("  {:<12} {:>14.6e} +- {se}", p.name, p.value);
+    }
+    for (f, (_, fit, _)) in files.iter().zip(&j.records) {
+        println!(
+            "fit on {}: NRMSE {:.2}%, RMSE {:.5}",
+            f.display(),
+            fit.nrmse_percent,
+            fit.rmse
+        );
+    }
+    if let Some((p, sc)) = scored {
+        print_score(p, sc);
+    }
+    for w in &j.report.warnings {
+        eprintln!("warning: {w}");
+    }
+    Ok(())
 }
 
 /// A model scored on a record, as JSON.

@@ -2,8 +2,8 @@
 
 mod bad_input;
 mod held;
-mod records;
 mod readers;
+mod records;
 mod roundtrip;
 mod sensitivity;
 mod starts;
