@@ -418,8 +418,12 @@ fn diagnosis_of_the_real_dc_motor_finds_its_transport_delay() {
     assert!((0.01..0.03).contains(&tau), "tau = {tau}");
     let before = d["before"]["rmse"].as_f64().unwrap();
     let after = d["after"]["rmse"].as_f64().unwrap();
-    // Measured 5.34 -> 3.50 deg/s on the validation part.
-    assert!(after < 0.8 * before, "{before} -> {after}");
+    // Measured 3.90 -> 3.20 deg/s on the validation part (5.34 -> 3.50 before the initial state
+    // was estimated: the base fit no longer carries the start-up transient); validation fit at
+    // least 96% with the delay.
+    assert!(after < 0.9 * before, "{before} -> {after}");
+    let fit = d["after"]["nrmse_percent"].as_f64().unwrap();
+    assert!(fit >= 96.0, "validation fit {fit}%");
     // The speed never reverses: friction must be reported as ambiguous, not fitted.
     let ambiguous = d["ambiguous"].to_string();
     assert!(ambiguous.contains("coulomb_friction"), "{ambiguous}");

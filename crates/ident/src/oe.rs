@@ -286,6 +286,20 @@ pub struct FracModel {
     pub integrator: bool,
 }
 
+/// The range of the past input's levels, as deviations from `u0`, for a record whose input spans
+/// `[lo, hi]`: that span widened by twice its width on each side (a past the plant could have
+/// been driven with; unbounded levels let a poor base fit explain what an effect left with a
+/// huge, slowly decaying free response).
+pub fn past_range(u: &[f64], u0: f64) -> (f64, f64) {
+    let (lo, hi) = u
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+            (a.min(v), b.max(v))
+        });
+    let span = (hi - lo).max(1e-12 * hi.abs().max(lo.abs()).max(1.0));
+    (lo - 2.0 * span - u0, hi + 2.0 * span - u0)
+}
+
 /// The initial state of a record as the state a past held input left (MATLAB's `oe` and `compare`
 /// estimate an initial state; this is a low-dimensional, well-conditioned way to do so for a model
 /// with tens of modes): the input deviation was `params[levels[0]]` on `[-edges[0], 0)`,
@@ -435,25 +449,24 @@ impl FracModel {
     }
 
     /// Estimate the initial state as a past held input on windows ending `edges` seconds before
-    /// the first sample ([`PastInput`]): adds the levels `u_past0 ..` (free, starting at 0) or
-    /// resets them to 0 when present.
-    pub fn with_past_input(&mut self, edges: Vec<f64>) -> &mut Self {
-        if let Some(old) = self.past.take() {
+    /// the first sample ([`PastInput`]): the levels `u_past0 ..`, input deviations kept within
+    /// `range` (a past the input could have had: see [`past_range`]), start at 0; levels already
+    /// present are reset to 0 with the new range (and the new edges when their number matches).
+    pub fn with_past_input(&mut self, edges: Vec<f64>, range: (f64, f64)) -> &mut Self {
+        let bounds = Bounds::Interval(range.0, range.1);
+        if let Some(mut old) = self.past.take() {
             for &i in &old.levels {
                 self.params[i].value = 0.0;
+                self.params[i].bounds = bounds;
             }
             if old.levels.len() == edges.len() + 1 {
-                self.past = Some(PastInput {
-                    edges,
-                    levels: old.levels,
-                });
-                return self;
+                old.edges = edges;
             }
             self.past = Some(old);
             return self;
         }
         let levels = (0..=edges.len())
-            .map(|j| self.add_param(Param::new(&format!("u_past{j}"), 0.0, Bounds::Free)))
+            .map(|j| self.add_param(Param::new(&format!("u_past{j}"), 0.0, bounds)))
             .collect();
         self.past = Some(PastInput { edges, levels });
         self

@@ -13,6 +13,11 @@ const CHANGE_FRACTION: f64 = 1e-6;
 /// The fewest input changes a validation window must hold to score a model on.
 const MIN_VALIDATION_CHANGES: usize = 3;
 
+/// A parameter whose standard error is this many times its value is not determined by the data
+/// at all (its one-sigma interval spans ten times the value): the result is not usable. Between
+/// once and this many times, a warning.
+const UNDETERMINED: f64 = 10.0;
+
 /// A static gain that moves the output by more than this many times its spread for the input's
 /// spread is not what the data show: the output integrates, or the gain is not identifiable.
 const ABSURD_GAIN_RATIO: f64 = 1e3;
@@ -138,21 +143,18 @@ pub(crate) fn assess(id: &Identification, rec: &Record) -> (Vec<String>, Vec<Str
             continue;
         }
         match e.std_error {
-            Some(se) if se > e.value.abs() => problems.push(format!(
-                "{} = {:.4e} +- {se:.2e} is not identifiable from these data (standard error \
+            Some(se) if se > UNDETERMINED * e.value.abs() => problems.push(format!(
+                "{} = {:.4e} +- {se:.2e} is not determined by these data (standard error \
+                 {UNDETERMINED} times the value or more)",
+                e.name, e.value
+            )),
+            Some(se) if se > e.value.abs() => warnings.push(format!(
+                "{} = {:.4e} +- {se:.2e} is poorly identifiable from these data (standard error \
                  larger than the value)",
                 e.name, e.value
             )),
             _ => {}
         }
-    }
-    if id
-        .report
-        .params
-        .iter()
-        .any(|e| e.free && e.std_error.is_none())
-    {
-        problems.push("some parameters are not identifiable (the covariance is singular)".into());
     }
     if !id.report.converged {
         warnings.push(format!(

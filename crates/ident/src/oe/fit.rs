@@ -562,7 +562,10 @@ pub fn identify_with_progress(
     }
     match opts.initial {
         InitialState::Estimate => {
-            m.with_past_input(past_edges(split as f64 * rec.dt));
+            m.with_past_input(
+                past_edges(split as f64 * rec.dt),
+                super::past_range(&rec.u, offsets.u0),
+            );
         }
         InitialState::Rest => m.past = None,
     }

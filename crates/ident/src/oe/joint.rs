@@ -82,7 +82,10 @@ pub fn identify_joint(
         let mut m = base.clone();
         m.operating_point = op;
         if opts.initial == InitialState::Estimate {
-            m.with_past_input(past_edges(rec.len() as f64 * rec.dt));
+            m.with_past_input(
+                past_edges(rec.len() as f64 * rec.dt),
+                super::past_range(&rec.u, op.u0),
+            );
         }
         let map: Vec<usize> = (0..m.params.len())
             .map(|i| {

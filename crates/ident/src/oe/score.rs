@@ -66,7 +66,10 @@ pub fn score(
     }
     match initial {
         InitialState::Estimate => {
-            m.with_past_input(past_edges(n as f64 * rec.dt));
+            m.with_past_input(
+                past_edges(n as f64 * rec.dt),
+                super::past_range(&rec.u, op.u0),
+            );
             for &i in &m
                 .past
                 .as_ref()
