@@ -921,8 +921,13 @@ impl Client {
             let settle_cycles = sweep
                 .settle_cycles
                 .max((sweep.min_settle_s * f).ceil().min(65535.0) as u16);
+            let cycles = sweep.cycles.max(1);
+            let Some(freq_mhz) = bode::whole_cycle_mhz(f, cycles, conf.sample_rate_hz) else {
+                problems.push(format!("{f} Hz skipped: no whole-cycle window"));
+                continue;
+            };
             let cmd = StartSine {
-                freq_mhz: (f * 1000.0).round() as u32,
+                freq_mhz,
                 amplitude: (sweep.amplitude_v.abs() / conf.u_lsb())
                     .round()
                     .min(32767.0) as i16,
@@ -930,7 +935,7 @@ impl Client {
                     .round()
                     .clamp(-32767.0, 32767.0) as i16,
                 settle_cycles,
-                cycles: sweep.cycles.max(1),
+                cycles,
                 flags: SINE_DFT | if sweep.stream { SINE_STREAM } else { 0 },
             };
             let mut done = false;
@@ -1109,25 +1114,81 @@ pub fn bode_point(
     })
 }
 
-/// A Bode point from a sine run that ended normally: the drive's DFT if it arrived, else the
-/// host's DFT over the streamed measurement window.
+/// The drive's measurement of a sine run with the operating point removed: `[u, y]` phasors
+/// `(re, im)` in raw LSB from SINE_RESULT's DFT, level and ramp moments, by the joint
+/// least-squares fit of level, drift and sine ([`bode::fit_phasor`]) over the window.
+pub fn drive_phasors(
+    acq: &Acquisition,
+    cmd: &StartSine,
+    sample_rate_hz: u32,
+) -> Option<[(f64, f64); 2]> {
+    let s = acq.sine?;
+    let (settle, measure) = cmd.sample_counts(sample_rate_hz)?;
+    if measure != s.n || measure == 0 {
+        return None;
+    }
+    let q = |v: i32| v as f64 / 256.0;
+    let g = bode::WindowGram::new(measure, settle, cmd.phase_increment(sample_rate_hz));
+    let u = bode::ChannelMoments {
+        dft: (q(s.u_re), q(s.u_im)),
+        mean: q(s.u_mean),
+        ramp: q(s.u_ramp),
+    };
+    let y = bode::ChannelMoments {
+        dft: (q(s.y_re), q(s.y_im)),
+        mean: q(s.y_mean),
+        ramp: q(s.y_ramp),
+    };
+    Some([bode::fit_phasor(&u, &g)?, bode::fit_phasor(&y, &g)?])
+}
+
+/// The same measurement from the streamed samples of the window, on the host (f64 moments, the
+/// same fit). None unless every sample of the window arrived.
+pub fn host_phasors(
+    acq: &Acquisition,
+    cmd: &StartSine,
+    sample_rate_hz: u32,
+) -> Option<[(f64, f64); 2]> {
+    let (settle, measure) = cmd.sample_counts(sample_rate_hz)?;
+    if measure == 0 {
+        return None;
+    }
+    let inc = cmd.phase_increment(sample_rate_hz);
+    let first = acq.index.binary_search(&(settle as u64)).ok()?;
+    let last = first + measure as usize - 1;
+    if acq.index.get(last) != Some(&(settle as u64 + measure as u64 - 1)) {
+        return None;
+    }
+    let ph = |k: usize| {
+        let p = ((settle as u64 + k as u64).wrapping_mul(inc as u64)) as u32;
+        p as f64 / 4294967296.0 * std::f64::consts::TAU
+    };
+    let w = &acq.raw[first..=last];
+    let u: Vec<f64> = w.iter().map(|s| s[0] as f64).collect();
+    let y: Vec<f64> = w.iter().map(|s| s[1] as f64).collect();
+    let g = bode::WindowGram::new(measure, settle, inc);
+    Some([
+        bode::fit_phasor(&bode::ChannelMoments::of(&u, ph), &g)?,
+        bode::fit_phasor(&bode::ChannelMoments::of(&y, ph), &g)?,
+    ])
+}
+
+/// A Bode point from a sine run that ended normally: the drive's measurement if its SINE_RESULT
+/// arrived, else the host's over the streamed window; both with the operating point's level and
+/// drift removed ([`drive_phasors`], [`host_phasors`]). The point's frequency is the one the drive
+/// really generated ([`StartSine::applied_freq_hz`]).
 pub fn sine_point(acq: &Acquisition, cmd: &StartSine, conf: &Configure) -> Option<BodePoint> {
     let end = acq.end?;
     if end.reason != EndReason::Complete {
         return None;
     }
-    let freq_hz = cmd.freq_mhz as f64 / 1000.0;
-    if let (Some(d), Some(s)) = (drive_dft(acq), acq.sine) {
-        return bode_point(freq_hz, d, s.n, true, conf);
+    let fs = conf.sample_rate_hz;
+    let freq_hz = cmd.applied_freq_hz(fs);
+    let (_, measure) = cmd.sample_counts(fs)?;
+    if let Some(d) = drive_phasors(acq, cmd, fs) {
+        return bode_point(freq_hz, d, measure, true, conf);
     }
-    let (_, measure) = cmd.sample_counts(conf.sample_rate_hz)?;
-    bode_point(
-        freq_hz,
-        host_dft(acq, cmd, conf.sample_rate_hz)?,
-        measure,
-        false,
-        conf,
-    )
+    bode_point(freq_hz, host_phasors(acq, cmd, fs)?, measure, false, conf)
 }
 
 impl Drop for Client {

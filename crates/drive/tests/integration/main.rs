@@ -5,4 +5,5 @@ mod e2e;
 mod e2e_control;
 mod firmware_c;
 mod props;
+mod sine;
 mod vectors;
