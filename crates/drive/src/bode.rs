@@ -15,6 +15,96 @@ pub struct BodePoint {
     pub n_samples: u32,
     /// Whether the point came from the drive's DFT (true) or from streamed samples (false).
     pub on_drive: bool,
+    /// The spread of the repeats when the point combines several ([`combine_repeats`]).
+    pub spread: Option<Spread>,
+}
+
+/// The spread of the repeated measurements of one frequency.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Spread {
+    /// Sample standard deviation (n - 1) of the repeats' gains, dB.
+    pub gain_db_std: f64,
+    /// Sample standard deviation of the repeats' phases, deg (unwrapped to the first repeat).
+    pub phase_deg_std: f64,
+    /// Repeats measured.
+    pub repeats: u32,
+    /// Repeats averaged after trimming (`repeats - 2` from 3 repeats on, else `repeats`).
+    pub kept: u32,
+}
+
+impl Spread {
+    /// Standard errors (gain dB, phase deg) of the combined point: `std / sqrt(kept)`. For
+    /// normal errors the 10%-trimmed mean of 10 has a variance about 6% above `sigma^2/10`, so
+    /// `sigma^2/(n-2)` is on the safe side.
+    pub fn std_errors(&self) -> (f64, f64) {
+        let k = (self.kept.max(1) as f64).sqrt();
+        (self.gain_db_std / k, self.phase_deg_std / k)
+    }
+}
+
+/// The paper's trimmed mean: sort, drop the largest and the smallest (from 3 values on), average
+/// the rest.
+///
+/// ```
+/// assert_eq!(drive::bode::trimmed_mean(&[5.0, 1.0, 2.0, 3.0, 100.0]), 10.0 / 3.0);
+/// assert_eq!(drive::bode::trimmed_mean(&[1.0, 2.0]), 1.5);
+/// ```
+pub fn trimmed_mean(x: &[f64]) -> f64 {
+    let mut v = x.to_vec();
+    v.sort_by(f64::total_cmp);
+    let kept = if v.len() >= 3 {
+        &v[1..v.len() - 1]
+    } else {
+        &v[..]
+    };
+    kept.iter().sum::<f64>() / kept.len().max(1) as f64
+}
+
+fn sample_std(x: &[f64]) -> f64 {
+    let n = x.len();
+    if n < 2 {
+        return 0.0;
+    }
+    let m = x.iter().sum::<f64>() / n as f64;
+    (x.iter().map(|v| (v - m) * (v - m)).sum::<f64>() / (n - 1) as f64).sqrt()
+}
+
+/// Combine the repeated measurements of one frequency as the paper does: the trimmed mean of the
+/// gains in dB (drop the largest and the smallest gain, average the rest) and, independently, of
+/// the phases in degrees (each repeat's phase first brought within 180 deg of the first repeat's;
+/// the paper trims the gain only and says nothing of the phase, so the phase is trimmed the same
+/// way), with the repeats' spread ([`Spread`]). `None` for no repeats.
+///
+/// ```
+/// use drive::bode::{combine_repeats, BodePoint};
+/// let p = |g: f64, ph: f64| BodePoint { freq_hz: 10.0, gain_db: g, phase_deg: ph, n_samples: 400, on_drive: true, spread: None };
+/// let c = combine_repeats(&[p(1.0, -10.0), p(2.0, 350.0), p(9.0, -20.0)]).unwrap();
+/// assert_eq!((c.gain_db, c.phase_deg), (2.0, -10.0));
+/// assert_eq!(c.spread.unwrap().kept, 1);
+/// ```
+pub fn combine_repeats(reps: &[BodePoint]) -> Option<BodePoint> {
+    let first = *reps.first()?;
+    let gains: Vec<f64> = reps.iter().map(|p| p.gain_db).collect();
+    let phases: Vec<f64> = reps
+        .iter()
+        .map(|p| {
+            let d = p.phase_deg - first.phase_deg;
+            p.phase_deg - 360.0 * (d / 360.0).round()
+        })
+        .collect();
+    let n = reps.len() as u32;
+    Some(BodePoint {
+        gain_db: trimmed_mean(&gains),
+        phase_deg: trimmed_mean(&phases),
+        on_drive: reps.iter().all(|p| p.on_drive),
+        spread: Some(Spread {
+            gain_db_std: sample_std(&gains),
+            phase_deg_std: sample_std(&phases),
+            repeats: n,
+            kept: if n >= 3 { n - 2 } else { n },
+        }),
+        ..first
+    })
 }
 
 /// Complex ratio Y/U from (re, im) pairs, as (gain, phase_rad).
@@ -266,16 +356,54 @@ pub fn unwrap_deg(points: &mut [BodePoint]) {
     }
 }
 
-/// Write `freq_hz,gain_db,phase_deg` (with a `#` comment line first).
+/// Write `freq_hz,gain_db,phase_deg` (with `#` comment lines first). When a point carries the
+/// spread of repeats, three more columns: `gain_db_std,phase_deg_std,repeats` (the sample standard
+/// deviations of the repeats, dB and deg, and their number; see [`Spread`]). `fracid freq` reads
+/// them back and weights the points by them.
 pub fn write_csv(mut w: impl Write, points: &[BodePoint], comment: &str) -> std::io::Result<()> {
     for line in comment.lines() {
         writeln!(w, "# {line}")?;
     }
-    writeln!(w, "freq_hz,gain_db,phase_deg")?;
+    let spread = points.iter().any(|p| p.spread.is_some());
+    if spread {
+        writeln!(
+            w,
+            "freq_hz,gain_db,phase_deg,gain_db_std,phase_deg_std,repeats"
+        )?;
+    } else {
+        writeln!(w, "freq_hz,gain_db,phase_deg")?;
+    }
     for p in points {
-        writeln!(w, "{},{:.6},{:.6}", p.freq_hz, p.gain_db, p.phase_deg)?;
+        write!(w, "{},{:.6},{:.6}", p.freq_hz, p.gain_db, p.phase_deg)?;
+        if spread {
+            let s = p.spread.unwrap_or(Spread {
+                gain_db_std: 0.0,
+                phase_deg_std: 0.0,
+                repeats: 1,
+                kept: 1,
+            });
+            write!(
+                w,
+                ",{:.6},{:.6},{}",
+                s.gain_db_std, s.phase_deg_std, s.repeats
+            )?;
+        }
+        writeln!(w)?;
     }
     Ok(())
+}
+
+/// The header of the file of single repeats written as they are measured
+/// ([`write_repeat_line`]).
+pub const REPEATS_HEADER: &str = "freq_hz,repeat,gain_db,phase_deg";
+
+/// One repeat as a line of the repeats file: `freq_hz,repeat,gain_db,phase_deg` (repeat from 1).
+pub fn write_repeat_line(mut w: impl Write, p: &BodePoint, repeat: u32) -> std::io::Result<()> {
+    writeln!(
+        w,
+        "{},{},{:.6},{:.6}",
+        p.freq_hz, repeat, p.gain_db, p.phase_deg
+    )
 }
 
 /// The comment line that states the convention of a table measured through the drive's sampled,

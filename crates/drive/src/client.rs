@@ -318,6 +318,9 @@ pub struct SineSweep {
     pub stream: bool,
     /// Attempts per frequency when a point is lost.
     pub attempts: u32,
+    /// Measurements per frequency, combined by the paper's trimmed mean
+    /// ([`bode::combine_repeats`]); 1 measures once and keeps no spread.
+    pub repeats: u32,
 }
 
 impl SineSweep {
@@ -342,7 +345,31 @@ impl SineSweep {
             min_settle_s: 0.2,
             stream: false,
             attempts: 3,
+            repeats: 1,
         }
+    }
+
+    /// The frequency the drive will really apply for each requested one (Hz): moved to a
+    /// whole-cycle window ([`bode::whole_cycle_mhz`]) and as generated
+    /// ([`StartSine::applied_freq_hz`]); `None` where the request cannot be measured.
+    pub fn applied_freqs_hz(&self, sample_rate_hz: u32) -> Vec<Option<f64>> {
+        self.freqs_hz
+            .iter()
+            .map(|&f| {
+                let freq_mhz = bode::whole_cycle_mhz(f, self.cycles.max(1), sample_rate_hz)?;
+                Some(
+                    StartSine {
+                        freq_mhz,
+                        amplitude: 0,
+                        offset: 0,
+                        settle_cycles: 0,
+                        cycles: 1,
+                        flags: 0,
+                    }
+                    .applied_freq_hz(sample_rate_hz),
+                )
+            })
+            .collect()
     }
 }
 
@@ -905,8 +932,21 @@ impl Client {
 
     /// Run a sine sweep and return the frequency response. Points whose measurement was
     /// damaged are measured again (up to `attempts` times); points that never succeed are left out
-    /// and reported in the error list returned alongside.
+    /// and reported in the error list returned alongside. With `repeats > 1` each frequency is
+    /// measured that many times in a row and the point is their trimmed mean with the spread
+    /// ([`bode::combine_repeats`]).
     pub fn run_sine_sweep(&mut self, sweep: &SineSweep) -> Result<(Vec<BodePoint>, Vec<String>)> {
+        self.run_sine_sweep_with(sweep, &mut |_, _| Ok(()))
+    }
+
+    /// [`Client::run_sine_sweep`], calling `on_repeat(point, repeat)` (repeat from 1) for every
+    /// single measurement as it is made (to write it at once). An error from `on_repeat` ends the
+    /// sweep with that error.
+    pub fn run_sine_sweep_with(
+        &mut self,
+        sweep: &SineSweep,
+        on_repeat: &mut dyn FnMut(&BodePoint, u32) -> Result<()>,
+    ) -> Result<(Vec<BodePoint>, Vec<String>)> {
         let conf = self.conf()?;
         let fs = conf.sample_rate_hz as f64;
         let mut points = Vec::new();
@@ -918,14 +958,14 @@ impl Client {
                 problems.push(format!("{f} Hz skipped: outside (0, {}) Hz", fs / 2.0));
                 continue;
             }
-            let settle_cycles = sweep
-                .settle_cycles
-                .max((sweep.min_settle_s * f).ceil().min(65535.0) as u16);
             let cycles = sweep.cycles.max(1);
             let Some(freq_mhz) = bode::whole_cycle_mhz(f, cycles, conf.sample_rate_hz) else {
                 problems.push(format!("{f} Hz skipped: no whole-cycle window"));
                 continue;
             };
+            let settle_cycles = sweep
+                .settle_cycles
+                .max((sweep.min_settle_s * f).ceil().min(65535.0) as u16);
             let cmd = StartSine {
                 freq_mhz,
                 amplitude: (sweep.amplitude_v.abs() / conf.u_lsb())
@@ -938,42 +978,39 @@ impl Client {
                 cycles,
                 flags: SINE_DFT | if sweep.stream { SINE_STREAM } else { 0 },
             };
-            let mut done = false;
-            for _ in 0..sweep.attempts.max(1) {
-                let acq = match self.run_sine(&cmd, &mut NullSink) {
-                    Ok(a) => a,
-                    Err(e @ Error::Nak { .. }) | Err(e @ Error::InvalidParam(_)) => {
+            let mut reps = Vec::new();
+            for rep in 1..=sweep.repeats.max(1) {
+                match self.measure_once(&cmd, &conf, sweep.attempts, &mut problems) {
+                    Ok(Some(p)) => {
+                        if let Err(e) = on_repeat(&p, rep) {
+                            self.progress = prog;
+                            return Err(e);
+                        }
+                        reps.push(p);
+                    }
+                    Ok(None) => problems.push(format!("{f} Hz: no valid measurement")),
+                    Err(Some(e)) => {
                         self.progress = prog;
                         return Err(e);
                     }
-                    Err(e) => {
-                        problems.push(format!("{f} Hz: {e}"));
-                        continue;
+                    Err(None) => {
+                        // Stopped on the host's request: the sweep ends here.
+                        problems.push(format!("{f} Hz: sweep stopped"));
+                        self.progress = prog;
+                        if sweep.repeats > 1 {
+                            points.extend(bode::combine_repeats(&reps));
+                        } else {
+                            points.extend(reps);
+                        }
+                        bode::unwrap_deg(&mut points);
+                        return Ok((points, problems));
                     }
-                };
-                if let Some(p) = sine_point(&acq, &cmd, &conf) {
-                    points.push(p);
-                    done = true;
-                    break;
                 }
-                if let Some(r) = acq
-                    .end
-                    .map(|e| e.reason)
-                    .filter(|r| matches!(r, EndReason::Stopped | EndReason::Estop))
-                {
-                    // Stopped on the host's request: the sweep ends here.
-                    problems.push(format!("{f} Hz: {r:?}; sweep stopped"));
-                    self.progress = prog;
-                    bode::unwrap_deg(&mut points);
-                    return Ok((points, problems));
-                }
-                problems.push(format!(
-                    "{f} Hz: measurement damaged ({}), repeating",
-                    acq.problems.join("; ")
-                ));
             }
-            if !done {
-                problems.push(format!("{f} Hz: no valid measurement"));
+            if sweep.repeats > 1 {
+                points.extend(bode::combine_repeats(&reps));
+            } else {
+                points.extend(reps);
             }
             if let Some(p) = prog.as_mut() {
                 p(Progress {
@@ -985,6 +1022,46 @@ impl Client {
         self.progress = prog;
         bode::unwrap_deg(&mut points);
         Ok((points, problems))
+    }
+
+    /// One sine measurement, repeated on damage up to `attempts` times. `Ok(None)`: no valid
+    /// measurement; `Err(Some(e))`: an error that ends the sweep; `Err(None)`: stopped on request.
+    fn measure_once(
+        &mut self,
+        cmd: &StartSine,
+        conf: &Configure,
+        attempts: u32,
+        problems: &mut Vec<String>,
+    ) -> std::result::Result<Option<BodePoint>, Option<Error>> {
+        let f = cmd.applied_freq_hz(conf.sample_rate_hz);
+        for _ in 0..attempts.max(1) {
+            let acq = match self.run_sine(cmd, &mut NullSink) {
+                Ok(a) => a,
+                Err(e @ Error::Nak { .. }) | Err(e @ Error::InvalidParam(_)) => {
+                    return Err(Some(e));
+                }
+                Err(e) => {
+                    problems.push(format!("{f} Hz: {e}"));
+                    continue;
+                }
+            };
+            if let Some(p) = sine_point(&acq, cmd, conf) {
+                return Ok(Some(p));
+            }
+            if let Some(r) = acq
+                .end
+                .map(|e| e.reason)
+                .filter(|r| matches!(r, EndReason::Stopped | EndReason::Estop))
+            {
+                problems.push(format!("{f} Hz: {r:?}"));
+                return Err(None);
+            }
+            problems.push(format!(
+                "{f} Hz: measurement damaged ({}), repeating",
+                acq.problems.join("; ")
+            ));
+        }
+        Ok(None)
     }
 }
 
@@ -1111,6 +1188,7 @@ pub fn bode_point(
         phase_deg: phase.to_degrees(),
         n_samples,
         on_drive,
+        spread: None,
     })
 }
 

@@ -31,6 +31,8 @@ enum Commands {
     Freq(cmd::freq::FreqArgs),
     /// Identify a fractional model from a time record by output error (Levenberg-Marquardt).
     Time(cmd::time::TimeArgs),
+    /// Two models side by side: one Bode plot, the largest differences, the coefficients.
+    Compare(cmd::compare::CompareArgs),
 }
 
 /// Exit codes: 0 success, 1 runtime failure (numerical breakdown, fit failure, drive fault),
@@ -85,6 +87,7 @@ fn main() -> ExitCode {
         Commands::Drive(a) => cmd::drive::run(a),
         Commands::Freq(a) => cmd::freq::run(a),
         Commands::Time(a) => cmd::time::run(a),
+        Commands::Compare(a) => cmd::compare::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

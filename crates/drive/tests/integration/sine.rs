@@ -126,3 +126,106 @@ fn sine_points_around_6_v_match_the_exact_sampled_response() {
     assert!(worst_db < 0.02, "worst gain error {worst_db} dB");
     assert!(worst_deg < 0.2, "worst phase error {worst_deg} deg");
 }
+
+/// With measurement noise, 10 repeats per frequency and the paper's trimmed mean: the spread the
+/// table reports matches the noise the simulator adds, and the combined points' errors against
+/// the exact response shrink as the statistics predict.
+///
+/// Prediction (independent of the simulator): white noise of std `sigma` on y puts
+/// `sigma sqrt(2/n)` on each of Re/Im of the n-sample single-bin DFT, so one repeat's relative
+/// error has std `s = sigma sqrt(2/n)/|Y|` in gain (8.686 s dB) and phase (s rad), `|Y| = A |G_d|`.
+/// The combined point (trimmed mean of 10) has about `s/sqrt(n_rep - 2)` or less.
+#[test]
+fn repeats_shrink_the_error_and_report_the_noise() {
+    let _g = lock();
+    let sigma = 0.1; // rad/s
+    let s = DriveSim::spawn(SimConfig {
+        baud: BAUD,
+        effects: drive::sim::Effects {
+            noise_std: sigma,
+            ..drive::sim::Effects::default()
+        },
+        faults: drive::sim::Faults {
+            seed: 15,
+            ..drive::sim::Faults::default()
+        },
+        ..SimConfig::default()
+    })
+    .expect("simulator starts");
+    let conf = Configure::default();
+    let fs = conf.sample_rate_hz;
+    let mut c = Client::open(
+        s.port_path(),
+        ClientConfig {
+            baud: BAUD,
+            ..ClientConfig::default()
+        },
+    )
+    .unwrap();
+    c.configure(&conf).unwrap();
+    let mut sweep = drive::client::SineSweep::log(10.0, 100.0, 6);
+    sweep.repeats = 10;
+    let mut singles = Vec::new();
+    let (pts, problems) = c
+        .run_sine_sweep_with(&sweep, &mut |p, rep| {
+            singles.push((*p, rep));
+            Ok(())
+        })
+        .unwrap();
+    assert!(problems.is_empty(), "{problems:?}");
+    assert_eq!((pts.len(), singles.len()), (6, 60));
+    // relative noise std of one repeat at a point
+    let rel_std = |p: &drive::bode::BodePoint| {
+        let g = sampled_response(p.freq_hz, fs as f64).norm();
+        sigma * (2.0 / p.n_samples as f64).sqrt() / (1.0 * g)
+    };
+    let db = 20.0 / std::f64::consts::LN_10;
+    let (mut z1, mut zc, mut ratio) = (Vec::new(), Vec::new(), Vec::new());
+    for (p, _) in &singles {
+        let (e_db, e_deg) = errors(
+            p.gain_db,
+            p.phase_deg,
+            sampled_response(p.freq_hz, fs as f64),
+        );
+        let s = rel_std(p);
+        z1.extend([e_db / (db * s), e_deg.to_radians() / s]);
+    }
+    for p in &pts {
+        let sp = p.spread.expect("spread of the repeats");
+        assert_eq!((sp.repeats, sp.kept), (10, 8));
+        let (e_db, e_deg) = errors(
+            p.gain_db,
+            p.phase_deg,
+            sampled_response(p.freq_hz, fs as f64),
+        );
+        let s = rel_std(p);
+        zc.extend([e_db / (db * s), e_deg.to_radians() / s]);
+        ratio.extend([sp.gain_db_std / (db * s), sp.phase_deg_std.to_radians() / s]);
+        eprintln!(
+            "{:8.3} Hz: error {e_db:+.4} dB {e_deg:+.4} deg, spread {:.4} dB {:.4} deg, predicted {:.4} dB {:.4} deg",
+            p.freq_hz,
+            sp.gain_db_std,
+            sp.phase_deg_std,
+            db * s,
+            s.to_degrees()
+        );
+    }
+    let rms = |z: &[f64]| (z.iter().map(|v| v * v).sum::<f64>() / z.len() as f64).sqrt();
+    let mean_ratio = ratio.iter().sum::<f64>() / ratio.len() as f64;
+    eprintln!(
+        "normalised RMS error: single repeat {:.3} (expected 1), trimmed mean of 10 {:.3} \
+         (expected <= 1/sqrt(8) = 0.354); reported spread / predicted noise {:.3} (expected 1)",
+        rms(&z1),
+        rms(&zc),
+        mean_ratio
+    );
+    // 120 single errors: their RMS is within +-0.09 (1 sd) of 1; 12 combined: +-20% of 0.33;
+    // 12 spread ratios, each a sample std of 10 (+-24%), averaged: +-7%. Bounds at 3 sd or more.
+    assert!((0.7..1.3).contains(&rms(&z1)), "single {}", rms(&z1));
+    assert!(rms(&zc) < 0.6, "combined {}", rms(&zc));
+    assert!(rms(&zc) < 0.7 * rms(&z1));
+    assert!(
+        (0.78..1.22).contains(&mean_ratio),
+        "spread ratio {mean_ratio}"
+    );
+}
