@@ -232,9 +232,9 @@ impl WindowGram {
             let p = ((first as u64 + k as u64).wrapping_mul(inc as u64)) as u32;
             let th = p as f64 / 4294967296.0 * std::f64::consts::TAU;
             let phi = [1.0, (2.0 * k as f64 - (nf - 1.0)) / nf, th.cos(), th.sin()];
-            for i in 0..4 {
-                for j in 0..4 {
-                    g[i][j] += phi[i] * phi[j];
+            for (row, pi) in g.iter_mut().zip(phi) {
+                for (v, pj) in row.iter_mut().zip(phi) {
+                    *v += pi * pj;
                 }
             }
         }
@@ -270,22 +270,23 @@ pub fn fit_phasor(m: &ChannelMoments, g: &WindowGram) -> Option<(f64, f64)> {
     // Gaussian elimination with partial pivoting
     for c in 0..4 {
         let piv = (c..4).max_by(|&i, &j| a[i][c].abs().total_cmp(&a[j][c].abs()))?;
-        if !(a[piv][c].abs() > 1e-12) {
+        if a[piv][c].abs() <= 1e-12 || a[piv][c].is_nan() {
             return None;
         }
         a.swap(c, piv);
         b.swap(c, piv);
-        for r in c + 1..4 {
-            let f = a[r][c] / a[c][c];
-            for j in c..4 {
-                a[r][j] -= f * a[c][j];
+        let (pivot_row, pivot_b) = (a[c], b[c]);
+        for (row, br) in a.iter_mut().zip(b.iter_mut()).skip(c + 1) {
+            let f = row[c] / pivot_row[c];
+            for (v, pv) in row.iter_mut().zip(pivot_row).skip(c) {
+                *v -= f * pv;
             }
-            b[r] -= f * b[c];
+            *br -= f * pivot_b;
         }
     }
     let mut p = [0.0; 4];
     for c in (0..4).rev() {
-        let s: f64 = (c + 1..4).map(|j| a[c][j] * p[j]).sum();
+        let s: f64 = a[c].iter().zip(p).skip(c + 1).map(|(x, y)| x * y).sum();
         p[c] = (b[c] - s) / a[c][c];
     }
     p.iter().all(|v| v.is_finite()).then_some((p[2], -p[3]))
@@ -318,7 +319,7 @@ pub fn whole_cycle_mhz(freq_hz: f64, cycles: u16, sample_rate_hz: u32) -> Option
             continue;
         }
         let mhz = (1000.0 * c * fs / n).round();
-        if !(mhz >= 1.0 && mhz <= u32::MAX as f64) {
+        if !(1.0..=u32::MAX as f64).contains(&mhz) {
             continue;
         }
         let cmd = crate::protocol::StartSine {

@@ -177,7 +177,7 @@ fn repeats_shrink_the_error_and_report_the_noise() {
     // relative noise std of one repeat at a point
     let rel_std = |p: &drive::bode::BodePoint| {
         let g = sampled_response(p.freq_hz, fs as f64).norm();
-        sigma * (2.0 / p.n_samples as f64).sqrt() / (1.0 * g)
+        sigma * (2.0 / p.n_samples as f64).sqrt() / g // 1 V amplitude
     };
     let db = 20.0 / std::f64::consts::LN_10;
     let (mut z1, mut zc, mut ratio) = (Vec::new(), Vec::new(), Vec::new());

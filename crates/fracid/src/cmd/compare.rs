@@ -22,13 +22,13 @@ pub struct CompareArgs {
     /// Model B, as model A.
     pub model_b: String,
     /// Band, Hz: `LOW,HIGH`.
-    #[arg(long, value_delimiter = ',', num_args = 2, default_values_t = [0.1, 100.0])]
+    #[arg(long, value_delimiter = ',', default_values_t = [0.1, 100.0])]
     pub band: Vec<f64>,
     /// Log-spaced frequencies evaluated over the band.
     #[arg(long, default_value_t = 2000)]
     pub points: usize,
     /// Names of the two models in the text and the plot.
-    #[arg(long, value_delimiter = ',', num_args = 2, default_values_t = ["A".to_string(), "B".to_string()])]
+    #[arg(long, value_delimiter = ',', default_values_t = ["A".to_string(), "B".to_string()])]
     pub names: Vec<String>,
     /// Bode plot of both models (PNG or SVG by the extension).
     #[arg(long)]
@@ -88,6 +88,12 @@ pub fn load_model(arg: &str) -> Result<FracTf> {
 
 /// Run `fracid compare`.
 pub fn run(a: CompareArgs) -> Result<()> {
+    if a.band.len() != 2 {
+        crate::bad_input!("--band wants LOW,HIGH in Hz, got {} values", a.band.len());
+    }
+    if a.names.len() != 2 {
+        crate::bad_input!("--names wants NAME_A,NAME_B, got {} names", a.names.len());
+    }
     let ga = load_model(&a.model_a)?;
     let gb = load_model(&a.model_b)?;
     let c = ident::compare::compare(&ga, &gb, (a.band[0], a.band[1]), a.points)?;
