@@ -84,7 +84,10 @@ fn coefficient_rows(a: &FracTf, b: &FracTf) -> Option<Vec<CoefRow>> {
     let mut rows = Vec::new();
     for (side, ta, tb) in [("num", &a.num, &b.num), ("den", &a.den, &b.den)] {
         for (k, (x, y)) in ta.iter().zip(tb.iter()).enumerate() {
-            let label = format!("{side} term {} (s^{})", k + 1, x.order);
+            // the order to 4 decimals, trailing zeros dropped: "s^1.7452", "s^0.92", "s^0"
+            let o = format!("{:.4}", x.order);
+            let o = o.trim_end_matches('0').trim_end_matches('.');
+            let label = format!("{side} term {} (s^{o})", k + 1);
             rows.push(CoefRow {
                 name: format!("{label} coef"),
                 a: x.coef,

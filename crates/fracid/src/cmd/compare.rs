@@ -141,7 +141,7 @@ pub fn text(ga: &FracTf, gb: &FracTf, c: &Comparison, names: (&str, &str)) -> St
     match &c.coefficients {
         Some(rows) => {
             s += &format!(
-                "coefficients (terms paired by decreasing order):\n  {:<28} {:>14} {:>14} {:>10}\n",
+                "coefficients (terms paired by decreasing order):\n  {:<30} {:>14} {:>14} {:>10}\n",
                 "", na, nb, "rel. diff"
             );
             for r in rows {
@@ -149,7 +149,7 @@ pub fn text(ga: &FracTf, gb: &FracTf, c: &Comparison, names: (&str, &str)) -> St
                     .rel_diff
                     .map(|d| format!("{:+.2} %", 100.0 * d))
                     .unwrap_or_else(|| "-".into());
-                s += &format!("  {:<28} {:>14.6} {:>14.6} {:>10}\n", r.name, r.a, r.b, d);
+                s += &format!("  {:<30} {:>14.6e} {:>14.6e} {:>10}\n", r.name, r.a, r.b, d);
             }
         }
         None => s += "coefficients: the structures differ (numbers of terms), no table\n",
