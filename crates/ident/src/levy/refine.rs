@@ -259,10 +259,13 @@ mod tests {
             .unwrap()
             .bode(&omega);
         let p = [1.5, -4.0, -9.5, 0.3, -0.2];
+        // unequal per-point scales: the weighted problem's Jacobian is checked too
+        let scale = vec![0.5, 1.0, 2.0, 0.25];
         let mut a = PmsmProblem {
             omega: &omega,
             h: &h,
             sign: 1.0,
+            scale: scale.clone(),
         };
         let mut ja = Mat::<f64>::zeros(8, 5);
         let mut r = vec![0.0; 8];
@@ -271,6 +274,7 @@ mod tests {
             omega: &omega,
             h: &h,
             sign: 1.0,
+            scale,
         });
         let mut jf = Mat::<f64>::zeros(8, 5);
         fd.eval(&p, &mut r, Some(&mut jf)).unwrap();
