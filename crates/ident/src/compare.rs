@@ -122,7 +122,8 @@ fn coefficient_rows(a: &FracTf, b: &FracTf) -> Option<Vec<CoefRow>> {
 /// let a: fracsim::FracTf = "6.82/(0.00002655 s^1.7452 + 0.0059 s^0.92 + 1)".parse().unwrap();
 /// let b: fracsim::FracTf = "6.77/(0.000028 s^1.78 + 0.0064 s^0.89 + 1)".parse().unwrap();
 /// let c = ident::compare::compare(&a, &b, (0.1, 100.0), 2000).unwrap();
-/// assert!(c.gain.value.abs() < 3.0 && c.coefficients.unwrap().len() == 5);
+/// // K; the s^1.7452 coefficient and order; the s^0.92 coefficient and order; the constant
+/// assert!(c.gain.value.abs() < 3.0 && c.coefficients.unwrap().len() == 6);
 /// ```
 ///
 /// # Errors
