@@ -6,7 +6,7 @@
 
 use fracsim::{lsim, ApproxSpec, FracTf};
 
-/// The paper's time-domain PMSM model (DESIGN §2).
+/// The paper's time-domain PMSM model (docs/design.md §2).
 pub const PMSM: &str = "6.82/(2.655e-5 s^1.7452 + 0.0059 s^0.92 + 1)";
 
 /// The true PMSM parameters `[K, a1, a2, zeta, theta]` of [`PMSM`] (`zeta + theta = 1.7452`).

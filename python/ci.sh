@@ -3,8 +3,9 @@
 # install it into a fresh virtual environment, and run the pytest suite against the installed
 # package (from python/tests, so the source tree is never importable). Exits non-zero on failure.
 #
-# Network: PyPI only (numpy, pytest, and maturin for the isolated build environment); crates come
-# from the cargo registry/cache as for the rest of the workspace.
+# Network: PyPI only (numpy, pytest, maturin for the isolated build environment, and the optional
+# extras the export and fleet tests use: scipy, control, dask[distributed]); crates come from the
+# cargo registry/cache as for the rest of the workspace.
 #
 # Environment:
 #   CARGO_TARGET_DIR      shared with the workspace build (default: <repo>/target), so the
@@ -26,6 +27,10 @@ rm -rf "$VENV"
 python3 -m venv "$VENV"
 echo "== python: venv $VENV ($("$VENV/bin/python" --version))"
 "$VENV/bin/pip" install --quiet --disable-pip-version-check numpy pytest
+# The optional extras (fracid[scipy], fracid[control], fracid[dask]): their tests skip only when
+# these cannot be installed.
+"$VENV/bin/pip" install --quiet --disable-pip-version-check scipy control "dask[distributed]" \
+    || echo "warning: scipy/control/dask could not be installed: their tests will skip"
 
 echo "== python: pip install ./python (maturin wheel, $MATURIN_PEP517_ARGS)"
 "$VENV/bin/pip" install --disable-pip-version-check ./python

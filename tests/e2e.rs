@@ -303,15 +303,23 @@ fn sim_input_columns_are_chosen_and_checked() {
     assert!(err.contains("u is not finite (NaN) at sample 1"), "{err}");
 }
 
-#[test]
-fn demo_acquires_identifies_diagnoses_and_reports() {
+/// Tests that run the drive simulator in real time take turns (two at once on a 2-core machine
+/// would distort their timing).
+fn realtime_lock() -> std::sync::MutexGuard<'static, ()> {
+    static LOCK: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    LOCK.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// Run `fracid demo` with `extra` args and check its files, the hidden delay it must find and its
+/// models; returns its stderr (the progress lines).
+fn demo_checks(extra: &[&str]) -> String {
+    let _g = realtime_lock();
     let dir = tempfile::tempdir().unwrap();
-    let out = fracid(&["demo", "--out", dir.path().to_str().unwrap()]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let mut args = vec!["demo", "--out", dir.path().to_str().unwrap()];
+    args.extend(extra);
+    let out = fracid(&args);
+    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(out.status.success(), "{stderr}");
     for f in [
         "prbs.csv",
         "prbs_steady.csv",
@@ -358,28 +366,39 @@ fn demo_acquires_identifies_diagnoses_and_reports() {
     assert!((dc - 6.82).abs() < 0.2, "b0 = {dc}");
     let report = std::fs::read_to_string(dir.path().join("report.md")).unwrap();
     assert!(report.contains("## The hidden truth"));
+    stderr
 }
 
-fn shared_data(name: &str) -> Option<PathBuf> {
+#[test]
+fn demo_acquires_identifies_diagnoses_and_reports() {
+    demo_checks(&[]);
+}
+
+/// The whole demo with the C drive firmware (`firmware/`) behind the simulated drive's pty: the
+/// same record length, the same delay found, the same models (about 50 s, as the default demo).
+#[test]
+fn demo_with_the_c_firmware_finds_the_hidden_delay() {
+    let stderr = demo_checks(&["--firmware"]);
+    assert!(stderr.contains("(C firmware)"), "{stderr}");
+}
+
+/// A file of the repository's example data (`data/` at the root). A missing file is a failure:
+/// the data ships with the repository, so no test skips on a clean clone.
+fn repo_data(name: &str) -> PathBuf {
     let p = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../shared/data")
+        .join("../data")
         .join(name);
-    if p.exists() {
-        Some(p)
-    } else {
-        eprintln!(
-            "skipped: {} is not there (shared/ must sit beside the repository)",
-            p.display()
-        );
-        None
-    }
+    assert!(
+        p.is_file(),
+        "{} is missing: the example data lives in data/ at the repository root",
+        p.display()
+    );
+    p
 }
 
 #[test]
 fn diagnosis_of_the_real_dc_motor_finds_its_transport_delay() {
-    let Some(f) = shared_data("unal_dcmotor/DCmotor_prbs_open_exp.csv") else {
-        return;
-    };
+    let f = repo_data("unal_dcmotor/DCmotor_prbs_open_exp.csv");
     let j = fracid_json(&[
         "time",
         f.to_str().unwrap(),
@@ -408,9 +427,7 @@ fn diagnosis_of_the_real_dc_motor_finds_its_transport_delay() {
 
 #[test]
 fn diagnosis_of_the_paper_table_adds_nothing() {
-    let Some(f) = shared_data("paper_table1_bode.csv") else {
-        return;
-    };
+    let f = repo_data("paper_table1_bode.csv");
     let j = fracid_json(&[
         "freq",
         f.to_str().unwrap(),
@@ -498,13 +515,15 @@ impl Drop for KillOnDrop {
     }
 }
 
+/// `fracid drive sim` on a pty, fast line; its port path. The child is kept for its stdout pipe.
 #[cfg(unix)]
-#[test]
-fn ctrl_c_stops_a_prbs_run_and_the_record_says_what_is_missing() {
+fn drive_sim_piped() -> (
+    KillOnDrop,
+    String,
+    std::io::BufReader<std::process::ChildStdout>,
+) {
     use std::io::{BufRead, BufReader};
     use std::process::Stdio;
-    use std::time::{Duration, Instant};
-
     let mut sim = KillOnDrop(
         Command::new(fracid_bin())
             .args(["drive", "sim", "--baud", "921600", "--duration", "120"])
@@ -521,82 +540,87 @@ fn ctrl_c_stops_a_prbs_run_and_the_record_says_what_is_missing() {
         .expect("the simulator prints its port");
     let port = port.trim().to_string();
     assert!(!port.is_empty(), "no port from the simulator");
+    (sim, port, sim_out)
+}
 
-    let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("prbs.csv");
-    // 20 periods of 127 bits at 3 ms: about 8 s of run, far more than the test waits.
-    let mut prbs = KillOnDrop(
+/// `fracid drive ARGS --port PORT --baud 921600 -o OUT --quiet`, stderr piped.
+#[cfg(unix)]
+fn drive_cmd(args: &[&str], port: &str, out: &std::path::Path) -> KillOnDrop {
+    use std::process::Stdio;
+    KillOnDrop(
         Command::new(fracid_bin())
-            .args([
-                "drive",
-                "prbs",
-                "--port",
-                &port,
-                "--baud",
-                "921600",
-                "--periods",
-                "20",
-            ])
+            .arg("drive")
+            .args(args)
+            .args(["--port", port, "--baud", "921600", "--quiet"])
             .arg("-o")
-            .arg(&out)
-            .arg("--quiet")
+            .arg(out)
             .env("RUST_BACKTRACE", "0")
             .stdout(Stdio::null())
             .stderr(Stdio::piped())
             .spawn()
-            .expect("start fracid drive prbs"),
-    );
-    let data_rows = |text: &str| {
-        text.lines()
-            .filter(|l| l.starts_with(|c: char| c.is_ascii_digit()))
-            .count()
-    };
+            .expect("start fracid drive"),
+    )
+}
+
+/// Rows of a CSV that start with a digit (data, not header or comments).
+fn data_rows(text: &str) -> usize {
+    text.lines()
+        .filter(|l| l.starts_with(|c: char| c.is_ascii_digit()))
+        .count()
+}
+
+/// Wait until `path` has `rows` data rows (the child still running), at most 20 s.
+#[cfg(unix)]
+fn wait_rows(child: &mut KillOnDrop, path: &std::path::Path, rows: usize) {
+    use std::time::{Duration, Instant};
     let t0 = Instant::now();
     loop {
-        let text = std::fs::read_to_string(&out).unwrap_or_default();
-        if data_rows(&text) >= 200 {
-            break;
+        let text = std::fs::read_to_string(path).unwrap_or_default();
+        if data_rows(&text) >= rows {
+            return;
         }
         assert!(
-            prbs.0.try_wait().unwrap().is_none(),
-            "prbs ended before Ctrl-C: {text}"
+            child.0.try_wait().unwrap().is_none(),
+            "ended before the test acted: {text}"
         );
         assert!(t0.elapsed() < Duration::from_secs(20), "no data: {text}");
         std::thread::sleep(Duration::from_millis(20));
     }
-    let pid = prbs.0.id() as libc::pid_t;
-    // SAFETY: signalling our own child, which has not been reaped yet.
-    assert_eq!(unsafe { libc::kill(pid, libc::SIGINT) }, 0);
+}
+
+/// Wait for the child to end by itself (at most `secs`); its status and stderr.
+#[cfg(unix)]
+fn wait_end(child: &mut KillOnDrop, secs: u64) -> (std::process::ExitStatus, String) {
+    use std::time::{Duration, Instant};
     let t1 = Instant::now();
     let status = loop {
-        if let Some(s) = prbs.0.try_wait().unwrap() {
+        if let Some(s) = child.0.try_wait().unwrap() {
             break s;
         }
         assert!(
-            t1.elapsed() < Duration::from_secs(10),
-            "prbs still running after Ctrl-C"
+            t1.elapsed() < Duration::from_secs(secs),
+            "still running after {secs} s"
         );
         std::thread::sleep(Duration::from_millis(20));
     };
     let mut stderr = String::new();
-    std::io::Read::read_to_string(&mut prbs.0.stderr.take().unwrap(), &mut stderr).unwrap();
-    // it ended by itself, on an error exit (not killed by the signal)
-    assert_eq!(status.code(), Some(1), "{status:?}: {stderr}");
-    assert!(stderr.contains("interrupted"), "{stderr}");
-    assert!(stderr.contains("missing samples"), "{stderr}");
+    std::io::Read::read_to_string(&mut child.0.stderr.take().unwrap(), &mut stderr).unwrap();
+    (status, stderr)
+}
 
-    let text = std::fs::read_to_string(&out).unwrap();
-    let footer = text.trim_end().lines().last().unwrap();
-    assert!(
-        footer.starts_with("# incomplete: missing samples "),
-        "{footer}"
-    );
-    assert!(footer.contains("Stopped"), "{footer}");
+#[cfg(unix)]
+fn signal(child: &KillOnDrop, sig: libc::c_int) {
+    let pid = child.0.id() as libc::pid_t;
+    // SAFETY: signalling our own child, which has not been reaped yet.
+    assert_eq!(unsafe { libc::kill(pid, sig) }, 0);
+}
+
+/// Every data row of a `t,u,y,i` record has four numbers; their count.
+fn check_record_rows(text: &str) -> usize {
     let rows: Vec<&str> = text
         .lines()
         .filter(|l| !l.starts_with('#') && !l.starts_with("t,"))
         .collect();
-    assert!(rows.len() >= 200, "{} rows", rows.len());
     for row in &rows {
         let v: Vec<f64> = row
             .split(',')
@@ -607,12 +631,405 @@ fn ctrl_c_stops_a_prbs_run_and_the_record_says_what_is_missing() {
             .collect();
         assert_eq!(v.len(), 4, "{row}");
     }
-    // the footer's first missing sample is the count of samples kept
-    let first_missing: usize = footer["# incomplete: missing samples ".len()..]
+    rows.len()
+}
+
+/// The first missing sample of an `# incomplete: missing samples a..b` footer.
+fn first_missing(footer: &str) -> usize {
+    footer["# incomplete: missing samples ".len()..]
         .split("..")
         .next()
         .unwrap()
         .parse()
-        .unwrap();
-    assert_eq!(first_missing, rows.len(), "{footer}");
+        .unwrap()
+}
+
+/// A signal during `fracid drive prbs`: STOP to the drive, the record finished with a footer,
+/// exit 128 + the signal.
+#[cfg(unix)]
+fn a_signal_stops_a_prbs_run(sig: libc::c_int, code: i32, name: &str) {
+    let (_sim, port, _sim_out) = drive_sim_piped();
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("prbs.csv");
+    // 20 periods of 127 bits at 3 ms: about 8 s of run, far more than the test waits.
+    let mut prbs = drive_cmd(&["prbs", "--periods", "20"], &port, &out);
+    wait_rows(&mut prbs, &out, 200);
+    signal(&prbs, sig);
+    let (status, stderr) = wait_end(&mut prbs, 10);
+    // it ended by itself (not killed by the signal), with the signal's exit code
+    assert_eq!(status.code(), Some(code), "{status:?}: {stderr}");
+    assert!(
+        stderr.contains(&format!("interrupted by {name}")),
+        "{stderr}"
+    );
+    assert!(stderr.contains("missing samples"), "{stderr}");
+
+    let text = std::fs::read_to_string(&out).unwrap();
+    let footer = text.trim_end().lines().last().unwrap();
+    assert!(
+        footer.starts_with("# incomplete: missing samples "),
+        "{footer}"
+    );
+    // the drive acknowledged the STOP and ended the run for that reason
+    assert!(footer.contains("Stopped"), "{footer}");
+    let rows = check_record_rows(&text);
+    assert!(rows >= 200, "{rows} rows");
+    // the footer's first missing sample is the count of samples kept
+    assert_eq!(first_missing(footer), rows, "{footer}");
+}
+
+#[cfg(unix)]
+#[test]
+fn ctrl_c_stops_a_prbs_run_and_the_record_says_what_is_missing() {
+    a_signal_stops_a_prbs_run(libc::SIGINT, 130, "SIGINT");
+}
+
+#[cfg(unix)]
+#[test]
+fn sigterm_and_sighup_stop_a_prbs_run_like_ctrl_c() {
+    a_signal_stops_a_prbs_run(libc::SIGTERM, 143, "SIGTERM");
+    a_signal_stops_a_prbs_run(libc::SIGHUP, 129, "SIGHUP");
+}
+
+#[cfg(unix)]
+#[test]
+fn killing_the_drive_mid_run_leaves_a_finished_record() {
+    let (mut sim, port, _sim_out) = drive_sim_piped();
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("prbs.csv");
+    let mut prbs = drive_cmd(&["prbs", "--periods", "20"], &port, &out);
+    wait_rows(&mut prbs, &out, 200);
+    // kill -9 of the simulator: the pty goes away for good
+    sim.0.kill().unwrap();
+    sim.0.wait().unwrap();
+    // the reconnect window (3 s) and a little
+    let (status, stderr) = wait_end(&mut prbs, 15);
+    assert_eq!(status.code(), Some(1), "{status:?}: {stderr}");
+    assert!(stderr.contains("lost the port"), "{stderr}");
+    let text = std::fs::read_to_string(&out).unwrap();
+    let footer = text.trim_end().lines().last().unwrap();
+    assert!(
+        footer.starts_with("# incomplete: missing samples "),
+        "{footer}"
+    );
+    assert!(footer.contains("lost the port"), "{footer}");
+    let rows = check_record_rows(&text);
+    assert!(rows >= 200, "{rows} rows");
+    assert_eq!(first_missing(footer), rows, "{footer}");
+    // ... up to the planned end: 0.3 s settle + 20 x 127 x 3 ms at 1 kHz = 300 + 7620 samples
+    assert!(footer.contains(&format!("{rows}..7920 (")), "{footer}");
+}
+
+#[cfg(unix)]
+#[test]
+fn a_signal_during_a_sine_sweep_keeps_the_measured_points() {
+    let (_sim, port, _sim_out) = drive_sim_piped();
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("bode.csv");
+    let freqs = "20,25,30,35,40,45,50,55,60,65,70,75,80,85,90,95";
+    let mut sine = drive_cmd(
+        &["sine", "--freqs", freqs, "--min-settle", "0.05"],
+        &port,
+        &out,
+    );
+    // written as measured: two points in the file while the sweep goes on
+    wait_rows(&mut sine, &out, 2);
+    signal(&sine, libc::SIGTERM);
+    let (status, stderr) = wait_end(&mut sine, 10);
+    assert_eq!(status.code(), Some(143), "{status:?}: {stderr}");
+    let text = std::fs::read_to_string(&out).unwrap();
+    let rows = data_rows(&text);
+    assert!((2..16).contains(&rows), "{rows}: {text}");
+    assert!(text.contains("# hold: zero-order"), "{text}");
+    let footer = text.trim_end().lines().last().unwrap();
+    assert!(
+        footer.starts_with("# incomplete: missing frequencies (Hz) "),
+        "{footer}"
+    );
+    // the missing ones are exactly those not in the table
+    let listed: Vec<&str> = footer["# incomplete: missing frequencies (Hz) ".len()..]
+        .split(" (")
+        .next()
+        .unwrap()
+        .split(", ")
+        .collect();
+    assert_eq!(listed.len() + rows, 16, "{footer}");
+    for f in &listed {
+        assert!(
+            !text.lines().any(|l| l.starts_with(&format!("{f},"))),
+            "{f} listed as missing but in the table"
+        );
+    }
+}
+
+#[test]
+fn bad_drive_options_fail_before_the_drive_and_leave_the_output_untouched() {
+    let dir = tempfile::tempdir().unwrap();
+    let keep = dir.path().join("keep.csv");
+    let old = "# an earlier recording\nt,u,y,i\n0,6,0,0\n";
+    std::fs::write(&keep, old).unwrap();
+    let keep_s = keep.to_str().unwrap();
+    // No drive at that port: an exit 2 proves the options were checked before it was opened.
+    for bad in [
+        &["--seed", "0"][..],
+        &["--order", "1"],
+        &["--amplitude", "100"],
+        &["--sample-rate", "0"],
+        &["--block", "0"],
+        &["--clock", "0.0025"],
+        &["--offset", "30"],
+        &["--settle", "nan"],
+    ] {
+        let mut args = vec!["drive", "prbs", "--port", "/nonexistent/tty", "-o", keep_s];
+        args.extend_from_slice(bad);
+        let out = fracid(&args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{bad:?}: {err}");
+        assert!(!err.contains("panicked"), "{err}");
+        assert_eq!(std::fs::read_to_string(&keep).unwrap(), old, "{bad:?}");
+    }
+    // A port that cannot be opened: exit 3, the file untouched.
+    let out = fracid(&["drive", "prbs", "--port", "/nonexistent/tty", "-o", keep_s]);
+    assert_eq!(out.status.code(), Some(3));
+    assert_eq!(std::fs::read_to_string(&keep).unwrap(), old);
+    // An output that cannot be written fails at once, before the drive (the port is named
+    // nowhere in the message: it was not tried).
+    for cmd in ["prbs", "sine"] {
+        let out = fracid(&[
+            "drive",
+            cmd,
+            "--port",
+            "/nonexistent/tty",
+            "-o",
+            "/nonexistent/x.csv",
+        ]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(3), "{cmd}: {err}");
+        assert!(err.contains("/nonexistent/x.csv"), "{err}");
+        assert!(!err.contains("/nonexistent/tty"), "{err}");
+    }
+    // sine options
+    for bad in [
+        &["--freqs", "600"][..],
+        &["--sample-rate", "0"],
+        &["--amplitude", "0"],
+        &["--offset", "40", "--amplitude", "1"],
+        &["--cycles", "0"],
+    ] {
+        let mut args = vec!["drive", "sine", "--port", "/nonexistent/tty", "-o", keep_s];
+        args.extend_from_slice(bad);
+        let out = fracid(&args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{bad:?}: {err}");
+        assert_eq!(std::fs::read_to_string(&keep).unwrap(), old, "{bad:?}");
+    }
+}
+
+#[test]
+fn bad_simulator_options_are_refused_with_exit_2() {
+    // --duration 1: an option wrongly accepted would start the simulator and exit 0 after 1 s
+    for bad in [
+        &["--delay", "1e9"][..],
+        &["--delay=-1"],
+        &["--noise", "nan"],
+        &["--noise=-1"],
+        &["--coulomb", "inf"],
+        &["--ripple-hz", "nan"],
+        &["--speed-quant=-0.1"],
+        &["--ber", "2"],
+        &["--drop-rate", "nan"],
+        &["--burst-len", "100000000"],
+        &["--stall-ms", "100000000000", "--stall-at", "10"],
+        &["--baud", "0"],
+    ] {
+        let mut args = vec!["drive", "sim", "--duration", "1"];
+        args.extend_from_slice(bad);
+        let out = fracid(&args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{bad:?}: {err}");
+        assert!(err.starts_with("error: "), "{bad:?}: {err}");
+        assert!(!err.contains("cannot be used multiple times"), "{err}");
+    }
+    for d in ["nan", "0", "-1"] {
+        let arg = format!("--duration={d}");
+        let out = fracid(&["drive", "sim", &arg]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "--duration {d}: {err}");
+    }
+}
+
+/// `fracid drive sim` with `extra` args, at 921600 baud with deterministic hidden effects: the
+/// process (killed on drop), the port it prints and its first stderr line (which names the firmware).
+#[cfg(unix)]
+fn drive_sim(extra: &[&str]) -> (KillOnDrop, String, String) {
+    use std::io::{BufRead, BufReader};
+    use std::process::Stdio;
+    let mut args = vec![
+        "drive",
+        "sim",
+        "--baud",
+        "921600",
+        "--duration",
+        "120",
+        "--delay",
+        "0.002",
+        "--noise",
+        "0.05",
+        "--seed",
+        "7",
+    ];
+    args.extend(extra);
+    let mut sim = KillOnDrop(
+        Command::new(fracid_bin())
+            .args(&args)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("start the drive simulator"),
+    );
+    let mut port = String::new();
+    BufReader::new(sim.0.stdout.take().expect("sim stdout"))
+        .read_line(&mut port)
+        .expect("the simulator prints its port");
+    let mut banner = String::new();
+    BufReader::new(sim.0.stderr.take().expect("sim stderr"))
+        .read_line(&mut banner)
+        .expect("the simulator says what it runs");
+    assert!(!port.trim().is_empty(), "no port from the simulator");
+    (sim, port.trim().to_string(), banner)
+}
+
+/// `fracid drive prbs` and `fracid drive sine` against a simulator: the PRBS CSV and the Bode CSV.
+#[cfg(unix)]
+fn drive_records(port: &str, dir: &std::path::Path, tag: &str) -> (String, String) {
+    let prbs = dir.join(format!("prbs_{tag}.csv"));
+    let bode = dir.join(format!("bode_{tag}.csv"));
+    let common = ["--port", port, "--baud", "921600", "--quiet"];
+    let mut a = vec!["drive", "prbs", "--settle", "0.1", "-o"];
+    a.push(prbs.to_str().unwrap());
+    a.extend(common);
+    let out = fracid(&a);
+    assert!(
+        out.status.success(),
+        "{tag}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let mut a = vec![
+        "drive",
+        "sine",
+        "--freqs",
+        "20,70",
+        "--min-settle",
+        "0.05",
+        "-o",
+    ];
+    a.push(bode.to_str().unwrap());
+    a.extend(common);
+    let out = fracid(&a);
+    assert!(
+        out.status.success(),
+        "{tag}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    (
+        std::fs::read_to_string(prbs).unwrap(),
+        std::fs::read_to_string(bode).unwrap(),
+    )
+}
+
+#[cfg(unix)]
+#[test]
+fn drive_sim_firmware_c_gives_the_rust_firmware_records() {
+    let _g = realtime_lock();
+    let dir = tempfile::tempdir().unwrap();
+    let (sim_c, port_c, banner_c) = drive_sim(&["--firmware", "c"]);
+    assert!(banner_c.contains("(C firmware)"), "{banner_c}");
+    let (prbs_c, bode_c) = drive_records(&port_c, dir.path(), "c");
+    drop(sim_c);
+    let (sim_r, port_r, banner_r) = drive_sim(&["--firmware", "rust"]);
+    assert!(banner_r.contains("(Rust firmware)"), "{banner_r}");
+    let (prbs_r, bode_r) = drive_records(&port_r, dir.path(), "rust");
+    drop(sim_r);
+    // The PRBS record: complete, and the same text row for row (t, u, y, i; y with the seeded
+    // noise and the hidden delay), footer included.
+    assert!(
+        prbs_c.trim_end().ends_with("# complete: 481 samples"),
+        "{}",
+        prbs_c.lines().last().unwrap_or("")
+    );
+    assert_eq!(prbs_c.lines().count(), prbs_r.lines().count());
+    for (k, (c, r)) in prbs_c.lines().zip(prbs_r.lines()).enumerate() {
+        assert_eq!(
+            c, r,
+            "PRBS line {k} differs between the C and the Rust firmware"
+        );
+    }
+    // The Bode table from the drive's DFT: the C firmware sums in 64-bit fixed point, the Rust one
+    // in f64, both rounded to Q8 (1/256 LSB): they may differ by one Q8 unit, far below 1e-3 dB
+    // and 1e-3 degrees at these amplitudes.
+    let rows = |t: &str| -> Vec<Vec<f64>> {
+        t.lines()
+            .filter(|l| l.starts_with(|c: char| c.is_ascii_digit()))
+            .map(|l| l.split(',').map(|x| x.parse().unwrap()).collect())
+            .collect()
+    };
+    let (bc, br) = (rows(&bode_c), rows(&bode_r));
+    assert_eq!(bc.len(), 2, "{bode_c}");
+    assert_eq!(br.len(), 2, "{bode_r}");
+    for (c, r) in bc.iter().zip(&br) {
+        assert_eq!(c[0], r[0]);
+        assert!((c[1] - r[1]).abs() < 1e-3, "gain: C {c:?} vs Rust {r:?}");
+        assert!((c[2] - r[2]).abs() < 1e-3, "phase: C {c:?} vs Rust {r:?}");
+    }
+    // A wrong value is bad input (exit 2), with the choices in the message.
+    let out = fracid(&["drive", "sim", "--firmware", "asm"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains("[possible values: rust, c]"), "{err}");
+}
+
+/// The simulator process paused for 0.8 s in the middle of a PRBS run (as a loaded machine can
+/// pause it), while the client goes on sending keepalives: the run must not end on the keepalive,
+/// with either firmware. (The C engine counts its keepalive in samples; the simulator used to run
+/// the whole backlog of samples at once after such a pause, and the C run expired.)
+#[cfg(unix)]
+#[test]
+fn a_paused_simulator_does_not_expire_the_keepalive() {
+    use std::process::Stdio;
+    use std::time::Duration;
+    let _g = realtime_lock();
+    let dir = tempfile::tempdir().unwrap();
+    for fw in ["c", "rust"] {
+        let (sim, port, _) = drive_sim(&["--firmware", fw]);
+        let out = dir.path().join(format!("prbs_{fw}.csv"));
+        let mut prbs = KillOnDrop(
+            Command::new(fracid_bin())
+                .args(["drive", "prbs", "--port", &port, "--baud", "921600"])
+                .args(["--periods", "4", "--quiet", "--allow-incomplete", "-o"])
+                .arg(&out)
+                .stdout(Stdio::null())
+                .stderr(Stdio::piped())
+                .spawn()
+                .expect("start fracid drive prbs"),
+        );
+        std::thread::sleep(Duration::from_millis(700));
+        let pid = sim.0.id() as libc::pid_t;
+        // SAFETY: signalling our own child, which has not been reaped yet.
+        assert_eq!(unsafe { libc::kill(pid, libc::SIGSTOP) }, 0);
+        std::thread::sleep(Duration::from_millis(800));
+        // SAFETY: as above.
+        assert_eq!(unsafe { libc::kill(pid, libc::SIGCONT) }, 0);
+        let status = prbs.0.wait().unwrap();
+        let mut stderr = String::new();
+        std::io::Read::read_to_string(&mut prbs.0.stderr.take().unwrap(), &mut stderr).unwrap();
+        assert!(status.success(), "{fw}: {status:?} {stderr}");
+        let text = std::fs::read_to_string(&out).unwrap();
+        let footer = text.trim_end().lines().last().unwrap();
+        assert!(footer.starts_with("# "), "{fw}: {footer}");
+        assert!(
+            !footer.contains("Keepalive") && !footer.contains("ended early"),
+            "{fw}: {footer}"
+        );
+        drop(sim);
+    }
 }

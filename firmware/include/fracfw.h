@@ -41,6 +41,12 @@ typedef unsigned char fw_octet;
 #define FW_MAX_BODY 410u
 /** Largest COBS-encoded body (without delimiters). */
 #define FW_MAX_ENCODED (FW_MAX_BODY + FW_MAX_BODY / 254u + 1u)
+/** Longest host-to-drive frame body with its CRC: CONFIGURE, 4 + 26 + 2. */
+#define FW_MAX_CMD_BODY 32u
+/** Receive buffer: the longest host frame, COBS-encoded. Longer frames cannot be commands: the
+ * receiver stops storing them and counts them as errors at their delimiter, so the work done on
+ * a received octet stays bounded by one command frame (decode and CRC of at most 33 octets). */
+#define FW_RX_MAX_ENCODED (FW_MAX_CMD_BODY + 1u)
 /** Longest sine measurement window the fixed-point DFT accepts, samples (2^22): the ramp moment
  * sum (2k - (n-1)) y_k stays below 2^59 in 64 bits. */
 #define FW_MAX_DFT_SAMPLES 4194304ul
@@ -136,7 +142,7 @@ typedef struct {
     uint16_t tx_seq;
     fw_counters cnt;
     /* receiver: the encoded frame since the last 0x00 */
-    fw_octet rx[FW_MAX_ENCODED];
+    fw_octet rx[FW_RX_MAX_ENCODED];
     uint16_t rx_len;
     uint16_t rx_overflow;
     /* replay cache: the last answer and the (seq, type) it answered */

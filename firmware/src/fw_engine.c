@@ -757,7 +757,7 @@ uint16_t fw_rx_octet(fw_t *fw, uint16_t octet)
     int32_t n;
     uint16_t r;
     if (o != 0u) {
-        if (fw->rx_len < FW_MAX_ENCODED) {
+        if (fw->rx_len < FW_RX_MAX_ENCODED) {
             fw->rx[fw->rx_len++] = (fw_octet)o;
         } else {
             fw->rx_overflow = 1;

@@ -430,6 +430,19 @@ static void test_engine(void)
         feed(&fw, w, 9);
         CHECK(fw_rx_errors(&fw) == before + 1 && fw_tx_octet(&fw) == -1, "crc error counted");
     }
+    /* a frame longer than any command is refused as one error without being decoded, even a
+     * well-formed one (a 5-sample DATA frame echoed back: 44-octet body, valid CRC, which a
+     * decoding receiver accepts); the receiver recovers at its delimiter */
+    {
+        fw_octet lp[38];
+        uint16_t before = fw_rx_errors(&fw);
+        for (k = 0; k < 38; k++) lp[k] = (fw_octet)(k + 1);
+        lp[6] = 5, lp[7] = 0;
+        send_cmd(&fw, FW_T_DATA, lp, 38, host_seq++);
+        CHECK(fw_rx_errors(&fw) == before + 1 && fw_tx_octet(&fw) == -1, "long frame refused");
+        n = command(&fw, FW_T_STATUS, 0, 0, r);
+        CHECK(n == 20 && (r[1] & 0xFF) == FW_T_STATUS_REPLY, "status after a long frame");
+    }
     /* blocks dropped when nobody drains the line: whole blocks, counted in STREAM_END */
     configure(&fw, 1000, 10, 3500, 30000);
     prbs_payload(p, 1, 1000, 3000, 6);

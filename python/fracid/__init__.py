@@ -19,7 +19,8 @@ True
 Contents
 --------
 FracTf
-    Fractional transfer functions: parse, frequency response, Bode, simulation.
+    Fractional transfer functions: parse, frequency response, Bode, simulation, and
+    ``to_state_space`` (a :class:`StateSpace` with ``to_scipy()`` and ``to_control()``).
 prbs, gl_simulate
     PRBS input signals; the Grunwald-Letnikov reference simulation.
 fit_bode, error_index, load_bode
@@ -36,7 +37,8 @@ FracidError, ParseError, DataError, NumericalError, DriveError
 from __future__ import annotations
 
 import os
-from typing import Dict, Optional, Tuple, Union
+import warnings
+from typing import Dict, NamedTuple, Optional, Tuple, Union
 
 import numpy as np
 import numpy.typing as npt
@@ -44,7 +46,8 @@ import numpy.typing as npt
 from ._drive import DriveClient
 from ._errors import DataError, DriveError, FracidError, NumericalError, ParseError
 from ._fracid import DriveSimulator, FracTf, __version__, error_index, gl_simulate, prbs
-from ._fracid import _fit_bode, _fit_time
+from ._fracid import _fit_bode, _fit_time, _load_bode, _load_csv
+from ._export import StateSpace
 from ._results import (
     Acquisition,
     BodeSweep,
@@ -62,12 +65,15 @@ from ._results import (
 
 __all__ = [
     "FracTf",
+    "StateSpace",
     "prbs",
     "gl_simulate",
     "fit_bode",
     "fit_time",
     "error_index",
     "load_bode",
+    "load_csv",
+    "TimeRecord",
     "FreqFit",
     "LevyFit",
     "PmsmFit",
@@ -94,46 +100,150 @@ __all__ = [
 ArrayLike = npt.ArrayLike
 
 
-def load_bode(path: Union[str, "os.PathLike[str]"]) -> Tuple[np.ndarray, np.ndarray]:
-    """Read Bode data from a CSV file with columns ``freq_hz,gain_db,phase_deg``.
+class TimeRecord(NamedTuple):
+    """A time record read by :func:`load_csv`."""
+
+    t: np.ndarray
+    """Time stamps, s (uniform)."""
+    u: np.ndarray
+    """Input samples."""
+    y: np.ndarray
+    """Output samples."""
+    dt: float
+    """The sampling step, s."""
+    warnings: Tuple[str, ...]
+    """What the reader found (an incomplete or interrupted acquisition, the part kept); each is
+    also issued with :func:`warnings.warn`."""
+    acquisition: str
+    """The acquisition footer's verdict: ``complete``, ``incomplete: missing samples ...``,
+    ``interrupted`` or ``unknown`` (no footer, not a ``fracid drive`` file)."""
+
+
+Column = Union[str, int]
+
+
+def load_csv(
+    path: Union[str, "os.PathLike[str]"],
+    *,
+    t: Column = "t",
+    u: Column = "u",
+    y: Column = "y",
+    dt: Optional[float] = None,
+) -> TimeRecord:
+    """Read a time record with the library's reader (the one ``fracid time`` uses).
+
+    Delimited text (``,`` ``;`` or tab, ``#`` comments, quoted names, a headerless file by
+    0-based column indices) or a MATLAB level 5 ``.mat`` file (variables by name); at most
+    512 MiB, lines of at most 1 MiB. An acquisition footer is honoured: a file marked
+    ``# incomplete: missing samples a..b`` (or a ``fracid drive`` file with no footer) gives its
+    longest complete contiguous part, with a warning naming what is missing.
 
     Parameters
     ----------
     path : str or path-like
-        The file: a header line naming the columns, ``,`` separated, ``#`` comments allowed.
+        The file.
+    t, u, y : str or int
+        The time, input and output columns: names, or 0-based indices.
+    dt : float, optional
+        The sampling step of a file with no time column (``t = k dt``; ``t`` is not read).
+
+    Returns
+    -------
+    TimeRecord
+        ``t, u, y, dt, warnings, acquisition``; pass ``rec.u, rec.y, dt=rec.dt`` to
+        :func:`fit_time`.
+
+    Raises
+    ------
+    DataError
+        Bad data: a missing column, a non-number, non-uniform time, not text, an incomplete
+        acquisition whose complete part is too short.
+    OSError
+        The file cannot be read.
+    """
+    raw = _load_csv(os.fspath(path), t, u, y, dt=dt)
+    for w in raw["warnings"]:
+        warnings.warn(f"{os.fspath(path)}: {w}", stacklevel=2)
+    return TimeRecord(
+        t=raw["t"],
+        u=raw["u"],
+        y=raw["y"],
+        dt=raw["dt"],
+        warnings=tuple(raw["warnings"]),
+        acquisition=raw["acquisition"],
+    )
+
+
+def load_bode(
+    path: Union[str, "os.PathLike[str]"],
+    *,
+    columns: Optional[Tuple[Column, Column, Column]] = None,
+    rad_s: bool = False,
+    linear_gain: bool = False,
+    radians: bool = False,
+) -> Tuple[np.ndarray, np.ndarray]:
+    """Read Bode data with the library's reader (the one ``fracid freq`` uses).
+
+    Parameters
+    ----------
+    path : str or path-like
+        The file: delimited text (``,`` ``;`` or tab, ``#`` comments) with a header naming the
+        columns (default ``freq_hz,gain_db,phase_deg``), or a MATLAB level 5 ``.mat`` file with
+        variables of those names. A table without a header is refused unless ``columns`` says
+        which column is which.
+    columns : (freq, gain, phase), optional
+        The columns by name or 0-based index.
+    rad_s, linear_gain, radians : bool
+        Units: frequency in rad/s (else Hz), linear gain (else dB), phase in radians (else
+        degrees).
 
     Returns
     -------
     omega : numpy.ndarray
         Angular frequencies in rad/s.
     h : numpy.ndarray
-        The complex response ``10^(gain_db/20) exp(j phase)``.
+        The complex response ``|G| exp(j phase)``.
 
     Raises
     ------
     DataError
-        If a column is missing or a value is not a finite number.
+        A missing column, a value that is not a finite number, unsorted frequencies, a headerless
+        table without ``columns``, a binary file.
+    OSError
+        The file cannot be read.
     """
-    with open(os.fspath(path), encoding="utf-8") as f:
-        lines = [ln.split("#", 1)[0].strip() for ln in f]
-    lines = [ln for ln in lines if ln]
-    if len(lines) < 2:
-        raise DataError(f"{os.fspath(path)}: no header and data rows")
-    try:
-        data = np.genfromtxt(lines, delimiter=",", names=True)
-    except ValueError as e:  # ragged rows
-        raise DataError(f"{os.fspath(path)}: {e}") from None
-    names = data.dtype.names or ()
-    for col in ("freq_hz", "gain_db", "phase_deg"):
-        if col not in names:
-            raise DataError(f"{os.fspath(path)}: no column {col!r} (found {list(names)})")
-    data = np.atleast_1d(data)
-    f = np.asarray(data["freq_hz"], dtype=float)
-    g = np.asarray(data["gain_db"], dtype=float)
-    p = np.asarray(data["phase_deg"], dtype=float)
-    if not (np.all(np.isfinite(f)) and np.all(np.isfinite(g)) and np.all(np.isfinite(p))):
-        raise DataError(f"{os.fspath(path)}: a value is missing or not a number")
-    return 2 * np.pi * f, 10 ** (g / 20) * np.exp(1j * np.deg2rad(p))
+    omega, h, _ = _load_bode(
+        os.fspath(path),
+        columns=columns,
+        rad_s=rad_s,
+        linear_gain=linear_gain,
+        radians=radians,
+    )
+    return omega, h
+
+
+def _count(name: str, v: int) -> int:
+    """A non-negative integer argument, checked (a negative one is a DataError, not an
+    OverflowError deep in the bindings)."""
+    if isinstance(v, bool) or not isinstance(v, (int, np.integer)):
+        raise DataError(f"{name} = {v!r} must be an integer")
+    if v < 0:
+        raise DataError(f"{name} = {v} must be a non-negative integer")
+    return int(v)
+
+
+def _complex_response(h: ArrayLike) -> np.ndarray:
+    """``h`` as a complex array; a real one (a magnitude ``|H|``) is refused."""
+    a = np.asarray(h)
+    if a.ndim != 1:
+        raise DataError(f"h must be a 1-D array, got an array of shape {a.shape}")
+    if a.size and not np.iscomplexobj(a):
+        raise DataError(
+            "h is real: fit_bode needs the complex response G(j omega) = |G| exp(j phase), not "
+            "the magnitude |G| alone; build it as mag * np.exp(1j * phase_rad), or read the "
+            "table with load_bode"
+        )
+    return a.astype(complex)
 
 
 def fit_bode(
@@ -196,9 +306,10 @@ def fit_bode(
     NumericalError
         If the least-squares problem breaks down.
     """
+    n, m, sk_iterations = _count("n", n), _count("m", m), _count("sk_iterations", sk_iterations)
     raw = _fit_bode(
         omega,
-        np.asarray(h, dtype=complex),
+        _complex_response(h),
         n=n,
         m=m,
         q=q,
@@ -223,8 +334,9 @@ def fit_time(
     holdout: float = 0.3,
     offsets: str = "initial",
     fit_offset: bool = True,
-    max_iterations: int = 100,
+    max_iterations: int = 500,
     skip: int = 0,
+    initial: str = "estimate",
     method: str = "refined",
     band: Optional[Tuple[float, float]] = None,
     order: int = 8,
@@ -257,7 +369,8 @@ def fit_time(
         start is made from the data: parameters not named keep the structure's defaults
         (``K=1, a1=0.01, a2=1e-4``, orders 0.9).
     holdout : float
-        Fraction of the record held out for validation, in [0, 1).
+        Fraction of the record held out for validation, in [0, 0.9]. When the input does not
+        change there, the window is moved to where it does (with a warning).
     offsets : {"initial", "mean", "none"}
         How the operating point is removed.
     fit_offset : bool
@@ -266,12 +379,16 @@ def fit_time(
         Levenberg-Marquardt iterations at most.
     skip : int
         Leading samples left out of the residual.
+    initial : {"estimate", "rest"}
+        The plant's state at the first sample: ``"estimate"`` (the state a past held input left,
+        fitted with the model, so a record that starts in motion, mid-transient or on a ramp fits
+        as one at rest does) or ``"rest"``.
     method, band, order
         The approximation of the fractional operators (as :meth:`FracTf.simulate`).
     max_lag : int
         Lags of the residual correlation test.
     diagnose : bool
-        Also run the residual diagnosis (DESIGN section 6): test the residual for the signature
+        Also run the residual diagnosis (docs/design.md §6): test the residual for the signature
         of each effect (delay, Coulomb friction, offset, periodic, abs sensor, saturation, dead
         zone, quantization), refit with each strong candidate, keep those that lower the
         validation error by ``margin`` and lower BIC. The result is in ``TimeFit.diagnosis``.
@@ -294,6 +411,14 @@ def fit_time(
     NumericalError
         If the simulation or a solve breaks down.
     """
+    for name, v in (
+        ("max_iterations", max_iterations),
+        ("skip", skip),
+        ("order", order),
+        ("max_lag", max_lag),
+        ("max_rounds", max_rounds),
+    ):
+        _count(name, v)
     raw = _fit_time(
         u,
         y,
@@ -305,6 +430,7 @@ def fit_time(
         fit_offset=fit_offset,
         max_iterations=max_iterations,
         skip=skip,
+        initial=initial,
         method=method,
         band=band,
         order=order,

@@ -184,7 +184,14 @@ class DriveClient:
             LFSR seed, 1 to ``2^order - 1``.
         csv_path : str or path-like, optional
             Also write the samples to this CSV file (``t,u,y,i``) as they arrive, with a footer
-            saying whether the record is complete.
+            saying whether the record is complete. The file is checked at once but created only
+            when the drive has acknowledged the START: bad parameters, or a run the drive
+            refuses or never answers, leave an existing file as it was. Once the run has
+            started, the footer is written whatever ends it (a :meth:`stop`, a drive fault, the
+            port lost for longer than the reconnect window: ``missing`` and the footer say which
+            samples are missing). Comment lines before the footer note a command the drive
+            clamped and a record with no excitation left (the input constant after the settling
+            part).
 
         Returns
         -------

@@ -93,8 +93,40 @@ class FracTf:
         numpy.ndarray
             The output, same length as ``u``.
         """
+    def to_state_space(
+        self,
+        dt: Optional[float] = None,
+        method: str = "refined",
+        band: Optional[Tuple[float, float]] = None,
+        order: int = 8,
+        continuous: bool = False,
+    ) -> Any:
+        """The approximation as a :class:`fracid.StateSpace` (numpy ``a, b, c, d``).
+
+        Parameters
+        ----------
+        dt : float, optional
+            Sample period in seconds: the discrete model, exact for an input held over each
+            period (the same discretisation as :meth:`simulate`), its input delay as extra
+            states. ``None``: the continuous model (then ``band`` is needed), its delay in
+            ``input_delay``.
+        method, band, order
+            The approximation (as :meth:`simulate`; band default ``[1e-3, 30 pi/dt]``).
+        continuous : bool
+            With ``dt``: the continuous model anyway (``dt`` only sets the default band).
+
+        Returns
+        -------
+        fracid.StateSpace
+            ``A, B, C, D = ss``; ``ss.to_scipy()``, ``ss.to_control()``.
+
+        Raises
+        ------
+        DataError
+            Bad band, order or dt, a continuous export without a band, an improper model.
+        """
     def to_dict(self) -> Dict[str, Any]:
-        """``{"num": [{"coef", "order"}], "den": [...], "delay", "text"}`` (DESIGN section 7)."""
+        """``{"num": [{"coef", "order"}], "den": [...], "delay", "text"}`` (docs/design.md §7)."""
     def __eq__(self, other: object) -> bool: ...
     def __reduce__(self) -> Any: ...
 
@@ -131,6 +163,17 @@ def _fit_bode(
     refine: bool = False,
     point_std: Optional[npt.ArrayLike] = None,
 ) -> Dict[str, Any]: ...
+def _load_csv(
+    path: str, t: Union[str, int], u: Union[str, int], y: Union[str, int], dt: Optional[float] = ...
+) -> Dict[str, Any]: ...
+def _load_bode(
+    path: str,
+    columns: Optional[Tuple[Union[str, int], Union[str, int], Union[str, int]]] = ...,
+    rad_s: bool = ...,
+    linear_gain: bool = ...,
+    radians: bool = ...,
+    weights: Optional[Union[str, int]] = ...,
+) -> Tuple[npt.NDArray[np.float64], npt.NDArray[np.complex128], Optional[npt.NDArray[np.float64]]]: ...
 def _fit_time(
     u: npt.ArrayLike,
     y: npt.ArrayLike,
@@ -140,8 +183,9 @@ def _fit_time(
     holdout: float = 0.3,
     offsets: str = "initial",
     fit_offset: bool = True,
-    max_iterations: int = 100,
+    max_iterations: int = 500,
     skip: int = 0,
+    initial: str = "estimate",
     method: str = "refined",
     band: Optional[Tuple[float, float]] = None,
     order: int = 8,

@@ -1,5 +1,5 @@
 """Typed result objects of the fits and of the drive client. Every one is a frozen dataclass with ``to_dict()``, which
-returns plain Python types (numpy arrays become lists, models become the DESIGN section 7 JSON
+returns plain Python types (numpy arrays become lists, models become the docs/design.md §7 JSON
 object) so that ``json.dumps(result.to_dict())`` works."""
 
 from __future__ import annotations
@@ -252,7 +252,7 @@ class ResidualTest(_ToDict):
 
 @dataclass(frozen=True)
 class Effect(_ToDict):
-    """An effect the diagnosis kept (DESIGN section 6).
+    """An effect the diagnosis kept (docs/design.md §6).
 
     Attributes
     ----------
@@ -379,7 +379,13 @@ class TimeFit(_ToDict):
     elapsed_s : float
         Wall time of the fit in seconds.
     warnings : list of str
-        Parameters at a bound, missing covariance.
+        Parameters at a bound, no convergence, a validation window moved to where the input
+        changes, a negative static gain.
+    usable : bool
+        Whether the model can be used; when False, ``problems`` says why.
+    problems : list of str
+        Why the model cannot be used: unstable, no finite static gain, parameters the data do
+        not determine (standard error above the value, singular covariance), non-finite scores.
     alpha_eta : list of (float, float, float)
         ``(order, alpha, eta)`` of each non-integer order (Poinot-Trigeassou).
     start : dict
@@ -404,6 +410,8 @@ class TimeFit(_ToDict):
     evaluations: int
     elapsed_s: float
     warnings: List[str]
+    usable: bool
+    problems: List[str]
     alpha_eta: List[Tuple[float, float, float]]
     start: Dict[str, float]
     residual_test: ResidualTest

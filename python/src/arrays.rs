@@ -2,13 +2,79 @@
 
 use crate::errors;
 use num_complex::Complex64;
-use numpy::{AllowTypeChange, PyArrayLike1};
+use numpy::{AllowTypeChange, Element, PyArrayLike1};
+use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
 
-/// A 1-D float array argument (lists and integer arrays are converted).
-pub(crate) type FloatArray<'py> = PyArrayLike1<'py, f64, AllowTypeChange>;
+/// A 1-D array argument of `T` (lists and integer arrays are converted). One that is not 1-D, or
+/// not numbers, raises a `TypeError` that says the shape or the type found (pyo3 prefixes the
+/// argument's name): "argument 'u': expected a 1-D array of real numbers, got an array of shape
+/// (3, 2)".
+pub(crate) struct Array1<'py, T: Element>(PyArrayLike1<'py, T, AllowTypeChange>);
+
+/// A 1-D float array argument.
+pub(crate) type FloatArray<'py> = Array1<'py, f64>;
 /// A 1-D complex array argument.
-pub(crate) type ComplexArray<'py> = PyArrayLike1<'py, Complex64, AllowTypeChange>;
+pub(crate) type ComplexArray<'py> = Array1<'py, Complex64>;
+
+impl<'py, T: Element> std::ops::Deref for Array1<'py, T> {
+    type Target = PyArrayLike1<'py, T, AllowTypeChange>;
+    fn deref(&self) -> &Self::Target {
+        &self.0
+    }
+}
+
+impl<'py, T> FromPyObject<'py> for Array1<'py, T>
+where
+    T: Element + 'py,
+    Vec<T>: FromPyObject<'py>,
+{
+    fn extract_bound(ob: &Bound<'py, PyAny>) -> PyResult<Self> {
+        match ob.extract::<PyArrayLike1<'py, T, AllowTypeChange>>() {
+            Ok(a) => Ok(Self(a)),
+            Err(e) => Err(explain(ob).unwrap_or(e)),
+        }
+    }
+}
+
+/// Why `ob` is not a 1-D numeric array, in words: its shape or its type.
+fn explain(ob: &Bound<'_, PyAny>) -> Option<PyErr> {
+    let np = ob.py().import("numpy").ok()?;
+    let what = "a 1-D array of numbers";
+    let arr = match np.call_method1("asarray", (ob,)) {
+        Ok(a) => a,
+        Err(_) => {
+            let ty = ob.get_type().name().ok()?.to_string();
+            return Some(PyTypeError::new_err(format!(
+                "expected {what}, got a {ty} that is not an array"
+            )));
+        }
+    };
+    let shape = arr.getattr("shape").ok()?;
+    let ndim: usize = arr.getattr("ndim").ok()?.extract().ok()?;
+    if ndim != 1 {
+        return Some(PyTypeError::new_err(format!(
+            "expected {what}, got an array of shape {} ({ndim}-D){}",
+            shape.str().ok()?,
+            if ndim == 2 {
+                ": pass one row or column, e.g. a[:, 0]"
+            } else {
+                ""
+            }
+        )));
+    }
+    let dtype = arr.getattr("dtype").ok()?.str().ok()?.to_string();
+    Some(PyTypeError::new_err(format!(
+        "expected {what}, got an array of dtype {dtype}"
+    )))
+}
+
+/// A count argument taken as a Python int: negative values raise a `DataError` naming `name`
+/// (not a bare `OverflowError`).
+pub(crate) fn count(name: &str, v: i64) -> PyResult<usize> {
+    usize::try_from(v)
+        .map_err(|_| errors::data(format!("{name} = {v} must be a non-negative integer")))
+}
 
 /// The samples of `a`, checked: at least `min_len` of them, all finite.
 pub(crate) fn floats(name: &str, a: &FloatArray<'_>, min_len: usize) -> PyResult<Vec<f64>> {

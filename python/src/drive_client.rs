@@ -10,7 +10,7 @@
 use crate::errors;
 use crate::tf::PyFracTf;
 use drive::client::{
-    Acquisition, Client, ClientConfig, CsvSink, NullSink, PrbsTest, SineSweep, StopHandle,
+    Acquisition, Client, ClientConfig, CsvSink, LazyFile, NullSink, PrbsTest, SineSweep, StopHandle,
 };
 use drive::protocol::{fault, Configure, DriveState, HelloReply, MAX_BLOCK_SAMPLES};
 use drive::sim::{DriveSim, Effects, Faults, SimConfig};
@@ -133,6 +133,10 @@ impl PyDriveSimulator {
             ripple_hz: non_negative("ripple_hz", ripple_hz)?,
             ..Effects::default()
         };
+        // the ranges the simulator accepts (a delay of at most drive.sim.MAX_DELAY_S, ...)
+        cfg.effects
+            .validate()
+            .map_err(|e| errors::data(e.to_string()))?;
         cfg.faults = Faults {
             seed: int_in("seed", seed, 0, i64::MAX)?,
             ..Faults::default()
@@ -560,16 +564,23 @@ impl PyDriveClient {
             let conf = configured(conf)?;
             volts("offset_v + amplitude_v", offset_v + amplitude_v, &conf)?;
             volts("offset_v - amplitude_v", offset_v - amplitude_v, &conf)?;
-            // Bad parameters fail here, before any file is created.
+            // Bad parameters fail here, before any file is touched.
             test.to_command(&conf)?;
             match &csv_path {
                 Some(p) => {
-                    let f = std::fs::File::create(p)
+                    // Created only when the drive has acknowledged the START: a run that never
+                    // starts leaves an existing file as it was. The record is finished (footer)
+                    // whatever ends the run, a lost port included.
+                    let f = LazyFile::new(p)
                         .map_err(|e| Fail::Os(format!("cannot create {}: {e}", p.display())))?;
                     let mut sink = CsvSink::new(f);
-                    let acq = c.run_prbs(&test, &mut sink)?;
-                    sink.into_inner()
-                        .map_err(|e| Fail::Os(format!("cannot write {}: {e}", p.display())))?;
+                    let acq = c.run_prbs(&test, &mut sink);
+                    let written = sink
+                        .into_inner()
+                        .and_then(|mut f| std::io::Write::flush(&mut f))
+                        .map_err(|e| Fail::Os(format!("cannot write {}: {e}", p.display())));
+                    let acq = acq?;
+                    written?;
                     Ok(acq)
                 }
                 None => Ok(c.run_prbs(&test, &mut NullSink)?),

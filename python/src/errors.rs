@@ -64,6 +64,14 @@ pub(crate) fn sim(e: fracsim::Error) -> PyErr {
 /// Map an identification-layer error.
 pub(crate) fn ident(e: ident::Error) -> PyErr {
     match e {
+        // a file that cannot be read: Python's OSError (FileNotFoundError for a missing one)
+        ident::Error::Io { ref reason, .. } => {
+            if reason.contains("No such file") {
+                pyo3::exceptions::PyFileNotFoundError::new_err(e.to_string())
+            } else {
+                pyo3::exceptions::PyOSError::new_err(e.to_string())
+            }
+        }
         ident::Error::Sim(s) => sim(s),
         ident::Error::Numerical(_) => error(Kind::Numerical, e.to_string()),
         _ => error(Kind::Data, e.to_string()),

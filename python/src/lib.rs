@@ -11,6 +11,7 @@ mod arrays;
 mod drive_client;
 mod errors;
 mod freq;
+mod readers;
 mod tf;
 mod time;
 
@@ -25,6 +26,8 @@ fn _fracid(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(freq::_fit_bode, m)?)?;
     m.add_function(wrap_pyfunction!(freq::error_index, m)?)?;
     m.add_function(wrap_pyfunction!(time::_fit_time, m)?)?;
+    m.add_function(wrap_pyfunction!(readers::_load_csv, m)?)?;
+    m.add_function(wrap_pyfunction!(readers::_load_bode, m)?)?;
     m.add_class::<drive_client::PyDriveSimulator>()?;
     m.add_class::<drive_client::PyDriveClient>()?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;

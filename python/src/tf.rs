@@ -1,7 +1,7 @@
 //! `fracid.FracTf`: fractional transfer functions, their frequency response and simulation;
 //! PRBS generation.
 
-use crate::arrays::{floats, positive, FloatArray};
+use crate::arrays::{count, floats, positive, FloatArray};
 use crate::errors;
 use fracsim::prbs::Prbs;
 use fracsim::{gl, lsim, ApproxSpec, FracTf, Method, Term};
@@ -60,7 +60,7 @@ pub(crate) fn approx_spec(
     })
 }
 
-/// The model as the DESIGN §7 JSON object: `num`, `den` (lists of `{coef, order}`), `delay`, `text`.
+/// The model as the docs/design.md §7 JSON object: `num`, `den` (lists of `{coef, order}`), `delay`, `text`.
 pub(crate) fn model_dict<'py>(py: Python<'py>, g: &FracTf) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);
     let list = |t: &[Term]| -> PyResult<Bound<'py, PyList>> {
@@ -182,10 +182,12 @@ impl PyFracTf {
         dt: f64,
         method: &str,
         band: Option<(f64, f64)>,
-        order: usize,
+        order: i64,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let order = count("order", order)?;
         let u = floats("u", &u, 1)?;
         let dt = positive("dt", dt)?;
+        self.inner.check_proper().map_err(errors::sim)?;
         let tf = self.inner.clone();
         let y = if method.eq_ignore_ascii_case("gl") || method.eq_ignore_ascii_case("grunwald") {
             py.allow_threads(|| gl::simulate_held(&tf, &u, dt, gl::HELD_SUBSTEPS))
@@ -195,6 +197,61 @@ impl PyFracTf {
         }
         .map_err(errors::sim)?;
         Ok(y.into_pyarray(py))
+    }
+
+    /// The approximation as a state space (`fracsim::export`): continuous (`dt=None`, or
+    /// `continuous=True`), or discrete with the exact zero-order hold of period `dt`, the delay
+    /// as extra states. Returns a `fracid.StateSpace` (numpy `a, b, c, d`).
+    #[pyo3(signature = (dt = None, method = "refined", band = None, order = 8, continuous = false))]
+    fn to_state_space<'py>(
+        &self,
+        py: Python<'py>,
+        dt: Option<f64>,
+        method: &str,
+        band: Option<(f64, f64)>,
+        order: usize,
+        continuous: bool,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let spec = approx_spec(method, band, order)?;
+        let dt = dt.map(|t| positive("dt", t)).transpose()?;
+        let g = &self.inner;
+        let ss = match (dt, continuous) {
+            (Some(t), false) => fracsim::export::discrete(g, t, &spec),
+            (Some(t), true) => spec
+                .band_for(t)
+                .and_then(|b| fracsim::export::continuous(g, b, &spec)),
+            (None, _) => match band {
+                Some(b) => fracsim::export::continuous(g, b, &spec),
+                None => {
+                    return Err(errors::data(
+                        "a continuous state space needs band=(w_b, w_h) in rad/s, or dt for \
+                         the discrete model (its default band is [1e-3, 30 pi/dt])",
+                    ))
+                }
+            },
+        }
+        .map_err(errors::sim)?;
+        let n = ss.order();
+        let arr = |rows: usize, cols: usize, flat: Vec<f64>| -> PyResult<Bound<'py, PyAny>> {
+            let a = numpy::ndarray::Array2::from_shape_vec((rows, cols), flat)
+                .map_err(|e| errors::data(e.to_string()))?;
+            Ok(a.into_pyarray(py).into_any())
+        };
+        let kw = PyDict::new(py);
+        kw.set_item("a", arr(n, n, ss.a_rows().concat())?)?;
+        kw.set_item("b", arr(n, 1, ss.b_col())?)?;
+        kw.set_item("c", arr(1, n, ss.c_row())?)?;
+        kw.set_item("d", arr(1, 1, vec![ss.d])?)?;
+        kw.set_item("dt", ss.dt)?;
+        kw.set_item("input_delay", ss.input_delay)?;
+        kw.set_item("delay_states", ss.delay_states)?;
+        kw.set_item("model", g.to_string())?;
+        kw.set_item("method", fracsim::export::method_name(ss.spec.method))?;
+        kw.set_item("band", ss.band)?;
+        kw.set_item("order", ss.spec.order)?;
+        py.import("fracid._export")?
+            .getattr("StateSpace")?
+            .call((), Some(&kw))
     }
 
     /// The model as a dict: `num`, `den` (lists of `{coef, order}`), `delay`, `text`.
@@ -229,6 +286,7 @@ pub(crate) fn gl_simulate<'py>(
 ) -> PyResult<Bound<'py, PyArray1<f64>>> {
     let u = floats("u", &u, 1)?;
     let dt = positive("dt", dt)?;
+    tf.inner.check_proper().map_err(errors::sim)?;
     let g = tf.inner.clone();
     let y = py
         .allow_threads(|| gl::simulate(&g, &u, dt))
@@ -242,13 +300,18 @@ pub(crate) fn gl_simulate<'py>(
 pub(crate) fn prbs<'py>(
     py: Python<'py>,
     dt: f64,
-    order: u32,
+    order: i64,
     clock: f64,
     amplitude: f64,
     offset: f64,
-    periods: usize,
-    seed: u32,
+    periods: i64,
+    seed: i64,
 ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    let periods = count("periods", periods)?;
+    let order = u32::try_from(order)
+        .map_err(|_| errors::data(format!("order = {order} must be in 2..=16")))?;
+    let seed = u32::try_from(seed)
+        .map_err(|_| errors::data(format!("seed = {seed} must be an integer in 1..2^order")))?;
     if periods == 0 {
         return Err(errors::data("periods must be at least 1"));
     }

@@ -4,7 +4,7 @@
 use crate::arrays::{floats, positive, same_len, FloatArray};
 use crate::errors;
 use crate::tf::{approx_spec, PyFracTf};
-use ident::data::{OffsetMode, Record};
+use ident::data::Record;
 use ident::diagnose::{DiagnoseOptions, Diagnosis};
 use ident::metrics::{residual_test, Fit};
 use ident::oe::{identify, FracModel, IdentOptions, StartMode};
@@ -20,34 +20,26 @@ fn fit_dict<'py>(py: Python<'py>, f: &Fit) -> PyResult<Bound<'py, PyDict>> {
     Ok(d)
 }
 
-/// The model to fit: a named structure or a `FracTf` whose coefficients and orders are all fitted.
+/// The model to fit: a named structure ([`ident::app::structure`], the CLI's presets) or a
+/// `FracTf` whose coefficients and orders are all fitted.
 fn structure_of(s: &Bound<'_, PyAny>, duration: f64) -> PyResult<(FracModel, bool)> {
     if let Ok(tf) = s.downcast::<PyFracTf>() {
         return Ok((FracModel::from_tf(&tf.get().inner, true, true), true));
     }
     if let Ok(name) = s.downcast::<PyString>() {
         let name = name.to_cow()?;
-        return match name.to_ascii_lowercase().as_str() {
-            "pmsm" => Ok((FracModel::pmsm(1.0, 0.01, 1e-4, 0.9, 0.9), false)),
-            "commensurate" => Ok((FracModel::commensurate(1.0, 0.01, 1e-4, 0.9), false)),
-            "fopdt" => Ok((
-                FracModel::fopdt(1.0, 0.1 * duration, 0.01 * duration, 0.2 * duration),
-                false,
-            )),
-            _ => Err(errors::data(format!(
-                "structure '{name}': expected 'pmsm', 'commensurate', 'fopdt' or a FracTf"
-            ))),
-        };
+        return ident::app::structure(&name, ident::app::default_max_delay(duration))
+            .map_err(errors::ident);
     }
     Err(errors::data(
-        "structure must be 'pmsm', 'commensurate', 'fopdt' or a FracTf",
+        "structure must be 'pmsm', 'commensurate', 'fopdt', a model string or a FracTf",
     ))
 }
 
 /// Output-error identification on sampled `u`, `y`; returns a dict the Python layer turns into
 /// `TimeFit`.
 #[pyfunction]
-#[pyo3(signature = (u, y, dt, structure, start = None, holdout = 0.3, offsets = "initial", fit_offset = true, max_iterations = 100, skip = 0, method = "refined", band = None, order = 8, max_lag = 25, diagnose = false, margin = 0.05, min_r2 = 0.005, max_rounds = 3))]
+#[pyo3(signature = (u, y, dt, structure, start = None, holdout = 0.3, offsets = "initial", fit_offset = true, max_iterations = 500, skip = 0, initial = "estimate", method = "refined", band = None, order = 8, max_lag = 25, diagnose = false, margin = 0.05, min_r2 = 0.005, max_rounds = 3))]
 pub(crate) fn _fit_time<'py>(
     py: Python<'py>,
     u: FloatArray<'py>,
@@ -60,6 +52,7 @@ pub(crate) fn _fit_time<'py>(
     fit_offset: bool,
     max_iterations: usize,
     skip: usize,
+    initial: &str,
     method: &str,
     band: Option<(f64, f64)>,
     order: usize,
@@ -73,11 +66,6 @@ pub(crate) fn _fit_time<'py>(
     let y = floats("y", &y, 2)?;
     same_len(("u", u.len()), ("y", y.len()))?;
     let dt = positive("dt", dt)?;
-    if !(0.0..1.0).contains(&holdout) {
-        return Err(errors::data(format!(
-            "holdout = {holdout} must be in [0, 1)"
-        )));
-    }
     if max_iterations == 0 {
         return Err(errors::data("max_iterations must be at least 1"));
     }
@@ -87,16 +75,8 @@ pub(crate) fn _fit_time<'py>(
             u.len()
         )));
     }
-    let offsets = match offsets.to_ascii_lowercase().as_str() {
-        "initial" => OffsetMode::Initial,
-        "mean" => OffsetMode::Mean,
-        "none" => OffsetMode::None,
-        _ => {
-            return Err(errors::data(format!(
-                "offsets '{offsets}': expected 'initial', 'mean' or 'none'"
-            )))
-        }
-    };
+    let offsets = ident::app::offsets(offsets).map_err(errors::ident)?;
+    let initial: ident::oe::InitialState = initial.parse().map_err(errors::ident)?;
     let (mut model, general) = structure_of(&structure, dt * u.len() as f64)?;
     model.approx = approx_spec(method, band, order)?;
     let mode = if general || start.is_some() {
@@ -125,6 +105,7 @@ pub(crate) fn _fit_time<'py>(
         holdout,
         fit_offset,
         start: mode,
+        initial,
         ..IdentOptions::default()
     };
     opts.fit.lm.max_iterations = max_iterations;
@@ -187,6 +168,8 @@ pub(crate) fn _fit_time<'py>(
     d.set_item("evaluations", id.report.evaluations)?;
     d.set_item("elapsed_s", id.report.elapsed.as_secs_f64())?;
     d.set_item("warnings", id.report.warnings.clone())?;
+    d.set_item("usable", id.usable())?;
+    d.set_item("problems", id.problems.clone())?;
     d.set_item("alpha_eta", id.alpha_eta.clone())?;
     let st = PyDict::new(py);
     for (p, v) in id.model.params.iter().zip(&id.start) {
@@ -207,7 +190,7 @@ pub(crate) fn _fit_time<'py>(
     Ok(d)
 }
 
-/// The diagnosis as a dict: its serde form (the DESIGN §7 `diagnosis` object and more), the final
+/// The diagnosis as a dict: its serde form (the docs/design.md §7 `diagnosis` object and more), the final
 /// linear model and the model outputs before and after.
 fn diagnosis_dict<'py>(py: Python<'py>, g: &Diagnosis) -> PyResult<Bound<'py, PyDict>> {
     let text = serde_json::to_string(g)

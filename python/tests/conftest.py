@@ -11,33 +11,28 @@ import pytest
 
 HERE = Path(__file__).resolve().parent
 REPO = HERE.parent.parent  # python/tests -> repo root
+DATA = REPO / "data"  # the example data shipped with the repository
 
 
-def _shared_data() -> Path:
-    """The shared data directory: $FRACID_DATA, else ../shared/data beside the repo (as CI lays
-    it out), else data/ in the repo."""
-    env = os.environ.get("FRACID_DATA")
-    if env:
-        return Path(env)
-    for cand in (REPO.parent / "shared" / "data", REPO / "data"):
-        if (cand / "paper_table1_bode.csv").is_file():
-            return cand
-    return REPO.parent / "shared" / "data"
+def repo_data(name: str) -> Path:
+    """A file of the repository's example data (``data/``); missing is a failure, never a skip."""
+    p = DATA / name
+    if not p.is_file():
+        pytest.fail(f"{p} is missing: the example data ships with the repository in data/")
+    return p
 
 
 @pytest.fixture(scope="session")
 def table1() -> Path:
     """The paper's Table 1 Bode data (freq_hz, gain_db, phase_deg)."""
-    p = _shared_data() / "paper_table1_bode.csv"
-    if not p.is_file():
-        pytest.fail(f"Table 1 data not found at {p} (set FRACID_DATA)")
-    return p
+    return repo_data("paper_table1_bode.csv")
 
 
 @pytest.fixture(scope="session")
 def fracid_bin() -> Path:
     """The Rust CLI. With $FRACID_BIN set (as CI does) it must exist; otherwise
-    target/release/fracid or target/debug/fracid, and the test is skipped if neither is built."""
+    target/release/fracid or target/debug/fracid, else `fracid` on PATH; missing is a failure
+    (python/ci.sh builds it), never a skip."""
     env = os.environ.get("FRACID_BIN")
     if env:
         p = Path(env)
@@ -50,7 +45,7 @@ def fracid_bin() -> Path:
     which = shutil.which("fracid")
     if which:
         return Path(which)
-    pytest.skip("the fracid CLI is not built (cargo build -p fracid, or set FRACID_BIN)")
+    pytest.fail("the fracid CLI is not built (cargo build -p fracid, or set FRACID_BIN)")
 
 
 def pytest_report_header(config):

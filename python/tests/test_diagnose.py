@@ -1,4 +1,4 @@
-"""Residual diagnosis from Python (DESIGN section 6): a hidden input delay is found, named and
+"""Residual diagnosis from Python (docs/design.md §6): a hidden input delay is found, named and
 sized; clean data get no effect."""
 
 from __future__ import annotations

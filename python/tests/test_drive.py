@@ -275,6 +275,9 @@ def test_bad_simulator_parameters():
         fracid.DriveSimulator(noise_std=-1.0)
     with pytest.raises(DataError, match="delay_s"):
         fracid.DriveSimulator(delay_s=float("inf"))
+    # a delay line of 1e9 s would not fit in memory: refused, not an abort
+    with pytest.raises(DataError, match="input delay"):
+        fracid.DriveSimulator(delay_s=1e9)
     with pytest.raises(DataError, match="baud"):
         fracid.DriveSimulator(baud=0)
     with pytest.raises(DataError, match="seed"):
@@ -297,3 +300,18 @@ def test_simulator_with_a_given_model():
         assert s.stats()["runs_started"] == 1
     assert not s.running
     s.stop()  # idempotent
+
+
+def test_a_run_that_never_starts_leaves_an_existing_csv_untouched(free_sim, tmp_path):
+    keep = tmp_path / "keep.csv"
+    keep.write_text("a recording worth keeping\n")
+    with fracid.DriveClient(free_sim.port, baud=BAUD) as c:
+        c.configure(sample_rate_hz=FS)
+        # bad parameters: refused before the file is touched
+        with pytest.raises(DataError, match="seed"):
+            c.run_prbs(seed=0, csv_path=keep)
+        # the drive goes away after configure(): the START is never acknowledged
+        free_sim.stop()
+        with pytest.raises(DriveError):
+            c.run_prbs(**PRBS, csv_path=keep)
+    assert keep.read_text() == "a recording worth keeping\n"

@@ -1,4 +1,4 @@
-"""The frequency-domain fit from Python: the paper's Table 1 numbers (DESIGN section 4)."""
+"""The frequency-domain fit from Python: the paper's Table 1 numbers (docs/design.md §4)."""
 
 from __future__ import annotations
 
@@ -50,7 +50,7 @@ def test_refinements_lower_j(table1):
     fit = fracid.fit_bode(omega, h, refine=True, sk_iterations=5)
     assert fit.levy.J <= fit.levy_grid.J + 1e-15  # golden-section refinement around the grid best
     assert fit.refined is not None and fit.sk is not None
-    # the two-order refit reaches J of about 1.9e-3 (DESIGN section 4)
+    # the two-order refit reaches J of about 1.9e-3 (docs/design.md §4)
     assert fit.refined.J == pytest.approx(1.9e-3, rel=0.05)
     assert fit.J == min(fit.levy.J, fit.sk.J, fit.refined.J)
     assert 0 < fit.refined.zeta < 2 and 0 < fit.refined.theta < 2

@@ -61,7 +61,7 @@ def test_bode_phase_is_unwrapped_through_a_delay():
 
 
 def test_step_response_against_mittag_leffler_oracle():
-    # DESIGN section 3: K (1 - E_q(-t^q / a)), K = 6.77, a = 0.0064, q = 0.89
+    # docs/design.md §3: K (1 - E_q(-t^q / a)), K = 6.77, a = 0.0064, q = 0.89
     g = fracid.FracTf.parse("6.77/(0.0064 s^0.89 + 1)")
     dt = 1e-5
     u = np.ones(3001)

@@ -366,32 +366,43 @@ pub fn write_csv(mut w: impl Write, points: &[BodePoint], comment: &str) -> std:
         writeln!(w, "# {line}")?;
     }
     let spread = points.iter().any(|p| p.spread.is_some());
+    write_csv_columns(&mut w, spread)?;
+    for p in points {
+        write_csv_row(&mut w, p, spread)?;
+    }
+    Ok(())
+}
+
+/// The column line of a Bode table ([`write_csv`]): with the spread columns or without.
+pub fn write_csv_columns(mut w: impl Write, spread: bool) -> std::io::Result<()> {
     if spread {
         writeln!(
             w,
             "freq_hz,gain_db,phase_deg,gain_db_std,phase_deg_std,repeats"
-        )?;
+        )
     } else {
-        writeln!(w, "freq_hz,gain_db,phase_deg")?;
+        writeln!(w, "freq_hz,gain_db,phase_deg")
     }
-    for p in points {
-        write!(w, "{},{:.6},{:.6}", p.freq_hz, p.gain_db, p.phase_deg)?;
-        if spread {
-            let s = p.spread.unwrap_or(Spread {
-                gain_db_std: 0.0,
-                phase_deg_std: 0.0,
-                repeats: 1,
-                kept: 1,
-            });
-            write!(
-                w,
-                ",{:.6},{:.6},{}",
-                s.gain_db_std, s.phase_deg_std, s.repeats
-            )?;
-        }
-        writeln!(w)?;
+}
+
+/// One row of a Bode table ([`write_csv`]); with `spread`, a point without one is a single
+/// measurement (standard deviations 0, 1 repeat).
+pub fn write_csv_row(mut w: impl Write, p: &BodePoint, spread: bool) -> std::io::Result<()> {
+    write!(w, "{},{:.6},{:.6}", p.freq_hz, p.gain_db, p.phase_deg)?;
+    if spread {
+        let s = p.spread.unwrap_or(Spread {
+            gain_db_std: 0.0,
+            phase_deg_std: 0.0,
+            repeats: 1,
+            kept: 1,
+        });
+        write!(
+            w,
+            ",{:.6},{:.6},{}",
+            s.gain_db_std, s.phase_deg_std, s.repeats
+        )?;
     }
-    Ok(())
+    writeln!(w)
 }
 
 /// The header of the file of single repeats written as they are measured

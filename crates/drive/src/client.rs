@@ -155,8 +155,132 @@ impl<W: Write> SampleSink for CsvSink<W> {
         Ok(())
     }
     fn finish(&mut self, acq: &Acquisition) -> io::Result<()> {
+        for w in acq.warnings() {
+            writeln!(self.w, "# {w}")?;
+        }
         writeln!(self.w, "{}", acq.footer())?;
         self.w.flush()
+    }
+}
+
+/// A file created only when the first byte is written to it: the output of a run that never
+/// started (bad options, a drive that does not answer or refuses the START) leaves an existing
+/// file untouched, and a run that started writes its record as the data arrive (a process killed
+/// outright leaves the rows that arrived and no footer, which readers take as interrupted).
+///
+/// [`LazyFile::new`] checks at once that the file can be created (so that a bad path fails
+/// before the experiment, not after it).
+///
+/// ```
+/// use std::io::Write;
+/// let dir = std::env::temp_dir().join(format!("lazyfile-doc-{}", std::process::id()));
+/// std::fs::create_dir_all(&dir)?;
+/// let path = dir.join("keep.csv");
+/// std::fs::write(&path, "old record\n")?;
+/// let f = drive::client::LazyFile::new(&path)?;
+/// drop(f); // nothing written: the old record is still there
+/// assert_eq!(std::fs::read_to_string(&path)?, "old record\n");
+/// let mut f = drive::client::LazyFile::new(&path)?;
+/// writeln!(f, "new")?;
+/// assert!(f.is_created());
+/// drop(f);
+/// assert_eq!(std::fs::read_to_string(&path)?, "new\n");
+/// assert!(drive::client::LazyFile::new(dir.join("no/such/dir/x.csv")).is_err());
+/// std::fs::remove_dir_all(&dir)?;
+/// # Ok::<(), std::io::Error>(())
+/// ```
+#[derive(Debug)]
+pub struct LazyFile {
+    path: std::path::PathBuf,
+    file: Option<std::fs::File>,
+}
+
+impl LazyFile {
+    /// A file to be created (truncated if it exists) at the first write.
+    ///
+    /// # Errors
+    /// The path is a directory, or its directory does not exist or cannot be written, or the
+    /// existing file cannot be written: the `io::Error`, with the path in its message.
+    pub fn new(path: impl Into<std::path::PathBuf>) -> io::Result<Self> {
+        let path = path.into();
+        check_writable(&path)?;
+        Ok(Self { path, file: None })
+    }
+    /// Whether the file has been created (something was written).
+    pub fn is_created(&self) -> bool {
+        self.file.is_some()
+    }
+    /// The path.
+    pub fn path(&self) -> &std::path::Path {
+        &self.path
+    }
+    fn file(&mut self) -> io::Result<&mut std::fs::File> {
+        if self.file.is_none() {
+            let f = std::fs::File::create(&self.path).map_err(|e| with_path(&self.path, e))?;
+            self.file = Some(f);
+        }
+        Ok(self.file.as_mut().expect("just created"))
+    }
+}
+
+impl Write for LazyFile {
+    fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
+        if buf.is_empty() {
+            return Ok(0);
+        }
+        self.file()?.write(buf)
+    }
+    fn flush(&mut self) -> io::Result<()> {
+        match self.file.as_mut() {
+            Some(f) => f.flush(),
+            None => Ok(()),
+        }
+    }
+}
+
+fn with_path(path: &std::path::Path, e: io::Error) -> io::Error {
+    io::Error::new(e.kind(), format!("{}: {e}", path.display()))
+}
+
+/// Check, without changing anything, that a file can be created or overwritten at `path`: not a
+/// directory; an existing file opens for writing (without truncation); otherwise a scratch file
+/// can be created (and is removed) in its directory.
+///
+/// # Errors
+/// The `io::Error` of the failed check, with the path in its message.
+pub fn check_writable(path: &std::path::Path) -> io::Result<()> {
+    match std::fs::metadata(path) {
+        Ok(m) if m.is_dir() => Err(io::Error::new(
+            io::ErrorKind::IsADirectory,
+            format!("{} is a directory", path.display()),
+        )),
+        Ok(_) => std::fs::OpenOptions::new()
+            .append(true)
+            .open(path)
+            .map(drop)
+            .map_err(|e| with_path(path, e)),
+        Err(_) => {
+            let dir = match path.parent() {
+                Some(d) if !d.as_os_str().is_empty() => d,
+                _ => std::path::Path::new("."),
+            };
+            let name = path.file_name().ok_or_else(|| {
+                io::Error::new(
+                    io::ErrorKind::InvalidInput,
+                    format!("{} is not a file name", path.display()),
+                )
+            })?;
+            let mut probe = std::ffi::OsString::from(".");
+            probe.push(name);
+            probe.push(format!(".{}.probe", std::process::id()));
+            let probe = dir.join(probe);
+            std::fs::OpenOptions::new()
+                .write(true)
+                .create_new(true)
+                .open(&probe)
+                .map_err(|e| with_path(path, e))?;
+            std::fs::remove_file(&probe).map_err(|e| with_path(&probe, e))
+        }
     }
 }
 
@@ -197,6 +321,13 @@ pub struct Acquisition {
     pub clamped_blocks: u64,
     /// The drive's single-bin DFT (sine runs).
     pub sine: Option<SineResult>,
+    /// The port vanished during the run and did not come back within the reconnect window
+    /// ([`ClientConfig::reconnect_timeout`]): the run ended for this host (the drive stops by
+    /// itself when its keepalive expires). Listed in `problems` too.
+    pub port_lost: bool,
+    /// Index of the first sample of the excitation (after the settling part at the operating
+    /// point): the START's settle samples.
+    pub settle_samples: u64,
 }
 
 impl Acquisition {
@@ -220,6 +351,47 @@ impl Acquisition {
                 self.problems.join("; ")
             )
         }
+    }
+
+    /// Whether the excitation is missing from the record: at least two samples arrived after the
+    /// settling part and the voltage applied (`raw[0]`, the drive's clamped command) is the same
+    /// in all of them. That is what a command beyond the drive's voltage clamp gives (an
+    /// operating point of 30 V with a 24 V clamp puts every sample at 24 V), or a zero amplitude:
+    /// a record that cannot identify anything, however complete.
+    ///
+    /// ```
+    /// let mut a = drive::client::Acquisition::default();
+    /// a.index = vec![0, 1, 2];
+    /// a.raw = vec![[24000, 0, 0]; 3];
+    /// assert!(a.excitation_missing());
+    /// a.raw[2][0] = 22000;
+    /// assert!(!a.excitation_missing());
+    /// ```
+    pub fn excitation_missing(&self) -> bool {
+        let first = self.index.partition_point(|&i| i < self.settle_samples);
+        let after = self.raw.get(first..).unwrap_or(&[]);
+        after.len() >= 2 && after.iter().all(|s| s[0] == after[0][0])
+    }
+
+    /// The comment lines [`CsvSink`] writes before the footer: the drive's clamping of the
+    /// voltage command, and a missing excitation ([`Acquisition::excitation_missing`]). Empty
+    /// for a clean run.
+    pub fn warnings(&self) -> Vec<String> {
+        let mut w = Vec::new();
+        if self.clamped_blocks > 0 {
+            w.push(format!(
+                "clamped: the drive limited the voltage command in {} data blocks (u is the applied, clamped voltage)",
+                self.clamped_blocks
+            ));
+        }
+        if self.excitation_missing() {
+            w.push(format!(
+                "no excitation: u is {} V in every sample after the settling part; not usable for identification",
+                (self.u[self.index.partition_point(|&i| i < self.settle_samples)] * 1e6).round()
+                    / 1e6
+            ));
+        }
+        w
     }
 }
 
@@ -267,12 +439,16 @@ impl PrbsTest {
                 self.clock_s, c.sample_rate_hz
             )));
         }
-        let taps = crate::prbs::default_taps(self.order)
-            .ok_or_else(|| Error::InvalidParam(format!("PRBS order {} (2..=16)", self.order)))?;
+        let taps = crate::prbs::default_taps(self.order).ok_or_else(|| {
+            Error::InvalidParam(format!("PRBS order {} is not in 2..=16", self.order))
+        })?;
         let raw = |v: f64, what: &str| -> Result<i16> {
             let r = (v / c.u_lsb()).round();
             if !r.is_finite() || r.abs() > 32767.0 {
-                return Err(Error::InvalidParam(format!("{what} {v} V out of range")));
+                return Err(Error::InvalidParam(format!(
+                    "{what} {v} V is out of the command range (+-{} V)",
+                    32767.0 * c.u_lsb()
+                )));
             }
             Ok(r as i16)
         };
@@ -291,7 +467,12 @@ impl PrbsTest {
             settle_samples: settle as u32,
         };
         crate::prbs::Lfsr::new(cmd.order, cmd.taps, cmd.seed).ok_or_else(|| {
-            Error::InvalidParam(format!("PRBS seed {} for order {}", self.seed, self.order))
+            Error::InvalidParam(format!(
+                "PRBS seed {} is not valid for order {} (1..={})",
+                self.seed,
+                self.order,
+                (1u32 << self.order) - 1
+            ))
         })?;
         cmd.total_samples()
             .ok_or_else(|| Error::InvalidParam("PRBS run too long".into()))?;
@@ -764,6 +945,13 @@ impl Client {
         let want_dft = matches!(start, Message::StartSine(s) if s.flags & SINE_DFT != 0);
         let conf = self.conf()?;
         let boot = self.hello.map(|h| h.boot_id);
+        let settle_samples = match &start {
+            Message::StartPrbs(p) => p.settle_samples as u64,
+            Message::StartSine(s) => s
+                .sample_counts(conf.sample_rate_hz)
+                .map_or(0, |(settle, _)| settle as u64),
+            _ => 0,
+        };
         let ack = match self.request(start)? {
             Message::Ack(a) => a,
             other => {
@@ -779,19 +967,65 @@ impl Client {
             sample_rate_hz: fs,
             total_samples: ack.total_samples as u64,
             planned_samples: ack.total_samples as u64,
+            settle_samples,
             ..Default::default()
         };
-        sink.begin(&RunInfo {
+        if let Err(e) = sink.begin(&RunInfo {
             run_id: ack.run_id,
             total_samples: ack.total_samples as u64,
             sample_rate_hz: fs,
             description,
-        })?;
+        }) {
+            // The record cannot be written: do not leave the drive running for nothing.
+            self.stop_after_sink_error();
+            return Err(Error::Io(e));
+        }
+        match self.stream(&mut acq, sink, &conf, boot) {
+            Ok(()) => {}
+            Err(RunFail::Sink(e)) => {
+                self.stop_after_sink_error();
+                return Err(Error::Io(e));
+            }
+            Err(RunFail::Drive(e)) => {
+                // The line or the drive failed (the port vanished and did not come back within
+                // the reconnect window, a protocol violation): the run is over for this host.
+                // What arrived is kept and the record is finished with what is missing.
+                acq.port_lost = matches!(e, Error::Port { .. } | Error::Io(_));
+                acq.problems.push(if acq.port_lost {
+                    format!("lost the port during the run: {e}")
+                } else {
+                    format!("run abandoned: {e}")
+                });
+            }
+        }
+        finish(&mut acq, streamed, want_dft);
+        sink.finish(&acq)?;
+        Ok(acq)
+    }
+
+    /// Best-effort STOP after the record could not be written (one attempt, errors ignored).
+    fn stop_after_sink_error(&mut self) {
+        let retries = std::mem::replace(&mut self.cfg.retries, 0);
+        let _ = self.request(Message::Stop);
+        self.cfg.retries = retries;
+    }
+
+    /// Receive a started run until STREAM_END (or a reason to give up, recorded in
+    /// `acq.problems`). Errors of the sink and of the line are told apart: the first end the
+    /// acquisition, the second only the run.
+    fn stream(
+        &mut self,
+        acq: &mut Acquisition,
+        sink: &mut dyn SampleSink,
+        conf: &Configure,
+        boot: Option<u16>,
+    ) -> Result<(), RunFail> {
+        let fs = conf.sample_rate_hz;
         let (ul, yl, il) = (conf.u_lsb(), conf.y_lsb(), conf.i_lsb());
         let mut next: u64 = 0; // next expected index
         let mut last_data = Instant::now();
         let stream_timeout = self.stream_timeout();
-        let expected = Duration::from_secs_f64(ack.total_samples as f64 / fs.max(1) as f64);
+        let expected = Duration::from_secs_f64(acq.planned_samples as f64 / fs.max(1) as f64);
         let hard_deadline = Instant::now() + expected * 3 + Duration::from_secs(10);
         let mut last_progress = 0u64;
         let mut stalled_polls = 0u32;
@@ -814,9 +1048,11 @@ impl Client {
                 self.send(&Frame {
                     seq,
                     msg: Message::Keepalive,
-                })?;
+                })
+                .map_err(RunFail::Drive)?;
             }
-            self.pump(Duration::from_millis(20))?;
+            self.pump(Duration::from_millis(20))
+                .map_err(RunFail::Drive)?;
             let mut ended = false;
             while let Some(f) = self.inbox.pop_front() {
                 match f.msg {
@@ -840,7 +1076,7 @@ impl Client {
                             acq.y.push(y);
                             acq.i.push(i);
                             acq.raw.push(*s);
-                            sink.sample(idx, t, u, y, i)?;
+                            sink.sample(idx, t, u, y, i).map_err(RunFail::Sink)?;
                         }
                     }
                     Message::StreamEnd(e) if e.run_id == acq.run_id => {
@@ -874,11 +1110,11 @@ impl Client {
             self.stats.recoveries += 1;
             let st = match self.status() {
                 Ok(s) => s,
-                Err(Error::Timeout { .. }) | Err(Error::Port { .. }) | Err(Error::Io(_)) => {
+                Err(Error::Timeout { .. }) => {
                     acq.problems.push("drive stopped answering".into());
                     break;
                 }
-                Err(e) => return Err(e),
+                Err(e) => return Err(RunFail::Drive(e)),
             };
             if boot.is_some_and(|b| b != st.boot_id) {
                 acq.problems.push(format!(
@@ -925,9 +1161,7 @@ impl Client {
                 }
             }
         }
-        finish(&mut acq, streamed, want_dft);
-        sink.finish(&acq)?;
-        Ok(acq)
+        Ok(())
     }
 
     /// Run a sine sweep and return the frequency response. Points whose measurement was
@@ -936,23 +1170,45 @@ impl Client {
     /// measured that many times in a row and the point is their trimmed mean with the spread
     /// ([`bode::combine_repeats`]).
     pub fn run_sine_sweep(&mut self, sweep: &SineSweep) -> Result<(Vec<BodePoint>, Vec<String>)> {
-        self.run_sine_sweep_with(sweep, &mut |_, _| Ok(()))
+        self.run_sine_sweep_with(sweep, &mut |_| Ok(()))
     }
 
-    /// [`Client::run_sine_sweep`], calling `on_repeat(point, repeat)` (repeat from 1) for every
-    /// single measurement as it is made (to write it at once). An error from `on_repeat` ends the
-    /// sweep with that error.
+    /// [`Client::run_sine_sweep`], handing over what it measures as soon as it is measured, so
+    /// that a caller can write it at once (a sweep that ends early keeps every point measured):
+    /// each single measurement as [`SweepEvent::Repeat`] (repeat from 1), then the point of the
+    /// frequency as [`SweepEvent::Point`] (the combined repeats when `repeats > 1`, its phase
+    /// already unwrapped against the points before it).
+    ///
+    /// The sweep stops early, keeping what it has, when the host asks (a [`StopHandle`]), when the
+    /// port vanishes for longer than the reconnect window, or when the drive no longer answers at
+    /// all (a START and a STATUS both unanswered): the remaining frequencies are not tried. The
+    /// repeats measured at the frequency where it stopped still make its point.
+    ///
+    /// # Errors
+    /// The drive refuses a START (NAK) or a parameter is invalid; `on_event` fails (the error,
+    /// as [`Error::Io`]).
     pub fn run_sine_sweep_with(
         &mut self,
         sweep: &SineSweep,
-        on_repeat: &mut dyn FnMut(&BodePoint, u32) -> Result<()>,
+        on_event: &mut dyn FnMut(SweepEvent<'_>) -> io::Result<()>,
+    ) -> Result<(Vec<BodePoint>, Vec<String>)> {
+        let mut prog = self.progress.take();
+        let r = self.sweep_points(sweep, on_event, &mut prog);
+        self.progress = prog;
+        r
+    }
+
+    fn sweep_points(
+        &mut self,
+        sweep: &SineSweep,
+        on_event: &mut dyn FnMut(SweepEvent<'_>) -> io::Result<()>,
+        prog: &mut Option<Box<dyn FnMut(Progress) + Send>>,
     ) -> Result<(Vec<BodePoint>, Vec<String>)> {
         let conf = self.conf()?;
         let fs = conf.sample_rate_hz as f64;
         let mut points = Vec::new();
         let mut problems = Vec::new();
         let total = sweep.freqs_hz.len() as u64;
-        let mut prog = self.progress.take();
         for (k, &f) in sweep.freqs_hz.iter().enumerate() {
             if !(f > 0.0 && f < fs / 2.0) {
                 problems.push(format!("{f} Hz skipped: outside (0, {}) Hz", fs / 2.0));
@@ -979,38 +1235,31 @@ impl Client {
                 flags: SINE_DFT | if sweep.stream { SINE_STREAM } else { 0 },
             };
             let mut reps = Vec::new();
+            let mut stopped = false;
             for rep in 1..=sweep.repeats.max(1) {
-                match self.measure_once(&cmd, &conf, sweep.attempts, &mut problems) {
-                    Ok(Some(p)) => {
-                        if let Err(e) = on_repeat(&p, rep) {
-                            self.progress = prog;
-                            return Err(e);
-                        }
+                match self.measure_once(&cmd, &conf, sweep.attempts, &mut problems)? {
+                    Measured::Point(p) => {
+                        on_event(SweepEvent::Repeat(&p, rep))?;
                         reps.push(p);
                     }
-                    Ok(None) => problems.push(format!("{f} Hz: no valid measurement")),
-                    Err(Some(e)) => {
-                        self.progress = prog;
-                        return Err(e);
-                    }
-                    Err(None) => {
-                        // Stopped on the host's request: the sweep ends here.
-                        problems.push(format!("{f} Hz: sweep stopped"));
-                        self.progress = prog;
-                        if sweep.repeats > 1 {
-                            points.extend(bode::combine_repeats(&reps));
-                        } else {
-                            points.extend(reps);
-                        }
-                        bode::unwrap_deg(&mut points);
-                        return Ok((points, problems));
+                    Measured::Failed => problems.push(format!("{f} Hz: no valid measurement")),
+                    Measured::Stop => {
+                        stopped = true;
+                        break;
                     }
                 }
             }
-            if sweep.repeats > 1 {
-                points.extend(bode::combine_repeats(&reps));
+            let point = if sweep.repeats > 1 {
+                bode::combine_repeats(&reps)
             } else {
-                points.extend(reps);
+                reps.pop()
+            };
+            if let Some(mut p) = point {
+                if let Some(prev) = points.last() {
+                    unwrap_against(&mut p, prev);
+                }
+                on_event(SweepEvent::Point(&p))?;
+                points.push(p);
             }
             if let Some(p) = prog.as_mut() {
                 p(Progress {
@@ -1018,27 +1267,43 @@ impl Client {
                     total,
                 });
             }
+            if stopped {
+                return Ok((points, problems));
+            }
         }
-        self.progress = prog;
-        bode::unwrap_deg(&mut points);
         Ok((points, problems))
     }
 
-    /// One sine measurement, repeated on damage up to `attempts` times. `Ok(None)`: no valid
-    /// measurement; `Err(Some(e))`: an error that ends the sweep; `Err(None)`: stopped on request.
+    /// One sine measurement, repeated on damage up to `attempts` times. A NAK or an invalid
+    /// parameter is an error that ends the sweep; a lost port, a drive that answers neither START
+    /// nor STATUS, or a stop on the host's request is [`Measured::Stop`] (reason in `problems`).
     fn measure_once(
         &mut self,
         cmd: &StartSine,
         conf: &Configure,
         attempts: u32,
         problems: &mut Vec<String>,
-    ) -> std::result::Result<Option<BodePoint>, Option<Error>> {
+    ) -> Result<Measured> {
         let f = cmd.applied_freq_hz(conf.sample_rate_hz);
         for _ in 0..attempts.max(1) {
             let acq = match self.run_sine(cmd, &mut NullSink) {
                 Ok(a) => a,
                 Err(e @ Error::Nak { .. }) | Err(e @ Error::InvalidParam(_)) => {
-                    return Err(Some(e));
+                    return Err(e);
+                }
+                Err(e @ Error::Port { .. }) | Err(e @ Error::Io(_)) => {
+                    problems.push(format!("{f} Hz: {e}; port lost, sweep stopped"));
+                    return Ok(Measured::Stop);
+                }
+                Err(e @ Error::Timeout { .. }) => {
+                    problems.push(format!("{f} Hz: {e}"));
+                    if self.status().is_err() {
+                        problems.push(format!(
+                            "{f} Hz: the drive does not answer STATUS either; sweep stopped"
+                        ));
+                        return Ok(Measured::Stop);
+                    }
+                    continue;
                 }
                 Err(e) => {
                     problems.push(format!("{f} Hz: {e}"));
@@ -1046,23 +1311,65 @@ impl Client {
                 }
             };
             if let Some(p) = sine_point(&acq, cmd, conf) {
-                return Ok(Some(p));
+                return Ok(Measured::Point(p));
+            }
+            if acq.port_lost {
+                problems.push(format!(
+                    "{f} Hz: {}; sweep stopped",
+                    acq.problems.join("; ")
+                ));
+                return Ok(Measured::Stop);
             }
             if let Some(r) = acq
                 .end
                 .map(|e| e.reason)
                 .filter(|r| matches!(r, EndReason::Stopped | EndReason::Estop))
             {
-                problems.push(format!("{f} Hz: {r:?}"));
-                return Err(None);
+                // Stopped on the host's request: the sweep ends here.
+                problems.push(format!("{f} Hz: {r:?}; sweep stopped"));
+                return Ok(Measured::Stop);
             }
             problems.push(format!(
                 "{f} Hz: measurement damaged ({}), repeating",
                 acq.problems.join("; ")
             ));
         }
-        Ok(None)
+        Ok(Measured::Failed)
     }
+}
+
+/// What [`Client::run_sine_sweep_with`] hands over as it measures.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum SweepEvent<'a> {
+    /// One single measurement of a frequency and its repeat number (from 1), its phase as
+    /// measured (within +-180 deg).
+    Repeat(&'a BodePoint, u32),
+    /// The point of a frequency, after its repeats: their trimmed mean with the spread when the
+    /// sweep repeats, else the single measurement; its phase unwrapped against the points before.
+    Point(&'a BodePoint),
+}
+
+/// The outcome of [`Client::measure_once`].
+enum Measured {
+    Point(BodePoint),
+    /// No valid measurement in `attempts` tries.
+    Failed,
+    /// The sweep ends here (port lost, drive silent, or stopped on request).
+    Stop,
+}
+
+/// Unwrap the phase of `p` so that it differs from the previous point's by at most 180 degrees
+/// (as [`bode::unwrap_deg`] does along a whole sweep).
+fn unwrap_against(p: &mut BodePoint, prev: &BodePoint) {
+    let mut pair = [*prev, *p];
+    bode::unwrap_deg(&mut pair);
+    p.phase_deg = pair[1].phase_deg;
+}
+
+/// Why [`Client::stream`] gave up: the record could not be written, or the line or drive failed.
+enum RunFail {
+    Sink(io::Error),
+    Drive(Error),
 }
 
 /// Judge a run at its end: the summary, the missing ranges, completeness.

@@ -66,6 +66,55 @@ impl Default for Effects {
     }
 }
 
+impl Effects {
+    /// Check the ranges: every value finite; friction, ripple frequency, noise and quantisation
+    /// not negative (the ripple amplitude may be: a phase shift); the delay in
+    /// `0..=MAX_DELAY_S` (the simulator holds the delayed commands in memory); the winding
+    /// resistance positive.
+    ///
+    /// # Errors
+    /// [`Error::InvalidParam`] naming the first bad value.
+    pub fn validate(&self) -> Result<()> {
+        for (name, v) in [
+            ("coulomb friction (V)", self.coulomb_v),
+            ("ripple frequency (Hz)", self.ripple_hz),
+            ("speed noise (rad/s)", self.noise_std),
+            ("speed quantisation (rad/s)", self.speed_quant),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(Error::InvalidParam(format!(
+                    "{name} must be a finite number >= 0, got {v}"
+                )));
+            }
+        }
+        if !self.ripple_v.is_finite() {
+            return Err(Error::InvalidParam(format!(
+                "ripple amplitude must be finite, got {} V",
+                self.ripple_v
+            )));
+        }
+        if !(self.delay_s.is_finite() && (0.0..=MAX_DELAY_S).contains(&self.delay_s)) {
+            return Err(Error::InvalidParam(format!(
+                "input delay must be in [0, {MAX_DELAY_S}] s, got {}",
+                self.delay_s
+            )));
+        }
+        if !(self.r_ohm.is_finite() && self.r_ohm > 0.0) {
+            return Err(Error::InvalidParam(format!(
+                "winding resistance must be finite and > 0 ohm, got {}",
+                self.r_ohm
+            )));
+        }
+        Ok(())
+    }
+}
+
+/// Longest input delay the simulator accepts, s.
+pub const MAX_DELAY_S: f64 = 10.0;
+
+/// Longest stall, disconnect or reset the simulator accepts.
+pub const MAX_FAULT_DURATION: Duration = Duration::from_secs(3600);
+
 /// A fault that happens once, when the drive has produced `at_sample` run samples (counted over
 /// all runs since the simulator started), and lasts `duration`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -99,6 +148,47 @@ pub struct Faults {
     pub reset: Option<FaultAt>,
     /// RNG seed for the faults and the noise.
     pub seed: u64,
+}
+
+impl Faults {
+    /// Check the ranges: rates are probabilities in [0, 1]; a burst is at most 4096 bytes; a
+    /// stall, disconnect or reset lasts at most [`MAX_FAULT_DURATION`].
+    ///
+    /// # Errors
+    /// [`Error::InvalidParam`] naming the first bad value.
+    pub fn validate(&self) -> Result<()> {
+        for (name, v) in [
+            ("bit error rate", self.bit_error_rate),
+            ("byte drop rate", self.drop_rate),
+            ("burst rate", self.burst_rate),
+            ("frame corruption rate", self.frame_corrupt_rate),
+        ] {
+            if !(0.0..=1.0).contains(&v) {
+                return Err(Error::InvalidParam(format!(
+                    "{name} must be in [0, 1], got {v}"
+                )));
+            }
+        }
+        if self.burst_len > 4096 {
+            return Err(Error::InvalidParam(format!(
+                "burst length must be at most 4096 bytes, got {}",
+                self.burst_len
+            )));
+        }
+        for (name, f) in [
+            ("stall", self.stall),
+            ("disconnect", self.disconnect),
+            ("reset", self.reset),
+        ] {
+            if f.is_some_and(|f| f.duration > MAX_FAULT_DURATION) {
+                return Err(Error::InvalidParam(format!(
+                    "{name} duration must be at most {} s",
+                    MAX_FAULT_DURATION.as_secs()
+                )));
+            }
+        }
+        Ok(())
+    }
 }
 
 /// Which firmware runs behind the pty.
@@ -220,7 +310,16 @@ pub struct DriveSim {
 
 impl DriveSim {
     /// Open a pty pair and start the firmware thread.
+    ///
+    /// # Errors
+    /// Out-of-range effects or faults ([`Effects::validate`], [`Faults::validate`]), a baud rate
+    /// of 0 (all [`Error::InvalidParam`]); the pty or the link cannot be made.
     pub fn spawn(cfg: SimConfig) -> Result<Self> {
+        cfg.effects.validate()?;
+        cfg.faults.validate()?;
+        if cfg.baud == 0 {
+            return Err(Error::InvalidParam("baud rate must be positive".into()));
+        }
         let (master, slave_name) = open_pty()?;
         let path = match &cfg.link {
             Some(link) => {
@@ -1419,7 +1518,18 @@ impl Firmware {
         if let (Some(cc), true) = (c.eng.config(), c.eng.running()) {
             let fs = cc.sample_rate_hz as f64;
             let lsb = cc.scales.map(|v| v as f64 * 1e-6);
-            let wall = (now.duration_since(c.start).as_secs_f64() * fs) as u64;
+            let mut wall = (now.duration_since(c.start).as_secs_f64() * fs) as u64;
+            // This thread can fall behind the wall clock on a loaded machine; a real drive does
+            // not (its sample and receive interrupts interleave). Catching up a long backlog at
+            // once would run its samples without the frames that arrived meanwhile, and the C
+            // engine, which counts its keepalive in samples, would expire. So a backlog beyond
+            // 20 ms is dropped: the run goes on later, the same sample for sample.
+            let max_behind = (fs / 50.0).ceil() as u64;
+            if wall > c.ticks + max_behind {
+                let skip = wall - c.ticks - max_behind;
+                c.start += Duration::from_secs_f64(skip as f64 / fs);
+                wall = c.ticks + max_behind;
+            }
             while c.ticks < wall {
                 let Some(u_raw) = c.eng.sample_begin() else {
                     break;

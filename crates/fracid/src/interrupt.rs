@@ -1,14 +1,63 @@
-//! Ctrl-C during a drive run: the first SIGINT asks the drive to STOP (the run ends, what arrived
-//! is kept and the record says what is missing); a second one ends the process as usual.
+//! Ctrl-C (SIGINT), SIGTERM and SIGHUP during a drive run: the first of them asks the drive to
+//! STOP (the run ends, what arrived is kept and the record says what is missing); the command
+//! then ends with [`Interrupted`], exit code 128 + the signal number (130 for SIGINT, 143 for
+//! SIGTERM, 129 for SIGHUP: what a shell reports for a process the signal ended, so a caller
+//! such as `timeout` or a service manager sees which signal ended the run). A second signal of
+//! the same kind ends the process as usual.
 //!
-//! The signal handler only sets an atomic flag (async-signal-safe) and resets itself to the
-//! default disposition (`SA_RESETHAND`); a small watcher thread turns the flag into
-//! [`StopHandle::stop`]. SIGINT is blocked in the thread that runs the acquisition, so the signal
-//! lands on the watcher and never interrupts the run's own system calls.
+//! The signal handler only sets atomics (async-signal-safe) and resets itself to the default
+//! disposition (`SA_RESETHAND`); a small watcher thread turns the flag into [`StopHandle::stop`].
+//! The signals are blocked in the thread that runs the acquisition, so they land on the watcher
+//! and never interrupt the run's own system calls. A signal ignored when the run starts (SIGHUP
+//! under `nohup`, SIGINT in a background job) stays ignored.
 
 use drive::client::StopHandle;
 
-/// Turns the first Ctrl-C into a STOP while alive; restores the previous SIGINT handling on drop.
+/// A command ended by a signal after finishing its record: exit code 128 + the signal number.
+#[derive(Debug)]
+pub struct Interrupted {
+    /// The signal number.
+    pub signal: i32,
+    /// What was kept and what is missing.
+    pub message: String,
+}
+
+impl Interrupted {
+    /// 128 + the signal number (130 for SIGINT, 143 for SIGTERM, 129 for SIGHUP).
+    pub fn exit_code(&self) -> u8 {
+        u8::try_from(128 + self.signal.clamp(1, 127)).unwrap_or(130)
+    }
+}
+
+impl std::fmt::Display for Interrupted {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "interrupted by {}: {}",
+            signal_name(self.signal),
+            self.message
+        )
+    }
+}
+
+impl std::error::Error for Interrupted {}
+
+/// `SIGINT (Ctrl-C)`, `SIGTERM`, `SIGHUP`, or `signal N`.
+pub fn signal_name(signal: i32) -> String {
+    #[cfg(unix)]
+    {
+        match signal {
+            libc::SIGINT => return "SIGINT (Ctrl-C)".into(),
+            libc::SIGTERM => return "SIGTERM".into(),
+            libc::SIGHUP => return "SIGHUP".into(),
+            _ => {}
+        }
+    }
+    format!("signal {signal}")
+}
+
+/// Turns the first SIGINT, SIGTERM or SIGHUP into a STOP while alive; restores the previous
+/// handling on drop.
 /// One at a time per process.
 pub struct StopOnInterrupt {
     #[cfg(unix)]
@@ -16,8 +65,8 @@ pub struct StopOnInterrupt {
 }
 
 impl StopOnInterrupt {
-    /// Arm for the run that `stop` belongs to. If SIGINT is ignored (a background job started
-    /// with it ignored, `nohup`), it stays ignored and nothing is armed.
+    /// Arm for the run that `stop` belongs to. A signal ignored now (SIGINT in a background job
+    /// started with it ignored, SIGHUP under `nohup`) stays ignored.
     pub fn arm(stop: StopHandle) -> Self {
         #[cfg(unix)]
         {
@@ -32,15 +81,16 @@ impl StopOnInterrupt {
         }
     }
 
-    /// Whether a Ctrl-C arrived while armed.
-    pub fn interrupted(&self) -> bool {
+    /// The signal (SIGINT, SIGTERM or SIGHUP) that arrived while armed, if one did.
+    pub fn signal(&self) -> Option<i32> {
         #[cfg(unix)]
         {
-            self.inner.is_some() && unix::INTERRUPTED.load(std::sync::atomic::Ordering::SeqCst)
+            let s = unix::SIGNAL.load(std::sync::atomic::Ordering::SeqCst);
+            (self.inner.is_some() && s != 0).then_some(s)
         }
         #[cfg(not(unix))]
         {
-            false
+            None
         }
     }
 }
@@ -48,30 +98,38 @@ impl StopOnInterrupt {
 #[cfg(unix)]
 mod unix {
     use drive::client::StopHandle;
-    use std::sync::atomic::{AtomicBool, Ordering};
+    use std::sync::atomic::{AtomicBool, AtomicI32, Ordering};
     use std::sync::Arc;
     use std::thread::JoinHandle;
     use std::time::Duration;
 
-    pub(super) static INTERRUPTED: AtomicBool = AtomicBool::new(false);
+    /// The first signal that arrived (0: none).
+    pub(super) static SIGNAL: AtomicI32 = AtomicI32::new(0);
 
-    extern "C" fn on_sigint(_: libc::c_int) {
-        // Async-signal-safe: one atomic store. SA_RESETHAND already restored the default action.
-        INTERRUPTED.store(true, Ordering::SeqCst);
+    /// The signals handled, in this order.
+    const SIGNALS: [libc::c_int; 3] = [libc::SIGINT, libc::SIGTERM, libc::SIGHUP];
+
+    extern "C" fn on_signal(sig: libc::c_int) {
+        // Async-signal-safe: one atomic operation. SA_RESETHAND already restored the default
+        // action for this signal.
+        let _ = SIGNAL.compare_exchange(0, sig, Ordering::SeqCst, Ordering::SeqCst);
     }
 
-    fn sigint_set() -> libc::sigset_t {
+    fn signal_set(signals: &[libc::c_int]) -> libc::sigset_t {
         // SAFETY: sigemptyset initialises the set before sigaddset uses it.
         unsafe {
             let mut set: libc::sigset_t = std::mem::zeroed();
             libc::sigemptyset(&mut set);
-            libc::sigaddset(&mut set, libc::SIGINT);
+            for &s in signals {
+                libc::sigaddset(&mut set, s);
+            }
             set
         }
     }
 
     pub(super) struct Armed {
-        old_action: libc::sigaction,
+        /// The signals handled and their previous actions.
+        old_actions: Vec<(libc::c_int, libc::sigaction)>,
         old_mask: libc::sigset_t,
         done: Arc<AtomicBool>,
         watcher: Option<JoinHandle<()>>,
@@ -82,24 +140,31 @@ mod unix {
             // SAFETY: plain sigaction/pthread_sigmask calls on initialised structures; the
             // handler only touches an atomic.
             unsafe {
-                let mut old_action: libc::sigaction = std::mem::zeroed();
-                if libc::sigaction(libc::SIGINT, std::ptr::null(), &mut old_action) != 0
-                    || old_action.sa_sigaction == libc::SIG_IGN
-                {
+                let mut old_actions = Vec::new();
+                for sig in SIGNALS {
+                    let mut old: libc::sigaction = std::mem::zeroed();
+                    if libc::sigaction(sig, std::ptr::null(), &mut old) == 0
+                        && old.sa_sigaction != libc::SIG_IGN
+                    {
+                        old_actions.push((sig, old));
+                    }
+                }
+                if old_actions.is_empty() {
                     return None;
                 }
-                INTERRUPTED.store(false, Ordering::SeqCst);
+                let handled: Vec<libc::c_int> = old_actions.iter().map(|(s, _)| *s).collect();
+                SIGNAL.store(0, Ordering::SeqCst);
                 let done = Arc::new(AtomicBool::new(false));
                 let d = done.clone();
                 let watcher = std::thread::Builder::new()
                     .name("fracid-sigint".into())
                     .spawn(move || {
-                        // This thread takes the signal (the run's thread blocks it).
-                        let set = sigint_set();
+                        // This thread takes the signals (the run's thread blocks them).
+                        let set = signal_set(&SIGNALS);
                         libc::pthread_sigmask(libc::SIG_UNBLOCK, &set, std::ptr::null_mut());
                         let mut sent = false;
                         while !d.load(Ordering::SeqCst) {
-                            if !sent && INTERRUPTED.load(Ordering::SeqCst) {
+                            if !sent && SIGNAL.load(Ordering::SeqCst) != 0 {
                                 stop.stop();
                                 sent = true;
                             }
@@ -108,15 +173,17 @@ mod unix {
                     })
                     .ok()?;
                 let mut action: libc::sigaction = std::mem::zeroed();
-                action.sa_sigaction = on_sigint as extern "C" fn(libc::c_int) as libc::sighandler_t;
+                action.sa_sigaction = on_signal as extern "C" fn(libc::c_int) as libc::sighandler_t;
                 action.sa_flags = libc::SA_RESTART | libc::SA_RESETHAND;
                 libc::sigemptyset(&mut action.sa_mask);
-                libc::sigaction(libc::SIGINT, &action, std::ptr::null_mut());
+                for &sig in &handled {
+                    libc::sigaction(sig, &action, std::ptr::null_mut());
+                }
                 let mut old_mask: libc::sigset_t = std::mem::zeroed();
-                let set = sigint_set();
+                let set = signal_set(&handled);
                 libc::pthread_sigmask(libc::SIG_BLOCK, &set, &mut old_mask);
                 Some(Self {
-                    old_action,
+                    old_actions,
                     old_mask,
                     done,
                     watcher: Some(watcher),
@@ -127,10 +194,12 @@ mod unix {
 
     impl Drop for Armed {
         fn drop(&mut self) {
-            // SAFETY: restoring what `new` saved. A Ctrl-C from here on acts as before the run
+            // SAFETY: restoring what `new` saved. A signal from here on acts as before the run
             // (by default it ends the process, also one left pending while blocked).
             unsafe {
-                libc::sigaction(libc::SIGINT, &self.old_action, std::ptr::null_mut());
+                for (sig, old) in &self.old_actions {
+                    libc::sigaction(*sig, old, std::ptr::null_mut());
+                }
             }
             self.done.store(true, Ordering::SeqCst);
             if let Some(w) = self.watcher.take() {

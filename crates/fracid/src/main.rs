@@ -30,17 +30,26 @@ enum Commands {
     /// Identify a fractional model from Bode data (weighted Levy, order search, refit).
     Freq(cmd::freq::FreqArgs),
     /// Identify a fractional model from a time record by output error (Levenberg-Marquardt).
-    Time(cmd::time::TimeArgs),
+    Time(Box<cmd::time::TimeArgs>),
     /// Two models side by side: one Bode plot, the largest differences, the coefficients.
     Compare(cmd::compare::CompareArgs),
+    /// Score a given model on a time record (its own initial state and output offset estimated).
+    Score(cmd::score::ScoreArgs),
+    /// Export a model's approximation as a state space (continuous, or discrete with the exact
+    /// hold) to JSON or a MATLAB script.
+    Export(cmd::export::ExportArgs),
 }
 
 /// Exit codes: 0 success, 1 runtime failure (numerical breakdown, fit failure, drive fault),
 /// 2 bad input (malformed model, data or options; clap also uses 2 for usage errors),
-/// 3 I/O (a file or port that cannot be opened or written). Drive faults (timeouts, NAKs, protocol
+/// 3 I/O (a file or port that cannot be opened or written), 128 + N for a drive run ended by
+/// signal N after its record was finished (130 Ctrl-C, 143 SIGTERM, 129 SIGHUP). Drive faults (timeouts, NAKs, protocol
 /// violations, a reset) are runtime failures.
 fn exit_code(err: &anyhow::Error) -> u8 {
     for cause in err.chain() {
+        if let Some(i) = cause.downcast_ref::<interrupt::Interrupted>() {
+            return i.exit_code();
+        }
         if cause.downcast_ref::<std::io::Error>().is_some() {
             return 3;
         }
@@ -52,6 +61,7 @@ fn exit_code(err: &anyhow::Error) -> u8 {
         }
         if let Some(e) = cause.downcast_ref::<ident::Error>() {
             return match e {
+                ident::Error::Io { .. } => 3,
                 ident::Error::Numerical(_) => 1,
                 ident::Error::Sim(fracsim::Error::Numerical(_)) => 1,
                 _ => 2,
@@ -71,6 +81,33 @@ fn exit_code(err: &anyhow::Error) -> u8 {
     1
 }
 
+/// Set by the panic hook when `println!` failed to write to standard output.
+static STDOUT_FAILED: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+/// A failed write to standard output (`fracid time FILE > /dev/full`) is an I/O error, exit 3 with
+/// a message, in every subcommand: `println!` panics on a write error; this hook reports that one
+/// panic in words (any other panic keeps the default report) and [`main`] catches it and exits 3
+/// after the unwinding has closed (and flushed) every file the command had open. One place for
+/// every `println!` of every subcommand.
+fn stdout_failure_exits_3() {
+    let default = std::panic::take_hook();
+    std::panic::set_hook(Box::new(move |info| {
+        let msg = info
+            .payload()
+            .downcast_ref::<String>()
+            .map(String::as_str)
+            .or_else(|| info.payload().downcast_ref::<&str>().copied())
+            .unwrap_or("");
+        if let Some(reason) = msg.strip_prefix("failed printing to stdout: ") {
+            let reason = reason.split(" (os error").next().unwrap_or(reason);
+            eprintln!("error: cannot write to standard output: {reason}");
+            STDOUT_FAILED.store(true, std::sync::atomic::Ordering::SeqCst);
+            return;
+        }
+        default(info);
+    }));
+}
+
 fn main() -> ExitCode {
     // Like every Unix filter: a closed stdout (`fracid time FILE | head`) ends the process
     // quietly by SIGPIPE instead of making the next print panic.
@@ -79,16 +116,33 @@ fn main() -> ExitCode {
     unsafe {
         libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
+    stdout_failure_exits_3();
     let cli = Cli::parse();
-    let result = match cli.command {
+    let run = std::panic::AssertUnwindSafe(|| match cli.command {
         Commands::Sim(a) => cmd::sim::run(a),
         Commands::Demo(a) => cmd::demo::run(a),
         // -- more dispatch arms are added below, one line each --
         Commands::Drive(a) => cmd::drive::run(a),
         Commands::Freq(a) => cmd::freq::run(a),
-        Commands::Time(a) => cmd::time::run(a),
+        Commands::Time(a) => cmd::time::run(*a),
         Commands::Compare(a) => cmd::compare::run(a),
+        Commands::Score(a) => cmd::score::run(a),
+        Commands::Export(a) => cmd::export::run(a),
+    });
+    let result = match std::panic::catch_unwind(run) {
+        Ok(r) => r,
+        Err(_) if STDOUT_FAILED.load(std::sync::atomic::Ordering::SeqCst) => {
+            return ExitCode::from(3)
+        }
+        Err(p) => std::panic::resume_unwind(p),
     };
+    // What is still buffered is written now, so that a full disk is an error, not lost output.
+    let result = result.and_then(|()| {
+        use std::io::Write;
+        std::io::stdout()
+            .flush()
+            .map_err(|e| anyhow::Error::new(e).context("cannot write to standard output"))
+    });
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {

@@ -41,12 +41,49 @@ pub fn format_of(path: &Path) -> Result<Format> {
         .map(|e| e.to_ascii_lowercase())
         .as_deref()
     {
-        Some("png") => Ok(Format::Png),
-        Some("svg") => Ok(Format::Svg),
+        Some("png") => check_dir(path).map(|()| Format::Png),
+        Some("svg") => check_dir(path).map(|()| Format::Svg),
         _ => Err(anyhow::Error::new(crate::cmd::BadInput(format!(
             "plot file {} must end in .png or .svg",
             path.display()
         )))),
+    }
+}
+
+/// The directory of a plot file must exist, so that a bad path fails before the work (exit 3,
+/// an I/O error in words).
+fn check_dir(path: &Path) -> Result<()> {
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    if !dir.is_dir() {
+        return Err(anyhow::Error::new(std::io::Error::new(
+            std::io::ErrorKind::NotFound,
+            format!(
+                "cannot write plot {}: no directory {}",
+                path.display(),
+                dir.display()
+            ),
+        )));
+    }
+    Ok(())
+}
+
+/// A plotters error as an I/O error in words (the backends fail only on writing the file): exit
+/// 3, not `ImageError(IoError(...))` and exit 1.
+fn plot_io<E: std::fmt::Debug>(path: &Path) -> impl FnOnce(E) -> anyhow::Error + '_ {
+    move |e| {
+        let dbg = format!("{e:?}");
+        // the innermost message: plotters nests the io::Error's Debug
+        let reason = dbg
+            .rsplit_once("message: \"")
+            .and_then(|(_, r)| r.split_once('"'))
+            .map_or(dbg.clone(), |(m, _)| m.to_string());
+        anyhow::Error::new(std::io::Error::other(format!(
+            "cannot write plot {}: {reason}",
+            path.display()
+        )))
     }
 }
 
@@ -67,19 +104,21 @@ pub trait Figure {
 /// A bad extension, a drawing error, or a file that cannot be written.
 pub fn save(path: &Path, size: (u32, u32), fig: &impl Figure) -> Result<()> {
     init_font();
-    let ctx = || format!("cannot write plot {}", path.display());
-    match format_of(path)? {
+    let format = format_of(path)?;
+    // Open the file first: a path that cannot be written fails with the system's words.
+    std::fs::File::create(path).with_context(|| format!("cannot write plot {}", path.display()))?;
+    match format {
         Format::Png => {
             let root = BitMapBackend::new(path, size).into_drawing_area();
-            root.fill(&WHITE).with_context(ctx)?;
+            root.fill(&WHITE).map_err(plot_io(path))?;
             fig.draw(&root)?;
-            root.present().with_context(ctx)?;
+            root.present().map_err(plot_io(path))?;
         }
         Format::Svg => {
             let root = SVGBackend::new(path, size).into_drawing_area();
-            root.fill(&WHITE).with_context(ctx)?;
+            root.fill(&WHITE).map_err(plot_io(path))?;
             fig.draw(&root)?;
-            root.present().with_context(ctx)?;
+            root.present().map_err(plot_io(path))?;
         }
     }
     Ok(())

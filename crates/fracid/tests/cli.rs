@@ -1,7 +1,10 @@
 //! End-to-end tests of the `fracid` binary, one module per subcommand.
 
 mod compare;
+mod export;
+mod fleet;
 mod freq;
+mod reliability;
 mod time;
 
 use std::process::{Command, Output};

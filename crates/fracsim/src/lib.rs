@@ -9,6 +9,8 @@
 //!   interconnection as one rational system, never multiplied out).
 //! - [`discrete`]: [`Simulator`], its exact discretisation for a held (zero-order-hold) input,
 //!   fractional-sample delays included, run as a bank of first-order recursive filters.
+//! - [`export`]: the approximation as a state space (A, B, C, D), continuous or discrete with the
+//!   exact hold, to MATLAB.
 //! - [`gl`]: Grunwald-Letnikov, the reference simulator.
 //! - [`prbs`]: maximum-length pseudo-random binary sequences.
 //! - [`special`]: the Mittag-Leffler function and the exact step response of `K/(a s^q + 1)`.
@@ -24,6 +26,7 @@ pub use tf::{jw_pow, FracTf, Term};
 pub mod approx;
 pub mod cx;
 pub mod discrete;
+pub mod export;
 pub mod gl;
 pub mod modal;
 pub mod prbs;

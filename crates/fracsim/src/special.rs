@@ -96,7 +96,7 @@ mod tests {
 
     #[test]
     fn oracle_values_from_the_design() {
-        // DESIGN §3: K = 6.77, a = 0.0064, q = 0.89
+        // docs/design.md §3: K = 6.77, a = 0.0064, q = 0.89
         for (t, y) in [
             (0.001, 1.958077),
             (0.003, 3.943589),

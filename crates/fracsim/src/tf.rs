@@ -182,6 +182,40 @@ impl FracTf {
     pub fn den_order(&self) -> f64 {
         self.den.first().map_or(0.0, |t| t.order)
     }
+
+    /// The highest order in the numerator (0 for a zero numerator).
+    pub fn num_order(&self) -> f64 {
+        self.num.first().map_or(0.0, |t| t.order)
+    }
+
+    /// Refuse an improper model (numerator order above the denominator's) for simulation: its
+    /// response to a held (stepwise) input holds impulses and derivatives of the steps, which no
+    /// sampled simulation represents. Its frequency response is fine (the Bode fits may use it).
+    ///
+    /// ```
+    /// let g: fracsim::FracTf = "s^3/(s + 1)".parse().unwrap();
+    /// assert!(g.check_proper().is_err());
+    /// let g: fracsim::FracTf = "(s + 2)/(s + 1)".parse().unwrap();
+    /// assert!(g.check_proper().is_ok());
+    /// ```
+    ///
+    /// # Errors
+    /// [`Error::Invalid`] for a numerator order above the denominator order.
+    pub fn check_proper(&self) -> Result<()> {
+        if self.num_order() > self.den_order() + 1e-12 {
+            return invalid(
+                "model",
+                format!(
+                    "{self} is improper (numerator order {} > denominator order {}): its \
+                     response to a held input holds impulses, so it cannot be simulated; a \
+                     proper model has numerator order <= denominator order",
+                    self.num_order(),
+                    self.den_order()
+                ),
+            );
+        }
+        Ok(())
+    }
 }
 
 /// `(j omega)^a = omega^a (cos(a pi/2) + j sin(a pi/2))`.
@@ -264,6 +298,37 @@ enum Tok {
     RParen,
 }
 
+impl Tok {
+    /// The token in words, for messages.
+    fn describe(&self) -> String {
+        match self {
+            Tok::Num(v) => format!("the number {}", shorten(&v.to_string())),
+            Tok::S => "'s'".into(),
+            Tok::Exp => "'exp'".into(),
+            Tok::Plus => "'+'".into(),
+            Tok::Minus => "'-'".into(),
+            Tok::Star => "'*'".into(),
+            Tok::Slash => "'/'".into(),
+            Tok::Caret => "'^'".into(),
+            Tok::LParen => "'('".into(),
+            Tok::RParen => "')'".into(),
+        }
+    }
+}
+
+/// `s` quoted in a message: at most 24 characters, a longer text cut with its length said.
+fn shorten(s: &str) -> String {
+    let n = s.chars().count();
+    if n <= 24 {
+        s.to_string()
+    } else {
+        format!(
+            "{}... ({n} characters)",
+            s.chars().take(16).collect::<String>()
+        )
+    }
+}
+
 fn perr<T>(pos: usize, msg: impl Into<String>) -> Result<T> {
     Err(Error::Parse {
         pos,
@@ -285,6 +350,9 @@ fn lex(src: &str) -> Result<Vec<(usize, Tok)>> {
             }
             b'+' => out.push((i, Tok::Plus)),
             b'-' => out.push((i, Tok::Minus)),
+            b'*' if b.get(i + 1) == Some(&b'*') => {
+                return perr(i, "'**' is not supported: write powers as s^a (e.g. s^0.5)")
+            }
             b'*' => out.push((i, Tok::Star)),
             b'/' => out.push((i, Tok::Slash)),
             b'^' => out.push((i, Tok::Caret)),
@@ -310,10 +378,13 @@ fn lex(src: &str) -> Result<Vec<(usize, Tok)>> {
                 let text = &src[start..i];
                 let v: f64 = match text.parse() {
                     Ok(v) => v,
-                    Err(_) => return perr(start, format!("bad number '{text}'")),
+                    Err(_) => return perr(start, format!("bad number '{}'", shorten(text))),
                 };
                 if !v.is_finite() {
-                    return perr(start, format!("number '{text}' is not finite"));
+                    return perr(
+                        start,
+                        format!("number '{}' is too large (not finite)", shorten(text)),
+                    );
                 }
                 out.push((start, Tok::Num(v)));
                 continue;
@@ -332,7 +403,11 @@ fn lex(src: &str) -> Result<Vec<(usize, Tok)>> {
                     _ => {
                         return perr(
                             start,
-                            format!("unknown name '{word}' (the variable is 's'; 'exp' is the only function)"),
+                            format!(
+                                "unknown name '{}' (the variable is 's'; 'exp' is the only \
+                                 function)",
+                                shorten(word)
+                            ),
                         )
                     }
                 }
@@ -536,19 +611,30 @@ impl Parser<'_> {
         }
         self.power()
     }
+    /// The exponent after `^`: a number, signed, or in parentheses. Without parentheses a sign
+    /// must touch both the `^` and the number (`s^-1`): in `1/(s^ + 1)` or `s^ - 1` the exponent
+    /// is missing, and the sign belongs to the sum.
     fn signed_number(&mut self) -> Result<f64> {
+        const MISSING: &str = "missing exponent after '^' (write s^a with a number a, e.g. s^0.5, \
+                               s^-1 or s^(-1))";
         let pos = self.pos();
+        let caret_end = self.toks.get(self.i.wrapping_sub(1)).map_or(0, |t| t.0 + 1);
         let mut sign = 1.0;
         let paren = self.eat(&Tok::LParen);
-        if self.eat(&Tok::Minus) {
+        let sign_pos = self.pos();
+        let signed = if self.eat(&Tok::Minus) {
             sign = -1.0;
+            true
         } else {
-            self.eat(&Tok::Plus);
-        }
+            self.eat(&Tok::Plus)
+        };
         let v = match self.peek() {
             Some(Tok::Num(v)) => *v,
-            _ => return perr(pos, "expected a number after '^'"),
+            _ => return perr(pos, MISSING),
         };
+        if signed && !paren && (sign_pos != caret_end || self.pos() != sign_pos + 1) {
+            return perr(pos, MISSING);
+        }
         self.i += 1;
         if paren && !self.eat(&Tok::RParen) {
             return perr(self.pos(), "expected ')'");
@@ -633,8 +719,14 @@ impl Parser<'_> {
                     _ => perr(apos, "exp() takes a delay term like '-0.001 s'"),
                 }
             }
-            Some(t) => perr(pos, format!("unexpected {t:?}")),
-            None => perr(pos, "unexpected end of input"),
+            Some(t) => perr(
+                pos,
+                format!(
+                    "unexpected {} (a number, 's', 'exp' or '(' was expected)",
+                    t.describe()
+                ),
+            ),
+            None => perr(pos, "the model ends too early (a term is missing)"),
         }
     }
 }
@@ -658,7 +750,10 @@ impl FromStr for FracTf {
         };
         let v = p.expr()?;
         if p.i != toks.len() {
-            return perr(p.pos(), "unexpected text after the model");
+            let what = p
+                .peek()
+                .map_or(String::new(), |t| format!(" ({})", t.describe()));
+            return perr(p.pos(), format!("unexpected text after the model{what}"));
         }
         // Normalise so that the denominator's order-zero term (or its lowest term) is the
         // scale the user wrote: keep coefficients as given.
@@ -744,6 +839,64 @@ mod tests {
                 continue;
             }
             assert!(r.is_err(), "{bad} parsed as {:?}", r.unwrap());
+        }
+    }
+
+    #[test]
+    fn missing_exponents_and_messages_in_words() {
+        // a missing exponent was read as a sign: 1/(s^ + 1) simulated as 1/s, 1/(s^ - 1) as s
+        for bad in [
+            "1/(s^ + 1)",
+            "1/(s^ - 1)",
+            "1/(s^- 1)",
+            "1/(s ^ -1 + 1)",
+            "1/(s^)",
+            "s^",
+        ] {
+            let e = bad.parse::<FracTf>().unwrap_err().to_string();
+            assert!(e.contains("missing exponent after '^'"), "{bad}: {e}");
+        }
+        // but a sign that touches both is an exponent, and parentheses are explicit
+        for (ok, order) in [
+            ("1/s^-1", 0.0),
+            ("1/(s^(+ 2) + 1)", 2.0),
+            ("1/(s^ 2 + 1)", 2.0),
+        ] {
+            let g: FracTf = ok.parse().unwrap();
+            assert!(g.num_order() == 1.0 || g.den_order() == order, "{ok}: {g}");
+        }
+        let e = "1/(s**2 + 1)".parse::<FracTf>().unwrap_err().to_string();
+        assert!(
+            e.contains("'**' is not supported: write powers as s^a"),
+            "{e}"
+        );
+        let e = "1/(s + )".parse::<FracTf>().unwrap_err().to_string();
+        assert!(e.contains("unexpected ')'") && !e.contains("RParen"), "{e}");
+        let e = "1/(s + 1) 2)".parse::<FracTf>().unwrap_err().to_string();
+        assert!(e.contains("')'") && !e.contains("RParen"), "{e}");
+        // a 300-digit number is quoted short
+        let e = format!("{}/(s+1)", "9".repeat(400))
+            .parse::<FracTf>()
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("(400 characters)") && e.len() < 150, "{e}");
+    }
+
+    #[test]
+    fn improper_models_are_refused_for_simulation() {
+        let g: FracTf = "s^3/(s+1)".parse().unwrap();
+        let e = g.check_proper().unwrap_err().to_string();
+        assert!(
+            e.contains("improper") && e.contains("order 3 > denominator order 1"),
+            "{e}"
+        );
+        assert!("s^0.5".parse::<FracTf>().unwrap().check_proper().is_err());
+        for ok in [
+            "(s + 1)/(s + 2)",
+            "6.8/(2e-5 s^1.75 + 0.006 s^0.9 + 1)",
+            "1",
+        ] {
+            assert!(ok.parse::<FracTf>().unwrap().check_proper().is_ok(), "{ok}");
         }
     }
 

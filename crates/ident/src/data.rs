@@ -92,22 +92,75 @@ fn split_line(line: &str, delim: char) -> Vec<&str> {
     line.split(delim).map(|s| s.trim()).collect()
 }
 
+/// The physical lines of `text`: `\n` or `\r\n` ends a line, and in a file with no `\n` at all
+/// (old Mac tools) `\r` does.
+fn physical_lines(text: &str) -> Box<dyn Iterator<Item = &str> + '_> {
+    if text.contains('\n') {
+        Box::new(text.lines())
+    } else {
+        Box::new(text.split('\r'))
+    }
+}
+
 /// The lines of delimited text that hold something, with their 1-based numbers: a UTF-8
 /// byte-order mark (as Windows tools write) skipped, `#` comments cut, blank lines left out.
 fn content_lines(text: &str) -> impl Iterator<Item = (usize, &str)> {
     let text = text.strip_prefix('\u{feff}').unwrap_or(text);
-    text.lines()
+    physical_lines(text)
         .enumerate()
         .map(|(i, l)| (i + 1, l.split('#').next().unwrap_or("").trim()))
         .filter(|(_, l)| !l.is_empty())
 }
 
+/// `s` as it may be quoted in a message: at most 40 characters, a longer text cut with its length
+/// said (a 300-digit number or a whole binary file is not dumped into an error).
+pub fn shorten(s: &str) -> String {
+    const MAX: usize = 40;
+    let n = s.chars().count();
+    if n <= MAX {
+        s.to_string()
+    } else {
+        let head: String = s.chars().take(MAX - 8).collect();
+        format!("{head}... ({n} characters)")
+    }
+}
+
+/// A field without its surrounding quotes: `"z1"` and `'z1'` read as `z1` (spreadsheets and the
+/// coupled-electric-drives benchmark quote their headers).
+fn unquote(s: &str) -> &str {
+    let s = s.trim();
+    for q in ['"', '\''] {
+        if s.len() >= 2 && s.starts_with(q) && s.ends_with(q) {
+            return s[1..s.len() - 1].trim();
+        }
+    }
+    s
+}
+
 /// The first line of delimited text that holds something (see [`Record::parse`]), split at its
-/// [`delimiter`]: the header's names (trimmed), or `None` for a text with no such line.
+/// [`delimiter`]: the header's names (trimmed, quotes removed), or `None` for a text with no such
+/// line.
 pub fn header(text: &str) -> Option<Vec<&str>> {
-    content_lines(text)
-        .next()
-        .map(|(_, l)| split_line(l, delimiter(l)))
+    content_lines(text).next().map(|(_, l)| {
+        split_line(l, delimiter(l))
+            .into_iter()
+            .map(unquote)
+            .collect()
+    })
+}
+
+/// True when every field of a line is a number: a data row, not a header.
+fn is_numeric_row(fields: &[&str]) -> bool {
+    fields.iter().all(|f| unquote(f).parse::<f64>().is_ok())
+}
+
+/// The names of a header, shortened and at most 20 of them, for a message.
+fn list_names(names: &[&str]) -> String {
+    let mut s: Vec<String> = names.iter().take(20).map(|n| shorten(n)).collect();
+    if names.len() > 20 {
+        s.push(format!("... ({} columns)", names.len()));
+    }
+    s.join(", ")
 }
 
 /// Where column `want` is among the header's `names`: by name (ASCII case ignored), or by 0-based
@@ -121,8 +174,9 @@ pub fn column_index(names: &[&str], want: &str) -> Result<usize> {
     if let Some(i) = hits.next() {
         if let Some(j) = hits.next() {
             return Err(Error::Data(format!(
-                "column '{want}' appears twice in the header (columns {i} and {j}): \
-                 rename one or choose by index"
+                "column '{}' appears twice in the header (columns {i} and {j}): \
+                 rename one or choose by index",
+                shorten(want)
             )));
         }
         return Ok(i);
@@ -133,8 +187,9 @@ pub fn column_index(names: &[&str], want: &str) -> Result<usize> {
         }
     }
     Err(Error::Data(format!(
-        "no column '{want}' (found: {})",
-        names.join(", ")
+        "no column '{}' (found: {})",
+        shorten(want),
+        list_names(names)
     )))
 }
 
@@ -151,10 +206,14 @@ pub fn column_indices(names: &[&str], wants: &[&str]) -> Result<Vec<usize>> {
         if let Some(j) = idx[..k].iter().position(|x| x == i) {
             return Err(Error::Data(format!(
                 "column '{}' is chosen twice ('{}' and '{}' in [{}])",
-                names[*i],
-                wants[j],
-                wants[k],
-                wants.join(", ")
+                shorten(names[*i]),
+                shorten(wants[j]),
+                shorten(wants[k]),
+                wants
+                    .iter()
+                    .map(|w| shorten(w))
+                    .collect::<Vec<_>>()
+                    .join(", ")
             )));
         }
     }
@@ -168,15 +227,24 @@ pub fn column_indices(names: &[&str], wants: &[&str]) -> Result<Vec<usize>> {
 pub fn check_finite(name: &str, col: &[f64]) -> Result<()> {
     match col.iter().position(|v| !v.is_finite()) {
         Some(i) => Err(Error::Data(format!(
-            "{name} is not finite ({}) at sample {i}",
+            "{} is not finite ({}) at sample {i}",
+            shorten(name),
             col[i]
         ))),
         None => Ok(()),
     }
 }
 
+/// The median of the steps of `t` (at least 2 samples).
+fn median_step(t: &[f64]) -> f64 {
+    let mut d: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
+    d.sort_by(f64::total_cmp);
+    d[d.len() / 2]
+}
+
 /// The sampling step of the time stamps `t`: the mean step, after checking that there are at
-/// least 2, finite, strictly increasing and uniform (every step within 1% of the mean).
+/// least 2, finite, strictly increasing and uniform (every step within 1% of the median step, so
+/// that a gap is reported where it is, not at the first sample).
 ///
 /// # Errors
 /// [`Error::NotEnoughData`] for fewer than 2 samples; [`Error::Data`] for a non-finite,
@@ -194,63 +262,346 @@ pub fn sampling_step(t: &[f64]) -> Result<f64> {
             t[i + 1]
         )));
     }
-    let dt = (t[t.len() - 1] - t[0]) / (t.len() - 1) as f64;
-    // 1% tolerance: time stamps printed with 6+ significant digits jitter far less; a
-    // missing sample or a changed rate shows as a 100% deviation.
+    // The reference is the median step: a gap or a changed rate in a few places leaves it at
+    // the true step, and the first step off it is where the fault is. 1% tolerance: time stamps
+    // printed with 6+ significant digits jitter far less; a missing sample shows as 100%.
+    let med = median_step(t);
     if let Some(i) = t
         .windows(2)
-        .position(|w| ((w[1] - w[0]) - dt).abs() > 0.01 * dt)
+        .position(|w| ((w[1] - w[0]) - med).abs() > 0.01 * med)
     {
         return Err(Error::Data(format!(
-            "non-uniform sampling at sample {}: step {} s, mean step {dt} s (resample first)",
+            "non-uniform sampling at sample {}: step {} s (t = {} then {}), usual step {med} s \
+             (resample first)",
             i + 1,
-            t[i + 1] - t[i]
+            t[i + 1] - t[i],
+            t[i],
+            t[i + 1]
         )));
     }
-    Ok(dt)
+    Ok((t[t.len() - 1] - t[0]) / (t.len() - 1) as f64)
 }
 
-/// Read the columns `wants` of delimited text: `,`, `;` or tab (detected from the header line),
-/// `#` comments and blank lines skipped, one header line naming the columns, a UTF-8 byte-order
-/// mark (as Windows tools write) ignored. Columns are chosen as in [`column_indices`] (by name, or
-/// by 0-based index when the name is a number). Returns the header's names and the values of
-/// each wanted column, in the order of `wants`.
+/// The header of delimited text and where its data start.
+struct Table<'a> {
+    names: Vec<&'a str>,
+    /// False for a headerless file (names are then the 0-based indices).
+    has_header: bool,
+    delim: char,
+    rows: Vec<(usize, &'a str)>,
+}
+
+/// Split delimited text into header names and data rows. A first line whose fields are all
+/// numbers is a data row of a headerless file.
+fn table(text: &str) -> Result<Table<'_>> {
+    let mut lines = content_lines(text);
+    let (first_no, first) = lines
+        .next()
+        .ok_or_else(|| Error::Data("empty file: no header line and no data".into()))?;
+    let delim = delimiter(first);
+    let fields = split_line(first, delim);
+    let has_header = !is_numeric_row(&fields);
+    let mut rows: Vec<(usize, &str)> = Vec::new();
+    let names: Vec<&str> = if has_header {
+        fields.into_iter().map(unquote).collect()
+    } else {
+        rows.push((first_no, first));
+        Vec::new()
+    };
+    rows.extend(lines);
+    Ok(Table {
+        names,
+        has_header,
+        delim,
+        rows,
+    })
+}
+
+/// Read the columns `wants` of delimited text: `,`, `;` or tab (detected from the first line),
+/// `#` comments and blank lines skipped, one header line naming the columns (quotes around names
+/// and fields removed), a UTF-8 byte-order mark (as Windows tools write) ignored, lines ended by
+/// `\n`, `\r\n` or (in a file with no `\n`) `\r`. Columns are chosen as in [`column_indices`]
+/// (by name, or by 0-based index when the name is a number). A file whose first line is all
+/// numbers has no header: every line is data and columns are chosen by index. Returns the
+/// header's names (the indices for a headerless file) and the values of each wanted column, in
+/// the order of `wants`.
 ///
 /// # Errors
-/// [`Error::Data`] for a missing header or column (listing those found), a name that appears
-/// twice in the header, a column chosen twice, or a field that is missing or not a number (with
-/// its line).
+/// [`Error::Data`] for an empty file, a missing column (listing those found), a column chosen by
+/// name in a headerless file, a name that appears twice in the header, a column chosen twice, or
+/// a field that is missing or not a number (with its line).
 pub fn read_columns<const N: usize>(
     text: &str,
     wants: [&str; N],
 ) -> Result<(Vec<String>, [Vec<f64>; N])> {
-    let mut lines = content_lines(text);
-    let (_, header) = lines
-        .next()
-        .ok_or_else(|| Error::Data("empty file: no header line".into()))?;
-    let delim = delimiter(header);
-    let names = split_line(header, delim);
+    read_columns_at(text, wants).map(|(names, cols, _)| (names, cols))
+}
+
+/// Columns read by [`read_columns_at`]: the header's names, the columns, the line of each row.
+pub type ColumnsAt<const N: usize> = (Vec<String>, [Vec<f64>; N], Vec<usize>);
+
+/// [`read_columns`], also returning the 1-based line number of each row.
+///
+/// # Errors
+/// As [`read_columns`].
+pub fn read_columns_at<const N: usize>(text: &str, wants: [&str; N]) -> Result<ColumnsAt<N>> {
+    let tab = table(text)?;
+    let index_names: Vec<String>;
+    let names: Vec<&str> = if tab.has_header {
+        tab.names.clone()
+    } else {
+        let width = split_line(tab.rows[0].1, tab.delim).len();
+        if let Some(w) = wants.iter().find(|w| w.parse::<usize>().is_err()) {
+            return Err(Error::Data(format!(
+                "the file has no header line (its first line holds only numbers), so there is no \
+                 column '{}': choose the columns by 0-based index (0 to {}), e.g. --t-col 0 \
+                 --u-col 1 --y-col 2 (Python: t=0, u=1, y=2), or give --dt (Python: dt=) when \
+                 there is no time column",
+                shorten(w),
+                width.saturating_sub(1)
+            )));
+        }
+        index_names = (0..width).map(|i| i.to_string()).collect();
+        index_names.iter().map(String::as_str).collect()
+    };
     let idx = column_indices(&names, &wants)?;
     let mut cols: [Vec<f64>; N] = std::array::from_fn(|_| Vec::new());
-    for (lineno, line) in lines {
-        let f = split_line(line, delim);
+    for (lineno, line) in &tab.rows {
+        let f = split_line(line, tab.delim);
         for (col, &i) in cols.iter_mut().zip(&idx) {
             let s = f.get(i).ok_or_else(|| {
                 Error::Data(format!(
                     "line {lineno}: {} fields, column {} missing",
                     f.len(),
-                    names[i]
+                    shorten(names[i])
                 ))
             })?;
+            let s = unquote(s);
             col.push(s.parse::<f64>().map_err(|_| {
                 Error::Data(format!(
-                    "line {lineno}: '{s}' in column {} is not a number",
-                    names[i]
+                    "line {lineno}: '{}' in column {} is not a number",
+                    shorten(s),
+                    shorten(names[i])
                 ))
             })?);
         }
     }
-    Ok((names.into_iter().map(String::from).collect(), cols))
+    let lines = tab.rows.iter().map(|r| r.0).collect();
+    Ok((names.into_iter().map(String::from).collect(), cols, lines))
+}
+
+/// The largest file the readers take (bytes): a bigger one is refused before it fills memory.
+pub const MAX_FILE_BYTES: u64 = 512 << 20;
+/// The longest line of a text table (bytes): a longer one is binary data or a device such as
+/// `/dev/zero`, refused after this much is read.
+pub const MAX_LINE_BYTES: usize = 1 << 20;
+
+/// Read a text table from `path`, bounded: at most [`MAX_FILE_BYTES`], no line longer than
+/// [`MAX_LINE_BYTES`], UTF-8 with no NUL byte (a binary file is refused, not dumped into a
+/// message). Reading stops at the first violation, so `/dev/zero` or a multi-gigabyte file costs
+/// at most one limit's worth of reading.
+///
+/// # Errors
+/// [`Error::Io`] when the file cannot be opened or read; [`Error::Data`] for a file too large, a
+/// line too long, a NUL byte or invalid UTF-8 (with the line and byte where it is).
+pub fn read_text(path: &std::path::Path) -> Result<String> {
+    let bytes = read_bytes(path, true)?;
+    let where_ = |pos: usize| {
+        let line = 1 + bytes[..pos].iter().filter(|&&b| b == b'\n').count();
+        format!("line {line}, byte {pos}")
+    };
+    if let Some(pos) = bytes.iter().position(|&b| b == 0) {
+        return Err(Error::Data(format!(
+            "{} is not a text table: a NUL byte at {} (a binary file? MATLAB files must end in \
+             .mat; UTF-16 text must be saved as UTF-8)",
+            path.display(),
+            where_(pos)
+        )));
+    }
+    String::from_utf8(bytes.clone()).map_err(|e| {
+        Error::Data(format!(
+            "{} is not UTF-8 text: invalid byte at {} (save it as UTF-8, or is it a binary \
+             file?)",
+            path.display(),
+            where_(e.utf8_error().valid_up_to())
+        ))
+    })
+}
+
+/// The bytes of `path`, at most [`MAX_FILE_BYTES`] of them; with `lines`, also no more than
+/// [`MAX_LINE_BYTES`] without a line end (`\n` or `\r`).
+///
+/// # Errors
+/// As [`read_text`].
+pub(crate) fn read_bytes(path: &std::path::Path, lines: bool) -> Result<Vec<u8>> {
+    use std::io::Read;
+    let io = |e: std::io::Error| Error::Io {
+        path: path.display().to_string(),
+        reason: io_reason(&e),
+    };
+    let file = std::fs::File::open(path).map_err(io)?;
+    if let Ok(m) = file.metadata() {
+        if m.is_dir() {
+            return Err(Error::Io {
+                path: path.display().to_string(),
+                reason: "it is a directory".into(),
+            });
+        }
+        if m.len() > MAX_FILE_BYTES {
+            return Err(too_large(path));
+        }
+    }
+    let mut r = file.take(MAX_FILE_BYTES + 1);
+    let mut out = Vec::new();
+    let mut buf = vec![0u8; 1 << 16];
+    let mut run = 0usize; // bytes since the last line end
+    loop {
+        let n = match r.read(&mut buf) {
+            Ok(0) => break,
+            Ok(n) => n,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+            Err(e) => return Err(io(e)),
+        };
+        if lines {
+            for &b in &buf[..n] {
+                run = if b == b'\n' || b == b'\r' { 0 } else { run + 1 };
+                if run > MAX_LINE_BYTES {
+                    return Err(Error::Data(format!(
+                        "{}: line {} is longer than {} bytes: not a text table (a binary file \
+                         or a device?)",
+                        path.display(),
+                        1 + out.iter().filter(|&&c| c == b'\n').count(),
+                        MAX_LINE_BYTES
+                    )));
+                }
+            }
+        }
+        out.extend_from_slice(&buf[..n]);
+        if out.len() as u64 > MAX_FILE_BYTES {
+            return Err(too_large(path));
+        }
+    }
+    Ok(out)
+}
+
+fn too_large(path: &std::path::Path) -> Error {
+    Error::Data(format!(
+        "{} is larger than {} MiB: refused (split or decimate the record)",
+        path.display(),
+        MAX_FILE_BYTES >> 20
+    ))
+}
+
+/// The operating system's reason, without Rust's "(os error N)".
+fn io_reason(e: &std::io::Error) -> String {
+    let s = e.to_string();
+    match s.find(" (os error") {
+        Some(i) => s[..i].to_string(),
+        None => s,
+    }
+}
+
+/// How to read a time record (see [`Record::parse_with`]).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct ReadOptions {
+    /// Which columns (or, in a `.mat` file, variables) hold `t`, `u`, `y`.
+    pub columns: Columns,
+    /// The sampling step (seconds) of a file with no time column: `t = k dt`, the time column is
+    /// not read.
+    pub dt: Option<f64>,
+}
+
+/// What the footer of an acquisition file (as `fracid drive` writes, `crates/drive/PROTOCOL.md`)
+/// says.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Acquisition {
+    /// Not an acquisition file: no `fracid drive` header and no footer.
+    Unknown,
+    /// `# complete: N samples`.
+    Complete,
+    /// `# incomplete: missing samples a..b, ... (reason)`: the text after `missing samples`.
+    Incomplete(String),
+    /// A `fracid drive` header but no footer: the acquisition was interrupted.
+    Interrupted,
+}
+
+impl Acquisition {
+    /// Read the footer (the last `# complete` / `# incomplete` comment) and the header comment
+    /// of delimited text.
+    pub fn of_text(text: &str) -> Self {
+        let mut drive = false;
+        let mut last = Self::Unknown;
+        for line in physical_lines(text) {
+            let Some(c) = line.trim().strip_prefix('#') else {
+                continue;
+            };
+            let c = c.trim();
+            if c.starts_with("fracid drive acquisition") {
+                drive = true;
+            } else if let Some(rest) = c.strip_prefix("incomplete:") {
+                let rest = rest.trim();
+                let rest = rest.strip_prefix("missing samples").unwrap_or(rest).trim();
+                last = Self::Incomplete(shorten_long(rest));
+            } else if c.starts_with("complete:") {
+                last = Self::Complete;
+            }
+        }
+        match last {
+            Self::Unknown if drive => Self::Interrupted,
+            other => other,
+        }
+    }
+}
+
+/// At most 200 characters of a footer's text.
+fn shorten_long(s: &str) -> String {
+    if s.chars().count() <= 200 {
+        s.to_string()
+    } else {
+        format!("{}...", s.chars().take(200).collect::<String>())
+    }
+}
+
+/// The fewest samples a complete part of an incomplete acquisition must have to be fitted.
+pub const MIN_COMPLETE_PART: usize = 50;
+
+/// A record read from a file, with what the reader found and the user must be told.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Loaded {
+    /// The record (for an incomplete acquisition, its longest complete contiguous part).
+    pub record: Record,
+    /// The footer's verdict.
+    pub acquisition: Acquisition,
+    /// The rows of the file kept, `first..end` (0-based among the data rows).
+    pub rows_kept: std::ops::Range<usize>,
+    /// The data rows in the file.
+    pub rows_read: usize,
+    /// Warnings: an incomplete or interrupted acquisition, the part kept.
+    pub warnings: Vec<String>,
+}
+
+/// The longest run of `t` with no gap: steps within 1% of the median step (the uniformity test
+/// of [`sampling_step`]) and increasing.
+fn longest_contiguous(t: &[f64]) -> std::ops::Range<usize> {
+    if t.len() < 3 {
+        return 0..t.len();
+    }
+    let med = median_step(t);
+    let mut best = 0..1;
+    let mut start = 0;
+    for k in 1..=t.len() {
+        let breaks = k == t.len() || {
+            let d = t[k] - t[k - 1];
+            !(d > 0.0 && (d - med).abs() <= 0.01 * med)
+        };
+        if breaks {
+            if k - start > best.len() {
+                best = start..k;
+            }
+            start = k;
+        }
+    }
+    best
 }
 
 impl Record {
@@ -296,6 +647,162 @@ impl Record {
     pub fn parse(text: &str, cols: &Columns) -> Result<Self> {
         let (_, [t, u, y]) = read_columns(text, [&cols.t, &cols.u, &cols.y])?;
         Self::new(t, u, y)
+    }
+
+    /// Parse delimited text as [`Record::parse`] does, with a time column or a given `dt`, and
+    /// honour an acquisition footer: a file marked `# incomplete: missing samples a..b` or a
+    /// `fracid drive` file with no footer (interrupted) is cut to its longest complete contiguous
+    /// part, with a warning naming what is missing; a part of fewer than [`MIN_COMPLETE_PART`]
+    /// samples is refused.
+    ///
+    /// ```
+    /// use ident::data::{ReadOptions, Record, Columns, Acquisition};
+    /// let mut text = String::from("t,u,y\n");
+    /// for k in (0..100).chain(150..160) { text += &format!("{},{},0\n", k as f64 * 0.01, k % 2); }
+    /// text += "# incomplete: missing samples 100..150 (port lost)\n";
+    /// let l = Record::parse_with(&text, &ReadOptions::default()).unwrap();
+    /// assert_eq!(l.record.len(), 100);
+    /// assert!(l.warnings[0].contains("100..150"));
+    /// assert_eq!(l.acquisition, Acquisition::Incomplete("100..150 (port lost)".into()));
+    /// ```
+    ///
+    /// # Errors
+    /// Those of [`read_columns`] and [`Record::new`]; [`Error::Options`] for a non-positive `dt`;
+    /// [`Error::NotEnoughData`] for an incomplete acquisition whose complete part is too short,
+    /// or one without a time column (where the gaps are cannot be told).
+    pub fn parse_with(text: &str, opts: &ReadOptions) -> Result<Loaded> {
+        let cols = &opts.columns;
+        let (t, u, y) = match opts.dt {
+            Some(dt) => {
+                if !(dt > 0.0 && dt.is_finite()) {
+                    return Err(Error::Options(format!(
+                        "dt = {dt}: the sampling step must be a positive number of seconds"
+                    )));
+                }
+                let (_, [u, y]) = read_columns(text, [&cols.u, &cols.y])?;
+                let t = (0..u.len()).map(|k| k as f64 * dt).collect();
+                (t, u, y)
+            }
+            None => {
+                let (_, [t, u, y]) = read_columns(text, [&cols.t, &cols.u, &cols.y])?;
+                (t, u, y)
+            }
+        };
+        Self::checked_part(t, u, y, Acquisition::of_text(text), opts.dt.is_some())
+    }
+
+    /// Cut an incomplete acquisition to its longest complete part, then check.
+    fn checked_part(
+        t: Vec<f64>,
+        u: Vec<f64>,
+        y: Vec<f64>,
+        acquisition: Acquisition,
+        given_dt: bool,
+    ) -> Result<Loaded> {
+        let n = t.len();
+        let what = match &acquisition {
+            Acquisition::Incomplete(m) => Some(format!(
+                "the acquisition is marked incomplete (missing samples {m})"
+            )),
+            Acquisition::Interrupted => Some(
+                "the acquisition was interrupted (a `fracid drive` file with no `# complete` or \
+                 `# incomplete` footer: the end of the run, and any samples lost, are unknown)"
+                    .to_string(),
+            ),
+            _ => None,
+        };
+        let Some(what) = what else {
+            let record = Record::new(t, u, y)?;
+            return Ok(Loaded {
+                record,
+                acquisition,
+                rows_kept: 0..n,
+                rows_read: n,
+                warnings: Vec::new(),
+            });
+        };
+        if given_dt {
+            return Err(Error::NotEnoughData(format!(
+                "{what}, and with --dt (no time column) where samples are missing cannot be told: \
+                 read the time column instead"
+            )));
+        }
+        if t.len() != u.len() || t.len() != y.len() {
+            return Err(Error::Data(format!(
+                "columns have different lengths (t {}, u {}, y {})",
+                t.len(),
+                u.len(),
+                y.len()
+            )));
+        }
+        check_finite("t", &t)?;
+        let part = longest_contiguous(&t);
+        if part.len() < MIN_COMPLETE_PART {
+            return Err(Error::NotEnoughData(format!(
+                "{what}; its longest complete contiguous part has {} samples (at least \
+                 {MIN_COMPLETE_PART} are needed)",
+                part.len()
+            )));
+        }
+        let mut warnings = vec![format!(
+            "{what}: using its longest complete contiguous part, rows {}..{} of {n} \
+             (t = {} s to {} s)",
+            part.start,
+            part.end,
+            t[part.start],
+            t[part.end - 1]
+        )];
+        if part.len() < n {
+            warnings.push(format!(
+                "{} of {n} rows left out (before or after a gap)",
+                n - part.len()
+            ));
+        }
+        let record = Record::new(
+            t[part.clone()].to_vec(),
+            u[part.clone()].to_vec(),
+            y[part.clone()].to_vec(),
+        )?;
+        Ok(Loaded {
+            record,
+            acquisition,
+            rows_kept: part,
+            rows_read: n,
+            warnings,
+        })
+    }
+
+    /// Read a record from a file: a `.mat` file (MATLAB v5/v7, see [`crate::matfile`]) by its
+    /// variables, any other file as delimited text with [`Record::parse_with`], read with the
+    /// bounds of [`read_text`].
+    ///
+    /// # Errors
+    /// Those of [`read_text`] (I/O: [`Error::Io`]), [`Record::parse_with`] and
+    /// [`crate::matfile::read`].
+    pub fn load(path: &std::path::Path, opts: &ReadOptions) -> Result<Loaded> {
+        if crate::matfile::is_mat(path) {
+            let vars = crate::matfile::read(path)?;
+            let cols = &opts.columns;
+            let (t, u, y) = match opts.dt {
+                Some(dt) => {
+                    if !(dt > 0.0 && dt.is_finite()) {
+                        return Err(Error::Options(format!(
+                            "dt = {dt}: the sampling step must be a positive number of seconds"
+                        )));
+                    }
+                    let [u, y] = crate::matfile::columns(&vars, [&cols.u, &cols.y])?;
+                    let t = (0..u.len()).map(|k| k as f64 * dt).collect();
+                    (t, u, y)
+                }
+                None => {
+                    let [t, u, y] = crate::matfile::columns(&vars, [&cols.t, &cols.u, &cols.y])?;
+                    (t, u, y)
+                }
+            };
+            return Self::checked_part(t, u, y, Acquisition::Unknown, opts.dt.is_some());
+        }
+        let text = read_text(path)?;
+        Self::parse_with(&text, opts)
     }
 
     /// Number of samples.

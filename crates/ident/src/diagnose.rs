@@ -1,4 +1,4 @@
-//! Closing the loop: residual diagnosis and the effect library (DESIGN §6).
+//! Closing the loop: residual diagnosis and the effect library (docs/design.md §6).
 //!
 //! After a time-domain fit ([`crate::oe::identify`]), [`diagnose`] looks at what the model cannot
 //! explain, tests the residual against the signature of each effect of the library, refits the
@@ -100,7 +100,7 @@ impl Default for DiagnoseOptions {
 /// An effect kept by the diagnosis.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct KeptEffect {
-    /// Report name (DESIGN §6 table).
+    /// Report name (docs/design.md §6 table).
     pub name: String,
     /// Its fitted parameters (SI units of the record).
     pub params: BTreeMap<String, f64>,
@@ -156,7 +156,7 @@ pub struct BeforeAfter {
     pub after: Fit,
 }
 
-/// The result of [`diagnose`] (serialises to the DESIGN §7 `diagnosis` object).
+/// The result of [`diagnose`] (serialises to the docs/design.md §7 `diagnosis` object).
 #[derive(Debug, Clone, Serialize)]
 pub struct Diagnosis {
     /// Validation fit of the base model (estimation fit when there is no validation part).
@@ -276,7 +276,17 @@ impl Ctx<'_> {
 
     /// Refit `model` (its values are the start) on the estimation part.
     fn refit(&self, mut model: FracModel) -> Result<State> {
+        let levels = model
+            .past
+            .as_ref()
+            .map(|p| p.levels.clone())
+            .unwrap_or_default();
         for (i, p) in model.params.iter_mut().enumerate() {
+            // The initial state restarts from rest: the base fit's levels took up what the
+            // missing effect left in the residual.
+            if levels.contains(&i) {
+                p.value = 0.0;
+            }
             // A parameter the base fit drove to a bound (the missing effect distorted it) restarts
             // from the base fit's own start, or mid-range.
             if p.free && p.bounds.at_edge(p.value) {

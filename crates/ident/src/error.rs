@@ -18,6 +18,14 @@ pub enum Error {
     /// A linear solve or a simulation broke down.
     #[error("numerical breakdown: {0}")]
     Numerical(String),
+    /// A file that cannot be opened or read (the operating system's reason in words).
+    #[error("cannot read {path}: {reason}")]
+    Io {
+        /// The file.
+        path: String,
+        /// Why, as the operating system says it.
+        reason: String,
+    },
     /// An error from the simulation layer.
     #[error(transparent)]
     Sim(#[from] fracsim::Error),

@@ -1,5 +1,6 @@
 //! # ident: fractional-order system identification
 //!
+//! - [`app`]: the application layer the CLI and Python share (presets, option parsing, reports).
 //! - [`levy`]: weighted Levy least squares (Levy 1959) with Vinagre weights (Vinagre 2001) and a
 //!   commensurate-order search; Sanathanan-Koerner iterations; a nonlinear refit of the PMSM
 //!   structure in the frequency domain.
@@ -10,6 +11,8 @@
 //! - [`diagnose`]: residual diagnosis, the effect library, error before and after.
 //! - [`metrics`]: fit measures (NRMSE, RMSE), residual correlations with their bounds.
 
+pub mod app;
+pub mod bodefile;
 pub mod compare;
 pub mod data;
 pub mod diagnose;
@@ -17,6 +20,7 @@ mod error;
 pub mod hold;
 pub mod levy;
 pub mod lm;
+pub mod matfile;
 pub mod metrics;
 pub mod oe;
 

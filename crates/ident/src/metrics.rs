@@ -17,7 +17,7 @@
 
 use serde::Serialize;
 
-/// The two fit figures reported for a data segment (DESIGN §7 `fit.estimation`/`fit.validation`).
+/// The two fit figures reported for a data segment (docs/design.md §7 `fit.estimation`/`fit.validation`).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct Fit {
     /// Root-mean-square error, in the unit of `y`.

@@ -1,5 +1,5 @@
 //! Output-error identification of fractional transfer functions in the time domain
-//! (DESIGN §5; Poinot & Trigeassou 2004; the reference paper's eqs. 12-18).
+//! (docs/design.md §5; Poinot & Trigeassou 2004; the reference paper's eqs. 12-18).
 //!
 //! The residual is `e_k = y_k - yhat_k(theta)` with `yhat` the simulated output of the model on the
 //! measured input; `theta` minimises `sum e_k^2` by Levenberg-Marquardt (Marquardt 1963). The
@@ -32,16 +32,22 @@
 //! println!("{} fit {:.1}%", id.tf, id.validation.unwrap().nrmse_percent);
 //! ```
 
+mod checks;
 pub(crate) mod effects;
 mod fit;
 pub mod init;
+mod joint;
+mod score;
 
 pub use effects::Effect;
 pub use fit::{
-    check_params, fit, fit_with_progress, identify, identify_with_progress, sensitivities,
-    FitOptions, FitReport, IdentOptions, Identification, ParamEstimate, StartMode,
+    check_params, fit, fit_with_progress, identify, identify_with_progress, past_edges,
+    sensitivities, FitOptions, FitReport, IdentOptions, Identification, InitialState,
+    ParamEstimate, StartMode,
 };
 pub use init::{StartMethod, StartReport};
+pub use joint::{identify_joint, JointIdentification};
+pub use score::{score, Scored};
 
 use crate::{Error, Result};
 use fracsim::{ApproxSpec, FracTf, Real, Simulator, Term};
@@ -157,6 +163,19 @@ impl Param {
     }
 }
 
+/// The range a free order `nu` of a parsed model is fitted in: `(0, 2)` for `0 < nu < 2` (the
+/// fractional orders of motor models), `(nu - 1, nu + 1)` above, and the mirror image for
+/// negative orders (`(-2, 0)`, `(nu - 1, nu + 1)`), so an order never changes sign.
+pub fn order_range(nu: f64) -> Bounds {
+    if nu > 0.0 && nu < 2.0 {
+        Bounds::Interval(0.0, 2.0)
+    } else if nu < 0.0 && nu > -2.0 {
+        Bounds::Interval(-2.0, 0.0)
+    } else {
+        Bounds::Interval(nu - 1.0, nu + 1.0)
+    }
+}
+
 /// A linear expression `constant + sum_i c_i p_i` of the parameters, for coefficients and orders
 /// (the PMSM's highest order is `zeta + theta`, the commensurate model's `2 q`).
 #[derive(Debug, Clone, PartialEq, Default)]
@@ -261,6 +280,24 @@ pub struct FracModel {
     pub operating_point: crate::data::Offsets,
     /// The kind (for the automatic start and reports).
     pub kind: Kind,
+    /// The initial state, as a past held input (`None`: the record starts from rest).
+    pub past: Option<PastInput>,
+    /// Whether a free integrator `1/s` was put in series ([`FracModel::with_integrator`]).
+    pub integrator: bool,
+}
+
+/// The initial state of a record as the state a past held input left (MATLAB's `oe` and `compare`
+/// estimate an initial state; this is a low-dimensional, well-conditioned way to do so for a model
+/// with tens of modes): the input deviation was `params[levels[0]]` on `[-edges[0], 0)`,
+/// `params[levels[j]]` on `[-edges[j], -edges[j-1])`, and the last level before `-edges[last]`
+/// (see [`fracsim::Simulator::set_past_input`]). A record that starts in motion, mid-transient or
+/// on a ramp is then simulated from the state its own past left, not from rest.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PastInput {
+    /// Window edges in seconds before the first sample, increasing.
+    pub edges: Vec<f64>,
+    /// Parameter indices of the levels (one more than the edges).
+    pub levels: Vec<usize>,
 }
 
 impl FracModel {
@@ -286,6 +323,8 @@ impl FracModel {
             approx: ApproxSpec::default(),
             operating_point: Default::default(),
             kind: Kind::Pmsm,
+            past: None,
+            integrator: false,
         }
     }
 
@@ -328,7 +367,8 @@ impl FracModel {
 
     /// Any fractional transfer function; `free_coefs` and `free_orders` say which of its
     /// coefficients and orders are fitted (coefficients keep their sign: a negative one is
-    /// parametrised as `-exp(theta)`; orders in `(0, 2)` when free). The delay is fixed at its
+    /// parametrised as `-exp(theta)`; a free order keeps its sign and its neighbourhood, see
+    /// [`order_range`]; order-zero terms keep order zero). The delay is fixed at its
     /// value unless [`FracModel::with_delay`] is called.
     pub fn from_tf(tf: &FracTf, free_coefs: bool, free_orders: bool) -> Self {
         let mut m = Self {
@@ -350,10 +390,11 @@ impl FracModel {
                 if t.coef < 0.0 {
                     ce.terms[0].1 = -1.0;
                 }
-                let oe = if t.order == 0.0 || !free_orders || t.order >= 2.0 {
+                let oe = if t.order == 0.0 || !free_orders {
                     Expr::cst(t.order)
                 } else {
-                    Expr::p(m.add_param(Param::order(&format!("{tag}{j}_order"), t.order)))
+                    let name = format!("{tag}{j}_order");
+                    Expr::p(m.add_param(Param::new(&name, t.order, order_range(t.order))))
                 };
                 if is_num {
                     m.num.push((ce, oe));
@@ -393,11 +434,83 @@ impl FracModel {
         self
     }
 
+    /// Estimate the initial state as a past held input on windows ending `edges` seconds before
+    /// the first sample ([`PastInput`]): adds the levels `u_past0 ..` (free, starting at 0) or
+    /// resets them to 0 when present.
+    pub fn with_past_input(&mut self, edges: Vec<f64>) -> &mut Self {
+        if let Some(old) = self.past.take() {
+            for &i in &old.levels {
+                self.params[i].value = 0.0;
+            }
+            if old.levels.len() == edges.len() + 1 {
+                self.past = Some(PastInput {
+                    edges,
+                    levels: old.levels,
+                });
+                return self;
+            }
+            self.past = Some(old);
+            return self;
+        }
+        let levels = (0..=edges.len())
+            .map(|j| self.add_param(Param::new(&format!("u_past{j}"), 0.0, Bounds::Free)))
+            .collect();
+        self.past = Some(PastInput { edges, levels });
+        self
+    }
+
+    /// Put a free integrator in series, `G(s)/s`, for an output that integrates (a position
+    /// measured where the model is of the speed): every denominator order is raised by one.
+    /// Idempotent.
+    ///
+    /// ```
+    /// use ident::oe::FracModel;
+    /// let mut m = FracModel::pmsm(6.8, 0.006, 2.7e-5, 0.92, 0.82);
+    /// m.with_integrator();
+    /// assert_eq!(m.tf(&m.values()).unwrap().to_string().contains("s^1.92"), true);
+    /// ```
+    pub fn with_integrator(&mut self) -> &mut Self {
+        if !self.integrator {
+            for (_, o) in &mut self.den {
+                o.constant += 1.0;
+            }
+            self.integrator = true;
+        }
+        self
+    }
+
+    /// Whether parameter `i` describes the record (its initial state) rather than the plant.
+    pub fn is_initial_state(&self, i: usize) -> bool {
+        self.past.as_ref().is_some_and(|p| p.levels.contains(&i))
+    }
+
     /// Add a fitted constant output offset (returns its parameter index).
     pub fn with_output_offset(&mut self, c: f64) -> usize {
         let i = self.add_param(Param::new("y_offset", c, Bounds::Free));
         self.effects.push(Effect::OutputOffset { c: i });
         i
+    }
+
+    /// Hold the parameter `name` fixed (at `value` when given), or free it (`fixed = false`).
+    ///
+    /// # Errors
+    /// [`Error::Options`] for no parameter of that name (the message lists them), or a value
+    /// outside its range.
+    pub fn set_fixed(&mut self, name: &str, fixed: bool, value: Option<f64>) -> Result<()> {
+        let Some(i) = self.index_of(name) else {
+            let names: Vec<&str> = self.params.iter().map(|p| p.name.as_str()).collect();
+            return Err(Error::Options(format!(
+                "no parameter '{name}': the model has {}",
+                names.join(", ")
+            )));
+        };
+        let p = &mut self.params[i];
+        if let Some(v) = value {
+            p.bounds.to_theta(v, name)?;
+            p.value = v;
+        }
+        p.free = !fixed;
+        Ok(())
     }
 
     /// Index of the parameter called `name`.
@@ -463,6 +576,10 @@ impl Structure for FracModel {
             dt,
             &self.approx,
         )?;
+        if let Some(past) = &self.past {
+            let levels: Vec<T> = past.levels.iter().map(|&i| p[i]).collect();
+            sim.set_past_input(&levels, &past.edges)?;
+        }
         let (u0, y0) = (self.operating_point.u0, self.operating_point.y0);
         if self.effects.is_empty() {
             sim.run_into(u, y);

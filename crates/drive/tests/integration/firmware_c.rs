@@ -103,3 +103,32 @@ fn c_firmware_records_equal_the_rust_firmware() {
         sr.raw.len()
     );
 }
+
+/// The simulators of the `e2e` and `e2e_control` tests (built with `SimConfig::default()`) run the
+/// firmware `FRACID_SIM_FIRMWARE` names: the C engine when it is `c`, as scripts/test.sh runs them
+/// (its filter `e2e` also selects this test), the Rust firmware otherwise. Without this, a rerun
+/// "against the C firmware" could silently test the Rust one again.
+#[test]
+fn e2e_simulators_run_the_firmware_of_the_environment() {
+    let _g = lock();
+    let want_c = std::env::var("FRACID_SIM_FIRMWARE").is_ok_and(|v| v.eq_ignore_ascii_case("c"));
+    let s = super::e2e::sim(Faults::default(), BAUD, None);
+    assert_eq!(
+        SimConfig::default().firmware,
+        if want_c {
+            FirmwareKind::C
+        } else {
+            FirmwareKind::Rust
+        }
+    );
+    let mut c = client(s.port_path(), BAUD);
+    let acq = c.run_prbs(&short_prbs(), &mut NullSink).unwrap();
+    assert!(acq.complete, "{:?}", acq.problems);
+    let events = s.stats().events;
+    assert_eq!(
+        events.iter().any(|e| e.contains("(C firmware)")),
+        want_c,
+        "FRACID_SIM_FIRMWARE={:?}: {events:?}",
+        std::env::var("FRACID_SIM_FIRMWARE").ok()
+    );
+}

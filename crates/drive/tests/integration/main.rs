@@ -4,6 +4,7 @@
 mod e2e;
 mod e2e_control;
 mod firmware_c;
+mod loss;
 mod props;
 mod sine;
 mod vectors;

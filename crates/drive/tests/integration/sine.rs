@@ -167,8 +167,10 @@ fn repeats_shrink_the_error_and_report_the_noise() {
     sweep.repeats = 10;
     let mut singles = Vec::new();
     let (pts, problems) = c
-        .run_sine_sweep_with(&sweep, &mut |p, rep| {
-            singles.push((*p, rep));
+        .run_sine_sweep_with(&sweep, &mut |ev| {
+            if let drive::client::SweepEvent::Repeat(p, rep) = ev {
+                singles.push((*p, rep));
+            }
             Ok(())
         })
         .unwrap();

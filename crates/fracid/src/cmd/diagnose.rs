@@ -1,4 +1,4 @@
-//! `--diagnose` for `fracid time` and `fracid freq`: the readable report, the DESIGN §7
+//! `--diagnose` for `fracid time` and `fracid freq`: the readable report, the docs/design.md §7
 //! `diagnosis` JSON object, and the residual before/after plot. The subcommands call these.
 
 use crate::plot::{self, Figure};
@@ -20,7 +20,7 @@ pub fn run_time(rec: &Record, id: &Identification) -> Result<Diagnosis> {
     diagnose(rec, id, &DiagnoseOptions::default()).context("diagnosing the residual")
 }
 
-/// The `diagnosis` JSON object (DESIGN §7) with the final model (`model`: num, den, delay and the
+/// The `diagnosis` JSON object (docs/design.md §7) with the final model (`model`: num, den, delay and the
 /// effects' names).
 ///
 /// # Errors
@@ -29,15 +29,9 @@ pub fn json(d: &Diagnosis) -> Result<serde_json::Value> {
     let mut v = serde_json::to_value(d)?;
     let p: Vec<f64> = d.model.params.iter().map(|p| p.value).collect();
     if let Ok(tf) = d.model.tf(&p) {
-        let terms = |t: &[fracsim::Term]| -> Vec<serde_json::Value> {
-            t.iter()
-                .map(|t| serde_json::json!({"coef": t.coef, "order": t.order}))
-                .collect()
-        };
-        v["model"] = serde_json::json!({
-            "num": terms(&tf.num), "den": terms(&tf.den), "delay": tf.delay, "text": tf.to_string(),
-            "effects": d.model.effects.iter().map(|e| e.name()).collect::<Vec<_>>(),
-        });
+        v["model"] = serde_json::to_value(ident::app::ModelReport::from(&tf))?;
+        v["model"]["effects"] =
+            serde_json::json!(d.model.effects.iter().map(|e| e.name()).collect::<Vec<_>>());
     }
     Ok(v)
 }
@@ -48,7 +42,7 @@ fn fit_row(f: &ident::metrics::Fit) -> String {
 
 /// The readable report of a time-domain diagnosis.
 pub fn text(d: &Diagnosis) -> String {
-    let mut o = String::from("\nresidual diagnosis (DESIGN section 6):\n");
+    let mut o = String::from("\nresidual diagnosis (docs/design.md §6):\n");
     let _ = writeln!(
         o,
         "  estimation: before {} -> after {}",

@@ -1,11 +1,14 @@
 //! `fracid drive ...`: the drive simulator and acquisition from a drive over a serial port.
 
 use crate::cmd::BadInput;
-use crate::interrupt::StopOnInterrupt;
+use crate::interrupt::{Interrupted, StopOnInterrupt};
 use anyhow::{Context, Result};
-use drive::client::{Client, ClientConfig, CsvSink, PrbsTest, Progress, SineSweep};
-use drive::protocol::Configure;
-use drive::sim::{DriveSim, Effects, FaultAt, Faults, SimConfig};
+use drive::bode::BodePoint;
+use drive::client::{
+    Client, ClientConfig, CsvSink, LazyFile, PrbsTest, Progress, SineSweep, SweepEvent,
+};
+use drive::protocol::{Configure, MAX_BLOCK_SAMPLES};
+use drive::sim::{DriveSim, Effects, FaultAt, Faults, FirmwareKind, SimConfig};
 use std::io::{IsTerminal, Write};
 use std::path::PathBuf;
 use std::time::Duration;
@@ -129,6 +132,19 @@ pub struct SimArgs {
     /// Log simulator events to stderr.
     #[arg(long, short)]
     pub verbose: bool,
+    /// Firmware behind the pty: `rust` (the simulator's own) or `c` (the C firmware of
+    /// `firmware/`, as flashed on the F2812). Default: rust, or `c` if FRACID_SIM_FIRMWARE=c.
+    #[arg(long, value_enum)]
+    pub firmware: Option<SimFirmware>,
+}
+
+/// The firmware of `fracid drive sim --firmware`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum SimFirmware {
+    /// The simulator's Rust implementation of the protocol.
+    Rust,
+    /// The C firmware (`firmware/`, fracfw) linked into the simulator.
+    C,
 }
 
 /// Options of `fracid drive prbs`.
@@ -258,19 +274,12 @@ fn fault_at(at: Option<u64>, ms: u64) -> Option<FaultAt> {
 
 fn sim(a: SimArgs) -> Result<()> {
     let model: fracsim::FracTf = a.model.parse().context("--model")?;
-    for (name, v) in [
-        ("--ber", a.ber),
-        ("--drop-rate", a.drop_rate),
-        ("--burst-rate", a.burst_rate),
-        ("--corrupt-frames", a.corrupt_frames),
-    ] {
-        if !(0.0..=1.0).contains(&v) {
-            crate::bad_input!("{name} must be in [0, 1], got {v}");
+    if let Some(d) = a.duration {
+        if !(d.is_finite() && d > 0.0) {
+            crate::bad_input!("--duration must be a finite number of seconds > 0, got {d}");
         }
     }
-    if a.baud == 0 {
-        crate::bad_input!("--baud must be positive");
-    }
+    // Effects, faults and the baud rate are checked by the simulator (exit 2 when out of range).
     let cfg = SimConfig {
         model,
         baud: a.baud,
@@ -296,7 +305,16 @@ fn sim(a: SimArgs) -> Result<()> {
         },
         link: a.link,
         verbose: a.verbose,
+        firmware: match a.firmware {
+            Some(SimFirmware::Rust) => FirmwareKind::Rust,
+            Some(SimFirmware::C) => FirmwareKind::C,
+            None => FirmwareKind::from_env(),
+        },
         ..SimConfig::default()
+    };
+    let firmware = match cfg.firmware {
+        FirmwareKind::C => "C",
+        FirmwareKind::Rust => "Rust",
     };
     let s = DriveSim::spawn(cfg).map_err(lib_err)?;
     let mut out = std::io::stdout().lock();
@@ -304,7 +322,7 @@ fn sim(a: SimArgs) -> Result<()> {
     out.flush()?;
     drop(out);
     eprintln!(
-        "drive simulator at {} ({} baud); stop with Ctrl-C",
+        "drive simulator ({firmware} firmware) at {} ({} baud); stop with Ctrl-C",
         s.port_path(),
         a.baud
     );
@@ -326,7 +344,39 @@ fn sim(a: SimArgs) -> Result<()> {
     Ok(())
 }
 
-fn connect(p: &PortArgs) -> Result<(Client, Configure)> {
+/// The drive configuration from the options, checked before anything is opened (exit 2).
+fn port_conf(p: &PortArgs) -> Result<Configure> {
+    if p.baud == 0 {
+        crate::bad_input!("--baud must be positive");
+    }
+    if p.timeout_ms.is_some_and(|t| !(1..=60_000).contains(&t)) {
+        crate::bad_input!("--timeout-ms must be in 1..=60000");
+    }
+    if p.retries > 100 {
+        crate::bad_input!("--retries must be at most 100, got {}", p.retries);
+    }
+    if p.sample_rate == 0 {
+        crate::bad_input!("--sample-rate must be positive");
+    }
+    if !(1..=MAX_BLOCK_SAMPLES).contains(&p.block) {
+        crate::bad_input!(
+            "--block must be in 1..={MAX_BLOCK_SAMPLES}, got {}",
+            p.block
+        );
+    }
+    if !(p.u_limit > 0.0 && p.u_limit <= 32.767) {
+        crate::bad_input!("--u-limit must be in (0, 32.767] V, got {}", p.u_limit);
+    }
+    Ok(Configure {
+        sample_rate_hz: p.sample_rate,
+        block_samples: p.block,
+        u_limit: (p.u_limit * 1000.0).round() as i16,
+        ..Configure::default()
+    })
+}
+
+/// Open the port, check the sample rate against the drive's, configure.
+fn connect(p: &PortArgs, conf: &Configure) -> Result<Client> {
     let cfg = ClientConfig {
         baud: p.baud,
         timeout: p.timeout_ms.map(Duration::from_millis),
@@ -336,19 +386,52 @@ fn connect(p: &PortArgs) -> Result<(Client, Configure)> {
     let mut c = Client::open(&p.port, cfg)
         .map_err(lib_err)
         .with_context(|| format!("connecting to the drive at {}", p.port))?;
-    if !(p.u_limit > 0.0 && p.u_limit <= 32.767) {
-        crate::bad_input!("--u-limit must be in (0, 32.767] V");
+    if let Some(h) = c.drive_info() {
+        if conf.sample_rate_hz > h.max_sample_rate_hz {
+            crate::bad_input!(
+                "--sample-rate {} Hz is above the drive's maximum, {} Hz",
+                conf.sample_rate_hz,
+                h.max_sample_rate_hz
+            );
+        }
     }
-    let conf = Configure {
-        sample_rate_hz: p.sample_rate,
-        block_samples: p.block,
-        u_limit: (p.u_limit * 1000.0).round() as i16,
-        ..Configure::default()
-    };
-    c.configure(&conf)
+    c.configure(conf)
         .map_err(lib_err)
         .context("configuring the drive")?;
-    Ok((c, conf))
+    Ok(c)
+}
+
+/// The output file, created only when the run's first data arrive ([`LazyFile`]); a path that
+/// cannot be written fails here, before the drive is asked anything (exit 3).
+fn output_file(path: &std::path::Path) -> Result<LazyFile> {
+    LazyFile::new(path).context("cannot write the output file")
+}
+
+/// The voltage levels a command holds (raw units), against the drive's clamp: exit 2 when every
+/// level is beyond it (the drive would clamp the whole excitation away), a warning when some are.
+fn check_levels(levels: &[(&str, i32)], conf: &Configure) -> Result<()> {
+    let lim = i32::from(conf.u_limit);
+    let v = |raw: i32| raw as f64 * conf.u_lsb();
+    let beyond: Vec<String> = levels
+        .iter()
+        .filter(|(_, raw)| raw.abs() > lim)
+        .map(|(name, raw)| format!("{name} {} V", v(*raw)))
+        .collect();
+    if beyond.len() == levels.len() {
+        crate::bad_input!(
+            "every level of the excitation ({}) is beyond the drive's voltage clamp of +-{} V (--u-limit): the drive would hold the clamp and nothing would be excited",
+            beyond.join(", "),
+            v(lim)
+        );
+    }
+    if !beyond.is_empty() {
+        eprintln!(
+            "warning: {} beyond the drive's voltage clamp of +-{} V: those samples will be clamped",
+            beyond.join(", "),
+            v(lim)
+        );
+    }
+    Ok(())
 }
 
 fn progress_bar(quiet: bool, unit: &str) -> Option<indicatif::ProgressBar> {
@@ -375,7 +458,8 @@ fn attach(c: &mut Client, pb: &Option<indicatif::ProgressBar>) {
 }
 
 fn prbs(a: PrbsArgs) -> Result<()> {
-    let (mut c, _) = connect(&a.port)?;
+    // Everything is checked before the output is touched or the drive asked anything.
+    let conf = port_conf(&a.port)?;
     let test = PrbsTest {
         order: a.order,
         seed: a.seed,
@@ -385,71 +469,95 @@ fn prbs(a: PrbsArgs) -> Result<()> {
         periods: a.periods,
         settle_s: a.settle,
     };
-    let file = std::fs::File::create(&a.output)
-        .with_context(|| format!("creating {}", a.output.display()))?;
-    let mut sink = CsvSink::new(file);
+    if !(a.settle.is_finite() && a.settle >= 0.0) {
+        crate::bad_input!("--settle must be a finite number of seconds >= 0");
+    }
+    let cmd = test.to_command(&conf).map_err(lib_err)?;
+    let (off, amp) = (i32::from(cmd.offset), i32::from(cmd.amplitude));
+    check_levels(
+        &[("high level", off + amp), ("low level", off - amp)],
+        &conf,
+    )?;
+    let mut sink = CsvSink::new(output_file(&a.output)?);
+    let mut c = connect(&a.port, &conf)?;
     let pb = progress_bar(a.port.quiet, "samples");
     attach(&mut c, &pb);
-    // Ctrl-C stops the drive; the record keeps what arrived and its footer says what is missing.
-    let ctrl_c = StopOnInterrupt::arm(c.stop_handle());
+    // The first SIGINT/SIGTERM/SIGHUP stops the drive; the record keeps what arrived and its
+    // footer says what is missing.
+    let signals = StopOnInterrupt::arm(c.stop_handle());
     let acq = c.run_prbs(&test, &mut sink).map_err(lib_err);
-    let interrupted = ctrl_c.interrupted();
-    drop(ctrl_c);
-    let acq = acq?;
+    let signal = signals.signal();
+    drop(signals);
     if let Some(pb) = pb {
         pb.finish_and_clear();
     }
-    sink.into_inner()
-        .with_context(|| format!("writing {}", a.output.display()))?;
-    if acq.complete {
-        eprintln!(
-            "{}: {} samples, complete{}",
-            a.output.display(),
-            acq.index.len(),
-            if interrupted {
-                " (interrupted after the run had ended)"
+    let written = sink
+        .into_inner()
+        .and_then(|mut f| f.flush().map(|_| f.is_created()))
+        .with_context(|| format!("writing {}", a.output.display()));
+    let acq = acq.context("the PRBS run")?;
+    written?;
+    let missing: Vec<String> = acq
+        .missing
+        .iter()
+        .map(|r| format!("{}..{}", r.start, r.end))
+        .collect();
+    let summary = format!(
+        "{}: {} samples kept{}",
+        a.output.display(),
+        acq.index.len(),
+        if acq.complete {
+            String::new()
+        } else {
+            format!(
+                ", run incomplete ({}), missing samples {}",
+                acq.problems.join("; "),
+                if missing.is_empty() {
+                    "none".to_string()
+                } else {
+                    missing.join(", ")
+                }
+            )
+        }
+    );
+    for w in acq.warnings() {
+        eprintln!("warning: {w}");
+    }
+    if let Some(signal) = signal {
+        if acq.complete {
+            eprintln!("{summary}, complete (the signal came after the run had ended)");
+        }
+        return Err(Interrupted {
+            signal,
+            message: format!("drive stopped; {summary}"),
+        }
+        .into());
+    }
+    if acq.excitation_missing() {
+        return Err(anyhow::anyhow!(
+            "{summary}; no excitation: the input is constant after the settling part{} (see the file's comments)",
+            if acq.clamped_blocks > 0 {
+                ", clamped by the drive"
             } else {
                 ""
             }
-        );
+        ));
+    }
+    if acq.complete {
+        eprintln!("{summary}, complete");
+        Ok(())
+    } else if a.allow_incomplete {
+        eprintln!("warning: {summary}");
         Ok(())
     } else {
-        let missing: Vec<String> = acq
-            .missing
-            .iter()
-            .map(|r| format!("{}..{}", r.start, r.end))
-            .collect();
-        let msg = format!(
-            "{}: {}run incomplete ({}); {} samples kept, missing samples {}",
-            a.output.display(),
-            if interrupted {
-                "interrupted (Ctrl-C), drive stopped; "
-            } else {
-                ""
-            },
-            acq.problems.join("; "),
-            acq.index.len(),
-            if missing.is_empty() {
-                "none".to_string()
-            } else {
-                missing.join(", ")
-            }
-        );
-        if a.allow_incomplete {
-            eprintln!("warning: {msg}");
-            Ok(())
-        } else {
-            Err(anyhow::anyhow!(msg))
-        }
+        Err(anyhow::anyhow!(summary))
     }
 }
 
-/// The file of single repeats (header written), if any: `--repeats-out`, or by default with
-/// `--repeats` above 1 the output's name with `.repeats.csv` appended.
-fn open_repeats_file(
-    a: &SineArgs,
-    conf: &drive::protocol::Configure,
-) -> Result<Option<(std::io::BufWriter<std::fs::File>, PathBuf)>> {
+/// The file of single repeats, if any: `--repeats-out`, or by default with `--repeats` above 1
+/// the output's name with `.repeats.csv` appended. Like the Bode table it is created with the
+/// first repeat measured.
+fn open_repeats_file(a: &SineArgs, conf: &Configure) -> Result<Option<RepeatsFile>> {
     let path = match &a.repeats_out {
         Some(p) => p.clone(),
         None if a.repeats > 1 => {
@@ -459,23 +567,46 @@ fn open_repeats_file(
         }
         None => return Ok(None),
     };
-    let f = std::fs::File::create(&path).with_context(|| format!("creating {}", path.display()))?;
-    let mut w = std::io::BufWriter::new(f);
-    writeln!(
-        w,
-        "# fracid drive sine: single repeats as measured, {} V around {} V, {} Hz sampling\n{}",
-        a.amplitude,
-        a.offset,
-        conf.sample_rate_hz,
-        drive::bode::REPEATS_HEADER
-    )
-    .and_then(|_| w.flush())
-    .with_context(|| format!("writing {}", path.display()))?;
-    Ok(Some((w, path)))
+    Ok(Some(RepeatsFile {
+        w: std::io::BufWriter::new(output_file(&path)?),
+        header: format!(
+            "# fracid drive sine: single repeats as measured, {} V around {} V, {} Hz sampling\n{}",
+            a.amplitude,
+            a.offset,
+            conf.sample_rate_hz,
+            drive::bode::REPEATS_HEADER
+        ),
+        rows: 0,
+        path,
+    }))
 }
 
-fn sine(a: SineArgs) -> Result<()> {
-    let (mut c, conf) = connect(&a.port)?;
+/// The single repeats of a sweep, one line each as measured ([`drive::bode::write_repeat_line`]).
+struct RepeatsFile {
+    w: std::io::BufWriter<LazyFile>,
+    header: String,
+    rows: usize,
+    path: PathBuf,
+}
+
+impl RepeatsFile {
+    fn repeat(&mut self, p: &BodePoint, rep: u32) -> std::io::Result<()> {
+        let r = (|| {
+            if self.rows == 0 {
+                writeln!(self.w, "{}", self.header)?;
+            }
+            drive::bode::write_repeat_line(&mut self.w, p, rep)?;
+            self.rows += 1;
+            self.w.flush()
+        })();
+        r.map_err(|e| {
+            std::io::Error::new(e.kind(), format!("writing {}: {e}", self.path.display()))
+        })
+    }
+}
+
+/// The sweep from the options, checked (exit 2).
+fn sine_sweep(a: &SineArgs, conf: &Configure) -> Result<SineSweep> {
     let mut sweep = SineSweep::log(a.f_min, a.f_max, a.points);
     if let Some(f) = &a.freqs {
         sweep.freqs_hz = f.clone();
@@ -490,50 +621,90 @@ fn sine(a: SineArgs) -> Result<()> {
             conf.sample_rate_hz
         );
     }
+    let raw = |v: f64, name: &str| -> Result<i32> {
+        let r = (v / conf.u_lsb()).round();
+        if !(r.is_finite() && r.abs() <= 32767.0) {
+            crate::bad_input!("{name} {v} V is out of the command range");
+        }
+        Ok(r as i32)
+    };
+    let (amp, off) = (raw(a.amplitude, "--amplitude")?, raw(a.offset, "--offset")?);
+    if amp <= 0 {
+        crate::bad_input!("--amplitude must be > 0 V");
+    }
+    if !(a.min_settle.is_finite() && a.min_settle >= 0.0) {
+        crate::bad_input!("--min-settle must be a finite number of seconds >= 0");
+    }
+    if a.cycles == 0 {
+        crate::bad_input!("--cycles must be at least 1");
+    }
+    check_levels(&[("crest", off + amp), ("trough", off - amp)], conf)?;
     sweep.amplitude_v = a.amplitude;
     sweep.offset_v = a.offset;
     sweep.cycles = a.cycles;
     sweep.settle_cycles = a.settle_cycles;
     sweep.min_settle_s = a.min_settle;
     sweep.stream = a.stream;
-    sweep.repeats = a.repeats;
-    let mut reps_file = open_repeats_file(&a, &conf)?;
-    let pb = progress_bar(a.port.quiet, "frequencies");
-    attach(&mut c, &pb);
-    // Ctrl-C stops the drive; the frequencies measured so far are written, the rest listed.
-    let ctrl_c = StopOnInterrupt::arm(c.stop_handle());
-    let swept = c
-        .run_sine_sweep_with(&sweep, &mut |p, rep| {
-            if let Some((w, path)) = reps_file.as_mut() {
-                drive::bode::write_repeat_line(&mut *w, p, rep)
-                    .and_then(|_| w.flush())
-                    .map_err(|e| {
-                        drive::Error::Io(std::io::Error::new(
-                            e.kind(),
-                            format!("writing {}: {e}", path.display()),
-                        ))
-                    })?;
-            }
-            Ok(())
-        })
-        .map_err(lib_err);
-    let interrupted = ctrl_c.interrupted();
-    drop(ctrl_c);
-    let (points, mut problems) = swept?;
-    if interrupted {
-        problems.push("interrupted (Ctrl-C): sweep stopped".into());
+    if a.repeats == 0 {
+        crate::bad_input!("--repeats must be at least 1");
     }
+    sweep.repeats = a.repeats;
+    Ok(sweep)
+}
+
+/// The Bode table of a sweep, written point by point as they are measured (each frequency's point
+/// once its repeats are done): the header with the first point (a sweep that measures nothing
+/// leaves the file untouched), a footer `# complete: N frequencies` or
+/// `# incomplete: missing frequencies (Hz) ... (reason)` at the end. Rows as
+/// [`drive::bode::write_csv`] writes them (with the spread columns when the sweep repeats).
+struct BodeFile {
+    w: std::io::BufWriter<LazyFile>,
+    header: String,
+    spread: bool,
+    rows: usize,
+}
+
+impl BodeFile {
+    fn point(&mut self, p: &BodePoint) -> std::io::Result<()> {
+        if self.rows == 0 {
+            for line in self.header.lines() {
+                writeln!(self.w, "# {line}")?;
+            }
+            drive::bode::write_csv_columns(&mut self.w, self.spread)?;
+        }
+        drive::bode::write_csv_row(&mut self.w, p, self.spread)?;
+        self.rows += 1;
+        self.w.flush()
+    }
+
+    /// Problems and the footer; whether the file was written at all.
+    fn finish(mut self, problems: &[String], unmeasured: &[String]) -> std::io::Result<bool> {
+        if self.rows == 0 {
+            return Ok(false);
+        }
+        for p in problems {
+            writeln!(self.w, "# problem: {p}")?;
+        }
+        if unmeasured.is_empty() {
+            writeln!(self.w, "# complete: {} frequencies", self.rows)?;
+        } else {
+            let reason = problems.last().map_or("not measured", String::as_str);
+            writeln!(
+                self.w,
+                "# incomplete: missing frequencies (Hz) {} ({reason})",
+                unmeasured.join(", ")
+            )?;
+        }
+        self.w.flush()?;
+        Ok(true)
+    }
+}
+
+fn sine(a: SineArgs) -> Result<()> {
+    let conf = port_conf(&a.port)?;
+    let sweep = sine_sweep(&a, &conf)?;
     // The drive measures at the whole-cycle frequency nearest each request.
     let applied = sweep.applied_freqs_hz(conf.sample_rate_hz);
-    let unmeasured: Vec<String> = sweep
-        .freqs_hz
-        .iter()
-        .zip(&applied)
-        .filter(|(_, fa)| {
-            !fa.is_some_and(|fa| points.iter().any(|p| (p.freq_hz - fa).abs() <= 1e-9 * fa))
-        })
-        .map(|(f, _)| f.to_string())
-        .collect();
     let moved: Vec<String> = sweep
         .freqs_hz
         .iter()
@@ -543,66 +714,117 @@ fn sine(a: SineArgs) -> Result<()> {
                 .map(|fa| format!("{f} -> {fa}"))
         })
         .collect();
-    if let Some(pb) = pb {
-        pb.finish_and_clear();
-    }
-    let file = std::fs::File::create(&a.output)
-        .with_context(|| format!("creating {}", a.output.display()))?;
-    let mut comment = format!(
-        "fracid drive sine sweep: {} V around {} V, {} cycles, {} Hz sampling; gain (rad/s)/V",
-        a.amplitude, a.offset, a.cycles, conf.sample_rate_hz
-    );
-    comment += &format!(
-        "\n{}",
+    let mut header = format!(
+        "fracid drive sine sweep: {} V around {} V, {} cycles, {} Hz sampling; gain (rad/s)/V\n{}",
+        a.amplitude,
+        a.offset,
+        a.cycles,
+        conf.sample_rate_hz,
         drive::bode::hold_line(1.0 / f64::from(conf.sample_rate_hz))
     );
-    comment +=
+    header +=
         "\nfrequencies applied so the window holds whole cycles (requested Hz -> applied Hz):";
-    comment += &if moved.is_empty() {
+    header += &if moved.is_empty() {
         " all as requested".to_string()
     } else {
         format!(" {}", moved.join(", "))
     };
     if a.repeats > 1 {
-        comment += &format!(
+        header += &format!(
             "\n{} repeats per frequency: trimmed mean (largest and smallest gain dropped, likewise the phase); \
              gain_db_std, phase_deg_std: sample standard deviations of the repeats",
             a.repeats
         );
     }
-    for p in &problems {
-        comment += &format!("\nproblem: {p}");
+    let mut file = BodeFile {
+        w: std::io::BufWriter::new(output_file(&a.output)?),
+        header,
+        spread: sweep.repeats > 1,
+        rows: 0,
+    };
+    let mut reps_file = open_repeats_file(&a, &conf)?;
+    let mut c = connect(&a.port, &conf)?;
+    let pb = progress_bar(a.port.quiet, "frequencies");
+    attach(&mut c, &pb);
+    // The first SIGINT/SIGTERM/SIGHUP stops the drive; the points measured so far are in the
+    // file, the rest listed in its footer.
+    let signals = StopOnInterrupt::arm(c.stop_handle());
+    let swept = c
+        .run_sine_sweep_with(&sweep, &mut |ev| match ev {
+            SweepEvent::Repeat(p, rep) => match reps_file.as_mut() {
+                Some(r) => r.repeat(p, rep),
+                None => Ok(()),
+            },
+            SweepEvent::Point(p) => file.point(p),
+        })
+        .map_err(lib_err);
+    let signal = signals.signal();
+    drop(signals);
+    if let Some(pb) = pb {
+        pb.finish_and_clear();
     }
-    if !unmeasured.is_empty() {
-        comment += &format!("\nmissing frequencies (Hz): {}", unmeasured.join(", "));
+    let (points, mut problems) = match swept {
+        Ok(r) => r,
+        Err(e) => {
+            // Keep what was measured before the failure, with a footer.
+            let _ = file.finish(&[format!("{e:#}")], &["(sweep failed)".into()]);
+            return Err(e.context(format!("the sine sweep ({})", a.output.display())));
+        }
+    };
+    if let Some(s) = signal {
+        problems.push(format!(
+            "interrupted by {}: sweep stopped",
+            crate::interrupt::signal_name(s)
+        ));
     }
-    drive::bode::write_csv(std::io::BufWriter::new(file), &points, &comment)
+    let unmeasured: Vec<String> = sweep
+        .freqs_hz
+        .iter()
+        .zip(&applied)
+        .filter(|(_, fa)| {
+            !fa.is_some_and(|fa| points.iter().any(|p| (p.freq_hz - fa).abs() <= 1e-9 * fa))
+        })
+        .map(|(f, _)| f.to_string())
+        .collect();
+    let written = file
+        .finish(&problems, &unmeasured)
         .with_context(|| format!("writing {}", a.output.display()))?;
     for p in &problems {
         eprintln!("warning: {p}");
     }
-    eprintln!(
-        "{}: {} of {} frequencies",
+    let summary = format!(
+        "{}: {} of {} frequencies{}",
         a.output.display(),
         points.len(),
-        sweep.freqs_hz.len()
+        sweep.freqs_hz.len(),
+        if written {
+            ""
+        } else {
+            " (nothing measured: the file was not written)"
+        }
     );
+    if let Some(signal) = signal {
+        return Err(Interrupted {
+            signal,
+            message: format!("drive stopped; {summary}"),
+        }
+        .into());
+    }
     if !unmeasured.is_empty() {
         return Err(anyhow::anyhow!(
-            "{}{} frequencies could not be measured ({} Hz)",
-            if interrupted {
-                "interrupted (Ctrl-C), drive stopped: "
-            } else {
-                ""
-            },
+            "{summary}; {} frequencies could not be measured ({} Hz)",
             unmeasured.len(),
             unmeasured.join(", ")
         ));
     }
+    eprintln!("{summary}");
     Ok(())
 }
 
 fn status(a: StatusArgs) -> Result<()> {
+    if a.baud == 0 {
+        crate::bad_input!("--baud must be positive");
+    }
     let cfg = ClientConfig {
         baud: a.baud,
         ..ClientConfig::default()
@@ -612,13 +834,18 @@ fn status(a: StatusArgs) -> Result<()> {
         .with_context(|| format!("connecting to {}", a.port))?;
     let h = c.drive_info().context("no HELLO reply")?;
     let s = c.status().map_err(lib_err)?;
-    println!(
+    // Written, not printed: a full or closed stdout is an I/O error (exit 3), not a panic.
+    let mut out = std::io::stdout().lock();
+    writeln!(
+        out,
         "drive at {}: protocol {}, firmware {}.{}, {} channels, blocks up to {} samples, up to {} Hz, boot id {:#06x}",
         a.port, h.proto_version, h.fw_major, h.fw_minor, h.n_channels, h.max_block_samples, h.max_sample_rate_hz, h.boot_id
-    );
-    println!(
+    )?;
+    writeln!(
+        out,
         "state {:?}, fault {}, run {} ({} samples, {} blocks dropped, {} clamped), {} receive errors",
         s.state, s.fault, s.run_id, s.samples_done, s.blocks_dropped, s.clamped, s.rx_errors
-    );
+    )?;
+    out.flush().context("writing to stdout")?;
     Ok(())
 }

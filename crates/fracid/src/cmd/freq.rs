@@ -1,4 +1,4 @@
-//! `fracid freq FILE`: identify a fractional model from Bode data (DESIGN section 4).
+//! `fracid freq FILE`: identify a fractional model from Bode data (docs/design.md §4).
 //!
 //! Reads `freq_hz,gain_db,phase_deg` (other units and names by flags), fits Levy's weighted least
 //! squares with an order search ([`ident::levy::fit_bode`]), optionally Sanathanan-Koerner
@@ -21,7 +21,8 @@ use std::path::{Path, PathBuf};
 #[derive(Debug, clap::Args)]
 pub struct FreqArgs {
     /// Bode data: CSV with a header, columns `freq_hz,gain_db,phase_deg` by default; `,` `;` or
-    /// tab separated; `#` starts a comment. A file without a header is read by position.
+    /// tab separated; `#` starts a comment; or a MATLAB v5/v7 .mat file with variables of those
+    /// names. A table without a header needs --columns (by index) and the unit flags.
     pub file: PathBuf,
     /// The frequency column is omega in rad/s (default name `omega_rad_s`), not Hz.
     #[arg(long)]
@@ -32,7 +33,8 @@ pub struct FreqArgs {
     /// The phase column is in radians (default name `phase_rad`), not degrees.
     #[arg(long)]
     pub radians: bool,
-    /// Column names: FREQ,GAIN,PHASE.
+    /// Column names: FREQ,GAIN,PHASE (or 0-based indices, e.g. 0,1,2: needed for a table with no
+    /// header line).
     #[arg(long, value_name = "FREQ,GAIN,PHASE")]
     pub columns: Option<String>,
     /// Denominator degree n (in powers of s^q).
@@ -70,7 +72,7 @@ pub struct FreqArgs {
     /// Also evaluate J for this model (e.g. a published one); repeatable.
     #[arg(long, value_name = "MODEL")]
     pub compare: Vec<String>,
-    /// Diagnose the residual of the best model (delay, extra pole; DESIGN section 6) and refit
+    /// Diagnose the residual of the best model (delay, extra pole; docs/design.md §6) and refit
     /// with what pays.
     #[arg(long)]
     pub diagnose: bool,
@@ -81,12 +83,15 @@ pub struct FreqArgs {
     /// else none; `none`: the table is the plant's continuous response.
     #[arg(long, default_value = "auto", value_name = "SECONDS|auto|none")]
     pub hold: String,
-    /// Print JSON (DESIGN section 7) instead of the table.
+    /// Print JSON (docs/design.md §7) instead of the table.
     #[arg(long)]
     pub json: bool,
     /// Draw the Bode plot (magnitude, phase) with each model, and J(q), to FILE (.png or .svg).
     #[arg(long, value_name = "FILE")]
     pub plot: Option<PathBuf>,
+    /// Fleet mode (many files at once): see `fracid::cmd::fleet`.
+    #[command(flatten)]
+    pub fleet: super::fleet::FleetArgs,
 }
 
 /// Bode data read from a file.
@@ -105,39 +110,6 @@ pub struct BodeData {
     pub spread_se: Option<Vec<(f64, f64)>>,
 }
 
-/// The spread columns' standard errors, if the header has `gain_db_std` and `phase_deg_std`
-/// (and optionally `repeats`, default 1).
-fn read_spread(
-    header: &[&str],
-    body: &[(u64, csv::StringRecord)],
-) -> Result<Option<Vec<(f64, f64)>>> {
-    let find = |n: &str| header.iter().position(|h| h.eq_ignore_ascii_case(n));
-    let (Some(gi), Some(pi)) = (find("gain_db_std"), find("phase_deg_std")) else {
-        return Ok(None);
-    };
-    let ri = find("repeats");
-    let mut out = Vec::with_capacity(body.len());
-    for (line, rec) in body {
-        let get = |i: usize, what: &str| -> Result<f64> {
-            match rec.get(i).map(str::parse::<f64>) {
-                Some(Ok(v)) if v.is_finite() && v >= 0.0 => Ok(v),
-                _ => bad_input!("line {line}: {what} must be a finite number >= 0"),
-            }
-        };
-        let (g, p) = (get(gi, "gain_db_std")?, get(pi, "phase_deg_std")?);
-        let n = match ri {
-            Some(i) => get(i, "repeats")?,
-            None => 1.0,
-        };
-        if n < 1.0 || n.fract() != 0.0 {
-            bad_input!("line {line}: repeats must be a whole number >= 1");
-        }
-        let kept = if n >= 3.0 { n - 2.0 } else { n };
-        out.push((g / kept.sqrt(), p / kept.sqrt()));
-    }
-    Ok(Some(out))
-}
-
 /// Units of the three columns.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct Units {
@@ -149,168 +121,42 @@ pub struct Units {
     pub radians: bool,
 }
 
-/// The delimiter of the first line that is not blank or a comment.
-fn detect_delimiter(text: &str) -> u8 {
-    let line = text
-        .lines()
-        .map(str::trim)
-        .find(|l| !l.is_empty() && !l.starts_with('#'))
-        .unwrap_or("");
-    // tab, ';' or ',': all ASCII
-    ident::data::delimiter(line) as u8
+impl From<Units> for ident::bodefile::BodeUnits {
+    fn from(u: Units) -> Self {
+        Self {
+            rad_s: u.rad_s,
+            linear_gain: u.linear_gain,
+            radians: u.radians,
+        }
+    }
 }
 
-/// Read Bode data from CSV text. `columns` names (freq, gain, phase); `weight_column` an extra
-/// column of per-point weights.
+impl From<ident::bodefile::BodeTable> for BodeData {
+    fn from(t: ident::bodefile::BodeTable) -> Self {
+        Self {
+            omega_rad_s: t.omega_rad_s,
+            h: t.h,
+            weights: t.weights,
+            spread_se: t.spread_se,
+        }
+    }
+}
+
+/// Read Bode data from CSV text with the library's reader ([`ident::bodefile::parse`], shared
+/// with Python). `columns` names (or, 0-based, indexes) (freq, gain, phase); `weight_column` an
+/// extra column of per-point weights. A table with no header needs `columns`.
 ///
 /// # Errors
-/// A [`super::BadInput`] naming the line: no rows, a missing column, a non-numeric or non-finite
-/// value, a frequency <= 0, unsorted or repeated frequencies, a negative linear gain.
+/// An [`ident::Error::Data`] naming the line: no rows, a headerless table without `columns`, a
+/// missing column, a non-numeric or non-finite value, a frequency <= 0, unsorted or repeated
+/// frequencies, a negative linear gain.
 pub fn parse_bode(
     text: &str,
     columns: Option<[&str; 3]>,
     units: Units,
     weight_column: Option<&str>,
 ) -> Result<BodeData> {
-    let delim = detect_delimiter(text);
-    let mut rdr = csv::ReaderBuilder::new()
-        .delimiter(delim)
-        .comment(Some(b'#'))
-        .has_headers(false)
-        .trim(csv::Trim::All)
-        .flexible(true)
-        .from_reader(text.as_bytes());
-    let mut records = Vec::new();
-    for rec in rdr.records() {
-        let rec = match rec {
-            Ok(r) => r,
-            Err(e) => bad_input!("cannot read the CSV: {e}"),
-        };
-        if rec.iter().all(|f| f.is_empty()) {
-            continue;
-        }
-        let line = rec.position().map_or(0, |p| p.line());
-        records.push((line, rec));
-    }
-    if records.is_empty() {
-        bad_input!("no data rows (an empty file?)");
-    }
-    let first = &records[0].1;
-    let has_header = first.iter().any(|f| f.parse::<f64>().is_err());
-    let defaults = [
-        if units.rad_s {
-            &["omega_rad_s", "omega", "w_rad_s"][..]
-        } else {
-            &["freq_hz", "frequency_hz", "freq", "f_hz"][..]
-        },
-        if units.linear_gain {
-            &["gain", "mag", "magnitude", "gain_abs"][..]
-        } else {
-            &["gain_db", "mag_db", "magnitude_db"][..]
-        },
-        if units.radians {
-            &["phase_rad", "phase"][..]
-        } else {
-            &["phase_deg", "phase"][..]
-        },
-    ];
-    let mut spread_se = None;
-    let (idx, widx, body) = if has_header {
-        let header: Vec<&str> = first.iter().collect();
-        // The first of a role's names that the header has (else a message naming the flags).
-        let pick = |names: &[&'static str], role: &str| -> Result<&'static str> {
-            match names
-                .iter()
-                .find(|n| header.iter().any(|h| h.eq_ignore_ascii_case(n)))
-            {
-                Some(n) => Ok(n),
-                None => bad_input!(
-                    "no {role} column {} in the header [{}]; name the columns with --columns FREQ,GAIN,PHASE \
-                     (units by --rad-s, --linear-gain, --radians)",
-                    names.iter().map(|n| format!("'{n}'")).collect::<Vec<_>>().join(" or "),
-                    header.join(", ")
-                ),
-            }
-        };
-        let mut wants = match columns {
-            Some(c) => c.to_vec(),
-            None => vec![
-                pick(defaults[0], "frequency")?,
-                pick(defaults[1], "gain")?,
-                pick(defaults[2], "phase")?,
-            ],
-        };
-        wants.extend(weight_column);
-        // The time reader's checks: a name twice in the header, one column chosen twice.
-        let found = ident::data::column_indices(&header, &wants)?;
-        let idx = [found[0], found[1], found[2]];
-        let widx = found.get(3).copied();
-        spread_se = read_spread(&header, &records[1..])?;
-        (idx, widx, &records[1..])
-    } else {
-        if columns.is_some() || weight_column.is_some() {
-            bad_input!("--columns or a weight column need a header line in the file");
-        }
-        (([0, 1, 2]), None, &records[..])
-    };
-    if body.is_empty() {
-        bad_input!("a header but no data rows");
-    }
-    let mut omega = Vec::with_capacity(body.len());
-    let mut h = Vec::with_capacity(body.len());
-    let mut weights = Vec::new();
-    let names = ["frequency", "gain", "phase", "weight"];
-    for (line, rec) in body {
-        let get = |i: usize, role: usize| -> Result<f64> {
-            let Some(s) = rec.get(i) else {
-                bad_input!(
-                    "line {line}: no {} value (only {} fields)",
-                    names[role],
-                    rec.len()
-                )
-            };
-            match s.parse::<f64>() {
-                Ok(v) if v.is_finite() => Ok(v),
-                Ok(v) => bad_input!("line {line}: {} is {v}", names[role]),
-                Err(_) => bad_input!("line {line}: {} '{s}' is not a number", names[role]),
-            }
-        };
-        let f = get(idx[0], 0)?;
-        let g = get(idx[1], 1)?;
-        let ph = get(idx[2], 2)?;
-        if f <= 0.0 {
-            bad_input!("line {line}: frequency {f} must be > 0");
-        }
-        let w = if units.rad_s { f } else { 2.0 * PI * f };
-        if let Some(&prev) = omega.last() {
-            if w == prev {
-                bad_input!("line {line}: frequency {f} is repeated");
-            }
-            if w < prev {
-                bad_input!("line {line}: frequencies must increase ({f} follows a larger one)");
-            }
-        }
-        let mag = if units.linear_gain {
-            if g < 0.0 {
-                bad_input!("line {line}: linear gain {g} is negative (give the sign in the phase)");
-            }
-            g
-        } else {
-            10f64.powf(g / 20.0)
-        };
-        let ph_rad = if units.radians { ph } else { ph.to_radians() };
-        omega.push(w);
-        h.push(Complex64::from_polar(mag, ph_rad));
-        if let Some(wi) = widx {
-            weights.push(get(wi, 3)?);
-        }
-    }
-    Ok(BodeData {
-        omega_rad_s: omega,
-        h,
-        weights: widx.map(|_| weights),
-        spread_se,
-    })
+    Ok(ident::bodefile::parse(text, columns, units.into(), weight_column)?.into())
 }
 
 fn read_weight_file(path: &Path) -> Result<Vec<f64>> {
@@ -341,11 +187,21 @@ fn read_weight_file(path: &Path) -> Result<Vec<f64>> {
 /// # Errors
 /// Unreadable files (exit 3), bad data or options (exit 2), a numerical breakdown (exit 1).
 pub fn run(a: FreqArgs) -> Result<()> {
+    if a.fleet.active(&a.file) {
+        return super::fleet::run_freq(&a);
+    }
     if let Some(path) = &a.plot {
         plot::format_of(path)?; // a bad extension fails before the work
     }
-    let text = std::fs::read_to_string(&a.file)
-        .with_context(|| format!("cannot read {}", a.file.display()))?;
+    let is_mat = ident::matfile::is_mat(&a.file);
+    let text = if is_mat {
+        String::new() // read below by variables
+    } else {
+        ident::data::read_text(&a.file).map_err(|e| match e {
+            ident::Error::Io { .. } => anyhow::Error::new(e),
+            e => anyhow::Error::new(e).context(format!("in {}", a.file.display())),
+        })?
+    };
     let units = Units {
         rad_s: a.rad_s,
         linear_gain: a.linear_gain,
@@ -400,8 +256,17 @@ pub fn run(a: FreqArgs) -> Result<()> {
             }
         }
     };
-    let mut data = parse_bode(&text, cols3, units, weight_column.as_deref())
-        .with_context(|| format!("in {}", a.file.display()))?;
+    let mut data = if is_mat {
+        BodeData::from(ident::bodefile::load(
+            &a.file,
+            cols3,
+            units.into(),
+            weight_column.as_deref(),
+        )?)
+    } else {
+        parse_bode(&text, cols3, units, weight_column.as_deref())
+            .with_context(|| format!("in {}", a.file.display()))?
+    };
     let hold = match a.hold.trim().to_ascii_lowercase().as_str() {
         "auto" => ident::hold::sample_period_from_comments(&text),
         "none" => None,
@@ -773,7 +638,7 @@ fn table(
 
 fn diagnosis_text(d: &ident::diagnose::freq::BodeDiagnosis) -> String {
     use std::fmt::Write;
-    let mut out = String::from("\nresidual diagnosis of the best model (DESIGN section 6):\n");
+    let mut out = String::from("\nresidual diagnosis of the best model (docs/design.md §6):\n");
     let row = |e: &ident::diagnose::freq::BodeError| {
         format!(
             "J = {}, magnitude RMS {} dB, phase RMS {} deg",
@@ -1162,7 +1027,10 @@ mod tests {
             linear_gain: true,
             radians: true,
         };
-        let d = parse_bode(t, None, u, None).unwrap();
+        // headerless: refused unless the columns are said (a linear gain was read as dB)
+        let e = parse_bode(t, None, u, None).unwrap_err();
+        assert!(e.to_string().contains("no header line"), "{e}");
+        let d = parse_bode(t, Some(["0", "1", "2"]), u, None).unwrap();
         assert_eq!(d.omega_rad_s, vec![1.0, 3.0]);
         assert!((d.h[0] - Complex64::from_polar(2.0, 0.5)).norm() < 1e-15);
     }
@@ -1179,12 +1047,12 @@ mod tests {
             ("freq_hz,gain_db,phase_deg\n0,2,1\n", "> 0"),
             ("freq_hz,gain_db,phase_deg\n2,2,1\n1,2,1\n", "increase"),
             ("freq_hz,gain_db,phase_deg\n2,2,1\n2,2,1\n", "repeated"),
-            ("freq_hz,gain_db,phase_deg\n2,2\n", "no phase"),
+            ("freq_hz,gain_db,phase_deg\n2,2\n", "phase_deg missing"),
         ];
         for (t, want) in cases {
             let err = parse_bode(t, None, u, None).unwrap_err();
             assert!(err.to_string().contains(want), "{t:?}: {err}");
-            assert!(err.downcast_ref::<crate::cmd::BadInput>().is_some());
+            assert!(err.downcast_ref::<ident::Error>().is_some());
         }
     }
 

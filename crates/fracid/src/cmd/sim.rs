@@ -26,7 +26,8 @@ pub struct SimArgs {
     /// PRBS input: the paper's experiment (order 7, 3 ms clock), see --prbs-order and --prbs-clock.
     #[arg(long, group = "source")]
     pub prbs: bool,
-    /// Recorded input: a CSV file with columns t,u (see --t-col, --u-col).
+    /// Recorded input: a CSV (or .mat) file with columns t,u (see --t-col, --u-col; with --dt, no
+    /// time column is read).
     #[arg(long, value_name = "FILE", group = "source")]
     pub input: Option<PathBuf>,
     /// Time column of --input.
@@ -44,9 +45,10 @@ pub struct SimArgs {
     /// PRBS amplitude (levels +-amplitude).
     #[arg(long, default_value_t = 1.0)]
     pub prbs_amplitude: f64,
-    /// Sampling step in seconds (ignored with --input, whose time column sets it).
-    #[arg(long, default_value_t = 1e-4)]
-    pub dt: f64,
+    /// Sampling step in seconds [default: 1e-4]. With --input, the step of a file with no time
+    /// column (otherwise its time column sets it).
+    #[arg(long)]
+    pub dt: Option<f64>,
     /// End time in seconds (default: 0.05 for a step, one period for a PRBS).
     #[arg(long)]
     pub t_end: Option<f64>,
@@ -89,18 +91,11 @@ pub fn parse_band(s: &str) -> Result<(f64, f64)> {
 /// The input signal and its step.
 fn build_input(a: &SimArgs) -> Result<(Vec<f64>, f64)> {
     if let Some(path) = &a.input {
-        let text = std::fs::read_to_string(path)
-            .with_context(|| format!("cannot read input file {}", path.display()))?;
-        let read = || -> ident::Result<(Vec<f64>, f64)> {
-            let (_, [t, u]) = ident::data::read_columns(&text, [&a.t_col, &a.u_col])?;
-            let dt = ident::data::sampling_step(&t)?;
-            ident::data::check_finite(&a.u_col, &u)?;
-            Ok((u, dt))
-        };
-        return read().with_context(|| format!("in {}", path.display()));
+        return input_of(path, a);
     }
-    if !(a.dt.is_finite() && a.dt > 0.0) {
-        bad_input!("--dt must be a positive number of seconds, got {}", a.dt);
+    let dt = a.dt.unwrap_or(1e-4);
+    if !(dt.is_finite() && dt > 0.0) {
+        bad_input!("--dt must be a positive number of seconds, got {dt}");
     }
     if a.prbs {
         let prbs = Prbs {
@@ -109,19 +104,57 @@ fn build_input(a: &SimArgs) -> Result<(Vec<f64>, f64)> {
             amplitude: a.prbs_amplitude,
             ..Prbs::paper()
         };
-        let period = prbs.signal(a.dt)?;
+        let period = prbs.signal(dt)?;
         let n = match a.t_end {
-            Some(t) => samples_until(t, a.dt)?,
+            Some(t) => samples_until(t, dt)?,
             None => period.len(),
         };
-        return Ok((period.iter().copied().cycle().take(n).collect(), a.dt));
+        return Ok((period.iter().copied().cycle().take(n).collect(), dt));
     }
     let amp = a.step.unwrap_or(1.0);
     if !amp.is_finite() {
         bad_input!("--step amplitude must be finite");
     }
-    let n = samples_until(a.t_end.unwrap_or(0.05), a.dt)?;
-    Ok((vec![amp; n], a.dt))
+    let n = samples_until(a.t_end.unwrap_or(0.05), dt)?;
+    Ok((vec![amp; n], dt))
+}
+
+/// The input signal of a file, read by the library's reader (bounded, `.mat` too; with `--dt`
+/// no time column): the input column is also read as the "output" column, which is ignored.
+fn input_of(path: &std::path::Path, a: &SimArgs) -> Result<(Vec<f64>, f64)> {
+    let read = || -> ident::Result<(Vec<f64>, f64)> {
+        if ident::matfile::is_mat(path) {
+            let vars = ident::matfile::read(path)?;
+            return match a.dt {
+                Some(dt) => {
+                    let [u] = ident::matfile::columns(&vars, [&a.u_col])?;
+                    ident::data::Record::from_samples(&u, &u, dt).map(|r| (r.u, r.dt))
+                }
+                None => {
+                    let [t, u] = ident::matfile::columns(&vars, [&a.t_col, &a.u_col])?;
+                    ident::data::check_finite(&a.u_col, &u)?;
+                    Ok((u, ident::data::sampling_step(&t)?))
+                }
+            };
+        }
+        let text = ident::data::read_text(path)?;
+        match a.dt {
+            Some(dt) => {
+                let (_, [u]) = ident::data::read_columns(&text, [&a.u_col])?;
+                ident::data::Record::from_samples(&u, &u, dt).map(|r| (r.u, r.dt))
+            }
+            None => {
+                let (_, [t, u]) = ident::data::read_columns(&text, [&a.t_col, &a.u_col])?;
+                let dt = ident::data::sampling_step(&t)?;
+                ident::data::check_finite(&a.u_col, &u)?;
+                Ok((u, dt))
+            }
+        }
+    };
+    read().map_err(|e| match e {
+        ident::Error::Io { .. } => anyhow::Error::new(e),
+        e => anyhow::Error::new(e).context(format!("in {}", path.display())),
+    })
 }
 
 fn samples_until(t_end: f64, dt: f64) -> Result<usize> {
@@ -138,6 +171,7 @@ fn samples_until(t_end: f64, dt: f64) -> Result<usize> {
 /// Run `fracid sim`.
 pub fn run(a: SimArgs) -> Result<()> {
     let tf: FracTf = a.model.parse().context("bad --model")?;
+    tf.check_proper().context("--model cannot be simulated")?;
     let (u, dt) = build_input(&a)?;
     let y = if a.method.eq_ignore_ascii_case("gl") {
         gl::simulate_held(&tf, &u, dt, gl::HELD_SUBSTEPS)?

@@ -1,8 +1,8 @@
-//! `fracid time FILE`: time-domain identification by output error (DESIGN §5, `ident::oe`).
+//! `fracid time FILE`: time-domain identification by output error (docs/design.md §5, `ident::oe`).
 
 use crate::plot::{self, Figure};
-use anyhow::{Context, Result};
-use ident::data::{Columns, OffsetMode, Record};
+use anyhow::Result;
+use ident::data::{Columns, ReadOptions, Record};
 use ident::metrics;
 use ident::oe::{identify_with_progress, FracModel, IdentOptions, Identification, StartMode};
 use plotters::coord::Shift;
@@ -24,6 +24,9 @@ pub struct TimeArgs {
     /// Output column.
     #[arg(long, default_value = "y")]
     pub y_col: String,
+    /// Sampling step in seconds, for a file with no time column (t = k dt; --t-col is not read).
+    #[arg(long)]
+    pub dt: Option<f64>,
     /// Model structure: pmsm (K/(a2 s^(zeta+theta) + a1 s^zeta + 1)), commensurate, fopdt, or a
     /// transfer function such as "6.8/(3e-5 s^1.75 + 0.006 s^0.9 + 1)" used as the start.
     #[arg(long, default_value = "pmsm")]
@@ -39,29 +42,56 @@ pub struct TimeArgs {
     /// Approximation order N (2N+1 cells; default fracsim's, 8).
     #[arg(long)]
     pub order: Option<usize>,
-    /// Fit an input delay (seconds, up to --max-delay).
+    /// Put a free integrator in series with the structure (K/(s (...))): for an output that
+    /// integrates, such as a position; an input offset is then fitted too (a drift).
+    #[arg(long)]
+    pub integrator: bool,
+    /// Hold parameters fixed: "NAME" or "NAME=VALUE", comma-separated (names as the report
+    /// prints them: K, a1, a2, zeta, theta; b0, a0, a1_order, ... for a model; tau).
+    #[arg(long)]
+    pub fix: Option<String>,
+    /// Fit parameters a structure holds fixed (comma-separated names).
+    #[arg(long)]
+    pub free: Option<String>,
+    /// Fit an input delay (seconds, up to --max-delay); a delay written in the structure
+    /// (exp(-tau s)) is then fitted from its value.
     #[arg(long)]
     pub delay: bool,
     /// Largest input delay (seconds) for --delay and fopdt (default: 1 s, at most a fifth of the
     /// record).
     #[arg(long)]
     pub max_delay: Option<f64>,
-    /// Fraction of the record held out for validation (at the end).
-    #[arg(long, default_value_t = 0.3)]
-    pub holdout: f64,
+    /// Fraction of the record held out for validation (at the end); default 0.3, or 0 with
+    /// --validate.
+    #[arg(long)]
+    pub holdout: Option<f64>,
+    /// Another estimation record of the same plant (repeatable): all are fitted jointly, one
+    /// model, each record with its own operating point, output offset and initial state; each is
+    /// used whole (score on another record with --validate).
+    #[arg(long)]
+    pub joint: Vec<PathBuf>,
+    /// A separate validation record (same columns): the fitted model is scored on it with its
+    /// own initial state and output offset estimated, the plant's parameters held.
+    #[arg(long)]
+    pub validate: Option<PathBuf>,
     /// Operating point removal: initial (u[0], median y before the first input change), mean, none.
     #[arg(long, default_value = "initial")]
     pub offsets: String,
     /// Do not fit a constant output offset.
     #[arg(long)]
     pub no_offset: bool,
+    /// Initial state of the plant at the first sample: estimate (the state a past held input
+    /// left, fitted with the model: records that start in motion, mid-transient or on a ramp) or
+    /// rest (at the operating point).
+    #[arg(long, default_value = "estimate")]
+    pub initial: String,
     /// Maximum Levenberg-Marquardt iterations.
-    #[arg(long, default_value_t = 100)]
+    #[arg(long, default_value_t = 500)]
     pub max_iter: usize,
     /// Start from the given structure's values instead of the automatic start.
     #[arg(long)]
     pub no_auto_start: bool,
-    /// Print JSON (DESIGN §7) instead of text.
+    /// Print JSON (docs/design.md §7) instead of text.
     #[arg(long)]
     pub json: bool,
     /// Write a plot (.png or .svg).
@@ -71,47 +101,81 @@ pub struct TimeArgs {
     #[arg(long)]
     pub quiet: bool,
     /// Diagnose the residual, add the physical effects that pay on held-out data, report the
-    /// error before and after (DESIGN §6); with --plot also draws the residual before and after
+    /// error before and after (docs/design.md §6); with --plot also draws the residual before and after
     /// to PLOT_diagnosis.EXT.
     #[arg(long)]
     pub diagnose: bool,
+    /// Fleet mode (many files at once): see `fracid::cmd::fleet`.
+    #[command(flatten)]
+    pub fleet: super::fleet::FleetArgs,
 }
 
-fn model_of(a: &TimeArgs, duration: f64) -> Result<FracModel> {
+pub(crate) fn model_of(a: &TimeArgs, duration: f64) -> Result<FracModel> {
     let max_delay = match a.max_delay {
         Some(d) if !(d > 0.0 && d.is_finite()) => {
             crate::bad_input!("--max-delay must be a positive number of seconds, got {d}")
         }
         Some(d) => d,
-        None => (0.2 * duration).min(1.0),
+        None => ident::app::default_max_delay(duration),
     };
-    let mut m = match a.structure.to_ascii_lowercase().as_str() {
-        "pmsm" => FracModel::pmsm(1.0, 0.01, 1e-4, 0.9, 0.9),
-        "commensurate" => FracModel::commensurate(1.0, 0.01, 1e-4, 0.9),
-        "fopdt" => FracModel::fopdt(1.0, 0.1, 0.01, max_delay),
-        s => {
-            let tf: fracsim::FracTf = s.parse().with_context(|| {
-                format!("--structure '{s}' is not pmsm, commensurate, fopdt or a model")
-            })?;
-            FracModel::from_tf(&tf, true, true)
-        }
-    };
+    let (mut m, _) = ident::app::structure(&a.structure, max_delay)?;
     m.approx.method = a.approx.parse()?;
     if let Some(n) = a.order {
         m.approx.order = n;
     }
     if let Some(b) = &a.band {
-        let v: Vec<f64> = b.split(',').filter_map(|x| x.trim().parse().ok()).collect();
-        if v.len() != 2 {
-            crate::bad_input!("--band must be \"w_b,w_h\" in rad/s, got '{b}'");
-        }
-        fracsim::approx::check_band(v[0], v[1])?;
-        m.approx.band = Some((v[0], v[1]));
+        m.approx.band = Some(ident::app::band(b)?);
     }
-    if a.delay && m.delay.is_none() {
-        m.with_delay(0.05 * max_delay, max_delay);
+    if a.integrator {
+        m.with_integrator();
     }
+    if a.delay {
+        // A delay written in the structure (exp(-tau s)) starts the fit when it is in range.
+        let tau = m
+            .delay
+            .map(|i| m.params[i].value)
+            .filter(|&t| t > 0.0 && t < max_delay)
+            .unwrap_or(0.05 * max_delay);
+        m.with_delay(tau, max_delay);
+    }
+    ident::app::fix_free(
+        &mut m,
+        a.fix.as_deref().unwrap_or(""),
+        a.free.as_deref().unwrap_or(""),
+    )?;
     Ok(m)
+}
+
+/// The reader options of `fracid time` (columns, `--dt`).
+pub(crate) fn read_options(a: &TimeArgs) -> ReadOptions {
+    ReadOptions {
+        columns: Columns {
+            t: a.t_col.clone(),
+            u: a.u_col.clone(),
+            y: a.y_col.clone(),
+        },
+        dt: a.dt,
+    }
+}
+
+/// The identification options of `fracid time`.
+pub(crate) fn ident_options(a: &TimeArgs) -> Result<IdentOptions> {
+    let mut opts = IdentOptions {
+        offsets: ident::app::offsets(&a.offsets)?,
+        holdout: a
+            .holdout
+            .unwrap_or(if a.validate.is_some() { 0.0 } else { 0.3 }),
+        fit_offset: !a.no_offset,
+        start: if a.no_auto_start {
+            StartMode::Given
+        } else {
+            StartMode::Auto
+        },
+        initial: a.initial.parse()?,
+        ..Default::default()
+    };
+    opts.fit.lm.max_iterations = a.max_iter;
+    Ok(opts)
 }
 
 /// Run `fracid time`.
@@ -119,37 +183,44 @@ fn model_of(a: &TimeArgs, duration: f64) -> Result<FracModel> {
 /// # Errors
 /// Unreadable file (exit 3), bad data or options (exit 2), numerical breakdown (exit 1).
 pub fn run(a: TimeArgs) -> Result<()> {
+    if a.fleet.active(&a.file) {
+        return super::fleet::run_time(a);
+    }
     if let Some(p) = &a.plot {
         plot::format_of(p)?;
     }
-    let text = std::fs::read_to_string(&a.file)
-        .with_context(|| format!("cannot read {}", a.file.display()))?;
-    let cols = Columns {
-        t: a.t_col.clone(),
-        u: a.u_col.clone(),
-        y: a.y_col.clone(),
+    let read = read_options(&a);
+    let rec = read_record(&a.file, &read)?;
+    let validation = match &a.validate {
+        Some(p) => Some((p, read_record(p, &read)?)),
+        None => None,
     };
-    let rec = Record::parse(&text, &cols).with_context(|| format!("in {}", a.file.display()))?;
     let duration = rec.t.last().copied().unwrap_or(0.0) - rec.t.first().copied().unwrap_or(0.0);
     let model = model_of(&a, duration)?;
-    let offsets = match a.offsets.as_str() {
-        "initial" => OffsetMode::Initial,
-        "mean" => OffsetMode::Mean,
-        "none" => OffsetMode::None,
-        o => crate::bad_input!("--offsets must be initial, mean or none, got '{o}'"),
-    };
-    let mut opts = IdentOptions {
-        offsets,
-        holdout: a.holdout,
-        fit_offset: !a.no_offset,
-        start: if a.no_auto_start {
-            StartMode::Given
-        } else {
-            StartMode::Auto
-        },
-        ..Default::default()
-    };
-    opts.fit.lm.max_iterations = a.max_iter;
+    let opts = ident_options(&a)?;
+    let offsets = opts.offsets;
+    if !a.joint.is_empty() {
+        if a.diagnose || a.plot.is_some() {
+            crate::bad_input!("--joint does not go with --diagnose or --plot");
+        }
+        let mut recs = vec![rec];
+        for p in &a.joint {
+            recs.push(read_record(p, &read)?);
+        }
+        let j = ident::oe::identify_joint(&recs, &model, &opts)?;
+        let scored = match &validation {
+            Some((_, vrec)) => Some(ident::oe::score(&j.model, vrec, offsets, opts.initial)?),
+            None => None,
+        };
+        let files: Vec<&PathBuf> = std::iter::once(&a.file).chain(&a.joint).collect();
+        print_joint(
+            &a,
+            &j,
+            &files,
+            validation.as_ref().map(|v| v.0).zip(scored.as_ref()),
+        )?;
+        return Ok(());
+    }
     let bar = if a.quiet || !std::io::stderr().is_terminal() {
         indicatif::ProgressBar::hidden()
     } else {
@@ -165,6 +236,10 @@ pub fn run(a: TimeArgs) -> Result<()> {
     for w in &id.report.warnings {
         eprintln!("warning: {w}");
     }
+    let scored = match &validation {
+        Some((_, vrec)) => Some(ident::oe::score(&id.model, vrec, offsets, opts.initial)?),
+        None => None,
+    };
     let diagnosis = if a.diagnose {
         Some(super::diagnose::run_time(&rec, &id)?)
     } else {
@@ -172,12 +247,18 @@ pub fn run(a: TimeArgs) -> Result<()> {
     };
     if a.json {
         let mut v = json_of(&id, &rec);
+        if let (Some((p, _)), Some(sc)) = (&validation, &scored) {
+            v["fit"]["validation_file"] = score_json(p, sc);
+        }
         if let Some(d) = &diagnosis {
             v["diagnosis"] = super::diagnose::json(d)?;
         }
         println!("{}", serde_json::to_string_pretty(&v)?);
     } else {
         print_text(&id, &rec);
+        if let (Some((p, _)), Some(sc)) = (&validation, &scored) {
+            print_score(p, sc);
+        }
         if let Some(d) = &diagnosis {
             print!("{}", super::diagnose::text(d));
         }
@@ -192,20 +273,105 @@ pub fn run(a: TimeArgs) -> Result<()> {
             }
         }
     }
+    if !id.usable() {
+        anyhow::bail!("the fitted model is not usable: {}", id.problems.join("; "));
+    }
     Ok(())
 }
 
-fn json_of(id: &Identification, rec: &Record) -> serde_json::Value {
-    let terms = |t: &[fracsim::Term]| -> Vec<serde_json::Value> {
-        t.iter()
-            .map(|t| serde_json::json!({"coef": t.coef, "order": t.order}))
-            .collect()
-    };
+/// Read a time record (t, u, y) from a file, its warnings (an incomplete acquisition fitted on
+/// its longest complete part, ...) on stderr.
+pub(crate) fn read_record(path: &std::path::Path, read: &ReadOptions) -> Result<Record> {
+    let loaded = crate::cmd::load_record(path, read)?;
+    for w in &loaded.warnings {
+        eprintln!("warning: {}: {w}", path.display());
+    }
+    Ok(loaded.record)
+}
+
+/// The joint fit of several records, as text or JSON.
+fn print_joint(
+    a: &TimeArgs,
+    j: &ident::oe::JointIdentification,
+    files: &[&PathBuf],
+    scored: Option<(&PathBuf, &ident::oe::Scored)>,
+) -> Result<()> {
+    if a.json {
+        let records: Vec<serde_json::Value> = files
+            .iter()
+            .zip(&j.records)
+            .map(|(f, (op, fit, _))| {
+                serde_json::json!({"file": f.display().to_string(), "offsets": op,
+                    "rmse": fit.rmse, "nrmse_percent": fit.nrmse_percent})
+            })
+            .collect();
+        let mut v = serde_json::json!({
+            "model": ident::app::ModelReport::from(&j.tf),
+            "params": j.report.params,
+            "records": records,
+            "converged": j.report.converged,
+            "warnings": j.report.warnings,
+        });
+        if let Some((p, sc)) = scored {
+            v["fit"] = serde_json::json!({"validation_file": score_json(p, sc)});
+        }
+        println!("{}", serde_json::to_string_pretty(&v)?);
+        return Ok(());
+    }
+    println!("model: {}", j.tf);
+    println!("parameters (+- standard error):");
+    for p in j.report.params.iter().filter(|p| p.free) {
+        let se = p.std_error.map_or("-".to_string(), |s| format!("{s:.3e}"));
+        println!("  {:<12} {:>14.6e} +- {se}", p.name, p.value);
+    }
+    for (f, (_, fit, _)) in files.iter().zip(&j.records) {
+        println!(
+            "fit on {}: NRMSE {:.2}%, RMSE {:.5}",
+            f.display(),
+            fit.nrmse_percent,
+            fit.rmse
+        );
+    }
+    if let Some((p, sc)) = scored {
+        print_score(p, sc);
+    }
+    for w in &j.report.warnings {
+        eprintln!("warning: {w}");
+    }
+    Ok(())
+}
+
+/// A model scored on a record, as JSON.
+pub(crate) fn score_json(path: &std::path::Path, sc: &ident::oe::Scored) -> serde_json::Value {
+    serde_json::json!({
+        "file": path.display().to_string(),
+        "rmse": sc.fit.rmse,
+        "nrmse_percent": sc.fit.nrmse_percent,
+        "offsets": sc.offsets,
+        "record_params": sc.record_params.iter().map(|(n, v)| serde_json::json!({"name": n, "value": v})).collect::<Vec<_>>(),
+        "warnings": sc.warnings,
+    })
+}
+
+/// A model scored on a record, as text.
+pub(crate) fn print_score(path: &std::path::Path, sc: &ident::oe::Scored) {
+    println!(
+        "fit on {} (its own initial state and output offset): NRMSE {:.2}%, RMSE {:.5}",
+        path.display(),
+        sc.fit.nrmse_percent,
+        sc.fit.rmse
+    );
+    for w in &sc.warnings {
+        eprintln!("warning: {w}");
+    }
+}
+
+pub(crate) fn json_of(id: &Identification, rec: &Record) -> serde_json::Value {
     let fit = |f: Option<metrics::Fit>| {
         f.map(|f| serde_json::json!({"rmse": f.rmse, "nrmse_percent": f.nrmse_percent}))
     };
     serde_json::json!({
-        "model": {"num": terms(&id.tf.num), "den": terms(&id.tf.den), "delay": id.tf.delay},
+        "model": ident::app::ModelReport::from(&id.tf),
         "fit": {"estimation": fit(Some(id.estimation)), "validation": fit(id.validation)},
         "params": id.report.params,
         "start": id.start_report,
@@ -218,6 +384,8 @@ fn json_of(id: &Identification, rec: &Record) -> serde_json::Value {
         "stop_reason": id.report.stop_reason(),
         "seconds": id.report.elapsed.as_secs_f64(),
         "warnings": id.report.warnings,
+        "usable": id.usable(),
+        "problems": id.problems,
     })
 }
 
@@ -239,7 +407,13 @@ fn print_text(id: &Identification, rec: &Record) {
             .map_or(String::new(), |f| format!(" (start fits {f:.1}%)"))
     );
     println!("parameters (+- standard error):");
-    for p in &id.report.params {
+    let (state, plant): (Vec<_>, Vec<_>) = id
+        .report
+        .params
+        .iter()
+        .enumerate()
+        .partition(|(i, _)| id.model.is_initial_state(*i));
+    for (_, p) in plant {
         let se = p.std_error.map_or("-".to_string(), |s| format!("{s:.3e}"));
         let tag = if !p.free {
             " (fixed)"
@@ -249,6 +423,19 @@ fn print_text(id: &Identification, rec: &Record) {
             ""
         };
         println!("  {:<10} {:>14.6e} +- {se}{tag}", p.name, p.value);
+    }
+    if let Some(past) = &id.model.past {
+        let levels: Vec<String> = state
+            .iter()
+            .map(|(_, p)| format!("{:.4}", p.value))
+            .collect();
+        let edges: Vec<String> = past.edges.iter().map(|e| format!("{e:.4}")).collect();
+        println!(
+            "initial state: the past input's deviation (newest first) {} on windows ending {} s \
+             before the record",
+            levels.join(", "),
+            edges.join(", ")
+        );
     }
     for (o, al, et) in &id.alpha_eta {
         println!("  order {o:.4}: Poinot-Trigeassou alpha = {al:.5}, eta = {et:.5}");

@@ -1,4 +1,4 @@
-//! `fracid time`: exit codes, JSON keys (DESIGN §7), the plot, the start report, the UNAL record.
+//! `fracid time`: exit codes, JSON keys (docs/design.md §7), the plot, the start report, the UNAL record.
 
 use super::fracid;
 use std::fmt::Write as _;
@@ -172,11 +172,12 @@ fn text_output_names_the_start() {
 #[test]
 fn unal_record_fits() {
     let p = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../../shared/data/unal_dcmotor/DCmotor_prbs_open_exp.csv");
-    if !p.exists() {
-        eprintln!("skipped: {} is absent", p.display());
-        return;
-    }
+        .join("../../data/unal_dcmotor/DCmotor_prbs_open_exp.csv");
+    assert!(
+        p.is_file(),
+        "{} is missing (data/ ships with the repository)",
+        p.display()
+    );
     // Measured validation NRMSE (30% held out): pmsm 93.95%, fopdt 95.73%; floors 3 points lower.
     for (structure, floor) in [("pmsm", 91.0), ("fopdt", 92.5)] {
         let o = fracid(&[
@@ -199,4 +200,111 @@ fn unal_record_fits() {
         assert!(f > floor, "{structure}: validation NRMSE {f}");
         assert_eq!(v["start"]["method"], "coarse");
     }
+}
+
+/// A record of `g` (simulated by fracsim; these tests are about the CLI, accuracy is shown in
+/// ident's tests against an independent truth), PRBS with 10-sample bits at 1 ms after `lead`
+/// samples at `level`.
+fn record_csv(dir: &tempfile::TempDir, name: &str, g: &str, level: f64, seed: u32) -> PathBuf {
+    let dt = 1e-3;
+    let g: fracsim::FracTf = g.parse().unwrap();
+    let mut u = vec![level; 200];
+    u.extend(
+        fracsim::prbs::Prbs {
+            clock: 10.0 * dt,
+            periods: 2,
+            seed,
+            offset: level,
+            ..fracsim::prbs::Prbs::paper()
+        }
+        .signal(dt)
+        .unwrap(),
+    );
+    let y = fracsim::lsim(&g, &u, dt, &Default::default()).unwrap();
+    let mut text = String::from("t,u,y\n");
+    // The record starts after the lead: the plant is in motion.
+    for k in 200..u.len() {
+        writeln!(text, "{:.6},{},{}", (k - 200) as f64 * dt, u[k], y[k]).unwrap();
+    }
+    let p = dir.path().join(name);
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+const PAPER: &str = "6.82/(2.655e-5 s^1.7452 + 0.0059 s^0.92 + 1)";
+
+/// `fracid score` with the true model as text and with the JSON `time` wrote; `time --validate`
+/// scores on a second record (another seed and operating point) with its own initial state.
+#[test]
+fn score_and_validate_on_a_second_record() {
+    let dir = tempfile::tempdir().unwrap();
+    let a = record_csv(&dir, "a.csv", PAPER, 10.0, 1);
+    let b = record_csv(&dir, "b.csv", PAPER, 6.0, 9);
+    let o = fracid(&["score", PAPER, b.to_str().unwrap(), "--json"]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    let f = v["nrmse_percent"].as_f64().unwrap();
+    assert!(f > 99.9, "true model scores {f}");
+
+    let o = fracid(&[
+        "time",
+        a.to_str().unwrap(),
+        "--json",
+        "--quiet",
+        "--validate",
+        b.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let report = dir.path().join("fit.json");
+    std::fs::write(&report, stdout(&o)).unwrap();
+    let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    let fv = v["fit"]["validation_file"]["nrmse_percent"]
+        .as_f64()
+        .unwrap();
+    assert!(fv > 99.0, "validation file {fv}");
+    assert!(
+        v["fit"]["validation"].is_null(),
+        "no holdout with --validate"
+    );
+
+    let o = fracid(&[
+        "score",
+        report.to_str().unwrap(),
+        b.to_str().unwrap(),
+        "--json",
+    ]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    assert!((v["nrmse_percent"].as_f64().unwrap() - fv).abs() < 1e-6);
+
+    let o = fracid(&["score", "1/(s^0.5", b.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+}
+
+/// A position output (the PMSM integrated) fitted with the plain PMSM structure: not a usable
+/// model (absurd static gain or parameters the data do not determine), exit 1 with the reasons;
+/// with --integrator it fits (exit 0).
+#[test]
+fn an_integrating_output_is_refused_without_integrator() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = record_csv(
+        &dir,
+        "pos.csv",
+        "6.82/(2.655e-5 s^2.7452 + 0.0059 s^1.92 + s)",
+        0.0,
+        3,
+    );
+    let o = fracid(&["time", p.to_str().unwrap(), "--quiet"]);
+    assert_eq!(o.status.code(), Some(1), "{}\n{}", stdout(&o), stderr(&o));
+    assert!(stderr(&o).contains("not usable"), "{}", stderr(&o));
+    let o = fracid(&[
+        "time",
+        p.to_str().unwrap(),
+        "--quiet",
+        "--integrator",
+        "--json",
+    ]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    assert!(v["fit"]["validation"]["nrmse_percent"].as_f64().unwrap() > 99.0);
 }

@@ -1,4 +1,4 @@
-//! Residual diagnosis of a frequency-domain fit (DESIGN §6, last paragraph).
+//! Residual diagnosis of a frequency-domain fit (docs/design.md §6, last paragraph).
 //!
 //! The residual is the ratio `R_g = H(j w_g) / Hhat(j w_g)` of the measured response to the model:
 //! its phase `phi_g = arg R_g` and log magnitude `ln |R_g|`.

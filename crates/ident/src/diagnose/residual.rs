@@ -1,5 +1,5 @@
 //! Residual analysis: whiteness, independence from the input, spectrum peaks, and the
-//! correlation of the residual with an effect's signature (DESIGN §6).
+//! correlation of the residual with an effect's signature (docs/design.md §6).
 //!
 //! - Whiteness: the normalised autocorrelation `r(k)` ([`crate::metrics::autocorr`]) against the
 //!   99% bound `2.58/sqrt(N)`, and the Ljung-Box portmanteau statistic

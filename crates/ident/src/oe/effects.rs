@@ -1,5 +1,5 @@
 //! Effects added around the linear fractional model, per sample and generic over [`Real`], so the
-//! same output-error machinery fits their parameters with exact sensitivities (DESIGN §6).
+//! same output-error machinery fits their parameters with exact sensitivities (docs/design.md §6).
 //!
 //! Effects act on **absolute** signals: at sample `k` the input transform sees `u0 + u_k` (the
 //! measured input) and the previous model output `y0 + yhat_(k-1)`; the linear model is driven by
@@ -119,7 +119,7 @@ impl Effect {
         )
     }
 
-    /// A short report name (DESIGN §6 table).
+    /// A short report name (docs/design.md §6 table).
     pub fn name(&self) -> &'static str {
         match self {
             Effect::InputOffset { .. } | Effect::OutputOffset { .. } => "offset",

@@ -13,7 +13,7 @@ use std::time::{Duration, Instant};
 /// Options of [`fit`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct FitOptions {
-    /// The Levenberg-Marquardt options (iterations, tolerances). The default allows 100
+    /// The Levenberg-Marquardt options (iterations, tolerances). The default allows 500
     /// iterations and stops when the relative cost change falls below `1e-10`.
     pub lm: LmOptions,
     /// Leading samples left out of the residual (a start-up transient the model cannot explain).
@@ -24,7 +24,9 @@ impl Default for FitOptions {
     fn default() -> Self {
         Self {
             lm: LmOptions {
-                max_iterations: 100,
+                // A 9-parameter model (the PMSM with a delay, an offset and effects) from a
+                // coarse start takes up to a few hundred iterations.
+                max_iterations: 500,
                 // A relative cost change of 1e-10 is far below the noise of any measured record.
                 ftol: 1e-10,
                 xtol: 1e-8,
@@ -407,6 +409,40 @@ pub struct IdentOptions {
     pub start: StartMode,
     /// Fit options.
     pub fit: FitOptions,
+    /// The initial state of the record (default: estimated, as a past held input).
+    pub initial: InitialState,
+}
+
+/// How [`identify`] treats the state of the plant at the first sample.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum InitialState {
+    /// The record starts from rest at the operating point.
+    Rest,
+    /// Estimated with the model: the state a past held input left, the input's levels on
+    /// windows ending `T/64`, `T/8` and `T` before the first sample (`T` the estimation part's
+    /// duration) and before that ([`super::PastInput`]). A record that starts in motion,
+    /// mid-transient or on a ramp fits as well as one that starts at rest.
+    #[default]
+    Estimate,
+}
+
+impl std::str::FromStr for InitialState {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Self> {
+        match s.trim().to_ascii_lowercase().as_str() {
+            "estimate" => Ok(Self::Estimate),
+            "rest" | "zero" => Ok(Self::Rest),
+            _ => Err(Error::Options(format!(
+                "initial state '{s}' must be estimate or rest"
+            ))),
+        }
+    }
+}
+
+/// The window edges (seconds before the first sample) of the past input that stands for the
+/// initial state of a record whose estimation part lasts `duration` seconds.
+pub fn past_edges(duration: f64) -> Vec<f64> {
+    vec![duration / 64.0, duration / 8.0, duration]
 }
 
 impl Default for IdentOptions {
@@ -417,6 +453,7 @@ impl Default for IdentOptions {
             fit_offset: true,
             start: StartMode::Auto,
             fit: FitOptions::default(),
+            initial: InitialState::default(),
         }
     }
 }
@@ -446,6 +483,16 @@ pub struct Identification {
     pub start: Vec<f64>,
     /// How the start was made (Levy, coarse search or given) and why.
     pub start_report: init::StartReport,
+    /// Why the model cannot be used (unstable, no finite static gain, parameters the data do not
+    /// determine, non-finite scores); empty when it can. Warnings are in the report.
+    pub problems: Vec<String>,
+}
+
+impl Identification {
+    /// Whether the result can be used (no [`Identification::problems`]).
+    pub fn usable(&self) -> bool {
+        self.problems.is_empty()
+    }
 }
 
 /// The whole time-domain identification on a record: remove the operating point, split
@@ -479,7 +526,8 @@ pub fn identify_with_progress(
     progress: &mut dyn FnMut(usize, f64),
 ) -> Result<Identification> {
     let n = rec.len();
-    let split = rec.split_index(opts.holdout)?;
+    let (split, split_warning) =
+        super::checks::validation_split(rec, rec.split_index(opts.holdout)?, opts.holdout);
     let mut m = model.clone();
     let n_free = m.params.iter().filter(|p| p.free).count() + usize::from(opts.fit_offset);
     let need = (10 * n_free).max(20);
@@ -490,17 +538,33 @@ pub fn identify_with_progress(
     }
     rec.check_excitation(split)?;
     check_delay(&m, split, rec.dt)?;
-    let offsets = rec.offsets(opts.offsets, split);
+    let mut offsets = rec.offsets(opts.offsets, split);
+    if m.integrator {
+        // An integrating plant has no input operating point: the input is taken as it is, so an
+        // input offset is the physical one (the level at which the output stands still).
+        offsets.u0 = 0.0;
+    }
     let u: Vec<f64> = rec.u.iter().map(|v| v - offsets.u0).collect();
     let y: Vec<f64> = rec.y.iter().map(|v| v - offsets.y0).collect();
     m.operating_point = offsets;
+    if m.integrator && opts.fit_offset && m.index_of("u_offset").is_none() {
+        // Through an integrator an input offset is a drift, not a constant: its own parameter.
+        let c = m.add_param(Param::new("u_offset", 0.0, Bounds::Free));
+        m.effects.push(super::Effect::InputOffset { c });
+    }
     let start_report = if opts.start == StartMode::Auto {
-        init::auto_start(&mut m, &u[..split], &y[..split], rec.dt)?
+        auto_start(&mut m, &u[..split], &y[..split], rec.dt)?
     } else {
         init::StartReport::given("the given values")
     };
     if opts.fit_offset && m.index_of("y_offset").is_none() {
         m.with_output_offset(0.0);
+    }
+    match opts.initial {
+        InitialState::Estimate => {
+            m.with_past_input(past_edges(split as f64 * rec.dt));
+        }
+        InitialState::Rest => m.past = None,
     }
     for p in &mut m.params {
         p.value = p.bounds.clamp_inside(p.value);
@@ -517,7 +581,7 @@ pub fn identify_with_progress(
     let validation = (split < n).then(|| Fit::of(&rec.y[split..], &yhat[split..]));
     let tf = m.tf(&report.values)?;
     let alpha_eta = m.alpha_eta(&report.values, rec.dt);
-    Ok(Identification {
+    let mut id = Identification {
         model: m,
         report,
         tf,
@@ -529,7 +593,49 @@ pub fn identify_with_progress(
         alpha_eta,
         start,
         start_report,
-    })
+        problems: vec![],
+    };
+    let (problems, warnings) = super::checks::assess(&id, rec);
+    id.problems = problems;
+    id.report.warnings.extend(split_warning);
+    id.report.warnings.extend(warnings);
+    Ok(id)
+}
+
+/// [`init::auto_start`], and for a model with a free integrator the same for the model without
+/// it on the output's increments `(y_(k+1) - y_k)/dt`.
+fn auto_start(m: &mut FracModel, u: &[f64], y: &[f64], dt: f64) -> Result<init::StartReport> {
+    if !m.integrator || y.len() < 3 {
+        return init::auto_start(m, u, y, dt);
+    }
+    let mut inner = m.clone();
+    for (_, o) in &mut inner.den {
+        o.constant -= 1.0;
+    }
+    inner.integrator = false;
+    // The start is made for `G` on the output's increments (the derivative of what the
+    // integrator accumulates), centred: a constant input offset makes a constant slope, and the
+    // offset follows from the mean slope, mean(dy) = K (mean(u) + u_offset).
+    let dy: Vec<f64> = y.windows(2).map(|w| (w[1] - w[0]) / dt).collect();
+    let mean = |x: &[f64]| x.iter().sum::<f64>() / x.len() as f64;
+    let (mu, mdy) = (mean(&u[..dy.len()]), mean(&dy));
+    let uc: Vec<f64> = u[..dy.len()].iter().map(|v| v - mu).collect();
+    let dyc: Vec<f64> = dy.iter().map(|v| v - mdy).collect();
+    let mut rep = init::auto_start(&mut inner, &uc, &dyc, dt)?;
+    for (p, q) in m.params.iter_mut().zip(&inner.params) {
+        p.value = q.value;
+    }
+    if let (Some(k), Some(c)) = (m.index_of("K"), m.index_of("u_offset")) {
+        let gain = m.params[k].value;
+        if gain.abs() > 0.0 && gain.is_finite() {
+            m.params[c].value = mdy / gain - mu;
+        }
+    }
+    rep.note = format!(
+        "{} (of the output's increments: the model integrates)",
+        rep.note
+    );
+    Ok(rep)
 }
 
 /// Refuse an input delay (its start, or when it is fitted its upper bound) that is not shorter

@@ -1,4 +1,4 @@
-//! A start that needs no guess (DESIGN §5): estimate the frequency response from the data, fit a
+//! A start that needs no guess (docs/design.md §5): estimate the frequency response from the data, fit a
 //! commensurate model to it by weighted Levy least squares ([`crate::levy`]) with a search over the
 //! order, and (PMSM structure) refit the two orders in the frequency domain. A coarse search in the
 //! time domain is the fallback when the data give no usable frequency response.

@@ -1,10 +1,10 @@
-//! The paper's Table 1 (Yu, Pi, Wang): reference values of DESIGN section 4.
+//! The paper's Table 1 (Yu, Pi, Wang): reference values of docs/design.md §4.
 
 use super::from_hz_db_deg;
 use fracsim::FracTf;
 use ident::levy::{error_index, fit_bode, levy_fixed_q, vinagre_weights, FreqOptions, OrderChoice};
 
-/// Table 1 of the paper, as in `shared/data/paper_table1_bode.csv`.
+/// Table 1 of the paper, as in `data/paper_table1_bode.csv`.
 pub const TABLE1: [(f64, f64, f64); 10] = [
     (0.1, 16.62, -0.23),
     (0.5, 16.63, -0.95),
@@ -78,7 +78,7 @@ fn refined_fit_beats_levy_and_paper() {
         .parse()
         .unwrap();
     let jp = error_index(&omega, &h, &paper);
-    // 1 %: DESIGN quotes 2.06e-2 to three digits.
+    // 1 %: docs/design.md quotes 2.06e-2 to three digits.
     assert!(rel(jp, 2.06e-2) < 1e-2, "paper J = {jp}");
     eprintln!(
         "Table 1: Levy grid q = {} J = {:.4e}; Levy refined q = {:.4} J = {:.4e}; SK J = {:.4e}; \

@@ -1,53 +1,20 @@
 //! The fit and the diagnosis on a held, switching input at a realistic sampling step, against an
-//! independent truth written here (not fracsim's simulators): the implicit Grunwald-Letnikov scheme
-//! of the paper's PMSM `6.82/(2.655e-5 s^1.7452 + 0.0059 s^0.92 + 1)` with the input held over
-//! each 0.5 ms sample, at dt/10 and dt/20, Richardson-extrapolated (its own error is about 1e-4 of
-//! the output swing, see fracsim's test of the same construction). Input: the paper's PRBS (order 7,
+//! independent truth ([`super::truth`], Grunwald-Letnikov with the input held, Richardson of dt/10
+//! and dt/20): the paper's PMSM `6.82/(2.655e-5 s^1.7452 + 0.0059 s^0.92 + 1)` at 0.5 ms. Input: the paper's PRBS (order 7,
 //! 3 ms clock) of +-3 V, three periods (2286 samples); seeded white noise sigma = 0.1 on a swing of
 //! about 40.
 
+use super::truth::{noise, response, Plant, PMSM};
 use fracsim::prbs::Prbs;
 use fracsim::FracTf;
 use ident::data::{OffsetMode, Record};
 use ident::diagnose::{diagnose, DiagnoseOptions};
 use ident::oe::{identify, FracModel, IdentOptions};
-use rand::SeedableRng;
-use rand_distr::{Distribution, Normal};
 
 const DT: f64 = 5e-4;
 const SIGMA: f64 = 0.1;
 /// (K, a1, a2, zeta, theta)
 const TRUTH: (f64, f64, f64, f64, f64) = (6.82, 0.0059, 2.655e-5, 0.92, 1.7452 - 0.92);
-
-/// GL at `dt/n` of the truth with the input held and delayed by `delay_fine` fine steps of
-/// `dt/n` (the delay must be a whole number of them), read at the sample instants.
-fn gl_held(u: &[f64], n: usize, delay_s: f64) -> Vec<f64> {
-    let (k, a1, a2, z, th) = TRUTH;
-    let den = [(a2, z + th), (a1, z), (1.0, 0.0)];
-    let h = DT / n as f64;
-    let m = u.len() * n;
-    let shift = (delay_s / h).round() as usize;
-    let mut w = vec![0.0; m];
-    for &(a, alpha) in &den {
-        let mut c = 1.0;
-        for (j, wj) in w.iter_mut().enumerate() {
-            if j > 0 {
-                c *= 1.0 - (alpha + 1.0) / j as f64;
-            }
-            *wj += a * h.powf(-alpha) * c;
-        }
-    }
-    let mut y = vec![0.0; m];
-    for i in 0..m {
-        let ui = if i >= shift { u[(i - shift) / n] } else { 0.0 };
-        let mut rhs = k * ui;
-        for j in 1..=i {
-            rhs -= w[j] * y[i - j];
-        }
-        y[i] = rhs / w[0];
-    }
-    (0..u.len()).map(|i| y[i * n]).collect()
-}
 
 fn input() -> Vec<f64> {
     Prbs {
@@ -62,16 +29,12 @@ fn input() -> Vec<f64> {
 /// The record with the hidden delay and its noise realisation.
 fn record(delay_s: f64, seed: u64) -> (Record, Vec<f64>) {
     let u = input();
-    let (y10, y20) = (gl_held(&u, 10, delay_s), gl_held(&u, 20, delay_s));
-    let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
-    let noise: Vec<f64> = (0..u.len())
-        .map(|_| Normal::new(0.0, SIGMA).unwrap().sample(&mut rng))
-        .collect();
-    let y: Vec<f64> = y10
+    let plant = Plant { delay_s, ..PMSM };
+    let noise = noise(u.len(), SIGMA, seed);
+    let y: Vec<f64> = response(&plant, &u, DT)
         .iter()
-        .zip(&y20)
         .zip(&noise)
-        .map(|((c, f), e)| 2.0 * f - c + e)
+        .map(|(y, e)| y + e)
         .collect();
     (Record::from_samples(&u, &y, DT).unwrap(), noise)
 }

@@ -2,5 +2,9 @@
 
 mod bad_input;
 mod held;
+mod readers;
+mod records;
 mod roundtrip;
 mod sensitivity;
+mod starts;
+mod truth;

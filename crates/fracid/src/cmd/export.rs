@@ -1,0 +1,166 @@
+//! `fracid export MODEL`: a parsed or fitted model's approximation as a state space (A, B, C, D),
+//! continuous or discrete with the exact zero-order hold, to JSON or to a MATLAB script
+//! (`fracsim::export`).
+
+use crate::bad_input;
+use crate::cmd::sim::parse_band;
+use anyhow::{Context, Result};
+use fracsim::export::{self, StateSpace};
+use fracsim::{ApproxSpec, FracTf, Term};
+use serde_json::{json, Value};
+use std::path::{Path, PathBuf};
+
+/// Options of `fracid export`.
+#[derive(Debug, clap::Args)]
+pub struct ExportArgs {
+    /// The model: a transfer function such as "6.77/(0.000028 s^1.78 + 0.0064 s^0.89 + 1)"
+    /// (`exp(-tau s)` allowed), or a JSON file written by `fracid time --json` or
+    /// `fracid freq --json` (its "model").
+    pub model: String,
+    /// Sample period in seconds: export the discrete model, exact for an input held over each
+    /// period, its input delay as extra states (whole and fractional samples). Without it the
+    /// model is continuous (its delay beside the matrices) and --band is needed.
+    #[arg(long)]
+    pub dt: Option<f64>,
+    /// With --dt: export the continuous model anyway (--dt then only sets the default band).
+    #[arg(long)]
+    pub continuous: bool,
+    /// Approximation of the fractional operators: refined (Xue's refined Oustaloup, the
+    /// default), oustaloup or trigeassou.
+    #[arg(long, default_value = "refined")]
+    pub approx: String,
+    /// Approximation band "w_b,w_h" in rad/s (default with --dt: [1e-3, 30 pi/dt], as `fracid sim`).
+    #[arg(long, value_name = "W_B,W_H")]
+    pub band: Option<String>,
+    /// Approximation order N (2N+1 cells per operator).
+    #[arg(long, default_value_t = 8)]
+    pub order: usize,
+    /// Output format: json, or m (a MATLAB script that builds `sys = ss(...)` and `G = tf(sys)`).
+    /// Default: from the extension of -o, else json.
+    #[arg(long)]
+    pub format: Option<String>,
+    /// Write here instead of stdout.
+    #[arg(short, long, value_name = "FILE")]
+    pub output: Option<PathBuf>,
+}
+
+/// The model of `text`: a JSON report file (its "model" object), or a transfer function.
+pub fn load_model(text: &str) -> Result<FracTf> {
+    let p = Path::new(text);
+    if p.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("json"))
+    {
+        let raw = std::fs::read_to_string(p)
+            .with_context(|| format!("cannot read model file {}", p.display()))?;
+        let v: Value = match serde_json::from_str(&raw) {
+            Ok(v) => v,
+            Err(e) => bad_input!("{}: not JSON: {e}", p.display()),
+        };
+        let m = v.get("model").unwrap_or(&v);
+        return model_from_json(m).with_context(|| format!("in {}", p.display()));
+    }
+    Ok(text.parse::<FracTf>()?)
+}
+
+/// `{"num": [{"coef", "order"}], "den": [...], "delay"}` (docs/design.md §7) as a [`FracTf`].
+fn model_from_json(m: &Value) -> Result<FracTf> {
+    let terms = |key: &str| -> Result<Vec<Term>> {
+        let Some(arr) = m.get(key).and_then(Value::as_array) else {
+            bad_input!("no \"model\" object with a \"{key}\" list of {{coef, order}} terms");
+        };
+        arr.iter()
+            .map(|t| {
+                let f = |k: &str| t.get(k).and_then(Value::as_f64);
+                match (f("coef"), f("order")) {
+                    (Some(coef), Some(order)) => Ok(Term { coef, order }),
+                    _ => bad_input!(
+                        "a \"{key}\" term is not {{\"coef\": number, \"order\": number}}: {t}"
+                    ),
+                }
+            })
+            .collect()
+    };
+    let delay = match m.get("delay") {
+        None | Some(Value::Null) => 0.0,
+        Some(d) => match d.as_f64() {
+            Some(d) => d,
+            None => bad_input!("\"delay\" is not a number: {d}"),
+        },
+    };
+    Ok(FracTf::new(terms("num")?, terms("den")?, delay)?)
+}
+
+/// The state space the options ask for.
+pub fn state_space(g: &FracTf, a: &ExportArgs) -> Result<StateSpace> {
+    let spec = ApproxSpec {
+        method: a.approx.parse()?,
+        band: a.band.as_deref().map(parse_band).transpose()?,
+        order: a.order,
+    };
+    if let Some(dt) = a.dt {
+        if !(dt.is_finite() && dt > 0.0) {
+            bad_input!("--dt must be a positive number of seconds, got {dt}");
+        }
+    }
+    Ok(match (a.dt, a.continuous) {
+        (Some(dt), false) => export::discrete(g, dt, &spec)?,
+        (Some(dt), true) => export::continuous(g, spec.band_for(dt)?, &spec)?,
+        (None, _) => {
+            let Some(band) = spec.band else {
+                bad_input!(
+                    "a continuous export needs --band w_b,w_h (rad/s), or --dt T for the discrete \
+                     model (its default band is [1e-3, 30 pi/T])"
+                );
+            };
+            export::continuous(g, band, &spec)?
+        }
+    })
+}
+
+/// The JSON document of an exported state space.
+pub fn json_of(ss: &StateSpace, g: &FracTf) -> Value {
+    json!({
+        "model": g.to_string(),
+        "time": if ss.dt.is_some() { "discrete" } else { "continuous" },
+        "dt": ss.dt,
+        "hold": ss.dt.map(|_| "zoh"),
+        "input_delay": ss.input_delay,
+        "delay_states": ss.delay_states,
+        "approximation": {
+            "method": export::method_name(ss.spec.method),
+            "order": ss.spec.order,
+            "band": [ss.band.0, ss.band.1],
+        },
+        "states": ss.order(),
+        "a": ss.a_rows(),
+        "b": ss.b_col().iter().map(|v| vec![*v]).collect::<Vec<_>>(),
+        "c": [ss.c_row()],
+        "d": [[ss.d]],
+    })
+}
+
+/// Run `fracid export`.
+pub fn run(a: ExportArgs) -> Result<()> {
+    let format = match (&a.format, &a.output) {
+        (Some(f), _) => f.to_ascii_lowercase(),
+        (None, Some(p)) if p.extension().is_some_and(|e| e == "m") => "m".into(),
+        _ => "json".into(),
+    };
+    if format != "json" && format != "m" {
+        bad_input!("--format must be json or m, got '{format}'");
+    }
+    let g = load_model(&a.model)?;
+    let ss = state_space(&g, &a)?;
+    let text = if format == "m" {
+        ss.to_matlab(&g.to_string())
+    } else {
+        serde_json::to_string_pretty(&json_of(&ss, &g))? + "\n"
+    };
+    match &a.output {
+        Some(p) => std::fs::write(p, text).with_context(|| format!("cannot write {}", p.display())),
+        None => {
+            print!("{text}");
+            Ok(())
+        }
+    }
+}

@@ -1,0 +1,591 @@
+//! Fleets: `fracid time` and `fracid freq` on many files at once (end-of-line testing of a
+//! production line), one fit per core.
+//!
+//! The files are given as `FILE...` (the shell expands globs), as a directory (every `*.csv` in
+//! it, sorted by name), or as a quoted pattern whose file-name part holds `*` or `?` (matched in
+//! its directory). Each file is fitted on its own: `fracid time` in a pool of threads in this
+//! process (`std::thread::scope`, one worker per core, `--jobs` to choose); `fracid freq` runs the
+//! single-file command for each file in child processes, the same pool size, so each report is
+//! exactly what `fracid freq FILE --json` gives. Each report is written beside its file as
+//! `STEM.time.json` / `STEM.freq.json` (or into `--out DIR`), and one summary table,
+//! `time-summary.csv` and `.json` (`freq-summary.*`), into `--out DIR` or the current directory:
+//! file, status, exit code, model, fit, effects kept, warnings, error, report.
+//!
+//! One failing file does not stop the others (a panic is caught and reported as that file's
+//! error); the command exits non-zero when any file failed, and names them on stderr: with the
+//! failures' exit code when they all share it (2 bad input, 3 I/O), else 1.
+
+use crate::cmd::BadInput;
+use anyhow::{Context, Result};
+use serde::Serialize;
+use serde_json::{json, Value};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Mutex;
+use std::time::Instant;
+
+/// The fleet options of `fracid time` and `fracid freq`.
+#[derive(Debug, Clone, Default, clap::Args)]
+pub struct FleetArgs {
+    /// More files: fit every one (fleet mode, one per core), write a report per file and a
+    /// summary table. FILE may also be a directory (its *.csv) or a quoted glob ("runs/*.csv").
+    #[arg(value_name = "MORE")]
+    pub more: Vec<PathBuf>,
+    /// Fleet mode: write the per-file reports and the summary here (created if missing)
+    /// instead of beside each file and the current directory.
+    #[arg(long, value_name = "DIR")]
+    pub out: Option<PathBuf>,
+    /// Fleet mode: fits at once (default: one per core).
+    #[arg(long)]
+    pub jobs: Option<usize>,
+}
+
+impl FleetArgs {
+    /// Whether `file` (the first positional) and these options ask for the fleet mode: more than
+    /// one file, a directory, a glob, or `--out`.
+    pub fn active(&self, file: &Path) -> bool {
+        !self.more.is_empty() || self.out.is_some() || file.is_dir() || is_glob(file)
+    }
+}
+
+fn is_glob(p: &Path) -> bool {
+    !p.exists()
+        && p.file_name()
+            .and_then(|n| n.to_str())
+            .is_some_and(|n| n.contains(['*', '?']))
+}
+
+/// `*` any run of characters, `?` one character (no classes, no `**`).
+fn glob_match(pat: &[char], name: &[char]) -> bool {
+    match (pat.first(), name.first()) {
+        (None, None) => true,
+        (Some('*'), _) => {
+            glob_match(&pat[1..], name) || (!name.is_empty() && glob_match(pat, &name[1..]))
+        }
+        (Some('?'), Some(_)) => glob_match(&pat[1..], &name[1..]),
+        (Some(a), Some(b)) if a == b => glob_match(&pat[1..], &name[1..]),
+        _ => false,
+    }
+}
+
+/// The files: directories expanded to their `*.csv`, globs to their matches (sorted), others kept
+/// as given (a missing file fails on its own, in the summary).
+///
+/// # Errors
+/// An unreadable directory (exit 3); a glob or directory that matches nothing (exit 2).
+pub fn expand(paths: &[PathBuf]) -> Result<Vec<PathBuf>> {
+    let mut out = Vec::new();
+    for p in paths {
+        let (dir, pat): (PathBuf, Vec<char>) = if p.is_dir() {
+            (p.clone(), "*.csv".chars().collect())
+        } else if is_glob(p) {
+            let dir = match p.parent() {
+                Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+                _ => PathBuf::from("."),
+            };
+            let name = p.file_name().and_then(|n| n.to_str()).unwrap_or_default();
+            (dir, name.chars().collect())
+        } else {
+            out.push(p.clone());
+            continue;
+        };
+        let mut found: Vec<PathBuf> = std::fs::read_dir(&dir)
+            .with_context(|| format!("cannot read directory {}", dir.display()))?
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|f| f.is_file())
+            .filter(|f| {
+                let n: Vec<char> = f
+                    .file_name()
+                    .map(|n| n.to_string_lossy().chars().collect())
+                    .unwrap_or_default();
+                glob_match(&pat, &n)
+            })
+            .collect();
+        if found.is_empty() {
+            crate::bad_input!("{} matches no file", p.display());
+        }
+        found.sort();
+        out.extend(found);
+    }
+    Ok(out)
+}
+
+/// One row of the summary table.
+#[derive(Debug, Clone, Serialize)]
+pub struct Row {
+    /// The record.
+    pub file: String,
+    /// `ok` or `failed`.
+    pub status: &'static str,
+    /// The exit code `fracid time FILE` / `fracid freq FILE` would give.
+    pub exit_code: u8,
+    /// The identified model (`fracid freq`: the best one).
+    pub model: Option<String>,
+    /// `time`: NRMSE fit in percent on the estimation part.
+    pub fit_estimation_percent: Option<f64>,
+    /// `time`: NRMSE fit in percent on the held-out validation part.
+    pub fit_validation_percent: Option<f64>,
+    /// `freq`: the error index J of the best model.
+    #[serde(rename = "J")]
+    pub j: Option<f64>,
+    /// Effects the diagnosis kept (with `--diagnose`).
+    pub effects: Vec<String>,
+    /// Warnings of the fit.
+    pub warnings: Vec<String>,
+    /// Why the file failed.
+    pub error: Option<String>,
+    /// The per-file report.
+    pub report: Option<String>,
+    /// Wall time of this file's fit in seconds.
+    pub seconds: f64,
+}
+
+impl Row {
+    fn new(file: &Path) -> Self {
+        Self {
+            file: file.display().to_string(),
+            status: "ok",
+            exit_code: 0,
+            model: None,
+            fit_estimation_percent: None,
+            fit_validation_percent: None,
+            j: None,
+            effects: vec![],
+            warnings: vec![],
+            error: None,
+            report: None,
+            seconds: 0.0,
+        }
+    }
+
+    /// The summary fields of a report (`fracid time --json` or `fracid freq --json`).
+    fn fill_from(&mut self, v: &Value) {
+        // `freq`: the PMSM refit when asked (--refine), else the Levy fit.
+        let model = v.pointer("/refined/model").or_else(|| v.get("model"));
+        self.model = model.and_then(model_text);
+        let f = |p: &str| v.pointer(p).and_then(Value::as_f64);
+        self.fit_estimation_percent = f("/fit/estimation/nrmse_percent");
+        self.fit_validation_percent = f("/fit/validation/nrmse_percent");
+        self.j = f("/refined/J").or_else(|| f("/J"));
+        if let Some(d) = v.get("diagnosis") {
+            if let Some(after) = d.pointer("/after/nrmse_percent").and_then(Value::as_f64) {
+                // The diagnosed model's validation fit (time): the model the effects complete.
+                self.fit_validation_percent = Some(after);
+            }
+            self.effects = d
+                .get("effects")
+                .and_then(Value::as_array)
+                .map(|a| {
+                    a.iter()
+                        .filter_map(|e| e.get("name").and_then(Value::as_str))
+                        .map(String::from)
+                        .collect()
+                })
+                .unwrap_or_default();
+        }
+        self.warnings = v
+            .get("warnings")
+            .and_then(Value::as_array)
+            .map(|a| {
+                a.iter()
+                    .map(|w| w.as_str().map_or_else(|| w.to_string(), String::from))
+                    .collect()
+            })
+            .unwrap_or_default();
+    }
+}
+
+/// The text of a model object `{"num", "den", "delay"}` (or its "text").
+fn model_text(m: &Value) -> Option<String> {
+    if let Some(t) = m.get("text").and_then(Value::as_str) {
+        return Some(t.to_string());
+    }
+    let terms = |k: &str| -> Option<Vec<fracsim::Term>> {
+        m.get(k)?
+            .as_array()?
+            .iter()
+            .map(|t| {
+                Some(fracsim::Term {
+                    coef: t.get("coef")?.as_f64()?,
+                    order: t.get("order")?.as_f64()?,
+                })
+            })
+            .collect()
+    };
+    let delay = m.get("delay").and_then(Value::as_f64).unwrap_or(0.0);
+    fracsim::FracTf::new(terms("num")?, terms("den")?, delay)
+        .ok()
+        .map(|g| g.to_string())
+}
+
+/// Where the report of `file` goes: beside it, or into `out` (a name made unique by a suffix).
+fn report_path(
+    file: &Path,
+    out: Option<&Path>,
+    kind: &str,
+    taken: &Mutex<Vec<PathBuf>>,
+) -> PathBuf {
+    let stem = file
+        .file_stem()
+        .map_or_else(|| "record".into(), |s| s.to_string_lossy().into_owned());
+    let dir = match out {
+        Some(d) => d.to_path_buf(),
+        None => file.parent().map(Path::to_path_buf).unwrap_or_default(),
+    };
+    let mut taken = taken.lock().unwrap_or_else(|e| e.into_inner());
+    let mut p = dir.join(format!("{stem}.{kind}.json"));
+    let mut i = 2;
+    while taken.contains(&p) {
+        p = dir.join(format!("{stem}-{i}.{kind}.json"));
+        i += 1;
+    }
+    taken.push(p.clone());
+    p
+}
+
+fn panic_text(e: &(dyn std::any::Any + Send)) -> String {
+    e.downcast_ref::<&str>()
+        .map(|s| s.to_string())
+        .or_else(|| e.downcast_ref::<String>().cloned())
+        .unwrap_or_else(|| "unknown panic".into())
+}
+
+/// Fit every file with `fit` (the report as JSON) on `jobs` threads, write the reports and the
+/// summary, print one line per file; an error when any file failed.
+///
+/// # Errors
+/// The summary or output directory cannot be written (exit 3); any file failed (its exit code
+/// when all failures share one, else 1).
+pub fn run<F>(kind: &str, files: &[PathBuf], fa: &FleetArgs, json_out: bool, fit: F) -> Result<()>
+where
+    F: Fn(&Path) -> Result<Value> + Sync,
+{
+    if let Some(d) = &fa.out {
+        std::fs::create_dir_all(d)
+            .with_context(|| format!("cannot create the output directory {}", d.display()))?;
+    }
+    let jobs = match fa.jobs {
+        Some(0) => crate::bad_input!("--jobs must be at least 1"),
+        Some(j) => j,
+        None => std::thread::available_parallelism().map_or(1, |n| n.get()),
+    }
+    .min(files.len().max(1));
+    let t0 = Instant::now();
+    let next = AtomicUsize::new(0);
+    let taken = Mutex::new(Vec::new());
+    let rows: Mutex<Vec<(usize, Row)>> = Mutex::new(Vec::with_capacity(files.len()));
+    let one = |i: usize| -> Row {
+        let file = &files[i];
+        let mut row = Row::new(file);
+        let t = Instant::now();
+        let res = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| fit(file)))
+            .unwrap_or_else(|e| Err(anyhow::anyhow!("internal error: {}", panic_text(&*e))));
+        let res = res.and_then(|v| {
+            let p = report_path(file, fa.out.as_deref(), kind, &taken);
+            std::fs::write(&p, serde_json::to_string_pretty(&v)? + "\n")
+                .with_context(|| format!("cannot write {}", p.display()))?;
+            Ok((v, p))
+        });
+        row.seconds = t.elapsed().as_secs_f64();
+        match res {
+            Ok((v, p)) => {
+                row.fill_from(&v);
+                row.report = Some(p.display().to_string());
+            }
+            Err(e) => {
+                row.status = "failed";
+                row.exit_code = crate::exit_code(&e);
+                row.error = Some(format!("{e:#}"));
+            }
+        }
+        row
+    };
+    std::thread::scope(|s| {
+        for _ in 0..jobs {
+            s.spawn(|| loop {
+                let i = next.fetch_add(1, Ordering::Relaxed);
+                if i >= files.len() {
+                    break;
+                }
+                let row = one(i);
+                if !json_out {
+                    print_row(&row);
+                }
+                rows.lock()
+                    .unwrap_or_else(|e| e.into_inner())
+                    .push((i, row));
+            });
+        }
+    });
+    let mut rows = rows.into_inner().unwrap_or_else(|e| e.into_inner());
+    rows.sort_by_key(|(i, _)| *i);
+    let rows: Vec<Row> = rows.into_iter().map(|(_, r)| r).collect();
+    let wall = t0.elapsed().as_secs_f64();
+    let dir = fa.out.clone().unwrap_or_else(|| PathBuf::from("."));
+    let (csv_path, json_path) = (
+        dir.join(format!("{kind}-summary.csv")),
+        dir.join(format!("{kind}-summary.json")),
+    );
+    let failed: Vec<&Row> = rows.iter().filter(|r| r.status != "ok").collect();
+    let summary = json!({
+        "command": kind,
+        "files": rows.len(),
+        "failed": failed.len(),
+        "jobs": jobs,
+        "seconds": wall,
+        "rows": rows,
+    });
+    write_csv(&csv_path, &rows)?;
+    std::fs::write(&json_path, serde_json::to_string_pretty(&summary)? + "\n")
+        .with_context(|| format!("cannot write {}", json_path.display()))?;
+    if json_out {
+        println!("{}", serde_json::to_string_pretty(&summary)?);
+    } else {
+        println!(
+            "{} files, {} failed, {jobs} at once, {wall:.2} s; summary: {}, {}",
+            rows.len(),
+            failed.len(),
+            csv_path.display(),
+            json_path.display()
+        );
+    }
+    if failed.is_empty() {
+        return Ok(());
+    }
+    for r in &failed {
+        eprintln!(
+            "failed (exit {}): {}: {}",
+            r.exit_code,
+            r.file,
+            r.error.as_deref().unwrap_or("")
+        );
+    }
+    let names: Vec<&str> = failed.iter().map(|r| r.file.as_str()).collect();
+    let msg = format!(
+        "{} of {} files failed: {}",
+        failed.len(),
+        rows.len(),
+        names.join(", ")
+    );
+    let code = failed[0].exit_code;
+    Err(if failed.iter().all(|r| r.exit_code == code) && code == 2 {
+        anyhow::Error::new(BadInput(msg))
+    } else if failed.iter().all(|r| r.exit_code == code) && code == 3 {
+        anyhow::Error::new(std::io::Error::other(msg))
+    } else {
+        anyhow::anyhow!(msg)
+    })
+}
+
+fn print_row(r: &Row) {
+    let fit = match (r.fit_validation_percent, r.j) {
+        (Some(f), _) => format!("fit {f:.2}%"),
+        (None, Some(j)) => format!("J {j:.3e}"),
+        _ => String::new(),
+    };
+    match &r.error {
+        None => println!(
+            "ok      {}: {} {fit}{}",
+            r.file,
+            r.model.as_deref().unwrap_or("?"),
+            if r.effects.is_empty() {
+                String::new()
+            } else {
+                format!(" + {}", r.effects.join(", "))
+            }
+        ),
+        Some(e) => println!("failed  {}: {e}", r.file),
+    }
+}
+
+fn write_csv(path: &Path, rows: &[Row]) -> Result<()> {
+    let io = |e: csv::Error| -> anyhow::Error {
+        match e.into_kind() {
+            csv::ErrorKind::Io(e) => anyhow::Error::new(e),
+            k => anyhow::anyhow!("{k:?}"),
+        }
+    };
+    let mut w = csv::Writer::from_path(path)
+        .map_err(io)
+        .with_context(|| format!("cannot write {}", path.display()))?;
+    w.write_record([
+        "file",
+        "status",
+        "exit_code",
+        "model",
+        "fit_estimation_percent",
+        "fit_validation_percent",
+        "J",
+        "effects",
+        "warnings",
+        "error",
+        "report",
+        "seconds",
+    ])
+    .map_err(io)?;
+    let num = |v: Option<f64>| v.map_or(String::new(), |v| v.to_string());
+    for r in rows {
+        w.write_record([
+            r.file.clone(),
+            r.status.to_string(),
+            r.exit_code.to_string(),
+            r.model.clone().unwrap_or_default(),
+            num(r.fit_estimation_percent),
+            num(r.fit_validation_percent),
+            num(r.j),
+            r.effects.join(";"),
+            r.warnings.join(" | "),
+            r.error.clone().unwrap_or_default(),
+            r.report.clone().unwrap_or_default(),
+            format!("{:.4}", r.seconds),
+        ])
+        .map_err(io)?;
+    }
+    w.flush()
+        .with_context(|| format!("cannot write {}", path.display()))?;
+    Ok(())
+}
+
+/// `fracid time` on many files: each fitted in this process exactly as `fracid time FILE --json`
+/// would (the same options), on a pool of threads.
+///
+/// # Errors
+/// As [`run`].
+pub fn run_time(a: super::time::TimeArgs) -> Result<()> {
+    if a.plot.is_some() {
+        crate::bad_input!("--plot draws one record: not with many files");
+    }
+    let mut paths = vec![a.file.clone()];
+    paths.extend(a.fleet.more.iter().cloned());
+    let files = expand(&paths)?;
+    run("time", &files, &a.fleet, a.json, |f| time_report(&a, f))
+}
+
+/// One file's `fracid time --json` report, with the options of `a` (the steps of
+/// `time::run` without its printing).
+fn time_report(a: &super::time::TimeArgs, file: &Path) -> Result<Value> {
+    use ident::oe::identify_with_progress;
+    let rec = super::time::read_record(file, &super::time::read_options(a))?;
+    let duration = rec.t.last().copied().unwrap_or(0.0) - rec.t.first().copied().unwrap_or(0.0);
+    let model = super::time::model_of(a, duration)?;
+    let opts = super::time::ident_options(a)?;
+    let id = identify_with_progress(&rec, &model, &opts, &mut |_, _| {})
+        .with_context(|| format!("identifying {}", file.display()))?;
+    let mut v = super::time::json_of(&id, &rec);
+    if a.diagnose {
+        let d = super::diagnose::run_time(&rec, &id)?;
+        v["diagnosis"] = super::diagnose::json(&d)?;
+    }
+    v["file"] = json!(file.display().to_string());
+    Ok(v)
+}
+
+/// `fracid freq` on many files: each one `fracid freq FILE --json` with the same options, in a
+/// child process (so the report is that command's own), on a pool of threads.
+///
+/// # Errors
+/// As [`run`]; the program cannot find its own executable (exit 3).
+pub fn run_freq(a: &super::freq::FreqArgs) -> Result<()> {
+    if a.plot.is_some() {
+        crate::bad_input!("--plot draws one record: not with many files");
+    }
+    let mut paths = vec![a.file.clone()];
+    paths.extend(a.fleet.more.iter().cloned());
+    let files = expand(&paths)?;
+    let exe = std::env::current_exe().context("cannot find the fracid executable")?;
+    let opts = single_file_options(&paths);
+    run("freq", &files, &a.fleet, a.json, |f| {
+        let o = std::process::Command::new(&exe)
+            .arg("freq")
+            .arg(f)
+            .args(&opts)
+            .arg("--json")
+            .stdin(std::process::Stdio::null())
+            .output()
+            .with_context(|| format!("cannot run {}", exe.display()))?;
+        let err = String::from_utf8_lossy(&o.stderr);
+        let msg = err
+            .lines()
+            .rev()
+            .find(|l| l.starts_with("error: "))
+            .map_or_else(
+                || err.trim().to_string(),
+                |l| l["error: ".len()..].to_string(),
+            );
+        match o.status.code() {
+            Some(0) => {
+                Ok(serde_json::from_slice(&o.stdout)
+                    .context("fracid freq --json printed no JSON")?)
+            }
+            Some(2) => Err(anyhow::Error::new(BadInput(msg))),
+            Some(3) => Err(anyhow::Error::new(std::io::Error::other(msg))),
+            _ => Err(anyhow::anyhow!(msg)),
+        }
+    })
+}
+
+/// This command line's options without its files, `--out`, `--jobs` and `--json`: what each
+/// single-file child gets.
+fn single_file_options(paths: &[PathBuf]) -> Vec<std::ffi::OsString> {
+    let args: Vec<std::ffi::OsString> = std::env::args_os().skip(2).collect();
+    let mut out = Vec::new();
+    let mut positional_left: Vec<std::ffi::OsString> =
+        paths.iter().map(|p| p.as_os_str().to_owned()).collect();
+    let mut i = 0;
+    while i < args.len() {
+        let s = args[i].to_string_lossy();
+        if s == "--out" || s == "--jobs" {
+            i += 2;
+            continue;
+        }
+        if s.starts_with("--out=") || s.starts_with("--jobs=") || s == "--json" {
+            i += 1;
+            continue;
+        }
+        if let Some(k) = positional_left.iter().position(|p| *p == args[i]) {
+            positional_left.remove(k);
+            i += 1;
+            continue;
+        }
+        out.push(args[i].clone());
+        i += 1;
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn globs_match_names() {
+        let m = |p: &str, n: &str| {
+            glob_match(
+                &p.chars().collect::<Vec<_>>(),
+                &n.chars().collect::<Vec<_>>(),
+            )
+        };
+        assert!(m("*.csv", "a.csv"));
+        assert!(m("rec_??.csv", "rec_01.csv"));
+        assert!(!m("rec_??.csv", "rec_1.csv"));
+        assert!(!m("*.csv", "a.csv.json"));
+        assert!(m("*", ""));
+    }
+
+    #[test]
+    fn summary_fields_come_from_a_time_report() {
+        let v = json!({
+            "model": {"num": [{"coef": 2.0, "order": 0.0}], "den": [{"coef": 0.1, "order": 0.9}, {"coef": 1.0, "order": 0.0}], "delay": 0.0},
+            "fit": {"estimation": {"nrmse_percent": 97.0}, "validation": {"nrmse_percent": 96.0}},
+            "warnings": ["w1"],
+            "diagnosis": {"after": {"nrmse_percent": 98.5}, "effects": [{"name": "delay"}, {"name": "offset"}]}
+        });
+        let mut r = Row::new(Path::new("x.csv"));
+        r.fill_from(&v);
+        assert_eq!(r.model.as_deref(), Some("2/(0.1 s^0.9 + 1)"));
+        assert_eq!(r.fit_estimation_percent, Some(97.0));
+        assert_eq!(r.fit_validation_percent, Some(98.5));
+        assert_eq!(r.effects, ["delay", "offset"]);
+        assert_eq!(r.warnings, ["w1"]);
+    }
+}

@@ -1,0 +1,131 @@
+//! `fracid export`: JSON and MATLAB state spaces, from a model string and from a fit report; the
+//! exported discrete model run by its own recursion equals `fracid sim`.
+
+use super::fracid;
+use std::path::Path;
+
+fn json_file(p: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap()
+}
+
+fn matrix(v: &serde_json::Value) -> Vec<Vec<f64>> {
+    v.as_array()
+        .unwrap()
+        .iter()
+        .map(|r| {
+            r.as_array()
+                .unwrap()
+                .iter()
+                .map(|x| x.as_f64().unwrap())
+                .collect()
+        })
+        .collect()
+}
+
+/// The step response of the exported discrete model, by `x <- A x + B u`, `y = C x + D u`.
+fn step(v: &serde_json::Value, n: usize) -> Vec<f64> {
+    let (a, b, c, d) = (
+        matrix(&v["a"]),
+        matrix(&v["b"]),
+        matrix(&v["c"]),
+        matrix(&v["d"]),
+    );
+    let mut x = vec![0.0; a.len()];
+    let mut y = Vec::new();
+    for _ in 0..n {
+        y.push(c[0].iter().zip(&x).map(|(c, x)| c * x).sum::<f64>() + d[0][0]);
+        x = (0..a.len())
+            .map(|i| a[i].iter().zip(&x).map(|(a, x)| a * x).sum::<f64>() + b[i][0])
+            .collect();
+    }
+    y
+}
+
+#[test]
+fn discrete_export_steps_like_fracid_sim() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = "6.77/(0.000028 s^1.78 + 0.0064 s^0.89 + 1) exp(-0.00025 s)";
+    let out = dir.path().join("ss.json");
+    let o = fracid(&["export", model, "--dt", "1e-4", "-o", out.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v = json_file(&out);
+    assert_eq!(v["time"], "discrete");
+    assert_eq!(v["delay_states"], 3); // 2.5 samples: two whole, one for the fraction
+    assert_eq!(v["approximation"]["method"], "refined");
+    let o = fracid(&[
+        "sim", "--model", model, "--step", "--dt", "1e-4", "--t-end", "0.03",
+    ]);
+    assert!(o.status.success());
+    let sim: Vec<f64> = String::from_utf8_lossy(&o.stdout)
+        .lines()
+        .filter(|l| l.starts_with(|c: char| c.is_ascii_digit()))
+        .map(|l| l.split(',').nth(2).unwrap().parse().unwrap())
+        .collect();
+    let y = step(&v, sim.len());
+    let peak = sim.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    for (k, (a, b)) in y.iter().zip(&sim).enumerate() {
+        // sim prints with limited digits: 1e-6 of the peak is far below a wrong hold or delay
+        assert!((a - b).abs() <= 1e-6 * peak, "k = {k}: {a} vs {b}");
+    }
+}
+
+#[test]
+fn matlab_script_and_fit_reports() {
+    let dir = tempfile::tempdir().unwrap();
+    let m = dir.path().join("motor.m");
+    let o = fracid(&[
+        "export",
+        "6.77/(0.0064 s^0.89 + 1) exp(-0.01 s)",
+        "--band",
+        "1e-2,1e5",
+        "--order",
+        "4",
+        "-o",
+        m.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = std::fs::read_to_string(&m).unwrap();
+    assert!(
+        text.contains("sys = ss(A, B, C, D, 'InputDelay', tau);"),
+        "{text}"
+    );
+    assert!(text.contains("tau = 1e-2;") && text.contains("G = tf(sys);"));
+    // A report of `fracid time --json` (its "model") is a model too.
+    let rep = dir.path().join("fit.json");
+    std::fs::write(
+        &rep,
+        r#"{"model": {"num": [{"coef": 2.0, "order": 0.0}], "den": [{"coef": 0.1, "order": 1.0}, {"coef": 1.0, "order": 0.0}], "delay": 0.0}}"#,
+    )
+    .unwrap();
+    let o = fracid(&["export", rep.to_str().unwrap(), "--dt", "0.01"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    // 2/(0.1 s + 1) held over 10 ms: one state, a = e^-0.1, DC gain 2
+    let a = matrix(&v["a"]);
+    assert_eq!(a.len(), 1);
+    assert!((a[0][0] - (-0.1f64).exp()).abs() < 1e-15);
+    let (b, c) = (matrix(&v["b"])[0][0], matrix(&v["c"])[0][0]);
+    assert!((c * b / (1.0 - a[0][0]) - 2.0).abs() < 1e-12);
+}
+
+#[test]
+fn bad_requests_exit_2() {
+    for args in [
+        vec!["export", "1/(0.1 s + 1)"], // continuous without a band
+        vec!["export", "1/(0.1 s + 1", "--dt", "1e-3"],
+        vec!["export", "1/(0.1 s + 1)", "--dt", "-1"],
+        vec!["export", "1/(0.1 s + 1)", "--dt", "1e-3", "--format", "mat"],
+        vec!["export", "1/(0.1 s + 1) exp(-5 s)", "--dt", "1e-3"], // 5000 delay states
+    ] {
+        let o = fracid(&args);
+        assert_eq!(
+            o.status.code(),
+            Some(2),
+            "{args:?}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        assert!(String::from_utf8_lossy(&o.stderr).starts_with("error: "));
+    }
+    let o = fracid(&["export", "/nonexistent/fit.json", "--dt", "1e-3"]);
+    assert_eq!(o.status.code(), Some(3));
+}

@@ -1,0 +1,166 @@
+//! The application layer shared by the CLI and the Python bindings: structure presets, option
+//! parsing and the model's report type, so that the same words give the same model everywhere.
+
+use crate::data::OffsetMode;
+use crate::oe::FracModel;
+use crate::{Error, Result};
+use fracsim::{FracTf, Term};
+
+/// The largest input delay searched when none is given: a fifth of the record, at most 1 s.
+pub fn default_max_delay(duration_s: f64) -> f64 {
+    (0.2 * duration_s).min(1.0)
+}
+
+/// The model named by `spec`: `pmsm` (`K/(a2 s^(zeta+theta) + a1 s^zeta + 1)`), `commensurate`
+/// (`K/(a2 s^(2q) + a1 s^q + 1)`), `fopdt` (`K e^(-tau s)/(T s + 1)`, `tau` up to `max_delay_s`),
+/// or a transfer function whose every coefficient and order is fitted from its values (then
+/// `general` is true: it starts from them). Returns `(model, general)`.
+///
+/// ```
+/// let (m, general) = ident::app::structure("pmsm", 0.2).unwrap();
+/// assert_eq!((m.params.len(), general), (5, false));
+/// let (g, general) = ident::app::structure("2/(0.1 s^0.8 + 1)", 0.2).unwrap();
+/// assert!(general && g.params.iter().filter(|p| p.free).count() == 3);
+/// ```
+///
+/// # Errors
+/// [`Error::Options`] for a name that is no preset and no model.
+pub fn structure(spec: &str, max_delay_s: f64) -> Result<(FracModel, bool)> {
+    Ok(match spec.trim().to_ascii_lowercase().as_str() {
+        "pmsm" => (FracModel::pmsm(1.0, 0.01, 1e-4, 0.9, 0.9), false),
+        "commensurate" => (FracModel::commensurate(1.0, 0.01, 1e-4, 0.9), false),
+        "fopdt" => (
+            FracModel::fopdt(1.0, 0.1, 0.05 * max_delay_s, max_delay_s),
+            false,
+        ),
+        s => {
+            let tf: FracTf = s.parse().map_err(|e| {
+                Error::Options(format!(
+                    "structure '{spec}' is not pmsm, commensurate, fopdt or a model: {e}"
+                ))
+            })?;
+            (FracModel::from_tf(&tf, true, true), true)
+        }
+    })
+}
+
+/// `initial`, `mean` or `none` ([`OffsetMode`]).
+///
+/// # Errors
+/// [`Error::Options`] for another word.
+pub fn offsets(s: &str) -> Result<OffsetMode> {
+    match s.trim().to_ascii_lowercase().as_str() {
+        "initial" => Ok(OffsetMode::Initial),
+        "mean" => Ok(OffsetMode::Mean),
+        "none" => Ok(OffsetMode::None),
+        _ => Err(Error::Options(format!(
+            "offsets '{s}' must be initial, mean or none"
+        ))),
+    }
+}
+
+/// An approximation band `"w_b,w_h"` in rad/s: exactly two numbers, every field checked.
+///
+/// ```
+/// assert_eq!(ident::app::band("1e-3, 3000").unwrap(), (1e-3, 3000.0));
+/// assert!(ident::app::band("1e-3,abc,3000").is_err());
+/// ```
+///
+/// # Errors
+/// [`Error::Options`] for anything else, or a band fracsim refuses.
+pub fn band(s: &str) -> Result<(f64, f64)> {
+    let fields: Vec<&str> = s.split(',').map(str::trim).collect();
+    let nums: Vec<f64> = fields.iter().filter_map(|f| f.parse().ok()).collect();
+    if fields.len() != 2 || nums.len() != 2 {
+        return Err(Error::Options(format!(
+            "band must be two numbers \"w_b,w_h\" in rad/s, got '{s}'"
+        )));
+    }
+    fracsim::approx::check_band(nums[0], nums[1])?;
+    Ok((nums[0], nums[1]))
+}
+
+/// One `(coefficient, order)` term of a reported model.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct TermReport {
+    /// The coefficient.
+    pub coef: f64,
+    /// The order of `s`.
+    pub order: f64,
+}
+
+/// A model as reports give it (DESIGN section 7): `num`, `den`, `delay` (s) and its `text`.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct ModelReport {
+    /// Numerator terms.
+    pub num: Vec<TermReport>,
+    /// Denominator terms.
+    pub den: Vec<TermReport>,
+    /// Input delay in seconds.
+    #[serde(default)]
+    pub delay: f64,
+    /// The model as text (read back by the parser).
+    #[serde(default)]
+    pub text: String,
+}
+
+impl From<&FracTf> for ModelReport {
+    fn from(g: &FracTf) -> Self {
+        let terms = |t: &[Term]| {
+            t.iter()
+                .map(|t| TermReport {
+                    coef: t.coef,
+                    order: t.order,
+                })
+                .collect()
+        };
+        Self {
+            num: terms(&g.num),
+            den: terms(&g.den),
+            delay: g.delay,
+            text: g.to_string(),
+        }
+    }
+}
+
+impl ModelReport {
+    /// The transfer function back.
+    ///
+    /// # Errors
+    /// As [`FracTf::new`].
+    pub fn tf(&self) -> Result<FracTf> {
+        let terms = |t: &[TermReport]| t.iter().map(|t| Term::new(t.coef, t.order)).collect();
+        Ok(FracTf::new(terms(&self.num), terms(&self.den), self.delay)?)
+    }
+}
+
+/// Fix and free parameters by name: `fix` is a comma-separated list of `NAME` or `NAME=VALUE`
+/// (held, at that value when given), `free` a list of names (fitted).
+///
+/// ```
+/// let (mut m, _) = ident::app::structure("pmsm", 0.2).unwrap();
+/// ident::app::fix_free(&mut m, "zeta=0.9,theta", "").unwrap();
+/// assert!(!m.params[3].free && m.params[3].value == 0.9 && !m.params[4].free);
+/// assert!(ident::app::fix_free(&mut m, "nope", "").is_err());
+/// ```
+///
+/// # Errors
+/// [`Error::Options`] for an unknown name, a value that is not a number or is out of range.
+pub fn fix_free(m: &mut FracModel, fix: &str, free: &str) -> Result<()> {
+    for item in fix.split(',').map(str::trim).filter(|s| !s.is_empty()) {
+        let (name, value) = match item.split_once('=') {
+            Some((n, v)) => {
+                let v: f64 = v.trim().parse().map_err(|_| {
+                    Error::Options(format!("fix '{item}': '{}' is not a number", v.trim()))
+                })?;
+                (n.trim(), Some(v))
+            }
+            None => (item, None),
+        };
+        m.set_fixed(name, true, value)?;
+    }
+    for name in free.split(',').map(str::trim).filter(|s| !s.is_empty()) {
+        m.set_fixed(name, false, None)?;
+    }
+    Ok(())
+}

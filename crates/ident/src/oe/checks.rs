@@ -1,0 +1,166 @@
+//! Honest results: what makes a fitted model unusable (unstable, no finite static gain where one
+//! is expected, parameters the data do not determine, non-finite scores) and what deserves a
+//! warning (no convergence, an output that looks integrating), and a validation window that
+//! carries excitation.
+
+use super::{FracModel, Identification};
+use crate::data::Record;
+use fracsim::Simulator;
+
+/// Input changes smaller than this fraction of the input's range are not excitation.
+const CHANGE_FRACTION: f64 = 1e-6;
+
+/// The fewest input changes a validation window must hold to score a model on.
+const MIN_VALIDATION_CHANGES: usize = 3;
+
+/// A static gain that moves the output by more than this many times its spread for the input's
+/// spread is not what the data show: the output integrates, or the gain is not identifiable.
+const ABSURD_GAIN_RATIO: f64 = 1e3;
+
+/// Indices `k` where `u[k] != u[k-1]` (beyond a small fraction of the range).
+fn input_changes(u: &[f64]) -> Vec<usize> {
+    let (lo, hi) = u
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+            (a.min(v), b.max(v))
+        });
+    let tol = CHANGE_FRACTION * (hi - lo);
+    (1..u.len())
+        .filter(|&k| (u[k] - u[k - 1]).abs() > tol)
+        .collect()
+}
+
+/// The validation split for `holdout`: the last `holdout` of the record when its input changes
+/// at least [`MIN_VALIDATION_CHANGES`] times; otherwise the split is moved earlier so that the
+/// validation window holds the last `holdout` fraction of the input's changes (and at least
+/// that many), with a warning saying so. Returns `(split, warning)`.
+pub(crate) fn validation_split(
+    rec: &Record,
+    split: usize,
+    holdout: f64,
+) -> (usize, Option<String>) {
+    let n = rec.len();
+    if split >= n {
+        return (split, None);
+    }
+    let changes = input_changes(&rec.u);
+    let in_val = changes.iter().filter(|&&k| k > split).count();
+    if in_val >= MIN_VALIDATION_CHANGES || changes.is_empty() {
+        return (split, None);
+    }
+    let want = ((holdout * changes.len() as f64).ceil() as usize)
+        .max(MIN_VALIDATION_CHANGES)
+        .min(changes.len());
+    // The validation starts a little before the first change it holds (a tenth of the gap to the
+    // previous change), so the response to it is scored whole.
+    let i = changes.len() - want;
+    let prev = if i > 0 { changes[i - 1] } else { 0 };
+    let new = changes[i] - (changes[i] - prev) / 10;
+    let why = format!(
+        "the input has {} change(s) in the last {:.0}% of the record (samples {split}..{n}): \
+         validation moved to samples {new}..{n}, which hold {want} of the input's {} changes",
+        in_val,
+        100.0 * holdout,
+        changes.len()
+    );
+    (new, Some(why))
+}
+
+/// Whether the model integrates by design (a denominator with no order-zero term).
+fn integrates(m: &FracModel, p: &[f64]) -> bool {
+    !m.den
+        .iter()
+        .any(|(c, o)| o.eval(p) == 0.0 && c.eval(p) != 0.0)
+}
+
+fn std_dev(x: &[f64]) -> f64 {
+    let n = x.len().max(1) as f64;
+    let mean = x.iter().sum::<f64>() / n;
+    (x.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / n).sqrt()
+}
+
+/// The reasons the identified model cannot be used (empty when it can), and warnings.
+pub(crate) fn assess(id: &Identification, rec: &Record) -> (Vec<String>, Vec<String>) {
+    let (mut problems, mut warnings) = (vec![], vec![]);
+    let m = &id.model;
+    let p = &id.report.values;
+    if !id.estimation.rmse.is_finite()
+        || id.validation.is_some_and(|v| !v.rmse.is_finite())
+        || id.yhat.iter().any(|v| !v.is_finite())
+    {
+        problems.push("the model output or its error is not finite".into());
+    }
+    // Stability of the approximated model: every pole in the open left half-plane (a pole at
+    // 0 only when the structure integrates by design).
+    match Simulator::<f64>::new(&id.tf, rec.dt, &m.approx) {
+        Ok(sim) => {
+            let pr = sim.model();
+            let worst = pr
+                .real
+                .iter()
+                .map(|&(l, _)| num_complex::Complex64::new(l, 0.0))
+                .chain(pr.complex.iter().map(|&(l, _)| l.val()))
+                .fold(None::<num_complex::Complex64>, |a, l| match a {
+                    Some(a) if a.re >= l.re => Some(a),
+                    _ => Some(l),
+                });
+            if let Some(l) = worst {
+                if l.re > 1e-9 * l.norm().max(1.0) {
+                    problems.push(format!(
+                        "the model is unstable: a pole at {:.4e}{:+.4e}j rad/s in the right half-plane",
+                        l.re, l.im
+                    ));
+                }
+            }
+        }
+        Err(e) => problems.push(format!("the model cannot be simulated: {e}")),
+    }
+    let dc = id.tf.dc_gain();
+    let by_design = integrates(m, p);
+    if !dc.is_finite() && !by_design {
+        problems.push("the model has no finite static gain".into());
+    } else if dc.is_finite() && dc < 0.0 {
+        warnings.push(format!(
+            "the static gain G(0) = {dc:.4e} is negative: the output falls when the input rises"
+        ));
+    }
+    let (su, sy) = (std_dev(&rec.u), std_dev(&rec.y));
+    if dc.is_finite() && !by_design && dc.abs() * su > ABSURD_GAIN_RATIO * sy.max(f64::MIN_POSITIVE)
+    {
+        problems.push(format!(
+            "the static gain G(0) = {dc:.4e} is absurd for these data (the output's spread is \
+             {sy:.3e} for the input's {su:.3e}): the output may integrate the input, try the \
+             structure with an integrator (--integrator)"
+        ));
+    }
+    for (i, e) in id.report.params.iter().enumerate() {
+        if !e.free || m.is_initial_state(i) || e.name == "y_offset" {
+            continue;
+        }
+        match e.std_error {
+            Some(se) if se > e.value.abs() => problems.push(format!(
+                "{} = {:.4e} +- {se:.2e} is not identifiable from these data (standard error \
+                 larger than the value)",
+                e.name, e.value
+            )),
+            _ => {}
+        }
+    }
+    if id
+        .report
+        .params
+        .iter()
+        .any(|e| e.free && e.std_error.is_none())
+    {
+        problems.push("some parameters are not identifiable (the covariance is singular)".into());
+    }
+    if !id.report.converged {
+        warnings.push(format!(
+            "the fit did not converge ({}, {} iterations): the parameters may not be at the \
+             optimum (raise --max-iter)",
+            id.report.stop_reason(),
+            id.report.iterations
+        ));
+    }
+    (problems, warnings)
+}

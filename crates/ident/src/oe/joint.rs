@@ -1,0 +1,132 @@
+//! Several records of one plant fitted jointly: one model, each record with its own operating
+//! point, output offset and initial state (MATLAB's multi-experiment `iddata` with `oe`).
+
+use super::fit::{fit_with_progress, past_edges, IdentOptions, InitialState};
+use super::{FracModel, Param, Structure};
+use crate::data::{Offsets, Record};
+use crate::metrics::Fit;
+use crate::{Error, Result};
+use fracsim::{FracTf, Real};
+
+/// The records end to end as one [`Structure`]: the plant's parameters shared, the record's own
+/// (`y_offset`, the initial-state levels) repeated per record.
+struct Joint {
+    /// Per record: the model with its operating point, and where its parameters live.
+    parts: Vec<(FracModel, Vec<usize>)>,
+    /// Per record: its samples `a..b` in the concatenation.
+    ranges: Vec<(usize, usize)>,
+    params: Vec<Param>,
+}
+
+impl Structure for Joint {
+    fn params(&self) -> &[Param] {
+        &self.params
+    }
+
+    fn simulate<T: Real>(&self, p: &[T], u: &[f64], dt: f64, y: &mut [T]) -> Result<()> {
+        for ((m, map), &(a, b)) in self.parts.iter().zip(&self.ranges) {
+            let ps: Vec<T> = map.iter().map(|&j| p[j]).collect();
+            m.simulate(&ps, &u[a..b], dt, &mut y[a..b])?;
+        }
+        Ok(())
+    }
+}
+
+/// The result of [`identify_joint`].
+#[derive(Debug, Clone)]
+pub struct JointIdentification {
+    /// The model with the fitted values and the first record's own parameters.
+    pub model: FracModel,
+    /// The fitted linear part.
+    pub tf: FracTf,
+    /// The fit report over all records (parameters: the plant's, then each further record's own).
+    pub report: super::FitReport,
+    /// Per record: its operating point, its fit, its model output (absolute scale).
+    pub records: Vec<(Offsets, Fit, Vec<f64>)>,
+}
+
+/// Fit one model to several records of the same plant (same sampling step): the start is the
+/// model [`super::identify`] fits to the first record; then every record is simulated from its own
+/// initial state ([`InitialState`]) with its own output offset, and the plant's parameters are
+/// fitted to all of them at once. Each record is used whole (validate on another record with
+/// [`super::score`]).
+///
+/// # Errors
+/// [`Error::Data`] for no record or different sampling steps; errors of [`super::identify`]'s
+/// start and of the fit.
+pub fn identify_joint(
+    recs: &[Record],
+    model: &FracModel,
+    opts: &IdentOptions,
+) -> Result<JointIdentification> {
+    let Some(first) = recs.first() else {
+        return Err(Error::Data("no record to fit".into()));
+    };
+    if let Some(r) = recs.iter().find(|r| (r.dt / first.dt - 1.0).abs() > 1e-6) {
+        return Err(Error::Data(format!(
+            "the records are sampled at different steps ({} s and {} s)",
+            first.dt, r.dt
+        )));
+    }
+    // The start: the model fitted to the first record alone, whole.
+    let one = IdentOptions {
+        holdout: 0.0,
+        ..opts.clone()
+    };
+    let base = super::identify(first, model, &one)?.model;
+    let own = |m: &FracModel, i: usize| m.is_initial_state(i) || m.params[i].name == "y_offset";
+    let mut params = base.params.clone();
+    let (mut parts, mut ranges, mut u, mut y) = (vec![], vec![], vec![], vec![]);
+    for (r, rec) in recs.iter().enumerate() {
+        let op = rec.offsets(opts.offsets, rec.len());
+        let mut m = base.clone();
+        m.operating_point = op;
+        if opts.initial == InitialState::Estimate {
+            m.with_past_input(past_edges(rec.len() as f64 * rec.dt));
+        }
+        let map: Vec<usize> = (0..m.params.len())
+            .map(|i| {
+                if r > 0 && own(&m, i) {
+                    let mut p = m.params[i].clone();
+                    p.name = format!("{}@{}", p.name, r + 1);
+                    p.value = 0.0;
+                    params.push(p);
+                    params.len() - 1
+                } else {
+                    i
+                }
+            })
+            .collect();
+        ranges.push((u.len(), u.len() + rec.len()));
+        u.extend(rec.u.iter().map(|v| v - op.u0));
+        y.extend(rec.y.iter().map(|v| v - op.y0));
+        parts.push((m, map));
+    }
+    let joint = Joint {
+        parts,
+        ranges,
+        params,
+    };
+    let report = fit_with_progress(&joint, &u, &y, first.dt, &opts.fit, &mut |_, _| {})?;
+    let mut records = vec![];
+    for ((m, map), &(a, b)) in joint.parts.iter().zip(&joint.ranges) {
+        let ps: Vec<f64> = map.iter().map(|&j| report.values[j]).collect();
+        let mut yd = vec![0.0; b - a];
+        m.simulate(&ps, &u[a..b], first.dt, &mut yd)?;
+        let op = m.operating_point;
+        let yhat: Vec<f64> = yd.iter().map(|v| v + op.y0).collect();
+        let ymeas: Vec<f64> = y[a..b].iter().map(|v| v + op.y0).collect();
+        records.push((op, Fit::of(&ymeas, &yhat), yhat));
+    }
+    let (mut model, map0) = joint.parts[0].clone();
+    for (p, &j) in model.params.iter_mut().zip(&map0) {
+        p.value = report.values[j];
+    }
+    let tf = model.tf(&model.values())?;
+    Ok(JointIdentification {
+        model,
+        tf,
+        report,
+        records,
+    })
+}
