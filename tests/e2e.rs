@@ -726,6 +726,85 @@ fn killing_the_drive_mid_run_leaves_a_finished_record() {
 
 #[cfg(unix)]
 #[test]
+fn a_sine_sweep_with_repeats_writes_the_spread_and_the_complete_footer() {
+    let (_sim, port, _sim_out) = drive_sim_piped();
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("bode.csv");
+    let mut sine = drive_cmd(
+        &[
+            "sine",
+            "--freqs",
+            "20,40,80",
+            "--min-settle",
+            "0.05",
+            "--repeats",
+            "3",
+        ],
+        &port,
+        &out,
+    );
+    let (status, stderr) = wait_end(&mut sine, 60);
+    assert!(status.success(), "{status:?}: {stderr}");
+    let text = std::fs::read_to_string(&out).unwrap();
+    assert!(text.contains("# hold: zero-order"), "{text}");
+    assert!(
+        text.contains("# frequencies applied so the window holds whole cycles"),
+        "{text}"
+    );
+    assert!(
+        text.contains("# 3 repeats per frequency: trimmed mean"),
+        "{text}"
+    );
+    assert!(
+        text.lines()
+            .any(|l| l == "freq_hz,gain_db,phase_deg,gain_db_std,phase_deg_std,repeats"),
+        "{text}"
+    );
+    let rows: Vec<Vec<&str>> = text
+        .lines()
+        .filter(|l| l.starts_with(|c: char| c.is_ascii_digit()))
+        .map(|l| l.split(',').collect())
+        .collect();
+    assert_eq!(rows.len(), 3, "{text}");
+    for r in &rows {
+        assert_eq!(r.len(), 6, "{r:?}");
+        assert_eq!(r[5], "3", "{r:?}");
+        for v in &r[3..5] {
+            let v: f64 = v.parse().unwrap();
+            assert!(v.is_finite() && v >= 0.0, "{r:?}");
+        }
+    }
+    let footer = text.trim_end().lines().last().unwrap();
+    assert_eq!(footer, "# complete: 3 frequencies", "{text}");
+    // the single repeats, beside it, as measured
+    let mut reps = out.clone().into_os_string();
+    reps.push(".repeats.csv");
+    let reps = std::fs::read_to_string(&reps).unwrap();
+    assert!(
+        reps.lines()
+            .any(|l| l == "freq_hz,repeat,gain_db,phase_deg"),
+        "{reps}"
+    );
+    assert_eq!(data_rows(&reps), 9, "{reps}");
+    // and `fracid freq` reads the table back, spread columns included (Vinagre's weights: the
+    // simulator has no noise, so the repeats agree too closely for the spread's)
+    let fit = fracid(&[
+        "freq",
+        out.to_str().unwrap(),
+        "--n",
+        "1",
+        "--weights",
+        "vinagre",
+    ]);
+    assert!(
+        fit.status.success(),
+        "{}",
+        String::from_utf8_lossy(&fit.stderr)
+    );
+}
+
+#[cfg(unix)]
+#[test]
 fn a_signal_during_a_sine_sweep_keeps_the_measured_points() {
     let (_sim, port, _sim_out) = drive_sim_piped();
     let dir = tempfile::tempdir().unwrap();

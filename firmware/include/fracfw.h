@@ -47,8 +47,9 @@ typedef unsigned char fw_octet;
  * receiver stops storing them and counts them as errors at their delimiter, so the work done on
  * a received octet stays bounded by one command frame (decode and CRC of at most 33 octets). */
 #define FW_RX_MAX_ENCODED (FW_MAX_CMD_BODY + 1u)
-/** Longest sine measurement window the fixed-point DFT accepts, samples (2^26). */
-#define FW_MAX_DFT_SAMPLES 67108864ul
+/** Longest sine measurement window the fixed-point DFT accepts, samples (2^22): the ramp moment
+ * sum (2k - (n-1)) y_k stays below 2^59 in 64 bits. */
+#define FW_MAX_DFT_SAMPLES 4194304ul
 
 #ifndef FW_TX_BLOCKS
 /** DATA blocks the transmit buffer holds (PROTOCOL.md: at least 2). */
@@ -58,7 +59,7 @@ typedef unsigned char fw_octet;
 #define FW_TX_SLOTS (FW_TX_BLOCKS + 5u)
 /** Answers queued ahead of data (stop-and-wait: one, plus a HELLO that crosses it). */
 #define FW_ANSWER_SLOTS 2u
-/** Longest answer body (SINE_RESULT/STATUS sized: 6 + 22). */
+/** Longest answer body (6 + 22; STATUS_REPLY needs 6 + 16; SINE_RESULT goes through the data ring). */
 #define FW_ANSWER_BODY 28u
 
 /* message types */
@@ -188,6 +189,9 @@ typedef struct {
     int32_t cur_cos, cur_sin;
     uint16_t measuring;
     int64_t acc[4];
+    /* level and ramp sums of u and y over the window: sum x_k, sum (2k - (n-1)) x_k */
+    int64_t lvl[2], rmp[2];
+    int32_t win_k2; /* 2k - (n-1) of the sample in progress */
     /* last run, for STATUS and END_QUERY */
     uint16_t last_valid;
     uint16_t last_id;

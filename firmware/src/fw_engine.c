@@ -193,6 +193,23 @@ static int32_t q8_result(int64_t acc, uint32_t n)
     return (int32_t)q;
 }
 
+/* (1/n) sum x_k in Q8, rounded half away from zero. |sum| < 2^37, so sum * 256 fits. */
+static int32_t q8_mean(int64_t sum, uint32_t n)
+{
+    int64_t a = sum * 256, d = (int64_t)n, q;
+    q = a >= 0 ? (a + d / 2) / d : -((-a + d / 2) / d);
+    return (int32_t)q;
+}
+
+/* (1/n) sum ((2k - (n-1))/n) x_k in Q8 = sum * 256 / n^2, without the 2^67 product: divide by n
+ * first (truncating), keep the remainder's share (truncating), then round the last division. */
+static int32_t q8_ramp(int64_t sum, uint32_t n)
+{
+    int64_t d = (int64_t)n, t;
+    t = (sum / d) * 256 + ((sum % d) * 256) / d;
+    return (int32_t)(t >= 0 ? (t + d / 2) / d : -((-t + d / 2) / d));
+}
+
 static void end_run(fw_t *fw, uint16_t reason)
 {
     fw_slot *s;
@@ -201,7 +218,7 @@ static void end_run(fw_t *fw, uint16_t reason)
     }
     flush_block(fw);
     if (fw->kind == 2u && (fw->sine_flags & 2u) && reason == FW_END_COMPLETE) {
-        s = end_frame(fw, FW_T_SINE_RESULT, 22u);
+        s = end_frame(fw, FW_T_SINE_RESULT, 38u);
         if (s) {
             put16(s->b + 4, fw->run_id);
             put32(s->b + 6, fw->sine_measure);
@@ -209,6 +226,10 @@ static void end_run(fw_t *fw, uint16_t reason)
             put32(s->b + 14, (uint32_t)q8_result(fw->acc[1], fw->sine_measure));
             put32(s->b + 18, (uint32_t)q8_result(fw->acc[2], fw->sine_measure));
             put32(s->b + 22, (uint32_t)q8_result(fw->acc[3], fw->sine_measure));
+            put32(s->b + 26, (uint32_t)q8_mean(fw->lvl[0], fw->sine_measure));
+            put32(s->b + 30, (uint32_t)q8_ramp(fw->rmp[0], fw->sine_measure));
+            put32(s->b + 34, (uint32_t)q8_mean(fw->lvl[1], fw->sine_measure));
+            put32(s->b + 38, (uint32_t)q8_ramp(fw->rmp[1], fw->sine_measure));
         }
     }
     put16(fw->end_payload, fw->run_id);
@@ -316,6 +337,7 @@ int fw_sample_begin(fw_t *fw, int16_t *u_raw)
         v = fw_sine_command(fw->phase, fw->sine_amp, fw->sine_off);
         if (fw->done >= fw->sine_settle) {
             fw->measuring = 1;
+            fw->win_k2 = (int32_t)(2u * (fw->done - fw->sine_settle)) - (int32_t)(fw->sine_measure - 1u);
             fw_sincos_q30(fw->phase, &fw->cur_sin, &fw->cur_cos);
         }
         fw->phase += fw->inc;
@@ -349,6 +371,10 @@ void fw_sample_end(fw_t *fw, int16_t y_raw, int16_t i_raw)
         fw->acc[1] -= ((int64_t)fw->cur_u * fw->cur_sin) >> 8;
         fw->acc[2] += ((int64_t)y_raw * fw->cur_cos) >> 8;
         fw->acc[3] -= ((int64_t)y_raw * fw->cur_sin) >> 8;
+        fw->lvl[0] += fw->cur_u;
+        fw->lvl[1] += y_raw;
+        fw->rmp[0] += (int64_t)fw->win_k2 * fw->cur_u;
+        fw->rmp[1] += (int64_t)fw->win_k2 * y_raw;
     }
     if (fw->stream) {
         fw_slot *s = build_slot(fw);
@@ -529,6 +555,7 @@ static void cmd_sine(fw_t *fw, uint16_t seq, const fw_octet *p)
     fw->sine_off = off;
     fw->sine_flags = flags;
     fw->acc[0] = fw->acc[1] = fw->acc[2] = fw->acc[3] = 0;
+    fw->lvl[0] = fw->lvl[1] = fw->rmp[0] = fw->rmp[1] = 0;
     ack(fw, FW_T_START_SINE, seq, fw->run_id, fw->total);
 }
 

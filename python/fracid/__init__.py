@@ -259,6 +259,7 @@ def fit_bode(
     weights: Union[str, ArrayLike, None] = "vinagre",
     sk_iterations: int = 0,
     refine: bool = False,
+    point_std: Optional[ArrayLike] = None,
 ) -> FreqFit:
     """Identify a commensurate fractional model from frequency-response data.
 
@@ -288,6 +289,10 @@ def fit_bode(
         Sanathanan-Koerner reweightings (0: none).
     refine : bool
         Refit the PMSM structure with two free orders (needs ``n=2, m=0``).
+    point_std : array_like, optional
+        Standard deviation of each point's complex error per real component (e.g. from the
+        spread of repeated sine measurements): the refit then weights by inverse variance and
+        its standard errors reflect it. Default: the paper's ``J``, every point alike.
 
     Returns
     -------
@@ -314,6 +319,7 @@ def fit_bode(
         weights=weights,
         sk_iterations=sk_iterations,
         refine=refine,
+        point_std=None if point_std is None else np.asarray(point_std, dtype=float),
     )
     return FreqFit._from_raw(raw)
 

@@ -232,6 +232,7 @@ class DriveClient:
         settle_cycles: int = 2,
         min_settle_s: float = 0.2,
         attempts: int = 3,
+        repeats: int = 1,
     ) -> BodeSweep:
         """Measure the frequency response with sines at ``n`` log-spaced frequencies.
 
@@ -257,6 +258,10 @@ class DriveClient:
             Minimum settling time in seconds.
         attempts : int
             Measurements of a frequency before giving it up.
+        repeats : int
+            Measurements per frequency, combined by the paper's trimmed mean (the largest and the
+            smallest gain dropped, likewise the phase, the rest averaged); their sample standard
+            deviations are in ``gain_db_std`` and ``phase_deg_std`` of the result.
 
         Returns
         -------
@@ -271,10 +276,19 @@ class DriveClient:
         DriveError
             Before :meth:`configure`, or if the drive rejects a sine.
         """
-        f, g, p, lost = self._c.run_sine_sweep(
-            f0_hz, f1_hz, n, amplitude_v, offset_v, cycles, settle_cycles, min_settle_s, attempts
+        f, g, p, lost, gs, ps = self._c.run_sine_sweep(
+            f0_hz,
+            f1_hz,
+            n,
+            amplitude_v,
+            offset_v,
+            cycles,
+            settle_cycles,
+            min_settle_s,
+            attempts,
+            repeats,
         )
-        return BodeSweep(f, g, p, list(lost))
+        return BodeSweep(f, g, p, list(lost), gain_db_std=gs, phase_deg_std=ps, repeats=repeats)
 
     def stop(self) -> None:
         """Send STOP: a run going on in the drive ramps down and ends.

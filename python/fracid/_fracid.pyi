@@ -161,6 +161,7 @@ def _fit_bode(
     weights: Union[str, npt.ArrayLike, None] = None,
     sk_iterations: int = 0,
     refine: bool = False,
+    point_std: Optional[npt.ArrayLike] = None,
 ) -> Dict[str, Any]: ...
 def _load_csv(
     path: str, t: Union[str, int], u: Union[str, int], y: Union[str, int], dt: Optional[float] = ...
@@ -318,8 +319,14 @@ class _DriveClient:
         settle_cycles: int = 2,
         min_settle_s: float = 0.2,
         attempts: int = 3,
+        repeats: int = 1,
     ) -> Tuple[
-        npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64], List[str]
+        npt.NDArray[np.float64],
+        npt.NDArray[np.float64],
+        npt.NDArray[np.float64],
+        List[str],
+        npt.NDArray[np.float64],
+        npt.NDArray[np.float64],
     ]: ...
     def stop(self) -> None:
         """STOP: a run of this client in progress (from any thread) ends at its next turn and

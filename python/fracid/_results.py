@@ -515,7 +515,7 @@ class Acquisition(_ToDict):
         return cls(**d)
 
 
-class BodeSweep(NamedTuple):
+class _BodeSweepFields(NamedTuple):
     """A frequency response measured by :meth:`DriveClient.run_sine_sweep`.
 
     A named tuple: ``freq_hz, gain_db, phase_deg, lost = client.run_sine_sweep(...)`` works.
@@ -546,6 +546,31 @@ class BodeSweep(NamedTuple):
     def h(self) -> np.ndarray:
         """The complex response ``10^(gain_db/20) exp(j phase)`` (for :func:`fracid.fit_bode`)."""
         return 10 ** (np.asarray(self.gain_db) / 20) * np.exp(1j * np.deg2rad(self.phase_deg))
+
+
+class BodeSweep(_BodeSweepFields):
+    """A frequency response measured by :meth:`DriveClient.run_sine_sweep`.
+
+    A named tuple of four: ``freq_hz, gain_db, phase_deg, lost = client.run_sine_sweep(...)``
+    works; the spread of the repeats rides along as attributes.
+
+    Attributes
+    ----------
+    freq_hz, gain_db, phase_deg, lost
+        As the tuple's fields (``freq_hz`` is the frequency really applied: moved so the
+        measurement window holds whole cycles).
+    gain_db_std, phase_deg_std : numpy.ndarray or None
+        Sample standard deviations of the repeats per point, dB and deg (zeros with one repeat).
+    repeats : int
+        Measurements per frequency.
+    """
+
+    def __new__(cls, freq_hz, gain_db, phase_deg, lost, gain_db_std=None, phase_deg_std=None, repeats=1):
+        self = super().__new__(cls, freq_hz, gain_db, phase_deg, lost)
+        self.gain_db_std = None if gain_db_std is None else np.asarray(gain_db_std)
+        self.phase_deg_std = None if phase_deg_std is None else np.asarray(phase_deg_std)
+        self.repeats = int(repeats)
+        return self
 
     def to_dict(self) -> Dict[str, Any]:
         """The fields as plain Python types (JSON-serialisable)."""

@@ -400,6 +400,8 @@ type SweepTuple<'py> = (
     Bound<'py, numpy::PyArray1<f64>>,
     Bound<'py, numpy::PyArray1<f64>>,
     Vec<String>,
+    Bound<'py, numpy::PyArray1<f64>>,
+    Bound<'py, numpy::PyArray1<f64>>,
 );
 
 #[pymethods]
@@ -587,8 +589,9 @@ impl PyDriveClient {
         acquisition_dict(py, acq)
     }
 
-    /// Run a log sine sweep: `(freq_hz, gain_db, phase_deg, lost)`.
-    #[pyo3(signature = (f0_hz, f1_hz, n, amplitude_v = 1.0, offset_v = 6.0, cycles = 4, settle_cycles = 2, min_settle_s = 0.2, attempts = 3))]
+    /// Run a log sine sweep: `(freq_hz, gain_db, phase_deg, lost, gain_db_std, phase_deg_std)`
+    /// (the spread of the `repeats` per frequency; zeros for one repeat).
+    #[pyo3(signature = (f0_hz, f1_hz, n, amplitude_v = 1.0, offset_v = 6.0, cycles = 4, settle_cycles = 2, min_settle_s = 0.2, attempts = 3, repeats = 1))]
     #[allow(clippy::too_many_arguments)]
     fn run_sine_sweep<'py>(
         &self,
@@ -602,6 +605,7 @@ impl PyDriveClient {
         settle_cycles: i64,
         min_settle_s: f64,
         attempts: i64,
+        repeats: i64,
     ) -> PyResult<SweepTuple<'py>> {
         let f0 = crate::arrays::positive("f0_hz", f0_hz)?;
         let f1 = crate::arrays::positive("f1_hz", f1_hz)?;
@@ -613,6 +617,7 @@ impl PyDriveClient {
         sweep.settle_cycles = int_in("settle_cycles", settle_cycles, 0, u16::MAX as i64)?;
         sweep.min_settle_s = non_negative("min_settle_s", min_settle_s)?;
         sweep.attempts = int_in("attempts", attempts, 1, 100)?;
+        sweep.repeats = int_in("repeats", repeats, 1, 1000)?;
         let _run = RunGuard::new(self);
         let (points, lost) = self.with(py, |c, conf| {
             let conf = configured(conf)?;
@@ -630,11 +635,21 @@ impl PyDriveClient {
         let f: Vec<f64> = points.iter().map(|p| p.freq_hz).collect();
         let g: Vec<f64> = points.iter().map(|p| p.gain_db).collect();
         let ph: Vec<f64> = points.iter().map(|p| p.phase_deg).collect();
+        let gs: Vec<f64> = points
+            .iter()
+            .map(|p| p.spread.map_or(0.0, |s| s.gain_db_std))
+            .collect();
+        let ps: Vec<f64> = points
+            .iter()
+            .map(|p| p.spread.map_or(0.0, |s| s.phase_deg_std))
+            .collect();
         Ok((
             f.into_pyarray(py),
             g.into_pyarray(py),
             ph.into_pyarray(py),
             lost,
+            gs.into_pyarray(py),
+            ps.into_pyarray(py),
         ))
     }
 

@@ -76,7 +76,7 @@ fn weights_of(w: &Bound<'_, PyAny>, n_points: usize) -> PyResult<Weights> {
 
 /// Levy (+ SK, + refit) on Bode data; returns a dict the Python layer turns into `FreqFit`.
 #[pyfunction]
-#[pyo3(signature = (omega, h, n = 2, m = 0, q = None, q_step = 0.01, q_max = 1.0, refine_q = true, weights = None, sk_iterations = 0, refine = false))]
+#[pyo3(signature = (omega, h, n = 2, m = 0, q = None, q_step = 0.01, q_max = 1.0, refine_q = true, weights = None, sk_iterations = 0, refine = false, point_std = None))]
 pub(crate) fn _fit_bode<'py>(
     py: Python<'py>,
     omega: FloatArray<'py>,
@@ -90,10 +90,19 @@ pub(crate) fn _fit_bode<'py>(
     weights: Option<Bound<'py, PyAny>>,
     sk_iterations: usize,
     refine: bool,
+    point_std: Option<FloatArray<'py>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let omega = floats("omega", &omega, 1)?;
     let h = complexes("h", &h, 1)?;
     same_len(("omega", omega.len()), ("h", h.len()))?;
+    let point_std = match &point_std {
+        Some(s) => {
+            let s = floats("point_std", s, 1)?;
+            same_len(("omega", omega.len()), ("point_std", s.len()))?;
+            Some(s)
+        }
+        None => None,
+    };
     let weights = match &weights {
         Some(w) if !w.is_none() => weights_of(w, omega.len())?,
         _ => Weights::Vinagre,
@@ -134,6 +143,7 @@ pub(crate) fn _fit_bode<'py>(
         weights,
         sk_iterations,
         refine,
+        point_std,
     };
     let fit = py
         .allow_threads(|| fit_bode(&omega, &h, &opts))

@@ -104,8 +104,10 @@ def test_sine_sweep_matches_the_model(sim, drive):
     elapsed = time.perf_counter() - t0
     f, g, p, lost = sweep  # a named tuple
     assert lost == []
-    # Log-spaced, as the drive runs them: rounded to the protocol's millihertz.
-    np.testing.assert_allclose(f, [10, np.sqrt(500), 50], rtol=0, atol=5e-4)
+    # Log-spaced, then moved so the 2 measured cycles fill a whole number of samples (n =
+    # round(2 FS / f)), as the drive runs them: rounded to the protocol's millihertz.
+    want = [2 * FS / np.round(2 * FS / x) for x in (10, np.sqrt(500), 50)]
+    np.testing.assert_allclose(f, want, rtol=0, atol=5e-4)
     mag, phase = sim.model.bode(sweep.omega)
     # Measured: gains within 0.18 dB up to 50 Hz; tolerance 0.5 dB.
     np.testing.assert_allclose(g, mag, atol=0.5)
@@ -115,6 +117,16 @@ def test_sine_sweep_matches_the_model(sim, drive):
     np.testing.assert_allclose(np.abs(sweep.h), 10 ** (g / 20))
     json.dumps(sweep.to_dict())
     assert elapsed < 5
+    assert sweep.repeats == 1 and np.all(sweep.gain_db_std == 0)
+
+
+def test_sine_sweep_repeats_keep_the_spread(drive):
+    sweep = drive.run_sine_sweep(20, 40, 2, cycles=2, min_settle_s=0.1, repeats=3)
+    f, g, p, lost = sweep  # still a 4-tuple
+    assert lost == [] and sweep.repeats == 3
+    assert sweep.gain_db_std.shape == (2,) and sweep.phase_deg_std.shape == (2,)
+    # no noise: the repeats agree to the speed channel's quantisation
+    assert np.all(sweep.gain_db_std < 0.01) and np.all(sweep.phase_deg_std < 0.1)
 
 
 def test_run_releases_the_gil(drive):

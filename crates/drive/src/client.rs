@@ -499,6 +499,9 @@ pub struct SineSweep {
     pub stream: bool,
     /// Attempts per frequency when a point is lost.
     pub attempts: u32,
+    /// Measurements per frequency, combined by the paper's trimmed mean
+    /// ([`bode::combine_repeats`]); 1 measures once and keeps no spread.
+    pub repeats: u32,
 }
 
 impl SineSweep {
@@ -523,7 +526,31 @@ impl SineSweep {
             min_settle_s: 0.2,
             stream: false,
             attempts: 3,
+            repeats: 1,
         }
+    }
+
+    /// The frequency the drive will really apply for each requested one (Hz): moved to a
+    /// whole-cycle window ([`bode::whole_cycle_mhz`]) and as generated
+    /// ([`StartSine::applied_freq_hz`]); `None` where the request cannot be measured.
+    pub fn applied_freqs_hz(&self, sample_rate_hz: u32) -> Vec<Option<f64>> {
+        self.freqs_hz
+            .iter()
+            .map(|&f| {
+                let freq_mhz = bode::whole_cycle_mhz(f, self.cycles.max(1), sample_rate_hz)?;
+                Some(
+                    StartSine {
+                        freq_mhz,
+                        amplitude: 0,
+                        offset: 0,
+                        settle_cycles: 0,
+                        cycles: 1,
+                        flags: 0,
+                    }
+                    .applied_freq_hz(sample_rate_hz),
+                )
+            })
+            .collect()
     }
 }
 
@@ -1139,29 +1166,34 @@ impl Client {
 
     /// Run a sine sweep and return the frequency response. Points whose measurement was
     /// damaged are measured again (up to `attempts` times); points that never succeed are left out
-    /// and reported in the error list returned alongside.
+    /// and reported in the error list returned alongside. With `repeats > 1` each frequency is
+    /// measured that many times in a row and the point is their trimmed mean with the spread
+    /// ([`bode::combine_repeats`]).
     pub fn run_sine_sweep(&mut self, sweep: &SineSweep) -> Result<(Vec<BodePoint>, Vec<String>)> {
         self.run_sine_sweep_with(sweep, &mut |_| Ok(()))
     }
 
-    /// [`Client::run_sine_sweep`], handing each point to `on_point` as soon as it is measured
-    /// (its phase already unwrapped against the points before it), so that a caller can write it
-    /// at once: a sweep that ends early, however, keeps every point measured.
+    /// [`Client::run_sine_sweep`], handing over what it measures as soon as it is measured, so
+    /// that a caller can write it at once (a sweep that ends early keeps every point measured):
+    /// each single measurement as [`SweepEvent::Repeat`] (repeat from 1), then the point of the
+    /// frequency as [`SweepEvent::Point`] (the combined repeats when `repeats > 1`, its phase
+    /// already unwrapped against the points before it).
     ///
     /// The sweep stops early, keeping what it has, when the host asks (a [`StopHandle`]), when the
     /// port vanishes for longer than the reconnect window, or when the drive no longer answers at
-    /// all (a START and a STATUS both unanswered): the remaining frequencies are not tried.
+    /// all (a START and a STATUS both unanswered): the remaining frequencies are not tried. The
+    /// repeats measured at the frequency where it stopped still make its point.
     ///
     /// # Errors
-    /// The drive refuses a START (NAK) or a parameter is invalid; `on_point` fails (the error,
+    /// The drive refuses a START (NAK) or a parameter is invalid; `on_event` fails (the error,
     /// as [`Error::Io`]).
     pub fn run_sine_sweep_with(
         &mut self,
         sweep: &SineSweep,
-        on_point: &mut dyn FnMut(&BodePoint) -> io::Result<()>,
+        on_event: &mut dyn FnMut(SweepEvent<'_>) -> io::Result<()>,
     ) -> Result<(Vec<BodePoint>, Vec<String>)> {
         let mut prog = self.progress.take();
-        let r = self.sweep_points(sweep, on_point, &mut prog);
+        let r = self.sweep_points(sweep, on_event, &mut prog);
         self.progress = prog;
         r
     }
@@ -1169,7 +1201,7 @@ impl Client {
     fn sweep_points(
         &mut self,
         sweep: &SineSweep,
-        on_point: &mut dyn FnMut(&BodePoint) -> io::Result<()>,
+        on_event: &mut dyn FnMut(SweepEvent<'_>) -> io::Result<()>,
         prog: &mut Option<Box<dyn FnMut(Progress) + Send>>,
     ) -> Result<(Vec<BodePoint>, Vec<String>)> {
         let conf = self.conf()?;
@@ -1182,11 +1214,16 @@ impl Client {
                 problems.push(format!("{f} Hz skipped: outside (0, {}) Hz", fs / 2.0));
                 continue;
             }
+            let cycles = sweep.cycles.max(1);
+            let Some(freq_mhz) = bode::whole_cycle_mhz(f, cycles, conf.sample_rate_hz) else {
+                problems.push(format!("{f} Hz skipped: no whole-cycle window"));
+                continue;
+            };
             let settle_cycles = sweep
                 .settle_cycles
                 .max((sweep.min_settle_s * f).ceil().min(65535.0) as u16);
             let cmd = StartSine {
-                freq_mhz: (f * 1000.0).round() as u32,
+                freq_mhz,
                 amplitude: (sweep.amplitude_v.abs() / conf.u_lsb())
                     .round()
                     .min(32767.0) as i16,
@@ -1194,67 +1231,35 @@ impl Client {
                     .round()
                     .clamp(-32767.0, 32767.0) as i16,
                 settle_cycles,
-                cycles: sweep.cycles.max(1),
+                cycles,
                 flags: SINE_DFT | if sweep.stream { SINE_STREAM } else { 0 },
             };
-            let mut done = false;
-            for _ in 0..sweep.attempts.max(1) {
-                let acq = match self.run_sine(&cmd, &mut NullSink) {
-                    Ok(a) => a,
-                    Err(e @ Error::Nak { .. }) | Err(e @ Error::InvalidParam(_)) => {
-                        return Err(e);
+            let mut reps = Vec::new();
+            let mut stopped = false;
+            for rep in 1..=sweep.repeats.max(1) {
+                match self.measure_once(&cmd, &conf, sweep.attempts, &mut problems)? {
+                    Measured::Point(p) => {
+                        on_event(SweepEvent::Repeat(&p, rep))?;
+                        reps.push(p);
                     }
-                    Err(e @ Error::Port { .. }) | Err(e @ Error::Io(_)) => {
-                        problems.push(format!("{f} Hz: {e}; port lost, sweep stopped"));
-                        return Ok((points, problems));
+                    Measured::Failed => problems.push(format!("{f} Hz: no valid measurement")),
+                    Measured::Stop => {
+                        stopped = true;
+                        break;
                     }
-                    Err(e @ Error::Timeout { .. }) => {
-                        problems.push(format!("{f} Hz: {e}"));
-                        if self.status().is_err() {
-                            problems.push(format!(
-                                "{f} Hz: the drive does not answer STATUS either; sweep stopped"
-                            ));
-                            return Ok((points, problems));
-                        }
-                        continue;
-                    }
-                    Err(e) => {
-                        problems.push(format!("{f} Hz: {e}"));
-                        continue;
-                    }
-                };
-                if let Some(mut p) = sine_point(&acq, &cmd, &conf) {
-                    if let Some(prev) = points.last() {
-                        unwrap_against(&mut p, prev);
-                    }
-                    on_point(&p)?;
-                    points.push(p);
-                    done = true;
-                    break;
                 }
-                if acq.port_lost {
-                    problems.push(format!(
-                        "{f} Hz: {}; sweep stopped",
-                        acq.problems.join("; ")
-                    ));
-                    return Ok((points, problems));
-                }
-                if let Some(r) = acq
-                    .end
-                    .map(|e| e.reason)
-                    .filter(|r| matches!(r, EndReason::Stopped | EndReason::Estop))
-                {
-                    // Stopped on the host's request: the sweep ends here.
-                    problems.push(format!("{f} Hz: {r:?}; sweep stopped"));
-                    return Ok((points, problems));
-                }
-                problems.push(format!(
-                    "{f} Hz: measurement damaged ({}), repeating",
-                    acq.problems.join("; ")
-                ));
             }
-            if !done {
-                problems.push(format!("{f} Hz: no valid measurement"));
+            let point = if sweep.repeats > 1 {
+                bode::combine_repeats(&reps)
+            } else {
+                reps.pop()
+            };
+            if let Some(mut p) = point {
+                if let Some(prev) = points.last() {
+                    unwrap_against(&mut p, prev);
+                }
+                on_event(SweepEvent::Point(&p))?;
+                points.push(p);
             }
             if let Some(p) = prog.as_mut() {
                 p(Progress {
@@ -1262,9 +1267,95 @@ impl Client {
                     total,
                 });
             }
+            if stopped {
+                return Ok((points, problems));
+            }
         }
         Ok((points, problems))
     }
+
+    /// One sine measurement, repeated on damage up to `attempts` times. A NAK or an invalid
+    /// parameter is an error that ends the sweep; a lost port, a drive that answers neither START
+    /// nor STATUS, or a stop on the host's request is [`Measured::Stop`] (reason in `problems`).
+    fn measure_once(
+        &mut self,
+        cmd: &StartSine,
+        conf: &Configure,
+        attempts: u32,
+        problems: &mut Vec<String>,
+    ) -> Result<Measured> {
+        let f = cmd.applied_freq_hz(conf.sample_rate_hz);
+        for _ in 0..attempts.max(1) {
+            let acq = match self.run_sine(cmd, &mut NullSink) {
+                Ok(a) => a,
+                Err(e @ Error::Nak { .. }) | Err(e @ Error::InvalidParam(_)) => {
+                    return Err(e);
+                }
+                Err(e @ Error::Port { .. }) | Err(e @ Error::Io(_)) => {
+                    problems.push(format!("{f} Hz: {e}; port lost, sweep stopped"));
+                    return Ok(Measured::Stop);
+                }
+                Err(e @ Error::Timeout { .. }) => {
+                    problems.push(format!("{f} Hz: {e}"));
+                    if self.status().is_err() {
+                        problems.push(format!(
+                            "{f} Hz: the drive does not answer STATUS either; sweep stopped"
+                        ));
+                        return Ok(Measured::Stop);
+                    }
+                    continue;
+                }
+                Err(e) => {
+                    problems.push(format!("{f} Hz: {e}"));
+                    continue;
+                }
+            };
+            if let Some(p) = sine_point(&acq, cmd, conf) {
+                return Ok(Measured::Point(p));
+            }
+            if acq.port_lost {
+                problems.push(format!(
+                    "{f} Hz: {}; sweep stopped",
+                    acq.problems.join("; ")
+                ));
+                return Ok(Measured::Stop);
+            }
+            if let Some(r) = acq
+                .end
+                .map(|e| e.reason)
+                .filter(|r| matches!(r, EndReason::Stopped | EndReason::Estop))
+            {
+                // Stopped on the host's request: the sweep ends here.
+                problems.push(format!("{f} Hz: {r:?}; sweep stopped"));
+                return Ok(Measured::Stop);
+            }
+            problems.push(format!(
+                "{f} Hz: measurement damaged ({}), repeating",
+                acq.problems.join("; ")
+            ));
+        }
+        Ok(Measured::Failed)
+    }
+}
+
+/// What [`Client::run_sine_sweep_with`] hands over as it measures.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum SweepEvent<'a> {
+    /// One single measurement of a frequency and its repeat number (from 1), its phase as
+    /// measured (within +-180 deg).
+    Repeat(&'a BodePoint, u32),
+    /// The point of a frequency, after its repeats: their trimmed mean with the spread when the
+    /// sweep repeats, else the single measurement; its phase unwrapped against the points before.
+    Point(&'a BodePoint),
+}
+
+/// The outcome of [`Client::measure_once`].
+enum Measured {
+    Point(BodePoint),
+    /// No valid measurement in `attempts` tries.
+    Failed,
+    /// The sweep ends here (port lost, drive silent, or stopped on request).
+    Stop,
 }
 
 /// Unwrap the phase of `p` so that it differs from the previous point's by at most 180 degrees
@@ -1404,28 +1495,85 @@ pub fn bode_point(
         phase_deg: phase.to_degrees(),
         n_samples,
         on_drive,
+        spread: None,
     })
 }
 
-/// A Bode point from a sine run that ended normally: the drive's DFT if it arrived, else the
-/// host's DFT over the streamed measurement window.
+/// The drive's measurement of a sine run with the operating point removed: `[u, y]` phasors
+/// `(re, im)` in raw LSB from SINE_RESULT's DFT, level and ramp moments, by the joint
+/// least-squares fit of level, drift and sine ([`bode::fit_phasor`]) over the window.
+pub fn drive_phasors(
+    acq: &Acquisition,
+    cmd: &StartSine,
+    sample_rate_hz: u32,
+) -> Option<[(f64, f64); 2]> {
+    let s = acq.sine?;
+    let (settle, measure) = cmd.sample_counts(sample_rate_hz)?;
+    if measure != s.n || measure == 0 {
+        return None;
+    }
+    let q = |v: i32| v as f64 / 256.0;
+    let g = bode::WindowGram::new(measure, settle, cmd.phase_increment(sample_rate_hz));
+    let u = bode::ChannelMoments {
+        dft: (q(s.u_re), q(s.u_im)),
+        mean: q(s.u_mean),
+        ramp: q(s.u_ramp),
+    };
+    let y = bode::ChannelMoments {
+        dft: (q(s.y_re), q(s.y_im)),
+        mean: q(s.y_mean),
+        ramp: q(s.y_ramp),
+    };
+    Some([bode::fit_phasor(&u, &g)?, bode::fit_phasor(&y, &g)?])
+}
+
+/// The same measurement from the streamed samples of the window, on the host (f64 moments, the
+/// same fit). None unless every sample of the window arrived.
+pub fn host_phasors(
+    acq: &Acquisition,
+    cmd: &StartSine,
+    sample_rate_hz: u32,
+) -> Option<[(f64, f64); 2]> {
+    let (settle, measure) = cmd.sample_counts(sample_rate_hz)?;
+    if measure == 0 {
+        return None;
+    }
+    let inc = cmd.phase_increment(sample_rate_hz);
+    let first = acq.index.binary_search(&(settle as u64)).ok()?;
+    let last = first + measure as usize - 1;
+    if acq.index.get(last) != Some(&(settle as u64 + measure as u64 - 1)) {
+        return None;
+    }
+    let ph = |k: usize| {
+        let p = ((settle as u64 + k as u64).wrapping_mul(inc as u64)) as u32;
+        p as f64 / 4294967296.0 * std::f64::consts::TAU
+    };
+    let w = &acq.raw[first..=last];
+    let u: Vec<f64> = w.iter().map(|s| s[0] as f64).collect();
+    let y: Vec<f64> = w.iter().map(|s| s[1] as f64).collect();
+    let g = bode::WindowGram::new(measure, settle, inc);
+    Some([
+        bode::fit_phasor(&bode::ChannelMoments::of(&u, ph), &g)?,
+        bode::fit_phasor(&bode::ChannelMoments::of(&y, ph), &g)?,
+    ])
+}
+
+/// A Bode point from a sine run that ended normally: the drive's measurement if its SINE_RESULT
+/// arrived, else the host's over the streamed window; both with the operating point's level and
+/// drift removed ([`drive_phasors`], [`host_phasors`]). The point's frequency is the one the drive
+/// really generated ([`StartSine::applied_freq_hz`]).
 pub fn sine_point(acq: &Acquisition, cmd: &StartSine, conf: &Configure) -> Option<BodePoint> {
     let end = acq.end?;
     if end.reason != EndReason::Complete {
         return None;
     }
-    let freq_hz = cmd.freq_mhz as f64 / 1000.0;
-    if let (Some(d), Some(s)) = (drive_dft(acq), acq.sine) {
-        return bode_point(freq_hz, d, s.n, true, conf);
+    let fs = conf.sample_rate_hz;
+    let freq_hz = cmd.applied_freq_hz(fs);
+    let (_, measure) = cmd.sample_counts(fs)?;
+    if let Some(d) = drive_phasors(acq, cmd, fs) {
+        return bode_point(freq_hz, d, measure, true, conf);
     }
-    let (_, measure) = cmd.sample_counts(conf.sample_rate_hz)?;
-    bode_point(
-        freq_hz,
-        host_dft(acq, cmd, conf.sample_rate_hz)?,
-        measure,
-        false,
-        conf,
-    )
+    bode_point(freq_hz, host_phasors(acq, cmd, fs)?, measure, false, conf)
 }
 
 impl Drop for Client {

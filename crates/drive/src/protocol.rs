@@ -159,6 +159,9 @@ impl StartPrbs {
 pub const SINE_STREAM: u8 = 0x01;
 /// START_SINE flag: compute the single-bin DFT on the drive.
 pub const SINE_DFT: u8 = 0x02;
+/// Longest sine measurement window with the DFT (START_SINE flag bit 1), samples (2^22): the
+/// drive's 64-bit ramp sum `sum (2k - (n-1)) y_k` cannot overflow below it.
+pub const MAX_DFT_SAMPLES: u32 = 1 << 22;
 
 /// START_SINE payload.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -191,6 +194,18 @@ impl StartSine {
             return None;
         }
         Some((settle as u32, measure as u32))
+    }
+
+    /// The drive's phase-accumulator increment per sample, `round(freq_mhz 2^32 / (1000 fs))`.
+    pub fn phase_increment(&self, sample_rate_hz: u32) -> u32 {
+        let fs = sample_rate_hz.max(1) as u128;
+        ((((self.freq_mhz as u128) << 32) + 500 * fs) / (1000 * fs)) as u32
+    }
+
+    /// The frequency the drive really generates, Hz: `inc fs / 2^32` (within `fs 2^-33` of
+    /// `freq_mhz / 1000`).
+    pub fn applied_freq_hz(&self, sample_rate_hz: u32) -> f64 {
+        self.phase_increment(sample_rate_hz) as f64 * sample_rate_hz as f64 / 4294967296.0
     }
 }
 
@@ -416,6 +431,14 @@ pub struct SineResult {
     pub y_re: i32,
     /// Im Y, Q8 raw.
     pub y_im: i32,
+    /// Level of u over the window, `(1/n) sum u_k`, Q8 raw.
+    pub u_mean: i32,
+    /// Ramp moment of u, `(1/n) sum r_k u_k` with `r_k = (2k - (n-1))/n`, Q8 raw.
+    pub u_ramp: i32,
+    /// Level of y over the window, Q8 raw.
+    pub y_mean: i32,
+    /// Ramp moment of y, Q8 raw.
+    pub y_ramp: i32,
 }
 
 /// A protocol message.
@@ -554,7 +577,7 @@ impl Message {
             ty::NAK => 4,
             ty::DATA => 8 + 6 * *payload.get(6)? as usize,
             ty::STREAM_END => 14,
-            ty::SINE_RESULT => 22,
+            ty::SINE_RESULT => 38,
             _ => return None,
         })
     }
@@ -658,6 +681,10 @@ impl Message {
                 w.i32(s.u_im);
                 w.i32(s.y_re);
                 w.i32(s.y_im);
+                w.i32(s.u_mean);
+                w.i32(s.u_ramp);
+                w.i32(s.y_mean);
+                w.i32(s.y_ramp);
             }
         }
     }
@@ -811,6 +838,10 @@ impl Message {
                 u_im: r.i32(),
                 y_re: r.i32(),
                 y_im: r.i32(),
+                u_mean: r.i32(),
+                u_ramp: r.i32(),
+                y_mean: r.i32(),
+                y_ramp: r.i32(),
             }),
             other => return Err(FrameError::UnknownType(other)),
         })

@@ -508,6 +508,8 @@ enum Excitation {
         settle: u32,
         measure: u32,
         acc: [f64; 4],
+        /// Level and ramp sums of u and y (exact integers, as the C firmware's).
+        moments: crate::bode::WindowSums,
     },
 }
 
@@ -958,6 +960,9 @@ impl Firmware {
                 let Some((settle, measure)) = counts.filter(|c| !bad && c.1 > 0) else {
                     return self.nak(f, NakCode::BadValue, 0);
                 };
+                if s.flags & SINE_DFT != 0 && measure > MAX_DFT_SAMPLES {
+                    return self.nak(f, NakCode::BadValue, 10);
+                }
                 let inc = (((s.freq_mhz as u128) << 32) + 500 * fs as u128) / (1000 * fs as u128);
                 let exc = Excitation::Sine {
                     s: *s,
@@ -966,6 +971,7 @@ impl Firmware {
                     settle,
                     measure,
                     acc: [0.0; 4],
+                    moments: crate::bode::WindowSums::default(),
                 };
                 let stream = s.flags & SINE_STREAM != 0;
                 self.start_run(f, settle + measure, exc, stream, now)
@@ -1060,7 +1066,11 @@ impl Firmware {
         self.with_stats(|s| s.output = 0);
         self.flush_block(&mut r);
         if let Excitation::Sine {
-            acc, measure, s, ..
+            acc,
+            measure,
+            s,
+            moments,
+            ..
         } = &r.exc
         {
             if s.flags & SINE_DFT != 0 && reason == EndReason::Complete {
@@ -1077,6 +1087,10 @@ impl Firmware {
                     u_im: q(acc[1]),
                     y_re: q(acc[2]),
                     y_im: q(acc[3]),
+                    u_mean: crate::bode::q8_mean(moments.level[0], *measure),
+                    u_ramp: crate::bode::q8_ramp(moments.ramp[0], *measure),
+                    y_mean: crate::bode::q8_mean(moments.level[1], *measure),
+                    y_ramp: crate::bode::q8_ramp(moments.ramp[1], *measure),
                 };
                 let seq = self.next_tx_seq();
                 self.tx_data.push_back(codec::encode(&Frame {
@@ -1226,7 +1240,18 @@ impl Firmware {
             };
             let sat = |v: f64| v.round().clamp(-32767.0, 32767.0) as i16;
             let raw = [sat(u_raw), sat(y / conf.y_lsb()), sat(i / conf.i_lsb())];
-            if let (Some(th), Excitation::Sine { acc, .. }) = (measuring, &mut r.exc) {
+            if let (
+                Some(th),
+                Excitation::Sine {
+                    acc,
+                    moments,
+                    settle,
+                    measure,
+                    ..
+                },
+            ) = (measuring, &mut r.exc)
+            {
+                moments.add(r.done - *settle, *measure, raw[0], raw[1]);
                 acc[0] += raw[0] as f64 * th.cos();
                 acc[1] -= raw[0] as f64 * th.sin();
                 acc[2] += raw[1] as f64 * th.cos();

@@ -31,6 +31,8 @@ enum Commands {
     Freq(cmd::freq::FreqArgs),
     /// Identify a fractional model from a time record by output error (Levenberg-Marquardt).
     Time(Box<cmd::time::TimeArgs>),
+    /// Two models side by side: one Bode plot, the largest differences, the coefficients.
+    Compare(cmd::compare::CompareArgs),
     /// Score a given model on a time record (its own initial state and output offset estimated).
     Score(cmd::score::ScoreArgs),
     /// Export a model's approximation as a state space (continuous, or discrete with the exact
@@ -123,6 +125,7 @@ fn main() -> ExitCode {
         Commands::Drive(a) => cmd::drive::run(a),
         Commands::Freq(a) => cmd::freq::run(a),
         Commands::Time(a) => cmd::time::run(*a),
+        Commands::Compare(a) => cmd::compare::run(a),
         Commands::Score(a) => cmd::score::run(a),
         Commands::Export(a) => cmd::export::run(a),
     });

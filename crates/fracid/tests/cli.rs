@@ -1,5 +1,6 @@
 //! End-to-end tests of the `fracid` binary, one module per subcommand.
 
+mod compare;
 mod export;
 mod fleet;
 mod freq;

@@ -45,6 +45,11 @@ pub struct BodeTable {
     pub h: Vec<Complex64>,
     /// Per-point weights from a column, if asked.
     pub weights: Option<Vec<f64>>,
+    /// Standard errors (gain dB, phase deg) of each point from the spread columns
+    /// `gain_db_std,phase_deg_std[,repeats]` when the table has both std columns (as
+    /// `fracid drive sine --repeats` writes them): `std/sqrt(repeats - 2)` from 3 repeats on (the
+    /// trimmed mean averages `repeats - 2`), else `std/sqrt(repeats)` (`repeats` 1 when absent).
+    pub spread_se: Option<Vec<(f64, f64)>>,
 }
 
 fn bad<T>(msg: impl Into<String>) -> Result<T> {
@@ -168,7 +173,48 @@ pub fn parse(
             (f, g, p, None, l)
         }
     };
-    build(&f, &g, &ph, w, units, |k| format!("line {}", lines[k]))
+    let row = |k: usize| format!("line {}", lines[k]);
+    let mut t = build(&f, &g, &ph, w, units, row)?;
+    let has = |n: &str| names.iter().any(|h| h.eq_ignore_ascii_case(n));
+    if has_header && has(SPREAD_COLUMNS[0]) && has(SPREAD_COLUMNS[1]) {
+        let (gs, ps, n) = if has(SPREAD_COLUMNS[2]) {
+            let (_, [g, p, n], _) = read_columns_at(text, SPREAD_COLUMNS)?;
+            (g, p, Some(n))
+        } else {
+            let (_, [g, p], _) = read_columns_at(text, [SPREAD_COLUMNS[0], SPREAD_COLUMNS[1]])?;
+            (g, p, None)
+        };
+        t.spread_se = Some(spread_se(&gs, &ps, n.as_deref(), row)?);
+    }
+    Ok(t)
+}
+
+/// The spread columns of a Bode table written from repeated measurements: the standard deviations
+/// of the repeats (gain dB, phase deg) and their number.
+pub const SPREAD_COLUMNS: [&str; 3] = ["gain_db_std", "phase_deg_std", "repeats"];
+
+/// The standard errors of the points from their spread (see [`BodeTable::spread_se`]).
+fn spread_se(
+    g: &[f64],
+    p: &[f64],
+    n: Option<&[f64]>,
+    row: impl Fn(usize) -> String,
+) -> Result<Vec<(f64, f64)>> {
+    let mut out = Vec::with_capacity(g.len());
+    for k in 0..g.len() {
+        for (name, v) in [(SPREAD_COLUMNS[0], g[k]), (SPREAD_COLUMNS[1], p[k])] {
+            if !(v.is_finite() && v >= 0.0) {
+                return bad(format!("{}: {name} must be a finite number >= 0", row(k)));
+            }
+        }
+        let n = n.map_or(1.0, |n| n[k]);
+        if !(n.is_finite() && n >= 1.0 && n.fract() == 0.0) {
+            return bad(format!("{}: repeats must be a whole number >= 1", row(k)));
+        }
+        let kept = if n >= 3.0 { n - 2.0 } else { n };
+        out.push((g[k] / kept.sqrt(), p[k] / kept.sqrt()));
+    }
+    Ok(out)
 }
 
 /// Check the columns and make the complex response. `row(k)` says where sample `k` is.
@@ -236,6 +282,7 @@ fn build(
         omega_rad_s: omega,
         h,
         weights: w,
+        spread_se: None,
     })
 }
 
@@ -266,9 +313,20 @@ pub fn load(
                 (f, g, p, None)
             }
         };
-        return build(&f, &g, &ph, w, units, |k| {
-            format!("{}: point {k}", path.display())
-        });
+        let row = |k: usize| format!("{}: point {k}", path.display());
+        let mut t = build(&f, &g, &ph, w, units, row)?;
+        let has = |n: &str| names.contains(&n);
+        if has(SPREAD_COLUMNS[0]) && has(SPREAD_COLUMNS[1]) {
+            let [gs, ps] = crate::matfile::columns(&vars, [SPREAD_COLUMNS[0], SPREAD_COLUMNS[1]])?;
+            let n = if has(SPREAD_COLUMNS[2]) {
+                let [n] = crate::matfile::columns(&vars, [SPREAD_COLUMNS[2]])?;
+                Some(n)
+            } else {
+                None
+            };
+            t.spread_se = Some(spread_se(&gs, &ps, n.as_deref(), row)?);
+        }
+        return Ok(t);
     }
     let text = read_text(path)?;
     parse(&text, columns, units, weight_column).map_err(|e| match e {

@@ -703,6 +703,10 @@ pub struct FreqOptions {
     /// Refit the PMSM structure with two free orders by Levenberg-Marquardt (needs `n = 2`,
     /// `m = 0`). Default false.
     pub refine: bool,
+    /// The standard deviation of each point's complex error per real component (e.g. from the
+    /// measured spread, [`point_std_from_spread`]): the refit weights by its inverse variance and
+    /// its standard errors reflect it ([`RefineOptions::point_std`]). Default none.
+    pub point_std: Option<Vec<f64>>,
 }
 
 impl Default for FreqOptions {
@@ -714,8 +718,65 @@ impl Default for FreqOptions {
             weights: Weights::Vinagre,
             sk_iterations: 0,
             refine: false,
+            point_std: None,
         }
     }
+}
+
+/// The standard deviation per real component of each point's complex error, from the spread of
+/// its magnitude and phase: `sigma_g = |G_g| sqrt((s_m^2 + s_p^2)/2)`, with `s_m` the relative
+/// magnitude error (`gain_db_se ln(10)/20`) and `s_p` the phase error in rad. For errors that
+/// are isotropic in the complex plane (additive noise on the output) `s_m = s_p` and this is
+/// exact; otherwise it is the average of the two directions.
+///
+/// ```
+/// use num_complex::Complex64;
+/// let s = ident::levy::point_std_from_spread(&[Complex64::new(2.0, 0.0)], &[0.0], &[0.5f64.to_degrees()]);
+/// assert!((s[0] - 2.0 * 0.5 / 2f64.sqrt()).abs() < 1e-12);
+/// ```
+pub fn point_std_from_spread(
+    h: &[Complex64],
+    gain_db_se: &[f64],
+    phase_deg_se: &[f64],
+) -> Vec<f64> {
+    h.iter()
+        .zip(gain_db_se.iter().zip(phase_deg_se))
+        .map(|(hg, (g, p))| {
+            let sm = g * std::f64::consts::LN_10 / 20.0;
+            let sp = p.to_radians();
+            hg.norm() * ((sm * sm + sp * sp) / 2.0).sqrt()
+        })
+        .collect()
+}
+
+/// Levy weights that combine Vinagre's with the measured spread: `w_g = v_g / r_g^2` normalised
+/// to the mean of `v_g`, `v_g` Vinagre's weight (which offsets the `|D|^2` growth of Levy's
+/// equation error) and `r_g = sigma_g/|G_g|` the point's relative error. Levy's equation error
+/// `G D - N = D (G - Ghat)` has variance `|D|^2 sigma_g^2`; with Vinagre standing in for
+/// `1/|D|^2 ~ 1/|G|^2`-like scaling, dividing by `r_g^2` makes the sum an inverse-variance one.
+///
+/// # Errors
+/// [`Error::Data`] for a non-positive or non-finite relative error.
+pub fn spread_levy_weights(
+    omega_rad_s: &[f64],
+    h: &[Complex64],
+    point_std: &[f64],
+) -> Result<Vec<f64>> {
+    let v = vinagre_weights(omega_rad_s);
+    let mut w = Vec::with_capacity(v.len());
+    for (g, ((vg, hg), sg)) in v.iter().zip(h).zip(point_std).enumerate() {
+        let r = sg / hg.norm();
+        if !(r.is_finite() && r > 0.0) {
+            return Err(Error::Data(format!(
+                "point {}: relative spread {r} must be positive and finite",
+                g + 1
+            )));
+        }
+        w.push(vg / (r * r));
+    }
+    let mean_v = v.iter().sum::<f64>() / v.len().max(1) as f64;
+    let mean_w = w.iter().sum::<f64>() / w.len().max(1) as f64;
+    Ok(w.iter().map(|x| x * mean_v / mean_w).collect())
 }
 
 /// The result of [`fit_bode`].
@@ -797,7 +858,10 @@ pub fn fit_bode(omega_rad_s: &[f64], h: &[Complex64], opts: &FreqOptions) -> Res
             omega_rad_s,
             h,
             start,
-            &RefineOptions::default(),
+            &RefineOptions {
+                point_std: opts.point_std.clone(),
+                ..RefineOptions::default()
+            },
         )?)
     } else {
         None

@@ -6,12 +6,14 @@
 //!   structure in the frequency domain.
 //! - [`lm`]: a Levenberg-Marquardt solver (Marquardt 1963) with a report of why it stopped.
 //! - [`oe`]: output-error identification in the time domain with exact sensitivities.
+//! - [`compare`]: two models side by side over a band (largest gain and phase differences, coefficients).
 //! - [`data`]: records `t, u, y` from delimited text, sampling checks, operating point, split.
 //! - [`diagnose`]: residual diagnosis, the effect library, error before and after.
 //! - [`metrics`]: fit measures (NRMSE, RMSE), residual correlations with their bounds.
 
 pub mod app;
 pub mod bodefile;
+pub mod compare;
 pub mod data;
 pub mod diagnose;
 mod error;

@@ -90,6 +90,13 @@ fn c_firmware_records_equal_the_rust_firmware() {
     ] {
         assert!((x - y).abs() <= 1, "Rust {a:?} vs C {b:?}");
     }
+    // The level and ramp moments are exact integer sums with the same rounding on both sides.
+    assert_eq!(
+        (a.u_mean, a.u_ramp, a.y_mean, a.y_ramp),
+        (b.u_mean, b.u_ramp, b.y_mean, b.y_ramp),
+        "level/ramp moments: Rust {a:?} vs C {b:?}"
+    );
+    assert!(a.y_mean != 0 && a.y_ramp != 0, "{a:?}");
     eprintln!(
         "Rust vs C firmware: {} PRBS + {} sine samples identical; DFT Rust {a:?} C {b:?}",
         pr.raw.len(),

@@ -107,7 +107,10 @@ fn a_sweep_stops_at_once_when_the_port_vanishes_and_keeps_its_points() {
     sweep.cycles = 2;
     let mut seen = Vec::new();
     let mut lost_at = None;
-    let r = c.run_sine_sweep_with(&sweep, &mut |p| {
+    let r = c.run_sine_sweep_with(&sweep, &mut |ev| {
+        let drive::client::SweepEvent::Point(p) = ev else {
+            return Ok(());
+        };
         seen.push(*p);
         if seen.len() == 2 {
             kill(&s);

@@ -6,4 +6,5 @@ mod e2e_control;
 mod firmware_c;
 mod loss;
 mod props;
+mod sine;
 mod vectors;

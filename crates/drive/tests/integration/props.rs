@@ -107,14 +107,18 @@ fn arb_msg() -> impl Strategy<Value = Message> {
                     samples: s,
                 })
             }),
-        (any::<u16>(), any::<u32>(), any::<[i32; 4]>()).prop_map(|(r, n, v)| Message::SineResult(
+        (any::<u16>(), any::<u32>(), any::<[i32; 8]>()).prop_map(|(r, n, v)| Message::SineResult(
             SineResult {
                 run_id: r,
                 n,
                 u_re: v[0],
                 u_im: v[1],
                 y_re: v[2],
-                y_im: v[3]
+                y_im: v[3],
+                u_mean: v[4],
+                u_ramp: v[5],
+                y_mean: v[6],
+                y_ramp: v[7],
             }
         )),
         (any::<u16>(), any::<u32>(), any::<u8>()).prop_map(|(b, f, m)| Message::HelloReply(

@@ -266,6 +266,22 @@ pub fn run(a: DemoArgs) -> Result<()> {
     )?)
     .context("fracid freq --json did not print JSON")?;
 
+    step("the two models side by side (the paper's Fig. 5)");
+    let cmp_png = dir.join("compare.png");
+    let (time_json_path, freq_json_path) = (dir.join("time.json"), dir.join("freq.json"));
+    let cmp_args = [
+        "compare",
+        path_str(&time_json_path)?,
+        path_str(&freq_json_path)?,
+        "--names",
+        "time,frequency",
+        "--band",
+        "0.1,100",
+        "--plot",
+        path_str(&cmp_png)?,
+    ];
+    let cmp_txt = run_self(&cmp_args, &dir.join("compare.txt"))?;
+
     // 4. The report.
     let mut r = String::new();
     writeln!(r, "# fracid demo report\n")?;
@@ -315,6 +331,17 @@ pub fn run(a: DemoArgs) -> Result<()> {
     )?;
     writeln!(r, "![Bode plot](bode.png)\n")?;
     writeln!(r, "```\n{}```\n", freq_txt)?;
+    writeln!(
+        r,
+        "## Time- and frequency-domain models compared (`fracid compare time.json freq.json ...`)\n"
+    )?;
+    writeln!(
+        r,
+        "As the paper's Fig. 5: both final models (after diagnosis) on one Bode plot, where they \
+         differ most over 0.1-100 Hz, and their coefficients.\n"
+    )?;
+    writeln!(r, "![the two models](compare.png)\n")?;
+    writeln!(r, "```\n{}```\n", cmp_txt)?;
     writeln!(r, "## The hidden truth\n")?;
     writeln!(r, "- Motor model: `{true_model}`.")?;
     writeln!(

@@ -4,7 +4,9 @@ use crate::cmd::BadInput;
 use crate::interrupt::{Interrupted, StopOnInterrupt};
 use anyhow::{Context, Result};
 use drive::bode::BodePoint;
-use drive::client::{Client, ClientConfig, CsvSink, LazyFile, PrbsTest, Progress, SineSweep};
+use drive::client::{
+    Client, ClientConfig, CsvSink, LazyFile, PrbsTest, Progress, SineSweep, SweepEvent,
+};
 use drive::protocol::{Configure, MAX_BLOCK_SAMPLES};
 use drive::sim::{DriveSim, Effects, FaultAt, Faults, FirmwareKind, SimConfig};
 use std::io::{IsTerminal, Write};
@@ -214,7 +216,17 @@ pub struct SineArgs {
     /// Stream the samples too (host DFT if the drive's is lost).
     #[arg(long)]
     pub stream: bool,
-    /// Output CSV (freq_hz,gain_db,phase_deg).
+    /// Measurements per frequency, combined by the paper's trimmed mean (the largest and the
+    /// smallest gain dropped, likewise the phase, the rest averaged); the table then carries their
+    /// spread (gain_db_std, phase_deg_std, repeats). 3 by default: the fewest that drop the
+    /// extremes and still give a spread, at three times the time of one (the paper measures 10).
+    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    pub repeats: u32,
+    /// File of the single repeats (freq_hz,repeat,gain_db,phase_deg), written as they are
+    /// measured. Default with --repeats above 1: OUTPUT with `.repeats.csv` appended.
+    #[arg(long)]
+    pub repeats_out: Option<PathBuf>,
+    /// Output CSV (freq_hz,gain_db,phase_deg[,gain_db_std,phase_deg_std,repeats]).
     #[arg(long, short)]
     pub output: PathBuf,
 }
@@ -542,6 +554,57 @@ fn prbs(a: PrbsArgs) -> Result<()> {
     }
 }
 
+/// The file of single repeats, if any: `--repeats-out`, or by default with `--repeats` above 1
+/// the output's name with `.repeats.csv` appended. Like the Bode table it is created with the
+/// first repeat measured.
+fn open_repeats_file(a: &SineArgs, conf: &Configure) -> Result<Option<RepeatsFile>> {
+    let path = match &a.repeats_out {
+        Some(p) => p.clone(),
+        None if a.repeats > 1 => {
+            let mut s = a.output.clone().into_os_string();
+            s.push(".repeats.csv");
+            PathBuf::from(s)
+        }
+        None => return Ok(None),
+    };
+    Ok(Some(RepeatsFile {
+        w: std::io::BufWriter::new(output_file(&path)?),
+        header: format!(
+            "# fracid drive sine: single repeats as measured, {} V around {} V, {} Hz sampling\n{}",
+            a.amplitude,
+            a.offset,
+            conf.sample_rate_hz,
+            drive::bode::REPEATS_HEADER
+        ),
+        rows: 0,
+        path,
+    }))
+}
+
+/// The single repeats of a sweep, one line each as measured ([`drive::bode::write_repeat_line`]).
+struct RepeatsFile {
+    w: std::io::BufWriter<LazyFile>,
+    header: String,
+    rows: usize,
+    path: PathBuf,
+}
+
+impl RepeatsFile {
+    fn repeat(&mut self, p: &BodePoint, rep: u32) -> std::io::Result<()> {
+        let r = (|| {
+            if self.rows == 0 {
+                writeln!(self.w, "{}", self.header)?;
+            }
+            drive::bode::write_repeat_line(&mut self.w, p, rep)?;
+            self.rows += 1;
+            self.w.flush()
+        })();
+        r.map_err(|e| {
+            std::io::Error::new(e.kind(), format!("writing {}: {e}", self.path.display()))
+        })
+    }
+}
+
 /// The sweep from the options, checked (exit 2).
 fn sine_sweep(a: &SineArgs, conf: &Configure) -> Result<SineSweep> {
     let mut sweep = SineSweep::log(a.f_min, a.f_max, a.points);
@@ -582,15 +645,22 @@ fn sine_sweep(a: &SineArgs, conf: &Configure) -> Result<SineSweep> {
     sweep.settle_cycles = a.settle_cycles;
     sweep.min_settle_s = a.min_settle;
     sweep.stream = a.stream;
+    if a.repeats == 0 {
+        crate::bad_input!("--repeats must be at least 1");
+    }
+    sweep.repeats = a.repeats;
     Ok(sweep)
 }
 
-/// The Bode table of a sweep, written point by point as they are measured: the header with the
-/// first point (a sweep that measures nothing leaves the file untouched), a footer
-/// `# complete: N frequencies` or `# incomplete: missing frequencies (Hz) ... (reason)` at the end.
+/// The Bode table of a sweep, written point by point as they are measured (each frequency's point
+/// once its repeats are done): the header with the first point (a sweep that measures nothing
+/// leaves the file untouched), a footer `# complete: N frequencies` or
+/// `# incomplete: missing frequencies (Hz) ... (reason)` at the end. Rows as
+/// [`drive::bode::write_csv`] writes them (with the spread columns when the sweep repeats).
 struct BodeFile {
     w: std::io::BufWriter<LazyFile>,
     header: String,
+    spread: bool,
     rows: usize,
 }
 
@@ -600,10 +670,9 @@ impl BodeFile {
             for line in self.header.lines() {
                 writeln!(self.w, "# {line}")?;
             }
-            writeln!(self.w, "freq_hz,gain_db,phase_deg")?;
+            drive::bode::write_csv_columns(&mut self.w, self.spread)?;
         }
-        // as drive::bode::write_csv
-        writeln!(self.w, "{},{:.6},{:.6}", p.freq_hz, p.gain_db, p.phase_deg)?;
+        drive::bode::write_csv_row(&mut self.w, p, self.spread)?;
         self.rows += 1;
         self.w.flush()
     }
@@ -634,7 +703,18 @@ impl BodeFile {
 fn sine(a: SineArgs) -> Result<()> {
     let conf = port_conf(&a.port)?;
     let sweep = sine_sweep(&a, &conf)?;
-    let header = format!(
+    // The drive measures at the whole-cycle frequency nearest each request.
+    let applied = sweep.applied_freqs_hz(conf.sample_rate_hz);
+    let moved: Vec<String> = sweep
+        .freqs_hz
+        .iter()
+        .zip(&applied)
+        .filter_map(|(f, fa)| {
+            fa.filter(|fa| (fa - f).abs() > 1e-6)
+                .map(|fa| format!("{f} -> {fa}"))
+        })
+        .collect();
+    let mut header = format!(
         "fracid drive sine sweep: {} V around {} V, {} cycles, {} Hz sampling; gain (rad/s)/V\n{}",
         a.amplitude,
         a.offset,
@@ -642,11 +722,27 @@ fn sine(a: SineArgs) -> Result<()> {
         conf.sample_rate_hz,
         drive::bode::hold_line(1.0 / f64::from(conf.sample_rate_hz))
     );
+    header +=
+        "\nfrequencies applied so the window holds whole cycles (requested Hz -> applied Hz):";
+    header += &if moved.is_empty() {
+        " all as requested".to_string()
+    } else {
+        format!(" {}", moved.join(", "))
+    };
+    if a.repeats > 1 {
+        header += &format!(
+            "\n{} repeats per frequency: trimmed mean (largest and smallest gain dropped, likewise the phase); \
+             gain_db_std, phase_deg_std: sample standard deviations of the repeats",
+            a.repeats
+        );
+    }
     let mut file = BodeFile {
         w: std::io::BufWriter::new(output_file(&a.output)?),
         header,
+        spread: sweep.repeats > 1,
         rows: 0,
     };
+    let mut reps_file = open_repeats_file(&a, &conf)?;
     let mut c = connect(&a.port, &conf)?;
     let pb = progress_bar(a.port.quiet, "frequencies");
     attach(&mut c, &pb);
@@ -654,7 +750,13 @@ fn sine(a: SineArgs) -> Result<()> {
     // file, the rest listed in its footer.
     let signals = StopOnInterrupt::arm(c.stop_handle());
     let swept = c
-        .run_sine_sweep_with(&sweep, &mut |p| file.point(p))
+        .run_sine_sweep_with(&sweep, &mut |ev| match ev {
+            SweepEvent::Repeat(p, rep) => match reps_file.as_mut() {
+                Some(r) => r.repeat(p, rep),
+                None => Ok(()),
+            },
+            SweepEvent::Point(p) => file.point(p),
+        })
         .map_err(lib_err);
     let signal = signals.signal();
     drop(signals);
@@ -678,13 +780,11 @@ fn sine(a: SineArgs) -> Result<()> {
     let unmeasured: Vec<String> = sweep
         .freqs_hz
         .iter()
-        .filter(|f| {
-            // The drive measures at whole mHz.
-            !points
-                .iter()
-                .any(|p| (p.freq_hz * 1000.0).round() == (**f * 1000.0).round())
+        .zip(&applied)
+        .filter(|(_, fa)| {
+            !fa.is_some_and(|fa| points.iter().any(|p| (p.freq_hz - fa).abs() <= 1e-9 * fa))
         })
-        .map(|f| ((f * 1000.0).round() / 1000.0).to_string())
+        .map(|(f, _)| f.to_string())
         .collect();
     let written = file
         .finish(&problems, &unmeasured)

@@ -55,9 +55,12 @@ pub struct FreqArgs {
     /// Keep the best grid q (the paper's procedure) instead of refining it by golden section.
     #[arg(long)]
     pub no_q_refine: bool,
-    /// Weights of the Levy least squares: `vinagre` (the paper's eq. 29), `none`, a column name of
-    /// FILE, or a file with one weight per line.
-    #[arg(long, default_value = "vinagre")]
+    /// Weights: `spread` (the table's spread columns, as `fracid drive sine --repeats` writes:
+    /// Levy's weights are Vinagre's divided by each point's relative variance, and the refit
+    /// weights by inverse variance, so its standard errors reflect the spread), `vinagre` (the
+    /// paper's eq. 29), `none` (uniform), a column name of FILE, or a file with one weight per
+    /// line. `auto` (default): `spread` if the table has the spread columns, else `vinagre`.
+    #[arg(long, default_value = "auto")]
     pub weights: String,
     /// Refit the PMSM structure K/(a2 s^(zeta+theta) + a1 s^zeta + 1) with two free orders by
     /// Levenberg-Marquardt (needs n = 2, m = 0).
@@ -100,6 +103,11 @@ pub struct BodeData {
     pub h: Vec<Complex64>,
     /// Per-point weights from a column, if asked.
     pub weights: Option<Vec<f64>>,
+    /// Standard errors (gain dB, phase deg) of each point from the spread columns
+    /// `gain_db_std,phase_deg_std,repeats` (as `fracid drive sine --repeats` writes):
+    /// `std/sqrt(repeats - 2)` from 3 repeats on (the trimmed mean averages `repeats - 2`),
+    /// else `std/sqrt(repeats)`. None when the table has no spread.
+    pub spread_se: Option<Vec<(f64, f64)>>,
 }
 
 /// Units of the three columns.
@@ -129,6 +137,7 @@ impl From<ident::bodefile::BodeTable> for BodeData {
             omega_rad_s: t.omega_rad_s,
             h: t.h,
             weights: t.weights,
+            spread_se: t.spread_se,
         }
     }
 }
@@ -212,9 +221,23 @@ pub fn run(a: FreqArgs) -> Result<()> {
         ),
         None => None,
     };
-    let wkey = a.weights.trim().to_string();
+    let mut wkey = a.weights.trim().to_string();
+    if wkey.eq_ignore_ascii_case("auto") {
+        let has_spread = ident::data::header(&text).is_some_and(|h| {
+            h.iter().any(|f| f.eq_ignore_ascii_case("gain_db_std"))
+                && h.iter().any(|f| f.eq_ignore_ascii_case("phase_deg_std"))
+        });
+        wkey = if has_spread { "spread" } else { "vinagre" }.into();
+    }
+    let use_spread = wkey.eq_ignore_ascii_case("spread");
     let (weights, weight_label, weight_column) = match wkey.to_ascii_lowercase().as_str() {
         "vinagre" => (Some(Weights::Vinagre), "vinagre (eq. 29)".to_string(), None),
+        // replaced below, once the data (and their spread) are read
+        "spread" => (
+            Some(Weights::Vinagre),
+            "spread: vinagre / relative variance (Levy), inverse variance (refit)".to_string(),
+            None,
+        ),
         "none" | "uniform" | "1" => (Some(Weights::Uniform), "none".to_string(), None),
         _ => {
             // a column of the data file, else a file of weights
@@ -259,10 +282,35 @@ pub fn run(a: FreqArgs) -> Result<()> {
             println!("hold: the zero-order hold of a {t} s sampled loop divided out of the table");
         }
     }
-    let weights = match (weights, &data.weights) {
+    let mut weights = match (weights, &data.weights) {
         (Some(w), _) => w,
         (None, Some(w)) => Weights::PerPoint(w.clone()),
         (None, None) => Weights::Vinagre, // unreachable: a weight column always yields weights
+    };
+    let point_std = if use_spread {
+        let Some(se) = &data.spread_se else {
+            bad_input!(
+                "--weights spread: {} has no gain_db_std and phase_deg_std columns",
+                a.file.display()
+            )
+        };
+        let (g, p): (Vec<f64>, Vec<f64>) = se.iter().copied().unzip();
+        let sd = ident::levy::point_std_from_spread(&data.h, &g, &p);
+        if let Some(i) = sd.iter().position(|v| !(*v > 0.0 && v.is_finite())) {
+            bad_input!(
+                "--weights spread: point {} has no spread (0); measure with --repeats 3 or more, \
+                 or use --weights vinagre",
+                i + 1
+            );
+        }
+        weights = Weights::PerPoint(ident::levy::spread_levy_weights(
+            &data.omega_rad_s,
+            &data.h,
+            &sd,
+        )?);
+        Some(sd)
+    } else {
+        None
     };
     let order = match a.q {
         Some(q) => OrderChoice::Fixed(q),
@@ -279,6 +327,7 @@ pub fn run(a: FreqArgs) -> Result<()> {
         weights,
         sk_iterations: a.sk,
         refine: a.refine,
+        point_std,
     };
     let mut compare = Vec::new();
     for s in &a.compare {
@@ -821,6 +870,15 @@ impl Figure for BodeFigure<'_> {
                 }
             }
             let meas = if is_mag { &meas_mag } else { &meas_ph };
+            if let Some(se) = &self.data.spread_se {
+                // error bars: +-1 standard error of each point (from the repeats' spread)
+                chart
+                    .draw_series(f_hz.iter().zip(meas).zip(se).map(|((&f, &y), &(g, p))| {
+                        let d = if is_mag { g } else { p };
+                        PathElement::new(vec![(f, y - d), (f, y + d)], BLACK.stroke_width(2))
+                    }))
+                    .map_err(e)?;
+            }
             chart
                 .draw_series(
                     f_hz.iter()
@@ -828,7 +886,11 @@ impl Figure for BodeFigure<'_> {
                         .map(|(&f, &y)| Circle::new((f, y), 5, BLACK.filled())),
                 )
                 .map_err(e)?
-                .label("measured")
+                .label(if self.data.spread_se.is_some() {
+                    "measured (bars: +-1 standard error)"
+                } else {
+                    "measured"
+                })
                 .legend(|(x, y)| Circle::new((x + 12, y), 5, BLACK.filled()));
             if !is_mag {
                 continue; // one legend (on the magnitude) serves both panels

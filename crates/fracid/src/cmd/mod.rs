@@ -1,5 +1,6 @@
 //! The subcommands, one module each.
 
+pub mod compare;
 pub mod demo;
 pub mod diagnose;
 pub mod drive;

@@ -23,6 +23,12 @@ use std::f64::consts::FRAC_PI_2;
 pub struct RefineOptions {
     /// Options of the Levenberg-Marquardt solver.
     pub lm: LmOptions,
+    /// The standard deviation of each point's complex error, per real component (`sigma_g`:
+    /// `Re` and `Im` of `G(j w_g)` each carry about this much), e.g. from the measured spread of
+    /// repeats. With it the refit minimises `sum_g |Ghat - G|^2 / sigma_g^2` (maximum likelihood for
+    /// independent Gaussian errors) and the standard errors come from that weighting; without it,
+    /// the paper's `J` (every point alike).
+    pub point_std: Option<Vec<f64>>,
 }
 
 /// The refitted PMSM model `K / (a2 s^(zeta+theta) + a1 s^zeta + 1)`.
@@ -62,6 +68,8 @@ struct PmsmProblem<'a> {
     omega: &'a [f64],
     h: &'a [Complex64],
     sign: f64,
+    /// Per-point residual scale: `1/sigma_g`, or `1/sqrt(f)` so that `sum r^2 = J`.
+    scale: Vec<f64>,
 }
 
 impl Problem for PmsmProblem<'_> {
@@ -77,9 +85,9 @@ impl Problem for PmsmProblem<'_> {
         let (zeta, theta) = (order_of(p[3]), order_of(p[4]));
         // d order / d u = 2 sig (1 - sig) = order (1 - order/2)
         let (dz, dt) = (zeta * (1.0 - zeta / 2.0), theta * (1.0 - theta / 2.0));
-        let scale = 1.0 / (self.omega.len() as f64).sqrt(); // so that sum r^2 = J
         let mut jac = jac;
         for (g, (&w, &hg)) in self.omega.iter().zip(self.h).enumerate() {
+            let scale = self.scale[g];
             let s1 = jw_pow(w, zeta) * a1;
             let s2 = jw_pow(w, zeta + theta) * a2;
             let d = s2 + s1 + 1.0;
@@ -110,6 +118,10 @@ impl Problem for PmsmProblem<'_> {
 /// Refit `K / (a2 s^(zeta+theta) + a1 s^zeta + 1)` to Bode data by Levenberg-Marquardt on the
 /// complex error (minimising the paper's eq. 30 `J`), started from a Levy fit with `n = 2`,
 /// `m = 0`: `K = b_0`, `a1`, `a2` from the fit (absolute values), `zeta = theta = q`.
+///
+/// With [`RefineOptions::point_std`] the residuals are weighted by `1/sigma_g` and the standard
+/// errors are those of the weighted problem (`s^2 (J'J)^-1` with `s^2` the weighted residual
+/// variance, near 1 when the spread describes the errors).
 ///
 /// Several starts are tried (`zeta = q` and `q +- 0.1` with `theta = 2 q - zeta`) and the best
 /// kept, since `J` can have shallow side valleys in the order split.
@@ -158,10 +170,31 @@ pub fn refine_pmsm(
     let a1 = pos(start.a[0], 1e-6);
     let a2 = pos(start.a[1], 1e-9);
     let q = start.q;
+    let scale = match &opts.point_std {
+        None => vec![1.0 / (omega_rad_s.len() as f64).sqrt(); omega_rad_s.len()],
+        Some(sd) => {
+            if sd.len() != omega_rad_s.len() {
+                return Err(Error::Data(format!(
+                    "{} point standard deviations for {} frequency points",
+                    sd.len(),
+                    omega_rad_s.len()
+                )));
+            }
+            if let Some(i) = sd.iter().position(|v| !(v.is_finite() && *v > 0.0)) {
+                return Err(Error::Data(format!(
+                    "point standard deviation {} (point {}) must be positive and finite",
+                    sd[i],
+                    i + 1
+                )));
+            }
+            sd.iter().map(|v| 1.0 / v).collect()
+        }
+    };
     let mut problem = PmsmProblem {
         omega: omega_rad_s,
         h,
         sign,
+        scale,
     };
     let mut best: Option<LmReport> = None;
     let mut last_err = None;
@@ -226,10 +259,13 @@ mod tests {
             .unwrap()
             .bode(&omega);
         let p = [1.5, -4.0, -9.5, 0.3, -0.2];
+        // unequal per-point scales: the weighted problem's Jacobian is checked too
+        let scale = vec![0.5, 1.0, 2.0, 0.25];
         let mut a = PmsmProblem {
             omega: &omega,
             h: &h,
             sign: 1.0,
+            scale: scale.clone(),
         };
         let mut ja = Mat::<f64>::zeros(8, 5);
         let mut r = vec![0.0; 8];
@@ -238,6 +274,7 @@ mod tests {
             omega: &omega,
             h: &h,
             sign: 1.0,
+            scale,
         });
         let mut jf = Mat::<f64>::zeros(8, 5);
         fd.eval(&p, &mut r, Some(&mut jf)).unwrap();

@@ -1,6 +1,7 @@
 //! Frequency-domain identification: the paper's Table 1, round trips, bad input.
 
 mod bad_input;
+mod coverage;
 mod round_trip;
 mod table1;
 

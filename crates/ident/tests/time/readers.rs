@@ -406,3 +406,22 @@ proptest! {
         let _ = ident::matfile::parse(&good);
     }
 }
+
+#[test]
+fn the_spread_columns_of_repeated_sweeps_are_read_as_standard_errors() {
+    // as `fracid drive sine --repeats` writes them: 5 repeats, the trimmed mean of 3
+    let text = "# a sweep\nfreq_hz,gain_db,phase_deg,gain_db_std,phase_deg_std,repeats\n\
+                1,0,0,0.3,3,5\n2,-6,-90,0.6,6,1\n";
+    let b = bodefile::parse(text, None, BodeUnits::default(), None).unwrap();
+    let se = b.spread_se.expect("spread read");
+    assert!((se[0].0 - 0.3 / 3f64.sqrt()).abs() < 1e-12, "{se:?}");
+    assert!((se[0].1 - 3.0 / 3f64.sqrt()).abs() < 1e-12, "{se:?}");
+    assert_eq!(se[1], (0.6, 6.0));
+    // no spread columns, no spread; a negative spread is refused with its line
+    let plain = "freq_hz,gain_db,phase_deg\n1,0,0\n";
+    let b = bodefile::parse(plain, None, BodeUnits::default(), None).unwrap();
+    assert!(b.spread_se.is_none());
+    let bad = "freq_hz,gain_db,phase_deg,gain_db_std,phase_deg_std\n1,0,0,-1,0\n";
+    let e = bodefile::parse(bad, None, BodeUnits::default(), None).unwrap_err();
+    assert!(e.to_string().contains("line 2"), "{e}");
+}
