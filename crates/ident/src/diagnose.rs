@@ -1052,7 +1052,10 @@ pub fn diagnose(rec: &Record, id: &Identification, opts: &DiagnoseOptions) -> Re
                 .zip(&ns.values)
                 .enumerate()
                 .filter(|(i, (p, v))| {
+                    // The record's initial state is not the plant: its levels may sit at the
+                    // edge of their range without saying anything about the effect.
                     p.free
+                        && !ns.model.is_initial_state(*i)
                         && p.bounds.at_edge(**v)
                         && st.values.get(*i).is_none_or(|w| !p.bounds.at_edge(*w))
                 })

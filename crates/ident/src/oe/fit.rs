@@ -598,6 +598,16 @@ pub fn identify_with_progress(
         start_report,
         problems: vec![],
     };
+    // A level of the initial state at the edge of its range is not a structure problem.
+    let state: Vec<&str> = (0..id.model.params.len())
+        .filter(|&i| id.model.is_initial_state(i))
+        .map(|i| id.model.params[i].name.as_str())
+        .collect();
+    id.report.warnings.retain(|w| {
+        !state
+            .iter()
+            .any(|n| w.starts_with(&format!("{n} = ")) && w.contains("ran to a bound"))
+    });
     let (problems, warnings) = super::checks::assess(&id, rec);
     id.problems = problems;
     id.report.warnings.extend(split_warning);
