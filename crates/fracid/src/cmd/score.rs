@@ -1,9 +1,9 @@
 //! `fracid score MODEL FILE`: how well a given model explains a time record (MATLAB's `compare`):
 //! the model's parameters held, the record's own initial state and output offset estimated.
 
-use super::time::{print_score, read_record, score_json};
+use super::time::{print_score, read_record, score_json, ColumnArgs};
 use anyhow::{Context, Result};
-use ident::data::{Columns, ReadOptions};
+use ident::data::ReadOptions;
 use ident::oe::{score, FracModel, InitialState};
 use std::path::PathBuf;
 
@@ -15,15 +15,9 @@ pub struct ScoreArgs {
     pub model: String,
     /// CSV file with columns t, u, y.
     pub file: PathBuf,
-    /// Time column (name or 0-based index).
-    #[arg(long, default_value = "t")]
-    pub t_col: String,
-    /// Input column.
-    #[arg(long, default_value = "u")]
-    pub u_col: String,
-    /// Output column.
-    #[arg(long, default_value = "y")]
-    pub y_col: String,
+    /// The columns of t, u and y.
+    #[command(flatten)]
+    pub columns: ColumnArgs,
     /// Approximation of the fractional operators: refined (default), oustaloup or trigeassou.
     #[arg(long, default_value = "refined")]
     pub approx: String,
@@ -58,11 +52,7 @@ fn model_tf(s: &str) -> Result<fracsim::FracTf> {
 pub fn run(a: ScoreArgs) -> Result<()> {
     let tf = model_tf(&a.model)?;
     let read = ReadOptions {
-        columns: Columns {
-            t: a.t_col.clone(),
-            u: a.u_col.clone(),
-            y: a.y_col.clone(),
-        },
+        columns: a.columns.columns(),
         dt: None,
     };
     let rec = read_record(&a.file, &read)?;

@@ -10,11 +10,9 @@ use plotters::prelude::*;
 use std::io::IsTerminal;
 use std::path::PathBuf;
 
-/// Options of `fracid time`.
+/// The columns of a time record (`fracid time`, `fracid score`).
 #[derive(Debug, clap::Args)]
-pub struct TimeArgs {
-    /// CSV file with columns t, u, y (`,` `;` or tab; `#` comments).
-    pub file: PathBuf,
+pub struct ColumnArgs {
     /// Time column (name or 0-based index).
     #[arg(long, default_value = "t")]
     pub t_col: String,
@@ -24,6 +22,27 @@ pub struct TimeArgs {
     /// Output column.
     #[arg(long, default_value = "y")]
     pub y_col: String,
+}
+
+impl ColumnArgs {
+    /// The reader's [`Columns`].
+    pub fn columns(&self) -> Columns {
+        Columns {
+            t: self.t_col.clone(),
+            u: self.u_col.clone(),
+            y: self.y_col.clone(),
+        }
+    }
+}
+
+/// Options of `fracid time`.
+#[derive(Debug, clap::Args)]
+pub struct TimeArgs {
+    /// CSV file with columns t, u, y (`,` `;` or tab; `#` comments).
+    pub file: PathBuf,
+    /// The columns of t, u and y.
+    #[command(flatten)]
+    pub columns: ColumnArgs,
     /// Sampling step in seconds, for a file with no time column (t = k dt; --t-col is not read).
     #[arg(long)]
     pub dt: Option<f64>,
@@ -149,11 +168,7 @@ pub(crate) fn model_of(a: &TimeArgs, duration: f64) -> Result<FracModel> {
 /// The reader options of `fracid time` (columns, `--dt`).
 pub(crate) fn read_options(a: &TimeArgs) -> ReadOptions {
     ReadOptions {
-        columns: Columns {
-            t: a.t_col.clone(),
-            u: a.u_col.clone(),
-            y: a.y_col.clone(),
-        },
+        columns: a.columns.columns(),
         dt: a.dt,
     }
 }
