@@ -117,9 +117,22 @@ pub(crate) fn _fit_time<'py>(
         max_rounds,
         ..DiagnoseOptions::default()
     };
+    let label = structure
+        .extract::<String>()
+        .unwrap_or_else(|_| "the given model".to_string());
     let (id, rt, diag) = py
         .allow_threads(|| {
             let id = identify(&rec, &model, &opts)?;
+            // The diagnosis compares the structures and runs on the chosen one, which is then
+            // the fit reported.
+            let (id, diag) = if diagnose {
+                let d = ident::diagnose::structures::diagnose_best(
+                    &rec, &label, &model, id, &opts, &dopts,
+                )?;
+                (d.id, Some((d.diagnosis, d.choice)))
+            } else {
+                (id, None)
+            };
             let split = id.split;
             let e: Vec<f64> = rec.y[..split]
                 .iter()
@@ -128,11 +141,6 @@ pub(crate) fn _fit_time<'py>(
                 .collect();
             let ud: Vec<f64> = rec.u[..split].iter().map(|v| v - id.offsets.u0).collect();
             let rt = residual_test(&e, &ud, max_lag.min(split.saturating_sub(1)));
-            let diag = if diagnose {
-                Some(ident::diagnose::diagnose(&rec, &id, &dopts)?)
-            } else {
-                None
-            };
             Ok::<_, ident::Error>((id, rt, diag))
         })
         .map_err(errors::ident)?;
@@ -184,7 +192,16 @@ pub(crate) fn _fit_time<'py>(
     r.set_item("cross_peak", rt.cross_peak)?;
     d.set_item("residual_test", r)?;
     match diag {
-        Some(g) => d.set_item("diagnosis", diagnosis_dict(py, &g)?)?,
+        Some((g, c)) => {
+            let dd = diagnosis_dict(py, &g)?;
+            let text = serde_json::to_string(&c)
+                .map_err(|e| errors::error(errors::Kind::Numerical, format!("structures: {e}")))?;
+            dd.set_item(
+                "structures",
+                py.import("json")?.call_method1("loads", (text,))?,
+            )?;
+            d.set_item("diagnosis", dd)?
+        }
         None => d.set_item("diagnosis", py.None())?,
     }
     Ok(d)

@@ -50,16 +50,16 @@
 //! a gain and an offset).
 
 pub mod freq;
+mod probes;
 pub mod residual;
+pub mod structures;
 
 use crate::data::Record;
 use crate::metrics::Fit;
-use crate::oe::effects::sign;
-use crate::oe::{
-    fit, sensitivities, Bounds, Effect, FitOptions, FracModel, Identification, Param, Structure,
-};
+use crate::oe::{fit, Bounds, FitOptions, FracModel, Identification, Structure};
 use crate::{Error, Result};
-use residual::{analyse, explained, ResidualAnalysis};
+use probes::{Candidate, Findings, Look, Probe};
+use residual::{analyse, ResidualAnalysis};
 use serde::Serialize;
 use std::collections::BTreeMap;
 
@@ -106,8 +106,11 @@ pub struct KeptEffect {
     pub params: BTreeMap<String, f64>,
     /// What in the residual pointed to it, and what the refit gained.
     pub evidence: String,
-    /// The evidence `R^2` (fraction of the residual's sum of squares its signature explains).
+    /// The evidence `R^2`: the fraction of the residual's sum of squares its signature explained
+    /// to first order, before the refit.
     pub r2: f64,
+    /// The fraction (percent) of the estimation residual's sum of squares the refit removed.
+    pub ssr_removed_percent: f64,
     /// Relative change of the validation (or estimation) RMSE, percent (negative is better).
     pub rmse_change_percent: f64,
     /// Change of BIC on the estimation part (negative is better).
@@ -183,6 +186,9 @@ pub struct Diagnosis {
     pub residual_before: ResidualAnalysis,
     /// Residual tests of the final model (estimation part).
     pub residual_after: ResidualAnalysis,
+    /// The final model in words: its linear part with its delay, and its effects with their
+    /// parameters.
+    pub final_model: String,
     /// The final model (fitted values in its parameters).
     #[serde(skip)]
     pub model: FracModel,
@@ -199,7 +205,7 @@ pub struct Diagnosis {
 
 /// A fitted model and its scores.
 #[derive(Clone)]
-struct State {
+pub(crate) struct State {
     model: FracModel,
     values: Vec<f64>,
     /// Deviation-scale output, whole record.
@@ -210,7 +216,7 @@ struct State {
 }
 
 #[derive(Clone)]
-struct Ctx<'a> {
+pub(crate) struct Ctx<'a> {
     rec: &'a Record,
     /// Input deviations, advanced by `lead` samples.
     u: Vec<f64>,
@@ -307,17 +313,6 @@ impl Ctx<'_> {
     }
 }
 
-/// A candidate: its evidence and the model(s) to refit from.
-struct Candidate {
-    name: &'static str,
-    /// For a negative delay: the input advance in samples.
-    lead: Option<usize>,
-    key: String,
-    r2: f64,
-    evidence: String,
-    starts: Vec<FracModel>,
-}
-
 /// Find output quantization: at most `N/5` distinct values lying on a grid (90% of the gaps
 /// between consecutive levels within 5% of a whole multiple of the smallest gap).
 pub fn find_quantization(y: &[f64]) -> Option<Quantization> {
@@ -360,533 +355,12 @@ pub fn find_quantization(y: &[f64]) -> Option<Quantization> {
     })
 }
 
-fn params_of(model: &FracModel, values: &[f64], name: &str) -> BTreeMap<String, f64> {
-    let get = |n: &str| model.index_of(n).map(|i| values[i]);
-    let mut m = BTreeMap::new();
-    let mut put = |k: &str, v: Option<f64>| {
-        if let Some(v) = v {
-            m.insert(k.to_string(), v);
-        }
-    };
-    match name {
-        "delay" => put("tau", get("tau")),
-        "coulomb_friction" => put("Vc", get("Vc")),
-        "offset" => {
-            put("u_offset", get("u_offset"));
-            put("y_offset", get("y_offset"));
-        }
-        "saturation" => put("level", get("sat_level")),
-        "deadzone" => put("width", get("dz_width")),
-        "periodic" => {
-            // The last sinusoid added.
-            if let Some(Effect::Sinusoid { freq_hz, a, b }) = model
-                .effects
-                .iter()
-                .rev()
-                .find(|e| matches!(e, Effect::Sinusoid { .. }))
-            {
-                put("freq_hz", Some(*freq_hz));
-                put("amplitude", Some(values[*a].hypot(values[*b])));
-                put("phase_rad", Some((-values[*b]).atan2(values[*a])));
-            }
-        }
-        _ => {}
-    }
-    m
-}
-
-/// Insert an output effect before the existing output effects (an offset added by the base fit
-/// then acts after it: `|x| + c`).
-fn push_front(m: &mut FracModel, e: Effect) {
-    m.effects.insert(0, e);
-}
-
-fn candidates(
-    ctx: &Ctx<'_>,
-    st: &State,
-    kept: &[KeptEffect],
-    ambiguous: &mut Vec<Ambiguity>,
-    rejected: &mut BTreeMap<String, RejectedEffect>,
-) -> Result<Vec<Candidate>> {
-    let s = ctx.split;
-    let dt = ctx.dt;
-    let e: Vec<f64> = (0..s).map(|k| ctx.y[k] - st.yhat[k]).collect();
-    let ee: f64 = e.iter().map(|v| v * v).sum();
-    let (_, sens) = sensitivities(&st.model, &st.values, &ctx.u[..s], dt)?;
-    let has = |n: &str| st.model.index_of(n).is_some();
-    let kept_name = |n: &str| kept.iter().any(|k| k.name == n);
-    let mut reject = |name: &str, reason: String| {
-        rejected.insert(
-            name.to_string(),
-            RejectedEffect {
-                name: name.to_string(),
-                reason,
-                params: BTreeMap::new(),
-            },
-        );
-    };
-    let mut out = vec![];
-    let ya: Vec<f64> = st.yhat.iter().map(|v| v + ctx.y0).collect();
-    let ua: Vec<f64> = ctx.u.iter().map(|v| v + ctx.u0).collect();
-
-    // delay: 1-D search over tau with the other parameters held.
-    if st.model.delay.is_some() {
-        if !kept_name("delay") {
-            reject(
-                "delay",
-                "not tested: the model already has a fitted delay".into(),
-            );
-        }
-    } else {
-        let max = ctx.opts.max_delay_samples.max(1);
-        let mut best = (f64::INFINITY, 0.0);
-        let mut y = vec![0.0; s];
-        for j in 1..=2 * max {
-            let tau = j as f64 * dt / 2.0;
-            let mut m = st.model.clone();
-            m.with_delay(tau, max as f64 * dt);
-            let mut v = st.values.clone();
-            v.push(tau);
-            if m.simulate(&v, &ctx.u[..s], dt, &mut y).is_ok() {
-                let ssr: f64 = (0..s).map(|k| (ctx.y[k] - y[k]).powi(2)).sum();
-                if ssr < best.0 {
-                    best = (ssr, tau);
-                }
-            }
-        }
-        let r2_held = (1.0 - best.0 / ee.max(1e-300)).max(0.0);
-        let rc = crate::metrics::crosscorr(&e, &ctx.u[..s], 10);
-        let (lag, peak) = rc
-            .iter()
-            .enumerate()
-            .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
-            .map_or((0, 0.0), |(i, v)| (i as isize - 10, *v));
-        // With the other parameters held, a small delay rarely pays: the base fit has already bent
-        // its orders and coefficients to mimic it. A significant residual-input correlation at a
-        // lag >= 0 (the model answers the input sooner than the data) is the delay's own signature, so it alone makes the candidate strong (its
-        // squared peak stands for the evidence), and the refit starts at that lag as well.
-        let bound = crate::metrics::bound99(s);
-        let signature = lag >= 0 && peak.abs() > bound;
-        // Without the signature the delay is still probed (a joint refit from one and two
-        // samples): a base fit with free orders can absorb a delay so well that neither test
-        // above sees it. It ranks last, and the held-out margin and BIC decide as for any effect.
-        let r2 = if signature {
-            r2_held.max(peak * peak)
-        } else {
-            r2_held.max(ctx.opts.min_r2)
-        };
-        let mut starts = vec![];
-        let mut taus = vec![best.1];
-        if signature {
-            taus.push(lag.max(1) as f64 * dt);
-            taus.push((lag as f64 - 0.5).max(0.5) * dt);
-        } else {
-            taus.push(dt);
-            taus.push(2.0 * dt);
-        }
-        for tau in taus {
-            let mut m = st.model.clone();
-            m.with_delay(tau.min((max as f64 - 0.5) * dt), max as f64 * dt);
-            starts.push(m);
-        }
-        out.push(Candidate {
-            lead: None,
-            name: "delay",
-            key: "delay".into(),
-            r2,
-            evidence: format!(
-                "a delay of {:.3e} s alone (other parameters held) explains {:.1}% of the residual \
-                 sum of squares; residual-input cross-correlation peaks at lag {lag} ({peak:.3}, \
-                 99% bound {bound:.3}){}",
-                best.1,
-                100.0 * r2_held,
-                if signature {
-                    ": the input acts later than the model assumes"
-                } else {
-                    "; probed by a joint refit from 1 and 2 samples"
-                }
-            ),
-            starts,
-        });
-    }
-
-    // A negative delay: the residual follows the input before it changes (cross-correlation
-    // outside the bound at negative lags). Integer advances of the recorded input are searched.
-    if ctx.lead == 0 {
-        let h = ctx.opts.max_delay_samples.max(1);
-        let rc = crate::metrics::crosscorr(&e, &ctx.u[..s], h);
-        let bound = crate::metrics::bound99(s);
-        // rc[i] is lag i - h: negative lags are i < h.
-        let (peak_i, neg_peak) = rc[..h]
-            .iter()
-            .enumerate()
-            .fold((h, 0.0f64), |(bi, m), (i, v)| {
-                if v.abs() > m {
-                    (i, v.abs())
-                } else {
-                    (bi, m)
-                }
-            });
-        let peak_lag = h - peak_i;
-        if neg_peak > bound {
-            let mut best = (f64::INFINITY, 0usize);
-            let mut y = vec![0.0; s];
-            for m in 1..=h {
-                let c = ctx.with_lead(m);
-                if st.model.simulate(&st.values, &c.u[..s], dt, &mut y).is_ok() {
-                    let ssr: f64 = (0..s).map(|k| (ctx.y[k] - y[k]).powi(2)).sum();
-                    if ssr < best.0 {
-                        best = (ssr, m);
-                    }
-                }
-            }
-            let mut r2 = (1.0 - best.0 / ee.max(1e-300)).max(0.0);
-            // The model fitted to the skewed record has bent its dynamics to follow it, so the
-            // advance alone may gain nothing before the refit: a cross-correlation beyond three
-            // times the bound is evidence enough to refit, at the peak's lag.
-            if neg_peak > 3.0 * bound && r2 < ctx.opts.min_r2 {
-                r2 = ctx.opts.min_r2;
-                best.1 = peak_lag;
-            }
-            out.push(Candidate {
-                lead: Some(best.1),
-                name: "delay",
-                key: "delay<0".into(),
-                r2,
-                evidence: format!(
-                    "the residual correlates with the input up to {neg_peak:.3} at lag -{peak_lag} \
-                     (bound {bound:.3}): the output moves before the recorded input; advancing the \
-                     input by {} samples ({:.3e} s, a time-stamp skew) alone explains {:.1}% of the \
-                     residual sum of squares before the refit",
-                    best.1,
-                    best.1 as f64 * dt,
-                    100.0 * r2
-                ),
-                starts: vec![st.model.clone()],
-            });
-        }
-    }
-
-    // Coulomb friction.
-    let npos = ya.iter().filter(|v| **v > 0.0).count() as f64 / ya.len() as f64;
-    let nneg = ya.iter().filter(|v| **v < 0.0).count() as f64 / ya.len() as f64;
-    if has("Vc") {
-    } else if npos.min(nneg) < 0.02 {
-        ambiguous.push(Ambiguity {
-            name: "coulomb_friction".into(),
-            confused_with: "offset".into(),
-            reason: format!(
-                "the model speed is {} in {:.1}% of the samples: sign(y) is constant, so Vc sign(y) \
-                 is a constant input offset (absorbed by the operating point and the offset); a test \
-                 with speed reversals (a zero-mean PRBS) separates them",
-                if npos >= nneg { "positive" } else { "negative" },
-                100.0 * npos.max(nneg)
-            ),
-        });
-    } else {
-        let x: Vec<f64> = (0..ctx.u.len())
-            .map(|k| {
-                if k == 0 {
-                    -sign(ctx.y0)
-                } else {
-                    -sign(ya[k - 1])
-                }
-            })
-            .collect();
-        if let Some(g) = ctx.lin(st, &x) {
-            let (r2, beta) = explained(&e, &[g[..s].to_vec()], &sens);
-            let corr = {
-                let sg: Vec<f64> = ya[..s].iter().map(|v| sign(*v)).collect();
-                let n = (sg.iter().map(|v| v * v).sum::<f64>() * ee).sqrt();
-                if n > 0.0 {
-                    e.iter().zip(&sg).map(|(a, b)| a * b).sum::<f64>() / n
-                } else {
-                    0.0
-                }
-            };
-            if beta[0] > 0.0 {
-                let mut m = st.model.clone();
-                let vc = m.add_param(Param::positive("Vc", beta[0]));
-                m.effects.insert(0, Effect::Coulomb { vc });
-                out.push(Candidate {
-                    lead: None,
-                    name: "coulomb_friction",
-                    key: "coulomb_friction".into(),
-                    r2,
-                    evidence: format!(
-                        "the residual correlates with sign(speed) ({corr:.3}); the friction signature \
-                         explains {:.1}% of its sum of squares (speed reverses: {:.0}% / {:.0}% of samples)",
-                        100.0 * r2,
-                        100.0 * npos,
-                        100.0 * nneg
-                    ),
-                    starts: vec![m],
-                });
-            } else if r2 >= ctx.opts.min_r2 {
-                reject(
-                    "coulomb_friction",
-                    format!(
-                        "the signature fits with the wrong sign (Vc = {:.3e} < 0)",
-                        beta[0]
-                    ),
-                );
-            }
-        }
-    }
-
-    // Offsets.
-    if has("y_offset") && !kept_name("offset") {
-        reject(
-            "offset",
-            "not tested: the base model already fits an output offset (y_offset)".into(),
-        );
-    } else if !has("y_offset") && !has("u_offset") {
-        let mean = e.iter().sum::<f64>() / s as f64;
-        let ones = vec![1.0; ctx.u.len()];
-        let (r2o, bo) = explained(&e, &[ones[..s].to_vec()], &sens);
-        let mut m = st.model.clone();
-        let c = m.add_param(Param::new("y_offset", bo[0], Bounds::Free));
-        m.effects.push(Effect::OutputOffset { c });
-        let mut starts = vec![m];
-        let mut r2 = r2o;
-        if let Some(g) = ctx.lin(st, &ones) {
-            let (r2i, bi) = explained(&e, &[g[..s].to_vec()], &sens);
-            let mut m = st.model.clone();
-            let c = m.add_param(Param::new("u_offset", bi[0], Bounds::Free));
-            m.effects.insert(0, Effect::InputOffset { c });
-            starts.push(m);
-            r2 = r2.max(r2i);
-        }
-        out.push(Candidate {
-            lead: None,
-            name: "offset",
-            key: "offset".into(),
-            r2,
-            evidence: format!(
-                "residual mean {mean:.3e} ({:.1} standard errors); a constant explains {:.1}% of the \
-                 residual sum of squares",
-                mean / (ee / s as f64).sqrt().max(1e-300) * (s as f64).sqrt(),
-                100.0 * r2
-            ),
-            starts,
-        });
-    }
-
-    // Periodic disturbances.
-    let an = analyse(&e, &ctx.u[..s], dt);
-    let period = crate::oe::init::detect_period(&ctx.u);
-    for pk in an.peaks.iter().take(2) {
-        let near_kept = st.model.effects.iter().any(|ef| {
-            matches!(ef, Effect::Sinusoid { freq_hz, .. } if (freq_hz - pk.freq_hz).abs() < 2.0 / (s as f64 * dt))
-        });
-        if near_kept {
-            continue;
-        }
-        let key = format!("periodic@{:.4}Hz", pk.freq_hz);
-        if let Some(p) = period {
-            let fh = 1.0 / (p as f64 * dt);
-            let r = pk.freq_hz / fh;
-            if (r - r.round()).abs() < 0.1 {
-                reject(
-                    &key,
-                    format!(
-                        "spectral peak at {:.4} Hz is harmonic {} of the periodic input: a model \
-                         error, not a disturbance",
-                        pk.freq_hz,
-                        r.round()
-                    ),
-                );
-                continue;
-            }
-        }
-        let w = 2.0 * std::f64::consts::PI * pk.freq_hz;
-        let c: Vec<f64> = (0..s).map(|k| (w * k as f64 * dt).cos()).collect();
-        let sn: Vec<f64> = (0..s).map(|k| (w * k as f64 * dt).sin()).collect();
-        let (r2, beta) = explained(&e, &[c, sn], &sens);
-        let mut m = st.model.clone();
-        let n = st
-            .model
-            .effects
-            .iter()
-            .filter(|e| matches!(e, Effect::Sinusoid { .. }))
-            .count();
-        let a = m.add_param(Param::new(&format!("sin{n}_a"), beta[0], Bounds::Free));
-        let b = m.add_param(Param::new(&format!("sin{n}_b"), beta[1], Bounds::Free));
-        m.effects.push(Effect::Sinusoid {
-            freq_hz: pk.freq_hz,
-            a,
-            b,
-        });
-        out.push(Candidate {
-            lead: None,
-            name: "periodic",
-            key,
-            r2,
-            evidence: format!(
-                "narrow residual spectrum peak at {:.4} Hz, {:.0} times the neighbouring median, \
-                 amplitude about {:.3e}; explains {:.1}% of the residual sum of squares",
-                pk.freq_hz,
-                pk.ratio,
-                pk.amplitude,
-                100.0 * r2
-            ),
-            starts: vec![m],
-        });
-    }
-
-    // abs sensor.
-    let has_abs = st
-        .model
-        .effects
-        .iter()
-        .any(|e| matches!(e, Effect::AbsSensor));
-    if !has_abs {
-        let yd_neg = ctx.rec.y.iter().filter(|v| **v < 0.0).count() as f64 / ctx.rec.len() as f64;
-        let u_neg = ua.iter().filter(|v| **v < 0.0).count() as f64 / ua.len() as f64;
-        let u_pos = ua.iter().filter(|v| **v > 0.0).count() as f64 / ua.len() as f64;
-        let model_reverses = npos.min(nneg) >= 0.02;
-        let data_one_signed = !(0.01..=0.99).contains(&yd_neg);
-        let input_reverses = u_neg.min(u_pos) >= 0.1;
-        if data_one_signed && (model_reverses || input_reverses) {
-            let sig: Vec<f64> = ya[..s].iter().map(|v| v.abs() - v).collect();
-            let (r2, _) = explained(&e, &[sig], &sens);
-            let mut m = st.model.clone();
-            push_front(&mut m, Effect::AbsSensor);
-            // A second start with the gain flipped away from zero (a linear fit of rectified data
-            // tends to a small gain): rescale the numerator so the rectified output matches.
-            let mut starts = vec![m.clone()];
-            if !model_reverses {
-                starts.extend(abs_starts(ctx, &m));
-            }
-            out.push(Candidate {
-                lead: None,
-                name: "abs_sensor",
-                key: "abs_sensor".into(),
-                r2: if model_reverses {
-                    r2
-                } else {
-                    r2.max(ctx.opts.min_r2)
-                },
-                evidence: format!(
-                    "the data are {} in {:.1}% of the samples while the {} reverses; the rectified \
-                     model output explains {:.1}% of the residual sum of squares",
-                    if yd_neg < 0.5 { "non-negative" } else { "non-positive" },
-                    100.0 * (1.0 - yd_neg.min(1.0 - yd_neg)),
-                    if model_reverses { "model output" } else { "input" },
-                    100.0 * r2
-                ),
-                starts,
-            });
-        } else if !kept_name("abs_sensor") {
-            reject(
-                "abs_sensor",
-                format!(
-                    "no signature: {}",
-                    if data_one_signed {
-                        "the data never change sign, but neither do the model output and the input"
-                    } else {
-                        "the data take both signs"
-                    }
-                ),
-            );
-        }
-    }
-
-    // Static input nonlinearities.
-    let mut lv: Vec<f64> = ua.clone();
-    lv.sort_by(f64::total_cmp);
-    let urange = lv[lv.len() - 1] - lv[0];
-    lv.dedup_by(|a, b| (*a - *b).abs() <= 1e-9 * urange.max(1e-300));
-    let umax = ua.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-    for (name, pname) in [("saturation", "sat_level"), ("deadzone", "dz_width")] {
-        if has(pname) {
-            continue;
-        }
-        if lv.len() <= 2 {
-            ambiguous.push(Ambiguity {
-                name: name.into(),
-                confused_with: "gain and offset".into(),
-                reason: format!(
-                    "the input takes {} levels: any static input map is then affine (a gain and an \
-                     offset), so a {name} cannot be identified; a multi-level input separates them",
-                    lv.len()
-                ),
-            });
-            continue;
-        }
-        let grid: Vec<f64> = if name == "saturation" {
-            (0..12).map(|i| umax * (0.45 + 0.05 * i as f64)).collect()
-        } else {
-            (1..=12).map(|i| umax * 0.03 * i as f64).collect()
-        };
-        let mut best = (0.0, 0.0, 0.0);
-        for &l in &grid {
-            let d: Vec<f64> = ua
-                .iter()
-                .map(|&v| {
-                    if name == "saturation" {
-                        v.clamp(-l, l) - v
-                    } else if v.abs() < l {
-                        -v
-                    } else {
-                        -l * sign(v)
-                    }
-                })
-                .collect();
-            if d[..s].iter().all(|v| *v == 0.0) {
-                continue;
-            }
-            if let Some(g) = ctx.lin(st, &d) {
-                let (r2, beta) = explained(&e, &[g[..s].to_vec()], &sens);
-                // The effect enters with coefficient 1: a coefficient far from it is another shape.
-                if beta[0] > 0.0 && r2 > best.0 {
-                    best = (r2, l, beta[0]);
-                }
-            }
-        }
-        if best.1 > 0.0 {
-            let mut m = st.model.clone();
-            let i = m.add_param(Param::positive(pname, best.1));
-            m.effects.insert(
-                0,
-                if name == "saturation" {
-                    Effect::Saturation { level: i }
-                } else {
-                    Effect::Deadzone { width: i }
-                },
-            );
-            out.push(Candidate {
-                lead: None,
-                name,
-                key: name.into(),
-                r2: best.0,
-                evidence: format!(
-                    "the {name} signature at {} = {:.3e} (grid over {} values, linear parameters \
-                     refitted) explains {:.1}% of the residual sum of squares (coefficient {:.2})",
-                    if name == "saturation" {
-                        "level"
-                    } else {
-                        "half width"
-                    },
-                    best.1,
-                    grid.len(),
-                    100.0 * best.0,
-                    best.2
-                ),
-                starts: vec![m],
-            });
-        }
-    }
-    out.sort_by(|a, b| b.r2.total_cmp(&a.r2));
-    Ok(out)
-}
-
 /// Starts for the `abs_sensor` refit when the base model could not follow the rectified data
 /// (a linear fit of `|y|` tends to a zero gain): the sign is restored from a first-order low-pass
 /// of the input, `y_s = |y| sign(lp_T(u))`, for `T` on a log grid of 8 values from `2 dt` to a
 /// twentieth of the record, and the automatic start ([`crate::oe::init::auto_start`]) is made on
 /// `(u, y_s)`; the 2 starts whose rectified output is closest to the data are returned.
-fn abs_starts(ctx: &Ctx<'_>, m: &FracModel) -> Vec<FracModel> {
+pub(crate) fn abs_starts(ctx: &Ctx<'_>, m: &FracModel) -> Vec<FracModel> {
     let s = ctx.split;
     let dt = ctx.dt;
     let ya = &ctx.rec.y[..s];
@@ -923,6 +397,202 @@ fn abs_starts(ctx: &Ctx<'_>, m: &FracModel) -> Vec<FracModel> {
     }
     scored.sort_by(|a, b| a.0.total_cmp(&b.0));
     scored.into_iter().take(2).map(|(_, c)| c).collect()
+}
+
+/// Refit a candidate from each of its starts and decide (module documentation, Decision).
+/// Returns the refitted state and the kept effect, or the rejection.
+fn try_candidate(
+    ctx: &Ctx<'_>,
+    st: &State,
+    c: &Candidate,
+    probe: Option<&dyn Probe>,
+) -> std::result::Result<(State, KeptEffect), RejectedEffect> {
+    let lead_ctx = c.lead.map(|l| ctx.with_lead(l));
+    let rctx = lead_ctx.as_ref().unwrap_or(ctx);
+    let rejection = |reason: String, params: BTreeMap<String, f64>| RejectedEffect {
+        name: c.name.into(),
+        reason,
+        params,
+    };
+    let mut ns = best_refit(rctx, c.starts.iter().cloned())
+        .map_err(|e| rejection(format!("the refit failed: {e}"), BTreeMap::new()))?;
+    let params_of = |ns: &State| {
+        let mut params = probe.map_or_else(BTreeMap::new, |p| p.params(&ns.model, &ns.values));
+        if let Some(l) = c.lead {
+            params.insert("tau".into(), -(l as f64) * ctx.dt);
+        }
+        params
+    };
+    let mut verdict = Verdict::of(ctx, st, &ns);
+    // A base parameter at a bound says the missing effect (or the structure) bent the base fit,
+    // not that the effect is spurious: refit once from a fresh start of the base parameters.
+    if verdict.pays(ctx) && !verdict.base_at_bound.is_empty() {
+        let mut fresh = ns.model.clone();
+        for (i, p) in fresh
+            .params
+            .iter_mut()
+            .enumerate()
+            .take(st.model.params.len())
+        {
+            if let Some(&v) = ctx.start.get(i) {
+                p.value = v;
+            }
+        }
+        if let Ok(f) = rctx.refit(fresh) {
+            let fv = Verdict::of(ctx, st, &f);
+            if fv.pays(ctx) && fv.base_at_bound.len() <= verdict.base_at_bound.len() {
+                (ns, verdict) = (f, fv);
+            }
+        }
+    }
+    let params = params_of(&ns);
+    let part = if ns.val.is_some() {
+        "validation"
+    } else {
+        "estimation"
+    };
+    let gain = format!(
+        "{part} RMSE {:.4e} -> {:.4e} ({:+.1}%), BIC {:+.1}; the refit removes {:.1}% of the \
+         estimation residual's sum of squares",
+        ctx.score(st),
+        ctx.score(&ns),
+        100.0 * verdict.change,
+        verdict.dbic,
+        100.0 * verdict.removed
+    );
+    let margin = ctx.opts.margin;
+    if verdict.change > -margin {
+        return Err(rejection(
+            format!(
+                "{gain}: the {part} error does not fall by the {:.0}% margin (evidence: {})",
+                100.0 * margin,
+                c.evidence
+            ),
+            params,
+        ));
+    }
+    if verdict.dbic >= 0.0 {
+        return Err(rejection(
+            format!("{gain}: BIC does not agree (evidence: {})", c.evidence),
+            params,
+        ));
+    }
+    if !verdict.own_at_bound.is_empty() {
+        return Err(rejection(
+            format!(
+                "{gain}, but its {} ran to a bound (evidence: {})",
+                verdict.own_at_bound.join(", "),
+                c.evidence
+            ),
+            params,
+        ));
+    }
+    let note = if verdict.base_at_bound.is_empty() {
+        String::new()
+    } else {
+        format!(
+            "; {} stayed at a bound when refitted from a fresh start (the structure may be short \
+             of a term)",
+            verdict.base_at_bound.join(", ")
+        )
+    };
+    let k = KeptEffect {
+        name: c.name.into(),
+        params,
+        evidence: format!("{}; {gain}{note}", c.evidence),
+        r2: c.r2,
+        ssr_removed_percent: 100.0 * verdict.removed,
+        rmse_change_percent: 100.0 * verdict.change,
+        bic_change: verdict.dbic,
+    };
+    Ok((ns, k))
+}
+
+/// The refit with the smallest estimation sum of squares over `starts`.
+fn best_refit(ctx: &Ctx<'_>, starts: impl Iterator<Item = FracModel>) -> Result<State> {
+    let mut fitted: Option<State> = None;
+    let mut errs = vec![];
+    for m in starts {
+        match ctx.refit(m) {
+            Ok(s) if fitted.as_ref().is_none_or(|f| s.ssr < f.ssr) => fitted = Some(s),
+            Ok(_) => {}
+            Err(e) => errs.push(e.to_string()),
+        }
+    }
+    fitted.ok_or_else(|| Error::Numerical(errs.join("; ")))
+}
+
+/// What a refit gained over the current model.
+struct Verdict {
+    /// Relative change of the validation (or estimation) RMSE.
+    change: f64,
+    /// Change of BIC on the estimation part.
+    dbic: f64,
+    /// Fraction of the estimation sum of squares removed.
+    removed: f64,
+    /// Parameters of the current model that ran to a bound (they were not there before).
+    base_at_bound: Vec<String>,
+    /// The effect's own parameters at a bound.
+    own_at_bound: Vec<String>,
+}
+
+impl Verdict {
+    fn of(ctx: &Ctx<'_>, st: &State, ns: &State) -> Self {
+        let nb = st.model.params.len();
+        let mut base_at_bound = vec![];
+        let mut own_at_bound = vec![];
+        for (i, (p, v)) in ns.model.params.iter().zip(&ns.values).enumerate() {
+            // The record's initial state is not the plant: its levels may sit at the edge of
+            // their range without saying anything about the effect. A parameter the current
+            // model already had at a bound does not count either.
+            if !p.free
+                || ns.model.is_initial_state(i)
+                || !p.bounds.at_edge(*v)
+                || st.values.get(i).is_some_and(|w| p.bounds.at_edge(*w))
+            {
+                continue;
+            }
+            let s = format!("{} = {v:.3e}", p.name);
+            if i < nb {
+                base_at_bound.push(s);
+            } else {
+                own_at_bound.push(s);
+            }
+        }
+        Verdict {
+            change: ctx.score(ns) / ctx.score(st) - 1.0,
+            dbic: ctx.bic(ns) - ctx.bic(st),
+            removed: 1.0 - ns.ssr / st.ssr.max(1e-300),
+            base_at_bound,
+            own_at_bound,
+        }
+    }
+
+    /// Clears the held-out margin and BIC.
+    fn pays(&self, ctx: &Ctx<'_>) -> bool {
+        self.change <= -ctx.opts.margin && self.dbic < 0.0
+    }
+}
+
+/// The model in words: `K/(...) exp(-tau s)` and its effects, e.g. `; output_offset (y_offset =
+/// 0.1)`.
+fn describe(m: &FracModel) -> String {
+    let v = m.values();
+    let mut o = m
+        .tf(&v)
+        .map_or_else(|e| format!("({e})"), |tf| tf.to_string());
+    for e in &m.effects {
+        let p: Vec<String> = e
+            .params()
+            .into_iter()
+            .map(|i| format!("{} = {:.4e}", m.params[i].name, v[i]))
+            .collect();
+        o.push_str(&format!("; {}", e.name()));
+        if !p.is_empty() {
+            o.push_str(&format!(" ({})", p.join(", ")));
+        }
+    }
+    o
 }
 
 fn remaining_structure(an: &ResidualAnalysis, q: Option<Quantization>) -> Vec<String> {
@@ -991,16 +661,25 @@ pub fn diagnose(rec: &Record, id: &Identification, opts: &DiagnoseOptions) -> Re
     let e0: Vec<f64> = (0..ctx.split).map(|k| ctx.y[k] - base.yhat[k]).collect();
     let residual_before = analyse(&e0, &ctx.u[..ctx.split], ctx.dt);
     let quantization = find_quantization(&rec.y);
+    let library = probes::library();
     let mut st = base.clone();
     let mut kept: Vec<KeptEffect> = vec![];
     let mut rejected: BTreeMap<String, RejectedEffect> = BTreeMap::new();
     let mut ambiguous: Vec<Ambiguity> = vec![];
     for round in 0..opts.max_rounds {
-        let mut amb = vec![];
-        let cands = candidates(&ctx, &st, &kept, &mut amb, &mut rejected)?;
-        if round == 0 {
-            ambiguous = amb;
+        let mut found = Findings::default();
+        {
+            let look = Look::new(&ctx, &st, &kept)?;
+            for p in &library {
+                p.probe(&look, &mut found)?;
+            }
         }
+        if round == 0 {
+            ambiguous = std::mem::take(&mut found.ambiguous);
+        }
+        rejected.extend(found.rejected);
+        let mut cands = found.candidates;
+        cands.sort_by(|a, b| b.r2.total_cmp(&a.r2));
         let mut best: Option<(State, KeptEffect, String, Option<usize>)> = None;
         for (i, c) in cands.into_iter().enumerate() {
             if c.r2 < opts.min_r2 || i >= opts.max_refits {
@@ -1015,106 +694,18 @@ pub fn diagnose(rec: &Record, id: &Identification, opts: &DiagnoseOptions) -> Re
                 });
                 continue;
             }
-            let mut fitted: Option<State> = None;
-            let mut errs = vec![];
-            let lead_ctx = c.lead.map(|l| ctx.with_lead(l));
-            let rctx = lead_ctx.as_ref().unwrap_or(&ctx);
-            for m in c.starts {
-                match rctx.refit(m) {
-                    Ok(s) if fitted.as_ref().is_none_or(|f| s.ssr < f.ssr) => fitted = Some(s),
-                    Ok(_) => {}
-                    Err(e) => errs.push(e.to_string()),
-                }
-            }
-            let Some(ns) = fitted else {
-                rejected.insert(
-                    c.key.clone(),
-                    RejectedEffect {
-                        name: c.name.into(),
-                        reason: format!("the refit failed: {}", errs.join("; ")),
-                        params: BTreeMap::new(),
-                    },
-                );
-                continue;
-            };
-            let mut params = params_of(&ns.model, &ns.values, c.name);
-            if let Some(l) = c.lead {
-                params.insert("tau".into(), -(l as f64) * ctx.dt);
-            }
-            let change = ctx.score(&ns) / ctx.score(&st) - 1.0;
-            let dbic = ctx.bic(&ns) - ctx.bic(&st);
-            // Parameters at a bound the current model already had there do not count against
-            // the effect (the data push them out of this structure either way).
-            let at_bound: Vec<String> = ns
-                .model
-                .params
-                .iter()
-                .zip(&ns.values)
-                .enumerate()
-                .filter(|(i, (p, v))| {
-                    // The record's initial state is not the plant: its levels may sit at the
-                    // edge of their range without saying anything about the effect.
-                    p.free
-                        && !ns.model.is_initial_state(*i)
-                        && p.bounds.at_edge(**v)
-                        && st.values.get(*i).is_none_or(|w| !p.bounds.at_edge(*w))
-                })
-                .map(|(_, pv)| pv)
-                .map(|(p, v)| format!("{} = {v:.3e}", p.name))
-                .collect();
-            let part = if ns.val.is_some() {
-                "validation"
-            } else {
-                "estimation"
-            };
-            let gain = format!(
-                "{part} RMSE {:.4e} -> {:.4e} ({:+.1}%), BIC {:+.1}",
-                ctx.score(&st),
-                ctx.score(&ns),
-                100.0 * change,
-                dbic
-            );
-            let reason = if change > -opts.margin {
-                Some(format!(
-                    "{gain}: the {part} error does not fall by the {:.0}% margin",
-                    100.0 * opts.margin
-                ))
-            } else if dbic >= 0.0 {
-                Some(format!("{gain}: BIC does not agree"))
-            } else if !at_bound.is_empty() {
-                Some(format!(
-                    "{gain}, but {} ran to a bound",
-                    at_bound.join(", ")
-                ))
-            } else {
-                None
-            };
-            match reason {
-                Some(r) => {
-                    rejected.insert(
-                        c.key.clone(),
-                        RejectedEffect {
-                            name: c.name.into(),
-                            reason: format!("{r} (evidence: {})", c.evidence),
-                            params,
-                        },
-                    );
-                }
-                None => {
+            let probe = library.iter().find(|p| p.name() == c.name);
+            match try_candidate(&ctx, &st, &c, probe.map(|p| p.as_ref())) {
+                Ok((ns, k)) => {
                     if best
                         .as_ref()
                         .is_none_or(|(b, _, _, _)| ctx.score(&ns) < ctx.score(b))
                     {
-                        let k = KeptEffect {
-                            name: c.name.into(),
-                            params,
-                            evidence: format!("{}; {gain}", c.evidence),
-                            r2: c.r2,
-                            rmse_change_percent: 100.0 * change,
-                            bic_change: dbic,
-                        };
                         best = Some((ns, k, c.key.clone(), c.lead));
                     }
+                }
+                Err(r) => {
+                    rejected.insert(c.key.clone(), r);
                 }
             }
         }
@@ -1163,6 +754,7 @@ pub fn diagnose(rec: &Record, id: &Identification, opts: &DiagnoseOptions) -> Re
         remaining,
         residual_before,
         residual_after,
+        final_model: describe(&model),
         model,
         yhat_before: ya(&base),
         yhat_after: ya(&st),

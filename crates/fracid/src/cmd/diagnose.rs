@@ -5,19 +5,28 @@ use crate::plot::{self, Figure};
 use anyhow::{Context, Result};
 use ident::data::Record;
 use ident::diagnose::freq::BodeDiagnosis;
-use ident::diagnose::{diagnose, DiagnoseOptions, Diagnosis};
-use ident::oe::Identification;
+use ident::diagnose::structures::{diagnose_best, Diagnosed, StructureChoice};
+use ident::diagnose::{DiagnoseOptions, Diagnosis};
+use ident::oe::{FracModel, IdentOptions, Identification};
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use std::fmt::Write;
 use std::path::{Path, PathBuf};
 
-/// Run the time-domain diagnosis with the default options (see `ident::diagnose`).
+/// Run the time-domain diagnosis with the default options: the structures compared, then the
+/// residual of the chosen one diagnosed (see `ident::diagnose::structures`).
 ///
 /// # Errors
 /// A record that does not match the identification; a simulation error of the base model.
-pub fn run_time(rec: &Record, id: &Identification) -> Result<Diagnosis> {
-    diagnose(rec, id, &DiagnoseOptions::default()).context("diagnosing the residual")
+pub fn run_time(
+    rec: &Record,
+    label: &str,
+    model: &FracModel,
+    id: Identification,
+    opts: &IdentOptions,
+) -> Result<Diagnosed> {
+    diagnose_best(rec, label, model, id, opts, &DiagnoseOptions::default())
+        .context("diagnosing the residual")
 }
 
 /// The `diagnosis` JSON object (docs/design.md §7) with the final model (`model`: num, den, delay and the
@@ -25,8 +34,11 @@ pub fn run_time(rec: &Record, id: &Identification) -> Result<Diagnosis> {
 ///
 /// # Errors
 /// Serialisation (not expected).
-pub fn json(d: &Diagnosis) -> Result<serde_json::Value> {
+pub fn json(d: &Diagnosis, choice: Option<&StructureChoice>) -> Result<serde_json::Value> {
     let mut v = serde_json::to_value(d)?;
+    if let Some(c) = choice {
+        v["structures"] = serde_json::to_value(c)?;
+    }
     let p: Vec<f64> = d.model.params.iter().map(|p| p.value).collect();
     if let Ok(tf) = d.model.tf(&p) {
         v["model"] = serde_json::to_value(ident::app::ModelReport::from(&tf))?;
@@ -38,6 +50,24 @@ pub fn json(d: &Diagnosis) -> Result<serde_json::Value> {
 
 fn fit_row(f: &ident::metrics::Fit) -> String {
     format!("RMSE {:.4e}, fit {:.2}%", f.rmse, f.nrmse_percent)
+}
+
+/// The structure comparison in words.
+pub fn structures_text(c: &StructureChoice) -> String {
+    let mut o = String::from("\nstructures compared (held-out RMSE, BIC):\n");
+    for (i, s) in c.scores.iter().enumerate() {
+        let mark = if i == c.chosen { "*" } else { " " };
+        let nums = match (s.rmse, s.bic) {
+            (Some(r), Some(b)) => format!("RMSE {r:.4e}, BIC {b:.1}, {} free", s.free_params),
+            _ => "not fitted".into(),
+        };
+        let _ = writeln!(o, "  {mark} {:<24} {nums}: {}", s.name, s.model);
+        if !s.problems.is_empty() {
+            let _ = writeln!(o, "      not usable: {}", s.problems.join("; "));
+        }
+    }
+    let _ = writeln!(o, "  {}", c.reason);
+    o
 }
 
 /// The readable report of a time-domain diagnosis.
@@ -88,9 +118,11 @@ pub fn text(d: &Diagnosis) -> String {
             .collect();
         let _ = writeln!(
             o,
-            "  kept {}: {}\n      evidence: {}",
+            "  kept {}: {} (removes {:.1}% of the residual sum of squares, RMSE {:+.1}%)\n      evidence: {}",
             e.name,
             p.join(", "),
+            e.ssr_removed_percent,
+            e.rmse_change_percent,
             e.evidence
         );
     }
@@ -104,6 +136,7 @@ pub fn text(d: &Diagnosis) -> String {
     for r in &d.rejected {
         let _ = writeln!(o, "  rejected {}: {}", r.name, r.reason);
     }
+    let _ = writeln!(o, "  final model: {}", d.final_model);
     let _ = writeln!(
         o,
         "  unexplained structure: {}",

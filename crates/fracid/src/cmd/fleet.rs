@@ -471,10 +471,13 @@ fn time_report(a: &super::time::TimeArgs, file: &Path) -> Result<Value> {
     let opts = super::time::ident_options(a)?;
     let id = identify_with_progress(&rec, &model, &opts, &mut |_, _| {})
         .with_context(|| format!("identifying {}", file.display()))?;
-    let mut v = super::time::json_of(&id, &rec);
+    let mut v;
     if a.diagnose {
-        let d = super::diagnose::run_time(&rec, &id)?;
-        v["diagnosis"] = super::diagnose::json(&d)?;
+        let d = super::diagnose::run_time(&rec, &a.structure, &model, id, &opts)?;
+        v = super::time::json_of(&d.id, &rec);
+        v["diagnosis"] = super::diagnose::json(&d.diagnosis, Some(&d.choice))?;
+    } else {
+        v = super::time::json_of(&id, &rec);
     }
     v["file"] = json!(file.display().to_string());
     Ok(v)

@@ -493,7 +493,12 @@ fn short_tf(g: &FracTf, digits: usize) -> String {
     } else {
         poly(&g.num)
     };
-    format!("{num}/({})", poly(&g.den))
+    let delay = if g.delay != 0.0 {
+        format!(" exp(-{} s)", sig(g.delay, digits))
+    } else {
+        String::new()
+    };
+    format!("{num}/({}){delay}", poly(&g.den))
 }
 
 fn table(

@@ -255,18 +255,19 @@ pub fn run(a: TimeArgs) -> Result<()> {
         Some((_, vrec)) => Some(ident::oe::score(&id.model, vrec, offsets, opts.initial)?),
         None => None,
     };
-    let diagnosis = if a.diagnose {
-        Some(super::diagnose::run_time(&rec, &id)?)
+    let (id, diagnosis) = if a.diagnose {
+        let d = super::diagnose::run_time(&rec, &a.structure, &model, id, &opts)?;
+        (d.id, Some((d.diagnosis, d.choice)))
     } else {
-        None
+        (id, None)
     };
     if a.json {
         let mut v = json_of(&id, &rec);
         if let (Some((p, _)), Some(sc)) = (&validation, &scored) {
             v["fit"]["validation_file"] = score_json(p, sc);
         }
-        if let Some(d) = &diagnosis {
-            v["diagnosis"] = super::diagnose::json(d)?;
+        if let Some((d, c)) = &diagnosis {
+            v["diagnosis"] = super::diagnose::json(d, Some(c))?;
         }
         println!("{}", serde_json::to_string_pretty(&v)?);
     } else {
@@ -274,13 +275,14 @@ pub fn run(a: TimeArgs) -> Result<()> {
         if let (Some((p, _)), Some(sc)) = (&validation, &scored) {
             print_score(p, sc);
         }
-        if let Some(d) = &diagnosis {
+        if let Some((d, c)) = &diagnosis {
+            print!("{}", super::diagnose::structures_text(c));
             print!("{}", super::diagnose::text(d));
         }
     }
     if let Some(p) = &a.plot {
         plot::save(p, (1400, 1000), &TimeFigure { id: &id, rec: &rec })?;
-        if let Some(d) = &diagnosis {
+        if let Some((d, _)) = &diagnosis {
             let dp = super::diagnose::residual_plot_path(p);
             super::diagnose::plot_time(&dp, &rec, d)?;
             if !a.json {

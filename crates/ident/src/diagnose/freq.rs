@@ -462,6 +462,7 @@ pub fn diagnose_bode(
                                         100.0 * change
                                     ),
                                     r2,
+                                    ssr_removed_percent: -100.0 * change,
                                     rmse_change_percent: 100.0
                                         * ((ssr / ssr_ref.max(1e-300)).sqrt() - 1.0),
                                     bic_change: daic,
@@ -550,6 +551,7 @@ pub fn diagnose_bode(
                         params,
                         evidence: format!("{evidence}; {gain}"),
                         r2,
+                        ssr_removed_percent: 100.0 * (1.0 - ssr / ssr_ref.max(1e-300)),
                         rmse_change_percent: 100.0 * ((ssr / ssr_ref.max(1e-300)).sqrt() - 1.0),
                         bic_change: daic,
                     };

@@ -108,6 +108,18 @@ impl Effect {
         }
     }
 
+    /// The indices of its parameters.
+    pub fn params(&self) -> Vec<usize> {
+        match *self {
+            Effect::InputOffset { c } | Effect::OutputOffset { c } => vec![c],
+            Effect::Coulomb { vc } => vec![vc],
+            Effect::Saturation { level } => vec![level],
+            Effect::Deadzone { width } => vec![width],
+            Effect::AbsSensor => vec![],
+            Effect::Sinusoid { a, b, .. } => vec![a, b],
+        }
+    }
+
     /// Whether this effect transforms the input (else the output).
     pub fn is_input(&self) -> bool {
         matches!(
@@ -122,7 +134,8 @@ impl Effect {
     /// A short report name (docs/design.md §6 table).
     pub fn name(&self) -> &'static str {
         match self {
-            Effect::InputOffset { .. } | Effect::OutputOffset { .. } => "offset",
+            Effect::InputOffset { .. } => "input_offset",
+            Effect::OutputOffset { .. } => "output_offset",
             Effect::Coulomb { .. } => "coulomb_friction",
             Effect::Saturation { .. } => "saturation",
             Effect::Deadzone { .. } => "deadzone",

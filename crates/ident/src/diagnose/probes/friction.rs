@@ -1,0 +1,90 @@
+//! Coulomb friction as an equivalent input voltage, `u - Vc sign(y_prev)`.
+//!
+//! Signature: `G (-sign(y_prev))`, with the sign taken with a dead band of three noise levels
+//! (a speed at rest is neither sign: friction then holds, it does not push). Identifiable when
+//! the data contain what separates it from a constant input offset: speed reversals, or rest
+//! intervals between motion (friction vanishes at rest, an offset does not). Otherwise it is
+//! reported as ambiguous with the input offset, whose own probe tests the alternative.
+
+use super::{named, sign_band, Candidate, Findings, Look, Probe};
+use crate::oe::{Effect, FracModel, Param};
+use crate::Result;
+use std::collections::BTreeMap;
+
+pub(crate) struct Friction;
+
+impl Probe for Friction {
+    fn name(&self) -> &'static str {
+        "coulomb_friction"
+    }
+
+    fn probe(&self, look: &Look<'_>, found: &mut Findings) -> Result<()> {
+        if look.has("Vc") {
+            return Ok(());
+        }
+        let (ctx, st, mo) = (look.ctx, look.st, look.motion);
+        let moving = mo.pos + mo.neg;
+        let rests = mo.rest >= 0.05 && moving >= 0.05;
+        if !mo.reverses() && !rests {
+            found.ambiguous(
+                "coulomb_friction",
+                "input offset",
+                format!(
+                    "the model speed is {} ({}): sign(y) is constant, so Vc sign(y) is a constant \
+                     input offset (see input_offset for that alternative); speed reversals (a \
+                     zero-mean PRBS) or rest intervals between motion separate them",
+                    if mo.pos >= mo.neg {
+                        "positive"
+                    } else {
+                        "negative"
+                    },
+                    mo.describe()
+                ),
+            );
+            return Ok(());
+        }
+        let x: Vec<f64> = (0..ctx.u.len())
+            .map(|k| {
+                let prev = if k == 0 { ctx.y0 } else { look.ya[k - 1] };
+                -sign_band(prev, mo.band)
+            })
+            .collect();
+        let Some((r2, beta)) = look.through_model(&x) else {
+            return Ok(());
+        };
+        if beta[0] <= 0.0 {
+            if r2 >= ctx.opts.min_r2 {
+                found.reject(
+                    "coulomb_friction",
+                    format!(
+                        "the signature fits with the wrong sign (Vc = {:.3e} < 0)",
+                        beta[0]
+                    ),
+                );
+            }
+            return Ok(());
+        }
+        let mut m = st.model.clone();
+        let vc = m.add_param(Param::positive("Vc", beta[0]));
+        m.effects.insert(0, Effect::Coulomb { vc });
+        found.candidates.push(Candidate {
+            lead: None,
+            name: "coulomb_friction",
+            key: "coulomb_friction".into(),
+            r2,
+            evidence: format!(
+                "the friction signature G(-sign(speed)) explains {:.1}% of the residual sum of \
+                 squares (coefficient {:.3e}); model speed {}",
+                100.0 * r2,
+                beta[0],
+                mo.describe()
+            ),
+            starts: vec![m],
+        });
+        Ok(())
+    }
+
+    fn params(&self, model: &FracModel, values: &[f64]) -> BTreeMap<String, f64> {
+        named(model, values, &[("Vc", "Vc")])
+    }
+}

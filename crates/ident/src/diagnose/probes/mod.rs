@@ -1,0 +1,303 @@
+//! The effect library: one [`Probe`] per effect, one file each (docs/design.md §6).
+//!
+//! A probe looks at the residual of the current model ([`Look`]), tests its effect's signature,
+//! and proposes [`Candidate`]s: the model extended with the effect and its parameters, started
+//! where the search over its non-smooth parameters (a threshold, a delay) put them. It can also
+//! report the effect as not testable ([`Findings::reject`]) or as not identifiable from these data
+//! ([`Findings::ambiguous`]). The loop in [`super::diagnose`] refits every strong candidate and
+//! decides; a probe also says which of a fitted model's values are its parameters
+//! ([`Probe::params`]). Adding an effect is adding a file here and a line in [`library`].
+
+mod abs_sensor;
+mod deadzone;
+mod delay;
+mod friction;
+mod input_offset;
+mod output_offset;
+mod periodic;
+mod saturation;
+mod skew;
+
+use super::residual::explained;
+use super::{Ambiguity, Ctx, KeptEffect, RejectedEffect, State};
+use crate::oe::{sensitivities, FracModel};
+use crate::Result;
+use faer::Mat;
+use std::collections::BTreeMap;
+
+/// A candidate effect: its evidence and the model(s) to refit from.
+pub(crate) struct Candidate {
+    /// Report name (the probe's).
+    pub name: &'static str,
+    /// For a negative delay: the input advance in samples.
+    pub lead: Option<usize>,
+    /// Key of the candidate (the name, or the name with a frequency for a periodic effect).
+    pub key: String,
+    /// Evidence `R^2`: the fraction of the residual's sum of squares its signature explains.
+    pub r2: f64,
+    /// What in the residual pointed to it.
+    pub evidence: String,
+    /// Extended models to refit from (their values are the starts).
+    pub starts: Vec<FracModel>,
+}
+
+/// What the probes report besides their candidates.
+#[derive(Default)]
+pub(crate) struct Findings {
+    pub candidates: Vec<Candidate>,
+    /// `(key, rejection)`: the key is the candidate's (a periodic effect's carries its frequency).
+    pub rejected: Vec<(String, RejectedEffect)>,
+    pub ambiguous: Vec<Ambiguity>,
+}
+
+impl Findings {
+    /// The effect could not be tested, or has no signature: say why.
+    pub fn reject(&mut self, name: &str, reason: String) {
+        self.reject_as(name, name, reason);
+    }
+
+    /// The same under another key.
+    pub fn reject_as(&mut self, key: &str, name: &str, reason: String) {
+        self.rejected.push((
+            key.to_string(),
+            RejectedEffect {
+                name: name.to_string(),
+                reason,
+                params: BTreeMap::new(),
+            },
+        ));
+    }
+
+    /// The effect cannot be told from another explanation with these data.
+    pub fn ambiguous(&mut self, name: &str, confused_with: &str, reason: String) {
+        self.ambiguous.push(Ambiguity {
+            name: name.into(),
+            confused_with: confused_with.into(),
+            reason,
+        });
+    }
+}
+
+/// How the model's speed behaves, with a dead band for noise around zero: fractions of the
+/// samples above `band`, below `-band`, and within it (at rest).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Motion {
+    pub pos: f64,
+    pub neg: f64,
+    pub rest: f64,
+    pub band: f64,
+}
+
+impl Motion {
+    pub fn of(y: &[f64], band: f64) -> Self {
+        let n = y.len().max(1) as f64;
+        let pos = y.iter().filter(|v| **v > band).count() as f64 / n;
+        let neg = y.iter().filter(|v| **v < -band).count() as f64 / n;
+        Motion {
+            pos,
+            neg,
+            rest: 1.0 - pos - neg,
+            band,
+        }
+    }
+
+    /// Both signs in at least 2% of the samples each.
+    pub fn reverses(&self) -> bool {
+        self.pos.min(self.neg) >= 0.02
+    }
+
+    /// A text such as "+61% / -35% / at rest 4% (band +-0.03)".
+    pub fn describe(&self) -> String {
+        format!(
+            "+{:.0}% / -{:.0}% / at rest {:.0}% of the samples (noise band +-{:.2e})",
+            100.0 * self.pos,
+            100.0 * self.neg,
+            100.0 * self.rest,
+            self.band
+        )
+    }
+}
+
+/// The noise level of a record from its first differences: `1.4826 MAD(diff y) / sqrt 2` (the
+/// signal's own change between samples is small against the noise at a realistic sampling rate;
+/// a robust scale ignores the jumps).
+pub(crate) fn noise_level(y: &[f64]) -> f64 {
+    let mut d: Vec<f64> = y.windows(2).map(|w| w[1] - w[0]).collect();
+    if d.is_empty() {
+        return 0.0;
+    }
+    d.sort_by(f64::total_cmp);
+    let med = d[d.len() / 2];
+    let mut a: Vec<f64> = d.iter().map(|v| (v - med).abs()).collect();
+    a.sort_by(f64::total_cmp);
+    1.4826 * a[a.len() / 2] / std::f64::consts::SQRT_2
+}
+
+/// The sign with a dead band: 0 within `+-band`.
+pub(crate) fn sign_band(x: f64, band: f64) -> f64 {
+    if x > band {
+        1.0
+    } else if x < -band {
+        -1.0
+    } else {
+        0.0
+    }
+}
+
+/// What a probe sees: the record, the current model and its residual on the estimation part.
+pub(crate) struct Look<'a> {
+    pub ctx: &'a Ctx<'a>,
+    pub st: &'a State,
+    pub kept: &'a [KeptEffect],
+    /// Estimation residual (deviation scale).
+    pub e: Vec<f64>,
+    /// Its sum of squares.
+    pub ee: f64,
+    /// The current model's output sensitivities on the estimation part.
+    pub sens: Mat<f64>,
+    /// Model output, absolute scale, whole record.
+    pub ya: Vec<f64>,
+    /// Input, absolute scale, whole record.
+    pub ua: Vec<f64>,
+    /// Noise level of the measured output ([`noise_level`]).
+    pub noise: f64,
+    /// The model speed's signs, with a band of three noise levels.
+    pub motion: Motion,
+}
+
+impl<'a> Look<'a> {
+    pub fn new(ctx: &'a Ctx<'a>, st: &'a State, kept: &'a [KeptEffect]) -> Result<Self> {
+        let s = ctx.split;
+        let e: Vec<f64> = (0..s).map(|k| ctx.y[k] - st.yhat[k]).collect();
+        let ee = e.iter().map(|v| v * v).sum();
+        let (_, sens) = sensitivities(&st.model, &st.values, &ctx.u[..s], ctx.dt)?;
+        let ya: Vec<f64> = st.yhat.iter().map(|v| v + ctx.y0).collect();
+        let ua: Vec<f64> = ctx.u.iter().map(|v| v + ctx.u0).collect();
+        let noise = noise_level(&ctx.rec.y);
+        let motion = Motion::of(&ya, 3.0 * noise);
+        Ok(Look {
+            ctx,
+            st,
+            kept,
+            e,
+            ee,
+            sens,
+            ya,
+            ua,
+            noise,
+            motion,
+        })
+    }
+
+    /// Estimation samples.
+    pub fn s(&self) -> usize {
+        self.ctx.split
+    }
+
+    /// Whether the current model has a parameter of that name.
+    pub fn has(&self, name: &str) -> bool {
+        self.st.model.index_of(name).is_some()
+    }
+
+    /// Whether an effect of that name was kept in an earlier round.
+    pub fn kept(&self, name: &str) -> bool {
+        self.kept.iter().any(|k| k.name == name)
+    }
+
+    /// The linear part of the current model driven by `x` (whole record, deviation scale), then
+    /// the evidence of that signature: `(R^2, beta)` of [`explained`] on the estimation part.
+    pub fn through_model(&self, x: &[f64]) -> Option<(f64, Vec<f64>)> {
+        let g = self.ctx.lin(self.st, x)?;
+        Some(explained(&self.e, &[g[..self.s()].to_vec()], &self.sens))
+    }
+
+    /// The evidence of output-side signature columns (estimation part).
+    pub fn direct(&self, cols: &[Vec<f64>]) -> (f64, Vec<f64>) {
+        explained(&self.e, cols, &self.sens)
+    }
+}
+
+/// One effect of the library.
+pub(crate) trait Probe {
+    /// Report name (docs/design.md §6 table).
+    fn name(&self) -> &'static str;
+    /// Test the signature on the current residual; propose candidates, or say why not.
+    ///
+    /// # Errors
+    /// Simulation errors of the current model.
+    fn probe(&self, look: &Look<'_>, found: &mut Findings) -> Result<()>;
+    /// The effect's fitted parameters in a model that has it.
+    fn params(&self, model: &FracModel, values: &[f64]) -> BTreeMap<String, f64>;
+}
+
+/// The effect library, in the order the probes run.
+pub(crate) fn library() -> Vec<Box<dyn Probe>> {
+    vec![
+        Box::new(delay::Delay),
+        Box::new(skew::Skew),
+        Box::new(friction::Friction),
+        Box::new(input_offset::InputOffset),
+        Box::new(output_offset::OutputOffset),
+        Box::new(periodic::Periodic),
+        Box::new(abs_sensor::AbsSensor),
+        Box::new(saturation::Saturation),
+        Box::new(deadzone::Deadzone),
+    ]
+}
+
+/// Named parameter values of a model, those that exist.
+pub(crate) fn named(
+    model: &FracModel,
+    values: &[f64],
+    names: &[(&str, &str)],
+) -> BTreeMap<String, f64> {
+    names
+        .iter()
+        .filter_map(|(report, name)| {
+            model
+                .index_of(name)
+                .map(|i| (report.to_string(), values[i]))
+        })
+        .collect()
+}
+
+/// The best of a grid of thresholds for a static input map `x -> map(x, l)`: the signature
+/// `G (map(u) - u)` through the model, regressed with the model's sensitivities; the coefficient
+/// must be positive (the effect enters with coefficient 1). Returns `(R^2, l, coefficient)`.
+pub(crate) fn static_map_search(
+    look: &Look<'_>,
+    grid: &[f64],
+    map: impl Fn(f64, f64) -> f64,
+) -> Option<(f64, f64, f64)> {
+    let s = look.s();
+    let mut best: Option<(f64, f64, f64)> = None;
+    for &l in grid {
+        let d: Vec<f64> = look.ua.iter().map(|&v| map(v, l) - v).collect();
+        if d[..s].iter().all(|v| *v == 0.0) {
+            continue;
+        }
+        if let Some((r2, beta)) = look.through_model(&d) {
+            if beta[0] > 0.0 && best.is_none_or(|b| r2 > b.0) {
+                best = Some((r2, l, beta[0]));
+            }
+        }
+    }
+    best
+}
+
+/// The distinct levels of the input (to within 1e-9 of its range) and its largest magnitude.
+pub(crate) fn input_levels(ua: &[f64]) -> (usize, f64) {
+    let mut lv: Vec<f64> = ua.to_vec();
+    lv.sort_by(f64::total_cmp);
+    let range = lv[lv.len() - 1] - lv[0];
+    lv.dedup_by(|a, b| (*a - *b).abs() <= 1e-9 * range.max(1e-300));
+    (lv.len(), ua.iter().fold(0.0f64, |m, v| m.max(v.abs())))
+}
+
+/// Why a static input map cannot be identified from a two-level input.
+pub(crate) fn two_levels(levels: usize, name: &str) -> String {
+    format!(
+        "the input takes {levels} levels: any static input map is then affine (a gain and an \
+         offset), so a {name} cannot be identified; a multi-level input separates them"
+    )
+}
