@@ -427,6 +427,36 @@ fn diagnosis_of_the_real_dc_motor_finds_its_transport_delay() {
     // The speed never reverses: friction must be reported as ambiguous, not fitted.
     let ambiguous = d["ambiguous"].to_string();
     assert!(ambiguous.contains("coulomb_friction"), "{ambiguous}");
+    // The report agrees with the decision: the final model carries the kept delay (JSON and
+    // text), the kept effect removed part of the residual, nothing kept is also rejected, and
+    // the structure the diagnosis ran on is named among those compared.
+    assert!(
+        (d["model"]["delay"].as_f64().unwrap() - tau).abs() < 1e-12,
+        "{d}"
+    );
+    let text = d["final_model"].as_str().unwrap();
+    assert!(text.contains("exp(-"), "{text}");
+    assert!(
+        delay["ssr_removed_percent"].as_f64().unwrap() > 10.0,
+        "{delay}"
+    );
+    let rejected = d["rejected"].as_array().unwrap();
+    assert!(
+        !rejected.iter().any(|r| r["name"] == "delay"),
+        "{rejected:?}"
+    );
+    let s = &d["structures"];
+    let chosen = s["chosen"].as_u64().unwrap() as usize;
+    let names: Vec<&str> = s["scores"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c["name"].as_str().unwrap())
+        .collect();
+    assert!(
+        chosen < names.len() && names.contains(&"first order"),
+        "{s}"
+    );
 }
 
 #[test]

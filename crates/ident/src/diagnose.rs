@@ -11,14 +11,16 @@
 //! first order (the output sensitivity to the effect's parameter at "no effect"); the evidence is the
 //! fraction `R^2` of the estimation residual's sum of squares that the signature explains after
 //! the model's own sensitivities are projected out ([`residual::explained`], a score test).
-//! Candidates with `R^2 >= ` [`DiagnoseOptions::min_r2`] are refitted, strongest first.
+//! Candidates with `R^2 >= ` [`DiagnoseOptions::min_r2`] are refitted, strongest first. Each
+//! effect is one probe in its own file (`probes/`); the loop below knows none of them by name.
 //!
 //! | effect | signature (deviation scale, `G` the fitted linear part) | parameters, how fitted |
 //! |---|---|---|
 //! | `delay` | best of a grid `tau = j dt/2` (the model resimulated) | `tau` in `(0, max)`, then LM |
-//! | `coulomb_friction` | `G * (-sign(y0 + yhat_prev))` | `Vc > 0`, LM (see below) |
-//! | `offset` (input) | `G * 1` | `u_offset`, LM |
-//! | `offset` (output) | `1` | `y_offset`, LM |
+//! | `delay` (negative) | the recorded input advanced by whole samples | the advance, then LM on the rest |
+//! | `coulomb_friction` | `G * (-sign_b(y0 + yhat_prev))`, `sign_b` 0 within the noise band | `Vc > 0`, LM (see below) |
+//! | `input_offset` | `G * 1` | `u_offset`, LM |
+//! | `output_offset` | `1` | `y_offset`, LM |
 //! | `periodic` | `cos, sin (2 pi f t)`, `f` a spectral peak | `f` fixed at the peak; cosine and sine amplitudes, LM |
 //! | `abs_sensor` | `abs(y0 + yhat) - (y0 + yhat)` | none; the linear part is refitted |
 //! | `saturation` | `G * (clamp(u, -L, L) - u)` over a grid of `L` | `L > 0`: grid, then LM |
@@ -39,15 +41,28 @@
 //! (default 5%: the standard error of an RMSE ratio over `N` validation samples of noise is about
 //! `1/sqrt(2N)`, 2% for `N = 1000`, so 5% is 2.5 standard errors), (b) BIC
 //! `N ln(SSR/N) + k ln N` on the estimation part falls (the added parameters must pay `ln N` each),
-//! and (c) no parameter ran to a bound. The best kept candidate of a round is added; the loop repeats
+//! and (c) none of the effect's own parameters ran to a bound. A parameter of the current model
+//! that ran to a bound (the missing effect bent the base fit) is refitted once from a fresh start
+//! of the base parameters (the automatic start); if it stays at its bound the effect is still kept
+//! and the evidence says so (the structure may be short of a term). The report gives each kept
+//! effect's share of the residual sum of squares removed by the refit
+//! ([`KeptEffect::ssr_removed_percent`]). The best kept candidate of a round is added; the loop repeats
 //! (at most [`DiagnoseOptions::max_rounds`]) while something is kept. Without a validation part the
 //! margin is applied to the estimation RMSE.
 //!
 //! # Identifiability
 //! An effect the input cannot reveal is reported in [`Diagnosis::ambiguous`], never fitted:
-//! friction when the model speed never changes sign (`Vc sign(y)` is then a constant input offset);
-//! saturation and dead band when the input has two levels (any static input map is then affine:
-//! a gain and an offset).
+//! friction when the model speed neither changes sign nor rests between motion (`Vc sign(y)` is
+//! then a constant input offset; signs are counted with a band of three noise levels, so noise
+//! around zero is neither a reversal nor motion); saturation and dead band when the input has two
+//! levels (any static input map is then affine: a gain and an offset); an input offset through a
+//! linear model whose initial state is estimated (it is then an output offset and a shift of the
+//! past input).
+//!
+//! # Structure
+//! [`structures::diagnose_best`] fits the structures that could describe the record and diagnoses
+//! the one with the lowest BIC among those within 2% of the best held-out RMSE, so that an effect
+//! is not found only because the named structure could not bend like the plant.
 
 pub mod freq;
 mod probes;
