@@ -171,6 +171,50 @@ impl<T: Real> Simulator<T> {
         self.advance(a, b)
     }
 
+    /// The output at `t_k` before `u_k` is given to [`Simulator::step`], when it does not depend
+    /// on `u_k` (no feed-through, or a feed-through of an input already in the delay line):
+    /// the modal states summed. `None` when `y_k` needs `u_k` (a biproper model without delay).
+    /// Per-sample effects that depend on the current output (friction) use it.
+    ///
+    /// ```
+    /// use fracsim::{ApproxSpec, FracTf, Simulator};
+    /// let g: FracTf = "1/(0.1 s^0.9 + 1)".parse().unwrap();
+    /// let mut sim = Simulator::<f64>::new(&g, 1e-3, &ApproxSpec::default()).unwrap();
+    /// sim.step(1.0);
+    /// let y1 = sim.next_output().unwrap();
+    /// assert_eq!(y1, sim.step(0.0));
+    /// ```
+    pub fn next_output(&self) -> Option<T> {
+        let zero = T::from(0.0);
+        let mut y = zero;
+        if self.direct.re() != 0.0 {
+            // After the push, the feed-through reads `j` places back from the new position.
+            let j = self.delay_whole + usize::from(self.direct_prev);
+            if j == 0 {
+                return None;
+            }
+            let n = self.hist.len();
+            let back = j - 1;
+            let i = if self.pos >= back {
+                self.pos - back
+            } else {
+                self.pos + n - back
+            };
+            y = self.direct * self.hist[i];
+        }
+        let mut acc = [zero; 4];
+        for x in self.re_x.chunks_exact(4) {
+            for l in 0..4 {
+                acc[l] += x[l];
+            }
+        }
+        y += (acc[0] + acc[1]) + (acc[2] + acc[3]);
+        for x in &self.cx_x {
+            y += x.re;
+        }
+        Some(y)
+    }
+
     /// Push `u_k` into the delay line; returns `(u_(k-m), u_(k-m-1))`.
     #[inline(always)]
     fn push(&mut self, u: T) -> (T, T) {

@@ -370,50 +370,6 @@ pub fn find_quantization(y: &[f64]) -> Option<Quantization> {
     })
 }
 
-/// Starts for the `abs_sensor` refit when the base model could not follow the rectified data
-/// (a linear fit of `|y|` tends to a zero gain): the sign is restored from a first-order low-pass
-/// of the input, `y_s = |y| sign(lp_T(u))`, for `T` on a log grid of 8 values from `2 dt` to a
-/// twentieth of the record, and the automatic start ([`crate::oe::init::auto_start`]) is made on
-/// `(u, y_s)`; the 2 starts whose rectified output is closest to the data are returned.
-pub(crate) fn abs_starts(ctx: &Ctx<'_>, m: &FracModel) -> Vec<FracModel> {
-    let s = ctx.split;
-    let dt = ctx.dt;
-    let ya = &ctx.rec.y[..s];
-    let tmax = (s as f64 * dt / 20.0).max(4.0 * dt);
-    let mut scored: Vec<(f64, FracModel)> = vec![];
-    for i in 0..8 {
-        let t = 2.0 * dt * (tmax / (2.0 * dt)).powf(i as f64 / 7.0);
-        let a = (-dt / t).exp();
-        let mut lp = 0.0;
-        let ys: Vec<f64> = (0..s)
-            .map(|k| {
-                lp = a * lp + (1.0 - a) * ctx.u[k];
-                let v = ya[k].abs() * if lp < 0.0 { -1.0 } else { 1.0 };
-                v - ctx.y0
-            })
-            .collect();
-        let mut c = m.clone();
-        if crate::oe::init::auto_start(&mut c, &ctx.u[..s], &ys, dt).is_err() {
-            continue;
-        }
-        if let Some(i) = c.index_of("y_offset") {
-            c.params[i].value = 0.0;
-        }
-        for p in &mut c.params {
-            p.value = p.bounds.clamp_inside(p.value);
-        }
-        let mut y = vec![0.0; s];
-        if c.simulate(&c.values(), &ctx.u[..s], dt, &mut y).is_ok() {
-            let ssr: f64 = (0..s).map(|k| (ctx.y[k] - y[k]).powi(2)).sum();
-            if ssr.is_finite() {
-                scored.push((ssr, c));
-            }
-        }
-    }
-    scored.sort_by(|a, b| a.0.total_cmp(&b.0));
-    scored.into_iter().take(2).map(|(_, c)| c).collect()
-}
-
 /// Refit a candidate from each of its starts and decide (module documentation, Decision).
 /// Returns the refitted state and the kept effect, or the rejection.
 fn try_candidate(

@@ -367,10 +367,21 @@ pub fn minimize(problem: &mut impl Problem, p0: &[f64], opts: &LmOptions) -> Res
             if ok && rho > 0.0 && actual > 0.0 {
                 // accept
                 std::mem::swap(&mut p, &mut p_trial);
-                cost = cost_trial;
-                problem.eval(&p, &mut r, Some(&mut jac))?;
                 evaluations += 1;
-                check_finite(&r, &jac, "at an accepted point")?;
+                let jac_ok = problem.eval(&p, &mut r, Some(&mut jac)).is_ok()
+                    && check_finite(&r, &jac, "at an accepted point").is_ok();
+                if !jac_ok {
+                    // The point simulates but its sensitivities do not (a model at the edge
+                    // of what the approximation can represent): take the step back, restore
+                    // the residual and Jacobian of the last good point, and damp more.
+                    std::mem::swap(&mut p, &mut p_trial);
+                    problem.eval(&p, &mut r, Some(&mut jac))?;
+                    evaluations += 1;
+                    lambda *= nu;
+                    nu *= 2.0;
+                    continue;
+                }
+                cost = cost_trial;
                 cost = cost.min(0.5 * sumsq(&r)).max(0.0);
                 let t = 2.0 * rho - 1.0;
                 lambda *= (1.0 - t * t * t).max(1.0 / 3.0);

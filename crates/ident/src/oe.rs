@@ -597,17 +597,32 @@ impl Structure for FracModel {
         if self.effects.is_empty() {
             sim.run_into(u, y);
         } else {
-            let mut y_prev = T::from(y0);
-            for (k, (yk, &uk)) in y.iter_mut().zip(u).enumerate() {
-                let t = k as f64 * dt;
-                let mut ua = T::from(u0 + uk);
-                for e in &self.effects {
-                    ua = e.input(p, ua, y_prev, t);
-                }
-                let mut ya = sim.step(ua - u0) + y0;
+            // Input effects that depend on the output (friction) see it in the middle of the
+            // hold interval, `y_k + (y_k - y_(k-1))/2`, extrapolated from the output at `t_k`
+            // (known before `u_k` acts when the model has no feed-through); otherwise `y_(k-1)`.
+            let out = |ya: T, t: f64| {
+                let mut ya = ya;
                 for e in &self.effects {
                     ya = e.output(p, ya, t);
                 }
+                ya
+            };
+            let mut y_prev = T::from(y0);
+            for (k, (yk, &uk)) in y.iter_mut().zip(u).enumerate() {
+                let t = k as f64 * dt;
+                let seen = match sim.next_output() {
+                    Some(now) if k > 0 => {
+                        let now = out(now + y0, t);
+                        now + (now - y_prev) * 0.5
+                    }
+                    Some(now) => out(now + y0, t),
+                    None => y_prev,
+                };
+                let mut ua = T::from(u0 + uk);
+                for e in &self.effects {
+                    ua = e.input(p, ua, seen, t);
+                }
+                let ya = out(sim.step(ua - u0) + y0, t);
                 y_prev = ya;
                 *yk = ya - y0;
             }

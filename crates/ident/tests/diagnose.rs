@@ -532,3 +532,84 @@ fn the_effects_do_not_hinge_on_the_structure_named() {
     assert_eq!(names(&d.diagnosis), ["coulomb_friction"]);
     assert!(close(param(&d.diagnosis, "coulomb_friction", "Vc"), 0.15));
 }
+
+#[test]
+fn with_the_defaults_each_hidden_effect_alone_is_kept() {
+    // The product's path: the user names nothing (pmsm), operating point from the first samples,
+    // output offset and initial state estimated, structures compared. Exactly the hidden effect
+    // is kept (nothing on the clean record), its parameter within 20%.
+    let cases: [(&str, bool, Hidden, Option<(&str, f64)>); 7] = [
+        ("clean", false, Hidden::default(), None),
+        (
+            "delay",
+            false,
+            Hidden {
+                delay: 0.012,
+                ..Default::default()
+            },
+            Some(("tau", 0.012)),
+        ),
+        (
+            "coulomb_friction",
+            false,
+            Hidden {
+                coulomb: 0.15,
+                ..Default::default()
+            },
+            Some(("Vc", 0.15)),
+        ),
+        (
+            "periodic",
+            false,
+            Hidden {
+                sine: Some((0.1, 23.7)),
+                ..Default::default()
+            },
+            Some(("amplitude", 0.1)),
+        ),
+        (
+            "abs_sensor",
+            false,
+            Hidden {
+                abs: true,
+                ..Default::default()
+            },
+            None,
+        ),
+        (
+            "saturation",
+            true,
+            Hidden {
+                sat: Some(0.6),
+                ..Default::default()
+            },
+            Some(("level", 0.6)),
+        ),
+        (
+            "deadzone",
+            true,
+            Hidden {
+                dz: Some(0.15),
+                ..Default::default()
+            },
+            Some(("width", 0.15)),
+        ),
+    ];
+    let mut wrong = vec![];
+    for (i, (name, levels, hidden, truth)) in cases.into_iter().enumerate() {
+        let rec = generate(&input(0.0, levels), hidden, 20 + i as u64);
+        eprintln!("== case {name}");
+        let d = run_best(&rec, "pmsm", InitialState::Estimate).diagnosis;
+        let got = names(&d);
+        let want: Vec<&str> = if name == "clean" { vec![] } else { vec![name] };
+        if got != want {
+            wrong.push(format!("{name}: kept {got:?}"));
+        } else if let Some((key, t)) = truth {
+            let v = param(&d, name, key);
+            if !close(v, t) {
+                wrong.push(format!("{name}: {key} = {v} (truth {t})"));
+            }
+        }
+    }
+    assert!(wrong.is_empty(), "{wrong:#?}");
+}

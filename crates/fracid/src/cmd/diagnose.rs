@@ -54,16 +54,27 @@ fn fit_row(f: &ident::metrics::Fit) -> String {
 
 /// The structure comparison in words.
 pub fn structures_text(c: &StructureChoice) -> String {
-    let mut o = String::from("\nstructures compared (held-out RMSE, BIC):\n");
+    let mut o = String::from(
+        "\nstructures compared (each fitted and diagnosed; held-out RMSE before -> after, BIC after):\n",
+    );
     for (i, s) in c.scores.iter().enumerate() {
         let mark = if i == c.chosen { "*" } else { " " };
-        let nums = match (s.rmse, s.bic) {
-            (Some(r), Some(b)) => format!("RMSE {r:.4e}, BIC {b:.1}, {} free", s.free_params),
-            _ => "not fitted".into(),
+        let nums = match (s.rmse, s.rmse_after, s.bic_after) {
+            (Some(r), Some(a), Some(b)) => format!(
+                "RMSE {r:.4e} -> {a:.4e} with {}, BIC {b:.1}, {} free",
+                if s.effects.is_empty() {
+                    "no effect".to_string()
+                } else {
+                    s.effects.join(", ")
+                },
+                s.free_params
+            ),
+            _ => "not diagnosed".into(),
         };
-        let _ = writeln!(o, "  {mark} {:<24} {nums}: {}", s.name, s.model);
+        let _ = writeln!(o, "  {mark} {:<22} {nums}", s.name);
+        let _ = writeln!(o, "      {}", s.model);
         if !s.problems.is_empty() {
-            let _ = writeln!(o, "      not usable: {}", s.problems.join("; "));
+            let _ = writeln!(o, "      base fit not usable: {}", s.problems.join("; "));
         }
     }
     let _ = writeln!(o, "  {}", c.reason);

@@ -1,16 +1,19 @@
-//! Which structure the diagnosis runs on: the structures that could describe the record are fitted
-//! alike and compared by held-out error and BIC, so that the effects found do not hinge on the
-//! structure a user happened to name (a dead zone "found" only because a first-order model cannot
-//! bend like the plant).
+//! Which structure the diagnosis ends on: the structures that could describe the record are each
+//! fitted and diagnosed alike, and the final models (with their effects) compared by held-out error
+//! and BIC, so that the effects found do not hinge on the structure a user happened to name (a dead
+//! zone "found" only because a first-order model cannot bend like the plant, or a delay kept beside
+//! a sign-blind sensor because every linear fit of rectified data is poor).
 //!
 //! The candidates are the user's structure, the PMSM `K/(a2 s^(zeta+theta) + a1 s^zeta + 1)`, the
 //! commensurate `K/(a2 s^(2q) + a1 s^q + 1)`, the first order `K/(T s + 1)`, and the user's
 //! structure with a free integrator (an output that integrates, such as a position). Each is
 //! identified with the same options ([`crate::oe::identify`]: automatic start, initial state,
-//! offsets). Rule: among the usable fits ([`Identification::usable`]), those whose held-out RMSE
-//! (estimation RMSE without a held-out part) is within [`TIE`] of the best are ties, and the tie
-//! with the lowest BIC `N ln(SSR/N) + k ln N` on the estimation part wins (`k` free parameters):
-//! the simpler structure unless the richer one predicts clearly better.
+//! offsets) and diagnosed ([`super::diagnose`]); the candidates run on all cores. Rule: among the
+//! final models whose base fit is usable ([`Identification::usable`]; all of them when none is),
+//! those whose held-out RMSE (estimation RMSE without a held-out part) is within [`TIE`] of the
+//! best are ties, and the tie with the lowest BIC `N ln(SSR/N) + k ln N` on the estimation part
+//! wins (`k` free parameters, the effects' included): the simpler model unless the richer one
+//! predicts clearly better.
 
 use crate::data::Record;
 use crate::oe::{identify, FracModel, IdentOptions, Identification};
@@ -21,21 +24,25 @@ use serde::Serialize;
 /// standard error of an RMSE ratio over 1000 held-out samples of noise, `1/sqrt(2N)`).
 pub const TIE: f64 = 0.02;
 
-/// One structure's fit.
+/// One structure's fit and diagnosis.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct StructureScore {
     /// Its name (`pmsm`, `commensurate`, `first order`, or the user's words, `+ integrator`).
     pub name: String,
     /// The fitted linear part, or why the fit failed.
     pub model: String,
-    /// Free parameters (with the offsets and the initial-state levels).
-    pub free_params: usize,
-    /// Held-out RMSE (estimation RMSE without a held-out part).
+    /// Held-out RMSE of the base fit (estimation RMSE without a held-out part).
     pub rmse: Option<f64>,
-    /// BIC on the estimation part.
-    pub bic: Option<f64>,
-    /// Why the fit cannot be used (empty when it can).
+    /// Why the base fit cannot be used (empty when it can).
     pub problems: Vec<String>,
+    /// The effects its diagnosis kept.
+    pub effects: Vec<String>,
+    /// Free parameters of the final model (offsets, initial-state levels and effects included).
+    pub free_params: usize,
+    /// Held-out RMSE of the final model.
+    pub rmse_after: Option<f64>,
+    /// BIC of the final model on the estimation part.
+    pub bic_after: Option<f64>,
 }
 
 /// The comparison and its decision.
@@ -77,115 +84,109 @@ pub fn candidates(label: &str, model: &FracModel) -> Vec<(String, FracModel)> {
     out
 }
 
-fn score_of(name: &str, id: &Identification) -> StructureScore {
-    let n = id.split as f64;
-    let k = id.model.params.iter().filter(|p| p.free).count();
-    let ssr = id.estimation.rmse * id.estimation.rmse * n;
-    StructureScore {
-        name: name.to_string(),
-        model: id.tf.to_string(),
-        free_params: k,
-        rmse: Some(id.validation.unwrap_or(id.estimation).rmse),
-        bic: Some(n * (ssr / n).max(1e-300).ln() + k as f64 * n.ln()),
-        problems: id.problems.clone(),
-    }
-}
-
-/// Fit every candidate structure to `rec` and choose one (see the module documentation).
-/// `user` is the identification of the user's `model` (named `label`), already made.
-///
-/// # Errors
-/// None of its own: a candidate whose fit fails is scored as failed, and when no candidate is
-/// usable the user's identification is kept.
-pub fn choose(
-    rec: &Record,
-    label: &str,
-    model: &FracModel,
-    user: Identification,
-    opts: &IdentOptions,
-) -> Result<(Identification, StructureChoice)> {
-    let mut ids: Vec<Option<Identification>> = vec![];
-    let mut scores = vec![score_of(label, &user)];
-    ids.push(Some(user));
-    for (name, m) in candidates(label, model).into_iter().skip(1) {
-        match identify(rec, &m, opts) {
-            Ok(id) => {
-                scores.push(score_of(&name, &id));
-                ids.push(Some(id));
-            }
-            Err(e) => {
-                scores.push(StructureScore {
-                    name,
-                    model: format!("the fit failed: {e}"),
-                    free_params: 0,
-                    rmse: None,
-                    bic: None,
-                    problems: vec![e.to_string()],
-                });
-                ids.push(None);
-            }
-        }
-    }
-    let usable: Vec<usize> = (0..scores.len())
-        .filter(|&i| scores[i].problems.is_empty() && scores[i].rmse.is_some_and(f64::is_finite))
-        .collect();
-    let best_rmse = usable
-        .iter()
-        .filter_map(|&i| scores[i].rmse)
-        .fold(f64::INFINITY, f64::min);
-    let chosen = usable
-        .iter()
-        .copied()
-        .filter(|&i| scores[i].rmse.is_some_and(|r| r <= (1.0 + TIE) * best_rmse))
-        .min_by(|&a, &b| {
-            let bic = |i: usize| scores[i].bic.unwrap_or(f64::INFINITY);
-            bic(a).total_cmp(&bic(b))
-        });
-    let reason = match chosen {
-        None => format!("no structure gives a usable fit: the diagnosis runs on {label}"),
-        Some(c) => {
-            let s = &scores[c];
-            format!(
-                "{} chosen: held-out RMSE {:.4e} (best {best_rmse:.4e}; ties within {:.0}%), the \
-                 lowest BIC among the ties ({:.1}, {} free parameters)",
-                s.name,
-                s.rmse.unwrap_or(f64::NAN),
-                100.0 * TIE,
-                s.bic.unwrap_or(f64::NAN),
-                s.free_params
-            )
-        }
-    };
-    let chosen = chosen.unwrap_or(0);
-    let id = ids
-        .swap_remove(chosen)
-        .ok_or_else(|| Error::Numerical(format!("structure {chosen} was not fitted")))?;
-    Ok((
-        id,
-        StructureChoice {
-            scores,
-            chosen,
-            reason,
-        },
-    ))
-}
-
-/// A diagnosis on the best structure: the structures compared ([`choose`]), then [`super::diagnose`]
-/// on the chosen one.
+/// A diagnosis on the best structure ([`diagnose_best`]).
 #[derive(Debug, Clone)]
 pub struct Diagnosed {
     /// The identification of the chosen structure (the diagnosis's base model).
     pub id: Identification,
     /// The comparison.
     pub choice: StructureChoice,
-    /// The diagnosis.
+    /// The diagnosis of the chosen structure.
     pub diagnosis: super::Diagnosis,
 }
 
-/// Compare the structures ([`choose`]) and diagnose the record on the chosen one.
+type Outcome =
+    std::result::Result<(Identification, super::Diagnosis), (Option<Identification>, Error)>;
+
+/// Identify (unless given) and diagnose one structure.
+fn run_one(
+    rec: &Record,
+    model: &FracModel,
+    given: Option<Identification>,
+    opts: &IdentOptions,
+    dopts: &super::DiagnoseOptions,
+) -> Outcome {
+    let id = match given {
+        Some(id) => id,
+        None => identify(rec, model, opts).map_err(|e| (None, e))?,
+    };
+    match super::diagnose(rec, &id, dopts) {
+        Ok(d) => Ok((id, d)),
+        Err(e) => Err((Some(id), e)),
+    }
+}
+
+fn score_of(name: &str, o: &Outcome) -> StructureScore {
+    let mut s = StructureScore {
+        name: name.to_string(),
+        model: String::new(),
+        rmse: None,
+        problems: vec![],
+        effects: vec![],
+        free_params: 0,
+        rmse_after: None,
+        bic_after: None,
+    };
+    match o {
+        Ok((id, d)) => {
+            let n = id.split as f64;
+            let k = d.model.params.iter().filter(|p| p.free).count();
+            let ssr = d.estimation.after.rmse.powi(2) * n;
+            s.model = id.tf.to_string();
+            s.rmse = Some(id.validation.unwrap_or(id.estimation).rmse);
+            s.problems = id.problems.clone();
+            s.effects = d.effects.iter().map(|e| e.name.clone()).collect();
+            s.free_params = k;
+            s.rmse_after = Some(d.after.rmse);
+            s.bic_after = Some(n * (ssr / n).max(1e-300).ln() + k as f64 * n.ln());
+        }
+        Err((id, e)) => {
+            s.model = format!("failed: {e}");
+            s.problems = vec![e.to_string()];
+            if let Some(id) = id {
+                s.rmse = Some(id.validation.unwrap_or(id.estimation).rmse);
+            }
+        }
+    }
+    s
+}
+
+/// The index chosen by the rule of the module documentation, or `None` when no candidate has a
+/// final model.
+fn decide(scores: &[StructureScore]) -> Option<(usize, f64)> {
+    let finals: Vec<usize> = (0..scores.len())
+        .filter(|&i| scores[i].rmse_after.is_some_and(f64::is_finite))
+        .collect();
+    let usable: Vec<usize> = finals
+        .iter()
+        .copied()
+        .filter(|&i| scores[i].problems.is_empty())
+        .collect();
+    let pool = if usable.is_empty() { finals } else { usable };
+    let best = pool
+        .iter()
+        .filter_map(|&i| scores[i].rmse_after)
+        .fold(f64::INFINITY, f64::min);
+    pool.iter()
+        .copied()
+        .filter(|&i| {
+            scores[i]
+                .rmse_after
+                .is_some_and(|r| r <= (1.0 + TIE) * best)
+        })
+        .min_by(|&a, &b| {
+            let bic = |i: usize| scores[i].bic_after.unwrap_or(f64::INFINITY);
+            bic(a).total_cmp(&bic(b))
+        })
+        .map(|c| (c, best))
+}
+
+/// Fit and diagnose every candidate structure of the user's `model` (named `label`, already
+/// identified as `user`), and return the diagnosis of the chosen one (see the module
+/// documentation).
 ///
 /// # Errors
-/// As [`super::diagnose`].
+/// The error of the user's structure when no candidate could be diagnosed.
 pub fn diagnose_best(
     rec: &Record,
     label: &str,
@@ -194,11 +195,65 @@ pub fn diagnose_best(
     opts: &IdentOptions,
     dopts: &super::DiagnoseOptions,
 ) -> Result<Diagnosed> {
-    let (id, choice) = choose(rec, label, model, user, opts)?;
-    let diagnosis = super::diagnose(rec, &id, dopts)?;
+    let cands = candidates(label, model);
+    let mut user = Some(user);
+    let outcomes: Vec<Outcome> = std::thread::scope(|scope| {
+        let handles: Vec<_> = cands
+            .iter()
+            .enumerate()
+            .map(|(i, (_, m))| {
+                let given = if i == 0 { user.take() } else { None };
+                scope.spawn(move || run_one(rec, m, given, opts, dopts))
+            })
+            .collect();
+        handles
+            .into_iter()
+            .map(|h| {
+                h.join().unwrap_or_else(|_| {
+                    Err((
+                        None,
+                        Error::Numerical("a structure's diagnosis panicked".into()),
+                    ))
+                })
+            })
+            .collect()
+    });
+    let scores: Vec<StructureScore> = cands
+        .iter()
+        .zip(&outcomes)
+        .map(|((name, _), o)| score_of(name, o))
+        .collect();
+    let Some((chosen, best)) = decide(&scores) else {
+        let mut outcomes = outcomes;
+        return Err(match outcomes.swap_remove(0) {
+            Err((_, e)) => e,
+            Ok(_) => Error::Numerical("no structure could be diagnosed".into()),
+        });
+    };
+    let s = &scores[chosen];
+    let reason = format!(
+        "{} chosen: held-out RMSE {:.4e} with {} (best {best:.4e}; ties within {:.0}%), the lowest \
+         BIC among the ties ({:.1}, {} free parameters)",
+        s.name,
+        s.rmse_after.unwrap_or(f64::NAN),
+        if s.effects.is_empty() {
+            "no effect".to_string()
+        } else {
+            s.effects.join(", ")
+        },
+        100.0 * TIE,
+        s.bic_after.unwrap_or(f64::NAN),
+        s.free_params
+    );
+    let mut outcomes = outcomes;
+    let (id, diagnosis) = outcomes.swap_remove(chosen).map_err(|(_, e)| e)?;
     Ok(Diagnosed {
         id,
-        choice,
+        choice: StructureChoice {
+            scores,
+            chosen,
+            reason,
+        },
         diagnosis,
     })
 }

@@ -25,7 +25,8 @@ pub enum Effect {
         /// Parameter index of the offset.
         c: usize,
     },
-    /// Coulomb friction as an equivalent input voltage: `u - vc sign(y_prev)`.
+    /// Coulomb friction as an equivalent input voltage: `u - vc sign(y)`, `y` the model output
+    /// in the middle of the hold interval (see [`super::FracModel`]'s simulation).
     Coulomb {
         /// Parameter index of `Vc`.
         vc: usize,
@@ -66,7 +67,8 @@ pub(crate) fn sign<T: Real>(x: T) -> f64 {
 }
 
 impl Effect {
-    /// Transform the absolute input `u` at time `t` given the previous absolute model output.
+    /// Transform the absolute input `u` at time `t` given the absolute model output `y_prev` over
+    /// the interval the input is held (extrapolated to its middle).
     #[inline]
     pub fn input<T: Real>(&self, p: &[T], u: T, y_prev: T, _t: f64) -> T {
         match *self {

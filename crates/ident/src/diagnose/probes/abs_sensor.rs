@@ -5,10 +5,12 @@
 //! rectified model output `|y| - y` regressed with the model's sensitivities. Signs are counted
 //! with a dead band of three noise levels, so noise around zero (a rectified speed at rest reads
 //! a little below zero) does not count as a change of sign. When the base model could not follow
-//! the rectified data at all, extra starts restore the sign from a low-pass of the input.
+//! the rectified data at all, extra starts restore the sign from a low-pass of the input. The
+//! model's zero is located by an input offset fitted with it (the operating point was read from
+//! rectified data, so the deviation scale's zero is not the speed's).
 
 use super::{Candidate, Findings, Look, Probe};
-use crate::oe::{Effect, FracModel};
+use crate::oe::{Bounds, Effect, FracModel, Param, Structure};
 use crate::Result;
 use std::collections::BTreeMap;
 
@@ -67,7 +69,14 @@ impl Probe for AbsSensor {
         m.effects.insert(0, Effect::AbsSensor);
         let mut starts = vec![m.clone()];
         if !model_reverses {
-            starts.extend(super::super::abs_starts(ctx, &m));
+            starts.extend(sign_restored_starts(look, &m));
+        }
+        // Where the speed is zero is unknown: the operating point was taken from rectified data.
+        // An input offset locates it (through the gain it is the constant inside |.|).
+        if !look.has("u_offset") {
+            for m in &mut starts {
+                with_zero_offset(m, ctx.u0, ctx.y0);
+            }
         }
         found.candidates.push(Candidate {
             lead: None,
@@ -103,4 +112,66 @@ impl Probe for AbsSensor {
     fn params(&self, _: &FracModel, _: &[f64]) -> BTreeMap<String, f64> {
         BTreeMap::new()
     }
+}
+
+/// Add an input offset `c_u = u0 - y0/K` (the model's zero is then the plant's: `y0 + K (c_u - u0)
+/// = 0` at the operating point).
+fn with_zero_offset(m: &mut FracModel, u0: f64, y0: f64) {
+    let k = m.index_of("K").map_or(0.0, |i| m.params[i].value);
+    let c = if k.abs() > 0.0 && k.is_finite() {
+        u0 - y0 / k
+    } else {
+        0.0
+    };
+    let i = m.add_param(Param::new("u_offset", c, Bounds::Free));
+    m.effects.insert(0, Effect::InputOffset { c: i });
+}
+
+/// Starts for the refit when the base model could not follow the rectified data (a linear fit of
+/// `|y|` tends to a zero gain): the sign is restored from a first-order low-pass of the absolute
+/// input, `y_s = |y| sign(lp_T(u))`, for `T` on a log grid of 8 values from `2 dt` to a twentieth
+/// of the record, and the automatic start ([`crate::oe::init::auto_start`]) is made on the
+/// absolute `(u, y_s)` (the plant's zero is the signals' zero); the 2 starts whose rectified
+/// output is closest to the data are returned.
+fn sign_restored_starts(look: &Look<'_>, m: &FracModel) -> Vec<FracModel> {
+    let ctx = look.ctx;
+    let (s, dt) = (look.s(), ctx.dt);
+    let ua = &look.ua[..s];
+    let tmax = (s as f64 * dt / 20.0).max(4.0 * dt);
+    let mut scored: Vec<(f64, FracModel)> = vec![];
+    for i in 0..8 {
+        let t = 2.0 * dt * (tmax / (2.0 * dt)).powf(i as f64 / 7.0);
+        let a = (-dt / t).exp();
+        let mut lp = 0.0;
+        let ys: Vec<f64> = (0..s)
+            .map(|k| {
+                lp = a * lp + (1.0 - a) * ua[k];
+                ctx.rec.y[k].abs() * if lp < 0.0 { -1.0 } else { 1.0 }
+            })
+            .collect();
+        let mut c = m.clone();
+        if crate::oe::init::auto_start(&mut c, ua, &ys, dt).is_err() {
+            continue;
+        }
+        if let Some(i) = c.index_of("y_offset") {
+            c.params[i].value = 0.0;
+        }
+        for p in &mut c.params {
+            p.value = p.bounds.clamp_inside(p.value);
+        }
+        let mut scored_model = c.clone();
+        if !look.has("u_offset") {
+            with_zero_offset(&mut scored_model, ctx.u0, ctx.y0);
+        }
+        let mut y = vec![0.0; s];
+        let v = scored_model.values();
+        if scored_model.simulate(&v, &ctx.u[..s], dt, &mut y).is_ok() {
+            let ssr: f64 = (0..s).map(|k| (ctx.y[k] - y[k]).powi(2)).sum();
+            if ssr.is_finite() {
+                scored.push((ssr, c));
+            }
+        }
+    }
+    scored.sort_by(|a, b| a.0.total_cmp(&b.0));
+    scored.into_iter().take(2).map(|(_, c)| c).collect()
 }
