@@ -538,7 +538,9 @@ fn with_the_defaults_each_hidden_effect_alone_is_kept() {
     // The product's path: the user names nothing (pmsm), operating point from the first samples,
     // output offset and initial state estimated, structures compared. Exactly the hidden effect
     // is kept (nothing on the clean record), its parameter within 20%.
-    let cases: [(&str, bool, Hidden, Option<(&str, f64)>); 7] = [
+    // (effect, multi-level input, what is hidden, (parameter, truth))
+    type Case = (&'static str, bool, Hidden, Option<(&'static str, f64)>);
+    let cases: [Case; 7] = [
         ("clean", false, Hidden::default(), None),
         (
             "delay",

@@ -95,8 +95,11 @@ pub struct Diagnosed {
     pub diagnosis: super::Diagnosis,
 }
 
-type Outcome =
-    std::result::Result<(Identification, super::Diagnosis), (Option<Identification>, Error)>;
+/// One structure's identification (when it succeeded) and diagnosis.
+struct Outcome {
+    id: Option<Identification>,
+    diagnosis: Result<super::Diagnosis>,
+}
 
 /// Identify (unless given) and diagnose one structure.
 fn run_one(
@@ -108,11 +111,20 @@ fn run_one(
 ) -> Outcome {
     let id = match given {
         Some(id) => id,
-        None => identify(rec, model, opts).map_err(|e| (None, e))?,
+        None => match identify(rec, model, opts) {
+            Ok(id) => id,
+            Err(e) => {
+                return Outcome {
+                    id: None,
+                    diagnosis: Err(e),
+                }
+            }
+        },
     };
-    match super::diagnose(rec, &id, dopts) {
-        Ok(d) => Ok((id, d)),
-        Err(e) => Err((Some(id), e)),
+    let diagnosis = super::diagnose(rec, &id, dopts);
+    Outcome {
+        id: Some(id),
+        diagnosis,
     }
 }
 
@@ -127,26 +139,26 @@ fn score_of(name: &str, o: &Outcome) -> StructureScore {
         rmse_after: None,
         bic_after: None,
     };
-    match o {
-        Ok((id, d)) => {
+    if let Some(id) = &o.id {
+        s.model = id.tf.to_string();
+        s.rmse = Some(id.validation.unwrap_or(id.estimation).rmse);
+        s.problems = id.problems.clone();
+    }
+    match (&o.id, &o.diagnosis) {
+        (Some(id), Ok(d)) => {
             let n = id.split as f64;
             let k = d.model.params.iter().filter(|p| p.free).count();
             let ssr = d.estimation.after.rmse.powi(2) * n;
-            s.model = id.tf.to_string();
-            s.rmse = Some(id.validation.unwrap_or(id.estimation).rmse);
-            s.problems = id.problems.clone();
             s.effects = d.effects.iter().map(|e| e.name.clone()).collect();
             s.free_params = k;
             s.rmse_after = Some(d.after.rmse);
             s.bic_after = Some(n * (ssr / n).max(1e-300).ln() + k as f64 * n.ln());
         }
-        Err((id, e)) => {
+        (_, Err(e)) => {
             s.model = format!("failed: {e}");
-            s.problems = vec![e.to_string()];
-            if let Some(id) = id {
-                s.rmse = Some(id.validation.unwrap_or(id.estimation).rmse);
-            }
+            s.problems.push(e.to_string());
         }
+        (None, Ok(_)) => {}
     }
     s
 }
@@ -209,11 +221,9 @@ pub fn diagnose_best(
         handles
             .into_iter()
             .map(|h| {
-                h.join().unwrap_or_else(|_| {
-                    Err((
-                        None,
-                        Error::Numerical("a structure's diagnosis panicked".into()),
-                    ))
+                h.join().unwrap_or_else(|_| Outcome {
+                    id: None,
+                    diagnosis: Err(Error::Numerical("a structure's diagnosis panicked".into())),
                 })
             })
             .collect()
@@ -225,8 +235,8 @@ pub fn diagnose_best(
         .collect();
     let Some((chosen, best)) = decide(&scores) else {
         let mut outcomes = outcomes;
-        return Err(match outcomes.swap_remove(0) {
-            Err((_, e)) => e,
+        return Err(match outcomes.swap_remove(0).diagnosis {
+            Err(e) => e,
             Ok(_) => Error::Numerical("no structure could be diagnosed".into()),
         });
     };
@@ -246,7 +256,10 @@ pub fn diagnose_best(
         s.free_params
     );
     let mut outcomes = outcomes;
-    let (id, diagnosis) = outcomes.swap_remove(chosen).map_err(|(_, e)| e)?;
+    let o = outcomes.swap_remove(chosen);
+    let diagnosis = o.diagnosis?;
+    let id =
+        o.id.ok_or_else(|| Error::Numerical("the chosen structure has no fit".into()))?;
     Ok(Diagnosed {
         id,
         choice: StructureChoice {
