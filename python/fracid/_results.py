@@ -257,14 +257,16 @@ class Effect(_ToDict):
     Attributes
     ----------
     name : str
-        Report name: ``delay``, ``coulomb_friction``, ``offset``, ``periodic``, ``abs_sensor``,
-        ``saturation``, ``deadzone``.
+        Report name: ``delay``, ``coulomb_friction``, ``input_offset``, ``output_offset``,
+        ``periodic``, ``abs_sensor``, ``saturation``, ``deadzone``.
     params : dict
         Its fitted parameters (e.g. ``{"tau": 0.012}``, ``{"Vc": 0.15}``).
     evidence : str
         What in the residual pointed to it and what the refit gained.
     r2 : float
-        Fraction of the residual's sum of squares its signature explains.
+        Fraction of the residual's sum of squares its signature explained before the refit.
+    ssr_removed_percent : float
+        Percent of the estimation residual's sum of squares the refit with it removed.
     rmse_change_percent : float
         Relative change of the validation RMSE, percent (negative is better).
     bic_change : float
@@ -275,6 +277,7 @@ class Effect(_ToDict):
     params: Dict[str, float]
     evidence: str
     r2: float
+    ssr_removed_percent: float
     rmse_change_percent: float
     bic_change: float
 
@@ -305,7 +308,12 @@ class Diagnosis(_ToDict):
     residual_before, residual_after : dict
         Residual tests of the base and final model (estimation part).
     model : FracTf
-        The final linear part.
+        The final linear part (with its delay).
+    final_model : str
+        The final model in words: linear part, delay and effects with their parameters.
+    structures : dict or None
+        The structures compared (each fitted and diagnosed): ``scores`` (name, model, rmse,
+        effects, rmse_after, bic_after, ...), ``chosen`` (index) and ``reason``.
     params : dict
         Every parameter of the final model (effects included) by name.
     yhat_before, yhat_after : numpy.ndarray
@@ -331,6 +339,8 @@ class Diagnosis(_ToDict):
     yhat_before: np.ndarray = field(repr=False)
     yhat_after: np.ndarray = field(repr=False)
     split: int = 0
+    final_model: str = ""
+    structures: Optional[Dict[str, Any]] = None
 
     @property
     def names(self) -> List[str]:

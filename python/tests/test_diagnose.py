@@ -35,6 +35,12 @@ def test_hidden_delay_is_found():
     assert d.validation is not None
     assert d.validation["after"].rmse < d.validation["before"].rmse
     assert d.model.delay == pytest.approx(d.effects[0].params["tau"], rel=1e-9)
+    assert "exp(-" in d.final_model
+    assert d.effects[0].ssr_removed_percent > 0.0
+    s = d.structures
+    assert s is not None and 0 <= s["chosen"] < len(s["scores"])
+    assert s["scores"][0]["name"] == "commensurate"
+    assert s["scores"][s["chosen"]]["effects"] == ["delay"]
     assert d.yhat_after.shape == y.shape
     j = json.loads(json.dumps(fit.to_dict()))
     assert j["diagnosis"]["effects"][0]["name"] == "delay"
