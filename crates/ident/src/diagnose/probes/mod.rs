@@ -20,7 +20,7 @@ mod skew;
 
 use super::residual::explained;
 use super::{Ambiguity, Ctx, KeptEffect, RejectedEffect, State};
-use crate::oe::{sensitivities, FracModel};
+use crate::oe::{sensitivities, Effect, FracModel, Param};
 use crate::Result;
 use faer::Mat;
 use std::collections::BTreeMap;
@@ -261,18 +261,47 @@ pub(crate) fn named(
         .collect()
 }
 
-/// The best of a grid of thresholds for a static input map `x -> map(x, l)`: the signature
-/// `G (map(u) - u)` through the model, regressed with the model's sensitivities; the coefficient
-/// must be positive (the effect enters with coefficient 1). Returns `(R^2, l, coefficient)`.
-pub(crate) fn static_map_search(
-    look: &Look<'_>,
-    grid: &[f64],
-    map: impl Fn(f64, f64) -> f64,
-) -> Option<(f64, f64, f64)> {
+/// A static input map `u -> map(u, l)` with one threshold `l` (saturation, dead band).
+pub(crate) struct StaticMap {
+    /// Report name.
+    pub name: &'static str,
+    /// Parameter name in the model.
+    pub param: &'static str,
+    /// What the threshold is, in words and as the report key.
+    pub what: &'static str,
+    /// Thresholds searched, as fractions of the largest input magnitude.
+    pub grid: Vec<f64>,
+    /// The map.
+    pub map: fn(f64, f64) -> f64,
+    /// The effect with its parameter index.
+    pub effect: fn(usize) -> Effect,
+}
+
+/// Probe a static input map: ambiguous with a gain and an offset for a two-level input;
+/// otherwise the signature `G (map(u, l) - u)` over the grid of `l`, regressed with the model's
+/// sensitivities, the coefficient positive (the effect enters with coefficient 1); the best
+/// threshold starts the refit.
+pub(crate) fn probe_static_map(look: &Look<'_>, found: &mut Findings, sm: &StaticMap) {
+    if look.has(sm.param) {
+        return;
+    }
+    let (levels, umax) = input_levels(&look.ua);
+    if levels <= 2 {
+        found.ambiguous(
+            sm.name,
+            "gain and offset",
+            format!(
+                "the input takes {levels} levels: any static input map is then affine (a gain and \
+                 an offset), so a {} cannot be identified; a multi-level input separates them",
+                sm.name
+            ),
+        );
+        return;
+    }
     let s = look.s();
     let mut best: Option<(f64, f64, f64)> = None;
-    for &l in grid {
-        let d: Vec<f64> = look.ua.iter().map(|&v| map(v, l) - v).collect();
+    for l in sm.grid.iter().map(|f| f * umax) {
+        let d: Vec<f64> = look.ua.iter().map(|&v| (sm.map)(v, l) - v).collect();
         if d[..s].iter().all(|v| *v == 0.0) {
             continue;
         }
@@ -282,7 +311,27 @@ pub(crate) fn static_map_search(
             }
         }
     }
-    best
+    let Some((r2, l, coef)) = best else {
+        return;
+    };
+    let mut m = look.st.model.clone();
+    let i = m.add_param(Param::positive(sm.param, l));
+    m.effects.insert(0, (sm.effect)(i));
+    found.candidates.push(Candidate {
+        lead: None,
+        name: sm.name,
+        key: sm.name.into(),
+        r2,
+        evidence: format!(
+            "the {} signature at {} = {l:.3e} (grid over {} values, linear parameters refitted) \
+             explains {:.1}% of the residual sum of squares (coefficient {coef:.2})",
+            sm.name,
+            sm.what,
+            sm.grid.len(),
+            100.0 * r2
+        ),
+        starts: vec![m],
+    });
 }
 
 /// The distinct levels of the input (to within 1e-9 of its range) and its largest magnitude.
@@ -292,12 +341,4 @@ pub(crate) fn input_levels(ua: &[f64]) -> (usize, f64) {
     let range = lv[lv.len() - 1] - lv[0];
     lv.dedup_by(|a, b| (*a - *b).abs() <= 1e-9 * range.max(1e-300));
     (lv.len(), ua.iter().fold(0.0f64, |m, v| m.max(v.abs())))
-}
-
-/// Why a static input map cannot be identified from a two-level input.
-pub(crate) fn two_levels(levels: usize, name: &str) -> String {
-    format!(
-        "the input takes {levels} levels: any static input map is then affine (a gain and an \
-         offset), so a {name} cannot be identified; a multi-level input separates them"
-    )
 }
