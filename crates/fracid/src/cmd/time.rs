@@ -256,7 +256,21 @@ pub fn run(a: TimeArgs) -> Result<()> {
         None => None,
     };
     let (id, diagnosis) = if a.diagnose {
-        let d = super::diagnose::run_time(&rec, &a.structure, &model, id, &opts)?;
+        let spin = if a.quiet || !std::io::stderr().is_terminal() {
+            indicatif::ProgressBar::hidden()
+        } else {
+            let b = indicatif::ProgressBar::new_spinner();
+            b.set_draw_target(indicatif::ProgressDrawTarget::stderr());
+            b.enable_steady_tick(std::time::Duration::from_millis(120));
+            b
+        };
+        let n = ident::diagnose::structures::candidates(&a.structure, &model).len();
+        spin.set_message(format!(
+            "diagnosing: {n} structures fitted and diagnosed (on all cores)"
+        ));
+        let d = super::diagnose::run_time(&rec, &a.structure, &model, id, &opts);
+        spin.finish_and_clear();
+        let d = d?;
         (d.id, Some((d.diagnosis, d.choice)))
     } else {
         (id, None)
