@@ -372,14 +372,138 @@ pub(crate) fn run_f64(sim: &mut Simulator<f64>, u: &[f64], y: &mut [f64]) {
     sim.run_generic(u, y);
 }
 
-/// The same loop compiled for AVX2 and FMA (four modes per instruction).
+/// The same loop for AVX2 and FMA: the real modes four per instruction (explicit intrinsics: the
+/// compiler left the generic loop scalar), the complex ones as in [`Simulator::step`].
 ///
 /// # Safety
 /// The CPU must support AVX2 and FMA.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
 unsafe fn run_f64_avx2(sim: &mut Simulator<f64>, u: &[f64], y: &mut [f64]) {
-    sim.run_generic(u, y);
+    for (yk, &uk) in y.iter_mut().zip(u) {
+        let (a, b) = sim.push(uk);
+        let mut out = sim.direct * if sim.direct_prev { b } else { a };
+        // SAFETY: AVX2 and FMA are enabled for this function; the lanes are whole fours.
+        out += unsafe { avx::row_value(&mut sim.re_x, &sim.re_phi, &sim.re_b0, &sim.re_b1, a, b) };
+        for i in 0..sim.cx_x.len() {
+            let x = sim.cx_x[i];
+            out += x.re;
+            sim.cx_x[i] = sim.cx_phi[i] * x + sim.cx_b0[i].scale(a) + sim.cx_b1[i].scale(b);
+        }
+        *yk = out;
+    }
+}
+
+/// AVX2 + FMA rows of the real modes (lengths whole multiples of four, checked).
+#[cfg(target_arch = "x86_64")]
+mod avx {
+    use std::arch::x86_64::*;
+
+    /// Horizontal sum of four lanes.
+    #[target_feature(enable = "avx2,fma")]
+    #[inline]
+    unsafe fn hsum(v: __m256d) -> f64 {
+        let mut l = [0.0f64; 4];
+        // SAFETY: `l` holds four f64.
+        unsafe { _mm256_storeu_pd(l.as_mut_ptr(), v) };
+        (l[0] + l[1]) + (l[2] + l[3])
+    }
+
+    /// `sum x` (before the update), then `x = phi x + b0 a + b1 b`.
+    ///
+    /// # Safety
+    /// AVX2 and FMA.
+    #[target_feature(enable = "avx2,fma")]
+    #[inline]
+    pub(super) unsafe fn row_value(
+        x: &mut [f64],
+        phi: &[f64],
+        b0: &[f64],
+        b1: &[f64],
+        a: f64,
+        b: f64,
+    ) -> f64 {
+        let n = x.len();
+        assert!(n % 4 == 0 && phi.len() >= n && b0.len() >= n && b1.len() >= n);
+        let (va, vb) = (_mm256_set1_pd(a), _mm256_set1_pd(b));
+        let (mut acc0, mut acc1) = (_mm256_setzero_pd(), _mm256_setzero_pd());
+        let mut i = 0;
+        while i < n {
+            // SAFETY: i + 4 <= n and every slice is at least n long (asserted above).
+            unsafe {
+                let xp = x.as_mut_ptr().add(i);
+                let xv = _mm256_loadu_pd(xp);
+                if (i / 4) % 2 == 0 {
+                    acc0 = _mm256_add_pd(acc0, xv);
+                } else {
+                    acc1 = _mm256_add_pd(acc1, xv);
+                }
+                let t = _mm256_mul_pd(_mm256_loadu_pd(b1.as_ptr().add(i)), vb);
+                let t = _mm256_fmadd_pd(_mm256_loadu_pd(b0.as_ptr().add(i)), va, t);
+                let t = _mm256_fmadd_pd(_mm256_loadu_pd(phi.as_ptr().add(i)), xv, t);
+                _mm256_storeu_pd(xp, t);
+            }
+            i += 4;
+        }
+        // SAFETY: AVX2 is enabled.
+        unsafe { hsum(_mm256_add_pd(acc0, acc1)) }
+    }
+
+    /// `sum xd` (before the update), then `xd = phi xd + dphi x + db0 a + db1 b` (`x` the
+    /// values before their own update).
+    ///
+    /// # Safety
+    /// AVX2 and FMA.
+    #[target_feature(enable = "avx2,fma")]
+    #[inline]
+    #[allow(clippy::too_many_arguments)]
+    pub(super) unsafe fn row_deriv(
+        xd: &mut [f64],
+        x: &[f64],
+        phi: &[f64],
+        dphi: &[f64],
+        db0: &[f64],
+        db1: &[f64],
+        a: f64,
+        b: f64,
+    ) -> f64 {
+        let n = xd.len();
+        assert!(
+            n % 4 == 0
+                && x.len() >= n
+                && phi.len() >= n
+                && dphi.len() >= n
+                && db0.len() >= n
+                && db1.len() >= n
+        );
+        let (va, vb) = (_mm256_set1_pd(a), _mm256_set1_pd(b));
+        let (mut acc0, mut acc1) = (_mm256_setzero_pd(), _mm256_setzero_pd());
+        let mut i = 0;
+        while i < n {
+            // SAFETY: i + 4 <= n and every slice is at least n long (asserted above).
+            unsafe {
+                let dp = xd.as_mut_ptr().add(i);
+                let dv = _mm256_loadu_pd(dp);
+                if (i / 4) % 2 == 0 {
+                    acc0 = _mm256_add_pd(acc0, dv);
+                } else {
+                    acc1 = _mm256_add_pd(acc1, dv);
+                }
+                let t = _mm256_mul_pd(_mm256_loadu_pd(db1.as_ptr().add(i)), vb);
+                let t = _mm256_fmadd_pd(_mm256_loadu_pd(db0.as_ptr().add(i)), va, t);
+                let t = _mm256_fmadd_pd(
+                    _mm256_loadu_pd(dphi.as_ptr().add(i)),
+                    _mm256_loadu_pd(x.as_ptr().add(i)),
+                    t,
+                );
+                let t = _mm256_fmadd_pd(_mm256_loadu_pd(phi.as_ptr().add(i)), dv, t);
+                _mm256_storeu_pd(dp, t);
+            }
+            i += 4;
+        }
+        // SAFETY: AVX2 is enabled.
+        unsafe { hsum(_mm256_add_pd(acc0, acc1)) }
+    }
 }
 
 /// [`Simulator::run_into`] in [`Dual`] numbers: the structure-of-arrays kernel
@@ -397,7 +521,7 @@ pub(crate) fn run_dual<const N: usize>(sim: &mut Simulator<Dual<N>>, u: &[f64], 
         unsafe { run_dual_avx2(sim, u, y) };
         return;
     }
-    run_dual_soa(sim, u, y);
+    run_dual_soa(sim, u, y, false);
 }
 
 /// [`run_dual_soa`] compiled for AVX2 and FMA.
@@ -411,7 +535,7 @@ unsafe fn run_dual_avx2<const N: usize>(
     u: &[f64],
     y: &mut [Dual<N>],
 ) {
-    run_dual_soa(sim, u, y);
+    run_dual_soa(sim, u, y, true);
 }
 
 /// The dual simulation with plain `f64` inputs, its states stored as structure of arrays (row `i`
@@ -421,7 +545,12 @@ unsafe fn run_dual_avx2<const N: usize>(
 /// input has no derivative, which saves the products a generic `Dual * Dual` would spend on it.
 /// Same arithmetic as [`Simulator::step`] up to rounding (the sums are grouped differently).
 #[inline(always)]
-fn run_dual_soa<const N: usize>(sim: &mut Simulator<Dual<N>>, u: &[f64], y: &mut [Dual<N>]) {
+fn run_dual_soa<const N: usize>(
+    sim: &mut Simulator<Dual<N>>,
+    u: &[f64],
+    y: &mut [Dual<N>],
+    avx: bool,
+) {
     let nr = sim.re_phi.len();
     let nc = sim.cx_phi.len();
     let rows = N + 1;
@@ -463,49 +592,30 @@ fn run_dual_soa<const N: usize>(sim: &mut Simulator<Dual<N>>, u: &[f64], y: &mut
         }
         // Real modes: the derivative rows first (they need the old values), the value row last.
         let (xd, xv) = x.split_at_mut(xv_off);
-        for i in 0..rows {
-            let r = i * nr;
-            let mut acc = [0.0f64; 4];
-            if i < N {
-                let row = &mut xd[r..r + nr];
-                for ((((xr, xo), ph), (p0, p1)), pv) in row
-                    .chunks_exact_mut(4)
-                    .zip(xv.chunks_exact(4))
-                    .zip(phi[r..r + nr].chunks_exact(4))
-                    .zip(
-                        b0[r..r + nr]
-                            .chunks_exact(4)
-                            .zip(b1[r..r + nr].chunks_exact(4)),
+        #[cfg(target_arch = "x86_64")]
+        if avx {
+            let (phv, b0v, b1v) = (&phi[xv_off..], &b0[xv_off..], &b1[xv_off..]);
+            for i in 0..N {
+                let r = i * nr;
+                // SAFETY: `avx` is true only when the CPU has AVX2 and FMA; whole lanes of four.
+                out.d[i] += unsafe {
+                    avx::row_deriv(
+                        &mut xd[r..r + nr],
+                        xv,
+                        phv,
+                        &phi[r..r + nr],
+                        &b0[r..r + nr],
+                        &b1[r..r + nr],
+                        a,
+                        b,
                     )
-                    .zip(phi[xv_off..].chunks_exact(4))
-                {
-                    for l in 0..4 {
-                        acc[l] += xr[l];
-                        xr[l] = pv[l] * xr[l] + ph[l] * xo[l] + p0[l] * a + p1[l] * b;
-                    }
-                }
-            } else {
-                for ((xo, pv), (p0, p1)) in xv
-                    .chunks_exact_mut(4)
-                    .zip(phi[r..r + nr].chunks_exact(4))
-                    .zip(
-                        b0[r..r + nr]
-                            .chunks_exact(4)
-                            .zip(b1[r..r + nr].chunks_exact(4)),
-                    )
-                {
-                    for l in 0..4 {
-                        acc[l] += xo[l];
-                        xo[l] = pv[l] * xo[l] + p0[l] * a + p1[l] * b;
-                    }
-                }
+                };
             }
-            let sum = (acc[0] + acc[1]) + (acc[2] + acc[3]);
-            if i < N {
-                out.d[i] += sum;
-            } else {
-                out.v += sum;
-            }
+            // SAFETY: as above.
+            out.v += unsafe { avx::row_value(xv, phv, b0v, b1v, a, b) };
+        }
+        if !avx {
+            real_rows(xd, xv, &phi, &b0, &b1, nr, a, b, &mut out);
         }
         // Complex modes (each the real part of a doubled pair): the same, in complex arithmetic.
         let (dr, vr) = cxr.split_at_mut(cv_off);
@@ -553,6 +663,60 @@ fn run_dual_soa<const N: usize>(sim: &mut Simulator<Dual<N>>, u: &[f64], y: &mut
         *h = Dual::cst(v);
     }
     sim.pos = pos;
+}
+
+/// The real modes' rows of [`run_dual_soa`] in plain Rust (no AVX2).
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn real_rows<const N: usize>(
+    xd: &mut [f64],
+    xv: &mut [f64],
+    phi: &[f64],
+    b0: &[f64],
+    b1: &[f64],
+    nr: usize,
+    a: f64,
+    b: f64,
+    out: &mut Dual<N>,
+) {
+    let xv_off = N * nr;
+    for i in 0..N {
+        let r = i * nr;
+        let mut acc = [0.0f64; 4];
+        for ((((xr, xo), ph), (p0, p1)), pv) in xd[r..r + nr]
+            .chunks_exact_mut(4)
+            .zip(xv.chunks_exact(4))
+            .zip(phi[r..r + nr].chunks_exact(4))
+            .zip(
+                b0[r..r + nr]
+                    .chunks_exact(4)
+                    .zip(b1[r..r + nr].chunks_exact(4)),
+            )
+            .zip(phi[xv_off..].chunks_exact(4))
+        {
+            for l in 0..4 {
+                acc[l] += xr[l];
+                xr[l] = pv[l] * xr[l] + ph[l] * xo[l] + p0[l] * a + p1[l] * b;
+            }
+        }
+        out.d[i] += (acc[0] + acc[1]) + (acc[2] + acc[3]);
+    }
+    let mut acc = [0.0f64; 4];
+    for ((xo, pv), (p0, p1)) in xv
+        .chunks_exact_mut(4)
+        .zip(phi[xv_off..].chunks_exact(4))
+        .zip(
+            b0[xv_off..]
+                .chunks_exact(4)
+                .zip(b1[xv_off..].chunks_exact(4)),
+        )
+    {
+        for l in 0..4 {
+            acc[l] += xo[l];
+            xo[l] = pv[l] * xo[l] + p0[l] * a + p1[l] * b;
+        }
+    }
+    out.v += (acc[0] + acc[1]) + (acc[2] + acc[3]);
 }
 
 /// Simulate `tf` on input `u` sampled every `dt` seconds and held between samples, from rest.
