@@ -257,6 +257,9 @@ impl<const N: usize> Real for Dual<N> {
     fn re(self) -> f64 {
         self.v
     }
+    fn run_simulator(sim: &mut crate::Simulator<Self>, u: &[f64], y: &mut [Self]) {
+        crate::discrete::run_dual(sim, u, y);
+    }
     fn exp(self) -> Self {
         let e = self.v.exp();
         self.chain(e, e)

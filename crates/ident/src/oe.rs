@@ -113,6 +113,19 @@ impl Bounds {
         }
     }
 
+    /// `dp/dtheta` at the parameter value `p` (`1`, `p`, or `(hi - lo) s (1 - s)` with
+    /// `s = (p - lo)/(hi - lo)`): carries a sensitivity or a standard error from `theta` to `p`.
+    pub fn dparam(self, p: f64) -> f64 {
+        match self {
+            Bounds::Free => 1.0,
+            Bounds::Positive => p,
+            Bounds::Interval(lo, hi) => {
+                let s = (p - lo) / (hi - lo);
+                (hi - lo) * s * (1.0 - s)
+            }
+        }
+    }
+
     /// Whether `p` is within 0.5% of the width of an interval edge (a fit that ran to a bound).
     pub fn at_edge(self, p: f64) -> bool {
         match self {
@@ -234,6 +247,39 @@ pub trait Structure: Sync {
     /// # Errors
     /// Parameter values the model cannot simulate (a simulation error, a non-finite output).
     fn simulate<T: Real>(&self, p: &[T], u: &[f64], dt: f64, y: &mut [T]) -> Result<()>;
+
+    /// Whether the output is linear in parameter `j` in a way
+    /// [`Structure::linear_sensitivities`] computes in plain `f64` (an output offset, a gain, a
+    /// level of the initial state). The fit then leaves `j` out of the dual-number simulation,
+    /// which is the costly part of a Jacobian. Default: no parameter is.
+    fn is_linear(&self, j: usize) -> bool {
+        let _ = j;
+        false
+    }
+
+    /// The exact sensitivities `out[i][k] = d yhat_k / d p_(which[i])` of parameters for which
+    /// [`Structure::is_linear`] is true, given `yhat` (the output at `p`, as
+    /// [`Structure::simulate`] wrote it). `out[i]` has the length of `u`.
+    ///
+    /// # Errors
+    /// A simulation error; a parameter that is not linear.
+    fn linear_sensitivities(
+        &self,
+        p: &[f64],
+        which: &[usize],
+        u: &[f64],
+        dt: f64,
+        yhat: &[f64],
+        out: &mut [Vec<f64>],
+    ) -> Result<()> {
+        let _ = (p, u, dt, yhat, out);
+        match which.first() {
+            None => Ok(()),
+            Some(j) => Err(Error::Options(format!(
+                "parameter {j} is not linear in this structure"
+            ))),
+        }
+    }
 }
 
 /// The kind of a [`FracModel`], which decides how an automatic start is made.
@@ -572,30 +618,236 @@ impl FracModel {
     }
 }
 
-impl Structure for FracModel {
-    fn params(&self) -> &[Param] {
-        &self.params
+/// How the output of a [`FracModel`] is linear in a parameter ([`Structure::is_linear`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Linear {
+    /// A constant output offset: `d yhat/d c = 1`.
+    Offset,
+    /// The factor of the only numerator term: `yhat - offsets = K G0(u, past)`, so
+    /// `d yhat/d K = (yhat - offsets)/K`.
+    Gain,
+    /// Level `i` of the initial state: its free response (input zero, that level one).
+    Level(usize),
+}
+
+impl FracModel {
+    /// How many times parameter `j` appears in the model (coefficients, orders, delay, effects,
+    /// initial state).
+    fn uses(&self, j: usize) -> usize {
+        let expr = |e: &Expr| e.terms.iter().filter(|&&(i, _)| i == j).count();
+        let terms: usize = self
+            .num
+            .iter()
+            .chain(&self.den)
+            .map(|(c, o)| expr(c) + expr(o))
+            .sum();
+        let effects = self
+            .effects
+            .iter()
+            .filter(|e| match **e {
+                Effect::InputOffset { c } | Effect::OutputOffset { c } => c == j,
+                Effect::Coulomb { vc } => vc == j,
+                Effect::Saturation { level } => level == j,
+                Effect::Deadzone { width } => width == j,
+                Effect::Sinusoid { a, b, .. } => a == j || b == j,
+                _ => false,
+            })
+            .count();
+        let past = self
+            .past
+            .as_ref()
+            .map_or(0, |p| p.levels.iter().filter(|&&i| i == j).count());
+        terms + effects + past + usize::from(self.delay == Some(j))
     }
 
-    fn simulate<T: Real>(&self, p: &[T], u: &[f64], dt: f64, y: &mut [T]) -> Result<()> {
+    /// How the output is linear in parameter `j`, if it is in a way computed without duals. Only
+    /// for models whose effects are all output offsets (the default `fracid time` model): any
+    /// other effect may couple the output back into the input.
+    fn linearity(&self, j: usize) -> Option<Linear> {
+        if !self
+            .effects
+            .iter()
+            .all(|e| matches!(e, Effect::OutputOffset { .. }))
+            || self.uses(j) != 1
+        {
+            return None;
+        }
+        if self
+            .effects
+            .iter()
+            .any(|e| matches!(*e, Effect::OutputOffset { c } if c == j))
+        {
+            return Some(Linear::Offset);
+        }
+        if let Some(i) = self
+            .past
+            .as_ref()
+            .and_then(|p| p.levels.iter().position(|&l| l == j))
+        {
+            return Some(Linear::Level(i));
+        }
+        match self.num.as_slice() {
+            [(c, _)] if c.constant == 0.0 && c.terms.len() == 1 && c.terms[0].0 == j => {
+                Some(Linear::Gain)
+            }
+            _ => None,
+        }
+    }
+
+    /// The simulator of the linear part at `p` (from rest).
+    fn simulator<T: Real>(&self, p: &[T], dt: f64) -> Result<Simulator<T>> {
         let terms = |t: &[(Expr, Expr)]| -> Vec<(T, T)> {
             t.iter().map(|(c, o)| (c.eval(p), o.eval(p))).collect()
         };
         let delay = self.delay.map_or(T::from(0.0), |i| p[i]);
-        let mut sim = Simulator::from_terms(
+        Ok(Simulator::from_terms(
             &terms(&self.num),
             &terms(&self.den),
             delay,
             dt,
             &self.approx,
-        )?;
+        )?)
+    }
+
+    /// The factor parameter `j` takes when the input is scaled by `su` and the output by `sy`
+    /// (its unit): `sy/su` for a numerator coefficient, `su` for an input level (input offset,
+    /// friction, saturation, dead zone, initial-state level), `sy` for an output one (output
+    /// offset, ripple amplitudes), 1 for denominator coefficients (the denominator's constant
+    /// is fixed), orders and the delay; `None` when it plays parts of different units.
+    pub fn unit_scale(&self, j: usize, su: f64, sy: f64) -> Option<f64> {
+        let mut f: Vec<f64> = vec![];
+        let has = |e: &Expr| e.terms.iter().any(|&(i, _)| i == j);
+        for (c, o) in &self.num {
+            if has(c) {
+                f.push(sy / su);
+            }
+            if has(o) {
+                f.push(1.0);
+            }
+        }
+        for (c, o) in &self.den {
+            if has(c) || has(o) {
+                f.push(1.0);
+            }
+        }
+        if self.delay == Some(j) {
+            f.push(1.0);
+        }
+        if self.is_initial_state(j) {
+            f.push(su);
+        }
+        for e in &self.effects {
+            match *e {
+                Effect::InputOffset { c } if c == j => f.push(su),
+                Effect::Coulomb { vc } if vc == j => f.push(su),
+                Effect::Saturation { level } if level == j => f.push(su),
+                Effect::Deadzone { width } if width == j => f.push(su),
+                Effect::OutputOffset { c } if c == j => f.push(sy),
+                Effect::Sinusoid { a, b, .. } if a == j || b == j => f.push(sy),
+                _ => {}
+            }
+        }
+        match f.first() {
+            None => Some(1.0),
+            Some(&x) if f.iter().all(|&v| v == x) => Some(x),
+            Some(_) => None,
+        }
+    }
+
+    /// The sum of the output offsets at `p`.
+    fn offsets_sum(&self, p: &[f64]) -> f64 {
+        self.effects
+            .iter()
+            .map(|e| match *e {
+                Effect::OutputOffset { c } => p[c],
+                _ => 0.0,
+            })
+            .sum()
+    }
+}
+
+impl Structure for FracModel {
+    fn params(&self) -> &[Param] {
+        &self.params
+    }
+
+    fn is_linear(&self, j: usize) -> bool {
+        self.linearity(j).is_some()
+    }
+
+    fn linear_sensitivities(
+        &self,
+        p: &[f64],
+        which: &[usize],
+        u: &[f64],
+        dt: f64,
+        yhat: &[f64],
+        out: &mut [Vec<f64>],
+    ) -> Result<()> {
+        let mut free_sim: Option<Simulator<f64>> = None;
+        let zeros = vec![0.0; u.len()];
+        for (&j, col) in which.iter().zip(out.iter_mut()) {
+            col.resize(u.len(), 0.0);
+            match self.linearity(j) {
+                None => {
+                    return Err(Error::Options(format!(
+                        "the output is not linear in {}",
+                        self.params[j].name
+                    )))
+                }
+                Some(Linear::Offset) => col.iter_mut().for_each(|v| *v = 1.0),
+                Some(Linear::Gain) if p[j] != 0.0 => {
+                    let (c, k) = (self.offsets_sum(p), p[j]);
+                    for (v, &yk) in col.iter_mut().zip(yhat) {
+                        *v = (yk - c) / k;
+                    }
+                }
+                Some(Linear::Gain) => {
+                    let mut q = p.to_vec();
+                    q[j] = 1.0;
+                    self.simulate(&q, u, dt, col)?;
+                    let c = self.offsets_sum(p);
+                    col.iter_mut().for_each(|v| *v -= c);
+                }
+                Some(Linear::Level(i)) => {
+                    let Some(past) = &self.past else {
+                        unreachable!("a level is a level of the past input")
+                    };
+                    let sim = match &mut free_sim {
+                        Some(s) => s,
+                        None => free_sim.insert(self.simulator(p, dt)?),
+                    };
+                    let mut levels = vec![0.0; past.levels.len()];
+                    levels[i] = 1.0;
+                    sim.set_past_input(&levels, &past.edges)?;
+                    sim.run_into(&zeros, col);
+                }
+            }
+        }
+        Ok(())
+    }
+
+    fn simulate<T: Real>(&self, p: &[T], u: &[f64], dt: f64, y: &mut [T]) -> Result<()> {
+        let mut sim = self.simulator(p, dt)?;
         if let Some(past) = &self.past {
             let levels: Vec<T> = past.levels.iter().map(|&i| p[i]).collect();
             sim.set_past_input(&levels, &past.edges)?;
         }
         let (u0, y0) = (self.operating_point.u0, self.operating_point.y0);
-        if self.effects.is_empty() {
+        if self.effects.iter().all(|e| !e.is_input()) {
+            // No input effect: nothing feeds the output back, so the linear part runs on the
+            // whole input at once (the vectorised kernel) and the output effects follow.
             sim.run_into(u, y);
+            if !self.effects.is_empty() {
+                for (k, yk) in y.iter_mut().enumerate() {
+                    let t = k as f64 * dt;
+                    let mut ya = *yk + y0;
+                    for e in &self.effects {
+                        ya = e.output(p, ya, t);
+                    }
+                    *yk = ya - y0;
+                }
+            }
         } else {
             // Input effects that depend on the output (friction) see it in the middle of the
             // hold interval, `y_k + (y_k - y_(k-1))/2`, extrapolated from the output at `t_k`

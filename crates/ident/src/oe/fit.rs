@@ -114,9 +114,61 @@ macro_rules! with_dual {
     };
 }
 
-/// Simulate with `Dual<N>`: free parameter `i` is `to_param(Dual::var(theta_i, i))` (or the plain
-/// variable when `transform` is false). Writes `yhat` and `jac[(k - skip, i)] = d yhat_k / d theta_i`.
+/// Simulate with `Dual<N>` at the physical values `pv`, the free parameters `group` (indices into
+/// `free`) carried as dual parts: parameter `free[g]` is `to_param(Dual::var(theta_g, slot))`
+/// (the plain variable when `transform` is false). Writes `yhat` and `cols[slot][k] = d yhat_k /
+/// d theta_(group[slot])` over the whole record.
+#[allow(clippy::too_many_arguments)]
 fn eval_dual<const N: usize, S: Structure>(
+    s: &S,
+    pv: &[f64],
+    free: &[usize],
+    theta: &[f64],
+    transform: bool,
+    group: &[usize],
+    u: &[f64],
+    dt: f64,
+    yhat: &mut [f64],
+    cols: &mut [Vec<f64>],
+) -> Result<()> {
+    let mut p: Vec<Dual<N>> = pv.iter().map(|&v| Dual::cst(v)).collect();
+    let params = s.params();
+    for (slot, &g) in group.iter().enumerate() {
+        let j = free[g];
+        let x = Dual::var(theta[g], slot);
+        p[j] = if transform {
+            params[j].bounds.to_param(x)
+        } else {
+            x
+        };
+    }
+    let mut y = vec![Dual::<N>::cst(0.0); u.len()];
+    s.simulate(&p, u, dt, &mut y)?;
+    for (k, v) in y.iter().enumerate() {
+        yhat[k] = v.v;
+    }
+    for (slot, col) in cols.iter_mut().enumerate() {
+        col.clear();
+        col.extend(y.iter().map(|v| v.d[slot]));
+    }
+    Ok(())
+}
+
+/// Below this many samples a Jacobian runs on one thread (a thread costs more than it saves).
+const PARALLEL_MIN_SAMPLES: usize = 4096;
+
+/// The output `yhat` at `theta` and its exact Jacobian `jac[(k - skip, i)] = d yhat_k / d theta_i`
+/// for the free parameters `free` (with `transform`, `theta` is reparametrised by the parameters'
+/// [`Bounds`]; else it holds the physical values).
+///
+/// The parameters the output is linear in ([`Structure::is_linear`]: output offset, gain,
+/// initial-state levels) get their columns in plain `f64` ([`Structure::linear_sensitivities`]);
+/// only the others are carried as dual parts through the simulation, which costs about
+/// `(2 N + 1)` multiply-adds per mode and sample for `N` dual parts. Those are split in two
+/// halves simulated on two threads (for records of at least 4096 samples, when the machine has
+/// two cores), the linear columns computed beside the second half.
+#[allow(clippy::too_many_arguments)]
+fn jacobian<S: Structure>(
     s: &S,
     base: &[f64],
     free: &[usize],
@@ -128,24 +180,86 @@ fn eval_dual<const N: usize, S: Structure>(
     yhat: &mut [f64],
     jac: &mut Mat<f64>,
 ) -> Result<()> {
-    let mut p: Vec<Dual<N>> = base.iter().map(|&v| Dual::cst(v)).collect();
     let params = s.params();
-    for (i, (&j, &th)) in free.iter().zip(theta).enumerate() {
-        let x = Dual::var(th, i);
-        p[j] = if transform {
-            params[j].bounds.to_param(x)
+    let mut pv = base.to_vec();
+    for (&j, &th) in free.iter().zip(theta) {
+        pv[j] = if transform {
+            params[j].bounds.to_param(th)
         } else {
-            x
+            th
         };
     }
-    let mut y = vec![Dual::<N>::cst(0.0); u.len()];
-    s.simulate(&p, u, dt, &mut y)?;
-    for (k, v) in y.iter().enumerate() {
-        yhat[k] = v.v;
-        if k >= skip {
-            for i in 0..free.len() {
-                jac[(k - skip, i)] = v.d[i];
-            }
+    let (lin, nonlin): (Vec<usize>, Vec<usize>) =
+        (0..free.len()).partition(|&i| s.is_linear(free[i]));
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let half = if nonlin.len() >= 2 && cores >= 2 && u.len() >= PARALLEL_MIN_SAMPLES {
+        nonlin.len().div_ceil(2)
+    } else {
+        0
+    };
+    let (first, second) = nonlin.split_at(half);
+    let mut cols_first = vec![vec![]; first.len()];
+    let mut cols_second = vec![vec![]; second.len()];
+    let mut cols_lin = vec![vec![]; lin.len()];
+    let lin_j: Vec<usize> = lin.iter().map(|&i| free[i]).collect();
+    let pv = &pv;
+    // The second half (all of them on one thread) and the linear columns.
+    let rest = |yhat: &mut [f64], cols: &mut [Vec<f64>], cols_lin: &mut [Vec<f64>]| {
+        if second.is_empty() {
+            s.simulate(pv, u, dt, yhat)?;
+        } else {
+            with_dual!(
+                second.len(),
+                eval_dual(s, pv, free, theta, transform, second, u, dt, yhat, cols)
+            )?;
+        }
+        s.linear_sensitivities(pv, &lin_j, u, dt, yhat, cols_lin)
+    };
+    if first.is_empty() {
+        rest(yhat, &mut cols_second, &mut cols_lin)?;
+    } else {
+        let mut y_first = vec![0.0; u.len()];
+        let (a, b) = std::thread::scope(|sc| {
+            let h = sc.spawn(|| {
+                with_dual!(
+                    first.len(),
+                    eval_dual(
+                        s,
+                        pv,
+                        free,
+                        theta,
+                        transform,
+                        first,
+                        u,
+                        dt,
+                        &mut y_first,
+                        &mut cols_first
+                    )
+                )
+            });
+            let b = rest(yhat, &mut cols_second, &mut cols_lin);
+            (h.join(), b)
+        });
+        b?;
+        a.map_err(|_| Error::Numerical("a Jacobian thread panicked".into()))??;
+    }
+    let all = first
+        .iter()
+        .zip(&cols_first)
+        .chain(second.iter().zip(&cols_second));
+    for (&i, col) in all {
+        for k in skip..u.len() {
+            jac[(k - skip, i)] = col[k];
+        }
+    }
+    for (&i, col) in lin.iter().zip(&cols_lin) {
+        let dp = if transform {
+            params[free[i]].bounds.dparam(pv[free[i]])
+        } else {
+            1.0
+        };
+        for k in skip..u.len() {
+            jac[(k - skip, i)] = col[k] * dp;
         }
     }
     Ok(())
@@ -193,10 +307,7 @@ impl<S: Structure> Problem for OeProblem<'_, S> {
             Some(jac) => {
                 let (s, base, free, u, dt, skip) =
                     (self.s, &self.base, &self.free, self.u, self.dt, self.skip);
-                with_dual!(
-                    free.len(),
-                    eval_dual(s, base, free, theta, true, u, dt, skip, &mut self.yhat, jac)
-                )?;
+                jacobian(s, base, free, theta, true, u, dt, skip, &mut self.yhat, jac)?;
             }
         }
         let mut ssr = 0.0;
@@ -228,10 +339,7 @@ pub fn sensitivities<S: Structure>(
     let theta: Vec<f64> = free.iter().map(|&j| p[j]).collect();
     let mut yhat = vec![0.0; u.len()];
     let mut jac = Mat::<f64>::zeros(u.len(), free.len());
-    with_dual!(
-        free.len(),
-        eval_dual(s, p, &free, &theta, false, u, dt, 0, &mut yhat, &mut jac)
-    )?;
+    jacobian(s, p, &free, &theta, false, u, dt, 0, &mut yhat, &mut jac)?;
     Ok((yhat, jac))
 }
 
@@ -346,14 +454,7 @@ pub fn fit_with_progress<S: Structure>(
         let th = rep.params[i];
         let v = b.to_param(th);
         values[j] = v;
-        let dp = match b {
-            Bounds::Free => 1.0,
-            Bounds::Positive => v,
-            Bounds::Interval(lo, hi) => {
-                let sg = (v - lo) / (hi - lo);
-                (hi - lo) * sg * (1.0 - sg)
-            }
-        };
+        let dp = b.dparam(v);
         ests[j].value = v;
         ests[j].std_error = rep.std_errors.as_ref().map(|se| se[i] * dp.abs());
         ests[j].at_bound = b.at_edge(v);
@@ -517,9 +618,107 @@ pub fn identify(rec: &Record, model: &FracModel, opts: &IdentOptions) -> Result<
 
 /// [`identify`] with a progress callback as in [`fit_with_progress`].
 ///
+/// Scale invariant: a record whose input or output magnitude is outside `[2^-30, 2^30]` (data in
+/// another unit, 1e-20 or 1e+20) is fitted scaled by powers of two to magnitude 1, with the
+/// model's parameters scaled by their units ([`FracModel::unit_scale`]), and the result is
+/// scaled back: the orders are the same and the gain is scaled as the data are. The progress
+/// callback's RMSE is then of the scaled output.
+///
 /// # Errors
 /// As [`identify`].
 pub fn identify_with_progress(
+    rec: &Record,
+    model: &FracModel,
+    opts: &IdentOptions,
+    progress: &mut dyn FnMut(usize, f64),
+) -> Result<Identification> {
+    let Some(sc) = Scaling::of(rec, model) else {
+        return identify_at_scale(rec, model, opts, progress);
+    };
+    let mut scaled = rec.clone();
+    scaled.u.iter_mut().for_each(|v| *v *= sc.su);
+    scaled.y.iter_mut().for_each(|v| *v *= sc.sy);
+    let mut m = model.clone();
+    sc.scale_model(&mut m, 1.0);
+    let mut id = identify_at_scale(&scaled, &m, opts, progress)?;
+    sc.unscale(&mut id)?;
+    Ok(id)
+}
+
+/// Powers of two that bring a record's input and output to magnitude 1, and the factor of each
+/// model parameter (`p_scaled = factor p`).
+struct Scaling {
+    su: f64,
+    sy: f64,
+    factors: Vec<f64>,
+}
+
+impl Scaling {
+    /// `None` when both signals are within `[2^-30, 2^30]` (no scaling: the fit is as it always
+    /// was), or a parameter has no unit scale.
+    fn of(rec: &Record, m: &FracModel) -> Option<Self> {
+        let pow2 = |x: &[f64]| -> f64 {
+            let big = x.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+            if !(big.is_finite() && big > 0.0) {
+                return 1.0;
+            }
+            let e = big.log2().floor();
+            if (-30.0..=30.0).contains(&e) {
+                1.0
+            } else {
+                (-e).exp2()
+            }
+        };
+        let (su, sy) = (pow2(&rec.u), pow2(&rec.y));
+        if su == 1.0 && sy == 1.0 || !(su.is_normal() && sy.is_normal()) {
+            return None;
+        }
+        let factors = (0..m.params.len())
+            .map(|j| m.unit_scale(j, su, sy))
+            .collect::<Option<Vec<f64>>>()?;
+        Some(Self { su, sy, factors })
+    }
+
+    /// Values and ranges times the factors (`dir = 1`) or divided by them (`dir = -1`).
+    fn scale_model(&self, m: &mut FracModel, dir: f64) {
+        for (p, &f) in m.params.iter_mut().zip(&self.factors) {
+            let f = f.powf(dir);
+            p.value *= f;
+            if let Bounds::Interval(lo, hi) = p.bounds {
+                p.bounds = Bounds::Interval(lo * f, hi * f);
+            }
+        }
+    }
+
+    /// The identification of the scaled record, in the record's units.
+    fn unscale(&self, id: &mut Identification) -> Result<()> {
+        let (su, sy) = (self.su, self.sy);
+        self.scale_model(&mut id.model, -1.0);
+        id.model.operating_point.u0 /= su;
+        id.model.operating_point.y0 /= sy;
+        id.offsets.u0 /= su;
+        id.offsets.y0 /= sy;
+        let r = &mut id.report;
+        for (j, &f) in self.factors.iter().enumerate() {
+            r.values[j] /= f;
+            r.start[j] /= f;
+            id.start[j] /= f;
+            r.params[j].value /= f;
+            r.params[j].std_error = r.params[j].std_error.map(|e| e / f);
+        }
+        r.rmse /= sy;
+        id.yhat.iter_mut().for_each(|v| *v /= sy);
+        id.estimation.rmse /= sy;
+        if let Some(v) = &mut id.validation {
+            v.rmse /= sy;
+        }
+        id.tf = id.model.tf(&id.report.values)?;
+        Ok(())
+    }
+}
+
+/// [`identify_with_progress`] on the record as it is.
+fn identify_at_scale(
     rec: &Record,
     model: &FracModel,
     opts: &IdentOptions,

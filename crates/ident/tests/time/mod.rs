@@ -5,6 +5,7 @@ mod held;
 mod readers;
 mod records;
 mod roundtrip;
+mod scale;
 mod sensitivity;
 mod starts;
 mod truth;

@@ -42,3 +42,113 @@ fn dual_sensitivities_match_central_differences() {
         assert!(y.iter().all(|v| v.is_finite()));
     }
 }
+
+/// The fast Jacobian path: the gain, the output offset and the initial-state levels are linear
+/// (their columns computed in `f64`, not as dual parts), the other parameters are split over two
+/// threads (a record of more than 4096 samples). Every column against central differences.
+#[test]
+fn linear_and_threaded_sensitivities_match_central_differences() {
+    let mut m = FracModel::pmsm(6.8, 0.006, 2.7e-5, 0.9, 0.8);
+    let dt = 2e-4;
+    let n = 6000;
+    m.with_past_input(vec![0.01, 0.1, 1.2], (-5.0, 5.0));
+    let c = m.with_output_offset(0.3);
+    let levels = m.past.clone().unwrap().levels;
+    // The level before the last edge (the infinite window) is 0 here: its own sensitivities to
+    // the orders are off in the dual path (see the ignored test below), which this test is not
+    // about; its column (the free response of a unit level) is still checked.
+    for (i, &l) in levels.iter().enumerate() {
+        m.params[l].value = [0.7, -1.1, 0.4, 0.0][i];
+    }
+    // The classification the fast path relies on.
+    for (name, linear) in [
+        ("K", true),
+        ("a1", false),
+        ("a2", false),
+        ("zeta", false),
+        ("theta", false),
+    ] {
+        assert_eq!(m.is_linear(m.index_of(name).unwrap()), linear, "{name}");
+    }
+    assert!(m.is_linear(c));
+    assert!(levels.iter().all(|&l| m.is_linear(l)));
+    let p = m.values();
+    let u: Vec<f64> = (0..n)
+        .map(|k| if (k / 13) % 3 == 0 { 1.0 } else { -0.5 })
+        .collect();
+    let (y, s) = sensitivities(&m, &p, &u, dt).unwrap();
+    assert_eq!(s.ncols(), p.len());
+    let mut ysim = vec![0.0; n];
+    m.simulate(&p, &u, dt, &mut ysim).unwrap();
+    for k in 0..n {
+        assert!((y[k] - ysim[k]).abs() <= 1e-12 * ysim[k].abs().max(1.0));
+    }
+    for j in 0..p.len() {
+        // A level at 0 gets a unit-scale step (the output is linear in it: no truncation error).
+        let h = 1e-6 * if p[j] == 0.0 { 1.0 } else { p[j].abs() };
+        let (mut pp, mut pm) = (p.clone(), p.clone());
+        pp[j] += h;
+        pm[j] -= h;
+        let (mut yp, mut ym) = (vec![0.0; n], vec![0.0; n]);
+        m.simulate(&pp, &u, dt, &mut yp).unwrap();
+        m.simulate(&pm, &u, dt, &mut ym).unwrap();
+        let scale = (0..n).map(|k| s[(k, j)].abs()).fold(0.0, f64::max);
+        assert!(scale > 1e-6, "{}: a zero column", m.params[j].name);
+        for k in 0..n {
+            let fd = (yp[k] - ym[k]) / (2.0 * h);
+            assert!(
+                (fd - s[(k, j)]).abs() < 1e-5 * scale,
+                "param {} sample {k}: jacobian {} fd {fd}",
+                m.params[j].name,
+                s[(k, j)]
+            );
+        }
+    }
+}
+
+/// Known and not yet fixed (found while testing the fast Jacobian path): the dual derivative of the
+/// free response of the infinite window of the past input (`u_past3`, the input before
+/// `-edges[last]`) with respect to an order is off by about 9% on the PMSM at 0.2 ms (dual
+/// -0.0422 against central differences -0.0387 at the first sample for a unit level, stable over
+/// steps 1e-4..1e-7). The finite windows are exact. Likely the pole near the origin (about
+/// -1.7e-6 rad/s, the refined approximation's low corner) whose `-r/lambda` weight amplifies any
+/// error of its derivative.
+#[test]
+#[ignore = "known bug: dual derivative of the infinite-window free response with respect to an order"]
+fn infinite_window_order_sensitivity_matches_central_differences() {
+    use fracsim::Dual;
+    let mut m = FracModel::pmsm(6.8, 0.006, 2.7e-5, 0.9, 0.8);
+    let dt = 2e-4;
+    m.with_past_input(vec![0.01, 0.1, 1.2], (-5.0, 5.0));
+    let last = *m.past.as_ref().unwrap().levels.last().unwrap();
+    m.params[last].value = 1.0;
+    let p = m.values();
+    let u = vec![0.0; 3];
+    let zeta = m.index_of("zeta").unwrap();
+    let pd: Vec<Dual<1>> = p
+        .iter()
+        .enumerate()
+        .map(|(i, &v)| {
+            if i == zeta {
+                Dual::var(v, 0)
+            } else {
+                Dual::cst(v)
+            }
+        })
+        .collect();
+    let mut y = vec![Dual::<1>::cst(0.0); 3];
+    m.simulate(&pd, &u, dt, &mut y).unwrap();
+    let h = 1e-6 * p[zeta];
+    let (mut pp, mut pm) = (p.clone(), p.clone());
+    pp[zeta] += h;
+    pm[zeta] -= h;
+    let (mut yp, mut ym) = (vec![0.0; 3], vec![0.0; 3]);
+    m.simulate(&pp, &u, dt, &mut yp).unwrap();
+    m.simulate(&pm, &u, dt, &mut ym).unwrap();
+    let fd = (yp[0] - ym[0]) / (2.0 * h);
+    assert!(
+        (y[0].d[0] - fd).abs() < 1e-5 * fd.abs(),
+        "dual {} fd {fd}",
+        y[0].d[0]
+    );
+}
