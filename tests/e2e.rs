@@ -366,6 +366,26 @@ fn demo_checks(extra: &[&str]) -> String {
     assert!((dc - 6.82).abs() < 0.2, "b0 = {dc}");
     let report = std::fs::read_to_string(dir.path().join("report.md")).unwrap();
     assert!(report.contains("## The hidden truth"));
+    // the sweep: 16 points written as measured, with the footer; by default each the trimmed
+    // mean of 3 measurements with its spread columns
+    let bode = std::fs::read_to_string(dir.path().join("bode.csv")).unwrap();
+    let rows: Vec<&str> = bode
+        .lines()
+        .filter(|l| l.starts_with(|c: char| c.is_ascii_digit()))
+        .collect();
+    assert_eq!(rows.len(), 16, "{bode}");
+    assert_eq!(
+        bode.trim_end().lines().last(),
+        Some("# complete: 16 frequencies")
+    );
+    if !extra.contains(&"--repeats") {
+        assert!(
+            bode.lines()
+                .any(|l| l == "freq_hz,gain_db,phase_deg,gain_db_std,phase_deg_std,repeats"),
+            "{bode}"
+        );
+        assert!(rows.iter().all(|r| r.ends_with(",3")), "{bode}");
+    }
     stderr
 }
 
@@ -378,7 +398,8 @@ fn demo_acquires_identifies_diagnoses_and_reports() {
 /// same record length, the same delay found, the same models (about 50 s, as the default demo).
 #[test]
 fn demo_with_the_c_firmware_finds_the_hidden_delay() {
-    let stderr = demo_checks(&["--firmware"]);
+    // one measurement per frequency: the repeats are the host's, tested with the Rust firmware
+    let stderr = demo_checks(&["--firmware", "--repeats", "1"]);
     assert!(stderr.contains("(C firmware)"), "{stderr}");
 }
 

@@ -541,7 +541,9 @@ fn a_drive_of_another_protocol_version_is_named() {
     );
     stop.store(true, std::sync::atomic::Ordering::SeqCst);
     let seen = old_drive.join().unwrap();
-    let e = r.err().expect("no client for a drive of another version");
+    let Err(e) = r else {
+        panic!("no client for a drive of another version")
+    };
     assert!(
         matches!(e, Error::Version { drive: 1, host: 2 }),
         "{e:?} after {:?}",
