@@ -366,6 +366,26 @@ fn demo_checks(extra: &[&str]) -> String {
     assert!((dc - 6.82).abs() < 0.2, "b0 = {dc}");
     let report = std::fs::read_to_string(dir.path().join("report.md")).unwrap();
     assert!(report.contains("## The hidden truth"));
+    // the sweep: 16 points written as measured, with the footer; by default each the trimmed
+    // mean of 3 measurements with its spread columns
+    let bode = std::fs::read_to_string(dir.path().join("bode.csv")).unwrap();
+    let rows: Vec<&str> = bode
+        .lines()
+        .filter(|l| l.starts_with(|c: char| c.is_ascii_digit()))
+        .collect();
+    assert_eq!(rows.len(), 16, "{bode}");
+    assert_eq!(
+        bode.trim_end().lines().last(),
+        Some("# complete: 16 frequencies")
+    );
+    if !extra.contains(&"--repeats") {
+        assert!(
+            bode.lines()
+                .any(|l| l == "freq_hz,gain_db,phase_deg,gain_db_std,phase_deg_std,repeats"),
+            "{bode}"
+        );
+        assert!(rows.iter().all(|r| r.ends_with(",3")), "{bode}");
+    }
     stderr
 }
 
@@ -378,7 +398,8 @@ fn demo_acquires_identifies_diagnoses_and_reports() {
 /// same record length, the same delay found, the same models (about 50 s, as the default demo).
 #[test]
 fn demo_with_the_c_firmware_finds_the_hidden_delay() {
-    let stderr = demo_checks(&["--firmware"]);
+    // one measurement per frequency: the repeats are the host's, tested with the Rust firmware
+    let stderr = demo_checks(&["--firmware", "--repeats", "1"]);
     assert!(stderr.contains("(C firmware)"), "{stderr}");
 }
 
@@ -723,6 +744,80 @@ fn ctrl_c_stops_a_prbs_run_and_the_record_says_what_is_missing() {
 fn sigterm_and_sighup_stop_a_prbs_run_like_ctrl_c() {
     a_signal_stops_a_prbs_run(libc::SIGTERM, 143, "SIGTERM");
     a_signal_stops_a_prbs_run(libc::SIGHUP, 129, "SIGHUP");
+}
+
+/// Issue 12: SIGHUP from a terminal that closed. stderr is a pty whose master is gone, so every
+/// write to it fails with EIO; the summary after the run used `eprintln!`, which panics on that
+/// (exit 101, though the record was already finished). Now the run still ends with 129 and the
+/// record has its footer.
+#[cfg(target_os = "linux")]
+#[test]
+fn a_sighup_with_stderr_gone_still_finishes_the_record() {
+    use std::os::fd::{FromRawFd, OwnedFd};
+    use std::process::Stdio;
+    use std::time::{Duration, Instant};
+    let (_sim, port, _sim_out) = drive_sim_piped();
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("prbs.csv");
+    let (mut m, mut sl) = (-1, -1);
+    // SAFETY: openpty writes two new descriptors, owned below.
+    let rc = unsafe {
+        libc::openpty(
+            &mut m,
+            &mut sl,
+            std::ptr::null_mut(),
+            std::ptr::null(),
+            std::ptr::null(),
+        )
+    };
+    assert_eq!(rc, 0, "openpty");
+    // not inherited by the child (openpty does not set close-on-exec): the master must be gone
+    // from every process for the terminal to hang up
+    for fd in [m, sl] {
+        // SAFETY: fcntl on the descriptors just opened.
+        assert_eq!(
+            unsafe { libc::fcntl(fd, libc::F_SETFD, libc::FD_CLOEXEC) },
+            0
+        );
+    }
+    // SAFETY: fresh descriptors from openpty, each owned once.
+    let (master, slave) = unsafe { (OwnedFd::from_raw_fd(m), OwnedFd::from_raw_fd(sl)) };
+    let mut child = KillOnDrop(
+        Command::new(fracid_bin())
+            .args(["drive", "prbs", "--periods", "20"])
+            .args(["--port", &port, "--baud", "921600", "--quiet"])
+            .arg("-o")
+            .arg(&out)
+            .env("RUST_BACKTRACE", "0")
+            .stdout(Stdio::null())
+            .stderr(Stdio::from(slave))
+            .spawn()
+            .expect("start fracid drive"),
+    );
+    // the terminal goes away: writes to its slave side now fail with EIO
+    drop(master);
+    wait_rows(&mut child, &out, 200);
+    signal(&child, libc::SIGHUP);
+    let t0 = Instant::now();
+    let status = loop {
+        if let Some(s) = child.0.try_wait().unwrap() {
+            break s;
+        }
+        assert!(t0.elapsed() < Duration::from_secs(10), "still running");
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    assert_eq!(
+        status.code(),
+        Some(129),
+        "{status:?} (101: a panic writing to stderr)"
+    );
+    let text = std::fs::read_to_string(&out).unwrap();
+    let footer = text.trim_end().lines().last().unwrap();
+    assert!(
+        footer.starts_with("# incomplete: missing samples "),
+        "{footer}"
+    );
+    assert_eq!(first_missing(footer), check_record_rows(&text), "{footer}");
 }
 
 #[cfg(unix)]

@@ -31,7 +31,7 @@ typedef uint16_t fw_octet;
 typedef unsigned char fw_octet;
 #endif
 
-#define FW_PROTO_VERSION 1u
+#define FW_PROTO_VERSION 2u
 #define FW_MAJOR 1u
 #define FW_MINOR 0u
 #define FW_N_CHANNELS 3u

@@ -257,7 +257,7 @@ static void send_cmd(fw_t *e, uint16_t type, const fw_octet *payload, int plen, 
     fw_octet body[64], wire[80];
     int n = 0, k, m;
     uint16_t crc;
-    body[n++] = 1;
+    body[n++] = FW_PROTO_VERSION;
     body[n++] = (fw_octet)type;
     body[n++] = (fw_octet)(seq & 0xFF);
     body[n++] = (fw_octet)(seq >> 8);

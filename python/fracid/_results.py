@@ -68,6 +68,9 @@ class LevyFit(_ToDict):
     levy_cost : float
         The weighted Levy cost that was minimised.
     sk_iterations : int
+        Sanathanan-Koerner iterations done (at most those asked: they stop once converged).
+    sk_converged : bool
+        Whether they converged (True without them).
         Sanathanan-Koerner iterations done after the first solve.
     """
 
@@ -78,6 +81,7 @@ class LevyFit(_ToDict):
     J: float
     levy_cost: float
     sk_iterations: int
+    sk_converged: bool = True
 
 
 @dataclass(frozen=True)
@@ -151,6 +155,11 @@ class FreqFit(_ToDict):
         The PMSM refit, with ``refine=True``.
     best_model : FracTf
         The best model by ``J`` among the above.
+    problems : list of str
+        Why the best model cannot be used (empty when it can): unstable (poles in the closed
+        right half-plane), non-finite, refit parameters the data do not determine.
+    warnings : list of str
+        What to know without making the model unusable (a negative static gain, no convergence).
     """
 
     levy: LevyFit
@@ -160,6 +169,13 @@ class FreqFit(_ToDict):
     sk_curve: QCurve
     refined: Optional[PmsmFit]
     best_model: FracTf
+    problems: List[str] = field(default_factory=list)
+    warnings: List[str] = field(default_factory=list)
+
+    @property
+    def usable(self) -> bool:
+        """Whether the best model can be used (no ``problems``)."""
+        return not self.problems
 
     @property
     def J(self) -> float:
@@ -181,6 +197,8 @@ class FreqFit(_ToDict):
             sk_curve=QCurve(**d["sk_curve"]),
             refined=None if d["refined"] is None else PmsmFit(**d["refined"]),
             best_model=d["best_model"],
+            problems=list(d.get("problems", [])),
+            warnings=list(d.get("warnings", [])),
         )
 
 

@@ -47,8 +47,41 @@ fn finite(name: &str, x: f64) -> PyResult<f64> {
     Ok(x)
 }
 
-/// An integer in `lo..=hi`.
-fn int_in<T: TryFrom<i64>>(name: &str, v: i64, lo: i64, hi: i64) -> PyResult<T> {
+/// An integer argument as Python gave it: its value when it fits 64 bits, else its decimal text.
+/// pyo3's own `i64` conversion raises a bare `OverflowError` ("Python int too large to convert to
+/// C long") that names neither the argument nor its range; [`int_in`] does.
+pub(crate) struct Int(Result<i64, String>);
+
+impl<'py> FromPyObject<'py> for Int {
+    fn extract_bound(ob: &Bound<'py, PyAny>) -> PyResult<Self> {
+        match ob.extract::<i64>() {
+            Ok(v) => Ok(Self(Ok(v))),
+            Err(e) if e.is_instance_of::<pyo3::exceptions::PyOverflowError>(ob.py()) => {
+                Ok(Self(Err(ob.str()?.to_string())))
+            }
+            Err(e) => Err(e),
+        }
+    }
+}
+
+impl From<i64> for Int {
+    fn from(v: i64) -> Self {
+        Self(Ok(v))
+    }
+}
+
+/// An integer in `lo..=hi`, or a `DataError` (a `ValueError`) naming the argument and the range,
+/// also for a Python int beyond 64 bits.
+fn int_in<T: TryFrom<i64>>(name: &str, v: impl Into<Int>, lo: i64, hi: i64) -> PyResult<T> {
+    let v = match v.into().0 {
+        Ok(v) => v,
+        Err(text) => {
+            return Err(errors::data(format!(
+                "{name} = {} must be in {lo}..={hi} (it does not even fit a 64-bit integer)",
+                ident::data::shorten(&text)
+            )))
+        }
+    };
     if !(lo..=hi).contains(&v) {
         return Err(errors::data(format!("{name} = {v} must be in {lo}..={hi}")));
     }
@@ -56,7 +89,7 @@ fn int_in<T: TryFrom<i64>>(name: &str, v: i64, lo: i64, hi: i64) -> PyResult<T> 
 }
 
 /// A baud rate.
-fn baud_of(baud: i64) -> PyResult<u32> {
+fn baud_of(baud: Int) -> PyResult<u32> {
     int_in("baud", baud, 1, 100_000_000)
 }
 
@@ -91,19 +124,22 @@ pub struct PyDriveSimulator {
 #[pymethods]
 impl PyDriveSimulator {
     #[new]
-    #[pyo3(signature = (model = None, baud = 115_200, delay_s = 0.0, coulomb_v = 0.0, noise_std = 0.0, speed_quant = 0.0, ripple_v = 0.0, ripple_hz = 0.0, seed = 1))]
+    #[pyo3(signature = (model = None, baud = Int::from(115_200), delay_s = 0.0, coulomb_v = 0.0, noise_std = 0.0, speed_quant = 0.0, ripple_v = 0.0, ripple_hz = 0.0, seed = Int::from(1)))]
+    #[pyo3(
+        text_signature = "(model=None, baud=115200, delay_s=0.0, coulomb_v=0.0, noise_std=0.0, speed_quant=0.0, ripple_v=0.0, ripple_hz=0.0, seed=1)"
+    )]
     #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
         model: Option<&Bound<'_, PyAny>>,
-        baud: i64,
+        baud: Int,
         delay_s: f64,
         coulomb_v: f64,
         noise_std: f64,
         speed_quant: f64,
         ripple_v: f64,
         ripple_hz: f64,
-        seed: i64,
+        seed: Int,
     ) -> PyResult<Self> {
         let mut cfg = SimConfig::default();
         if let Some(m) = model.filter(|m| !m.is_none()) {
@@ -408,13 +444,13 @@ type SweepTuple<'py> = (
 impl PyDriveClient {
     /// Open `port`, say HELLO and check the protocol version.
     #[new]
-    #[pyo3(signature = (port, baud = 115_200, timeout_s = None, retries = 5))]
+    #[pyo3(signature = (port, baud = Int::from(115_200), timeout_s = None, retries = Int::from(5)))]
     fn new(
         py: Python<'_>,
         port: PathBuf,
-        baud: i64,
+        baud: Int,
         timeout_s: Option<f64>,
-        retries: i64,
+        retries: Int,
     ) -> PyResult<Self> {
         let port = port
             .to_str()
@@ -484,13 +520,13 @@ impl PyDriveClient {
     }
 
     /// CONFIGURE the acquisition.
-    #[pyo3(signature = (sample_rate_hz = 1000, block_samples = 32, keepalive_ms = 500))]
+    #[pyo3(signature = (sample_rate_hz = Int::from(1000), block_samples = Int::from(32), keepalive_ms = Int::from(500)))]
     fn configure(
         &self,
         py: Python<'_>,
-        sample_rate_hz: i64,
-        block_samples: i64,
-        keepalive_ms: i64,
+        sample_rate_hz: Int,
+        block_samples: Int,
+        keepalive_ms: Int,
     ) -> PyResult<()> {
         let conf = Configure {
             sample_rate_hz: int_in("sample_rate_hz", sample_rate_hz, 1, u32::MAX as i64)?,
@@ -536,22 +572,23 @@ impl PyDriveClient {
     }
 
     /// Run a PRBS experiment; a dict the Python layer turns into `Acquisition`.
-    #[pyo3(signature = (order = 7, clock_s = 0.003, amplitude_v = 1.0, offset_v = 6.0, periods = 1, settle_s = 0.3, seed = 1, csv_path = None))]
+    #[pyo3(signature = (order = Int::from(7), clock_s = 0.003, amplitude_v = 1.0, offset_v = 6.0, periods = Int::from(1), settle_s = 0.3, seed = Int::from(1), csv_path = None))]
     #[allow(clippy::too_many_arguments)]
     fn run_prbs<'py>(
         &self,
         py: Python<'py>,
-        order: i64,
+        order: Int,
         clock_s: f64,
         amplitude_v: f64,
         offset_v: f64,
-        periods: i64,
+        periods: Int,
         settle_s: f64,
-        seed: i64,
+        seed: Int,
         csv_path: Option<PathBuf>,
     ) -> PyResult<Bound<'py, PyDict>> {
+        let order: u32 = int_in("order", order, 2, 16)?;
         let test = PrbsTest {
-            order: int_in("order", order, 2, 16)?,
+            order: order.try_into().unwrap_or(16),
             seed: int_in("seed", seed, 1, (1i64 << order) - 1)?,
             clock_s: crate::arrays::positive("clock_s", clock_s)?,
             amplitude_v: non_negative("amplitude_v", amplitude_v)?,
@@ -591,21 +628,21 @@ impl PyDriveClient {
 
     /// Run a log sine sweep: `(freq_hz, gain_db, phase_deg, lost, gain_db_std, phase_deg_std)`
     /// (the spread of the `repeats` per frequency; zeros for one repeat).
-    #[pyo3(signature = (f0_hz, f1_hz, n, amplitude_v = 1.0, offset_v = 6.0, cycles = 4, settle_cycles = 2, min_settle_s = 0.2, attempts = 3, repeats = 1))]
+    #[pyo3(signature = (f0_hz, f1_hz, n, amplitude_v = 1.0, offset_v = 6.0, cycles = Int::from(4), settle_cycles = Int::from(2), min_settle_s = 0.2, attempts = Int::from(3), repeats = Int::from(1)))]
     #[allow(clippy::too_many_arguments)]
     fn run_sine_sweep<'py>(
         &self,
         py: Python<'py>,
         f0_hz: f64,
         f1_hz: f64,
-        n: i64,
+        n: Int,
         amplitude_v: f64,
         offset_v: f64,
-        cycles: i64,
-        settle_cycles: i64,
+        cycles: Int,
+        settle_cycles: Int,
         min_settle_s: f64,
-        attempts: i64,
-        repeats: i64,
+        attempts: Int,
+        repeats: Int,
     ) -> PyResult<SweepTuple<'py>> {
         let f0 = crate::arrays::positive("f0_hz", f0_hz)?;
         let f1 = crate::arrays::positive("f1_hz", f1_hz)?;

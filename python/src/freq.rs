@@ -18,6 +18,7 @@ fn levy_dict<'py>(py: Python<'py>, f: &LevyFit) -> PyResult<Bound<'py, PyDict>> 
     d.set_item("J", f.j)?;
     d.set_item("levy_cost", f.levy_cost)?;
     d.set_item("sk_iterations", f.sk_iterations)?;
+    d.set_item("sk_converged", f.sk_converged)?;
     Ok(d)
 }
 
@@ -162,6 +163,8 @@ pub(crate) fn _fit_bode<'py>(
         None => d.set_item("refined", py.None())?,
     }
     d.set_item("best_model", PyFracTf::from(fit.best_model().clone()))?;
+    d.set_item("problems", fit.problems.clone())?;
+    d.set_item("warnings", fit.warnings.clone())?;
     Ok(d)
 }
 

@@ -80,3 +80,23 @@ def test_exact_data_are_recovered():
     fit = fracid.fit_bode(omega, truth.freq_response(omega))
     assert fit.levy.q == pytest.approx(0.8, abs=1e-3)
     assert fit.levy.J < 1e-10
+
+
+def test_an_unstable_fit_is_flagged_and_sk_stops_when_converged(table1):
+    # random gains and phases (issue 12: `freq` returned an unstable model without a word)
+    rng = np.random.default_rng(12)
+    omega = 2 * np.pi * np.logspace(-1, 2, 20)
+    h = 10 ** (rng.normal(0, 10, 20) / 20) * np.exp(1j * rng.uniform(-np.pi, np.pi, 20))
+    fit = fracid.fit_bode(omega, h)
+    a1, a2 = fit.levy.a
+    roots = np.roots([a2, a1, 1.0])  # Matignon: unstable when |arg| < q pi/2
+    n_unstable = int(np.sum(np.abs(np.angle(roots)) < fit.levy.q * np.pi / 2))
+    assert fit.usable == (n_unstable == 0)
+    if n_unstable:
+        assert f"unstable: {n_unstable} pole(s)" in fit.problems[0]
+    # the paper's table: usable; SK stops before the 200 allowed and says so
+    omega, h = fracid.load_bode(table1)
+    fit = fracid.fit_bode(omega, h, q=0.9, sk_iterations=200)
+    assert fit.usable and fit.problems == []
+    assert fit.sk.sk_converged and 1 <= fit.sk.sk_iterations < 200
+    json.dumps(fit.to_dict())

@@ -840,9 +840,24 @@ impl Client {
         self.inbox.remove(pos).map(|f| f.msg)
     }
 
-    /// HELLO: check the version, remember the boot id.
+    /// HELLO: check the version, remember the boot id. A drive that does not answer is probed
+    /// with a HELLO of each earlier protocol version ([`OLDER_VERSIONS`]): one that answers in
+    /// its own version is [`Error::Version`], not a timeout.
     pub fn hello(&mut self) -> Result<HelloReply> {
-        match self.request(Message::Hello)? {
+        let _ = self.dec.take_foreign_version();
+        let answer = match self.request(Message::Hello) {
+            Err(e @ Error::Timeout { .. }) => {
+                return Err(match self.probe_version() {
+                    Some(v) => Error::Version {
+                        drive: v,
+                        host: PROTO_VERSION,
+                    },
+                    None => e,
+                })
+            }
+            r => r?,
+        };
+        match answer {
             Message::HelloReply(h) => {
                 if h.proto_version != PROTO_VERSION {
                     return Err(Error::Version {
@@ -863,6 +878,34 @@ impl Client {
                 other.name()
             ))),
         }
+    }
+
+    /// The version of a drive that speaks another protocol: one it already used on the line,
+    /// else the first earlier version whose HELLO it answers (in that version).
+    fn probe_version(&mut self) -> Option<u8> {
+        if let Some(v) = self.dec.take_foreign_version() {
+            return Some(v);
+        }
+        for v in OLDER_VERSIONS {
+            let seq = self.next_seq();
+            let body = codec::encode_body_as(
+                &Frame {
+                    seq,
+                    msg: Message::Hello,
+                },
+                v,
+            );
+            let port = self.port.as_mut()?;
+            port.write_all(&codec::wrap_body(&body)).ok()?;
+            let deadline = Instant::now() + self.timeout();
+            while Instant::now() < deadline {
+                self.pump(Duration::from_millis(20)).ok()?;
+                if let Some(v) = self.dec.take_foreign_version() {
+                    return Some(v);
+                }
+            }
+        }
+        None
     }
 
     /// CONFIGURE.
@@ -1030,6 +1073,8 @@ impl Client {
         let mut last_progress = 0u64;
         let mut stalled_polls = 0u32;
         let mut last_done = 0u32;
+        // STREAM_END fetched by END_QUERY: one more pass over the inbox, then done.
+        let mut end_fetched = false;
         loop {
             let req = self.stop_req.take();
             if req != STOP_NONE {
@@ -1096,7 +1141,7 @@ impl Client {
                     });
                 }
             }
-            if ended {
+            if ended || end_fetched {
                 break;
             }
             if Instant::now() > hard_deadline {
@@ -1152,8 +1197,11 @@ impl Client {
             match self.request(Message::EndQuery(acq.run_id)) {
                 Ok(Message::StreamEnd(e)) => {
                     acq.end = Some(e);
-                    // SINE_RESULT precedes STREAM_END; give stragglers a moment.
-                    break;
+                    // What came while STATUS was awaited (the run's last DATA, its SINE_RESULT,
+                    // which precedes STREAM_END) waits in the inbox: one more pass reads it.
+                    // (Breaking here lost the SINE_RESULT of a sine run as long as the stream
+                    // timeout: the STATUS poll was in flight when the run ended.)
+                    end_fetched = true;
                 }
                 Ok(_) | Err(_) => {
                     acq.problems.push("end-of-run summary unavailable".into());

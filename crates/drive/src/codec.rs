@@ -21,8 +21,14 @@ pub fn crc16(data: &[u8]) -> u16 {
 
 /// The frame body (unencoded): header, payload, CRC.
 pub fn encode_body(frame: &Frame) -> Vec<u8> {
+    encode_body_as(frame, PROTO_VERSION)
+}
+
+/// [`encode_body`] with another protocol version in the header: how a host probes a drive of an
+/// earlier version (its HELLO has the same empty payload in every version).
+pub fn encode_body_as(frame: &Frame, version: u8) -> Vec<u8> {
     let mut body = Vec::with_capacity(16);
-    body.push(PROTO_VERSION);
+    body.push(version);
     body.push(frame.msg.type_code());
     body.extend_from_slice(&frame.seq.to_le_bytes());
     frame.msg.write_payload(&mut body);
@@ -106,6 +112,7 @@ pub struct StreamDecoder {
     overflow: bool,
     stats: DecoderStats,
     last_error: Option<FrameError>,
+    foreign_version: Option<u8>,
 }
 
 impl StreamDecoder {
@@ -122,6 +129,12 @@ impl StreamDecoder {
     /// The last discard reason.
     pub fn last_error(&self) -> Option<FrameError> {
         self.last_error
+    }
+
+    /// The version of the last frame discarded for carrying another protocol version (its CRC
+    /// was valid: a peer of that version, not line noise), taken (reset to `None`).
+    pub fn take_foreign_version(&mut self) -> Option<u8> {
+        self.foreign_version.take()
     }
 
     /// Drop any partial frame (e.g. after reopening a port).
@@ -171,6 +184,7 @@ impl StreamDecoder {
             FrameError::Crc => self.stats.crc_errors += 1,
             FrameError::Cobs => self.stats.cobs_errors += 1,
             FrameError::TooLong => self.stats.too_long += 1,
+            FrameError::Version(v) => self.foreign_version = Some(v),
             _ => {}
         }
         self.last_error = Some(e);

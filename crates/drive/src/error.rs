@@ -39,7 +39,11 @@ pub enum Error {
         detail: u16,
     },
     /// The drive speaks another protocol version.
-    #[error("drive speaks protocol version {drive}, this host speaks {host}")]
+    #[error(
+        "the drive speaks protocol version {drive}, this host speaks {host}: frames of the other \
+         version are ignored on both sides (version 2 changed SINE_RESULT); update the drive's \
+         firmware or use a host of the drive's version"
+    )]
     Version {
         /// The drive's version.
         drive: u8,

@@ -3,8 +3,14 @@
 
 use crate::error::FrameError;
 
-/// Protocol version carried in the low nibble of the first body byte.
-pub const PROTO_VERSION: u8 = 1;
+/// Protocol version carried in the low nibble of the first body byte. Version 2: SINE_RESULT
+/// carries the window's level and ramp moments (38 bytes; 22 in version 1), so that the host
+/// removes the operating point and its drift (PROTOCOL.md, section 3).
+pub const PROTO_VERSION: u8 = 2;
+
+/// The earlier protocol versions a host probes with when a drive does not answer HELLO, to tell
+/// a drive of another version ([`crate::Error::Version`]) from a silent one.
+pub const OLDER_VERSIONS: [u8; 1] = [1];
 /// Number of channels per sample (u, y, i).
 pub const N_CHANNELS: usize = 3;
 /// Largest number of samples in one DATA block.

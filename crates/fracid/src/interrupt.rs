@@ -13,6 +13,24 @@
 
 use drive::client::StopHandle;
 
+/// Write one line to standard error, never panicking: after SIGHUP from a closed terminal (or
+/// with stderr otherwise gone) a write fails with EIO, and `eprintln!` would panic on it, turning
+/// a cleanly finished run (record and footer written, drive stopped) into exit 101. The line is
+/// dropped instead; the exit code still tells what happened.
+pub fn eprint_line(line: &str) {
+    use std::io::Write;
+    let mut err = std::io::stderr().lock();
+    let _ = writeln!(err, "{line}");
+}
+
+/// [`eprint_line`] with `format!` arguments.
+#[macro_export]
+macro_rules! eprintln_safe {
+    ($($arg:tt)*) => {
+        $crate::interrupt::eprint_line(&format!($($arg)*))
+    };
+}
+
 /// A command ended by a signal after finishing its record: exit code 128 + the signal number.
 #[derive(Debug)]
 pub struct Interrupted {

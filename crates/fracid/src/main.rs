@@ -100,7 +100,7 @@ fn stdout_failure_exits_3() {
             .unwrap_or("");
         if let Some(reason) = msg.strip_prefix("failed printing to stdout: ") {
             let reason = reason.split(" (os error").next().unwrap_or(reason);
-            eprintln!("error: cannot write to standard output: {reason}");
+            interrupt::eprint_line(&format!("error: cannot write to standard output: {reason}"));
             STDOUT_FAILED.store(true, std::sync::atomic::Ordering::SeqCst);
             return;
         }
@@ -146,7 +146,7 @@ fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {e:#}");
+            interrupt::eprint_line(&format!("error: {e:#}"));
             ExitCode::from(exit_code(&e))
         }
     }

@@ -14,7 +14,8 @@
 //!   `w_1 = (w_2 - w_1)/(2 w_1^2)`, `w_g = (w_{g+1} - w_{g-1})/(2 w_g^2)`, `w_f = (w_f - w_{f-1})/(2 w_f^2)`
 //!   ([`vinagre_weights`]), none, or per point.
 //! - Sanathanan & Koerner (1963) iterations: refit with weights `w_g / |D_prev(jw_g)|^2`, which
-//!   removes the `|D|^2` bias of Levy's linearisation.
+//!   removes the `|D|^2` bias of Levy's linearisation; at most the number asked, stopped once
+//!   converged ([`SK_PARAM_TOL`], [`SK_COST_TOL`]).
 //! - [`search_q`]: the order `q` on a grid over `(0, q_max]` (step 0.01, as the paper) then a
 //!   golden-section refinement of `J(q)` around the best grid point; the `J(q)` curve is kept.
 //! - [`refine::refine_pmsm`]: a nonlinear least-squares refit (Levenberg-Marquardt, [`crate::lm`])
@@ -36,6 +37,7 @@
 //! assert!(fit.levy.j < 1e-10);
 //! ```
 
+pub mod checks;
 pub mod refine;
 
 use crate::{Error, Result};
@@ -200,9 +202,20 @@ pub struct LevyFit {
     pub j: f64,
     /// The weighted Levy cost `sum_g w_g |G D - N|^2` that was minimised (last iteration's weights).
     pub levy_cost: f64,
-    /// Sanathanan-Koerner iterations done after the first Levy solve.
+    /// Sanathanan-Koerner iterations done after the first Levy solve (at most the number asked:
+    /// they stop once converged, [`SK_PARAM_TOL`], [`SK_COST_TOL`]).
     pub sk_iterations: usize,
+    /// Whether the Sanathanan-Koerner iterations converged (true without them).
+    pub sk_converged: bool,
 }
+
+/// Sanathanan-Koerner iterations stop when no coefficient changed by more than this fraction of
+/// its value in the last iteration (far below any standard error a Bode table supports: the
+/// fixed point is reached to the precision that matters, further iterations only cost time).
+pub const SK_PARAM_TOL: f64 = 1e-8;
+
+/// ... or when the error index `J` changed by less than this fraction (the cost no longer moves).
+pub const SK_COST_TOL: f64 = 1e-10;
 
 /// The model `(sum_u b_u s^(u q)) / (1 + sum_p a_p s^(p q))` as a [`FracTf`].
 ///
@@ -223,8 +236,9 @@ pub fn commensurate_tf(q: f64, b: &[f64], a: &[f64]) -> Result<FracTf> {
     Ok(FracTf::new(num, den, 0.0)?)
 }
 
-/// Levy's weighted linear least squares (Levy 1959) at a fixed order `q`, with `sk_iterations`
-/// Sanathanan-Koerner (1963) reweightings `w_g / |D_prev(jw_g)|^2`.
+/// Levy's weighted linear least squares (Levy 1959) at a fixed order `q`, with at most
+/// `sk_iterations` Sanathanan-Koerner (1963) reweightings `w_g / |D_prev(jw_g)|^2`, stopped when
+/// the coefficients or `J` no longer change ([`SK_PARAM_TOL`], [`SK_COST_TOL`]).
 ///
 /// Unknowns `x = (b_0..b_m, a_1..a_n)`; each point gives the complex equation
 /// `sum_p a_p G s^(p q) - sum_u b_u s^(u q) = -G`, weighted by `sqrt(w_g)`, split into its real
@@ -256,7 +270,7 @@ pub fn levy_fixed_q(
     check_sizes(omega_rad_s.len(), m, n)?;
     let mut kernel = LevyKernel::new(omega_rad_s, h, m, n, weights);
     let eval = kernel.eval(q, sk_iterations)?;
-    kernel.to_fit(q, eval, sk_iterations)
+    kernel.to_fit(q, eval)
 }
 
 fn check_sizes(f: usize, m: usize, n: usize) -> Result<()> {
@@ -278,6 +292,10 @@ struct QEval {
     j: f64,
     /// The weighted Levy cost of the last solve.
     levy_cost: f64,
+    /// Sanathanan-Koerner iterations done.
+    sk_done: usize,
+    /// Whether they converged (true without them).
+    sk_converged: bool,
 }
 
 /// Levy's problem on one (validated) data set, solved at many orders `q`.
@@ -363,6 +381,8 @@ impl<'a> LevyKernel<'a> {
             }
         }
         self.w_eff.copy_from_slice(self.weights);
+        let (mut sk_done, mut sk_converged) = (0, sk_iterations == 0);
+        let mut prev: Option<(Vec<f64>, f64)> = None;
         for it in 0..=sk_iterations {
             if it > 0 {
                 // Sanathanan-Koerner: divide by |D_prev|^2
@@ -377,12 +397,28 @@ impl<'a> LevyKernel<'a> {
                 }
             }
             self.solve()?;
+            if sk_iterations == 0 {
+                break;
+            }
+            let j = self.scores().j;
+            if let Some((px, pj)) = &prev {
+                sk_done = it;
+                if sk_settled(px, &self.x, *pj, j) {
+                    sk_converged = true;
+                    break;
+                }
+            }
+            prev = Some((self.x.clone(), j));
         }
         if self.m.max(self.n) as f64 * q > 20.0 {
             // FracTf::new rejects orders above 20: the same error as building the model
             commensurate_tf(q, &self.x[..=m], &self.x[m + 1..])?;
         }
-        Ok(self.scores())
+        Ok(QEval {
+            sk_done,
+            sk_converged,
+            ..self.scores()
+        })
     }
 
     /// One weighted, column-scaled QR least-squares solve into `self.x`.
@@ -464,11 +500,13 @@ impl<'a> LevyKernel<'a> {
         QEval {
             j: j / self.omega.len() as f64,
             levy_cost: cost,
+            sk_done: 0,
+            sk_converged: true,
         }
     }
 
     /// The [`LevyFit`] of the last [`Self::eval`] (at `q`, with its scores `e`).
-    fn to_fit(&self, q: f64, e: QEval, sk_iterations: usize) -> Result<LevyFit> {
+    fn to_fit(&self, q: f64, e: QEval) -> Result<LevyFit> {
         let b = self.x[..=self.m].to_vec();
         let a = self.x[self.m + 1..].to_vec();
         let model = commensurate_tf(q, &b, &a)?;
@@ -479,9 +517,21 @@ impl<'a> LevyKernel<'a> {
             model,
             j: e.j,
             levy_cost: e.levy_cost,
-            sk_iterations,
+            sk_iterations: e.sk_done,
+            sk_converged: e.sk_converged,
         })
     }
+}
+
+/// Whether a Sanathanan-Koerner iteration changed nothing that matters: every coefficient moved
+/// by at most [`SK_PARAM_TOL`] of its size, or `J` by at most [`SK_COST_TOL`] of its value.
+fn sk_settled(prev: &[f64], x: &[f64], prev_j: f64, j: f64) -> bool {
+    let params = prev
+        .iter()
+        .zip(x)
+        .all(|(a, b)| (a - b).abs() <= SK_PARAM_TOL * a.abs().max(b.abs()));
+    let cost = (j - prev_j).abs() <= SK_COST_TOL * j.abs().max(prev_j.abs());
+    params || cost
 }
 
 fn den_at(pows: &[Complex64], a: &[f64]) -> Complex64 {
@@ -579,7 +629,7 @@ pub fn search_q(
     match *order {
         OrderChoice::Fixed(q) => {
             let e = kernel.eval(q, sk_iterations)?;
-            let best = kernel.to_fit(q, e, sk_iterations)?;
+            let best = kernel.to_fit(q, e)?;
             Ok(QSearch {
                 grid_best: best.clone(),
                 curve: vec![QPoint { q, j: best.j }],
@@ -629,7 +679,7 @@ pub fn search_q(
                 Error::Numerical("no order q on the grid gives a finite Levy fit".into())
             })?;
             kernel.x.copy_from_slice(&best_x);
-            let grid_best = kernel.to_fit(qb, eb, sk_iterations)?;
+            let grid_best = kernel.to_fit(qb, eb)?;
             let mut best = grid_best.clone();
             if refine {
                 let lo = (grid_best.q - step).max(step * 1e-3);
@@ -643,7 +693,7 @@ pub fn search_q(
                 let qr = golden_section(jq, lo, hi, 1e-7);
                 if let Ok(er) = kernel.eval(qr, sk_iterations) {
                     if er.j < best.j {
-                        best = kernel.to_fit(qr, er, sk_iterations)?;
+                        best = kernel.to_fit(qr, er)?;
                     }
                 }
             }
@@ -794,24 +844,77 @@ pub struct FreqFit {
     pub sk_curve: Vec<QPoint>,
     /// The nonlinear PMSM refit, if asked.
     pub refined: Option<PmsmFit>,
+    /// Why the best model ([`FreqFit::best_model`]) cannot be used (empty when it can):
+    /// unstable, a pole on the imaginary axis, non-finite, no finite static gain, a refit whose
+    /// parameters the data do not determine ([`checks`]).
+    pub problems: Vec<String>,
+    /// What the user should know but does not make the model unusable: a negative static gain,
+    /// a poorly determined refit parameter, no convergence (the refit's or Sanathanan-Koerner's).
+    pub warnings: Vec<String>,
 }
 
 impl FreqFit {
     /// The best model by `J` among Levy, SK and the refit.
     pub fn best_model(&self) -> &FracTf {
-        let mut best = (&self.levy.model, self.levy.j);
-        if let Some(s) = &self.sk {
-            if s.j < best.1 {
-                best = (&s.model, s.j);
-            }
-        }
-        if let Some(r) = &self.refined {
-            if r.j < best.1 {
-                best = (&r.model, r.j);
-            }
-        }
-        best.0
+        best_of(&self.levy, self.sk.as_ref(), self.refined.as_ref()).0
     }
+
+    /// True when the best model can be used: no [`FreqFit::problems`].
+    pub fn usable(&self) -> bool {
+        self.problems.is_empty()
+    }
+}
+
+/// The best model by `J` (and whether it is the refit's).
+fn best_of<'a>(
+    levy: &'a LevyFit,
+    sk: Option<&'a LevyFit>,
+    refined: Option<&'a PmsmFit>,
+) -> (&'a FracTf, bool) {
+    let mut best = (&levy.model, levy.j, false);
+    if let Some(s) = sk {
+        if s.j < best.1 {
+            best = (&s.model, s.j, false);
+        }
+    }
+    if let Some(r) = refined {
+        if r.j < best.1 {
+            best = (&r.model, r.j, true);
+        }
+    }
+    (best.0, best.2)
+}
+
+/// The problems and warnings of a fit (see [`FreqFit::problems`]).
+fn assess(
+    levy: &LevyFit,
+    sk: Option<&LevyFit>,
+    refined: Option<&PmsmFit>,
+    sk_asked: usize,
+) -> (Vec<String>, Vec<String>) {
+    let (best, is_refit) = best_of(levy, sk, refined);
+    let (mut problems, mut warnings) = checks::model_problems(best);
+    let j = [Some(levy.j), sk.map(|s| s.j), refined.map(|r| r.j)];
+    if j.iter().flatten().all(|j| !j.is_finite()) {
+        problems.push("the error index J is not finite".into());
+    }
+    if let Some(r) = refined {
+        let (mut p, mut w) = (vec![], vec![]);
+        checks::refit_problems(r, &mut p, &mut w);
+        if is_refit {
+            problems.extend(p);
+        } else {
+            w.extend(p.into_iter().map(|m| m + " (not the model kept)"));
+        }
+        warnings.extend(w);
+    }
+    if let Some(s) = sk.filter(|s| !s.sk_converged) {
+        warnings.push(format!(
+            "Sanathanan-Koerner: not converged after {sk_asked} iterations (the coefficients still              change by more than {SK_PARAM_TOL:e} of their value and J by more than              {SK_COST_TOL:e}): try more (--sk), J = {:.4e}",
+            s.j
+        ));
+    }
+    (problems, warnings)
 }
 
 /// Identify a fractional model from Bode data: Levy with an order search, optionally
@@ -866,6 +969,12 @@ pub fn fit_bode(omega_rad_s: &[f64], h: &[Complex64], opts: &FreqOptions) -> Res
     } else {
         None
     };
+    let (problems, warnings) = assess(
+        &levy.best,
+        sk.as_ref(),
+        refined.as_ref(),
+        opts.sk_iterations,
+    );
     Ok(FreqFit {
         levy: levy.best,
         levy_grid: levy.grid_best,
@@ -873,6 +982,8 @@ pub fn fit_bode(omega_rad_s: &[f64], h: &[Complex64], opts: &FreqOptions) -> Res
         sk,
         sk_curve,
         refined,
+        problems,
+        warnings,
     })
 }
 

@@ -139,6 +139,15 @@ fn looks_v73(bytes: &[u8]) -> bool {
 }
 
 /// One tag: (type, data, bytes consumed including padding).
+///
+/// The format's rules (MathWorks, "MAT-File Format", "Data Element Format" and "Small Data
+/// Element Format"): a regular element is an 8-byte tag (type, byte count) and its data, padded
+/// to a multiple of 8 bytes, except `miMATRIX` (14) and `miCOMPRESSED` (15), which are not
+/// padded: a matrix's byte count is a multiple of 8 by construction (its sub-elements are
+/// padded), a compressed element is the zlib stream's exact length (scipy's `savemat` and
+/// MATLAB's `-v7` write e.g. 61 bytes and start the next element right after). A small element
+/// packs the byte count (1..=4) in the upper 16 bits of the first 4-byte word and the type in the
+/// lower 16, its data in the next 4 bytes: 8 bytes in all.
 fn tag(b: &[u8], e: Endian) -> Result<(u32, &[u8], usize)> {
     if b.len() < 8 {
         return bad("truncated .mat file (a data element's tag is cut)");
@@ -159,20 +168,49 @@ fn tag(b: &[u8], e: Endian) -> Result<(u32, &[u8], usize)> {
             b.len() - 8
         ));
     }
-    let padded = (8 + n).div_ceil(8) * 8;
-    Ok((first, &b[8..8 + n], padded.min(b.len())))
+    let used = if first == MI_MATRIX || first == MI_COMPRESSED {
+        8 + n
+    } else {
+        ((8 + n).div_ceil(8) * 8).min(b.len())
+    };
+    Ok((first, &b[8..8 + n], used))
+}
+
+/// `miMATRIX`: one variable.
+const MI_MATRIX: u32 = 14;
+/// `miCOMPRESSED`: one zlib-compressed element.
+const MI_COMPRESSED: u32 = 15;
+
+/// Where the top-level element after one of `used` bytes starts. Writers that pad the
+/// compressed element to 8 bytes (which the format does not ask) are read too: when the bytes
+/// up to the padded end are zeros and no element tag starts right after the unpadded end,
+/// the padding is skipped.
+fn next_top_level(b: &[u8], used: usize, e: Endian) -> usize {
+    let padded = used.div_ceil(8) * 8;
+    if padded == used || padded > b.len() || b[used..padded].iter().any(|&x| x != 0) {
+        return used;
+    }
+    let starts_element = b.len() >= used + 8 && {
+        let ty = e.u32(&b[used..used + 4]);
+        ty == MI_MATRIX || ty == MI_COMPRESSED
+    };
+    if starts_element {
+        used
+    } else {
+        padded
+    }
 }
 
 fn elements(mut b: &[u8], e: Endian, vars: &mut Vec<Variable>, depth: usize) -> Result<()> {
     while b.len() >= 8 {
         let (ty, data, used) = tag(b, e)?;
         match ty {
-            14 => {
+            MI_MATRIX => {
                 if let Some(v) = matrix(data, e)? {
                     vars.push(v);
                 }
             }
-            15 => {
+            MI_COMPRESSED => {
                 if depth > 0 {
                     return bad("malformed .mat file (compressed data inside compressed data)");
                 }
@@ -189,7 +227,7 @@ fn elements(mut b: &[u8], e: Endian, vars: &mut Vec<Variable>, depth: usize) -> 
             }
             _ => {} // other top-level elements: skipped
         }
-        b = &b[used..];
+        b = &b[next_top_level(b, used, e)..];
     }
     Ok(())
 }

@@ -468,3 +468,92 @@ fn retried_start_runs_once() {
     assert_eq!(status.samples_done as u64, acq.total_samples);
     eprintln!("retried START test: {:?}", t0.elapsed());
 }
+
+/// A drive of protocol version 1 (SINE_RESULT of 22 bytes) ignores version-2 frames, and a
+/// version-2 host ignores its answers: before, the host reported a drive that does not answer
+/// (`Timeout`). Now it probes with a version-1 HELLO and names both versions. The drive here is
+/// a version-1 stand-in on a real pty that answers only HELLOs framed in version 1 (in version 1).
+#[test]
+fn a_drive_of_another_protocol_version_is_named() {
+    use drive::codec::{encode_body_as, wrap_body};
+    use drive::protocol::{Frame, HelloReply, Message, PROTO_VERSION};
+    use serialport::{SerialPort, TTYPort};
+    use std::io::{Read, Write};
+    assert_eq!(PROTO_VERSION, 2);
+    let (mut master, slave) = TTYPort::pair().expect("a pty pair");
+    let path = slave.name().expect("the slave's path");
+    drop(slave);
+    master
+        .set_timeout(Duration::from_millis(50))
+        .expect("timeout");
+    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let stop2 = stop.clone();
+    let old_drive = std::thread::spawn(move || {
+        let (mut buf, mut frame, mut seen) = ([0u8; 512], Vec::new(), Vec::new());
+        while !stop2.load(std::sync::atomic::Ordering::SeqCst) {
+            let n = match master.read(&mut buf) {
+                Ok(n) => n,
+                Err(_) => continue,
+            };
+            for &b in &buf[..n] {
+                if b != 0 {
+                    frame.push(b);
+                    continue;
+                }
+                let Ok(body) = cobs::decode_vec(&frame) else {
+                    frame.clear();
+                    continue;
+                };
+                frame.clear();
+                if body.len() < 6 {
+                    continue;
+                }
+                seen.push(body[0]);
+                if body[0] == 1 && body[1] == 0x01 {
+                    let seq = u16::from_le_bytes([body[2], body[3]]);
+                    let reply = Frame {
+                        seq,
+                        msg: Message::HelloReply(HelloReply {
+                            proto_version: 1,
+                            fw_major: 1,
+                            fw_minor: 0,
+                            n_channels: 3,
+                            max_block_samples: 66,
+                            boot_id: 0xBEEF,
+                            max_sample_rate_hz: 20_000,
+                        }),
+                    };
+                    let _ = master.write_all(&wrap_body(&encode_body_as(&reply, 1)));
+                }
+            }
+        }
+        seen
+    });
+    let t0 = Instant::now();
+    let r = Client::open(
+        &path,
+        ClientConfig {
+            baud: 921_600,
+            timeout: Some(Duration::from_millis(100)),
+            retries: 1,
+            ..ClientConfig::default()
+        },
+    );
+    stop.store(true, std::sync::atomic::Ordering::SeqCst);
+    let seen = old_drive.join().unwrap();
+    let Err(e) = r else {
+        panic!("no client for a drive of another version")
+    };
+    assert!(
+        matches!(e, Error::Version { drive: 1, host: 2 }),
+        "{e:?} after {:?}",
+        t0.elapsed()
+    );
+    let msg = e.to_string();
+    assert!(
+        msg.contains("protocol version 1") && msg.contains("speaks 2"),
+        "{msg}"
+    );
+    // the host said HELLO in its version (twice: one retry), then once in version 1
+    assert_eq!(seen, [2, 2, 1], "versions of the host's frames");
+}

@@ -123,7 +123,7 @@ fn arb_msg() -> impl Strategy<Value = Message> {
         )),
         (any::<u16>(), any::<u32>(), any::<u8>()).prop_map(|(b, f, m)| Message::HelloReply(
             HelloReply {
-                proto_version: 1,
+                proto_version: drive::protocol::PROTO_VERSION,
                 fw_major: m,
                 fw_minor: 0,
                 n_channels: 3,

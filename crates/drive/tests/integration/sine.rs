@@ -231,3 +231,62 @@ fn repeats_shrink_the_error_and_report_the_noise() {
         "spread ratio {mean_ratio}"
     );
 }
+
+/// Issue 15's known bug: `run_sine_sweep(10, 50, 3, cycles=2, min_settle_s=0.1)` from Python lost
+/// the 10 Hz point on every attempt ("measurement damaged (no SINE_RESULT)"). The run lasts
+/// settle 0.2 s + window 0.2 s = 0.4 s, the stream timeout's 400 ms: the client's STATUS poll
+/// (no DATA on a run that does not stream) was in flight when the run ended, so SINE_RESULT and
+/// STREAM_END waited in the inbox; STATUS said "not running", END_QUERY took the STREAM_END
+/// and the loop ended without reading the SINE_RESULT that was waiting. The same sweep here,
+/// and runs whose length straddles the stream timeout (tuned to it), must all measure.
+#[test]
+fn a_sine_run_as_long_as_the_stream_timeout_keeps_its_result() {
+    let _g = lock();
+    let s = DriveSim::spawn(SimConfig {
+        baud: BAUD,
+        ..SimConfig::default()
+    })
+    .expect("simulator starts");
+    let mut c = Client::open(
+        s.port_path(),
+        ClientConfig {
+            baud: BAUD,
+            ..ClientConfig::default()
+        },
+    )
+    .unwrap();
+    c.configure(&Configure::default()).unwrap();
+    let mut sweep = drive::client::SineSweep::log(10.0, 50.0, 3);
+    sweep.cycles = 2;
+    sweep.min_settle_s = 0.1;
+    let (points, problems) = c.run_sine_sweep(&sweep).unwrap();
+    assert_eq!(points.len(), 3, "{problems:?}");
+    assert!(problems.is_empty(), "{problems:?}");
+    // 2 cycles + 2 settle cycles at f: 4/f s; the stream timeout set to 4/f s, 4/f +- 10 ms
+    drop(c);
+    for (f, dt_ms) in [(10.0, 0i64), (10.0, -10), (10.0, 10), (20.0, 0), (12.5, 0)] {
+        let run_ms = (4000.0 / f) as i64;
+        let mut c = Client::open(
+            s.port_path(),
+            ClientConfig {
+                baud: BAUD,
+                stream_timeout: Some(std::time::Duration::from_millis((run_ms + dt_ms) as u64)),
+                ..ClientConfig::default()
+            },
+        )
+        .unwrap();
+        c.configure(&Configure::default()).unwrap();
+        let mut sweep = drive::client::SineSweep::log(f, f, 1);
+        sweep.cycles = 2;
+        sweep.min_settle_s = 0.0;
+        sweep.attempts = 1;
+        for _ in 0..3 {
+            let (points, problems) = c.run_sine_sweep(&sweep).unwrap();
+            assert_eq!(
+                points.len(),
+                1,
+                "{f} Hz, timeout {run_ms}{dt_ms:+} ms: {problems:?}"
+            );
+        }
+    }
+}

@@ -122,7 +122,7 @@ fn named_frames() -> Vec<(&'static str, Frame)> {
             Frame {
                 seq: 0x0001,
                 msg: Message::HelloReply(HelloReply {
-                    proto_version: 1,
+                    proto_version: drive::protocol::PROTO_VERSION,
                     fw_major: 1,
                     fw_minor: 0,
                     n_channels: 3,
@@ -247,8 +247,8 @@ fn frames() {
     let named = named_frames();
     if std::env::var_os("DRIVE_REGEN_VECTORS").is_some() {
         let mut s = String::from(
-            "# fracid drive protocol v1: one frame per line: NAME seq(hex) wire-bytes(hex, with both 0x00 delimiters)\n\
-             # body = ver(0x01) type seq(LE) payload crc16-mcrf4xx(LE over ver..payload); wire = 00 COBS(body) 00\n",
+            "# fracid drive protocol v2: one frame per line: NAME seq(hex) wire-bytes(hex, with both 0x00 delimiters)\n\
+             # body = ver(0x02) type seq(LE) payload crc16-mcrf4xx(LE over ver..payload); wire = 00 COBS(body) 00\n",
         );
         for (name, f) in &named {
             s += &format!("{name} {:04X} {}\n", f.seq, hex(&codec::encode(f)));

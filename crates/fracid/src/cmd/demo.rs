@@ -10,7 +10,7 @@
 
 use crate::bad_input;
 use anyhow::{Context, Result};
-use drive::client::{Client, ClientConfig, CsvSink, PrbsTest, SineSweep};
+use drive::client::{Client, ClientConfig, CsvSink, LazyFile, PrbsTest, SineSweep, SweepEvent};
 use drive::protocol::Configure;
 use drive::sim::{DriveSim, Effects, SimConfig};
 use serde_json::Value;
@@ -43,6 +43,14 @@ pub struct DemoArgs {
     /// Seed of the simulator's noise.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Measurements per frequency of the sine sweep, combined by the paper's trimmed mean (the
+    /// largest and smallest dropped): 3 by default, the fewest that drop the extremes (one
+    /// damaged measurement cannot move a point) and leave a spread for the error bars, at 3
+    /// times the sweep's time. From 5 on the frequency-domain fit weights by the spread
+    /// (`--weights spread`); below, a 2-degree-of-freedom variance is too noisy to weight by and
+    /// the paper's Vinagre weights are kept. 10 is the paper's procedure.
+    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..=100))]
+    pub repeats: u32,
     /// Run the C drive firmware (`firmware/`, as flashed on the F2812) in the simulated drive
     /// instead of the simulator's Rust firmware (also: FRACID_SIM_FIRMWARE=c).
     #[arg(long)]
@@ -50,7 +58,7 @@ pub struct DemoArgs {
 }
 
 fn step(msg: &str) {
-    eprintln!("fracid demo: {msg}");
+    crate::eprintln_safe!("fracid demo: {msg}");
 }
 
 /// Run a subcommand of this binary, capture its stdout into `out_file`, return the text.
@@ -155,7 +163,8 @@ pub fn run(a: DemoArgs) -> Result<()> {
         prbs_test.offset_v,
         a.sample_rate_hz
     ));
-    let file = std::fs::File::create(&prbs_path)
+    // created when the drive has acknowledged the START (as `fracid drive prbs`)
+    let file = LazyFile::new(&prbs_path)
         .with_context(|| format!("cannot create {}", prbs_path.display()))?;
     let mut sink = CsvSink::new(file);
     let acq = client
@@ -197,24 +206,51 @@ pub fn run(a: DemoArgs) -> Result<()> {
         w.flush()?;
     }
 
-    let sweep = SineSweep::log(1.0, 100.0, 16);
+    let mut sweep = SineSweep::log(1.0, 100.0, 16);
+    sweep.repeats = a.repeats;
     step(&format!(
-        "sine sweep: {} frequencies from {} to {} Hz",
+        "sine sweep: {} frequencies from {} to {} Hz, {} measurement(s) each",
         sweep.freqs_hz.len(),
         sweep.freqs_hz[0],
-        sweep.freqs_hz[sweep.freqs_hz.len() - 1]
+        sweep.freqs_hz[sweep.freqs_hz.len() - 1],
+        sweep.repeats
     ));
-    let (points, lost) = client
-        .run_sine_sweep(&sweep)
-        .context("the sine sweep failed")?;
     let bode_path = dir.join("bode.csv");
-    let bode_file = std::fs::File::create(&bode_path)
-        .with_context(|| format!("cannot create {}", bode_path.display()))?;
-    let comment = format!(
+    let mut comment = format!(
         "fracid demo sine sweep\n{}",
         drive::bode::hold_line(1.0 / f64::from(a.sample_rate_hz))
     );
-    drive::bode::write_csv(bode_file, &points, &comment)?;
+    if sweep.repeats > 1 {
+        comment += &format!(
+            "\n{} repeats per frequency: trimmed mean (largest and smallest gain dropped, likewise \
+             the phase); gain_db_std, phase_deg_std: sample standard deviations of the repeats",
+            sweep.repeats
+        );
+    }
+    // written point by point as measured, the file created with the first point
+    let mut bode_file = super::drive::BodeFile::new(&bode_path, comment, sweep.repeats > 1)?;
+    let (points, lost) = match client.run_sine_sweep_with(&sweep, &mut |ev| match ev {
+        SweepEvent::Repeat(..) => Ok(()),
+        SweepEvent::Point(p) => bode_file.point(p),
+    }) {
+        Ok(r) => r,
+        Err(e) => {
+            let _ = bode_file.finish(&[format!("{e:#}")], &["(sweep failed)".into()]);
+            return Err(anyhow::Error::new(e).context("the sine sweep failed"));
+        }
+    };
+    let missing: Vec<String> = sweep
+        .freqs_hz
+        .iter()
+        .zip(sweep.applied_freqs_hz(a.sample_rate_hz))
+        .filter(|(_, fa)| {
+            !fa.is_some_and(|fa| points.iter().any(|p| (p.freq_hz - fa).abs() <= 1e-9 * fa))
+        })
+        .map(|(f, _)| f.to_string())
+        .collect();
+    bode_file
+        .finish(&lost, &missing)
+        .with_context(|| format!("writing {}", bode_path.display()))?;
     step(&format!(
         "Bode table: {} points -> {}",
         points.len(),
@@ -245,9 +281,12 @@ pub fn run(a: DemoArgs) -> Result<()> {
 
     step("frequency domain: weighted Levy, refit and diagnosis");
     let freq_png = dir.join("bode.png");
+    let weights = if a.repeats >= 5 { "spread" } else { "vinagre" };
     let freq_args = [
         "freq",
         path_str(&bode_path)?,
+        "--weights",
+        weights,
         "--refine",
         "--diagnose",
         "--plot",
@@ -258,6 +297,8 @@ pub fn run(a: DemoArgs) -> Result<()> {
         &[
             "freq",
             path_str(&bode_path)?,
+            "--weights",
+            weights,
             "--refine",
             "--diagnose",
             "--json",
@@ -306,9 +347,15 @@ pub fn run(a: DemoArgs) -> Result<()> {
     )?;
     writeln!(
         r,
-        "- Sine sweep: {} of {} frequencies measured{}.",
+        "- Sine sweep: {} of {} frequencies measured, {} time(s) each{}{}.",
         points.len(),
         sweep.freqs_hz.len(),
+        sweep.repeats,
+        if sweep.repeats > 1 {
+            " (the paper's trimmed mean; the spread is in the table and drawn as error bars)"
+        } else {
+            ""
+        },
         if lost.is_empty() {
             String::new()
         } else {

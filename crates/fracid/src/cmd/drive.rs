@@ -321,7 +321,7 @@ fn sim(a: SimArgs) -> Result<()> {
     writeln!(out, "{}", s.port_path())?;
     out.flush()?;
     drop(out);
-    eprintln!(
+    crate::eprintln_safe!(
         "drive simulator ({firmware} firmware) at {} ({} baud); stop with Ctrl-C",
         s.port_path(),
         a.baud
@@ -336,9 +336,13 @@ fn sim(a: SimArgs) -> Result<()> {
         std::thread::sleep(Duration::from_millis(50));
     }
     let st = s.stats();
-    eprintln!(
+    crate::eprintln_safe!(
         "drive simulator: {} frames sent ({} damaged), {} received, {} blocks dropped, {} runs",
-        st.frames_sent, st.frames_damaged, st.frames_received, st.blocks_dropped, st.runs_started
+        st.frames_sent,
+        st.frames_damaged,
+        st.frames_received,
+        st.blocks_dropped,
+        st.runs_started
     );
     s.stop();
     Ok(())
@@ -425,7 +429,7 @@ fn check_levels(levels: &[(&str, i32)], conf: &Configure) -> Result<()> {
         );
     }
     if !beyond.is_empty() {
-        eprintln!(
+        crate::eprintln_safe!(
             "warning: {} beyond the drive's voltage clamp of +-{} V: those samples will be clamped",
             beyond.join(", "),
             v(lim)
@@ -521,11 +525,11 @@ fn prbs(a: PrbsArgs) -> Result<()> {
         }
     );
     for w in acq.warnings() {
-        eprintln!("warning: {w}");
+        crate::eprintln_safe!("warning: {w}");
     }
     if let Some(signal) = signal {
         if acq.complete {
-            eprintln!("{summary}, complete (the signal came after the run had ended)");
+            crate::eprintln_safe!("{summary}, complete (the signal came after the run had ended)");
         }
         return Err(Interrupted {
             signal,
@@ -544,10 +548,10 @@ fn prbs(a: PrbsArgs) -> Result<()> {
         ));
     }
     if acq.complete {
-        eprintln!("{summary}, complete");
+        crate::eprintln_safe!("{summary}, complete");
         Ok(())
     } else if a.allow_incomplete {
-        eprintln!("warning: {summary}");
+        crate::eprintln_safe!("warning: {summary}");
         Ok(())
     } else {
         Err(anyhow::anyhow!(summary))
@@ -657,7 +661,7 @@ fn sine_sweep(a: &SineArgs, conf: &Configure) -> Result<SineSweep> {
 /// leaves the file untouched), a footer `# complete: N frequencies` or
 /// `# incomplete: missing frequencies (Hz) ... (reason)` at the end. Rows as
 /// [`drive::bode::write_csv`] writes them (with the spread columns when the sweep repeats).
-struct BodeFile {
+pub(crate) struct BodeFile {
     w: std::io::BufWriter<LazyFile>,
     header: String,
     spread: bool,
@@ -665,7 +669,22 @@ struct BodeFile {
 }
 
 impl BodeFile {
-    fn point(&mut self, p: &BodePoint) -> std::io::Result<()> {
+    /// The table at `path` (created with its first point), `header` as `#` comment lines, the
+    /// spread columns if `spread`.
+    ///
+    /// # Errors
+    /// A path that cannot be written (exit 3), checked now.
+    pub(crate) fn new(path: &std::path::Path, header: String, spread: bool) -> Result<Self> {
+        Ok(Self {
+            w: std::io::BufWriter::new(output_file(path)?),
+            header,
+            spread,
+            rows: 0,
+        })
+    }
+
+    /// Write one point (the header first), flushed.
+    pub(crate) fn point(&mut self, p: &BodePoint) -> std::io::Result<()> {
         if self.rows == 0 {
             for line in self.header.lines() {
                 writeln!(self.w, "# {line}")?;
@@ -678,7 +697,11 @@ impl BodeFile {
     }
 
     /// Problems and the footer; whether the file was written at all.
-    fn finish(mut self, problems: &[String], unmeasured: &[String]) -> std::io::Result<bool> {
+    pub(crate) fn finish(
+        mut self,
+        problems: &[String],
+        unmeasured: &[String],
+    ) -> std::io::Result<bool> {
         if self.rows == 0 {
             return Ok(false);
         }
@@ -736,12 +759,7 @@ fn sine(a: SineArgs) -> Result<()> {
             a.repeats
         );
     }
-    let mut file = BodeFile {
-        w: std::io::BufWriter::new(output_file(&a.output)?),
-        header,
-        spread: sweep.repeats > 1,
-        rows: 0,
-    };
+    let mut file = BodeFile::new(&a.output, header, sweep.repeats > 1)?;
     let mut reps_file = open_repeats_file(&a, &conf)?;
     let mut c = connect(&a.port, &conf)?;
     let pb = progress_bar(a.port.quiet, "frequencies");
@@ -790,7 +808,7 @@ fn sine(a: SineArgs) -> Result<()> {
         .finish(&problems, &unmeasured)
         .with_context(|| format!("writing {}", a.output.display()))?;
     for p in &problems {
-        eprintln!("warning: {p}");
+        crate::eprintln_safe!("warning: {p}");
     }
     let summary = format!(
         "{}: {} of {} frequencies{}",
@@ -817,7 +835,7 @@ fn sine(a: SineArgs) -> Result<()> {
             unmeasured.join(", ")
         ));
     }
-    eprintln!("{summary}");
+    crate::eprintln_safe!("{summary}");
     Ok(())
 }
 

@@ -66,7 +66,9 @@ pub struct FreqArgs {
     /// Levenberg-Marquardt (needs n = 2, m = 0).
     #[arg(long)]
     pub refine: bool,
-    /// Sanathanan-Koerner iterations after Levy (0: none).
+    /// Sanathanan-Koerner iterations after Levy, at most (0: none); they stop once no
+    /// coefficient changes by more than 1e-8 of its value or J by more than 1e-10 of its value,
+    /// and the number used is reported.
     #[arg(long, default_value_t = 0, value_name = "N")]
     pub sk: usize,
     /// Also evaluate J for this model (e.g. a published one); repeatable.
@@ -86,6 +88,11 @@ pub struct FreqArgs {
     /// Print JSON (docs/design.md §7) instead of the table.
     #[arg(long)]
     pub json: bool,
+    /// Exit 0 even when the model is not usable (unstable, undetermined parameters, ...): the
+    /// problems are then printed as warnings. Without it such a fit prints its result, then
+    /// exits 1 with the reasons.
+    #[arg(long)]
+    pub allow_unusable: bool,
     /// Draw the Bode plot (magnitude, phase) with each model, and J(q), to FILE (.png or .svg).
     #[arg(long, value_name = "FILE")]
     pub plot: Option<PathBuf>,
@@ -353,6 +360,7 @@ pub fn run(a: FreqArgs) -> Result<()> {
     } else {
         None
     };
+    let (problems, warnings) = assessment(&fit, diagnosis.as_ref());
     if a.json {
         let mut v = to_json(&fit, &compare, &data, &weight_label);
         v["hold_s"] = json!(hold);
@@ -360,6 +368,9 @@ pub fn run(a: FreqArgs) -> Result<()> {
             v["diagnosis"] = serde_json::to_value(d)?;
             v["diagnosis"]["model"] = model_json(&d.model);
         }
+        v["usable"] = json!(problems.is_empty());
+        v["problems"] = json!(problems);
+        v["warnings"] = json!(warnings);
         emit(&(serde_json::to_string_pretty(&v)? + "\n"))?;
     } else {
         emit(&table(&fit, &compare, &data, &weight_label, &opts))?;
@@ -385,7 +396,42 @@ pub fn run(a: FreqArgs) -> Result<()> {
             }
         }
     }
+    for w in &warnings {
+        crate::interrupt::eprint_line(&format!("warning: {w}"));
+    }
+    if !problems.is_empty() {
+        if a.allow_unusable {
+            for p in &problems {
+                crate::interrupt::eprint_line(&format!(
+                    "warning: the model is not usable (kept as --allow-unusable asks): {p}"
+                ));
+            }
+        } else {
+            anyhow::bail!(
+                "the fitted model is not usable: {} (--allow-unusable keeps it with exit 0)",
+                problems.join("; ")
+            );
+        }
+    }
     Ok(())
+}
+
+/// The problems (the final model cannot be used) and warnings of a fit: the library's
+/// ([`ident::levy::FreqFit::problems`], of the best model), and with `--diagnose` those of the
+/// diagnosed model, which is then the final one.
+fn assessment(
+    fit: &FreqFit,
+    diagnosis: Option<&ident::diagnose::freq::BodeDiagnosis>,
+) -> (Vec<String>, Vec<String>) {
+    let (mut problems, mut warnings) = (fit.problems.clone(), fit.warnings.clone());
+    if let Some(d) = diagnosis {
+        if d.model != *fit.best_model() {
+            let (p, w) = ident::levy::checks::model_problems(&d.model);
+            problems.extend(p.into_iter().map(|m| format!("diagnosed model: {m}")));
+            warnings.extend(w.into_iter().map(|m| format!("diagnosed model: {m}")));
+        }
+    }
+    (problems, warnings)
 }
 
 /// Write to stdout; a closed pipe (`fracid freq ... | head`) is not an error.
@@ -409,7 +455,7 @@ fn model_json(g: &FracTf) -> Value {
 
 fn levy_json(f: &ident::levy::LevyFit) -> Value {
     json!({"model": model_json(&f.model), "q": f.q, "J": f.j, "b": f.b, "a": f.a,
-           "sk_iterations": f.sk_iterations})
+           "sk_iterations": f.sk_iterations, "sk_converged": f.sk_converged})
 }
 
 fn curve_json(c: &[QPoint]) -> Value {
@@ -620,7 +666,18 @@ fn table(
     }
     let _ = writeln!(out, "Levy:     {}", short_tf(&fit.levy.model, 5));
     if let Some(sk) = &fit.sk {
-        let _ = writeln!(out, "SK:       {}", short_tf(&sk.model, 5));
+        let _ = writeln!(
+            out,
+            "SK:       {}   ({} after {} of at most {} iterations)",
+            short_tf(&sk.model, 5),
+            if sk.sk_converged {
+                "converged"
+            } else {
+                "NOT converged"
+            },
+            sk.sk_iterations,
+            opts.sk_iterations
+        );
     }
     if let Some(r) = &fit.refined {
         let _ = writeln!(

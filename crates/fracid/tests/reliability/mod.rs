@@ -205,3 +205,24 @@ fn quoted_headers_no_time_column_and_headerless_files() {
     ]);
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
 }
+
+/// Issue 12: `fracid demo` created `prbs.csv` before the drive had started anything, so a run
+/// that never starts left an empty record behind. At 300 Hz the PRBS clock of 3 ms is not a whole
+/// number of samples: the run is refused before its START (exit 2) and no file is created.
+#[test]
+fn demo_creates_no_record_for_a_run_that_never_starts() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("demo");
+    let o = fracid(&[
+        "demo",
+        "--out",
+        out.to_str().unwrap(),
+        "--sample-rate-hz",
+        "300",
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("whole number of samples"), "{err}");
+    assert!(!out.join("prbs.csv").exists(), "an empty record was left");
+    assert!(!out.join("bode.csv").exists());
+}

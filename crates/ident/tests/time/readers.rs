@@ -271,10 +271,11 @@ fn mat_file(vars: &[(&str, usize, usize, Vec<f64>)], compress: bool) -> Vec<u8> 
         m.extend(element(9, &bytes));
         let matrix = element(14, &m);
         if compress {
-            f.extend(element(
-                15,
-                &miniz_oxide::deflate::compress_to_vec_zlib(&matrix, 6),
-            ));
+            // not padded: the format pads neither miMATRIX nor miCOMPRESSED elements
+            let z = miniz_oxide::deflate::compress_to_vec_zlib(&matrix, 6);
+            f.extend(15u32.to_le_bytes());
+            f.extend((z.len() as u32).to_le_bytes());
+            f.extend(z);
         } else {
             f.extend(matrix);
         }
@@ -340,6 +341,53 @@ fn mat_files_time_records_and_bode_tables() {
     let p = scratch("v4.mat", &[0u8; 64]);
     let e = Record::load(&p, &Default::default()).unwrap_err();
     assert!(e.to_string().contains("level 4"), "{e}");
+}
+
+/// Files written by scipy 1.17.1 (`scipy.io.savemat`, committed in `tests/data`, made with
+/// `k = np.arange(120); t = k/1000; u = ((k//7)%2)*2-1; y = k*k/64`, plus an int8 scalar `n = 3`
+/// and a char variable `note`): `do_compression=True` (`_v7`, each variable an unpadded
+/// miCOMPRESSED element of 60, 610, ... bytes) and `False` (`_v6`). Before the fix the
+/// compressed file was refused ("a small data element of more than 4 bytes": the reader padded
+/// the compressed element to 8 bytes and read the next tag 4 bytes late).
+#[test]
+fn mat_files_written_by_scipy() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data");
+    let k: Vec<f64> = (0..120).map(f64::from).collect();
+    let t: Vec<f64> = k.iter().map(|k| k / 1000.0).collect();
+    let u: Vec<f64> = (0..120).map(|k| ((k / 7) % 2) as f64 * 2.0 - 1.0).collect();
+    let y: Vec<f64> = k.iter().map(|k| k * k / 64.0).collect();
+    for name in ["scipy_savemat_v7.mat", "scipy_savemat_v6.mat"] {
+        let vars = ident::matfile::read(&dir.join(name)).unwrap();
+        let names: Vec<&str> = vars.iter().map(|v| v.name.as_str()).collect();
+        assert_eq!(names, ["t", "u", "y", "n"], "{name}: char 'note' skipped");
+        assert_eq!(
+            vars[3].data,
+            [3.0],
+            "{name}: int8 scalar in a small element"
+        );
+        let l = Record::load(&dir.join(name), &Default::default()).unwrap();
+        assert_eq!(l.record.t, t, "{name}");
+        assert_eq!((&l.record.u, &l.record.y), (&u, &y), "{name}");
+    }
+}
+
+#[test]
+fn compressed_mat_elements_padded_to_8_bytes_are_read_too() {
+    // some writers pad the compressed element (the format does not ask it): still read
+    let a = mat_file(&[("u", 3, 1, vec![1.0, 2.0, 3.0])], true);
+    let b = mat_file(&[("y", 3, 1, vec![4.0, 5.0, 6.0])], true);
+    let mut f = a.clone();
+    while f.len() % 8 != 0 {
+        f.push(0);
+    }
+    f.extend(&b[128..]);
+    let vars = ident::matfile::parse(&f).unwrap();
+    assert_eq!(vars.len(), 2);
+    assert_eq!(vars[1].data, [4.0, 5.0, 6.0]);
+    // and unpadded, as the format says
+    let mut f = a;
+    f.extend(&b[128..]);
+    assert_eq!(ident::matfile::parse(&f).unwrap().len(), 2);
 }
 
 proptest! {
