@@ -28,7 +28,8 @@ fn main() {
     m.with_output_offset(0.1);
     m.with_past_input(vec![0.01, 0.1, 1.0], (-3.0, 3.0));
     let p = m.values();
-    let sim = fracsim::Simulator::<f64>::new(&fracid_benches::pmsm(), DT, &Default::default()).unwrap();
+    let sim =
+        fracsim::Simulator::<f64>::new(&fracid_benches::pmsm(), DT, &Default::default()).unwrap();
     println!(
         "PMSM modes: {} real, {} complex pairs",
         sim.model().real.len(),

@@ -200,8 +200,12 @@ fn simulator_steps_match_lsim_and_reset() {
     let mut sim = Simulator::<f64>::new(&g, 1e-4, &ApproxSpec::default()).unwrap();
     let _ = sim.simulate(&[3.0; 50]);
     sim.reset();
+    // The block kernel fuses multiply-adds (FMA) and sums the modes in another order than the
+    // per-sample step: equal to rounding, not bit for bit.
+    let scale = y.iter().fold(0.0f64, |a, v| a.max(v.abs()));
     for (k, &x) in u.iter().enumerate() {
-        assert_eq!(sim.step(x), y[k]);
+        let s = sim.step(x);
+        assert!((s - y[k]).abs() <= 1e-13 * scale, "k={k}: {s} vs {}", y[k]);
     }
 }
 

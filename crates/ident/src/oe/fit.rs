@@ -166,7 +166,7 @@ const PARALLEL_MIN_SAMPLES: usize = 4096;
 /// only the others are carried as dual parts through the simulation, which costs about
 /// `(2 N + 1)` multiply-adds per mode and sample for `N` dual parts. Those are split in two
 /// halves simulated on two threads (for records of at least 4096 samples, when the machine has
-/// two cores), the linear columns computed beside the second half.
+/// two cores), the linear columns shared between them.
 #[allow(clippy::too_many_arguments)]
 fn jacobian<S: Structure>(
     s: &S,
@@ -203,7 +203,12 @@ fn jacobian<S: Structure>(
     let mut cols_lin = vec![vec![]; lin.len()];
     let lin_j: Vec<usize> = lin.iter().map(|&i| free[i]).collect();
     let pv = &pv;
-    // The second half (all of them on one thread) and the linear columns.
+    // The linear columns are shared between the two threads, after their dual halves (each
+    // costs about one f64 simulation; the gain's needs the output, which both halves compute).
+    let lin_split = if first.is_empty() { 0 } else { lin.len() / 2 };
+    let (lin_a, lin_b) = lin_j.split_at(lin_split);
+    let (cols_lin_a, cols_lin_b) = cols_lin.split_at_mut(lin_split);
+    // The second half (all of them on one thread) and its share of the linear columns.
     let rest = |yhat: &mut [f64], cols: &mut [Vec<f64>], cols_lin: &mut [Vec<f64>]| {
         if second.is_empty() {
             s.simulate(pv, u, dt, yhat)?;
@@ -213,10 +218,10 @@ fn jacobian<S: Structure>(
                 eval_dual(s, pv, free, theta, transform, second, u, dt, yhat, cols)
             )?;
         }
-        s.linear_sensitivities(pv, &lin_j, u, dt, yhat, cols_lin)
+        s.linear_sensitivities(pv, lin_b, u, dt, yhat, cols_lin)
     };
     if first.is_empty() {
-        rest(yhat, &mut cols_second, &mut cols_lin)?;
+        rest(yhat, &mut cols_second, cols_lin_b)?;
     } else {
         let mut y_first = vec![0.0; u.len()];
         let (a, b) = std::thread::scope(|sc| {
@@ -235,9 +240,10 @@ fn jacobian<S: Structure>(
                         &mut y_first,
                         &mut cols_first
                     )
-                )
+                )?;
+                s.linear_sensitivities(pv, lin_a, u, dt, &y_first, cols_lin_a)
             });
-            let b = rest(yhat, &mut cols_second, &mut cols_lin);
+            let b = rest(yhat, &mut cols_second, cols_lin_b);
             (h.join(), b)
         });
         b?;
