@@ -40,6 +40,9 @@ struct Hidden {
     dz: Option<f64>,
     /// Input offset (a voltage added to the input before everything else).
     u_offset: f64,
+    /// The plant's commensurate order instead of the truth's 0.85 (1.0: an integer second-order
+    /// plant, at the edge of the commensurate structure's range `(0, 1)`).
+    q: Option<f64>,
 }
 
 fn sgn(v: f64) -> f64 {
@@ -80,6 +83,7 @@ fn input(offset: f64, levels: bool) -> Vec<f64> {
 /// GL truth with the hidden effects, decimated, with 2% noise.
 fn generate(u: &[f64], h: Hidden, seed: u64) -> Record {
     let (k, a1, a2, q) = TRUTH;
+    let q = h.q.unwrap_or(q);
     let hf = DT / FINE as f64;
     let n = u.len() * FINE;
     let c1 = fracsim::gl::weights(q, n);
@@ -441,6 +445,14 @@ fn friction_with_a_rest_period_in_front_is_kept() {
     assert_eq!(names(&d), ["coulomb_friction"]);
     assert!(close(param(&d, "coulomb_friction", "Vc"), 0.15));
     assert!(falls(&d));
+    // The path this test is for: q was inside before the effect and at its bound after (an
+    // effect the old rule threw away).
+    assert!(q < 0.99 && q_after > 0.995, "q: {q} -> {q_after}");
+    let ev = &d.effects[0].evidence;
+    assert!(
+        ev.contains("stayed at a bound when refitted from a fresh start"),
+        "{ev}"
+    );
 }
 
 #[test]
@@ -614,4 +626,36 @@ fn with_the_defaults_each_hidden_effect_alone_is_kept() {
         }
     }
     assert!(wrong.is_empty(), "{wrong:#?}");
+}
+
+#[test]
+fn an_effect_whose_refit_sends_an_order_to_its_bound_is_refitted_from_a_fresh_start() {
+    // An integer second-order plant (q = 1, the edge of the commensurate structure's (0, 1))
+    // with friction: the base fit without friction bends q inside; the refit with friction sends it
+    // to its bound. The effect must not be thrown away for that: it is refitted from a fresh
+    // start and kept, the evidence saying whether q stayed at its bound.
+    let rec = generate(
+        &input(0.0, false),
+        Hidden {
+            coulomb: 0.15,
+            q: Some(1.0),
+            ..Default::default()
+        },
+        16,
+    );
+    let (id, d) = run(&rec, true);
+    let q = id.report.values[id.model.index_of("q").unwrap()];
+    let q_after = d.model.params[d.model.index_of("q").unwrap()].value;
+    eprintln!("q: base {q}, after {q_after}");
+    assert_eq!(names(&d), ["coulomb_friction"]);
+    assert!(close(param(&d, "coulomb_friction", "Vc"), 0.15));
+    assert!(falls(&d));
+    // The path this test is for: q was inside before the effect and at its bound after (an
+    // effect the old rule threw away).
+    assert!(q < 0.99 && q_after > 0.995, "q: {q} -> {q_after}");
+    let ev = &d.effects[0].evidence;
+    assert!(
+        ev.contains("stayed at a bound when refitted from a fresh start"),
+        "{ev}"
+    );
 }
