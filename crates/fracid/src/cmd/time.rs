@@ -248,13 +248,6 @@ pub fn run(a: TimeArgs) -> Result<()> {
         bar.tick();
     })?;
     bar.finish_and_clear();
-    for w in &id.report.warnings {
-        eprintln!("warning: {w}");
-    }
-    let scored = match &validation {
-        Some((_, vrec)) => Some(ident::oe::score(&id.model, vrec, offsets, opts.initial)?),
-        None => None,
-    };
     let (id, diagnosis) = if a.diagnose {
         let spin = if a.quiet || !std::io::stderr().is_terminal() {
             indicatif::ProgressBar::hidden()
@@ -274,6 +267,15 @@ pub fn run(a: TimeArgs) -> Result<()> {
         (d.id, Some((d.diagnosis, d.choice)))
     } else {
         (id, None)
+    };
+    // The fit reported (with --diagnose, the chosen structure's): its warnings, its score on a
+    // separate record.
+    for w in &id.report.warnings {
+        eprintln!("warning: {w}");
+    }
+    let scored = match &validation {
+        Some((_, vrec)) => Some(ident::oe::score(&id.model, vrec, offsets, opts.initial)?),
+        None => None,
     };
     if a.json {
         let mut v = json_of(&id, &rec);
