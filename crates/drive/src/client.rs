@@ -1505,27 +1505,50 @@ pub fn host_dft(
     cmd: &StartSine,
     sample_rate_hz: u32,
 ) -> Option<[(f64, f64); 2]> {
-    let (settle, measure) = cmd.sample_counts(sample_rate_hz)?;
-    if measure == 0 {
-        return None;
+    let w = SineWindow::of(acq, cmd, sample_rate_hz)?;
+    let ph = |k| w.phase(k);
+    Some([bode::single_bin(&w.u, ph), bode::single_bin(&w.y, ph)])
+}
+
+/// The streamed samples of a sine run's measurement window and the drive's phase accumulator over
+/// it ([`host_dft`], [`host_phasors`]).
+struct SineWindow {
+    settle: u32,
+    measure: u32,
+    inc: u32,
+    u: Vec<f64>,
+    y: Vec<f64>,
+}
+
+impl SineWindow {
+    /// The window `settle..settle+measure`, or None unless every sample of it arrived.
+    fn of(acq: &Acquisition, cmd: &StartSine, sample_rate_hz: u32) -> Option<Self> {
+        let (settle, measure) = cmd.sample_counts(sample_rate_hz)?;
+        if measure == 0 {
+            return None;
+        }
+        // Indices increase, so the window is contiguous iff its first and last indices are
+        // `measure - 1` apart.
+        let first = acq.index.binary_search(&(settle as u64)).ok()?;
+        let last = first + measure as usize - 1;
+        if acq.index.get(last) != Some(&(settle as u64 + measure as u64 - 1)) {
+            return None;
+        }
+        let w = &acq.raw[first..=last];
+        Some(SineWindow {
+            settle,
+            measure,
+            inc: cmd.phase_increment(sample_rate_hz),
+            u: w.iter().map(|s| s[0] as f64).collect(),
+            y: w.iter().map(|s| s[1] as f64).collect(),
+        })
     }
-    let fs = sample_rate_hz as u64;
-    let inc = ((((cmd.freq_mhz as u128) << 32) + 500 * fs as u128) / (1000 * fs as u128)) as u32;
-    // The window settle..settle+measure, all there: indices increase, so it is contiguous iff
-    // its first and last indices are `measure - 1` apart.
-    let first = acq.index.binary_search(&(settle as u64)).ok()?;
-    let last = first + measure as usize - 1;
-    if acq.index.get(last) != Some(&(settle as u64 + measure as u64 - 1)) {
-        return None;
-    }
-    let ph = |k: usize| {
-        let p = ((settle as u64 + k as u64).wrapping_mul(inc as u64)) as u32;
+
+    /// The drive's phase (rad) at sample `k` of the window.
+    fn phase(&self, k: usize) -> f64 {
+        let p = ((self.settle as u64 + k as u64).wrapping_mul(self.inc as u64)) as u32;
         p as f64 / 4294967296.0 * std::f64::consts::TAU
-    };
-    let w = &acq.raw[first..=last];
-    let u: Vec<f64> = w.iter().map(|s| s[0] as f64).collect();
-    let y: Vec<f64> = w.iter().map(|s| s[1] as f64).collect();
-    Some([bode::single_bin(&u, ph), bode::single_bin(&y, ph)])
+    }
 }
 
 /// A Bode point from `[u, y]` phasors in raw LSB.
@@ -1582,27 +1605,12 @@ pub fn host_phasors(
     cmd: &StartSine,
     sample_rate_hz: u32,
 ) -> Option<[(f64, f64); 2]> {
-    let (settle, measure) = cmd.sample_counts(sample_rate_hz)?;
-    if measure == 0 {
-        return None;
-    }
-    let inc = cmd.phase_increment(sample_rate_hz);
-    let first = acq.index.binary_search(&(settle as u64)).ok()?;
-    let last = first + measure as usize - 1;
-    if acq.index.get(last) != Some(&(settle as u64 + measure as u64 - 1)) {
-        return None;
-    }
-    let ph = |k: usize| {
-        let p = ((settle as u64 + k as u64).wrapping_mul(inc as u64)) as u32;
-        p as f64 / 4294967296.0 * std::f64::consts::TAU
-    };
-    let w = &acq.raw[first..=last];
-    let u: Vec<f64> = w.iter().map(|s| s[0] as f64).collect();
-    let y: Vec<f64> = w.iter().map(|s| s[1] as f64).collect();
-    let g = bode::WindowGram::new(measure, settle, inc);
+    let w = SineWindow::of(acq, cmd, sample_rate_hz)?;
+    let ph = |k| w.phase(k);
+    let g = bode::WindowGram::new(w.measure, w.settle, w.inc);
     Some([
-        bode::fit_phasor(&bode::ChannelMoments::of(&u, ph), &g)?,
-        bode::fit_phasor(&bode::ChannelMoments::of(&y, ph), &g)?,
+        bode::fit_phasor(&bode::ChannelMoments::of(&w.u, ph), &g)?,
+        bode::fit_phasor(&bode::ChannelMoments::of(&w.y, ph), &g)?,
     ])
 }
 
