@@ -67,16 +67,16 @@ impl Probe for AbsSensor {
         let mut m = st.model.clone();
         // Before the existing output effects: an output offset then acts after it, `|x| + c`.
         m.effects.insert(0, Effect::AbsSensor);
-        let mut starts = vec![m.clone()];
+        // Where the speed is zero is unknown: the operating point was taken from rectified data.
+        // An input offset locates it (through the gain it is the constant inside |.|); the
+        // sign-restored starts carry theirs.
+        let mut first = m.clone();
+        if !look.has("u_offset") {
+            with_zero_offset(&mut first, ctx.u0, ctx.y0);
+        }
+        let mut starts = vec![first];
         if !model_reverses {
             starts.extend(sign_restored_starts(look, &m));
-        }
-        // Where the speed is zero is unknown: the operating point was taken from rectified data.
-        // An input offset locates it (through the gain it is the constant inside |.|).
-        if !look.has("u_offset") {
-            for m in &mut starts {
-                with_zero_offset(m, ctx.u0, ctx.y0);
-            }
         }
         found.candidates.push(Candidate {
             lead: None,
@@ -132,7 +132,8 @@ fn with_zero_offset(m: &mut FracModel, u0: f64, y0: f64) {
 /// input, `y_s = |y| sign(lp_T(u))`, for `T` on a log grid of 8 values from `2 dt` to a twentieth
 /// of the record, and the automatic start ([`crate::oe::init::auto_start`]) is made on the
 /// absolute `(u, y_s)` (the plant's zero is the signals' zero); the 2 starts whose rectified
-/// output is closest to the data are returned.
+/// output is closest to the data are returned, with the input offset that
+/// locates the zero ([`with_zero_offset`]) when the model has none.
 fn sign_restored_starts(look: &Look<'_>, m: &FracModel) -> Vec<FracModel> {
     let ctx = look.ctx;
     let (s, dt) = (look.s(), ctx.dt);
@@ -159,13 +160,11 @@ fn sign_restored_starts(look: &Look<'_>, m: &FracModel) -> Vec<FracModel> {
         for p in &mut c.params {
             p.value = p.bounds.clamp_inside(p.value);
         }
-        let mut scored_model = c.clone();
         if !look.has("u_offset") {
-            with_zero_offset(&mut scored_model, ctx.u0, ctx.y0);
+            with_zero_offset(&mut c, ctx.u0, ctx.y0);
         }
         let mut y = vec![0.0; s];
-        let v = scored_model.values();
-        if scored_model.simulate(&v, &ctx.u[..s], dt, &mut y).is_ok() {
+        if c.simulate(&c.values(), &ctx.u[..s], dt, &mut y).is_ok() {
             let ssr: f64 = (0..s).map(|k| (ctx.y[k] - y[k]).powi(2)).sum();
             if ssr.is_finite() {
                 scored.push((ssr, c));
