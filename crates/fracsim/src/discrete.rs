@@ -23,6 +23,9 @@ use crate::modal::{pole_residue, PoleResidue};
 use crate::scalar::{Dual, Real};
 use crate::tf::FracTf;
 
+#[cfg(target_arch = "x86_64")]
+mod kernel;
+
 /// Runs a fractional transfer function on a held (zero-order-hold) input, exactly for its
 /// rational approximation: `u_k` acts on `[t_k, t_(k+1))` and `y_k` is the output at `t_k`.
 ///
@@ -410,181 +413,78 @@ impl<T: Real> Simulator<T> {
     }
 }
 
-/// [`Simulator::run_into`] in `f64`: the AVX2 and FMA kernel where the CPU has them.
+/// The samples `0..head` that read the delay line (`head = m + 1`, at most `n`); the kernels run
+/// the rest reading the input slice itself.
+fn head_of<T: Real>(sim: &Simulator<T>, n: usize) -> usize {
+    (sim.delay_whole + 1).min(n)
+}
+
+/// After a kernel ran samples `head..n` of `u`, the delay line as if every sample had been pushed.
+fn refill_delay_line<T: Real>(sim: &mut Simulator<T>, u: &[f64], n: usize) {
+    let len = sim.hist.len();
+    debug_assert!(n >= len);
+    for i in 0..len {
+        sim.hist[len - 1 - i] = T::from(u[n - 1 - i]);
+    }
+    sim.pos = len - 1;
+}
+
+/// [`Simulator::run_into`] in `f64`: the first `m + 1` samples by [`Simulator::step`], the rest
+/// by the AVX2 and FMA value kernel ([`kernel::run_value`]) where the CPU has them.
 pub(crate) fn run_f64(sim: &mut Simulator<f64>, u: &[f64], y: &mut [f64]) {
+    let n = u.len().min(y.len());
+    let head = head_of(sim, n);
     #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma") {
-        // SAFETY: the CPU has AVX2 and FMA, checked just above.
-        unsafe { run_f64_avx2(sim, u, y) };
+    if head < n && kernel::available() {
+        sim.run_generic(&u[..head], &mut y[..head]);
+        let mut p = kernel::Packed::of(sim, 1, |v, _| v);
+        let drive = kernel::Drive {
+            u,
+            m: sim.delay_whole,
+            direct: &[sim.direct],
+            direct_prev: sim.direct_prev,
+        };
+        // SAFETY: the CPU has AVX2 and FMA (checked above).
+        unsafe { kernel::run_value(&mut p, &drive, sim.has_b1, head..n, y) };
+        p.state_back(sim, |v| v[0]);
+        refill_delay_line(sim, u, n);
         return;
     }
     sim.run_generic(u, y);
 }
 
-/// The same loop for AVX2 and FMA: the real modes four per instruction (explicit intrinsics: the
-/// compiler left the generic loop scalar), the complex ones as in [`Simulator::step`].
-///
-/// # Safety
-/// The CPU must support AVX2 and FMA.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-unsafe fn run_f64_avx2(sim: &mut Simulator<f64>, u: &[f64], y: &mut [f64]) {
-    for (yk, &uk) in y.iter_mut().zip(u) {
-        let (a, b) = sim.push(uk);
-        let mut out = sim.direct * if sim.direct_prev { b } else { a };
-        // SAFETY: AVX2 and FMA are enabled for this function; the lanes are whole fours.
-        out += unsafe { avx::row_value(&mut sim.re_x, &sim.re_phi, &sim.re_b0, &sim.re_b1, a, b) };
-        for i in 0..sim.cx_x.len() {
-            let x = sim.cx_x[i];
-            out += x.re;
-            sim.cx_x[i] = sim.cx_phi[i] * x + sim.cx_b0[i].scale(a) + sim.cx_b1[i].scale(b);
-        }
-        *yk = out;
-    }
-}
-
-/// AVX2 + FMA rows of the real modes (lengths whole multiples of four, checked).
-#[cfg(target_arch = "x86_64")]
-mod avx {
-    use std::arch::x86_64::*;
-
-    /// Horizontal sum of four lanes.
-    #[target_feature(enable = "avx2,fma")]
-    #[inline]
-    unsafe fn hsum(v: __m256d) -> f64 {
-        let mut l = [0.0f64; 4];
-        // SAFETY: `l` holds four f64.
-        unsafe { _mm256_storeu_pd(l.as_mut_ptr(), v) };
-        (l[0] + l[1]) + (l[2] + l[3])
-    }
-
-    /// `sum x` (before the update), then `x = phi x + b0 a + b1 b`.
-    ///
-    /// # Safety
-    /// AVX2 and FMA.
-    #[target_feature(enable = "avx2,fma")]
-    #[inline]
-    pub(super) unsafe fn row_value(
-        x: &mut [f64],
-        phi: &[f64],
-        b0: &[f64],
-        b1: &[f64],
-        a: f64,
-        b: f64,
-    ) -> f64 {
-        let n = x.len();
-        assert!(n % 4 == 0 && phi.len() >= n && b0.len() >= n && b1.len() >= n);
-        let (va, vb) = (_mm256_set1_pd(a), _mm256_set1_pd(b));
-        let (mut acc0, mut acc1) = (_mm256_setzero_pd(), _mm256_setzero_pd());
-        let mut i = 0;
-        while i < n {
-            // SAFETY: i + 4 <= n and every slice is at least n long (asserted above).
-            unsafe {
-                let xp = x.as_mut_ptr().add(i);
-                let xv = _mm256_loadu_pd(xp);
-                if (i / 4) % 2 == 0 {
-                    acc0 = _mm256_add_pd(acc0, xv);
-                } else {
-                    acc1 = _mm256_add_pd(acc1, xv);
-                }
-                let t = _mm256_mul_pd(_mm256_loadu_pd(b1.as_ptr().add(i)), vb);
-                let t = _mm256_fmadd_pd(_mm256_loadu_pd(b0.as_ptr().add(i)), va, t);
-                let t = _mm256_fmadd_pd(_mm256_loadu_pd(phi.as_ptr().add(i)), xv, t);
-                _mm256_storeu_pd(xp, t);
-            }
-            i += 4;
-        }
-        // SAFETY: AVX2 is enabled.
-        unsafe { hsum(_mm256_add_pd(acc0, acc1)) }
-    }
-
-    /// `sum xd` (before the update), then `xd = phi xd + dphi x + db0 a + db1 b` (`x` the
-    /// values before their own update).
-    ///
-    /// # Safety
-    /// AVX2 and FMA.
-    #[target_feature(enable = "avx2,fma")]
-    #[inline]
-    #[allow(clippy::too_many_arguments)]
-    pub(super) unsafe fn row_deriv(
-        xd: &mut [f64],
-        x: &[f64],
-        phi: &[f64],
-        dphi: &[f64],
-        db0: &[f64],
-        db1: &[f64],
-        a: f64,
-        b: f64,
-    ) -> f64 {
-        let n = xd.len();
-        assert!(
-            n % 4 == 0
-                && x.len() >= n
-                && phi.len() >= n
-                && dphi.len() >= n
-                && db0.len() >= n
-                && db1.len() >= n
-        );
-        let (va, vb) = (_mm256_set1_pd(a), _mm256_set1_pd(b));
-        let (mut acc0, mut acc1) = (_mm256_setzero_pd(), _mm256_setzero_pd());
-        let mut i = 0;
-        while i < n {
-            // SAFETY: i + 4 <= n and every slice is at least n long (asserted above).
-            unsafe {
-                let dp = xd.as_mut_ptr().add(i);
-                let dv = _mm256_loadu_pd(dp);
-                if (i / 4) % 2 == 0 {
-                    acc0 = _mm256_add_pd(acc0, dv);
-                } else {
-                    acc1 = _mm256_add_pd(acc1, dv);
-                }
-                let t = _mm256_mul_pd(_mm256_loadu_pd(db1.as_ptr().add(i)), vb);
-                let t = _mm256_fmadd_pd(_mm256_loadu_pd(db0.as_ptr().add(i)), va, t);
-                let t = _mm256_fmadd_pd(
-                    _mm256_loadu_pd(dphi.as_ptr().add(i)),
-                    _mm256_loadu_pd(x.as_ptr().add(i)),
-                    t,
-                );
-                let t = _mm256_fmadd_pd(_mm256_loadu_pd(phi.as_ptr().add(i)), dv, t);
-                _mm256_storeu_pd(dp, t);
-            }
-            i += 4;
-        }
-        // SAFETY: AVX2 is enabled.
-        unsafe { hsum(_mm256_add_pd(acc0, acc1)) }
-    }
-}
-
-/// [`Simulator::run_into`] in [`Dual`] numbers: the structure-of-arrays kernel
-/// ([`run_dual_soa`]) when the delay line holds plain inputs (no derivative: always after the
-/// first `m + 2` samples, and from the start unless the past input's levels are dual), compiled
-/// for AVX2 and FMA where the CPU has them; else one [`Simulator::step`] per sample.
+/// [`Simulator::run_into`] in [`Dual`] numbers: the first `m + 1` samples (which read the delay
+/// line, whose inputs may carry derivatives) by [`Simulator::step`], the rest by the AVX2 and FMA
+/// row kernel ([`kernel::run_rows`]) where the CPU has them, else by [`run_dual_soa`].
 pub(crate) fn run_dual<const N: usize>(sim: &mut Simulator<Dual<N>>, u: &[f64], y: &mut [Dual<N>]) {
-    if sim.hist.iter().any(|h| h.d.iter().any(|&d| d != 0.0)) {
-        sim.run_generic(u, y);
+    let n = u.len().min(y.len());
+    let head = head_of(sim, n);
+    sim.run_generic(&u[..head], &mut y[..head]);
+    if head == n {
         return;
     }
+    let part = |v: Dual<N>, r: usize| if r < N { v.d[r] } else { v.v };
     #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma") {
-        // SAFETY: the CPU has AVX2 and FMA, checked just above.
-        unsafe { run_dual_avx2(sim, u, y) };
+    if kernel::available() {
+        let mut p = kernel::Packed::of(sim, N + 1, part);
+        let direct: Vec<f64> = (0..=N).map(|r| part(sim.direct, r)).collect();
+        let drive = kernel::Drive {
+            u,
+            m: sim.delay_whole,
+            direct: &direct,
+            direct_prev: sim.direct_prev,
+        };
+        let mut out = |k: usize, v: f64, d: &[f64; N]| y[k] = Dual { v, d: *d };
+        // SAFETY: the CPU has AVX2 and FMA (checked above).
+        unsafe { kernel::run_rows::<N>(&mut p, &drive, sim.has_b1, head..n, &mut out) };
+        p.state_back(sim, |v| Dual {
+            v: v[N],
+            d: std::array::from_fn(|r| v[r]),
+        });
+        refill_delay_line(sim, u, n);
         return;
     }
-    run_dual_soa(sim, u, y, false);
-}
-
-/// [`run_dual_soa`] compiled for AVX2 and FMA.
-///
-/// # Safety
-/// The CPU must support AVX2 and FMA.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-unsafe fn run_dual_avx2<const N: usize>(
-    sim: &mut Simulator<Dual<N>>,
-    u: &[f64],
-    y: &mut [Dual<N>],
-) {
-    run_dual_soa(sim, u, y, true);
+    run_dual_soa(sim, &u[head..n], &mut y[head..n]);
 }
 
 /// The dual simulation with plain `f64` inputs, its states stored as structure of arrays (row `i`
@@ -594,12 +494,7 @@ unsafe fn run_dual_avx2<const N: usize>(
 /// input has no derivative, which saves the products a generic `Dual * Dual` would spend on it.
 /// Same arithmetic as [`Simulator::step`] up to rounding (the sums are grouped differently).
 #[inline(always)]
-fn run_dual_soa<const N: usize>(
-    sim: &mut Simulator<Dual<N>>,
-    u: &[f64],
-    y: &mut [Dual<N>],
-    avx: bool,
-) {
+fn run_dual_soa<const N: usize>(sim: &mut Simulator<Dual<N>>, u: &[f64], y: &mut [Dual<N>]) {
     let nr = sim.re_phi.len();
     let nc = sim.cx_phi.len();
     let rows = N + 1;
@@ -641,31 +536,7 @@ fn run_dual_soa<const N: usize>(
         }
         // Real modes: the derivative rows first (they need the old values), the value row last.
         let (xd, xv) = x.split_at_mut(xv_off);
-        #[cfg(target_arch = "x86_64")]
-        if avx {
-            let (phv, b0v, b1v) = (&phi[xv_off..], &b0[xv_off..], &b1[xv_off..]);
-            for i in 0..N {
-                let r = i * nr;
-                // SAFETY: `avx` is true only when the CPU has AVX2 and FMA; whole lanes of four.
-                out.d[i] += unsafe {
-                    avx::row_deriv(
-                        &mut xd[r..r + nr],
-                        xv,
-                        phv,
-                        &phi[r..r + nr],
-                        &b0[r..r + nr],
-                        &b1[r..r + nr],
-                        a,
-                        b,
-                    )
-                };
-            }
-            // SAFETY: as above.
-            out.v += unsafe { avx::row_value(xv, phv, b0v, b1v, a, b) };
-        }
-        if !avx {
-            real_rows(xd, xv, &phi, &b0, &b1, nr, a, b, &mut out);
-        }
+        real_rows(xd, xv, &phi, &b0, &b1, nr, a, b, &mut out);
         // Complex modes (each the real part of a doubled pair): the same, in complex arithmetic.
         let (dr, vr) = cxr.split_at_mut(cv_off);
         let (di, vi) = cxi.split_at_mut(cv_off);
