@@ -119,6 +119,27 @@ fn hsum(v: __m256d) -> f64 {
     _mm_cvtsd_f64(_mm_add_sd(s, _mm_unpackhi_pd(s, s)))
 }
 
+/// `y[k] = ` the sum of the four lanes of `parts[k]`, four samples at a time.
+#[target_feature(enable = "avx2,fma")]
+#[inline]
+fn sum_parts(parts: &[__m256d], y: &mut [f64]) {
+    let mut quads = parts.chunks_exact(4);
+    let mut outs = y.chunks_exact_mut(4);
+    for (q, o) in (&mut quads).zip(&mut outs) {
+        // [p0_0 + p0_1, p1_0 + p1_1, p0_2 + p0_3, p1_2 + p1_3], the same for p2, p3
+        let s01 = _mm256_hadd_pd(q[0], q[1]);
+        let s23 = _mm256_hadd_pd(q[2], q[3]);
+        let lo = _mm256_permute2f128_pd::<0x20>(s01, s23);
+        let hi = _mm256_permute2f128_pd::<0x31>(s01, s23);
+        let o: &mut [f64; 4] = o.try_into().expect("four samples");
+        // SAFETY: `o` is four f64.
+        unsafe { _mm256_storeu_pd(o.as_mut_ptr(), _mm256_add_pd(lo, hi)) };
+    }
+    for (q, o) in quads.remainder().iter().zip(outs.into_remainder()) {
+        *o = hsum(*q);
+    }
+}
+
 /// The two 128-bit halves exchanged: `[re_0, re_1, im_0, im_1]` -> `[im_0, im_1, re_0, re_1]`.
 #[target_feature(enable = "avx2,fma")]
 #[inline]
@@ -175,35 +196,49 @@ unsafe fn value_regs<const VR: usize, const VC: usize, const B1: bool>(
         (xc[c], p1c[c], p2c[c]) = (ld(&p.x, j), ld(&p.phi1, j), ld(&p.phi2, j));
         (b0c[c], b1c[c]) = (ld(&p.b0, j), ld(&p.b1, j));
     }
-    let (direct, m) = (d.direct[0], d.m);
-    let (u, y) = (&d.u[range.start - m - 1..range.end - m], &mut y[range]);
-    for (yk, w) in y.iter_mut().zip(u.windows(2)) {
-        let (b, a) = (w[0], w[1]);
-        let (va, vb) = (_mm256_set1_pd(a), _mm256_set1_pd(b));
-        let (mut acc0, mut acc1) = (z, z);
-        for j in 0..VR {
-            if j % 2 == 0 {
-                acc0 = _mm256_add_pd(acc0, xr[j]);
-            } else {
-                acc1 = _mm256_add_pd(acc1, xr[j]);
+    let m = d.m;
+    // The output's four partial sums of each sample are kept for a block and summed four samples
+    // at a time (a transpose by `hadd`), off the loop-carried path.
+    const BLOCK: usize = 256;
+    let mut parts = [z; BLOCK];
+    let mut k0 = range.start;
+    while k0 < range.end {
+        let k1 = (k0 + BLOCK).min(range.end);
+        let u = &d.u[k0 - m - 1..k1 - m];
+        for (acc, w) in parts.iter_mut().zip(u.windows(2)) {
+            let (va, vb) = (_mm256_set1_pd(w[1]), _mm256_set1_pd(w[0]));
+            let (mut acc0, mut acc1) = (z, z);
+            for j in 0..VR {
+                if j % 2 == 0 {
+                    acc0 = _mm256_add_pd(acc0, xr[j]);
+                } else {
+                    acc1 = _mm256_add_pd(acc1, xr[j]);
+                }
+                let mut t = _mm256_mul_pd(b0r[j], va);
+                if B1 {
+                    t = _mm256_fmadd_pd(b1r[j], vb, t);
+                }
+                xr[j] = _mm256_fmadd_pd(phr[j], xr[j], t);
             }
-            let mut t = _mm256_mul_pd(b0r[j], va);
-            if B1 {
-                t = _mm256_fmadd_pd(b1r[j], vb, t);
+            for c in 0..VC {
+                acc1 = _mm256_add_pd(acc1, re_part(xc[c]));
+                let mut t = _mm256_mul_pd(b0c[c], va);
+                if B1 {
+                    t = _mm256_fmadd_pd(b1c[c], vb, t);
+                }
+                let t2 = _mm256_mul_pd(p2c[c], swap(xc[c]));
+                xc[c] = _mm256_add_pd(_mm256_fmadd_pd(p1c[c], xc[c], t), t2);
             }
-            xr[j] = _mm256_fmadd_pd(phr[j], xr[j], t);
+            *acc = _mm256_add_pd(acc0, acc1);
         }
-        for c in 0..VC {
-            acc1 = _mm256_add_pd(acc1, re_part(xc[c]));
-            let mut t = _mm256_mul_pd(b0c[c], va);
-            if B1 {
-                t = _mm256_fmadd_pd(b1c[c], vb, t);
+        sum_parts(&parts[..k1 - k0], &mut y[k0..k1]);
+        if d.direct[0] != 0.0 {
+            let back = m + usize::from(d.direct_prev);
+            for k in k0..k1 {
+                y[k] += d.direct[0] * d.u[k - back];
             }
-            t = _mm256_fmadd_pd(p2c[c], swap(xc[c]), t);
-            xc[c] = _mm256_fmadd_pd(p1c[c], xc[c], t);
         }
-        let din = if d.direct_prev { b } else { a };
-        *yk = hsum(_mm256_add_pd(acc0, acc1)) + direct * din;
+        k0 = k1;
     }
     for j in 0..VR {
         st(&mut p.x, j, xr[j]);
