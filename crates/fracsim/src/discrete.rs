@@ -783,7 +783,10 @@ mod tests {
                 }
                 let scale = want.iter().map(|w| w.abs()).fold(1.0, f64::max);
                 for (k, (g2, w)) in got.iter().zip(&want).enumerate() {
-                    assert!((g2 - w).abs() < 1e-12 * scale, "{g} tau {tau} k {k}: {g2} vs {w}");
+                    assert!(
+                        (g2 - w).abs() < 1e-12 * scale,
+                        "{g} tau {tau} k {k}: {g2} vs {w}"
+                    );
                 }
             }
         }

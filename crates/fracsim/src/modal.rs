@@ -378,9 +378,34 @@ fn polish(groups: &[Group<f64>], s0: Complex64, found: &[Complex64]) -> Option<C
 /// the realisation and from every cell pole: the slow zeros sit a hair away from cell poles, where
 /// the eigenvalues of the (non-normal) realisation are too coarse to tell neighbours apart. The
 /// distinct roots must number the states of the realisation.
-fn roots_of_h(groups: &[Group<f64>], d: f64) -> Result<Vec<Complex64>> {
+fn roots_of_h(groups: &[Group<f64>], d: f64, hint: &[Complex64]) -> Result<Vec<Complex64>> {
     let k_max = groups.iter().map(|g| g.coef.len()).max().unwrap_or(1) - 1;
     let n_states: usize = groups.iter().map(|g| g.zeros.len()).sum::<usize>() + k_max;
+    let mut roots: Vec<Complex64> = vec![];
+    // The roots of a nearby `H` first: when plain Newton from them finds every root (distinct
+    // roots numbering the states are all of them), the eigenvalue problem is not needed.
+    if !hint.is_empty() {
+        let tol = |r: Complex64| 1e-12 * r.norm().max(1e-300);
+        for &e in hint.iter().filter(|e| e.im >= 0.0) {
+            let Some(mut r) = polish(groups, e, &[]) else {
+                break;
+            };
+            if roots.iter().any(|q| (q - r).norm() <= tol(r)) {
+                break;
+            }
+            if r.im.abs() <= 1e-12 * r.norm() {
+                r.im = 0.0;
+            }
+            roots.push(r);
+            if r.im != 0.0 {
+                roots.push(r.conj());
+            }
+        }
+        if roots.len() == n_states {
+            return Ok(roots);
+        }
+        roots.clear();
+    }
     let eig = match zeros_of_h_modal(groups, d) {
         Some(z) => z,
         None => zeros_of_h(groups, d)?,
@@ -408,7 +433,6 @@ fn roots_of_h(groups: &[Group<f64>], d: f64) -> Result<Vec<Complex64>> {
             })
             .collect(),
     ];
-    let mut roots: Vec<Complex64> = vec![];
     for &e in rounds.iter().flatten() {
         if roots.len() >= n_states {
             break;
@@ -463,6 +487,92 @@ fn roots_of_h(groups: &[Group<f64>], d: f64) -> Result<Vec<Complex64>> {
             roots.len()
         )));
     }
+    Ok(roots)
+}
+
+thread_local! {
+    /// The root sets of the last few `H` solved on this thread, each with the values it solved
+    /// (`d`, then each group's cells and coefficients; the group sizes alongside). A fit builds the
+    /// model at nearby parameters again and again (each trial, then each part of its Jacobian in
+    /// dual numbers), and the eigenvalue problem of [`roots_of_h`] is most of the cost of a build:
+    /// the roots of the nearest `H` solved before start Newton's method instead, and the same `H`
+    /// again is answered at once. Per thread, so that what a thread computes depends only on what it
+    /// computed before (threads that work for one fit start from a copy, see [`RootsCache`]).
+    static ROOTS: std::cell::RefCell<Vec<Solved>> = const { std::cell::RefCell::new(Vec::new()) };
+}
+
+/// A copy of this thread's cache of solved poles ([`RootsCache::of_this_thread`]), to give to the
+/// threads that share its work ([`RootsCache::install`]): each then finds the poles of the models
+/// it builds from the same starts as this thread would, and computes the same values.
+#[derive(Debug, Clone, Default)]
+pub struct RootsCache(Vec<Solved>);
+
+impl RootsCache {
+    /// A copy of the calling thread's cache.
+    pub fn of_this_thread() -> Self {
+        Self(ROOTS.with(|r| r.borrow().clone()))
+    }
+
+    /// Replace the calling thread's cache with this copy.
+    pub fn install(self) {
+        ROOTS.with(|r| *r.borrow_mut() = self.0);
+    }
+}
+
+/// One entry of [`ROOTS`]: the sizes, the values and the roots.
+type Solved = (Vec<usize>, Vec<f64>, Vec<Complex64>);
+
+/// How many root sets [`ROOTS`] keeps.
+const ROOTS_KEPT: usize = 8;
+
+/// The largest relative change of any value for which a solved `H`'s roots start Newton's
+/// method: the roots of `H` move continuously with its values, and from 5% away Newton takes a
+/// few steps. Further away the eigenvalues start it.
+const HINT_DISTANCE: f64 = 0.05;
+
+/// [`roots_of_h`] with the roots of the nearest `H` in [`ROOTS`] as its hint.
+fn roots_of_h_cached(groups: &[Group<f64>], d: f64) -> Result<Vec<Complex64>> {
+    let sizes: Vec<usize> = groups
+        .iter()
+        .flat_map(|g| [g.zeros.len(), g.coef.len()])
+        .collect();
+    let mut values = vec![d];
+    for g in groups {
+        values.extend(g.zeros.iter().chain(&g.poles).chain(&g.coef));
+    }
+    let distance = |other: &[f64]| -> f64 {
+        values
+            .iter()
+            .zip(other)
+            .map(|(a, b)| {
+                let scale = a.abs().max(b.abs());
+                if scale == 0.0 {
+                    0.0
+                } else {
+                    (a - b).abs() / scale
+                }
+            })
+            .fold(0.0, f64::max)
+    };
+    let nearest = ROOTS.with(|c| {
+        c.borrow()
+            .iter()
+            .filter(|(s, _, _)| *s == sizes)
+            .map(|(_, v, r)| (distance(v), r.clone()))
+            .min_by(|a, b| a.0.total_cmp(&b.0))
+    });
+    let roots = match nearest {
+        Some((0.0, r)) => return Ok(r),
+        Some((dist, r)) if dist <= HINT_DISTANCE => roots_of_h(groups, d, &r)?,
+        _ => roots_of_h(groups, d, &[])?,
+    };
+    ROOTS.with(|c| {
+        let mut cache = c.borrow_mut();
+        if cache.len() >= ROOTS_KEPT {
+            cache.remove(0);
+        }
+        cache.push((sizes, values, roots.clone()));
+    });
     Ok(roots)
 }
 
@@ -536,7 +646,7 @@ pub fn pole_residue<T: Real>(
             .collect()
     };
     let hg64 = values(&hg);
-    let roots = roots_of_h(&hg64, d.re())?;
+    let roots = roots_of_h_cached(&hg64, d.re())?;
     let mut out = PoleResidue {
         real: vec![],
         complex: vec![],
@@ -646,6 +756,45 @@ fn check<T: Real>(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Poles found from the poles of a nearby model (the cache's hint) equal the poles found
+    /// from the eigenvalues, to rounding; the same model again is answered from the cache.
+    #[test]
+    fn poles_from_a_nearby_models_poles_equal_the_cold_ones() {
+        let model = |zeta: f64, a1: f64| {
+            pole_residue::<f64>(
+                &[(6.82, 0.0)],
+                &[(2.655e-5, zeta + 0.8252), (a1, zeta), (1.0, 0.0)],
+                (1e-3, 2e5),
+                &ApproxSpec::default(),
+            )
+            .unwrap()
+        };
+        RootsCache::default().install();
+        let cold = model(0.93, 0.006);
+        RootsCache::default().install();
+        let _ = model(0.92, 0.0059);
+        let warm = model(0.93, 0.006);
+        let again = model(0.93, 0.006);
+        assert_eq!(cold.real.len(), warm.real.len());
+        assert_eq!(cold.complex.len(), warm.complex.len());
+        let mut a: Vec<f64> = cold.real.iter().map(|p| p.0).collect();
+        let mut b: Vec<f64> = warm.real.iter().map(|p| p.0).collect();
+        a.sort_by(f64::total_cmp);
+        b.sort_by(f64::total_cmp);
+        for (x, y) in a.iter().zip(&b) {
+            assert!((x - y).abs() <= 1e-12 * x.abs(), "{x} vs {y}");
+        }
+        let sorted = |pr: &PoleResidue<f64>| {
+            let mut c: Vec<Complex64> = pr.complex.iter().map(|p| p.0.val()).collect();
+            c.sort_by(|x, y| x.im.total_cmp(&y.im));
+            c
+        };
+        for (x, y) in sorted(&cold).iter().zip(&sorted(&warm)) {
+            assert!((x - y).norm() <= 1e-12 * x.norm(), "{x} vs {y}");
+        }
+        assert_eq!(format!("{:?}", warm.real), format!("{:?}", again.real));
+    }
 
     /// Orders within ppm of an integer make cells that nearly cancel (and the refined Oustaloup
     /// a pole near 1e11 rad/s); the expansion still holds (it is checked inside) and agrees with

@@ -468,15 +468,45 @@ fn gradient_cosine(jac: &Mat<f64>, r: &[f64], col_norms: &[f64], rnorm: f64) -> 
         .fold(0.0, f64::max)
 }
 
+/// Rows of `[J r]` factored at a time by [`qr_of_jr`].
+const QR_BLOCK: usize = 8192;
+
 /// QR of `[J r]`: returns the `k x n` upper-trapezoidal `R` (k = min(m, n)) and `Q^T r` (length k).
+///
+/// Factored by blocks of rows (the tall-skinny QR): the `R` of the rows so far stacked on the
+/// next [`QR_BLOCK`] rows is factored again, so memory stays one block whatever the record's
+/// length and `[J r]` is never copied whole. `R` is unique up to the signs of its rows, which
+/// `Q^T r` shares, so every use below (the damped steps, the covariance) is the same.
 fn qr_of_jr(jac: &Mat<f64>, r: &[f64]) -> (Mat<f64>, Vec<f64>) {
     let (m, n) = (jac.nrows(), jac.ncols());
-    let a = Mat::<f64>::from_fn(m, n + 1, |i, j| if j < n { jac[(i, j)] } else { r[i] });
-    let qr = a.qr();
-    let rr = qr.thin_R();
+    let w = n + 1;
+    let mut top = Mat::<f64>::zeros(0, w);
+    let mut start = 0;
+    while start < m {
+        let end = (start + QR_BLOCK).min(m);
+        let have = top.nrows();
+        let mut a = Mat::<f64>::zeros(have + end - start, w);
+        for j in 0..w {
+            let col = a.col_as_slice_mut(j);
+            for i in 0..have {
+                col[i] = top[(i, j)];
+            }
+            let src = if j < n {
+                &jac.col_as_slice(j)[start..end]
+            } else {
+                &r[start..end]
+            };
+            col[have..].copy_from_slice(src);
+        }
+        let qr = a.qr();
+        top = qr.thin_R().to_owned();
+        start = end;
+    }
     let k = m.min(n);
-    let rmat = Mat::<f64>::from_fn(k, n, |i, j| rr[(i, j)]);
-    let qtr = (0..k).map(|i| rr[(i, n)]).collect();
+    let rmat = Mat::<f64>::from_fn(k, n, |i, j| if i < top.nrows() { top[(i, j)] } else { 0.0 });
+    let qtr = (0..k)
+        .map(|i| if i < top.nrows() { top[(i, n)] } else { 0.0 })
+        .collect();
     (rmat, qtr)
 }
 
@@ -502,8 +532,8 @@ fn damped_step(rmat: &Mat<f64>, qtr: &[f64], diag: &[f64], lambda: f64) -> Vec<f
 /// numerically singular (a diagonal entry below `1e-13` times the largest).
 fn covariance(jac: &Mat<f64>, sigma2: f64) -> Option<Vec<f64>> {
     let n = jac.ncols();
-    let qr = jac.qr();
-    let r = qr.thin_R();
+    // The R of `J` is the leading block of the R of `[J r]` (any `r`).
+    let (r, _) = qr_of_jr(jac, &vec![0.0; jac.nrows()]);
     let rmax = (0..n).map(|i| r[(i, i)].abs()).fold(0.0, f64::max);
     // 1e-13: about 500 ulp relative; below this the inverse is dominated by rounding.
     if rmax == 0.0 || (0..n).any(|i| r[(i, i)].abs() <= 1e-13 * rmax) {
@@ -539,6 +569,42 @@ fn covariance(jac: &Mat<f64>, sigma2: f64) -> Option<Vec<f64>> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The blocked QR of `[J r]` (three blocks and a part) against faer's QR of the whole: the
+    /// same `R` and `Q^T r` up to the sign of each row, to rounding.
+    #[test]
+    fn blocked_qr_equals_the_whole_qr() {
+        let (m, n) = (3 * QR_BLOCK + 517, 4);
+        let mut state = 7u64;
+        let mut rnd = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        let jac = Mat::<f64>::from_fn(m, n, |i, j| {
+            rnd() + if j == 0 { 1e-3 * i as f64 } else { 0.0 }
+        });
+        let r: Vec<f64> = (0..m).map(|_| rnd()).collect();
+        let (rmat, qtr) = qr_of_jr(&jac, &r);
+        let whole = Mat::<f64>::from_fn(m, n + 1, |i, j| if j < n { jac[(i, j)] } else { r[i] });
+        let qr = whole.qr();
+        let want = qr.thin_R();
+        for i in 0..n {
+            let sign = (want[(i, i)] * rmat[(i, i)]).signum();
+            let scale = want[(i, i)].abs();
+            for j in 0..n {
+                assert!(
+                    (sign * rmat[(i, j)] - want[(i, j)]).abs() < 1e-11 * scale,
+                    "R[{i},{j}]"
+                );
+            }
+            assert!(
+                (sign * qtr[i] - want[(i, n)]).abs() < 1e-11 * scale,
+                "Q^T r [{i}]"
+            );
+        }
+    }
 
     /// Linear model y = a + b t: LM must give the OLS solution and its textbook covariance.
     struct Line {

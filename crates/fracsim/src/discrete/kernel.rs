@@ -36,7 +36,11 @@ pub(super) struct Packed {
 impl Packed {
     /// Pack `sim`'s coefficients and state; `part(v, r)` is part `r` of `v` (`r = rows - 1` the
     /// value).
-    pub(super) fn of<T: Real>(sim: &Simulator<T>, rows: usize, part: impl Fn(T, usize) -> f64) -> Self {
+    pub(super) fn of<T: Real>(
+        sim: &Simulator<T>,
+        rows: usize,
+        part: impl Fn(T, usize) -> f64,
+    ) -> Self {
         let nr = sim.re_phi.len();
         debug_assert!(nr % 4 == 0);
         let (vr, nc) = (nr / 4, sim.cx_phi.len());
@@ -111,12 +115,16 @@ pub(super) struct Drive<'a> {
     pub direct_prev: bool,
 }
 
-/// Horizontal sum of four lanes.
+/// Horizontal sum of four lanes, `(l0 + l1) + (l2 + l3)`.
 #[target_feature(enable = "avx2,fma")]
 #[inline]
 fn hsum(v: __m256d) -> f64 {
-    let s = _mm_add_pd(_mm256_castpd256_pd128(v), _mm256_extractf128_pd::<1>(v));
-    _mm_cvtsd_f64(_mm_add_sd(s, _mm_unpackhi_pd(s, s)))
+    // (l0 + l1) + (l2 + l3), as `sum_parts` groups them: a sample's output does not depend on
+    // where it falls in a block.
+    let mut l = [0.0f64; 4];
+    // SAFETY: `l` holds four f64.
+    unsafe { _mm256_storeu_pd(l.as_mut_ptr(), v) };
+    (l[0] + l[1]) + (l[2] + l[3])
 }
 
 /// `y[k] = ` the sum of the four lanes of `parts[k]`, four samples at a time.
@@ -190,7 +198,8 @@ unsafe fn value_regs<const VR: usize, const VC: usize, const B1: bool>(
     for j in 0..VR {
         (xr[j], phr[j], b0r[j], b1r[j]) = (ld(&p.x, j), ld(&p.phi1, j), ld(&p.b0, j), ld(&p.b1, j));
     }
-    let (mut xc, mut p1c, mut p2c, mut b0c, mut b1c) = ([z; VC], [z; VC], [z; VC], [z; VC], [z; VC]);
+    let (mut xc, mut p1c, mut p2c, mut b0c, mut b1c) =
+        ([z; VC], [z; VC], [z; VC], [z; VC], [z; VC]);
     for c in 0..VC {
         let j = VR + c;
         (xc[c], p1c[c], p2c[c]) = (ld(&p.x, j), ld(&p.phi1, j), ld(&p.phi2, j));
@@ -336,7 +345,13 @@ pub(super) fn available() -> bool {
 ///
 /// # Safety
 /// The CPU must support AVX2 and FMA ([`available`]).
-pub(super) unsafe fn run_value(p: &mut Packed, d: &Drive<'_>, b1: bool, range: Range<usize>, y: &mut [f64]) {
+pub(super) unsafe fn run_value(
+    p: &mut Packed,
+    d: &Drive<'_>,
+    b1: bool,
+    range: Range<usize>,
+    y: &mut [f64],
+) {
     macro_rules! regs {
         ($($vr:literal)*) => {
             match (p.vr, p.vc, b1) {
