@@ -24,6 +24,8 @@
 
 use crate::{Error, Result};
 
+mod fast;
+
 /// A uniformly sampled single-input single-output record.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Record {
@@ -235,11 +237,13 @@ pub fn check_finite(name: &str, col: &[f64]) -> Result<()> {
     }
 }
 
-/// The median of the steps of `t` (at least 2 samples).
+/// The median of the steps of `t` (at least 2 samples): the element `len/2` of the steps in
+/// [`f64::total_cmp`] order, found by selection in linear time (the same value sorting gives:
+/// elements equal under the total order are the same bits).
 fn median_step(t: &[f64]) -> f64 {
     let mut d: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
-    d.sort_by(f64::total_cmp);
-    d[d.len() / 2]
+    let mid = d.len() / 2;
+    *d.select_nth_unstable_by(mid, f64::total_cmp).1
 }
 
 /// The sampling step of the time stamps `t`: the mean step, after checking that there are at
@@ -334,7 +338,10 @@ pub fn read_columns<const N: usize>(
     text: &str,
     wants: [&str; N],
 ) -> Result<(Vec<String>, [Vec<f64>; N])> {
-    read_columns_at(text, wants).map(|(names, cols, _)| (names, cols))
+    match fast::read(text, &wants, false, fast::PARALLEL_BYTES) {
+        Some((names, cols, _)) => Ok((names, cols)),
+        None => read_columns_simple(text, wants).map(|(names, cols, _)| (names, cols)),
+    }
 }
 
 /// Columns read by [`read_columns_at`]: the header's names, the columns, the line of each row.
@@ -342,9 +349,24 @@ pub type ColumnsAt<const N: usize> = (Vec<String>, [Vec<f64>; N], Vec<usize>);
 
 /// [`read_columns`], also returning the 1-based line number of each row.
 ///
+/// Data rows are split at the byte level with no allocation per line, only the wanted columns
+/// are parsed, plain decimals by an exact fast path (Clinger's: the correctly rounded value
+/// `str::parse` gives, to the bit), and a table of 256 KiB or more in two halves on two threads;
+/// what that path does not handle (an error, a file whose lines end in a bare `\r`) is read by
+/// the simple line-by-line reader, which gives the same values and reports the errors.
+///
 /// # Errors
 /// As [`read_columns`].
 pub fn read_columns_at<const N: usize>(text: &str, wants: [&str; N]) -> Result<ColumnsAt<N>> {
+    match fast::read(text, &wants, true, fast::PARALLEL_BYTES) {
+        Some(r) => Ok(r),
+        None => read_columns_simple(text, wants),
+    }
+}
+
+/// The simple reader behind [`read_columns_at`]: line by line, every rule spelled out once; the
+/// reference the fast path is tested against, and the reader of every error.
+fn read_columns_simple<const N: usize>(text: &str, wants: [&str; N]) -> Result<ColumnsAt<N>> {
     let tab = table(text)?;
     let index_names: Vec<String>;
     let names: Vec<&str> = if tab.has_header {
@@ -406,24 +428,24 @@ pub const MAX_LINE_BYTES: usize = 1 << 20;
 /// line too long, a NUL byte or invalid UTF-8 (with the line and byte where it is).
 pub fn read_text(path: &std::path::Path) -> Result<String> {
     let bytes = read_bytes(path, true)?;
-    let where_ = |pos: usize| {
-        let line = 1 + bytes[..pos].iter().filter(|&&b| b == b'\n').count();
+    let where_ = |bytes: &[u8], pos: usize| {
+        let line = 1 + memchr::memchr_iter(b'\n', &bytes[..pos]).count();
         format!("line {line}, byte {pos}")
     };
-    if let Some(pos) = bytes.iter().position(|&b| b == 0) {
+    if let Some(pos) = memchr::memchr(0, &bytes) {
         return Err(Error::Data(format!(
             "{} is not a text table: a NUL byte at {} (a binary file? MATLAB files must end in \
              .mat; UTF-16 text must be saved as UTF-8)",
             path.display(),
-            where_(pos)
+            where_(&bytes, pos)
         )));
     }
-    String::from_utf8(bytes.clone()).map_err(|e| {
+    String::from_utf8(bytes).map_err(|e| {
         Error::Data(format!(
             "{} is not UTF-8 text: invalid byte at {} (save it as UTF-8, or is it a binary \
              file?)",
             path.display(),
-            where_(e.utf8_error().valid_up_to())
+            where_(e.as_bytes(), e.utf8_error().valid_up_to())
         ))
     })
 }
@@ -440,6 +462,7 @@ pub(crate) fn read_bytes(path: &std::path::Path, lines: bool) -> Result<Vec<u8>>
         reason: io_reason(&e),
     };
     let file = std::fs::File::open(path).map_err(io)?;
+    let mut size = 0;
     if let Ok(m) = file.metadata() {
         if m.is_dir() {
             return Err(Error::Io {
@@ -450,33 +473,47 @@ pub(crate) fn read_bytes(path: &std::path::Path, lines: bool) -> Result<Vec<u8>>
         if m.len() > MAX_FILE_BYTES {
             return Err(too_large(path));
         }
+        size = m.len() as usize;
     }
+    const CHUNK: usize = 1 << 16;
     let mut r = file.take(MAX_FILE_BYTES + 1);
-    let mut out = Vec::new();
-    let mut buf = vec![0u8; 1 << 16];
+    // Read straight into the result, sized for the file (a device or a pipe grows it).
+    let mut out: Vec<u8> = Vec::with_capacity(size + CHUNK);
     let mut run = 0usize; // bytes since the last line end
     loop {
-        let n = match r.read(&mut buf) {
-            Ok(0) => break,
+        let filled = out.len();
+        out.resize(filled + CHUNK, 0);
+        let n = match r.read(&mut out[filled..]) {
             Ok(n) => n,
-            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {
+                out.truncate(filled);
+                continue;
+            }
             Err(e) => return Err(io(e)),
         };
+        out.truncate(filled + n);
+        if n == 0 {
+            break;
+        }
         if lines {
-            for &b in &buf[..n] {
-                run = if b == b'\n' || b == b'\r' { 0 } else { run + 1 };
-                if run > MAX_LINE_BYTES {
-                    return Err(Error::Data(format!(
-                        "{}: line {} is longer than {} bytes: not a text table (a binary file \
-                         or a device?)",
-                        path.display(),
-                        1 + out.iter().filter(|&&c| c == b'\n').count(),
-                        MAX_LINE_BYTES
-                    )));
-                }
+            // A run of bytes with no line end (`\n` or `\r`) longer than the limit: only the one
+            // that goes on from the previous read can be (a read is shorter than the limit).
+            let chunk = &out[filled..];
+            let is_end = |b: &u8| *b == b'\n' || *b == b'\r';
+            run += chunk.iter().position(is_end).unwrap_or(n);
+            if run > MAX_LINE_BYTES {
+                return Err(Error::Data(format!(
+                    "{}: line {} is longer than {} bytes: not a text table (a binary file \
+                     or a device?)",
+                    path.display(),
+                    1 + memchr::memchr_iter(b'\n', &out[..filled]).count(),
+                    MAX_LINE_BYTES
+                )));
+            }
+            if let Some(last) = chunk.iter().rposition(is_end) {
+                run = n - 1 - last;
             }
         }
-        out.extend_from_slice(&buf[..n]);
         if out.len() as u64 > MAX_FILE_BYTES {
             return Err(too_large(path));
         }
@@ -529,9 +566,19 @@ impl Acquisition {
     /// Read the footer (the last `# complete` / `# incomplete` comment) and the header comment
     /// of delimited text.
     pub fn of_text(text: &str) -> Self {
+        if text.contains('\n') {
+            Self::of_lines(hash_lines(text))
+        } else {
+            Self::of_lines(physical_lines(text))
+        }
+    }
+
+    /// [`Acquisition::of_text`] from the physical lines of a text (only those holding a `#`
+    /// matter).
+    fn of_lines<'a>(lines: impl Iterator<Item = &'a str>) -> Self {
         let mut drive = false;
         let mut last = Self::Unknown;
-        for line in physical_lines(text) {
+        for line in lines {
             let Some(c) = line.trim().strip_prefix('#') else {
                 continue;
             };
@@ -551,6 +598,26 @@ impl Acquisition {
             other => other,
         }
     }
+}
+
+/// The physical lines of a text with a `\n` that hold a `#`, in order, each as
+/// [`physical_lines`] gives it (found by searching the `#`s, not by walking every line).
+fn hash_lines(text: &str) -> impl Iterator<Item = &str> {
+    let b = text.as_bytes();
+    let mut from = 0;
+    std::iter::from_fn(move || {
+        let h = from + memchr::memchr(b'#', b.get(from..)?)?;
+        let start = memchr::memrchr(b'\n', &b[..h]).map_or(0, |i| i + 1);
+        let end = memchr::memchr(b'\n', &b[h..]).map_or(b.len(), |i| h + i);
+        from = end + 1;
+        let line = &text[start..end];
+        // `str::lines` drops the `\r` of a `\r\n`.
+        Some(if end < b.len() {
+            line.strip_suffix('\r').unwrap_or(line)
+        } else {
+            line
+        })
+    })
 }
 
 /// At most 200 characters of a footer's text.
@@ -832,13 +899,15 @@ impl Record {
                     .position(|&v| v != u0)
                     .unwrap_or(self.len())
                     .max(1);
+                // The median by selection (linear time; the values sorting would give).
                 let mut pre = self.y[..first_change].to_vec();
-                pre.sort_by(f64::total_cmp);
                 let m = pre.len();
+                let (below, &mut hi, _) = pre.select_nth_unstable_by(m / 2, f64::total_cmp);
                 let y0 = if m % 2 == 1 {
-                    pre[m / 2]
+                    hi
                 } else {
-                    0.5 * (pre[m / 2 - 1] + pre[m / 2])
+                    let lo = below.iter().copied().max_by(f64::total_cmp).unwrap_or(hi);
+                    0.5 * (lo + hi)
                 };
                 Offsets { u0, y0 }
             }
