@@ -476,6 +476,25 @@ pub(crate) fn read_bytes(path: &std::path::Path, lines: bool) -> Result<Vec<u8>>
         size = m.len() as usize;
     }
     const CHUNK: usize = 1 << 16;
+    if size >= PARALLEL_READ_BYTES {
+        if let Some(out) = read_halves(&file, size) {
+            if lines {
+                if let Some(p) = first_long_run(&out) {
+                    // The line the byte-by-byte reading reports: the lines before the read of
+                    // `CHUNK` bytes where the run grows too long.
+                    let before = p / CHUNK * CHUNK;
+                    return Err(Error::Data(format!(
+                        "{}: line {} is longer than {} bytes: not a text table (a binary file \
+                         or a device?)",
+                        path.display(),
+                        1 + memchr::memchr_iter(b'\n', &out[..before]).count(),
+                        MAX_LINE_BYTES
+                    )));
+                }
+            }
+            return Ok(out);
+        }
+    }
     let mut r = file.take(MAX_FILE_BYTES + 1);
     // Read straight into the result, sized for the file (a device or a pipe grows it).
     let mut out: Vec<u8> = Vec::with_capacity(size + CHUNK);
@@ -519,6 +538,54 @@ pub(crate) fn read_bytes(path: &std::path::Path, lines: bool) -> Result<Vec<u8>>
         }
     }
     Ok(out)
+}
+
+/// Regular files of at least this many bytes are read in two halves on two threads.
+const PARALLEL_READ_BYTES: usize = 8 << 20;
+
+/// The `size` bytes of a regular file, read in two halves on two threads (positioned reads: the
+/// file's cursor is not moved), or `None` when that fails or the file is not `size` bytes long
+/// (it changed): the caller then reads it from the start, one read after another.
+#[cfg(unix)]
+fn read_halves(file: &std::fs::File, size: usize) -> Option<Vec<u8>> {
+    use std::os::unix::fs::FileExt;
+    if !file.metadata().ok()?.is_file() {
+        return None;
+    }
+    let mut out = vec![0u8; size];
+    let half = size / 2;
+    let (a, b) = out.split_at_mut(half);
+    let ok = std::thread::scope(|s| {
+        let h = s.spawn(|| file.read_exact_at(b, half as u64).is_ok());
+        let first = file.read_exact_at(a, 0).is_ok();
+        h.join().unwrap_or(false) && first
+    });
+    let mut probe = [0u8; 1];
+    (ok && matches!(file.read_at(&mut probe, size as u64), Ok(0))).then_some(out)
+}
+
+#[cfg(not(unix))]
+fn read_halves(_file: &std::fs::File, _size: usize) -> Option<Vec<u8>> {
+    None
+}
+
+/// Where the first run of more than [`MAX_LINE_BYTES`] bytes with no line end (`\n` or `\r`)
+/// grows too long (the index of its byte `MAX_LINE_BYTES + 1`), if there is one. Windows of
+/// `MAX_LINE_BYTES + 1` bytes are searched from their end for the last line end, so a table is
+/// checked in a few searches, not line by line.
+fn first_long_run(b: &[u8]) -> Option<usize> {
+    let mut start = 0; // the first byte after the last line end
+    loop {
+        let lim = (start + MAX_LINE_BYTES + 1).min(b.len());
+        match memchr::memrchr2(b'\n', b'\r', &b[start..lim]) {
+            Some(i) => start += i + 1,
+            None if lim - start > MAX_LINE_BYTES => return Some(start + MAX_LINE_BYTES),
+            None => return None,
+        }
+        if lim == b.len() {
+            return None;
+        }
+    }
 }
 
 fn too_large(path: &std::path::Path) -> Error {
@@ -971,6 +1038,65 @@ mod tests {
         )
         .unwrap();
         assert_eq!(tab.y, vec![2.0, 3.0]);
+    }
+
+    #[test]
+    fn long_runs_are_found_where_the_byte_by_byte_count_finds_them() {
+        // The count of the reading loop, byte by byte.
+        let reference = |b: &[u8]| {
+            let mut run = 0usize;
+            for (i, &c) in b.iter().enumerate() {
+                run = if c == b'\n' || c == b'\r' { 0 } else { run + 1 };
+                if run > MAX_LINE_BYTES {
+                    return Some(i);
+                }
+            }
+            None
+        };
+        let m = MAX_LINE_BYTES;
+        let mut cases: Vec<Vec<u8>> = vec![vec![], vec![b'a'; m], vec![b'a'; m + 1]];
+        let mut lines = b"t,u,y\n".repeat(1 + 3 * m / 6);
+        cases.push(lines.clone());
+        lines[m + 10] = b'\r';
+        cases.push(lines.clone());
+        // A run of exactly the limit, then of one more, between line ends.
+        let mut v = vec![b'\n'; 3];
+        v.extend(vec![b'x'; m]);
+        v.push(b'\r');
+        cases.push(v.clone());
+        v.extend(vec![b'y'; m + 1]);
+        v.extend(b"\n12");
+        cases.push(v.clone());
+        let mut w = b"1,2\n".repeat(m / 2);
+        w.extend(vec![b'z'; m + 5]);
+        cases.push(w);
+        for c in &cases {
+            assert_eq!(first_long_run(c), reference(c), "{} bytes", c.len());
+        }
+        assert!(cases.iter().filter(|c| reference(c).is_some()).count() >= 3);
+    }
+
+    #[test]
+    fn a_large_file_is_read_whole_in_halves() {
+        let dir = std::env::temp_dir().join(format!("ident-halves-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("big.csv");
+        let mut text = String::from("t,u,y\n");
+        let mut k = 0usize;
+        while text.len() < PARALLEL_READ_BYTES + 12_345 {
+            text += &format!("{k},{},{}\n", k % 7, k % 13);
+            k += 1;
+        }
+        std::fs::write(&path, &text).unwrap();
+        assert_eq!(read_text(&path).unwrap(), text);
+        // A line too long in the second half is refused.
+        let mut long = text.clone().into_bytes();
+        let at = long.len() - MAX_LINE_BYTES - 100;
+        long.splice(at..at, vec![b'x'; MAX_LINE_BYTES + 1]);
+        std::fs::write(&path, &long).unwrap();
+        let e = read_text(&path).unwrap_err().to_string();
+        assert!(e.contains("is longer than"), "{e}");
+        std::fs::remove_dir_all(&dir).ok();
     }
 
     #[test]
