@@ -24,6 +24,8 @@
 
 use crate::{Error, Result};
 
+mod fast;
+
 /// A uniformly sampled single-input single-output record.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Record {
@@ -235,11 +237,13 @@ pub fn check_finite(name: &str, col: &[f64]) -> Result<()> {
     }
 }
 
-/// The median of the steps of `t` (at least 2 samples).
+/// The median of the steps of `t` (at least 2 samples): the element `len/2` of the steps in
+/// [`f64::total_cmp`] order, found by selection in linear time (the same value sorting gives:
+/// elements equal under the total order are the same bits).
 fn median_step(t: &[f64]) -> f64 {
     let mut d: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
-    d.sort_by(f64::total_cmp);
-    d[d.len() / 2]
+    let mid = d.len() / 2;
+    *d.select_nth_unstable_by(mid, f64::total_cmp).1
 }
 
 /// The sampling step of the time stamps `t`: the mean step, after checking that there are at
@@ -334,7 +338,10 @@ pub fn read_columns<const N: usize>(
     text: &str,
     wants: [&str; N],
 ) -> Result<(Vec<String>, [Vec<f64>; N])> {
-    read_columns_at(text, wants).map(|(names, cols, _)| (names, cols))
+    match fast::read(text, &wants, false, fast::PARALLEL_BYTES) {
+        Some((names, cols, _)) => Ok((names, cols)),
+        None => read_columns_simple(text, wants).map(|(names, cols, _)| (names, cols)),
+    }
 }
 
 /// Columns read by [`read_columns_at`]: the header's names, the columns, the line of each row.
@@ -342,9 +349,24 @@ pub type ColumnsAt<const N: usize> = (Vec<String>, [Vec<f64>; N], Vec<usize>);
 
 /// [`read_columns`], also returning the 1-based line number of each row.
 ///
+/// Data rows are split at the byte level with no allocation per line, only the wanted columns
+/// are parsed, plain decimals by an exact fast path (Clinger's: the correctly rounded value
+/// `str::parse` gives, to the bit), and a table of 256 KiB or more in two halves on two threads;
+/// what that path does not handle (an error, a file whose lines end in a bare `\r`) is read by
+/// the simple line-by-line reader, which gives the same values and reports the errors.
+///
 /// # Errors
 /// As [`read_columns`].
 pub fn read_columns_at<const N: usize>(text: &str, wants: [&str; N]) -> Result<ColumnsAt<N>> {
+    match fast::read(text, &wants, true, fast::PARALLEL_BYTES) {
+        Some(r) => Ok(r),
+        None => read_columns_simple(text, wants),
+    }
+}
+
+/// The simple reader behind [`read_columns_at`]: line by line, every rule spelled out once; the
+/// reference the fast path is tested against, and the reader of every error.
+fn read_columns_simple<const N: usize>(text: &str, wants: [&str; N]) -> Result<ColumnsAt<N>> {
     let tab = table(text)?;
     let index_names: Vec<String>;
     let names: Vec<&str> = if tab.has_header {
@@ -406,24 +428,24 @@ pub const MAX_LINE_BYTES: usize = 1 << 20;
 /// line too long, a NUL byte or invalid UTF-8 (with the line and byte where it is).
 pub fn read_text(path: &std::path::Path) -> Result<String> {
     let bytes = read_bytes(path, true)?;
-    let where_ = |pos: usize| {
-        let line = 1 + bytes[..pos].iter().filter(|&&b| b == b'\n').count();
+    let where_ = |bytes: &[u8], pos: usize| {
+        let line = 1 + memchr::memchr_iter(b'\n', &bytes[..pos]).count();
         format!("line {line}, byte {pos}")
     };
-    if let Some(pos) = bytes.iter().position(|&b| b == 0) {
+    if let Some(pos) = memchr::memchr(0, &bytes) {
         return Err(Error::Data(format!(
             "{} is not a text table: a NUL byte at {} (a binary file? MATLAB files must end in \
              .mat; UTF-16 text must be saved as UTF-8)",
             path.display(),
-            where_(pos)
+            where_(&bytes, pos)
         )));
     }
-    String::from_utf8(bytes.clone()).map_err(|e| {
+    String::from_utf8(bytes).map_err(|e| {
         Error::Data(format!(
             "{} is not UTF-8 text: invalid byte at {} (save it as UTF-8, or is it a binary \
              file?)",
             path.display(),
-            where_(e.utf8_error().valid_up_to())
+            where_(e.as_bytes(), e.utf8_error().valid_up_to())
         ))
     })
 }
@@ -440,6 +462,7 @@ pub(crate) fn read_bytes(path: &std::path::Path, lines: bool) -> Result<Vec<u8>>
         reason: io_reason(&e),
     };
     let file = std::fs::File::open(path).map_err(io)?;
+    let mut size = 0;
     if let Ok(m) = file.metadata() {
         if m.is_dir() {
             return Err(Error::Io {
@@ -450,38 +473,119 @@ pub(crate) fn read_bytes(path: &std::path::Path, lines: bool) -> Result<Vec<u8>>
         if m.len() > MAX_FILE_BYTES {
             return Err(too_large(path));
         }
+        size = m.len() as usize;
     }
-    let mut r = file.take(MAX_FILE_BYTES + 1);
-    let mut out = Vec::new();
-    let mut buf = vec![0u8; 1 << 16];
-    let mut run = 0usize; // bytes since the last line end
-    loop {
-        let n = match r.read(&mut buf) {
-            Ok(0) => break,
-            Ok(n) => n,
-            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
-            Err(e) => return Err(io(e)),
-        };
-        if lines {
-            for &b in &buf[..n] {
-                run = if b == b'\n' || b == b'\r' { 0 } else { run + 1 };
-                if run > MAX_LINE_BYTES {
+    const CHUNK: usize = 1 << 16;
+    if size >= PARALLEL_READ_BYTES {
+        if let Some(out) = read_halves(&file, size) {
+            if lines {
+                if let Some(p) = first_long_run(&out) {
+                    // The line the byte-by-byte reading reports: the lines before the read of
+                    // `CHUNK` bytes where the run grows too long.
+                    let before = p / CHUNK * CHUNK;
                     return Err(Error::Data(format!(
                         "{}: line {} is longer than {} bytes: not a text table (a binary file \
                          or a device?)",
                         path.display(),
-                        1 + out.iter().filter(|&&c| c == b'\n').count(),
+                        1 + memchr::memchr_iter(b'\n', &out[..before]).count(),
                         MAX_LINE_BYTES
                     )));
                 }
             }
+            return Ok(out);
         }
-        out.extend_from_slice(&buf[..n]);
+    }
+    let mut r = file.take(MAX_FILE_BYTES + 1);
+    // Read straight into the result, sized for the file (a device or a pipe grows it).
+    let mut out: Vec<u8> = Vec::with_capacity(size + CHUNK);
+    let mut run = 0usize; // bytes since the last line end
+    loop {
+        let filled = out.len();
+        out.resize(filled + CHUNK, 0);
+        let n = match r.read(&mut out[filled..]) {
+            Ok(n) => n,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {
+                out.truncate(filled);
+                continue;
+            }
+            Err(e) => return Err(io(e)),
+        };
+        out.truncate(filled + n);
+        if n == 0 {
+            break;
+        }
+        if lines {
+            // A run of bytes with no line end (`\n` or `\r`) longer than the limit: only the one
+            // that goes on from the previous read can be (a read is shorter than the limit).
+            let chunk = &out[filled..];
+            let is_end = |b: &u8| *b == b'\n' || *b == b'\r';
+            run += chunk.iter().position(is_end).unwrap_or(n);
+            if run > MAX_LINE_BYTES {
+                return Err(Error::Data(format!(
+                    "{}: line {} is longer than {} bytes: not a text table (a binary file \
+                     or a device?)",
+                    path.display(),
+                    1 + memchr::memchr_iter(b'\n', &out[..filled]).count(),
+                    MAX_LINE_BYTES
+                )));
+            }
+            if let Some(last) = chunk.iter().rposition(is_end) {
+                run = n - 1 - last;
+            }
+        }
         if out.len() as u64 > MAX_FILE_BYTES {
             return Err(too_large(path));
         }
     }
     Ok(out)
+}
+
+/// Regular files of at least this many bytes are read in two halves on two threads.
+const PARALLEL_READ_BYTES: usize = 8 << 20;
+
+/// The `size` bytes of a regular file, read in two halves on two threads (positioned reads: the
+/// file's cursor is not moved), or `None` when that fails or the file is not `size` bytes long
+/// (it changed): the caller then reads it from the start, one read after another.
+#[cfg(unix)]
+fn read_halves(file: &std::fs::File, size: usize) -> Option<Vec<u8>> {
+    use std::os::unix::fs::FileExt;
+    if !file.metadata().ok()?.is_file() {
+        return None;
+    }
+    let mut out = vec![0u8; size];
+    let half = size / 2;
+    let (a, b) = out.split_at_mut(half);
+    let ok = std::thread::scope(|s| {
+        let h = s.spawn(|| file.read_exact_at(b, half as u64).is_ok());
+        let first = file.read_exact_at(a, 0).is_ok();
+        h.join().unwrap_or(false) && first
+    });
+    let mut probe = [0u8; 1];
+    (ok && matches!(file.read_at(&mut probe, size as u64), Ok(0))).then_some(out)
+}
+
+#[cfg(not(unix))]
+fn read_halves(_file: &std::fs::File, _size: usize) -> Option<Vec<u8>> {
+    None
+}
+
+/// Where the first run of more than [`MAX_LINE_BYTES`] bytes with no line end (`\n` or `\r`)
+/// grows too long (the index of its byte `MAX_LINE_BYTES + 1`), if there is one. Windows of
+/// `MAX_LINE_BYTES + 1` bytes are searched from their end for the last line end, so a table is
+/// checked in a few searches, not line by line.
+fn first_long_run(b: &[u8]) -> Option<usize> {
+    let mut start = 0; // the first byte after the last line end
+    loop {
+        let lim = (start + MAX_LINE_BYTES + 1).min(b.len());
+        match memchr::memrchr2(b'\n', b'\r', &b[start..lim]) {
+            Some(i) => start += i + 1,
+            None if lim - start > MAX_LINE_BYTES => return Some(start + MAX_LINE_BYTES),
+            None => return None,
+        }
+        if lim == b.len() {
+            return None;
+        }
+    }
 }
 
 fn too_large(path: &std::path::Path) -> Error {
@@ -529,9 +633,19 @@ impl Acquisition {
     /// Read the footer (the last `# complete` / `# incomplete` comment) and the header comment
     /// of delimited text.
     pub fn of_text(text: &str) -> Self {
+        if text.contains('\n') {
+            Self::of_lines(hash_lines(text))
+        } else {
+            Self::of_lines(physical_lines(text))
+        }
+    }
+
+    /// [`Acquisition::of_text`] from the physical lines of a text (only those holding a `#`
+    /// matter).
+    fn of_lines<'a>(lines: impl Iterator<Item = &'a str>) -> Self {
         let mut drive = false;
         let mut last = Self::Unknown;
-        for line in physical_lines(text) {
+        for line in lines {
             let Some(c) = line.trim().strip_prefix('#') else {
                 continue;
             };
@@ -551,6 +665,26 @@ impl Acquisition {
             other => other,
         }
     }
+}
+
+/// The physical lines of a text with a `\n` that hold a `#`, in order, each as
+/// [`physical_lines`] gives it (found by searching the `#`s, not by walking every line).
+fn hash_lines(text: &str) -> impl Iterator<Item = &str> {
+    let b = text.as_bytes();
+    let mut from = 0;
+    std::iter::from_fn(move || {
+        let h = from + memchr::memchr(b'#', b.get(from..)?)?;
+        let start = memchr::memrchr(b'\n', &b[..h]).map_or(0, |i| i + 1);
+        let end = memchr::memchr(b'\n', &b[h..]).map_or(b.len(), |i| h + i);
+        from = end + 1;
+        let line = &text[start..end];
+        // `str::lines` drops the `\r` of a `\r\n`.
+        Some(if end < b.len() {
+            line.strip_suffix('\r').unwrap_or(line)
+        } else {
+            line
+        })
+    })
 }
 
 /// At most 200 characters of a footer's text.
@@ -832,13 +966,15 @@ impl Record {
                     .position(|&v| v != u0)
                     .unwrap_or(self.len())
                     .max(1);
+                // The median by selection (linear time; the values sorting would give).
                 let mut pre = self.y[..first_change].to_vec();
-                pre.sort_by(f64::total_cmp);
                 let m = pre.len();
+                let (below, &mut hi, _) = pre.select_nth_unstable_by(m / 2, f64::total_cmp);
                 let y0 = if m % 2 == 1 {
-                    pre[m / 2]
+                    hi
                 } else {
-                    0.5 * (pre[m / 2 - 1] + pre[m / 2])
+                    let lo = below.iter().copied().max_by(f64::total_cmp).unwrap_or(hi);
+                    0.5 * (lo + hi)
                 };
                 Offsets { u0, y0 }
             }
@@ -902,6 +1038,65 @@ mod tests {
         )
         .unwrap();
         assert_eq!(tab.y, vec![2.0, 3.0]);
+    }
+
+    #[test]
+    fn long_runs_are_found_where_the_byte_by_byte_count_finds_them() {
+        // The count of the reading loop, byte by byte.
+        let reference = |b: &[u8]| {
+            let mut run = 0usize;
+            for (i, &c) in b.iter().enumerate() {
+                run = if c == b'\n' || c == b'\r' { 0 } else { run + 1 };
+                if run > MAX_LINE_BYTES {
+                    return Some(i);
+                }
+            }
+            None
+        };
+        let m = MAX_LINE_BYTES;
+        let mut cases: Vec<Vec<u8>> = vec![vec![], vec![b'a'; m], vec![b'a'; m + 1]];
+        let mut lines = b"t,u,y\n".repeat(1 + 3 * m / 6);
+        cases.push(lines.clone());
+        lines[m + 10] = b'\r';
+        cases.push(lines.clone());
+        // A run of exactly the limit, then of one more, between line ends.
+        let mut v = vec![b'\n'; 3];
+        v.extend(vec![b'x'; m]);
+        v.push(b'\r');
+        cases.push(v.clone());
+        v.extend(vec![b'y'; m + 1]);
+        v.extend(b"\n12");
+        cases.push(v.clone());
+        let mut w = b"1,2\n".repeat(m / 2);
+        w.extend(vec![b'z'; m + 5]);
+        cases.push(w);
+        for c in &cases {
+            assert_eq!(first_long_run(c), reference(c), "{} bytes", c.len());
+        }
+        assert!(cases.iter().filter(|c| reference(c).is_some()).count() >= 3);
+    }
+
+    #[test]
+    fn a_large_file_is_read_whole_in_halves() {
+        let dir = std::env::temp_dir().join(format!("ident-halves-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("big.csv");
+        let mut text = String::from("t,u,y\n");
+        let mut k = 0usize;
+        while text.len() < PARALLEL_READ_BYTES + 12_345 {
+            text += &format!("{k},{},{}\n", k % 7, k % 13);
+            k += 1;
+        }
+        std::fs::write(&path, &text).unwrap();
+        assert_eq!(read_text(&path).unwrap(), text);
+        // A line too long in the second half is refused.
+        let mut long = text.clone().into_bytes();
+        let at = long.len() - MAX_LINE_BYTES - 100;
+        long.splice(at..at, vec![b'x'; MAX_LINE_BYTES + 1]);
+        std::fs::write(&path, &long).unwrap();
+        let e = read_text(&path).unwrap_err().to_string();
+        assert!(e.contains("is longer than"), "{e}");
+        std::fs::remove_dir_all(&dir).ok();
     }
 
     #[test]

@@ -4,7 +4,8 @@
 //! time domain is the fallback when the data give no usable frequency response.
 //!
 //! - Periodic input (a PRBS repeated): the DFT at the harmonics of the period, averaged over whole
-//!   periods after the first (dropped as the transient from rest), is the frequency response
+//!   periods after the first (dropped as the transient from rest; on a long record only the
+//!   leading periods, [`MAX_FRF_SAMPLES`] samples, at least 8 periods), is the frequency response
 //!   ([`periodic_frf`]). Each harmonic is weighted by the inverse variance of its estimate,
 //!   `|U_k|^2 / s_k^2` with `s_k^2` the output noise variance at that harmonic measured across the
 //!   periods (Pintelon & Schoukens 2012, ch. 2), which is also what the time-domain output error
@@ -45,6 +46,19 @@ const MIN_HARMONICS: usize = 6;
 /// by less than 1e-3 relative after the third).
 const SK_ITERATIONS: usize = 3;
 
+/// The periodic response averages whole periods of at most this many samples in all (at least
+/// [`MIN_PERIODS_AVERAGED`] periods): on a long record the noise of the averaged response is
+/// already far below what the start needs, and the cost of the harmonics' DFTs stays bounded.
+pub const MAX_FRF_SAMPLES: usize = 1 << 16;
+
+/// The fewest periods the periodic response averages when the record has them (see
+/// [`MAX_FRF_SAMPLES`]).
+const MIN_PERIODS_AVERAGED: usize = 8;
+
+/// The coarse search simulates its trial models on at most this many leading samples of the
+/// estimation part (the winner's error is then measured on the whole part).
+pub const MAX_COARSE_SAMPLES: usize = 1 << 15;
+
 /// A Levy start whose simulated output fits the estimation data by at least this NRMSE (percent)
 /// is taken as it is; below it, the coarse search runs too and the better of the two is used.
 const GOOD_START_PERCENT: f64 = 50.0;
@@ -63,6 +77,9 @@ pub struct Frf {
     pub period: Option<usize>,
     /// Number of periods averaged (0 for Welch).
     pub periods_averaged: usize,
+    /// Whole periods after the first that the record holds (0 for Welch): more than
+    /// `periods_averaged` when only the leading ones were averaged ([`MAX_FRF_SAMPLES`]).
+    pub periods_available: usize,
 }
 
 /// The smallest period `P` (in samples, `8 <= P <= n/2`) with `u[k + P] = u[k]` for all `k`
@@ -106,6 +123,28 @@ fn dft_at(x: &[f64], w: f64) -> Complex64 {
     s
 }
 
+/// `sum_m x_m tw_m` for real `x` and the twiddles `tw` (split into real and imaginary parts), in
+/// four lanes (independent sums the compiler vectorises).
+fn dot_twiddle(x: &[f64], re: &[f64], im: &[f64]) -> Complex64 {
+    let (mut sr, mut si) = ([0.0f64; 4], [0.0f64; 4]);
+    let n4 = x.len() / 4 * 4;
+    for ((xc, rc), ic) in x[..n4]
+        .chunks_exact(4)
+        .zip(re[..n4].chunks_exact(4))
+        .zip(im[..n4].chunks_exact(4))
+    {
+        for l in 0..4 {
+            sr[l] += xc[l] * rc[l];
+            si[l] += xc[l] * ic[l];
+        }
+    }
+    let mut s = Complex64::new(sr.iter().sum(), si.iter().sum());
+    for m in n4..x.len() {
+        s += Complex64::new(x[m] * re[m], x[m] * im[m]);
+    }
+    s
+}
+
 /// Up to `max` indices of `1..=top`, spread evenly on a log scale.
 fn log_bins(top: usize, max: usize) -> Vec<usize> {
     if top <= max {
@@ -127,6 +166,10 @@ fn log_bins(top: usize, max: usize) -> Vec<usize> {
 /// response of the continuous model the time-domain fit identifies. Up to 400 harmonics (spread on
 /// a log scale beyond that) up to a quarter of the Nyquist frequency.
 ///
+/// On a long record only the leading whole periods after the first are averaged: as many as fit
+/// in [`MAX_FRF_SAMPLES`] samples, at least 8 (when the record has them); the report's
+/// `periods_averaged` says how many.
+///
 /// # Errors
 /// [`Error::NotEnoughData`] when the input is not periodic, has fewer than 2 whole periods, or
 /// excites fewer than 6 usable harmonics.
@@ -141,9 +184,15 @@ pub fn periodic_frf(u: &[f64], y: &[f64], dt: f64) -> Result<Frf> {
              transient from rest)"
         )));
     }
-    let navg = whole - 1;
+    let navg = (whole - 1).min((MAX_FRF_SAMPLES / p).max(MIN_PERIODS_AVERAGED));
     let first = s + p;
     let top = ((MAX_FRACTION_OF_NYQUIST * p as f64 / 2.0).floor() as usize).min(p / 2);
+    // The DFT at harmonic k of a period is a dot product with the twiddles e^(-j 2 pi k m / p),
+    // all taken from one table of the p-th roots of unity (exact to rounding, no recurrence).
+    let roots: Vec<Complex64> = (0..p)
+        .map(|r| Complex64::from_polar(1.0, -2.0 * PI * r as f64 / p as f64))
+        .collect();
+    let (mut tw_re, mut tw_im) = (vec![0.0; p], vec![0.0; p]);
     struct Harmonic {
         k: usize,
         u: Complex64,
@@ -154,11 +203,19 @@ pub fn periodic_frf(u: &[f64], y: &[f64], dt: f64) -> Result<Frf> {
     let mut hs: Vec<Harmonic> = log_bins(top, 400)
         .into_iter()
         .map(|k| {
-            let w = 2.0 * PI * k as f64 / p as f64;
+            let mut r = 0;
+            for m in 0..p {
+                tw_re[m] = roots[r].re;
+                tw_im[m] = roots[r].im;
+                r += k;
+                if r >= p {
+                    r %= p;
+                }
+            }
             // The input is exactly periodic: one period gives its DFT.
-            let uk = dft_at(&u[first..first + p], w);
+            let uk = dot_twiddle(&u[first..first + p], &tw_re, &tw_im);
             let ys: Vec<Complex64> = (0..navg)
-                .map(|j| dft_at(&y[first + j * p..first + (j + 1) * p], w))
+                .map(|j| dot_twiddle(&y[first + j * p..first + (j + 1) * p], &tw_re, &tw_im))
                 .collect();
             let ym = ys.iter().sum::<Complex64>() / navg as f64;
             let var = if navg >= 2 {
@@ -198,6 +255,7 @@ pub fn periodic_frf(u: &[f64], y: &[f64], dt: f64) -> Result<Frf> {
         weight: vec![],
         period: Some(p),
         periods_averaged: navg,
+        periods_available: whole - 1,
     };
     for (h, &var) in hs.iter().zip(&smooth) {
         if noisy && h.y.norm_sqr() < MIN_SNR * var {
@@ -282,6 +340,7 @@ pub fn estimate_frf(u: &[f64], y: &[f64], dt: f64) -> Result<Frf> {
         weight: vec![],
         period: None,
         periods_averaged: 0,
+        periods_available: 0,
     };
     for (b, &k) in bins.iter().enumerate() {
         if suu[b] > 1e-6 * smax
@@ -441,8 +500,15 @@ fn sse_of(
 /// Nyquist frequency, the model `K / (1 + (s/w_c)^q / 2)^2` (`K / (s/w_c + 1)` for the FOPDT) is
 /// simulated, `K` is the linear least-squares gain; the smallest squared error wins. Returns
 /// `(sse, values)`.
+///
+/// The trials are simulated on the leading [`MAX_COARSE_SAMPLES`] samples (all of a shorter
+/// record); the corner frequencies span the whole record's band, and the winner's `sse` is that
+/// of the whole record.
 fn coarse_start(lin: &FracModel, u: &[f64], y: &[f64], dt: f64) -> Option<(f64, Vec<f64>)> {
     let n = u.len();
+    let (u_all, y_all) = (u, y);
+    let m = n.min(MAX_COARSE_SAMPLES);
+    let (u, y) = (&u[..m], &y[..m]);
     let qs: &[f64] = if lin.kind == Kind::Fopdt {
         &[1.0]
     } else {
@@ -466,7 +532,7 @@ fn coarse_start(lin: &FracModel, u: &[f64], y: &[f64], dt: f64) -> Option<(f64, 
         )
     };
     let mut best: Option<(f64, f64, f64, f64)> = None; // (sse, q, w_c, K)
-    let mut yhat = vec![0.0; n];
+    let mut yhat = vec![0.0; m];
     for &q in qs {
         for i in 0..10 {
             let wc = w_lo * (w_hi / w_lo).powf(i as f64 / 9.0);
@@ -484,7 +550,13 @@ fn coarse_start(lin: &FracModel, u: &[f64], y: &[f64], dt: f64) -> Option<(f64, 
             }
         }
     }
-    best.map(|(sse, q, wc, k)| (sse, values(q, wc, k)))
+    let (sse, q, wc, k) = best?;
+    let v = values(q, wc, k);
+    if m == n {
+        return Some((sse, v));
+    }
+    let mut buf = vec![0.0; n];
+    sse_of(lin, &v, u_all, y_all, dt, &mut buf).map(|s| (s, v))
 }
 
 /// A candidate start: parameter values and a label for the report.
@@ -555,6 +627,12 @@ fn levy_candidates(lin: &FracModel, frf: &Frf, dt: f64) -> Result<(Vec<Candidate
 ///   squares; the smallest squared error wins (`zeta = theta = q`, `a1 = w_c^-q`, `a2 = a1^2/4`).
 /// - `General` models keep their values.
 ///
+/// The cost is bounded on long records: the periodic response averages at most
+/// [`MAX_FRF_SAMPLES`] samples of whole periods (at least 8 periods), and the coarse search
+/// simulates its 30 trials on the leading [`MAX_COARSE_SAMPLES`] samples; each start's fit (and
+/// the choice between the Levy and the coarse start) is measured on the whole estimation part.
+/// It is only the start: the fit then runs on the whole estimation part.
+///
 /// # Errors
 /// None at present (kept fallible); a model that fails to simulate at every trial keeps its
 /// values and the report says so.
@@ -601,10 +679,19 @@ pub fn auto_start(model: &mut FracModel, u: &[f64], y: &[f64], dt: f64) -> Resul
                             method: StartMethod::Levy,
                             note: format!(
                                 "Levy fit of the response at {} harmonics ({} period(s) of {} \
-                                 samples averaged): {label}",
+                                 samples averaged{}): {label}",
                                 frf.omega.len(),
                                 frf.periods_averaged,
-                                frf.period.unwrap_or(0)
+                                frf.period.unwrap_or(0),
+                                if frf.periods_available > frf.periods_averaged {
+                                    format!(
+                                        ", the leading ones of {} (at most {MAX_FRF_SAMPLES} \
+                                         samples)",
+                                        frf.periods_available
+                                    )
+                                } else {
+                                    String::new()
+                                }
                             ),
                             fit_percent: Some(fit_percent(s)),
                             levy_q: Some(q),
@@ -629,7 +716,14 @@ pub fn auto_start(model: &mut FracModel, u: &[f64], y: &[f64], dt: f64) -> Resul
             if chosen.as_ref().is_none_or(|c| s < c.0) {
                 report = StartReport {
                     method: StartMethod::Coarse,
-                    note: format!("coarse search ({why_not_levy})"),
+                    note: if n > MAX_COARSE_SAMPLES {
+                        format!(
+                            "coarse search ({why_not_levy}; trials simulated on the leading \
+                             {MAX_COARSE_SAMPLES} samples)"
+                        )
+                    } else {
+                        format!("coarse search ({why_not_levy})")
+                    },
                     fit_percent: Some(fit_percent(s)),
                     levy_q: report.levy_q,
                     harmonics: report.harmonics,
@@ -669,6 +763,7 @@ mod tests {
             omega,
             period: None,
             periods_averaged: 0,
+            periods_available: 0,
         }
     }
 
