@@ -348,9 +348,7 @@ impl<S: Structure> Problem for OeProblem<'_, S> {
         match jac {
             None => {
                 self.params_of(theta);
-                let mut y = vec![0.0; self.u.len()];
-                self.s.simulate(&self.pbuf, self.u, self.dt, &mut y)?;
-                self.yhat = y;
+                self.s.simulate(&self.pbuf, self.u, self.dt, &mut self.yhat)?;
             }
             Some(jac) => {
                 let (s, base, free, u, dt, skip) =
