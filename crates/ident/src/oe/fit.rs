@@ -116,8 +116,9 @@ macro_rules! with_dual {
 
 /// Simulate with `Dual<N>` at the physical values `pv`, the free parameters `group` (indices into
 /// `free`) carried as dual parts: parameter `free[g]` is `to_param(Dual::var(theta_g, slot))`
-/// (the plain variable when `transform` is false). Writes `yhat` and `cols[slot][k] = d yhat_k /
-/// d theta_(group[slot])` over the whole record.
+/// (the plain variable when `transform` is false). Writes `yhat` over the whole record and
+/// `cols[slot][k - skip] = d yhat_k / d theta_(group[slot])` over its last `cols[slot].len()`
+/// samples (`skip` the rest: the columns of the Jacobian themselves).
 #[allow(clippy::too_many_arguments)]
 fn eval_dual<const N: usize, S: Structure>(
     s: &S,
@@ -129,7 +130,7 @@ fn eval_dual<const N: usize, S: Structure>(
     u: &[f64],
     dt: f64,
     yhat: &mut [f64],
-    cols: &mut [Vec<f64>],
+    cols: &mut [&mut [f64]],
 ) -> Result<()> {
     let mut p: Vec<Dual<N>> = pv.iter().map(|&v| Dual::cst(v)).collect();
     let params = s.params();
@@ -147,9 +148,12 @@ fn eval_dual<const N: usize, S: Structure>(
     for (k, v) in y.iter().enumerate() {
         yhat[k] = v.v;
     }
+    // The columns hold the fitted samples, the last `cols[slot].len()` of the record.
+    let skip = u.len() - cols.first().map_or(0, |c| c.len());
     for (slot, col) in cols.iter_mut().enumerate() {
-        col.clear();
-        col.extend(y.iter().map(|v| v.d[slot]));
+        for (c, v) in col.iter_mut().zip(&y[skip..]) {
+            *c = v.d[slot];
+        }
     }
     Ok(())
 }
@@ -198,8 +202,22 @@ fn jacobian<S: Structure>(
         0
     };
     let (first, second) = nonlin.split_at(half);
-    let mut cols_first = vec![vec![]; first.len()];
-    let mut cols_second = vec![vec![]; second.len()];
+    // The dual halves write straight into their columns of the Jacobian.
+    let mut slots: Vec<Option<&mut [f64]>> = jac
+        .col_iter_mut()
+        .map(|c| c.try_as_col_major_mut().map(|c| c.as_slice_mut()))
+        .collect();
+    let mut take = |group: &[usize]| -> Vec<&mut [f64]> {
+        group.iter().filter_map(|&i| slots[i].take()).collect()
+    };
+    let mut cols_first = take(first);
+    let mut cols_second = take(second);
+    let lin_cols = take(&lin);
+    if cols_first.len() + cols_second.len() + lin_cols.len() != free.len() {
+        return Err(Error::Numerical(
+            "the Jacobian is not stored column by column".into(),
+        ));
+    }
     let mut cols_lin = vec![vec![]; lin.len()];
     let lin_j: Vec<usize> = lin.iter().map(|&i| free[i]).collect();
     let pv = &pv;
@@ -209,7 +227,7 @@ fn jacobian<S: Structure>(
     let (lin_a, lin_b) = lin_j.split_at(lin_split);
     let (cols_lin_a, cols_lin_b) = cols_lin.split_at_mut(lin_split);
     // The second half (all of them on one thread) and its share of the linear columns.
-    let rest = |yhat: &mut [f64], cols: &mut [Vec<f64>], cols_lin: &mut [Vec<f64>]| {
+    let rest = |yhat: &mut [f64], cols: &mut [&mut [f64]], cols_lin: &mut [Vec<f64>]| {
         if second.is_empty() {
             s.simulate(pv, u, dt, yhat)?;
         } else {
@@ -253,20 +271,13 @@ fn jacobian<S: Structure>(
         b?;
         a.map_err(|_| Error::Numerical("a Jacobian thread panicked".into()))??;
     }
-    let all = first
-        .iter()
-        .zip(&cols_first)
-        .chain(second.iter().zip(&cols_second));
-    for (&i, col) in all {
-        jac.col_as_slice_mut(i).copy_from_slice(&col[skip..]);
-    }
-    for (&i, col) in lin.iter().zip(&cols_lin) {
+    for ((&i, col), out) in lin.iter().zip(&cols_lin).zip(lin_cols) {
         let dp = if transform {
             params[free[i]].bounds.dparam(pv[free[i]])
         } else {
             1.0
         };
-        for (j, c) in jac.col_as_slice_mut(i).iter_mut().zip(&col[skip..]) {
+        for (j, c) in out.iter_mut().zip(&col[skip..]) {
             *j = c * dp;
         }
     }
@@ -348,7 +359,8 @@ impl<S: Structure> Problem for OeProblem<'_, S> {
         match jac {
             None => {
                 self.params_of(theta);
-                self.s.simulate(&self.pbuf, self.u, self.dt, &mut self.yhat)?;
+                self.s
+                    .simulate(&self.pbuf, self.u, self.dt, &mut self.yhat)?;
             }
             Some(jac) => {
                 let (s, base, free, u, dt, skip) =
