@@ -374,6 +374,18 @@ fn polish(groups: &[Group<f64>], s0: Complex64, found: &[Complex64]) -> Option<C
     (f.val().norm() <= 1e-10 * (df.val() * s.val()).norm().max(1e-300)).then(|| s.val())
 }
 
+/// Add root `r` of `H` to `roots` (real when its imaginary part is within rounding of zero), and
+/// for a complex root its conjugate, a root too.
+fn push_root(roots: &mut Vec<Complex64>, mut r: Complex64) {
+    if r.im.abs() <= 1e-12 * r.norm() {
+        r.im = 0.0;
+    }
+    roots.push(r);
+    if r.im != 0.0 {
+        roots.push(r.conj());
+    }
+}
+
 /// Every zero of `H` (values), each polished by [`polish`]. Newton starts from the eigenvalues of
 /// the realisation and from every cell pole: the slow zeros sit a hair away from cell poles, where
 /// the eigenvalues of the (non-normal) realisation are too coarse to tell neighbours apart. The
@@ -387,19 +399,13 @@ fn roots_of_h(groups: &[Group<f64>], d: f64, hint: &[Complex64]) -> Result<Vec<C
     if !hint.is_empty() {
         let tol = |r: Complex64| 1e-12 * r.norm().max(1e-300);
         for &e in hint.iter().filter(|e| e.im >= 0.0) {
-            let Some(mut r) = polish(groups, e, &[]) else {
+            let Some(r) = polish(groups, e, &[]) else {
                 break;
             };
             if roots.iter().any(|q| (q - r).norm() <= tol(r)) {
                 break;
             }
-            if r.im.abs() <= 1e-12 * r.norm() {
-                r.im = 0.0;
-            }
-            roots.push(r);
-            if r.im != 0.0 {
-                roots.push(r.conj());
-            }
+            push_root(&mut roots, r);
         }
         if roots.len() == n_states {
             return Ok(roots);
@@ -448,17 +454,10 @@ fn roots_of_h(groups: &[Group<f64>], d: f64, hint: &[Complex64]) -> Result<Vec<C
                 .and_then(|r| polish(groups, r, &[]))
                 .filter(|&r| is_new(r, &roots)),
         };
-        let Some(mut r) = r else {
+        let Some(r) = r else {
             continue;
         };
-        if r.im.abs() <= 1e-12 * r.norm() {
-            r.im = 0.0;
-        }
-        roots.push(r);
-        // A complex root's conjugate is a root too.
-        if r.im != 0.0 {
-            roots.push(r.conj());
-        }
+        push_root(&mut roots, r);
     }
     // A root that Newton cannot settle a hair from a cell pole is half of a pole-zero pair of
     // `G~` that cancels to rounding (an order within a few ppm of an integer): its mode carries no

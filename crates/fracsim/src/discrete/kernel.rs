@@ -162,6 +162,18 @@ fn re_part(v: __m256d) -> __m256d {
     _mm256_blend_pd::<0b0011>(_mm256_setzero_pd(), v)
 }
 
+/// `beta0 a + beta1 b` of vector `o`: the input's part of a mode's update.
+#[target_feature(enable = "avx2,fma")]
+#[inline]
+fn input<const B1: bool>(b0: &[f64], b1: &[f64], o: usize, va: __m256d, vb: __m256d) -> __m256d {
+    let t = _mm256_mul_pd(ld(b0, o), va);
+    if B1 {
+        _mm256_fmadd_pd(ld(b1, o), vb, t)
+    } else {
+        t
+    }
+}
+
 /// Load vector `i` of `s`.
 #[target_feature(enable = "avx2,fma")]
 #[inline]
@@ -288,18 +300,11 @@ unsafe fn rows_mem<const N: usize, const B1: bool>(
                 let o = r * v + j;
                 let dx = ld(x, o);
                 *ar = _mm256_add_pd(*ar, dx);
-                let mut t = _mm256_mul_pd(ld(b0, o), va);
-                if B1 {
-                    t = _mm256_fmadd_pd(ld(b1, o), vb, t);
-                }
-                t = _mm256_fmadd_pd(ld(phi1, o), xv, t);
+                let t = _mm256_fmadd_pd(ld(phi1, o), xv, input::<B1>(b0, b1, o, va, vb));
                 st(x, o, _mm256_fmadd_pd(ph, dx, t));
             }
             accv = _mm256_add_pd(accv, xv);
-            let mut t = _mm256_mul_pd(ld(b0, val + j), va);
-            if B1 {
-                t = _mm256_fmadd_pd(ld(b1, val + j), vb, t);
-            }
+            let t = input::<B1>(b0, b1, val + j, va, vb);
             st(x, val + j, _mm256_fmadd_pd(ph, xv, t));
         }
         for j in vr..v {
@@ -310,20 +315,14 @@ unsafe fn rows_mem<const N: usize, const B1: bool>(
                 let o = r * v + j;
                 let dx = ld(x, o);
                 *ar = _mm256_add_pd(*ar, re_part(dx));
-                let mut t = _mm256_mul_pd(ld(b0, o), va);
-                if B1 {
-                    t = _mm256_fmadd_pd(ld(b1, o), vb, t);
-                }
+                let mut t = input::<B1>(b0, b1, o, va, vb);
                 t = _mm256_fmadd_pd(ld(phi1, o), xv, t);
                 t = _mm256_fmadd_pd(ld(phi2, o), xs, t);
                 t = _mm256_fmadd_pd(p2, swap(dx), t);
                 st(x, o, _mm256_fmadd_pd(p1, dx, t));
             }
             accv = _mm256_add_pd(accv, re_part(xv));
-            let mut t = _mm256_mul_pd(ld(b0, val + j), va);
-            if B1 {
-                t = _mm256_fmadd_pd(ld(b1, val + j), vb, t);
-            }
+            let mut t = input::<B1>(b0, b1, val + j, va, vb);
             t = _mm256_fmadd_pd(p2, xs, t);
             st(x, val + j, _mm256_fmadd_pd(p1, xv, t));
         }
