@@ -482,14 +482,7 @@ pub(crate) fn read_bytes(path: &std::path::Path, lines: bool) -> Result<Vec<u8>>
                 if let Some(p) = first_long_run(&out) {
                     // The line the byte-by-byte reading reports: the lines before the read of
                     // `CHUNK` bytes where the run grows too long.
-                    let before = p / CHUNK * CHUNK;
-                    return Err(Error::Data(format!(
-                        "{}: line {} is longer than {} bytes: not a text table (a binary file \
-                         or a device?)",
-                        path.display(),
-                        1 + memchr::memchr_iter(b'\n', &out[..before]).count(),
-                        MAX_LINE_BYTES
-                    )));
+                    return Err(long_line(path, &out[..p / CHUNK * CHUNK]));
                 }
             }
             return Ok(out);
@@ -521,13 +514,7 @@ pub(crate) fn read_bytes(path: &std::path::Path, lines: bool) -> Result<Vec<u8>>
             let is_end = |b: &u8| *b == b'\n' || *b == b'\r';
             run += chunk.iter().position(is_end).unwrap_or(n);
             if run > MAX_LINE_BYTES {
-                return Err(Error::Data(format!(
-                    "{}: line {} is longer than {} bytes: not a text table (a binary file \
-                     or a device?)",
-                    path.display(),
-                    1 + memchr::memchr_iter(b'\n', &out[..filled]).count(),
-                    MAX_LINE_BYTES
-                )));
+                return Err(long_line(path, &out[..filled]));
             }
             if let Some(last) = chunk.iter().rposition(is_end) {
                 run = n - 1 - last;
@@ -586,6 +573,16 @@ fn first_long_run(b: &[u8]) -> Option<usize> {
             return None;
         }
     }
+}
+
+/// The error for a line longer than [`MAX_LINE_BYTES`] that starts after the bytes `before`.
+fn long_line(path: &std::path::Path, before: &[u8]) -> Error {
+    Error::Data(format!(
+        "{}: line {} is longer than {} bytes: not a text table (a binary file or a device?)",
+        path.display(),
+        1 + memchr::memchr_iter(b'\n', before).count(),
+        MAX_LINE_BYTES
+    ))
 }
 
 fn too_large(path: &std::path::Path) -> Error {
