@@ -488,9 +488,7 @@ fn qr_of_jr(jac: &Mat<f64>, r: &[f64]) -> (Mat<f64>, Vec<f64>) {
         let mut a = Mat::<f64>::zeros(have + end - start, w);
         for j in 0..w {
             let col = a.col_as_slice_mut(j);
-            for i in 0..have {
-                col[i] = top[(i, j)];
-            }
+            col[..have].copy_from_slice(top.col_as_slice(j));
             let src = if j < n {
                 &jac.col_as_slice(j)[start..end]
             } else {
@@ -502,11 +500,10 @@ fn qr_of_jr(jac: &Mat<f64>, r: &[f64]) -> (Mat<f64>, Vec<f64>) {
         top = qr.thin_R().to_owned();
         start = end;
     }
+    // `top` has min(m, n + 1) >= k rows.
     let k = m.min(n);
-    let rmat = Mat::<f64>::from_fn(k, n, |i, j| if i < top.nrows() { top[(i, j)] } else { 0.0 });
-    let qtr = (0..k)
-        .map(|i| if i < top.nrows() { top[(i, n)] } else { 0.0 })
-        .collect();
+    let rmat = Mat::<f64>::from_fn(k, n, |i, j| top[(i, j)]);
+    let qtr = (0..k).map(|i| top[(i, n)]).collect();
     (rmat, qtr)
 }
 
