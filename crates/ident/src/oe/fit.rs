@@ -514,7 +514,6 @@ pub fn fit_with_progress<S: Structure>(
         .iter()
         .map(|&j| params[j].bounds.to_theta(params[j].value, &params[j].name))
         .collect::<Result<Vec<f64>>>()?;
-    let mut jac_evals = 0;
     let mut start = theta0.clone();
     let mut lm = opts.lm.clone();
     let mut lead_work = (0, 0);
@@ -523,36 +522,26 @@ pub fn fit_with_progress<S: Structure>(
     } else {
         None
     };
-    if let Some(lead) = lead {
-        let mut prob = OeProblem::new(
-            s,
-            &u[..lead],
-            &y[..lead],
-            dt,
-            opts.skip,
-            &free,
-            &base,
-            &mut *progress,
-        );
-        if let Ok(r) = minimize(&mut prob, &theta0, &opts.lm) {
-            jac_evals = prob.jac_evals;
-            lead_work = (r.iterations, r.evaluations);
-            // The lead's optimum starts the whole record's fit unless it fits the whole record
-            // worse than the start did (a lead that misleads).
-            let mut whole = OeProblem::new(s, u, y, dt, opts.skip, &free, &base, &mut *progress);
-            let cost_at =
-                |p: &mut OeProblem<'_, S>, th: &[f64]| p.ssr_at(th).unwrap_or(f64::INFINITY);
-            if cost_at(&mut whole, &r.params) <= cost_at(&mut whole, &theta0) {
-                start = r.params;
-                // Near the optimum already: the whole record's fit starts with the lead's final
-                // damping (Gauss-Newton steps), not the damping of a cold start.
-                lm.initial_lambda = r.lambda.clamp(1e-12, opts.lm.initial_lambda);
-            }
-            lead_work.1 += 2;
+    let lead_fit = lead.and_then(|lead| {
+        let (u, y) = (&u[..lead], &y[..lead]);
+        let mut prob = OeProblem::new(s, u, y, dt, opts.skip, &free, &base, &mut *progress);
+        let r = minimize(&mut prob, &theta0, &opts.lm).ok()?;
+        Some((r, prob.jac_evals))
+    });
+    let mut prob = OeProblem::new(s, u, y, dt, opts.skip, &free, &base, &mut *progress);
+    if let Some((r, jac_evals)) = lead_fit {
+        prob.jac_evals = jac_evals;
+        lead_work = (r.iterations, r.evaluations + 2);
+        // The lead's optimum starts the whole record's fit unless it fits the whole record
+        // worse than the start did (a lead that misleads).
+        let mut cost_at = |th: &[f64]| prob.ssr_at(th).unwrap_or(f64::INFINITY);
+        if cost_at(&r.params) <= cost_at(&theta0) {
+            start = r.params;
+            // Near the optimum already: the whole record's fit starts with the lead's final
+            // damping (Gauss-Newton steps), not the damping of a cold start.
+            lm.initial_lambda = r.lambda.clamp(1e-12, opts.lm.initial_lambda);
         }
     }
-    let mut prob = OeProblem::new(s, u, y, dt, opts.skip, &free, &base, &mut *progress);
-    prob.jac_evals = jac_evals;
     let mut rep = minimize(&mut prob, &start, &lm)?;
     rep.iterations += lead_work.0;
     rep.evaluations += lead_work.1;
