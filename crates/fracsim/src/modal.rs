@@ -393,16 +393,18 @@ fn push_root(roots: &mut Vec<Complex64>, mut r: Complex64) {
 fn roots_of_h(groups: &[Group<f64>], d: f64, hint: &[Complex64]) -> Result<Vec<Complex64>> {
     let k_max = groups.iter().map(|g| g.coef.len()).max().unwrap_or(1) - 1;
     let n_states: usize = groups.iter().map(|g| g.zeros.len()).sum::<usize>() + k_max;
+    let tol = |r: Complex64| 1e-12 * r.norm().max(1e-300);
+    let is_new =
+        |r: Complex64, roots: &[Complex64]| !roots.iter().any(|q| (q - r).norm() <= tol(r));
     let mut roots: Vec<Complex64> = vec![];
     // The roots of a nearby `H` first: when plain Newton from them finds every root (distinct
     // roots numbering the states are all of them), the eigenvalue problem is not needed.
     if !hint.is_empty() {
-        let tol = |r: Complex64| 1e-12 * r.norm().max(1e-300);
         for &e in hint.iter().filter(|e| e.im >= 0.0) {
             let Some(r) = polish(groups, e, &[]) else {
                 break;
             };
-            if roots.iter().any(|q| (q - r).norm() <= tol(r)) {
+            if !is_new(r, &roots) {
                 break;
             }
             push_root(&mut roots, r);
@@ -443,9 +445,6 @@ fn roots_of_h(groups: &[Group<f64>], d: f64, hint: &[Complex64]) -> Result<Vec<C
         if roots.len() >= n_states {
             break;
         }
-        let tol = |r: Complex64| 1e-12 * r.norm().max(1e-300);
-        let is_new =
-            |r: Complex64, roots: &[Complex64]| !roots.iter().any(|q| (q - r).norm() <= tol(r));
         // Plain Newton first; from a start that leads to a known root, Newton deflated by the
         // known roots, then plain Newton again from there for full accuracy.
         let r = match polish(groups, e, &[]) {
