@@ -524,9 +524,11 @@ type Solved = (Vec<usize>, Vec<f64>, Vec<Complex64>);
 const ROOTS_KEPT: usize = 8;
 
 /// The largest relative change of any value for which a solved `H`'s roots start Newton's
-/// method: the roots of `H` move continuously with its values, and from 5% away Newton takes a
-/// few steps. Further away the eigenvalues start it.
-const HINT_DISTANCE: f64 = 0.05;
+/// method. Zero: only the same `H` again is answered from the cache. With 5% a random model of
+/// the proptest `simulation_is_time_invariant` failed the expansion check (off by 1.7e-6 at
+/// 2.5e4 rad/s): from a nearby model's roots Newton also settles the near-cancelling roots that
+/// the cold path leaves out, and their residues are inaccurate (see issue 18's note).
+const HINT_DISTANCE: f64 = 0.0;
 
 /// [`roots_of_h`] with the roots of the nearest `H` in [`ROOTS`] as its hint.
 fn roots_of_h_cached(groups: &[Group<f64>], d: f64) -> Result<Vec<Complex64>> {
