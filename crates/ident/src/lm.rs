@@ -39,6 +39,15 @@ pub trait Problem {
     /// Any error: at the starting point it is returned by [`minimize`]; at a trial point it only
     /// makes [`minimize`] reject that step (as a non-finite residual does).
     fn eval(&mut self, p: &[f64], r: &mut [f64], jac: Option<&mut Mat<f64>>) -> Result<()>;
+
+    /// Whether parameter `j` at the value `pj` sits at a bound of its range (a bounded
+    /// parameter mapped to an unbounded one, run to the edge): [`refine`] holds it there and
+    /// judges convergence on the others (the fit is the optimum with it on the bound). Default:
+    /// never.
+    fn at_bound(&self, j: usize, pj: f64) -> bool {
+        let _ = (j, pj);
+        false
+    }
 }
 
 /// Wraps a [`Problem`] whose Jacobian is not available (or not trusted) and replaces it with
@@ -145,6 +154,10 @@ pub enum Termination {
     SmallStep,
     /// The cost test ([`LmOptions::ftol`]) passed.
     SmallCostChange,
+    /// [`refine`]: the Gauss-Newton step at the end, taken, was below
+    /// [`RefineOptions::tolerance`] in standard errors (its predicted reduction of the sum of
+    /// squares under `tolerance^2 sigma^2`).
+    SmallStatisticalStep,
     /// No step lowers the cost even with a very large `lambda` (the minimum at the working
     /// precision, or a badly wrong Jacobian). Not counted as converged.
     NoProgress,
@@ -159,7 +172,11 @@ impl Termination {
     pub fn is_converged(self) -> bool {
         matches!(
             self,
-            Self::ZeroResidual | Self::SmallGradient | Self::SmallStep | Self::SmallCostChange
+            Self::ZeroResidual
+                | Self::SmallGradient
+                | Self::SmallStep
+                | Self::SmallCostChange
+                | Self::SmallStatisticalStep
         )
     }
 }
@@ -411,13 +428,8 @@ pub fn minimize(problem: &mut impl Problem, p0: &[f64], opts: &LmOptions) -> Res
     };
 
     let (covariance, std_errors) = if opts.covariance && m > n {
-        match covariance(&jac, sumsq(&r) / (m - n) as f64) {
-            Some(c) => {
-                let se = (0..n).map(|i| c[i * n + i].max(0.0).sqrt()).collect();
-                (Some(c), Some(se))
-            }
-            None => (None, None),
-        }
+        // The R of `J` is the leading block of the R of `[J r]`.
+        covariance_and_errors(&qr_of_jr(&jac, &r).0, sumsq(&r) / (m - n) as f64)
     } else {
         (None, None)
     };
@@ -435,6 +447,227 @@ pub fn minimize(problem: &mut impl Problem, p0: &[f64], opts: &LmOptions) -> Res
         lambda,
         gradient_cosine: gcos,
     })
+}
+
+/// Options of [`refine`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct RefineOptions {
+    /// The last Gauss-Newton step, in standard errors (`sqrt(pred / sigma^2)` with `pred` its
+    /// predicted reduction of the sum of squares and `sigma^2 = SSR/(m - n)`), under which the
+    /// point after it is the solution. Default 0.01: the result is then within a hundredth of a
+    /// standard error of the least-squares optimum (in the metric of `J^T J`), far below the
+    /// estimate's own uncertainty.
+    pub tolerance: f64,
+    /// Chord steps (with the Jacobian of the round's start) under which a round's steps stop:
+    /// a tenth of [`RefineOptions::tolerance`] by default.
+    pub chord_tolerance: f64,
+    /// Chord steps a round at most. Default 8.
+    pub max_chord_steps: usize,
+    /// Rounds (Jacobians) at most before [`minimize`] takes over. Default 3.
+    pub max_rounds: usize,
+}
+
+impl Default for RefineOptions {
+    fn default() -> Self {
+        Self {
+            tolerance: 0.01,
+            chord_tolerance: 0.001,
+            max_chord_steps: 8,
+            max_rounds: 3,
+        }
+    }
+}
+
+/// The Gauss-Newton step `d = -(R^T R + lambda D^2)^-1 g` for `J^T J = R^T R`, the gradient
+/// `g = J^T r` and `D^2 = diag(R^T R)` (1 for a zero column), in the parameters not `held` (a held
+/// one's step is 0), with its predicted reduction of the sum of squares `-2 g.d - |R d|^2`
+/// (`None` if the small system is not positive definite).
+fn gauss_newton_step(
+    rmat: &Mat<f64>,
+    g: &[f64],
+    lambda: f64,
+    held: &[bool],
+) -> Option<(Vec<f64>, f64)> {
+    let n = rmat.ncols();
+    let free: Vec<usize> = (0..n).filter(|&j| !held[j]).collect();
+    let mut d = vec![0.0; n];
+    if !free.is_empty() {
+        let ata = rmat.transpose() * rmat;
+        let k = free.len();
+        let mut a = Mat::<f64>::from_fn(k, k, |i, j| ata[(free[i], free[j])]);
+        for j in 0..k {
+            let d2 = a[(j, j)];
+            a[(j, j)] += lambda * if d2 > 0.0 { d2 } else { 1.0 };
+        }
+        let llt = a.llt(faer::Side::Lower).ok()?;
+        let rhs = Mat::<f64>::from_fn(k, 1, |i, _| -g[free[i]]);
+        let x = llt.solve(&rhs);
+        for (i, &j) in free.iter().enumerate() {
+            d[j] = x[(i, 0)];
+        }
+    }
+    let rd2: f64 = (0..rmat.nrows())
+        .map(|i| {
+            let v: f64 = (0..n).map(|j| rmat[(i, j)] * d[j]).sum();
+            v * v
+        })
+        .sum();
+    let pred = -2.0 * g.iter().zip(&d).map(|(a, b)| a * b).sum::<f64>() - rd2;
+    d.iter().all(|v| v.is_finite()).then_some((d, pred))
+}
+
+/// `J^T r`.
+fn jt_r(jac: &Mat<f64>, r: &[f64]) -> Vec<f64> {
+    (0..jac.ncols())
+        .map(|j| jac.col_as_slice(j).iter().zip(r).map(|(a, b)| a * b).sum())
+        .collect()
+}
+
+/// Gauss-Newton from a point near the least-squares optimum (the optimum of part of the data,
+/// say), with few Jacobians: each round evaluates the Jacobian `J` once, then takes chord steps
+/// (Ortega & Rheinboldt 1970, the simplified Newton method) `d_k = -(J^T J)^-1 J^T r(p_k)`,
+/// which need only the residuals; the round ends when a step's predicted reduction is under
+/// `chord_tolerance^2 sigma^2`. The next round's Jacobian is at that point: when its own
+/// Gauss-Newton step is under `tolerance^2 sigma^2` (see [`RefineOptions`]) the step is taken
+/// (if it lowers the cost) and the fit ends, its covariance from that Jacobian. A chord step
+/// converges linearly (at the rate of the change of `J` over the steps, small near the
+/// optimum), the final test is on the exact gradient, so the result is the optimum to the stated
+/// tolerance, not that of the frozen Jacobian.
+///
+/// Whenever a step does not lower the cost, the small system is not positive definite, or the
+/// rounds run out, [`minimize`] takes over from the best point with `opts` (its report then
+/// counts the work of both).
+///
+/// ```
+/// use ident::lm::{refine, LmOptions, Problem, RefineOptions};
+/// use faer::Mat;
+/// struct Exp { t: Vec<f64>, y: Vec<f64> }
+/// impl Problem for Exp {
+///     fn n_params(&self) -> usize { 2 }
+///     fn n_residuals(&self) -> usize { self.t.len() }
+///     fn eval(&mut self, p: &[f64], r: &mut [f64], jac: Option<&mut Mat<f64>>) -> ident::Result<()> {
+///         for (i, (&t, &y)) in self.t.iter().zip(&self.y).enumerate() {
+///             r[i] = p[0] * (-p[1] * t).exp() - y;
+///         }
+///         if let Some(j) = jac {
+///             for (i, &t) in self.t.iter().enumerate() {
+///                 j[(i, 0)] = (-p[1] * t).exp();
+///                 j[(i, 1)] = -p[0] * t * (-p[1] * t).exp();
+///             }
+///         }
+///         Ok(())
+///     }
+/// }
+/// let t: Vec<f64> = (0..200).map(|i| i as f64 * 0.05).collect();
+/// // a little deterministic "noise"
+/// let y = t.iter().enumerate().map(|(i, t)| 2.0 * (-0.5 * t).exp() + 1e-3 * ((i * 7 % 5) as f64 - 2.0)).collect();
+/// let rep = refine(&mut Exp { t, y }, &[2.01, 0.49], &LmOptions::default(), &RefineOptions::default()).unwrap();
+/// assert!(rep.converged && rep.std_errors.is_some());
+/// assert!((rep.params[0] - 2.0).abs() < 1e-2);
+/// ```
+///
+/// # Errors
+/// As [`minimize`].
+pub fn refine(
+    problem: &mut impl Problem,
+    p0: &[f64],
+    opts: &LmOptions,
+    ropts: &RefineOptions,
+) -> Result<LmReport> {
+    let (n, m) = (problem.n_params(), problem.n_residuals());
+    if n == 0 || m <= n || p0.len() != n || p0.iter().any(|v| !v.is_finite()) {
+        return minimize(problem, p0, opts);
+    }
+    // Damping only to keep the small system definite: the chord's fixed point does not depend
+    // on it.
+    let lambda = opts.initial_lambda.clamp(1e-14, 1e-8);
+    let mut p = p0.to_vec();
+    let mut r = vec![0.0; m];
+    let mut jac = Mat::<f64>::zeros(m, n);
+    let mut r_trial = vec![0.0; m];
+    let mut evaluations = 0;
+    let handover = |problem: &mut _, p: &[f64], evaluations: usize, rounds: usize| {
+        let mut rep = minimize(problem, p, opts)?;
+        rep.evaluations += evaluations;
+        rep.iterations += rounds;
+        Ok(rep)
+    };
+    for round in 0..ropts.max_rounds {
+        evaluations += 1;
+        if problem.eval(&p, &mut r, Some(&mut jac)).is_err() || check_finite(&r, &jac, "").is_err()
+        {
+            return handover(problem, &p, evaluations, round);
+        }
+        let mut ssr = sumsq(&r);
+        let sigma2 = ssr / (m - n) as f64;
+        let (rmat, qtr) = qr_of_jr(&jac, &r);
+        // g = J^T r = R^T (Q^T r) at the round's point.
+        let mut g: Vec<f64> = (0..n)
+            .map(|j| (0..rmat.nrows()).map(|i| rmat[(i, j)] * qtr[i]).sum())
+            .collect();
+        let held: Vec<bool> = (0..n).map(|j| problem.at_bound(j, p[j])).collect();
+        let Some((d, pred)) = gauss_newton_step(&rmat, &g, lambda, &held) else {
+            return handover(problem, &p, evaluations, round);
+        };
+        let last = pred <= ropts.tolerance * ropts.tolerance * sigma2;
+        let (mut d, mut pred) = (d, pred);
+        let mut first = true;
+        for _ in 0..ropts.max_chord_steps.max(1) {
+            let trial: Vec<f64> = p.iter().zip(&d).map(|(a, b)| a + b).collect();
+            evaluations += 1;
+            let ok = problem.eval(&trial, &mut r_trial, None).is_ok()
+                && r_trial.iter().all(|v| v.is_finite());
+            let ssr_trial = if ok { sumsq(&r_trial) } else { f64::INFINITY };
+            if !(ssr_trial <= ssr) {
+                if last {
+                    // The step was below the tolerance and does not lower the cost: `p` is the
+                    // optimum to rounding.
+                    break;
+                }
+                if first {
+                    // The round's own Gauss-Newton step fails: LM's damping is needed.
+                    return handover(problem, &p, evaluations, round + 1);
+                }
+                // A chord step fails (the Jacobian changed too much): a new round from here.
+                break;
+            }
+            first = false;
+            p = trial;
+            std::mem::swap(&mut r, &mut r_trial);
+            ssr = ssr_trial;
+            if last || pred <= ropts.chord_tolerance * ropts.chord_tolerance * sigma2 {
+                break;
+            }
+            // The chord step: the same J^T J, the gradient with the round's J.
+            g = jt_r(&jac, &r);
+            match gauss_newton_step(&rmat, &g, lambda, &held) {
+                Some(dp) => (d, pred) = dp,
+                None => return handover(problem, &p, evaluations, round + 1),
+            }
+        }
+        if last {
+            let (covariance, std_errors) = if opts.covariance {
+                covariance_and_errors(&rmat, ssr / (m - n) as f64)
+            } else {
+                (None, None)
+            };
+            let col_norms: Vec<f64> = (0..n).map(|j| norm(jac.col_as_slice(j))).collect();
+            return Ok(LmReport {
+                params: p,
+                cost: 0.5 * ssr,
+                gradient_cosine: gradient_cosine(&jac, &r, &col_norms, norm(&r)),
+                residuals: r,
+                iterations: round + 1,
+                evaluations,
+                termination: Termination::SmallStatisticalStep,
+                converged: true,
+                covariance,
+                std_errors,
+                lambda,
+            });
+        }
+    }
+    handover(problem, &p, evaluations, ropts.max_rounds)
 }
 
 fn check_finite(r: &[f64], jac: &Mat<f64>, when: &str) -> Result<()> {
@@ -525,12 +758,25 @@ fn damped_step(rmat: &Mat<f64>, qtr: &[f64], diag: &[f64], lambda: f64) -> Vec<f
     (0..n).map(|j| x[(j, 0)]).collect()
 }
 
-/// `sigma2 (J^T J)^-1 = sigma2 R^-1 R^-T` from the QR of `J`, row-major; `None` if `R` is
-/// numerically singular (a diagonal entry below `1e-13` times the largest).
-fn covariance(jac: &Mat<f64>, sigma2: f64) -> Option<Vec<f64>> {
-    let n = jac.ncols();
-    // The R of `J` is the leading block of the R of `[J r]` (any `r`).
-    let (r, _) = qr_of_jr(jac, &vec![0.0; jac.nrows()]);
+/// [`covariance`] and the standard errors `sqrt(diag)`.
+fn covariance_and_errors(rmat: &Mat<f64>, sigma2: f64) -> (Option<Vec<f64>>, Option<Vec<f64>>) {
+    let n = rmat.ncols();
+    match covariance(rmat, sigma2) {
+        Some(c) => {
+            let se = (0..n).map(|i| c[i * n + i].max(0.0).sqrt()).collect();
+            (Some(c), Some(se))
+        }
+        None => (None, None),
+    }
+}
+
+/// `sigma2 (J^T J)^-1 = sigma2 R^-1 R^-T` from the `R` of `J` (`J^T J = R^T R`), row-major;
+/// `None` if `R` is numerically singular (a diagonal entry below `1e-13` times the largest).
+fn covariance(r: &Mat<f64>, sigma2: f64) -> Option<Vec<f64>> {
+    let n = r.ncols();
+    if r.nrows() < n {
+        return None;
+    }
     let rmax = (0..n).map(|i| r[(i, i)].abs()).fold(0.0, f64::max);
     // 1e-13: about 500 ulp relative; below this the inverse is dominated by rounding.
     if rmax == 0.0 || (0..n).any(|i| r[(i, i)].abs() <= 1e-13 * rmax) {
@@ -670,6 +916,90 @@ mod tests {
         assert!(rel(rep.cov(0, 1).unwrap(), cov_ab) < 1e-9);
         assert!(rel(rep.std_errors.as_ref().unwrap()[1], var_b.sqrt()) < 1e-9);
         assert!((rep.ssr() - ssr).abs() < 1e-9 * ssr);
+    }
+
+    /// `y = a exp(-b t)` with deterministic "noise", counting Jacobians.
+    struct NoisyExp {
+        t: Vec<f64>,
+        y: Vec<f64>,
+        jacobians: usize,
+    }
+    impl NoisyExp {
+        fn new() -> Self {
+            let t: Vec<f64> = (0..400).map(|i| i as f64 * 0.02).collect();
+            let y = t
+                .iter()
+                .enumerate()
+                .map(|(i, t)| 2.0 * (-0.5 * t).exp() + 0.01 * (((i * 37) % 11) as f64 - 5.0))
+                .collect();
+            Self { t, y, jacobians: 0 }
+        }
+    }
+    impl Problem for NoisyExp {
+        fn n_params(&self) -> usize {
+            2
+        }
+        fn n_residuals(&self) -> usize {
+            self.t.len()
+        }
+        fn eval(&mut self, p: &[f64], r: &mut [f64], jac: Option<&mut Mat<f64>>) -> Result<()> {
+            for (i, (&t, &y)) in self.t.iter().zip(&self.y).enumerate() {
+                r[i] = p[0] * (-p[1] * t).exp() - y;
+            }
+            if let Some(j) = jac {
+                self.jacobians += 1;
+                for (i, &t) in self.t.iter().enumerate() {
+                    j[(i, 0)] = (-p[1] * t).exp();
+                    j[(i, 1)] = -p[0] * t * (-p[1] * t).exp();
+                }
+            }
+            Ok(())
+        }
+    }
+
+    #[test]
+    fn refine_from_near_the_optimum_reaches_it_with_few_jacobians() {
+        let opts = LmOptions {
+            ftol: 1e-15,
+            xtol: 1e-15,
+            ..LmOptions::default()
+        };
+        let best = minimize(&mut NoisyExp::new(), &[1.0, 1.0], &opts).unwrap();
+        let se = best.std_errors.clone().unwrap();
+        // Three standard errors off in both parameters, as a part of the record's optimum is.
+        let p0 = [best.params[0] + 3.0 * se[0], best.params[1] - 3.0 * se[1]];
+        let mut prob = NoisyExp::new();
+        let rep = refine(&mut prob, &p0, &opts, &RefineOptions::default()).unwrap();
+        assert_eq!(rep.termination, Termination::SmallStatisticalStep);
+        // Two rounds: one to get there by chord steps, one to certify.
+        assert!(prob.jacobians <= 3, "{} Jacobians", prob.jacobians);
+        for i in 0..2 {
+            // 1e-3 standard errors: the step under 0.01 was taken, what is left is of its
+            // square (Gauss-Newton converges quadratically on a small-residual problem).
+            let off = (rep.params[i] - best.params[i]).abs() / se[i];
+            assert!(off < 1e-3, "parameter {i}: {off} standard errors off");
+            let se_rel = (rep.std_errors.as_ref().unwrap()[i] - se[i]).abs() / se[i];
+            assert!(se_rel < 1e-3, "standard error {i} off by {se_rel}");
+        }
+        assert!(rep.cost <= best.cost * (1.0 + 1e-12));
+    }
+
+    #[test]
+    fn refine_from_far_away_hands_over_to_levenberg_marquardt() {
+        let best = minimize(&mut NoisyExp::new(), &[1.0, 1.0], &LmOptions::default()).unwrap();
+        // Gauss-Newton's first step from here overshoots (b negative: the exponential grows).
+        let mut prob = NoisyExp::new();
+        let rep = refine(
+            &mut prob,
+            &[0.1, 5.0],
+            &LmOptions::default(),
+            &RefineOptions::default(),
+        )
+        .unwrap();
+        assert!(rep.converged, "{:?}", rep.termination);
+        assert_ne!(rep.termination, Termination::SmallStatisticalStep);
+        assert!((rep.params[0] - best.params[0]).abs() < 1e-6 * best.params[0]);
+        assert!((rep.params[1] - best.params[1]).abs() < 1e-6 * best.params[1]);
     }
 
     /// Rosenbrock as residuals r = (10 (y - x^2), 1 - x): a curved valley, minimum at (1, 1).

@@ -3,7 +3,7 @@
 
 use super::{init, Bounds, FracModel, Param, Structure};
 use crate::data::{OffsetMode, Offsets, Record};
-use crate::lm::{minimize, LmOptions, Problem, Termination};
+use crate::lm::{minimize, refine, LmOptions, Problem, RefineOptions, Termination};
 use crate::metrics::Fit;
 use crate::{Error, Result};
 use faer::Mat;
@@ -87,6 +87,9 @@ impl FitReport {
             }
             Termination::SmallStep => "parameter step below tolerance",
             Termination::SmallCostChange => "relative cost change below tolerance",
+            Termination::SmallStatisticalStep => {
+                "Gauss-Newton step below 0.01 standard errors (taken)"
+            }
             Termination::NoProgress => "no step lowers the cost (precision limit)",
             Termination::MaxIterations => "maximum number of iterations reached",
             Termination::MaxEvaluations => "maximum number of simulations reached",
@@ -355,6 +358,10 @@ impl<S: Structure> Problem for OeProblem<'_, S> {
     fn n_residuals(&self) -> usize {
         self.y.len() - self.skip
     }
+    fn at_bound(&self, j: usize, theta_j: f64) -> bool {
+        let b = self.s.params()[self.free[j]].bounds;
+        b.at_edge(b.to_param(theta_j))
+    }
     fn eval(&mut self, theta: &[f64], r: &mut [f64], jac: Option<&mut Mat<f64>>) -> Result<()> {
         match jac {
             None => {
@@ -529,6 +536,7 @@ pub fn fit_with_progress<S: Structure>(
         Some((r, prob.jac_evals))
     });
     let mut prob = OeProblem::new(s, u, y, dt, opts.skip, &free, &base, &mut *progress);
+    let mut from_lead = false;
     if let Some((r, jac_evals)) = lead_fit {
         prob.jac_evals = jac_evals;
         lead_work = (r.iterations, r.evaluations + 2);
@@ -540,9 +548,16 @@ pub fn fit_with_progress<S: Structure>(
             // Near the optimum already: the whole record's fit starts with the lead's final
             // damping (Gauss-Newton steps), not the damping of a cold start.
             lm.initial_lambda = r.lambda.clamp(1e-12, opts.lm.initial_lambda);
+            from_lead = true;
         }
     }
-    let mut rep = minimize(&mut prob, &start, &lm)?;
+    let mut rep = if from_lead {
+        // Gauss-Newton rounds with chord steps: two whole-record Jacobians where LM takes four
+        // or five (LM takes over if a step fails).
+        refine(&mut prob, &start, &lm, &RefineOptions::default())?
+    } else {
+        minimize(&mut prob, &start, &lm)?
+    };
     rep.iterations += lead_work.0;
     rep.evaluations += lead_work.1;
     let mut values = base.clone();
