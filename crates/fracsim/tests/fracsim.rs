@@ -461,6 +461,43 @@ proptest! {
         prop_assert_eq!(&ys[shift..], &y[..], "{}", g);
     }
 
+    /// The poles of a model found from the poles of a nearby one (the cache's hint: every value
+    /// within 5%, here each coefficient and order moved by up to 1%) give the same model as the
+    /// poles found cold: the frequency responses agree to 1e-9 relative across the band (the
+    /// expansion check allows 1e-6; two root sets of the same `H` differ by rounding, or by modes
+    /// of a near-cancelling pole-zero pair whose weight is at rounding).
+    #[test]
+    fn poles_from_a_nearby_model_give_the_cold_model(
+        g in stable_model(0.05, 0.1),
+        moves in prop::collection::vec((-0.01f64..0.01, -0.01f64..0.01), 4),
+    ) {
+        use fracsim::modal::{pole_residue, RootsCache};
+        let pairs = |t: &[Term]| t.iter().map(|t| (t.coef, t.order)).collect::<Vec<_>>();
+        let (num, den) = (pairs(&g.num), pairs(&g.den));
+        let near: Vec<(f64, f64)> = den
+            .iter()
+            .zip(&moves)
+            .map(|(&(c, o), &(mc, mo))| (c * (1.0 + mc), if o == 0.0 { 0.0 } else { o * (1.0 + mo) }))
+            .collect();
+        let (band, spec) = ((1e-3, 30.0 * std::f64::consts::PI / 1e-3), ApproxSpec::default());
+        RootsCache::default().install();
+        let cold = pole_residue::<f64>(&num, &den, band, &spec);
+        RootsCache::default().install();
+        let nearby = pole_residue::<f64>(&num, &near, band, &spec);
+        let warm = pole_residue::<f64>(&num, &den, band, &spec);
+        match (cold, warm) {
+            (Ok(cold), Ok(warm)) => {
+                for i in 0..40 {
+                    let w = band.0 * (band.1 / band.0).powf(i as f64 / 39.0);
+                    let (a, b) = (cold.freq_response(w), warm.freq_response(w));
+                    prop_assert!((a - b).norm() <= 1e-9 * a.norm(), "{g} (nearby {near:?}: {}): at {w} rad/s {a} cold, {b} warm", nearby.is_ok());
+                }
+            }
+            (Err(_), Err(_)) => {}
+            (c, w) => prop_assert!(false, "{g}: cold {c:?}, warm {w:?}"),
+        }
+    }
+
     #[test]
     fn step_response_settles_at_the_dc_gain(g in stable_model(0.7, 0.03)) {
         // 20 s at 1 ms. Each term c s^a (a >= 0.7, c <= 0.03 relative) leaves a tail
