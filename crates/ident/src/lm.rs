@@ -706,11 +706,68 @@ const QR_BLOCK: usize = 8192;
 
 /// QR of `[J r]`: returns the `k x n` upper-trapezoidal `R` (k = min(m, n)) and `Q^T r` (length k).
 ///
+/// A well-conditioned `J` is factored through its Gram matrix ([`cholesky_qr_of_jr`]: one pass
+/// over the data, a matrix product instead of `n` reflections); any other by Householder
+/// reflections ([`householder_qr_of_jr`]). `R` is unique up to the signs of its rows, which
+/// `Q^T r` shares, so every use below (the damped steps, the covariance, `J^T r = R^T Q^T r`) is
+/// the same.
+fn qr_of_jr(jac: &Mat<f64>, r: &[f64]) -> (Mat<f64>, Vec<f64>) {
+    cholesky_qr_of_jr(jac, r).unwrap_or_else(|| householder_qr_of_jr(jac, r))
+}
+
+/// The smallest pivot of the column-scaled Cholesky factor [`cholesky_qr_of_jr`] accepts: `J`'s
+/// columns, scaled to unit norm, have a condition number of about `1/MIN_PIVOT` or less, so the
+/// Gram matrix (whose condition is the square) loses at most about `1e-16 / MIN_PIVOT^2 = 1e-6`
+/// relative in `R`, far below what a damped step or a standard error needs.
+const MIN_PIVOT: f64 = 1e-5;
+
+/// Cholesky QR (e.g. Yamamoto et al. 2015) of `[J r]`: `J^T J = R^T R` with `R` the Cholesky factor
+/// of the Gram matrix (columns scaled to unit norm first), and `Q^T r = R^-T (J^T r)`. `None`
+/// when `m < n`, a column is zero, or a scaled pivot is under [`MIN_PIVOT`] (nearly dependent
+/// columns): the Householder QR then does it.
+fn cholesky_qr_of_jr(jac: &Mat<f64>, r: &[f64]) -> Option<(Mat<f64>, Vec<f64>)> {
+    let (m, n) = (jac.nrows(), jac.ncols());
+    if m < n || n == 0 {
+        return None;
+    }
+    let gram = jac.transpose() * jac;
+    let g = jt_r(jac, r);
+    let d: Vec<f64> = (0..n).map(|j| gram[(j, j)].sqrt()).collect();
+    if d.iter().any(|v| !(*v > 0.0 && v.is_finite())) {
+        return None;
+    }
+    // L L^T = D^-1 G D^-1 (unit diagonal), lower triangular, row-major.
+    let mut l = vec![0.0; n * n];
+    for j in 0..n {
+        let s = 1.0 - (0..j).map(|k| l[j * n + k] * l[j * n + k]).sum::<f64>();
+        if !(s > MIN_PIVOT * MIN_PIVOT) {
+            return None;
+        }
+        let ljj = s.sqrt();
+        l[j * n + j] = ljj;
+        for i in j + 1..n {
+            let sij = gram[(i, j)] / (d[i] * d[j]);
+            let dot: f64 = (0..j).map(|k| l[i * n + k] * l[j * n + k]).sum();
+            l[i * n + j] = (sij - dot) / ljj;
+        }
+    }
+    // R = L^T D.
+    let rmat = Mat::<f64>::from_fn(n, n, |i, j| if j >= i { l[j * n + i] * d[j] } else { 0.0 });
+    // R^T q = g by forward substitution.
+    let mut q = vec![0.0; n];
+    for i in 0..n {
+        let s: f64 = (0..i).map(|k| rmat[(k, i)] * q[k]).sum();
+        q[i] = (g[i] - s) / rmat[(i, i)];
+    }
+    q.iter().all(|v| v.is_finite()).then_some((rmat, q))
+}
+
+/// Householder QR of `[J r]`, as [`qr_of_jr`] returns it.
+///
 /// Factored by blocks of rows (the tall-skinny QR): the `R` of the rows so far stacked on the
 /// next [`QR_BLOCK`] rows is factored again, so memory stays one block whatever the record's
-/// length and `[J r]` is never copied whole. `R` is unique up to the signs of its rows, which
-/// `Q^T r` shares, so every use below (the damped steps, the covariance) is the same.
-fn qr_of_jr(jac: &Mat<f64>, r: &[f64]) -> (Mat<f64>, Vec<f64>) {
+/// length and `[J r]` is never copied whole.
+fn householder_qr_of_jr(jac: &Mat<f64>, r: &[f64]) -> (Mat<f64>, Vec<f64>) {
     let (m, n) = (jac.nrows(), jac.ncols());
     let w = n + 1;
     let mut top = Mat::<f64>::zeros(0, w);
@@ -829,8 +886,19 @@ mod tests {
             rnd() + if j == 0 { 1e-3 * i as f64 } else { 0.0 }
         });
         let r: Vec<f64> = (0..m).map(|_| rnd()).collect();
-        let (rmat, qtr) = qr_of_jr(&jac, &r);
         let whole = Mat::<f64>::from_fn(m, n + 1, |i, j| if j < n { jac[(i, j)] } else { r[i] });
+        assert_same_r(&whole, householder_qr_of_jr(&jac, &r), 1e-11);
+        // Well-conditioned: the Gram matrix path serves, to 1e-11 too (its error is machine
+        // epsilon times the square of a small condition number).
+        let chol = cholesky_qr_of_jr(&jac, &r).expect("a well-conditioned J");
+        assert_same_r(&whole, chol.clone(), 1e-11);
+        assert_eq!(qr_of_jr(&jac, &r), chol);
+    }
+
+    /// `(rmat, qtr)` equals the R of `whole = [J r]` up to the signs of its rows, to `tol` times
+    /// each row's diagonal.
+    fn assert_same_r(whole: &Mat<f64>, (rmat, qtr): (Mat<f64>, Vec<f64>), tol: f64) {
+        let n = whole.ncols() - 1;
         let qr = whole.qr();
         let want = qr.thin_R();
         for i in 0..n {
@@ -838,15 +906,41 @@ mod tests {
             let scale = want[(i, i)].abs();
             for j in 0..n {
                 assert!(
-                    (sign * rmat[(i, j)] - want[(i, j)]).abs() < 1e-11 * scale,
+                    (sign * rmat[(i, j)] - want[(i, j)]).abs() < tol * scale,
                     "R[{i},{j}]"
                 );
             }
             assert!(
-                (sign * qtr[i] - want[(i, n)]).abs() < 1e-11 * scale,
+                (sign * qtr[i] - want[(i, n)]).abs() < tol * scale,
                 "Q^T r [{i}]"
             );
         }
+    }
+
+    #[test]
+    fn nearly_dependent_columns_go_to_householder() {
+        // Column 2 is column 0 plus 1e-7 of noise: a scaled pivot of about 1e-7, under
+        // MIN_PIVOT; the Gram matrix would lose about 1e-2 relative in R.
+        let m = 5000;
+        let mut state = 11u64;
+        let mut rnd = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        let base: Vec<[f64; 3]> = (0..m).map(|_| [rnd(), rnd(), rnd()]).collect();
+        let jac = Mat::<f64>::from_fn(m, 3, |i, j| match j {
+            2 => base[i][0] + 1e-7 * base[i][2],
+            _ => base[i][j],
+        });
+        let r: Vec<f64> = (0..m).map(|_| rnd()).collect();
+        assert!(cholesky_qr_of_jr(&jac, &r).is_none());
+        let whole = Mat::<f64>::from_fn(m, 4, |i, j| if j < 3 { jac[(i, j)] } else { r[i] });
+        assert_same_r(&whole, qr_of_jr(&jac, &r), 1e-9);
+        // A zero column (a parameter without influence) also goes to Householder.
+        let jz = Mat::<f64>::from_fn(m, 2, |i, j| if j == 0 { base[i][0] } else { 0.0 });
+        assert!(cholesky_qr_of_jr(&jz, &r).is_none());
     }
 
     /// Linear model y = a + b t: LM must give the OLS solution and its textbook covariance.
