@@ -7,10 +7,11 @@
 //!
 //! `min_d || J d + r ||^2 + lambda || D d ||^2`,
 //!
-//! i.e. `(J^T J + lambda D^2) d = -J^T r` (Marquardt's eq. with the scaling `D`), but never forms
-//! `J^T J`: `[J r]` is factored once per iteration by Householder QR (faer), giving `R` and
-//! `Q^T r`, and each trial `lambda` solves the small stacked system `[R; sqrt(lambda) D] d =
-//! [-Q^T r; 0]` by QR again. `D = diag(d_i)` with `d_i` the largest Euclidean norm of column `i`
+//! i.e. `(J^T J + lambda D^2) d = -J^T r` (Marquardt's eq. with the scaling `D`): `[J r]` is
+//! factored once per iteration, giving `R` and `Q^T r` (by Cholesky QR when its scaled columns are
+//! well conditioned, else by Householder QR, faer), and each trial `lambda` solves the small
+//! stacked system `[R; sqrt(lambda) D] d = [-Q^T r; 0]` by QR again. [`refine`] finishes a fit
+//! from near its optimum with fewer Jacobians. `D = diag(d_i)` with `d_i` the largest Euclidean norm of column `i`
 //! of `J` seen so far (Moré 1978), which makes the method invariant to the units of each
 //! parameter. The Marquardt factor `lambda` follows Nielsen's (1999) rule: with the gain ratio
 //! `rho = (actual reduction)/(predicted reduction)`, an accepted step (`rho > 0`) sets
