@@ -952,6 +952,31 @@ mod tests {
     /// derivative plus 1e-8 (seen: 6.7e-7 on a derivative of 116, 7e-12 on the near-cancelling
     /// modes). And an exact truth: `sum r/lambda = direct - G(0) = -6.8` whatever the order, so
     /// its dual derivative is zero to rounding (1e-9 of `sum |d(r/lambda)|`; seen 3e-12).
+    /// `(pole, its derivative, weight r/lambda, its derivative)` of every mode of a build with
+    /// one dual part, a complex pair as its upper member, sorted by pole.
+    type Mode = (Complex64, Complex64, Complex64, Complex64);
+    fn modes_of(pr: &PoleResidue<crate::scalar::Dual<1>>) -> Vec<Mode> {
+        use crate::scalar::Dual;
+        let c = |v: Cx<Dual<1>>| {
+            (
+                Complex64::new(v.re.v, v.im.v),
+                Complex64::new(v.re.d[0], v.im.d[0]),
+            )
+        };
+        let mut m: Vec<Mode> = pr
+            .real
+            .iter()
+            .map(|&(l, r)| (Cx::real(l), Cx::real(r)))
+            .chain(pr.complex.iter().copied())
+            .map(|(l, r)| {
+                let ((lv, ld), (wv, wd)) = (c(l), c(r / l));
+                (lv, ld, wv, wd)
+            })
+            .collect();
+        m.sort_by(|a, b| a.0.re.total_cmp(&b.0.re).then(a.0.im.total_cmp(&b.0.im)));
+        m
+    }
+
     #[test]
     fn pole_and_weight_derivatives_match_central_differences() {
         use crate::scalar::Dual;
@@ -972,29 +997,9 @@ mod tests {
             )
             .unwrap()
         };
-        type Mode = (Complex64, Complex64, Complex64, Complex64);
         // (pole, its derivative, weight r/lambda, its derivative) of every mode, a complex pair
         // as its upper member.
-        let modes = |pr: &PoleResidue<Dual<1>>| -> Vec<Mode> {
-            let c = |v: Cx<Dual<1>>| {
-                (
-                    Complex64::new(v.re.v, v.im.v),
-                    Complex64::new(v.re.d[0], v.im.d[0]),
-                )
-            };
-            let mut m: Vec<Mode> = pr
-                .real
-                .iter()
-                .map(|&(l, r)| (Cx::real(l), Cx::real(r)))
-                .chain(pr.complex.iter().copied())
-                .map(|(l, r)| {
-                    let ((lv, ld), (wv, wd)) = (c(l), c(r / l));
-                    (lv, ld, wv, wd)
-                })
-                .collect();
-            m.sort_by(|a, b| a.0.re.total_cmp(&b.0.re).then(a.0.im.total_cmp(&b.0.im)));
-            m
-        };
+        let modes = modes_of;
         let zeta = 0.9;
         let h = 1e-6 * zeta;
         let dual = modes(&build(Dual::var(zeta, 0)));
@@ -1040,27 +1045,7 @@ mod tests {
     #[test]
     fn a_hinted_build_near_cancelling_pairs_equals_the_cold_build() {
         use crate::scalar::Dual;
-        type Mode = (Complex64, Complex64, Complex64, Complex64);
-        let modes = |pr: &PoleResidue<Dual<1>>| -> Vec<Mode> {
-            let c = |v: Cx<Dual<1>>| {
-                (
-                    Complex64::new(v.re.v, v.im.v),
-                    Complex64::new(v.re.d[0], v.im.d[0]),
-                )
-            };
-            let mut m: Vec<Mode> = pr
-                .real
-                .iter()
-                .map(|&(l, r)| (Cx::real(l), Cx::real(r)))
-                .chain(pr.complex.iter().copied())
-                .map(|(l, r)| {
-                    let ((lv, ld), (wv, wd)) = (c(l), c(r / l));
-                    (lv, ld, wv, wd)
-                })
-                .collect();
-            m.sort_by(|a, b| a.0.re.total_cmp(&b.0.re).then(a.0.im.total_cmp(&b.0.im)));
-            m
-        };
+        let modes = modes_of;
         // (zeta, nearby zeta, theta, band, whether the hint serves). The second model's cold
         // path leaves a cancelled root out (39 of 40), and so does the nearby one's: Newton from
         // its 39 roots cannot make the 40 that the hint path needs, and the build goes cold.

@@ -871,18 +871,23 @@ fn covariance(r: &Mat<f64>, sigma2: f64) -> Option<Vec<f64>> {
 mod tests {
     use super::*;
 
+    /// A seeded generator of uniform numbers in [-0.5, 0.5) (a 64-bit LCG).
+    fn uniform(seed: u64) -> impl FnMut() -> f64 {
+        let mut state = seed;
+        move || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        }
+    }
+
     /// The blocked QR of `[J r]` (three blocks and a part) against faer's QR of the whole: the
     /// same `R` and `Q^T r` up to the sign of each row, to rounding.
     #[test]
     fn blocked_qr_equals_the_whole_qr() {
         let (m, n) = (3 * QR_BLOCK + 517, 4);
-        let mut state = 7u64;
-        let mut rnd = || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
+        let mut rnd = uniform(7);
         let jac = Mat::<f64>::from_fn(m, n, |i, j| {
             rnd() + if j == 0 { 1e-3 * i as f64 } else { 0.0 }
         });
@@ -923,13 +928,7 @@ mod tests {
         // Column 2 is column 0 plus 1e-7 of noise: a scaled pivot of about 1e-7, under
         // MIN_PIVOT; the Gram matrix would lose about 1e-2 relative in R.
         let m = 5000;
-        let mut state = 11u64;
-        let mut rnd = || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
+        let mut rnd = uniform(11);
         let base: Vec<[f64; 3]> = (0..m).map(|_| [rnd(), rnd(), rnd()]).collect();
         let jac = Mat::<f64>::from_fn(m, 3, |i, j| match j {
             2 => base[i][0] + 1e-7 * base[i][2],

@@ -27,13 +27,9 @@ fn noisy(y: Vec<f64>, sigma: f64, seed: u64) -> Vec<f64> {
         .collect()
 }
 
-/// A position output: the PMSM's speed integrated, the drive adding 0.2 V to the recorded
-/// command (an input offset, which through the integrator is a drift); position noise 0.002 rad
-/// (an encoder of 4096 lines resolves 0.0015 rad). With `--integrator` the
-/// plant is recovered (gain within 2%, orders within 0.05, the offset within 0.01 V); without it
-/// the result is refused as unusable or fits far worse with warnings.
-#[test]
-fn an_integrating_output_is_fitted_with_an_integrator_and_refused_without() {
+/// The position record of the two tests below: the PMSM's speed integrated, 0.2 V added to the
+/// recorded command, position noise 0.002 rad.
+fn position_record() -> Record {
     let u = prbs(3, 1);
     let plant = Plant {
         integrators: 1,
@@ -41,7 +37,17 @@ fn an_integrating_output_is_fitted_with_an_integrator_and_refused_without() {
     };
     let shifted: Vec<f64> = u.iter().map(|v| v + 0.2).collect();
     let y = noisy(response(&plant, &shifted, DT), 0.002, 31);
-    let rec = Record::from_samples(&u, &y, DT).unwrap();
+    Record::from_samples(&u, &y, DT).unwrap()
+}
+
+/// A position output: the PMSM's speed integrated, the drive adding 0.2 V to the recorded
+/// command (an input offset, which through the integrator is a drift); position noise 0.002 rad
+/// (an encoder of 4096 lines resolves 0.0015 rad). With `--integrator` the
+/// plant is recovered (gain within 2%, orders within 0.05, the offset within 0.01 V); without it
+/// the result is refused as unusable or fits far worse with warnings.
+#[test]
+fn an_integrating_output_is_fitted_with_an_integrator_and_refused_without() {
+    let rec = position_record();
     let opts = IdentOptions::default();
     let mut m = FracModel::pmsm(1.0, 0.01, 1e-4, 0.9, 0.9);
     m.with_integrator();
@@ -101,14 +107,7 @@ fn an_integrating_output_is_fitted_with_an_integrator_and_refused_without() {
 /// of G(0) in the record's 1.14 s, under the half that the check asks for.
 #[test]
 fn a_model_slower_than_the_record_is_warned_about() {
-    let u = prbs(3, 1);
-    let plant = Plant {
-        integrators: 1,
-        ..PMSM
-    };
-    let shifted: Vec<f64> = u.iter().map(|v| v + 0.2).collect();
-    let y = noisy(response(&plant, &shifted, DT), 0.002, 31);
-    let rec = Record::from_samples(&u, &y, DT).unwrap();
+    let rec = position_record();
     let mut m = FracModel::pmsm(17.3, 2.31, 0.00376, 1.039, 1.167);
     for p in &mut m.params {
         p.free = false;
