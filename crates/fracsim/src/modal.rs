@@ -55,10 +55,19 @@ impl<T: Real> Group<T> {
 
     /// The group's value and its derivative with respect to `s`, at `s != 0`.
     fn eval(&self, s: Cx<T>) -> (Cx<T>, Cx<T>) {
+        self.eval_without(s, None)
+    }
+
+    /// [`Group::eval`] with cell `skip` (its `(s + z)/(s + p)`) left out: the rest of the cells
+    /// `R(s)` times `P(1/s)`, and the `s`-derivative (`R'` by the logarithmic derivative).
+    fn eval_without(&self, s: Cx<T>, skip: Option<usize>) -> (Cx<T>, Cx<T>) {
         let zero = Cx::real(T::from(0.0));
         let mut cells = Cx::real(T::from(1.0));
         let mut logd = zero;
-        for (&z, &p) in self.zeros.iter().zip(&self.poles) {
+        for (l, (&z, &p)) in self.zeros.iter().zip(&self.poles).enumerate() {
+            if skip == Some(l) {
+                continue;
+            }
             let a = s + Cx::real(z);
             let b = s + Cx::real(p);
             cells = cells * a / b;
@@ -83,28 +92,9 @@ impl<T: Real> Group<T> {
     /// small `s + p` or `s + z_i` near a nearly cancelling cell. Otherwise
     /// `(G(s + p))' = G'(s + p) + G`.
     fn eval_times(&self, s: Cx<T>, p: T) -> (Cx<T>, Cx<T>) {
-        let zero = Cx::real(T::from(0.0));
         let own = self.poles.iter().position(|q| q.re() == p.re());
-        let mut cells = Cx::real(T::from(1.0));
-        let mut logd = zero;
-        for (l, (&z, &q)) in self.zeros.iter().zip(&self.poles).enumerate() {
-            if own == Some(l) {
-                continue;
-            }
-            let a = s + Cx::real(z);
-            let b = s + Cx::real(q);
-            cells = cells * a / b;
-            logd += a.recip() - b.recip();
-        }
-        let x = s.recip();
-        let (mut pv, mut dp) = (zero, zero);
-        for &c in self.coef.iter().rev() {
-            dp = dp * x + pv;
-            pv = pv * x + Cx::real(c);
-        }
-        let dps = -(dp * x * x);
         // The rest (R P) and its derivative, times the factor m = s + z_i or s + p.
-        let (g, dg) = (cells * pv, cells * (logd * pv + dps));
+        let (g, dg) = self.eval_without(s, own);
         let m = s + Cx::real(own.map_or(p, |i| self.zeros[i]));
         (g * m, dg * m + g)
     }
