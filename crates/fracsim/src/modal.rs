@@ -124,18 +124,18 @@ impl<T: Real> Group<T> {
 
 /// A sum of groups, evaluated with its `s`-derivative.
 fn eval_sum<T: Real>(groups: &[Group<T>], s: Cx<T>) -> (Cx<T>, Cx<T>) {
-    let zero = Cx::real(T::from(0.0));
-    groups.iter().fold((zero, zero), |(v, d), g| {
-        let (gv, gd) = g.eval(s);
-        (v + gv, d + gd)
-    })
+    eval_sum_times(groups, s, None)
 }
 
-/// [`Group::eval_times`] summed over groups: `(sum_g G_g(s)) (s + p)` and its `s`-derivative.
-fn eval_sum_times<T: Real>(groups: &[Group<T>], s: Cx<T>, p: T) -> (Cx<T>, Cx<T>) {
+/// [`eval_sum`], times `(s + p)` when `times` is `Some(p)` ([`Group::eval_times`]):
+/// `(sum_g G_g(s)) (s + p)` and its `s`-derivative.
+fn eval_sum_times<T: Real>(groups: &[Group<T>], s: Cx<T>, times: Option<T>) -> (Cx<T>, Cx<T>) {
     let zero = Cx::real(T::from(0.0));
     groups.iter().fold((zero, zero), |(v, d), g| {
-        let (gv, gd) = g.eval_times(s, p);
+        let (gv, gd) = match times {
+            Some(p) => g.eval_times(s, p),
+            None => g.eval(s),
+        };
         (v + gv, d + gd)
     })
 }
@@ -767,26 +767,16 @@ fn expansion<T: Real>(
             .map(|&(gi, k)| (hg64[gi].poles[k], (gi, k)))
             .filter(|&(p, _)| (r + p).norm() <= NEAR_CELL_POLE * p.abs())
             .min_by(|a, b| (r + a.0).norm().total_cmp(&(r + b.0).norm()));
-        let (lam, res) = match near {
-            // A hair from the cell pole -p: H and H' are differences of nearly equal numbers
-            // divided by (s + p) and its powers, and so are their derivatives. F = H (s + p)
-            // has the same root and no pole there; H'(lambda) = F'(lambda)/(lambda + p).
-            Some((_, (gi, k))) => {
-                let p = hg[gi].poles[k];
-                let (f, df) = eval_sum_times(hg, s0, p);
-                let lam = s0 - f / df;
-                let (_, df) = eval_sum_times(hg, lam, p);
-                let (nv, _) = eval_sum_times(ng, lam, p);
-                (lam, nv / df)
-            }
-            None => {
-                let (h, dh) = eval_sum(hg, s0);
-                let lam = s0 - h / dh;
-                let (_, dh) = eval_sum(hg, lam);
-                let (nv, _) = eval_sum(ng, lam);
-                (lam, nv / dh)
-            }
-        };
+        // A hair from the cell pole -p: H and H' are differences of nearly equal numbers
+        // divided by (s + p) and its powers, and so are their derivatives. F = H (s + p) has
+        // the same root and no pole there; H'(lambda) = F'(lambda)/(lambda + p), and the
+        // residue N(lambda)/H'(lambda) = (N (s + p))(lambda)/F'(lambda).
+        let times = near.map(|(_, (gi, k))| hg[gi].poles[k]);
+        let (f, df) = eval_sum_times(hg, s0, times);
+        let lam = s0 - f / df;
+        let (_, df) = eval_sum_times(hg, lam, times);
+        let (nv, _) = eval_sum_times(ng, lam, times);
+        let res = nv / df;
         if r.im == 0.0 {
             out.real.push((lam.re, res.re));
         } else {
@@ -989,12 +979,11 @@ mod tests {
         };
         // (pole, its derivative, weight r/lambda, its derivative) of every mode, a complex pair
         // as its upper member.
-        let modes = modes_of;
         let zeta = 0.9;
         let h = 1e-6 * zeta;
-        let dual = modes(&build(Dual::var(zeta, 0)));
-        let plus = modes(&build(Dual::cst(zeta + h)));
-        let minus = modes(&build(Dual::cst(zeta - h)));
+        let dual = modes_of(&build(Dual::var(zeta, 0)));
+        let plus = modes_of(&build(Dual::cst(zeta + h)));
+        let minus = modes_of(&build(Dual::cst(zeta - h)));
         assert_eq!(dual.len(), plus.len());
         assert_eq!(dual.len(), minus.len());
         let (mut sum, mut scale) = (0.0, 0.0);
@@ -1035,7 +1024,6 @@ mod tests {
     #[test]
     fn a_hinted_build_near_cancelling_pairs_equals_the_cold_build() {
         use crate::scalar::Dual;
-        let modes = modes_of;
         // (zeta, nearby zeta, theta, band, whether the hint serves). The second model's cold
         // path leaves a cancelled root out (39 of 40), and so does the nearby one's: Newton from
         // its 39 roots cannot make the 40 that the hint path needs, and the build goes cold.
@@ -1065,11 +1053,11 @@ mod tests {
                 .unwrap()
             };
             RootsCache::default().install();
-            let cold = modes(&build(Dual::var(zeta, 0)));
+            let cold = modes_of(&build(Dual::var(zeta, 0)));
             RootsCache::default().install();
             let _ = build(Dual::var(near, 0));
             let hinted = HINTED.with(|h| h.get());
-            let warm = modes(&build(Dual::var(zeta, 0)));
+            let warm = modes_of(&build(Dual::var(zeta, 0)));
             assert_eq!(HINTED.with(|h| h.get()), hinted + served, "{zeta}");
             assert_eq!(cold.len(), warm.len(), "{zeta}");
             let w_max = cold.iter().map(|m| m.2.norm()).fold(0.0, f64::max);
