@@ -164,6 +164,11 @@ fn eval_dual<const N: usize, S: Structure>(
 /// Below this many samples a Jacobian runs on one thread (a thread costs more than it saves).
 const PARALLEL_MIN_SAMPLES: usize = 4096;
 
+/// Whether the machine has at least two cores.
+fn two_cores() -> bool {
+    std::thread::available_parallelism().is_ok_and(|n| n.get() >= 2)
+}
+
 /// The output `yhat` at `theta` and its exact Jacobian `jac[(k - skip, i)] = d yhat_k / d theta_i`
 /// for the free parameters `free` (with `transform`, `theta` is reparametrised by the parameters'
 /// [`Bounds`]; else it holds the physical values).
@@ -198,8 +203,16 @@ fn jacobian<S: Structure>(
     }
     let (lin, nonlin): (Vec<usize>, Vec<usize>) =
         (0..free.len()).partition(|&i| s.is_linear(free[i]));
-    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
-    let half = if nonlin.len() >= 2 && cores >= 2 && u.len() >= PARALLEL_MIN_SAMPLES {
+    // The linear columns alternate between the two threads' shares (the even ones first): the
+    // costly ones (initial-state levels, a simulation each) come in a run, and a run cut in the
+    // middle would load one thread with most of them.
+    let lin: Vec<usize> = lin
+        .iter()
+        .step_by(2)
+        .chain(lin.iter().skip(1).step_by(2))
+        .copied()
+        .collect();
+    let half = if nonlin.len() >= 2 && two_cores() && u.len() >= PARALLEL_MIN_SAMPLES {
         nonlin.len().div_ceil(2)
     } else {
         0
@@ -226,7 +239,11 @@ fn jacobian<S: Structure>(
     let pv = &pv;
     // The linear columns are shared between the two threads, after their dual halves (each
     // costs about one f64 simulation; the gain's needs the output, which both halves compute).
-    let lin_split = if first.is_empty() { 0 } else { lin.len() / 2 };
+    let lin_split = if first.is_empty() {
+        0
+    } else {
+        lin.len().div_ceil(2)
+    };
     let (lin_a, lin_b) = lin_j.split_at(lin_split);
     let (cols_lin_a, cols_lin_b) = cols_lin.split_at_mut(lin_split);
     // The second half (all of them on one thread) and its share of the linear columns.
@@ -296,7 +313,6 @@ struct OeProblem<'a, S: Structure> {
     free: Vec<usize>,
     base: Vec<f64>,
     yhat: Vec<f64>,
-    pbuf: Vec<f64>,
     progress: &'a mut dyn FnMut(usize, f64),
     jac_evals: usize,
 }
@@ -320,7 +336,6 @@ impl<'a, S: Structure> OeProblem<'a, S> {
             dt,
             skip,
             free: free.to_vec(),
-            pbuf: base.to_vec(),
             base: base.to_vec(),
             yhat: vec![0.0; u.len()],
             progress,
@@ -328,26 +343,46 @@ impl<'a, S: Structure> OeProblem<'a, S> {
         }
     }
 
-    /// The sum of squared residuals at `theta` (`None` when the model does not simulate).
-    fn ssr_at(&mut self, theta: &[f64]) -> Option<f64> {
-        self.params_of(theta);
-        self.s
-            .simulate(&self.pbuf, self.u, self.dt, &mut self.yhat)
-            .ok()?;
-        let ssr: f64 = self.yhat[self.skip..]
-            .iter()
-            .zip(&self.y[self.skip..])
-            .map(|(a, b)| (a - b) * (a - b))
-            .sum();
-        ssr.is_finite().then_some(ssr)
+    /// The sums of squared residuals at `a` and at `b` (`None` where the model does not
+    /// simulate), the two simulations on two threads for a long record. `yhat` is left holding
+    /// the residuals at `a`.
+    fn ssr_at_both(&mut self, a: &[f64], b: &[f64]) -> (Option<f64>, Option<f64>) {
+        let pb = self.params_of(b);
+        let pa = self.params_of(a);
+        let (s, u, y, dt, skip) = (self.s, self.u, self.y, self.dt, self.skip);
+        let ssr = |p: &[f64], buf: &mut [f64]| -> Option<f64> {
+            s.simulate(p, u, dt, buf).ok()?;
+            for (e, y) in buf[skip..].iter_mut().zip(&y[skip..]) {
+                *e -= y;
+            }
+            let ssr = crate::lm::sumsq(&buf[skip..]);
+            ssr.is_finite().then_some(ssr)
+        };
+        let yhat = &mut self.yhat;
+        if u.len() < PARALLEL_MIN_SAMPLES || !two_cores() {
+            let sb = ssr(&pb, yhat);
+            return (ssr(&pa, yhat), sb);
+        }
+        // As in `jacobian`: the helper starts from this thread's solved poles.
+        let roots = fracsim::modal::RootsCache::of_this_thread();
+        std::thread::scope(|sc| {
+            let h = sc.spawn(|| {
+                roots.install();
+                ssr(&pb, &mut vec![0.0; u.len()])
+            });
+            let sa = ssr(&pa, yhat);
+            (sa, h.join().ok().flatten())
+        })
     }
 
-    fn params_of(&mut self, theta: &[f64]) {
-        self.pbuf.copy_from_slice(&self.base);
+    /// The physical parameter values at `theta` (the fixed ones from `base`).
+    fn params_of(&self, theta: &[f64]) -> Vec<f64> {
+        let mut p = self.base.clone();
         let ps = self.s.params();
         for (&j, &th) in self.free.iter().zip(theta) {
-            self.pbuf[j] = ps[j].bounds.to_param(th);
+            p[j] = ps[j].bounds.to_param(th);
         }
+        p
     }
 }
 
@@ -365,9 +400,8 @@ impl<S: Structure> Problem for OeProblem<'_, S> {
     fn eval(&mut self, theta: &[f64], r: &mut [f64], jac: Option<&mut Mat<f64>>) -> Result<()> {
         match jac {
             None => {
-                self.params_of(theta);
-                self.s
-                    .simulate(&self.pbuf, self.u, self.dt, &mut self.yhat)?;
+                let p = self.params_of(theta);
+                self.s.simulate(&p, self.u, self.dt, &mut self.yhat)?;
             }
             Some(jac) => {
                 let (s, base, free, u, dt, skip) =
@@ -375,11 +409,14 @@ impl<S: Structure> Problem for OeProblem<'_, S> {
                 jacobian(s, base, free, theta, true, u, dt, skip, &mut self.yhat, jac)?;
             }
         }
-        let mut ssr = 0.0;
-        for (k, rk) in r.iter_mut().enumerate() {
-            *rk = self.yhat[k + self.skip] - self.y[k + self.skip];
-            ssr += *rk * *rk;
+        for ((rk, e), y) in r
+            .iter_mut()
+            .zip(&self.yhat[self.skip..])
+            .zip(&self.y[self.skip..])
+        {
+            *rk = e - y;
         }
+        let ssr = crate::lm::sumsq(r);
         self.jac_evals += 1;
         (self.progress)(self.jac_evals, (ssr / r.len().max(1) as f64).sqrt());
         Ok(())
@@ -542,8 +579,8 @@ pub fn fit_with_progress<S: Structure>(
         lead_work = (r.iterations, r.evaluations + 2);
         // The lead's optimum starts the whole record's fit unless it fits the whole record
         // worse than the start did (a lead that misleads).
-        let mut cost_at = |th: &[f64]| prob.ssr_at(th).unwrap_or(f64::INFINITY);
-        if cost_at(&r.params) <= cost_at(&theta0) {
+        let (at_lead, at_start) = prob.ssr_at_both(&r.params, &theta0);
+        if at_lead.unwrap_or(f64::INFINITY) <= at_start.unwrap_or(f64::INFINITY) {
             start = r.params;
             // Near the optimum already: the whole record's fit starts with the lead's final
             // damping (Gauss-Newton steps), not the damping of a cold start.
