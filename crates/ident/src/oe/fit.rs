@@ -228,15 +228,31 @@ fn jacobian<S: Structure>(
     };
     let mut cols_first = take(first);
     let mut cols_second = take(second);
-    let lin_cols = take(&lin);
+    let mut lin_cols = take(&lin);
     if cols_first.len() + cols_second.len() + lin_cols.len() != free.len() {
         return Err(Error::Numerical(
             "the Jacobian is not stored column by column".into(),
         ));
     }
-    let mut cols_lin = vec![vec![]; lin.len()];
-    let lin_j: Vec<usize> = lin.iter().map(|&i| free[i]).collect();
     let pv = &pv;
+    // The linear columns of `group` (indices into `free`) from the output `y`, scaled to
+    // `theta`, into `out` (each thread writes its own share).
+    let linear = |group: &[usize], y: &[f64], out: &mut [&mut [f64]]| -> Result<()> {
+        let which: Vec<usize> = group.iter().map(|&i| free[i]).collect();
+        let mut cols = vec![vec![]; group.len()];
+        s.linear_sensitivities(pv, &which, u, dt, y, &mut cols)?;
+        for ((&i, col), out) in group.iter().zip(&cols).zip(out.iter_mut()) {
+            let dp = if transform {
+                params[free[i]].bounds.dparam(pv[free[i]])
+            } else {
+                1.0
+            };
+            for (j, c) in out.iter_mut().zip(&col[skip..]) {
+                *j = c * dp;
+            }
+        }
+        Ok(())
+    };
     // The linear columns are shared between the two threads, after their dual halves (each
     // costs about one f64 simulation; the gain's needs the output, which both halves compute).
     let lin_split = if first.is_empty() {
@@ -244,10 +260,10 @@ fn jacobian<S: Structure>(
     } else {
         lin.len().div_ceil(2)
     };
-    let (lin_a, lin_b) = lin_j.split_at(lin_split);
-    let (cols_lin_a, cols_lin_b) = cols_lin.split_at_mut(lin_split);
+    let (lin_a, lin_b) = lin.split_at(lin_split);
+    let (out_a, out_b) = lin_cols.split_at_mut(lin_split);
     // The second half (all of them on one thread) and its share of the linear columns.
-    let rest = |yhat: &mut [f64], cols: &mut [&mut [f64]], cols_lin: &mut [Vec<f64>]| {
+    let rest = |yhat: &mut [f64], cols: &mut [&mut [f64]], out: &mut [&mut [f64]]| {
         if second.is_empty() {
             s.simulate(pv, u, dt, yhat)?;
         } else {
@@ -256,10 +272,10 @@ fn jacobian<S: Structure>(
                 eval_dual(s, pv, free, theta, transform, second, u, dt, yhat, cols)
             )?;
         }
-        s.linear_sensitivities(pv, lin_b, u, dt, yhat, cols_lin)
+        linear(lin_b, yhat, out)
     };
     if first.is_empty() {
-        rest(yhat, &mut cols_second, cols_lin_b)?;
+        rest(yhat, &mut cols_second, out_b)?;
     } else {
         let mut y_first = vec![0.0; u.len()];
         // The helper thread starts from this thread's solved poles, so that the Jacobian does
@@ -283,23 +299,13 @@ fn jacobian<S: Structure>(
                         &mut cols_first
                     )
                 )?;
-                s.linear_sensitivities(pv, lin_a, u, dt, &y_first, cols_lin_a)
+                linear(lin_a, &y_first, out_a)
             });
-            let b = rest(yhat, &mut cols_second, cols_lin_b);
+            let b = rest(yhat, &mut cols_second, out_b);
             (h.join(), b)
         });
         b?;
         a.map_err(|_| Error::Numerical("a Jacobian thread panicked".into()))??;
-    }
-    for ((&i, col), out) in lin.iter().zip(&cols_lin).zip(lin_cols) {
-        let dp = if transform {
-            params[free[i]].bounds.dparam(pv[free[i]])
-        } else {
-            1.0
-        };
-        for (j, c) in out.iter_mut().zip(&col[skip..]) {
-            *j = c * dp;
-        }
     }
     Ok(())
 }
