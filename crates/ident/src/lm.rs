@@ -201,9 +201,11 @@ pub struct LmReport {
     /// `termination.is_converged()`.
     pub converged: bool,
     /// Parameter covariance `sigma^2 (J^T J)^-1`, `sigma^2 = SSR/(m - n)`, row-major `n x n`; `None`
-    /// if not asked, if `m <= n`, or if `J` is rank deficient at the solution.
+    /// if not asked, if `m <= n`, or if `J` is rank deficient at the solution. A parameter at a
+    /// bound ([`Problem::at_bound`]) is held there: its rows and columns are NaN and the rest is
+    /// the covariance of the others with it fixed.
     pub covariance: Option<Vec<f64>>,
-    /// Standard errors `sqrt(diag(covariance))`.
+    /// Standard errors `sqrt(diag(covariance))` (NaN for a parameter held at a bound).
     pub std_errors: Option<Vec<f64>>,
     /// The Marquardt factor at the end (relative to `D^2`).
     pub lambda: f64,
@@ -463,7 +465,8 @@ pub fn minimize(problem: &mut impl Problem, p0: &[f64], opts: &LmOptions) -> Res
     let (covariance, std_errors) = if opts.covariance && m > n {
         // The R of `J` is the leading block of the R of `[J r]` (`qr` is always that of the
         // current `J` and `r`).
-        covariance_and_errors(&qr.0, sumsq(&r) / (m - n) as f64)
+        let held: Vec<bool> = (0..n).map(|j| problem.at_bound(j, p[j])).collect();
+        covariance_and_errors(&qr.0, sumsq(&r) / (m - n) as f64, &held)
     } else {
         (None, None)
     };
@@ -729,7 +732,7 @@ pub fn refine(
         }
         if last {
             let (covariance, std_errors) = if opts.covariance {
-                covariance_and_errors(&rmat, ssr / (m - n) as f64)
+                covariance_and_errors(&rmat, ssr / (m - n) as f64, &held)
             } else {
                 (None, None)
             };
@@ -948,11 +951,52 @@ fn damped_step(rmat: &Mat<f64>, qtr: &[f64], diag: &[f64], lambda: f64) -> Vec<f
 }
 
 /// [`covariance`] and the standard errors `sqrt(diag)`.
-fn covariance_and_errors(rmat: &Mat<f64>, sigma2: f64) -> (Option<Vec<f64>>, Option<Vec<f64>>) {
+/// The covariance and standard errors from the `R` of `J`, with the parameters `held` at a
+/// bound ([`Problem::at_bound`]) fixed there: the covariance of the others is that of the
+/// columns of `J` without theirs (the `R` of `R[:, kept]`, which is `Q^T J[:, kept]`), and a
+/// held parameter's rows and columns and standard error are NaN (it has no spread: it sits on
+/// its bound). A held parameter's column is about zero (the bound's map is flat there), which
+/// would otherwise make the whole covariance singular.
+fn covariance_and_errors(
+    rmat: &Mat<f64>,
+    sigma2: f64,
+    held: &[bool],
+) -> (Option<Vec<f64>>, Option<Vec<f64>>) {
     let n = rmat.ncols();
-    match covariance(rmat, sigma2) {
+    let kept: Vec<usize> = (0..n)
+        .filter(|&j| !held.get(j).copied().unwrap_or(false))
+        .collect();
+    let nk = kept.len();
+    let cov = if nk == n {
+        covariance(rmat, sigma2)
+    } else if nk == 0 {
+        None
+    } else {
+        let sub = Mat::<f64>::from_fn(rmat.nrows(), nk, |i, j| rmat[(i, kept[j])]);
+        let r_sub = if sub.nrows() >= nk {
+            sub.qr().thin_R().to_owned()
+        } else {
+            sub
+        };
+        covariance(&r_sub, sigma2).map(|c| {
+            let mut full = vec![f64::NAN; n * n];
+            for (a, &i) in kept.iter().enumerate() {
+                for (b, &j) in kept.iter().enumerate() {
+                    full[i * n + j] = c[a * nk + b];
+                }
+            }
+            full
+        })
+    };
+    match cov {
         Some(c) => {
-            let se = (0..n).map(|i| c[i * n + i].max(0.0).sqrt()).collect();
+            // (`f64::max` would turn a held parameter's NaN into 0.)
+            let se = (0..n)
+                .map(|i| match c[i * n + i] {
+                    v if v.is_nan() => v,
+                    v => v.max(0.0).sqrt(),
+                })
+                .collect();
             (Some(c), Some(se))
         }
         None => (None, None),
@@ -1150,6 +1194,85 @@ mod tests {
                 }
             }
             Ok(())
+        }
+    }
+
+    /// `y = a + b t + s(c) g_i`, `s` the logistic function, `g_i = (-1)^i`, with `c` run to
+    /// where `s` is flat (a bounded parameter at its bound): its column is about 1e-18, so the
+    /// whole covariance would be singular.
+    struct Clamped {
+        t: Vec<f64>,
+        y: Vec<f64>,
+    }
+    impl Problem for Clamped {
+        fn n_params(&self) -> usize {
+            3
+        }
+        fn n_residuals(&self) -> usize {
+            self.t.len()
+        }
+        fn at_bound(&self, j: usize, pj: f64) -> bool {
+            j == 2 && pj > 30.0
+        }
+        fn eval(&mut self, p: &[f64], r: &mut [f64], jac: Option<&mut Mat<f64>>) -> Result<()> {
+            let sc = 1.0 / (1.0 + (-p[2]).exp());
+            let g = |i: usize| if i % 2 == 0 { 1.0 } else { -1.0 };
+            for i in 0..self.t.len() {
+                r[i] = p[0] + p[1] * self.t[i] + sc * g(i) - self.y[i];
+            }
+            if let Some(j) = jac {
+                for i in 0..self.t.len() {
+                    j[(i, 0)] = 1.0;
+                    j[(i, 1)] = self.t[i];
+                    j[(i, 2)] = sc * (1.0 - sc) * g(i);
+                }
+            }
+            Ok(())
+        }
+    }
+
+    /// A parameter held at its bound is left out of the covariance: the others' covariance is
+    /// the closed-form OLS one of the model with it fixed (sigma^2 still over `m - 3`), its own
+    /// standard error is NaN; by LM and by refine.
+    #[test]
+    fn a_parameter_at_its_bound_is_held_out_of_the_covariance() {
+        let t: Vec<f64> = (0..40).map(|i| i as f64 / 4.0).collect();
+        let g = |i: usize| if i % 2 == 0 { 1.0 } else { -1.0 };
+        let y: Vec<f64> = t
+            .iter()
+            .enumerate()
+            .map(|(i, t)| 1.5 + 0.7 * t + g(i) + 0.1 * ((i * 7 % 5) as f64 - 2.0))
+            .collect();
+        // The OLS fit of y - g = a + b t.
+        let nn = t.len() as f64;
+        let z: Vec<f64> = y.iter().enumerate().map(|(i, y)| y - g(i)).collect();
+        let tm = t.iter().sum::<f64>() / nn;
+        let zm = z.iter().sum::<f64>() / nn;
+        let sxx: f64 = t.iter().map(|t| (t - tm).powi(2)).sum();
+        let b = t
+            .iter()
+            .zip(&z)
+            .map(|(t, z)| (t - tm) * (z - zm))
+            .sum::<f64>()
+            / sxx;
+        let a = zm - b * tm;
+        let ssr: f64 = t.iter().zip(&z).map(|(t, z)| (a + b * t - z).powi(2)).sum();
+        let s2 = ssr / (nn - 3.0);
+        let (var_a, var_b, cov_ab) = (s2 * (1.0 / nn + tm * tm / sxx), s2 / sxx, -s2 * tm / sxx);
+        let rel = |x: f64, y: f64| ((x - y) / y).abs();
+        let mut prob = Clamped { t, y };
+        let by_lm = minimize(&mut prob, &[0.0, 0.0, 40.0], &LmOptions::default()).unwrap();
+        let near = [a + 1e-3, b - 1e-3, 40.0];
+        let by_refine = refine(&mut prob, &near, &LmOptions::default(), &Default::default());
+        for rep in [by_lm, by_refine.unwrap()] {
+            // 1e-8: the fit lands on the OLS solution; the covariance comes from the same R.
+            assert!(rel(rep.params[0], a) < 1e-8 && rel(rep.params[1], b) < 1e-8);
+            assert!(rel(rep.cov(0, 0).unwrap(), var_a) < 1e-8);
+            assert!(rel(rep.cov(1, 1).unwrap(), var_b) < 1e-8);
+            assert!(rel(rep.cov(0, 1).unwrap(), cov_ab) < 1e-8);
+            let se = rep.std_errors.clone().unwrap();
+            assert!(rel(se[1], var_b.sqrt()) < 1e-8 && se[2].is_nan());
+            assert!(rep.cov(2, 2).unwrap().is_nan() && rep.cov(0, 2).unwrap().is_nan());
         }
     }
 

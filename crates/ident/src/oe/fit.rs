@@ -622,7 +622,12 @@ pub fn fit_with_progress<S: Structure>(
         values[j] = v;
         let dp = b.dparam(v);
         ests[j].value = v;
-        ests[j].std_error = rep.std_errors.as_ref().map(|se| se[i] * dp.abs());
+        // (NaN for a parameter held at a bound: no standard error.)
+        ests[j].std_error = rep
+            .std_errors
+            .as_ref()
+            .map(|se| se[i] * dp.abs())
+            .filter(|se| se.is_finite());
         ests[j].at_bound = b.at_edge(v);
         if ests[j].at_bound {
             warnings.push(format!(
