@@ -756,19 +756,24 @@ pub fn refine(
     handover(problem, &p, evaluations, ropts.max_rounds)
 }
 
-/// Whether every entry of `v` is finite: `0 x` is 0 for a finite `x` and NaN otherwise, and
-/// a sum in eight lanes (as in [`dot`]) is one vectorised pass where a search is not.
-fn all_finite(v: &[f64]) -> bool {
+/// `sum_i f(v_i)` in eight interleaved partial sums (vectorised, as in [`dot`]).
+pub(crate) fn sum_of(v: &[f64], f: impl Fn(f64) -> f64) -> f64 {
     const LANES: usize = 8;
     let mut acc = [0.0; LANES];
     let chunks = v.chunks_exact(LANES);
-    let tail = chunks.remainder().iter().all(|x| x.is_finite());
+    let tail: f64 = chunks.remainder().iter().map(|&x| f(x)).sum();
     for c in chunks {
         for l in 0..LANES {
-            acc[l] += c[l] * 0.0;
+            acc[l] += f(c[l]);
         }
     }
-    tail && acc.iter().all(|a| *a == 0.0)
+    acc.iter().sum::<f64>() + tail
+}
+
+/// Whether every entry of `v` is finite: `0 x` is 0 for a finite `x` and NaN otherwise, and a
+/// sum of those in eight lanes ([`sum_of`]) is one vectorised pass where a search is not.
+pub(crate) fn all_finite(v: &[f64]) -> bool {
+    sum_of(v, |x| x * 0.0) == 0.0
 }
 
 fn check_finite(r: &[f64], jac: &Mat<f64>, when: &str) -> Result<()> {

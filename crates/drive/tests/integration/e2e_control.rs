@@ -246,7 +246,10 @@ fn keepalive_expiry_ramps_down() {
     // The samples are paced at 1 kHz in real time, so the run lasts about its `n` samples (the
     // silence really expired; a block of 10 samples of slack). A fixed 550 ms failed whenever the
     // expiry fell before sample 500, which the bound above allows (548.5 ms measured).
-    assert!(took >= Duration::from_millis(n - 10), "{took:?} for {n} samples");
+    assert!(
+        took >= Duration::from_millis(n - 10),
+        "{took:?} for {n} samples"
+    );
     assert!(!acq.complete);
     assert_prefix(&acq, n);
     assert_eq!(acq.missing, vec![n..planned]);

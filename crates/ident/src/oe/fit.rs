@@ -448,8 +448,8 @@ fn lead_part(u: &[f64], y: &[f64], skip: usize) -> Option<usize> {
     }
     let lead = skip + LEAD_SAMPLES;
     let sd = |x: &[f64]| {
-        let mean = x.iter().sum::<f64>() / x.len() as f64;
-        (x.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / x.len() as f64).sqrt()
+        let mean = crate::lm::sum_of(x, |v| v) / x.len() as f64;
+        (crate::lm::sum_of(x, |v| (v - mean) * (v - mean)) / x.len() as f64).sqrt()
     };
     let excited = |x: &[f64]| sd(&x[skip..lead]) >= 0.5 * sd(&x[skip..]);
     (excited(u) && excited(y)).then_some(lead)
@@ -539,7 +539,7 @@ pub fn fit_with_progress<S: Structure>(
             y.len()
         )));
     }
-    if u.iter().chain(y).any(|v| !v.is_finite()) {
+    if !crate::lm::all_finite(u) || !crate::lm::all_finite(y) {
         return Err(Error::Data(
             "the data contain NaN or infinite values".into(),
         ));
