@@ -40,6 +40,7 @@
 pub mod checks;
 pub mod refine;
 
+use crate::lm::dot;
 use crate::{Error, Result};
 use fracsim::{FracTf, Term};
 use num_complex::Complex64;
@@ -540,24 +541,6 @@ fn den_at(pows: &[Complex64], a: &[f64]) -> Complex64 {
         d += pows[p + 1] * ap;
     }
     d
-}
-
-/// `sum_i x_i y_i` with four partial sums (vectorisable; no worse than the sequential sum).
-fn dot(x: &[f64], y: &[f64]) -> f64 {
-    let mut acc = [0.0; 4];
-    let (xc, yc) = (x.chunks_exact(4), y.chunks_exact(4));
-    let tail: f64 = xc
-        .remainder()
-        .iter()
-        .zip(yc.remainder())
-        .map(|(a, b)| a * b)
-        .sum();
-    for (a, b) in xc.zip(yc) {
-        for i in 0..4 {
-            acc[i] += a[i] * b[i];
-        }
-    }
-    (acc[0] + acc[1]) + (acc[2] + acc[3]) + tail
 }
 
 /// How the commensurate order `q` is chosen.
