@@ -1062,33 +1062,17 @@ mod tests {
             assert_eq!(cold.len(), warm.len(), "{zeta}");
             let w_max = cold.iter().map(|m| m.2.norm()).fold(0.0, f64::max);
             for (c, w) in cold.iter().zip(&warm) {
-                assert!(
-                    (c.0 - w.0).norm() <= 1e-9 * c.0.norm(),
-                    "{zeta}: {} vs {}",
-                    c.0,
-                    w.0
-                );
-                assert!(
-                    (c.1 - w.1).norm() <= 1e-7 * c.1.norm() + 1e-8,
-                    "{zeta}: pole {}: d {} vs {}",
-                    c.0,
-                    c.1,
-                    w.1
-                );
-                assert!(
-                    (c.2 - w.2).norm() <= 1e-9 * w_max,
-                    "{zeta}: pole {}: weight {} vs {}",
-                    c.0,
-                    c.2,
-                    w.2
-                );
-                assert!(
-                    (c.3 - w.3).norm() <= 1e-7 * c.3.norm() + 1e-8,
-                    "{zeta}: pole {}: d weight {} vs {}",
-                    c.0,
-                    c.3,
-                    w.3
-                );
+                let same = |what: &str, a: Complex64, b: Complex64, tol: f64| {
+                    assert!(
+                        (a - b).norm() <= tol,
+                        "{zeta}: pole {}: {what} {a} vs {b}",
+                        c.0
+                    );
+                };
+                same("pole", c.0, w.0, 1e-9 * c.0.norm());
+                same("d", c.1, w.1, 1e-7 * c.1.norm() + 1e-8);
+                same("weight", c.2, w.2, 1e-9 * w_max);
+                same("d weight", c.3, w.3, 1e-7 * c.3.norm() + 1e-8);
             }
         }
     }

@@ -561,8 +561,7 @@ const PARALLEL_ENTRIES: usize = 1 << 17;
 /// the matrix is large and the machine has two cores (the passes over `J` are bound by memory
 /// bandwidth, which one core does not use up), else of `0..m` alone.
 fn on_row_halves<T: Send>(m: usize, n: usize, f: impl Fn(Range<usize>) -> T + Sync) -> Vec<T> {
-    let two = std::thread::available_parallelism().is_ok_and(|c| c.get() >= 2);
-    if !two || m * n < PARALLEL_ENTRIES || m < 2 {
+    if !two_cores() || m * n < PARALLEL_ENTRIES || m < 2 {
         return vec![f(0..m)];
     }
     let half = m / 2;
@@ -575,15 +574,24 @@ fn on_row_halves<T: Send>(m: usize, n: usize, f: impl Fn(Range<usize>) -> T + Sy
     })
 }
 
+/// Whether the machine has at least two cores (the two-thread paths here and in the fit).
+pub(crate) fn two_cores() -> bool {
+    std::thread::available_parallelism().is_ok_and(|c| c.get() >= 2)
+}
+
+/// `J^T r` over the rows `rows` only.
+fn jt_r_rows(jac: &Mat<f64>, r: &[f64], rows: Range<usize>) -> Vec<f64> {
+    (0..jac.ncols())
+        .map(|j| dot(&jac.col_as_slice(j)[rows.clone()], &r[rows.clone()]))
+        .collect()
+}
+
 /// `J^T r`, in two halves of the rows on two threads for a large `J`.
 fn jt_r(jac: &Mat<f64>, r: &[f64]) -> Vec<f64> {
-    let n = jac.ncols();
-    let parts = on_row_halves(jac.nrows(), n, |rows| {
-        (0..n)
-            .map(|j| dot(&jac.col_as_slice(j)[rows.clone()], &r[rows.clone()]))
-            .collect::<Vec<f64>>()
-    });
-    (0..n).map(|j| parts.iter().map(|g| g[j]).sum()).collect()
+    let parts = on_row_halves(jac.nrows(), jac.ncols(), |rows| jt_r_rows(jac, r, rows));
+    (0..jac.ncols())
+        .map(|j| parts.iter().map(|g| g[j]).sum())
+        .collect()
 }
 
 /// `J^T r = R^T (Q^T r)` from the QR of `[J r]` ([`qr_of_jr`]), without a pass over `J`.
@@ -841,10 +849,7 @@ fn cholesky_qr_of_jr(jac: &Mat<f64>, r: &[f64]) -> Option<(Mat<f64>, Vec<f64>)> 
     }
     let parts = on_row_halves(m, n, |rows| {
         let jr = jac.subrows(rows.start, rows.len());
-        let g: Vec<f64> = (0..n)
-            .map(|j| dot(&jac.col_as_slice(j)[rows.clone()], &r[rows.clone()]))
-            .collect();
-        (jr.transpose() * jr, g)
+        (jr.transpose() * jr, jt_r_rows(jac, r, rows))
     });
     let mut gram = Mat::<f64>::zeros(n, n);
     let mut g = vec![0.0; n];

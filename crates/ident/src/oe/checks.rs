@@ -87,10 +87,12 @@ fn integrates(m: &FracModel, p: &[f64]) -> bool {
         .any(|(c, o)| o.eval(p) == 0.0 && c.eval(p) != 0.0)
 }
 
-fn std_dev(x: &[f64]) -> f64 {
+/// The standard deviation of `x` (population, over `len(x)`; 0 for an empty `x`), by sums in
+/// eight lanes ([`crate::lm::sum_of`]).
+pub(super) fn std_dev(x: &[f64]) -> f64 {
     let n = x.len().max(1) as f64;
-    let mean = x.iter().sum::<f64>() / n;
-    (x.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / n).sqrt()
+    let mean = crate::lm::sum_of(x, |v| v) / n;
+    (crate::lm::sum_of(x, |v| (v - mean) * (v - mean)) / n).sqrt()
 }
 
 /// The warning for a static gain the record never shows: the model's unit step response (its

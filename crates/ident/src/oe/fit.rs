@@ -164,11 +164,6 @@ fn eval_dual<const N: usize, S: Structure>(
 /// Below this many samples a Jacobian runs on one thread (a thread costs more than it saves).
 const PARALLEL_MIN_SAMPLES: usize = 4096;
 
-/// Whether the machine has at least two cores.
-fn two_cores() -> bool {
-    std::thread::available_parallelism().is_ok_and(|n| n.get() >= 2)
-}
-
 /// The output `yhat` at `theta` and its exact Jacobian `jac[(k - skip, i)] = d yhat_k / d theta_i`
 /// for the free parameters `free` (with `transform`, `theta` is reparametrised by the parameters'
 /// [`Bounds`]; else it holds the physical values).
@@ -212,7 +207,7 @@ fn jacobian<S: Structure>(
         .chain(lin.iter().skip(1).step_by(2))
         .copied()
         .collect();
-    let half = if nonlin.len() >= 2 && two_cores() && u.len() >= PARALLEL_MIN_SAMPLES {
+    let half = if nonlin.len() >= 2 && crate::lm::two_cores() && u.len() >= PARALLEL_MIN_SAMPLES {
         nonlin.len().div_ceil(2)
     } else {
         0
@@ -365,7 +360,7 @@ impl<'a, S: Structure> OeProblem<'a, S> {
             ssr.is_finite().then_some(ssr)
         };
         let yhat = &mut self.yhat;
-        if u.len() < PARALLEL_MIN_SAMPLES || !two_cores() {
+        if u.len() < PARALLEL_MIN_SAMPLES || !crate::lm::two_cores() {
             let sb = ssr(&pb, yhat);
             return (ssr(&pa, yhat), sb);
         }
@@ -447,10 +442,7 @@ fn lead_part(u: &[f64], y: &[f64], skip: usize) -> Option<usize> {
         return None;
     }
     let lead = skip + LEAD_SAMPLES;
-    let sd = |x: &[f64]| {
-        let mean = crate::lm::sum_of(x, |v| v) / x.len() as f64;
-        (crate::lm::sum_of(x, |v| (v - mean) * (v - mean)) / x.len() as f64).sqrt()
-    };
+    let sd = super::checks::std_dev;
     let excited = |x: &[f64]| sd(&x[skip..lead]) >= 0.5 * sd(&x[skip..]);
     (excited(u) && excited(y)).then_some(lead)
 }
