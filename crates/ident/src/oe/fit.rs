@@ -398,6 +398,15 @@ impl<S: Structure> Problem for OeProblem<'_, S> {
         let b = self.s.params()[self.free[j]].bounds;
         b.at_edge(b.to_param(theta_j))
     }
+    fn column_scale(&self, j: usize, from: f64, to: f64) -> Option<f64> {
+        // The output is linear in the physical value: its column is `dp/dtheta` times a column
+        // that does not depend on it.
+        let i = self.free[j];
+        let b = self.s.params()[i].bounds;
+        self.s
+            .is_linear(i)
+            .then(|| b.dparam(b.to_param(to)) / b.dparam(b.to_param(from)))
+    }
     fn eval(&mut self, theta: &[f64], r: &mut [f64], jac: Option<&mut Mat<f64>>) -> Result<()> {
         match jac {
             None => {
