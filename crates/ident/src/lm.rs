@@ -680,17 +680,70 @@ pub fn refine(
     opts: &LmOptions,
     ropts: &RefineOptions,
 ) -> Result<LmReport> {
+    let bufs = RefineBuffers::new(problem.n_residuals(), problem.n_params());
+    refine_with(problem, p0, opts, ropts, bufs)
+}
+
+/// The Jacobian and the two residual vectors [`refine`] works in (`m x n`, `m`, `m`), written
+/// through once so that their pages are mapped: on a long record that costs as much as a
+/// simulation, and a caller with a core to spare makes them there ([`refine_with`]).
+#[derive(Debug)]
+pub struct RefineBuffers {
+    jac: Mat<f64>,
+    r: Vec<f64>,
+    r_trial: Vec<f64>,
+}
+
+impl RefineBuffers {
+    /// Buffers for `m` residuals and `n` parameters, zeroed.
+    pub fn new(m: usize, n: usize) -> Self {
+        let touched = |m: usize| {
+            let mut v = Vec::with_capacity(m);
+            v.resize(m, 0.0);
+            // (`vec![0.0; m]` would be lazily zeroed pages, faulted in at the first write.)
+            std::hint::black_box(v.as_mut_slice()).fill(0.0);
+            v
+        };
+        Self {
+            jac: Mat::zeros(m, n),
+            r: touched(m),
+            r_trial: touched(m),
+        }
+    }
+}
+
+/// [`refine`] in the given buffers (new ones if their sizes are not the problem's).
+///
+/// # Errors
+/// As [`refine`].
+pub fn refine_with(
+    problem: &mut impl Problem,
+    p0: &[f64],
+    opts: &LmOptions,
+    ropts: &RefineOptions,
+    bufs: RefineBuffers,
+) -> Result<LmReport> {
     let (n, m) = (problem.n_params(), problem.n_residuals());
     if n == 0 || m <= n || p0.len() != n || p0.iter().any(|v| !v.is_finite()) {
         return minimize(problem, p0, opts);
     }
+    let RefineBuffers {
+        mut jac,
+        mut r,
+        mut r_trial,
+    } = if bufs.jac.nrows() == m
+        && bufs.jac.ncols() == n
+        && bufs.r.len() == m
+        && bufs.r_trial.len() == m
+    {
+        bufs
+    } else {
+        RefineBuffers::new(m, n)
+    };
     // Damping only to keep the small system definite: the chord's fixed point does not depend
     // on it.
     let lambda = opts.initial_lambda.clamp(1e-14, 1e-8);
     let mut p = p0.to_vec();
-    let mut r = vec![0.0; m];
-    let mut jac = Mat::<f64>::zeros(m, n);
-    let mut r_trial = vec![0.0; m];
     let mut evaluations = 0;
     let handover = |problem: &mut _, p: &[f64], evaluations: usize, rounds: usize| {
         let mut rep = minimize(problem, p, opts)?;
@@ -1512,6 +1565,19 @@ mod tests {
             assert!(se_rel < 1e-3, "standard error {i} off by {se_rel}");
         }
         assert!(rep.cost <= best.cost * (1.0 + 1e-12));
+    }
+
+    #[test]
+    fn refine_in_given_buffers_is_refine_and_buffers_of_another_size_are_replaced() {
+        let p0 = [2.1, 0.45];
+        let (opts, ropts) = (LmOptions::default(), RefineOptions::default());
+        let plain = refine(&mut NoisyExp::new(), &p0, &opts, &ropts).unwrap();
+        for (m, n) in [(400, 2), (399, 2), (400, 3), (1, 1)] {
+            let bufs = RefineBuffers::new(m, n);
+            let rep = refine_with(&mut NoisyExp::new(), &p0, &opts, &ropts, bufs).unwrap();
+            assert_eq!(rep.params, plain.params, "buffers {m} x {n}");
+            assert_eq!(rep.evaluations, plain.evaluations);
+        }
     }
 
     #[test]

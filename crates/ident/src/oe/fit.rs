@@ -3,7 +3,9 @@
 
 use super::{init, Bounds, FracModel, Param, Structure};
 use crate::data::{OffsetMode, Offsets, Record};
-use crate::lm::{minimize, refine, LmOptions, Problem, RefineOptions, Termination};
+use crate::lm::{
+    minimize, refine_with, LmOptions, Problem, RefineBuffers, RefineOptions, Termination,
+};
 use crate::metrics::Fit;
 use crate::{Error, Result};
 use faer::Mat;
@@ -532,6 +534,25 @@ pub fn fit_with_progress<S: Structure>(
     opts: &FitOptions,
     progress: &mut dyn FnMut(usize, f64),
 ) -> Result<FitReport> {
+    fit_in(s, u, y, dt, opts, progress, None)
+}
+
+/// The buffers of a whole-record [`refine_with`], made on another thread.
+type Buffers = std::thread::JoinHandle<RefineBuffers>;
+
+/// [`fit_with_progress`]; a long record fitted by its lead first takes the whole record's
+/// buffers from `buffers` (made on the other core while the caller made the start) when their
+/// sizes match.
+#[allow(clippy::too_many_arguments)]
+fn fit_in<S: Structure>(
+    s: &S,
+    u: &[f64],
+    y: &[f64],
+    dt: f64,
+    opts: &FitOptions,
+    progress: &mut dyn FnMut(usize, f64),
+    buffers: Option<Buffers>,
+) -> Result<FitReport> {
     let t0 = Instant::now();
     if u.len() != y.len() {
         return Err(Error::Data(format!(
@@ -598,7 +619,10 @@ pub fn fit_with_progress<S: Structure>(
     let mut rep = if from_lead {
         // Gauss-Newton rounds with chord steps: two whole-record Jacobians where LM takes four
         // or five (LM takes over if a step fails).
-        refine(&mut prob, &start, &lm, &RefineOptions::default())?
+        let bufs = buffers
+            .and_then(|h| h.join().ok())
+            .unwrap_or_else(|| RefineBuffers::new(m, free.len()));
+        refine_with(&mut prob, &start, &lm, &RefineOptions::default(), bufs)?
     } else {
         minimize(&mut prob, &start, &lm)?
     };
@@ -923,6 +947,7 @@ fn identify_at_scale(
         let c = m.add_param(Param::new("u_offset", 0.0, Bounds::Free));
         m.effects.push(super::Effect::InputOffset { c });
     }
+    let buffers = refine_buffers(&m, split, opts);
     let start_report = if opts.start == StartMode::Auto {
         auto_start(&mut m, &u[..split], &y[..split], rec.dt)?
     } else {
@@ -944,7 +969,8 @@ fn identify_at_scale(
         p.value = p.bounds.clamp_inside(p.value);
     }
     let start = m.values();
-    let report = fit_with_progress(&m, &u[..split], &y[..split], rec.dt, &opts.fit, progress)?;
+    let (u_est, y_est) = (&u[..split], &y[..split]);
+    let report = fit_in(&m, u_est, y_est, rec.dt, &opts.fit, progress, buffers)?;
     for (p, v) in m.params.iter_mut().zip(&report.values) {
         p.value = *v;
     }
@@ -984,6 +1010,25 @@ fn identify_at_scale(
     id.report.warnings.extend(split_warning);
     id.report.warnings.extend(warnings);
     Ok(id)
+}
+
+/// For an estimation part long enough to be fitted by its lead first (and so to end in
+/// [`refine_with`] on the whole part), its buffers, made on another thread (when the machine
+/// has two cores): mapping them costs about a simulation of the record, and the start is made
+/// on one core meanwhile. The columns counted are the free parameters of `m` and those
+/// [`identify_at_scale`] adds (the output offset, the initial state's levels).
+fn refine_buffers(m: &FracModel, split: usize, opts: &IdentOptions) -> Option<Buffers> {
+    let rows = split.checked_sub(opts.fit.skip)?;
+    if rows < 4 * LEAD_SAMPLES || !LEAD.with(|l| l.get()) || !crate::lm::two_cores() {
+        return None;
+    }
+    let offset = usize::from(opts.fit_offset && m.index_of("y_offset").is_none());
+    let levels = match (opts.initial, &m.past) {
+        (InitialState::Estimate, None) => past_edges(1.0).len() + 1,
+        _ => 0,
+    };
+    let cols = m.params.iter().filter(|p| p.free).count() + offset + levels;
+    Some(std::thread::spawn(move || RefineBuffers::new(rows, cols)))
 }
 
 /// [`init::auto_start`], and for a model with a free integrator the same for the model without
