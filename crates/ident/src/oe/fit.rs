@@ -438,6 +438,11 @@ impl<S: Structure> Problem for OeProblem<'_, S> {
 /// The leading part a long record is fitted on first: [`LEAD_SAMPLES`] fitted samples.
 const LEAD_SAMPLES: usize = 1 << 14;
 
+/// The step (in the lead's standard errors) under which the lead's fit stops: the whole record's
+/// optimum is about one lead standard error away from the lead's, so a closer start saves
+/// nothing.
+const LEAD_STEP_SE: f64 = 0.3;
+
 thread_local! {
     /// Whether [`fit`] fits a long record's leading part first (always, but for the test that
     /// compares the two paths).
@@ -491,7 +496,8 @@ pub fn sensitivities<S: Structure>(
 ///
 /// A long record (at least `4 * 2^14` fitted samples, whose first `2^14` are excited like the
 /// whole: input and output standard deviations at least half the record's) is first fitted on
-/// those `2^14` samples; the whole record's fit then starts from that optimum (unless it fits
+/// those `2^14` samples (to within 0.3 of its standard errors: the whole record's optimum is
+/// about one of them away); the whole record's fit then starts from there (unless it fits
 /// the whole record worse than the start) with its final damping, and usually needs two or three
 /// Gauss-Newton steps instead of a cold start's ten to twenty. It stops by the same tests, so it
 /// ends at the whole record's optimum; the report counts the iterations and simulations of both.
@@ -597,7 +603,17 @@ fn fit_in<S: Structure>(
     let lead_fit = lead.and_then(|lead| {
         let (u, y) = (&u[..lead], &y[..lead]);
         let mut prob = OeProblem::new(s, u, y, dt, opts.skip, &free, &base, &mut *progress);
-        let r = minimize(&mut prob, &theta0, &opts.lm).ok()?;
+        // The lead is only the whole record's start: it stops once a step lowers its cost by
+        // less than a step of LEAD_STEP_SE standard errors would (that is, by a relative
+        // LEAD_STEP_SE^2 / m of its cost, m its residuals).
+        let lead_lm = LmOptions {
+            ftol: opts
+                .lm
+                .ftol
+                .max(LEAD_STEP_SE * LEAD_STEP_SE / (lead - opts.skip) as f64),
+            ..opts.lm.clone()
+        };
+        let r = minimize(&mut prob, &theta0, &lead_lm).ok()?;
         Some((r, prob.jac_evals))
     });
     let mut prob = OeProblem::new(s, u, y, dt, opts.skip, &free, &base, &mut *progress);
