@@ -274,6 +274,39 @@ pub fn levy_fixed_q(
     kernel.to_fit(q, eval)
 }
 
+/// [`levy_fixed_q`] at each order of `qs` in turn, on one set of buffers (the powers, the
+/// system): `visit(q, b, a, err)` gets the coefficients `b_0..b_m`, `a_1..a_n` of each order that
+/// solves and their weighted relative error `sum w |G - N/D|^2 / sum w |G|^2` on the data (the
+/// error of [`crate::oe::init::frf_error`], on the same powers as the solve). An order whose
+/// system is rank deficient is skipped.
+///
+/// # Errors
+/// As [`levy_fixed_q`] for the data and `q` (an order outside `(0, 2]`).
+pub(crate) fn levy_orders(
+    omega_rad_s: &[f64],
+    h: &[Complex64],
+    (m, n): (usize, usize),
+    weights: &[f64],
+    sk_iterations: usize,
+    qs: impl IntoIterator<Item = f64>,
+    mut visit: impl FnMut(f64, &[f64], &[f64], f64),
+) -> Result<()> {
+    check_bode(omega_rad_s, h)?;
+    check_sizes(omega_rad_s.len(), m, n)?;
+    let mut kernel = LevyKernel::new(omega_rad_s, h, m, n, weights);
+    for q in qs {
+        match kernel.eval(q, sk_iterations) {
+            Ok(_) => {}
+            Err(Error::Numerical(_)) | Err(Error::Sim(_)) => continue,
+            Err(e) => return Err(e),
+        }
+        let err = kernel.weighted_rel_error();
+        let (b, a) = kernel.x.split_at(m + 1);
+        visit(q, b, a, err);
+    }
+    Ok(())
+}
+
 fn check_sizes(f: usize, m: usize, n: usize) -> Result<()> {
     let unknowns = m + 1 + n;
     if f < unknowns.max(2) {
@@ -495,6 +528,27 @@ impl<'a> LevyKernel<'a> {
             sk_done: 0,
             sk_converged: true,
         }
+    }
+
+    /// The weighted relative error `sum_g w_g |G_g - N_g/D_g|^2 / sum_g w_g |G_g|^2` of the
+    /// coefficients in `self.x`, with the data's weights, on the powers of the last `q`.
+    fn weighted_rel_error(&self) -> f64 {
+        let (m, kp) = (self.m, self.m.max(self.n) + 1);
+        let (b, a) = self.x.split_at(m + 1);
+        let (mut num_err, mut total) = (0.0, 0.0);
+        for ((pw, &hg), &w) in self.pows.chunks_exact(kp).zip(self.h).zip(self.weights) {
+            let mut num = Complex64::new(0.0, 0.0);
+            for (z, &bu) in pw.iter().zip(b) {
+                num += z * bu;
+            }
+            let mut den = Complex64::new(1.0, 0.0);
+            for (z, &ap) in pw[1..].iter().zip(a) {
+                den += z * ap;
+            }
+            num_err += w * (hg - num / den).norm_sqr();
+            total += w * hg.norm_sqr();
+        }
+        num_err / total.max(f64::MIN_POSITIVE)
     }
 
     /// The [`LevyFit`] of the last [`Self::eval`] (at `q`, with its scores `e`).

@@ -385,40 +385,44 @@ pub fn frf_error(frf: &Frf, model: &fracsim::FracTf) -> f64 {
 /// [`levy::levy_fixed_q`] for unusable data.
 pub fn levy_start(frf: &Frf, two_poles: bool) -> Result<(LevyFit, f64)> {
     let n = if two_poles { 2 } else { 1 };
-    let mut best: Option<(LevyFit, f64)> = None;
-    let consider = |q: f64, best: &mut Option<(LevyFit, f64)>| -> Result<()> {
-        let f = match levy::levy_fixed_q(&frf.omega, &frf.h, q, 0, n, &frf.weight, SK_ITERATIONS) {
-            Ok(f) => f,
-            Err(Error::Numerical(_)) | Err(Error::Sim(_)) => return Ok(()),
-            Err(e) => return Err(e),
-        };
-        if f.b.iter().chain(&f.a).all(|&c| c > 0.0 && c.is_finite()) {
-            let e = frf_error(frf, &f.model);
-            if e.is_finite() && best.as_ref().is_none_or(|b| e < b.1) {
-                *best = Some((f, e));
+    // (q, error) of the best order so far; all the orders on one Levy kernel.
+    let mut best: Option<(f64, f64)> = None;
+    let search = |qs: Vec<f64>, best: &mut Option<(f64, f64)>| {
+        let visit = |q: f64, b: &[f64], a: &[f64], e: f64| {
+            let positive = b.iter().chain(a).all(|&c| c > 0.0 && c.is_finite());
+            if positive && e.is_finite() && best.is_none_or(|b| e < b.1) {
+                *best = Some((q, e));
             }
-        }
-        Ok(())
+        };
+        levy::levy_orders(
+            &frf.omega,
+            &frf.h,
+            (0, n),
+            &frf.weight,
+            SK_ITERATIONS,
+            qs,
+            visit,
+        )
     };
-    for i in 5..=100 {
-        consider(i as f64 * 0.01, &mut best)?;
-    }
+    search((5..=100).map(|i| i as f64 * 0.01).collect(), &mut best)?;
     let q0 = best
-        .as_ref()
         .ok_or_else(|| {
             Error::Numerical(
                 "no commensurate order gives a model with positive coefficients".into(),
             )
         })?
-        .0
-        .q;
-    for i in -9..=9 {
-        let q = q0 + i as f64 * 0.001;
-        if i != 0 && q > 0.0 && q <= 1.0 {
-            consider(q, &mut best)?;
-        }
-    }
-    best.ok_or_else(|| Error::Numerical("no commensurate fit".into()))
+        .0;
+    let fine = (-9..=9)
+        .map(|i| q0 + i as f64 * 0.001)
+        .enumerate()
+        .filter(|&(i, q)| i != 9 && q > 0.0 && q <= 1.0)
+        .map(|(_, q)| q)
+        .collect();
+    search(fine, &mut best)?;
+    let (q, _) = best.ok_or_else(|| Error::Numerical("no commensurate fit".into()))?;
+    let fit = levy::levy_fixed_q(&frf.omega, &frf.h, q, 0, n, &frf.weight, SK_ITERATIONS)?;
+    let e = frf_error(frf, &fit.model);
+    Ok((fit, e))
 }
 
 /// How [`super::identify`] started the fit.
@@ -792,6 +796,58 @@ mod tests {
         w.extend(u.iter().map(|x| -x));
         assert_eq!(periodic_part(&w), Some((33, 10)));
         assert_eq!(periodic_part(&[1.0; 50]), None);
+    }
+
+    #[test]
+    fn levy_orders_are_levy_fixed_q_with_its_frf_error() {
+        // The paper's PMSM (not commensurate: no order fits exactly) on 60 log-spaced points,
+        // uneven weights.
+        let g = FracTf::new(
+            vec![fracsim::Term::new(6.82, 0.0)],
+            vec![
+                fracsim::Term::new(2.655e-5, 1.7452),
+                fracsim::Term::new(0.0059, 0.92),
+                fracsim::Term::new(1.0, 0.0),
+            ],
+            0.0,
+        )
+        .unwrap();
+        let omega: Vec<f64> = (0..60)
+            .map(|i| 10f64.powf(-1.0 + i as f64 / 15.0))
+            .collect();
+        let frf = Frf {
+            h: g.bode(&omega),
+            weight: (0..60).map(|i| 0.5 + (i % 7) as f64 / 7.0).collect(),
+            omega,
+            period: None,
+            periods_averaged: 0,
+            periods_available: 0,
+        };
+        let mut seen = vec![];
+        let qs = [0.3, 0.62, 0.87, 1.0];
+        levy::levy_orders(
+            &frf.omega,
+            &frf.h,
+            (0, 2),
+            &frf.weight,
+            3,
+            qs,
+            |q, b, a, e| {
+                seen.push((q, b.to_vec(), a.to_vec(), e));
+            },
+        )
+        .unwrap();
+        assert_eq!(seen.len(), qs.len());
+        for (q, b, a, e) in seen {
+            let f = levy::levy_fixed_q(&frf.omega, &frf.h, q, 0, 2, &frf.weight, 3).unwrap();
+            for (x, y) in b.iter().chain(&a).zip(f.b.iter().chain(&f.a)) {
+                // The same solve on the same data: equal to rounding.
+                assert!((x - y).abs() <= 1e-12 * y.abs(), "q {q}: {x} against {y}");
+            }
+            // The same error, on powers by repeated products against `powf`: 1e-9 relative.
+            let want = frf_error(&frf, &f.model);
+            assert!((e - want).abs() <= 1e-9 * want, "q {q}: {e} against {want}");
+        }
     }
 
     #[test]
