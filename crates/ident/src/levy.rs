@@ -509,14 +509,7 @@ impl<'a> LevyKernel<'a> {
         let (b, a) = self.x.split_at(m + 1);
         let (mut j, mut cost) = (0.0, 0.0);
         for ((pw, &hg), &w) in self.pows.chunks_exact(kp).zip(self.h).zip(&self.w_eff) {
-            let mut num = Complex64::new(0.0, 0.0);
-            for (z, &bu) in pw.iter().zip(b) {
-                num += z * bu;
-            }
-            let mut den = Complex64::new(1.0, 0.0);
-            for (z, &ap) in pw[1..].iter().zip(a) {
-                den += z * ap;
-            }
+            let (num, den) = num_den(pw, b, a);
             // the Levy residual e = G D - N; G - N/D = e/D
             let e2 = (hg * den - num).norm_sqr();
             j += e2 / den.norm_sqr();
@@ -537,14 +530,7 @@ impl<'a> LevyKernel<'a> {
         let (b, a) = self.x.split_at(m + 1);
         let (mut num_err, mut total) = (0.0, 0.0);
         for ((pw, &hg), &w) in self.pows.chunks_exact(kp).zip(self.h).zip(self.weights) {
-            let mut num = Complex64::new(0.0, 0.0);
-            for (z, &bu) in pw.iter().zip(b) {
-                num += z * bu;
-            }
-            let mut den = Complex64::new(1.0, 0.0);
-            for (z, &ap) in pw[1..].iter().zip(a) {
-                den += z * ap;
-            }
+            let (num, den) = num_den(pw, b, a);
             num_err += w * (hg - num / den).norm_sqr();
             total += w * hg.norm_sqr();
         }
@@ -617,6 +603,16 @@ fn householder_lstsq(a: &mut [f64], b: &mut [f64], x: &mut [f64]) -> Result<()> 
     } else {
         Err(deficient())
     }
+}
+
+/// `N = sum_u b_u z_u` and `D = 1 + sum_p a_p z_p` at one point from its powers
+/// `z_k = (jw)^(k q)` (`z_0 = 1`).
+fn num_den(pw: &[Complex64], b: &[f64], a: &[f64]) -> (Complex64, Complex64) {
+    let mut num = Complex64::new(0.0, 0.0);
+    for (z, &bu) in pw.iter().zip(b) {
+        num += z * bu;
+    }
+    (num, den_at(pw, a))
 }
 
 /// Whether a Sanathanan-Koerner iteration changed nothing that matters: every coefficient moved
