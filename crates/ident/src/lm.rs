@@ -700,7 +700,9 @@ impl RefineBuffers {
         let touched = |m: usize| {
             let mut v = Vec::with_capacity(m);
             v.resize(m, 0.0);
-            // (`vec![0.0; m]` would be lazily zeroed pages, faulted in at the first write.)
+            // The write through `black_box` maps the pages here: `vec![0.0; m]` (and a zeroing
+            // of a fresh allocation the compiler may turn into one) gets lazily zeroed pages,
+            // faulted in at the first write, in the fit.
             std::hint::black_box(v.as_mut_slice()).fill(0.0);
             v
         };

@@ -413,10 +413,9 @@ pub fn levy_start(frf: &Frf, two_poles: bool) -> Result<(LevyFit, f64)> {
         })?
         .0;
     let fine = (-9..=9)
+        .filter(|&i| i != 0)
         .map(|i| q0 + i as f64 * 0.001)
-        .enumerate()
-        .filter(|&(i, q)| i != 9 && q > 0.0 && q <= 1.0)
-        .map(|(_, q)| q)
+        .filter(|&q| q > 0.0 && q <= 1.0)
         .collect();
     search(fine, &mut best)?;
     let (q, _) = best.ok_or_else(|| Error::Numerical("no commensurate fit".into()))?;
