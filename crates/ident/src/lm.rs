@@ -590,11 +590,23 @@ pub(crate) fn two_cores() -> bool {
     std::thread::available_parallelism().is_ok_and(|c| c.get() >= 2)
 }
 
-/// `J^T r` over the rows `rows` only.
+/// Rows of `J` taken at a time by [`jt_r_rows`]: their part of `r` (32 KiB) stays in the L1
+/// cache while every column reads it.
+const JT_R_BLOCK: usize = 4096;
+
+/// `J^T r` over the rows `rows` only, a block of rows at a time (one pass over `J`; `r` is read
+/// from memory once, not once per column).
 fn jt_r_rows(jac: &Mat<f64>, r: &[f64], rows: Range<usize>) -> Vec<f64> {
-    (0..jac.ncols())
-        .map(|j| dot(&jac.col_as_slice(j)[rows.clone()], &r[rows.clone()]))
-        .collect()
+    let mut g = vec![0.0; jac.ncols()];
+    let mut a = rows.start;
+    while a < rows.end {
+        let b = (a + JT_R_BLOCK).min(rows.end);
+        for (j, gj) in g.iter_mut().enumerate() {
+            *gj += dot(&jac.col_as_slice(j)[a..b], &r[a..b]);
+        }
+        a = b;
+    }
+    g
 }
 
 /// `J^T r`, in two halves of the rows on two threads for a large `J`.
@@ -633,7 +645,8 @@ fn col_norms_of(rmat: &Mat<f64>) -> Vec<f64> {
 /// say), with few Jacobians: each round evaluates the Jacobian `J` once, then takes chord steps
 /// (Ortega & Rheinboldt 1970, the simplified Newton method) `d_k = -(J^T J)^-1 J^T r(p_k)`,
 /// which need only the residuals; the round ends when a step's predicted reduction is under
-/// `chord_tolerance^2 sigma^2`. The next round's Jacobian is at that point: when its own
+/// `chord_tolerance^2 sigma^2` (a chord step that small is not taken: the next round's
+/// Gauss-Newton step contains it). The next round's Jacobian is at that point: when its own
 /// Gauss-Newton step is under `tolerance^2 sigma^2` (see [`RefineOptions`]) the step is taken
 /// (if it lowers the cost) and the fit ends, its covariance from that Jacobian. A chord step
 /// converges linearly (at the rate of the change of `J` over the steps, small near the
@@ -755,13 +768,29 @@ pub fn refine_with(
     };
     for round in 0..ropts.max_rounds {
         evaluations += 1;
-        if problem.eval(&p, &mut r, Some(&mut jac)).is_err() || check_finite(&r, &jac, "").is_err()
-        {
+        if problem.eval(&p, &mut r, Some(&mut jac)).is_err() {
             return handover(problem, &p, evaluations, round);
         }
         let mut ssr = sumsq(&r);
         let sigma2 = ssr / (m - n) as f64;
-        let (mut rmat, qtr) = qr_of_jr(&jac, &r);
+        // The finiteness of `r` and `J` is checked on what the factorisation reads anyway: a
+        // non-finite residual makes `ssr` non-finite, a non-finite entry of `J` the Gram
+        // matrix's diagonal (the Householder QR only runs after a full check).
+        let qr = ssr
+            .is_finite()
+            .then(|| {
+                cholesky_qr_of_jr(&jac, &r).or_else(|| {
+                    check_finite(&r, &jac, "")
+                        .is_ok()
+                        .then(|| householder_qr_of_jr(&jac, &r))
+                })
+            })
+            .flatten();
+        let Some((mut rmat, qtr)) = qr.filter(|(rm, q)| {
+            all_finite(q) && (0..rm.ncols()).all(|j| rm.col(j).iter().all(|v| v.is_finite()))
+        }) else {
+            return handover(problem, &p, evaluations, round);
+        };
         // The chord's Jacobian is `J S`: the round's `J`, its columns rescaled as the
         // parameters move ([`Problem::column_scale`]); `R S` is its `R`.
         let mut scale = vec![1.0; n];
@@ -777,9 +806,12 @@ pub fn refine_with(
         for _ in 0..ropts.max_chord_steps.max(1) {
             let trial: Vec<f64> = p.iter().zip(&d).map(|(a, b)| a + b).collect();
             evaluations += 1;
-            let ok = problem.eval(&trial, &mut r_trial, None).is_ok()
-                && r_trial.iter().all(|v| v.is_finite());
-            let ssr_trial = if ok { sumsq(&r_trial) } else { f64::INFINITY };
+            // (A non-finite residual makes the sum non-finite.)
+            let ssr_trial = match problem.eval(&trial, &mut r_trial, None) {
+                Ok(()) => Some(sumsq(&r_trial)).filter(|s| s.is_finite()),
+                Err(_) => None,
+            }
+            .unwrap_or(f64::INFINITY);
             if !(ssr_trial <= ssr) {
                 if last {
                     // The step was below the tolerance and does not lower the cost: `p` is the
@@ -814,6 +846,11 @@ pub fn refine_with(
             match gauss_newton_step(&rmat, &g, lambda, &held) {
                 Some(dp) => (d, pred) = dp,
                 None => return handover(problem, &p, evaluations, round + 1),
+            }
+            if pred <= ropts.chord_tolerance * ropts.chord_tolerance * sigma2 {
+                // A chord step this small is not worth a simulation: the next round's Jacobian
+                // is taken here, and its own step includes this one.
+                break;
             }
         }
         if last {
@@ -1598,6 +1635,58 @@ mod tests {
         assert_ne!(rep.termination, Termination::SmallStatisticalStep);
         assert!((rep.params[0] - best.params[0]).abs() < 1e-6 * best.params[0]);
         assert!((rep.params[1] - best.params[1]).abs() < 1e-6 * best.params[1]);
+    }
+
+    /// [`NoisyExp`] whose first Jacobian has one entry `bad` (NaN or infinite).
+    struct PoisonedFirstJacobian {
+        inner: NoisyExp,
+        bad: f64,
+    }
+    impl Problem for PoisonedFirstJacobian {
+        fn n_params(&self) -> usize {
+            2
+        }
+        fn n_residuals(&self) -> usize {
+            self.inner.n_residuals()
+        }
+        fn eval(&mut self, p: &[f64], r: &mut [f64], jac: Option<&mut Mat<f64>>) -> Result<()> {
+            let first = jac.is_some() && self.inner.jacobians == 0;
+            match jac {
+                Some(j) => {
+                    self.inner.eval(p, r, Some(&mut *j))?;
+                    if first {
+                        j[(123, 1)] = self.bad;
+                    }
+                }
+                None => self.inner.eval(p, r, None)?,
+            }
+            Ok(())
+        }
+    }
+
+    #[test]
+    fn refine_does_not_step_on_a_non_finite_jacobian() {
+        let best = minimize(&mut NoisyExp::new(), &[1.0, 1.0], &LmOptions::default()).unwrap();
+        for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+            let mut prob = PoisonedFirstJacobian {
+                inner: NoisyExp::new(),
+                bad,
+            };
+            let near = [best.params[0] * 1.001, best.params[1] * 0.999];
+            let rep = refine(
+                &mut prob,
+                &near,
+                &LmOptions::default(),
+                &RefineOptions::default(),
+            )
+            .unwrap();
+            // Handed over to Levenberg-Marquardt, which evaluates its own Jacobian.
+            assert_ne!(rep.termination, Termination::SmallStatisticalStep, "{bad}");
+            assert!(rep.converged, "{bad}: {:?}", rep.termination);
+            for (a, b) in rep.params.iter().zip(&best.params) {
+                assert!((a - b).abs() < 1e-6 * b.abs(), "{bad}: {a} vs {b}");
+            }
+        }
     }
 
     /// Rosenbrock as residuals r = (10 (y - x^2), 1 - x): a curved valley, minimum at (1, 1).

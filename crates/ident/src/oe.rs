@@ -838,7 +838,18 @@ impl Structure for FracModel {
             // No input effect: nothing feeds the output back, so the linear part runs on the
             // whole input at once (the vectorised kernel) and the output effects follow.
             sim.run_into(u, y);
-            if !self.effects.is_empty() {
+            let offsets_only = self
+                .effects
+                .iter()
+                .all(|e| matches!(e, Effect::OutputOffset { .. }));
+            if offsets_only && !self.effects.is_empty() {
+                // Output offsets only (the fitted constant): one addition a sample.
+                let c = self.effects.iter().fold(T::from(0.0), |a, e| match *e {
+                    Effect::OutputOffset { c } => a + p[c],
+                    _ => a,
+                });
+                y.iter_mut().for_each(|yk| *yk += c);
+            } else if !self.effects.is_empty() {
                 for (k, yk) in y.iter_mut().enumerate() {
                     let t = k as f64 * dt;
                     let mut ya = *yk + y0;
@@ -879,10 +890,20 @@ impl Structure for FracModel {
                 *yk = ya - y0;
             }
         }
-        if let Some(k) = y.iter().position(|v| !v.re().is_finite()) {
-            return Err(Error::Numerical(format!(
-                "the model output is not finite at sample {k}"
-            )));
+        // `0 v` is 0 for a finite `v` and NaN otherwise: their sum in eight lanes is one
+        // vectorised pass (as `lm::all_finite`); the sample is searched only when one is not.
+        let mut lanes = [0.0; 8];
+        for c in y.chunks(8) {
+            for (l, v) in lanes.iter_mut().zip(c) {
+                *l += v.re() * 0.0;
+            }
+        }
+        if lanes.iter().sum::<f64>() != 0.0 {
+            if let Some(k) = y.iter().position(|v| !v.re().is_finite()) {
+                return Err(Error::Numerical(format!(
+                    "the model output is not finite at sample {k}"
+                )));
+            }
         }
         Ok(())
     }
