@@ -413,6 +413,69 @@ impl<T: Real> Simulator<T> {
     }
 }
 
+impl Simulator<f64> {
+    /// The output `y_k` of a unit step applied at `t_0 = 0` from rest (what
+    /// [`Simulator::simulate`] of `k + 1` ones gives at its last sample), in closed form: the sum
+    /// of each mode's geometric series, in `O(modes)` whatever `k`.
+    ///
+    /// With the delayed inputs `a_j = [j >= m]`, `b_j = [j >= m + 1]` a mode is at rest up to
+    /// sample `m`, `x_(m+1) = beta0`, and after that `x_(j+1) = phi x_j + c` with
+    /// `c = beta0 + beta1`: `x_k = x* + (beta0 - x*) phi^(k-m-1)`, `x* = c/(1 - phi)`
+    /// (`beta0 + (k - m - 1) c` for `phi = 1`), `phi^p = e^(lambda p dt)`. The feed-through adds
+    /// `direct` once the delayed step has reached it. The state of `self` is not used.
+    ///
+    /// ```
+    /// use fracsim::{ApproxSpec, FracTf, Simulator};
+    /// let g: FracTf = "6.82/(2.655e-5 s^1.7452 + 0.0059 s^0.92 + 1)".parse().unwrap();
+    /// let mut sim = Simulator::<f64>::new(&g, 5e-4, &ApproxSpec::default()).unwrap();
+    /// let y = sim.simulate(&vec![1.0; 2000]);
+    /// assert!((sim.step_response_at(1999) - y[1999]).abs() < 1e-9 * 6.82);
+    /// ```
+    pub fn step_response_at(&self, k: usize) -> f64 {
+        let m = self.delay_whole;
+        let reached = if self.direct_prev { k > m } else { k >= m };
+        let mut y = if reached { self.direct } else { 0.0 };
+        if k <= m {
+            return y;
+        }
+        let p = (k - m - 1) as f64;
+        let mode = |lam: num_complex::Complex64,
+                    phi: num_complex::Complex64,
+                    b0: num_complex::Complex64,
+                    b1: num_complex::Complex64| {
+            let c = b0 + b1;
+            let one_minus = num_complex::Complex64::new(1.0, 0.0) - phi;
+            if one_minus.norm() == 0.0 {
+                b0 + c * p
+            } else {
+                let fixed = c / one_minus;
+                fixed + (b0 - fixed) * (lam * (p * self.dt)).exp()
+            }
+        };
+        let re = |v: f64| num_complex::Complex64::new(v, 0.0);
+        for (i, &(lam, _)) in self.model.real.iter().enumerate() {
+            y += mode(
+                re(lam),
+                re(self.re_phi[i]),
+                re(self.re_b0[i]),
+                re(self.re_b1[i]),
+            )
+            .re;
+        }
+        for (i, &(lam, _)) in self.model.complex.iter().enumerate() {
+            let b = |v: Cx<f64>| v.val();
+            y += mode(
+                lam.val(),
+                b(self.cx_phi[i]),
+                b(self.cx_b0[i]),
+                b(self.cx_b1[i]),
+            )
+            .re;
+        }
+        y
+    }
+}
+
 /// The samples `0..head` that read the delay line (`head = m + 1`, at most `n`); the kernels run
 /// the rest reading the input slice itself.
 fn head_of<T: Real>(sim: &Simulator<T>, n: usize) -> usize {
@@ -841,6 +904,39 @@ mod tests {
     }
 
     /// An underdamped second-order system (complex poles) against its closed form.
+    #[test]
+    fn the_closed_form_step_response_is_the_simulated_one() {
+        // Fractional and whole-sample delays, a feed-through (order 0.9), complex poles (the
+        // underdamped second order), the paper's PMSM.
+        for (tf, dt) in [
+            ("6.82/(2.655e-5 s^1.7452 + 0.0059 s^0.92 + 1)", 5e-4),
+            (
+                "6.82/(2.655e-5 s^1.7452 + 0.0059 s^0.92 + 1) exp(-0.00173 s)",
+                5e-4,
+            ),
+            (
+                "6.82/(2.655e-5 s^1.7452 + 0.0059 s^0.92 + 1) exp(-0.002 s)",
+                5e-4,
+            ),
+            ("1/(0.1 s^0.9 + 1)", 1e-3),
+            ("1/(0.1 s^0.9 + 1) exp(-0.0025 s)", 1e-3),
+            ("4/(0.0001 s^2 + 0.004 s + 1)", 1e-3),
+        ] {
+            let g: FracTf = tf.parse().unwrap();
+            let mut sim = Simulator::<f64>::new(&g, dt, &ApproxSpec::default()).unwrap();
+            let y = sim.simulate(&vec![1.0; 30_000]);
+            let scale = y.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+            for k in [0, 1, 2, 3, 4, 5, 6, 7, 50, 999, 12_345, 29_999] {
+                let got = sim.step_response_at(k);
+                assert!(
+                    (got - y[k]).abs() <= 1e-10 * scale,
+                    "{tf}: y[{k}] {got} vs simulated {}",
+                    y[k]
+                );
+            }
+        }
+    }
+
     #[test]
     fn complex_poles_are_exact() {
         // wn = 100 rad/s, zeta = 0.2: 1/(1e-4 s^2 + 4e-3 s + 1)
