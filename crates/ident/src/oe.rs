@@ -50,7 +50,7 @@ pub use joint::{identify_joint, JointIdentification};
 pub use score::{score, Scored};
 
 use crate::{Error, Result};
-use fracsim::{ApproxSpec, FracTf, Real, Simulator, Term};
+use fracsim::{ApproxSpec, Dual, FracTf, Real, Simulator, Term};
 
 /// How a parameter is kept in its range by reparametrisation (the solver works on `theta`).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -248,6 +248,27 @@ pub trait Structure: Sync {
     /// Parameter values the model cannot simulate (a simulation error, a non-finite output).
     fn simulate<T: Real>(&self, p: &[T], u: &[f64], dt: f64, y: &mut [T]) -> Result<()>;
 
+    /// [`Structure::simulate`] in `Dual<N>` with its parts apart: the values into `yhat` (the
+    /// length of `u`) and derivative part `r` into `cols[r]`, which holds the last
+    /// `cols[r].len()` samples (all of the same length; those before are not stored). Default:
+    /// through a record-long `Vec<Dual<N>>`; a structure can write the parts as it goes.
+    ///
+    /// # Errors
+    /// As [`Structure::simulate`].
+    fn simulate_parts<const N: usize>(
+        &self,
+        p: &[Dual<N>],
+        u: &[f64],
+        dt: f64,
+        yhat: &mut [f64],
+        cols: &mut [&mut [f64]],
+    ) -> Result<()> {
+        let mut y = vec![Dual::<N>::cst(0.0); u.len()];
+        self.simulate(p, u, dt, &mut y)?;
+        split_parts(&y, 0, yhat, cols);
+        Ok(())
+    }
+
     /// Whether the output is linear in parameter `j` in a way
     /// [`Structure::linear_sensitivities`] computes in plain `f64` (an output offset, a gain, a
     /// level of the initial state). The fit then leaves `j` out of the dual-number simulation,
@@ -257,9 +278,10 @@ pub trait Structure: Sync {
         false
     }
 
-    /// The exact sensitivities `out[i][k] = d yhat_k / d p_(which[i])` of parameters for which
-    /// [`Structure::is_linear`] is true, given `yhat` (the output at `p`, as
-    /// [`Structure::simulate`] wrote it). `out[i]` has the length of `u`.
+    /// The exact sensitivities `out[i][k - skip] = d yhat_k / d p_(which[i])`, `k >= skip`, of
+    /// parameters for which [`Structure::is_linear`] is true, given `yhat` (the output at `p`
+    /// over the whole of `u`, as [`Structure::simulate`] wrote it). `out[i]` has
+    /// `u.len() - skip` samples.
     ///
     /// # Errors
     /// A simulation error; a parameter that is not linear.
@@ -270,9 +292,10 @@ pub trait Structure: Sync {
         u: &[f64],
         dt: f64,
         yhat: &[f64],
-        out: &mut [Vec<f64>],
+        skip: usize,
+        out: &mut [&mut [f64]],
     ) -> Result<()> {
-        let _ = (p, u, dt, yhat, out);
+        let _ = (p, u, dt, yhat, skip, out);
         match which.first() {
             None => Ok(()),
             Some(j) => Err(Error::Options(format!(
@@ -281,6 +304,46 @@ pub trait Structure: Sync {
         }
     }
 }
+
+/// The dual outputs `y` of samples `k0..k0 + y.len()` apart: values into `yhat[k]`, derivative
+/// part `r` into `cols[r][k - skip]` for `k >= skip`, `skip` the samples `cols` leave out
+/// (`yhat.len() - cols[r].len()`).
+fn split_parts<const N: usize>(
+    y: &[Dual<N>],
+    k0: usize,
+    yhat: &mut [f64],
+    cols: &mut [&mut [f64]],
+) {
+    for (v, out) in y.iter().zip(&mut yhat[k0..]) {
+        *out = v.v;
+    }
+    let skip = yhat.len() - cols.first().map_or(0, |c| c.len());
+    let from = skip.max(k0);
+    for (r, col) in cols.iter_mut().enumerate() {
+        let dst = &mut col[from - skip..];
+        for (c, v) in dst.iter_mut().zip(&y[from - k0..]) {
+            *c = v.d[r];
+        }
+    }
+}
+
+/// Whether every `re()` of `y` is finite, in one vectorised pass (`0 v` is 0 for a finite `v`
+/// and NaN otherwise; as `lm::all_finite`).
+fn all_finite_re<T: Real>(y: &[T]) -> bool {
+    let mut lanes = [0.0; 8];
+    for c in y.chunks(8) {
+        for (l, v) in lanes.iter_mut().zip(c) {
+            *l += v.re() * 0.0;
+        }
+    }
+    lanes.iter().sum::<f64>() == 0.0
+}
+
+/// Samples a chunk of [`FracModel`]'s `simulate_parts` (its dual buffer stays in the L2 cache).
+const PARTS_CHUNK: usize = 8192;
+
+/// Samples a chunk of a level's free response in [`FracModel`]'s `linear_sensitivities`.
+const LEVEL_CHUNK: usize = 2048;
 
 /// The kind of a [`FracModel`], which decides how an automatic start is made.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -754,6 +817,46 @@ impl FracModel {
         }
     }
 
+    /// The simulator at `p` in the initial state (the past input's, or rest).
+    fn sim_at_start<T: Real>(&self, p: &[T], dt: f64) -> Result<Simulator<T>> {
+        let mut sim = self.simulator(p, dt)?;
+        if let Some(past) = &self.past {
+            let levels: Vec<T> = past.levels.iter().map(|&i| p[i]).collect();
+            sim.set_past_input(&levels, &past.edges)?;
+        }
+        Ok(sim)
+    }
+
+    /// The output effects (none of them an input effect) applied to the linear part's outputs
+    /// `y` of samples `k0..k0 + y.len()`.
+    fn output_effects<T: Real>(&self, p: &[T], dt: f64, k0: usize, y: &mut [T]) {
+        if self.effects.is_empty() {
+            return;
+        }
+        let y0 = self.operating_point.y0;
+        if self
+            .effects
+            .iter()
+            .all(|e| matches!(e, Effect::OutputOffset { .. }))
+        {
+            // Output offsets only (the fitted constant): one addition a sample.
+            let c = self.effects.iter().fold(T::from(0.0), |a, e| match *e {
+                Effect::OutputOffset { c } => a + p[c],
+                _ => a,
+            });
+            y.iter_mut().for_each(|yk| *yk += c);
+            return;
+        }
+        for (k, yk) in (k0..).zip(y.iter_mut()) {
+            let t = k as f64 * dt;
+            let mut ya = *yk + y0;
+            for e in &self.effects {
+                ya = e.output(p, ya, t);
+            }
+            *yk = ya - y0;
+        }
+    }
+
     /// The sum of the output offsets at `p`.
     fn offsets_sum(&self, p: &[f64]) -> f64 {
         self.effects
@@ -782,12 +885,11 @@ impl Structure for FracModel {
         u: &[f64],
         dt: f64,
         yhat: &[f64],
-        out: &mut [Vec<f64>],
+        skip: usize,
+        out: &mut [&mut [f64]],
     ) -> Result<()> {
         let mut free_sim: Option<Simulator<f64>> = None;
-        let zeros = vec![0.0; u.len()];
         for (&j, col) in which.iter().zip(out.iter_mut()) {
-            col.resize(u.len(), 0.0);
             match self.linearity(j) {
                 None => {
                     return Err(Error::Options(format!(
@@ -798,16 +900,19 @@ impl Structure for FracModel {
                 Some(Linear::Offset) => col.iter_mut().for_each(|v| *v = 1.0),
                 Some(Linear::Gain) if p[j] != 0.0 => {
                     let (c, k) = (self.offsets_sum(p), p[j]);
-                    for (v, &yk) in col.iter_mut().zip(yhat) {
+                    for (v, &yk) in col.iter_mut().zip(&yhat[skip..]) {
                         *v = (yk - c) / k;
                     }
                 }
                 Some(Linear::Gain) => {
                     let mut q = p.to_vec();
                     q[j] = 1.0;
-                    self.simulate(&q, u, dt, col)?;
+                    let mut y = vec![0.0; u.len()];
+                    self.simulate(&q, u, dt, &mut y)?;
                     let c = self.offsets_sum(p);
-                    col.iter_mut().for_each(|v| *v -= c);
+                    for (v, yk) in col.iter_mut().zip(&y[skip..]) {
+                        *v = yk - c;
+                    }
                 }
                 Some(Linear::Level(i)) => {
                     let Some(past) = &self.past else {
@@ -820,45 +925,71 @@ impl Structure for FracModel {
                     let mut levels = vec![0.0; past.levels.len()];
                     levels[i] = 1.0;
                     sim.set_past_input(&levels, &past.edges)?;
-                    sim.run_into(&zeros, col);
+                    // The free response, run on zeros a chunk at a time (the simulator goes on
+                    // from its state): the samples before `skip` into a scratch, the others
+                    // into the column itself.
+                    let zeros = [0.0; LEVEL_CHUNK];
+                    let mut scratch = [0.0; LEVEL_CHUNK];
+                    let mut k = 0;
+                    while k < skip {
+                        let b = (k + LEVEL_CHUNK).min(skip);
+                        sim.run_into(&zeros[..b - k], &mut scratch[..b - k]);
+                        k = b;
+                    }
+                    for c in col.chunks_mut(LEVEL_CHUNK) {
+                        sim.run_into(&zeros[..c.len()], c);
+                    }
                 }
             }
         }
         Ok(())
     }
 
-    fn simulate<T: Real>(&self, p: &[T], u: &[f64], dt: f64, y: &mut [T]) -> Result<()> {
-        let mut sim = self.simulator(p, dt)?;
-        if let Some(past) = &self.past {
-            let levels: Vec<T> = past.levels.iter().map(|&i| p[i]).collect();
-            sim.set_past_input(&levels, &past.edges)?;
+    fn simulate_parts<const N: usize>(
+        &self,
+        p: &[Dual<N>],
+        u: &[f64],
+        dt: f64,
+        yhat: &mut [f64],
+        cols: &mut [&mut [f64]],
+    ) -> Result<()> {
+        if self.effects.iter().any(|e| e.is_input()) {
+            let mut y = vec![Dual::<N>::cst(0.0); u.len()];
+            self.simulate(p, u, dt, &mut y)?;
+            split_parts(&y, 0, yhat, cols);
+            return Ok(());
         }
+        // As `simulate` without input effects, a chunk of samples at a time into a small
+        // buffer, whose parts go straight to `yhat` and `cols` (no record-long dual output).
+        let mut sim = self.sim_at_start(p, dt)?;
+        let mut buf = vec![Dual::<N>::cst(0.0); PARTS_CHUNK.min(u.len())];
+        let mut k0 = 0;
+        while k0 < u.len() {
+            let k1 = (k0 + PARTS_CHUNK).min(u.len());
+            let y = &mut buf[..k1 - k0];
+            sim.run_into(&u[k0..k1], y);
+            self.output_effects(p, dt, k0, y);
+            if !all_finite_re(y) {
+                let k = y.iter().position(|v| !v.v.is_finite()).unwrap_or(0);
+                return Err(Error::Numerical(format!(
+                    "the model output is not finite at sample {}",
+                    k0 + k
+                )));
+            }
+            split_parts(y, k0, yhat, cols);
+            k0 = k1;
+        }
+        Ok(())
+    }
+
+    fn simulate<T: Real>(&self, p: &[T], u: &[f64], dt: f64, y: &mut [T]) -> Result<()> {
+        let mut sim = self.sim_at_start(p, dt)?;
         let (u0, y0) = (self.operating_point.u0, self.operating_point.y0);
         if self.effects.iter().all(|e| !e.is_input()) {
             // No input effect: nothing feeds the output back, so the linear part runs on the
             // whole input at once (the vectorised kernel) and the output effects follow.
             sim.run_into(u, y);
-            let offsets_only = self
-                .effects
-                .iter()
-                .all(|e| matches!(e, Effect::OutputOffset { .. }));
-            if offsets_only && !self.effects.is_empty() {
-                // Output offsets only (the fitted constant): one addition a sample.
-                let c = self.effects.iter().fold(T::from(0.0), |a, e| match *e {
-                    Effect::OutputOffset { c } => a + p[c],
-                    _ => a,
-                });
-                y.iter_mut().for_each(|yk| *yk += c);
-            } else if !self.effects.is_empty() {
-                for (k, yk) in y.iter_mut().enumerate() {
-                    let t = k as f64 * dt;
-                    let mut ya = *yk + y0;
-                    for e in &self.effects {
-                        ya = e.output(p, ya, t);
-                    }
-                    *yk = ya - y0;
-                }
-            }
+            self.output_effects(p, dt, 0, y);
         } else {
             // Input effects that depend on the output (friction) see it in the middle of the
             // hold interval, `y_k + (y_k - y_(k-1))/2`, extrapolated from the output at `t_k`
@@ -890,15 +1021,8 @@ impl Structure for FracModel {
                 *yk = ya - y0;
             }
         }
-        // `0 v` is 0 for a finite `v` and NaN otherwise: their sum in eight lanes is one
-        // vectorised pass (as `lm::all_finite`); the sample is searched only when one is not.
-        let mut lanes = [0.0; 8];
-        for c in y.chunks(8) {
-            for (l, v) in lanes.iter_mut().zip(c) {
-                *l += v.re() * 0.0;
-            }
-        }
-        if lanes.iter().sum::<f64>() != 0.0 {
+        // The sample is searched only when one is not finite.
+        if !all_finite_re(y) {
             if let Some(k) = y.iter().position(|v| !v.re().is_finite()) {
                 return Err(Error::Numerical(format!(
                     "the model output is not finite at sample {k}"

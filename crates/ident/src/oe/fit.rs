@@ -148,19 +148,8 @@ fn eval_dual<const N: usize, S: Structure>(
             x
         };
     }
-    let mut y = vec![Dual::<N>::cst(0.0); u.len()];
-    s.simulate(&p, u, dt, &mut y)?;
-    for (k, v) in y.iter().enumerate() {
-        yhat[k] = v.v;
-    }
     // The columns hold the fitted samples, the last `cols[slot].len()` of the record.
-    let skip = u.len() - cols.first().map_or(0, |c| c.len());
-    for (slot, col) in cols.iter_mut().enumerate() {
-        for (c, v) in col.iter_mut().zip(&y[skip..]) {
-            *c = v.d[slot];
-        }
-    }
-    Ok(())
+    s.simulate_parts(&p, u, dt, yhat, cols)
 }
 
 /// Below this many samples a Jacobian runs on one thread (a thread costs more than it saves).
@@ -236,16 +225,15 @@ fn jacobian<S: Structure>(
     // `theta`, into `out` (each thread writes its own share).
     let linear = |group: &[usize], y: &[f64], out: &mut [&mut [f64]]| -> Result<()> {
         let which: Vec<usize> = group.iter().map(|&i| free[i]).collect();
-        let mut cols = vec![vec![]; group.len()];
-        s.linear_sensitivities(pv, &which, u, dt, y, &mut cols)?;
-        for ((&i, col), out) in group.iter().zip(&cols).zip(out.iter_mut()) {
+        s.linear_sensitivities(pv, &which, u, dt, y, skip, out)?;
+        for (&i, out) in group.iter().zip(out.iter_mut()) {
             let dp = if transform {
                 params[free[i]].bounds.dparam(pv[free[i]])
             } else {
                 1.0
             };
-            for (j, c) in out.iter_mut().zip(&col[skip..]) {
-                *j = c * dp;
+            if dp != 1.0 {
+                out.iter_mut().for_each(|j| *j *= dp);
             }
         }
         Ok(())
@@ -1124,6 +1112,76 @@ pub fn check_params(params: &[Param]) -> Result<()> {
 mod tests {
     use super::*;
     use crate::oe::FracModel;
+
+    /// The Jacobian as the fit takes it (dual parts written a chunk at a time straight into
+    /// the columns, linear columns computed into them, `skip` samples left out, two threads)
+    /// against each parameter's `Dual<1>` simulation of the whole record through
+    /// [`Structure::simulate`]: a record of several chunks with a partial last one, a `skip` that
+    /// is not a multiple of a chunk, an initial state and an output offset; then the same with
+    /// an input effect (friction), which takes the record-long dual path.
+    #[test]
+    fn chunked_jacobian_with_skip_equals_whole_record_dual_simulations() {
+        let (n, skip, dt) = (20_000, 5_003, 2e-4);
+        let u: Vec<f64> = (0..n)
+            .map(|k| if (k / 13) % 3 == 0 { 1.0 } else { -0.5 })
+            .collect();
+        let mut m = FracModel::pmsm(6.8, 0.006, 2.7e-5, 0.9, 0.8);
+        m.with_past_input(vec![0.01, 0.1, 1.2], (-5.0, 5.0));
+        m.with_output_offset(0.3);
+        let levels = m.past.clone().unwrap().levels;
+        for (i, &l) in levels.iter().enumerate() {
+            m.params[l].value = [0.7, -1.1, 0.4, 0.0][i];
+        }
+        let mut with_friction = m.clone();
+        let vc = with_friction.add_param(Param::positive("Vc", 0.05));
+        with_friction
+            .effects
+            .push(crate::oe::Effect::Coulomb { vc });
+        for m in [m, with_friction] {
+            let p = m.values();
+            let free: Vec<usize> = (0..p.len()).filter(|&j| m.params[j].free).collect();
+            let theta: Vec<f64> = free.iter().map(|&j| p[j]).collect();
+            let mut yhat = vec![0.0; n];
+            let mut jac = Mat::<f64>::zeros(n - skip, free.len());
+            jacobian(
+                &m, &p, &free, &theta, false, &u, dt, skip, &mut yhat, &mut jac,
+            )
+            .unwrap();
+            let mut y = vec![0.0; n];
+            m.simulate(&p, &u, dt, &mut y).unwrap();
+            let scale = y.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+            for k in 0..n {
+                assert!((yhat[k] - y[k]).abs() <= 1e-12 * scale, "yhat[{k}]");
+            }
+            for (i, &j) in free.iter().enumerate() {
+                let pd: Vec<Dual<1>> = p
+                    .iter()
+                    .enumerate()
+                    .map(|(q, &v)| {
+                        if q == j {
+                            Dual::var(v, 0)
+                        } else {
+                            Dual::cst(v)
+                        }
+                    })
+                    .collect();
+                let mut yd = vec![Dual::<1>::cst(0.0); n];
+                m.simulate(&pd, &u, dt, &mut yd).unwrap();
+                let col: Vec<f64> = yd[skip..].iter().map(|v| v.d[0]).collect();
+                let cs = col.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+                assert!(cs > 0.0, "{}: a zero column", m.params[j].name);
+                for (k, want) in col.iter().enumerate() {
+                    assert!(
+                        (jac[(k, i)] - want).abs() <= 1e-10 * cs,
+                        "{} sample {}: {} vs {want}",
+                        m.params[j].name,
+                        k + skip,
+                        jac[(k, i)]
+                    );
+                }
+            }
+        }
+    }
 
     /// A long PRBS-like record of the paper's PMSM with noise: the fit that starts from its
     /// leading part's optimum ends at the same optimum as the fit of the whole record from the
