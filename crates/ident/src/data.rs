@@ -952,8 +952,8 @@ impl Record {
         match mode {
             OffsetMode::None => Offsets::default(),
             OffsetMode::Mean => Offsets {
-                u0: self.u[..n_est].iter().sum::<f64>() / n_est as f64,
-                y0: self.y[..n_est].iter().sum::<f64>() / n_est as f64,
+                u0: crate::lm::sum_of(&self.u[..n_est], |v| v) / n_est as f64,
+                y0: crate::lm::sum_of(&self.y[..n_est], |v| v) / n_est as f64,
             },
             OffsetMode::Initial => {
                 let u0 = self.u[0];
@@ -999,11 +999,7 @@ impl Record {
     /// [`Error::NotEnoughData`] when the input is constant.
     pub fn check_excitation(&self, n: usize) -> Result<()> {
         let u = &self.u[..n.clamp(1, self.len())];
-        let (lo, hi) = u
-            .iter()
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
-                (a.min(v), b.max(v))
-            });
+        let (lo, hi) = crate::lm::range_of(u);
         if hi - lo <= 1e-9 * hi.abs().max(lo.abs()).max(1e-300) {
             return Err(Error::NotEnoughData(format!(
                 "the input is constant ({lo}) over the estimation part: no excitation"

@@ -899,6 +899,49 @@ pub(crate) fn sum_of(v: &[f64], f: impl Fn(f64) -> f64) -> f64 {
     acc.iter().sum::<f64>() + tail
 }
 
+/// `sum_i f(a_i, b_i)` over the common length, in eight interleaved partial sums (as
+/// [`sum_of`]).
+pub(crate) fn sum_of2(a: &[f64], b: &[f64], f: impl Fn(f64, f64) -> f64) -> f64 {
+    const LANES: usize = 8;
+    let n = a.len().min(b.len());
+    let (ca, cb) = (a[..n].chunks_exact(LANES), b[..n].chunks_exact(LANES));
+    let tail: f64 = ca
+        .remainder()
+        .iter()
+        .zip(cb.remainder())
+        .map(|(&x, &y)| f(x, y))
+        .sum();
+    let mut acc = [0.0; LANES];
+    for (x, y) in ca.zip(cb) {
+        for l in 0..LANES {
+            acc[l] += f(x[l], y[l]);
+        }
+    }
+    acc.iter().sum::<f64>() + tail
+}
+
+/// `(min, max)` of `v` (`(inf, -inf)` when empty), in eight lanes (one vectorised pass; a
+/// fold of `f64::min` is a chain of dependent operations).
+pub(crate) fn range_of(v: &[f64]) -> (f64, f64) {
+    const LANES: usize = 8;
+    let (mut lo, mut hi) = ([f64::INFINITY; LANES], [f64::NEG_INFINITY; LANES]);
+    let chunks = v.chunks_exact(LANES);
+    for &x in chunks.remainder() {
+        lo[0] = lo[0].min(x);
+        hi[0] = hi[0].max(x);
+    }
+    for c in chunks {
+        for l in 0..LANES {
+            lo[l] = lo[l].min(c[l]);
+            hi[l] = hi[l].max(c[l]);
+        }
+    }
+    (
+        lo.iter().fold(f64::INFINITY, |a, &b| a.min(b)),
+        hi.iter().fold(f64::NEG_INFINITY, |a, &b| a.max(b)),
+    )
+}
+
 /// Whether every entry of `v` is finite: `0 x` is 0 for a finite `x` and NaN otherwise, and a
 /// sum of those in eight lanes ([`sum_of`]) is one vectorised pass where a search is not.
 pub(crate) fn all_finite(v: &[f64]) -> bool {
@@ -1635,6 +1678,24 @@ mod tests {
         assert_ne!(rep.termination, Termination::SmallStatisticalStep);
         assert!((rep.params[0] - best.params[0]).abs() < 1e-6 * best.params[0]);
         assert!((rep.params[1] - best.params[1]).abs() < 1e-6 * best.params[1]);
+    }
+
+    #[test]
+    fn lane_sums_and_ranges_equal_plain_folds() {
+        for n in [0usize, 1, 7, 8, 9, 17, 1000] {
+            let a: Vec<f64> = (0..n)
+                .map(|k| ((k * 37 % 101) as f64 - 50.0) * 0.25)
+                .collect();
+            let b: Vec<f64> = (0..n).map(|k| ((k * 13 % 29) as f64) - 9.5).collect();
+            let want: f64 = a.iter().zip(&b).map(|(x, y)| (x - y) * (x - y)).sum();
+            let got = sum_of2(&a, &b, |x, y| (x - y) * (x - y));
+            assert!((got - want).abs() <= 1e-12 * want.abs().max(1.0), "{n}");
+            let lo = a.iter().fold(f64::INFINITY, |m, &v| m.min(v));
+            let hi = a.iter().fold(f64::NEG_INFINITY, |m, &v| m.max(v));
+            assert_eq!(range_of(&a), (lo, hi), "{n}");
+        }
+        // The common length of two slices.
+        assert_eq!(sum_of2(&[1.0, 2.0, 3.0], &[1.0], |x, y| x * y), 1.0);
     }
 
     /// [`NoisyExp`] whose first Jacobian has one entry `bad` (NaN or infinite).

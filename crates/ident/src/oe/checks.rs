@@ -33,15 +33,16 @@ const ABSURD_GAIN_RATIO: f64 = 1e3;
 
 /// Indices `k` where `u[k] != u[k-1]` (beyond a small fraction of the range).
 fn input_changes(u: &[f64]) -> Vec<usize> {
-    let (lo, hi) = u
-        .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
-            (a.min(v), b.max(v))
-        });
-    let tol = CHANGE_FRACTION * (hi - lo);
+    let tol = change_tolerance(u);
     (1..u.len())
         .filter(|&k| (u[k] - u[k - 1]).abs() > tol)
         .collect()
+}
+
+/// The smallest input change that counts: [`CHANGE_FRACTION`] of the input's range.
+fn change_tolerance(u: &[f64]) -> f64 {
+    let (lo, hi) = crate::lm::range_of(u);
+    CHANGE_FRACTION * (hi - lo)
 }
 
 /// The validation split for `holdout`: the last `holdout` of the record when its input changes
@@ -55,6 +56,15 @@ pub(crate) fn validation_split(
 ) -> (usize, Option<String>) {
     let n = rec.len();
     if split >= n {
+        return (split, None);
+    }
+    // Enough changes in the validation part are usually found in its first samples.
+    let (u, tol) = (&rec.u, change_tolerance(&rec.u));
+    let early = (split + 1..n)
+        .filter(|&k| (u[k] - u[k - 1]).abs() > tol)
+        .take(MIN_VALIDATION_CHANGES)
+        .count();
+    if early >= MIN_VALIDATION_CHANGES {
         return (split, None);
     }
     let changes = input_changes(&rec.u);

@@ -858,7 +858,8 @@ impl Scaling {
     /// was), or a parameter has no unit scale.
     fn of(rec: &Record, m: &FracModel) -> Option<Self> {
         let pow2 = |x: &[f64]| -> f64 {
-            let big = x.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+            let (lo, hi) = crate::lm::range_of(x);
+            let big = hi.max(-lo);
             if !(big.is_finite() && big > 0.0) {
                 return 1.0;
             }
@@ -980,7 +981,8 @@ fn identify_at_scale(
     }
     let mut yd = vec![0.0; n];
     m.simulate(&report.values, &u, rec.dt, &mut yd)?;
-    let yhat: Vec<f64> = yd.iter().map(|v| v + offsets.y0).collect();
+    let mut yhat = yd;
+    yhat.iter_mut().for_each(|v| *v += offsets.y0);
     let estimation = Fit::of(&rec.y[..split], &yhat[..split]);
     let validation = (split < n).then(|| Fit::of(&rec.y[split..], &yhat[split..]));
     let tf = m.tf(&report.values)?;
