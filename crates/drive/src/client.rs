@@ -149,7 +149,7 @@ impl<W: Write> SampleSink for CsvSink<W> {
         let r = |v: f64| (v * 1e6).round() / 1e6;
         writeln!(self.w, "{t:.6},{},{},{}", r(u), r(y), r(i))?;
         self.rows += 1;
-        if self.rows % 64 == 0 {
+        if self.rows.is_multiple_of(64) {
             self.w.flush()?;
         }
         Ok(())

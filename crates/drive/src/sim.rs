@@ -1190,7 +1190,7 @@ impl Firmware {
                                 let j = k - p.settle_samples;
                                 if j % (p.clock_samples as u32) == 0 {
                                     let b = j / p.clock_samples as u32;
-                                    if b as u64 % lfsr.period() == 0 {
+                                    if (b as u64).is_multiple_of(lfsr.period()) {
                                         lfsr.restart();
                                     }
                                     *bit = lfsr.next_bit();

@@ -500,15 +500,22 @@ pub(crate) fn run_f64(sim: &mut Simulator<f64>, u: &[f64], y: &mut [f64]) {
     #[cfg(target_arch = "x86_64")]
     if head < n && kernel::available() {
         sim.run_generic(&u[..head], &mut y[..head]);
-        let mut p = kernel::Packed::of(sim, 1, |v, _| v);
+        let wide = kernel::use_wide();
+        let mut p = kernel::Packed::of(sim, 1, if wide { 8 } else { 4 }, |v, _| v);
         let drive = kernel::Drive {
             u,
             m: sim.delay_whole,
             direct: &[sim.direct],
             direct_prev: sim.direct_prev,
         };
-        // SAFETY: the CPU has AVX2 and FMA (checked above).
-        unsafe { kernel::run_value(&mut p, &drive, sim.has_b1, head..n, y) };
+        // SAFETY: the CPU has AVX2 and FMA (checked above), and AVX-512F when `wide`.
+        unsafe {
+            if wide {
+                kernel::wide::run_value(&mut p, &drive, sim.has_b1, head..n, y);
+            } else {
+                kernel::run_value(&mut p, &drive, sim.has_b1, head..n, y);
+            }
+        }
         p.state_back(sim, |v| v[0]);
         refill_delay_line(sim, u, n);
         return;
@@ -517,8 +524,8 @@ pub(crate) fn run_f64(sim: &mut Simulator<f64>, u: &[f64], y: &mut [f64]) {
 }
 
 /// [`Simulator::run_into`] in [`Dual`] numbers: the first `m + 1` samples (which read the delay
-/// line, whose inputs may carry derivatives) by [`Simulator::step`], the rest by the AVX2 and FMA
-/// row kernel ([`kernel::run_rows`]) where the CPU has them, else by [`run_dual_soa`].
+/// line, whose inputs may carry derivatives) by [`Simulator::step`], the rest by the AVX-512 or
+/// AVX2 row kernel ([`kernel::run_rows`]) where the CPU has them, else by [`run_dual_soa`].
 pub(crate) fn run_dual<const N: usize>(sim: &mut Simulator<Dual<N>>, u: &[f64], y: &mut [Dual<N>]) {
     let n = u.len().min(y.len());
     let head = head_of(sim, n);
@@ -529,7 +536,8 @@ pub(crate) fn run_dual<const N: usize>(sim: &mut Simulator<Dual<N>>, u: &[f64], 
     let part = |v: Dual<N>, r: usize| if r < N { v.d[r] } else { v.v };
     #[cfg(target_arch = "x86_64")]
     if kernel::available() {
-        let mut p = kernel::Packed::of(sim, N + 1, part);
+        let wide = kernel::use_wide();
+        let mut p = kernel::Packed::of(sim, N + 1, if wide { 8 } else { 4 }, part);
         let direct: Vec<f64> = (0..=N).map(|r| part(sim.direct, r)).collect();
         let drive = kernel::Drive {
             u,
@@ -538,8 +546,14 @@ pub(crate) fn run_dual<const N: usize>(sim: &mut Simulator<Dual<N>>, u: &[f64], 
             direct_prev: sim.direct_prev,
         };
         let mut out = |k: usize, v: f64, d: &[f64; N]| y[k] = Dual { v, d: *d };
-        // SAFETY: the CPU has AVX2 and FMA (checked above).
-        unsafe { kernel::run_rows::<N>(&mut p, &drive, sim.has_b1, head..n, &mut out) };
+        // SAFETY: the CPU has AVX2 and FMA (checked above), and AVX-512F when `wide`.
+        unsafe {
+            if wide {
+                kernel::wide::run_rows::<N>(&mut p, &drive, sim.has_b1, head..n, &mut out);
+            } else {
+                kernel::run_rows::<N>(&mut p, &drive, sim.has_b1, head..n, &mut out);
+            }
+        }
         p.state_back(sim, |v| Dual {
             v: v[N],
             d: std::array::from_fn(|r| v[r]),
@@ -819,16 +833,36 @@ mod tests {
     /// delayed input read from the slice) against one generic step per sample: whole and
     /// fractional-sample delays, a feed-through, complex modes, a past input, runs split at odd
     /// places (the state and delay line carried across).
+    /// `f` once with each kernel the CPU has: the AVX2 kernels, and the AVX-512 ones where
+    /// the CPU has AVX-512F (the widest is what `run_into` picks).
+    fn each_kernel(f: impl Fn(&str)) {
+        #[cfg(target_arch = "x86_64")]
+        {
+            kernel::with_narrow(true, || f("avx2"));
+            if kernel::wide::available() {
+                f("avx512");
+            }
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        f("portable");
+    }
+
     #[test]
     fn value_kernel_equals_the_generic_step() {
+        each_kernel(value_kernel_case);
+    }
+
+    fn value_kernel_case(kernel: &str) {
         let dt = 5e-4;
         let u: Vec<f64> = (0..2000)
             .map(|k| if (k / 7) % 3 == 1 { 1.3 } else { -0.4 } + 1e-3 * k as f64)
             .collect();
+        // The last has more modes than the kernels keep in registers.
         let models = [
             "6.82/(2.655e-5 s^1.7452 + 0.0059 s^0.92 + 1)",
             "(0.3 s^0.9 + 2)/(0.1 s^0.9 + 1)",
             "1/(1e-4 s^2 + 0.002 s + 1)",
+            "1/(3e-8 s^2.61 + 2.655e-5 s^1.7452 + 0.0059 s^0.92 + 0.02 s^0.33 + 1)",
         ];
         for g in models {
             for tau in [0.0, 1.37e-3, 2.5e-3] {
@@ -848,7 +882,7 @@ mod tests {
                 for (k, (g2, w)) in got.iter().zip(&want).enumerate() {
                     assert!(
                         (g2 - w).abs() < 1e-12 * scale,
-                        "{g} tau {tau} k {k}: {g2} vs {w}"
+                        "{kernel}: {g} tau {tau} k {k}: {g2} vs {w}"
                     );
                 }
             }
@@ -857,6 +891,10 @@ mod tests {
 
     #[test]
     fn dual_kernel_equals_the_generic_step() {
+        each_kernel(dual_kernel_case);
+    }
+
+    fn dual_kernel_case(kernel: &str) {
         let dt = 5e-4;
         let u: Vec<f64> = (0..900)
             .map(|k| if (k / 9) % 3 == 1 { 1.3 } else { -0.4 })
@@ -893,11 +931,14 @@ mod tests {
             for (k, (g, w)) in got.iter().zip(&want).enumerate() {
                 assert!(
                     (g.v - w.v).abs() < 1e-12 * scale,
-                    "tau {tau} k {k}: {g:?} vs {w:?}"
+                    "{kernel}: tau {tau} k {k}: {g:?} vs {w:?}"
                 );
                 for i in 0..3 {
                     let ds = want.iter().map(|w| w.d[i].abs()).fold(1e-300, f64::max);
-                    assert!((g.d[i] - w.d[i]).abs() < 1e-11 * ds, "tau {tau} k {k} d{i}");
+                    assert!(
+                        (g.d[i] - w.d[i]).abs() < 1e-11 * ds,
+                        "{kernel}: tau {tau} k {k} d{i}"
+                    );
                 }
             }
         }

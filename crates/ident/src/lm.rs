@@ -1390,7 +1390,7 @@ mod tests {
         }
         fn eval(&mut self, p: &[f64], r: &mut [f64], jac: Option<&mut Mat<f64>>) -> Result<()> {
             let sc = 1.0 / (1.0 + (-p[2]).exp());
-            let g = |i: usize| if i % 2 == 0 { 1.0 } else { -1.0 };
+            let g = |i: usize| if i.is_multiple_of(2) { 1.0 } else { -1.0 };
             for i in 0..self.t.len() {
                 r[i] = p[0] + p[1] * self.t[i] + sc * g(i) - self.y[i];
             }
@@ -1411,7 +1411,7 @@ mod tests {
     #[test]
     fn a_parameter_at_its_bound_is_held_out_of_the_covariance() {
         let t: Vec<f64> = (0..40).map(|i| i as f64 / 4.0).collect();
-        let g = |i: usize| if i % 2 == 0 { 1.0 } else { -1.0 };
+        let g = |i: usize| if i.is_multiple_of(2) { 1.0 } else { -1.0 };
         let y: Vec<f64> = t
             .iter()
             .enumerate()

@@ -21,9 +21,37 @@ use crate::scalar::Real;
 use std::arch::x86_64::*;
 use std::ops::Range;
 
+pub(super) mod wide;
+
+#[cfg(test)]
+thread_local! {
+    /// Tests run the AVX2 kernels on a machine with AVX-512 too.
+    static NARROW: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
+}
+
+/// `f` with the AVX2 kernels (`narrow`) or the widest the CPU has (tests).
+#[cfg(test)]
+pub(super) fn with_narrow<R>(narrow: bool, f: impl FnOnce() -> R) -> R {
+    NARROW.with(|n| n.set(narrow));
+    let r = f();
+    NARROW.with(|n| n.set(false));
+    r
+}
+
+/// Whether the AVX-512 kernels ([`wide`]) run: the CPU has AVX-512F.
+pub(super) fn use_wide() -> bool {
+    #[cfg(test)]
+    if NARROW.with(|n| n.get()) {
+        return false;
+    }
+    wide::available()
+}
+
 /// The modes of a [`Simulator`] packed for the kernels (see the module documentation).
 pub(super) struct Packed {
     rows: usize,
+    /// Lanes of a vector: 4 (AVX2) or 8 (AVX-512).
+    lanes: usize,
     vr: usize,
     vc: usize,
     phi1: Vec<f64>,
@@ -34,21 +62,23 @@ pub(super) struct Packed {
 }
 
 impl Packed {
-    /// Pack `sim`'s coefficients and state; `part(v, r)` is part `r` of `v` (`r = rows - 1` the
-    /// value).
+    /// Pack `sim`'s coefficients and state in vectors of `lanes` (4 or 8); `part(v, r)` is part
+    /// `r` of `v` (`r = rows - 1` the value).
     pub(super) fn of<T: Real>(
         sim: &Simulator<T>,
         rows: usize,
+        lanes: usize,
         part: impl Fn(T, usize) -> f64,
     ) -> Self {
         let nr = sim.re_phi.len();
-        debug_assert!(nr % 4 == 0);
-        let (vr, nc) = (nr / 4, sim.cx_phi.len());
-        let vc = nc.div_ceil(2);
+        let half = lanes / 2;
+        let (vr, nc) = (nr.div_ceil(lanes), sim.cx_phi.len());
+        let vc = nc.div_ceil(half);
         let v = vr + vc;
-        let len = rows * v * 4;
+        let len = rows * v * lanes;
         let mut p = Self {
             rows,
+            lanes,
             vr,
             vc,
             phi1: vec![0.0; len],
@@ -58,7 +88,7 @@ impl Packed {
             x: vec![0.0; len],
         };
         for r in 0..rows {
-            let row = r * v * 4;
+            let row = r * v * lanes;
             for i in 0..nr {
                 p.phi1[row + i] = part(sim.re_phi[i], r);
                 p.b0[row + i] = part(sim.re_b0[i], r);
@@ -66,18 +96,18 @@ impl Packed {
                 p.x[row + i] = part(sim.re_x[i], r);
             }
             for m in 0..nc {
-                let (at, j) = (row + (vr + m / 2) * 4, m % 2);
+                let (at, j) = (row + (vr + m / half) * lanes, m % half);
                 let (pr, pi) = (part(sim.cx_phi[m].re, r), part(sim.cx_phi[m].im, r));
                 p.phi1[at + j] = pr;
-                p.phi1[at + 2 + j] = pr;
+                p.phi1[at + half + j] = pr;
                 p.phi2[at + j] = -pi;
-                p.phi2[at + 2 + j] = pi;
+                p.phi2[at + half + j] = pi;
                 p.b0[at + j] = part(sim.cx_b0[m].re, r);
-                p.b0[at + 2 + j] = part(sim.cx_b0[m].im, r);
+                p.b0[at + half + j] = part(sim.cx_b0[m].im, r);
                 p.b1[at + j] = part(sim.cx_b1[m].re, r);
-                p.b1[at + 2 + j] = part(sim.cx_b1[m].im, r);
+                p.b1[at + half + j] = part(sim.cx_b1[m].im, r);
                 p.x[at + j] = part(sim.cx_x[m].re, r);
-                p.x[at + 2 + j] = part(sim.cx_x[m].im, r);
+                p.x[at + half + j] = part(sim.cx_x[m].im, r);
             }
         }
         p
@@ -85,20 +115,20 @@ impl Packed {
 
     /// The state back into `sim`: `make(parts)` builds a scalar from its `rows` parts.
     pub(super) fn state_back<T: Real>(&self, sim: &mut Simulator<T>, make: impl Fn(&[f64]) -> T) {
-        let v = self.vr + self.vc;
+        let (v, l, half) = (self.vr + self.vc, self.lanes, self.lanes / 2);
         let mut parts = vec![0.0; self.rows];
         for i in 0..sim.re_x.len() {
             for (r, q) in parts.iter_mut().enumerate() {
-                *q = self.x[r * v * 4 + i];
+                *q = self.x[r * v * l + i];
             }
             sim.re_x[i] = make(&parts);
         }
         let mut im = vec![0.0; self.rows];
         for m in 0..sim.cx_x.len() {
             for r in 0..self.rows {
-                let at = r * v * 4 + (self.vr + m / 2) * 4 + m % 2;
+                let at = r * v * l + (self.vr + m / half) * l + m % half;
                 parts[r] = self.x[at];
-                im[r] = self.x[at + 2];
+                im[r] = self.x[at + half];
             }
             sim.cx_x[m] = crate::cx::Cx::new(make(&parts), make(&im));
         }
@@ -118,7 +148,7 @@ pub(super) struct Drive<'a> {
 /// Horizontal sum of four lanes, `(l0 + l1) + (l2 + l3)`.
 #[target_feature(enable = "avx2,fma")]
 #[inline]
-fn hsum(v: __m256d) -> f64 {
+pub(super) fn hsum(v: __m256d) -> f64 {
     // (l0 + l1) + (l2 + l3), as `sum_parts` groups them: a sample's output does not depend on
     // where it falls in a block.
     let mut l = [0.0f64; 4];
@@ -130,7 +160,7 @@ fn hsum(v: __m256d) -> f64 {
 /// `y[k] = ` the sum of the four lanes of `parts[k]`, four samples at a time.
 #[target_feature(enable = "avx2,fma")]
 #[inline]
-fn sum_parts(parts: &[__m256d], y: &mut [f64]) {
+pub(super) fn sum_parts(parts: &[__m256d], y: &mut [f64]) {
     let mut quads = parts.chunks_exact(4);
     let mut outs = y.chunks_exact_mut(4);
     for (q, o) in (&mut quads).zip(&mut outs) {
@@ -204,7 +234,7 @@ unsafe fn value_regs<const VR: usize, const VC: usize, const B1: bool>(
     range: Range<usize>,
     y: &mut [f64],
 ) {
-    assert!(p.rows == 1 && p.vr == VR && p.vc == VC && range.start > d.m);
+    assert!(p.lanes == 4 && p.rows == 1 && p.vr == VR && p.vc == VC && range.start > d.m);
     let z = _mm256_setzero_pd();
     let (mut xr, mut phr, mut b0r, mut b1r) = ([z; VR], [z; VR], [z; VR], [z; VR]);
     for j in 0..VR {
@@ -282,7 +312,7 @@ unsafe fn rows_mem<const N: usize, const B1: bool>(
     range: Range<usize>,
     out: &mut impl FnMut(usize, f64, &[f64; N]),
 ) {
-    assert!(p.rows == N + 1 && range.start > d.m && d.direct.len() == N + 1);
+    assert!(p.lanes == 4 && p.rows == N + 1 && range.start > d.m && d.direct.len() == N + 1);
     let z = _mm256_setzero_pd();
     let (vr, v) = (p.vr, p.vr + p.vc);
     let val = N * v;
@@ -348,14 +378,14 @@ pub(super) fn available() -> bool {
 /// hundred times slower than a normal one: a level column of 1e6 samples took most of a
 /// Jacobian's time. Values below `2.2e-308` are far under the rounding of any output, so the
 /// results do not change visibly (the kernel tests compare against the scalar step to 1e-12).
-struct FlushSubnormals(u32);
+pub(super) struct FlushSubnormals(u32);
 
 impl FlushSubnormals {
     /// Flush-to-zero (bit 15) and denormals-are-zero (bit 6).
     const BITS: u32 = (1 << 15) | (1 << 6);
 
     #[inline]
-    fn new() -> Self {
+    pub(super) fn new() -> Self {
         let mut old: u32 = 0;
         // SAFETY: `stmxcsr` writes the 4-byte register to the given address; `ldmxcsr` loads a
         // value that differs from the current one only in the FTZ and DAZ bits, which SSE2

@@ -377,7 +377,7 @@ fn compressed_mat_elements_padded_to_8_bytes_are_read_too() {
     let a = mat_file(&[("u", 3, 1, vec![1.0, 2.0, 3.0])], true);
     let b = mat_file(&[("y", 3, 1, vec![4.0, 5.0, 6.0])], true);
     let mut f = a.clone();
-    while f.len() % 8 != 0 {
+    while !f.len().is_multiple_of(8) {
         f.push(0);
     }
     f.extend(&b[128..]);
