@@ -227,6 +227,10 @@ pub fn column_indices(names: &[&str], wants: &[&str]) -> Result<Vec<usize>> {
 /// # Errors
 /// [`Error::Data`] naming the first NaN or infinite sample.
 pub fn check_finite(name: &str, col: &[f64]) -> Result<()> {
+    // One vectorised pass; the sample is searched only when one is not finite.
+    if crate::lm::all_finite(col) {
+        return Ok(());
+    }
     match col.iter().position(|v| !v.is_finite()) {
         Some(i) => Err(Error::Data(format!(
             "{} is not finite ({}) at sample {i}",
@@ -240,9 +244,32 @@ pub fn check_finite(name: &str, col: &[f64]) -> Result<()> {
 /// The median of the steps of `t` (at least 2 samples): the element `len/2` of the steps in
 /// [`f64::total_cmp`] order, found by selection in linear time (the same value sorting gives:
 /// elements equal under the total order are the same bits).
+///
+/// A long record's steps take few distinct values (the step and its rounding neighbours): the
+/// median of a thousand of them spread over the record is tried first, and kept when one counting
+/// pass shows it is element `len/2` (fewer steps below it than `len/2`, not fewer up to it);
+/// otherwise all the steps are selected.
 fn median_step(t: &[f64]) -> f64 {
-    let mut d: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
-    let mid = d.len() / 2;
+    let n = t.len() - 1;
+    let mid = n / 2;
+    let step = |k: usize| t[k + 1] - t[k];
+    if n >= 1 << 14 {
+        let mut sample: Vec<f64> = (0..n).step_by(n / 1024).map(step).collect();
+        let half = sample.len() / 2;
+        let c = *sample.select_nth_unstable_by(half, f64::total_cmp).1;
+        let (mut below, mut equal) = (0usize, 0usize);
+        for w in t.windows(2) {
+            match (w[1] - w[0]).total_cmp(&c) {
+                std::cmp::Ordering::Less => below += 1,
+                std::cmp::Ordering::Equal => equal += 1,
+                std::cmp::Ordering::Greater => {}
+            }
+        }
+        if below <= mid && mid < below + equal {
+            return c;
+        }
+    }
+    let mut d: Vec<f64> = (0..n).map(step).collect();
     *d.select_nth_unstable_by(mid, f64::total_cmp).1
 }
 
@@ -1090,6 +1117,39 @@ mod tests {
         let e = read_text(&path).unwrap_err().to_string();
         assert!(e.contains("is longer than"), "{e}");
         std::fs::remove_dir_all(&dir).ok();
+    }
+
+    /// The median step by a sampled candidate equals the one by selecting every step: uniform
+    /// steps with rounding jitter, a record whose first half has another step (the sampled
+    /// median may then be on the wrong side), a few gaps.
+    #[test]
+    fn the_median_step_is_the_selected_one() {
+        let full = |t: &[f64]| {
+            let mut d: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
+            let mid = d.len() / 2;
+            *d.select_nth_unstable_by(mid, f64::total_cmp).1
+        };
+        let n = 50_000;
+        let jitter: Vec<f64> = (0..n).map(|k| k as f64 * 5e-4).collect();
+        let halves: Vec<f64> = (0..n)
+            .map(|k| {
+                if k < n / 2 + 1 {
+                    k as f64 * 1e-3
+                } else {
+                    (n / 2 + 1) as f64 * 1e-3 + (k - n / 2 - 1) as f64 * 2e-3
+                }
+            })
+            .collect();
+        let mut gaps = jitter.clone();
+        for k in (1000..n).step_by(7000) {
+            for v in &mut gaps[k..] {
+                *v += 0.05;
+            }
+        }
+        let odd: Vec<f64> = (0..n + 1).map(|k| (k as f64).powf(1.01) * 1e-3).collect();
+        for t in [&jitter, &halves, &gaps, &odd] {
+            assert_eq!(median_step(t).to_bits(), full(t).to_bits());
+        }
     }
 
     #[test]

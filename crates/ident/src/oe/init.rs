@@ -480,6 +480,45 @@ fn with_values(model: &FracModel, vals: &[(&str, f64)]) -> Vec<f64> {
     v
 }
 
+/// Each Levy candidate with its [`sse_of`] (in order); on a long record the second on another
+/// thread (each simulation is a pass over the whole estimation part).
+fn candidate_sses(
+    lin: &FracModel,
+    cands: Vec<Candidate>,
+    u: &[f64],
+    y: &[f64],
+    dt: f64,
+    buf: &mut [f64],
+) -> Vec<(Candidate, Option<f64>)> {
+    if cands.len() != 2 || u.len() < PARALLEL_CANDIDATE_SAMPLES || !crate::lm::two_cores() {
+        return cands
+            .into_iter()
+            .map(|c| {
+                let s = sse_of(lin, &c.0, u, y, dt, buf);
+                (c, s)
+            })
+            .collect();
+    }
+    // The helper starts from this thread's solved poles (as the Jacobian's helper does).
+    let roots = fracsim::modal::RootsCache::of_this_thread();
+    let (a, b) = std::thread::scope(|sc| {
+        let h = sc.spawn(|| {
+            roots.install();
+            sse_of(lin, &cands[1].0, u, y, dt, &mut vec![0.0; u.len()])
+        });
+        let a = sse_of(lin, &cands[0].0, u, y, dt, buf);
+        // Were the thread lost, its candidate is simulated here.
+        let b = h
+            .join()
+            .unwrap_or_else(|_| sse_of(lin, &cands[1].0, u, y, dt, buf));
+        (a, b)
+    });
+    cands.into_iter().zip([a, b]).collect()
+}
+
+/// Records of at least this many samples simulate the two Levy candidates on two threads.
+const PARALLEL_CANDIDATE_SAMPLES: usize = 1 << 14;
+
 /// Sum of squared errors of the linear part (effects removed) with values `v`, if it simulates.
 fn sse_of(
     lin: &FracModel,
@@ -490,7 +529,7 @@ fn sse_of(
     buf: &mut [f64],
 ) -> Option<f64> {
     lin.simulate(v, u, dt, buf).ok()?;
-    let s: f64 = buf.iter().zip(y).map(|(a, b)| (b - a) * (b - a)).sum();
+    let s = crate::lm::sum_of2(buf, y, |a, b| (b - a) * (b - a));
     s.is_finite().then_some(s)
 }
 
@@ -648,8 +687,8 @@ pub fn auto_start(model: &mut FracModel, u: &[f64], y: &[f64], dt: f64) -> Resul
     }
     let mut lin = model.clone();
     lin.effects.clear();
-    let mean = y.iter().sum::<f64>() / n as f64;
-    let sst: f64 = y.iter().map(|v| (v - mean) * (v - mean)).sum();
+    let mean = crate::lm::sum_of(y, |v| v) / n as f64;
+    let sst = crate::lm::sum_of(y, |v| (v - mean) * (v - mean));
     let fit_percent = |sse: f64| 100.0 * (1.0 - (sse / sst.max(f64::MIN_POSITIVE)).sqrt());
     let mut buf = vec![0.0; n];
     let mut report = StartReport::given("");
@@ -664,8 +703,8 @@ pub fn auto_start(model: &mut FracModel, u: &[f64], y: &[f64], dt: f64) -> Resul
             Err(e) => format!("no Levy start: {e}"),
             Ok((frf, cands, q)) => {
                 let mut best: Option<(f64, Vec<f64>, String)> = None;
-                for (v, label) in cands {
-                    if let Some(s) = sse_of(&lin, &v, u, y, dt, &mut buf) {
+                for ((v, label), sse) in candidate_sses(&lin, cands, u, y, dt, &mut buf) {
+                    if let Some(s) = sse {
                         if best.as_ref().is_none_or(|b| s < b.0) {
                             best = Some((s, v, label));
                         }
