@@ -3,6 +3,7 @@
 //! Subcommands live in [`cmd`]; errors from every layer are mapped to exit codes in one place,
 //! [`exit_code`].
 
+mod alloc;
 mod cmd;
 mod interrupt;
 mod plot;
@@ -120,6 +121,10 @@ fn keep_freed_memory() {
         libc::mallopt(libc::M_TRIM_THRESHOLD, 1 << 30);
     }
 }
+
+/// Large blocks on huge pages (see [`alloc`]).
+#[global_allocator]
+static ALLOC: alloc::HugeForLarge = alloc::HugeForLarge;
 
 fn main() -> ExitCode {
     // Like every Unix filter: a closed stdout (`fracid time FILE | head`) ends the process
