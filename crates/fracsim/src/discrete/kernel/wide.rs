@@ -59,18 +59,6 @@ fn hsum(v: __m512d) -> f64 {
     super::hsum(fold(v))
 }
 
-/// `beta0 a + beta1 b` of vector `o`.
-#[target_feature(enable = "avx512f")]
-#[inline]
-fn input<const B1: bool>(b0: &[f64], b1: &[f64], o: usize, va: __m512d, vb: __m512d) -> __m512d {
-    let t = _mm512_mul_pd(ld(b0, o), va);
-    if B1 {
-        _mm512_fmadd_pd(ld(b1, o), vb, t)
-    } else {
-        t
-    }
-}
-
 /// [`super::value_regs`] in eight lanes: `VR` real and `VC` complex vectors in registers.
 ///
 /// # Safety
@@ -161,8 +149,32 @@ unsafe fn rows_mem<const N: usize, const B1: bool>(
     let z = _mm512_setzero_pd();
     let (vr, v) = (p.vr, p.vr + p.vc);
     let val = N * v;
-    let (phi1, phi2, b0, b1) = (&p.phi1[..], &p.phi2[..], &p.b0[..], &p.b1[..]);
-    let x = &mut p.x[..];
+    // Every vector index below is `< (N + 1) v`: the loads and stores go through raw pointers
+    // (no bounds check per access, the hot loop's main overhead) once the lengths are checked.
+    let len = (N + 1) * v * 8;
+    assert!([&p.phi1, &p.phi2, &p.b0, &p.b1, &p.x]
+        .iter()
+        .all(|a| a.len() == len));
+    assert!(range.end <= d.u.len());
+    let (phi1, phi2, b0, b1) = (
+        p.phi1.as_ptr(),
+        p.phi2.as_ptr(),
+        p.b0.as_ptr(),
+        p.b1.as_ptr(),
+    );
+    let x = p.x.as_mut_ptr();
+    // SAFETY (for `ld` and `st` below): `i < (N + 1) v`, so lanes `8 i .. 8 i + 8` are inside
+    // the arrays of `len` f64 checked above; `x` is not aliased while this function runs.
+    let ld = |a: *const f64, i: usize| unsafe { _mm512_loadu_pd(a.add(8 * i)) };
+    let st = |a: *mut f64, i: usize, w: __m512d| unsafe { _mm512_storeu_pd(a.add(8 * i), w) };
+    let input = |o: usize, va: __m512d, vb: __m512d| {
+        let t = _mm512_mul_pd(ld(b0, o), va);
+        if B1 {
+            _mm512_fmadd_pd(ld(b1, o), vb, t)
+        } else {
+            t
+        }
+    };
     for k in range {
         let (a, b) = (d.u[k - d.m], d.u[k - d.m - 1]);
         let (va, vb) = (_mm512_set1_pd(a), _mm512_set1_pd(b));
@@ -175,11 +187,11 @@ unsafe fn rows_mem<const N: usize, const B1: bool>(
                 let o = r * v + j;
                 let dx = ld(x, o);
                 *ar = _mm512_add_pd(*ar, dx);
-                let t = _mm512_fmadd_pd(ld(phi1, o), xv, input::<B1>(b0, b1, o, va, vb));
+                let t = _mm512_fmadd_pd(ld(phi1, o), xv, input(o, va, vb));
                 st(x, o, _mm512_fmadd_pd(ph, dx, t));
             }
             accv = _mm512_add_pd(accv, xv);
-            let t = input::<B1>(b0, b1, val + j, va, vb);
+            let t = input(val + j, va, vb);
             st(x, val + j, _mm512_fmadd_pd(ph, xv, t));
         }
         for j in vr..v {
@@ -190,14 +202,14 @@ unsafe fn rows_mem<const N: usize, const B1: bool>(
                 let o = r * v + j;
                 let dx = ld(x, o);
                 *ar = _mm512_add_pd(*ar, re_part(dx));
-                let mut t = input::<B1>(b0, b1, o, va, vb);
+                let mut t = input(o, va, vb);
                 t = _mm512_fmadd_pd(ld(phi1, o), xv, t);
                 t = _mm512_fmadd_pd(ld(phi2, o), xs, t);
                 t = _mm512_fmadd_pd(p2, swap(dx), t);
                 st(x, o, _mm512_fmadd_pd(p1, dx, t));
             }
             accv = _mm512_add_pd(accv, re_part(xv));
-            let mut t = input::<B1>(b0, b1, val + j, va, vb);
+            let mut t = input(val + j, va, vb);
             t = _mm512_fmadd_pd(p2, xs, t);
             st(x, val + j, _mm512_fmadd_pd(p1, xv, t));
         }
