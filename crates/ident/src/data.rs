@@ -454,7 +454,19 @@ pub const MAX_LINE_BYTES: usize = 1 << 20;
 /// [`Error::Io`] when the file cannot be opened or read; [`Error::Data`] for a file too large, a
 /// line too long, a NUL byte or invalid UTF-8 (with the line and byte where it is).
 pub fn read_text(path: &std::path::Path) -> Result<String> {
+    read_text_scanned(path).map(|(text, _)| text)
+}
+
+/// [`read_text`], and whether the text holds a `#` (a comment: without one there is no
+/// acquisition header or footer to look for). A large text is checked (NUL bytes, UTF-8, `#`) in
+/// two halves on two threads.
+fn read_text_scanned(path: &std::path::Path) -> Result<(String, bool)> {
     let bytes = read_bytes(path, true)?;
+    if let Some(hash) = checked_in_halves(&bytes) {
+        // SAFETY: `checked_in_halves` found both halves valid UTF-8, and they meet at a line
+        // feed (an ASCII byte, so at a character boundary): the whole is valid UTF-8.
+        return Ok((unsafe { String::from_utf8_unchecked(bytes) }, hash));
+    }
     let where_ = |bytes: &[u8], pos: usize| {
         let line = 1 + memchr::memchr_iter(b'\n', &bytes[..pos]).count();
         format!("line {line}, byte {pos}")
@@ -467,14 +479,38 @@ pub fn read_text(path: &std::path::Path) -> Result<String> {
             where_(&bytes, pos)
         )));
     }
-    String::from_utf8(bytes).map_err(|e| {
+    let hash = memchr::memchr(b'#', &bytes).is_some();
+    let text = String::from_utf8(bytes).map_err(|e| {
         Error::Data(format!(
             "{} is not UTF-8 text: invalid byte at {} (save it as UTF-8, or is it a binary \
              file?)",
             path.display(),
             where_(e.as_bytes(), e.utf8_error().valid_up_to())
         ))
-    })
+    })?;
+    Ok((text, hash))
+}
+
+/// Texts of at least this many bytes are checked in two halves on two threads.
+const PARALLEL_CHECK_BYTES: usize = 1 << 20;
+
+/// For a large text on a machine with two cores: `Some(holds a '#')` when both halves (split at
+/// a line feed) hold no NUL byte and are valid UTF-8; `None` when a half is not (the caller then
+/// finds and reports the fault) or the text is small.
+fn checked_in_halves(b: &[u8]) -> Option<bool> {
+    if b.len() < PARALLEL_CHECK_BYTES || !crate::lm::two_cores() {
+        return None;
+    }
+    let cut = b.len() / 2 + memchr::memchr(b'\n', &b[b.len() / 2..])? + 1;
+    let check = |h: &[u8]| -> Option<bool> {
+        (memchr::memchr(0, h).is_none() && std::str::from_utf8(h).is_ok())
+            .then(|| memchr::memchr(b'#', h).is_some())
+    };
+    let (first, second) = std::thread::scope(|sc| {
+        let h = sc.spawn(|| check(&b[cut..]));
+        (check(&b[..cut]), h.join().ok().flatten())
+    });
+    Some(first? || second?)
 }
 
 /// The bytes of `path`, at most [`MAX_FILE_BYTES`] of them; with `lines`, also no more than
@@ -829,6 +865,12 @@ impl Record {
     /// [`Error::NotEnoughData`] for an incomplete acquisition whose complete part is too short,
     /// or one without a time column (where the gaps are cannot be told).
     pub fn parse_with(text: &str, opts: &ReadOptions) -> Result<Loaded> {
+        Self::parse_text(text, opts, true)
+    }
+
+    /// [`Record::parse_with`]; `hash` false when the text is known to hold no `#` (no
+    /// acquisition header or footer to look for).
+    fn parse_text(text: &str, opts: &ReadOptions, hash: bool) -> Result<Loaded> {
         let cols = &opts.columns;
         let (t, u, y) = match opts.dt {
             Some(dt) => {
@@ -846,7 +888,12 @@ impl Record {
                 (t, u, y)
             }
         };
-        Self::checked_part(t, u, y, Acquisition::of_text(text), opts.dt.is_some())
+        let acquisition = if hash {
+            Acquisition::of_text(text)
+        } else {
+            Acquisition::Unknown
+        };
+        Self::checked_part(t, u, y, acquisition, opts.dt.is_some())
     }
 
     /// Cut an incomplete acquisition to its longest complete part, then check.
@@ -959,8 +1006,8 @@ impl Record {
             };
             return Self::checked_part(t, u, y, Acquisition::Unknown, opts.dt.is_some());
         }
-        let text = read_text(path)?;
-        Self::parse_with(&text, opts)
+        let (text, hash) = read_text_scanned(path)?;
+        Self::parse_text(&text, opts, hash)
     }
 
     /// Number of samples.
@@ -1116,6 +1163,53 @@ mod tests {
         std::fs::write(&path, &long).unwrap();
         let e = read_text(&path).unwrap_err().to_string();
         assert!(e.contains("is longer than"), "{e}");
+        std::fs::remove_dir_all(&dir).ok();
+    }
+
+    /// A text checked in halves on two threads: read as it is, with whether it holds a `#`;
+    /// a NUL byte or invalid UTF-8 in either half is reported where it is, as the one-pass check
+    /// reports it; an acquisition footer in a large file is still found.
+    #[test]
+    fn a_large_text_is_checked_in_halves() {
+        let dir = std::env::temp_dir().join(format!("ident-check-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("big.csv");
+        let mut text = String::from("t,u,y\n");
+        let mut k = 0usize;
+        while text.len() < 3 * PARALLEL_CHECK_BYTES {
+            text += &format!("{},{},{}\n", k as f64 * 1e-3, k % 7, k % 13);
+            k += 1;
+        }
+        std::fs::write(&path, &text).unwrap();
+        assert_eq!(read_text_scanned(&path).unwrap(), (text.clone(), false));
+        let n = text.len();
+        for (at, bad, what) in [
+            (n / 4, 0u8, "NUL byte"),
+            (3 * n / 4, 0u8, "NUL byte"),
+            (n / 4, 0xff, "not UTF-8"),
+            (3 * n / 4, 0xff, "not UTF-8"),
+        ] {
+            let mut b = text.clone().into_bytes();
+            b[at] = bad;
+            std::fs::write(&path, &b).unwrap();
+            let e = read_text(&path).unwrap_err().to_string();
+            let line = 1 + b[..at].iter().filter(|&&c| c == b'\n').count();
+            assert!(
+                e.contains(what) && e.contains(&format!("line {line}, byte {at}")),
+                "{e}"
+            );
+        }
+        // A footer at the end: found (the `#` is seen by the second half's check).
+        let mut footed = text.clone();
+        footed += &format!("# complete: {k} samples\n");
+        std::fs::write(&path, &footed).unwrap();
+        assert!(read_text_scanned(&path).unwrap().1);
+        let l = Record::load(&path, &ReadOptions::default()).unwrap();
+        assert_eq!(l.acquisition, Acquisition::Complete);
+        // An interrupted acquisition (its header, no footer) is still cut and warned about.
+        std::fs::write(&path, format!("# fracid drive acquisition\n{text}")).unwrap();
+        let l = Record::load(&path, &ReadOptions::default()).unwrap();
+        assert_eq!(l.acquisition, Acquisition::Interrupted);
         std::fs::remove_dir_all(&dir).ok();
     }
 
