@@ -22,6 +22,9 @@ for n in "${@:-10000 100000 1000000}"; do
         files+=("$f")
     done
 done
+# The files just written are flushed first: their writeback would otherwise run beside the first
+# timed runs (fracid's), not the peer's.
+sync
 echo "machine: $(nproc) cores, $(lscpu 2>/dev/null | sed -n 's/^Model name: *//p' | head -1), load $(cut -d' ' -f1-3 /proc/loadavg)"
 "$venv/bin/python" -c 'import numpy, scipy, sys; print(f"numpy {numpy.__version__}, scipy {scipy.__version__}, Python {sys.version.split()[0]}")'
 "$venv/bin/python" "$here/strong_compare.py" "$target/release/fracid" "$venv/bin/python" "${files[@]}"
