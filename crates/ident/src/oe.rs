@@ -263,10 +263,7 @@ pub trait Structure: Sync {
         yhat: &mut [f64],
         cols: &mut [&mut [f64]],
     ) -> Result<()> {
-        let mut y = vec![Dual::<N>::cst(0.0); u.len()];
-        self.simulate(p, u, dt, &mut y)?;
-        split_parts(&y, 0, yhat, cols);
-        Ok(())
+        parts_through_vec(self, p, u, dt, yhat, cols)
     }
 
     /// Whether the output is linear in parameter `j` in a way
@@ -303,6 +300,21 @@ pub trait Structure: Sync {
             ))),
         }
     }
+}
+
+/// [`Structure::simulate_parts`] through a record-long `Vec<Dual<N>>` (the default).
+fn parts_through_vec<S: Structure + ?Sized, const N: usize>(
+    s: &S,
+    p: &[Dual<N>],
+    u: &[f64],
+    dt: f64,
+    yhat: &mut [f64],
+    cols: &mut [&mut [f64]],
+) -> Result<()> {
+    let mut y = vec![Dual::<N>::cst(0.0); u.len()];
+    s.simulate(p, u, dt, &mut y)?;
+    split_parts(&y, 0, yhat, cols);
+    Ok(())
 }
 
 /// The dual outputs `y` of samples `k0..k0 + y.len()` apart: values into `yhat[k]`, derivative
@@ -954,10 +966,7 @@ impl Structure for FracModel {
         cols: &mut [&mut [f64]],
     ) -> Result<()> {
         if self.effects.iter().any(|e| e.is_input()) {
-            let mut y = vec![Dual::<N>::cst(0.0); u.len()];
-            self.simulate(p, u, dt, &mut y)?;
-            split_parts(&y, 0, yhat, cols);
-            return Ok(());
+            return parts_through_vec(self, p, u, dt, yhat, cols);
         }
         // As `simulate` without input effects, a chunk of samples at a time into a small
         // buffer, whose parts go straight to `yhat` and `cols` (no record-long dual output).
