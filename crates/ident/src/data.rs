@@ -258,8 +258,8 @@ fn median_step(t: &[f64]) -> f64 {
         let half = sample.len() / 2;
         let c = *sample.select_nth_unstable_by(half, f64::total_cmp).1;
         let (mut below, mut equal) = (0usize, 0usize);
-        for w in t.windows(2) {
-            match (w[1] - w[0]).total_cmp(&c) {
+        for d in (0..n).map(step) {
+            match d.total_cmp(&c) {
                 std::cmp::Ordering::Less => below += 1,
                 std::cmp::Ordering::Equal => equal += 1,
                 std::cmp::Ordering::Greater => {}

@@ -249,23 +249,7 @@ impl LmReport {
 /// assert_eq!(ident::lm::dot(&a, &a), (0..19).map(|k| f64::from(k * k)).sum::<f64>());
 /// ```
 pub fn dot(a: &[f64], b: &[f64]) -> f64 {
-    const LANES: usize = 8;
-    let n = a.len().min(b.len());
-    let (a, b) = (&a[..n], &b[..n]);
-    let mut acc = [0.0; LANES];
-    let (ca, cb) = (a.chunks_exact(LANES), b.chunks_exact(LANES));
-    let tail: f64 = ca
-        .remainder()
-        .iter()
-        .zip(cb.remainder())
-        .map(|(x, y)| x * y)
-        .sum();
-    for (x, y) in ca.zip(cb) {
-        for l in 0..LANES {
-            acc[l] += x[l] * y[l];
-        }
-    }
-    acc.iter().sum::<f64>() + tail
+    sum_of2(a, b, |x, y| x * y)
 }
 
 /// `sum_i r_i^2` ([`dot`] of `r` with itself).
@@ -942,10 +926,20 @@ pub(crate) fn range_of(v: &[f64]) -> (f64, f64) {
     )
 }
 
-/// Whether every entry of `v` is finite: `0 x` is 0 for a finite `x` and NaN otherwise, and a
-/// sum of those in eight lanes ([`sum_of`]) is one vectorised pass where a search is not.
-pub(crate) fn all_finite(v: &[f64]) -> bool {
-    sum_of(v, |x| x * 0.0) == 0.0
+/// Whether every entry of `v` (its value part, for a dual number) is finite: `0 x` is 0 for a
+/// finite `x` and NaN otherwise, and a sum of those in eight lanes is one vectorised pass where
+/// a search is not.
+pub(crate) fn all_finite<T: fracsim::Real>(v: &[T]) -> bool {
+    const LANES: usize = 8;
+    let chunks = v.chunks_exact(LANES);
+    let tail: f64 = chunks.remainder().iter().map(|x| x.re() * 0.0).sum();
+    let mut acc = [0.0; LANES];
+    for c in chunks {
+        for l in 0..LANES {
+            acc[l] += c[l].re() * 0.0;
+        }
+    }
+    acc.iter().sum::<f64>() + tail == 0.0
 }
 
 fn check_finite(r: &[f64], jac: &Mat<f64>, when: &str) -> Result<()> {

@@ -339,16 +339,17 @@ fn split_parts<const N: usize>(
     }
 }
 
-/// Whether every `re()` of `y` is finite, in one vectorised pass (`0 v` is 0 for a finite `v`
-/// and NaN otherwise; as `lm::all_finite`).
-fn all_finite_re<T: Real>(y: &[T]) -> bool {
-    let mut lanes = [0.0; 8];
-    for c in y.chunks(8) {
-        for (l, v) in lanes.iter_mut().zip(c) {
-            *l += v.re() * 0.0;
-        }
+/// An error naming the first non-finite output of samples `k0..k0 + y.len()`, if there is one
+/// (one vectorised pass; the sample is searched only when one is not finite).
+fn check_output<T: Real>(y: &[T], k0: usize) -> Result<()> {
+    if crate::lm::all_finite(y) {
+        return Ok(());
     }
-    lanes.iter().sum::<f64>() == 0.0
+    let k = y.iter().position(|v| !v.re().is_finite()).unwrap_or(0);
+    Err(Error::Numerical(format!(
+        "the model output is not finite at sample {}",
+        k0 + k
+    )))
 }
 
 /// Samples a chunk of [`FracModel`]'s `simulate_parts` (its dual buffer stays in the L2 cache).
@@ -978,13 +979,7 @@ impl Structure for FracModel {
             let y = &mut buf[..k1 - k0];
             sim.run_into(&u[k0..k1], y);
             self.output_effects(p, dt, k0, y);
-            if !all_finite_re(y) {
-                let k = y.iter().position(|v| !v.v.is_finite()).unwrap_or(0);
-                return Err(Error::Numerical(format!(
-                    "the model output is not finite at sample {}",
-                    k0 + k
-                )));
-            }
+            check_output(y, k0)?;
             split_parts(y, k0, yhat, cols);
             k0 = k1;
         }
@@ -1030,14 +1025,6 @@ impl Structure for FracModel {
                 *yk = ya - y0;
             }
         }
-        // The sample is searched only when one is not finite.
-        if !all_finite_re(y) {
-            if let Some(k) = y.iter().position(|v| !v.re().is_finite()) {
-                return Err(Error::Numerical(format!(
-                    "the model output is not finite at sample {k}"
-                )));
-            }
-        }
-        Ok(())
+        check_output(y, 0)
     }
 }

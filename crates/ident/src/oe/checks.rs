@@ -31,12 +31,10 @@ const UNDETERMINED: f64 = 10.0;
 /// spread is not what the data show: the output integrates, or the gain is not identifiable.
 const ABSURD_GAIN_RATIO: f64 = 1e3;
 
-/// Indices `k` where `u[k] != u[k-1]` (beyond a small fraction of the range).
-fn input_changes(u: &[f64]) -> Vec<usize> {
-    let tol = change_tolerance(u);
-    (1..u.len())
-        .filter(|&k| (u[k] - u[k - 1]).abs() > tol)
-        .collect()
+/// Indices `k >= from` where `u[k]` differs from `u[k-1]` by more than `tol`
+/// ([`change_tolerance`]).
+fn changes_from(u: &[f64], tol: f64, from: usize) -> impl Iterator<Item = usize> + '_ {
+    (from.max(1)..u.len()).filter(move |&k| (u[k] - u[k - 1]).abs() > tol)
 }
 
 /// The smallest input change that counts: [`CHANGE_FRACTION`] of the input's range.
@@ -60,14 +58,13 @@ pub(crate) fn validation_split(
     }
     // Enough changes in the validation part are usually found in its first samples.
     let (u, tol) = (&rec.u, change_tolerance(&rec.u));
-    let early = (split + 1..n)
-        .filter(|&k| (u[k] - u[k - 1]).abs() > tol)
+    let early = changes_from(u, tol, split + 1)
         .take(MIN_VALIDATION_CHANGES)
         .count();
     if early >= MIN_VALIDATION_CHANGES {
         return (split, None);
     }
-    let changes = input_changes(&rec.u);
+    let changes: Vec<usize> = changes_from(u, tol, 1).collect();
     let in_val = changes.iter().filter(|&&k| k > split).count();
     if in_val >= MIN_VALIDATION_CHANGES || changes.is_empty() {
         return (split, None);
