@@ -57,8 +57,15 @@ pub const MAX_FRF_SAMPLES: usize = 1 << 16;
 const MIN_PERIODS_AVERAGED: usize = 8;
 
 /// The coarse search simulates its trial models on at most this many leading samples of the
-/// estimation part (the winner's error is then measured on the whole part).
+/// estimation part (the winner's error is then measured on the leading [`START_SCORE_SAMPLES`]).
 pub const MAX_COARSE_SAMPLES: usize = 1 << 15;
+
+/// The starts (the Levy candidates, the coarse search's winner) are scored, and one of them
+/// chosen, by their fit on at most this many leading samples of the estimation part: the same
+/// part the periodic response averages ([`MAX_FRF_SAMPLES`]). It only chooses a start; the fit
+/// that follows runs on the whole part (and first compares the start with its own lead's
+/// optimum on the whole record).
+pub const START_SCORE_SAMPLES: usize = MAX_FRF_SAMPLES;
 
 /// A Levy start whose simulated output fits the estimation data by at least this NRMSE (percent)
 /// is taken as it is; below it, the coarse search runs too and the better of the two is used.
@@ -444,7 +451,8 @@ pub struct StartReport {
     /// One line: what the start was made from, and why another was not used.
     pub note: String,
     /// NRMSE fit (percent) of the start's simulated output on the estimation data (without the
-    /// output offset); `None` for a given start.
+    /// output offset; on its leading [`START_SCORE_SAMPLES`] samples when it is longer); `None`
+    /// for a given start.
     pub fit_percent: Option<f64>,
     /// The commensurate order of the Levy fit, when one was made.
     pub levy_q: Option<f64>,
@@ -541,7 +549,7 @@ fn sse_of(
 ///
 /// The trials are simulated on the leading [`MAX_COARSE_SAMPLES`] samples (all of a shorter
 /// record); the corner frequencies span the whole record's band, and the winner's `sse` is that
-/// of the whole record.
+/// of the record (`u`, `y`: the caller passes the part the starts are scored on).
 fn coarse_start(lin: &FracModel, u: &[f64], y: &[f64], dt: f64) -> Option<(f64, Vec<f64>)> {
     let n = u.len();
     let (u_all, y_all) = (u, y);
@@ -666,10 +674,12 @@ fn levy_candidates(lin: &FracModel, frf: &Frf, dt: f64) -> Result<(Vec<Candidate
 /// - `General` models keep their values.
 ///
 /// The cost is bounded on long records: the periodic response averages at most
-/// [`MAX_FRF_SAMPLES`] samples of whole periods (at least 8 periods), and the coarse search
-/// simulates its 30 trials on the leading [`MAX_COARSE_SAMPLES`] samples; each start's fit (and
-/// the choice between the Levy and the coarse start) is measured on the whole estimation part.
-/// It is only the start: the fit then runs on the whole estimation part.
+/// [`MAX_FRF_SAMPLES`] samples of whole periods (at least 8 periods), the coarse search
+/// simulates its 30 trials on the leading [`MAX_COARSE_SAMPLES`] samples, and each start's fit
+/// (and the choice between the Levy and the coarse start) is measured on the leading
+/// [`START_SCORE_SAMPLES`] samples of the estimation part (all of a shorter one; the report's
+/// note says so when it is a part). It is only the start: the fit then runs on the whole
+/// estimation part.
 ///
 /// # Errors
 /// None at present (kept fallible); a model that fails to simulate at every trial keeps its
@@ -687,10 +697,13 @@ pub fn auto_start(model: &mut FracModel, u: &[f64], y: &[f64], dt: f64) -> Resul
     }
     let mut lin = model.clone();
     lin.effects.clear();
-    let mean = crate::lm::sum_of(y, |v| v) / n as f64;
-    let sst = crate::lm::sum_of(y, |v| (v - mean) * (v - mean));
+    // The part the starts are scored on.
+    let scored = n.min(START_SCORE_SAMPLES);
+    let (us, ys) = (&u[..scored], &y[..scored]);
+    let mean = crate::lm::sum_of(ys, |v| v) / scored as f64;
+    let sst = crate::lm::sum_of(ys, |v| (v - mean) * (v - mean));
     let fit_percent = |sse: f64| 100.0 * (1.0 - (sse / sst.max(f64::MIN_POSITIVE)).sqrt());
-    let mut buf = vec![0.0; n];
+    let mut buf = vec![0.0; scored];
     let mut report = StartReport::given("");
     let mut chosen: Option<(f64, Vec<f64>)> = None;
     let why_not_levy = if model.kind == Kind::Fopdt {
@@ -703,7 +716,7 @@ pub fn auto_start(model: &mut FracModel, u: &[f64], y: &[f64], dt: f64) -> Resul
             Err(e) => format!("no Levy start: {e}"),
             Ok((frf, cands, q)) => {
                 let mut best: Option<(f64, Vec<f64>, String)> = None;
-                for ((v, label), sse) in candidate_sses(&lin, cands, u, y, dt, &mut buf) {
+                for ((v, label), sse) in candidate_sses(&lin, cands, us, ys, dt, &mut buf) {
                     if let Some(s) = sse {
                         if best.as_ref().is_none_or(|b| s < b.0) {
                             best = Some((s, v, label));
@@ -750,7 +763,7 @@ pub fn auto_start(model: &mut FracModel, u: &[f64], y: &[f64], dt: f64) -> Resul
         }
     };
     if !why_not_levy.is_empty() {
-        if let Some((s, v)) = coarse_start(&lin, u, y, dt) {
+        if let Some((s, v)) = coarse_start(&lin, us, ys, dt) {
             if chosen.as_ref().is_none_or(|c| s < c.0) {
                 report = StartReport {
                     method: StartMethod::Coarse,
@@ -778,6 +791,11 @@ pub fn auto_start(model: &mut FracModel, u: &[f64], y: &[f64], dt: f64) -> Resul
         Some((_, v)) => {
             for (p, x) in model.params.iter_mut().zip(v) {
                 p.value = x;
+            }
+            if scored < n {
+                report.note.push_str(&format!(
+                    " (starts scored on the leading {scored} of {n} samples)"
+                ));
             }
         }
         None => {
@@ -961,5 +979,63 @@ mod tests {
             let r = w * dt / (2.0 * std::f64::consts::PI);
             assert!(err < 6.0 * r * r + 1e-4, "omega {w}: relative error {err}");
         }
+    }
+
+    /// On a record longer than [`START_SCORE_SAMPLES`] the start is scored on the leading part:
+    /// the reported fit is the chosen start's fit there (recomputed here by a simulation of that
+    /// part alone), and the note says so. Scored on the whole record, the fit would differ (the
+    /// later part carries a drift the leading part does not).
+    #[test]
+    fn a_long_records_start_is_scored_on_its_leading_part() {
+        use rand::SeedableRng;
+        use rand_distr::{Distribution, Normal};
+        let dt = 5e-4;
+        let truth = FracModel::pmsm(6.82, 0.0059, 2.655e-5, 0.92, 0.8252);
+        let prbs = fracsim::prbs::Prbs {
+            periods: 160,
+            ..fracsim::prbs::Prbs::paper()
+        };
+        let u = prbs.signal(dt).unwrap();
+        let n = u.len();
+        assert!(n > START_SCORE_SAMPLES + 10_000, "{n}");
+        let mut y = vec![0.0; n];
+        truth.simulate(&truth.values(), &u, dt, &mut y).unwrap();
+        let mut rng = rand::rngs::StdRng::seed_from_u64(3);
+        let noise = Normal::new(0.0, 0.05).unwrap();
+        for (k, v) in y.iter_mut().enumerate() {
+            *v += noise.sample(&mut rng) + if k >= START_SCORE_SAMPLES { 0.5 } else { 0.0 };
+        }
+        let mut m = FracModel::pmsm(1.0, 1.0, 1.0, 1.0, 1.0);
+        let r = auto_start(&mut m, &u, &y, dt).unwrap();
+        assert_eq!(r.method, StartMethod::Levy, "{r:?}");
+        assert!(
+            r.note
+                .contains(&format!("leading {START_SCORE_SAMPLES} of {n} samples")),
+            "{}",
+            r.note
+        );
+        let fit_on = |len: usize| {
+            let mut lin = m.clone();
+            lin.effects.clear();
+            let mut yhat = vec![0.0; len];
+            lin.simulate(&m.values(), &u[..len], dt, &mut yhat).unwrap();
+            let ys = &y[..len];
+            let mean = ys.iter().sum::<f64>() / len as f64;
+            let sst: f64 = ys.iter().map(|v| (v - mean).powi(2)).sum();
+            let sse: f64 = ys.iter().zip(&yhat).map(|(a, b)| (a - b).powi(2)).sum();
+            100.0 * (1.0 - (sse / sst).sqrt())
+        };
+        let reported = r.fit_percent.unwrap();
+        // The same sums in another order: 1e-9 percent.
+        assert!(
+            (reported - fit_on(START_SCORE_SAMPLES)).abs() < 1e-9,
+            "{reported} vs {}",
+            fit_on(START_SCORE_SAMPLES)
+        );
+        assert!(
+            (reported - fit_on(n)).abs() > 0.1,
+            "{reported} vs {}",
+            fit_on(n)
+        );
     }
 }
