@@ -1057,19 +1057,17 @@ fn householder_qr_of_jr(jac: &Mat<f64>, r: &[f64]) -> (Mat<f64>, Vec<f64>) {
     // Each half of the rows (on two threads for a large J) to its R, then the two stacked.
     let tops = on_row_halves(m, w, |rows| tsqr(|j| &col(j)[rows.clone()], rows.len(), w));
     let top = if let [a, b] = &tops[..] {
-        let (ha, hb) = (a.nrows(), b.nrows());
-        let both = Mat::<f64>::from_fn(
-            ha + hb,
-            w,
-            |i, j| {
-                if i < ha {
-                    a[(i, j)]
+        tsqr(
+            |j| {
+                if j < w {
+                    a.col_as_slice(j)
                 } else {
-                    b[(i - ha, j)]
+                    b.col_as_slice(j - w)
                 }
             },
-        );
-        both.qr().thin_R().to_owned()
+            0,
+            w,
+        )
     } else {
         tops.into_iter().next().unwrap_or_else(|| Mat::zeros(0, w))
     };
@@ -1081,23 +1079,81 @@ fn householder_qr_of_jr(jac: &Mat<f64>, r: &[f64]) -> (Mat<f64>, Vec<f64>) {
 }
 
 /// The `R` (at most `w x w`) of the `m x w` matrix whose column `j` is `col(j)`, by blocks of
-/// [`QR_BLOCK`] rows: the `R` of the rows so far stacked on the next block is factored again.
+/// [`QR_BLOCK`] rows: the `R` of the rows so far stacked on the next block is factored again
+/// ([`householder_r`]). With `m = 0`, the `R` of two stacked `R`s: column `j` of the upper one is
+/// `col(j)`, of the lower one `col(w + j)` (each as long as the `R` has rows).
 fn tsqr<'a>(col: impl Fn(usize) -> &'a [f64], m: usize, w: usize) -> Mat<f64> {
+    if m == 0 {
+        let (ha, hb) = (col(0).len(), col(w).len());
+        let mut a = Vec::with_capacity((ha + hb) * w);
+        for j in 0..w {
+            a.extend_from_slice(col(j));
+            a.extend_from_slice(col(w + j));
+        }
+        return householder_r(&mut a, ha + hb, w);
+    }
     let mut top = Mat::<f64>::zeros(0, w);
+    let mut a = Vec::with_capacity((QR_BLOCK + w) * w);
     let mut start = 0;
     while start < m {
         let end = (start + QR_BLOCK).min(m);
-        let have = top.nrows();
-        let mut a = Mat::<f64>::zeros(have + end - start, w);
+        let rows = top.nrows() + end - start;
+        a.clear();
         for j in 0..w {
-            let dst = a.col_as_slice_mut(j);
-            dst[..have].copy_from_slice(top.col_as_slice(j));
-            dst[have..].copy_from_slice(&col(j)[start..end]);
+            a.extend_from_slice(top.col_as_slice(j));
+            a.extend_from_slice(&col(j)[start..end]);
         }
-        top = a.qr().thin_R().to_owned();
+        top = householder_r(&mut a, rows, w);
         start = end;
     }
     top
+}
+
+/// The `R` (`min(rows, w) x w`, upper trapezoidal) of the `rows x w` column-major matrix `a`
+/// (overwritten) by Householder reflections (Golub & Van Loan 2013, algorithm 5.2.1, with
+/// LAPACK's `dlarfg` reflector: `H = I - tau v v^T`, `v_0 = 1`, `H x = beta e_0`,
+/// `beta = -sign(x_0) |x|`).
+///
+/// Unblocked: for the few columns of a Jacobian the reflections are dot products and updates of
+/// whole columns, which stay in the cache for a block of [`QR_BLOCK`] rows. A column norm whose
+/// square would over- or underflow is computed scaled by the column's largest entry.
+fn householder_r(a: &mut [f64], rows: usize, w: usize) -> Mat<f64> {
+    debug_assert_eq!(a.len(), rows * w);
+    let k = rows.min(w);
+    for j in 0..k {
+        let (left, right) = a.split_at_mut((j + 1) * rows);
+        let x = &mut left[j * rows + j..];
+        let alpha = x[0];
+        let sq = alpha * alpha + sumsq(&x[1..]);
+        let norm = if sq > 1e-280 && sq < 1e280 {
+            sq.sqrt()
+        } else {
+            let big = x.iter().fold(0.0, |m: f64, v| m.max(v.abs()));
+            if big > 0.0 && big.is_finite() {
+                big * sum_of(x, |v| (v / big) * (v / big)).sqrt()
+            } else {
+                big
+            }
+        };
+        if norm == 0.0 {
+            // A zero column: H = I.
+            continue;
+        }
+        let beta = if alpha > 0.0 { -norm } else { norm };
+        let tau = (beta - alpha) / beta;
+        let scale = 1.0 / (alpha - beta);
+        x[0] = beta;
+        let v = &mut x[1..];
+        v.iter_mut().for_each(|e| *e *= scale);
+        let v = &*v;
+        for c in right.chunks_exact_mut(rows) {
+            let c = &mut c[j..];
+            let s = tau * (c[0] + dot(v, &c[1..]));
+            c[0] -= s;
+            c[1..].iter_mut().zip(v).for_each(|(e, vi)| *e -= s * vi);
+        }
+    }
+    Mat::<f64>::from_fn(k, w, |i, j| if j >= i { a[j * rows + i] } else { 0.0 })
 }
 
 /// Solve `min || R d + Q^T r ||^2 + lambda || D d ||^2` by QR of `[R; sqrt(lambda) D]`.
@@ -1297,12 +1353,15 @@ mod tests {
         }
     }
 
-    /// `(rmat, qtr)` equals the R of `whole = [J r]` up to the signs of its rows, to `tol` times
-    /// each row's diagonal.
+    /// `(rmat, qtr)` equals the R of `whole = [J r]` (by faer's QR) up to the signs of its rows:
+    /// `R` to `tol` times each row's diagonal, `Q^T r` to `tol` times that or `|r|` (in a nearly
+    /// dependent direction its error is about machine epsilon times the condition number times
+    /// `|r|`, whichever of two backward-stable factorisations makes it).
     fn assert_same_r(whole: &Mat<f64>, (rmat, qtr): (Mat<f64>, Vec<f64>), tol: f64) {
         let n = whole.ncols() - 1;
         let qr = whole.qr();
         let want = qr.thin_R();
+        let rnorm = whole.col(n).norm_l2();
         for i in 0..n {
             let sign = (want[(i, i)] * rmat[(i, i)]).signum();
             let scale = want[(i, i)].abs();
@@ -1313,9 +1372,68 @@ mod tests {
                 );
             }
             assert!(
-                (sign * qtr[i] - want[(i, n)]).abs() < tol * scale,
-                "Q^T r [{i}]"
+                (sign * qtr[i] - want[(i, n)]).abs() < tol * scale.max(rnorm),
+                "Q^T r [{i}]: {} vs {}",
+                sign * qtr[i],
+                want[(i, n)]
             );
+        }
+    }
+
+    /// The unblocked Householder `R` against faer's QR, up to the signs of its rows: a tall
+    /// random matrix, a wide one (fewer rows than columns), one with columns of `1e200` and
+    /// `1e-200` (whose squares over- and underflow: `R(A D) = R(A) D` for a positive diagonal
+    /// `D`, faer's `R` of `A` times `D` is the reference). Then a rank-deficient one (a column
+    /// already zero below the diagonal, a zero column), whose `R` is not unique: `R^T R = A^T A`.
+    #[test]
+    fn householder_r_equals_faers_qr() {
+        let mut rnd = uniform(5);
+        let cases: Vec<(Mat<f64>, Vec<f64>)> = vec![
+            (Mat::from_fn(300, 7, |_, _| rnd()), vec![1.0; 7]),
+            (Mat::from_fn(5, 9, |_, _| rnd()), vec![1.0; 9]),
+            (
+                Mat::from_fn(60, 4, |_, _| rnd()),
+                vec![1.0, 1e200, 1e-200, 1.0],
+            ),
+        ];
+        let r_of = |a: &Mat<f64>| {
+            let (rows, w) = (a.nrows(), a.ncols());
+            let mut buf: Vec<f64> = (0..w).flat_map(|j| a.col_as_slice(j).to_vec()).collect();
+            let r = householder_r(&mut buf, rows, w);
+            assert_eq!((r.nrows(), r.ncols()), (rows.min(w), w));
+            for i in 0..r.nrows() {
+                assert!((0..i).all(|j| r[(i, j)] == 0.0));
+            }
+            r
+        };
+        for (case, (b, d)) in cases.iter().enumerate() {
+            let a = Mat::<f64>::from_fn(b.nrows(), b.ncols(), |i, j| b[(i, j)] * d[j]);
+            let got = r_of(&a);
+            let want = b.qr().thin_R().to_owned();
+            for i in 0..got.nrows() {
+                let sign = if want[(i, i)] * got[(i, i)] < 0.0 {
+                    -1.0
+                } else {
+                    1.0
+                };
+                for j in i..b.ncols() {
+                    let err = (sign * got[(i, j)] / d[j] - want[(i, j)]).abs();
+                    assert!(err <= 1e-13 * b.col(j).norm_l2(), "case {case}: R[{i},{j}]");
+                }
+            }
+        }
+        let a = Mat::<f64>::from_fn(40, 4, |i, j| match j {
+            0 => f64::from(u8::from(i == 0)) * 3.0,
+            2 => 0.0,
+            _ => (i * j) as f64 % 7.0 - 3.0,
+        });
+        let got = r_of(&a);
+        for i in 0..4 {
+            for j in 0..4 {
+                let rtr: f64 = (0..=i.min(j)).map(|k| got[(k, i)] * got[(k, j)]).sum();
+                let ata: f64 = (0..40).map(|k| a[(k, i)] * a[(k, j)]).sum();
+                assert!((rtr - ata).abs() <= 1e-12 * (1.0 + ata.abs()), "G[{i},{j}]");
+            }
         }
     }
 
