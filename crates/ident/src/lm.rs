@@ -1005,9 +1005,29 @@ fn cholesky_qr_of_jr(jac: &Mat<f64>, r: &[f64]) -> Option<(Mat<f64>, Vec<f64>)> 
     if m < n || n == 0 {
         return None;
     }
+    // The Gram matrix and J^T r of each block of rows together: the block is read from memory
+    // once, and from the cache by the second.
     let parts = on_row_halves(m, n, |rows| {
-        let jr = jac.subrows(rows.start, rows.len());
-        (jr.transpose() * jr, jt_r_rows(jac, r, rows))
+        let mut gram = Mat::<f64>::zeros(n, n);
+        let mut g = vec![0.0; n];
+        let mut a = rows.start;
+        while a < rows.end {
+            let b = (a + JT_R_BLOCK).min(rows.end);
+            let jr = jac.subrows(a, b - a);
+            faer::linalg::matmul::matmul(
+                gram.as_mut(),
+                faer::Accum::Add,
+                jr.transpose(),
+                jr,
+                1.0,
+                faer::Par::Seq,
+            );
+            g.iter_mut()
+                .zip(jt_r_rows(jac, r, a..b))
+                .for_each(|(x, y)| *x += y);
+            a = b;
+        }
+        (gram, g)
     });
     let mut gram = Mat::<f64>::zeros(n, n);
     let mut g = vec![0.0; n];
