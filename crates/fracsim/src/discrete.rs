@@ -23,6 +23,7 @@ use crate::modal::{pole_residue, PoleResidue};
 use crate::scalar::{Dual, Real};
 use crate::tf::FracTf;
 
+mod free;
 #[cfg(target_arch = "x86_64")]
 mod kernel;
 

@@ -355,9 +355,6 @@ fn check_output<T: Real>(y: &[T], k0: usize) -> Result<()> {
 /// Samples a chunk of [`FracModel`]'s `simulate_parts` (its dual buffer stays in the L2 cache).
 const PARTS_CHUNK: usize = 8192;
 
-/// Samples a chunk of a level's free response in [`FracModel`]'s `linear_sensitivities`.
-const LEVEL_CHUNK: usize = 2048;
-
 /// The kind of a [`FracModel`], which decides how an automatic start is made.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Kind {
@@ -901,7 +898,9 @@ impl Structure for FracModel {
         skip: usize,
         out: &mut [&mut [f64]],
     ) -> Result<()> {
-        let mut free_sim: Option<Simulator<f64>> = None;
+        // The levels' columns: free responses, all in one pass.
+        let mut levels: Vec<Vec<f64>> = vec![];
+        let mut level_cols: Vec<&mut [f64]> = vec![];
         for (&j, col) in which.iter().zip(out.iter_mut()) {
             match self.linearity(j) {
                 None => {
@@ -931,29 +930,16 @@ impl Structure for FracModel {
                     let Some(past) = &self.past else {
                         unreachable!("a level is a level of the past input")
                     };
-                    let sim = match &mut free_sim {
-                        Some(s) => s,
-                        None => free_sim.insert(self.simulator(p, dt)?),
-                    };
-                    let mut levels = vec![0.0; past.levels.len()];
-                    levels[i] = 1.0;
-                    sim.set_past_input(&levels, &past.edges)?;
-                    // The free response, run on zeros a chunk at a time (the simulator goes on
-                    // from its state): the samples before `skip` into a scratch, the others
-                    // into the column itself.
-                    let zeros = [0.0; LEVEL_CHUNK];
-                    let mut scratch = [0.0; LEVEL_CHUNK];
-                    let mut k = 0;
-                    while k < skip {
-                        let b = (k + LEVEL_CHUNK).min(skip);
-                        sim.run_into(&zeros[..b - k], &mut scratch[..b - k]);
-                        k = b;
-                    }
-                    for c in col.chunks_mut(LEVEL_CHUNK) {
-                        sim.run_into(&zeros[..c.len()], c);
-                    }
+                    let mut unit = vec![0.0; past.levels.len()];
+                    unit[i] = 1.0;
+                    levels.push(unit);
+                    level_cols.push(&mut **col);
                 }
             }
+        }
+        if let (Some(past), false) = (&self.past, levels.is_empty()) {
+            self.simulator(p, dt)?
+                .free_responses(&levels, &past.edges, skip, &mut level_cols)?;
         }
         Ok(())
     }
