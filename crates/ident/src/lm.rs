@@ -904,8 +904,10 @@ pub(crate) fn sum_of2(a: &[f64], b: &[f64], f: impl Fn(f64, f64) -> f64) -> f64 
     acc.iter().sum::<f64>() + tail
 }
 
-/// `(min, max)` of `v` (`(inf, -inf)` when empty), in eight lanes (one vectorised pass; a
-/// fold of `f64::min` is a chain of dependent operations).
+/// `(min, max)` of `v` (`(inf, -inf)` when empty; NaNs are passed over, as by `f64::min`), in
+/// eight lanes (one vectorised pass; a fold of `f64::min` is a chain of dependent operations).
+/// Each lane keeps its extreme by a comparison and a select, which compiles to the machine's
+/// min and max instructions; `f64::min`'s NaN rules cost three instructions more a vector.
 pub(crate) fn range_of(v: &[f64]) -> (f64, f64) {
     const LANES: usize = 8;
     let (mut lo, mut hi) = ([f64::INFINITY; LANES], [f64::NEG_INFINITY; LANES]);
@@ -916,8 +918,9 @@ pub(crate) fn range_of(v: &[f64]) -> (f64, f64) {
     }
     for c in chunks {
         for l in 0..LANES {
-            lo[l] = lo[l].min(c[l]);
-            hi[l] = hi[l].max(c[l]);
+            // (A NaN compares false: the lane keeps its value.)
+            lo[l] = if c[l] < lo[l] { c[l] } else { lo[l] };
+            hi[l] = if c[l] > hi[l] { c[l] } else { hi[l] };
         }
     }
     (
@@ -1825,6 +1828,14 @@ mod tests {
             let lo = a.iter().fold(f64::INFINITY, |m, &v| m.min(v));
             let hi = a.iter().fold(f64::NEG_INFINITY, |m, &v| m.max(v));
             assert_eq!(range_of(&a), (lo, hi), "{n}");
+            // NaNs anywhere (in the lanes and in the remainder) are passed over.
+            let mut with_nan = a.clone();
+            for k in (0..n).step_by(3) {
+                with_nan[k] = f64::NAN;
+            }
+            let lo = with_nan.iter().fold(f64::INFINITY, |m, &v| m.min(v));
+            let hi = with_nan.iter().fold(f64::NEG_INFINITY, |m, &v| m.max(v));
+            assert_eq!(range_of(&with_nan), (lo, hi), "{n} with NaNs");
         }
         // The common length of two slices.
         assert_eq!(sum_of2(&[1.0, 2.0, 3.0], &[1.0], |x, y| x * y), 1.0);

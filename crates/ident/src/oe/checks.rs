@@ -132,7 +132,7 @@ pub(crate) fn assess(id: &Identification, rec: &Record) -> (Vec<String>, Vec<Str
     let p = &id.report.values;
     if !id.estimation.rmse.is_finite()
         || id.validation.is_some_and(|v| !v.rmse.is_finite())
-        || id.yhat.iter().any(|v| !v.is_finite())
+        || !crate::lm::all_finite(&id.yhat)
     {
         problems.push("the model output or its error is not finite".into());
     }

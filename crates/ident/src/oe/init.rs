@@ -94,16 +94,24 @@ pub struct Frf {
 /// (within `1e-9` of the input range), if any.
 pub fn detect_period(u: &[f64]) -> Option<usize> {
     let n = u.len();
-    let (lo, hi) = u
-        .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
-            (a.min(v), b.max(v))
-        });
+    let (lo, hi) = crate::lm::range_of(u);
     let tol = 1e-9 * (hi - lo).max(1e-300);
     if hi - lo <= 0.0 {
         return None;
     }
-    (8..=n / 2).find(|&p| (0..n - p).all(|k| (u[k + p] - u[k]).abs() <= tol))
+    // By blocks: each checked whole (one vectorised pass), the search stops at the first block
+    // with a mismatch.
+    let repeats = |p: usize| {
+        u[p..]
+            .chunks(256)
+            .zip(u[..n - p].chunks(256))
+            .all(|(a, b)| {
+                a.iter()
+                    .zip(b)
+                    .fold(true, |ok, (x, y)| ok & ((x - y).abs() <= tol))
+            })
+    };
+    (8..=n / 2).find(|&p| repeats(p))
 }
 
 /// Where a periodic input starts and its period: `(start, period)` in samples. The whole record
