@@ -306,6 +306,8 @@ struct OeProblem<'a, S: Structure> {
     yhat: Vec<f64>,
     progress: &'a mut dyn FnMut(usize, f64),
     jac_evals: usize,
+    /// The sum of squared residuals at the first point evaluated.
+    first_ssr: Option<f64>,
 }
 
 impl<'a, S: Structure> OeProblem<'a, S> {
@@ -331,50 +333,41 @@ impl<'a, S: Structure> OeProblem<'a, S> {
             yhat: vec![0.0; u.len()],
             progress,
             jac_evals: 0,
+            first_ssr: None,
         }
-    }
-
-    /// The sums of squared residuals at `a` and at `b` (`None` where the model does not
-    /// simulate), the two simulations on two threads for a long record. `yhat` is left holding
-    /// the residuals at `a`.
-    fn ssr_at_both(&mut self, a: &[f64], b: &[f64]) -> (Option<f64>, Option<f64>) {
-        let pb = self.params_of(b);
-        let pa = self.params_of(a);
-        let (s, u, y, dt, skip) = (self.s, self.u, self.y, self.dt, self.skip);
-        let ssr = |p: &[f64], buf: &mut [f64]| -> Option<f64> {
-            s.simulate(p, u, dt, buf).ok()?;
-            for (e, y) in buf[skip..].iter_mut().zip(&y[skip..]) {
-                *e -= y;
-            }
-            let ssr = crate::lm::sumsq(&buf[skip..]);
-            ssr.is_finite().then_some(ssr)
-        };
-        let yhat = &mut self.yhat;
-        if u.len() < PARALLEL_MIN_SAMPLES || !crate::lm::two_cores() {
-            let sb = ssr(&pb, yhat);
-            return (ssr(&pa, yhat), sb);
-        }
-        // As in `jacobian`: the helper starts from this thread's solved poles.
-        let roots = fracsim::modal::RootsCache::of_this_thread();
-        std::thread::scope(|sc| {
-            let h = sc.spawn(|| {
-                roots.install();
-                ssr(&pb, &mut vec![0.0; u.len()])
-            });
-            let sa = ssr(&pa, yhat);
-            (sa, h.join().ok().flatten())
-        })
     }
 
     /// The physical parameter values at `theta` (the fixed ones from `base`).
     fn params_of(&self, theta: &[f64]) -> Vec<f64> {
-        let mut p = self.base.clone();
-        let ps = self.s.params();
-        for (&j, &th) in self.free.iter().zip(theta) {
-            p[j] = ps[j].bounds.to_param(th);
-        }
-        p
+        physical(self.s, &self.free, &self.base, theta)
     }
+}
+
+/// The physical parameter values at `theta` (the free parameters `free`; the fixed ones from
+/// `base`).
+fn physical<S: Structure>(s: &S, free: &[usize], base: &[f64], theta: &[f64]) -> Vec<f64> {
+    let mut p = base.to_vec();
+    let ps = s.params();
+    for (&j, &th) in free.iter().zip(theta) {
+        p[j] = ps[j].bounds.to_param(th);
+    }
+    p
+}
+
+/// The sum of squared residuals `sum_(k >= skip) (yhat_k - y_k)^2` at the physical values `p`
+/// (`None` where the model does not simulate or the sum is not finite).
+fn ssr_at<S: Structure>(
+    s: &S,
+    p: &[f64],
+    u: &[f64],
+    y: &[f64],
+    dt: f64,
+    skip: usize,
+) -> Option<f64> {
+    let mut yhat = vec![0.0; u.len()];
+    s.simulate(p, u, dt, &mut yhat).ok()?;
+    let ssr = crate::lm::sum_of2(&yhat[skip..], &y[skip..], |a, b| (a - b) * (a - b));
+    ssr.is_finite().then_some(ssr)
 }
 
 impl<S: Structure> Problem for OeProblem<'_, S> {
@@ -417,6 +410,7 @@ impl<S: Structure> Problem for OeProblem<'_, S> {
             *rk = e - y;
         }
         let ssr = crate::lm::sumsq(r);
+        self.first_ssr.get_or_insert(ssr);
         self.jac_evals += 1;
         (self.progress)(self.jac_evals, (ssr / r.len().max(1) as f64).sqrt());
         Ok(())
@@ -588,47 +582,65 @@ fn fit_in<S: Structure>(
     } else {
         None
     };
-    let lead_fit = lead.and_then(|lead| {
-        let (u, y) = (&u[..lead], &y[..lead]);
-        let mut prob = OeProblem::new(s, u, y, dt, opts.skip, &free, &base, &mut *progress);
-        // The lead is only the whole record's start: it stops once a step lowers its cost by
-        // less than a step of LEAD_STEP_SE standard errors would (that is, by a relative
-        // LEAD_STEP_SE^2 / m of its cost, m its residuals).
-        let lead_lm = LmOptions {
-            ftol: opts
-                .lm
-                .ftol
-                .max(LEAD_STEP_SE * LEAD_STEP_SE / (lead - opts.skip) as f64),
-            ..opts.lm.clone()
-        };
-        let r = minimize(&mut prob, &theta0, &lead_lm).ok()?;
-        Some((r, prob.jac_evals))
+    // The whole record's cost at the start is computed on another thread while the lead is
+    // fitted (the fit from the lead's optimum is kept only if that optimum does not fit the
+    // whole record worse than the start did).
+    let lead_fit = lead.map(|lead| {
+        std::thread::scope(|sc| {
+            let roots = fracsim::modal::RootsCache::of_this_thread();
+            let at_start = sc.spawn(|| {
+                // (From this thread's solved poles, as the Jacobian's helper.)
+                roots.install();
+                ssr_at(s, &physical(s, &free, &base, &theta0), u, y, dt, opts.skip)
+            });
+            let (u, y) = (&u[..lead], &y[..lead]);
+            let mut prob = OeProblem::new(s, u, y, dt, opts.skip, &free, &base, &mut *progress);
+            // The lead is only the whole record's start: it stops once a step lowers its cost
+            // by less than a step of LEAD_STEP_SE standard errors would (that is, by a relative
+            // LEAD_STEP_SE^2 / m of its cost, m its residuals).
+            let lead_lm = LmOptions {
+                ftol: opts
+                    .lm
+                    .ftol
+                    .max(LEAD_STEP_SE * LEAD_STEP_SE / (lead - opts.skip) as f64),
+                ..opts.lm.clone()
+            };
+            let r = minimize(&mut prob, &theta0, &lead_lm).ok();
+            let at_start = at_start.join().ok().flatten();
+            r.map(|r| (r, prob.jac_evals, at_start))
+        })
     });
     let mut prob = OeProblem::new(s, u, y, dt, opts.skip, &free, &base, &mut *progress);
-    let mut from_lead = false;
-    if let Some((r, jac_evals)) = lead_fit {
+    let mut from_lead = None;
+    if let Some((r, jac_evals, at_start)) = lead_fit.flatten() {
         prob.jac_evals = jac_evals;
-        lead_work = (r.iterations, r.evaluations + 2);
-        // The lead's optimum starts the whole record's fit unless it fits the whole record
-        // worse than the start did (a lead that misleads).
-        let (at_lead, at_start) = prob.ssr_at_both(&r.params, &theta0);
-        if at_lead.unwrap_or(f64::INFINITY) <= at_start.unwrap_or(f64::INFINITY) {
-            start = r.params;
-            // Near the optimum already: the whole record's fit starts with the lead's final
-            // damping (Gauss-Newton steps), not the damping of a cold start.
-            lm.initial_lambda = r.lambda.clamp(1e-12, opts.lm.initial_lambda);
-            from_lead = true;
-        }
+        lead_work = (r.iterations, r.evaluations + 1);
+        start = r.params;
+        // Near the optimum already: the whole record's fit starts with the lead's final
+        // damping (Gauss-Newton steps), not the damping of a cold start.
+        lm.initial_lambda = r.lambda.clamp(1e-12, opts.lm.initial_lambda);
+        from_lead = Some(at_start.unwrap_or(f64::INFINITY));
     }
-    let mut rep = if from_lead {
-        // Gauss-Newton rounds with chord steps: two whole-record Jacobians where LM takes four
-        // or five (LM takes over if a step fails).
-        let bufs = buffers
-            .and_then(|h| h.join().ok())
-            .unwrap_or_else(|| RefineBuffers::new(m, free.len()));
-        refine_with(&mut prob, &start, &lm, &RefineOptions::default(), bufs)?
-    } else {
-        minimize(&mut prob, &start, &lm)?
+    let mut rep = match from_lead {
+        Some(at_start) => {
+            // Gauss-Newton rounds with chord steps: two whole-record Jacobians where LM takes
+            // four or five (LM takes over if a step fails).
+            let bufs = buffers
+                .and_then(|h| h.join().ok())
+                .unwrap_or_else(|| RefineBuffers::new(m, free.len()));
+            let rep = refine_with(&mut prob, &start, &lm, &RefineOptions::default(), bufs)?;
+            // Its first evaluation is the whole record's cost at the lead's optimum: a lead that
+            // misleads (worse than the start) is not used, the fit starts again from the start.
+            if prob.first_ssr.is_some_and(|c| c <= at_start) {
+                rep
+            } else {
+                let mut cold = minimize(&mut prob, &theta0, &opts.lm)?;
+                cold.iterations += rep.iterations;
+                cold.evaluations += rep.evaluations;
+                cold
+            }
+        }
+        None => minimize(&mut prob, &start, &lm)?,
     };
     rep.iterations += lead_work.0;
     rep.evaluations += lead_work.1;
@@ -1238,6 +1250,71 @@ mod tests {
         }
         // lead iterations are cheap; the whole record's are not: fewer than the cold fit's
         assert!(without.iterations > 6, "{}", without.iterations);
+    }
+
+    /// A lead that misleads: the plant's gain is twice as large over the leading part as over
+    /// the rest, and the fit starts at the rest's own parameters. The lead's optimum (the large
+    /// gain) then fits the whole record worse than the start, so the fit is made from the start
+    /// as if there were no lead: the same result to the bit, and the lead's work counted on top.
+    #[test]
+    fn a_lead_that_fits_the_record_worse_than_the_start_is_not_used() {
+        let n = 5 * LEAD_SAMPLES;
+        let dt = 5e-4;
+        let mut state = 0x9e37_79b9_7f4a_7c15_u64;
+        let mut rnd = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut level = 1.0;
+        let u: Vec<f64> = (0..n)
+            .map(|k| {
+                if k % 6 == 0 && rnd() < 0.5 {
+                    level = -level;
+                }
+                level
+            })
+            .collect();
+        let rest = FracModel::pmsm(6.82, 0.0059, 2.655e-5, 0.92, 0.8252);
+        let mut y = vec![0.0; n];
+        rest.simulate(&rest.values(), &u, dt, &mut y).unwrap();
+        for (k, v) in y.iter_mut().enumerate() {
+            if k < LEAD_SAMPLES {
+                *v *= 2.0;
+            }
+            *v += 0.05 * (2.0 * rnd() - 1.0);
+        }
+        assert!(lead_part(&u, &y, 0).is_some());
+        let opts = FitOptions::default();
+        // The scene: the lead's own optimum fits the whole record worse than the start.
+        let lead = fit(&rest, &u[..LEAD_SAMPLES], &y[..LEAD_SAMPLES], dt, &opts).unwrap();
+        let sse = |v: &[f64]| {
+            let mut yhat = vec![0.0; n];
+            rest.simulate(v, &u, dt, &mut yhat).unwrap();
+            yhat.iter()
+                .zip(&y)
+                .map(|(a, b)| (a - b).powi(2))
+                .sum::<f64>()
+        };
+        assert!(sse(&lead.values) > 2.0 * sse(&rest.values()));
+        let with = fit(&rest, &u, &y, dt, &opts).unwrap();
+        LEAD.with(|l| l.set(false));
+        let without = fit(&rest, &u, &y, dt, &opts).unwrap();
+        LEAD.with(|l| l.set(true));
+        // The same fit from the start (to rounding: the poles are solved from another thread's
+        // last solution) ...
+        for (a, b) in with.values.iter().zip(&without.values) {
+            assert!((a - b).abs() <= 1e-12 * b.abs(), "{a} vs {b}");
+        }
+        // ... after the lead's fit and a Gauss-Newton round from its optimum (at least three
+        // evaluations and the start's cost), which a used lead would have replaced.
+        assert!(
+            with.evaluations >= without.evaluations + 5,
+            "{} vs {}",
+            with.evaluations,
+            without.evaluations
+        );
     }
 
     /// The leading part is used only when it is excited like the whole record.
