@@ -1197,6 +1197,29 @@ mod tests {
         }
     }
 
+    /// A seeded generator of uniform numbers in [0, 1) (xorshift64).
+    fn xorshift(mut state: u64) -> impl FnMut() -> f64 {
+        move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        }
+    }
+
+    /// `n` samples of +-1 that may switch every sixth sample (a PRBS-like input).
+    fn prbs_like(n: usize, rnd: &mut impl FnMut() -> f64) -> Vec<f64> {
+        let mut level = 1.0;
+        (0..n)
+            .map(|k| {
+                if k % 6 == 0 && rnd() < 0.5 {
+                    level = -level;
+                }
+                level
+            })
+            .collect()
+    }
+
     /// A long PRBS-like record of the paper's PMSM with noise: the fit that starts from its
     /// leading part's optimum ends at the same optimum as the fit of the whole record from the
     /// start (cost within 1e-9 relative, parameters within 1e-3 of a standard error), in fewer
@@ -1205,22 +1228,8 @@ mod tests {
     fn the_leading_part_start_ends_at_the_whole_records_optimum() {
         let n = 4 * LEAD_SAMPLES + 1000;
         let dt = 5e-4;
-        let mut state = 0x2545_f491_4f6c_dd1d_u64;
-        let mut rnd = || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
-        let mut level = 1.0;
-        let u: Vec<f64> = (0..n)
-            .map(|k| {
-                if k % 6 == 0 && rnd() < 0.5 {
-                    level = -level;
-                }
-                level
-            })
-            .collect();
+        let mut rnd = xorshift(0x2545_f491_4f6c_dd1d);
+        let u = prbs_like(n, &mut rnd);
         let truth = FracModel::pmsm(6.82, 0.0059, 2.655e-5, 0.92, 0.8252);
         let mut y = vec![0.0; n];
         truth.simulate(&truth.values(), &u, dt, &mut y).unwrap();
@@ -1260,22 +1269,8 @@ mod tests {
     fn a_lead_that_fits_the_record_worse_than_the_start_is_not_used() {
         let n = 5 * LEAD_SAMPLES;
         let dt = 5e-4;
-        let mut state = 0x9e37_79b9_7f4a_7c15_u64;
-        let mut rnd = || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
-        let mut level = 1.0;
-        let u: Vec<f64> = (0..n)
-            .map(|k| {
-                if k % 6 == 0 && rnd() < 0.5 {
-                    level = -level;
-                }
-                level
-            })
-            .collect();
+        let mut rnd = xorshift(0x9e37_79b9_7f4a_7c15);
+        let u = prbs_like(n, &mut rnd);
         let rest = FracModel::pmsm(6.82, 0.0059, 2.655e-5, 0.92, 0.8252);
         let mut y = vec![0.0; n];
         rest.simulate(&rest.values(), &u, dt, &mut y).unwrap();
