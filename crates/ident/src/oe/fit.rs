@@ -354,22 +354,6 @@ fn physical<S: Structure>(s: &S, free: &[usize], base: &[f64], theta: &[f64]) ->
     p
 }
 
-/// The sum of squared residuals `sum_(k >= skip) (yhat_k - y_k)^2` at the physical values `p`
-/// (`None` where the model does not simulate or the sum is not finite).
-fn ssr_at<S: Structure>(
-    s: &S,
-    p: &[f64],
-    u: &[f64],
-    y: &[f64],
-    dt: f64,
-    skip: usize,
-) -> Option<f64> {
-    let mut yhat = vec![0.0; u.len()];
-    s.simulate(p, u, dt, &mut yhat).ok()?;
-    let ssr = crate::lm::sum_of2(&yhat[skip..], &y[skip..], |a, b| (a - b) * (a - b));
-    ssr.is_finite().then_some(ssr)
-}
-
 impl<S: Structure> Problem for OeProblem<'_, S> {
     fn n_params(&self) -> usize {
         self.free.len()
@@ -591,7 +575,8 @@ fn fit_in<S: Structure>(
             let at_start = sc.spawn(|| {
                 // (From this thread's solved poles, as the Jacobian's helper.)
                 roots.install();
-                ssr_at(s, &physical(s, &free, &base, &theta0), u, y, dt, opts.skip)
+                let p = physical(s, &free, &base, &theta0);
+                super::init::sse_of(s, &p, u, y, dt, opts.skip, &mut vec![0.0; u.len()])
             });
             let (u, y) = (&u[..lead], &y[..lead]);
             let mut prob = OeProblem::new(s, u, y, dt, opts.skip, &free, &base, &mut *progress);

@@ -530,7 +530,7 @@ fn candidate_sses(
         return cands
             .into_iter()
             .map(|c| {
-                let s = sse_of(lin, &c.0, u, y, dt, buf);
+                let s = sse_of(lin, &c.0, u, y, dt, 0, buf);
                 (c, s)
             })
             .collect();
@@ -540,13 +540,13 @@ fn candidate_sses(
     let (a, b) = std::thread::scope(|sc| {
         let h = sc.spawn(|| {
             roots.install();
-            sse_of(lin, &cands[1].0, u, y, dt, &mut vec![0.0; u.len()])
+            sse_of(lin, &cands[1].0, u, y, dt, 0, &mut vec![0.0; u.len()])
         });
-        let a = sse_of(lin, &cands[0].0, u, y, dt, buf);
+        let a = sse_of(lin, &cands[0].0, u, y, dt, 0, buf);
         // Were the thread lost, its candidate is simulated here.
         let b = h
             .join()
-            .unwrap_or_else(|_| sse_of(lin, &cands[1].0, u, y, dt, buf));
+            .unwrap_or_else(|_| sse_of(lin, &cands[1].0, u, y, dt, 0, buf));
         (a, b)
     });
     cands.into_iter().zip([a, b]).collect()
@@ -555,18 +555,22 @@ fn candidate_sses(
 /// Records of at least this many samples simulate the two Levy candidates on two threads.
 const PARALLEL_CANDIDATE_SAMPLES: usize = 1 << 14;
 
-/// Sum of squared errors of the linear part (effects removed) with values `v`, if it simulates.
-fn sse_of(
-    lin: &FracModel,
+/// The sum of squared errors `sum_(k >= skip) (yhat_k - y_k)^2` of `s` with values `v`
+/// simulated on `u` into `buf` (`None` where it does not simulate or the sum is not finite). The
+/// starts score the linear part (effects removed) from the first sample; the fit the whole model
+/// after its `skip`.
+pub(super) fn sse_of<S: Structure>(
+    s: &S,
     v: &[f64],
     u: &[f64],
     y: &[f64],
     dt: f64,
+    skip: usize,
     buf: &mut [f64],
 ) -> Option<f64> {
-    lin.simulate(v, u, dt, buf).ok()?;
-    let s = crate::lm::sum_of2(buf, y, |a, b| (b - a) * (b - a));
-    s.is_finite().then_some(s)
+    s.simulate(v, u, dt, buf).ok()?;
+    let sse = crate::lm::sum_of2(&buf[skip..], &y[skip..], |a, b| (b - a) * (b - a));
+    sse.is_finite().then_some(sse)
 }
 
 /// The coarse search: for each commensurate order `q` in `{0.5, 0.7, 0.9}` (`q = 1` for the FOPDT
@@ -630,7 +634,7 @@ fn coarse_start(lin: &FracModel, u: &[f64], y: &[f64], dt: f64) -> Option<(f64, 
         return Some((sse, v));
     }
     let mut buf = vec![0.0; n];
-    sse_of(lin, &v, u_all, y_all, dt, &mut buf).map(|s| (s, v))
+    sse_of(lin, &v, u_all, y_all, dt, 0, &mut buf).map(|s| (s, v))
 }
 
 /// A candidate start: parameter values and a label for the report.
