@@ -428,6 +428,16 @@ fn diagnosis_of_the_real_dc_motor_finds_its_transport_delay() {
         "--json",
     ]);
     let d = &j["diagnosis"];
+    // The report leads with the model the diagnosis recommends (with its delay); the base fit
+    // of the chosen structure is under `base`, its own model without the delay.
+    assert_eq!(j["model"], d["model"], "{j}");
+    assert!(j["model_is"].as_str().unwrap().starts_with("final"), "{j}");
+    assert_eq!(j["fit"]["validation"], d["validation"]["after"], "{j}");
+    assert_eq!(j["base"]["model"]["delay"].as_f64(), Some(0.0), "{j}");
+    assert_eq!(
+        j["base"]["fit"]["validation"], d["validation"]["before"],
+        "{j}"
+    );
     let delay = d["effects"]
         .as_array()
         .unwrap()

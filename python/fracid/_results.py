@@ -396,6 +396,10 @@ class TimeFit(_ToDict):
         Model output on the absolute scale over the whole record.
     split : int
         Index of the first validation sample.
+    validated_by : dict
+        How the model was validated: ``kind`` (``held_out``: a held-out part with input changes
+        of its own; ``response_tail``: only the tail of a step response, which checks the settled
+        response; ``none``), ``first`` (first held-out sample) and ``note`` (in words).
     offsets : dict
         The operating point removed, ``{"u0": .., "y0": ..}``.
     converged : bool
@@ -444,6 +448,7 @@ class TimeFit(_ToDict):
     start: Dict[str, float]
     residual_test: ResidualTest
     diagnosis: Optional[Diagnosis] = None
+    validated_by: Dict[str, Any] = field(default_factory=dict)
 
     def param(self, name: str) -> ParamEstimate:
         """The parameter called ``name``.

@@ -165,6 +165,13 @@ pub(crate) fn _fit_time<'py>(
     }
     d.set_item("yhat", id.yhat.clone().into_pyarray(py))?;
     d.set_item("split", id.split)?;
+    let vb = PyDict::new(py);
+    let kind = serde_json::to_value(id.validated_by.kind)
+        .map_err(|e| pyo3::exceptions::PyRuntimeError::new_err(format!("validation kind: {e}")))?;
+    vb.set_item("kind", kind.as_str().unwrap_or(""))?;
+    vb.set_item("first", id.validated_by.first)?;
+    vb.set_item("note", &id.validated_by.note)?;
+    d.set_item("validated_by", vb)?;
     let off = PyDict::new(py);
     off.set_item("u0", id.offsets.u0)?;
     off.set_item("y0", id.offsets.y0)?;

@@ -74,3 +74,21 @@ def test_operating_point_and_offset():
     assert fit.validation.nrmse_percent > 98.0
     with pytest.raises(KeyError):
         fit.param("zeta")
+
+
+def test_a_step_at_the_first_sample_is_fitted_from_rest():
+    """A step test as a lab writes it (the input at its level from the first sample, the output
+    rising from rest): fitted with defaults, validated on the tail of the response, and the
+    static gain is the analytic one (a first-order lag 2/(0.01 s + 1), noise 1% of the step)."""
+    dt = 1e-4
+    t = np.arange(2000) * dt
+    u = np.ones_like(t)
+    rng = np.random.default_rng(3)
+    y = 2.0 * (1.0 - np.exp(-t / 0.01)) + 0.02 * rng.standard_normal(t.size)
+    fit = fracid.fit_time(u, y, dt)
+    assert fit.usable, fit.problems
+    assert fit.validated_by["kind"] == "response_tail"
+    assert "--validate" in fit.validated_by["note"]
+    assert fit.offsets == {"u0": 0.0, "y0": y[0]}
+    assert fit.model.dc_gain() == pytest.approx(2.0, rel=0.02)
+    assert any("step at the first sample" in w for w in fit.warnings)

@@ -12,7 +12,7 @@ pub fn default_max_delay(duration_s: f64) -> f64 {
 }
 
 /// The model named by `spec`: `pmsm` (`K/(a2 s^(zeta+theta) + a1 s^zeta + 1)`), `commensurate`
-/// (`K/(a2 s^(2q) + a1 s^q + 1)`), `fopdt` (`K e^(-tau s)/(T s + 1)`, `tau` up to `max_delay_s`),
+/// (`K/(a2 s^(2q) + a1 s^q + 1)`), `second-order` (the integer `K/(a2 s^2 + a1 s + 1)`), `fopdt` (`K e^(-tau s)/(T s + 1)`, `tau` up to `max_delay_s`),
 /// or a transfer function whose every coefficient and order is fitted from its values (then
 /// `general` is true: it starts from them). Returns `(model, general)`.
 ///
@@ -29,6 +29,7 @@ pub fn structure(spec: &str, max_delay_s: f64) -> Result<(FracModel, bool)> {
     Ok(match spec.trim().to_ascii_lowercase().as_str() {
         "pmsm" => (FracModel::pmsm(1.0, 0.01, 1e-4, 0.9, 0.9), false),
         "commensurate" => (FracModel::commensurate(1.0, 0.01, 1e-4, 0.9), false),
+        "second-order" | "second_order" => (FracModel::second_order(1.0, 0.01, 1e-4), false),
         "fopdt" => (
             FracModel::fopdt(1.0, 0.1, 0.05 * max_delay_s, max_delay_s),
             false,
@@ -36,7 +37,7 @@ pub fn structure(spec: &str, max_delay_s: f64) -> Result<(FracModel, bool)> {
         s => {
             let tf: FracTf = s.parse().map_err(|e| {
                 Error::Options(format!(
-                    "structure '{spec}' is not pmsm, commensurate, fopdt or a model: {e}"
+                    "structure '{spec}' is not pmsm, commensurate, second-order, fopdt or a model: {e}"
                 ))
             })?;
             (FracModel::from_tf(&tf, true, true), true)

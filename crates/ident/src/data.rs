@@ -26,6 +26,11 @@ use crate::{Error, Result};
 
 mod fast;
 
+/// A record whose input is constant is a step at its first sample when its output moves by more
+/// than this many noise levels ([`Record::starts_with_step`]): the range of `N` samples of white
+/// noise is about 6 levels at `N = 1e3` and 10 at `N = 1e6`.
+pub const STEP_NOISE_LEVELS: f64 = 20.0;
+
 /// A uniformly sampled single-input single-output record.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Record {
@@ -63,7 +68,8 @@ impl Default for Columns {
 /// How the operating point is removed (see the module documentation).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub enum OffsetMode {
-    /// `u0 = u[0]`, `y0` = median of `y` before the first input change (default).
+    /// `u0 = u[0]`, `y0` = median of `y` before the first input change (default); for a step at
+    /// the first sample ([`Record::starts_with_step`]) `u0 = 0`, `y0 = y[0]`.
     #[default]
     Initial,
     /// `u0`, `y0` = the means of the estimation part (for records with no rest at the start).
@@ -1029,6 +1035,10 @@ impl Record {
                 u0: crate::lm::sum_of(&self.u[..n_est], |v| v) / n_est as f64,
                 y0: crate::lm::sum_of(&self.y[..n_est], |v| v) / n_est as f64,
             },
+            OffsetMode::Initial if self.starts_with_step() => Offsets {
+                u0: 0.0,
+                y0: self.y[0],
+            },
             OffsetMode::Initial => {
                 let u0 = self.u[0];
                 let first_change = self
@@ -1064,6 +1074,37 @@ impl Record {
             )));
         }
         Ok(((1.0 - holdout) * self.len() as f64).round() as usize)
+    }
+
+    /// Whether the record is a step applied at its first sample to a plant at rest: the input is
+    /// constant and nonzero over the whole record while the output moves by more than
+    /// [`STEP_NOISE_LEVELS`] noise levels (the noise estimated from the output's first
+    /// differences, robustly: `median |dy| / (0.6745 sqrt 2)`).
+    ///
+    /// The rule for such a record (the initial state that explains its first samples): the input
+    /// was 0 before the first sample and the output at rest at `y[0]`; the operating point is
+    /// then `u0 = 0, y0 = y[0]` ([`OffsetMode::Initial`]) and the record is fitted from rest.
+    ///
+    /// ```
+    /// use ident::data::Record;
+    /// let y: Vec<f64> = (0..200).map(|k| 2.0 * (1.0 - (-0.05 * k as f64).exp())).collect();
+    /// let step = Record::from_samples(&vec![1.0; 200], &y, 0.01).unwrap();
+    /// assert!(step.starts_with_step());
+    /// let flat = Record::from_samples(&vec![1.0; 200], &vec![2.0; 200], 0.01).unwrap();
+    /// assert!(!flat.starts_with_step());
+    /// ```
+    pub fn starts_with_step(&self) -> bool {
+        let (lo, hi) = crate::lm::range_of(&self.u);
+        let constant = hi - lo <= 1e-9 * hi.abs().max(lo.abs()).max(1e-300);
+        if !constant || self.u[0] == 0.0 || !self.u[0].is_finite() || self.len() < 3 {
+            return false;
+        }
+        let mut dy: Vec<f64> = self.y.windows(2).map(|w| (w[1] - w[0]).abs()).collect();
+        let mid = dy.len() / 2;
+        let (_, &mut med, _) = dy.select_nth_unstable_by(mid, f64::total_cmp);
+        let noise = med / (0.6745 * std::f64::consts::SQRT_2);
+        let (ylo, yhi) = crate::lm::range_of(&self.y);
+        yhi - ylo > STEP_NOISE_LEVELS * noise && yhi > ylo
     }
 
     /// Check that the input excites the system: its range over the first `n` samples must exceed

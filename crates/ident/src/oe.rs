@@ -39,6 +39,7 @@ pub mod init;
 mod joint;
 mod score;
 
+pub use checks::{Validation, ValidationKind};
 pub use effects::Effect;
 pub use fit::{
     check_params, fit, fit_with_progress, identify, identify_with_progress, past_edges,
@@ -364,6 +365,9 @@ pub enum Kind {
     Commensurate,
     /// `K / (T s + 1)` with delay, parameters `K, T, tau`.
     Fopdt,
+    /// An integer-order reference, `K / (a2 s^2 + a1 s + 1)`, parameters `K, a1, a2`: started
+    /// like the FOPDT, by the coarse search at order 1.
+    Integer,
     /// Anything else: starts from the given values.
     General,
 }
@@ -496,6 +500,32 @@ impl FracModel {
         };
         m.with_delay(tau, max_delay);
         m
+    }
+
+    /// The integer second-order reference `K / (a2 s^2 + a1 s + 1)` (real or complex poles): the
+    /// model a fractional one is compared with ([`crate::diagnose::structures`]).
+    ///
+    /// ```
+    /// let m = ident::oe::FracModel::second_order(2.0, 0.01, 1e-4);
+    /// let tf = m.tf(&m.values()).unwrap();
+    /// assert_eq!(tf.to_string(), "2/(0.0001 s^2 + 0.01 s + 1)");
+    /// ```
+    pub fn second_order(k: f64, a1: f64, a2: f64) -> Self {
+        Self {
+            params: vec![
+                Param::positive("K", k),
+                Param::positive("a1", a1),
+                Param::positive("a2", a2),
+            ],
+            num: vec![(Expr::p(0), Expr::cst(0.0))],
+            den: vec![
+                (Expr::p(2), Expr::cst(2.0)),
+                (Expr::p(1), Expr::cst(1.0)),
+                (Expr::cst(1.0), Expr::cst(0.0)),
+            ],
+            kind: Kind::Integer,
+            ..Self::pmsm(1.0, 1.0, 1.0, 1.0, 1.0)
+        }
     }
 
     /// Any fractional transfer function; `free_coefs` and `free_orders` say which of its

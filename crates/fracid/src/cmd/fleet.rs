@@ -475,7 +475,7 @@ fn time_report(a: &super::time::TimeArgs, file: &Path) -> Result<Value> {
     if a.diagnose {
         let d = super::diagnose::run_time(&rec, &a.structure, &model, id, &opts)?;
         v = super::time::json_of(&d.id, &rec);
-        v["diagnosis"] = super::diagnose::json(&d.diagnosis, Some(&d.choice))?;
+        v = super::diagnose::lead_with_final(v, &d.diagnosis, &d.choice, rec.dt)?;
     } else {
         v = super::time::json_of(&id, &rec);
     }

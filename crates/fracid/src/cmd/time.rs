@@ -46,7 +46,8 @@ pub struct TimeArgs {
     /// Sampling step in seconds, for a file with no time column (t = k dt; --t-col is not read).
     #[arg(long)]
     pub dt: Option<f64>,
-    /// Model structure: pmsm (K/(a2 s^(zeta+theta) + a1 s^zeta + 1)), commensurate, fopdt, or a
+    /// Model structure: pmsm (K/(a2 s^(zeta+theta) + a1 s^zeta + 1)), commensurate,
+    /// second-order (the integer K/(a2 s^2 + a1 s + 1)), fopdt, or a
     /// transfer function such as "6.8/(3e-5 s^1.75 + 0.006 s^0.9 + 1)" used as the start.
     #[arg(long, default_value = "pmsm")]
     pub structure: String,
@@ -277,16 +278,33 @@ pub fn run(a: TimeArgs) -> Result<()> {
         Some((_, vrec)) => Some(ident::oe::score(&id.model, vrec, offsets, opts.initial)?),
         None => None,
     };
+    let mut id = id;
+    if let Some((p, _)) = &validation {
+        id.validated_by = ident::oe::Validation {
+            kind: ident::oe::ValidationKind::File,
+            first: id.validated_by.first,
+            note: format!(
+                "a separate record, {} (its own initial state and output offset)",
+                p.display()
+            ),
+        };
+    }
     if a.json {
         let mut v = json_of(&id, &rec);
         if let (Some((p, _)), Some(sc)) = (&validation, &scored) {
             v["fit"]["validation_file"] = score_json(p, sc);
         }
         if let Some((d, c)) = &diagnosis {
-            v["diagnosis"] = super::diagnose::json(d, Some(c))?;
+            v = super::diagnose::lead_with_final(v, d, c, rec.dt)?;
         }
         println!("{}", serde_json::to_string_pretty(&v)?);
     } else {
+        if let Some((_, c)) = &diagnosis {
+            println!(
+                "base fit of the structure the diagnosis ran on ({}), before its effects:",
+                c.scores[c.chosen].name
+            );
+        }
         print_text(&id, &rec);
         if let (Some((p, _)), Some(sc)) = (&validation, &scored) {
             print_score(p, sc);
@@ -381,7 +399,7 @@ pub(crate) fn score_json(path: &std::path::Path, sc: &ident::oe::Scored) -> serd
         "rmse": sc.fit.rmse,
         "nrmse_percent": sc.fit.nrmse_percent,
         "offsets": sc.offsets,
-        "record_params": sc.record_params.iter().map(|(n, v)| serde_json::json!({"name": n, "value": v})).collect::<Vec<_>>(),
+        "record_params": sc.record_params,
         "warnings": sc.warnings,
     })
 }
@@ -411,6 +429,7 @@ pub(crate) fn json_of(id: &Identification, rec: &Record) -> serde_json::Value {
         "alpha_eta": id.alpha_eta.iter().map(|(o, a, e)| serde_json::json!({"order": o, "alpha": a, "eta": e})).collect::<Vec<_>>(),
         "offsets": id.offsets,
         "split": {"estimation_samples": id.split, "validation_samples": rec.len() - id.split},
+        "validated_by": id.validated_by,
         "iterations": id.report.iterations,
         "converged": id.report.converged,
         "termination": id.report.termination,
@@ -460,7 +479,10 @@ fn print_text(id: &Identification, rec: &Record) {
     if let Some(past) = &id.model.past {
         let levels: Vec<String> = state
             .iter()
-            .map(|(_, p)| format!("{:.4}", p.value))
+            .map(|(_, p)| {
+                let tag = if p.at_bound { " (AT BOUND)" } else { "" };
+                format!("{:.4}{tag}", p.value)
+            })
             .collect();
         let edges: Vec<String> = past.edges.iter().map(|e| format!("{e:.4}")).collect();
         println!(
@@ -478,11 +500,16 @@ fn print_text(id: &Identification, rec: &Record) {
         id.estimation.nrmse_percent, id.estimation.rmse
     );
     if let Some(v) = id.validation {
+        let what = match id.validated_by.kind {
+            ident::oe::ValidationKind::ResponseTail => " (the tail of the step response only)",
+            _ => "",
+        };
         println!(
-            "fit validation: NRMSE {:.2}%, RMSE {:.5}",
+            "fit validation{what}: NRMSE {:.2}%, RMSE {:.5}",
             v.nrmse_percent, v.rmse
         );
     }
+    println!("validated by: {}", id.validated_by.note);
     println!(
         "{} iterations, {} simulations, {:.3} s; stopped: {}{}",
         id.report.iterations,

@@ -202,6 +202,33 @@ fn unal_record_fits() {
     }
 }
 
+/// The UNAL DC-motor step record (steady, then one step at 3 s): fitted with defaults, the step
+/// kept in the estimation part and the validation said to be the tail of its response.
+/// Measured: estimation NRMSE 97.2%, validation RMSE 3.2 deg/s (estimation 2.7).
+#[test]
+fn unal_step_record_fits_with_defaults() {
+    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../data/unal_dcmotor/DCmotor_step_open_exp.csv");
+    let o = fracid(&["time", p.to_str().unwrap(), "--json", "--quiet"]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    assert_eq!(v["usable"], true, "{v}");
+    assert_eq!(v["validated_by"]["kind"], "response_tail", "{v}");
+    // The step is at sample 150 of 302: it stays in the estimation part.
+    let est = v["split"]["estimation_samples"].as_u64().unwrap();
+    assert!(est > 150, "{est}");
+    let fit = v["fit"]["estimation"]["nrmse_percent"].as_f64().unwrap();
+    assert!(fit > 90.0, "estimation NRMSE {fit}");
+    let warnings = v["warnings"].to_string();
+    assert!(warnings.contains("tail of the"), "{warnings}");
+    let o = fracid(&["time", p.to_str().unwrap(), "--quiet"]);
+    assert!(
+        stdout(&o).contains("validated by: the input changes too rarely"),
+        "{}",
+        stdout(&o)
+    );
+}
+
 /// A record of `g` (simulated by fracsim; these tests are about the CLI, accuracy is shown in
 /// ident's tests against an independent truth), PRBS with 10-sample bits at 1 ms after `lead`
 /// samples at `level`.
@@ -304,4 +331,46 @@ fn an_integrating_output_is_fitted_with_integrator() {
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
     assert!(v["fit"]["validation"]["nrmse_percent"].as_f64().unwrap() > 99.0);
+}
+
+/// Degenerate fits are not usable (issue 30): a written model that cannot move from its start,
+/// and `--integrator` on an output that does not integrate, end with a singular covariance and
+/// a fit hardly better than a constant: exit 1, `usable: false`, the reason in `problems`.
+#[test]
+fn degenerate_fits_exit_1() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = sim_prbs_csv(&dir);
+    for extra in [
+        &["--structure", "(0.002 s + 0.000004)/s"][..],
+        &["--integrator"][..],
+    ] {
+        let mut args = vec!["time", csv.to_str().unwrap(), "--json", "--quiet"];
+        args.extend(extra);
+        let o = fracid(&args);
+        assert_eq!(o.status.code(), Some(1), "{extra:?}: {}", stderr(&o));
+        let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+        assert_eq!(v["usable"], false, "{extra:?}");
+        let problems = v["problems"].to_string();
+        assert!(
+            problems.contains("covariance is singular"),
+            "{extra:?}: {problems}"
+        );
+    }
+}
+
+/// `fracid sim --prbs --dt 1e-3 --t-end 1.5` (the paper's PMSM), as the issues write `a.csv`.
+fn sim_prbs_csv(dir: &tempfile::TempDir) -> PathBuf {
+    let p = dir.path().join("a.csv");
+    let o = fracid(&[
+        "sim",
+        "--prbs",
+        "--dt",
+        "1e-3",
+        "--t-end",
+        "1.5",
+        "-o",
+        p.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    p
 }

@@ -5,7 +5,8 @@
 //! a sign-blind sensor because every linear fit of rectified data is poor).
 //!
 //! The candidates are the user's structure, the PMSM `K/(a2 s^(zeta+theta) + a1 s^zeta + 1)`, the
-//! commensurate `K/(a2 s^(2q) + a1 s^q + 1)`, the first order `K/(T s + 1)`, and the user's
+//! commensurate `K/(a2 s^(2q) + a1 s^q + 1)`, the integer references first order `K/(T s + 1)` and
+//! second order `K/(a2 s^2 + a1 s + 1)`, and the user's
 //! structure with a free integrator (an output that integrates, such as a position). Each is
 //! identified with the same options ([`crate::oe::identify`]: automatic start, initial state,
 //! offsets) and diagnosed ([`super::diagnose`]); the candidates run on all cores. Rule: among the
@@ -69,6 +70,7 @@ pub fn candidates(label: &str, model: &FracModel) -> Vec<(String, FracModel)> {
             FracModel::commensurate(1.0, 0.01, 1e-4, 0.9),
         ),
         ("first order", first),
+        ("second order", FracModel::second_order(1.0, 0.01, 1e-4)),
     ] {
         if out.iter().any(|(n, _)| n.eq_ignore_ascii_case(name)) {
             continue;
@@ -141,7 +143,10 @@ fn score_of(name: &str, o: &Outcome) -> StructureScore {
     };
     if let Some(id) = &o.id {
         s.model = id.tf.to_string();
-        s.rmse = Some(id.validation.unwrap_or(id.estimation).rmse);
+        s.rmse = Some(match id.validation {
+            Some(v) if id.validated_by.scores_dynamics() => v.rmse,
+            _ => id.estimation.rmse,
+        });
         s.problems = id.problems.clone();
     }
     match (&o.id, &o.diagnosis) {
@@ -161,6 +166,37 @@ fn score_of(name: &str, o: &Outcome) -> StructureScore {
         (None, Ok(_)) => {}
     }
     s
+}
+
+/// Whether a candidate is an integer-order reference (every order a whole number).
+fn is_integer(m: &FracModel) -> bool {
+    let v = m.values();
+    m.den
+        .iter()
+        .chain(&m.num)
+        .all(|(_, o)| o.terms.is_empty() && o.eval(&v).fract() == 0.0)
+}
+
+/// What the chosen model gains over the best integer-order reference on the same held-out data,
+/// in words (empty when the chosen one is itself integer or no reference has a final model).
+fn integer_gain(cands: &[(String, FracModel)], scores: &[StructureScore], chosen: usize) -> String {
+    if is_integer(&cands[chosen].1) {
+        return "; it is an integer-order model".into();
+    }
+    let best_integer = cands
+        .iter()
+        .zip(scores)
+        .filter(|((_, m), s)| is_integer(m) && s.rmse_after.is_some_and(f64::is_finite))
+        .min_by(|a, b| a.1.rmse_after.unwrap().total_cmp(&b.1.rmse_after.unwrap()));
+    let (Some(((name, _), s)), Some(r)) = (best_integer, scores[chosen].rmse_after) else {
+        return String::new();
+    };
+    let ri = s.rmse_after.unwrap_or(f64::NAN);
+    format!(
+        "; against the best integer-order model ({name}, held-out RMSE {ri:.4e}) the chosen one's \
+         error is {:+.1}%",
+        100.0 * (r / ri - 1.0)
+    )
 }
 
 /// The index chosen by the rule of the module documentation, or `None` when no candidate has a
@@ -241,7 +277,7 @@ pub fn diagnose_best(
         });
     };
     let s = &scores[chosen];
-    let reason = format!(
+    let mut reason = format!(
         "{} chosen: held-out RMSE {:.4e} with {} (best {best:.4e}; ties within {:.0}%), the lowest \
          BIC among the ties ({:.1}, {} free parameters)",
         s.name,
@@ -255,6 +291,7 @@ pub fn diagnose_best(
         s.bic_after.unwrap_or(f64::NAN),
         s.free_params
     );
+    reason.push_str(&integer_gain(&cands, &scores, chosen));
     let mut outcomes = outcomes;
     let o = outcomes.swap_remove(chosen);
     let diagnosis = o.diagnosis?;

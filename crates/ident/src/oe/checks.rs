@@ -27,6 +27,13 @@ const MIN_VALIDATION_CHANGES: usize = 3;
 /// once and this many times, a warning.
 const UNDETERMINED: f64 = 10.0;
 
+/// A fit with a singular covariance and an NRMSE below this (percent: it explains less than a
+/// fifth of the output's variance, `1 - 0.9^2`) is not usable.
+const NO_BETTER_THAN_A_CONSTANT: f64 = 10.0;
+
+/// Orders closer than this (relative, at least absolute) are the same order.
+const SAME_ORDER: f64 = 1e-6;
+
 /// A static gain that moves the output by more than this many times its spread for the input's
 /// spread is not what the data show: the output integrates, or the gain is not identifiable.
 const ABSURD_GAIN_RATIO: f64 = 1e3;
@@ -43,39 +50,111 @@ fn change_tolerance(u: &[f64]) -> f64 {
     CHANGE_FRACTION * (hi - lo)
 }
 
-/// The validation split for `holdout`: the last `holdout` of the record when its input changes
-/// at least [`MIN_VALIDATION_CHANGES`] times; otherwise the split is moved earlier so that the
-/// validation window holds the last `holdout` fraction of the input's changes (and at least
-/// that many), with a warning saying so. Returns `(split, warning)`.
+/// How the fitted model was validated on the record it was fitted on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ValidationKind {
+    /// A held-out part of the record that holds input changes of its own (a PRBS's last 30%):
+    /// an independent check of the dynamics.
+    HeldOut,
+    /// Only the tail of the response to the input's last change is held out (a step test: its
+    /// one change must stay in the estimation part), simulated on with the state carried over:
+    /// it checks the settled response, not the dynamics. The diagnosis then decides on the
+    /// estimation part (RMSE and BIC).
+    ResponseTail,
+    /// Nothing held out (`holdout` 0).
+    None,
+    /// A separate record (`--validate FILE`), scored by the front end.
+    File,
+}
+
+/// How a fit was validated, and in words ([`validation_split`]).
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Validation {
+    /// The kind of validation.
+    pub kind: ValidationKind,
+    /// The held-out samples `first..len` (none when `first == len`).
+    pub first: usize,
+    /// What was validated and how, for the report.
+    pub note: String,
+}
+
+impl Validation {
+    /// Whether the validation scores the model's dynamics on data it was not fitted to (a
+    /// held-out part with input changes of its own); otherwise decisions (the diagnosis, the
+    /// structure comparison) are taken on the estimation part.
+    pub fn scores_dynamics(&self) -> bool {
+        self.kind == ValidationKind::HeldOut
+    }
+}
+
+/// The validation split for `holdout` (`split` = the first held-out sample of the plain split).
+///
+/// - At least `2 x` [`MIN_VALIDATION_CHANGES`] input changes (a PRBS, a multi-step sequence): the
+///   last `holdout` of the record when its input changes at least [`MIN_VALIDATION_CHANGES`]
+///   times there; otherwise the split is moved earlier so that the validation window holds the
+///   last `holdout` fraction of the input's changes (at least [`MIN_VALIDATION_CHANGES`], and the
+///   estimation part keeps at least as many), with a warning saying so
+///   ([`ValidationKind::HeldOut`]).
+/// - Fewer changes (a step, a few steps, a pulse; or none: a step at the first sample): the
+///   validation never takes excitation from the estimation part. The estimation part holds every
+///   change and the first `1 - holdout` of the response after the last one; the rest of that
+///   response is held out, simulated on from the estimation part with the state carried over
+///   ([`ValidationKind::ResponseTail`]), with a warning that says what it checks.
+///
+/// Returns `(split, validation, warning)`.
 pub(crate) fn validation_split(
     rec: &Record,
     split: usize,
     holdout: f64,
-) -> (usize, Option<String>) {
+) -> (usize, Validation, Option<String>) {
     let n = rec.len();
     if split >= n {
-        return (split, None);
+        return validation_split_none(n);
     }
-    // Enough changes in the validation part are usually found in its first samples.
+    let held_out = |first: usize, note: String| Validation {
+        kind: ValidationKind::HeldOut,
+        first,
+        note,
+    };
+    let plain = |first: usize| {
+        held_out(
+            first,
+            format!(
+                "the last {:.0}% of the record (samples {first}..{n}) held out, with input \
+                 changes of its own",
+                100.0 * holdout
+            ),
+        )
+    };
+    // Enough changes in the validation part are usually found in its first samples, and then
+    // the record has enough in all.
     let (u, tol) = (&rec.u, change_tolerance(&rec.u));
     let early = changes_from(u, tol, split + 1)
         .take(MIN_VALIDATION_CHANGES)
         .count();
-    if early >= MIN_VALIDATION_CHANGES {
-        return (split, None);
+    let est_changes = changes_from(u, tol, 1)
+        .take_while(|&k| k <= split)
+        .take(MIN_VALIDATION_CHANGES)
+        .count();
+    if early >= MIN_VALIDATION_CHANGES && est_changes >= MIN_VALIDATION_CHANGES {
+        return (split, plain(split), None);
     }
     let changes: Vec<usize> = changes_from(u, tol, 1).collect();
+    if changes.len() < 2 * MIN_VALIDATION_CHANGES {
+        return response_tail(n, split, holdout, changes.last().copied().unwrap_or(0));
+    }
     let in_val = changes.iter().filter(|&&k| k > split).count();
-    if in_val >= MIN_VALIDATION_CHANGES || changes.is_empty() {
-        return (split, None);
+    if in_val >= MIN_VALIDATION_CHANGES && changes.len() - in_val >= MIN_VALIDATION_CHANGES {
+        return (split, plain(split), None);
     }
     let want = ((holdout * changes.len() as f64).ceil() as usize)
         .max(MIN_VALIDATION_CHANGES)
-        .min(changes.len());
+        .min(changes.len() - MIN_VALIDATION_CHANGES);
     // The validation starts a little before the first change it holds (a tenth of the gap to the
     // previous change), so the response to it is scored whole.
     let i = changes.len() - want;
-    let prev = if i > 0 { changes[i - 1] } else { 0 };
+    let prev = changes[i - 1];
     let new = changes[i] - (changes[i] - prev) / 10;
     let why = format!(
         "the input has {} change(s) in the last {:.0}% of the record (samples {split}..{n}): \
@@ -84,7 +163,128 @@ pub(crate) fn validation_split(
         100.0 * holdout,
         changes.len()
     );
-    (new, Some(why))
+    let note = format!(
+        "samples {new}..{n} held out: the last {want} of the input's {} changes",
+        changes.len()
+    );
+    (new, held_out(new, note), Some(why))
+}
+
+/// [`validation_split`] for a record with few input changes, the last at `last` (0 for none):
+/// the tail of the response after it.
+fn response_tail(
+    n: usize,
+    split: usize,
+    holdout: f64,
+    last: usize,
+) -> (usize, Validation, Option<String>) {
+    let after = n - last;
+    let new = split.max(last + ((1.0 - holdout) * after as f64).round() as usize);
+    let new = new.min(n);
+    if new >= n {
+        return validation_split_none(n);
+    }
+    let note = format!(
+        "the input changes too rarely to hold changes out (a step test): only the tail of the \
+         response to its last change (samples {new}..{n}) is held out, simulated on with the \
+         state carried over; it checks the settled response, not the dynamics (decisions are \
+         taken on the estimation part): give --validate FILE to score the model on another record"
+    );
+    let v = Validation {
+        kind: ValidationKind::ResponseTail,
+        first: new,
+        note: note.clone(),
+    };
+    (new, v, Some(format!("validation: {note}")))
+}
+
+/// No held-out part.
+fn validation_split_none(n: usize) -> (usize, Validation, Option<String>) {
+    let note = "no held-out part: no independent validation; give --validate FILE to score the \
+                model on another record"
+        .to_string();
+    let v = Validation {
+        kind: ValidationKind::None,
+        first: n,
+        note,
+    };
+    (n, v, None)
+}
+
+/// The warning for initial-state levels ([`super::PastInput`]) that ended at an edge of their
+/// range (the input's range widened by twice its span on each side): no past input the drive could
+/// have applied explains the record's first samples; it starts in motion from another cause, or
+/// the structure lacks a mode slower than the record. `None` when no level is at an edge.
+pub(crate) fn levels_at_bound(m: &FracModel, params: &[super::ParamEstimate]) -> Option<String> {
+    let levels: Vec<String> = params
+        .iter()
+        .filter(|p| p.at_bound && p.name.starts_with("u_past"))
+        .filter(|p| m.index_of(&p.name).is_some_and(|i| m.is_initial_state(i)))
+        .map(|p| format!("{} = {:.4e}", p.name, p.value))
+        .collect();
+    (!levels.is_empty()).then(|| {
+        format!(
+            "the initial state's past-input level(s) {} ended at the edge of their range (the \
+             input's range widened by twice its span): no past held input within reach explains \
+             the record's first samples (it starts in motion from another cause, or the \
+             structure lacks a mode slower than the record); the fit of the first samples is \
+             not evidence for the plant",
+            levels.join(", ")
+        )
+    })
+}
+
+/// Two terms of the numerator (or the denominator) that ended at the same order, both with a
+/// fitted coefficient: only their sum is determined by any data (the fit of a structure too rich
+/// for the record, such as `--integrator` on an output that does not integrate).
+fn same_order_terms(m: &FracModel, p: &[f64]) -> Vec<String> {
+    let mut out = vec![];
+    for (side, terms) in [("numerator", &m.num), ("denominator", &m.den)] {
+        let fitted = |c: &super::Expr| c.terms.iter().any(|&(i, _)| m.params[i].free);
+        for i in 0..terms.len() {
+            for j in i + 1..terms.len() {
+                let (oi, oj) = (terms[i].1.eval(p), terms[j].1.eval(p));
+                if (oi - oj).abs() <= SAME_ORDER * oi.abs().max(1.0)
+                    && fitted(&terms[i].0)
+                    && fitted(&terms[j].0)
+                {
+                    out.push(format!(
+                        "two {side} terms ended at the same order {oi:.4}: their coefficients \
+                         are not separately determined (the structure is too rich for these data)"
+                    ));
+                }
+            }
+        }
+    }
+    out
+}
+
+/// A fit whose covariance is singular (no free plant parameter has a standard error: parameters
+/// held at a bound are not counted) and that predicts hardly better than a constant: NRMSE below
+/// [`NO_BETTER_THAN_A_CONSTANT`] on the held-out part (the estimation part without one). A
+/// singular covariance alone is not enough (a good fit whose initial-state levels are
+/// collinear has one: the UNAL record's FOPDT, 96.5%); with a fit that explains almost nothing,
+/// nothing in it is determined. Seen: `--integrator` on an output that does not integrate (0.6%),
+/// a written model left at its start (-101%).
+fn singular_and_no_better_than_a_constant(id: &Identification) -> Option<String> {
+    let m = &id.model;
+    let plant: Vec<&super::ParamEstimate> = id
+        .report
+        .params
+        .iter()
+        .enumerate()
+        .filter(|(i, e)| e.free && !e.at_bound && !m.is_initial_state(*i) && e.name != "y_offset")
+        .map(|(_, e)| e)
+        .collect();
+    let singular = !plant.is_empty() && plant.iter().all(|e| e.std_error.is_none());
+    let fit = id.validation.unwrap_or(id.estimation).nrmse_percent;
+    (singular && !(fit >= NO_BETTER_THAN_A_CONSTANT)).then(|| {
+        format!(
+            "the covariance is singular and the model fits only {fit:.1}% (below \
+             {NO_BETTER_THAN_A_CONSTANT}%: hardly better than a constant): its parameters are not \
+             determined by these data (another structure, or a record with more excitation)"
+        )
+    })
 }
 
 /// Whether the model integrates by design (a denominator with no order-zero term).
@@ -209,6 +409,8 @@ pub(crate) fn assess(id: &Identification, rec: &Record) -> (Vec<String>, Vec<Str
             _ => {}
         }
     }
+    problems.extend(same_order_terms(m, p));
+    problems.extend(singular_and_no_better_than_a_constant(id));
     if !id.report.converged {
         warnings.push(format!(
             "the fit did not converge ({}, {} iterations): the parameters may not be at the \

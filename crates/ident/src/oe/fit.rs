@@ -781,6 +781,9 @@ pub struct Identification {
     pub start: Vec<f64>,
     /// How the start was made (Levy, coarse search or given) and why.
     pub start_report: init::StartReport,
+    /// How the model was validated on this record (a held-out part, the tail of a step
+    /// response, nothing), in words too.
+    pub validated_by: super::checks::Validation,
     /// Why the model cannot be used (unstable, no finite static gain, parameters the data do not
     /// determine, non-finite scores); empty when it can. Warnings are in the report.
     pub problems: Vec<String>,
@@ -923,8 +926,16 @@ fn identify_at_scale(
     progress: &mut dyn FnMut(usize, f64),
 ) -> Result<Identification> {
     let n = rec.len();
-    let (split, split_warning) =
+    let (split, validated_by, split_warning) =
         super::checks::validation_split(rec, rec.split_index(opts.holdout)?, opts.holdout);
+    // A step at the first sample from rest (docs/design.md §5): its excitation is the step from
+    // the input 0 before the record, the plant at rest; the initial state is that rest.
+    let step_from_rest = opts.offsets == OffsetMode::Initial && rec.starts_with_step();
+    let initial = if step_from_rest {
+        InitialState::Rest
+    } else {
+        opts.initial
+    };
     let mut m = model.clone();
     let n_free = m.params.iter().filter(|p| p.free).count() + usize::from(opts.fit_offset);
     let need = (10 * n_free).max(20);
@@ -933,7 +944,9 @@ fn identify_at_scale(
             "{split} estimation samples for {n_free} free parameters (need at least {need})"
         )));
     }
-    rec.check_excitation(split)?;
+    if !step_from_rest {
+        rec.check_excitation(split)?;
+    }
     check_delay(&m, split, rec.dt)?;
     let mut offsets = rec.offsets(opts.offsets, split);
     if m.integrator {
@@ -949,7 +962,7 @@ fn identify_at_scale(
         let c = m.add_param(Param::new("u_offset", 0.0, Bounds::Free));
         m.effects.push(super::Effect::InputOffset { c });
     }
-    let buffers = refine_buffers(&m, split, opts);
+    let buffers = refine_buffers(&m, split, opts, initial);
     let start_report = if opts.start == StartMode::Auto {
         auto_start(&mut m, &u[..split], &y[..split], rec.dt)?
     } else {
@@ -958,7 +971,7 @@ fn identify_at_scale(
     if opts.fit_offset && m.index_of("y_offset").is_none() {
         m.with_output_offset(0.0);
     }
-    match opts.initial {
+    match initial {
         InitialState::Estimate => {
             m.with_past_input(
                 past_edges(split as f64 * rec.dt),
@@ -996,9 +1009,11 @@ fn identify_at_scale(
         alpha_eta,
         start,
         start_report,
+        validated_by,
         problems: vec![],
     };
-    // A level of the initial state at the edge of its range is not a structure problem.
+    // A level of the initial state at the edge of its range is not a structure problem: one
+    // warning of its own instead of the parameter's.
     let state: Vec<&str> = (0..id.model.params.len())
         .filter(|&i| id.model.is_initial_state(i))
         .map(|i| id.model.params[i].name.as_str())
@@ -1008,8 +1023,19 @@ fn identify_at_scale(
             .iter()
             .any(|n| w.starts_with(&format!("{n} = ")) && w.contains("ran to a bound"))
     });
+    id.report
+        .warnings
+        .extend(super::checks::levels_at_bound(&id.model, &id.report.params));
     let (problems, warnings) = super::checks::assess(&id, rec);
     id.problems = problems;
+    if step_from_rest {
+        id.report.warnings.push(format!(
+            "the input is constant ({}) over the record: taken as a step at the first sample \
+             from rest (the input 0 and the output at rest at y[0] = {} before it; the initial \
+             state is not estimated)",
+            rec.u[0], rec.y[0]
+        ));
+    }
     id.report.warnings.extend(split_warning);
     id.report.warnings.extend(warnings);
     Ok(id)
@@ -1020,13 +1046,18 @@ fn identify_at_scale(
 /// has two cores): mapping them costs about a simulation of the record, and the start is made
 /// on one core meanwhile. The columns counted are the free parameters of `m` and those
 /// [`identify_at_scale`] adds (the output offset, the initial state's levels).
-fn refine_buffers(m: &FracModel, split: usize, opts: &IdentOptions) -> Option<Buffers> {
+fn refine_buffers(
+    m: &FracModel,
+    split: usize,
+    opts: &IdentOptions,
+    initial: InitialState,
+) -> Option<Buffers> {
     let rows = split.checked_sub(opts.fit.skip)?;
     if rows < 4 * LEAD_SAMPLES || !LEAD.with(|l| l.get()) || !crate::lm::two_cores() {
         return None;
     }
     let offset = usize::from(opts.fit_offset && m.index_of("y_offset").is_none());
-    let levels = match (opts.initial, &m.past) {
+    let levels = match (initial, &m.past) {
         (InitialState::Estimate, None) => past_edges(1.0).len() + 1,
         _ => 0,
     };

@@ -587,7 +587,7 @@ fn coarse_start(lin: &FracModel, u: &[f64], y: &[f64], dt: f64) -> Option<(f64, 
     let (u_all, y_all) = (u, y);
     let m = n.min(MAX_COARSE_SAMPLES);
     let (u, y) = (&u[..m], &y[..m]);
-    let qs: &[f64] = if lin.kind == Kind::Fopdt {
+    let qs: &[f64] = if matches!(lin.kind, Kind::Fopdt | Kind::Integer) {
         &[1.0]
     } else {
         &[0.5, 0.7, 0.9]
@@ -699,7 +699,7 @@ fn levy_candidates(lin: &FracModel, frf: &Frf, dt: f64) -> Result<(Vec<Candidate
 ///   the better start is used.
 /// - Otherwise (no periodic input, fewer than 2 whole periods, too few usable harmonics, no Levy
 ///   model with positive coefficients; and the FOPDT model always): the coarse search: for each
-///   order `q` in `{0.5, 0.7, 0.9}` (`q = 1` for the FOPDT) and 10 corner frequencies `w_c`
+///   order `q` in `{0.5, 0.7, 0.9}` (`q = 1` for the FOPDT and the integer second order) and 10 corner frequencies `w_c`
 ///   log-spaced from `2 pi / T` to a quarter of the Nyquist frequency, the model
 ///   `K / (1 + (s/w_c)^q / 2)^2` (`K / (s/w_c + 1)`) is simulated with `K` by linear least
 ///   squares; the smallest squared error wins (`zeta = theta = q`, `a1 = w_c^-q`, `a2 = a1^2/4`).
@@ -740,6 +740,8 @@ pub fn auto_start(model: &mut FracModel, u: &[f64], y: &[f64], dt: f64) -> Resul
     let mut chosen: Option<(f64, Vec<f64>)> = None;
     let why_not_levy = if model.kind == Kind::Fopdt {
         "the FOPDT model starts from the coarse search".to_string()
+    } else if model.kind == Kind::Integer {
+        "an integer-order model starts from the coarse search".to_string()
     } else {
         match periodic_frf(u, y, dt).and_then(|frf| {
             let (c, q) = levy_candidates(&lin, &frf, dt)?;

@@ -2,7 +2,7 @@
 //! parameters are held, the record's own initial state and output offset are estimated (they
 //! belong to the record, not to the plant), and the simulated output is compared with the measured.
 
-use super::fit::{fit, past_edges, FitOptions, InitialState};
+use super::fit::{fit, past_edges, FitOptions, InitialState, ParamEstimate};
 use super::{FracModel, Structure};
 use crate::data::{OffsetMode, Offsets, Record};
 use crate::metrics::Fit;
@@ -17,8 +17,9 @@ pub struct Scored {
     pub yhat: Vec<f64>,
     /// The record's operating point.
     pub offsets: Offsets,
-    /// The record's own output offset and initial-state levels, by name.
-    pub record_params: Vec<(String, f64)>,
+    /// The record's own output offset and initial-state levels (fitted; `at_bound` marks a
+    /// level at the edge of its range, also said in the warnings).
+    pub record_params: Vec<ParamEstimate>,
     /// Warnings (an input with no excitation: the score says little about the dynamics).
     pub warnings: Vec<String>,
 }
@@ -64,6 +65,12 @@ pub fn score(
         m.params[i].value = 0.0;
         m.params[i].free = true;
     }
+    // A step at the first sample is scored from rest, as it is fitted (`identify`).
+    let initial = if offsets == OffsetMode::Initial && rec.starts_with_step() {
+        InitialState::Rest
+    } else {
+        initial
+    };
     match initial {
         InitialState::Estimate => {
             m.with_past_input(
@@ -85,9 +92,12 @@ pub fn score(
     let y: Vec<f64> = rec.y.iter().map(|v| v - op.y0).collect();
     let mut values = m.values();
     let mut warnings = vec![];
+    let mut record_params = vec![];
     if m.params.iter().any(|p| p.free) {
         let rep = fit(&m, &u, &y, rec.dt, &FitOptions::default())?;
         values = rep.values;
+        record_params = rep.params.into_iter().filter(|p| p.free).collect();
+        warnings.extend(super::checks::levels_at_bound(&m, &record_params));
     }
     let mut yd = vec![0.0; n];
     m.simulate(&values, &u, rec.dt, &mut yd)?;
@@ -98,13 +108,6 @@ pub fn score(
                 .into(),
         );
     }
-    let record_params = m
-        .params
-        .iter()
-        .zip(&values)
-        .filter(|(p, _)| p.free)
-        .map(|(p, v)| (p.name.clone(), *v))
-        .collect();
     Ok(Scored {
         fit: Fit::of(&rec.y, &yhat),
         yhat,

@@ -8,4 +8,5 @@ mod roundtrip;
 mod scale;
 mod sensitivity;
 mod starts;
+mod steps;
 mod truth;
