@@ -488,6 +488,49 @@ impl Val {
                 .collect(),
         )
     }
+    /// `self + sign o`: polynomials term by term; rational expressions over a common
+    /// denominator, `a/b + c/d = (a d + c b)/(b d)` (a direct feed-through `D + G(s)`, a
+    /// parallel connection). Both must have the same delay (`exp(-tau s)` multiplies a whole
+    /// sum); `pos` is where `o` starts, for the error.
+    fn add(self, o: Val, sign: f64, pos: usize) -> Result<Val> {
+        let o_num: Vec<Term> = o
+            .num
+            .iter()
+            .map(|t| Term::new(sign * t.coef, t.order))
+            .collect();
+        if let (Some(mut a), Some(_)) = (self.as_poly(), o.as_poly()) {
+            let d = o.den[0].coef;
+            a.extend(o_num.into_iter().map(|t| Term::new(t.coef / d, t.order)));
+            return Ok(Val {
+                num: a,
+                den: vec![Term::new(1.0, 0.0)],
+                delay: 0.0,
+            });
+        }
+        if self.delay != o.delay {
+            return perr(
+                pos,
+                "terms with different delays cannot be added (exp(-tau s) must multiply the \
+                 whole model)",
+            );
+        }
+        let mut num = poly_mul(&self.num, &o.den, pos)?;
+        for t in poly_mul(&o_num, &self.den, pos)? {
+            match num.iter().position(|x| (x.order - t.order).abs() < 1e-12) {
+                Some(i) => num[i].coef += t.coef,
+                None if num.len() == MAX_TERMS => {
+                    return perr(pos, format!("the sum has more than {MAX_TERMS} terms in s"))
+                }
+                None => num.push(t),
+            }
+        }
+        num.retain(|t| t.coef != 0.0);
+        Ok(Val {
+            num,
+            den: poly_mul(&self.den, &o.den, pos)?,
+            delay: self.delay,
+        })
+    }
     /// `self * o`; `pos` is where `o` starts, for the error.
     fn mul(self, o: Val, pos: usize) -> Result<Val> {
         Ok(Val {
@@ -558,19 +601,7 @@ impl Parser<'_> {
             };
             let pos = self.pos();
             let rhs = self.term()?;
-            let (Some(a), Some(b)) = (acc.as_poly(), rhs.as_poly()) else {
-                return perr(
-                    pos.min(start.max(pos)),
-                    "only polynomials in s can be added (write the model as one fraction)",
-                );
-            };
-            let mut sum = a;
-            sum.extend(b.into_iter().map(|t| Term::new(sign * t.coef, t.order)));
-            acc = Val {
-                num: sum,
-                den: vec![Term::new(1.0, 0.0)],
-                delay: 0.0,
-            };
+            acc = acc.add(rhs, sign, pos.min(start.max(pos)))?;
         }
     }
     fn term(&mut self) -> Result<Val> {
@@ -766,6 +797,41 @@ mod tests {
     use super::*;
     use approx::assert_relative_eq;
 
+    /// A direct feed-through and a parallel connection are written as sums: each is the sum of
+    /// its parts' responses (evaluated here term by term, not by the parser's fraction).
+    #[test]
+    fn sums_of_transfer_functions_are_one_fraction() {
+        let part = |terms: &[(f64, f64)], w: f64| -> Complex64 {
+            terms.iter().map(|&(c, o)| c * jw_pow(w, o)).sum()
+        };
+        let ft: FracTf = "0.3 + 2/(0.1 s^0.8 + 1)".parse().unwrap();
+        let par: FracTf = "2/(s + 1) - 3/(0.5 s^1.5 + 2)".parse().unwrap();
+        for w in [1e-2, 0.7, 3.0, 50.0, 1e4] {
+            let want = 0.3 + 2.0 / part(&[(0.1, 0.8), (1.0, 0.0)], w);
+            assert_relative_eq!(ft.freq_response(w).re, want.re, max_relative = 1e-12);
+            assert_relative_eq!(ft.freq_response(w).im, want.im, epsilon = 1e-12);
+            let want =
+                2.0 / part(&[(1.0, 1.0), (1.0, 0.0)], w) - 3.0 / part(&[(0.5, 1.5), (2.0, 0.0)], w);
+            assert_relative_eq!((par.freq_response(w) - want).norm(), 0.0, epsilon = 1e-12);
+        }
+        // the feed-through is the high-frequency gain; it reads back as one fraction
+        assert_relative_eq!(ft.freq_response(1e12).re, 0.3, max_relative = 1e-6);
+        let back: FracTf = ft.to_string().parse().unwrap();
+        assert_relative_eq!(
+            (back.freq_response(3.0) - ft.freq_response(3.0)).norm(),
+            0.0,
+            epsilon = 1e-12
+        );
+        // a common delay factors out; different delays do not add
+        let d: FracTf = "exp(-0.1 s)/(s + 1) + exp(-0.1 s)/(s + 2)".parse().unwrap();
+        assert_eq!(d.delay, 0.1);
+        let e = "1 + exp(-0.1 s)/(s + 1)".parse::<FracTf>().unwrap_err();
+        assert!(e.to_string().contains("different delays"), "{e}");
+        // polynomials still add term by term
+        let p: FracTf = "(s^0.5 + 2 + 3 s)/(s^2 + 1)".parse().unwrap();
+        assert_eq!(p.num.len(), 3);
+    }
+
     #[test]
     fn parses_the_paper_models() {
         let g: FracTf = "6.82/(0.00002655 s^1.7452 + 0.0059 s^0.92 + 1)"
@@ -823,10 +889,9 @@ mod tests {
             "1/(0 s + 0)",
             "1e400/(s+1)",
             "nan/(s+1)",
-            "1/(s+1) + 1/(s+2)",
+            "1 + exp(-0.1 s)/(s+1)",
             "exp(s^2)/(s+1)",
             "1/(s+1))",
-            "1/(s^-0.5 + 1)*s^-2",
             "exp(0.1 s)/(s+1)",
             "1/(s^30+1)",
             "(1)",

@@ -430,7 +430,7 @@ fn try_candidate(
         }
     }
     let params = params_of(&ns);
-    let part = if ns.val.is_some() {
+    let part = if ctx.held_out && ns.val.is_some() {
         "validation"
     } else {
         "estimation"
@@ -480,10 +480,18 @@ fn try_candidate(
             verdict.base_at_bound.join(", ")
         )
     };
+    let refitted = params
+        .iter()
+        .map(|(k, v)| format!("{k} = {v:.4e}"))
+        .collect::<Vec<_>>()
+        .join(", ");
     let k = KeptEffect {
         name: c.name.into(),
         params,
-        evidence: format!("{}; {gain}{note}", c.evidence),
+        evidence: format!(
+            "{} (screening); refitted: {refitted}; {gain}{note}",
+            c.evidence
+        ),
         r2: c.r2,
         ssr_removed_percent: 100.0 * verdict.removed,
         rmse_change_percent: 100.0 * verdict.change,

@@ -106,8 +106,9 @@ fn fit_row(f: &ident::metrics::Fit) -> String {
 
 /// The structure comparison in words.
 pub fn structures_text(c: &StructureChoice) -> String {
-    let mut o = String::from(
-        "\nstructures compared (each fitted and diagnosed; held-out RMSE before -> after, BIC after):\n",
+    let mut o = format!(
+        "\nstructures compared (each fitted and diagnosed; {} RMSE before -> after, BIC after):\n",
+        if c.held_out { "held-out" } else { "estimation" }
     );
     for (i, s) in c.scores.iter().enumerate() {
         let mark = if i == c.chosen { "*" } else { " " };

@@ -206,11 +206,18 @@ pub fn run(a: TimeArgs) -> Result<()> {
         plot::format_of(p)?;
     }
     let read = read_options(&a);
-    let rec = read_record(&a.file, &read)?;
+    // The readers' caveats (an incomplete acquisition, the part kept) go into the report's
+    // warnings, text and JSON alike; printed at once if the fit fails.
+    let (rec, mut reader_warnings) = read_record_noting(&a.file, &read)?;
     let validation = match &a.validate {
-        Some(p) => Some((p, read_record(p, &read)?)),
+        Some(p) => {
+            let (v, w) = read_record_noting(p, &read)?;
+            reader_warnings.extend(w);
+            Some((p, v))
+        }
         None => None,
     };
+    let print_reader = |ws: &[String]| ws.iter().for_each(|w| eprintln!("warning: {w}"));
     let duration = rec.t.last().copied().unwrap_or(0.0) - rec.t.first().copied().unwrap_or(0.0);
     let model = model_of(&a, duration)?;
     let opts = ident_options(&a)?;
@@ -221,9 +228,13 @@ pub fn run(a: TimeArgs) -> Result<()> {
         }
         let mut recs = vec![rec];
         for p in &a.joint {
-            recs.push(read_record(p, &read)?);
+            let (r, w) = read_record_noting(p, &read)?;
+            reader_warnings.extend(w);
+            recs.push(r);
         }
-        let j = ident::oe::identify_joint(&recs, &model, &opts)?;
+        let mut j = ident::oe::identify_joint(&recs, &model, &opts)
+            .inspect_err(|_| print_reader(&reader_warnings))?;
+        j.report.warnings.splice(0..0, reader_warnings);
         let scored = match &validation {
             Some((_, vrec)) => Some(ident::oe::score(&j.model, vrec, offsets, opts.initial)?),
             None => None,
@@ -247,7 +258,8 @@ pub fn run(a: TimeArgs) -> Result<()> {
     let id = identify_with_progress(&rec, &model, &opts, &mut |k, rmse| {
         bar.set_message(format!("simulation {k}, rmse {rmse:.4e}"));
         bar.tick();
-    })?;
+    })
+    .inspect_err(|_| print_reader(&reader_warnings))?;
     bar.finish_and_clear();
     let (id, diagnosis) = if a.diagnose {
         let spin = if a.quiet || !std::io::stderr().is_terminal() {
@@ -264,13 +276,15 @@ pub fn run(a: TimeArgs) -> Result<()> {
         ));
         let d = super::diagnose::run_time(&rec, &a.structure, &model, id, &opts);
         spin.finish_and_clear();
-        let d = d?;
+        let d = d.inspect_err(|_| print_reader(&reader_warnings))?;
         (d.id, Some((d.diagnosis, d.choice)))
     } else {
         (id, None)
     };
-    // The fit reported (with --diagnose, the chosen structure's): its warnings, its score on a
-    // separate record.
+    // The fit reported (with --diagnose, the chosen structure's): its warnings (the readers'
+    // first), its score on a separate record.
+    let mut id = id;
+    id.report.warnings.splice(0..0, reader_warnings);
     for w in &id.report.warnings {
         eprintln!("warning: {w}");
     }
@@ -278,7 +292,6 @@ pub fn run(a: TimeArgs) -> Result<()> {
         Some((_, vrec)) => Some(ident::oe::score(&id.model, vrec, offsets, opts.initial)?),
         None => None,
     };
-    let mut id = id;
     if let Some((p, _)) = &validation {
         id.validated_by = ident::oe::Validation {
             kind: ident::oe::ValidationKind::File,
@@ -333,11 +346,25 @@ pub fn run(a: TimeArgs) -> Result<()> {
 /// Read a time record (t, u, y) from a file, its warnings (an incomplete acquisition fitted on
 /// its longest complete part, ...) on stderr.
 pub(crate) fn read_record(path: &std::path::Path, read: &ReadOptions) -> Result<Record> {
-    let loaded = crate::cmd::load_record(path, read)?;
-    for w in &loaded.warnings {
-        eprintln!("warning: {}: {w}", path.display());
+    let (record, warnings) = read_record_noting(path, read)?;
+    for w in &warnings {
+        eprintln!("warning: {w}");
     }
-    Ok(loaded.record)
+    Ok(record)
+}
+
+/// [`read_record`] with its warnings returned (each `PATH: warning`) instead of printed.
+pub(crate) fn read_record_noting(
+    path: &std::path::Path,
+    read: &ReadOptions,
+) -> Result<(Record, Vec<String>)> {
+    let loaded = crate::cmd::load_record(path, read)?;
+    let warnings = loaded
+        .warnings
+        .iter()
+        .map(|w| format!("{}: {w}", path.display()))
+        .collect();
+    Ok((loaded.record, warnings))
 }
 
 /// The joint fit of several records, as text or JSON.

@@ -374,3 +374,44 @@ fn sim_prbs_csv(dir: &tempfile::TempDir) -> PathBuf {
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     p
 }
+
+/// The reader's caveats are in the JSON report, not only on stderr (issue 30): an incomplete
+/// acquisition is fitted on its complete part and `warnings` says which part and what is missing.
+#[test]
+fn reader_warnings_are_in_the_json_report() {
+    let dir = tempfile::tempdir().unwrap();
+    let full = std::fs::read_to_string(pmsm_csv(&dir)).unwrap();
+    let rows: Vec<&str> = full
+        .lines()
+        .filter(|l| !l.starts_with('#'))
+        .skip(1)
+        .collect();
+    let n = rows.len();
+    let mut text = format!(
+        "# fracid drive acquisition: PRBS\n# run_id 1, {n} samples planned at 1000 Hz\nt,u,y\n"
+    );
+    for (k, r) in rows.iter().enumerate() {
+        if !(800..900).contains(&k) {
+            writeln!(text, "{r}").unwrap();
+        }
+    }
+    writeln!(text, "# incomplete: missing samples 800..900 (port lost)").unwrap();
+    let p = dir.path().join("inc.csv");
+    std::fs::write(&p, text).unwrap();
+    let o = fracid(&["time", p.to_str().unwrap(), "--json", "--quiet"]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    let w = v["warnings"].to_string();
+    assert!(w.contains("missing samples 800..900 (port lost)"), "{w}");
+    assert!(
+        w.contains("longest complete contiguous part, rows 800.."),
+        "{w}"
+    );
+    // and on stderr once, not twice
+    assert_eq!(
+        stderr(&o).matches("missing samples 800..900").count(),
+        1,
+        "{}",
+        stderr(&o)
+    );
+}

@@ -53,6 +53,9 @@ pub struct StructureChoice {
     pub scores: Vec<StructureScore>,
     /// Index of the chosen one in `scores`.
     pub chosen: usize,
+    /// Whether the RMSEs compared are held-out ones (the held-out part scores the dynamics,
+    /// [`crate::oe::Validation::scores_dynamics`]); else they are of the estimation part.
+    pub held_out: bool,
     /// The decision in words.
     pub reason: String,
 }
@@ -193,8 +196,8 @@ fn integer_gain(cands: &[(String, FracModel)], scores: &[StructureScore], chosen
     };
     let ri = s.rmse_after.unwrap_or(f64::NAN);
     format!(
-        "; against the best integer-order model ({name}, held-out RMSE {ri:.4e}) the chosen one's \
-         error is {:+.1}%",
+        "; against the best integer-order model ({name}, RMSE {ri:.4e}) the chosen one's error \
+         is {:+.1}%",
         100.0 * (r / ri - 1.0)
     )
 }
@@ -277,10 +280,15 @@ pub fn diagnose_best(
         });
     };
     let s = &scores[chosen];
+    let held_out = outcomes[chosen]
+        .id
+        .as_ref()
+        .is_some_and(|id| id.validated_by.scores_dynamics());
     let mut reason = format!(
-        "{} chosen: held-out RMSE {:.4e} with {} (best {best:.4e}; ties within {:.0}%), the lowest \
+        "{} chosen: {} RMSE {:.4e} with {} (best {best:.4e}; ties within {:.0}%), the lowest \
          BIC among the ties ({:.1}, {} free parameters)",
         s.name,
+        if held_out { "held-out" } else { "estimation" },
         s.rmse_after.unwrap_or(f64::NAN),
         if s.effects.is_empty() {
             "no effect".to_string()
@@ -302,6 +310,7 @@ pub fn diagnose_best(
         choice: StructureChoice {
             scores,
             chosen,
+            held_out,
             reason,
         },
         diagnosis,

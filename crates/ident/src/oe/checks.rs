@@ -95,8 +95,10 @@ impl Validation {
 ///   times there; otherwise the split is moved earlier so that the validation window holds the
 ///   last `holdout` fraction of the input's changes (at least [`MIN_VALIDATION_CHANGES`], and the
 ///   estimation part keeps at least as many), with a warning saying so
-///   ([`ValidationKind::HeldOut`]).
-/// - Fewer changes (a step, a few steps, a pulse; or none: a step at the first sample): the
+///   ([`ValidationKind::HeldOut`]). With 4 or 5 changes (a staircase) the same, holding out at
+///   least one change (its last step(s)) while the estimation part keeps 3.
+/// - At most [`MIN_VALIDATION_CHANGES`] changes (a step, a doublet, a pulse; or none: a step at
+///   the first sample): the
 ///   validation never takes excitation from the estimation part. The estimation part holds every
 ///   change and the first `1 - holdout` of the response after the last one; the rest of that
 ///   response is held out, simulated on from the estimation part with the state carried over
@@ -141,15 +143,21 @@ pub(crate) fn validation_split(
         return (split, plain(split), None);
     }
     let changes: Vec<usize> = changes_from(u, tol, 1).collect();
-    if changes.len() < 2 * MIN_VALIDATION_CHANGES {
+    if changes.len() <= MIN_VALIDATION_CHANGES {
         return response_tail(n, split, holdout, changes.last().copied().unwrap_or(0));
     }
+    // A multi-step test (4 or 5 changes) holds out its last step(s); a PRBS at least 3 changes.
+    let least = if changes.len() >= 2 * MIN_VALIDATION_CHANGES {
+        MIN_VALIDATION_CHANGES
+    } else {
+        1
+    };
     let in_val = changes.iter().filter(|&&k| k > split).count();
-    if in_val >= MIN_VALIDATION_CHANGES && changes.len() - in_val >= MIN_VALIDATION_CHANGES {
+    if in_val >= least && changes.len() - in_val >= MIN_VALIDATION_CHANGES {
         return (split, plain(split), None);
     }
     let want = ((holdout * changes.len() as f64).ceil() as usize)
-        .max(MIN_VALIDATION_CHANGES)
+        .max(least)
         .min(changes.len() - MIN_VALIDATION_CHANGES);
     // The validation starts a little before the first change it holds (a tenth of the gap to the
     // previous change), so the response to it is scored whole.

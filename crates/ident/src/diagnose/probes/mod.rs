@@ -323,7 +323,7 @@ pub(crate) fn probe_static_map(look: &Look<'_>, found: &mut Findings, sm: &Stati
         key: sm.name.into(),
         r2,
         evidence: format!(
-            "the {} signature at {} = {l:.3e} (grid over {} values, linear parameters refitted) \
+            "the {} signature at the grid value {} = {l:.3e} (grid over {} values, linear parameters refitted) \
              explains {:.1}% of the residual sum of squares (coefficient {coef:.2})",
             sm.name,
             sm.what,
