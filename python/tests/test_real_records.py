@@ -1,0 +1,264 @@
+"""Real measured records shipped in ``data/`` (each with its source and licence beside it): fracid's
+held-out fit with defaults against an integer-order baseline fitted here, independently, with scipy.
+
+The baseline (``integer_baseline``) owes nothing to fracid's code: an all-pole continuous transfer
+function of order 1, 2 or 3 (``K / (1 + T s)``, ``K / (s^2/w^2 + 2 z s/w + 1)``, the latter times
+``1 / (1 + T s)``; stable by construction), a whole-sample input delay, an output offset and an
+initial state (the equilibrium a past held input ``u_past`` left, fitted), discretised exactly for a
+held input (zero-order hold, from the poles and residues; checked against scipy's
+``cont2discrete`` in ``test_zoh_matches_scipy``) and fitted by ``scipy.optimize.least_squares``
+on the estimation part that fracid reports (``split``). The delay is chosen on the estimation part
+only; the baseline's figure is the best held-out fit of the three orders (the strongest of them, so
+the comparison does not flatter fracid). Both are scored on the same held-out samples with the state
+carried over from the estimation part, by the same formula as fracid's
+(``100 (1 - ||y - yhat|| / ||y - mean(y)||)``, ``nrmse_percent``).
+
+Where fracid loses on a record the assertion is marked xfail with the measured numbers: the record
+stays, the loss is reported, not hidden.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+HERE = Path(__file__).resolve().parent
+DATA = HERE.parent.parent / "data"
+
+
+# ---------------------------------------------------------------------------------------------
+# The independent integer-order baseline (scipy only).
+# ---------------------------------------------------------------------------------------------
+
+
+def nrmse_percent(y: np.ndarray, yhat: np.ndarray) -> float:
+    """``100 (1 - ||y - yhat|| / ||y - mean(y)||)``: 100 is exact, 0 is the mean's score."""
+    den = np.linalg.norm(y - y.mean())
+    return float(100.0 * (1.0 - np.linalg.norm(y - yhat) / den))
+
+
+def rmse(y: np.ndarray, yhat: np.ndarray) -> float:
+    return float(np.sqrt(np.mean((y - yhat) ** 2)))
+
+
+def _den(order: int, p: np.ndarray) -> np.ndarray:
+    """Denominator (highest power first, constant term 1) of a stable all-pole model."""
+    if order == 1:
+        return np.array([np.exp(p[0]), 1.0])
+    w, z = np.exp(p[0]), np.exp(p[1])
+    d2 = np.array([1.0 / w**2, 2.0 * z / w, 1.0])
+    if order == 2:
+        return d2
+    return np.polymul(d2, [np.exp(p[2]), 1.0])
+
+
+def _zoh(k_gain: float, den: np.ndarray, dt: float):
+    """Exact zero-order-hold discretisation of ``K / den(s)`` (``den(0) = 1``, distinct poles):
+    discrete poles ``exp(p dt)``, numerator from the step response sampled exactly
+    (``s(t) = K + sum K exp(p t) / (p den'(p))``, the residues of ``K / (s den(s))``)."""
+    poles = np.roots(den)
+    dden = np.polyval(np.polyder(den), poles)
+    n = len(poles)
+    k = np.arange(n + 1)
+    modes = (k_gain / (poles * dden))[None, :] * np.exp(np.outer(k * dt, poles))
+    step = k_gain + np.real(modes.sum(axis=1))
+    h = np.diff(step, prepend=0.0)  # h[0] = s(0) = 0 for a strictly proper model
+    a = np.real(np.poly(np.exp(poles * dt)))
+    b = np.convolve(a, h)[: n + 1]
+    return b, a
+
+
+def _simulate(order, theta, u, dt, delay):
+    """``c + K u_past + G (u(k - delay) - u_past)`` from the equilibrium left by ``u_past``."""
+    from scipy.signal import lfilter
+
+    k_gain, c, u_past = theta[0], theta[1], theta[2]
+    b, a = _zoh(k_gain, _den(order, theta[3:]), dt)
+    ud = np.empty_like(u)
+    ud[:delay] = u_past
+    ud[delay:] = u[: len(u) - delay]
+    return c + k_gain * u_past + lfilter(b, a, ud - u_past)
+
+
+def _starts(order: int, dt: float, span: float):
+    taus = np.geomspace(2.0 * dt, span / 3.0, 5)
+    if order == 1:
+        return [np.log([tau]) for tau in taus]
+    out = []
+    for tau in taus:
+        for z in (0.3, 1.1):  # not 1: distinct poles
+            p = [np.log(1.0 / tau), np.log(z)]
+            if order == 3:
+                p.append(np.log(tau / 3.0))
+            out.append(np.array(p))
+    return out
+
+
+def fit_order(t, u, y, n_est, order, max_delay):
+    """Best least-squares fit on ``[0, n_est)``: several starts without delay, then each delay
+    ``1..max_delay`` samples warm-started from the previous one; the delay with the least
+    estimation error wins (the held-out part is never looked at)."""
+    from scipy.optimize import least_squares
+
+    dt = float(np.median(np.diff(t)))
+    span = float(t[n_est - 1] - t[0])
+    ye = y[:n_est]
+    # Bounds keep every time constant between dt/10 and 100 record lengths and the damping
+    # ratio in [0.01, 20] (no overflow, and nothing the sampling could not see).
+    lo_tau, hi_tau = np.log(dt / 10.0), np.log(100.0 * span)
+    lo = [-np.inf, -np.inf, -np.inf]
+    hi = [np.inf, np.inf, np.inf]
+    if order == 1:
+        lo += [lo_tau]
+        hi += [hi_tau]
+    else:
+        lo += [-hi_tau, np.log(0.01)]
+        hi += [-lo_tau, np.log(20.0)]
+        if order == 3:
+            lo += [lo_tau]
+            hi += [hi_tau]
+
+    def solve(x0, delay):
+        def res(x):
+            return _simulate(order, x, u, dt, delay)[:n_est] - ye
+
+        x0 = np.clip(x0, np.array(lo) + 1e-9, np.array(hi) - 1e-9)
+        try:
+            sol = least_squares(res, x0, bounds=(lo, hi), x_scale="jac", max_nfev=300)
+        except (ValueError, np.linalg.LinAlgError):
+            return None
+        if not np.all(np.isfinite(sol.fun)):
+            return None
+        return float(sol.fun @ sol.fun), sol.x
+
+    def linear_start(p0, delay):
+        unit = _simulate(order, np.r_[1.0, 0.0, u[0], p0], u, dt, delay)[:n_est]
+        (k0, c0), *_ = np.linalg.lstsq(np.c_[unit, np.ones(n_est)], ye, rcond=None)
+        return np.r_[k0, c0, u[0], p0]
+
+    cands = [solve(linear_start(p0, 0), 0) for p0 in _starts(order, dt, span)]
+    sse, x = min((c for c in cands if c is not None), key=lambda c: c[0])
+    best = (sse, 0, x)
+    for delay in range(1, max_delay + 1):
+        got = solve(x, delay)
+        if got is None:
+            continue
+        sse, x = got
+        if sse < best[0]:
+            best = (sse, delay, x)
+    sse, delay, x = best
+    yhat = _simulate(order, x, u, dt, delay)
+    return {"order": order, "delay_samples": delay, "theta": x, "yhat": yhat, "sse_est": sse}
+
+
+def integer_baseline(t, u, y, n_est, first, max_delay):
+    """Orders 1-3 fitted on ``[0, n_est)``; each scored on ``[first, n)``, simulated on from the
+    estimation part (the state carried over)."""
+    rows = []
+    for order in (1, 2, 3):
+        f = fit_order(t, u, y, n_est, order, max_delay)
+        yv, yh = y[first:], f["yhat"][first:]
+        f["val_nrmse"] = nrmse_percent(yv, yh)
+        f["val_rmse"] = rmse(yv, yh)
+        rows.append(f)
+    best = max(rows, key=lambda r: r["val_nrmse"])
+    return best, rows
+
+
+def load_tuy(path: Path):
+    d = np.genfromtxt(path, delimiter=",", names=True)
+    return (np.asarray(d["t"], float), np.asarray(d["u"], float), np.asarray(d["y"], float))
+
+
+# ---------------------------------------------------------------------------------------------
+# The records and the comparison.
+# ---------------------------------------------------------------------------------------------
+
+
+def run_fracid(binary, path: Path) -> dict:
+    p = subprocess.run(
+        [str(binary), "time", str(path), "--json"], capture_output=True, text=True, timeout=600
+    )
+    assert p.returncode == 0, f"fracid time {path} exit {p.returncode}\n{p.stderr}"
+    return json.loads(p.stdout)
+
+
+def held_out(out: dict):
+    """fracid's split (estimation ``[0, n_est)``, held out ``[first, n)``), its held-out NRMSE
+    and RMSE and how it validated, from ``fracid time --json``."""
+    n_est = int(out["split"]["estimation_samples"])
+    how = out.get("validated_by") or {}
+    first = int(how.get("first", n_est))
+    val = out["fit"]["validation"]
+    return n_est, first, float(val["nrmse_percent"]), float(val["rmse"]), how.get("kind")
+
+
+# (file, max delay in samples for the baseline, why the record is here)
+RECORDS = {
+    "closed_speed_loop": ("unal_dcmotor/DCmotor_stairs_closed_exp.csv", 10),
+    "tclab_step": ("apm_tclab/tclab_step_test.csv", 30),
+    "motor_generator_steps": ("sysidentpy_motor_generator/motor_generator_steps.csv", 10),
+    "dcmotor_step_open": ("unal_dcmotor/DCmotor_step_open_exp.csv", 10),
+}
+
+# Where fracid loses, the measured figures and the reason (the assertion is then a strict xfail:
+# it fails the suite the day fracid starts winning, so the entry gets removed).
+XFAIL: dict[str, str] = {}
+
+# fracid's held-out RMSE may exceed the best integer baseline's by at most this fraction. Both are
+# scored on the same samples, so RMSE and NRMSE order the two fits identically; the allowance is
+# stated on RMSE because on a step test's settled tail (``validated_by.kind == "response_tail"``)
+# ``||y - mean(y)||`` is small and NRMSE points magnify noise-level differences. 2%: the baseline
+# is itself a finite multistart optimisation, and a difference of 2% of the residual is a tie.
+TOL_RMSE = 0.02
+
+
+@pytest.mark.parametrize("name", sorted(RECORDS))
+def test_fracid_beats_integer_baseline(fracid_bin, name, request):
+    pytest.importorskip("scipy")
+    rel, max_delay = RECORDS[name]
+    path = DATA / rel
+    if not path.is_file():
+        pytest.fail(f"{path} is missing: the real records ship with the repository in data/")
+    if name in XFAIL:
+        request.node.add_marker(pytest.mark.xfail(reason=XFAIL[name], strict=True))
+    out = run_fracid(fracid_bin, path)
+    n_est, first, fr_nrmse, fr_rmse, kind = held_out(out)
+    t, u, y = load_tuy(path)
+    assert 0 < n_est <= first < len(y), f"{name}: split {n_est}/{first} of {len(y)}"
+    best, rows = integer_baseline(t, u, y, n_est, first, max_delay)
+    table = ", ".join(
+        f"order {r['order']} delay {r['delay_samples']}: {r['val_nrmse']:.2f}% / {r['val_rmse']:.4g}"
+        for r in rows
+    )
+    assert fr_rmse <= best["val_rmse"] * (1.0 + TOL_RMSE), (
+        f"{name} ({kind}): fracid held-out RMSE {fr_rmse:.4g} (NRMSE {fr_nrmse:.2f}%) > integer "
+        f"baseline RMSE {best['val_rmse']:.4g} (NRMSE {best['val_nrmse']:.2f}%); rows: {table}"
+    )
+
+
+def test_zoh_matches_scipy():
+    """The baseline's own discretisation agrees with scipy's (matrix exponential) for each order,
+    with a complex pair and with real poles, to 1e-9 of the step response."""
+    pytest.importorskip("scipy")
+    from scipy.signal import cont2discrete, lfilter
+
+    u = np.ones(3000)  # 30 s: 100 time constants of the slowest mode
+    for order, p in [
+        (1, [np.log(0.3)]),
+        (2, [np.log(20.0), np.log(0.1)]),
+        (2, [np.log(20.0), np.log(3.0)]),
+        (3, [np.log(20.0), np.log(0.05), np.log(0.2)]),
+    ]:
+        den = _den(order, np.array(p))
+        b, a = _zoh(2.5, den, 0.01)
+        bs, as_, _ = cont2discrete(([2.5], den), 0.01, method="zoh")
+        ours = lfilter(b, a, u)
+        ref = lfilter(np.squeeze(bs), as_, u)
+        assert np.max(np.abs(ours - ref)) < 1e-9 * 2.5, (order, p)
+        # and the static gain is K
+        assert ours[-1] == pytest.approx(2.5, rel=1e-3)  # the static gain is K
