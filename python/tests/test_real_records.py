@@ -215,7 +215,7 @@ def held_out(out: dict):
     return n_est, first, float(val["nrmse_percent"]), float(val["rmse"]), how.get("kind")
 
 
-# (file, max delay in samples for the baseline, why the record is here)
+# name -> (file under data/, the largest input delay in samples the baseline tries)
 RECORDS = {
     "dcmotor_prbs_open": ("unal_dcmotor/DCmotor_prbs_open_exp.csv", 10),
     "closed_speed_loop": ("unal_dcmotor/DCmotor_stairs_closed_exp.csv", 10),
