@@ -1,0 +1,344 @@
+"""Real measured records shipped in ``data/`` (each with its source and licence beside it): fracid's
+held-out fit with defaults against an integer-order baseline fitted here, independently, with scipy.
+
+The baseline (``integer_baseline``) owes nothing to fracid's code: an all-pole continuous transfer
+function of order 1, 2 or 3 (``K / (1 + T s)``, ``K / (s^2/w^2 + 2 z s/w + 1)``, the latter times
+``1 / (1 + T s)``; stable by construction), a whole-sample input delay, an output offset and an
+initial state (the equilibrium a past held input ``u_past`` left, fitted), discretised exactly for a
+held input (zero-order hold, from the poles and residues; checked against scipy's
+``cont2discrete`` in ``test_zoh_matches_scipy``) and fitted by ``scipy.optimize.least_squares``
+on the estimation part that fracid reports (``split``). The delay is chosen on the estimation part
+only; the baseline's figure is the best held-out fit of the three orders (the strongest of them, so
+the comparison does not flatter fracid). Both are scored on the same held-out samples with the state
+carried over from the estimation part, by the same formula as fracid's
+(``100 (1 - ||y - yhat|| / ||y - mean(y)||)``, ``nrmse_percent``).
+
+Where fracid loses on a record the assertion is marked xfail with the measured numbers: the record
+stays, the loss is reported, not hidden.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+HERE = Path(__file__).resolve().parent
+DATA = HERE.parent.parent / "data"
+
+
+# ---------------------------------------------------------------------------------------------
+# The independent integer-order baseline (scipy only).
+# ---------------------------------------------------------------------------------------------
+
+
+def nrmse_percent(y: np.ndarray, yhat: np.ndarray) -> float:
+    """``100 (1 - ||y - yhat|| / ||y - mean(y)||)``: 100 is exact, 0 is the mean's score."""
+    den = np.linalg.norm(y - y.mean())
+    return float(100.0 * (1.0 - np.linalg.norm(y - yhat) / den))
+
+
+def rmse(y: np.ndarray, yhat: np.ndarray) -> float:
+    return float(np.sqrt(np.mean((y - yhat) ** 2)))
+
+
+def _den(order: int, p: np.ndarray) -> np.ndarray:
+    """Denominator (highest power first, constant term 1) of a stable all-pole model."""
+    if order == 1:
+        return np.array([np.exp(p[0]), 1.0])
+    w, z = np.exp(p[0]), np.exp(p[1])
+    d2 = np.array([1.0 / w**2, 2.0 * z / w, 1.0])
+    if order == 2:
+        return d2
+    return np.polymul(d2, [np.exp(p[2]), 1.0])
+
+
+def _zoh(k_gain: float, den: np.ndarray, dt: float):
+    """Exact zero-order-hold discretisation of ``K / den(s)`` (``den(0) = 1``, distinct poles):
+    discrete poles ``exp(p dt)``, numerator from the step response sampled exactly
+    (``s(t) = K + sum K exp(p t) / (p den'(p))``, the residues of ``K / (s den(s))``)."""
+    poles = np.roots(den)
+    dden = np.polyval(np.polyder(den), poles)
+    n = len(poles)
+    k = np.arange(n + 1)
+    modes = (k_gain / (poles * dden))[None, :] * np.exp(np.outer(k * dt, poles))
+    step = k_gain + np.real(modes.sum(axis=1))
+    h = np.diff(step, prepend=0.0)  # h[0] = s(0) = 0 for a strictly proper model
+    a = np.real(np.poly(np.exp(poles * dt)))
+    b = np.convolve(a, h)[: n + 1]
+    return b, a
+
+
+def _simulate(order, theta, u, dt, delay):
+    """``c + K u_past + G (u(k - delay) - u_past)`` from the equilibrium left by ``u_past``."""
+    from scipy.signal import lfilter
+
+    k_gain, c, u_past = theta[0], theta[1], theta[2]
+    b, a = _zoh(k_gain, _den(order, theta[3:]), dt)
+    ud = np.empty_like(u)
+    ud[:delay] = u_past
+    ud[delay:] = u[: len(u) - delay]
+    return c + k_gain * u_past + lfilter(b, a, ud - u_past)
+
+
+def _starts(order: int, dt: float, span: float):
+    taus = np.geomspace(0.5 * dt, span / 3.0, 9)
+    if order == 1:
+        return [np.log([tau]) for tau in taus]
+    out = []
+    for tau in taus:
+        for z in (0.3, 1.1):  # not 1: distinct poles
+            p = [np.log(1.0 / tau), np.log(z)]
+            if order == 3:
+                p.append(np.log(tau / 3.0))
+            out.append(np.array(p))
+    return out
+
+
+def _seeds_from(order: int, p_lower: np.ndarray, dt: float):
+    """Starts for ``order`` from the fit of ``order - 1``: the lower model with one fast mode
+    added (so the higher order starts where the lower one ended, and cannot end worse by a bad
+    start alone)."""
+    out = []
+    for eps in (dt, 0.05 * np.exp(p_lower[0]) if order == 2 else dt):
+        if order == 2:  # (1 + T s)(1 + eps s) = s^2/w^2 + 2 z s/w + 1
+            tau = np.exp(p_lower[0])
+            w = 1.0 / np.sqrt(tau * eps)
+            z = (tau + eps) * w / 2.0
+            out.append(np.array([np.log(w), np.log(z)]))
+        else:
+            out.append(np.r_[p_lower[:2], np.log(eps)])
+    return out
+
+
+def fit_order(t, u, y, n_est, order, max_delay, seeds=()):
+    """Best least-squares fit on ``[0, n_est)``: several starts without delay, then each delay
+    ``1..max_delay`` samples warm-started from the previous one; the delay with the least
+    estimation error wins (the held-out part is never looked at)."""
+    from scipy.optimize import least_squares
+
+    dt = float(np.median(np.diff(t)))
+    span = float(t[n_est - 1] - t[0])
+    ye = y[:n_est]
+    # Bounds keep every time constant between dt/10 and 100 record lengths and the damping
+    # ratio in [0.01, 20] (no overflow, and nothing the sampling could not see).
+    lo_tau, hi_tau = np.log(dt / 10.0), np.log(100.0 * span)
+    lo = [-np.inf, -np.inf, -np.inf]
+    hi = [np.inf, np.inf, np.inf]
+    if order == 1:
+        lo += [lo_tau]
+        hi += [hi_tau]
+    else:
+        lo += [-hi_tau, np.log(0.01)]
+        hi += [-lo_tau, np.log(20.0)]
+        if order == 3:
+            lo += [lo_tau]
+            hi += [hi_tau]
+
+    def solve(x0, delay):
+        def res(x):
+            return _simulate(order, x, u, dt, delay)[:n_est] - ye
+
+        x0 = np.clip(x0, np.array(lo) + 1e-9, np.array(hi) - 1e-9)
+        try:
+            sol = least_squares(res, x0, bounds=(lo, hi), x_scale="jac", max_nfev=300)
+        except (ValueError, np.linalg.LinAlgError):
+            return None
+        if not np.all(np.isfinite(sol.fun)):
+            return None
+        return float(sol.fun @ sol.fun), sol.x
+
+    def linear_start(p0, delay):
+        unit = _simulate(order, np.r_[1.0, 0.0, u[0], p0], u, dt, delay)[:n_est]
+        (k0, c0), *_ = np.linalg.lstsq(np.c_[unit, np.ones(n_est)], ye, rcond=None)
+        return np.r_[k0, c0, u[0], p0]
+
+    cands = [solve(linear_start(p0, 0), 0) for p0 in [*_starts(order, dt, span), *seeds]]
+    sse, x = min((c for c in cands if c is not None), key=lambda c: c[0])
+    best = (sse, 0, x)
+    for delay in range(1, max_delay + 1):
+        got = solve(x, delay)
+        if got is None:
+            continue
+        sse, x = got
+        if sse < best[0]:
+            best = (sse, delay, x)
+    sse, delay, x = best
+    yhat = _simulate(order, x, u, dt, delay)
+    return {"order": order, "delay_samples": delay, "theta": x, "yhat": yhat, "sse_est": sse}
+
+
+def integer_baseline(t, u, y, n_est, first, max_delay):
+    """Orders 1-3 fitted on ``[0, n_est)``; each scored on ``[first, n)``, simulated on from the
+    estimation part (the state carried over)."""
+    rows = []
+    dt = float(np.median(np.diff(t)))
+    for order in (1, 2, 3):
+        seeds = _seeds_from(order, rows[-1]["theta"][3:], dt) if rows else ()
+        f = fit_order(t, u, y, n_est, order, max_delay, seeds)
+        yv, yh = y[first:], f["yhat"][first:]
+        f["val_nrmse"] = nrmse_percent(yv, yh)
+        f["val_rmse"] = rmse(yv, yh)
+        rows.append(f)
+    best = max(rows, key=lambda r: r["val_nrmse"])
+    return best, rows
+
+
+def load_tuy(path: Path):
+    d = np.genfromtxt(path, delimiter=",", names=True)
+    return (np.asarray(d["t"], float), np.asarray(d["u"], float), np.asarray(d["y"], float))
+
+
+# ---------------------------------------------------------------------------------------------
+# The records and the comparison.
+# ---------------------------------------------------------------------------------------------
+
+
+def run_fracid(binary, path: Path) -> dict:
+    p = subprocess.run(
+        [str(binary), "time", str(path), "--json"], capture_output=True, text=True, timeout=600
+    )
+    assert p.returncode == 0, f"fracid time {path} exit {p.returncode}\n{p.stderr}"
+    return json.loads(p.stdout)
+
+
+def held_out(out: dict):
+    """fracid's split (estimation ``[0, n_est)``, held out ``[first, n)``), its held-out NRMSE
+    and RMSE and how it validated, from ``fracid time --json``."""
+    n_est = int(out["split"]["estimation_samples"])
+    how = out.get("validated_by") or {}
+    first = int(how.get("first", n_est))
+    val = out["fit"]["validation"]
+    return n_est, first, float(val["nrmse_percent"]), float(val["rmse"]), how.get("kind")
+
+
+# name -> (file under data/, the largest input delay in samples the baseline tries)
+RECORDS = {
+    "dcmotor_prbs_open": ("unal_dcmotor/DCmotor_prbs_open_exp.csv", 10),
+    "closed_speed_loop": ("unal_dcmotor/DCmotor_stairs_closed_exp.csv", 10),
+    "tclab_step": ("apm_tclab/tclab_step_test.csv", 30),
+    "motor_generator_steps": ("sysidentpy_motor_generator/motor_generator_steps.csv", 10),
+    "dcmotor_step_open": ("unal_dcmotor/DCmotor_step_open_exp.csv", 10),
+}
+
+# Where fracid loses, the measured figures and the reason. Measured 2026-11-25 with the lead's
+# binary of issue 29 (`fracid time FILE --json`, defaults) and this file's baseline on fracid's split.
+# An XPASS here means fracid now wins on that record: remove its entry.
+XFAIL: dict[str, str] = {
+    # 4093 samples, dt 0.02 s, open-loop PRBS voltage -> speed. fracid with defaults (pmsm, held
+    # out samples 2865..4093): RMSE 3.792 deg/s (NRMSE 95.71%); baseline order 3 without delay:
+    # RMSE 3.366 (96.19%), order 1 + 1-sample delay 4.958 (94.39%), order 2: 4.960. With
+    # --diagnose fracid reaches 2.978 (96.63%), choosing "second order" + delay 0.0126 s.
+    "dcmotor_prbs_open": (
+        "fracid's held-out RMSE 3.792 (95.71%) vs integer baseline 3.366 (96.19%, third order); "
+        "with --diagnose 2.978 (96.63%), an integer second order + delay chosen"
+    ),
+    # 450 samples, dt 0.02 s, reference stairs r -> speed y, step from rest at t = 0. fracid
+    # validates on the settled tail only (response_tail, samples 428..450): RMSE 4.846 deg/s
+    # (NRMSE -50.77%); baseline order 1 + 3-sample delay: RMSE 3.652 (-13.62%), order 2: 3.856,
+    # order 3: 3.914. With --diagnose fracid reaches 3.895 (commensurate q = 1 + delay 0.035 s).
+    "closed_speed_loop": (
+        "fracid's tail RMSE 4.846 vs integer baseline 3.652 (first order + 3-sample delay); "
+        "with --diagnose 3.895 (commensurate q = 1 + delay), still above the baseline"
+    ),
+    # 571 samples, dt 1 s, heater steps 0 -> 150 -> 10 -> 150, temperature in K. fracid's tail
+    # (samples 520..571): RMSE 0.9207 K (NRMSE 37.63%); baseline order 1 + 15 s delay: RMSE
+    # 0.2837 (80.78%), order 2: 0.3319, order 3: 0.3022. With --diagnose: 0.3404 (76.94%), keeping
+    # a delay of 9.6 s and a periodic term of period 202 s that the heater does not have.
+    "tclab_step": (
+        "fracid's tail RMSE 0.921 K vs integer baseline 0.284 K (first order + 15 s delay): "
+        "with --diagnose 0.340 K, keeping a delay and a periodic term the heater does not have"
+    ),
+    # 5000 samples (the source's 500000 decimated by 100), t in source samples (period not
+    # stated). fracid with defaults exits 1: "covariance singular, fits only -15.9%" (held-out
+    # RMSE 1083); baseline order 3: RMSE 511.8 (NRMSE 45.22%), order 1 + 2-sample delay: 515.4.
+    # With t divided by 1e4 the same data fit 48.70% (RMSE 479.3): fracid depends on the time
+    # unit. With --diagnose: 518.8 (44.47%), first order + delay (an integer model) chosen.
+    "motor_generator_steps": (
+        "fracid with defaults exits 1 (fit -15.9%, singular covariance) where the integer "
+        "baseline holds out 45.2%; the same data with t divided by 1e4 fit 48.7% (time-unit "
+        "dependence)"
+    ),
+}
+
+# fracid's held-out RMSE may exceed the best integer baseline's by at most this fraction. Both are
+# scored on the same samples, so RMSE and NRMSE order the two fits identically; the allowance is
+# stated on RMSE because on a step test's settled tail (``validated_by.kind == "response_tail"``)
+# ``||y - mean(y)||`` is small and NRMSE points magnify noise-level differences. 2%: the baseline
+# is itself a finite multistart optimisation, and a difference of 2% of the residual is a tie.
+TOL_RMSE = 0.02
+
+
+@pytest.mark.parametrize("name", sorted(RECORDS))
+def test_fracid_beats_integer_baseline(fracid_bin, name, request):
+    pytest.importorskip("scipy")
+    rel, max_delay = RECORDS[name]
+    path = DATA / rel
+    if not path.is_file():
+        pytest.fail(f"{path} is missing: the real records ship with the repository in data/")
+    if name in XFAIL:
+        request.node.add_marker(pytest.mark.xfail(reason=XFAIL[name], strict=False))
+    out = run_fracid(fracid_bin, path)
+    n_est, first, fr_nrmse, fr_rmse, kind = held_out(out)
+    t, u, y = load_tuy(path)
+    assert 0 < n_est <= first < len(y), f"{name}: split {n_est}/{first} of {len(y)}"
+    best, rows = integer_baseline(t, u, y, n_est, first, max_delay)
+    table = ", ".join(
+        f"order {r['order']} delay {r['delay_samples']}: {r['val_nrmse']:.2f}% / {r['val_rmse']:.4g}"
+        for r in rows
+    )
+    assert fr_rmse <= best["val_rmse"] * (1.0 + TOL_RMSE), (
+        f"{name} ({kind}): fracid held-out RMSE {fr_rmse:.4g} (NRMSE {fr_nrmse:.2f}%) > integer "
+        f"baseline RMSE {best['val_rmse']:.4g} (NRMSE {best['val_nrmse']:.2f}%); rows: {table}"
+    )
+
+
+def test_zoh_matches_scipy():
+    """The baseline's own discretisation agrees with scipy's (matrix exponential) for each order,
+    with a complex pair and with real poles, to 1e-9 of the step response."""
+    pytest.importorskip("scipy")
+    from scipy.signal import cont2discrete, lfilter
+
+    u = np.ones(3000)  # 30 s: 100 time constants of the slowest mode
+    for order, p in [
+        (1, [np.log(0.3)]),
+        (2, [np.log(20.0), np.log(0.1)]),
+        (2, [np.log(20.0), np.log(3.0)]),
+        (3, [np.log(20.0), np.log(0.05), np.log(0.2)]),
+    ]:
+        den = _den(order, np.array(p))
+        b, a = _zoh(2.5, den, 0.01)
+        bs, as_, _ = cont2discrete(([2.5], den), 0.01, method="zoh")
+        ours = lfilter(b, a, u)
+        ref = lfilter(np.squeeze(bs), as_, u)
+        assert np.max(np.abs(ours - ref)) < 1e-9 * 2.5, (order, p)
+        # and the static gain is K
+        assert ours[-1] == pytest.approx(2.5, rel=1e-3)  # the static gain is K
+
+
+def test_baseline_recovers_a_known_first_order_with_delay():
+    """The baseline against an analytic truth (not itself): a step at t = 1 s into
+    ``2 exp(-0.3 s) / (1 + 0.5 s)`` sampled at 0.05 s, from rest at an output offset of 10, with
+    Gaussian noise of 1% of the step (seeded). Gain within 2%, time constant within 5%, delay
+    exactly 6 samples (0.3 s), the initial output 10 within 0.02, and the held-out RMSE at the
+    noise level (< 0.03 for noise 0.02): a broken fit or discretisation
+    fails here before it can flatter or wrong fracid on the real records."""
+    pytest.importorskip("scipy")
+    dt = 0.05
+    t = np.arange(400) * dt
+    u = (t >= 1.0).astype(float)
+    tt = np.clip(t - 1.0 - 0.3, 0.0, None)
+    y = 10.0 + 2.0 * (1.0 - np.exp(-tt / 0.5)) * (t >= 1.3)
+    y = y + 0.02 * np.random.default_rng(29).standard_normal(t.size)
+    # hold out the last 30% with the step inside the estimation part
+    best, rows = integer_baseline(t, u, y, 280, 280, 10)
+    first = rows[0]
+    assert first["delay_samples"] == 6
+    assert first["theta"][0] == pytest.approx(2.0, rel=0.02)
+    assert np.exp(first["theta"][3]) == pytest.approx(0.5, rel=0.05)
+    assert first["theta"][1] + first["theta"][0] * first["theta"][2] == pytest.approx(10.0, abs=0.02)
+    # on a tail this flat the fit percentage is noise-bound; the RMSE is at the noise level
+    assert first["val_rmse"] < 0.03
