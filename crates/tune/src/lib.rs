@@ -13,9 +13,12 @@
 mod error;
 
 pub mod analysis;
+pub mod closed;
 pub mod controller;
 pub mod design;
 pub mod plant;
+pub mod realise;
+pub mod report;
 
 pub use analysis::LoopMetrics;
 pub use controller::{Controller, Form};
