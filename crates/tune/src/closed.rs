@@ -69,6 +69,93 @@ pub struct LoopRun {
     pub y: Vec<f64>,
 }
 
+/// A static effect at the plant's input that `fracid time --diagnose` keeps (ident's
+/// `oe::Effect`, applied in the same order and the same way: to the absolute input, friction with
+/// the output extrapolated to the middle of the hold interval).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[serde(tag = "name", rename_all = "snake_case")]
+pub enum InputEffect {
+    /// `u + u_offset`.
+    InputOffset {
+        /// The offset, input units.
+        u_offset: f64,
+    },
+    /// Coulomb friction as an equivalent input: `u - Vc sign(y)`.
+    CoulombFriction {
+        /// `Vc`, input units.
+        vc: f64,
+    },
+    /// `clamp(u, -level, level)`.
+    Saturation {
+        /// The level, input units.
+        level: f64,
+    },
+    /// `0` for `|u| < width`, else `u - width sign(u)`.
+    Deadzone {
+        /// The half width, input units.
+        width: f64,
+    },
+}
+
+fn sign(x: f64) -> f64 {
+    if x > 0.0 {
+        1.0
+    } else if x < 0.0 {
+        -1.0
+    } else {
+        0.0
+    }
+}
+
+impl InputEffect {
+    /// The effect of a diagnosis report's kept effect (`name` and its parameters as the report
+    /// names them); `None` for an effect that is not at the input (output offset, sensor, an
+    /// output sinusoid) or the delay (already in the model).
+    ///
+    /// # Errors
+    /// A known effect without its parameter, or a non-finite one.
+    pub fn from_report(name: &str, param: impl Fn(&str) -> Option<f64>) -> Result<Option<Self>> {
+        let get = |k: &str| -> Result<f64> {
+            match param(k) {
+                Some(v) if v.is_finite() => Ok(v),
+                _ => invalid(
+                    "effect",
+                    format!("{name} without a finite \"{k}\" parameter"),
+                ),
+            }
+        };
+        Ok(Some(match name {
+            "input_offset" => Self::InputOffset {
+                u_offset: get("u_offset")?,
+            },
+            "coulomb_friction" => Self::CoulombFriction { vc: get("Vc")? },
+            "saturation" => Self::Saturation {
+                level: get("level")?.abs(),
+            },
+            "deadzone" => Self::Deadzone {
+                width: get("width")?.abs(),
+            },
+            _ => return Ok(None),
+        }))
+    }
+
+    /// The input after the effect, given the output `y` seen.
+    pub fn apply(&self, u: f64, y: f64) -> f64 {
+        match *self {
+            Self::InputOffset { u_offset } => u + u_offset,
+            Self::CoulombFriction { vc } => u - vc * sign(y),
+            Self::Saturation { level } => u.clamp(-level, level),
+            Self::Deadzone { width } => {
+                if u.abs() < width {
+                    0.0
+                } else {
+                    u - width * sign(u)
+                }
+            }
+        }
+    }
+}
+
 /// The most fine steps a simulation runs.
 pub const MAX_STEPS: usize = 2_000_000;
 
@@ -95,17 +182,20 @@ impl Sys {
 }
 
 /// Simulate the loop of `model` and the controller `c` (its realisation by
-/// [`crate::realise::discrete`] with `spec`).
+/// [`crate::realise::discrete`] with `spec`), the `effects` applied in order to the controller's
+/// output before the load adds to it: `u_plant = effects(u) + d`. The controller has no
+/// anti-windup: what a saturation does to the design shows.
 ///
 /// # Errors
 /// A bad setup (non-positive step or duration, more than [`MAX_STEPS`] steps, `dt` not a
-/// multiple of `h`), the errors of the approximations and discretisations, a non-finite
-/// response (a loop that diverges numerically).
+/// multiple of `h`), effects on a model with feed-through, the errors of the approximations and
+/// discretisations, a non-finite response (a loop that diverges numerically).
 pub fn simulate(
     model: &FracTf,
     c: &Controller,
     setup: &LoopSetup,
     spec: &ApproxSpec,
+    effects: &[InputEffect],
 ) -> Result<LoopRun> {
     let h = setup.h;
     if !(h > 0.0 && setup.duration > 0.0 && setup.duration.is_finite()) {
@@ -135,6 +225,14 @@ pub fn simulate(
     let css = crate::realise::discrete(c, h * m as f64, spec)?;
     let mut ctrl = Sys::new(css);
     let (dp, dc) = (plant.ss.d, ctrl.ss.d);
+    if !effects.is_empty() && dp != 0.0 {
+        return invalid(
+            "effects",
+            "input effects on a model with a direct feed-through (no delay, proper but not \
+             strictly): the loop would be implicit through a nonlinearity",
+        );
+    }
+    let mut y_prev = 0.0;
     let mut run = LoopRun {
         t: Vec::with_capacity(n),
         r: Vec::with_capacity(n),
@@ -160,7 +258,11 @@ pub fn simulate(
         } else {
             y = plant.free() + dp * (u + d);
         }
-        plant.advance(u + d);
+        // the output over the hold interval, extrapolated to its middle (as ident does)
+        let seen = if k > 0 { y + 0.5 * (y - y_prev) } else { y };
+        y_prev = y;
+        let v = effects.iter().fold(u, |v, e| e.apply(v, seen));
+        plant.advance(v + d);
         if !(y.is_finite() && u.is_finite()) {
             return Err(fracsim::Error::Numerical(format!(
                 "the closed loop's response is not finite at t = {t} s"

@@ -1,7 +1,7 @@
 //! The whole of `fracid tune`'s answer as one serialisable report (the CLI's `--json` and
 //! Python's `fracid.tune` give the same document).
 
-use crate::closed::{self, LoopRun, LoopSetup, StepMetrics};
+use crate::closed::{self, InputEffect, LoopRun, LoopSetup, StepMetrics};
 use crate::controller::Controller;
 use crate::design::{design, Design, Spec};
 use crate::error::Result;
@@ -135,8 +135,12 @@ pub struct Report {
     pub loop_: LoopMetrics,
     /// The discrete realisation (with `--dt`).
     pub discrete: Option<DiscreteJson>,
-    /// The closed loop simulated.
+    /// The closed loop simulated (linear).
     pub step: StepJson,
+    /// The input effects of the model's diagnosis, simulated in the loop.
+    pub effects: Vec<InputEffect>,
+    /// The closed loop simulated with those effects (`None` without effects).
+    pub step_with_effects: Option<StepMetrics>,
     /// The integer PI for the same wc and pm.
     pub integer_pi: Comparison,
 }
@@ -146,17 +150,31 @@ pub struct Report {
 pub struct Runs {
     /// The designed loop's run.
     pub design: LoopRun,
+    /// The designed loop with the model's input effects, if it has any.
+    pub with_effects: Option<LoopRun>,
     /// The integer PI's run, if it exists.
     pub pi: Option<LoopRun>,
     /// The integer PI, if it exists.
     pub pi_controller: Option<Controller>,
 }
 
+/// What the simulations use beyond the specification.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct SimOptions {
+    /// The reference step (default 1, output units).
+    pub step: Option<f64>,
+    /// The load step at the plant's input (default: the input that holds the reference step,
+    /// `step / G(0)`; `step` for a model that integrates).
+    pub load: Option<f64>,
+    /// The model's input effects (from its diagnosis).
+    pub effects: Vec<InputEffect>,
+}
+
 /// Design, realise, simulate and compare: the report and its signals.
 ///
 /// # Errors
 /// Those of [`design`], of the realisation and of the simulation.
-pub fn tune(model: &FracTf, spec: &Spec) -> Result<(Report, Runs)> {
+pub fn tune(model: &FracTf, spec: &Spec, opts: &SimOptions) -> Result<(Report, Runs)> {
     let approx = ApproxSpec::default();
     let Design {
         controller: c,
@@ -170,8 +188,29 @@ pub fn tune(model: &FracTf, spec: &Spec) -> Result<(Report, Runs)> {
         )),
         None => None,
     };
-    let setup = LoopSetup::for_crossover(spec.wc, spec.dt);
-    let run = closed::simulate(model, &c, &setup, &approx)?;
+    let mut setup = LoopSetup::for_crossover(spec.wc, spec.dt);
+    setup.step = opts.step.unwrap_or(1.0);
+    let k0 = model.dc_gain();
+    setup.load = opts.load.unwrap_or(if k0.is_finite() && k0 != 0.0 {
+        setup.step / k0
+    } else {
+        setup.step
+    });
+    if !(setup.step.is_finite() && setup.step != 0.0 && setup.load.is_finite()) {
+        return crate::error::invalid(
+            "step",
+            format!(
+                "the reference step ({}) must be finite and nonzero, the load ({}) finite",
+                setup.step, setup.load
+            ),
+        );
+    }
+    let run = closed::simulate(model, &c, &setup, &approx, &[])?;
+    let with_effects = if opts.effects.is_empty() {
+        None
+    } else {
+        Some(closed::simulate(model, &c, &setup, &approx, &opts.effects)?)
+    };
     let step = StepJson {
         setup,
         metrics: closed::metrics(&run, &setup),
@@ -186,7 +225,7 @@ pub fn tune(model: &FracTf, spec: &Spec) -> Result<(Report, Runs)> {
     };
     let (integer_pi, pi_run, pi_c) = match design(model, &pi_spec) {
         Ok(d) => {
-            let r = closed::simulate(model, &d.controller, &setup, &approx)?;
+            let r = closed::simulate(model, &d.controller, &setup, &approx, &[])?;
             (
                 Comparison {
                     params: Some(d.controller),
@@ -217,12 +256,15 @@ pub fn tune(model: &FracTf, spec: &Spec) -> Result<(Report, Runs)> {
         loop_: metrics,
         discrete,
         step,
+        effects: opts.effects.clone(),
+        step_with_effects: with_effects.as_ref().map(|r| closed::metrics(r, &setup)),
         integer_pi,
     };
     Ok((
         report,
         Runs {
             design: run,
+            with_effects,
             pi: pi_run,
             pi_controller: pi_c,
         },

@@ -11,7 +11,8 @@ use plotters::prelude::*;
 use serde_json::Value;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
-use tune::report::{Report, Runs};
+use tune::closed::InputEffect;
+use tune::report::{Report, Runs, SimOptions};
 use tune::{Controller, GainBound, Plant, Spec};
 
 /// Options of `fracid tune`.
@@ -47,6 +48,13 @@ pub struct TuneArgs {
     /// the controller's discrete realisation is given.
     #[arg(long)]
     pub dt: Option<f64>,
+    /// The reference step of the simulated loop, output units.
+    #[arg(long, default_value_t = 1.0)]
+    pub step: f64,
+    /// The load step at the plant's input, input units (default: the input that holds the
+    /// reference step, step / G(0)).
+    #[arg(long)]
+    pub load: Option<f64>,
     /// Write the report as JSON to stdout instead of text.
     #[arg(long)]
     pub json: bool,
@@ -56,15 +64,15 @@ pub struct TuneArgs {
     pub plot: Option<PathBuf>,
 }
 
-/// The final model of `text`: a JSON report's "diagnosis.model" or "model", or a transfer
-/// function.
-fn load_model(text: &str) -> Result<FracTf> {
+/// The final model of `text` and its input effects: a JSON report's "diagnosis.model" (with
+/// "diagnosis.effects") or "model", or a transfer function.
+fn load_model(text: &str) -> Result<(FracTf, Vec<InputEffect>, Vec<String>)> {
     let p = Path::new(text);
     if !p
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("json"))
     {
-        return super::export::load_model(text);
+        return Ok((super::export::load_model(text)?, vec![], vec![]));
     }
     let raw = std::fs::read_to_string(p)
         .with_context(|| format!("cannot read model file {}", p.display()))?;
@@ -72,12 +80,36 @@ fn load_model(text: &str) -> Result<FracTf> {
         Ok(v) => v,
         Err(e) => bad_input!("{}: not JSON: {e}", p.display()),
     };
-    let m = v
-        .get("diagnosis")
+    let diag = v.get("diagnosis").filter(|d| d.get("model").is_some());
+    let m = diag
         .and_then(|d| d.get("model"))
         .or_else(|| v.get("model"))
         .unwrap_or(&v);
-    super::export::model_from_json(m).with_context(|| format!("in {}", p.display()))
+    let g = super::export::model_from_json(m).with_context(|| format!("in {}", p.display()))?;
+    let (mut effects, mut left) = (Vec::new(), Vec::new());
+    let kept = diag
+        .and_then(|d| d.get("effects"))
+        .and_then(Value::as_array)
+        .cloned()
+        .unwrap_or_default();
+    for e in &kept {
+        let Some(name) = e.get("name").and_then(Value::as_str) else {
+            continue;
+        };
+        let param = |k: &str| {
+            e.get("params")
+                .and_then(|p| p.get(k))
+                .and_then(Value::as_f64)
+        };
+        match InputEffect::from_report(name, param)
+            .with_context(|| format!("in {}", p.display()))?
+        {
+            Some(fx) => effects.push(fx),
+            None if name == "delay" => {}
+            None => left.push(name.to_string()),
+        }
+    }
+    Ok((g, effects, left))
 }
 
 fn parse_bound(name: &str, s: &str) -> Result<GainBound> {
@@ -118,9 +150,19 @@ pub fn run(a: TuneArgs) -> Result<()> {
     if let Some(p) = &a.plot {
         plot::format_of(p)?;
     }
-    let g = load_model(&a.model)?;
+    let (g, effects, left) = load_model(&a.model)?;
+    for name in &left {
+        eprintln!(
+            "note: the model's effect '{name}' acts on the output, not in the loop: not simulated"
+        );
+    }
     let spec = spec_of(&a)?;
-    let (report, runs) = tune::report::tune(&g, &spec)?;
+    let opts = SimOptions {
+        step: Some(a.step),
+        load: a.load,
+        effects,
+    };
+    let (report, runs) = tune::report::tune(&g, &spec, &opts)?;
     if a.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
     } else {
@@ -387,6 +429,13 @@ impl Figure for TuneFigure<'_> {
                 style: BLUE.stroke_width(2),
             },
         ];
+        if let Some(fx) = &self.runs.with_effects {
+            lines.push(Line {
+                label: Some("y, design with the model's effects"),
+                values: &fx.y,
+                style: BLUE.mix(0.5).stroke_width(1),
+            });
+        }
         if let Some(pi) = &self.runs.pi {
             lines.push(Line {
                 label: Some("y, integer PI"),

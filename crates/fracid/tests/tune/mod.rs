@@ -132,8 +132,13 @@ fn the_final_model_of_a_diagnosis_report_is_used() {
             "num": [term(6.77, 0.0)],
             "den": [term(0.000028, 1.78), term(0.0064, 0.89), term(1.0, 0.0)],
             "delay": 0.001,
-            "effects": ["delay"]
-        }}
+            "effects": ["delay", "saturation", "output_offset"]
+        },
+        "effects": [
+            {"name": "delay", "params": {"tau": 0.001}},
+            {"name": "saturation", "params": {"level": 0.2}},
+            {"name": "output_offset", "params": {"y_offset": 0.01}}
+        ]}
     });
     std::fs::write(&p, doc.to_string()).unwrap();
     let v = json_of(&fracid(&[
