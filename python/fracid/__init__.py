@@ -27,10 +27,13 @@ fit_bode, error_index, load_bode
     Frequency-domain identification (weighted Levy, order search, SK, PMSM refit).
 fit_time
     Time-domain output-error identification (Levenberg-Marquardt, exact sensitivities).
+tune
+    A fractional PI/PID (or integer PI/PID) designed on a model for a crossover, a phase margin
+    and a flat phase; its discrete realisation and its closed loop simulated.
 DriveClient, DriveSimulator, Acquisition, BodeSweep
     Acquisition from the servo drive over its serial protocol (PRBS records, sine sweeps), and a
     simulated drive on a pseudo-terminal.
-FracidError, ParseError, DataError, NumericalError, DriveError
+FracidError, ParseError, DataError, NumericalError, InfeasibleError, DriveError
     The exceptions.
 """
 
@@ -44,10 +47,18 @@ import numpy as np
 import numpy.typing as npt
 
 from ._drive import DriveClient
-from ._errors import DataError, DriveError, FracidError, NumericalError, ParseError
+from ._errors import (
+    DataError,
+    DriveError,
+    FracidError,
+    InfeasibleError,
+    NumericalError,
+    ParseError,
+)
 from ._fracid import DriveSimulator, FracTf, __version__, error_index, gl_simulate, prbs
 from ._fracid import _fit_bode, _fit_time, _load_bode, _load_csv
 from ._export import StateSpace
+from ._tune import tune
 from ._results import (
     Acquisition,
     BodeSweep,
@@ -85,6 +96,7 @@ __all__ = [
     "Diagnosis",
     "Effect",
     "diagnose",
+    "tune",
     "DriveClient",
     "DriveSimulator",
     "Acquisition",
@@ -93,6 +105,7 @@ __all__ = [
     "ParseError",
     "DataError",
     "NumericalError",
+    "InfeasibleError",
     "DriveError",
     "__version__",
 ]

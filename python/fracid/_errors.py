@@ -9,13 +9,22 @@ Rust error unchanged.
   (also a :class:`ValueError`).
 - :class:`NumericalError` -- a numerical breakdown: a singular solve, a simulation that diverges
   (also an :class:`ArithmeticError`).
+- :class:`InfeasibleError` -- a controller specification that no controller of the form meets
+  (:func:`fracid.tune`; the message gives the reason; also a :class:`ValueError`).
 - :class:`DriveError` -- the drive or the serial link: a port that cannot be opened, a drive that
   does not answer, rejects a command or resets, a run before ``configure()``.
 """
 
 from __future__ import annotations
 
-__all__ = ["FracidError", "ParseError", "DataError", "NumericalError", "DriveError"]
+__all__ = [
+    "FracidError",
+    "ParseError",
+    "DataError",
+    "NumericalError",
+    "InfeasibleError",
+    "DriveError",
+]
 
 
 class FracidError(Exception):
@@ -32,6 +41,12 @@ class DataError(FracidError, ValueError):
 
 class NumericalError(FracidError, ArithmeticError):
     """A computation broke down numerically (singular system, non-finite simulation)."""
+
+
+class InfeasibleError(FracidError, ValueError):
+    """A controller specification (crossover, phase margin, flatness, bounds) that no controller
+    of the requested form meets; the message says why. The design is refused rather than returned
+    missing the specification."""
 
 
 class DriveError(FracidError):

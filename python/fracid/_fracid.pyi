@@ -196,6 +196,21 @@ def _fit_time(
     max_rounds: int = 3,
 ) -> Dict[str, Any]: ...
 
+def _tune(
+    model: Union[FracTf, str],
+    wc: float,
+    pm: float,
+    form: str = ...,
+    flat: bool = ...,
+    dt: Optional[float] = ...,
+    t_high: Optional[Tuple[float, float]] = ...,
+    s_low: Optional[Tuple[float, float]] = ...,
+    lambda_: Optional[float] = ...,
+    step: float = ...,
+    load: Optional[float] = ...,
+    effects: List[Tuple[str, Dict[str, float]]] = ...,
+) -> str: ...
+
 class DriveSimulator:
     """A simulated TI F2812 servo drive on a pseudo-terminal, speaking the fracid serial protocol.
 

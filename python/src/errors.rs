@@ -18,6 +18,8 @@ pub(crate) enum Kind {
     Numerical,
     /// The drive or the serial link failed (port, timeout, rejected command, reset).
     Drive,
+    /// A controller specification no controller of the form meets (`fracid.tune`).
+    Infeasible,
 }
 
 impl Kind {
@@ -27,6 +29,7 @@ impl Kind {
             Self::Data => "DataError",
             Self::Numerical => "NumericalError",
             Self::Drive => "DriveError",
+            Self::Infeasible => "InfeasibleError",
         }
     }
 }

@@ -14,6 +14,7 @@ mod freq;
 mod readers;
 mod tf;
 mod time;
+mod tune;
 
 use pyo3::prelude::*;
 
@@ -26,6 +27,7 @@ fn _fracid(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(freq::_fit_bode, m)?)?;
     m.add_function(wrap_pyfunction!(freq::error_index, m)?)?;
     m.add_function(wrap_pyfunction!(time::_fit_time, m)?)?;
+    m.add_function(wrap_pyfunction!(tune::_tune, m)?)?;
     m.add_function(wrap_pyfunction!(readers::_load_csv, m)?)?;
     m.add_function(wrap_pyfunction!(readers::_load_bode, m)?)?;
     m.add_class::<drive_client::PyDriveSimulator>()?;

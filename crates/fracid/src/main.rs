@@ -39,11 +39,15 @@ enum Commands {
     /// Export a model's approximation as a state space (continuous, or discrete with the exact
     /// hold) to JSON or a MATLAB script.
     Export(cmd::export::ExportArgs),
+    /// Design a fractional PI/PID (or integer PI/PID) on a model for a crossover, a phase margin
+    /// and a flat phase; its discrete realisation and its closed loop simulated.
+    Tune(Box<cmd::tune::TuneArgs>),
 }
 
 /// Exit codes: 0 success, 1 runtime failure (numerical breakdown, fit failure, drive fault),
 /// 2 bad input (malformed model, data or options; clap also uses 2 for usage errors),
-/// 3 I/O (a file or port that cannot be opened or written), 128 + N for a drive run ended by
+/// 3 I/O (a file or port that cannot be opened or written); an impossible `tune` specification
+/// is a runtime failure (1), 128 + N for a drive run ended by
 /// signal N after its record was finished (130 Ctrl-C, 143 SIGTERM, 129 SIGHUP). Drive faults (timeouts, NAKs, protocol
 /// violations, a reset) are runtime failures.
 fn exit_code(err: &anyhow::Error) -> u8 {
@@ -73,6 +77,13 @@ fn exit_code(err: &anyhow::Error) -> u8 {
                 drive::Error::InvalidParam(_) => 2,
                 drive::Error::Io(_) | drive::Error::Port { .. } => 3,
                 _ => 1,
+            };
+        }
+        if let Some(e) = cause.downcast_ref::<tune::Error>() {
+            return match e {
+                tune::Error::Infeasible(_) => 1,
+                tune::Error::Sim(fracsim::Error::Numerical(_)) => 1,
+                _ => 2,
             };
         }
         if cause.downcast_ref::<cmd::BadInput>().is_some() {
@@ -147,6 +158,7 @@ fn main() -> ExitCode {
         Commands::Compare(a) => cmd::compare::run(a),
         Commands::Score(a) => cmd::score::run(a),
         Commands::Export(a) => cmd::export::run(a),
+        Commands::Tune(a) => cmd::tune::run(*a),
     });
     let result = match std::panic::catch_unwind(run) {
         Ok(r) => r,

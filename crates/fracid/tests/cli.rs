@@ -6,6 +6,7 @@ mod fleet;
 mod freq;
 mod reliability;
 mod time;
+mod tune;
 
 use std::process::{Command, Output};
 

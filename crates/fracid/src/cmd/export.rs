@@ -63,7 +63,7 @@ pub fn load_model(text: &str) -> Result<FracTf> {
 }
 
 /// `{"num": [{"coef", "order"}], "den": [...], "delay"}` (docs/design.md §7) as a [`FracTf`].
-fn model_from_json(m: &Value) -> Result<FracTf> {
+pub fn model_from_json(m: &Value) -> Result<FracTf> {
     let terms = |key: &str| -> Result<Vec<Term>> {
         let Some(arr) = m.get(key).and_then(Value::as_array) else {
             bad_input!("no \"model\" object with a \"{key}\" list of {{coef, order}} terms");

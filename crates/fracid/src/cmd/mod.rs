@@ -10,6 +10,7 @@ pub mod freq;
 pub mod score;
 pub mod sim;
 pub mod time;
+pub mod tune;
 
 /// Bad user input found by the CLI itself (as opposed to the library crates): exit code 2.
 #[derive(Debug, thiserror::Error)]

@@ -1,0 +1,184 @@
+//! `fracid tune`: the must-show request end to end (the JSON's controller evaluated here, from its
+//! `{num, den}` terms, with the model's terms), the impossible one refused with exit 1, bad
+//! requests exit 2, the final model of a diagnosis report used.
+
+use super::fracid;
+
+const PMSM: &str = "6.77/(0.000028 s^1.78 + 0.0064 s^0.89 + 1) exp(-0.001 s)";
+
+fn json_of(out: &std::process::Output) -> serde_json::Value {
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).unwrap()
+}
+
+/// `sum coef (j w)^order` of a JSON term list, as `(re, im)`.
+fn poly(terms: &serde_json::Value, w: f64) -> (f64, f64) {
+    terms
+        .as_array()
+        .unwrap()
+        .iter()
+        .fold((0.0, 0.0), |(re, im), t| {
+            let (c, o) = (t["coef"].as_f64().unwrap(), t["order"].as_f64().unwrap());
+            let (m, a) = (c * w.powf(o), o * std::f64::consts::FRAC_PI_2);
+            (re + m * a.cos(), im + m * a.sin())
+        })
+}
+
+fn div(a: (f64, f64), b: (f64, f64)) -> (f64, f64) {
+    let d = b.0 * b.0 + b.1 * b.1;
+    ((a.0 * b.0 + a.1 * b.1) / d, (a.1 * b.0 - a.0 * b.1) / d)
+}
+
+fn mul(a: (f64, f64), b: (f64, f64)) -> (f64, f64) {
+    (a.0 * b.0 - a.1 * b.1, a.0 * b.1 + a.1 * b.0)
+}
+
+/// `L(j w)` from the report's model and controller (both `{num, den, delay}`).
+fn l(v: &serde_json::Value, w: f64) -> (f64, f64) {
+    let tf = |m: &serde_json::Value| {
+        let g = div(poly(&m["num"], w), poly(&m["den"], w));
+        let tau = m["delay"].as_f64().unwrap();
+        mul(g, ((-w * tau).cos(), (-w * tau).sin()))
+    };
+    mul(tf(&v["model"]), tf(&v["controller"]))
+}
+
+#[test]
+fn fopi_flat_on_the_pmsm_meets_the_specification() {
+    let v = json_of(&fracid(&[
+        "tune", PMSM, "--wc", "300", "--pm", "60", "--flat", "--json",
+    ]));
+    let lw = l(&v, 300.0);
+    let mag = lw.0.hypot(lw.1);
+    let pm = 180.0 + lw.1.atan2(lw.0).to_degrees();
+    assert!((mag - 1.0).abs() < 0.01, "|L| = {mag}");
+    assert!((pm - 60.0).abs() < 1.0, "pm = {pm}");
+    let h: f64 = 1e-4;
+    let (a, b) = (l(&v, 300.0 * (-h).exp()), l(&v, 300.0 * h.exp()));
+    let slope = div(b, a).1.atan2(div(b, a).0) / (2.0 * h);
+    assert!(slope.abs() <= 0.05, "slope {slope}");
+    for k in ["kp", "ki", "lambda", "kd", "mu"] {
+        assert!(v["params"][k].is_number(), "params.{k}");
+    }
+    for k in ["wc", "pm_deg", "gm_db", "ms"] {
+        assert!(v["loop"][k].is_number(), "loop.{k}");
+    }
+    assert!(v["loop"]["ms"].as_f64().unwrap() > 1.0);
+    assert!(v["discrete"].is_null());
+    assert!(v["integer_pi"]["params"]["ki"].as_f64().unwrap() > 0.0);
+}
+
+#[test]
+fn sampled_design_gives_a_discrete_realisation() {
+    let v = json_of(&fracid(&[
+        "tune", PMSM, "--wc", "50", "--pm", "60", "--flat", "--dt", "0.001", "--json",
+    ]));
+    let d = &v["discrete"];
+    assert_eq!(d["dt"].as_f64(), Some(0.001));
+    let n = d["states"].as_u64().unwrap() as usize;
+    assert_eq!(d["a"].as_array().unwrap().len(), n);
+    assert_eq!(d["c"][0].as_array().unwrap().len(), n);
+    // the sampled loop with the realisation stays near the design (its extra lags are small)
+    let m = &d["sampled_loop"];
+    assert!((m["wc"].as_f64().unwrap() / 50.0 - 1.0).abs() < 0.05, "{m}");
+    assert!((m["pm_deg"].as_f64().unwrap() - 60.0).abs() < 5.0, "{m}");
+}
+
+#[test]
+fn impossible_specification_exits_1_with_the_reason() {
+    let out = fracid(&["tune", PMSM, "--wc", "3000", "--pm", "89", "--flat"]);
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("impossible specification"), "{err}");
+    assert!(err.contains("phase"), "{err}");
+    assert!(out.stdout.is_empty());
+}
+
+#[test]
+fn bad_requests_exit_2() {
+    for args in [
+        vec!["tune", PMSM, "--wc", "300", "--pm", "60", "--form", "fopid"],
+        vec!["tune", PMSM, "--wc", "300", "--pm", "60", "--form", "xyz"],
+        vec!["tune", PMSM, "--wc", "-3", "--pm", "60"],
+        vec![
+            "tune", PMSM, "--wc", "300", "--pm", "60", "--form", "fopid", "--flat", "--t-high",
+            "3000",
+        ],
+        vec!["tune", "1/(s + ", "--wc", "300", "--pm", "60"],
+    ] {
+        let out = fracid(&args);
+        assert_eq!(
+            out.status.code(),
+            Some(2),
+            "{args:?}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+}
+
+/// A `time --diagnose` report: the final model is `diagnosis.model`, not the base fit's `model`.
+#[test]
+fn the_final_model_of_a_diagnosis_report_is_used() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("fit.json");
+    let term = |c: f64, o: f64| serde_json::json!({"coef": c, "order": o});
+    let doc = serde_json::json!({
+        "model": {"num": [term(1.0, 0.0)], "den": [term(0.01, 1.0), term(1.0, 0.0)], "delay": 0.0},
+        "diagnosis": {"model": {
+            "num": [term(6.77, 0.0)],
+            "den": [term(0.000028, 1.78), term(0.0064, 0.89), term(1.0, 0.0)],
+            "delay": 0.001,
+            "effects": ["delay", "saturation", "output_offset"]
+        },
+        "effects": [
+            {"name": "delay", "params": {"tau": 0.001}},
+            {"name": "saturation", "params": {"level": 0.2}},
+            {"name": "output_offset", "params": {"y_offset": 0.01}}
+        ]}
+    });
+    std::fs::write(&p, doc.to_string()).unwrap();
+    let v = json_of(&fracid(&[
+        "tune",
+        p.to_str().unwrap(),
+        "--wc",
+        "300",
+        "--pm",
+        "60",
+        "--flat",
+        "--json",
+    ]));
+    assert_eq!(v["model"]["delay"].as_f64(), Some(0.001));
+    assert_eq!(v["model"]["den"].as_array().unwrap().len(), 3);
+}
+
+#[test]
+fn text_and_plot() {
+    let dir = tempfile::tempdir().unwrap();
+    let png = dir.path().join("tune.png");
+    let out = fracid(&[
+        "tune",
+        PMSM,
+        "--wc",
+        "300",
+        "--pm",
+        "60",
+        "--flat",
+        "--plot",
+        png.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        text.contains("controller: C(s) =") && text.contains("integer PI:"),
+        "{text}"
+    );
+    assert!(std::fs::metadata(&png).unwrap().len() > 10_000);
+}

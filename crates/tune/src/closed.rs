@@ -1,0 +1,342 @@
+//! The closed loop simulated: a reference step, then a load step at the plant's input.
+//!
+//! `y = P (u + d)`, `u = C (r - y)`. The plant (its delay included) and the controller are each
+//! approximated and discretised exactly for a held input at a fine step `h`
+//! ([`fracsim::export::discrete`]); the loop is closed at every fine step (the continuous loop,
+//! up to the hold over `h`), or, for a sampled controller (period `dt = m h`), every `m` fine
+//! steps with the controller's output held in between, as on the drive. An algebraic loop (both
+//! with a feed-through) is solved at each step: `y = (C_p x_p + D_p (C_c x_c + D_c r + d)) /
+//! (1 + D_p D_c)`.
+
+use crate::controller::Controller;
+use crate::error::{invalid, Result};
+use fracsim::export::{self, StateSpace};
+use fracsim::{ApproxSpec, FracTf};
+use nalgebra::DVector;
+use serde::Serialize;
+
+/// What to simulate.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct LoopSetup {
+    /// The reference step's amplitude, applied at `t = 0`.
+    pub step: f64,
+    /// The load step's amplitude (added to the plant's input), applied at [`LoopSetup::t_load`].
+    pub load: f64,
+    /// When the load step comes, seconds.
+    pub t_load: f64,
+    /// The record's length, seconds.
+    pub duration: f64,
+    /// The fine step of the simulation, seconds.
+    pub h: f64,
+    /// The controller's sample period (a multiple of `h`); `None`: continuous.
+    pub dt: Option<f64>,
+}
+
+impl LoopSetup {
+    /// The default for a crossover `wc` rad/s: unit steps, the load at `40/wc` s, twice that
+    /// long, `h = 0.02/wc` (about 300 steps per crossover period), or `dt/m` for the largest
+    /// such step below it when the controller is sampled every `dt`.
+    pub fn for_crossover(wc: f64, dt: Option<f64>) -> Self {
+        let t_load = 40.0 / wc;
+        let h0 = 0.02 / wc;
+        let h = match dt {
+            Some(dt) => dt / (dt / h0).ceil().max(1.0),
+            None => h0,
+        };
+        Self {
+            step: 1.0,
+            load: 1.0,
+            t_load,
+            duration: 2.0 * t_load,
+            h,
+            dt,
+        }
+    }
+}
+
+/// A simulated closed loop, one row per fine step.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct LoopRun {
+    /// Time, seconds.
+    pub t: Vec<f64>,
+    /// Reference.
+    pub r: Vec<f64>,
+    /// Load disturbance at the plant's input.
+    pub d: Vec<f64>,
+    /// Controller output.
+    pub u: Vec<f64>,
+    /// Plant output.
+    pub y: Vec<f64>,
+}
+
+/// A static effect at the plant's input that `fracid time --diagnose` keeps (ident's
+/// `oe::Effect`, applied in the same order and the same way: to the absolute input, friction with
+/// the output extrapolated to the middle of the hold interval).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[serde(tag = "name", rename_all = "snake_case")]
+pub enum InputEffect {
+    /// `u + u_offset`.
+    InputOffset {
+        /// The offset, input units.
+        u_offset: f64,
+    },
+    /// Coulomb friction as an equivalent input: `u - Vc sign(y)`.
+    CoulombFriction {
+        /// `Vc`, input units.
+        vc: f64,
+    },
+    /// `clamp(u, -level, level)`.
+    Saturation {
+        /// The level, input units.
+        level: f64,
+    },
+    /// `0` for `|u| < width`, else `u - width sign(u)`.
+    Deadzone {
+        /// The half width, input units.
+        width: f64,
+    },
+}
+
+fn sign(x: f64) -> f64 {
+    if x > 0.0 {
+        1.0
+    } else if x < 0.0 {
+        -1.0
+    } else {
+        0.0
+    }
+}
+
+impl InputEffect {
+    /// The effect of a diagnosis report's kept effect (`name` and its parameters as the report
+    /// names them); `None` for an effect that is not at the input (output offset, sensor, an
+    /// output sinusoid) or the delay (already in the model).
+    ///
+    /// # Errors
+    /// A known effect without its parameter, or a non-finite one.
+    pub fn from_report(name: &str, param: impl Fn(&str) -> Option<f64>) -> Result<Option<Self>> {
+        let get = |k: &str| -> Result<f64> {
+            match param(k) {
+                Some(v) if v.is_finite() => Ok(v),
+                _ => invalid(
+                    "effect",
+                    format!("{name} without a finite \"{k}\" parameter"),
+                ),
+            }
+        };
+        Ok(Some(match name {
+            "input_offset" => Self::InputOffset {
+                u_offset: get("u_offset")?,
+            },
+            "coulomb_friction" => Self::CoulombFriction { vc: get("Vc")? },
+            "saturation" => Self::Saturation {
+                level: get("level")?.abs(),
+            },
+            "deadzone" => Self::Deadzone {
+                width: get("width")?.abs(),
+            },
+            _ => return Ok(None),
+        }))
+    }
+
+    /// The input after the effect, given the output `y` seen.
+    pub fn apply(&self, u: f64, y: f64) -> f64 {
+        match *self {
+            Self::InputOffset { u_offset } => u + u_offset,
+            Self::CoulombFriction { vc } => u - vc * sign(y),
+            Self::Saturation { level } => u.clamp(-level, level),
+            Self::Deadzone { width } => {
+                if u.abs() < width {
+                    0.0
+                } else {
+                    u - width * sign(u)
+                }
+            }
+        }
+    }
+}
+
+/// The most fine steps a simulation runs.
+pub const MAX_STEPS: usize = 2_000_000;
+
+struct Sys {
+    ss: StateSpace,
+    x: DVector<f64>,
+}
+
+impl Sys {
+    fn new(ss: StateSpace) -> Self {
+        let n = ss.order();
+        Self {
+            ss,
+            x: DVector::zeros(n),
+        }
+    }
+    /// `C x`.
+    fn free(&self) -> f64 {
+        (&self.ss.c * &self.x)[(0, 0)]
+    }
+    fn advance(&mut self, input: f64) {
+        self.x = &self.ss.a * &self.x + &self.ss.b * input;
+    }
+}
+
+/// Simulate the loop of `model` and the controller `c` (its realisation by
+/// [`crate::realise::discrete`] with `spec`), the `effects` applied in order to the controller's
+/// output before the load adds to it: `u_plant = effects(u) + d`. The controller has no
+/// anti-windup: what a saturation does to the design shows.
+///
+/// # Errors
+/// A bad setup (non-positive step or duration, more than [`MAX_STEPS`] steps, `dt` not a
+/// multiple of `h`), effects on a model with feed-through, the errors of the approximations and
+/// discretisations, a non-finite response (a loop that diverges numerically).
+pub fn simulate(
+    model: &FracTf,
+    c: &Controller,
+    setup: &LoopSetup,
+    spec: &ApproxSpec,
+    effects: &[InputEffect],
+) -> Result<LoopRun> {
+    let h = setup.h;
+    if !(h > 0.0 && setup.duration > 0.0 && setup.duration.is_finite()) {
+        return invalid("loop", format!("need h > 0 and a duration > 0: {setup:?}"));
+    }
+    let n = (setup.duration / h).round() as usize + 1;
+    if n > MAX_STEPS {
+        return invalid(
+            "loop",
+            format!("{n} steps of {h:e} s (at most {MAX_STEPS})"),
+        );
+    }
+    let m = match setup.dt {
+        Some(dt) => {
+            let m = (dt / h).round();
+            if !(m >= 1.0 && (m * h - dt).abs() < 1e-9 * dt) {
+                return invalid(
+                    "loop",
+                    format!("dt = {dt} s is not a multiple of h = {h} s"),
+                );
+            }
+            m as usize
+        }
+        None => 1,
+    };
+    let mut plant = Sys::new(export::discrete(model, h, spec)?);
+    let css = crate::realise::discrete(c, h * m as f64, spec)?;
+    let mut ctrl = Sys::new(css);
+    let (dp, dc) = (plant.ss.d, ctrl.ss.d);
+    if !effects.is_empty() && dp != 0.0 {
+        return invalid(
+            "effects",
+            "input effects on a model with a direct feed-through (no delay, proper but not \
+             strictly): the loop would be implicit through a nonlinearity",
+        );
+    }
+    let mut y_prev = 0.0;
+    let mut run = LoopRun {
+        t: Vec::with_capacity(n),
+        r: Vec::with_capacity(n),
+        d: Vec::with_capacity(n),
+        u: Vec::with_capacity(n),
+        y: Vec::with_capacity(n),
+    };
+    let mut u = 0.0;
+    for k in 0..n {
+        let t = k as f64 * h;
+        let r = setup.step;
+        let d = if t >= setup.t_load - 0.5 * h {
+            setup.load
+        } else {
+            0.0
+        };
+        let y;
+        if k % m == 0 {
+            let (cp, cc) = (plant.free(), ctrl.free());
+            y = (cp + dp * (cc + dc * r + d)) / (1.0 + dp * dc);
+            u = cc + dc * (r - y);
+            ctrl.advance(r - y);
+        } else {
+            y = plant.free() + dp * (u + d);
+        }
+        // the output over the hold interval, extrapolated to its middle (as ident does)
+        let seen = if k > 0 { y + 0.5 * (y - y_prev) } else { y };
+        y_prev = y;
+        let v = effects.iter().fold(u, |v, e| e.apply(v, seen));
+        plant.advance(v + d);
+        if !(y.is_finite() && u.is_finite()) {
+            return Err(fracsim::Error::Numerical(format!(
+                "the closed loop's response is not finite at t = {t} s"
+            ))
+            .into());
+        }
+        run.t.push(t);
+        run.r.push(r);
+        run.d.push(d);
+        run.u.push(u);
+        run.y.push(y);
+    }
+    Ok(run)
+}
+
+/// A step response's figures.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct StepMetrics {
+    /// Overshoot above the final value, percent of the step.
+    pub overshoot_percent: f64,
+    /// Time from 10% to 90% of the final value, seconds (`None`: never reached).
+    pub rise_time: Option<f64>,
+    /// Time after which `y` stays within 2% of the step of the final value, seconds.
+    pub settling_time: Option<f64>,
+    /// The largest deviation of `y` after the load step from its value just before, in units of
+    /// the output.
+    pub load_peak: f64,
+    /// The deviation left at the end of the record, units of the output.
+    pub load_residual: f64,
+}
+
+/// The figures of a [`LoopRun`] made by [`simulate`] with `setup`: the reference step measured
+/// on `[0, t_load)` against the reference (the final value of a loop with integral action), the
+/// load step after it.
+pub fn metrics(run: &LoopRun, setup: &LoopSetup) -> StepMetrics {
+    let split = run
+        .t
+        .iter()
+        .position(|&t| t >= setup.t_load - 0.5 * setup.h)
+        .unwrap_or(run.t.len());
+    let (t, y) = (&run.t[..split], &run.y[..split]);
+    let a = setup.step;
+    let at = |frac: f64| {
+        y.iter().position(|&v| v >= frac * a).map(|i| {
+            if i == 0 {
+                t[0]
+            } else {
+                // linear interpolation between the samples around the level
+                let (y0, y1) = (y[i - 1], y[i]);
+                t[i - 1] + (t[i] - t[i - 1]) * (frac * a - y0) / (y1 - y0)
+            }
+        })
+    };
+    let rise_time = match (at(0.1), at(0.9)) {
+        (Some(a), Some(b)) => Some(b - a),
+        _ => None,
+    };
+    let peak = y.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    let settling_time = y
+        .iter()
+        .rposition(|&v| (v - a).abs() > 0.02 * a.abs())
+        .and_then(|i| (i + 1 < t.len()).then(|| t[i + 1]));
+    let before = if split > 0 { run.y[split - 1] } else { 0.0 };
+    let after = &run.y[split..];
+    let load_peak =
+        after
+            .iter()
+            .map(|v| v - before)
+            .fold(0.0, |m: f64, v| if v.abs() > m.abs() { v } else { m });
+    StepMetrics {
+        overshoot_percent: (100.0 * (peak - a) / a).max(0.0),
+        rise_time,
+        settling_time,
+        load_peak,
+        load_residual: after.last().map_or(0.0, |v| v - before),
+    }
+}

@@ -1,0 +1,102 @@
+//! The controller `C(s) = kp + ki / s^lambda + kd s^mu` and its forms.
+
+use crate::error::{invalid, Result};
+use fracsim::{jw_pow, FracTf, Term};
+use num_complex::Complex64;
+use serde::Serialize;
+
+/// The controller structures `fracid tune` designs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Form {
+    /// `kp + ki / s^lambda` (fractional PI, Podlubny's `PI^lambda`).
+    Fopi,
+    /// `kp + ki / s^lambda + kd s^mu` (Podlubny's `PI^lambda D^mu`).
+    Fopid,
+    /// `kp + ki / s` (integer PI).
+    Pi,
+    /// `kp + ki / s + kd s` (integer PID, ideal form).
+    Pid,
+}
+
+impl Form {
+    /// The name as the command line spells it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Form::Fopi => "fopi",
+            Form::Fopid => "fopid",
+            Form::Pi => "pi",
+            Form::Pid => "pid",
+        }
+    }
+
+    /// Whether the form has a derivative term.
+    pub fn has_derivative(self) -> bool {
+        matches!(self, Form::Fopid | Form::Pid)
+    }
+}
+
+impl std::str::FromStr for Form {
+    type Err = crate::Error;
+    fn from_str(s: &str) -> Result<Self> {
+        match s.to_ascii_lowercase().as_str() {
+            "fopi" => Ok(Form::Fopi),
+            "fopid" => Ok(Form::Fopid),
+            "pi" => Ok(Form::Pi),
+            "pid" => Ok(Form::Pid),
+            _ => invalid("form", format!("'{s}' (expected fopi, fopid, pi or pid)")),
+        }
+    }
+}
+
+/// `C(s) = kp + ki / s^lambda + kd s^mu` (`kd = 0` for the PI forms, `lambda = mu = 1` for the
+/// integer forms).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Controller {
+    /// Proportional gain.
+    pub kp: f64,
+    /// Integral gain.
+    pub ki: f64,
+    /// Order of the integrator, in (0, 2).
+    pub lambda: f64,
+    /// Derivative gain (0 without a derivative term).
+    pub kd: f64,
+    /// Order of the differentiator, in (0, 2) (1 without a derivative term).
+    pub mu: f64,
+}
+
+impl Controller {
+    /// `C(j omega)`, omega in rad/s, with `(j w)^a = w^a e^(j a pi/2)`.
+    pub fn freq_response(&self, omega: f64) -> Complex64 {
+        let mut c = Complex64::new(self.kp, 0.0) + self.ki / jw_pow(omega, self.lambda);
+        if self.kd != 0.0 {
+            c += self.kd * jw_pow(omega, self.mu);
+        }
+        c
+    }
+
+    /// `d C(j omega) / d ln omega = -lambda ki (j w)^-lambda + mu kd (j w)^mu`.
+    pub fn dlog_omega(&self, omega: f64) -> Complex64 {
+        let mut d = -self.lambda * self.ki / jw_pow(omega, self.lambda);
+        if self.kd != 0.0 {
+            d += self.mu * self.kd * jw_pow(omega, self.mu);
+        }
+        d
+    }
+
+    /// `C(s) = (kd s^(lambda+mu) + kp s^lambda + ki) / s^lambda` as a [`FracTf`] (no delay).
+    ///
+    /// # Errors
+    /// Non-finite gains or orders (from [`FracTf::new`]).
+    pub fn tf(&self) -> Result<FracTf> {
+        Ok(FracTf::new(
+            vec![
+                Term::new(self.kd, self.lambda + self.mu),
+                Term::new(self.kp, self.lambda),
+                Term::new(self.ki, 0.0),
+            ],
+            vec![Term::new(1.0, self.lambda)],
+            0.0,
+        )?)
+    }
+}

@@ -1,0 +1,496 @@
+//! The design: the gains and orders that meet the specifications at the crossover (Monje,
+//! Vinagre, Feliu & Chen 2008), solved in closed form or by bracketing, then checked on the loop.
+//!
+//! At the crossover `wc` the loop must be `L(j wc) = e^(j(-pi + pm))`, so the controller must be
+//! `C(j wc) = e^(j(-pi + pm)) / P(j wc) = a + j b` (two real equations). A flat phase adds
+//! `Im(C'/C) = -Im(P'/P)` at `wc` (primes: `d/d ln omega`), linear in the gains. For fixed orders
+//! `C` is linear in `(kp, ki, kd)`, so each case reduces to linear algebra plus a search over the
+//! orders:
+//!
+//! - `pi`: `ki = -b wc`, `kp = a`;
+//! - `fopi`: `ki = -b wc^lambda / sin(lambda pi/2)`, `kp = a - ki wc^-lambda cos(lambda pi/2)`;
+//!   with `--flat`, `Im(-lambda ki (j wc)^-lambda / C) = s` is one equation in lambda, whose
+//!   roots in (0, 2) are bracketed on a grid and bisected; without, the lambda of a grid (or
+//!   `--lambda`) with the smallest sensitivity peak;
+//! - `pid`: `kp = a`; with `--flat`, `ki/wc + kd wc = m = s |C|^2 / a` and `kd wc - ki/wc = b`;
+//!   without, `Ti = 4 Td` (`kd = kp^2 / (4 ki)`);
+//! - `fopid` (needs `--flat`): for each `(lambda, mu)` of a grid the three linear equations give
+//!   `(kp, ki, kd)`; among those that meet `--t-high` and `--s-low`, the smallest sensitivity peak.
+//!
+//! Every candidate must have `kp >= 0`, `ki > 0`, `kd >= 0`, a stable loop (Nyquist) with one
+//! gain crossover; the chosen one is checked against every specification before it is returned.
+
+use crate::analysis::{analyse, s_db, t_db, LoopMetrics};
+use crate::controller::{Controller, Form};
+use crate::error::{infeasible, invalid, Result};
+use crate::plant::Plant;
+use fracsim::FracTf;
+use num_complex::Complex64;
+use serde::Serialize;
+use std::f64::consts::{FRAC_PI_2, PI};
+
+/// A bound on a closed-loop gain at one frequency: `|T(j omega)|` or `|S(j omega)| <= db`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct GainBound {
+    /// The frequency in rad/s.
+    pub omega: f64,
+    /// The largest gain allowed, dB.
+    pub db: f64,
+}
+
+/// What the loop must do.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Spec {
+    /// The controller structure.
+    pub form: Form,
+    /// Gain crossover in rad/s.
+    pub wc: f64,
+    /// Phase margin in degrees, in (0, 180).
+    pub pm_deg: f64,
+    /// Flat phase at `wc` (`d arg L / d ln omega = 0`, iso-damping).
+    pub flat: bool,
+    /// `|T(j omega_h)| <= db` (noise rejection), FOPID and the searched forms.
+    pub t_high: Option<GainBound>,
+    /// `|S(j omega_l)| <= db` (disturbance rejection), FOPID and the searched forms.
+    pub s_low: Option<GainBound>,
+    /// The sample period of the loop in seconds: the hold's half-sample delay joins the plant.
+    pub dt: Option<f64>,
+    /// FOPI without `--flat`: the integrator order (otherwise searched).
+    pub lambda: Option<f64>,
+}
+
+/// Tolerances of the final check: the design equations are solved to rounding, so these only
+/// guard against a solver that went wrong.
+const TOL_GAIN: f64 = 1e-3;
+const TOL_PM_DEG: f64 = 0.1;
+const TOL_SLOPE: f64 = 1e-3;
+/// The grid of fractional orders searched, `(0, 2)` exclusive.
+const ORDER_MIN: f64 = 0.02;
+const ORDER_MAX: f64 = 1.98;
+
+/// A designed controller and what its loop achieves.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Design {
+    /// The controller.
+    pub controller: Controller,
+    /// The loop's measured properties.
+    pub metrics: LoopMetrics,
+}
+
+impl Spec {
+    fn validate(&self) -> Result<()> {
+        if !(self.wc.is_finite() && self.wc > 0.0) {
+            return invalid("wc", format!("{} rad/s must be positive", self.wc));
+        }
+        if !(self.pm_deg > 0.0 && self.pm_deg < 180.0) {
+            return invalid("pm", format!("{} deg must be in (0, 180)", self.pm_deg));
+        }
+        if let Some(dt) = self.dt {
+            if !(dt.is_finite() && dt > 0.0) {
+                return invalid("dt", format!("{dt} s must be positive"));
+            }
+            if self.wc * dt >= PI {
+                return invalid(
+                    "wc",
+                    format!(
+                        "{} rad/s is above the Nyquist frequency pi/dt = {:.4} rad/s",
+                        self.wc,
+                        PI / dt
+                    ),
+                );
+            }
+        }
+        for (name, b) in [("t-high", self.t_high), ("s-low", self.s_low)] {
+            if let Some(b) = b {
+                if !(b.omega.is_finite() && b.omega > 0.0 && b.db.is_finite()) {
+                    return invalid(
+                        if name == "t-high" { "t-high" } else { "s-low" },
+                        format!("need a positive frequency and a finite dB, got {b:?}"),
+                    );
+                }
+            }
+        }
+        match (self.form, self.flat, self.lambda) {
+            (Form::Fopid, false, _) => invalid(
+                "form",
+                "fopid has five parameters: give --flat (with --t-high and --s-low if wanted)",
+            ),
+            (Form::Fopi, true, Some(_)) => invalid(
+                "lambda",
+                "with --flat the integrator order is what the flatness decides",
+            ),
+            (Form::Fopi, _, Some(l)) if !(l > 0.0 && l < 2.0) => {
+                invalid("lambda", format!("{l} must be in (0, 2)"))
+            }
+            (Form::Pi | Form::Pid | Form::Fopid, _, Some(_)) => {
+                invalid("lambda", "only a fopi takes a fixed --lambda")
+            }
+            _ => Ok(()),
+        }
+    }
+}
+
+/// The design problem at the crossover.
+struct Target {
+    plant: Plant,
+    wc: f64,
+    /// `C(j wc)` required.
+    c: Complex64,
+    /// `Im(C'/C)` required for a flat phase.
+    slope: f64,
+}
+
+/// Why candidates were refused, kept for the message.
+#[derive(Default)]
+struct Refusals(Vec<String>);
+
+impl Refusals {
+    fn push(&mut self, s: String) {
+        if !self.0.contains(&s) && self.0.len() < 6 {
+            self.0.push(s);
+        }
+    }
+    fn text(&self) -> String {
+        self.0.join("; ")
+    }
+}
+
+/// Design the controller of `spec.form` for `model` (see the module documentation).
+///
+/// # Errors
+/// [`crate::Error::Invalid`] for a malformed request; [`crate::Error::Infeasible`] with the reason
+/// when no controller of the form meets the specification.
+pub fn design(model: &FracTf, spec: &Spec) -> Result<Design> {
+    spec.validate()?;
+    let plant = Plant::new(model.clone(), spec.dt);
+    let p = plant.freq_response(spec.wc);
+    if !(p.norm() > 0.0 && p.norm().is_finite()) {
+        return invalid("model", format!("|G(j wc)| = {} at wc", p.norm()));
+    }
+    let target_l = Complex64::from_polar(1.0, -PI + spec.pm_deg.to_radians());
+    let t = Target {
+        wc: spec.wc,
+        c: target_l / p,
+        slope: -plant.dlog(spec.wc).im,
+        plant,
+    };
+    // the controller's phase at wc, with the plant's phase unwrapped (a delay turns it many times)
+    let p_deg = t.plant.phase_unwrapped(spec.wc).to_degrees();
+    let need_deg = -180.0 + spec.pm_deg - p_deg;
+    let (lo, hi) = match spec.form {
+        Form::Pi => (-90.0, 0.0),
+        Form::Fopi => (-180.0, 0.0),
+        Form::Pid => (-90.0, 90.0),
+        Form::Fopid => (-180.0, 180.0),
+    };
+    if !(need_deg > lo && need_deg < hi) {
+        return infeasible(format!(
+            "the plant's phase at wc = {} rad/s is {p_deg:.1} deg{}; a phase margin of {} deg \
+             needs the controller's phase there to be {need_deg:.1} deg, and a {} with positive \
+             gains has its phase in ({lo}, {hi}) deg",
+            spec.wc,
+            if t.plant.delay() > 0.0 {
+                format!(" (delay {} s included)", t.plant.delay())
+            } else {
+                String::new()
+            },
+            spec.pm_deg,
+            spec.form.name()
+        ));
+    }
+    let mut why = Refusals::default();
+    let candidates: Vec<Controller> = match spec.form {
+        Form::Pi => vec![fopi_at(&t, 1.0)],
+        Form::Fopi => fopi_candidates(&t, spec),
+        Form::Pid => vec![pid(&t, spec.flat, &mut why)?],
+        Form::Fopid => fopid_candidates(&t, spec),
+    };
+    choose(&t, spec, candidates, why)
+}
+
+/// The FOPI meeting magnitude and phase at `wc` for an integrator order `lambda`.
+fn fopi_at(t: &Target, lambda: f64) -> Controller {
+    let (s, c) = (lambda * FRAC_PI_2).sin_cos();
+    let ki = -t.c.im * t.wc.powf(lambda) / s;
+    Controller {
+        kp: t.c.re - ki * t.wc.powf(-lambda) * c,
+        ki,
+        lambda,
+        kd: 0.0,
+        mu: 1.0,
+    }
+}
+
+/// `Im(C'/C)` of the FOPI of order `lambda` minus the slope a flat phase needs.
+fn fopi_flatness(t: &Target, lambda: f64) -> f64 {
+    let c = fopi_at(t, lambda);
+    (c.dlog_omega(t.wc) / t.c).im - t.slope
+}
+
+fn order_grid(n: usize) -> impl Iterator<Item = f64> + Clone {
+    (0..=n).map(move |i| ORDER_MIN + (ORDER_MAX - ORDER_MIN) * i as f64 / n as f64)
+}
+
+fn fopi_candidates(t: &Target, spec: &Spec) -> Vec<Controller> {
+    if let Some(l) = spec.lambda {
+        return vec![fopi_at(t, l)];
+    }
+    if !spec.flat {
+        return order_grid(192).map(|l| fopi_at(t, l)).collect();
+    }
+    // every root of the flatness condition in lambda, by bracketing then bisection
+    let f = |l: f64| fopi_flatness(t, l);
+    let grid: Vec<f64> = order_grid(400).collect();
+    let mut roots = Vec::new();
+    for w in grid.windows(2) {
+        let (fa, fb) = (f(w[0]), f(w[1]));
+        if fa == 0.0 {
+            roots.push(w[0]);
+        } else if fa * fb < 0.0 {
+            let (mut a, mut b) = (w[0], w[1]);
+            for _ in 0..100 {
+                let m = 0.5 * (a + b);
+                if (f(m) > 0.0) == (fa > 0.0) {
+                    a = m;
+                } else {
+                    b = m;
+                }
+            }
+            roots.push(0.5 * (a + b));
+        }
+    }
+    roots.into_iter().map(|l| fopi_at(t, l)).collect()
+}
+
+fn pid(t: &Target, flat: bool, why: &mut Refusals) -> Result<Controller> {
+    let (a, b, w) = (t.c.re, t.c.im, t.wc);
+    if a <= 0.0 {
+        return infeasible(format!(
+            "the controller would need a phase of {:.1} deg at wc, outside (-90, 90) deg where \
+             a PID with kp > 0 lies",
+            t.c.arg().to_degrees()
+        ));
+    }
+    let (ki, kd) = if flat {
+        let m = t.slope * t.c.norm_sqr() / a;
+        (w * (m - b) / 2.0, (m + b) / (2.0 * w))
+    } else {
+        let ki = w * (-b + (b * b + a * a).sqrt()) / 2.0;
+        (ki, a * a / (4.0 * ki))
+    };
+    if !(ki > 0.0 && kd >= 0.0) {
+        why.push(format!(
+            "the flat-phase PID would need ki = {ki:.4e}, kd = {kd:.4e}"
+        ));
+        return infeasible(format!(
+            "no PID with ki > 0 and kd >= 0 meets the specification: {}",
+            why.text()
+        ));
+    }
+    Ok(Controller {
+        kp: a,
+        ki,
+        lambda: 1.0,
+        kd,
+        mu: 1.0,
+    })
+}
+
+fn fopid_candidates(t: &Target, spec: &Spec) -> Vec<Controller> {
+    let _ = spec;
+    let mut out = Vec::new();
+    let j = |w: f64, a: f64| fracsim::jw_pow(w, a);
+    for lambda in order_grid(48) {
+        for mu in order_grid(48) {
+            let (il, dm) = (1.0 / j(t.wc, lambda), j(t.wc, mu));
+            // Im: ki Im(il) + kd Im(dm) = b; flat: ki Im(-lambda il / C) + kd Im(mu dm / C) = s
+            let (a11, a12) = (il.im, dm.im);
+            let (a21, a22) = ((-lambda * il / t.c).im, (mu * dm / t.c).im);
+            let det = a11 * a22 - a12 * a21;
+            if det.abs() < 1e-300 {
+                continue;
+            }
+            let ki = (t.c.im * a22 - a12 * t.slope) / det;
+            let kd = (a11 * t.slope - a21 * t.c.im) / det;
+            let kp = t.c.re - ki * il.re - kd * dm.re;
+            out.push(Controller {
+                kp,
+                ki,
+                lambda,
+                kd,
+                mu,
+            });
+        }
+    }
+    out
+}
+
+/// Among `candidates`, the one that meets every specification with the smallest sensitivity
+/// peak; the reasons the others failed otherwise.
+fn choose(
+    t: &Target,
+    spec: &Spec,
+    candidates: Vec<Controller>,
+    mut why: Refusals,
+) -> Result<Design> {
+    if candidates.is_empty() && spec.flat {
+        let (lo, hi) = order_grid(400)
+            .map(|l| fopi_flatness(t, l) + t.slope)
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+                (lo.min(v), hi.max(v))
+            });
+        return infeasible(format!(
+            "a flat phase at wc needs the controller's phase slope to be {:.4} rad per unit of \
+             ln(omega); with magnitude and phase met, a FOPI of order in (0, 2) gives slopes in \
+             [{lo:.4}, {hi:.4}] only",
+            t.slope
+        ));
+    }
+    // Positive gains first, then ranked by a coarse sensitivity peak; the full analysis and check
+    // in that order until one passes (the ranking only orders the work: every candidate returned
+    // has passed the full check, and its Ms is the full analysis's).
+    let mut ranked: Vec<(f64, Controller)> = Vec::new();
+    for c in candidates {
+        if !(c.kp >= 0.0 && c.ki > 0.0 && c.kd >= 0.0) {
+            why.push(format!(
+                "lambda = {:.3}{} needs kp = {:.4e}, ki = {:.4e}{} (need kp >= 0, ki > 0{})",
+                c.lambda,
+                if spec.form.has_derivative() {
+                    format!(", mu = {:.3}", c.mu)
+                } else {
+                    String::new()
+                },
+                c.kp,
+                c.ki,
+                if spec.form.has_derivative() {
+                    format!(", kd = {:.4e}", c.kd)
+                } else {
+                    String::new()
+                },
+                if spec.form.has_derivative() {
+                    ", kd >= 0"
+                } else {
+                    ""
+                },
+            ));
+            continue;
+        }
+        let roll_off = t.plant.tf.den_order() - t.plant.tf.num_order();
+        if c.kd > 0.0 && c.mu >= roll_off - 0.05 {
+            why.push(format!(
+                "mu = {:.3}: the loop would not roll off (the model falls as omega^-{roll_off})",
+                c.mu
+            ));
+            continue;
+        }
+        let far = crate::analysis::loop_response(&t.plant, &c, t.wc * 1e5).norm();
+        if far >= 0.1 {
+            why.push(format!(
+                "{}: |L| is still {far:.3} at 1e5 wc: the loop does not roll off",
+                label(&c)
+            ));
+            continue;
+        }
+        ranked.push((coarse_ms(&t.plant, &c, t.wc), c));
+    }
+    ranked.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let mut best: Option<Design> = None;
+    for (_, c) in ranked {
+        let m = analyse(&t.plant, &c, t.wc);
+        if let Err(e) = check(t, spec, &c, &m) {
+            why.push(e);
+            continue;
+        }
+        best = Some(Design {
+            controller: c,
+            metrics: m,
+        });
+        break;
+    }
+    match best {
+        Some(d) => Ok(d),
+        None => infeasible(format!(
+            "no {} meets wc = {} rad/s, pm = {} deg{}: {}",
+            spec.form.name(),
+            spec.wc,
+            spec.pm_deg,
+            if spec.flat { ", flat phase" } else { "" },
+            why.text()
+        )),
+    }
+}
+
+/// The orders of a candidate, for the messages.
+fn label(c: &Controller) -> String {
+    if c.kd > 0.0 {
+        format!("lambda = {:.3}, mu = {:.3}", c.lambda, c.mu)
+    } else {
+        format!("lambda = {:.3}", c.lambda)
+    }
+}
+
+/// `max |1/(1+L)|` on 40 points per decade over `[wc/100, wc 100]`.
+fn coarse_ms(p: &Plant, c: &Controller, wc: f64) -> f64 {
+    (0..=160)
+        .map(|i| {
+            let w = wc * 10f64.powf(-2.0 + i as f64 / 40.0);
+            1.0 / (Complex64::new(1.0, 0.0) + crate::analysis::loop_response(p, c, w)).norm()
+        })
+        .fold(0.0, f64::max)
+}
+
+/// Whether the loop meets every specification; the reason otherwise.
+fn check(t: &Target, spec: &Spec, c: &Controller, m: &LoopMetrics) -> Result<(), String> {
+    if m.unstable_poles != 0 {
+        return Err(format!(
+            "{}: the closed loop is unstable ({} poles in the right half-plane)",
+            label(c),
+            m.unstable_poles
+        ));
+    }
+    if m.crossovers != 1 {
+        return Err(format!(
+            "{}: |L| crosses 0 dB {} times",
+            label(c),
+            m.crossovers
+        ));
+    }
+    if (m.wc / t.wc - 1.0).abs() > TOL_GAIN || (m.pm_deg - spec.pm_deg).abs() > TOL_PM_DEG {
+        return Err(format!(
+            "{}: the loop crosses at {:.4} rad/s with pm {:.3} deg",
+            label(c),
+            m.wc,
+            m.pm_deg
+        ));
+    }
+    if spec.flat && m.phase_slope.abs() > TOL_SLOPE {
+        return Err(format!(
+            "{}: phase slope {:.2e} rad at wc",
+            label(c),
+            m.phase_slope
+        ));
+    }
+    if let Some(b) = spec.t_high {
+        let v = t_db(&t.plant, c, b.omega);
+        if v > b.db {
+            return Err(format!(
+                "{}: |T(j{})| = {v:.2} dB > {} dB",
+                label(c),
+                b.omega,
+                b.db
+            ));
+        }
+    }
+    if let Some(b) = spec.s_low {
+        let v = s_db(&t.plant, c, b.omega);
+        if v > b.db {
+            return Err(format!(
+                "{}: |S(j{})| = {v:.2} dB > {} dB",
+                label(c),
+                b.omega,
+                b.db
+            ));
+        }
+    }
+    Ok(())
+}

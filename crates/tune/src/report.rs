@@ -1,0 +1,334 @@
+//! The whole of `fracid tune`'s answer as one serialisable report (the CLI's `--json` and
+//! Python's `fracid.tune` give the same document).
+
+use crate::closed::{self, InputEffect, LoopRun, LoopSetup, StepMetrics};
+use crate::controller::Controller;
+use crate::design::{design, Design, Spec};
+use crate::error::Result;
+use crate::plant::Plant;
+use crate::realise;
+use crate::{Form, LoopMetrics};
+use fracsim::export::{method_name, StateSpace};
+use fracsim::{ApproxSpec, FracTf, Term};
+use num_complex::Complex64;
+use serde::Serialize;
+
+/// One `coef s^order` term, as in the model JSON of `fracid time`/`freq`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct TermJson {
+    /// Coefficient.
+    pub coef: f64,
+    /// Order of `s`.
+    pub order: f64,
+}
+
+/// A transfer function in the model JSON's format: `{num, den, delay, text}`.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct TfJson {
+    /// Numerator terms.
+    pub num: Vec<TermJson>,
+    /// Denominator terms.
+    pub den: Vec<TermJson>,
+    /// Input delay, seconds.
+    pub delay: f64,
+    /// The transfer function as text (read back by the parser).
+    pub text: String,
+}
+
+impl From<&FracTf> for TfJson {
+    fn from(g: &FracTf) -> Self {
+        let t = |v: &[Term]| {
+            v.iter()
+                .map(|t| TermJson {
+                    coef: t.coef,
+                    order: t.order,
+                })
+                .collect()
+        };
+        Self {
+            num: t(&g.num),
+            den: t(&g.den),
+            delay: g.delay,
+            text: g.to_string(),
+        }
+    }
+}
+
+/// The approximation a realisation used.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ApproxJson {
+    /// `refined`, `oustaloup` or `trigeassou`.
+    pub method: &'static str,
+    /// The order `N` (2N+1 cells per operator).
+    pub order: usize,
+    /// The band `[w_b, w_h]`, rad/s.
+    pub band: [f64; 2],
+}
+
+/// Gain crossover and phase margin of a loop.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Margins {
+    /// Gain crossover, rad/s.
+    pub wc: f64,
+    /// Phase margin, degrees.
+    pub pm_deg: f64,
+}
+
+/// The discrete realisation `x_(k+1) = A x_k + B e_k`, `u_k = C x_k + D e_k`.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct DiscreteJson {
+    /// Sample period, seconds.
+    pub dt: f64,
+    /// The approximation of the fractional operators.
+    pub approximation: ApproxJson,
+    /// The number of states.
+    pub states: usize,
+    /// `A`, by rows.
+    pub a: Vec<Vec<f64>>,
+    /// `B`, a column.
+    pub b: Vec<Vec<f64>>,
+    /// `C`, a row.
+    pub c: Vec<Vec<f64>>,
+    /// `D`.
+    pub d: Vec<Vec<f64>>,
+    /// The sampled loop with this realisation (`C(e^(j w dt)) G(j w) e^(-j w dt/2)`): where it
+    /// crosses over near the design's `wc`, and its margin (`None` if it does not cross there).
+    pub sampled_loop: Option<Margins>,
+}
+
+/// The closed loop's simulated responses, summarised.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct StepJson {
+    /// What was simulated.
+    pub setup: LoopSetup,
+    /// The reference step's and the load step's figures.
+    pub metrics: StepMetrics,
+}
+
+/// The integer PI for the same `wc` and `pm`, beside the design.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Comparison {
+    /// Its gains (`lambda = 1`).
+    pub params: Option<Controller>,
+    /// Its loop.
+    #[serde(rename = "loop")]
+    pub loop_: Option<LoopMetrics>,
+    /// Its simulated responses (same setup).
+    pub step: Option<StepMetrics>,
+    /// Why there is none.
+    pub refused: Option<String>,
+}
+
+/// The report of `fracid tune`.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Report {
+    /// The model designed on.
+    pub model: TfJson,
+    /// The request.
+    pub spec: Spec,
+    /// `C(s)` as `{num, den}`.
+    pub controller: TfJson,
+    /// Its gains and orders.
+    pub params: Controller,
+    /// The continuous loop (with the hold's half-sample delay for `--dt`).
+    #[serde(rename = "loop")]
+    pub loop_: LoopMetrics,
+    /// The discrete realisation (with `--dt`).
+    pub discrete: Option<DiscreteJson>,
+    /// The closed loop simulated (linear).
+    pub step: StepJson,
+    /// The input effects of the model's diagnosis, simulated in the loop.
+    pub effects: Vec<InputEffect>,
+    /// The closed loop simulated with those effects (`None` without effects).
+    pub step_with_effects: Option<StepMetrics>,
+    /// The integer PI for the same wc and pm.
+    pub integer_pi: Comparison,
+}
+
+/// The signals behind a report, for plots.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Runs {
+    /// The designed loop's run.
+    pub design: LoopRun,
+    /// The designed loop with the model's input effects, if it has any.
+    pub with_effects: Option<LoopRun>,
+    /// The integer PI's run, if it exists.
+    pub pi: Option<LoopRun>,
+    /// The integer PI, if it exists.
+    pub pi_controller: Option<Controller>,
+}
+
+/// What the simulations use beyond the specification.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct SimOptions {
+    /// The reference step (default 1, output units).
+    pub step: Option<f64>,
+    /// The load step at the plant's input (default: the input that holds the reference step,
+    /// `step / G(0)`; `step` for a model that integrates).
+    pub load: Option<f64>,
+    /// The model's input effects (from its diagnosis).
+    pub effects: Vec<InputEffect>,
+}
+
+/// Design, realise, simulate and compare: the report and its signals.
+///
+/// # Errors
+/// Those of [`design`], of the realisation and of the simulation.
+pub fn tune(model: &FracTf, spec: &Spec, opts: &SimOptions) -> Result<(Report, Runs)> {
+    let approx = ApproxSpec::default();
+    let Design {
+        controller: c,
+        metrics,
+    } = design(model, spec)?;
+    let discrete = match spec.dt {
+        Some(dt) => Some(discrete_json(
+            model,
+            &realise::discrete(&c, dt, &approx)?,
+            spec.wc,
+        )),
+        None => None,
+    };
+    let mut setup = LoopSetup::for_crossover(spec.wc, spec.dt);
+    setup.step = opts.step.unwrap_or(1.0);
+    let k0 = model.dc_gain();
+    setup.load = opts.load.unwrap_or(if k0.is_finite() && k0 != 0.0 {
+        setup.step / k0
+    } else {
+        setup.step
+    });
+    if !(setup.step.is_finite() && setup.step != 0.0 && setup.load.is_finite()) {
+        return crate::error::invalid(
+            "step",
+            format!(
+                "the reference step ({}) must be finite and nonzero, the load ({}) finite",
+                setup.step, setup.load
+            ),
+        );
+    }
+    let run = closed::simulate(model, &c, &setup, &approx, &[])?;
+    let with_effects = if opts.effects.is_empty() {
+        None
+    } else {
+        Some(closed::simulate(model, &c, &setup, &approx, &opts.effects)?)
+    };
+    let step = StepJson {
+        setup,
+        metrics: closed::metrics(&run, &setup),
+    };
+    let pi_spec = Spec {
+        form: Form::Pi,
+        flat: false,
+        lambda: None,
+        t_high: None,
+        s_low: None,
+        ..spec.clone()
+    };
+    let (integer_pi, pi_run, pi_c) = match design(model, &pi_spec) {
+        Ok(d) => {
+            let r = closed::simulate(model, &d.controller, &setup, &approx, &[])?;
+            (
+                Comparison {
+                    params: Some(d.controller),
+                    loop_: Some(d.metrics),
+                    step: Some(closed::metrics(&r, &setup)),
+                    refused: None,
+                },
+                Some(r),
+                Some(d.controller),
+            )
+        }
+        Err(e) => (
+            Comparison {
+                params: None,
+                loop_: None,
+                step: None,
+                refused: Some(e.to_string()),
+            },
+            None,
+            None,
+        ),
+    };
+    let report = Report {
+        model: model.into(),
+        spec: spec.clone(),
+        controller: (&c.tf()?).into(),
+        params: c,
+        loop_: metrics,
+        discrete,
+        step,
+        effects: opts.effects.clone(),
+        step_with_effects: with_effects.as_ref().map(|r| closed::metrics(r, &setup)),
+        integer_pi,
+    };
+    Ok((
+        report,
+        Runs {
+            design: run,
+            with_effects,
+            pi: pi_run,
+            pi_controller: pi_c,
+        },
+    ))
+}
+
+fn discrete_json(model: &FracTf, ss: &StateSpace, wc: f64) -> DiscreteJson {
+    let rows = |m: &nalgebra::DMatrix<f64>| -> Vec<Vec<f64>> {
+        (0..m.nrows())
+            .map(|i| m.row(i).iter().copied().collect())
+            .collect()
+    };
+    DiscreteJson {
+        dt: ss.dt.unwrap_or(f64::NAN),
+        approximation: ApproxJson {
+            method: method_name(ss.spec.method),
+            order: ss.spec.order,
+            band: [ss.band.0, ss.band.1],
+        },
+        states: ss.order(),
+        a: rows(&ss.a),
+        b: rows(&ss.b),
+        c: rows(&ss.c),
+        d: vec![vec![ss.d]],
+        sampled_loop: sampled_margins(model, ss, wc),
+    }
+}
+
+/// The crossover of the sampled loop nearest `wc` within `[wc/3, min(3 wc, pi/dt)]`, and its
+/// phase margin (the model's phase unwrapped, the realisation's phase continuous there).
+fn sampled_margins(model: &FracTf, ss: &StateSpace, wc: f64) -> Option<Margins> {
+    let dt = ss.dt?;
+    let plant = Plant::new(model.clone(), Some(dt));
+    let l = |w: f64| realise::discrete_response(ss, w) * plant.freq_response(w);
+    let (lo, hi) = (wc / 3.0, (3.0 * wc).min(std::f64::consts::PI / dt));
+    let n = 600;
+    let ws: Vec<f64> = (0..=n)
+        .map(|i| lo * (hi / lo).powf(i as f64 / n as f64))
+        .collect();
+    let mut best: Option<f64> = None;
+    for w in ws.windows(2) {
+        if (l(w[0]).norm() >= 1.0) != (l(w[1]).norm() >= 1.0) {
+            let (mut a, mut b) = (w[0], w[1]);
+            let above = l(a).norm() >= 1.0;
+            for _ in 0..60 {
+                let m = (a * b).sqrt();
+                if (l(m).norm() >= 1.0) == above {
+                    a = m;
+                } else {
+                    b = m;
+                }
+            }
+            let x = (a * b).sqrt();
+            if best.is_none_or(|o| (x / wc).ln().abs() < (o / wc).ln().abs()) {
+                best = Some(x);
+            }
+        }
+    }
+    let w = best?;
+    // the phase: the model's unwrapped plus the realisation's (principal: within (-180, 180))
+    let c: Complex64 = realise::discrete_response(ss, w);
+    let phase = plant.phase_unwrapped(w) + c.arg();
+    Some(Margins {
+        wc: w,
+        pm_deg: 180.0 + phase.to_degrees(),
+    })
+}

@@ -1,0 +1,110 @@
+"""``fracid.tune``: a fractional PI/PID designed on an identified model (the ``tune`` crate)."""
+
+from __future__ import annotations
+
+from typing import Any, Dict, Iterable, Mapping, Optional, Tuple, Union
+
+import json
+
+from ._fracid import FracTf, _tune
+
+__all__ = ["tune"]
+
+
+def _effects(effects: Optional[Iterable[Any]]) -> list:
+    out = []
+    for e in effects or ():
+        if isinstance(e, Mapping):
+            name, params = e["name"], e.get("params", {})
+        else:
+            name, params = e.name, e.params
+        out.append((str(name), {str(k): float(v) for k, v in dict(params).items()}))
+    return out
+
+
+def tune(
+    model: Union[FracTf, str, Any],
+    *,
+    wc: float,
+    pm: float,
+    form: str = "fopi",
+    flat: bool = False,
+    dt: Optional[float] = None,
+    t_high: Optional[Tuple[float, float]] = None,
+    s_low: Optional[Tuple[float, float]] = None,
+    lambda_: Optional[float] = None,
+    step: float = 1.0,
+    load: Optional[float] = None,
+    effects: Optional[Iterable[Any]] = None,
+) -> Dict[str, Any]:
+    """Design ``C(s) = kp + ki / s^lambda (+ kd s^mu)`` on ``model``, as ``fracid tune --json``.
+
+    The gain crossover ``wc``, the phase margin ``pm`` and, with ``flat``, a flat phase at ``wc``
+    (``d arg L / d ln w = 0``, iso-damping) are met exactly (Monje, Vinagre, Feliu & Chen 2008);
+    a specification no controller of the form meets raises :class:`InfeasibleError` with the
+    reason.
+
+    Parameters
+    ----------
+    model : FracTf, str or Diagnosis
+        The plant (its delay included). A :class:`Diagnosis` gives its final model and its kept
+        input effects (saturation, dead band, Coulomb friction, input offset), simulated in the
+        loop.
+    wc : float
+        Gain crossover, rad/s.
+    pm : float
+        Phase margin, degrees.
+    form : {"fopi", "fopid", "pi", "pid"}
+        The controller structure; ``fopid`` needs ``flat``.
+    flat : bool
+        Flat phase at ``wc``.
+    dt : float, optional
+        Sample period, s: the hold's half-sample delay joins the design and the report gives the
+        discrete realisation (``report["discrete"]``).
+    t_high, s_low : (float, float), optional
+        ``(w, dB)``: ``|T(j w)| <= dB`` at a high frequency, ``|S(j w)| <= dB`` at a low one.
+    lambda_ : float, optional
+        A fixed integrator order for a ``fopi`` without ``flat``.
+    step, load : float, optional
+        The simulated reference step (output units) and load step at the plant's input (default:
+        the input that holds the reference step, ``step / G(0)``).
+    effects : iterable, optional
+        Input effects to simulate in the loop: :class:`Effect` objects or mappings
+        ``{"name": ..., "params": {...}}`` as a diagnosis reports them.
+
+    Returns
+    -------
+    dict
+        The report of ``fracid tune --json``: ``controller`` (``{num, den, delay, text}``),
+        ``params`` (``kp``, ``ki``, ``lambda``, ``kd``, ``mu``), ``loop`` (``wc``, ``pm_deg``,
+        ``gm_db``, ``ms``, ...), ``discrete``, ``step`` (the closed loop simulated),
+        ``step_with_effects``, ``integer_pi``, ``model`` and ``spec``.
+
+    Examples
+    --------
+    >>> import fracid
+    >>> r = fracid.tune("6.77/(0.000028 s^1.78 + 0.0064 s^0.89 + 1) exp(-0.001 s)",
+    ...                 wc=300, pm=60, flat=True)
+    >>> round(r["loop"]["pm_deg"], 3), round(r["params"]["lambda"], 3)
+    (60.0, 1.577)
+    """
+    fx = effects
+    if not isinstance(model, (FracTf, str)) and hasattr(model, "model"):
+        fx = model.effects if effects is None else effects
+        model = model.model
+    text = _tune(
+        model,
+        float(wc),
+        float(pm),
+        form=form,
+        flat=bool(flat),
+        dt=dt,
+        t_high=t_high,
+        s_low=s_low,
+        lambda_=lambda_,
+        step=float(step),
+        load=load,
+        effects=_effects(fx),
+    )
+    report: Dict[str, Any] = json.loads(text)
+    return report
