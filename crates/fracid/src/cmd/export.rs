@@ -50,8 +50,7 @@ pub fn load_model(text: &str) -> Result<FracTf> {
     if p.extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("json"))
     {
-        let raw = std::fs::read_to_string(p)
-            .with_context(|| format!("cannot read model file {}", p.display()))?;
+        let raw = crate::cmd::read_text(p)?;
         let v: Value = match serde_json::from_str(&raw) {
             Ok(v) => v,
             Err(e) => bad_input!("{}: not JSON: {e}", p.display()),

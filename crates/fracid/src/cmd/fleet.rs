@@ -250,15 +250,17 @@ fn panic_text(e: &(dyn std::any::Any + Send)) -> String {
         .unwrap_or_else(|| "unknown panic".into())
 }
 
-/// Fit every file with `fit` (the report as JSON) on `jobs` threads, write the reports and the
-/// summary, print one line per file; an error when any file failed.
+/// Fit every file with `fit` (the report as JSON and the problems that make its model unusable)
+/// on `jobs` threads, write the reports and the summary, print one line per file; an error when
+/// any file failed. A file whose model is not usable is written and failed (exit 1), as the
+/// single-file command does.
 ///
 /// # Errors
 /// The summary or output directory cannot be written (exit 3); any file failed (its exit code
 /// when all failures share one, else 1).
 pub fn run<F>(kind: &str, files: &[PathBuf], fa: &FleetArgs, json_out: bool, fit: F) -> Result<()>
 where
-    F: Fn(&Path) -> Result<Value> + Sync,
+    F: Fn(&Path) -> Result<(Value, Vec<String>)> + Sync,
 {
     if let Some(d) = &fa.out {
         std::fs::create_dir_all(d)
@@ -280,17 +282,22 @@ where
         let t = Instant::now();
         let res = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| fit(file)))
             .unwrap_or_else(|e| Err(anyhow::anyhow!("internal error: {}", panic_text(&*e))));
-        let res = res.and_then(|v| {
+        let res = res.and_then(|(v, problems)| {
             let p = report_path(file, fa.out.as_deref(), kind, &taken);
             std::fs::write(&p, serde_json::to_string_pretty(&v)? + "\n")
                 .with_context(|| format!("cannot write {}", p.display()))?;
-            Ok((v, p))
+            Ok((v, p, problems))
         });
         row.seconds = t.elapsed().as_secs_f64();
         match res {
-            Ok((v, p)) => {
+            Ok((v, p, problems)) => {
                 row.fill_from(&v);
                 row.report = Some(p.display().to_string());
+                if !problems.is_empty() {
+                    row.status = "failed";
+                    row.exit_code = 1;
+                    row.error = Some(unusable_message(&problems));
+                }
             }
             Err(e) => {
                 row.status = "failed";
@@ -375,6 +382,11 @@ where
     } else {
         anyhow::anyhow!(msg)
     })
+}
+
+/// The error of a model that is not usable, worded as `fracid time FILE` words it.
+pub(crate) fn unusable_message(problems: &[String]) -> String {
+    format!("the fitted model is not usable: {}", problems.join("; "))
 }
 
 fn print_row(r: &Row) {
@@ -463,7 +475,7 @@ pub fn run_time(a: super::time::TimeArgs) -> Result<()> {
 
 /// One file's `fracid time --json` report, with the options of `a` (the steps of
 /// `time::run` without its printing).
-fn time_report(a: &super::time::TimeArgs, file: &Path) -> Result<Value> {
+fn time_report(a: &super::time::TimeArgs, file: &Path) -> Result<(Value, Vec<String>)> {
     use ident::oe::identify_with_progress;
     let rec = super::time::read_record(file, &super::time::read_options(a))?;
     let duration = rec.t.last().copied().unwrap_or(0.0) - rec.t.first().copied().unwrap_or(0.0);
@@ -471,16 +483,18 @@ fn time_report(a: &super::time::TimeArgs, file: &Path) -> Result<Value> {
     let opts = super::time::ident_options(a)?;
     let id = identify_with_progress(&rec, &model, &opts, &mut |_, _| {})
         .with_context(|| format!("identifying {}", file.display()))?;
-    let mut v;
+    let (mut v, problems);
     if a.diagnose {
         let d = super::diagnose::run_time(&rec, &a.structure, &model, id, &opts)?;
         v = super::time::json_of(&d.id, &rec);
         v["diagnosis"] = super::diagnose::json(&d.diagnosis, Some(&d.choice))?;
+        problems = (!d.id.usable()).then(|| d.id.problems.clone());
     } else {
         v = super::time::json_of(&id, &rec);
+        problems = (!id.usable()).then(|| id.problems.clone());
     }
     v["file"] = json!(file.display().to_string());
-    Ok(v)
+    Ok((v, problems.unwrap_or_default()))
 }
 
 /// `fracid freq` on many files: each one `fracid freq FILE --json` with the same options, in a
@@ -517,8 +531,11 @@ pub fn run_freq(a: &super::freq::FreqArgs) -> Result<()> {
             );
         match o.status.code() {
             Some(0) => {
-                Ok(serde_json::from_slice(&o.stdout)
-                    .context("fracid freq --json printed no JSON")?)
+                Ok((
+                    serde_json::from_slice(&o.stdout)
+                        .context("fracid freq --json printed no JSON")?,
+                    Vec::new(),
+                ))
             }
             Some(2) => Err(anyhow::Error::new(BadInput(msg))),
             Some(3) => Err(anyhow::Error::new(std::io::Error::other(msg))),
