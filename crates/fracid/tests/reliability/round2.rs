@@ -424,3 +424,52 @@ fn item_16_nonsense_models_are_refused_at_the_start() {
     assert!(stdout(&o).is_empty(), "no port printed: {}", stdout(&o));
     assert!(t.elapsed().as_secs_f64() < 4.0);
 }
+
+/// Item 10: a Bode table of random noise (gains uniform in +-20 dB, phases in +-180 degrees, 20
+/// log-spaced points; Python's `random.seed(12)`, rounded) is refused with or without the refit.
+/// Before, `--refine` accepted it (exit 0, `usable: true`) with both orders run to 0 and no
+/// standard errors.
+const NOISE_TABLE: &str = "freq_hz,gain_db,phase_deg
+1,-1.0172,56.690
+1.43845,6.6564,-128.664
+2.06914,-19.5656,-45.088
+2.97635,-9.0381,111.725
+4.28133,7.6237,36.525
+6.15848,2.3276,58.076
+8.85867,-14.1879,-21.580
+12.7427,-13.5093,146.150
+18.3298,-17.6470,114.775
+26.3665,-17.0156,67.300
+37.9269,-6.5200,-34.339
+54.5559,13.6961,-173.302
+78.476,-17.5686,149.412
+112.884,0.3570,-147.248
+162.378,19.4854,160.817
+233.572,-15.4989,-27.646
+335.982,-14.5972,-67.485
+483.293,4.8581,-121.131
+695.193,7.8734,-161.513
+1000,-13.1514,113.651
+";
+
+#[test]
+fn item_10_refine_applies_the_same_usability_rule() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = write(&dir, "noise.csv", NOISE_TABLE);
+    let p = p.to_str().unwrap();
+    let o = fracid(&["freq", p]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    let o = fracid(&["freq", "--refine", "--json", p]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["usable"], false, "{v}");
+    assert!(
+        v["problems"].to_string().contains("standard errors cannot be computed"),
+        "{}",
+        v["problems"]
+    );
+    // kept on request, with the problem as a warning
+    let o = fracid(&["freq", "--refine", "--allow-unusable", p]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(stderr(&o).contains("not usable"), "{}", stderr(&o));
+}
