@@ -33,7 +33,7 @@ pub struct ExportArgs {
     #[arg(long, value_name = "W_B,W_H")]
     pub band: Option<String>,
     /// Approximation order N (2N+1 cells per operator).
-    #[arg(long, default_value_t = 8)]
+    #[arg(long, default_value_t = 8, value_parser = crate::cmd::parse_order)]
     pub order: usize,
     /// Output format: json, or m (a MATLAB script that builds `sys = ss(...)` and `G = tf(sys)`).
     /// Default: from the extension of -o, else json.

@@ -56,3 +56,16 @@ pub fn read_text(path: &std::path::Path) -> anyhow::Result<String> {
         e => anyhow::Error::new(e).context(format!("in {}", path.display())),
     })
 }
+
+/// `--order N` (approximation order) parsed and checked against the one range shared with
+/// Python ([`fracsim::approx::ORDER_RANGE`]): clap reports a value outside it (exit 2).
+///
+/// # Errors
+/// Not a whole number, or outside the range.
+pub fn parse_order(s: &str) -> Result<usize, String> {
+    let n: usize = s
+        .trim()
+        .parse()
+        .map_err(|_| format!("'{s}' is not a whole number"))?;
+    fracsim::approx::check_order(n).map_err(|e| e.to_string())
+}

@@ -473,3 +473,141 @@ fn item_10_refine_applies_the_same_usability_rule() {
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     assert!(stderr(&o).contains("not usable"), "{}", stderr(&o));
 }
+
+#[test]
+fn item_12_every_output_is_checked_before_any_is_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let ex = write(&dir, "ex.csv", "precious\n");
+    let ex_s = ex.to_str().unwrap();
+    let o = fracid(&["sim", "-o", ex_s, "--plot", "x.txt"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    let o = fracid(&["sim", "-o", ex_s, "--plot", "/nonexistent/x.png"]);
+    assert_eq!(o.status.code(), Some(3), "{}", stderr(&o));
+    assert_eq!(std::fs::read_to_string(&ex).unwrap(), "precious\n");
+    // both good: both written
+    let png = dir.path().join("x.png");
+    let o = fracid(&["sim", "-o", ex_s, "--plot", png.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(png.is_file() && std::fs::read_to_string(&ex).unwrap().contains("t,u,y"));
+}
+
+#[cfg(target_os = "linux")]
+#[test]
+fn item_13_a_full_stdout_in_fleet_mode_exits_3_with_the_summary_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let a = a_csv(&dir);
+    let b = dir.path().join("b.csv");
+    std::fs::copy(&a, &b).unwrap();
+    let out = dir.path().join("D");
+    for json in [false, true] {
+        let full = std::fs::OpenOptions::new()
+            .write(true)
+            .open("/dev/full")
+            .unwrap();
+        let mut cmd = Command::new(env!("CARGO_BIN_EXE_fracid"));
+        cmd.args(["time", "--quiet"])
+            .arg(&a)
+            .arg(&b)
+            .arg("--out")
+            .arg(&out);
+        if json {
+            cmd.arg("--json");
+        }
+        let o = cmd.stdout(full).output().unwrap();
+        let e = stderr(&o);
+        assert_eq!(o.status.code(), Some(3), "{e}");
+        assert!(!e.contains("panicked"), "{e}");
+        assert!(e.contains("cannot write to standard output"), "{e}");
+        assert!(out.join("time-summary.csv").is_file());
+        assert!(out.join("time-summary.json").is_file());
+        std::fs::remove_dir_all(&out).unwrap();
+    }
+}
+
+#[test]
+fn item_14_the_fleet_never_reads_nor_overwrites_what_is_not_its_own() {
+    let dir = tempfile::tempdir().unwrap();
+    let r = dir.path().join("R");
+    std::fs::create_dir(&r).unwrap();
+    let a = a_csv(&dir);
+    std::fs::copy(&a, r.join("a.csv")).unwrap();
+    let r_s = r.to_str().unwrap();
+    // twice into itself: the second run does not fit its own summary
+    for _ in 0..2 {
+        let o = fracid(&["time", "--quiet", r_s, "--out", r_s]);
+        assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+        let s: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(r.join("time-summary.json")).unwrap(),
+        )
+        .unwrap();
+        assert_eq!(s["files"], 1, "{s}");
+    }
+    // a record that happens to be named time-summary.csv in the output folder is not overwritten
+    let d = dir.path().join("D");
+    std::fs::create_dir(&d).unwrap();
+    let rec = d.join("time-summary.csv");
+    std::fs::copy(&a, &rec).unwrap();
+    let before = std::fs::read(&rec).unwrap();
+    let o = fracid(&["time", "--quiet", d.to_str().unwrap(), "--out", d.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("not a fracid summary"), "{}", stderr(&o));
+    assert_eq!(std::fs::read(&rec).unwrap(), before);
+}
+
+/// Item 11: a record cut while being written (no footer, the last line `0.600000,5,3,-` with
+/// no line end): before, its last row was read as a sample (y = 3); now it is dropped with a
+/// warning and the complete lines are fitted. Fewer fields on the torn line: the file was
+/// refused whole, now read the same way. A last line that is complete but unterminated in a
+/// file that is not an acquisition is data, as before.
+#[test]
+fn item_11_a_torn_last_line_is_dropped_with_a_warning() {
+    let dir = tempfile::tempdir().unwrap();
+    let head = "# fracid drive acquisition: PRBS\n# run_id 1, 600 samples planned at 1000 Hz\nt,u,y,i\n";
+    let rows: String = super::record_rows(0..600)
+        .lines()
+        .map(|l| format!("{l},0.5\n"))
+        .collect();
+    for (name, tail) in [("a.csv", "0.600000,5,3,-"), ("b.csv", "0.600000,5")] {
+        let p = write(&dir, name, &format!("{head}{rows}{tail}"));
+        let o = fracid(&["time", "--quiet", "--max-iter", "3", p.to_str().unwrap()]);
+        let e = stderr(&o);
+        assert_eq!(o.status.code(), Some(0), "{tail}: {e}");
+        assert!(e.contains("dropped as torn"), "{e}");
+        assert!(e.contains("rows 0..600 of 600"), "{e}");
+        assert!(stdout(&o).contains("420 estimation + 180 validation"), "{}", stdout(&o));
+    }
+    // not an acquisition, a complete last line without a line end: kept
+    let text: String = super::record_rows(0..600);
+    let p = write(&dir, "c.csv", &format!("t,u,y\n{}", text.trim_end()));
+    let o = fracid(&["time", "--quiet", "--max-iter", "3", p.to_str().unwrap()]);
+    assert!(!stderr(&o).contains("torn"), "{}", stderr(&o));
+    assert!(stdout(&o).contains("420 estimation + 180 validation"), "{}", stdout(&o));
+}
+
+/// Item 15: one approximation-order range (1..=64, `fracsim::approx::ORDER_RANGE`) for the CLI
+/// and Python, checked where `--order` is parsed. Before, `--order 0` simulated 1.2% off and
+/// `--order 1000` ran for minutes.
+#[test]
+fn item_15_the_order_range_is_one_and_checked_at_parse() {
+    let dir = tempfile::tempdir().unwrap();
+    let a = a_csv(&dir);
+    let a = a.to_str().unwrap();
+    assert_eq!(fracsim::approx::ORDER_RANGE, 1..=64);
+    for n in ["0", "65", "1000", "x"] {
+        for args in [
+            vec!["sim", "--order", n],
+            vec!["time", "--quiet", "--order", n, a],
+            vec!["export", "1/(s^0.5+1)", "--order", n],
+        ] {
+            let t = std::time::Instant::now();
+            let o = fracid(&args);
+            assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));
+            assert!(stderr(&o).contains("--order"), "{args:?}: {}", stderr(&o));
+            assert!(t.elapsed().as_secs_f64() < 5.0, "{args:?}");
+        }
+    }
+    let o = fracid(&["sim", "--order", "1"]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let o = fracid(&["sim", "--order", "64", "--t-end", "0.1"]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+}
