@@ -48,11 +48,7 @@ pub(crate) fn approx_spec(
     if let Some((w_b, w_h)) = band {
         fracsim::approx::check_band(w_b, w_h).map_err(errors::sim)?;
     }
-    if order == 0 || order > 64 {
-        return Err(errors::data(format!(
-            "approximation order {order} must be in 1..=64"
-        )));
-    }
+    fracsim::approx::check_order(order).map_err(|e| errors::data(e.to_string()))?;
     Ok(ApproxSpec {
         method,
         band,

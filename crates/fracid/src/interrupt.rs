@@ -74,6 +74,45 @@ pub fn signal_name(signal: i32) -> String {
     format!("signal {signal}")
 }
 
+/// While alive, a write to a closed pipe (`fracid drive prbs -o - | head -1`) fails with an
+/// I/O error (EPIPE) instead of ending the process by SIGPIPE (exit 141, the drive left
+/// running): the acquisition then handles it as any lost output, STOPs the drive, and the
+/// command exits 3 saying what was lost. `main` restores SIGPIPE's default for the filters'
+/// sake; a drive command holds this for its whole run.
+pub struct PipeErrors {
+    #[cfg(unix)]
+    previous: libc::sighandler_t,
+}
+
+impl PipeErrors {
+    /// Ignore SIGPIPE until dropped.
+    pub fn arm() -> Self {
+        #[cfg(unix)]
+        {
+            // SAFETY: setting a signal's disposition to SIG_IGN; the previous one is restored on
+            // drop.
+            let previous = unsafe { libc::signal(libc::SIGPIPE, libc::SIG_IGN) };
+            Self { previous }
+        }
+        #[cfg(not(unix))]
+        {
+            Self {}
+        }
+    }
+}
+
+impl Drop for PipeErrors {
+    fn drop(&mut self) {
+        #[cfg(unix)]
+        // SAFETY: restoring the disposition `arm` found.
+        unsafe {
+            if self.previous != libc::SIG_ERR {
+                libc::signal(libc::SIGPIPE, self.previous);
+            }
+        }
+    }
+}
+
 /// Turns the first SIGINT, SIGTERM or SIGHUP into a STOP while alive; restores the previous
 /// handling on drop.
 /// One at a time per process.

@@ -144,6 +144,31 @@ fn check_nu<T: Real>(nu: T) -> Result<f64> {
     Ok(v)
 }
 
+/// The approximation orders `N` the command line and the Python bindings accept, one range for
+/// both: below 1 there is no approximation worth the name (`N = 0` is one cell: the orders fitted
+/// on it are off by half), above 64 the cells crowd any band far past use and the work grows
+/// with `N` (`N = 1000` ran for minutes). The default is 8.
+pub const ORDER_RANGE: std::ops::RangeInclusive<usize> = 1..=64;
+
+/// `n` if it is in [`ORDER_RANGE`].
+///
+/// # Errors
+/// [`Error::Invalid`] naming the range otherwise.
+pub fn check_order(n: usize) -> Result<usize> {
+    if ORDER_RANGE.contains(&n) {
+        Ok(n)
+    } else {
+        invalid(
+            "approximation order N",
+            format!(
+                "{n} must be in {}..={} (2N+1 cells per operator; 8 by default)",
+                ORDER_RANGE.start(),
+                ORDER_RANGE.end()
+            ),
+        )
+    }
+}
+
 /// The most cells an approximation may have (`N = 1000` for Oustaloup): far beyond any use (the
 /// cells crowd a band of a few decades), and a bound on the work and memory a setting can ask for.
 pub const MAX_CELLS: usize = 2001;

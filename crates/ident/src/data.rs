@@ -762,6 +762,50 @@ fn shorten_long(s: &str) -> String {
     }
 }
 
+/// A torn last line: the text does not end with a line end and its last line is cut short (fewer
+/// fields than the line before it, a field empty or not a number where the line before has a
+/// number), or belongs to an interrupted
+/// acquisition (a `fracid drive` file with no footer: its writer ends every line, so an
+/// unterminated one was cut mid-write, its last field maybe mid-number). The text without it,
+/// and the warning that says it was dropped; the text as it is otherwise.
+fn without_torn_line<'a>(text: &'a str, acquisition: &Acquisition) -> (&'a str, Option<String>) {
+    if text.is_empty() || text.ends_with(['\n', '\r']) {
+        return (text, None);
+    }
+    let start = text.rfind(['\n', '\r']).map_or(0, |i| i + 1);
+    let last = &text[start..];
+    if start == 0 || last.trim_start().starts_with('#') || last.trim().is_empty() {
+        return (text, None);
+    }
+    let before = text[..start].trim_end_matches(['\n', '\r']);
+    let prev = before.rsplit(['\n', '\r']).next().unwrap_or("");
+    let delim = delimiter(prev);
+    let (fields, prev_fields) = (split_line(last, delim), split_line(prev, delim));
+    let number = |f: &str| unquote(f.trim()).parse::<f64>().is_ok();
+    // short, or a field that is a number on the line before and not on this one
+    let short = fields.len() < prev_fields.len()
+        || fields
+            .iter()
+            .zip(&prev_fields)
+            .any(|(f, p)| !number(f) && number(p));
+    if !(short || *acquisition == Acquisition::Interrupted) {
+        return (text, None);
+    }
+    (
+        &text[..start],
+        Some(format!(
+            "the last line '{}' has no line end and is {}: dropped as torn (cut while being \
+             written), the complete lines kept",
+            shorten(last),
+            if short {
+                "incomplete"
+            } else {
+                "the end of an interrupted acquisition"
+            }
+        )),
+    )
+}
+
 /// The fewest samples a complete part of an incomplete acquisition must have to be fitted.
 pub const MIN_COMPLETE_PART: usize = 50;
 
@@ -877,6 +921,21 @@ impl Record {
     /// [`Record::parse_with`]; `hash` false when the text is known to hold no `#` (no
     /// acquisition header or footer to look for).
     fn parse_text(text: &str, opts: &ReadOptions, hash: bool) -> Result<Loaded> {
+        let acquisition = if hash {
+            Acquisition::of_text(text)
+        } else {
+            Acquisition::Unknown
+        };
+        let (text, torn) = without_torn_line(text, &acquisition);
+        let mut loaded = Self::parse_columns(text, opts, acquisition)?;
+        if let Some(w) = torn {
+            loaded.warnings.insert(0, w);
+        }
+        Ok(loaded)
+    }
+
+    /// [`Record::parse_text`] on text whose torn last line is already cut.
+    fn parse_columns(text: &str, opts: &ReadOptions, acquisition: Acquisition) -> Result<Loaded> {
         let cols = &opts.columns;
         let (t, u, y) = match opts.dt {
             Some(dt) => {
@@ -893,11 +952,6 @@ impl Record {
                 let (_, [t, u, y]) = read_columns(text, [&cols.t, &cols.u, &cols.y])?;
                 (t, u, y)
             }
-        };
-        let acquisition = if hash {
-            Acquisition::of_text(text)
-        } else {
-            Acquisition::Unknown
         };
         Self::checked_part(t, u, y, acquisition, opts.dt.is_some())
     }

@@ -984,7 +984,9 @@ fn assess(
     }
     if let Some(s) = sk.filter(|s| !s.sk_converged) {
         warnings.push(format!(
-            "Sanathanan-Koerner: not converged after {sk_asked} iterations (the coefficients still              change by more than {SK_PARAM_TOL:e} of their value and J by more than              {SK_COST_TOL:e}): try more (--sk), J = {:.4e}",
+            "Sanathanan-Koerner: not converged after {sk_asked} iterations (the coefficients still \
+             change by more than {SK_PARAM_TOL:e} of their value and J by more than \
+             {SK_COST_TOL:e}): try more (--sk), J = {:.4e}",
             s.j
         ));
     }

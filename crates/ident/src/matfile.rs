@@ -101,14 +101,59 @@ impl Endian {
     }
 }
 
-/// The most bytes a compressed variable may inflate to.
-const MAX_INFLATED: usize = crate::data::MAX_FILE_BYTES as usize;
+/// The decoded size every `.mat` file may reach (bytes): its variables as `f64` in all, and the
+/// compressed ones inflated. A file may decode to at most this or [`DECODED_PER_FILE_BYTE`] times
+/// its own size, whichever is larger, so that a small compressed file cannot fill memory (a few
+/// hundred KiB of zlib inflate to gigabytes, and `int8` data widen 8 times to `f64`): a file
+/// under 1 MB decodes to at most 16 MiB (two million values, a `u`, `y` record of a million
+/// samples), and decoding holds at most twice the budget (the inflated bytes and their values)
+/// besides the file.
+pub const MIN_DECODED_BUDGET: usize = 16 << 20;
+/// A file's decoded size may be this many times its size, when that is above
+/// [`MIN_DECODED_BUDGET`]: an `int8` file widens 8 times to `f64`, twice that for one compressed
+/// by half, so the large files real measurements make are read whole.
+pub const DECODED_PER_FILE_BYTE: usize = 16;
+
+/// The decoded size a file of `file_bytes` bytes may reach (see [`MIN_DECODED_BUDGET`]).
+pub fn decoded_budget(file_bytes: usize) -> usize {
+    MIN_DECODED_BUDGET.max(file_bytes.saturating_mul(DECODED_PER_FILE_BYTE))
+}
+
+/// What is left of a file's decoded-size budget ([`decoded_budget`]).
+struct Budget {
+    left: usize,
+    whole: usize,
+}
+
+impl Budget {
+    /// Take `bytes` from the budget, or the error that says the file decodes to too much.
+    fn take(&mut self, bytes: usize) -> Result<()> {
+        match self.left.checked_sub(bytes) {
+            Some(l) => {
+                self.left = l;
+                Ok(())
+            }
+            None => bad(self.too_large()),
+        }
+    }
+
+    fn too_large(&self) -> String {
+        format!(
+            "the .mat file decodes to more than {} MiB (its variables as 64-bit numbers, \
+             compressed ones inflated: at most {} MiB or {DECODED_PER_FILE_BYTE} times the \
+             file's size): save only the signals needed, or export a CSV",
+            self.whole >> 20,
+            MIN_DECODED_BUDGET >> 20
+        )
+    }
+}
 
 /// Parse the bytes of a level 5 `.mat` file into its numeric variables.
 ///
 /// # Errors
 /// [`Error::Data`] for a v7.3 (HDF5) or level 4 file, a truncated or malformed element, a
-/// compressed variable that does not inflate or inflates past 512 MiB.
+/// compressed variable that does not inflate, a file whose variables decode to more than
+/// [`decoded_budget`] of its size (counted before anything is allocated).
 pub fn parse(bytes: &[u8]) -> Result<Vec<Variable>> {
     if bytes.len() >= 8 && bytes.starts_with(b"\x89HDF") || looks_v73(bytes) {
         return bad(
@@ -128,7 +173,9 @@ pub fn parse(bytes: &[u8]) -> Result<Vec<Variable>> {
         _ => return bad("bad endian indicator in the .mat header"),
     };
     let mut vars = Vec::new();
-    elements(&bytes[128..], endian, &mut vars, 0)?;
+    let whole = decoded_budget(bytes.len());
+    let mut budget = Budget { left: whole, whole };
+    elements(&bytes[128..], endian, &mut vars, 0, &mut budget)?;
     Ok(vars)
 }
 
@@ -201,12 +248,18 @@ fn next_top_level(b: &[u8], used: usize, e: Endian) -> usize {
     }
 }
 
-fn elements(mut b: &[u8], e: Endian, vars: &mut Vec<Variable>, depth: usize) -> Result<()> {
+fn elements(
+    mut b: &[u8],
+    e: Endian,
+    vars: &mut Vec<Variable>,
+    depth: usize,
+    budget: &mut Budget,
+) -> Result<()> {
     while b.len() >= 8 {
         let (ty, data, used) = tag(b, e)?;
         match ty {
             MI_MATRIX => {
-                if let Some(v) = matrix(data, e)? {
+                if let Some(v) = matrix(data, e, budget)? {
                     vars.push(v);
                 }
             }
@@ -214,16 +267,21 @@ fn elements(mut b: &[u8], e: Endian, vars: &mut Vec<Variable>, depth: usize) -> 
                 if depth > 0 {
                     return bad("malformed .mat file (compressed data inside compressed data)");
                 }
+                // Inflated within what is left of the budget; the inflated bytes are freed once
+                // their values are decoded (themselves taken from the budget).
                 let raw =
-                    miniz_oxide::inflate::decompress_to_vec_zlib_with_limit(data, MAX_INFLATED)
-                        .map_err(|_| {
-                            Error::Data(
-                                "a compressed variable of the .mat file does not inflate (corrupt, \
-                                 or larger than 512 MiB)"
+                    miniz_oxide::inflate::decompress_to_vec_zlib_with_limit(data, budget.left)
+                        .map_err(|err| {
+                            Error::Data(match err.status {
+                                miniz_oxide::inflate::TINFLStatus::HasMoreOutput => {
+                                    budget.too_large()
+                                }
+                                _ => "a compressed variable of the .mat file does not inflate \
+                                      (corrupt)"
                                     .into(),
-                            )
+                            })
                         })?;
-                elements(&raw, e, vars, depth + 1)?;
+                elements(&raw, e, vars, depth + 1, budget)?;
             }
             _ => {} // other top-level elements: skipped
         }
@@ -233,7 +291,7 @@ fn elements(mut b: &[u8], e: Endian, vars: &mut Vec<Variable>, depth: usize) -> 
 }
 
 /// A `miMATRIX` element: a numeric variable, or `None` for another class.
-fn matrix(b: &[u8], e: Endian) -> Result<Option<Variable>> {
+fn matrix(b: &[u8], e: Endian, budget: &mut Budget) -> Result<Option<Variable>> {
     if b.is_empty() {
         return Ok(None); // an empty matrix element (allowed by the format)
     }
@@ -264,6 +322,8 @@ fn matrix(b: &[u8], e: Endian) -> Result<Option<Variable>> {
     let name = String::from_utf8_lossy(name_raw).into_owned();
     let b = &b[used..];
     let (ty, real, _) = tag(b, e)?;
+    // The values as f64, counted against the file's budget before they are allocated.
+    budget.take(real.len() / width(ty)? * std::mem::size_of::<f64>())?;
     let data = numbers(ty, real, e)?;
     let count = dims.iter().try_fold(1usize, |a, &d| a.checked_mul(d));
     if count != Some(data.len()) {
@@ -279,6 +339,17 @@ fn matrix(b: &[u8], e: Endian) -> Result<Option<Variable>> {
         data,
         complex,
     }))
+}
+
+/// The bytes of one value of a numeric data element of type `ty`.
+fn width(ty: u32) -> Result<usize> {
+    Ok(match ty {
+        1 | 2 => 1,
+        3 | 4 => 2,
+        5..=7 => 4,
+        9 | 12 | 13 => 8,
+        t => return bad(format!("malformed .mat file (numeric data of type {t})")),
+    })
 }
 
 /// The values of a numeric data element of type `ty`, as `f64`.

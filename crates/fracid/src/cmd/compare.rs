@@ -75,7 +75,7 @@ pub fn load_model(arg: &str) -> Result<FracTf> {
             .parse::<FracTf>()
             .with_context(|| format!("{arg:?} is neither a model nor an existing file"));
     }
-    let text = std::fs::read_to_string(path).with_context(|| format!("reading {arg}"))?;
+    let text = crate::cmd::read_text(path)?;
     if text.trim_start().starts_with('{') {
         let v: Value = serde_json::from_str(&text)
             .map_err(|e| crate::cmd::BadInput(format!("{arg}: not valid JSON: {e}")))?;

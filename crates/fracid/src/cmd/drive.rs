@@ -274,6 +274,13 @@ fn fault_at(at: Option<u64>, ms: u64) -> Option<FaultAt> {
 
 fn sim(a: SimArgs) -> Result<()> {
     let model: fracsim::FracTf = a.model.parse().context("--model")?;
+    // An improper model cannot be simulated: every acquisition would fail, so refuse it now.
+    model
+        .check_proper()
+        .context("--model cannot be simulated by the drive simulator")?;
+    if let Some(link) = &a.link {
+        check_link_path(link)?;
+    }
     if let Some(d) = a.duration {
         if !(d.is_finite() && d > 0.0) {
             crate::bad_input!("--duration must be a finite number of seconds > 0, got {d}");
@@ -348,6 +355,20 @@ fn sim(a: SimArgs) -> Result<()> {
     Ok(())
 }
 
+/// `--link` replaces a symlink (the simulator's own, from an earlier run) but never a file or a
+/// directory: their data would be lost (exit 2).
+fn check_link_path(link: &std::path::Path) -> Result<()> {
+    match std::fs::symlink_metadata(link) {
+        Ok(m) if !m.file_type().is_symlink() => crate::bad_input!(
+            "--link {}: a {} exists there and would be replaced by the link; choose a new path \
+             (an existing symlink is replaced)",
+            link.display(),
+            if m.is_dir() { "directory" } else { "file" }
+        ),
+        _ => Ok(()),
+    }
+}
+
 /// The drive configuration from the options, checked before anything is opened (exit 2).
 fn port_conf(p: &PortArgs) -> Result<Configure> {
     if p.baud == 0 {
@@ -403,6 +424,98 @@ fn connect(p: &PortArgs, conf: &Configure) -> Result<Client> {
         .map_err(lib_err)
         .context("configuring the drive")?;
     Ok(c)
+}
+
+/// `-` as an output path: standard output (`/dev/stdout`), not a file named `-`.
+fn output_path(p: &std::path::Path) -> PathBuf {
+    if p.as_os_str() == "-" {
+        PathBuf::from("/dev/stdout")
+    } else {
+        p.to_path_buf()
+    }
+}
+
+/// Device and inode of an existing file.
+fn inode(p: &std::path::Path) -> Option<(u64, u64)> {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        std::fs::metadata(p).ok().map(|m| (m.dev(), m.ino()))
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = p;
+        None
+    }
+}
+
+/// The device number of a character device (a serial port, a terminal, `/dev/null`).
+fn char_device(p: &std::path::Path) -> Option<u64> {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::{FileTypeExt, MetadataExt};
+        std::fs::metadata(p)
+            .ok()
+            .filter(|m| m.file_type().is_char_device())
+            .map(|m| m.rdev())
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = p;
+        None
+    }
+}
+
+/// Whether two output paths name one file: the same inode when both exist, else the same
+/// canonical folder and name.
+fn same_file(a: &std::path::Path, b: &std::path::Path) -> bool {
+    if let (Some(x), Some(y)) = (inode(a), inode(b)) {
+        return x == y;
+    }
+    let planned = |p: &std::path::Path| {
+        let parent = match p.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d,
+            _ => std::path::Path::new("."),
+        };
+        Some(std::fs::canonicalize(parent).ok()?.join(p.file_name()?))
+    };
+    planned(a).is_some_and(|x| Some(x) == planned(b))
+}
+
+/// The outputs of a drive command, checked before the drive is asked anything (exit 2): no two
+/// of them the same file (both would be written into one), none the serial port (the CSV would
+/// go down the line) nor any character device other than standard output and `/dev/null`.
+fn check_outputs(port: &str, outputs: &[(&str, &std::path::Path)]) -> Result<()> {
+    let port = std::path::Path::new(port);
+    let allowed = [
+        char_device(std::path::Path::new("/dev/stdout")),
+        char_device(std::path::Path::new("/dev/null")),
+    ];
+    for (k, (name, p)) in outputs.iter().enumerate() {
+        let dev = char_device(p);
+        if same_file(p, port) || dev.is_some_and(|d| Some(d) == char_device(port)) {
+            crate::bad_input!(
+                "{name} {} is the serial port {}: the record would be written down the line",
+                p.display(),
+                port.display()
+            );
+        }
+        if dev.is_some() && !allowed.contains(&dev) {
+            crate::bad_input!(
+                "{name} {} is a device (a serial port or a terminal?), not a file: write to a \
+                 file, or to standard output with -",
+                p.display()
+            );
+        }
+        if let Some((other, q)) = outputs[..k].iter().find(|(_, q)| same_file(p, q)) {
+            crate::bad_input!(
+                "{name} {} and {other} {} are one file: both would be written into it",
+                p.display(),
+                q.display()
+            );
+        }
+    }
+    Ok(())
 }
 
 /// The output file, created only when the run's first data arrive ([`LazyFile`]); a path that
@@ -461,7 +574,29 @@ fn attach(c: &mut Client, pb: &Option<indicatif::ProgressBar>) {
     }
 }
 
+/// The error of an acquisition whose output was closed under it (a broken pipe): the drive was
+/// stopped (by the client, on the sink's error), what was lost said; exit 3 (I/O).
+fn lost_output(e: anyhow::Error, output: &std::path::Path, what: &str) -> anyhow::Error {
+    let broken = e.chain().any(|c| {
+        c.downcast_ref::<std::io::Error>()
+            .is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe)
+            || c.downcast_ref::<drive::Error>().is_some_and(
+                |d| matches!(d, drive::Error::Io(io) if io.kind() == std::io::ErrorKind::BrokenPipe),
+            )
+    });
+    if broken {
+        e.context(format!(
+            "the output {} was closed during the run (broken pipe): the drive was stopped and \
+             the rest of the {what} is lost (what was written before has no footer)",
+            output.display()
+        ))
+    } else {
+        e
+    }
+}
+
 fn prbs(a: PrbsArgs) -> Result<()> {
+    let _pipe = crate::interrupt::PipeErrors::arm();
     // Everything is checked before the output is touched or the drive asked anything.
     let conf = port_conf(&a.port)?;
     let test = PrbsTest {
@@ -476,13 +611,18 @@ fn prbs(a: PrbsArgs) -> Result<()> {
     if !(a.settle.is_finite() && a.settle >= 0.0) {
         crate::bad_input!("--settle must be a finite number of seconds >= 0");
     }
+    if a.periods == 0 {
+        crate::bad_input!("--periods must be at least 1");
+    }
     let cmd = test.to_command(&conf).map_err(lib_err)?;
     let (off, amp) = (i32::from(cmd.offset), i32::from(cmd.amplitude));
     check_levels(
         &[("high level", off + amp), ("low level", off - amp)],
         &conf,
     )?;
-    let mut sink = CsvSink::new(output_file(&a.output)?);
+    let output = output_path(&a.output);
+    check_outputs(&a.port.port, &[("--output", &output)])?;
+    let mut sink = CsvSink::new(output_file(&output)?);
     let mut c = connect(&a.port, &conf)?;
     let pb = progress_bar(a.port.quiet, "samples");
     attach(&mut c, &pb);
@@ -498,9 +638,11 @@ fn prbs(a: PrbsArgs) -> Result<()> {
     let written = sink
         .into_inner()
         .and_then(|mut f| f.flush().map(|_| f.is_created()))
-        .with_context(|| format!("writing {}", a.output.display()));
-    let acq = acq.context("the PRBS run")?;
-    written?;
+        .with_context(|| format!("writing {}", output.display()));
+    let acq = acq
+        .context("the PRBS run")
+        .map_err(|e| lost_output(e, &output, "record"))?;
+    written.map_err(|e| lost_output(e, &output, "record"))?;
     let missing: Vec<String> = acq
         .missing
         .iter()
@@ -558,18 +700,29 @@ fn prbs(a: PrbsArgs) -> Result<()> {
     }
 }
 
-/// The file of single repeats, if any: `--repeats-out`, or by default with `--repeats` above 1
-/// the output's name with `.repeats.csv` appended. Like the Bode table it is created with the
-/// first repeat measured.
-fn open_repeats_file(a: &SineArgs, conf: &Configure) -> Result<Option<RepeatsFile>> {
-    let path = match &a.repeats_out {
-        Some(p) => p.clone(),
+/// The path of the file of single repeats, if any: `--repeats-out`, or by default with
+/// `--repeats` above 1 the output's name with `.repeats.csv` appended. Like the Bode table it is
+/// created with the first repeat measured.
+fn repeats_path(a: &SineArgs) -> Option<PathBuf> {
+    match &a.repeats_out {
+        Some(p) => Some(output_path(p)),
         None if a.repeats > 1 => {
             let mut s = a.output.clone().into_os_string();
             s.push(".repeats.csv");
-            PathBuf::from(s)
+            Some(PathBuf::from(s))
         }
-        None => return Ok(None),
+        None => None,
+    }
+}
+
+/// The file of single repeats at `path` (see [`repeats_path`]).
+fn open_repeats_file(
+    a: &SineArgs,
+    conf: &Configure,
+    path: Option<PathBuf>,
+) -> Result<Option<RepeatsFile>> {
+    let Some(path) = path else {
+        return Ok(None);
     };
     Ok(Some(RepeatsFile {
         w: std::io::BufWriter::new(output_file(&path)?),
@@ -611,12 +764,44 @@ impl RepeatsFile {
 
 /// The sweep from the options, checked (exit 2).
 fn sine_sweep(a: &SineArgs, conf: &Configure) -> Result<SineSweep> {
+    if a.freqs.is_none() && (a.f_min > a.f_max || a.f_min == a.f_max && a.points > 1) {
+        crate::bad_input!(
+            "--f-min {} Hz must be below --f-max {} Hz (a table of {} frequencies)",
+            a.f_min,
+            a.f_max,
+            a.points
+        );
+    }
+    if a.freqs.is_none() && a.points == 0 {
+        crate::bad_input!("--points must be at least 1");
+    }
     let mut sweep = SineSweep::log(a.f_min, a.f_max, a.points);
     if let Some(f) = &a.freqs {
         sweep.freqs_hz = f.clone();
     }
     if sweep.freqs_hz.is_empty() || sweep.freqs_hz.iter().any(|f| !(f.is_finite() && *f > 0.0)) {
         crate::bad_input!("frequencies must be positive");
+    }
+    // A Bode table is read in increasing frequency, each once: --freqs in another order is
+    // sorted and a repeated frequency measured once, said.
+    let asked = sweep.freqs_hz.clone();
+    sweep.freqs_hz.sort_by(f64::total_cmp);
+    sweep.freqs_hz.dedup();
+    if sweep.freqs_hz != asked {
+        crate::eprintln_safe!(
+            "warning: --freqs sorted into increasing order{}: {}",
+            if sweep.freqs_hz.len() < asked.len() {
+                ", repeated frequencies measured once"
+            } else {
+                ""
+            },
+            sweep
+                .freqs_hz
+                .iter()
+                .map(f64::to_string)
+                .collect::<Vec<_>>()
+                .join(",")
+        );
     }
     let nyq = conf.sample_rate_hz as f64 / 2.0;
     if let Some(f) = sweep.freqs_hz.iter().find(|&&f| f >= nyq) {
@@ -724,10 +909,24 @@ impl BodeFile {
 }
 
 fn sine(a: SineArgs) -> Result<()> {
+    let _pipe = crate::interrupt::PipeErrors::arm();
     let conf = port_conf(&a.port)?;
     let sweep = sine_sweep(&a, &conf)?;
     // The drive measures at the whole-cycle frequency nearest each request.
     let applied = sweep.applied_freqs_hz(conf.sample_rate_hz);
+    // Two requests that become one applied frequency would make two rows of one frequency.
+    for (k, w) in applied.windows(2).enumerate() {
+        if let [Some(x), Some(y)] = w {
+            if (x - y).abs() <= 1e-9 * x.abs() {
+                crate::bad_input!(
+                    "{} Hz and {} Hz are both measured at {x} Hz (the nearest frequency with whole \
+                     cycles in the window): drop one",
+                    sweep.freqs_hz[k],
+                    sweep.freqs_hz[k + 1]
+                );
+            }
+        }
+    }
     let moved: Vec<String> = sweep
         .freqs_hz
         .iter()
@@ -759,8 +958,15 @@ fn sine(a: SineArgs) -> Result<()> {
             a.repeats
         );
     }
-    let mut file = BodeFile::new(&a.output, header, sweep.repeats > 1)?;
-    let mut reps_file = open_repeats_file(&a, &conf)?;
+    let output = output_path(&a.output);
+    let reps_path = repeats_path(&a);
+    let mut outs: Vec<(&str, &std::path::Path)> = vec![("--output", &output)];
+    if let Some(r) = &reps_path {
+        outs.push(("the repeats file (--repeats-out)", r));
+    }
+    check_outputs(&a.port.port, &outs)?;
+    let mut file = BodeFile::new(&output, header, sweep.repeats > 1)?;
+    let mut reps_file = open_repeats_file(&a, &conf, reps_path)?;
     let mut c = connect(&a.port, &conf)?;
     let pb = progress_bar(a.port.quiet, "frequencies");
     attach(&mut c, &pb);
@@ -786,7 +992,8 @@ fn sine(a: SineArgs) -> Result<()> {
         Err(e) => {
             // Keep what was measured before the failure, with a footer.
             let _ = file.finish(&[format!("{e:#}")], &["(sweep failed)".into()]);
-            return Err(e.context(format!("the sine sweep ({})", a.output.display())));
+            let e = e.context(format!("the sine sweep ({})", output.display()));
+            return Err(lost_output(e, &output, "table"));
         }
     };
     if let Some(s) = signal {
@@ -806,7 +1013,8 @@ fn sine(a: SineArgs) -> Result<()> {
         .collect();
     let written = file
         .finish(&problems, &unmeasured)
-        .with_context(|| format!("writing {}", a.output.display()))?;
+        .with_context(|| format!("writing {}", output.display()))
+        .map_err(|e| lost_output(e, &output, "table"))?;
     for p in &problems {
         crate::eprintln_safe!("warning: {p}");
     }

@@ -33,7 +33,7 @@ pub struct ExportArgs {
     #[arg(long, value_name = "W_B,W_H")]
     pub band: Option<String>,
     /// Approximation order N (2N+1 cells per operator).
-    #[arg(long, default_value_t = 8)]
+    #[arg(long, default_value_t = 8, value_parser = crate::cmd::parse_order)]
     pub order: usize,
     /// Output format: json, or m (a MATLAB script that builds `sys = ss(...)` and `G = tf(sys)`).
     /// Default: from the extension of -o, else json.
@@ -50,8 +50,7 @@ pub fn load_model(text: &str) -> Result<FracTf> {
     if p.extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("json"))
     {
-        let raw = std::fs::read_to_string(p)
-            .with_context(|| format!("cannot read model file {}", p.display()))?;
+        let raw = crate::cmd::read_text(p)?;
         let v: Value = match serde_json::from_str(&raw) {
             Ok(v) => v,
             Err(e) => bad_input!("{}: not JSON: {e}", p.display()),

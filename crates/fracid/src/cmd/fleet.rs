@@ -250,19 +250,33 @@ fn panic_text(e: &(dyn std::any::Any + Send)) -> String {
         .unwrap_or_else(|| "unknown panic".into())
 }
 
-/// Fit every file with `fit` (the report as JSON) on `jobs` threads, write the reports and the
-/// summary, print one line per file; an error when any file failed.
+/// Fit every file with `fit` (the report as JSON and the problems that make its model unusable)
+/// on `jobs` threads, write the reports and the summary, print one line per file; an error when
+/// any file failed. A file whose model is not usable is written and failed (exit 1), as the
+/// single-file command does.
 ///
 /// # Errors
 /// The summary or output directory cannot be written (exit 3); any file failed (its exit code
 /// when all failures share one, else 1).
 pub fn run<F>(kind: &str, files: &[PathBuf], fa: &FleetArgs, json_out: bool, fit: F) -> Result<()>
 where
-    F: Fn(&Path) -> Result<Value> + Sync,
+    F: Fn(&Path) -> Result<(Value, Vec<String>)> + Sync,
 {
     if let Some(d) = &fa.out {
         std::fs::create_dir_all(d)
             .with_context(|| format!("cannot create the output directory {}", d.display()))?;
+    }
+    let dir = fa.out.clone().unwrap_or_else(|| PathBuf::from("."));
+    let (csv_path, json_path) = (
+        dir.join(format!("{kind}-summary.csv")),
+        dir.join(format!("{kind}-summary.json")),
+    );
+    let files = &not_the_summary(files, &csv_path)?;
+    if files.is_empty() {
+        crate::bad_input!(
+            "no file to fit: the only one given is this command's own summary {}",
+            csv_path.display()
+        );
     }
     let jobs = match fa.jobs {
         Some(0) => crate::bad_input!("--jobs must be at least 1"),
@@ -272,6 +286,9 @@ where
     .min(files.len().max(1));
     let t0 = Instant::now();
     let next = AtomicUsize::new(0);
+    // A standard output that cannot be written (a full disk, /dev/full) must not stop the fits
+    // nor the summary files: the first error is kept and reported at the end (exit 3).
+    let stdout_error: Mutex<Option<std::io::Error>> = Mutex::new(None);
     let taken = Mutex::new(Vec::new());
     let rows: Mutex<Vec<(usize, Row)>> = Mutex::new(Vec::with_capacity(files.len()));
     let one = |i: usize| -> Row {
@@ -280,17 +297,22 @@ where
         let t = Instant::now();
         let res = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| fit(file)))
             .unwrap_or_else(|e| Err(anyhow::anyhow!("internal error: {}", panic_text(&*e))));
-        let res = res.and_then(|v| {
+        let res = res.and_then(|(v, problems)| {
             let p = report_path(file, fa.out.as_deref(), kind, &taken);
             std::fs::write(&p, serde_json::to_string_pretty(&v)? + "\n")
                 .with_context(|| format!("cannot write {}", p.display()))?;
-            Ok((v, p))
+            Ok((v, p, problems))
         });
         row.seconds = t.elapsed().as_secs_f64();
         match res {
-            Ok((v, p)) => {
+            Ok((v, p, problems)) => {
                 row.fill_from(&v);
                 row.report = Some(p.display().to_string());
+                if !problems.is_empty() {
+                    row.status = "failed";
+                    row.exit_code = 1;
+                    row.error = Some(unusable_message(&problems));
+                }
             }
             Err(e) => {
                 row.status = "failed";
@@ -309,7 +331,7 @@ where
                 }
                 let row = one(i);
                 if !json_out {
-                    print_row(&row);
+                    print_row(&row, &stdout_error);
                 }
                 rows.lock()
                     .unwrap_or_else(|e| e.into_inner())
@@ -321,11 +343,6 @@ where
     rows.sort_by_key(|(i, _)| *i);
     let rows: Vec<Row> = rows.into_iter().map(|(_, r)| r).collect();
     let wall = t0.elapsed().as_secs_f64();
-    let dir = fa.out.clone().unwrap_or_else(|| PathBuf::from("."));
-    let (csv_path, json_path) = (
-        dir.join(format!("{kind}-summary.csv")),
-        dir.join(format!("{kind}-summary.json")),
-    );
     let failed: Vec<&Row> = rows.iter().filter(|r| r.status != "ok").collect();
     let summary = json!({
         "command": kind,
@@ -339,15 +356,25 @@ where
     std::fs::write(&json_path, serde_json::to_string_pretty(&summary)? + "\n")
         .with_context(|| format!("cannot write {}", json_path.display()))?;
     if json_out {
-        println!("{}", serde_json::to_string_pretty(&summary)?);
+        out_line(&serde_json::to_string_pretty(&summary)?, &stdout_error);
     } else {
-        println!(
-            "{} files, {} failed, {jobs} at once, {wall:.2} s; summary: {}, {}",
-            rows.len(),
-            failed.len(),
-            csv_path.display(),
-            json_path.display()
+        out_line(
+            &format!(
+                "{} files, {} failed, {jobs} at once, {wall:.2} s; summary: {}, {}",
+                rows.len(),
+                failed.len(),
+                csv_path.display(),
+                json_path.display()
+            ),
+            &stdout_error,
         );
+    }
+    let stdout_error = stdout_error.into_inner().unwrap_or_else(|e| e.into_inner());
+    if let Some(e) = stdout_error {
+        return Err(anyhow::Error::new(e).context(format!(
+            "cannot write to standard output (the reports and the summary {} are written)",
+            csv_path.display()
+        )));
     }
     if failed.is_empty() {
         return Ok(());
@@ -377,24 +404,71 @@ where
     })
 }
 
-fn print_row(r: &Row) {
+/// The error of a model that is not usable, worded as `fracid time FILE` words it.
+pub(crate) fn unusable_message(problems: &[String]) -> String {
+    format!("the fitted model is not usable: {}", problems.join("; "))
+}
+
+/// One line to standard output; the first write error is kept in `error`, later lines dropped.
+fn out_line(line: &str, error: &Mutex<Option<std::io::Error>>) {
+    use std::io::Write;
+    let mut e = error.lock().unwrap_or_else(|e| e.into_inner());
+    if e.is_none() {
+        let mut out = std::io::stdout().lock();
+        if let Err(err) = writeln!(out, "{line}").and_then(|()| out.flush()) {
+            *e = Some(err);
+        }
+    }
+}
+
+/// The files without this command's own summary table (`--out`'s `time-summary.csv`, read back
+/// by a second run of a directory into itself). A file of that name that is not a fracid summary
+/// is refused: the summary would overwrite it (exit 2).
+fn not_the_summary(files: &[PathBuf], summary: &Path) -> Result<Vec<PathBuf>> {
+    let Ok(target) = std::fs::canonicalize(summary) else {
+        return Ok(files.to_vec()); // no summary yet: nothing to skip, nothing overwritten
+    };
+    let ours = std::fs::File::open(summary).is_ok_and(|f| {
+        let mut first = String::new();
+        std::io::BufRead::read_line(&mut std::io::BufReader::new(std::io::Read::take(f, 4096)), &mut first)
+            .is_ok()
+            && first.starts_with("file,status,exit_code,")
+    });
+    if !ours {
+        crate::bad_input!(
+            "{} exists and is not a fracid summary: the summary would overwrite it (move it, \
+             or choose another --out)",
+            summary.display()
+        );
+    }
+    Ok(files
+        .iter()
+        .filter(|f| std::fs::canonicalize(f).map_or(true, |f| f != target))
+        .cloned()
+        .collect())
+}
+
+fn print_row(r: &Row, error: &Mutex<Option<std::io::Error>>) {
     let fit = match (r.fit_validation_percent, r.j) {
         (Some(f), _) => format!("fit {f:.2}%"),
         (None, Some(j)) => format!("J {j:.3e}"),
         _ => String::new(),
     };
     match &r.error {
-        None => println!(
-            "ok      {}: {} {fit}{}",
-            r.file,
-            r.model.as_deref().unwrap_or("?"),
-            if r.effects.is_empty() {
-                String::new()
-            } else {
-                format!(" + {}", r.effects.join(", "))
-            }
+        None => out_line(
+            &format!(
+                "ok      {}: {} {fit}{}",
+                r.file,
+                r.model.as_deref().unwrap_or("?"),
+                if r.effects.is_empty() {
+                    String::new()
+                } else {
+                    format!(" + {}", r.effects.join(", "))
+                }
+            ),
+            error,
         ),
-        Some(e) => println!("failed  {}: {e}", r.file),
+        Some(e) => out_line(&format!("failed  {}: {e}", r.file), error),
     }
 }
 
@@ -463,7 +537,7 @@ pub fn run_time(a: super::time::TimeArgs) -> Result<()> {
 
 /// One file's `fracid time --json` report, with the options of `a` (the steps of
 /// `time::run` without its printing).
-fn time_report(a: &super::time::TimeArgs, file: &Path) -> Result<Value> {
+fn time_report(a: &super::time::TimeArgs, file: &Path) -> Result<(Value, Vec<String>)> {
     use ident::oe::identify_with_progress;
     let rec = super::time::read_record(file, &super::time::read_options(a))?;
     let duration = rec.t.last().copied().unwrap_or(0.0) - rec.t.first().copied().unwrap_or(0.0);
@@ -471,16 +545,18 @@ fn time_report(a: &super::time::TimeArgs, file: &Path) -> Result<Value> {
     let opts = super::time::ident_options(a)?;
     let id = identify_with_progress(&rec, &model, &opts, &mut |_, _| {})
         .with_context(|| format!("identifying {}", file.display()))?;
-    let mut v;
+    let (mut v, problems);
     if a.diagnose {
         let d = super::diagnose::run_time(&rec, &a.structure, &model, id, &opts)?;
         v = super::time::json_of(&d.id, &rec);
         v = super::diagnose::lead_with_final(v, &d.diagnosis, &d.choice, rec.dt)?;
+        problems = (!d.id.usable()).then(|| d.id.problems.clone());
     } else {
         v = super::time::json_of(&id, &rec);
+        problems = (!id.usable()).then(|| id.problems.clone());
     }
     v["file"] = json!(file.display().to_string());
-    Ok(v)
+    Ok((v, problems.unwrap_or_default()))
 }
 
 /// `fracid freq` on many files: each one `fracid freq FILE --json` with the same options, in a
@@ -517,8 +593,11 @@ pub fn run_freq(a: &super::freq::FreqArgs) -> Result<()> {
             );
         match o.status.code() {
             Some(0) => {
-                Ok(serde_json::from_slice(&o.stdout)
-                    .context("fracid freq --json printed no JSON")?)
+                Ok((
+                    serde_json::from_slice(&o.stdout)
+                        .context("fracid freq --json printed no JSON")?,
+                    Vec::new(),
+                ))
             }
             Some(2) => Err(anyhow::Error::new(BadInput(msg))),
             Some(3) => Err(anyhow::Error::new(std::io::Error::other(msg))),

@@ -167,15 +167,24 @@ pub fn parse_bode(
 }
 
 fn read_weight_file(path: &Path) -> Result<Vec<f64>> {
-    let text = std::fs::read_to_string(path)
-        .with_context(|| format!("cannot read weights {}", path.display()))?;
+    let text = super::read_text(path)?;
     let mut w = Vec::new();
     for (i, line) in text.lines().enumerate() {
         let l = line.split('#').next().unwrap_or("").trim();
         if l.is_empty() {
             continue;
         }
-        let field = l.split([',', ';', '\t', ' ']).next().unwrap_or("");
+        let mut fields = l.split([',', ';', '\t', ' ']).filter(|f| !f.is_empty());
+        let field = fields.next().unwrap_or("");
+        if fields.next().is_some() {
+            // A table (the data file itself, say): its first column is not a weight.
+            bad_input!(
+                "{} line {}: a weights file holds one number per line, this line has more \
+                 fields (to weight by a column of the data file, give the column's name)",
+                path.display(),
+                i + 1
+            );
+        }
         match field.parse::<f64>() {
             Ok(v) => w.push(v),
             Err(_) if w.is_empty() => continue, // a header line
@@ -204,10 +213,7 @@ pub fn run(a: FreqArgs) -> Result<()> {
     let text = if is_mat {
         String::new() // read below by variables
     } else {
-        ident::data::read_text(&a.file).map_err(|e| match e {
-            ident::Error::Io { .. } => anyhow::Error::new(e),
-            e => anyhow::Error::new(e).context(format!("in {}", a.file.display())),
-        })?
+        super::read_text(&a.file)?
     };
     let units = Units {
         rad_s: a.rad_s,

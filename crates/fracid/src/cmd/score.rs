@@ -2,7 +2,7 @@
 //! the model's parameters held, the record's own initial state and output offset estimated.
 
 use super::time::{print_score, read_record, score_json, ColumnArgs};
-use anyhow::{Context, Result};
+use anyhow::Result;
 use ident::data::ReadOptions;
 use ident::oe::{score, FracModel, InitialState};
 use std::path::PathBuf;
@@ -36,7 +36,7 @@ pub struct ScoreArgs {
 fn model_tf(s: &str) -> Result<fracsim::FracTf> {
     let path = std::path::Path::new(s);
     if s.ends_with(".json") || path.is_file() {
-        let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {s}"))?;
+        let text = super::read_text(path)?;
         let v: serde_json::Value = serde_json::from_str(&text)
             .map_err(|e| super::BadInput(format!("{s} is not JSON: {e}")))?;
         let m: ident::app::ModelReport = serde_json::from_value(v["model"].clone())

@@ -65,7 +65,7 @@ pub struct SimArgs {
     #[arg(long, value_name = "W_B,W_H")]
     pub band: Option<String>,
     /// Approximation order N (2N+1 cells).
-    #[arg(long, default_value_t = 8)]
+    #[arg(long, default_value_t = 8, value_parser = crate::cmd::parse_order)]
     pub order: usize,
     /// Write the CSV (t,u,y) here instead of stdout.
     #[arg(short, long, value_name = "FILE")]
@@ -172,6 +172,15 @@ fn samples_until(t_end: f64, dt: f64) -> Result<usize> {
 pub fn run(a: SimArgs) -> Result<()> {
     let tf: FracTf = a.model.parse().context("bad --model")?;
     tf.check_proper().context("--model cannot be simulated")?;
+    // Every output checked before any is written: a bad plot path must not cost the CSV that
+    // -o names (it was overwritten, then the plot refused).
+    if let Some(p) = &a.plot {
+        plot::format_of(p)?;
+        drive::client::check_writable(p).with_context(|| format!("cannot write plot {}", p.display()))?;
+    }
+    if let Some(p) = &a.output {
+        drive::client::check_writable(p).with_context(|| format!("cannot create {}", p.display()))?;
+    }
     let (u, dt) = build_input(&a)?;
     let y = if a.method.eq_ignore_ascii_case("gl") {
         gl::simulate_held(&tf, &u, dt, gl::HELD_SUBSTEPS)?

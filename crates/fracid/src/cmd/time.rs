@@ -60,7 +60,7 @@ pub struct TimeArgs {
     #[arg(long)]
     pub band: Option<String>,
     /// Approximation order N (2N+1 cells; default fracsim's, 8).
-    #[arg(long)]
+    #[arg(long, value_parser = crate::cmd::parse_order)]
     pub order: Option<usize>,
     /// Put a free integrator in series with the structure (K/(s (...))): for an output that
     /// integrates, such as a position; an input offset is then fitted too (a drift).

@@ -2,6 +2,8 @@
 //! or full stdout, a plot path that cannot be written, files that are not text, acquisition
 //! footers, the formats of real labs (quoted headers, no time column, headerless, `.mat`).
 
+mod round2;
+
 use super::fracid;
 use std::fmt::Write as _;
 use std::path::PathBuf;

@@ -221,12 +221,21 @@ fn den_text(den: &[Term]) -> String {
 
 /// Problems and warnings of the refit's estimates: a standard error of 10 times the value or more
 /// makes the result unusable (the data do not determine that parameter), above the value a
-/// warning; no convergence is a warning.
+/// warning; so do standard errors that cannot be computed at all (a singular Jacobian: some
+/// parameter, or combination, has no effect on the fit, as when the orders run to 0 on a table
+/// of noise); no convergence is a warning.
 pub(crate) fn refit_problems(
     r: &super::PmsmFit,
     problems: &mut Vec<String>,
     warnings: &mut Vec<String>,
 ) {
+    if r.std_errors.is_none() {
+        problems.push(format!(
+            "refit: the standard errors cannot be computed (the Jacobian is singular): the data \
+             do not determine K, a1, a2, zeta, theta (zeta = {:.4e}, theta = {:.4e})",
+            r.zeta, r.theta
+        ));
+    }
     if let Some(se) = r.std_errors {
         let vals = [r.k, r.a1, r.a2, r.zeta, r.theta];
         for ((name, v), s) in ["K", "a1", "a2", "zeta", "theta"].iter().zip(vals).zip(se) {

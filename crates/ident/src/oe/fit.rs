@@ -891,16 +891,32 @@ impl Scaling {
         }
     }
 
-    /// The identification of the scaled record, in the record's units.
+    /// The identification of the scaled record, in the record's units. The factors of the
+    /// parameters the fit added (the output offset, the initial state's levels, an input offset)
+    /// come from their units too: every parameter is scaled back.
     fn unscale(&self, id: &mut Identification) -> Result<()> {
         let (su, sy) = (self.su, self.sy);
-        self.scale_model(&mut id.model, -1.0);
+        let factors = (0..id.model.params.len())
+            .map(|j| match self.factors.get(j) {
+                Some(&f) => Some(f),
+                None => id.model.unit_scale(j, su, sy),
+            })
+            .collect::<Option<Vec<f64>>>()
+            .ok_or_else(|| {
+                Error::Numerical("a parameter added by the fit has no unit to scale back".into())
+            })?;
+        let all = Self {
+            su,
+            sy,
+            factors,
+        };
+        all.scale_model(&mut id.model, -1.0);
         id.model.operating_point.u0 /= su;
         id.model.operating_point.y0 /= sy;
         id.offsets.u0 /= su;
         id.offsets.y0 /= sy;
         let r = &mut id.report;
-        for (j, &f) in self.factors.iter().enumerate() {
+        for (j, &f) in all.factors.iter().enumerate() {
             r.values[j] /= f;
             r.start[j] /= f;
             id.start[j] /= f;

@@ -42,7 +42,9 @@ pub struct Scored {
 /// ```
 ///
 /// # Errors
-/// [`Error::NotEnoughData`] for a record shorter than 20 samples; errors of the simulation.
+/// [`Error::NotEnoughData`] for a record shorter than 20 samples; errors of the simulation;
+/// [`Error::Numerical`] when the model's output or its error is not finite (a model whose
+/// output overflows on this record).
 pub fn score(
     model: &FracModel,
     rec: &Record,
@@ -108,8 +110,17 @@ pub fn score(
                 .into(),
         );
     }
+    let fit_all = Fit::of(&rec.y, &yhat);
+    if !(fit_all.rmse.is_finite() && yhat.iter().all(|v| v.is_finite())) {
+        // 1e300/(s+1): an output (or its error) beyond the range of f64 is no score.
+        return Err(Error::Numerical(format!(
+            "the model's output on this record is out of the range of 64-bit numbers (RMSE \
+             {}): are its coefficients in the units of the data?",
+            fit_all.rmse
+        )));
+    }
     Ok(Scored {
-        fit: Fit::of(&rec.y, &yhat),
+        fit: fit_all,
         yhat,
         offsets: op,
         record_params,

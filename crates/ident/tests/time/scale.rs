@@ -76,3 +76,51 @@ fn scaled_data_give_the_same_orders_and_a_scaled_gain() {
         );
     }
 }
+
+/// Issue 31, item 9: the parameters the fit adds (the output offset, the initial state's levels
+/// `u_past*`) were left at the scaled record's values (with y x 1e10, `y_offset` -0.16 where the
+/// truth is about -5.6e9). Every parameter of a fit of the record in other units (y x 1e10,
+/// u x 1e-12, and both x 1e-12) must be the unscaled fit's in those units: `y_offset` times the
+/// output's factor, `u_past*` times the input's, `K` times their ratio, the rest equal. The
+/// optimiser sees data differing only by rounding (powers of two), so the tolerance is 1e-6 of
+/// the value plus its standard error (a level near 0 has no relative precision of its own).
+#[test]
+fn every_parameter_is_scaled_back_offsets_and_initial_state_included() {
+    let (u, y) = record();
+    // an output offset the fit has to find: y + 2 on the estimation part's mean removed
+    let y: Vec<f64> = y.iter().map(|v| v + 2.0).collect();
+    let start = FracModel::pmsm(1.0, 0.01, 1e-4, 0.9, 0.9);
+    let fit = |su: f64, sy: f64| {
+        let us: Vec<f64> = u.iter().map(|v| v * su).collect();
+        let ys: Vec<f64> = y.iter().map(|v| v * sy).collect();
+        let rec = Record::from_samples(&us, &ys, DT).unwrap();
+        identify(&rec, &start, &IdentOptions::default()).unwrap()
+    };
+    let base = fit(1.0, 1.0);
+    let names: Vec<&str> = base.model.params.iter().map(|p| p.name.as_str()).collect();
+    assert!(names.contains(&"y_offset"), "{names:?}");
+    assert!(names.iter().any(|n| n.starts_with("u_past")), "{names:?}");
+    let yo = base.report.values[names.iter().position(|n| *n == "y_offset").unwrap()];
+    assert!(yo.abs() > 1e-3, "a real offset to scale: {yo}");
+    for (su, sy) in [(1.0, 1e10), (1e-12, 1.0), (1e-12, 1e-12)] {
+        let id = fit(su, sy);
+        assert_eq!(id.model.params.len(), names.len());
+        for (j, name) in names.iter().enumerate() {
+            let f = match *name {
+                "K" => sy / su,
+                "y_offset" => sy,
+                n if n.starts_with("u_past") => su,
+                _ => 1.0,
+            };
+            let (b, v) = (base.report.values[j], id.report.values[j]);
+            let se = base.report.params[j].std_error.unwrap_or(0.0);
+            assert!(
+                (v / f - b).abs() <= 1e-6 * (b.abs() + se),
+                "su {su:e} sy {sy:e}: {name} = {v:e}, want {:e}",
+                b * f
+            );
+            assert_eq!(id.model.params[j].value, v, "{name}: model and report agree");
+        }
+        assert!(((id.offsets.y0 / sy - base.offsets.y0) / base.offsets.y0).abs() < 1e-9);
+    }
+}
