@@ -11,9 +11,17 @@ echo "== cargo test (workspace)"
 cargo test --no-fail-fast   # the default members: every crate but the pyo3 extension
 
 echo "== drive end-to-end tests again, against the C firmware (firmware/) behind the pty"
-FRACID_SIM_FIRMWARE=c cargo test -p drive --test integration e2e
+# From the workspace root, not `-p drive`: the same package selection as `cargo test` above, so
+# the same features and the test binary already built (`-p drive` resolved features for drive
+# alone and compiled it, fracsim and nalgebra again).
+FRACID_SIM_FIRMWARE=c cargo test --test integration e2e
 
 if [ -f python/pyproject.toml ] && [ -x python/ci.sh ]; then
     echo "== python: build the wheel, install it in a fresh venv, pytest"
+    # The CLI the agreement tests compare with: the one `cargo test` built above (python/ci.sh
+    # would otherwise build `-p fracid` alone, whose features differ: the whole stack again).
+    # The wheel shares the target directory and profile, and its features match the test build's
+    # (python/Cargo.toml, "feature unification"; check: python3 scripts/feature_drift.py).
+    export FRACID_BIN="${FRACID_BIN:-${CARGO_TARGET_DIR:-$PWD/target}/debug/fracid}"
     bash python/ci.sh
 fi

@@ -304,7 +304,7 @@ fn sim_input_columns_are_chosen_and_checked() {
 }
 
 /// Tests that run the drive simulator in real time take turns (two at once on a 2-core machine
-/// would distort their timing).
+/// would distort their timing); the demos (virtual time, but their fits load the machine) too.
 fn realtime_lock() -> std::sync::MutexGuard<'static, ()> {
     static LOCK: std::sync::Mutex<()> = std::sync::Mutex::new(());
     LOCK.lock().unwrap_or_else(|e| e.into_inner())
@@ -395,7 +395,8 @@ fn demo_acquires_identifies_diagnoses_and_reports() {
 }
 
 /// The whole demo with the C drive firmware (`firmware/`) behind the simulated drive's pty: the
-/// same record length, the same delay found, the same models (about 50 s, as the default demo).
+/// same record length, the same delay found, the same models (a few seconds, as the default demo:
+/// the demo's drive runs in virtual time).
 #[test]
 fn demo_with_the_c_firmware_finds_the_hidden_delay() {
     // one measurement per frequency: the repeats are the host's, tested with the Rust firmware
@@ -1117,12 +1118,21 @@ fn drive_sim(extra: &[&str]) -> (KillOnDrop, String, String) {
     (sim, port.trim().to_string(), banner)
 }
 
-/// `fracid drive prbs` and `fracid drive sine` against a simulator: the PRBS CSV and the Bode CSV.
+/// `fracid drive prbs` and `fracid drive sine` against a simulator in virtual time (a host
+/// keepalive every 2 ms): the PRBS CSV and the Bode CSV.
 #[cfg(unix)]
 fn drive_records(port: &str, dir: &std::path::Path, tag: &str) -> (String, String) {
     let prbs = dir.join(format!("prbs_{tag}.csv"));
     let bode = dir.join(format!("bode_{tag}.csv"));
-    let common = ["--port", port, "--baud", "921600", "--quiet"];
+    let common = [
+        "--port",
+        port,
+        "--baud",
+        "921600",
+        "--keepalive-ms",
+        "2",
+        "--quiet",
+    ];
     let mut a = vec!["drive", "prbs", "--settle", "0.1", "-o"];
     a.push(prbs.to_str().unwrap());
     a.extend(common);
@@ -1160,11 +1170,12 @@ fn drive_records(port: &str, dir: &std::path::Path, tag: &str) -> (String, Strin
 fn drive_sim_firmware_c_gives_the_rust_firmware_records() {
     let _g = realtime_lock();
     let dir = tempfile::tempdir().unwrap();
-    let (sim_c, port_c, banner_c) = drive_sim(&["--firmware", "c"]);
+    // virtual time: the records depend on the seed alone
+    let (sim_c, port_c, banner_c) = drive_sim(&["--firmware", "c", "--virtual-time"]);
     assert!(banner_c.contains("(C firmware)"), "{banner_c}");
     let (prbs_c, bode_c) = drive_records(&port_c, dir.path(), "c");
     drop(sim_c);
-    let (sim_r, port_r, banner_r) = drive_sim(&["--firmware", "rust"]);
+    let (sim_r, port_r, banner_r) = drive_sim(&["--firmware", "rust", "--virtual-time"]);
     assert!(banner_r.contains("(Rust firmware)"), "{banner_r}");
     let (prbs_r, bode_r) = drive_records(&port_r, dir.path(), "rust");
     drop(sim_r);

@@ -74,6 +74,8 @@ pub struct CConfig {
     pub sample_rate_hz: u32,
     /// Channel scales, micro-units per LSB: voltage, speed, current.
     pub scales: [u32; 3],
+    /// Keepalive interval, ms (the engine counts it in samples).
+    pub keepalive_ms: u16,
 }
 
 /// One instance of the C firmware's protocol engine.
@@ -181,6 +183,7 @@ impl CEngine {
         (c.sample_rate_hz != 0).then_some(CConfig {
             sample_rate_hz: c.sample_rate_hz,
             scales: [c.scale_u_uv, c.scale_y_urad_s, c.scale_i_ua],
+            keepalive_ms: c.keepalive_ms,
         })
     }
 

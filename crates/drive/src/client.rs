@@ -1096,7 +1096,10 @@ impl Client {
                 })
                 .map_err(RunFail::Drive)?;
             }
-            self.pump(Duration::from_millis(20))
+            // Wait for the line no longer than until the next KEEPALIVE is due (a short keepalive
+            // interval is kept even while nothing arrives, as in a sine run without streaming).
+            let keepalive_due = self.cfg.keepalive.saturating_sub(self.last_tx.elapsed());
+            self.pump(keepalive_due.min(Duration::from_millis(20)))
                 .map_err(RunFail::Drive)?;
             let mut ended = false;
             while let Some(f) = self.inbox.pop_front() {

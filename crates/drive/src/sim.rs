@@ -15,7 +15,10 @@
 //! - faults ([`Faults`]): bit flips, dropped bytes, bursts, whole-frame corruption, a stall, a
 //!   disconnect and reconnect, a drive reset; and one lost answer ([`DriveSim::lose_next_answer`]).
 //!
-//! It runs in real time (wall clock); samples are produced in batches every ~0.5 ms.
+//! Its clock ([`SimClock`]) is the wall clock by default: samples are produced in batches every
+//! ~0.5 ms as their time comes, as a real drive would. In virtual time ([`SimClock::Virtual`]) the
+//! same drive runs as fast as the host allows, waiting for the host only where the protocol needs
+//! it (the host reading what was sent, the keepalive).
 
 use crate::codec::{self, StreamDecoder};
 use crate::error::{Error, Result};
@@ -27,6 +30,7 @@ use rand_distr::{Distribution, Normal};
 use serialport::{SerialPort, TTYPort};
 use std::collections::VecDeque;
 use std::io::{Read, Write};
+use std::os::fd::AsRawFd;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, AtomicU16, Ordering};
 use std::sync::{Arc, Mutex};
@@ -214,6 +218,42 @@ impl FirmwareKind {
     }
 }
 
+/// How the simulator's clock runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum SimClock {
+    /// The wall clock: samples are produced as their time comes (in batches every ~0.5 ms) and
+    /// the line is paced to the baud rate in real time, as a real drive does. For testing host
+    /// software against the simulator, and for tests of timing (timeouts, keepalive, stalls).
+    #[default]
+    RealTime,
+    /// Virtual time: the drive's clock (sample clock, line pacing at the baud rate, fault
+    /// durations) advances in steps of [`VIRTUAL_STEP`] as fast as the host allows. It waits for
+    /// the host only where the protocol needs it:
+    ///
+    /// - the host reads what the drive sent: the clock waits while more than
+    ///   [`VIRTUAL_MAX_UNREAD`] bytes sent are unread in the pty, and bytes the pty cannot take
+    ///   yet are kept, not lost (a host that merely reads late loses no DATA block);
+    /// - the keepalive: during a run the clock runs at most half the keepalive interval past the
+    ///   host's last frame before that host sends its next one. A host that sends a KEEPALIVE every
+    ///   `k` ms of wall time lets the drive run `keepalive / 2` per `k` ms: a host of a
+    ///   virtual-time simulator sends them often ([`crate::client::ClientConfig::keepalive`] of a
+    ///   few ms).
+    ///
+    /// A host silent for a whole keepalive interval of wall time, or one that reads nothing for
+    /// [`VIRTUAL_HOST_GRACE`], no longer holds the clock: the keepalive expires and bytes are lost
+    /// as in real time. With no run and nothing to send, the clock follows the wall clock.
+    Virtual,
+}
+
+/// The step of the virtual clock ([`SimClock::Virtual`]), as the real-time loop's period.
+pub const VIRTUAL_STEP: Duration = Duration::from_micros(500);
+
+/// Unread bytes in the pty above which the virtual clock waits for the host to read.
+pub const VIRTUAL_MAX_UNREAD: usize = 512;
+
+/// Wall time a host may leave the line unread before the virtual clock stops waiting for it.
+pub const VIRTUAL_HOST_GRACE: Duration = Duration::from_secs(2);
+
 /// Simulator configuration.
 #[derive(Debug, Clone)]
 pub struct SimConfig {
@@ -239,6 +279,8 @@ pub struct SimConfig {
     pub rx_fifo: usize,
     /// Print events to stderr.
     pub verbose: bool,
+    /// The drive's clock: real time (default) or virtual time.
+    pub clock: SimClock,
 }
 
 impl Default for SimConfig {
@@ -260,6 +302,7 @@ impl Default for SimConfig {
             tx_blocks: 4,
             rx_fifo: 16,
             verbose: false,
+            clock: SimClock::RealTime,
         }
     }
 }
@@ -302,6 +345,7 @@ pub struct SimStats {
 #[derive(Debug)]
 pub struct DriveSim {
     path: String,
+    clock: SimClock,
     stop: Arc<AtomicBool>,
     stats: Arc<Mutex<SimStats>>,
     lose_answer: Arc<AtomicU16>,
@@ -321,6 +365,10 @@ impl DriveSim {
             return Err(Error::InvalidParam("baud rate must be positive".into()));
         }
         let (master, slave_name) = open_pty()?;
+        let watch = match cfg.clock {
+            SimClock::Virtual => Some(watch_pty(&master, &slave_name)?),
+            SimClock::RealTime => None,
+        };
         let path = match &cfg.link {
             Some(link) => {
                 retarget_link(link, &slave_name)?;
@@ -330,7 +378,9 @@ impl DriveSim {
         };
         let stop = Arc::new(AtomicBool::new(false));
         let stats = Arc::new(Mutex::new(SimStats::default()));
+        let cfg_clock = cfg.clock;
         let mut fw = Firmware::new(cfg, master, stats.clone())?;
+        fw.slave = watch;
         let lose_answer = fw.lose_answer.clone();
         let stop2 = stop.clone();
         let thread = std::thread::Builder::new()
@@ -339,6 +389,7 @@ impl DriveSim {
             .map_err(Error::Io)?;
         Ok(Self {
             path,
+            clock: cfg_clock,
             stop,
             stats,
             lose_answer,
@@ -356,6 +407,11 @@ impl DriveSim {
     /// The path a host opens (the pty slave, or the link).
     pub fn port_path(&self) -> &str {
         &self.path
+    }
+
+    /// The simulator's clock.
+    pub fn clock(&self) -> SimClock {
+        self.clock
     }
 
     /// A snapshot of the counters.
@@ -399,6 +455,39 @@ fn open_pty() -> Result<(TTYPort, String)> {
     drop(slave);
     let _ = master.set_timeout(Duration::ZERO);
     Ok((master, name))
+}
+
+/// Virtual time: the master in non-blocking mode (what the pty cannot take waits in the
+/// simulator), and the slave held open to see how much the host has not read yet.
+fn watch_pty(master: &TTYPort, slave_name: &str) -> Result<std::fs::File> {
+    use std::os::unix::fs::OpenOptionsExt;
+    let fd = master.as_raw_fd();
+    // SAFETY: fcntl on a descriptor we own, no pointers.
+    let ok = unsafe {
+        let fl = libc::fcntl(fd, libc::F_GETFL);
+        fl >= 0 && libc::fcntl(fd, libc::F_SETFL, fl | libc::O_NONBLOCK) == 0
+    };
+    if !ok {
+        return Err(Error::Io(std::io::Error::last_os_error()));
+    }
+    let slave = std::fs::OpenOptions::new()
+        .read(true)
+        .write(true)
+        .custom_flags(libc::O_NOCTTY | libc::O_NONBLOCK)
+        .open(slave_name)?;
+    Ok(slave)
+}
+
+/// Bytes waiting to be read on the pty slave (FIONREAD); 0 if that cannot be known.
+fn unread(slave: &std::fs::File) -> usize {
+    let mut n: libc::c_int = 0;
+    // SAFETY: FIONREAD writes one c_int through a valid pointer.
+    let r = unsafe { libc::ioctl(slave.as_raw_fd(), libc::FIONREAD, &mut n) };
+    if r == 0 {
+        n.max(0) as usize
+    } else {
+        0
+    }
 }
 
 fn retarget_link(link: &std::path::Path, target: &str) -> Result<()> {
@@ -572,6 +661,21 @@ struct Firmware {
     fired: [bool; 3],
     /// The C firmware, when [`FirmwareKind::C`].
     c: Option<CState>,
+    // virtual time (SimClock::Virtual)
+    /// The drive's clock.
+    vnow: Instant,
+    /// Wall time of the loop's last pass (idle, the clock follows the wall clock).
+    wall_last: Instant,
+    /// Wall time of the last frame received.
+    last_rx_wall: Instant,
+    /// Bytes sent that the pty could not take yet.
+    out_backlog: VecDeque<u8>,
+    /// The pty slave, held open to see what the host has not read.
+    slave: Option<std::fs::File>,
+    /// Since when (wall) the clock waits for the host to read.
+    wait_since: Option<Instant>,
+    /// The host has read nothing for [`VIRTUAL_HOST_GRACE`]: the clock no longer waits for it.
+    host_absent: bool,
 }
 
 /// The C engine and what the simulator tracks around it.
@@ -636,6 +740,13 @@ impl Firmware {
             boot_until: None,
             fired: [false; 3],
             c: None,
+            vnow: now,
+            wall_last: now,
+            last_rx_wall: now,
+            out_backlog: VecDeque::new(),
+            slave: None,
+            wait_since: None,
+            host_absent: false,
         };
         Ok(Self { c, ..fw })
     }
@@ -656,8 +767,13 @@ impl Firmware {
     }
 
     fn run(&mut self, stop: &AtomicBool) {
+        let virtual_time = self.cfg.clock == SimClock::Virtual;
         while !stop.load(Ordering::Relaxed) {
-            let now = Instant::now();
+            let now = if virtual_time {
+                self.vnow
+            } else {
+                Instant::now()
+            };
             let elapsed = now.duration_since(self.last_tick).as_secs_f64().min(0.05);
             self.last_tick = now;
             self.line_state(now);
@@ -670,7 +786,147 @@ impl Firmware {
                 self.control(now);
                 self.transmit(elapsed, now);
             }
+            if virtual_time {
+                self.virtual_tick();
+            } else {
+                std::thread::sleep(Duration::from_micros(400));
+            }
+        }
+    }
+
+    /// Virtual time: write what waits for the pty, then advance the clock by one step, or wait
+    /// for the host where the protocol needs it ([`SimClock::Virtual`]).
+    fn virtual_tick(&mut self) {
+        self.flush_out();
+        let wall = Instant::now();
+        if !self.busy() {
+            // Nothing to simulate: time passes as on the wall clock.
             std::thread::sleep(Duration::from_micros(400));
+            let w = Instant::now();
+            self.vnow += w.duration_since(self.wall_last);
+            self.wall_last = w;
+            self.wait_since = None;
+            return;
+        }
+        self.wall_last = wall;
+        if self.may_advance(wall) {
+            self.vnow += VIRTUAL_STEP;
+            self.wait_since = None;
+        } else {
+            self.wait_since.get_or_insert(wall);
+            std::thread::sleep(Duration::from_micros(100));
+        }
+    }
+
+    /// A run is on, or bytes are on their way in either direction.
+    fn busy(&self) -> bool {
+        let running = match &self.c {
+            Some(c) => c.eng.running(),
+            None => self.run.is_some(),
+        };
+        running
+            || !self.rx_pending.is_empty()
+            || !self.rx_fifo.is_empty()
+            || !self.tx_prio.is_empty()
+            || !self.tx_data.is_empty()
+            || !self.tx_bytes.is_empty()
+            || !self.out_backlog.is_empty()
+    }
+
+    /// The keepalive interval of the run in progress, if any.
+    fn run_keepalive(&self) -> Option<Duration> {
+        let ms = match &self.c {
+            Some(c) if c.eng.running() => c.eng.config().map(|cc| cc.keepalive_ms),
+            Some(_) => None,
+            None => self
+                .run
+                .as_ref()
+                .and(self.conf)
+                .map(|conf| conf.keepalive_ms),
+        }?;
+        Some(Duration::from_millis(ms as u64))
+    }
+
+    /// Whether the virtual clock may take its next step now.
+    fn may_advance(&mut self, wall: Instant) -> bool {
+        // The host reads what was sent.
+        let unread = self.slave.as_ref().map_or(0, unread);
+        if self.out_backlog.is_empty() && unread <= VIRTUAL_MAX_UNREAD {
+            self.host_absent = false;
+        } else if !self.host_absent {
+            if self
+                .wait_since
+                .is_some_and(|t| wall.duration_since(t) >= VIRTUAL_HOST_GRACE)
+            {
+                self.host_absent = true;
+                self.event(format!(
+                    "virtual time: the host has read nothing for {VIRTUAL_HOST_GRACE:?}; the \
+                     clock runs on without it"
+                ));
+            } else {
+                return false;
+            }
+        }
+        // The keepalive: not past half its interval after the host's last frame, unless a frame
+        // is arriving or the host has really been silent that long.
+        if let Some(ka) = self.run_keepalive() {
+            let horizon = self.last_rx_frame + ka / 2;
+            if self.vnow + VIRTUAL_STEP > horizon
+                && self.rx_pending.is_empty()
+                && wall.duration_since(self.last_rx_wall) < ka
+            {
+                return false;
+            }
+        }
+        true
+    }
+
+    /// Virtual time: write what waits for the pty, as much as it takes (the rest waits; all of it
+    /// is lost if the host is absent, as on a real line).
+    fn flush_out(&mut self) {
+        if self.out_backlog.is_empty() {
+            return;
+        }
+        let Some(m) = self.master.as_ref() else {
+            self.out_backlog.clear();
+            return;
+        };
+        let fd = m.as_raw_fd();
+        let before = self.slave.as_ref().map(unread);
+        let mut wrote = false;
+        loop {
+            let buf = self.out_backlog.make_contiguous();
+            if buf.is_empty() {
+                break;
+            }
+            // SAFETY: writes from a valid buffer of `buf.len()` bytes to a descriptor we own.
+            let n = unsafe { libc::write(fd, buf.as_ptr().cast(), buf.len()) };
+            if n > 0 {
+                self.out_backlog.drain(..n as usize);
+                wrote = true;
+            } else {
+                let e = std::io::Error::last_os_error();
+                if n < 0 && e.kind() == std::io::ErrorKind::Interrupted {
+                    continue;
+                }
+                if n == 0 || e.kind() != std::io::ErrorKind::WouldBlock {
+                    self.out_backlog.clear();
+                }
+                break;
+            }
+        }
+        if self.host_absent {
+            self.out_backlog.clear();
+        }
+        // The kernel moves what the master wrote to the slave's input queue in a worker thread:
+        // until it has, FIONREAD does not count it, and a clock running flat out could write
+        // the pty full before the host's lag shows. Wait (up to 0.3 ms) until the count moves (it may
+        // not: the host read it at once).
+        if let (true, Some(u0), Some(slave)) = (wrote, before, self.slave.as_ref()) {
+            let t0 = Instant::now();
+            while unread(slave) == u0 && t0.elapsed() < Duration::from_micros(300) {
+                std::thread::yield_now();
+            }
         }
     }
 
@@ -696,6 +952,9 @@ impl Firmware {
                 self.reopen_at = None;
                 match (open_pty(), &self.cfg.link) {
                     (Ok((m, name)), Some(link)) => {
+                        if self.cfg.clock == SimClock::Virtual {
+                            self.slave = watch_pty(&m, &name).ok();
+                        }
                         if retarget_link(link, &name).is_ok() {
                             self.master = Some(m);
                             self.event(format!("reconnected as {name}"));
@@ -787,6 +1046,7 @@ impl Firmware {
         }
         for f in frames {
             self.last_rx_frame = now;
+            self.last_rx_wall = Instant::now();
             self.with_stats(|s| s.frames_received += 1);
             self.handle(f, now);
         }
@@ -1313,6 +1573,8 @@ impl Firmware {
             self.fired[1] = true;
             if self.cfg.link.is_some() {
                 self.master = None; // closes the pty: the host's port hangs up
+                self.slave = None;
+                self.out_backlog.clear();
                 self.reopen_at = Some(now + d.duration);
                 self.event(format!(
                     "disconnect (pty closed) for {:?} at sample {n}",
@@ -1352,6 +1614,7 @@ impl Firmware {
         self.tx_prio.clear();
         self.tx_data.clear();
         self.tx_bytes.clear();
+        self.out_backlog.clear();
         self.stall_until = None;
         self.boot_until = Some(boot_until);
         let (boot_id, max_fs) = (self.boot_id, self.cfg.max_sample_rate_hz);
@@ -1399,7 +1662,11 @@ impl Firmware {
         if self.dead_until.is_some() {
             return;
         }
-        if let Some(m) = self.master.as_mut() {
+        if self.cfg.clock == SimClock::Virtual {
+            // What the pty cannot take now waits (the clock waits with it).
+            self.out_backlog.extend(out);
+            self.flush_out();
+        } else if let Some(m) = self.master.as_mut() {
             // A full pty buffer or an absent host loses the bytes, as a real line would.
             let _ = m.write_all(&out);
         }
@@ -1458,6 +1725,7 @@ impl Firmware {
         for b in bytes {
             let Some(t) = c.eng.rx(b) else { continue };
             self.last_rx_frame = now;
+            self.last_rx_wall = Instant::now();
             self.with_stats(|s| s.frames_received += 1);
             let lose = 0x100 | t as u16;
             if self

@@ -1,9 +1,11 @@
 //! End-to-end over a real pseudo-terminal: simulator thread + client. Serialised with a lock (the
-//! simulator runs in real time; two at once on a 2-core machine would distort timing).
+//! timing tests run the simulator in real time; two at once on a 2-core machine would distort
+//! their timing). Tests whose outcome does not depend on the wall clock run the simulator in
+//! virtual time ([`vsim`], [`vclient`]).
 
 use drive::client::{Acquisition, Client, ClientConfig, CsvSink, NullSink, PrbsTest, SineSweep};
 use drive::protocol::Configure;
-use drive::sim::{DriveSim, FaultAt, Faults, SimConfig};
+use drive::sim::{DriveSim, FaultAt, Faults, SimClock, SimConfig};
 use std::sync::Mutex;
 use std::time::Duration;
 
@@ -49,6 +51,43 @@ pub(crate) fn client(path: &str, baud: u32) -> Client {
     c
 }
 
+/// The host's keepalive interval against a simulator in virtual time: short, so that the drive's
+/// clock need not wait for it ([`SimClock::Virtual`]).
+pub(crate) const VIRTUAL_KEEPALIVE: Duration = Duration::from_millis(2);
+
+/// A fault-free simulator in virtual time (the default model and effects).
+pub(crate) fn vsim(baud: u32) -> DriveSim {
+    vspawn(SimConfig {
+        baud,
+        ..SimConfig::default()
+    })
+}
+
+/// `cfg` in virtual time.
+pub(crate) fn vspawn(cfg: SimConfig) -> DriveSim {
+    DriveSim::spawn(SimConfig {
+        clock: SimClock::Virtual,
+        ..cfg
+    })
+    .expect("simulator starts")
+}
+
+/// [`client`] for a simulator in virtual time: keepalive every [`VIRTUAL_KEEPALIVE`].
+pub(crate) fn vclient(path: &str, baud: u32) -> Client {
+    let mut c = Client::open(path, vclient_config(baud)).expect("client opens");
+    c.configure(&Configure::default()).expect("configure");
+    c
+}
+
+/// The client settings of [`vclient`].
+pub(crate) fn vclient_config(baud: u32) -> ClientConfig {
+    ClientConfig {
+        baud,
+        keepalive: VIRTUAL_KEEPALIVE,
+        ..ClientConfig::default()
+    }
+}
+
 /// Every received sample must equal what the drive produced: never silently wrong data.
 pub(crate) fn check_truth(acq: &Acquisition, sim: &DriveSim) {
     let st = sim.stats();
@@ -84,8 +123,8 @@ pub(crate) fn check_consistent(acq: &Acquisition) {
 #[test]
 fn clean_run_is_complete() {
     let _g = lock();
-    let s = sim(Faults::default(), 115_200, None);
-    let mut c = client(s.port_path(), 115_200);
+    let s = vsim(115_200);
+    let mut c = vclient(s.port_path(), 115_200);
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("prbs.csv");
     let mut sink = CsvSink::new(std::fs::File::create(&path).unwrap());
@@ -268,8 +307,8 @@ fn drive_reset_mid_run() {
 #[test]
 fn sine_sweep_matches_the_model() {
     let _g = lock();
-    let s = sim(Faults::default(), 115_200, None);
-    let mut c = client(s.port_path(), 115_200);
+    let s = vsim(115_200);
+    let mut c = vclient(s.port_path(), 115_200);
     let mut sweep = SineSweep::log(5.0, 40.0, 3);
     sweep.min_settle_s = 0.1;
     sweep.cycles = 3;

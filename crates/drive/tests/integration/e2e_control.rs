@@ -12,23 +12,34 @@ use drive::protocol::{
     fault, ty, Configure, DriveState, EndReason, NakCode, StartSine, StreamEnd, SINE_DFT,
     SINE_STREAM,
 };
-use drive::sim::{DriveSim, SimConfig};
+use drive::sim::{DriveSim, SimClock, SimConfig};
 use drive::Error;
 use std::io;
 use std::time::{Duration, Instant};
 
 const BAUD: u32 = 921_600;
 
-fn fast_sim() -> DriveSim {
+/// The simulator at 921600 baud, in real time (the tests that time commands against the samples:
+/// STOP, ESTOP, the keepalive) or in virtual time ([`fast_client`] then keeps it going).
+fn fast_sim(clock: SimClock) -> DriveSim {
     DriveSim::spawn(SimConfig {
         baud: BAUD,
+        clock,
         ..SimConfig::default()
     })
     .expect("simulator starts")
 }
 
-fn fast_client(path: &str, cfg: ClientConfig, conf: &Configure) -> Client {
-    let mut c = Client::open(path, ClientConfig { baud: BAUD, ..cfg }).expect("client opens");
+/// The client settings for a simulator in virtual time: keepalive every
+/// [`super::e2e::VIRTUAL_KEEPALIVE`].
+fn vcfg() -> ClientConfig {
+    super::e2e::vclient_config(BAUD)
+}
+
+/// A client of [`fast_sim`] (at its baud rate).
+fn fast_client(s: &DriveSim, cfg: ClientConfig, conf: &Configure) -> Client {
+    let mut c =
+        Client::open(s.port_path(), ClientConfig { baud: BAUD, ..cfg }).expect("client opens");
     c.configure(conf).expect("configure");
     c
 }
@@ -75,12 +86,8 @@ fn assert_nak_fault(r: drive::Result<Acquisition>, code: u8) {
 fn stop_mid_run_keeps_what_arrived() {
     let _g = lock();
     let t0 = Instant::now();
-    let s = fast_sim();
-    let mut c = fast_client(
-        s.port_path(),
-        ClientConfig::default(),
-        &Configure::default(),
-    );
+    let s = fast_sim(SimClock::RealTime);
+    let mut c = fast_client(&s, ClientConfig::default(), &Configure::default());
     stop_at(&mut c, 250, false);
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("stopped.csv");
@@ -140,12 +147,8 @@ fn stop_mid_run_keeps_what_arrived() {
 fn estop_latches_until_configure() {
     let _g = lock();
     let t0 = Instant::now();
-    let s = fast_sim();
-    let mut c = fast_client(
-        s.port_path(),
-        ClientConfig::default(),
-        &Configure::default(),
-    );
+    let s = fast_sim(SimClock::RealTime);
+    let mut c = fast_client(&s, ClientConfig::default(), &Configure::default());
     stop_at(&mut c, 250, true);
     let acq = c.run_prbs(&short_prbs(), &mut NullSink).unwrap();
     let end = end_of(&acq);
@@ -212,7 +215,7 @@ impl SampleSink for ArrivalSink {
 fn keepalive_expiry_ramps_down() {
     let _g = lock();
     let t0 = Instant::now();
-    let s = fast_sim();
+    let s = fast_sim(SimClock::RealTime);
     // The host goes silent during the run: no KEEPALIVE, and DATA keep flowing so it never polls.
     let conf = Configure {
         block_samples: 10,
@@ -222,7 +225,7 @@ fn keepalive_expiry_ramps_down() {
         keepalive: Duration::from_secs(3600),
         ..ClientConfig::default()
     };
-    let mut c = fast_client(s.port_path(), silent, &conf);
+    let mut c = fast_client(&s, silent, &conf);
     let test = PrbsTest {
         periods: 4,
         ..short_prbs()
@@ -294,8 +297,8 @@ fn keepalive_expiry_ramps_down() {
 
 /// A run that trips: ends with LIMIT at the first sample beyond the limit, which is kept.
 fn trip(conf: Configure, test: PrbsTest, channel: usize, limit: i16, code: u8) -> u64 {
-    let s = fast_sim();
-    let mut c = fast_client(s.port_path(), ClientConfig::default(), &conf);
+    let s = fast_sim(SimClock::Virtual);
+    let mut c = fast_client(&s, vcfg(), &conf);
     let acq = c.run_prbs(&test, &mut NullSink).unwrap();
     let end = end_of(&acq);
     let n = end.total_samples as u64;
@@ -367,9 +370,9 @@ fn current_limit_trips() {
 fn streamed_sine_dft_matches_the_drive() {
     let _g = lock();
     let t0 = Instant::now();
-    let s = fast_sim();
+    let s = fast_sim(SimClock::Virtual);
     let conf = Configure::default();
-    let mut c = fast_client(s.port_path(), ClientConfig::default(), &conf);
+    let mut c = fast_client(&s, vcfg(), &conf);
     let fs = conf.sample_rate_hz;
     let mut worst_phasor: f64 = 0.0;
     let (mut worst_db, mut worst_deg): (f64, f64) = (0.0, 0.0);
@@ -442,12 +445,8 @@ fn streamed_sine_dft_matches_the_drive() {
 fn retried_start_runs_once() {
     let _g = lock();
     let t0 = Instant::now();
-    let s = fast_sim();
-    let mut c = fast_client(
-        s.port_path(),
-        ClientConfig::default(),
-        &Configure::default(),
-    );
+    let s = fast_sim(SimClock::Virtual);
+    let mut c = fast_client(&s, vcfg(), &Configure::default());
     // the drive starts the run but its ACK is lost: the client resends START with the same seq
     s.lose_next_answer(ty::START_PRBS);
     let acq = c.run_prbs(&short_prbs(), &mut NullSink).unwrap();
@@ -562,4 +561,107 @@ fn a_drive_of_another_protocol_version_is_named() {
     );
     // the host said HELLO in its version (twice: one retry), then once in version 1
     assert_eq!(seen, [2, 2, 1], "versions of the host's frames");
+}
+
+/// A sink that stops reading (sleeps) once, at sample `at`, for `pause`, and notes how many
+/// samples the drive had produced when the pause ended.
+struct PausingSink<'a> {
+    sim: &'a DriveSim,
+    at: u64,
+    pause: Duration,
+    produced: Option<usize>,
+}
+
+impl SampleSink for PausingSink<'_> {
+    fn begin(&mut self, _: &RunInfo) -> io::Result<()> {
+        Ok(())
+    }
+    fn sample(&mut self, index: u64, _: f64, _: f64, _: f64, _: f64) -> io::Result<()> {
+        if index == self.at {
+            std::thread::sleep(self.pause);
+            self.produced = Some(self.sim.stats().truth.len());
+        }
+        Ok(())
+    }
+    fn finish(&mut self, _: &Acquisition) -> io::Result<()> {
+        Ok(())
+    }
+}
+
+/// Virtual time waits for a host that reads late: the host stops reading (and sending) for
+/// 300 ms of wall time at sample 200 of 2132. With a keepalive of 5 s nothing but the flow control
+/// holds the drive's clock: it must stop within what the host's read buffer (2048 bytes), the pty
+/// (512 bytes unread), one step of the line and the drive's 4 DATA blocks hold, under 4500 bytes
+/// or 700 samples, not run the record to its end; then the run completes with nothing lost or
+/// expired, in far less than its 2.13 s of drive time besides the pause.
+#[test]
+fn virtual_time_waits_for_a_host_that_reads_late() {
+    let _g = lock();
+    let s = fast_sim(SimClock::Virtual);
+    let conf = Configure {
+        keepalive_ms: 5000,
+        ..Configure::default()
+    };
+    let mut c = fast_client(&s, vcfg(), &conf);
+    let mut sink = PausingSink {
+        sim: &s,
+        at: 200,
+        pause: Duration::from_millis(300),
+        produced: None,
+    };
+    let test = PrbsTest {
+        periods: 8,
+        ..short_prbs()
+    };
+    let started = Instant::now();
+    let acq = c.run_prbs(&test, &mut sink).unwrap();
+    let took = started.elapsed();
+    let produced = sink.produced.expect("the sink paused");
+    eprintln!(
+        "virtual time, host paused at sample 200: the drive had produced {produced}; run {took:?}"
+    );
+    assert_eq!(acq.total_samples, 100 + 8 * 254);
+    assert!(produced < 200 + 700, "{produced}");
+    assert!(acq.complete, "{:?}", acq.problems);
+    assert_eq!(s.stats().blocks_dropped, 0);
+    check_consistent(&acq);
+    check_truth(&acq, &s);
+    assert!(took < Duration::from_millis(1200), "{took:?}");
+}
+
+/// Virtual time does not hide a silent host: with no KEEPALIVE and no STATUS poll (the stream
+/// timeout longer than the test: in virtual time the drive's clock waiting for the host stops the
+/// DATA, which a polling host would answer with a STATUS, a frame that keeps the drive alive), the
+/// drive's keepalive still expires, after the host has been silent for the keepalive interval of
+/// wall time (the drive's clock waits that long for it), at the same sample as in real time.
+#[test]
+fn virtual_time_still_expires_a_silent_host() {
+    let _g = lock();
+    let s = fast_sim(SimClock::Virtual);
+    let conf = Configure {
+        block_samples: 10,
+        ..Configure::default()
+    };
+    let silent = ClientConfig {
+        keepalive: Duration::from_secs(3600),
+        stream_timeout: Some(Duration::from_secs(30)),
+        ..ClientConfig::default()
+    };
+    let mut c = fast_client(&s, silent, &conf);
+    let test = PrbsTest {
+        periods: 4,
+        ..short_prbs()
+    };
+    let started = Instant::now();
+    let acq = c.run_prbs(&test, &mut NullSink).unwrap();
+    let took = started.elapsed();
+    let end = end_of(&acq);
+    eprintln!("virtual keepalive: {end:?} after {took:?}");
+    assert_eq!(end.reason, EndReason::Keepalive);
+    // keepalive 500 ms at 1 kHz after the START, then a 50-sample ramp
+    let k0 = end.total_samples as u64 - 50;
+    assert!((495..=510).contains(&k0), "expired at sample {k0}");
+    assert!(took >= Duration::from_millis(500), "{took:?}");
+    check_consistent(&acq);
+    check_truth(&acq, &s);
 }

@@ -3,16 +3,18 @@
 //! sample. (The fault scenarios of `e2e` and `e2e_control` run against the C firmware with
 //! `FRACID_SIM_FIRMWARE=c`, as scripts/test.sh does.)
 
-use super::e2e::{check_consistent, check_truth, client, lock, short_prbs};
+use super::e2e::{check_consistent, check_truth, client, lock, short_prbs, vclient};
 use drive::client::{Acquisition, NullSink};
 use drive::protocol::{StartSine, SINE_DFT, SINE_STREAM};
-use drive::sim::{DriveSim, Effects, Faults, FirmwareKind, SimConfig};
+use drive::sim::{DriveSim, Effects, Faults, FirmwareKind, SimClock, SimConfig};
 
 const BAUD: u32 = 921_600;
 
 fn spawn(firmware: FirmwareKind) -> DriveSim {
     DriveSim::spawn(SimConfig {
         firmware,
+        // virtual time: the records depend on the seed alone, not on the wall clock
+        clock: SimClock::Virtual,
         baud: BAUD,
         // every hidden effect that is deterministic for a seed
         effects: Effects {
@@ -36,7 +38,7 @@ fn spawn(firmware: FirmwareKind) -> DriveSim {
 /// A PRBS run and a streamed sine with the DFT, on one firmware.
 fn record(firmware: FirmwareKind) -> (Acquisition, Acquisition, Vec<String>) {
     let s = spawn(firmware);
-    let mut c = client(s.port_path(), BAUD);
+    let mut c = vclient(s.port_path(), BAUD);
     let prbs = c.run_prbs(&short_prbs(), &mut NullSink).unwrap();
     assert!(prbs.complete, "{firmware:?}: {:?}", prbs.problems);
     check_consistent(&prbs);

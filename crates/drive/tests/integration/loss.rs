@@ -152,8 +152,9 @@ fn a_refused_start_leaves_an_existing_record_untouched() {
 #[test]
 fn a_command_clamped_away_is_flagged_in_the_record() {
     let _g = lock();
-    let s = sim(Faults::default(), BAUD, None);
-    let mut c = client(s.port_path());
+    // virtual time: nothing here depends on the wall clock
+    let s = crate::e2e::vsim(BAUD);
+    let mut c = crate::e2e::vclient(s.port_path(), BAUD);
     let dir = tempfile::tempdir().unwrap();
     // 30 V +- 1 V against the default 24 V clamp: every sample at 24 V.
     let path = dir.path().join("clamped.csv");

@@ -1,11 +1,11 @@
 //! Leakage-free sine measurements on the simulated drive, against an independent evaluation of the
 //! fractional model's sampled response (not the simulator).
 
-use super::e2e::lock;
+use super::e2e::{lock, VIRTUAL_KEEPALIVE};
 use drive::bode::whole_cycle_mhz;
 use drive::client::{bode_point, drive_phasors, host_phasors, Client, ClientConfig, NullSink};
 use drive::protocol::{Configure, StartSine, SINE_DFT, SINE_STREAM};
-use drive::sim::{DriveSim, SimConfig};
+use drive::sim::{DriveSim, SimClock, SimConfig};
 use num_complex::Complex64;
 use std::f64::consts::PI;
 
@@ -44,6 +44,7 @@ fn errors(gain_db: f64, phase_deg: f64, truth: Complex64) -> (f64, f64) {
 fn sine_points_around_6_v_match_the_exact_sampled_response() {
     let _g = lock();
     let s = DriveSim::spawn(SimConfig {
+        clock: SimClock::Virtual,
         baud: BAUD,
         ..SimConfig::default()
     })
@@ -54,6 +55,7 @@ fn sine_points_around_6_v_match_the_exact_sampled_response() {
         s.port_path(),
         ClientConfig {
             baud: BAUD,
+            keepalive: VIRTUAL_KEEPALIVE,
             ..ClientConfig::default()
         },
     )
@@ -140,6 +142,7 @@ fn repeats_shrink_the_error_and_report_the_noise() {
     let _g = lock();
     let sigma = 0.1; // rad/s
     let s = DriveSim::spawn(SimConfig {
+        clock: SimClock::Virtual,
         baud: BAUD,
         effects: drive::sim::Effects {
             noise_std: sigma,
@@ -158,6 +161,7 @@ fn repeats_shrink_the_error_and_report_the_noise() {
         s.port_path(),
         ClientConfig {
             baud: BAUD,
+            keepalive: VIRTUAL_KEEPALIVE,
             ..ClientConfig::default()
         },
     )

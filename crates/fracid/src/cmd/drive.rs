@@ -8,7 +8,7 @@ use drive::client::{
     Client, ClientConfig, CsvSink, LazyFile, PrbsTest, Progress, SineSweep, SweepEvent,
 };
 use drive::protocol::{Configure, MAX_BLOCK_SAMPLES};
-use drive::sim::{DriveSim, Effects, FaultAt, Faults, FirmwareKind, SimConfig};
+use drive::sim::{DriveSim, Effects, FaultAt, Faults, FirmwareKind, SimClock, SimConfig};
 use std::io::{IsTerminal, Write};
 use std::path::PathBuf;
 use std::time::Duration;
@@ -49,6 +49,10 @@ pub struct PortArgs {
     /// Resends of an unanswered command.
     #[arg(long, default_value_t = 5)]
     pub retries: u32,
+    /// Interval between the host's KEEPALIVE frames during a run, ms (a few ms lets a drive
+    /// simulator in virtual time, `fracid drive sim --virtual-time`, run far faster than real time).
+    #[arg(long, default_value_t = 150, value_parser = clap::value_parser!(u64).range(1..=10_000))]
+    pub keepalive_ms: u64,
     /// Sample rate in Hz.
     #[arg(long, default_value_t = 1000)]
     pub sample_rate: u32,
@@ -136,6 +140,11 @@ pub struct SimArgs {
     /// `firmware/`, as flashed on the F2812). Default: rust, or `c` if FRACID_SIM_FIRMWARE=c.
     #[arg(long, value_enum)]
     pub firmware: Option<SimFirmware>,
+    /// Run the drive in virtual time: its clock runs as fast as the host allows instead of the
+    /// wall clock, waiting only for the host to read and for its keepalive (a host sending its
+    /// KEEPALIVE every few ms, `--keepalive-ms`, gets the most out of it). Default: real time.
+    #[arg(long)]
+    pub virtual_time: bool,
 }
 
 /// The firmware of `fracid drive sim --firmware`.
@@ -317,6 +326,11 @@ fn sim(a: SimArgs) -> Result<()> {
             Some(SimFirmware::C) => FirmwareKind::C,
             None => FirmwareKind::from_env(),
         },
+        clock: if a.virtual_time {
+            SimClock::Virtual
+        } else {
+            SimClock::RealTime
+        },
         ..SimConfig::default()
     };
     let firmware = match cfg.firmware {
@@ -406,6 +420,7 @@ fn connect(p: &PortArgs, conf: &Configure) -> Result<Client> {
         baud: p.baud,
         timeout: p.timeout_ms.map(Duration::from_millis),
         retries: p.retries,
+        keepalive: Duration::from_millis(p.keepalive_ms),
         ..ClientConfig::default()
     };
     let mut c = Client::open(&p.port, cfg)
