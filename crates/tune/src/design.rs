@@ -465,9 +465,14 @@ fn check(t: &Target, spec: &Spec, c: &Controller, m: &LoopMetrics) -> Result<(),
     }
     if spec.flat && m.phase_slope.abs() > TOL_SLOPE {
         return Err(format!(
-            "{}: phase slope {:.2e} rad at wc",
+            "{}: phase slope {:.2e} rad at wc{}",
             label(c),
-            m.phase_slope
+            m.phase_slope,
+            if spec.form == Form::Pi {
+                " (a PI has only kp and ki, taken by wc and pm: a flat phase needs --form fopi)"
+            } else {
+                ""
+            }
         ));
     }
     if let Some(b) = spec.t_high {

@@ -62,17 +62,19 @@ impl Plant {
     }
 
     /// The phase of `P(j omega)` in radians, unwrapped: the delay-free part followed continuously
-    /// from `omega 1e-6` (where it is its principal value, `-n pi/2` for `P ~ K s^-n`, `K > 0`),
-    /// 100 points per decade, minus `omega tau`.
+    /// from `omega 1e-6`, where it starts from its asymptote `-n pi/2` (`P ~ K s^-n`) plus the
+    /// principal phase of `P / s^-n` (0 for `K > 0`), 100 points per decade, minus `omega tau`.
     pub fn phase_unwrapped(&self, omega: f64) -> f64 {
         let free = |w: f64| {
             let (n, _) = poly(&self.tf.num, w);
             let (d, _) = poly(&self.tf.den, w);
             n / d
         };
+        let n = self.low_order();
+        let w0 = omega * 1e-6;
         let steps = 600;
-        let mut prev = free(omega * 1e-6);
-        let mut phase = prev.arg();
+        let mut prev = free(w0);
+        let mut phase = (prev * jw_pow(w0, n)).arg() - n * std::f64::consts::FRAC_PI_2;
         for i in 1..=steps {
             let w = omega * 10f64.powf(-6.0 + 6.0 * i as f64 / steps as f64);
             let v = free(w);

@@ -101,8 +101,11 @@ pub struct DiscreteJson {
 pub struct StepJson {
     /// What was simulated.
     pub setup: LoopSetup,
-    /// The reference step's and the load step's figures.
-    pub metrics: StepMetrics,
+    /// The reference step's and the load step's figures (`None`: not simulated).
+    pub metrics: Option<StepMetrics>,
+    /// Why the loop could not be simulated (the simulator's limits on the model, such as more
+    /// than one free integrator): the design stands, its simulation is missing.
+    pub not_simulated: Option<String>,
 }
 
 /// The integer PI for the same `wc` and `pm`, beside the design.
@@ -148,8 +151,8 @@ pub struct Report {
 /// The signals behind a report, for plots.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Runs {
-    /// The designed loop's run.
-    pub design: LoopRun,
+    /// The designed loop's run (`None`: not simulated).
+    pub design: Option<LoopRun>,
     /// The designed loop with the model's input effects, if it has any.
     pub with_effects: Option<LoopRun>,
     /// The integer PI's run, if it exists.
@@ -205,15 +208,16 @@ pub fn tune(model: &FracTf, spec: &Spec, opts: &SimOptions) -> Result<(Report, R
             ),
         );
     }
-    let run = closed::simulate(model, &c, &setup, &approx, &[])?;
-    let with_effects = if opts.effects.is_empty() {
+    let (run, not_simulated) = tolerate(closed::simulate(model, &c, &setup, &approx, &[]))?;
+    let with_effects = if opts.effects.is_empty() || run.is_none() {
         None
     } else {
         Some(closed::simulate(model, &c, &setup, &approx, &opts.effects)?)
     };
     let step = StepJson {
         setup,
-        metrics: closed::metrics(&run, &setup),
+        metrics: run.as_ref().map(|r| closed::metrics(r, &setup)),
+        not_simulated,
     };
     let pi_spec = Spec {
         form: Form::Pi,
@@ -225,15 +229,15 @@ pub fn tune(model: &FracTf, spec: &Spec, opts: &SimOptions) -> Result<(Report, R
     };
     let (integer_pi, pi_run, pi_c) = match design(model, &pi_spec) {
         Ok(d) => {
-            let r = closed::simulate(model, &d.controller, &setup, &approx, &[])?;
+            let (r, _) = tolerate(closed::simulate(model, &d.controller, &setup, &approx, &[]))?;
             (
                 Comparison {
                     params: Some(d.controller),
                     loop_: Some(d.metrics),
-                    step: Some(closed::metrics(&r, &setup)),
+                    step: r.as_ref().map(|r| closed::metrics(r, &setup)),
                     refused: None,
                 },
-                Some(r),
+                r,
                 Some(d.controller),
             )
         }
@@ -269,6 +273,16 @@ pub fn tune(model: &FracTf, spec: &Spec, opts: &SimOptions) -> Result<(Report, R
             pi_controller: pi_c,
         },
     ))
+}
+
+/// A simulation the simulator cannot run on this model (its errors, not a bad request) leaves the
+/// design standing: the run is `None` with the reason.
+fn tolerate(r: Result<LoopRun>) -> Result<(Option<LoopRun>, Option<String>)> {
+    match r {
+        Ok(r) => Ok((Some(r), None)),
+        Err(crate::Error::Sim(e)) => Ok((None, Some(e.to_string()))),
+        Err(e) => Err(e),
+    }
 }
 
 fn discrete_json(model: &FracTf, ss: &StateSpace, wc: f64) -> DiscreteJson {

@@ -208,3 +208,22 @@ fn sampled_design_accounts_for_the_hold() {
     let c = design(&model(), &spec(Form::Fopi, 50.0, 60.0, true)).unwrap();
     assert!((c.controller.lambda - d.controller.lambda).abs() > 1e-3);
 }
+
+/// A double integrator with a lag, `1/(s^2 (0.01 s + 1))`: its phase at 20 rad/s is
+/// `-180 - atan(0.2) = -191.3 deg` (unwrapped from the `-180 deg` asymptote, not the principal
+/// `+168.7`), so a 50 deg margin needs 61.3 deg of lead: every PI form is refused with that
+/// reason, and the PID (lead) meets wc and pm on this file's own evaluation.
+#[test]
+fn integrating_plant_needs_lead() {
+    let g: fracsim::FracTf = "1/(s^2 + 0.01 s^3)".parse().unwrap();
+    let e = design(&g, &spec(Form::Fopi, 20.0, 50.0, false)).unwrap_err();
+    assert!(e.to_string().contains("-191.3 deg"), "{e}");
+    let d = design(&g, &spec(Form::Pid, 20.0, 50.0, false)).unwrap();
+    let c = d.controller;
+    let p = |w: f64| C(1.0, 0.0).div(term(1.0, w, 2.0).add(term(0.01, w, 3.0)));
+    let lw = controller(&c, 20.0).mul(p(20.0));
+    assert!((lw.abs() - 1.0).abs() < 0.01, "|L| = {}", lw.abs());
+    // arg L is near -130 deg; atan2 gives it in (-180, 180]
+    assert!((180.0 + lw.arg().to_degrees() - 50.0).abs() < 1.0);
+    assert_eq!(d.metrics.unstable_poles, 0);
+}

@@ -245,24 +245,56 @@ pub fn text(r: &Report) -> String {
                 ))
         );
     }
-    let m = &r.step.metrics;
-    let _ = writeln!(
-        o,
-        "step:       overshoot {:.2}%, rise (10-90%) {} s, settling (2%) {} s; load step {} at \
-         t = {:.4} s: peak {:.4}, left {:.2e}",
-        m.overshoot_percent,
-        opt(m.rise_time, ""),
-        opt(m.settling_time, ""),
-        r.step.setup.load,
-        r.step.setup.t_load,
-        m.load_peak,
-        m.load_residual
-    );
+    match (&r.step.metrics, &r.step.not_simulated) {
+        (Some(m), _) => {
+            let _ = writeln!(
+                o,
+                "step:       overshoot {:.2}%, rise (10-90%) {} s, settling (2%) {} s; load step {} \
+                 at t = {:.4} s: peak {:.4}, left {:.2e}",
+                m.overshoot_percent,
+                opt(m.rise_time, ""),
+                opt(m.settling_time, ""),
+                r.step.setup.load,
+                r.step.setup.t_load,
+                m.load_peak,
+                m.load_residual
+            );
+        }
+        (None, why) => {
+            let _ = writeln!(
+                o,
+                "step:       not simulated ({})",
+                why.as_deref().unwrap_or("-")
+            );
+        }
+    }
+    if let Some(m) = &r.step_with_effects {
+        let names: Vec<String> = r.effects.iter().map(|e| format!("{e:?}")).collect();
+        let _ = writeln!(
+            o,
+            "effects:    {}: overshoot {:.2}%, rise {} s, settling {} s; load peak {:.4}, left {:.2e}",
+            names.join(", "),
+            m.overshoot_percent,
+            opt(m.rise_time, ""),
+            opt(m.settling_time, ""),
+            m.load_peak,
+            m.load_residual
+        );
+    }
     match (
         &r.integer_pi.params,
         &r.integer_pi.loop_,
         &r.integer_pi.step,
     ) {
+        (Some(c), Some(l), None) => {
+            let _ = writeln!(
+                o,
+                "integer PI: {}; Ms = {:.4}, gm = {} (not simulated)",
+                params_line(c),
+                l.ms,
+                l.gm_db.map_or("inf".into(), |g| format!("{g:.2} dB")),
+            );
+        }
         (Some(c), Some(l), Some(m)) => {
             let _ = writeln!(
                 o,
@@ -416,7 +448,9 @@ impl Figure for TuneFigure<'_> {
         )))
         .map_err(e)?;
         // the closed loop: reference step then load step
-        let run = &self.runs.design;
+        let Some(run) = &self.runs.design else {
+            return Ok(());
+        };
         let mut lines = vec![
             Line {
                 label: Some("reference"),

@@ -182,3 +182,26 @@ fn text_and_plot() {
     );
     assert!(std::fs::metadata(&png).unwrap().len() > 10_000);
 }
+
+/// A model the simulator cannot run (two free integrators): the design stands and the report
+/// says why the loop is not simulated (exit 0).
+#[test]
+fn a_design_the_simulator_cannot_run_is_still_reported() {
+    let v = json_of(&fracid(&[
+        "tune",
+        "1/(s^2 + 0.01 s^3)",
+        "--wc",
+        "20",
+        "--pm",
+        "50",
+        "--form",
+        "pid",
+        "--json",
+    ]));
+    assert!(v["step"]["metrics"].is_null());
+    assert!(v["step"]["not_simulated"]
+        .as_str()
+        .unwrap()
+        .contains("integrator"));
+    assert!((v["loop"]["pm_deg"].as_f64().unwrap() - 50.0).abs() < 1e-6);
+}
