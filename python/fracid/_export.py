@@ -86,11 +86,12 @@ class StateSpace:
         DataError
             For a continuous model with an input delay (scipy has none).
         """
+        # The request is checked first: a delay is refused the same with or without scipy.
+        self._no_delay("scipy.signal.StateSpace")
         try:
             from scipy import signal
         except ImportError as e:  # pragma: no cover - exercised only without scipy
             raise ImportError("to_scipy needs scipy: pip install fracid[scipy]") from e
-        self._no_delay("scipy.signal.StateSpace")
         if self.dt is None:
             return signal.StateSpace(self.a, self.b, self.c, self.d)
         return signal.StateSpace(self.a, self.b, self.c, self.d, dt=self.dt)
@@ -106,11 +107,11 @@ class StateSpace:
         DataError
             For a continuous model with an input delay.
         """
+        self._no_delay("control.StateSpace")
         try:
             import control
         except ImportError as e:  # pragma: no cover - exercised only without control
             raise ImportError("to_control needs python-control: pip install fracid[control]") from e
-        self._no_delay("control.StateSpace")
         return control.ss(self.a, self.b, self.c, self.d, 0 if self.dt is None else self.dt)
 
     def to_dict(self) -> Dict[str, Any]:

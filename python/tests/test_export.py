@@ -103,6 +103,8 @@ def test_continuous_model_is_the_fractional_one_in_band():
 
 
 def test_delays_and_bad_requests():
+    # No scipy needed: a delayed continuous model is refused before scipy is imported (the
+    # request is checked first), so this holds where scipy is not installed.
     g = fracid.FracTf.parse("1/(0.1 s + 1) exp(-0.02 s)")
     ss = g.to_state_space(band=(1e-2, 1e4))
     assert ss.input_delay == 0.02

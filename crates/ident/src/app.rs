@@ -146,8 +146,22 @@ impl ModelReport {
 /// ```
 ///
 /// # Errors
-/// [`Error::Options`] for an unknown name, a value that is not a number or is out of range.
+/// [`Error::Options`] for an unknown name, a value that is not a number or is out of range, a
+/// name both fixed and freed.
 pub fn fix_free(m: &mut FracModel, fix: &str, free: &str) -> Result<()> {
+    let names = |list: &str| -> Vec<String> {
+        list.split(',')
+            .map(|s| s.split('=').next().unwrap_or("").trim().to_string())
+            .filter(|s| !s.is_empty())
+            .collect()
+    };
+    let freed = names(free);
+    if let Some(both) = names(fix).into_iter().find(|n| freed.contains(n)) {
+        return Err(Error::Options(format!(
+            "'{}' is both held (fix) and fitted (free): name it once",
+            crate::data::shorten(&both)
+        )));
+    }
     for item in fix.split(',').map(str::trim).filter(|s| !s.is_empty()) {
         let (name, value) = match item.split_once('=') {
             Some((n, v)) => {

@@ -25,13 +25,32 @@ pub fn zoh(omega: f64, dt: f64) -> Complex64 {
 
 /// The sample period stated by a `# hold: zero-order, sample period T s` comment line (as
 /// `drive::bode::hold_line` writes it), if the text has one.
-pub fn sample_period_from_comments(text: &str) -> Option<f64> {
-    text.lines().find_map(|l| {
-        let c = l.trim().strip_prefix('#')?.trim();
-        let rest = c.strip_prefix("hold: zero-order, sample period")?;
-        let v: f64 = rest.trim().strip_suffix('s')?.trim().parse().ok()?;
-        (v.is_finite() && v > 0.0).then_some(v)
-    })
+///
+/// # Errors
+/// [`Error::Data`] for a hold line whose period is not a positive number of seconds (a negative
+/// or zero period was ignored silently, and the hold left in the data).
+pub fn sample_period_from_comments(text: &str) -> Result<Option<f64>> {
+    for l in text.lines() {
+        let Some(c) = l.trim().strip_prefix('#') else {
+            continue;
+        };
+        let Some(rest) = c.trim().strip_prefix("hold: zero-order, sample period") else {
+            continue;
+        };
+        let v = rest
+            .trim()
+            .strip_suffix('s')
+            .and_then(|v| v.trim().parse::<f64>().ok());
+        return match v {
+            Some(v) if v.is_finite() && v > 0.0 => Ok(Some(v)),
+            _ => Err(Error::Data(format!(
+                "'{}': the hold's sample period must be a positive number of seconds (or give \
+                 --hold none / --hold T)",
+                crate::data::shorten(l.trim())
+            ))),
+        };
+    }
+    Ok(None)
 }
 
 /// Divide the hold out of a response measured through a held loop sampled every `dt` seconds.
@@ -112,8 +131,15 @@ mod tests {
         assert_eq!(
             sample_period_from_comments(
                 "# fracid drive sine\n# hold: zero-order, sample period 0.001 s\nfreq_hz"
-            ),
+            )
+            .unwrap(),
             Some(1e-3)
         );
+        // issue 31: a negative or unreadable period is an error, not ignored
+        for bad in ["-0.001 s", "0 s", "x s", "0.001"] {
+            let t = format!("# hold: zero-order, sample period {bad}\nfreq_hz");
+            assert!(sample_period_from_comments(&t).is_err(), "{bad}");
+        }
+        assert_eq!(sample_period_from_comments("freq_hz\n1,0,0").unwrap(), None);
     }
 }

@@ -430,8 +430,11 @@ fn not_the_summary(files: &[PathBuf], summary: &Path) -> Result<Vec<PathBuf>> {
     };
     let ours = std::fs::File::open(summary).is_ok_and(|f| {
         let mut first = String::new();
-        std::io::BufRead::read_line(&mut std::io::BufReader::new(std::io::Read::take(f, 4096)), &mut first)
-            .is_ok()
+        std::io::BufRead::read_line(
+            &mut std::io::BufReader::new(std::io::Read::take(f, 4096)),
+            &mut first,
+        )
+        .is_ok()
             && first.starts_with("file,status,exit_code,")
     });
     if !ours {
@@ -592,13 +595,10 @@ pub fn run_freq(a: &super::freq::FreqArgs) -> Result<()> {
                 |l| l["error: ".len()..].to_string(),
             );
         match o.status.code() {
-            Some(0) => {
-                Ok((
-                    serde_json::from_slice(&o.stdout)
-                        .context("fracid freq --json printed no JSON")?,
-                    Vec::new(),
-                ))
-            }
+            Some(0) => Ok((
+                serde_json::from_slice(&o.stdout).context("fracid freq --json printed no JSON")?,
+                Vec::new(),
+            )),
             Some(2) => Err(anyhow::Error::new(BadInput(msg))),
             Some(3) => Err(anyhow::Error::new(std::io::Error::other(msg))),
             _ => Err(anyhow::anyhow!(msg)),

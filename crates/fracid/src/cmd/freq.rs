@@ -281,7 +281,8 @@ pub fn run(a: FreqArgs) -> Result<()> {
             .with_context(|| format!("in {}", a.file.display()))?
     };
     let hold = match a.hold.trim().to_ascii_lowercase().as_str() {
-        "auto" => ident::hold::sample_period_from_comments(&text),
+        "auto" => ident::hold::sample_period_from_comments(&text)
+            .with_context(|| format!("in {}", a.file.display()))?,
         "none" => None,
         v => match v.parse::<f64>() {
             Ok(t) if t.is_finite() && t > 0.0 => Some(t),

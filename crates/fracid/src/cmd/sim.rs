@@ -176,10 +176,12 @@ pub fn run(a: SimArgs) -> Result<()> {
     // -o names (it was overwritten, then the plot refused).
     if let Some(p) = &a.plot {
         plot::format_of(p)?;
-        drive::client::check_writable(p).with_context(|| format!("cannot write plot {}", p.display()))?;
+        drive::client::check_writable(p)
+            .with_context(|| format!("cannot write plot {}", p.display()))?;
     }
     if let Some(p) = &a.output {
-        drive::client::check_writable(p).with_context(|| format!("cannot create {}", p.display()))?;
+        drive::client::check_writable(p)
+            .with_context(|| format!("cannot create {}", p.display()))?;
     }
     let (u, dt) = build_input(&a)?;
     let y = if a.method.eq_ignore_ascii_case("gl") {

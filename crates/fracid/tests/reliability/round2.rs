@@ -72,7 +72,10 @@ fn item_1_the_fleet_fails_an_unusable_fit_as_the_single_file_run_does() {
                 "{row}"
             );
             // the report is still written, as the single-file run prints it
-            assert!(Path::new(row["report"].as_str().unwrap()).is_file(), "{row}");
+            assert!(
+                Path::new(row["report"].as_str().unwrap()).is_file(),
+                "{row}"
+            );
         } else {
             assert_eq!(row["status"], "ok", "{row}");
         }
@@ -193,7 +196,9 @@ fn item_2_no_small_mat_file_takes_more_than_1_gb() {
     let runs: Vec<Vec<&str>> = vec![
         vec!["time", "--quiet", big],
         vec!["time", "--quiet", four],
-        vec!["time", "--quiet", "--dt", "1e-3", "--u-col", "t", "--y-col", "u", four],
+        vec![
+            "time", "--quiet", "--dt", "1e-3", "--u-col", "t", "--y-col", "u", four,
+        ],
         vec!["freq", "--columns", "t,u,y", four],
         vec!["sim", "--input", four, "--dt", "1e-3", "--u-col", "t"],
         vec!["time", "--quiet", "--dt", "1e-3", "--max-iter", "2", fit],
@@ -205,7 +210,11 @@ fn item_2_no_small_mat_file_takes_more_than_1_gb() {
     // the large ones are refused for their decoded size, in words
     let o = fracid(&["time", "--quiet", four]);
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
-    assert!(stderr(&o).contains("decodes to more than 16 MiB"), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("decodes to more than 16 MiB"),
+        "{}",
+        stderr(&o)
+    );
     // the largest allowed is read whole: n samples, 70% of them for estimation
     let o = fracid(&["time", "--dt", "1e-3", "--max-iter", "1", fit]);
     assert!(
@@ -224,7 +233,11 @@ fn item_3_every_file_is_read_bounded() {
     let dir = tempfile::tempdir().unwrap();
     let a = a_csv(&dir);
     let a = a.to_str().unwrap();
-    let bode = write(&dir, "b.csv", "freq_hz,gain_db,phase_deg\n1,0,-5\n10,-3,-45\n100,-20,-84\n");
+    let bode = write(
+        &dir,
+        "b.csv",
+        "freq_hz,gain_db,phase_deg\n1,0,-5\n10,-3,-45\n100,-20,-84\n",
+    );
     let bode = bode.to_str().unwrap();
     // score and export take a JSON path; name /dev/zero through a symlink ending in .json
     let zero_json = dir.path().join("zero.json");
@@ -246,7 +259,11 @@ fn item_3_every_file_is_read_bounded() {
     for args in &runs {
         assert_eq!(exit_within_1_gib(args), Some(2), "{args:?}");
         let o = fracid(args);
-        assert!(stderr(&o).contains("longer than"), "{args:?}: {}", stderr(&o));
+        assert!(
+            stderr(&o).contains("longer than"),
+            "{args:?}: {}",
+            stderr(&o)
+        );
     }
 }
 
@@ -289,7 +306,14 @@ fn item_4_a_link_never_replaces_a_file() {
     // a link from an earlier run is replaced, as before
     let l = dir.path().join("port");
     std::os::unix::fs::symlink("/nonexistent", &l).unwrap();
-    let o = fracid(&["drive", "sim", "--link", l.to_str().unwrap(), "--duration", "0.2"]);
+    let o = fracid(&[
+        "drive",
+        "sim",
+        "--link",
+        l.to_str().unwrap(),
+        "--duration",
+        "0.2",
+    ]);
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
 }
 
@@ -305,7 +329,16 @@ fn item_5_and_6_outputs_are_distinct_files_and_never_the_port() {
     // item 5: one file for the table and its repeats
     let mut args = vec!["drive", "sine"];
     args.extend(base);
-    args.extend(["--freqs", "20", "--repeats", "3", "--repeats-out", x, "-o", x]);
+    args.extend([
+        "--freqs",
+        "20",
+        "--repeats",
+        "3",
+        "--repeats-out",
+        x,
+        "-o",
+        x,
+    ]);
     let o = fracid(&args);
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert!(stderr(&o).contains("are one file"), "{}", stderr(&o));
@@ -315,7 +348,16 @@ fn item_5_and_6_outputs_are_distinct_files_and_never_the_port() {
         .current_dir(dir.path())
         .args(["drive", "sine"])
         .args(base)
-        .args(["--freqs", "20", "--repeats", "3", "--repeats-out", "./x.csv", "-o", x])
+        .args([
+            "--freqs",
+            "20",
+            "--repeats",
+            "3",
+            "--repeats-out",
+            "./x.csv",
+            "-o",
+            x,
+        ])
         .output()
         .unwrap();
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
@@ -330,7 +372,11 @@ fn item_5_and_6_outputs_are_distinct_files_and_never_the_port() {
         assert!(stderr(&o).contains("is the serial port"), "{}", stderr(&o));
     }
     // ... and no run was started
-    assert!(drive_state(&port).contains("run 0 "), "{}", drive_state(&port));
+    assert!(
+        drive_state(&port).contains("run 0 "),
+        "{}",
+        drive_state(&port)
+    );
 }
 
 #[cfg(unix)]
@@ -341,19 +387,35 @@ fn item_7_sweep_frequencies_are_sorted_deduplicated_or_refused() {
     let port = sim.port_path().to_string();
     let out = dir.path().join("s.csv");
     let out = out.to_str().unwrap();
-    let base = ["--port", &port, "--baud", "921600", "--quiet", "--repeats", "1"];
+    let base = [
+        "--port",
+        &port,
+        "--baud",
+        "921600",
+        "--quiet",
+        "--repeats",
+        "1",
+    ];
     let mut args = vec!["drive", "sine"];
     args.extend(base);
     args.extend(["--f-min", "100", "--f-max", "10", "-o", out]);
     let o = fracid(&args);
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
-    assert!(stderr(&o).contains("must be below --f-max"), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("must be below --f-max"),
+        "{}",
+        stderr(&o)
+    );
     let mut args = vec!["drive", "sine"];
     args.extend(base);
     args.extend(["--freqs", "20,10,10,40", "-o", out]);
     let o = fracid(&args);
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
-    assert!(stderr(&o).contains("sorted into increasing order"), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("sorted into increasing order"),
+        "{}",
+        stderr(&o)
+    );
     let text = std::fs::read_to_string(out).unwrap();
     let f: Vec<f64> = text
         .lines()
@@ -378,7 +440,10 @@ fn item_8_a_closed_output_pipe_stops_the_drive_and_exits_3() {
     use std::io::BufRead;
     let sim = drive_sim();
     let port = sim.port_path().to_string();
-    for cmd in [&["prbs", "--periods", "3"][..], &["sine", "--freqs", "5,10", "--repeats", "1"]] {
+    for cmd in [
+        &["prbs", "--periods", "3"][..],
+        &["sine", "--freqs", "5,10", "--repeats", "1"],
+    ] {
         let mut child = Command::new(env!("CARGO_BIN_EXE_fracid"))
             .arg("drive")
             .args(cmd)
@@ -464,7 +529,9 @@ fn item_10_refine_applies_the_same_usability_rule() {
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!(v["usable"], false, "{v}");
     assert!(
-        v["problems"].to_string().contains("standard errors cannot be computed"),
+        v["problems"]
+            .to_string()
+            .contains("standard errors cannot be computed"),
         "{}",
         v["problems"]
     );
@@ -536,10 +603,9 @@ fn item_14_the_fleet_never_reads_nor_overwrites_what_is_not_its_own() {
     for _ in 0..2 {
         let o = fracid(&["time", "--quiet", r_s, "--out", r_s]);
         assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
-        let s: serde_json::Value = serde_json::from_str(
-            &std::fs::read_to_string(r.join("time-summary.json")).unwrap(),
-        )
-        .unwrap();
+        let s: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(r.join("time-summary.json")).unwrap())
+                .unwrap();
         assert_eq!(s["files"], 1, "{s}");
     }
     // a record that happens to be named time-summary.csv in the output folder is not overwritten
@@ -548,9 +614,19 @@ fn item_14_the_fleet_never_reads_nor_overwrites_what_is_not_its_own() {
     let rec = d.join("time-summary.csv");
     std::fs::copy(&a, &rec).unwrap();
     let before = std::fs::read(&rec).unwrap();
-    let o = fracid(&["time", "--quiet", d.to_str().unwrap(), "--out", d.to_str().unwrap()]);
+    let o = fracid(&[
+        "time",
+        "--quiet",
+        d.to_str().unwrap(),
+        "--out",
+        d.to_str().unwrap(),
+    ]);
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
-    assert!(stderr(&o).contains("not a fracid summary"), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("not a fracid summary"),
+        "{}",
+        stderr(&o)
+    );
     assert_eq!(std::fs::read(&rec).unwrap(), before);
 }
 
@@ -562,7 +638,8 @@ fn item_14_the_fleet_never_reads_nor_overwrites_what_is_not_its_own() {
 #[test]
 fn item_11_a_torn_last_line_is_dropped_with_a_warning() {
     let dir = tempfile::tempdir().unwrap();
-    let head = "# fracid drive acquisition: PRBS\n# run_id 1, 600 samples planned at 1000 Hz\nt,u,y,i\n";
+    let head =
+        "# fracid drive acquisition: PRBS\n# run_id 1, 600 samples planned at 1000 Hz\nt,u,y,i\n";
     let rows: String = super::record_rows(0..600)
         .lines()
         .map(|l| format!("{l},0.5\n"))
@@ -574,14 +651,22 @@ fn item_11_a_torn_last_line_is_dropped_with_a_warning() {
         assert_eq!(o.status.code(), Some(0), "{tail}: {e}");
         assert!(e.contains("dropped as torn"), "{e}");
         assert!(e.contains("rows 0..600 of 600"), "{e}");
-        assert!(stdout(&o).contains("420 estimation + 180 validation"), "{}", stdout(&o));
+        assert!(
+            stdout(&o).contains("420 estimation + 180 validation"),
+            "{}",
+            stdout(&o)
+        );
     }
     // not an acquisition, a complete last line without a line end: kept
     let text: String = super::record_rows(0..600);
     let p = write(&dir, "c.csv", &format!("t,u,y\n{}", text.trim_end()));
     let o = fracid(&["time", "--quiet", "--max-iter", "3", p.to_str().unwrap()]);
     assert!(!stderr(&o).contains("torn"), "{}", stderr(&o));
-    assert!(stdout(&o).contains("420 estimation + 180 validation"), "{}", stdout(&o));
+    assert!(
+        stdout(&o).contains("420 estimation + 180 validation"),
+        "{}",
+        stdout(&o)
+    );
 }
 
 /// Item 15: one approximation-order range (1..=64, `fracsim::approx::ORDER_RANGE`) for the CLI
@@ -610,4 +695,63 @@ fn item_15_the_order_range_is_one_and_checked_at_parse() {
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     let o = fracid(&["sim", "--order", "64", "--t-end", "0.1"]);
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+}
+
+/// The minor ones: `--fix K --free K`, a negative `# hold:` period, a weights file that is a
+/// table (the data file itself), `drive prbs --periods 0` (in item 8's drive tests: refused
+/// before the drive is asked).
+#[test]
+fn minor_contradictions_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let a = a_csv(&dir);
+    let o = fracid(&[
+        "time",
+        "--quiet",
+        "--fix",
+        "K",
+        "--free",
+        "K",
+        a.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("both held"), "{}", stderr(&o));
+    let table = "# hold: zero-order, sample period -0.001 s\nfreq_hz,gain_db,phase_deg\n\
+                 1,0,-5\n10,-3,-45\n100,-20,-84\n";
+    let p = write(&dir, "h.csv", table);
+    let o = fracid(&["freq", "--n", "1", "--q", "1", p.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("positive number of seconds"),
+        "{}",
+        stderr(&o)
+    );
+    let p = write(&dir, "b.csv", &table.replace("-0.001", "0.0001"));
+    let p = p.to_str().unwrap();
+    let o = fracid(&["freq", "--n", "1", "--q", "1", "--weights", p, p]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("one number per line"), "{}", stderr(&o));
+}
+
+#[cfg(unix)]
+#[test]
+fn minor_prbs_periods_0_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let sim = drive_sim();
+    let port = sim.port_path().to_string();
+    let out = dir.path().join("p.csv");
+    let o = fracid(&[
+        "drive",
+        "prbs",
+        "--port",
+        &port,
+        "--baud",
+        "921600",
+        "--quiet",
+        "--periods",
+        "0",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(!out.exists());
 }

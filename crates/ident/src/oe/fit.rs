@@ -905,11 +905,7 @@ impl Scaling {
             .ok_or_else(|| {
                 Error::Numerical("a parameter added by the fit has no unit to scale back".into())
             })?;
-        let all = Self {
-            su,
-            sy,
-            factors,
-        };
+        let all = Self { su, sy, factors };
         all.scale_model(&mut id.model, -1.0);
         id.model.operating_point.u0 /= su;
         id.model.operating_point.y0 /= sy;

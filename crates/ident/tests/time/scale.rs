@@ -119,7 +119,10 @@ fn every_parameter_is_scaled_back_offsets_and_initial_state_included() {
                 "su {su:e} sy {sy:e}: {name} = {v:e}, want {:e}",
                 b * f
             );
-            assert_eq!(id.model.params[j].value, v, "{name}: model and report agree");
+            assert_eq!(
+                id.model.params[j].value, v,
+                "{name}: model and report agree"
+            );
         }
         assert!(((id.offsets.y0 / sy - base.offsets.y0) / base.offsets.y0).abs() < 1e-9);
     }
