@@ -151,6 +151,17 @@ pub fn spectral_peaks(e: &[f64], dt: f64, max: usize) -> Vec<SpectralPeak> {
         let med = nbh[nbh.len() / 2].max(1e-300);
         let ratio = p[k] / med;
         if ratio > PEAK_RATIO {
+            found.push((k, ratio));
+        }
+    }
+    // The strongest `max` by their bin's ratio; only these are refined (each refinement is 61
+    // DFTs of the whole record: refining every peak over the ratio cost more than the rest of a
+    // diagnosis on long records).
+    found.sort_by(|a, b| b.1.total_cmp(&a.1));
+    found.truncate(max);
+    found
+        .into_iter()
+        .map(|(k, ratio)| {
             // Golden-section search of |X| over [k - 1, k + 1] bins.
             let f = |b: f64| {
                 let (re, im) = dft(&x, 2.0 * PI * b / n as f64);
@@ -168,16 +179,13 @@ pub fn spectral_peaks(e: &[f64], dt: f64, max: usize) -> Vec<SpectralPeak> {
                 }
             }
             let bin = 0.5 * (a + b);
-            found.push(SpectralPeak {
+            SpectralPeak {
                 freq_hz: bin / (n as f64 * dt),
                 ratio,
                 amplitude: 2.0 * f(bin).sqrt() / n as f64,
-            });
-        }
-    }
-    found.sort_by(|a, b| b.ratio.total_cmp(&a.ratio));
-    found.truncate(max);
-    found
+            }
+        })
+        .collect()
 }
 
 /// Analyse the residual `e` against the input `u` (same length), sampled every `dt` seconds, with
