@@ -27,6 +27,7 @@ pub mod approx;
 pub mod cx;
 pub mod discrete;
 pub mod export;
+pub mod fft;
 pub mod gl;
 pub mod modal;
 pub mod prbs;

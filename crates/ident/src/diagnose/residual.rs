@@ -111,19 +111,10 @@ pub fn ljung_box(e: &[f64], h: usize) -> f64 {
         * (n + 2.0)
 }
 
-/// `|sum_k x_k exp(-j w k)|` and the complex sum, `w` in radians per sample.
+/// `sum_k x_k exp(-j w k)` as (re, im), `w` in radians per sample ([`fracsim::fft::dft_at`]).
 fn dft(x: &[f64], w: f64) -> (f64, f64) {
-    let (mut re, mut im) = (0.0, 0.0);
-    let (c, s) = (w.cos(), w.sin());
-    let (mut zr, mut zi) = (1.0, 0.0);
-    for &v in x {
-        re += v * zr;
-        im -= v * zi;
-        let nr = zr * c - zi * s;
-        zi = zr * s + zi * c;
-        zr = nr;
-    }
-    (re, im)
+    let z = fracsim::fft::dft_at(x, w);
+    (z.re, z.im)
 }
 
 /// Narrow peaks of the periodogram of `e` (mean removed) sampled every `dt` seconds, strongest
@@ -136,11 +127,10 @@ pub fn spectral_peaks(e: &[f64], dt: f64, max: usize) -> Vec<SpectralPeak> {
     let m = e.iter().sum::<f64>() / n as f64;
     let x: Vec<f64> = e.iter().map(|v| v - m).collect();
     let nb = n / 2;
-    let p: Vec<f64> = (0..=nb)
-        .map(|k| {
-            let (re, im) = dft(&x, 2.0 * PI * k as f64 / n as f64);
-            (re * re + im * im) / n as f64
-        })
+    // the periodogram at the n/2 + 1 bins, by FFT (O(n log n); a DFT per bin was O(n^2))
+    let p: Vec<f64> = fracsim::fft::rfft(&x)
+        .iter()
+        .map(|z| z.norm_sqr() / n as f64)
         .collect();
     let half = 16usize;
     let mut found = vec![];
@@ -161,6 +151,17 @@ pub fn spectral_peaks(e: &[f64], dt: f64, max: usize) -> Vec<SpectralPeak> {
         let med = nbh[nbh.len() / 2].max(1e-300);
         let ratio = p[k] / med;
         if ratio > PEAK_RATIO {
+            found.push((k, ratio));
+        }
+    }
+    // The strongest `max` by their bin's ratio; only these are refined (each refinement is 61
+    // DFTs of the whole record: refining every peak over the ratio cost more than the rest of a
+    // diagnosis on long records).
+    found.sort_by(|a, b| b.1.total_cmp(&a.1));
+    found.truncate(max);
+    found
+        .into_iter()
+        .map(|(k, ratio)| {
             // Golden-section search of |X| over [k - 1, k + 1] bins.
             let f = |b: f64| {
                 let (re, im) = dft(&x, 2.0 * PI * b / n as f64);
@@ -178,16 +179,13 @@ pub fn spectral_peaks(e: &[f64], dt: f64, max: usize) -> Vec<SpectralPeak> {
                 }
             }
             let bin = 0.5 * (a + b);
-            found.push(SpectralPeak {
+            SpectralPeak {
                 freq_hz: bin / (n as f64 * dt),
                 ratio,
                 amplitude: 2.0 * f(bin).sqrt() / n as f64,
-            });
-        }
-    }
-    found.sort_by(|a, b| b.ratio.total_cmp(&a.ratio));
-    found.truncate(max);
-    found
+            }
+        })
+        .collect()
 }
 
 /// Analyse the residual `e` against the input `u` (same length), sampled every `dt` seconds, with

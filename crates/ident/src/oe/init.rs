@@ -127,17 +127,9 @@ pub fn periodic_part(u: &[f64]) -> Option<(usize, usize)> {
     detect_period(&u[f..]).map(|p| (f, p))
 }
 
-/// `sum_k x_k e^(-j w k)` for the angular step `w` (radians per sample).
-fn dft_at(x: &[f64], w: f64) -> Complex64 {
-    let rot = Complex64::from_polar(1.0, -w);
-    let mut z = Complex64::new(1.0, 0.0);
-    let mut s = Complex64::new(0.0, 0.0);
-    for &v in x {
-        s += z * v;
-        z *= rot;
-    }
-    s
-}
+// `sum_k x_k e^(-j w k)` for the angular step `w` (radians per sample): the workspace's one
+// DFT at a frequency.
+use fracsim::fft::dft_at;
 
 /// Up to `max` indices of `1..=top`, spread evenly on a log scale.
 fn log_bins(top: usize, max: usize) -> Vec<usize> {
