@@ -2,7 +2,7 @@
 //! or full stdout, a plot path that cannot be written, files that are not text, acquisition
 //! footers, the formats of real labs (quoted headers, no time column, headerless, `.mat`).
 
-mod round2;
+pub(crate) mod round2;
 
 use super::fracid;
 use std::fmt::Write as _;

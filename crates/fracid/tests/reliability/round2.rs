@@ -10,7 +10,7 @@ fn stdout(o: &std::process::Output) -> String {
 }
 
 /// `a.csv` of the issue: `fracid sim --prbs --dt 1e-3 --t-end 1.5 -o a.csv`.
-fn a_csv(dir: &tempfile::TempDir) -> std::path::PathBuf {
+pub(crate) fn a_csv(dir: &tempfile::TempDir) -> std::path::PathBuf {
     let p = dir.path().join("a.csv");
     let o = fracid(&[
         "sim",

@@ -339,7 +339,7 @@ fn an_integrating_output_is_fitted_with_integrator() {
 #[test]
 fn degenerate_fits_exit_1() {
     let dir = tempfile::tempdir().unwrap();
-    let csv = sim_prbs_csv(&dir);
+    let csv = crate::reliability::round2::a_csv(&dir);
     for extra in [
         &["--structure", "(0.002 s + 0.000004)/s"][..],
         &["--integrator"][..],
@@ -356,23 +356,6 @@ fn degenerate_fits_exit_1() {
             "{extra:?}: {problems}"
         );
     }
-}
-
-/// `fracid sim --prbs --dt 1e-3 --t-end 1.5` (the paper's PMSM), as the issues write `a.csv`.
-fn sim_prbs_csv(dir: &tempfile::TempDir) -> PathBuf {
-    let p = dir.path().join("a.csv");
-    let o = fracid(&[
-        "sim",
-        "--prbs",
-        "--dt",
-        "1e-3",
-        "--t-end",
-        "1.5",
-        "-o",
-        p.to_str().unwrap(),
-    ]);
-    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
-    p
 }
 
 /// The reader's caveats are in the JSON report, not only on stderr (issue 30): an incomplete
