@@ -322,6 +322,31 @@ fn deadzone_is_found() {
     );
 }
 
+/// A sinusoid with only about three periods in the estimation part is not kept as a periodic
+/// disturbance: too few periods to show that it repeats (issue 29).
+#[test]
+fn a_peak_with_few_periods_is_not_a_periodic_disturbance() {
+    let u = input(0.0, false);
+    let f = 3.0 / (0.7 * u.len() as f64 * DT);
+    let rec = generate(
+        &u,
+        Hidden {
+            sine: Some((0.3, f)),
+            ..Default::default()
+        },
+        5,
+    );
+    let (_, d) = run(&rec, true);
+    assert!(!names(&d).contains(&"periodic"), "{:?}", names(&d));
+    assert!(
+        d.rejected
+            .iter()
+            .any(|r| r.name == "periodic" && r.reason.contains("periods of evidence")),
+        "{:?}",
+        d.rejected
+    );
+}
+
 #[test]
 fn two_effects_are_both_found() {
     let (vc, a, f) = (0.15, 0.1, 23.7);

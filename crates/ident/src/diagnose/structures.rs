@@ -53,8 +53,8 @@ pub struct StructureChoice {
     pub scores: Vec<StructureScore>,
     /// Index of the chosen one in `scores`.
     pub chosen: usize,
-    /// Whether the RMSEs compared are held-out ones (the held-out part scores the dynamics,
-    /// [`crate::oe::Validation::scores_dynamics`]); else they are of the estimation part.
+    /// Whether the RMSEs compared are held-out ones (on a step test the tail of the response);
+    /// else, with nothing held out, they are of the estimation part.
     pub held_out: bool,
     /// The decision in words.
     pub reason: String,
@@ -146,10 +146,7 @@ fn score_of(name: &str, o: &Outcome) -> StructureScore {
     };
     if let Some(id) = &o.id {
         s.model = id.tf.to_string();
-        s.rmse = Some(match id.validation {
-            Some(v) if id.validated_by.scores_dynamics() => v.rmse,
-            _ => id.estimation.rmse,
-        });
+        s.rmse = Some(id.validation.unwrap_or(id.estimation).rmse);
         s.problems = id.problems.clone();
     }
     match (&o.id, &o.diagnosis) {
@@ -283,7 +280,7 @@ pub fn diagnose_best(
     let held_out = outcomes[chosen]
         .id
         .as_ref()
-        .is_some_and(|id| id.validated_by.scores_dynamics());
+        .is_some_and(|id| id.validation.is_some());
     let mut reason = format!(
         "{} chosen: {} RMSE {:.4e} with {} (best {best:.4e}; ties within {:.0}%), the lowest \
          BIC among the ties ({:.1}, {} free parameters)",

@@ -59,8 +59,8 @@ pub enum ValidationKind {
     HeldOut,
     /// Only the tail of the response to the input's last change is held out (a step test: its
     /// one change must stay in the estimation part), simulated on with the state carried over:
-    /// it checks the settled response, not the dynamics. The diagnosis then decides on the
-    /// estimation part (RMSE and BIC).
+    /// it checks the settled response (the static gain the fit extrapolates), not the dynamics.
+    /// The diagnosis scores on it as on any held-out part.
     ResponseTail,
     /// Nothing held out (`holdout` 0).
     None,
@@ -77,15 +77,6 @@ pub struct Validation {
     pub first: usize,
     /// What was validated and how, for the report.
     pub note: String,
-}
-
-impl Validation {
-    /// Whether the validation scores the model's dynamics on data it was not fitted to (a
-    /// held-out part with input changes of its own); otherwise decisions (the diagnosis, the
-    /// structure comparison) are taken on the estimation part.
-    pub fn scores_dynamics(&self) -> bool {
-        self.kind == ValidationKind::HeldOut
-    }
 }
 
 /// The validation split for `holdout` (`split` = the first held-out sample of the plain split).
@@ -195,8 +186,8 @@ fn response_tail(
     let note = format!(
         "the input changes too rarely to hold changes out (a step test): only the tail of the \
          response to its last change (samples {new}..{n}) is held out, simulated on with the \
-         state carried over; it checks the settled response, not the dynamics (decisions are \
-         taken on the estimation part): give --validate FILE to score the model on another record"
+         state carried over; it checks the settled response, not the dynamics: give --validate \
+         FILE to score the model on another record"
     );
     let v = Validation {
         kind: ValidationKind::ResponseTail,

@@ -4,7 +4,8 @@
 //! Signature: a narrow peak of the residual spectrum ([`super::super::residual::spectral_peaks`]),
 //! its cosine and sine columns regressed with the model's sensitivities. A peak at a harmonic of
 //! the input's own period is the excitation (the model misses the response to a repeated
-//! reference), not a disturbance: it is rejected. The input's period is found exactly when the
+//! reference), not a disturbance: it is rejected; so is a peak with fewer than [`MIN_PERIODS`]
+//! periods in the estimation part. The input's period is found exactly when the
 //! input repeats sample for sample ([`crate::oe::init::periodic_part`]), else from the input's
 //! autocorrelation ([`input_period`]).
 
@@ -15,6 +16,11 @@ use crate::Result;
 use std::collections::BTreeMap;
 
 pub(crate) struct Periodic;
+
+/// A residual peak with fewer periods than this in the estimation part is not taken for a
+/// periodic disturbance: several periods are the evidence that it repeats (issue 29: on a
+/// thermal record a "period" of a third of the record absorbed a static input nonlinearity).
+const MIN_PERIODS: f64 = 6.0;
 
 /// The autocorrelation an input must reach at a lag to be called periodic with that period.
 const PERIODIC_R: f64 = 0.5;
@@ -95,6 +101,22 @@ impl Probe for Periodic {
                     );
                     continue;
                 }
+            }
+            let periods = pk.freq_hz * s as f64 * dt;
+            if periods < MIN_PERIODS {
+                found.reject_as(
+                    &key,
+                    "periodic",
+                    format!(
+                        "spectral peak at {:.4} Hz has only {periods:.1} periods in the estimation \
+                         part: a periodic disturbance needs at least {MIN_PERIODS} periods of \
+                         evidence (a slow drift, or a static nonlinearity the effects do not \
+                         include, leaves a peak at the record's lowest frequencies; a sinusoid \
+                         fitted to it would not extrapolate)",
+                        pk.freq_hz
+                    ),
+                );
+                continue;
             }
             let w = 2.0 * std::f64::consts::PI * pk.freq_hz;
             let c: Vec<f64> = (0..s).map(|k| (w * k as f64 * dt).cos()).collect();
