@@ -27,7 +27,9 @@ pub fn default_max_delay(duration_s: f64) -> f64 {
 /// [`Error::Options`] for a name that is no preset and no model.
 pub fn structure(spec: &str, max_delay_s: f64) -> Result<(FracModel, bool)> {
     Ok(match spec.trim().to_ascii_lowercase().as_str() {
-        "pmsm" => (FracModel::pmsm(1.0, 0.01, 1e-4, 0.9, 0.9), false),
+        // `auto` chooses among the structures (ident::diagnose::structures::fit_best); its model
+        // is the PMSM, the first candidate.
+        "pmsm" | "auto" => (FracModel::pmsm(1.0, 0.01, 1e-4, 0.9, 0.9), false),
         "commensurate" => (FracModel::commensurate(1.0, 0.01, 1e-4, 0.9), false),
         "second-order" | "second_order" => (FracModel::second_order(1.0, 0.01, 1e-4), false),
         "fopdt" => (
@@ -37,7 +39,7 @@ pub fn structure(spec: &str, max_delay_s: f64) -> Result<(FracModel, bool)> {
         s => {
             let tf: FracTf = s.parse().map_err(|e| {
                 Error::Options(format!(
-                    "structure '{spec}' is not pmsm, commensurate, second-order, fopdt or a model: {e}"
+                    "structure '{spec}' is not pmsm, commensurate, second-order, fopdt, auto or a model: {e}"
                 ))
             })?;
             (FracModel::from_tf(&tf, true, true), true)

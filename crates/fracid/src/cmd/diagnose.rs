@@ -104,15 +104,24 @@ fn fit_row(f: &ident::metrics::Fit) -> String {
     format!("RMSE {:.4e}, fit {:.2}%", f.rmse, f.nrmse_percent)
 }
 
-/// The structure comparison in words.
-pub fn structures_text(c: &StructureChoice) -> String {
-    let mut o = format!(
-        "\nstructures compared (each fitted and diagnosed; {} RMSE before -> after, BIC after):\n",
-        if c.held_out { "held-out" } else { "estimation" }
-    );
+/// The structure comparison in words: of the final models (`diagnosed`, `--diagnose`) or of the
+/// base fits (`--structure auto`).
+pub fn structures_text(c: &StructureChoice, diagnosed: bool) -> String {
+    let part = if c.held_out { "held-out" } else { "estimation" };
+    let mut o = if diagnosed {
+        format!(
+            "\nstructures compared (each fitted and diagnosed; {part} RMSE before -> after, BIC \
+             after):\n"
+        )
+    } else {
+        format!("\nstructures compared (each fitted; {part} RMSE, BIC):\n")
+    };
     for (i, s) in c.scores.iter().enumerate() {
         let mark = if i == c.chosen { "*" } else { " " };
         let nums = match (s.rmse, s.rmse_after, s.bic_after) {
+            (Some(r), Some(_), Some(b)) if !diagnosed => {
+                format!("RMSE {r:.4e}, BIC {b:.1}, {} free", s.free_params)
+            }
             (Some(r), Some(a), Some(b)) => format!(
                 "RMSE {r:.4e} -> {a:.4e} with {}, BIC {b:.1}, {} free",
                 if s.effects.is_empty() {

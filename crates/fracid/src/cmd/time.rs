@@ -47,7 +47,9 @@ pub struct TimeArgs {
     #[arg(long)]
     pub dt: Option<f64>,
     /// Model structure: pmsm (K/(a2 s^(zeta+theta) + a1 s^zeta + 1)), commensurate,
-    /// second-order (the integer K/(a2 s^2 + a1 s + 1)), fopdt, or a
+    /// second-order (the integer K/(a2 s^2 + a1 s + 1)), fopdt, auto (pmsm, commensurate, the
+    /// integer first and second order each fitted, the one the data support kept: held-out RMSE,
+    /// then BIC among ties within 2%; the table is printed), or a
     /// transfer function such as "6.8/(3e-5 s^1.75 + 0.006 s^0.9 + 1)" used as the start.
     #[arg(long, default_value = "pmsm")]
     pub structure: String,
@@ -255,11 +257,25 @@ pub fn run(a: TimeArgs) -> Result<()> {
         b.set_draw_target(indicatif::ProgressDrawTarget::stderr());
         b
     };
-    let id = identify_with_progress(&rec, &model, &opts, &mut |k, rmse| {
-        bar.set_message(format!("simulation {k}, rmse {rmse:.4e}"));
+    let auto = a.structure.trim().eq_ignore_ascii_case("auto");
+    if auto && a.integrator {
+        crate::bad_input!("--structure auto does not go with --integrator (name a structure)");
+    }
+    let label = if auto { "pmsm" } else { a.structure.as_str() };
+    let (id, auto_choice) = if auto && !a.diagnose {
+        bar.set_message("fitting the candidate structures (on all cores)");
         bar.tick();
-    })
-    .inspect_err(|_| print_reader(&reader_warnings))?;
+        let (id, c) = ident::diagnose::structures::fit_best(&rec, &model, &opts)
+            .inspect_err(|_| print_reader(&reader_warnings))?;
+        (id, Some(c))
+    } else {
+        let id = identify_with_progress(&rec, &model, &opts, &mut |k, rmse| {
+            bar.set_message(format!("simulation {k}, rmse {rmse:.4e}"));
+            bar.tick();
+        })
+        .inspect_err(|_| print_reader(&reader_warnings))?;
+        (id, None)
+    };
     bar.finish_and_clear();
     let (id, diagnosis) = if a.diagnose {
         let spin = if a.quiet || !std::io::stderr().is_terminal() {
@@ -270,11 +286,11 @@ pub fn run(a: TimeArgs) -> Result<()> {
             b.enable_steady_tick(std::time::Duration::from_millis(120));
             b
         };
-        let n = ident::diagnose::structures::candidates(&a.structure, &model).len();
+        let n = ident::diagnose::structures::candidates(label, &model).len();
         spin.set_message(format!(
             "diagnosing: {n} structures fitted and diagnosed (on all cores)"
         ));
-        let d = super::diagnose::run_time(&rec, &a.structure, &model, id, &opts);
+        let d = super::diagnose::run_time(&rec, label, &model, id, &opts);
         spin.finish_and_clear();
         let d = d.inspect_err(|_| print_reader(&reader_warnings))?;
         (d.id, Some((d.diagnosis, d.choice)))
@@ -310,6 +326,9 @@ pub fn run(a: TimeArgs) -> Result<()> {
         if let Some((d, c)) = &diagnosis {
             v = super::diagnose::lead_with_final(v, d, c, rec.dt)?;
         }
+        if let Some(c) = &auto_choice {
+            v["structures"] = serde_json::to_value(c)?;
+        }
         println!("{}", serde_json::to_string_pretty(&v)?);
     } else {
         if let Some((_, c)) = &diagnosis {
@@ -318,12 +337,16 @@ pub fn run(a: TimeArgs) -> Result<()> {
                 c.scores[c.chosen].name
             );
         }
+        if let Some(c) = &auto_choice {
+            print!("{}", super::diagnose::structures_text(c, false));
+            println!();
+        }
         print_text(&id, &rec);
         if let (Some((p, _)), Some(sc)) = (&validation, &scored) {
             print_score(p, sc);
         }
         if let Some((d, c)) = &diagnosis {
-            print!("{}", super::diagnose::structures_text(c));
+            print!("{}", super::diagnose::structures_text(c, true));
             print!("{}", super::diagnose::text(d));
         }
     }

@@ -398,3 +398,66 @@ fn reader_warnings_are_in_the_json_report() {
         stderr(&o)
     );
 }
+
+/// `--structure auto` fits pmsm, commensurate and the integer first and second order and keeps
+/// the one the rule picks (held-out RMSE, ties within 2%, then the lowest BIC; usable fits first):
+/// checked here on the table it reports, and the reported model is the chosen row's.
+#[test]
+fn structure_auto_keeps_the_structure_the_data_support() {
+    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../data/unal_dcmotor/DCmotor_prbs_open_exp.csv");
+    let o = fracid(&[
+        "time",
+        p.to_str().unwrap(),
+        "--structure",
+        "auto",
+        "--json",
+        "--quiet",
+    ]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    let s = &v["structures"];
+    let rows = s["scores"].as_array().unwrap();
+    let names: Vec<&str> = rows.iter().map(|r| r["name"].as_str().unwrap()).collect();
+    assert_eq!(
+        names,
+        ["pmsm", "commensurate", "first order", "second order"]
+    );
+    let chosen = s["chosen"].as_u64().unwrap() as usize;
+    let usable: Vec<&serde_json::Value> = rows
+        .iter()
+        .filter(|r| r["problems"].as_array().unwrap().is_empty())
+        .collect();
+    let best = usable
+        .iter()
+        .map(|r| r["rmse"].as_f64().unwrap())
+        .fold(f64::INFINITY, f64::min);
+    let ties: Vec<&&serde_json::Value> = usable
+        .iter()
+        .filter(|r| r["rmse"].as_f64().unwrap() <= 1.02 * best)
+        .collect();
+    let lowest_bic = ties
+        .iter()
+        .map(|r| r["bic_after"].as_f64().unwrap())
+        .fold(f64::INFINITY, f64::min);
+    assert_eq!(
+        rows[chosen]["bic_after"].as_f64().unwrap(),
+        lowest_bic,
+        "{s}"
+    );
+    assert_eq!(v["model"]["text"], rows[chosen]["model"], "{v}");
+    let val = v["fit"]["validation"]["rmse"].as_f64().unwrap();
+    assert!((val - rows[chosen]["rmse"].as_f64().unwrap()).abs() < 1e-12 * val);
+    let o = fracid(&[
+        "time",
+        p.to_str().unwrap(),
+        "--structure",
+        "auto",
+        "--quiet",
+    ]);
+    assert!(
+        stdout(&o).contains("structures compared (each fitted;"),
+        "{}",
+        stdout(&o)
+    );
+}

@@ -313,3 +313,114 @@ pub fn diagnose_best(
         diagnosis,
     })
 }
+
+/// The structures a plain fit chooses among with `--structure auto`: the PMSM, the commensurate,
+/// and the integer first and second order (those of [`candidates`] that need no user model),
+/// each with `model`'s approximation.
+pub fn auto_candidates(model: &FracModel) -> Vec<(String, FracModel)> {
+    candidates("pmsm", model)
+        .into_iter()
+        .filter(|(n, _)| !n.contains("integrator"))
+        .map(|(n, mut m)| {
+            m.approx = model.approx;
+            (n, m)
+        })
+        .collect()
+}
+
+/// `--structure auto` without the diagnosis: fit every structure of [`auto_candidates`] alike
+/// (on all cores) and keep the one the rule of the module documentation picks from the base fits
+/// (held-out RMSE, ties within [`TIE`], then BIC on the estimation part; usable fits first).
+/// Returns the chosen identification and the comparison.
+///
+/// # Errors
+/// The first structure's error when none could be fitted.
+pub fn fit_best(
+    rec: &Record,
+    model: &FracModel,
+    opts: &IdentOptions,
+) -> Result<(Identification, StructureChoice)> {
+    let cands = auto_candidates(model);
+    let fits: Vec<Result<Identification>> = std::thread::scope(|scope| {
+        let handles: Vec<_> = cands
+            .iter()
+            .map(|(_, m)| scope.spawn(move || identify(rec, m, opts)))
+            .collect();
+        handles
+            .into_iter()
+            .map(|h| {
+                h.join()
+                    .unwrap_or_else(|_| Err(Error::Numerical("a structure's fit panicked".into())))
+            })
+            .collect()
+    });
+    let scores: Vec<StructureScore> = cands
+        .iter()
+        .zip(&fits)
+        .map(|((name, _), f)| base_score(name, f))
+        .collect();
+    let Some((chosen, best)) = decide(&scores) else {
+        let mut fits = fits;
+        return Err(match fits.swap_remove(0) {
+            Err(e) => e,
+            Ok(_) => Error::Numerical("no structure could be fitted".into()),
+        });
+    };
+    let s = &scores[chosen];
+    let held_out = fits[chosen]
+        .as_ref()
+        .is_ok_and(|id| id.validation.is_some());
+    let mut reason = format!(
+        "{} chosen: {} RMSE {:.4e} (best {best:.4e}; ties within {:.0}%), the lowest BIC among \
+         the ties ({:.1}, {} free parameters)",
+        s.name,
+        if held_out { "held-out" } else { "estimation" },
+        s.rmse_after.unwrap_or(f64::NAN),
+        100.0 * TIE,
+        s.bic_after.unwrap_or(f64::NAN),
+        s.free_params
+    );
+    reason.push_str(&integer_gain(&cands, &scores, chosen));
+    let mut fits = fits;
+    let id = fits.swap_remove(chosen)?;
+    let choice = StructureChoice {
+        scores,
+        chosen,
+        held_out,
+        reason,
+    };
+    Ok((id, choice))
+}
+
+/// A base fit's row of the comparison: its held-out RMSE (estimation without a held-out part)
+/// and BIC `N ln(SSR/N) + k ln N` on the estimation part, `k` its free parameters.
+fn base_score(name: &str, f: &Result<Identification>) -> StructureScore {
+    let mut s = StructureScore {
+        name: name.to_string(),
+        model: String::new(),
+        rmse: None,
+        problems: vec![],
+        effects: vec![],
+        free_params: 0,
+        rmse_after: None,
+        bic_after: None,
+    };
+    match f {
+        Ok(id) => {
+            let n = id.split as f64;
+            let k = id.model.params.iter().filter(|p| p.free).count();
+            let ssr = id.estimation.rmse.powi(2) * n;
+            s.model = id.tf.to_string();
+            s.rmse = Some(id.validation.unwrap_or(id.estimation).rmse);
+            s.rmse_after = s.rmse;
+            s.problems = id.problems.clone();
+            s.free_params = k;
+            s.bic_after = Some(n * (ssr / n).max(1e-300).ln() + k as f64 * n.ln());
+        }
+        Err(e) => {
+            s.model = format!("failed: {e}");
+            s.problems.push(e.to_string());
+        }
+    }
+    s
+}
