@@ -373,10 +373,13 @@ def fit_time(
         Input and output samples, same length, finite.
     dt : float
         Sampling step in seconds.
-    structure : {"pmsm", "commensurate", "fopdt"} or FracTf
+    structure : {"pmsm", "commensurate", "second-order", "fopdt", "auto"} or FracTf
         ``"pmsm"``: ``K / (a2 s^(zeta+theta) + a1 s^zeta + 1)``; ``"commensurate"``:
-        ``K / (a2 s^(2q) + a1 s^q + 1)``; ``"fopdt"``: ``K e^(-tau s) / (T s + 1)``; a
-        :class:`FracTf`: every coefficient and order fitted, starting from its values.
+        ``K / (a2 s^(2q) + a1 s^q + 1)``; ``"second-order"``: the integer
+        ``K / (a2 s^2 + a1 s + 1)``; ``"fopdt"``: ``K e^(-tau s) / (T s + 1)``; ``"auto"``: pmsm,
+        commensurate and the integer first and second order fitted, the one the data support kept
+        (``structures`` says which and why); a :class:`FracTf`: every coefficient and order fitted,
+        starting from its values.
     start : dict, optional
         Starting values by parameter name (e.g. ``{"K": 6.8, "a1": 0.006}``). When given, no
         start is made from the data: parameters not named keep the structure's defaults

@@ -396,6 +396,9 @@ class TimeFit(_ToDict):
         Model output on the absolute scale over the whole record.
     split : int
         Index of the first validation sample.
+    structures : dict or None
+        With ``structure="auto"`` (and no diagnosis): the structures fitted and the choice
+        (``scores``, ``chosen``, ``held_out``, ``reason``), as ``fracid time --structure auto``.
     validated_by : dict
         How the model was validated: ``kind`` (``held_out``: a held-out part with input changes
         of its own; ``response_tail``: only the tail of a step response, which checks the settled
@@ -449,6 +452,7 @@ class TimeFit(_ToDict):
     residual_test: ResidualTest
     diagnosis: Optional[Diagnosis] = None
     validated_by: Dict[str, Any] = field(default_factory=dict)
+    structures: Optional[Dict[str, Any]] = None
 
     def param(self, name: str) -> ParamEstimate:
         """The parameter called ``name``.

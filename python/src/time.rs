@@ -32,7 +32,8 @@ fn structure_of(s: &Bound<'_, PyAny>, duration: f64) -> PyResult<(FracModel, boo
             .map_err(errors::ident);
     }
     Err(errors::data(
-        "structure must be 'pmsm', 'commensurate', 'fopdt', a model string or a FracTf",
+        "structure must be 'pmsm', 'commensurate', 'second-order', 'fopdt', 'auto', a model \
+         string or a FracTf",
     ))
 }
 
@@ -120,9 +121,18 @@ pub(crate) fn _fit_time<'py>(
     let label = structure
         .extract::<String>()
         .unwrap_or_else(|_| "the given model".to_string());
-    let (id, rt, diag) = py
+    // `auto`: the structure the data support (the CLI's --structure auto); with the diagnosis
+    // the comparison is the diagnosis's own, from the PMSM.
+    let auto = label.trim().eq_ignore_ascii_case("auto");
+    let label = if auto { "pmsm".to_string() } else { label };
+    let (id, rt, diag, auto_choice) = py
         .allow_threads(|| {
-            let id = identify(&rec, &model, &opts)?;
+            let (id, auto_choice) = if auto && !diagnose {
+                let (id, c) = ident::diagnose::structures::fit_best(&rec, &model, &opts)?;
+                (id, Some(c))
+            } else {
+                (identify(&rec, &model, &opts)?, None)
+            };
             // The diagnosis compares the structures and runs on the chosen one, which is then
             // the fit reported.
             let (id, diag) = if diagnose {
@@ -141,7 +151,7 @@ pub(crate) fn _fit_time<'py>(
                 .collect();
             let ud: Vec<f64> = rec.u[..split].iter().map(|v| v - id.offsets.u0).collect();
             let rt = residual_test(&e, &ud, max_lag.min(split.saturating_sub(1)));
-            Ok::<_, ident::Error>((id, rt, diag))
+            Ok::<_, ident::Error>((id, rt, diag, auto_choice))
         })
         .map_err(errors::ident)?;
 
@@ -210,6 +220,17 @@ pub(crate) fn _fit_time<'py>(
             d.set_item("diagnosis", dd)?
         }
         None => d.set_item("diagnosis", py.None())?,
+    }
+    match auto_choice {
+        Some(c) => {
+            let text = serde_json::to_string(&c)
+                .map_err(|e| errors::error(errors::Kind::Numerical, format!("structures: {e}")))?;
+            d.set_item(
+                "structures",
+                py.import("json")?.call_method1("loads", (text,))?,
+            )?
+        }
+        None => d.set_item("structures", py.None())?,
     }
     Ok(d)
 }

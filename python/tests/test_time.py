@@ -92,3 +92,28 @@ def test_a_step_at_the_first_sample_is_fitted_from_rest():
     assert fit.offsets == {"u0": 0.0, "y0": y[0]}
     assert fit.model.dc_gain() == pytest.approx(2.0, rel=0.02)
     assert any("step at the first sample" in w for w in fit.warnings)
+
+
+def test_structure_auto_matches_the_cli(fracid_bin):
+    """``structure="auto"`` runs the same comparison as ``fracid time --structure auto`` and
+    reports the same choice and model (the UNAL PRBS record, a real DC motor)."""
+    import subprocess
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[2] / "data" / "unal_dcmotor" / "DCmotor_prbs_open_exp.csv"
+    rows = np.loadtxt(path, delimiter=",", skiprows=1)
+    t, u, y = rows[:, 0], rows[:, 1], rows[:, 2]
+    fit = fracid.fit_time(u, y, float(np.mean(np.diff(t))), "auto")
+    cli = json.loads(
+        subprocess.run(
+            [str(fracid_bin), "time", str(path), "--structure", "auto", "--json", "--quiet"],
+            capture_output=True,
+            text=True,
+            check=True,
+        ).stdout
+    )
+    assert fit.structures is not None
+    assert fit.structures["chosen"] == cli["structures"]["chosen"]
+    names = [r["name"] for r in fit.structures["scores"]]
+    assert names == ["pmsm", "commensurate", "first order", "second order"]
+    assert fit.validation.rmse == pytest.approx(cli["fit"]["validation"]["rmse"], rel=1e-9)
