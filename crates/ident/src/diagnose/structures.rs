@@ -133,17 +133,24 @@ fn run_one(
     }
 }
 
+impl StructureScore {
+    /// A row with nothing measured yet.
+    fn named(name: &str) -> Self {
+        Self {
+            name: name.to_string(),
+            model: String::new(),
+            rmse: None,
+            problems: vec![],
+            effects: vec![],
+            free_params: 0,
+            rmse_after: None,
+            bic_after: None,
+        }
+    }
+}
+
 fn score_of(name: &str, o: &Outcome) -> StructureScore {
-    let mut s = StructureScore {
-        name: name.to_string(),
-        model: String::new(),
-        rmse: None,
-        problems: vec![],
-        effects: vec![],
-        free_params: 0,
-        rmse_after: None,
-        bic_after: None,
-    };
+    let mut s = StructureScore::named(name);
     if let Some(id) = &o.id {
         s.model = id.tf.to_string();
         s.rmse = Some(id.validation.unwrap_or(id.estimation).rmse);
@@ -166,6 +173,35 @@ fn score_of(name: &str, o: &Outcome) -> StructureScore {
         (None, Ok(_)) => {}
     }
     s
+}
+
+/// The decision in words: the chosen row (with its effects, when diagnosed), the rule, and what it
+/// gains over the best integer-order candidate.
+fn reason(
+    cands: &[(String, FracModel)],
+    scores: &[StructureScore],
+    chosen: usize,
+    best: f64,
+    held_out: bool,
+    diagnosed: bool,
+) -> String {
+    let s = &scores[chosen];
+    let with = match (diagnosed, s.effects.is_empty()) {
+        (false, _) => String::new(),
+        (true, true) => " with no effect".into(),
+        (true, false) => format!(" with {}", s.effects.join(", ")),
+    };
+    format!(
+        "{} chosen: {} RMSE {:.4e}{with} (best {best:.4e}; ties within {:.0}%), the lowest BIC \
+         among the ties ({:.1}, {} free parameters){}",
+        s.name,
+        if held_out { "held-out" } else { "estimation" },
+        s.rmse_after.unwrap_or(f64::NAN),
+        100.0 * TIE,
+        s.bic_after.unwrap_or(f64::NAN),
+        s.free_params,
+        integer_gain(cands, scores, chosen)
+    )
 }
 
 /// Whether a candidate is an integer-order reference (every order a whole number).
@@ -276,27 +312,11 @@ pub fn diagnose_best(
             Ok(_) => Error::Numerical("no structure could be diagnosed".into()),
         });
     };
-    let s = &scores[chosen];
     let held_out = outcomes[chosen]
         .id
         .as_ref()
         .is_some_and(|id| id.validation.is_some());
-    let mut reason = format!(
-        "{} chosen: {} RMSE {:.4e} with {} (best {best:.4e}; ties within {:.0}%), the lowest \
-         BIC among the ties ({:.1}, {} free parameters)",
-        s.name,
-        if held_out { "held-out" } else { "estimation" },
-        s.rmse_after.unwrap_or(f64::NAN),
-        if s.effects.is_empty() {
-            "no effect".to_string()
-        } else {
-            s.effects.join(", ")
-        },
-        100.0 * TIE,
-        s.bic_after.unwrap_or(f64::NAN),
-        s.free_params
-    );
-    reason.push_str(&integer_gain(&cands, &scores, chosen));
+    let reason = reason(&cands, &scores, chosen, best, held_out, true);
     let mut outcomes = outcomes;
     let o = outcomes.swap_remove(chosen);
     let diagnosis = o.diagnosis?;
@@ -366,21 +386,10 @@ pub fn fit_best(
             Ok(_) => Error::Numerical("no structure could be fitted".into()),
         });
     };
-    let s = &scores[chosen];
     let held_out = fits[chosen]
         .as_ref()
         .is_ok_and(|id| id.validation.is_some());
-    let mut reason = format!(
-        "{} chosen: {} RMSE {:.4e} (best {best:.4e}; ties within {:.0}%), the lowest BIC among \
-         the ties ({:.1}, {} free parameters)",
-        s.name,
-        if held_out { "held-out" } else { "estimation" },
-        s.rmse_after.unwrap_or(f64::NAN),
-        100.0 * TIE,
-        s.bic_after.unwrap_or(f64::NAN),
-        s.free_params
-    );
-    reason.push_str(&integer_gain(&cands, &scores, chosen));
+    let reason = reason(&cands, &scores, chosen, best, held_out, false);
     let mut fits = fits;
     let id = fits.swap_remove(chosen)?;
     let choice = StructureChoice {
@@ -395,16 +404,7 @@ pub fn fit_best(
 /// A base fit's row of the comparison: its held-out RMSE (estimation without a held-out part)
 /// and BIC `N ln(SSR/N) + k ln N` on the estimation part, `k` its free parameters.
 fn base_score(name: &str, f: &Result<Identification>) -> StructureScore {
-    let mut s = StructureScore {
-        name: name.to_string(),
-        model: String::new(),
-        rmse: None,
-        problems: vec![],
-        effects: vec![],
-        free_params: 0,
-        rmse_after: None,
-        bic_after: None,
-    };
+    let mut s = StructureScore::named(name);
     match f {
         Ok(id) => {
             let n = id.split as f64;
