@@ -89,11 +89,11 @@ pub struct Validation {
 ///   ([`ValidationKind::HeldOut`]). With 4 or 5 changes (a staircase) the same, holding out at
 ///   least one change (its last step(s)) while the estimation part keeps 3.
 /// - At most [`MIN_VALIDATION_CHANGES`] changes (a step, a doublet, a pulse; or none: a step at
-///   the first sample): the
-///   validation never takes excitation from the estimation part. The estimation part holds every
-///   change and the first `1 - holdout` of the response after the last one; the rest of that
-///   response is held out, simulated on from the estimation part with the state carried over
-///   ([`ValidationKind::ResponseTail`]), with a warning that says what it checks.
+///   the first sample): the validation never takes excitation from the estimation part. The
+///   estimation part holds every change and the first `1 - holdout` of the response after the
+///   last one; the rest of that response is held out, simulated on from the estimation part with
+///   the state carried over ([`ValidationKind::ResponseTail`]), with a warning that says what it
+///   checks.
 ///
 /// Returns `(split, validation, warning)`.
 pub(crate) fn validation_split(
