@@ -733,6 +733,17 @@ impl Acquisition {
     }
 }
 
+/// The sample count `N` of the last `# complete: N samples` footer among `lines`, if it has one.
+fn complete_count<'a>(lines: impl Iterator<Item = &'a str>) -> Option<usize> {
+    lines
+        .filter_map(|l| l.trim().strip_prefix('#')?.trim().strip_prefix("complete:"))
+        .last()?
+        .split_whitespace()
+        .next()?
+        .parse()
+        .ok()
+}
+
 /// The physical lines of a text with a `\n` that hold a `#`, in order, each as
 /// [`physical_lines`] gives it (found by searching the `#`s, not by walking every line).
 fn hash_lines(text: &str) -> impl Iterator<Item = &str> {
@@ -927,9 +938,19 @@ impl Record {
             Acquisition::Unknown
         };
         let (text, torn) = without_torn_line(text, &acquisition);
+        let complete = (acquisition == Acquisition::Complete)
+            .then(|| complete_count(hash_lines(text)))
+            .flatten();
         let mut loaded = Self::parse_columns(text, opts, acquisition)?;
         if let Some(w) = torn {
             loaded.warnings.insert(0, w);
+        }
+        if let Some(c) = complete.filter(|&c| c != loaded.rows_read) {
+            loaded.warnings.push(format!(
+                "the footer says the acquisition is complete with {c} samples, but {} rows were \
+                 read: the file was cut or edited after it was written (the rows read are used)",
+                loaded.rows_read
+            ));
         }
         Ok(loaded)
     }
@@ -1181,6 +1202,35 @@ impl Record {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The footer's sample count is checked against the rows read (issue 31): a mismatch is a
+    /// warning, the rows read are kept; a matching count says nothing.
+    #[test]
+    fn a_complete_footer_with_another_count_is_warned() {
+        let rows: String = (0..40)
+            .map(|k| format!("{k},{},{}\n", k % 3, k % 5))
+            .collect();
+        let head = "# fracid drive acquisition: PRBS\nt,u,y\n";
+        let ok = Record::parse_with(
+            &format!("{head}{rows}# complete: 40 samples\n"),
+            &ReadOptions::default(),
+        )
+        .unwrap();
+        assert!(ok.warnings.is_empty(), "{:?}", ok.warnings);
+        let cut = Record::parse_with(
+            &format!("{head}{rows}# complete: 50 samples\n"),
+            &ReadOptions::default(),
+        )
+        .unwrap();
+        assert_eq!(cut.record.len(), 40);
+        assert!(
+            cut.warnings
+                .iter()
+                .any(|w| w.contains("complete with 50 samples, but 40 rows")),
+            "{:?}",
+            cut.warnings
+        );
+    }
 
     #[test]
     fn parse_and_check() {
