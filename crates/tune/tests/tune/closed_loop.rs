@@ -3,6 +3,7 @@
 //! rational approximation, no hold; `fracsim::gl::weights` only), Richardson-extrapolated from two
 //! steps.
 
+use super::design::spec;
 use fracsim::gl::weights;
 use fracsim::{ApproxSpec, FracTf};
 use tune::closed::{metrics, simulate, LoopSetup};
@@ -86,16 +87,7 @@ fn interp(t: &[f64], y: &[f64], at: f64) -> f64 {
 
 fn check(form: Form, flat: bool, tol: f64) {
     let g: FracTf = PMSM.parse().unwrap();
-    let spec = Spec {
-        form,
-        wc: 300.0,
-        pm_deg: 60.0,
-        flat,
-        t_high: None,
-        s_low: None,
-        dt: None,
-        lambda: None,
-    };
+    let spec = spec(form, 300.0, 60.0, flat);
     let c = design(&g, &spec).unwrap().controller;
     let mut setup = LoopSetup::for_crossover(300.0, None);
     setup.t_load = 20.0 / 300.0;
@@ -146,14 +138,8 @@ fn integer_pi_loop_matches_grunwald_letnikov() {
 fn sampled_loop_matches_the_continuous_design() {
     let g: FracTf = PMSM.parse().unwrap();
     let spec = Spec {
-        form: Form::Fopi,
-        wc: 50.0,
-        pm_deg: 60.0,
-        flat: true,
-        t_high: None,
-        s_low: None,
         dt: Some(0.001),
-        lambda: None,
+        ..spec(Form::Fopi, 50.0, 60.0, true)
     };
     let c = design(&g, &spec).unwrap().controller;
     let mut setup = LoopSetup::for_crossover(50.0, Some(0.001));
@@ -183,16 +169,7 @@ fn sampled_loop_matches_the_continuous_design() {
 fn saturated_loop_matches_grunwald_letnikov() {
     use tune::closed::InputEffect;
     let g: FracTf = PMSM.parse().unwrap();
-    let spec = Spec {
-        form: Form::Pi,
-        wc: 300.0,
-        pm_deg: 60.0,
-        flat: false,
-        t_high: None,
-        s_low: None,
-        dt: None,
-        lambda: None,
-    };
+    let spec = spec(Form::Pi, 300.0, 60.0, false);
     let c = design(&g, &spec).unwrap().controller;
     let mut setup = LoopSetup::for_crossover(300.0, None);
     setup.t_load = 20.0 / 300.0;
@@ -231,16 +208,7 @@ fn saturated_loop_matches_grunwald_letnikov() {
 fn dead_band_and_friction_are_overcome_by_the_integral_action() {
     use tune::closed::InputEffect;
     let g: FracTf = PMSM.parse().unwrap();
-    let spec = Spec {
-        form: Form::Fopi,
-        wc: 300.0,
-        pm_deg: 60.0,
-        flat: true,
-        t_high: None,
-        s_low: None,
-        dt: None,
-        lambda: None,
-    };
+    let spec = spec(Form::Fopi, 300.0, 60.0, true);
     let c = design(&g, &spec).unwrap().controller;
     let mut setup = LoopSetup::for_crossover(300.0, None);
     setup.t_load = 0.3;

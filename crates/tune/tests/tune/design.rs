@@ -66,7 +66,8 @@ fn slope(c: &Controller, w: f64) -> f64 {
     b.div(a).arg() / (2.0 * h)
 }
 
-fn spec(form: Form, wc: f64, pm_deg: f64, flat: bool) -> Spec {
+/// A specification of `form` at `wc` rad/s and `pm_deg`, nothing else asked.
+pub(crate) fn spec(form: Form, wc: f64, pm_deg: f64, flat: bool) -> Spec {
     Spec {
         form,
         wc,
