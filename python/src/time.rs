@@ -123,8 +123,7 @@ pub(crate) fn _fit_time<'py>(
         .unwrap_or_else(|_| "the given model".to_string());
     // `auto`: the structure the data support (the CLI's --structure auto); with the diagnosis
     // the comparison is the diagnosis's own, from the PMSM.
-    let auto = label.trim().eq_ignore_ascii_case("auto");
-    let label = if auto { "pmsm".to_string() } else { label };
+    let (auto, label) = ident::app::auto_label(&label);
     let (id, rt, diag, auto_choice) = py
         .allow_threads(|| {
             let (id, auto_choice) = if auto && !diagnose {
@@ -137,7 +136,7 @@ pub(crate) fn _fit_time<'py>(
             // the fit reported.
             let (id, diag) = if diagnose {
                 let d = ident::diagnose::structures::diagnose_best(
-                    &rec, &label, &model, id, &opts, &dopts,
+                    &rec, label, &model, id, &opts, &dopts,
                 )?;
                 (d.id, Some((d.diagnosis, d.choice)))
             } else {

@@ -47,6 +47,23 @@ pub fn structure(spec: &str, max_delay_s: f64) -> Result<(FracModel, bool)> {
     })
 }
 
+/// Whether `spec` asks the data to choose the structure (`auto`:
+/// [`crate::diagnose::structures::fit_best`] for a plain fit; with the diagnosis, its own
+/// comparison from the PMSM). Returns the structure's label for the comparison: the PMSM for
+/// `auto`, else `spec` itself.
+///
+/// ```
+/// assert_eq!(ident::app::auto_label(" Auto"), (true, "pmsm"));
+/// assert_eq!(ident::app::auto_label("commensurate"), (false, "commensurate"));
+/// ```
+pub fn auto_label(spec: &str) -> (bool, &str) {
+    if spec.trim().eq_ignore_ascii_case("auto") {
+        (true, "pmsm")
+    } else {
+        (false, spec)
+    }
+}
+
 /// `initial`, `mean` or `none` ([`OffsetMode`]).
 ///
 /// # Errors

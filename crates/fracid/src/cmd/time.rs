@@ -257,11 +257,10 @@ pub fn run(a: TimeArgs) -> Result<()> {
         b.set_draw_target(indicatif::ProgressDrawTarget::stderr());
         b
     };
-    let auto = a.structure.trim().eq_ignore_ascii_case("auto");
+    let (auto, label) = ident::app::auto_label(&a.structure);
     if auto && a.integrator {
         crate::bad_input!("--structure auto does not go with --integrator (name a structure)");
     }
-    let label = if auto { "pmsm" } else { a.structure.as_str() };
     let (id, auto_choice) = if auto && !a.diagnose {
         bar.set_message("fitting the candidate structures (on all cores)");
         bar.tick();

@@ -217,8 +217,7 @@ fn validation_split_none(n: usize) -> (usize, Validation, Option<String>) {
 pub(crate) fn levels_at_bound(m: &FracModel, params: &[super::ParamEstimate]) -> Option<String> {
     let levels: Vec<String> = params
         .iter()
-        .filter(|p| p.at_bound && p.name.starts_with("u_past"))
-        .filter(|p| m.index_of(&p.name).is_some_and(|i| m.is_initial_state(i)))
+        .filter(|p| p.at_bound && m.index_of(&p.name).is_some_and(|i| m.is_initial_state(i)))
         .map(|p| format!("{} = {:.4e}", p.name, p.value))
         .collect();
     (!levels.is_empty()).then(|| {
