@@ -39,6 +39,7 @@ FracidError, ParseError, DataError, NumericalError, InfeasibleError, DriveError
 
 from __future__ import annotations
 
+import json
 import os
 import warnings
 from typing import Dict, NamedTuple, Optional, Tuple, Union
@@ -56,7 +57,7 @@ from ._errors import (
     ParseError,
 )
 from ._fracid import DriveSimulator, FracTf, __version__, error_index, gl_simulate, prbs
-from ._fracid import _fit_bode, _fit_time, _load_bode, _load_csv
+from ._fracid import _fit_bode, _fit_time, _load_bode, _load_csv, _time_request_defaults
 from ._export import StateSpace
 from ._tune import tune
 from ._results import (
@@ -81,6 +82,8 @@ __all__ = [
     "gl_simulate",
     "fit_bode",
     "fit_time",
+    "time_request",
+    "time_request_defaults",
     "error_index",
     "load_bode",
     "load_csv",
@@ -341,31 +344,18 @@ def fit_time(
     u: ArrayLike,
     y: ArrayLike,
     dt: float,
-    structure: Union[str, FracTf] = "pmsm",
+    structure: Union[str, FracTf, None] = None,
     *,
-    start: Optional[Dict[str, float]] = None,
-    holdout: float = 0.3,
-    offsets: str = "initial",
-    fit_offset: bool = True,
-    max_iterations: int = 500,
-    skip: int = 0,
-    initial: str = "estimate",
-    method: str = "refined",
-    band: Optional[Tuple[float, float]] = None,
-    order: int = 8,
-    max_lag: int = 25,
-    diagnose: bool = False,
-    margin: float = 0.05,
-    min_r2: float = 0.005,
-    max_rounds: int = 3,
+    validate: Optional[Tuple[ArrayLike, ArrayLike]] = None,
+    **options: object,
 ) -> TimeFit:
     """Identify a fractional model from sampled input and output by output error.
 
-    Removes the operating point, holds out the last ``holdout`` of the record for validation,
-    starts from a Levy fit on the data's frequency response (unless ``start`` is given), then
-    minimises ``sum (y - yhat)^2`` by Levenberg-Marquardt with exact sensitivities. Parameters
-    are kept in range (coefficients positive, orders in (0, 2)). The GIL is released during the
-    fit, so fits in threads run in parallel.
+    The same use case and report as ``fracid time`` (``ident::app::time::run``): removes the
+    operating point, splits off a validation part (a step test keeps its step and holds out the
+    response's tail), starts from the data's frequency response (unless ``start`` is given), then
+    minimises ``sum (y - yhat)^2`` by Levenberg-Marquardt with exact sensitivities. The GIL is
+    released during the fit, so fits in threads run in parallel.
 
     Parameters
     ----------
@@ -373,52 +363,33 @@ def fit_time(
         Input and output samples, same length, finite.
     dt : float
         Sampling step in seconds.
-    structure : {"pmsm", "commensurate", "second-order", "fopdt", "auto"} or FracTf
-        ``"pmsm"``: ``K / (a2 s^(zeta+theta) + a1 s^zeta + 1)``; ``"commensurate"``:
-        ``K / (a2 s^(2q) + a1 s^q + 1)``; ``"second-order"``: the integer
+    structure : {"pmsm", "commensurate", "second-order", "fopdt", "auto"} or str or FracTf
+        ``"pmsm"`` (the default): ``K / (a2 s^(zeta+theta) + a1 s^zeta + 1)``;
+        ``"commensurate"``: ``K / (a2 s^(2q) + a1 s^q + 1)``; ``"second-order"``: the integer
         ``K / (a2 s^2 + a1 s + 1)``; ``"fopdt"``: ``K e^(-tau s) / (T s + 1)``; ``"auto"``: pmsm,
         commensurate and the integer first and second order fitted, the one the data support kept
-        (``structures`` says which and why); a :class:`FracTf`: every coefficient and order fitted,
-        starting from its values.
-    start : dict, optional
-        Starting values by parameter name (e.g. ``{"K": 6.8, "a1": 0.006}``). When given, no
-        start is made from the data: parameters not named keep the structure's defaults
-        (``K=1, a1=0.01, a2=1e-4``, orders 0.9).
-    holdout : float
-        Fraction of the record held out for validation, in [0, 0.9]. When the input does not
-        change there, the window is moved to where it does (with a warning).
-    offsets : {"initial", "mean", "none"}
-        How the operating point is removed.
-    fit_offset : bool
-        Also fit a constant output offset.
-    max_iterations : int
-        Levenberg-Marquardt iterations at most.
-    skip : int
-        Leading samples left out of the residual.
-    initial : {"estimate", "rest"}
-        The plant's state at the first sample: ``"estimate"`` (the state a past held input left,
-        fitted with the model, so a record that starts in motion, mid-transient or on a ramp fits
-        as one at rest does) or ``"rest"``.
-    method, band, order
-        The approximation of the fractional operators (as :meth:`FracTf.simulate`).
-    max_lag : int
-        Lags of the residual correlation test.
-    diagnose : bool
-        Also run the residual diagnosis (docs/design.md §6): test the residual for the signature
-        of each effect (delay, Coulomb friction, offset, periodic, abs sensor, saturation, dead
-        zone, quantization), refit with each strong candidate, keep those that lower the
-        validation error by ``margin`` and lower BIC. The result is in ``TimeFit.diagnosis``.
-    margin : float
-        Relative fall of the validation RMSE an effect must bring to be kept.
-    min_r2 : float
-        Evidence (fraction of the residual explained) a candidate needs to be refitted.
-    max_rounds : int
-        Rounds of the diagnosis loop.
+        (``structures`` says which and why); a model (text or :class:`FracTf`): every coefficient
+        and order fitted, starting from its values.
+    validate : (array_like, array_like), optional
+        A separate validation record ``(u, y)`` of the same plant at the same ``dt`` (``fracid
+        time --validate FILE``): the models are scored on it with its own initial state and
+        output offset (``validation_file``); ``holdout`` then defaults to 0.
+    **options
+        Every option of ``fracid time``, by the same name and with the same default (see
+        :func:`time_request_defaults`): ``approx`` ("refined", "oustaloup", "trigeassou"),
+        ``band`` ((w_b, w_h) rad/s), ``order``, ``integrator``, ``delay``, ``max_delay`` (s),
+        ``fix`` ("NAME" or "NAME=VALUE", comma-separated), ``free``, ``start`` (dict of start
+        values by parameter name), ``auto_start``, ``holdout`` (fraction held out; default 0.3),
+        ``offsets`` ("initial", "mean", "none"), ``fit_offset``, ``initial`` ("estimate",
+        "rest"), ``max_iterations`` (500), ``skip``, ``max_lag`` (25), ``diagnose`` (the residual
+        diagnosis, docs/design.md §6: the result is in ``TimeFit.diagnosis`` and the model that
+        leads is the final one), ``margin``, ``min_r2``, ``max_rounds``.
 
     Returns
     -------
     TimeFit
-        Model, parameters with standard errors, fit on estimation and validation data.
+        The leading model (the final one after a diagnosis), its parameters with standard
+        errors, fit figures, caveats; ``report`` is ``fracid time --json``'s report itself.
 
     Raises
     ------
@@ -427,36 +398,44 @@ def fit_time(
     NumericalError
         If the simulation or a solve breaks down.
     """
-    for name, v in (
-        ("max_iterations", max_iterations),
-        ("skip", skip),
-        ("order", order),
-        ("max_lag", max_lag),
-        ("max_rounds", max_rounds),
-    ):
-        _count(name, v)
-    raw = _fit_time(
-        u,
-        y,
-        dt,
-        structure,
-        start=start,
-        holdout=holdout,
-        offsets=offsets,
-        fit_offset=fit_offset,
-        max_iterations=max_iterations,
-        skip=skip,
-        initial=initial,
-        method=method,
-        band=band,
-        order=order,
-        max_lag=max_lag,
-        diagnose=diagnose,
-        margin=margin,
-        min_r2=min_r2,
-        max_rounds=max_rounds,
-    )
-    return TimeFit._from_raw(raw)
+    request = time_request(structure, **options)
+    v = None if validate is None else tuple(validate)
+    report, arrays = _fit_time(u, y, dt, json.dumps(request), v)
+    return TimeFit._from_report(report, arrays)
+
+
+def time_request_defaults() -> Dict[str, object]:
+    """Every option of :func:`fit_time` (and ``fracid time``) with its default: the
+    ``ident::app::time::TimeRequest`` defaults, held once in the library."""
+    return dict(_time_request_defaults())
+
+
+def time_request(structure: Union[str, FracTf, None] = None, **options: object) -> Dict[str, object]:
+    """The request :func:`fit_time` sends: the options given (checked by name), the rest left to
+    their defaults. A :class:`FracTf` structure is sent as its text.
+
+    Raises
+    ------
+    DataError
+        For an option ``fracid time`` does not have.
+    """
+    known = _time_request_defaults()
+    request: Dict[str, object] = {}
+    if structure is not None:
+        request["structure"] = str(structure)
+    for name, value in options.items():
+        if name not in known:
+            raise DataError(
+                f"fit_time has no option {name!r}; the options are {', '.join(sorted(known))}"
+            )
+        if value is None:
+            continue
+        if name in ("max_iterations", "skip", "order", "max_lag", "max_rounds"):
+            value = _count(name, value)  # type: ignore[arg-type]
+        if name == "band":
+            value = [float(x) for x in value]  # type: ignore[attr-defined]
+        request[name] = value
+    return request
 
 
 def diagnose(

@@ -178,23 +178,10 @@ def _fit_time(
     u: npt.ArrayLike,
     y: npt.ArrayLike,
     dt: float,
-    structure: Union[str, FracTf],
-    start: Optional[Dict[str, float]] = None,
-    holdout: float = 0.3,
-    offsets: str = "initial",
-    fit_offset: bool = True,
-    max_iterations: int = 500,
-    skip: int = 0,
-    initial: str = "estimate",
-    method: str = "refined",
-    band: Optional[Tuple[float, float]] = None,
-    order: int = 8,
-    max_lag: int = 25,
-    diagnose: bool = False,
-    margin: float = 0.05,
-    min_r2: float = 0.005,
-    max_rounds: int = 3,
-) -> Dict[str, Any]: ...
+    request: str,
+    validation: Optional[Tuple[npt.ArrayLike, npt.ArrayLike]] = None,
+) -> Tuple[Dict[str, Any], Dict[str, Any]]: ...
+def _time_request_defaults() -> Dict[str, Any]: ...
 
 def _tune(
     model: Union[FracTf, str],

@@ -380,42 +380,53 @@ class Diagnosis(_ToDict):
 
 @dataclass(frozen=True)
 class TimeFit(_ToDict):
-    """The result of :func:`fracid.fit_time`.
+    """The result of :func:`fracid.fit_time`: the report of ``fracid time --json`` (``report``,
+    the same fields) with typed attributes and the model outputs as arrays.
 
     Attributes
     ----------
     model : FracTf
-        The fitted linear model (offsets not included).
+        The leading model's linear part (offsets not included): the fit, or with the diagnosis
+        the final model (``model_is`` says which; the base fit is then in ``base``).
     params : list of ParamEstimate
-        Every parameter with its standard error; also by name with :meth:`param`.
+        The leading model's parameters (the base fit's with standard errors); also by name with
+        :meth:`param`.
     estimation : FitMetrics
-        Fit on the estimation part (the first ``1 - holdout`` of the record).
+        The leading model's fit on the estimation part.
     validation : FitMetrics or None
-        Fit on the held-out part (simulated from the start of the record).
+        Its fit on the held-out part (simulated from the start of the record).
+    validation_file : dict or None
+        Its score on the separate validation record (``validate=``).
     yhat : numpy.ndarray
-        Model output on the absolute scale over the whole record.
+        The leading model's output on the absolute scale over the whole record.
+    yhat_base : numpy.ndarray
+        The base fit's output (the same as ``yhat`` without the diagnosis).
     split : int
         Index of the first validation sample.
+    model_is : str
+        Which model leads, in words.
+    base : dict or None
+        With the diagnosis: the base fit (``model``, ``params``, ``fit``, ``alpha_eta``,
+        ``warnings``, ``usable``, ``problems``).
     structures : dict or None
         With ``structure="auto"`` (and no diagnosis): the structures fitted and the choice
         (``scores``, ``chosen``, ``held_out``, ``reason``), as ``fracid time --structure auto``.
     validated_by : dict
-        How the model was validated: ``kind`` (``held_out``: a held-out part with input changes
-        of its own; ``response_tail``: only the tail of a step response, which checks the settled
-        response; ``none``), ``first`` (first held-out sample) and ``note`` (in words).
+        How the model was validated: ``kind`` (``held_out``, ``response_tail``, ``file``,
+        ``none``), ``first`` (first held-out sample) and ``note`` (in words).
     offsets : dict
         The operating point removed, ``{"u0": .., "y0": ..}``.
     converged : bool
-        Whether Levenberg-Marquardt converged.
+        Whether Levenberg-Marquardt converged (the base fit).
     termination, stop_reason : str
         Why it stopped (code and sentence).
     iterations, evaluations : int
         Levenberg-Marquardt iterations and simulations.
-    elapsed_s : float
-        Wall time of the fit in seconds.
+    seconds : float
+        Wall time of the whole use case in seconds (``elapsed_s`` is the same).
     warnings : list of str
-        Parameters at a bound, no convergence, a validation window moved to where the input
-        changes, a negative static gain.
+        Every caveat: parameters at a bound, no convergence, the validation split, a negative
+        static gain.
     usable : bool
         Whether the model can be used; when False, ``problems`` says why.
     problems : list of str
@@ -424,11 +435,15 @@ class TimeFit(_ToDict):
     alpha_eta : list of (float, float, float)
         ``(order, alpha, eta)`` of each non-integer order (Poinot-Trigeassou).
     start : dict
-        The values the fit started from.
+        The values the fit started from, by name.
+    start_report : dict
+        How the start was made (``method``, ``note``, ``fit_percent``).
     residual_test : ResidualTest
-        Residual whiteness and independence from the input (estimation part).
+        Residual whiteness and independence from the input (base fit, estimation part).
     diagnosis : Diagnosis or None
         The residual diagnosis, with ``diagnose=True``.
+    report : dict
+        The report as ``fracid time --json`` prints it.
     """
 
     model: FracTf
@@ -436,6 +451,7 @@ class TimeFit(_ToDict):
     estimation: FitMetrics
     validation: Optional[FitMetrics]
     yhat: np.ndarray = field(repr=False)
+    yhat_base: np.ndarray = field(repr=False)
     split: int
     offsets: Dict[str, float]
     converged: bool
@@ -443,16 +459,21 @@ class TimeFit(_ToDict):
     stop_reason: str
     iterations: int
     evaluations: int
-    elapsed_s: float
+    seconds: float
     warnings: List[str]
     usable: bool
     problems: List[str]
     alpha_eta: List[Tuple[float, float, float]]
     start: Dict[str, float]
+    start_report: Dict[str, Any]
     residual_test: ResidualTest
+    model_is: str
     diagnosis: Optional[Diagnosis] = None
     validated_by: Dict[str, Any] = field(default_factory=dict)
     structures: Optional[Dict[str, Any]] = None
+    base: Optional[Dict[str, Any]] = None
+    validation_file: Optional[Dict[str, Any]] = None
+    report: Dict[str, Any] = field(default_factory=dict, repr=False)
 
     def param(self, name: str) -> ParamEstimate:
         """The parameter called ``name``.
@@ -472,17 +493,59 @@ class TimeFit(_ToDict):
         """Parameter values by name."""
         return {p.name: p.value for p in self.params}
 
+    @property
+    def elapsed_s(self) -> float:
+        """Wall time in seconds (the report's ``seconds``)."""
+        return self.seconds
+
     @classmethod
-    def _from_raw(cls, d: Dict[str, Any]) -> "TimeFit":
-        d = dict(d)
-        d["params"] = [ParamEstimate(**p) for p in d["params"]]
-        d["estimation"] = FitMetrics(**d["estimation"])
-        d["validation"] = None if d["validation"] is None else FitMetrics(**d["validation"])
-        d["residual_test"] = ResidualTest(**d["residual_test"])
-        d["alpha_eta"] = [tuple(x) for x in d["alpha_eta"]]
-        if d.get("diagnosis") is not None:
-            d["diagnosis"] = Diagnosis._from_raw(d["diagnosis"])
-        return cls(**d)
+    def _from_report(cls, r: Dict[str, Any], arrays: Dict[str, Any]) -> "TimeFit":
+        fit = r["fit"]
+        diagnosis = None
+        if r.get("diagnosis") is not None:
+            d = dict(r["diagnosis"])
+            d["model"] = _tf_of(d["model"])
+            d["params"] = dict(arrays["diagnosis_params"])
+            d["yhat_before"] = arrays["yhat_before"]
+            d["yhat_after"] = arrays["yhat_after"]
+            d["split"] = arrays["diagnosis_split"]
+            diagnosis = Diagnosis._from_raw(d)
+        return cls(
+            model=_tf_of(r["model"]),
+            params=[ParamEstimate(**p) for p in r["params"]],
+            estimation=FitMetrics(**fit["estimation"]),
+            validation=None if fit["validation"] is None else FitMetrics(**fit["validation"]),
+            validation_file=fit.get("validation_file"),
+            yhat=arrays["yhat"],
+            yhat_base=arrays["yhat_base"],
+            split=r["split"]["estimation_samples"],
+            offsets=r["offsets"],
+            converged=r["converged"],
+            termination=r["termination"],
+            stop_reason=r["stop_reason"],
+            iterations=r["iterations"],
+            evaluations=r["evaluations"],
+            seconds=r["seconds"],
+            warnings=r["warnings"],
+            usable=r["usable"],
+            problems=r["problems"],
+            alpha_eta=[(a["order"], a["alpha"], a["eta"]) for a in r["alpha_eta"]],
+            start=r["start_values"],
+            start_report=r["start"],
+            residual_test=ResidualTest(**r["residual_test"]),
+            model_is=r["model_is"],
+            diagnosis=diagnosis,
+            validated_by=r["validated_by"],
+            structures=r.get("structures"),
+            base=r.get("base"),
+            report=r,
+        )
+
+
+def _tf_of(m: Dict[str, Any]) -> FracTf:
+    """The :class:`FracTf` of a report's model object (``num``, ``den``, ``delay``)."""
+    terms = lambda ts: [(t["coef"], t["order"]) for t in ts]  # noqa: E731
+    return FracTf(terms(m["num"]), terms(m["den"]), m.get("delay", 0.0))
 
 
 @dataclass(frozen=True)

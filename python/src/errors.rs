@@ -76,6 +76,7 @@ pub(crate) fn ident(e: ident::Error) -> PyErr {
             }
         }
         ident::Error::Sim(s) => sim(s),
+        ident::Error::Cancelled(_) => pyo3::exceptions::PyKeyboardInterrupt::new_err(e.to_string()),
         ident::Error::Numerical(_) => error(Kind::Numerical, e.to_string()),
         _ => error(Kind::Data, e.to_string()),
     }

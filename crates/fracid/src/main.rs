@@ -68,6 +68,7 @@ fn exit_code(err: &anyhow::Error) -> u8 {
             return match e {
                 ident::Error::Io { .. } => 3,
                 ident::Error::Numerical(_) => 1,
+                ident::Error::Cancelled(_) => 130,
                 ident::Error::Sim(fracsim::Error::Numerical(_)) => 1,
                 _ => 2,
             };

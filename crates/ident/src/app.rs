@@ -1,5 +1,10 @@
-//! The application layer shared by the CLI and the Python bindings: structure presets, option
-//! parsing and the model's report type, so that the same words give the same model everywhere.
+//! The application layer shared by the CLI, the Python bindings, the fleet and the demo: the
+//! use cases ([`time`]: request, `run`, report), their observer ([`observe`]), structure presets,
+//! option parsing and the model's report type, so that the same words give the same model
+//! everywhere.
+
+pub mod observe;
+pub mod time;
 
 use crate::data::OffsetMode;
 use crate::oe::FracModel;
@@ -122,6 +127,10 @@ pub struct ModelReport {
     /// The model as text (read back by the parser).
     #[serde(default)]
     pub text: String,
+    /// The names of the effects around the linear model (a final model after the diagnosis;
+    /// empty for a linear one).
+    #[serde(default)]
+    pub effects: Vec<String>,
 }
 
 impl From<&FracTf> for ModelReport {
@@ -139,6 +148,7 @@ impl From<&FracTf> for ModelReport {
             den: terms(&g.den),
             delay: g.delay,
             text: g.to_string(),
+            effects: Vec::new(),
         }
     }
 }

@@ -26,6 +26,9 @@ pub enum Error {
         /// Why, as the operating system says it.
         reason: String,
     },
+    /// The observer asked to stop ([`crate::app::observe::Observe::cancelled`]); where.
+    #[error("cancelled {0}")]
+    Cancelled(String),
     /// An error from the simulation layer.
     #[error(transparent)]
     Sim(#[from] fracsim::Error),

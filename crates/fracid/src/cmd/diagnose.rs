@@ -2,103 +2,15 @@
 //! `diagnosis` JSON object, and the residual before/after plot. The subcommands call these.
 
 use crate::plot::{self, Figure};
-use anyhow::{Context, Result};
+use anyhow::Result;
 use ident::data::Record;
 use ident::diagnose::freq::BodeDiagnosis;
-use ident::diagnose::structures::{diagnose_best, Diagnosed, StructureChoice};
-use ident::diagnose::{DiagnoseOptions, Diagnosis};
-use ident::oe::{FracModel, IdentOptions, Identification};
+use ident::diagnose::structures::StructureChoice;
+use ident::diagnose::Diagnosis;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use std::fmt::Write;
 use std::path::{Path, PathBuf};
-
-/// Run the time-domain diagnosis with the default options: the structures compared, then the
-/// residual of the chosen one diagnosed (see `ident::diagnose::structures`).
-///
-/// # Errors
-/// A record that does not match the identification; a simulation error of the base model.
-pub fn run_time(
-    rec: &Record,
-    label: &str,
-    model: &FracModel,
-    id: Identification,
-    opts: &IdentOptions,
-) -> Result<Diagnosed> {
-    diagnose_best(rec, label, model, id, opts, &DiagnoseOptions::default())
-        .context("diagnosing the residual")
-}
-
-/// The `diagnosis` JSON object (docs/design.md §7) with the final model (`model`: num, den, delay and the
-/// effects' names).
-///
-/// # Errors
-/// Serialisation (not expected).
-pub fn json(d: &Diagnosis, choice: Option<&StructureChoice>) -> Result<serde_json::Value> {
-    let mut v = serde_json::to_value(d)?;
-    if let Some(c) = choice {
-        v["structures"] = serde_json::to_value(c)?;
-    }
-    let p: Vec<f64> = d.model.params.iter().map(|p| p.value).collect();
-    if let Ok(tf) = d.model.tf(&p) {
-        v["model"] = serde_json::to_value(ident::app::ModelReport::from(&tf))?;
-        v["model"]["effects"] =
-            serde_json::json!(d.model.effects.iter().map(|e| e.name()).collect::<Vec<_>>());
-    }
-    Ok(v)
-}
-
-/// The `fracid time --diagnose --json` report: the model the diagnosis recommends leads. The
-/// top-level `model` (with its `effects`), `params`, `fit` and `alpha_eta` are the final model's
-/// (the chosen structure with its kept effects, refitted); the base fit of that structure (the
-/// plain `fracid time` report: its parameters with standard errors, start, warnings) is under
-/// `base`, and `model_is` says which is which. `usable`, `problems` and `warnings` stay the base
-/// fit's (the final model is its refit with effects).
-///
-/// # Errors
-/// Serialisation (not expected).
-pub fn lead_with_final(
-    base: serde_json::Value,
-    d: &Diagnosis,
-    c: &StructureChoice,
-    dt: f64,
-) -> Result<serde_json::Value> {
-    let mut v = base.clone();
-    v["base"] = base;
-    v["diagnosis"] = json(d, Some(c))?;
-    v["model"] = v["diagnosis"]["model"].clone();
-    let values: Vec<f64> = d.model.params.iter().map(|p| p.value).collect();
-    v["params"] = serde_json::json!(d
-        .model
-        .params
-        .iter()
-        .map(|p| serde_json::json!({"name": p.name, "value": p.value, "free": p.free}))
-        .collect::<Vec<_>>());
-    v["fit"] = serde_json::json!({
-        "estimation": d.estimation.after,
-        "validation": d.validation.as_ref().map(|b| b.after),
-    });
-    v["alpha_eta"] = serde_json::json!(d
-        .model
-        .alpha_eta(&values, dt)
-        .iter()
-        .map(|(o, a, e)| serde_json::json!({"order": o, "alpha": a, "eta": e}))
-        .collect::<Vec<_>>());
-    v["model_is"] = serde_json::json!(format!(
-        "final: the diagnosis's recommended model ({} with {}); the base fit is under base",
-        c.scores[c.chosen].name,
-        if d.effects.is_empty() {
-            "no effect".to_string()
-        } else {
-            d.effects
-                .iter()
-                .map(|e| e.name.as_str())
-                .collect::<Vec<_>>()
-                .join(", ")
-        }
-    ));
-    Ok(v)
-}
 
 fn fit_row(f: &ident::metrics::Fit) -> String {
     format!("RMSE {:.4e}, fit {:.2}%", f.rmse, f.nrmse_percent)

@@ -167,11 +167,8 @@ impl Row {
         self.fit_estimation_percent = f("/fit/estimation/nrmse_percent");
         self.fit_validation_percent = f("/fit/validation/nrmse_percent");
         self.j = f("/refined/J").or_else(|| f("/J"));
+        // With the diagnosis the report leads with the final model: its fit is the one above.
         if let Some(d) = v.get("diagnosis") {
-            if let Some(after) = d.pointer("/after/nrmse_percent").and_then(Value::as_f64) {
-                // The diagnosed model's validation fit (time): the model the effects complete.
-                self.fit_validation_percent = Some(after);
-            }
             self.effects = d
                 .get("effects")
                 .and_then(Value::as_array)
@@ -538,35 +535,29 @@ pub fn run_time(a: super::time::TimeArgs) -> Result<()> {
     run("time", &files, &a.fleet, a.json, |f| time_report(&a, f))
 }
 
-/// One file's `fracid time --json` report, with the options of `a` (the steps of
-/// `time::run` without its printing).
+/// One file's `fracid time --json` report, with the options of `a`: the same request and
+/// `ident::app::time::run` as `fracid time FILE`, in this process.
 fn time_report(a: &super::time::TimeArgs, file: &Path) -> Result<(Value, Vec<String>)> {
-    use ident::oe::identify_with_progress;
-    let rec = super::time::read_record(file, &super::time::read_options(a))?;
-    let duration = rec.t.last().copied().unwrap_or(0.0) - rec.t.first().copied().unwrap_or(0.0);
-    let model = super::time::model_of(a, duration)?;
-    let opts = super::time::ident_options(a)?;
-    let id = identify_with_progress(&rec, &model, &opts, &mut |_, _| {})
+    let req = super::time::request(a)?;
+    let data = super::time::time_data(file, a)?;
+    let r = ident::app::time::run(&req, &data, &mut ident::app::observe::Quiet)
         .with_context(|| format!("identifying {}", file.display()))?;
-    let (mut v, problems);
-    if a.diagnose {
-        let d = super::diagnose::run_time(&rec, &a.structure, &model, id, &opts)?;
-        v = super::time::json_of(&d.id, &rec);
-        v = super::diagnose::lead_with_final(v, &d.diagnosis, &d.choice, rec.dt)?;
-        problems = (!d.id.usable()).then(|| d.id.problems.clone());
-    } else {
-        v = super::time::json_of(&id, &rec);
-        problems = (!id.usable()).then(|| id.problems.clone());
-    }
+    let mut v = serde_json::to_value(&r)?;
     v["file"] = json!(file.display().to_string());
-    Ok((v, problems.unwrap_or_default()))
+    let problems = if r.lead.usable {
+        Vec::new()
+    } else {
+        r.lead.problems.clone()
+    };
+    Ok((v, problems))
 }
 
-/// `fracid freq` on many files: each one `fracid freq FILE --json` with the same options, in a
-/// child process (so the report is that command's own), on a pool of threads.
+/// `fracid freq` on many files: each fitted in this process exactly as `fracid freq FILE --json`
+/// would (the same options, `freq::compute`), on a pool of threads. A model that is not usable
+/// is a failed file unless `--allow-unusable` keeps it.
 ///
 /// # Errors
-/// As [`run`]; the program cannot find its own executable (exit 3).
+/// As [`run`].
 pub fn run_freq(a: &super::freq::FreqArgs) -> Result<()> {
     if a.plot.is_some() {
         crate::bad_input!("--plot draws one record: not with many files");
@@ -574,65 +565,17 @@ pub fn run_freq(a: &super::freq::FreqArgs) -> Result<()> {
     let mut paths = vec![a.file.clone()];
     paths.extend(a.fleet.more.iter().cloned());
     let files = expand(&paths)?;
-    let exe = std::env::current_exe().context("cannot find the fracid executable")?;
-    let opts = single_file_options(&paths);
     run("freq", &files, &a.fleet, a.json, |f| {
-        let o = std::process::Command::new(&exe)
-            .arg("freq")
-            .arg(f)
-            .args(&opts)
-            .arg("--json")
-            .stdin(std::process::Stdio::null())
-            .output()
-            .with_context(|| format!("cannot run {}", exe.display()))?;
-        let err = String::from_utf8_lossy(&o.stderr);
-        let msg = err
-            .lines()
-            .rev()
-            .find(|l| l.starts_with("error: "))
-            .map_or_else(
-                || err.trim().to_string(),
-                |l| l["error: ".len()..].to_string(),
-            );
-        match o.status.code() {
-            Some(0) => Ok((
-                serde_json::from_slice(&o.stdout).context("fracid freq --json printed no JSON")?,
-                Vec::new(),
-            )),
-            Some(2) => Err(anyhow::Error::new(BadInput(msg))),
-            Some(3) => Err(anyhow::Error::new(std::io::Error::other(msg))),
-            _ => Err(anyhow::anyhow!(msg)),
-        }
+        let o = super::freq::compute(a, f)?;
+        let mut v = o.json()?;
+        v["file"] = json!(f.display().to_string());
+        let problems = if a.allow_unusable {
+            Vec::new()
+        } else {
+            o.problems.clone()
+        };
+        Ok((v, problems))
     })
-}
-
-/// This command line's options without its files, `--out`, `--jobs` and `--json`: what each
-/// single-file child gets.
-fn single_file_options(paths: &[PathBuf]) -> Vec<std::ffi::OsString> {
-    let args: Vec<std::ffi::OsString> = std::env::args_os().skip(2).collect();
-    let mut out = Vec::new();
-    let mut positional_left: Vec<std::ffi::OsString> =
-        paths.iter().map(|p| p.as_os_str().to_owned()).collect();
-    let mut i = 0;
-    while i < args.len() {
-        let s = args[i].to_string_lossy();
-        if s == "--out" || s == "--jobs" {
-            i += 2;
-            continue;
-        }
-        if s.starts_with("--out=") || s.starts_with("--jobs=") || s == "--json" {
-            i += 1;
-            continue;
-        }
-        if let Some(k) = positional_left.iter().position(|p| *p == args[i]) {
-            positional_left.remove(k);
-            i += 1;
-            continue;
-        }
-        out.push(args[i].clone());
-        i += 1;
-    }
-    out
 }
 
 #[cfg(test)]

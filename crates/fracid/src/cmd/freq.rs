@@ -198,6 +198,79 @@ fn read_weight_file(path: &Path) -> Result<Vec<f64>> {
     Ok(w)
 }
 
+/// Everything `fracid freq FILE` computes, once: the data as read (the hold divided out), the
+/// fits, the models compared, the diagnosis, and the assessment. The command, the fleet and the
+/// demo present it (text, JSON, plots) without fitting again.
+pub(crate) struct FreqOutcome {
+    data: BodeData,
+    fit: FreqFit,
+    compare: Vec<(FracTf, f64)>,
+    diagnosis: Option<ident::diagnose::freq::BodeDiagnosis>,
+    hold: Option<f64>,
+    weight_label: String,
+    opts: FreqOptions,
+    /// Why the final model cannot be used (empty when it can).
+    pub problems: Vec<String>,
+    /// Caveats.
+    pub warnings: Vec<String>,
+}
+
+impl FreqOutcome {
+    /// The report as `fracid freq --json` prints it.
+    pub(crate) fn json(&self) -> Result<Value> {
+        let mut v = to_json(&self.fit, &self.compare, &self.data, &self.weight_label);
+        v["hold_s"] = json!(self.hold);
+        if let Some(d) = &self.diagnosis {
+            v["diagnosis"] = serde_json::to_value(d)?;
+            v["diagnosis"]["model"] = model_json(&d.model);
+        }
+        v["usable"] = json!(self.problems.is_empty());
+        v["problems"] = json!(self.problems);
+        v["warnings"] = json!(self.warnings);
+        Ok(v)
+    }
+
+    /// The report as `fracid freq` prints it.
+    pub(crate) fn text(&self) -> String {
+        let mut o = String::new();
+        if let Some(t) = self.hold {
+            o += &format!(
+                "hold: the zero-order hold of a {t} s sampled loop divided out of the table\n"
+            );
+        }
+        o += &table(
+            &self.fit,
+            &self.compare,
+            &self.data,
+            &self.weight_label,
+            &self.opts,
+        );
+        if let Some(d) = &self.diagnosis {
+            o += &diagnosis_text(d);
+        }
+        o
+    }
+
+    /// Draw the Bode plot to `path`, and with the diagnosis its residual plot beside it (its
+    /// path returned).
+    pub(crate) fn plot(&self, path: &Path) -> Result<Option<PathBuf>> {
+        let fig = BodeFigure {
+            data: &self.data,
+            fit: &self.fit,
+            compare: &self.compare,
+        };
+        plot::save(path, (1400, 900), &fig)?;
+        match &self.diagnosis {
+            Some(d) => {
+                let dp = super::diagnose::residual_plot_path(path);
+                super::diagnose::plot_bode(&dp, d)?;
+                Ok(Some(dp))
+            }
+            None => Ok(None),
+        }
+    }
+}
+
 /// Run `fracid freq`.
 ///
 /// # Errors
@@ -209,11 +282,51 @@ pub fn run(a: FreqArgs) -> Result<()> {
     if let Some(path) = &a.plot {
         plot::format_of(path)?; // a bad extension fails before the work
     }
-    let is_mat = ident::matfile::is_mat(&a.file);
+    let o = compute(&a, &a.file)?;
+    if a.json {
+        emit(&(serde_json::to_string_pretty(&o.json()?)? + "\n"))?;
+    } else {
+        emit(&o.text())?;
+    }
+    if let Some(path) = &a.plot {
+        let residual = o.plot(path)?;
+        if !a.json {
+            emit(&format!("plot: {}\n", path.display()))?;
+            if let Some(dp) = residual {
+                emit(&format!("residual plot: {}\n", dp.display()))?;
+            }
+        }
+    }
+    for w in &o.warnings {
+        crate::interrupt::eprint_line(&format!("warning: {w}"));
+    }
+    if !o.problems.is_empty() {
+        if a.allow_unusable {
+            for p in &o.problems {
+                crate::interrupt::eprint_line(&format!(
+                    "warning: the model is not usable (kept as --allow-unusable asks): {p}"
+                ));
+            }
+        } else {
+            anyhow::bail!(
+                "the fitted model is not usable: {} (--allow-unusable keeps it with exit 0)",
+                o.problems.join("; ")
+            );
+        }
+    }
+    Ok(())
+}
+
+/// `fracid freq`'s work on `file` with the options of `a` (its `file` is not read).
+///
+/// # Errors
+/// As [`run`].
+pub(crate) fn compute(a: &FreqArgs, file: &Path) -> Result<FreqOutcome> {
+    let is_mat = ident::matfile::is_mat(file);
     let text = if is_mat {
         String::new() // read below by variables
     } else {
-        super::read_text(&a.file)?
+        super::read_text(file)?
     };
     let units = Units {
         rad_s: a.rad_s,
@@ -264,25 +377,25 @@ pub fn run(a: FreqArgs) -> Result<()> {
             } else {
                 bad_input!(
                     "--weights '{wkey}' is neither vinagre, none, a column of {} nor a file",
-                    a.file.display()
+                    file.display()
                 )
             }
         }
     };
     let mut data = if is_mat {
         BodeData::from(ident::bodefile::load(
-            &a.file,
+            file,
             cols3,
             units.into(),
             weight_column.as_deref(),
         )?)
     } else {
         parse_bode(&text, cols3, units, weight_column.as_deref())
-            .with_context(|| format!("in {}", a.file.display()))?
+            .with_context(|| format!("in {}", file.display()))?
     };
     let hold = match a.hold.trim().to_ascii_lowercase().as_str() {
         "auto" => ident::hold::sample_period_from_comments(&text)
-            .with_context(|| format!("in {}", a.file.display()))?,
+            .with_context(|| format!("in {}", file.display()))?,
         "none" => None,
         v => match v.parse::<f64>() {
             Ok(t) if t.is_finite() && t > 0.0 => Some(t),
@@ -291,10 +404,7 @@ pub fn run(a: FreqArgs) -> Result<()> {
     };
     if let Some(t) = hold {
         ident::hold::divide_hold(&data.omega_rad_s, &mut data.h, t)
-            .with_context(|| format!("in {}", a.file.display()))?;
-        if !a.json {
-            println!("hold: the zero-order hold of a {t} s sampled loop divided out of the table");
-        }
+            .with_context(|| format!("in {}", file.display()))?;
     }
     let mut weights = match (weights, &data.weights) {
         (Some(w), _) => w,
@@ -305,7 +415,7 @@ pub fn run(a: FreqArgs) -> Result<()> {
         let Some(se) = &data.spread_se else {
             bad_input!(
                 "--weights spread: {} has no gain_db_std and phase_deg_std columns",
-                a.file.display()
+                file.display()
             )
         };
         let (g, p): (Vec<f64>, Vec<f64>) = se.iter().copied().unzip();
@@ -352,7 +462,7 @@ pub fn run(a: FreqArgs) -> Result<()> {
         compare.push((g, j));
     }
     let fit = fit_bode(&data.omega_rad_s, &data.h, &opts)
-        .with_context(|| format!("identifying {}", a.file.display()))?;
+        .with_context(|| format!("identifying {}", file.display()))?;
 
     let diagnosis = if a.diagnose {
         Some(
@@ -368,59 +478,17 @@ pub fn run(a: FreqArgs) -> Result<()> {
         None
     };
     let (problems, warnings) = assessment(&fit, diagnosis.as_ref());
-    if a.json {
-        let mut v = to_json(&fit, &compare, &data, &weight_label);
-        v["hold_s"] = json!(hold);
-        if let Some(d) = &diagnosis {
-            v["diagnosis"] = serde_json::to_value(d)?;
-            v["diagnosis"]["model"] = model_json(&d.model);
-        }
-        v["usable"] = json!(problems.is_empty());
-        v["problems"] = json!(problems);
-        v["warnings"] = json!(warnings);
-        emit(&(serde_json::to_string_pretty(&v)? + "\n"))?;
-    } else {
-        emit(&table(&fit, &compare, &data, &weight_label, &opts))?;
-        if let Some(d) = &diagnosis {
-            emit(&diagnosis_text(d))?;
-        }
-    }
-    if let Some(path) = &a.plot {
-        let fig = BodeFigure {
-            data: &data,
-            fit: &fit,
-            compare: &compare,
-        };
-        plot::save(path, (1400, 900), &fig)?;
-        if !a.json {
-            emit(&format!("plot: {}\n", path.display()))?;
-        }
-        if let Some(d) = &diagnosis {
-            let dp = super::diagnose::residual_plot_path(path);
-            super::diagnose::plot_bode(&dp, d)?;
-            if !a.json {
-                emit(&format!("residual plot: {}\n", dp.display()))?;
-            }
-        }
-    }
-    for w in &warnings {
-        crate::interrupt::eprint_line(&format!("warning: {w}"));
-    }
-    if !problems.is_empty() {
-        if a.allow_unusable {
-            for p in &problems {
-                crate::interrupt::eprint_line(&format!(
-                    "warning: the model is not usable (kept as --allow-unusable asks): {p}"
-                ));
-            }
-        } else {
-            anyhow::bail!(
-                "the fitted model is not usable: {} (--allow-unusable keeps it with exit 0)",
-                problems.join("; ")
-            );
-        }
-    }
-    Ok(())
+    Ok(FreqOutcome {
+        data,
+        fit,
+        compare,
+        diagnosis,
+        hold,
+        weight_label,
+        opts,
+        problems,
+        warnings,
+    })
 }
 
 /// The problems (the final model cannot be used) and warnings of a fit: the library's

@@ -1,8 +1,9 @@
 //! `fracid score MODEL FILE`: how well a given model explains a time record (MATLAB's `compare`):
 //! the model's parameters held, the record's own initial state and output offset estimated.
 
-use super::time::{print_score, read_record, score_json, ColumnArgs};
+use super::time::{read_record, score_text, ColumnArgs};
 use anyhow::Result;
+use ident::app::time::ScoreReport;
 use ident::data::ReadOptions;
 use ident::oe::{score, FracModel, InitialState};
 use std::path::PathBuf;
@@ -63,12 +64,18 @@ pub fn run(a: ScoreArgs) -> Result<()> {
     m.with_output_offset(0.0);
     let sc = score(&m, &rec, offsets, initial)?;
     if a.json {
-        let mut v = score_json(&a.file, &sc);
+        let mut v = serde_json::to_value(ScoreReport::new(&a.file.display().to_string(), &sc))?;
         v["model"] = serde_json::Value::String(tf.to_string());
         println!("{}", serde_json::to_string_pretty(&v)?);
     } else {
         println!("model: {tf}");
-        print_score(&a.file, &sc);
+        print!(
+            "{}",
+            score_text(&ScoreReport::new(&a.file.display().to_string(), &sc))
+        );
+        for w in &sc.warnings {
+            eprintln!("warning: {w}");
+        }
     }
     Ok(())
 }

@@ -2,11 +2,14 @@
 
 use crate::plot::{self, Figure};
 use anyhow::Result;
+use ident::app::observe::{Observe, Stage};
+use ident::app::time::{Named, ScoreReport, TimeData, TimeReport, TimeRequest};
 use ident::data::{Columns, ReadOptions, Record};
 use ident::metrics;
-use ident::oe::{identify_with_progress, FracModel, IdentOptions, Identification, StartMode};
+use ident::oe::Identification;
 use plotters::coord::Shift;
 use plotters::prelude::*;
+use std::fmt::Write as _;
 use std::io::IsTerminal;
 use std::path::PathBuf;
 
@@ -51,12 +54,12 @@ pub struct TimeArgs {
     /// integer first and second order each fitted, the one the data support kept: held-out RMSE,
     /// then BIC among ties within 2%; the table is printed), or a
     /// transfer function such as "6.8/(3e-5 s^1.75 + 0.006 s^0.9 + 1)" used as the start.
-    #[arg(long, default_value = "pmsm")]
+    #[arg(long, default_value_t = ident::app::time::TimeRequest::default().structure)]
     pub structure: String,
     /// Approximation of the fractional operators: refined (Xue's refined Oustaloup, the default),
     /// oustaloup or trigeassou (Poinot-Trigeassou); the model is then simulated exactly for the
     /// held input (see `fracid sim --help`).
-    #[arg(long, default_value = "refined")]
+    #[arg(long, default_value_t = ident::app::time::TimeRequest::default().approx)]
     pub approx: String,
     /// Approximation band "w_b,w_h" in rad/s (default fracsim's [1e-3, 30 pi/dt]).
     #[arg(long)]
@@ -97,7 +100,7 @@ pub struct TimeArgs {
     #[arg(long)]
     pub validate: Option<PathBuf>,
     /// Operating point removal: initial (u[0], median y before the first input change), mean, none.
-    #[arg(long, default_value = "initial")]
+    #[arg(long, default_value_t = ident::app::time::TimeRequest::default().offsets)]
     pub offsets: String,
     /// Do not fit a constant output offset.
     #[arg(long)]
@@ -105,14 +108,34 @@ pub struct TimeArgs {
     /// Initial state of the plant at the first sample: estimate (the state a past held input
     /// left, fitted with the model: records that start in motion, mid-transient or on a ramp) or
     /// rest (at the operating point).
-    #[arg(long, default_value = "estimate")]
+    #[arg(long, default_value_t = ident::app::time::TimeRequest::default().initial)]
     pub initial: String,
     /// Maximum Levenberg-Marquardt iterations.
-    #[arg(long, default_value_t = 500)]
+    #[arg(long, default_value_t = ident::app::time::TimeRequest::default().max_iterations)]
     pub max_iter: usize,
     /// Start from the given structure's values instead of the automatic start.
     #[arg(long)]
     pub no_auto_start: bool,
+    /// Start values "NAME=VALUE,..." (names as the report prints them): the fit starts from
+    /// them instead of the automatic start.
+    #[arg(long)]
+    pub start: Option<String>,
+    /// Samples at the start of the estimation part left out of the cost (a transient the model
+    /// need not explain).
+    #[arg(long, default_value_t = ident::app::time::TimeRequest::default().skip)]
+    pub skip: usize,
+    /// Lags of the residual whiteness and cross-correlation test (JSON `residual_test`).
+    #[arg(long, default_value_t = ident::app::time::TimeRequest::default().max_lag)]
+    pub max_lag: usize,
+    /// With --diagnose: the held-out improvement an effect must bring (fraction of the RMSE).
+    #[arg(long, default_value_t = ident::app::time::TimeRequest::default().margin)]
+    pub margin: f64,
+    /// With --diagnose: the evidence R^2 a candidate effect needs to be refitted.
+    #[arg(long, default_value_t = ident::app::time::TimeRequest::default().min_r2)]
+    pub min_r2: f64,
+    /// With --diagnose: rounds of effects.
+    #[arg(long, default_value_t = ident::app::time::TimeRequest::default().max_rounds)]
+    pub max_rounds: usize,
     /// Print JSON (docs/design.md §7) instead of text.
     #[arg(long)]
     pub json: bool,
@@ -132,40 +155,49 @@ pub struct TimeArgs {
     pub fleet: super::fleet::FleetArgs,
 }
 
-pub(crate) fn model_of(a: &TimeArgs, duration: f64) -> Result<FracModel> {
-    let max_delay = match a.max_delay {
-        Some(d) if !(d > 0.0 && d.is_finite()) => {
-            crate::bad_input!("--max-delay must be a positive number of seconds, got {d}")
+/// The use-case request of `fracid time`'s options (every default is the request's own,
+/// `ident::app::time::TimeRequest::default()`).
+///
+/// # Errors
+/// A band that is not two numbers, a `--start` item that is not `NAME=VALUE`.
+pub(crate) fn request(a: &TimeArgs) -> Result<TimeRequest> {
+    let mut start = std::collections::BTreeMap::new();
+    for item in a.start.as_deref().unwrap_or("").split(',').map(str::trim) {
+        if item.is_empty() {
+            continue;
         }
-        Some(d) => d,
-        None => ident::app::default_max_delay(duration),
-    };
-    let (mut m, _) = ident::app::structure(&a.structure, max_delay)?;
-    m.approx.method = a.approx.parse()?;
-    if let Some(n) = a.order {
-        m.approx.order = n;
+        let Some((name, v)) = item.split_once('=') else {
+            crate::bad_input!("--start '{item}' must be NAME=VALUE");
+        };
+        let Ok(v) = v.trim().parse::<f64>() else {
+            crate::bad_input!("--start '{item}': '{}' is not a number", v.trim());
+        };
+        start.insert(name.trim().to_string(), v);
     }
-    if let Some(b) = &a.band {
-        m.approx.band = Some(ident::app::band(b)?);
-    }
-    if a.integrator {
-        m.with_integrator();
-    }
-    if a.delay {
-        // A delay written in the structure (exp(-tau s)) starts the fit when it is in range.
-        let tau = m
-            .delay
-            .map(|i| m.params[i].value)
-            .filter(|&t| t > 0.0 && t < max_delay)
-            .unwrap_or(0.05 * max_delay);
-        m.with_delay(tau, max_delay);
-    }
-    ident::app::fix_free(
-        &mut m,
-        a.fix.as_deref().unwrap_or(""),
-        a.free.as_deref().unwrap_or(""),
-    )?;
-    Ok(m)
+    Ok(TimeRequest {
+        structure: a.structure.clone(),
+        approx: a.approx.clone(),
+        band: a.band.as_deref().map(ident::app::band).transpose()?,
+        order: a.order,
+        integrator: a.integrator,
+        delay: a.delay,
+        max_delay: a.max_delay,
+        fix: a.fix.clone().unwrap_or_default(),
+        free: a.free.clone().unwrap_or_default(),
+        start,
+        auto_start: !a.no_auto_start,
+        holdout: a.holdout,
+        offsets: a.offsets.clone(),
+        fit_offset: !a.no_offset,
+        initial: a.initial.clone(),
+        max_iterations: a.max_iter,
+        skip: a.skip,
+        max_lag: a.max_lag,
+        diagnose: a.diagnose,
+        margin: a.margin,
+        min_r2: a.min_r2,
+        max_rounds: a.max_rounds,
+    })
 }
 
 /// The reader options of `fracid time` (columns, `--dt`).
@@ -176,24 +208,55 @@ pub(crate) fn read_options(a: &TimeArgs) -> ReadOptions {
     }
 }
 
-/// The identification options of `fracid time`.
-pub(crate) fn ident_options(a: &TimeArgs) -> Result<IdentOptions> {
-    let mut opts = IdentOptions {
-        offsets: ident::app::offsets(&a.offsets)?,
-        holdout: a
-            .holdout
-            .unwrap_or(if a.validate.is_some() { 0.0 } else { 0.3 }),
-        fit_offset: !a.no_offset,
-        start: if a.no_auto_start {
-            StartMode::Given
-        } else {
-            StartMode::Auto
-        },
-        initial: a.initial.parse()?,
-        ..Default::default()
+/// The records of `fracid time` (`FILE`, `--validate`) with the readers' caveats.
+///
+/// # Errors
+/// As [`read_record_noting`].
+pub(crate) fn time_data(file: &std::path::Path, a: &TimeArgs) -> Result<TimeData> {
+    let read = read_options(a);
+    let (record, mut reader_warnings) = read_record_noting(file, &read)?;
+    let validation = match &a.validate {
+        Some(p) => {
+            let (v, w) = read_record_noting(p, &read)?;
+            reader_warnings.extend(w);
+            Some(Named {
+                name: p.display().to_string(),
+                record: v,
+            })
+        }
+        None => None,
     };
-    opts.fit.lm.max_iterations = a.max_iter;
-    Ok(opts)
+    Ok(TimeData {
+        record,
+        validation,
+        reader_warnings,
+    })
+}
+
+/// The progress of `fracid time` on the terminal: a spinner with the stage and the fit's RMSE.
+struct Spinner(indicatif::ProgressBar);
+
+impl Spinner {
+    fn new(quiet: bool) -> Self {
+        Self(if quiet || !std::io::stderr().is_terminal() {
+            indicatif::ProgressBar::hidden()
+        } else {
+            let b = indicatif::ProgressBar::new_spinner();
+            b.set_draw_target(indicatif::ProgressDrawTarget::stderr());
+            b.enable_steady_tick(std::time::Duration::from_millis(120));
+            b
+        })
+    }
+}
+
+impl Observe for Spinner {
+    fn stage(&mut self, stage: Stage) {
+        self.0.set_message(stage.to_string());
+    }
+    fn simulation(&mut self, k: usize, rmse: f64) {
+        self.0
+            .set_message(format!("simulation {k}, rmse {rmse:.4e}"));
+    }
 }
 
 /// Run `fracid time`.
@@ -207,162 +270,123 @@ pub fn run(a: TimeArgs) -> Result<()> {
     if let Some(p) = &a.plot {
         plot::format_of(p)?;
     }
-    let read = read_options(&a);
+    let req = request(&a)?;
     // The readers' caveats (an incomplete acquisition, the part kept) go into the report's
     // warnings, text and JSON alike; printed at once if the fit fails.
-    let (rec, mut reader_warnings) = read_record_noting(&a.file, &read)?;
-    let validation = match &a.validate {
-        Some(p) => {
-            let (v, w) = read_record_noting(p, &read)?;
-            reader_warnings.extend(w);
-            Some((p, v))
-        }
-        None => None,
+    let data = time_data(&a.file, &a)?;
+    let print_reader = || {
+        data.reader_warnings
+            .iter()
+            .for_each(|w| eprintln!("warning: {w}"))
     };
-    let print_reader = |ws: &[String]| ws.iter().for_each(|w| eprintln!("warning: {w}"));
-    let duration = rec.t.last().copied().unwrap_or(0.0) - rec.t.first().copied().unwrap_or(0.0);
-    let model = model_of(&a, duration)?;
-    let opts = ident_options(&a)?;
-    let offsets = opts.offsets;
     if !a.joint.is_empty() {
-        if a.diagnose || a.plot.is_some() {
-            crate::bad_input!("--joint does not go with --diagnose or --plot");
-        }
-        let mut recs = vec![rec];
-        for p in &a.joint {
-            let (r, w) = read_record_noting(p, &read)?;
-            reader_warnings.extend(w);
-            recs.push(r);
-        }
-        let mut j = ident::oe::identify_joint(&recs, &model, &opts)
-            .inspect_err(|_| print_reader(&reader_warnings))?;
-        j.report.warnings.splice(0..0, reader_warnings);
-        let scored = match &validation {
-            Some((_, vrec)) => Some(ident::oe::score(&j.model, vrec, offsets, opts.initial)?),
-            None => None,
-        };
-        let files: Vec<&PathBuf> = std::iter::once(&a.file).chain(&a.joint).collect();
-        print_joint(
-            &a,
-            &j,
-            &files,
-            validation.as_ref().map(|v| v.0).zip(scored.as_ref()),
-        )?;
-        return Ok(());
+        return run_joint(&a, &req, &data).inspect_err(|_| print_reader());
     }
-    let bar = if a.quiet || !std::io::stderr().is_terminal() {
-        indicatif::ProgressBar::hidden()
-    } else {
-        let b = indicatif::ProgressBar::new_spinner();
-        b.set_draw_target(indicatif::ProgressDrawTarget::stderr());
-        b
-    };
-    let (auto, label) = ident::app::auto_label(&a.structure);
-    if auto && a.integrator {
-        crate::bad_input!("--structure auto does not go with --integrator (name a structure)");
-    }
-    let (id, auto_choice) = if auto && !a.diagnose {
-        bar.set_message("fitting the candidate structures (on all cores)");
-        bar.tick();
-        let (id, c) = ident::diagnose::structures::fit_best(&rec, &model, &opts)
-            .inspect_err(|_| print_reader(&reader_warnings))?;
-        (id, Some(c))
-    } else {
-        let id = identify_with_progress(&rec, &model, &opts, &mut |k, rmse| {
-            bar.set_message(format!("simulation {k}, rmse {rmse:.4e}"));
-            bar.tick();
-        })
-        .inspect_err(|_| print_reader(&reader_warnings))?;
-        (id, None)
-    };
-    bar.finish_and_clear();
-    let (id, diagnosis) = if a.diagnose {
-        let spin = if a.quiet || !std::io::stderr().is_terminal() {
-            indicatif::ProgressBar::hidden()
-        } else {
-            let b = indicatif::ProgressBar::new_spinner();
-            b.set_draw_target(indicatif::ProgressDrawTarget::stderr());
-            b.enable_steady_tick(std::time::Duration::from_millis(120));
-            b
-        };
-        let n = ident::diagnose::structures::candidates(label, &model).len();
-        spin.set_message(format!(
-            "diagnosing: {n} structures fitted and diagnosed (on all cores)"
-        ));
-        let d = super::diagnose::run_time(&rec, label, &model, id, &opts);
-        spin.finish_and_clear();
-        let d = d.inspect_err(|_| print_reader(&reader_warnings))?;
-        (d.id, Some((d.diagnosis, d.choice)))
-    } else {
-        (id, None)
-    };
-    // The fit reported (with --diagnose, the chosen structure's): its warnings (the readers'
-    // first), its score on a separate record.
-    let mut id = id;
-    id.report.warnings.splice(0..0, reader_warnings);
-    for w in &id.report.warnings {
+    let mut spin = Spinner::new(a.quiet);
+    let r = ident::app::time::run(&req, &data, &mut spin);
+    spin.0.finish_and_clear();
+    let r = r.inspect_err(|_| print_reader())?;
+    let files = [r.base.as_ref(), Some(&r.lead)].into_iter().flatten();
+    let file_warnings = files.filter_map(|m| m.fit.validation_file.as_ref());
+    for w in r
+        .lead
+        .warnings
+        .iter()
+        .chain(file_warnings.flat_map(|sc| &sc.warnings))
+    {
         eprintln!("warning: {w}");
     }
-    let scored = match &validation {
-        Some((_, vrec)) => Some(ident::oe::score(&id.model, vrec, offsets, opts.initial)?),
-        None => None,
-    };
-    if let Some((p, _)) = &validation {
-        id.validated_by = ident::oe::Validation {
-            kind: ident::oe::ValidationKind::File,
-            first: id.validated_by.first,
-            note: format!(
-                "a separate record, {} (its own initial state and output offset)",
-                p.display()
-            ),
-        };
-    }
+    let rec = &data.record;
     if a.json {
-        let mut v = json_of(&id, &rec);
-        if let (Some((p, _)), Some(sc)) = (&validation, &scored) {
-            v["fit"]["validation_file"] = score_json(p, sc);
-        }
-        if let Some((d, c)) = &diagnosis {
-            v = super::diagnose::lead_with_final(v, d, c, rec.dt)?;
-        }
-        if let Some(c) = &auto_choice {
-            v["structures"] = serde_json::to_value(c)?;
-        }
-        println!("{}", serde_json::to_string_pretty(&v)?);
+        println!("{}", serde_json::to_string_pretty(&r)?);
     } else {
-        if let Some((_, c)) = &diagnosis {
-            println!(
-                "base fit of the structure the diagnosis ran on ({}), before its effects:",
-                c.scores[c.chosen].name
-            );
-        }
-        if let Some(c) = &auto_choice {
-            print!("{}", super::diagnose::structures_text(c, false));
-            println!();
-        }
-        print_text(&id, &rec);
-        if let (Some((p, _)), Some(sc)) = (&validation, &scored) {
-            print_score(p, sc);
-        }
-        if let Some((d, c)) = &diagnosis {
-            print!("{}", super::diagnose::structures_text(c, true));
-            print!("{}", super::diagnose::text(d));
-        }
+        print!("{}", report_text(&r, rec));
     }
     if let Some(p) = &a.plot {
-        plot::save(p, (1400, 1000), &TimeFigure { id: &id, rec: &rec })?;
-        if let Some((d, _)) = &diagnosis {
+        plot::save(
+            p,
+            (1400, 1000),
+            &TimeFigure {
+                id: &r.fitted.id,
+                rec,
+            },
+        )?;
+        if let Some(d) = &r.diagnosis {
             let dp = super::diagnose::residual_plot_path(p);
-            super::diagnose::plot_time(&dp, &rec, d)?;
+            super::diagnose::plot_time(&dp, rec, &d.diagnosis)?;
             if !a.json {
                 println!("residual plot: {}", dp.display());
             }
         }
     }
-    if !id.usable() {
-        anyhow::bail!("the fitted model is not usable: {}", id.problems.join("; "));
+    if !r.lead.usable {
+        anyhow::bail!(
+            "the fitted model is not usable: {}",
+            r.lead.problems.join("; ")
+        );
     }
     Ok(())
+}
+
+/// The report as text (what `fracid time` prints): the base fit, the scores on a validation
+/// record, the structure comparison and the diagnosis.
+pub(crate) fn report_text(r: &TimeReport, rec: &Record) -> String {
+    let mut o = String::new();
+    if let Some(d) = &r.diagnosis {
+        let _ = writeln!(
+            o,
+            "base fit of the structure the diagnosis ran on ({}), before its effects:",
+            d.structures.scores[d.structures.chosen].name
+        );
+    }
+    if let Some(c) = &r.structures {
+        o += &super::diagnose::structures_text(c, false);
+        o.push('\n');
+    }
+    o += &fit_text(&r.fitted.id, rec);
+    let base = r.base.as_ref().unwrap_or(&r.lead);
+    if let Some(sc) = &base.fit.validation_file {
+        o += &score_text(sc);
+    }
+    if let Some(d) = &r.diagnosis {
+        o += &super::diagnose::structures_text(&d.structures, true);
+        o += &super::diagnose::text(&d.diagnosis);
+        if let Some(sc) = &r.lead.fit.validation_file {
+            o += "  final model ";
+            o += &score_text(sc);
+        }
+    }
+    o
+}
+
+/// `--joint`: one model fitted on several records.
+fn run_joint(a: &TimeArgs, req: &TimeRequest, data: &TimeData) -> Result<()> {
+    if a.diagnose || a.plot.is_some() {
+        crate::bad_input!("--joint does not go with --diagnose or --plot");
+    }
+    let read = read_options(a);
+    let rec = &data.record;
+    let duration = rec.t.last().copied().unwrap_or(0.0) - rec.t.first().copied().unwrap_or(0.0);
+    let (model, opts) =
+        ident::app::time::model_and_options(req, duration, data.validation.is_some())?;
+    let mut reader_warnings = data.reader_warnings.clone();
+    let mut recs = vec![rec.clone()];
+    for p in &a.joint {
+        let (r, w) = read_record_noting(p, &read)?;
+        reader_warnings.extend(w);
+        recs.push(r);
+    }
+    let mut j = ident::oe::identify_joint(&recs, &model, &opts)?;
+    j.report.warnings.splice(0..0, reader_warnings);
+    let scored = match &data.validation {
+        Some(v) => Some(ScoreReport::new(
+            &v.name,
+            &ident::oe::score(&j.model, &v.record, opts.offsets, opts.initial)?,
+        )),
+        None => None,
+    };
+    let files: Vec<&PathBuf> = std::iter::once(&a.file).chain(&a.joint).collect();
+    print_joint(a, &j, &files, scored.as_ref())
 }
 
 /// Read a time record (t, u, y) from a file, its warnings (an incomplete acquisition fitted on
@@ -394,7 +418,7 @@ fn print_joint(
     a: &TimeArgs,
     j: &ident::oe::JointIdentification,
     files: &[&PathBuf],
-    scored: Option<(&PathBuf, &ident::oe::Scored)>,
+    scored: Option<&ScoreReport>,
 ) -> Result<()> {
     if a.json {
         let records: Vec<serde_json::Value> = files
@@ -412,8 +436,8 @@ fn print_joint(
             "converged": j.report.converged,
             "warnings": j.report.warnings,
         });
-        if let Some((p, sc)) = scored {
-            v["fit"] = serde_json::json!({"validation_file": score_json(p, sc)});
+        if let Some(sc) = scored {
+            v["fit"] = serde_json::json!({ "validation_file": sc });
         }
         println!("{}", serde_json::to_string_pretty(&v)?);
         return Ok(());
@@ -432,8 +456,11 @@ fn print_joint(
             fit.rmse
         );
     }
-    if let Some((p, sc)) = scored {
-        print_score(p, sc);
+    if let Some(sc) = scored {
+        print!("{}", score_text(sc));
+        for w in &sc.warnings {
+            eprintln!("warning: {w}");
+        }
     }
     for w in &j.report.warnings {
         eprintln!("warning: {w}");
@@ -441,58 +468,20 @@ fn print_joint(
     Ok(())
 }
 
-/// A model scored on a record, as JSON.
-pub(crate) fn score_json(path: &std::path::Path, sc: &ident::oe::Scored) -> serde_json::Value {
-    serde_json::json!({
-        "file": path.display().to_string(),
-        "rmse": sc.fit.rmse,
-        "nrmse_percent": sc.fit.nrmse_percent,
-        "offsets": sc.offsets,
-        "record_params": sc.record_params,
-        "warnings": sc.warnings,
-    })
+/// A model scored on a record, as a line of text (its warnings are in the report's).
+pub(crate) fn score_text(sc: &ScoreReport) -> String {
+    format!(
+        "fit on {} (its own initial state and output offset): NRMSE {:.2}%, RMSE {:.5}\n",
+        sc.file, sc.nrmse_percent, sc.rmse
+    )
 }
 
-/// A model scored on a record, as text.
-pub(crate) fn print_score(path: &std::path::Path, sc: &ident::oe::Scored) {
-    println!(
-        "fit on {} (its own initial state and output offset): NRMSE {:.2}%, RMSE {:.5}",
-        path.display(),
-        sc.fit.nrmse_percent,
-        sc.fit.rmse
-    );
-    for w in &sc.warnings {
-        eprintln!("warning: {w}");
-    }
-}
-
-pub(crate) fn json_of(id: &Identification, rec: &Record) -> serde_json::Value {
-    let fit = |f: Option<metrics::Fit>| {
-        f.map(|f| serde_json::json!({"rmse": f.rmse, "nrmse_percent": f.nrmse_percent}))
-    };
-    serde_json::json!({
-        "model": ident::app::ModelReport::from(&id.tf),
-        "fit": {"estimation": fit(Some(id.estimation)), "validation": fit(id.validation)},
-        "params": id.report.params,
-        "start": id.start_report,
-        "alpha_eta": id.alpha_eta.iter().map(|(o, a, e)| serde_json::json!({"order": o, "alpha": a, "eta": e})).collect::<Vec<_>>(),
-        "offsets": id.offsets,
-        "split": {"estimation_samples": id.split, "validation_samples": rec.len() - id.split},
-        "validated_by": id.validated_by,
-        "iterations": id.report.iterations,
-        "converged": id.report.converged,
-        "termination": id.report.termination,
-        "stop_reason": id.report.stop_reason(),
-        "seconds": id.report.elapsed.as_secs_f64(),
-        "warnings": id.report.warnings,
-        "usable": id.usable(),
-        "problems": id.problems,
-    })
-}
-
-fn print_text(id: &Identification, rec: &Record) {
-    println!("model: {}", id.tf);
-    println!(
+/// The fit as text.
+fn fit_text(id: &Identification, rec: &Record) -> String {
+    let mut o = String::new();
+    let _ = writeln!(o, "model: {}", id.tf);
+    let _ = writeln!(
+        o,
         "operating point: u0 = {:.6}, y0 = {:.6}; {} estimation + {} validation samples, dt = {} s",
         id.offsets.u0,
         id.offsets.y0,
@@ -501,13 +490,14 @@ fn print_text(id: &Identification, rec: &Record) {
         rec.dt
     );
     let sr = &id.start_report;
-    println!(
+    let _ = writeln!(
+        o,
         "start: {}{}",
         sr.note,
         sr.fit_percent
             .map_or(String::new(), |f| format!(" (start fits {f:.1}%)"))
     );
-    println!("parameters (+- standard error):");
+    let _ = writeln!(o, "parameters (+- standard error):");
     let (state, plant): (Vec<_>, Vec<_>) = id
         .report
         .params
@@ -523,7 +513,7 @@ fn print_text(id: &Identification, rec: &Record) {
         } else {
             ""
         };
-        println!("  {:<10} {:>14.6e} +- {se}{tag}", p.name, p.value);
+        let _ = writeln!(o, "  {:<10} {:>14.6e} +- {se}{tag}", p.name, p.value);
     }
     if let Some(past) = &id.model.past {
         let levels: Vec<String> = state
@@ -534,17 +524,22 @@ fn print_text(id: &Identification, rec: &Record) {
             })
             .collect();
         let edges: Vec<String> = past.edges.iter().map(|e| format!("{e:.4}")).collect();
-        println!(
+        let _ = writeln!(
+            o,
             "initial state: the past input's deviation (newest first) {} on windows ending {} s \
              before the record",
             levels.join(", "),
             edges.join(", ")
         );
     }
-    for (o, al, et) in &id.alpha_eta {
-        println!("  order {o:.4}: Poinot-Trigeassou alpha = {al:.5}, eta = {et:.5}");
+    for (order, al, et) in &id.alpha_eta {
+        let _ = writeln!(
+            o,
+            "  order {order:.4}: Poinot-Trigeassou alpha = {al:.5}, eta = {et:.5}"
+        );
     }
-    println!(
+    let _ = writeln!(
+        o,
         "fit estimation: NRMSE {:.2}%, RMSE {:.5}",
         id.estimation.nrmse_percent, id.estimation.rmse
     );
@@ -553,13 +548,15 @@ fn print_text(id: &Identification, rec: &Record) {
             ident::oe::ValidationKind::ResponseTail => " (the tail of the step response only)",
             _ => "",
         };
-        println!(
+        let _ = writeln!(
+            o,
             "fit validation{what}: NRMSE {:.2}%, RMSE {:.5}",
             v.nrmse_percent, v.rmse
         );
     }
-    println!("validated by: {}", id.validated_by.note);
-    println!(
+    let _ = writeln!(o, "validated by: {}", id.validated_by.note);
+    let _ = writeln!(
+        o,
         "{} iterations, {} simulations, {:.3} s; stopped: {}{}",
         id.report.iterations,
         id.report.evaluations,
@@ -571,6 +568,7 @@ fn print_text(id: &Identification, rec: &Record) {
             " (NOT converged)"
         }
     );
+    o
 }
 
 struct TimeFigure<'a> {

@@ -1,0 +1,621 @@
+//! The time-domain use case (`fracid time`, `fracid.fit_time`, the fleet and the demo): one
+//! request holding every option and its default once, one [`run`], one typed [`TimeReport`].
+//!
+//! The CLI parses its flags into a [`TimeRequest`], Python its keyword arguments; both call
+//! [`run`] and present the report (text, JSON, a dict): the same request gives the same report.
+
+use super::observe::{enter, Observe, Stage};
+use super::ModelReport;
+use crate::data::Record;
+use crate::diagnose::structures::{diagnose_best, fit_best, StructureChoice};
+use crate::diagnose::{DiagnoseOptions, Diagnosis};
+use crate::metrics::{residual_test, Fit, ResidualTest};
+use crate::oe::{
+    identify_with_progress, score, FracModel, IdentOptions, Identification, ParamEstimate, Scored,
+    StartMode, Validation, ValidationKind,
+};
+use crate::{Error, Result};
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+
+/// Every option of the time-domain identification, with its default (`Default`, and missing
+/// fields when deserialised). Words are those of the CLI flags and the Python keywords.
+///
+/// ```
+/// let r: ident::app::time::TimeRequest = serde_json::from_str(r#"{"holdout": 0.2}"#).unwrap();
+/// assert_eq!((r.structure.as_str(), r.holdout, r.max_iterations), ("pmsm", Some(0.2), 500));
+/// ```
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct TimeRequest {
+    /// `pmsm`, `commensurate`, `second-order`, `fopdt`, `auto` or a transfer function used as
+    /// the start ([`super::structure`]).
+    pub structure: String,
+    /// Approximation of the fractional operators: `refined`, `oustaloup` or `trigeassou`.
+    pub approx: String,
+    /// Approximation band `(w_b, w_h)` in rad/s (`None`: fracsim's `[1e-3, 30 pi/dt]`).
+    pub band: Option<(f64, f64)>,
+    /// Approximation order `N` (`None`: fracsim's, 8).
+    pub order: Option<usize>,
+    /// A free integrator in series (an output that integrates, such as a position).
+    pub integrator: bool,
+    /// Fit an input delay (seconds, up to `max_delay`).
+    pub delay: bool,
+    /// Largest input delay in seconds (`None`: a fifth of the record, at most 1 s).
+    pub max_delay: Option<f64>,
+    /// Parameters held: `NAME` or `NAME=VALUE`, comma-separated ([`super::fix_free`]).
+    pub fix: String,
+    /// Parameters a structure holds that are fitted (comma-separated names).
+    pub free: String,
+    /// Start values by parameter name: the fit then starts from them (no automatic start).
+    pub start: BTreeMap<String, f64>,
+    /// The automatic start from the data (false: the structure's values).
+    pub auto_start: bool,
+    /// Fraction held out for validation at the end (`None`: 0.3, or 0 with a validation record).
+    pub holdout: Option<f64>,
+    /// Operating point removal: `initial`, `mean` or `none`.
+    pub offsets: String,
+    /// Fit a constant output offset.
+    pub fit_offset: bool,
+    /// Initial state: `estimate` (a past held input, fitted) or `rest`.
+    pub initial: String,
+    /// Maximum Levenberg-Marquardt iterations.
+    pub max_iterations: usize,
+    /// Samples at the start of the estimation part left out of the cost (a transient the model
+    /// need not explain).
+    pub skip: usize,
+    /// Lags of the residual whiteness and cross-correlation test.
+    pub max_lag: usize,
+    /// Diagnose the residual and add the effects that pay on held-out data.
+    pub diagnose: bool,
+    /// The diagnosis's margin: the held-out improvement an effect must bring.
+    pub margin: f64,
+    /// The diagnosis's evidence `R^2` a candidate effect needs to be refitted.
+    pub min_r2: f64,
+    /// The diagnosis's rounds of effects.
+    pub max_rounds: usize,
+}
+
+impl Default for TimeRequest {
+    fn default() -> Self {
+        let d = DiagnoseOptions::default();
+        Self {
+            structure: "pmsm".into(),
+            approx: "refined".into(),
+            band: None,
+            order: None,
+            integrator: false,
+            delay: false,
+            max_delay: None,
+            fix: String::new(),
+            free: String::new(),
+            start: BTreeMap::new(),
+            auto_start: true,
+            holdout: None,
+            offsets: "initial".into(),
+            fit_offset: true,
+            initial: "estimate".into(),
+            max_iterations: 500,
+            skip: 0,
+            max_lag: 25,
+            diagnose: false,
+            margin: d.margin,
+            min_r2: d.min_r2,
+            max_rounds: d.max_rounds,
+        }
+    }
+}
+
+/// A record with the name it is reported under (a file's path).
+#[derive(Debug, Clone)]
+pub struct Named {
+    /// The name (a path, or `"validation"` for arrays).
+    pub name: String,
+    /// The record.
+    pub record: Record,
+}
+
+/// The data of a time-domain request: the record, an optional separate validation record, and
+/// the warnings of the reader that made them (they lead the report's warnings).
+#[derive(Debug, Clone)]
+pub struct TimeData {
+    /// The estimation record.
+    pub record: Record,
+    /// A separate validation record of the same plant.
+    pub validation: Option<Named>,
+    /// The readers' caveats (an incomplete acquisition, the part kept).
+    pub reader_warnings: Vec<String>,
+}
+
+/// A model scored on a separate record (`fit.validation_file`).
+#[derive(Debug, Clone, Serialize)]
+pub struct ScoreReport {
+    /// The record's name.
+    pub file: String,
+    /// RMSE over the whole record.
+    pub rmse: f64,
+    /// NRMSE fit (%) over the whole record.
+    pub nrmse_percent: f64,
+    /// The record's operating point.
+    pub offsets: crate::data::Offsets,
+    /// The record's own output offset and initial-state levels.
+    pub record_params: Vec<ParamEstimate>,
+    /// Caveats of the score.
+    pub warnings: Vec<String>,
+}
+
+impl ScoreReport {
+    /// The report of `sc` on the record named `file`.
+    pub fn new(file: &str, sc: &Scored) -> Self {
+        Self {
+            file: file.to_string(),
+            rmse: sc.fit.rmse,
+            nrmse_percent: sc.fit.nrmse_percent,
+            offsets: sc.offsets,
+            record_params: sc.record_params.clone(),
+            warnings: sc.warnings.clone(),
+        }
+    }
+}
+
+/// The fit figures of one model (docs/design.md §7 `fit`).
+#[derive(Debug, Clone, Serialize)]
+pub struct FitFigures {
+    /// On the estimation part.
+    pub estimation: Fit,
+    /// On the held-out part (`None` when nothing was held out).
+    pub validation: Option<Fit>,
+    /// On a separate validation record.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub validation_file: Option<ScoreReport>,
+}
+
+/// `(order, alpha, eta)` of a non-integer order (Poinot & Trigeassou 2004).
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct AlphaEta {
+    /// The order.
+    pub order: f64,
+    /// Poinot-Trigeassou alpha.
+    pub alpha: f64,
+    /// Poinot-Trigeassou eta.
+    pub eta: f64,
+}
+
+/// One model of a report (the base fit, or the final model after the diagnosis), with its own
+/// parameters, fit figures and caveats.
+#[derive(Debug, Clone, Serialize)]
+pub struct ModelFit {
+    /// The linear model and the names of its effects.
+    pub model: ModelReport,
+    /// Its parameters (the final model's have no standard errors: `null`).
+    pub params: Vec<ParamEstimate>,
+    /// Its fit figures.
+    pub fit: FitFigures,
+    /// Poinot-Trigeassou's `(alpha, eta)` of each non-integer order at the record's `dt`.
+    pub alpha_eta: Vec<AlphaEta>,
+    /// Its caveats (for the final model: the base fit's, then its own).
+    pub warnings: Vec<String>,
+    /// Whether it can be used.
+    pub usable: bool,
+    /// Why not, when it cannot.
+    pub problems: Vec<String>,
+}
+
+/// The estimation/validation split (docs/design.md §7 `split`).
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct Split {
+    /// Samples in the estimation part.
+    pub estimation_samples: usize,
+    /// Samples held out.
+    pub validation_samples: usize,
+}
+
+/// The report of [`run`] (docs/design.md §7). The top-level model (`model`, `params`, `fit`,
+/// `alpha_eta`, `warnings`, `usable`, `problems`) is the one the report recommends: the final
+/// model with the diagnosis, else the fit; `model_is` says which, and with the diagnosis the base
+/// fit is under `base`.
+#[derive(Debug, Clone, Serialize)]
+pub struct TimeReport {
+    /// The recommended model and its figures.
+    #[serde(flatten)]
+    pub lead: ModelFit,
+    /// Which model leads, in words.
+    pub model_is: String,
+    /// The base fit (with the diagnosis only: the chosen structure before its effects).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub base: Option<ModelFit>,
+    /// How the fit started.
+    pub start: crate::oe::init::StartReport,
+    /// The parameter values the base fit started from, by name.
+    pub start_values: BTreeMap<String, f64>,
+    /// The operating point removed.
+    pub offsets: crate::data::Offsets,
+    /// The split.
+    pub split: Split,
+    /// How the model was validated.
+    pub validated_by: Validation,
+    /// Levenberg-Marquardt iterations of the base fit.
+    pub iterations: usize,
+    /// Simulations of the base fit.
+    pub evaluations: usize,
+    /// Whether the base fit converged.
+    pub converged: bool,
+    /// How the base fit ended (the optimiser's word).
+    pub termination: String,
+    /// How the base fit ended, in words.
+    pub stop_reason: String,
+    /// Wall time of the whole use case (s).
+    pub seconds: f64,
+    /// Residual whiteness and independence of the base fit on its estimation part.
+    pub residual_test: ResidualTest,
+    /// The diagnosis (docs/design.md §7 `diagnosis`) with the structure comparison.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub diagnosis: Option<DiagnosisReport>,
+    /// The structure comparison of `structure = "auto"` (without the diagnosis).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub structures: Option<StructureChoice>,
+    /// The request as run (every option with its value).
+    pub request: TimeRequest,
+    /// What the report was made from, for presentation (plots, arrays): not serialised.
+    #[serde(skip)]
+    pub fitted: Fitted,
+}
+
+/// The results behind a [`TimeReport`], for plots and arrays.
+#[derive(Debug, Clone)]
+pub struct Fitted {
+    /// The base identification (with the diagnosis, of the chosen structure).
+    pub id: Identification,
+}
+
+/// The diagnosis in a report (docs/design.md §7 `diagnosis`): its findings, the structure
+/// comparison and the final model (with its effects' names).
+#[derive(Debug, Clone, Serialize)]
+pub struct DiagnosisReport {
+    /// The diagnosis (the final model itself, and the outputs before and after, are in it but
+    /// not serialised).
+    #[serde(flatten)]
+    pub diagnosis: Diagnosis,
+    /// The structures compared and the choice.
+    pub structures: StructureChoice,
+    /// The final model.
+    pub model: ModelReport,
+}
+
+/// The model and fit options of a request on a record of `duration_s` seconds, with a separate
+/// validation record or not.
+///
+/// # Errors
+/// [`Error::Options`] for any option out of range or not understood.
+pub fn model_and_options(
+    req: &TimeRequest,
+    duration_s: f64,
+    has_validation: bool,
+) -> Result<(FracModel, IdentOptions)> {
+    let max_delay = match req.max_delay {
+        Some(d) if !(d > 0.0 && d.is_finite()) => {
+            return Err(Error::Options(format!(
+                "max_delay must be a positive number of seconds, got {d}"
+            )))
+        }
+        Some(d) => d,
+        None => super::default_max_delay(duration_s),
+    };
+    let (mut m, _) = super::structure(&req.structure, max_delay)?;
+    m.approx.method = req.approx.parse()?;
+    if let Some(n) = req.order {
+        m.approx.order = n;
+    }
+    if let Some((lo, hi)) = req.band {
+        fracsim::approx::check_band(lo, hi)?;
+        m.approx.band = Some((lo, hi));
+    }
+    let (auto, _) = super::auto_label(&req.structure);
+    if req.integrator {
+        if auto {
+            return Err(Error::Options(
+                "structure auto does not go with the integrator (name a structure)".into(),
+            ));
+        }
+        m.with_integrator();
+    }
+    if req.delay {
+        // A delay written in the structure (exp(-tau s)) starts the fit when it is in range.
+        let tau = m
+            .delay
+            .map(|i| m.params[i].value)
+            .filter(|&t| t > 0.0 && t < max_delay)
+            .unwrap_or(0.05 * max_delay);
+        m.with_delay(tau, max_delay);
+    }
+    super::fix_free(&mut m, &req.fix, &req.free)?;
+    for (name, v) in &req.start {
+        let Some(i) = m.index_of(name) else {
+            let names: Vec<&str> = m.params.iter().map(|p| p.name.as_str()).collect();
+            return Err(Error::Options(format!(
+                "start: no parameter '{name}' (the model has {})",
+                names.join(", ")
+            )));
+        };
+        if !v.is_finite() {
+            return Err(Error::Options(format!(
+                "start: {name} = {v} must be finite"
+            )));
+        }
+        m.params[i].value = *v;
+    }
+    crate::oe::check_params(&m.params)?;
+    if req.max_iterations == 0 {
+        return Err(Error::Options("max_iterations must be at least 1".into()));
+    }
+    let mut opts = IdentOptions {
+        offsets: super::offsets(&req.offsets)?,
+        holdout: req
+            .holdout
+            .unwrap_or(if has_validation { 0.0 } else { 0.3 }),
+        fit_offset: req.fit_offset,
+        start: if req.auto_start && req.start.is_empty() {
+            StartMode::Auto
+        } else {
+            StartMode::Given
+        },
+        initial: req.initial.parse()?,
+        ..Default::default()
+    };
+    opts.fit.lm.max_iterations = req.max_iterations;
+    opts.fit.skip = req.skip;
+    Ok((m, opts))
+}
+
+/// The diagnosis options of a request.
+pub fn diagnose_options(req: &TimeRequest) -> DiagnoseOptions {
+    DiagnoseOptions {
+        margin: req.margin,
+        min_r2: req.min_r2,
+        max_rounds: req.max_rounds,
+        ..DiagnoseOptions::default()
+    }
+}
+
+/// Run the time-domain identification of `req` on `data`: the fit (or, with `structure =
+/// "auto"`, the candidate structures, the one the data support kept), the diagnosis when asked
+/// (structures compared, effects kept), the models scored on a separate validation record, and
+/// the report. The observer sees each stage and the plain fit's simulations, and can cancel
+/// between stages.
+///
+/// ```
+/// use ident::app::{observe::Quiet, time};
+/// use ident::data::Record;
+/// let dt = 0.01;
+/// // a first-order plant 2/(0.1 s + 1) driven by a square wave, exact for the held input
+/// let u: Vec<f64> = (0..600).map(|k| if (k / 37) % 2 == 0 { 1.0 } else { -1.0 }).collect();
+/// let (a, mut x) = ((-dt / 0.1f64).exp(), 0.0);
+/// let y: Vec<f64> = u.iter().map(|&v| { let o = x; x = a * x + 2.0 * (1.0 - a) * v; o }).collect();
+/// let data = time::TimeData {
+///     record: Record::from_samples(&u, &y, dt).unwrap(),
+///     validation: None,
+///     reader_warnings: vec![],
+/// };
+/// let req = time::TimeRequest { structure: "2/(0.2 s + 1)".into(), ..Default::default() };
+/// let r = time::run(&req, &data, &mut Quiet).unwrap();
+/// assert!(r.lead.usable && r.lead.fit.validation.unwrap().nrmse_percent > 99.0);
+/// ```
+///
+/// # Errors
+/// Options out of range ([`Error::Options`]), data that cannot be fitted
+/// ([`Error::NotEnoughData`], [`Error::Data`]), numerical breakdown, [`Error::Cancelled`].
+pub fn run(req: &TimeRequest, data: &TimeData, obs: &mut dyn Observe) -> Result<TimeReport> {
+    let t0 = std::time::Instant::now();
+    let rec = &data.record;
+    let duration = rec.t.last().copied().unwrap_or(0.0) - rec.t.first().copied().unwrap_or(0.0);
+    let (model, opts) = model_and_options(req, duration, data.validation.is_some())?;
+    if req.skip >= rec.len() {
+        return Err(Error::Options(format!(
+            "skip = {} leaves no sample of {}",
+            req.skip,
+            rec.len()
+        )));
+    }
+    let (auto, label) = super::auto_label(&req.structure);
+    let (id, auto_choice) = if auto && !req.diagnose {
+        let n = crate::diagnose::structures::auto_candidates(&model).len();
+        enter(obs, Stage::Structures { n })?;
+        let (id, c) = fit_best(rec, &model, &opts)?;
+        (id, Some(c))
+    } else {
+        enter(obs, Stage::Fit)?;
+        let id =
+            identify_with_progress(rec, &model, &opts, &mut |k, rmse| obs.simulation(k, rmse))?;
+        (id, None)
+    };
+    let (id, diagnosis) = if req.diagnose {
+        let n = crate::diagnose::structures::candidates(label, &model).len();
+        enter(obs, Stage::Diagnose { n })?;
+        let d = diagnose_best(rec, label, &model, id, &opts, &diagnose_options(req))?;
+        (d.id, Some((d.diagnosis, d.choice)))
+    } else {
+        (id, None)
+    };
+    let mut id = id;
+    let scores = match &data.validation {
+        Some(v) => {
+            enter(obs, Stage::Validate)?;
+            id.validated_by = Validation {
+                kind: ValidationKind::File,
+                first: id.validated_by.first,
+                note: format!(
+                    "a separate record, {} (its own initial state and output offset)",
+                    v.name
+                ),
+            };
+            let base = score(&id.model, &v.record, opts.offsets, opts.initial)?;
+            let fin = match &diagnosis {
+                Some((d, _)) => Some(score(&d.model, &v.record, opts.offsets, opts.initial)?),
+                None => None,
+            };
+            Some((
+                ScoreReport::new(&v.name, &base),
+                fin.map(|s| ScoreReport::new(&v.name, &s)),
+            ))
+        }
+        None => None,
+    };
+    let (base_file, final_file) = match scores {
+        Some((b, f)) => (Some(b), f),
+        None => (None, None),
+    };
+    let mut base = base_fit(&id, base_file);
+    base.warnings
+        .splice(0..0, data.reader_warnings.iter().cloned());
+    let rt = estimation_residual_test(&id, rec, req.max_lag);
+    let (lead, base, model_is, diagnosis) = match diagnosis {
+        Some((d, c)) => {
+            let fin = final_fit(&d, &base, rec.dt, final_file);
+            let is = format!(
+                "final: the diagnosis's recommended model ({} with {}); the base fit is under base",
+                c.scores[c.chosen].name,
+                if d.effects.is_empty() {
+                    "no effect".to_string()
+                } else {
+                    d.effects
+                        .iter()
+                        .map(|e| e.name.as_str())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                }
+            );
+            let report = DiagnosisReport {
+                model: fin.model.clone(),
+                diagnosis: d,
+                structures: c,
+            };
+            (fin, Some(base), is, Some(report))
+        }
+        None => (
+            base,
+            None,
+            "base: the fit of the requested structure".into(),
+            None,
+        ),
+    };
+    Ok(TimeReport {
+        lead,
+        model_is,
+        base,
+        start: id.start_report.clone(),
+        start_values: id
+            .model
+            .params
+            .iter()
+            .zip(&id.start)
+            .map(|(p, v)| (p.name.clone(), *v))
+            .collect(),
+        offsets: id.offsets,
+        split: Split {
+            estimation_samples: id.split,
+            validation_samples: rec.len() - id.split,
+        },
+        validated_by: id.validated_by.clone(),
+        iterations: id.report.iterations,
+        evaluations: id.report.evaluations,
+        converged: id.report.converged,
+        termination: format!("{:?}", id.report.termination),
+        stop_reason: id.report.stop_reason().to_string(),
+        seconds: t0.elapsed().as_secs_f64(),
+        residual_test: rt,
+        diagnosis,
+        structures: auto_choice,
+        request: req.clone(),
+        fitted: Fitted { id },
+    })
+}
+
+fn alpha_eta(v: &[(f64, f64, f64)]) -> Vec<AlphaEta> {
+    v.iter()
+        .map(|&(order, alpha, eta)| AlphaEta { order, alpha, eta })
+        .collect()
+}
+
+/// The base fit as a [`ModelFit`].
+fn base_fit(id: &Identification, file: Option<ScoreReport>) -> ModelFit {
+    ModelFit {
+        model: ModelReport::from(&id.tf),
+        params: id.report.params.clone(),
+        fit: FitFigures {
+            estimation: id.estimation,
+            validation: id.validation,
+            validation_file: file,
+        },
+        alpha_eta: alpha_eta(&id.alpha_eta),
+        warnings: id.report.warnings.clone(),
+        usable: id.usable(),
+        problems: id.problems.clone(),
+    }
+}
+
+/// The diagnosis's final model as a [`ModelFit`]: the base fit's caveats, then its own
+/// (parameters at a bound of their range).
+fn final_fit(d: &Diagnosis, base: &ModelFit, dt: f64, file: Option<ScoreReport>) -> ModelFit {
+    let values = d.model.values();
+    let params: Vec<ParamEstimate> = d
+        .model
+        .params
+        .iter()
+        .map(|p| ParamEstimate {
+            name: p.name.clone(),
+            value: p.value,
+            std_error: None,
+            free: p.free,
+            at_bound: p.free && p.bounds.at_edge(p.value),
+        })
+        .collect();
+    let mut warnings = base.warnings.clone();
+    warnings.extend(params.iter().filter(|p| p.at_bound).map(|p| {
+        format!(
+            "final model: {} = {:.4e} is at a bound of its range",
+            p.name, p.value
+        )
+    }));
+    let mut problems = base.problems.clone();
+    let model = match d.model.tf(&values) {
+        Ok(tf) => {
+            let mut m = ModelReport::from(&tf);
+            m.effects = d
+                .model
+                .effects
+                .iter()
+                .map(|e| e.name().to_string())
+                .collect();
+            m
+        }
+        Err(e) => {
+            problems.push(format!("the final model has no transfer function: {e}"));
+            base.model.clone()
+        }
+    };
+    ModelFit {
+        model,
+        params,
+        fit: FitFigures {
+            estimation: d.estimation.after,
+            validation: d.validation.as_ref().map(|b| b.after),
+            validation_file: file,
+        },
+        alpha_eta: alpha_eta(&d.model.alpha_eta(&values, dt)),
+        warnings,
+        usable: problems.is_empty(),
+        problems,
+    }
+}
+
+/// The residual test of the base fit on its estimation part.
+fn estimation_residual_test(id: &Identification, rec: &Record, max_lag: usize) -> ResidualTest {
+    let split = id.split;
+    let e: Vec<f64> = rec.y[..split]
+        .iter()
+        .zip(&id.yhat[..split])
+        .map(|(a, b)| a - b)
+        .collect();
+    let ud: Vec<f64> = rec.u[..split].iter().map(|v| v - id.offsets.u0).collect();
+    residual_test(&e, &ud, max_lag.min(split.saturating_sub(1)))
+}
