@@ -79,7 +79,7 @@ pub enum OffsetMode {
 }
 
 /// The operating point removed from a record.
-#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize, serde::Deserialize)]
 pub struct Offsets {
     /// Input level subtracted.
     pub u0: f64,

@@ -39,6 +39,7 @@ pub mod init;
 mod joint;
 mod score;
 
+pub(crate) use checks::levels_at_bound;
 pub use checks::{Validation, ValidationKind};
 pub use effects::Effect;
 pub use fit::{
@@ -54,7 +55,7 @@ use crate::{Error, Result};
 use fracsim::{ApproxSpec, Dual, FracTf, Real, Simulator, Term};
 
 /// How a parameter is kept in its range by reparametrisation (the solver works on `theta`).
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub enum Bounds {
     /// Unbounded: `p = theta`.
     Free,
@@ -140,7 +141,7 @@ impl Bounds {
 }
 
 /// A named model parameter: its (starting) value, its range, and whether it is fitted.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Param {
     /// Name used in reports (`K`, `a1`, `zeta`, ...).
     pub name: String,
@@ -192,7 +193,7 @@ pub fn order_range(nu: f64) -> Bounds {
 
 /// A linear expression `constant + sum_i c_i p_i` of the parameters, for coefficients and orders
 /// (the PMSM's highest order is `zeta + theta`, the commensurate model's `2 q`).
-#[derive(Debug, Clone, PartialEq, Default)]
+#[derive(Debug, Clone, PartialEq, Default, serde::Serialize, serde::Deserialize)]
 pub struct Expr {
     /// The constant part.
     pub constant: f64,
@@ -357,7 +358,7 @@ fn check_output<T: Real>(y: &[T], k0: usize) -> Result<()> {
 const PARTS_CHUNK: usize = 8192;
 
 /// The kind of a [`FracModel`], which decides how an automatic start is made.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum Kind {
     /// `K / (a2 s^(zeta+theta) + a1 s^zeta + 1)`, parameters `K, a1, a2, zeta, theta`.
     Pmsm,
@@ -385,7 +386,7 @@ pub enum Kind {
 /// m.effects.push(Effect::Coulomb { vc });
 /// assert_eq!(m.params.len(), 7);
 /// ```
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct FracModel {
     /// The parameters.
     pub params: Vec<Param>,
@@ -398,6 +399,7 @@ pub struct FracModel {
     /// Effects around the linear part, see [`effects`](Effect).
     pub effects: Vec<Effect>,
     /// The approximation of the fractional operators.
+    #[serde(with = "approx_serde")]
     pub approx: ApproxSpec,
     /// The operating point `(u0, y0)` the effects see (set by [`identify`]).
     pub operating_point: crate::data::Offsets,
@@ -429,7 +431,7 @@ pub fn past_range(u: &[f64], u0: f64) -> (f64, f64) {
 /// `params[levels[j]]` on `[-edges[j], -edges[j-1])`, and the last level before `-edges[last]`
 /// (see [`fracsim::Simulator::set_past_input`]). A record that starts in motion, mid-transient or
 /// on a ramp is then simulated from the state its own past left, not from rest.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct PastInput {
     /// Window edges in seconds before the first sample, increasing.
     pub edges: Vec<f64>,
@@ -1042,5 +1044,43 @@ impl Structure for FracModel {
             }
         }
         check_output(y, 0)
+    }
+}
+
+/// [`ApproxSpec`] (fracsim has no serde) as `{"method": "refined", "band": [lo, hi] | null,
+/// "order": 8}`, so that a [`FracModel`] round-trips through a report's JSON.
+mod approx_serde {
+    use fracsim::approx::Method;
+    use fracsim::ApproxSpec;
+    use serde::{Deserialize, Deserializer, Serialize, Serializer};
+
+    #[derive(Serialize, Deserialize)]
+    struct Spec {
+        method: String,
+        band: Option<(f64, f64)>,
+        order: usize,
+    }
+
+    pub(super) fn serialize<S: Serializer>(a: &ApproxSpec, s: S) -> Result<S::Ok, S::Error> {
+        let method = match a.method {
+            Method::Oustaloup => "oustaloup",
+            Method::Refined => "refined",
+            Method::Trigeassou => "trigeassou",
+        };
+        Spec {
+            method: method.into(),
+            band: a.band,
+            order: a.order,
+        }
+        .serialize(s)
+    }
+
+    pub(super) fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<ApproxSpec, D::Error> {
+        let spec = Spec::deserialize(d)?;
+        Ok(ApproxSpec {
+            method: spec.method.parse().map_err(serde::de::Error::custom)?,
+            band: spec.band,
+            order: spec.order,
+        })
     }
 }

@@ -42,7 +42,7 @@ pub struct CompareArgs {
 /// `diagnosis.model` (the refit with what the diagnosis found, `--diagnose`), else
 /// `refined.model` (`freq --refine`), else `model`; each
 /// `{"num": [{"coef","order"}], "den": [...], "delay"}`.
-fn model_from_json(v: &Value) -> Result<FracTf> {
+pub(crate) fn model_from_json(v: &Value) -> Result<FracTf> {
     let m = ["/diagnosis/model", "/refined/model", "/model"]
         .iter()
         .find_map(|p| v.pointer(p).filter(|m| m.get("den").is_some()))

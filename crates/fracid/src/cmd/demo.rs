@@ -4,8 +4,9 @@
 //!    identification is *not* told about (an input delay, measurement noise, encoder quantisation).
 //! 2. Acquire over the serial protocol: a PRBS record (the paper's experiment, 4 periods, around an
 //!    operating point) and a sine sweep turned into a Bode table.
-//! 3. Identify in both domains and diagnose the residuals, by running this same binary's `time` and
-//!    `freq` subcommands on the acquired files (so the demo exercises exactly what a user runs).
+//! 3. Identify in both domains and diagnose the residuals in this process, with the use cases
+//!    `fracid time` and `fracid freq` run (`ident::app::time::run`, `freq::compute`): each model
+//!    fitted and diagnosed once, its text, JSON and plots made from that one result.
 //! 4. Write `report.md` with the models, fits, the diagnosis against the hidden truth, and plots.
 
 use crate::bad_input;
@@ -16,7 +17,6 @@ use drive::sim::{DriveSim, Effects, SimClock, SimConfig};
 use serde_json::Value;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
-use std::process::Command;
 use std::time::Instant;
 
 /// Options of `fracid demo`.
@@ -61,25 +61,9 @@ fn step(msg: &str) {
     crate::eprintln_safe!("fracid demo: {msg}");
 }
 
-/// Run a subcommand of this binary, capture its stdout into `out_file`, return the text.
-fn run_self(args: &[&str], out_file: &Path) -> Result<String> {
-    let exe = std::env::current_exe().context("cannot find the fracid executable")?;
-    let out = Command::new(exe)
-        .args(args)
-        .output()
-        .with_context(|| format!("cannot run fracid {}", args.join(" ")))?;
-    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
-    std::fs::write(out_file, &stdout)
-        .with_context(|| format!("cannot write {}", out_file.display()))?;
-    if !out.status.success() {
-        anyhow::bail!(
-            "fracid {} failed ({}): {}",
-            args.join(" "),
-            out.status,
-            String::from_utf8_lossy(&out.stderr).trim()
-        );
-    }
-    Ok(stdout)
+/// Write `text` to `path`.
+fn write_file(path: &Path, text: &str) -> Result<()> {
+    std::fs::write(path, text).with_context(|| format!("cannot write {}", path.display()))
 }
 
 fn path_str(p: &Path) -> Result<&str> {
@@ -265,67 +249,72 @@ pub fn run(a: DemoArgs) -> Result<()> {
     let sim_stats = sim.stats();
     sim.stop();
 
-    // 3. Identify and diagnose, with the user's commands.
+    // 3. Identify and diagnose in this process, with the use cases the commands run (each
+    // model fitted and diagnosed once; its text, JSON and plots made from the one result).
+    let (time_runs, freq_runs) = (ident::app::time::runs(), super::freq::runs());
     step("time domain: output-error fit and diagnosis");
-    let time_png = dir.join("time.png");
-    let time_args = [
-        "time",
-        path_str(&steady_path)?,
-        "--quiet",
-        "--diagnose",
-        "--plot",
-        path_str(&time_png)?,
-    ];
-    let time_txt = run_self(&time_args, &dir.join("time.txt"))?;
-    let mut json_args = time_args.to_vec();
-    json_args.truncate(3);
-    json_args.extend(["--diagnose", "--json"]);
-    let time_json: Value = serde_json::from_str(&run_self(&json_args, &dir.join("time.json"))?)
-        .context("fracid time --json did not print JSON")?;
+    let time_req = ident::app::time::TimeRequest {
+        diagnose: true,
+        ..Default::default()
+    };
+    let time_cmd = format!("time {} --diagnose", steady_path.display());
+    let (rec, reader_warnings) =
+        super::time::read_record_noting(&steady_path, &ident::data::ReadOptions::default())?;
+    let time_data = ident::app::time::TimeData {
+        record: rec,
+        validation: None,
+        reader_warnings,
+    };
+    let time_report = ident::app::time::run(&time_req, &time_data, &mut ident::app::observe::Quiet)
+        .context("identifying the PRBS record")?;
+    let time_txt = super::time::report_text(&time_report, &time_data.record);
+    let time_json = serde_json::to_value(&time_report)?;
+    write_file(&dir.join("time.txt"), &time_txt)?;
+    write_file(
+        &dir.join("time.json"),
+        &(serde_json::to_string_pretty(&time_json)? + "\n"),
+    )?;
+    super::time::plot_report(&dir.join("time.png"), &time_report, &time_data.record)?;
 
     step("frequency domain: weighted Levy, refit and diagnosis");
-    let freq_png = dir.join("bode.png");
     let weights = if a.repeats >= 5 { "spread" } else { "vinagre" };
-    let freq_args = [
+    let freq_argv = [
         "freq",
         path_str(&bode_path)?,
         "--weights",
         weights,
         "--refine",
         "--diagnose",
-        "--plot",
-        path_str(&freq_png)?,
     ];
-    let freq_txt = run_self(&freq_args, &dir.join("freq.txt"))?;
-    let freq_json: Value = serde_json::from_str(&run_self(
-        &[
-            "freq",
-            path_str(&bode_path)?,
-            "--weights",
-            weights,
-            "--refine",
-            "--diagnose",
-            "--json",
-        ],
+    let freq_args = super::freq::args_from(&freq_argv)?;
+    let freq =
+        super::freq::compute(&freq_args, &bode_path).context("identifying the Bode table")?;
+    let freq_txt = freq.text();
+    let freq_json = freq.json()?;
+    write_file(&dir.join("freq.txt"), &freq_txt)?;
+    write_file(
         &dir.join("freq.json"),
-    )?)
-    .context("fracid freq --json did not print JSON")?;
+        &(serde_json::to_string_pretty(&freq_json)? + "\n"),
+    )?;
+    freq.plot(&dir.join("bode.png"))?;
+    let (time_runs, freq_runs) = (
+        ident::app::time::runs() - time_runs,
+        super::freq::runs() - freq_runs,
+    );
 
     step("the two models side by side (the paper's Fig. 5)");
-    let cmp_png = dir.join("compare.png");
-    let (time_json_path, freq_json_path) = (dir.join("time.json"), dir.join("freq.json"));
-    let cmp_args = [
-        "compare",
-        path_str(&time_json_path)?,
-        path_str(&freq_json_path)?,
-        "--names",
-        "time,frequency",
-        "--band",
-        "0.1,100",
-        "--plot",
-        path_str(&cmp_png)?,
-    ];
-    let cmp_txt = run_self(&cmp_args, &dir.join("compare.txt"))?;
+    // the final models (after the diagnosis), as `fracid compare time.json freq.json` takes them
+    let ga = super::compare::model_from_json(&time_json)?;
+    let gb = super::compare::model_from_json(&freq_json)?;
+    let names = ("time", "frequency");
+    let cmp = ident::compare::compare(&ga, &gb, (0.1, 100.0), 2000)?;
+    let cmp_txt = super::compare::text(&ga, &gb, &cmp, names);
+    write_file(&dir.join("compare.txt"), &cmp_txt)?;
+    crate::plot::save(
+        &dir.join("compare.png"),
+        (1000, 800),
+        &super::compare::CompareFigure { c: &cmp, names },
+    )?;
 
     // 4. The report.
     let mut r = String::new();
@@ -372,13 +361,18 @@ pub fn run(a: DemoArgs) -> Result<()> {
         "- Files: `prbs.csv` (as acquired), `prbs_steady.csv` (from {t_start} s, the steady operating \
          point before the PRBS), `bode.csv`.\n"
     )?;
-    writeln!(r, "## Time domain (`fracid {}`)\n", time_args.join(" "))?;
+    writeln!(
+        r,
+        "Each model was fitted and diagnosed once, in this process, by the use cases `fracid \
+         time` and `fracid freq` run (use-case runs: time {time_runs}, freq {freq_runs}).\n"
+    )?;
+    writeln!(r, "## Time domain (`fracid {time_cmd}`)\n")?;
     writeln!(r, "![time-domain fit](time.png)\n")?;
     writeln!(r, "```\n{}```\n", time_txt)?;
     writeln!(
         r,
         "## Frequency domain (`fracid {}`)\n",
-        freq_args.join(" ")
+        freq_argv.join(" ")
     )?;
     writeln!(r, "![Bode plot](bode.png)\n")?;
     writeln!(r, "```\n{}```\n", freq_txt)?;

@@ -317,11 +317,37 @@ pub fn run(a: FreqArgs) -> Result<()> {
     Ok(())
 }
 
+static RUNS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+
+/// How many times [`compute`] ran in this process (the demo reports that each record was fitted
+/// and diagnosed once).
+pub(crate) fn runs() -> usize {
+    RUNS.load(std::sync::atomic::Ordering::Relaxed)
+}
+
+/// The options of `fracid freq` from its words (`["freq", FILE, "--refine", ...]`), with the
+/// command's own defaults: for the demo, which runs the command's use case in process.
+///
+/// # Errors
+/// Words the command does not take (exit 2).
+pub(crate) fn args_from(argv: &[&str]) -> Result<FreqArgs> {
+    #[derive(clap::Parser)]
+    struct Words {
+        #[command(flatten)]
+        args: FreqArgs,
+    }
+    use clap::Parser as _;
+    Words::try_parse_from(argv)
+        .map(|w| w.args)
+        .map_err(|e| super::BadInput(e.to_string()).into())
+}
+
 /// `fracid freq`'s work on `file` with the options of `a` (its `file` is not read).
 ///
 /// # Errors
 /// As [`run`].
 pub(crate) fn compute(a: &FreqArgs, file: &Path) -> Result<FreqOutcome> {
+    RUNS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
     let is_mat = ident::matfile::is_mat(file);
     let text = if is_mat {
         String::new() // read below by variables

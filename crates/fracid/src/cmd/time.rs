@@ -303,17 +303,7 @@ pub fn run(a: TimeArgs) -> Result<()> {
         print!("{}", report_text(&r, rec));
     }
     if let Some(p) = &a.plot {
-        plot::save(
-            p,
-            (1400, 1000),
-            &TimeFigure {
-                id: &r.fitted.id,
-                rec,
-            },
-        )?;
-        if let Some(d) = &r.diagnosis {
-            let dp = super::diagnose::residual_plot_path(p);
-            super::diagnose::plot_time(&dp, rec, &d.diagnosis)?;
+        if let Some(dp) = plot_report(p, &r, rec)? {
             if !a.json {
                 println!("residual plot: {}", dp.display());
             }
@@ -357,6 +347,34 @@ pub(crate) fn report_text(r: &TimeReport, rec: &Record) -> String {
         }
     }
     o
+}
+
+/// Draw the fit to `path` (.png or .svg), and with the diagnosis the residual before and after
+/// beside it (its path returned).
+///
+/// # Errors
+/// A bad extension, a drawing or file error.
+pub(crate) fn plot_report(
+    path: &std::path::Path,
+    r: &TimeReport,
+    rec: &Record,
+) -> Result<Option<PathBuf>> {
+    plot::save(
+        path,
+        (1400, 1000),
+        &TimeFigure {
+            id: &r.fitted.id,
+            rec,
+        },
+    )?;
+    match &r.diagnosis {
+        Some(d) => {
+            let dp = super::diagnose::residual_plot_path(path);
+            super::diagnose::plot_time(&dp, rec, &d.diagnosis)?;
+            Ok(Some(dp))
+        }
+        None => Ok(None),
+    }
 }
 
 /// `--joint`: one model fitted on several records.

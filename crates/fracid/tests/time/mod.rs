@@ -308,6 +308,71 @@ fn score_and_validate_on_a_second_record() {
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
 }
 
+/// The report's figures are those of the models it gives (issue 30): a record with a 4 ms delay
+/// nobody declared, `time --diagnose --json`; `score REPORT --as-fitted` on the same file
+/// re-scores the final model (the delay kept, as the diagnosis must find) and the base fit as the
+/// run did, and each gives the figures the report states for it (to 1e-3 relative: only the
+/// record's offset and initial state are estimated again, to the same optimum). Plain `score
+/// REPORT FILE` scores the whole model, effects included: the final model beats its base fit.
+#[test]
+fn score_gives_the_figures_the_report_states() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = format!("{PAPER} exp(-0.004 s)");
+    let a = record_csv(&dir, "a.csv", &model, 10.0, 1);
+    let o = fracid(&[
+        "time",
+        a.to_str().unwrap(),
+        "--diagnose",
+        "--json",
+        "--quiet",
+    ]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let report = dir.path().join("report.json");
+    std::fs::write(&report, stdout(&o)).unwrap();
+    let r: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    assert!(
+        r["model"]["delay"].as_f64().unwrap() > 0.003,
+        "the final model keeps the delay: {}",
+        r["model"]
+    );
+    let o = fracid(&[
+        "score",
+        report.to_str().unwrap(),
+        a.to_str().unwrap(),
+        "--as-fitted",
+        "--json",
+    ]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let s: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    for (stated, scored) in [
+        (&r["fit"], &s["fit"]),
+        (&r["base"]["fit"], &s["base"]["fit"]),
+    ] {
+        for part in ["estimation", "validation"] {
+            let (x, y) = (
+                stated[part]["rmse"].as_f64().unwrap(),
+                scored[part]["rmse"].as_f64().unwrap(),
+            );
+            assert!((x - y).abs() <= 1e-3 * x, "{part}: stated {x}, scored {y}");
+        }
+    }
+    let whole = |which: &str| {
+        let o = fracid(&[
+            "score",
+            report.to_str().unwrap(),
+            a.to_str().unwrap(),
+            "--which",
+            which,
+            "--json",
+        ]);
+        assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+        let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+        v["rmse"].as_f64().unwrap()
+    };
+    let (lead, base) = (whole("lead"), whole("base"));
+    assert!(lead < 0.7 * base, "final {lead} vs base {base}");
+}
+
 /// A position output (the PMSM integrated): `--integrator` fits it (exit 0, the fit at the
 /// noise-free floor). That the plain structure is refused on such data is ident's test
 /// (`time::records`).

@@ -199,6 +199,10 @@ pub struct ModelFit {
     pub usable: bool,
     /// Why not, when it cannot.
     pub problems: Vec<String>,
+    /// The whole model as fitted (structure, parameters with their ranges, effects, delay,
+    /// approximation, operating point, initial state), as [`rescore`] and `fracid score` read it
+    /// back.
+    pub spec: FracModel,
 }
 
 /// The estimation/validation split (docs/design.md §7 `split`).
@@ -367,6 +371,14 @@ pub fn model_and_options(
     Ok((m, opts))
 }
 
+static RUNS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+
+/// How many times [`run`] was called in this process (the demo reports that each record was
+/// fitted and diagnosed once).
+pub fn runs() -> usize {
+    RUNS.load(std::sync::atomic::Ordering::Relaxed)
+}
+
 /// The diagnosis options of a request.
 pub fn diagnose_options(req: &TimeRequest) -> DiagnoseOptions {
     DiagnoseOptions {
@@ -405,6 +417,7 @@ pub fn diagnose_options(req: &TimeRequest) -> DiagnoseOptions {
 /// Options out of range ([`Error::Options`]), data that cannot be fitted
 /// ([`Error::NotEnoughData`], [`Error::Data`]), numerical breakdown, [`Error::Cancelled`].
 pub fn run(req: &TimeRequest, data: &TimeData, obs: &mut dyn Observe) -> Result<TimeReport> {
+    RUNS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
     let t0 = std::time::Instant::now();
     let rec = &data.record;
     let duration = rec.t.last().copied().unwrap_or(0.0) - rec.t.first().copied().unwrap_or(0.0);
@@ -470,7 +483,10 @@ pub fn run(req: &TimeRequest, data: &TimeData, obs: &mut dyn Observe) -> Result<
     let rt = estimation_residual_test(&id, rec, req.max_lag);
     let (lead, base, model_is, diagnosis) = match diagnosis {
         Some((d, c)) => {
-            let fin = final_fit(&d, &base, rec.dt, final_file);
+            let mut fin = final_fit(&d, &base, rec.dt, final_file);
+            polish(&mut fin, req, data);
+            let caveats = at_bound(&fin);
+            fin.warnings.extend(caveats);
             let is = format!(
                 "final: the diagnosis's recommended model ({} with {}); the base fit is under base",
                 c.scores[c.chosen].name,
@@ -550,7 +566,62 @@ fn base_fit(id: &Identification, file: Option<ScoreReport>) -> ModelFit {
         warnings: id.report.warnings.clone(),
         usable: id.usable(),
         problems: id.problems.clone(),
+        spec: id.model.clone(),
     }
+}
+
+/// The final model's record parameters (output offset, initial state) estimated to convergence
+/// with the plant held, as [`rescore`] does (the diagnosis's refits stop after a few iterations):
+/// its figures and `spec` are then those `fracid score --as-fitted` gives. A failure keeps the
+/// diagnosis's figures, with a warning.
+fn polish(fin: &mut ModelFit, req: &TimeRequest, data: &TimeData) {
+    match rescore_id(req, &fin.spec, data) {
+        Ok(id) => {
+            fin.fit.estimation = id.estimation;
+            fin.fit.validation = id.validation;
+            for (p, e) in fin.params.iter_mut().zip(&id.report.params) {
+                if e.free {
+                    p.value = e.value;
+                    p.at_bound = e.at_bound;
+                }
+            }
+            // the spec as the diagnosis fitted it (its free parameters), the record's values new
+            let mut spec = id.model;
+            for (p, q) in spec.params.iter_mut().zip(&fin.spec.params) {
+                p.free = q.free;
+            }
+            fin.spec = spec;
+        }
+        Err(e) => fin.warnings.push(format!(
+            "final model: its record's offset and initial state were not estimated again ({e}); \
+             the figures are the diagnosis's"
+        )),
+    }
+}
+
+/// The final model's parameters at a bound of their range, in words: the plant's one by one,
+/// the initial state's levels together.
+fn at_bound(fin: &ModelFit) -> Vec<String> {
+    let m = &fin.spec;
+    let plant = fin
+        .params
+        .iter()
+        .enumerate()
+        .filter(|(i, p)| p.at_bound && !m.is_initial_state(*i));
+    plant
+        .map(|(_, p)| {
+            format!(
+                "final model: {} = {:.4e} is at a bound of its range",
+                p.name, p.value
+            )
+        })
+        .chain(
+            // not when the base fit's own warning says it already (the same levels)
+            crate::oe::levels_at_bound(m, &fin.params)
+                .filter(|w| !fin.warnings.contains(w))
+                .map(|w| format!("final model: {w}")),
+        )
+        .collect()
 }
 
 /// The diagnosis's final model as a [`ModelFit`]: the base fit's caveats, then its own
@@ -569,13 +640,7 @@ fn final_fit(d: &Diagnosis, base: &ModelFit, dt: f64, file: Option<ScoreReport>)
             at_bound: p.free && p.bounds.at_edge(p.value),
         })
         .collect();
-    let mut warnings = base.warnings.clone();
-    warnings.extend(params.iter().filter(|p| p.at_bound).map(|p| {
-        format!(
-            "final model: {} = {:.4e} is at a bound of its range",
-            p.name, p.value
-        )
-    }));
+    let warnings = base.warnings.clone();
     let mut problems = base.problems.clone();
     let model = match d.model.tf(&values) {
         Ok(tf) => {
@@ -605,7 +670,46 @@ fn final_fit(d: &Diagnosis, base: &ModelFit, dt: f64, file: Option<ScoreReport>)
         warnings,
         usable: problems.is_empty(),
         problems,
+        spec: d.model.clone(),
     }
+}
+
+/// Score a report's model (`spec`, a [`ModelFit::spec`]) on `data` as [`run`] scored it: the
+/// same request (operating point, split, initial state), every parameter of the plant and its
+/// effects held, only what belongs to the record (its output offset and initial-state levels)
+/// estimated on the estimation part; the figures on the estimation and held-out parts. On the
+/// record the report was made from they are the report's own (up to the convergence of those
+/// few parameters): the check that a report's figures are those of the model it gives.
+///
+/// # Errors
+/// As [`run`].
+pub fn rescore(req: &TimeRequest, spec: &FracModel, data: &TimeData) -> Result<FitFigures> {
+    let id = rescore_id(req, spec, data)?;
+    Ok(FitFigures {
+        estimation: id.estimation,
+        validation: id.validation,
+        validation_file: None,
+    })
+}
+
+/// [`rescore`]'s identification (the model with the record's parameters estimated again).
+fn rescore_id(req: &TimeRequest, spec: &FracModel, data: &TimeData) -> Result<Identification> {
+    let rec = &data.record;
+    let duration = rec.t.last().copied().unwrap_or(0.0) - rec.t.first().copied().unwrap_or(0.0);
+    let (_, mut opts) = model_and_options(req, duration, data.validation.is_some())?;
+    opts.start = StartMode::Given;
+    let mut m = spec.clone();
+    for p in &mut m.params {
+        p.free = false;
+    }
+    let record_params = m
+        .index_of("y_offset")
+        .into_iter()
+        .chain(m.past.iter().flat_map(|p| p.levels.clone()));
+    for i in record_params.collect::<Vec<_>>() {
+        m.params[i].free = true;
+    }
+    crate::oe::identify(rec, &m, &opts)
 }
 
 /// The residual test of the base fit on its estimation part.
@@ -618,4 +722,98 @@ fn estimation_residual_test(id: &Identification, rec: &Record, max_lag: usize) -
         .collect();
     let ud: Vec<f64> = rec.u[..split].iter().map(|v| v - id.offsets.u0).collect();
     residual_test(&e, &ud, max_lag.min(split.saturating_sub(1)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::app::observe::{Observe, Stage};
+
+    /// A first-order plant 2/(0.1 s + 1) driven by a square wave, exact for the held input.
+    fn data() -> TimeData {
+        let dt = 0.01;
+        let u: Vec<f64> = (0..600)
+            .map(|k| if (k / 37) % 2 == 0 { 1.0 } else { -1.0 })
+            .collect();
+        let (a, mut x) = ((-dt / 0.1f64).exp(), 0.0);
+        let y: Vec<f64> = u
+            .iter()
+            .map(|&v| {
+                let o = x;
+                x = a * x + 2.0 * (1.0 - a) * v;
+                o
+            })
+            .collect();
+        TimeData {
+            record: Record::from_samples(&u, &y, dt).unwrap(),
+            validation: None,
+            reader_warnings: vec!["file.csv: a reader caveat".into()],
+        }
+    }
+
+    #[derive(Default)]
+    struct Log {
+        stages: Vec<Stage>,
+        simulations: usize,
+        cancel_after: Option<usize>,
+    }
+
+    impl Observe for Log {
+        fn stage(&mut self, stage: Stage) {
+            self.stages.push(stage);
+        }
+        fn simulation(&mut self, _k: usize, _rmse: f64) {
+            self.simulations += 1;
+        }
+        fn cancelled(&self) -> bool {
+            self.cancel_after.is_some_and(|n| self.stages.len() >= n)
+        }
+    }
+
+    #[test]
+    fn the_observer_sees_each_stage_and_can_cancel() {
+        let req = TimeRequest {
+            structure: "2/(0.2 s + 1)".into(),
+            diagnose: true,
+            ..Default::default()
+        };
+        let mut log = Log::default();
+        let r = run(&req, &data(), &mut log).unwrap();
+        assert!(matches!(
+            log.stages[..],
+            [Stage::Fit, Stage::Diagnose { .. }]
+        ));
+        assert!(log.simulations > 0);
+        // the reader's caveat leads the report's warnings; the base fit is under `base`
+        assert_eq!(r.lead.warnings[0], "file.csv: a reader caveat");
+        assert!(r.base.is_some() && r.model_is.starts_with("final"));
+        let mut stop = Log {
+            cancel_after: Some(1),
+            ..Default::default()
+        };
+        let e = run(&req, &data(), &mut stop).unwrap_err();
+        assert!(matches!(e, Error::Cancelled(_)), "{e}");
+        assert_eq!(stop.stages, vec![Stage::Fit]);
+    }
+
+    #[test]
+    fn a_request_names_only_options_that_exist() {
+        let e = serde_json::from_str::<TimeRequest>(r#"{"holdot": 0.2}"#).unwrap_err();
+        assert!(e.to_string().contains("holdot"), "{e}");
+        let r: TimeRequest = serde_json::from_str("{}").unwrap();
+        assert_eq!(r, TimeRequest::default());
+    }
+
+    #[test]
+    fn a_model_spec_round_trips_through_json() {
+        let r = run(
+            &TimeRequest::default(),
+            &data(),
+            &mut crate::app::observe::Quiet,
+        )
+        .unwrap();
+        let text = serde_json::to_string(&r.lead.spec).unwrap();
+        let back: FracModel = serde_json::from_str(&text).unwrap();
+        assert_eq!(back, r.lead.spec);
+    }
 }

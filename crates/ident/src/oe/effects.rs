@@ -12,7 +12,7 @@ use fracsim::Real;
 
 /// Where an effect's parameters live: indices into the model's parameter vector
 /// ([`super::FracModel::params`]).
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 #[non_exhaustive]
 pub enum Effect {
     /// Constant input offset: `u + c` (`c` = parameter `c`).

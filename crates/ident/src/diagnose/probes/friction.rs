@@ -30,9 +30,9 @@ impl Probe for Friction {
                 "coulomb_friction",
                 "input offset",
                 format!(
-                    "the model speed is {} ({}): sign(y) is constant, so Vc sign(y) is a constant \
-                     input offset (see input_offset for that alternative); speed reversals (a \
-                     zero-mean PRBS) or rest intervals between motion separate them",
+                    "the model output y is {} ({}): sign(y) is constant, so Vc sign(y) is a \
+                     constant input offset (see input_offset for that alternative); reversals of \
+                     y (a zero-mean PRBS) or rests between motion separate them",
                     if mo.pos >= mo.neg {
                         "positive"
                     } else {
@@ -73,8 +73,9 @@ impl Probe for Friction {
             key: "coulomb_friction".into(),
             r2,
             evidence: format!(
-                "the friction signature G(-sign(speed)) explains {:.1}% of the residual sum of \
-                 squares (coefficient {:.3e}); model speed {}",
+                "the friction signature G(-sign(y)) (a force opposing the output's sign: Coulomb \
+                 friction on a speed) explains {:.1}% of the residual sum of squares \
+                 (coefficient {:.3e}); model output {}",
                 100.0 * r2,
                 beta[0],
                 mo.describe()
