@@ -4,7 +4,7 @@
 
 use crate::arrays::{floats, positive, same_len, FloatArray};
 use crate::errors;
-use ident::app::observe::Quiet;
+use ident::app::observe::Observe;
 use ident::app::time::{Named, TimeData, TimeRequest};
 use ident::data::Record;
 use numpy::IntoPyArray;
@@ -24,6 +24,22 @@ fn to_py<'py, T: serde_core::Serialize>(py: Python<'py>, v: &T) -> PyResult<Boun
 #[pyfunction]
 pub(crate) fn _time_request_defaults(py: Python<'_>) -> PyResult<Bound<'_, PyAny>> {
     to_py(py, &TimeRequest::default())
+}
+
+/// The observer of a fit run from Python: between stages it runs Python's signal handlers (the
+/// GIL taken for that moment), so Ctrl-C stops a long diagnosis at the next stage.
+struct Interruptible;
+
+impl Observe for Interruptible {
+    fn cancelled(&self) -> bool {
+        Python::with_gil(|py| match py.check_signals() {
+            Ok(()) => false,
+            Err(e) => {
+                e.restore(py);
+                true
+            }
+        })
+    }
 }
 
 /// The time-domain use case (`ident::app::time::run`, as `fracid time`): `request` is the JSON of
@@ -64,8 +80,12 @@ pub(crate) fn _fit_time<'py>(
         reader_warnings: Vec::new(),
     };
     let r = py
-        .allow_threads(|| ident::app::time::run(&req, &data, &mut Quiet))
-        .map_err(errors::ident)?;
+        .allow_threads(|| ident::app::time::run(&req, &data, &mut Interruptible))
+        .map_err(|e| match e {
+            // Ctrl-C: the KeyboardInterrupt Python's handler raised, as it raised it
+            ident::Error::Cancelled(_) => PyErr::take(py).unwrap_or_else(|| errors::ident(e)),
+            e => errors::ident(e),
+        })?;
     let arrays = PyDict::new(py);
     // `yhat` is the leading model's output: the final model's with the diagnosis.
     arrays.set_item("yhat_base", r.fitted.id.yhat.clone().into_pyarray(py))?;

@@ -117,3 +117,35 @@ def test_structure_auto_matches_the_cli(fracid_bin):
     names = [r["name"] for r in fit.structures["scores"]]
     assert names == ["pmsm", "commensurate", "first order", "second order"]
     assert fit.validation.rmse == pytest.approx(cli["fit"]["validation"]["rmse"], rel=1e-9)
+
+
+def test_ctrl_c_stops_a_diagnosis_between_stages():
+    """Ctrl-C (here SIGALRM raising KeyboardInterrupt, 2 ms into the call) reaches a fit running
+    with the GIL released: the use case's observer runs Python's signal handlers between stages
+    and the KeyboardInterrupt comes out of `fit_time`, instead of the whole diagnosis (about a
+    second on this record) running to its end."""
+    import signal
+    import time
+
+    truth = fracid.FracTf.parse("6.77/(0.000028 s^1.78 + 0.0064 s^0.89 + 1)")
+    u, y = record(truth, 0.01, seed=3)
+    u, y = np.tile(u, 8), np.tile(y, 8)
+
+    def interrupt(*_):
+        raise KeyboardInterrupt
+
+    old = signal.signal(signal.SIGALRM, interrupt)
+    try:
+        t0 = time.perf_counter()
+        signal.setitimer(signal.ITIMER_REAL, 0.002)
+        with pytest.raises(KeyboardInterrupt):
+            fracid.fit_time(u, y, DT, diagnose=True)
+        stopped = time.perf_counter() - t0
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, old)
+    # the whole diagnosis, for comparison: the interrupted call ended well before it would have
+    t0 = time.perf_counter()
+    fracid.fit_time(u, y, DT, diagnose=True)
+    whole = time.perf_counter() - t0
+    assert stopped < 0.5 * whole, (stopped, whole)
