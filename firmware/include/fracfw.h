@@ -102,22 +102,24 @@ typedef unsigned char fw_octet;
 #define FW_END_KEEPALIVE 3u
 #define FW_END_LIMIT 4u
 
-/** Controller format of LOAD_CTRL (parallel first-order sections, Q16/Q30). */
+/** Controller format of LOAD_CTRL (parallel first-order sections: poles Q30, gains Q24, 64-bit
+ * states Q32). */
 #define FW_CTRL_FORMAT 1u
 /** Sections of the speed controller at most. */
 #define FW_MAX_SECTIONS 24u
 
 /**
- * The speed controller (PROTOCOL.md section 3, "Speed loop"): u = d e + sum z_i, then
- * z_i <- round(a_i z_i / 2^30) + g_i e', e' the error conditioned on the voltage clamp.
- * d, g_i: Q16 raw voltage per raw speed LSB; a_i: Q30; z_i: Q16 raw voltage.
+ * The speed controller (PROTOCOL.md section 3, "Speed loop"): u = round((2^8 d e + sum z_i) / 2^32),
+ * then z_i <- round(a_i z_i / 2^30) + 2^8 g_i e', e' the error conditioned on the voltage clamp.
+ * d, g_i: Q24 raw voltage per raw speed LSB; a_i: Q30; z_i: Q32 raw voltage (64-bit, saturated
+ * at +-2^56: +-2^24 raw).
  */
 typedef struct {
-    int32_t d_q16, dinv_q16;
+    int32_t d_q24, dinv_q16;
     uint16_t n, loaded;
     int32_t a_q30[FW_MAX_SECTIONS];
-    int32_t g_q16[FW_MAX_SECTIONS];
-    int32_t z[FW_MAX_SECTIONS];
+    int32_t g_q24[FW_MAX_SECTIONS];
+    int64_t z[FW_MAX_SECTIONS];
 } fw_ctrl;
 
 /** Zero the controller's states. */
@@ -127,8 +129,8 @@ void fw_ctrl_reset(fw_ctrl *c);
  * One controller sample: error e = r - y (raw speed LSB), the voltage limit (raw, > 0). Returns
  * the command clamped to +-u_limit, *clamped = 1 if it was; updates the states (anti-windup:
  * with the output clamped, the states take the error that gives the clamped output, or, without
- * feed-through, are frozen while the error pushes further into the clamp). 2n + 1 32x32->64
- * products, no division.
+ * feed-through, are frozen while the error pushes further into the clamp). Per section one
+ * 32x64 product (two 32x32->64) and one 32x32->64, no division.
  */
 int16_t fw_ctrl_step(fw_ctrl *c, int32_t e, int16_t u_limit, uint16_t *clamped);
 

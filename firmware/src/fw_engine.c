@@ -595,7 +595,7 @@ static void cmd_load_ctrl(fw_t *fw, uint16_t seq, const fw_octet *p)
     }
     fw->ctrl.n = n;
     fw->ctrl.loaded = 0;
-    fw->ctrl.d_q16 = (int32_t)get32(p + 4);
+    fw->ctrl.d_q24 = (int32_t)get32(p + 4);
     fw->ctrl.dinv_q16 = (int32_t)get32(p + 8);
     fw->ctrl_ready = (uint16_t)(n == 0u);
     ack(fw, FW_T_LOAD_CTRL, seq, 0, 0);
@@ -622,7 +622,7 @@ static void cmd_load_section(fw_t *fw, uint16_t seq, const fw_octet *p)
         return;
     }
     fw->ctrl.a_q30[i] = a;
-    fw->ctrl.g_q16[i] = (int32_t)get32(p + 6);
+    fw->ctrl.g_q24[i] = (int32_t)get32(p + 6);
     fw->ctrl.loaded++;
     fw->ctrl_ready = (uint16_t)(fw->ctrl.loaded == fw->ctrl.n);
     ack(fw, FW_T_LOAD_SECTION, seq, 0, 0);

@@ -462,7 +462,7 @@ static void test_ctrl(const char *dir)
     int steps = 0, ctrls = 0;
     while (fgets(line, sizeof line, f)) {
         char *p = line, *q;
-        long v[64];
+        long long v[64];
         int nv = 0;
         if (line[0] == '#') continue;
         if (strncmp(line, "CTRL", 4) == 0) {
@@ -475,21 +475,21 @@ static void test_ctrl(const char *dir)
             continue;
         }
         while (nv < 64) {
-            long t = strtol(p, &q, 10);
+            long long t = strtoll(p, &q, 10);
             if (q == p) break;
             v[nv++] = t;
             p = q;
         }
         if (line[0] == 'C') {
             int i;
-            k.d_q16 = (int32_t)v[0];
+            k.d_q24 = (int32_t)v[0];
             k.dinv_q16 = (int32_t)v[1];
             lim = (int16_t)v[2];
             k.n = (uint16_t)v[3];
             k.loaded = k.n;
             for (i = 0; i < k.n; i++) {
                 k.a_q30[i] = (int32_t)v[4 + 2 * i];
-                k.g_q16[i] = (int32_t)v[5 + 2 * i];
+                k.g_q24[i] = (int32_t)v[5 + 2 * i];
             }
             fw_ctrl_reset(&k);
             ctrls++;
@@ -497,8 +497,8 @@ static void test_ctrl(const char *dir)
             uint16_t cl;
             int16_t u = fw_ctrl_step(&k, (int32_t)v[0], lim, &cl);
             int i, same = 1;
-            for (i = 0; i < k.n; i++) same &= k.z[i] == (int32_t)v[3 + i];
-            CHECK(u == v[1] && cl == v[2] && same, "ctrl step %d (e %ld): u %d clamped %u", steps,
+            for (i = 0; i < k.n; i++) same &= k.z[i] == (int64_t)v[3 + i];
+            CHECK(u == v[1] && cl == v[2] && same, "ctrl step %d (e %lld): u %d clamped %u", steps,
                   v[0], u, cl);
             steps++;
         }
@@ -529,7 +529,7 @@ static void test_loop(void)
     CHECK((r[1] & 0xFF) == FW_T_NAK && (r[5] & 0xFF) == FW_NAK_BAD_VALUE && g16(r + 6) == 0,
           "unknown controller format");
     p[0] = FW_CTRL_FORMAT, p[1] = 1;
-    le32(p + 4, 2ul * 65536ul), le32(p + 8, 32768ul);
+    le32(p + 4, 2ul << 24), le32(p + 8, 32768ul);
     n = command(&fw, FW_T_LOAD_CTRL, p, 12, r);
     CHECK((r[1] & 0xFF) == FW_T_ACK, "load ctrl");
     memset(p, 0, sizeof p);
@@ -537,7 +537,7 @@ static void test_loop(void)
     n = command(&fw, FW_T_LOAD_SECTION, p, 10, r);
     CHECK((r[1] & 0xFF) == FW_T_NAK && (r[5] & 0xFF) == FW_NAK_BAD_VALUE, "section out of order");
     p[0] = 0;
-    le32(p + 2, 1ul << 30), le32(p + 6, 16384ul);
+    le32(p + 2, 1ul << 30), le32(p + 6, 1ul << 22);
     n = command(&fw, FW_T_LOAD_SECTION, p, 10, r);
     CHECK((r[1] & 0xFF) == FW_T_ACK, "load section");
     memset(p, 0, sizeof p);

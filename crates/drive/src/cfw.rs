@@ -37,13 +37,13 @@ struct FwConfig {
 #[repr(C)]
 #[derive(Debug, Clone, Copy)]
 struct FwCtrl {
-    d_q16: i32,
+    d_q24: i32,
     dinv_q16: i32,
     n: u16,
     loaded: u16,
     a_q30: [i32; 24],
-    g_q16: [i32; 24],
-    z: [i32; 24],
+    g_q24: [i32; 24],
+    z: [i64; 24],
 }
 
 /// The C firmware's controller (`fw_ctrl_step`) run on `ctrl` from the states `z` (one per
@@ -51,23 +51,23 @@ struct FwCtrl {
 /// bit-identity tests against [`crate::ctrl::FixedCtrl::step`].
 pub fn ctrl_step(
     ctrl: &crate::ctrl::FixedCtrl,
-    z: &mut [i32],
+    z: &mut [i64],
     e: i32,
     u_limit: i16,
 ) -> (i16, bool) {
     let n = ctrl.sections.len().min(24);
     let mut c = FwCtrl {
-        d_q16: ctrl.d_q16,
+        d_q24: ctrl.d_q24,
         dinv_q16: ctrl.dinv_q16,
         n: n as u16,
         loaded: n as u16,
         a_q30: [0; 24],
-        g_q16: [0; 24],
+        g_q24: [0; 24],
         z: [0; 24],
     };
     for (i, s) in ctrl.sections.iter().take(n).enumerate() {
         c.a_q30[i] = s.a_q30;
-        c.g_q16[i] = s.g_q16;
+        c.g_q24[i] = s.g_q24;
         c.z[i] = z.get(i).copied().unwrap_or(0);
     }
     let mut cl = 0u16;

@@ -5,13 +5,16 @@
 //! Per sample, with the error `e = r - y` in raw speed LSB (an integer):
 //!
 //! ```text
-//! v  = d e + sum_i z_i                      (Q16 raw voltage, 64-bit)
-//! u  = round(v / 2^16), clamped to +-u_limit (the voltage limit)
-//! e' = e                                     (not clamped)
-//!    = (2^16 u - sum z_i) / d                (clamped, d != 0: Hanus' conditioning)
-//!    = 0 if the error pushes further into the clamp, else e   (clamped, d = 0)
-//! z_i <- round(a_i z_i / 2^30) + g_i e'      (saturated to i32)
+//! v  = 2^8 d e + sum_i z_i                    (Q32 raw voltage, 64-bit)
+//! u  = round(v / 2^32), clamped to +-u_limit  (the voltage limit)
+//! e' = e                                      (not clamped)
+//!    = (2^32 u - sum z_i) / d                 (clamped, d != 0: Hanus' conditioning)
+//!    = 0 (states frozen) if the error pushes further into the clamp, else e  (clamped, d = 0)
+//! z_i <- round(a_i z_i / 2^30) + 2^8 g_i e'   (saturated at +-2^56)
 //! ```
+//!
+//! `d`, `g_i` are Q24 (raw voltage LSB per raw speed LSB), `a_i` Q30, the states `z_i` 64-bit
+//! Q32 raw voltage.
 //!
 //! Why parallel first-order sections (the modal, diagonal state space) rather than a dense state
 //! space or a cascade of biquads, on a fixed-point C28x:
@@ -20,18 +23,19 @@
 //!   by at most 2^-31, where a biquad's `a1 ~ -2`, `a2 ~ 1` place two poles near `z = 1` with an
 //!   error amplified by their distance (the fractional integrator's poles sit from 1e-3 rad/s
 //!   up, `1 - a ~ 1e-6` at 1 kHz);
-//! - no scaling between sections: each state `z_i` is that mode's share of the output in Q16
-//!   raw voltage units, bounded by the voltage range while the anti-windup holds the output at
-//!   the limit (the fractional integrator's modes all have residues of one sign, so they do not
-//!   cancel);
-//! - one 32x32 -> 64 multiply-accumulate per product (C28x `IMPYL`/`QMPYL`), `2 n + 1` of them per
-//!   sample for `n` sections, no division (the anti-windup's `1/d` is sent precomputed);
+//! - no scaling between sections and no overflow analysis per section: each state is that
+//!   mode's share of the output, in 64 bits with 32 fractional bits. The shares of a fractional
+//!   integrator of order above 1 cancel each other (`1/s` times the poles of `s^(1-lambda)`: the
+//!   integrator's share is 100 times the output at 100 rad/s for the FOPI of wc = 50 rad/s on
+//!   the paper's PMSM), which 32-bit states cannot hold; 64-bit states hold +-2^24 raw (16 kV at
+//!   1 mV per LSB) at 2^-32 LSB, and the C28x adds 64 bits in two instructions;
+//! - per section one 32x64-bit product (two 32x32 -> 64, C28x `IMPYL`/`QMPYL`) and one 32x32,
+//!   no division (the anti-windup's `1/d` is sent precomputed);
 //! - the anti-windup is exact: with the output clamped, the states are updated with the error
 //!   that would have produced the clamped output, so they stay those of the applied input.
 //!
-//! The rounding of `a_i z_i` leaves a dead band of `0.5 / (1 - a_i)` Q16 LSB on the slowest
-//! modes (about 7.6 raw voltage LSB for a pole at 1e-3 rad/s at 1 kHz); the integral action
-//! removes what it does to the steady state.
+//! The rounding of `a_i z_i` leaves a dead band of `0.5 / (1 - a_i)` 2^-32 LSB on the slowest
+//! modes (1e-4 raw LSB for a pole at 1e-3 rad/s at 1 kHz).
 
 use crate::error::{Error, Result};
 use crate::protocol::{LoadCtrl, LoadSection, CTRL_FORMAT, MAX_SECTIONS};
@@ -42,20 +46,25 @@ use num_complex::Complex64;
 pub struct Section {
     /// Pole, Q30.
     pub a_q30: i32,
-    /// Input gain, Q16 raw voltage per raw speed LSB.
-    pub g_q16: i32,
+    /// Input gain, Q24 raw voltage per raw speed LSB.
+    pub g_q24: i32,
 }
+
+/// Saturation of the states, Q32: +-2^24 raw voltage LSB.
+pub const Z_MAX: i64 = 1 << 56;
 
 /// The controller as the drive runs it.
 #[derive(Debug, Clone, PartialEq, Eq, Default)]
 pub struct FixedCtrl {
-    /// Feed-through, Q16 raw voltage per raw speed LSB.
-    pub d_q16: i32,
+    /// Feed-through, Q24 raw voltage per raw speed LSB.
+    pub d_q24: i32,
     /// `1/d`, Q16 raw speed per raw voltage LSB (0: no feed-through).
     pub dinv_q16: i32,
     /// The sections.
     pub sections: Vec<Section>,
 }
+
+const Q24: f64 = (1u64 << 24) as f64;
 
 /// `round(p / 2^s)`, half away from zero (as the C firmware: no shift of a negative number).
 fn round_shift(p: i64, s: u32) -> i64 {
@@ -67,34 +76,44 @@ fn round_shift(p: i64, s: u32) -> i64 {
     }
 }
 
-fn sat32(v: i64) -> i32 {
-    v.clamp(i32::MIN as i64, i32::MAX as i64) as i32
+/// `round(a z / 2^30)`, half away from zero, `|a| <= 2^30`, `|z| <= 2^56`: two 32x32 -> 64
+/// products of the magnitudes, as the C firmware computes it.
+fn mul_q30(z: i64, a: i32) -> i64 {
+    let m = z.unsigned_abs();
+    let aa = a.unsigned_abs() as u64;
+    let r = (aa * (m >> 32)) * 4 + ((aa * (m & 0xFFFF_FFFF) + (1 << 29)) >> 30);
+    if (z < 0) != (a < 0) {
+        -(r as i64)
+    } else {
+        r as i64
+    }
 }
 
 impl FixedCtrl {
     /// One sample: the error `e = r - y` (raw speed LSB), the voltage limit (raw, > 0). Returns
     /// the clamped command (raw) and whether it was clamped; updates the states `z` (one per
-    /// section). Bit-identical to the C firmware's `fw_ctrl_step` (tested).
-    pub fn step(&self, z: &mut [i32], e: i32, u_limit: i16) -> (i16, bool) {
-        let zsum: i64 = z.iter().map(|&v| v as i64).sum();
-        let v = self.d_q16 as i64 * e as i64 + zsum;
-        let u = round_shift(v, 16);
+    /// section, Q32). Bit-identical to the C firmware's `fw_ctrl_step` (tested).
+    pub fn step(&self, z: &mut [i64], e: i32, u_limit: i16) -> (i16, bool) {
+        let zsum: i64 = z.iter().sum();
+        let v = self.d_q24 as i64 * e as i64 * 256 + zsum;
+        let u = round_shift(v, 32);
         let lim = u_limit.max(1) as i64;
         let clamped = u > lim || u < -lim;
         let us = u.clamp(-lim, lim);
         let e_upd = if !clamped {
             e as i64
         } else if self.dinv_q16 != 0 {
-            let diff = ((us << 16) - zsum).clamp(i32::MIN as i64, i32::MAX as i64);
-            round_shift(diff * self.dinv_q16 as i64, 32)
+            let diff = round_shift(us * (1i64 << 32) - zsum, 16)
+                .clamp(-(i32::MAX as i64), i32::MAX as i64);
+            round_shift(diff * self.dinv_q16 as i64, 32).clamp(-131_072, 131_072)
         } else if (u > lim && e > 0) || (u < -lim && e < 0) {
             return (us as i16, true); // conditional integration: the sections are frozen
         } else {
             e as i64
         };
         for (zi, s) in z.iter_mut().zip(&self.sections) {
-            let p = round_shift(s.a_q30 as i64 * *zi as i64, 30) + s.g_q16 as i64 * e_upd;
-            *zi = sat32(p);
+            let p = mul_q30(*zi, s.a_q30) + s.g_q24 as i64 * e_upd * 256;
+            *zi = p.clamp(-Z_MAX, Z_MAX);
         }
         (us as i16, clamped)
     }
@@ -105,7 +124,7 @@ impl FixedCtrl {
             LoadCtrl {
                 format: CTRL_FORMAT,
                 n_sections: self.sections.len() as u8,
-                d_q16: self.d_q16,
+                d_q24: self.d_q24,
                 dinv_q16: self.dinv_q16,
             },
             self.sections
@@ -114,7 +133,7 @@ impl FixedCtrl {
                 .map(|(i, s)| LoadSection {
                     index: i as u8,
                     a_q30: s.a_q30,
-                    g_q16: s.g_q16,
+                    g_q24: s.g_q24,
                 })
                 .collect(),
         )
@@ -123,13 +142,13 @@ impl FixedCtrl {
     /// The controller from its download (the drive's side of [`FixedCtrl::messages`]).
     pub fn from_messages(c: &LoadCtrl, s: &[LoadSection]) -> Self {
         Self {
-            d_q16: c.d_q16,
+            d_q24: c.d_q24,
             dinv_q16: c.dinv_q16,
             sections: s
                 .iter()
                 .map(|s| Section {
                     a_q30: s.a_q30,
-                    g_q16: s.g_q16,
+                    g_q24: s.g_q24,
                 })
                 .collect(),
         }
@@ -141,10 +160,8 @@ impl FixedCtrl {
     pub fn freq_response(&self, omega: f64, dt: f64, gain_raw: f64) -> Complex64 {
         let z = Complex64::from_polar(1.0, omega * dt);
         let c = self.sections.iter().fold(
-            Complex64::new(self.d_q16 as f64 / 65536.0, 0.0),
-            |acc, s| {
-                acc + (s.g_q16 as f64 / 65536.0) / (z - s.a_q30 as f64 / (1u64 << 30) as f64)
-            },
+            Complex64::new(self.d_q24 as f64 / Q24, 0.0),
+            |acc, s| acc + (s.g_q24 as f64 / Q24) / (z - s.a_q30 as f64 / (1u64 << 30) as f64),
         );
         c / gain_raw
     }
@@ -162,7 +179,7 @@ impl FixedCtrl {
     /// # Errors
     /// [`Error::InvalidParam`]: inconsistent sizes, non-finite entries, an `A` that is not lower
     /// triangular, repeated or unstable poles, more than [`MAX_SECTIONS`] sections, a gain beyond
-    /// the Q16 range (+-32767 raw voltage per raw speed LSB).
+    /// the Q24 range (+-128 raw voltage per raw speed LSB).
     pub fn from_state_space(
         a: &[Vec<f64>],
         b: &[f64],
@@ -242,23 +259,24 @@ impl FixedCtrl {
         let cv: Vec<f64> = (0..m)
             .map(|p| (p..m).map(|r| c[keep[r]] * v[r][p]).sum())
             .collect();
-        let q16 = |x: f64, what: &str| -> Result<i32> {
-            let q = (x * 65536.0).round();
+        let q = |x: f64, scale: f64, what: &str| -> Result<i32> {
+            let q = (x * scale).round();
             if q.abs() > i32::MAX as f64 {
                 return bad(format!(
-                    "{what} = {x} raw voltage per raw speed LSB is beyond the Q16 range \
-                     (+-32767): use coarser channel scales"
+                    "{what} = {x} raw LSB per raw LSB is beyond its range (+-{}): other \
+                     channel scales",
+                    i32::MAX as f64 / scale
                 ));
             }
             Ok(q as i32)
         };
         let mut sections = Vec::new();
         for p in 0..m {
-            let g = q16(gain_raw * cv[p] * w[p], "a section's gain")?;
+            let g = q(gain_raw * cv[p] * w[p], Q24, "a section's gain")?;
             if g != 0 {
                 sections.push(Section {
                     a_q30: (lam[p].clamp(-1.0, 1.0) * (1u64 << 30) as f64).round() as i32,
-                    g_q16: g,
+                    g_q24: g,
                 });
             }
         }
@@ -269,14 +287,14 @@ impl FixedCtrl {
             ));
         }
         let d_raw = gain_raw * d;
-        let d_q16 = q16(d_raw, "the feed-through")?;
-        let dinv_q16 = if d_q16 != 0 && d_raw.abs() >= 2.0 / 65536.0 {
-            q16(1.0 / d_raw, "1/feed-through").unwrap_or(0)
+        let d_q24 = q(d_raw, Q24, "the feed-through")?;
+        let dinv_q16 = if d_raw.abs() >= 2.0 / 65536.0 {
+            q(1.0 / d_raw, 65536.0, "1/feed-through").unwrap_or(0)
         } else {
             0
         };
         Ok(Self {
-            d_q16,
+            d_q24,
             dinv_q16,
             sections,
         })
@@ -294,11 +312,11 @@ mod tests {
         let k = FixedCtrl::from_state_space(&[vec![1.0]], &[dt], &[ki], kp, 10.0).unwrap();
         assert_eq!(k.sections.len(), 1);
         assert_eq!(k.sections[0].a_q30, 1 << 30);
-        assert_eq!(k.sections[0].g_q16, (10.0 * ki * dt * 65536.0_f64).round() as i32);
-        assert_eq!(k.d_q16, 5 * 65536);
+        assert_eq!(k.sections[0].g_q24, (10.0 * ki * dt * Q24).round() as i32);
+        assert_eq!(k.d_q24, 5 << 24);
         assert_eq!(k.dinv_q16, 65536 / 5);
         // a constant error of 100 LSB: u = 5*100 + 0.2*100*k (raw)
-        let mut z = vec![0];
+        let mut z = vec![0i64];
         for step in 0..10 {
             let (u, c) = k.step(&mut z, 100, 30000);
             assert!(!c);
@@ -309,14 +327,14 @@ mod tests {
     #[test]
     fn clamped_output_holds_states_consistent_with_the_limit() {
         let k = FixedCtrl::from_state_space(&[vec![1.0]], &[1e-3], &[20.0], 0.5, 10.0).unwrap();
-        let mut z = vec![0];
+        let mut z = vec![0i64];
         for _ in 0..1000 {
             let (u, c) = k.step(&mut z, 10_000, 1000);
             assert_eq!(u, 1000);
             assert!(c);
         }
         // Hanus: d e' + z = limit, so z = limit - d e_(next) stays bounded, not wound up
-        let zr = z[0] as f64 / 65536.0;
+        let zr = z[0] as f64 / 4294967296.0;
         assert!(zr.abs() <= 1000.0 + 5.0, "z = {zr}");
         // the error reverses: the output leaves the limit at once (no windup to unwind)
         let (u, _) = k.step(&mut z, -100, 1000);

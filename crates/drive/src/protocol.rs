@@ -222,6 +222,7 @@ impl StartSine {
 }
 
 /// The controller format LOAD_CTRL carries: 1, parallel first-order sections in Q-format
+/// (poles Q30, gains Q24, 64-bit states Q32)
 /// (PROTOCOL.md section 3, "Speed loop").
 pub const CTRL_FORMAT: u8 = 1;
 /// The most sections a controller has.
@@ -236,8 +237,8 @@ pub struct LoadCtrl {
     pub format: u8,
     /// Number of sections, 0..=[`MAX_SECTIONS`].
     pub n_sections: u8,
-    /// Feed-through `d`, Q16 (raw voltage LSB per raw speed LSB, times 2^16).
-    pub d_q16: i32,
+    /// Feed-through `d`, Q24 (raw voltage LSB per raw speed LSB, times 2^24).
+    pub d_q24: i32,
     /// `1/d` for the anti-windup, Q16 (raw speed LSB per raw voltage LSB, times 2^16); 0 without
     /// feed-through (the sections are then frozen while the output is clamped and the error
     /// pushes further into the clamp).
@@ -251,8 +252,8 @@ pub struct LoadSection {
     pub index: u8,
     /// Pole `a`, Q30 (`|a| <= 1`: `-2^30..=2^30`).
     pub a_q30: i32,
-    /// Input gain `g`, Q16 (raw voltage LSB per raw speed LSB, times 2^16).
-    pub g_q16: i32,
+    /// Input gain `g`, Q24 (raw voltage LSB per raw speed LSB, times 2^24).
+    pub g_q24: i32,
 }
 
 /// START_LOOP payload: the speed loop with the loaded controller, the reference `r0` for the
@@ -715,14 +716,14 @@ impl Message {
                 w.u8(c.format);
                 w.u8(c.n_sections);
                 w.u16(0);
-                w.i32(c.d_q16);
+                w.i32(c.d_q24);
                 w.i32(c.dinv_q16);
             }
             Message::LoadSection(c) => {
                 w.u8(c.index);
                 w.u8(0);
                 w.i32(c.a_q30);
-                w.i32(c.g_q16);
+                w.i32(c.g_q24);
             }
             Message::StartLoop(l) => {
                 w.i16(l.r0);
@@ -871,7 +872,7 @@ impl Message {
                 Message::LoadCtrl(LoadCtrl {
                     format,
                     n_sections,
-                    d_q16: r.i32(),
+                    d_q24: r.i32(),
                     dinv_q16: r.i32(),
                 })
             }
@@ -883,7 +884,7 @@ impl Message {
                 Message::LoadSection(LoadSection {
                     index,
                     a_q30: r.i32(),
-                    g_q16: r.i32(),
+                    g_q24: r.i32(),
                 })
             }
             ty::START_LOOP => Message::StartLoop(StartLoop {

@@ -623,7 +623,7 @@ enum Excitation {
     Loop {
         p: StartLoop,
         ctrl: crate::ctrl::FixedCtrl,
-        z: Vec<i32>,
+        z: Vec<i64>,
     },
 }
 

@@ -16,7 +16,7 @@ fn arb_msg() -> impl Strategy<Value = Message> {
             Message::LoadCtrl(LoadCtrl {
                 format: f,
                 n_sections: n,
-                d_q16: d,
+                d_q24: d,
                 dinv_q16: di,
             })
         }),
@@ -24,7 +24,7 @@ fn arb_msg() -> impl Strategy<Value = Message> {
             Message::LoadSection(LoadSection {
                 index: i,
                 a_q30: a,
-                g_q16: g,
+                g_q24: g,
             })
         }),
         (any::<i16>(), any::<i16>(), any::<u32>(), any::<u32>()).prop_map(|(r0, r1, p, t)| {
@@ -301,13 +301,13 @@ fn arb_ctrl() -> impl Strategy<Value = drive::ctrl::FixedCtrl> {
         prop::collection::vec((-(1i32 << 30)..=(1 << 30), any::<i32>()), 0..=24),
     )
         .prop_map(|(d, di, s)| drive::ctrl::FixedCtrl {
-            d_q16: d >> 8,
+            d_q24: d,
             dinv_q16: di >> 12,
             sections: s
                 .into_iter()
                 .map(|(a, g)| drive::ctrl::Section {
                     a_q30: a,
-                    g_q16: g >> 10,
+                    g_q24: g,
                 })
                 .collect(),
         })

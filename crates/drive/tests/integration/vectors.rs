@@ -113,7 +113,7 @@ fn named_frames() -> Vec<(&'static str, Frame)> {
                 msg: Message::LoadCtrl(LoadCtrl {
                     format: CTRL_FORMAT,
                     n_sections: 2,
-                    d_q16: 1_638_400,
+                    d_q24: 1_638_400,
                     dinv_q16: 2621,
                 }),
             },
@@ -125,7 +125,7 @@ fn named_frames() -> Vec<(&'static str, Frame)> {
                 msg: Message::LoadSection(LoadSection {
                     index: 1,
                     a_q30: 1_062_997_818,
-                    g_q16: -1234,
+                    g_q24: -1234,
                 }),
             },
         ),
@@ -354,7 +354,7 @@ fn vector_controllers() -> Vec<(&'static str, drive::ctrl::FixedCtrl, i16, Vec<i
     use drive::ctrl::{FixedCtrl, Section};
     let s = |a: f64, g: i32| Section {
         a_q30: (a * (1u64 << 30) as f64).round() as i32,
-        g_q16: g,
+        g_q24: g,
     };
     let mut errs: Vec<i32> = (0..40).map(|k| 2000 - 97 * k).collect();
     errs.extend((0..40).map(|k| -((k * 7919) % 3001) + 1500));
@@ -363,13 +363,13 @@ fn vector_controllers() -> Vec<(&'static str, drive::ctrl::FixedCtrl, i16, Vec<i
         (
             "fopi",
             FixedCtrl {
-                d_q16: 25 * 65536 + 3,
-                dinv_q16: (65536.0f64 / (25.0 + 3.0 / 65536.0)).round() as i32,
+                d_q24: (0.56 * 16_777_216.0f64).round() as i32,
+                dinv_q16: (65536.0f64 / 0.56).round() as i32,
                 sections: vec![
-                    s(1.0, 1311),
-                    s(0.9999990, 77),
-                    s(0.99, 5000),
-                    s(0.5, 70_000),
+                    s(1.0, 90_000_000),
+                    s(0.9999990, -333),
+                    s(0.99, -70_000_000),
+                    s(0.5, -5_000_000),
                     s(-0.25, -3000),
                     s(0.0, 123_456),
                 ],
@@ -380,9 +380,9 @@ fn vector_controllers() -> Vec<(&'static str, drive::ctrl::FixedCtrl, i16, Vec<i
         (
             "integrator",
             FixedCtrl {
-                d_q16: 0,
+                d_q24: 0,
                 dinv_q16: 0,
-                sections: vec![s(1.0, 40_000)],
+                sections: vec![s(1.0, 40_000 << 8)],
             },
             5000,
             errs.clone(),
@@ -390,9 +390,9 @@ fn vector_controllers() -> Vec<(&'static str, drive::ctrl::FixedCtrl, i16, Vec<i
         (
             "saturating",
             FixedCtrl {
-                d_q16: -7 * 65536,
+                d_q24: -7 << 24,
                 dinv_q16: -(65536 / 7),
-                sections: vec![s(1.0, i32::MAX / 4), s(-1.0, i32::MIN / 3)],
+                sections: vec![s(1.0, i32::MAX), s(-1.0, i32::MIN), s(0.75, i32::MAX)],
             },
             32767,
             errs,
@@ -408,13 +408,13 @@ fn controller_steps() {
     if std::env::var_os("DRIVE_REGEN_VECTORS").is_some() {
         let mut s = String::from(
             "# fracid drive speed-loop controller (PROTOCOL.md section 3): fixed-point steps\n\
-             # CTRL name d_q16 dinv_q16 u_limit n a_q30 g_q16 ... (states start at 0)\n\
+             # CTRL name d_q24 dinv_q16 u_limit n a_q30 g_q24 ... (states start at 0)\n\
              # STEP e u clamped z_0 .. z_(n-1) (the states after the step)\n",
         );
         for (name, k, lim, errs) in vector_controllers() {
-            s += &format!("CTRL {name} {} {} {lim} {}", k.d_q16, k.dinv_q16, k.sections.len());
+            s += &format!("CTRL {name} {} {} {lim} {}", k.d_q24, k.dinv_q16, k.sections.len());
             for sec in &k.sections {
-                s += &format!(" {} {}", sec.a_q30, sec.g_q16);
+                s += &format!(" {} {}", sec.a_q30, sec.g_q24);
             }
             s += "\n";
             let mut z = vec![0; k.sections.len()];
@@ -430,7 +430,7 @@ fn controller_steps() {
         std::fs::write(&path, s).unwrap();
     }
     let text = std::fs::read_to_string(&path).unwrap();
-    let mut cur: Option<(drive::ctrl::FixedCtrl, i16, Vec<i32>, Vec<i32>)> = None;
+    let mut cur: Option<(drive::ctrl::FixedCtrl, i16, Vec<i64>, Vec<i64>)> = None;
     let (mut steps, mut ctrls, mut clamped) = (0, 0, 0);
     for line in text.lines().filter(|l| !l.starts_with('#') && !l.trim().is_empty()) {
         let f: Vec<&str> = line.split_whitespace().collect();
@@ -438,12 +438,12 @@ fn controller_steps() {
         if f[0] == "CTRL" {
             let n = num(5) as usize;
             let k = drive::ctrl::FixedCtrl {
-                d_q16: num(2) as i32,
+                d_q24: num(2) as i32,
                 dinv_q16: num(3) as i32,
                 sections: (0..n)
                     .map(|i| drive::ctrl::Section {
                         a_q30: num(6 + 2 * i) as i32,
-                        g_q16: num(7 + 2 * i) as i32,
+                        g_q24: num(7 + 2 * i) as i32,
                     })
                     .collect(),
             };
@@ -452,7 +452,7 @@ fn controller_steps() {
         } else {
             let (k, lim, z, zc) = cur.as_mut().expect("STEP after CTRL");
             let e = num(1) as i32;
-            let want_z: Vec<i32> = f[4..].iter().map(|v| v.parse().unwrap()).collect();
+            let want_z: Vec<i64> = f[4..].iter().map(|v| v.parse().unwrap()).collect();
             let (u, c) = k.step(z, e, *lim);
             assert_eq!((u as i64, c as i64), (num(2), num(3)), "{line}: Rust");
             assert_eq!(*z, want_z, "{line}: Rust states");

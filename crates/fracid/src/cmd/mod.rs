@@ -4,6 +4,7 @@ pub mod compare;
 pub mod demo;
 pub mod diagnose;
 pub mod drive;
+pub mod drive_loop;
 pub mod export;
 pub mod fleet;
 pub mod freq;
