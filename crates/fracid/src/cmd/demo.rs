@@ -263,7 +263,6 @@ pub fn run(a: DemoArgs) -> Result<()> {
     let link_stats = client.stats();
     drop(client);
     let sim_stats = sim.stats();
-    sim.stop();
 
     // 3. Identify and diagnose, with the user's commands.
     step("time domain: output-error fit and diagnosis");
@@ -326,6 +325,15 @@ pub fn run(a: DemoArgs) -> Result<()> {
         path_str(&cmp_png)?,
     ];
     let cmp_txt = run_self(&cmp_args, &dir.join("compare.txt"))?;
+
+    // 3b. The tuned loop on the drive (cmd/demo_loop.rs); the drive was kept running for it.
+    step("the tuned loop on the drive");
+    let model = crate::cmd::demo_loop::model_of(&time_json_path)?;
+    let tuned = crate::cmd::demo_loop::run(sim.port_path(), a.baud, a.sample_rate_hz, &model, dir)?;
+    sim.stop();
+    if let (Some(rec), Some(fig)) = (&tuned.record, &tuned.figure) {
+        step(&format!("tuned loop: {} and {}", rec.display(), fig.display()));
+    }
 
     // 4. The report.
     let mut r = String::new();
@@ -434,6 +442,9 @@ pub fn run(a: DemoArgs) -> Result<()> {
         "- Simulator counters: {} frames sent, {} damaged, {} blocks dropped, {} receive overruns.\n",
         sim_stats.frames_sent, sim_stats.frames_damaged, sim_stats.blocks_dropped, sim_stats.rx_overruns
     )?;
+    for l in &tuned.lines {
+        writeln!(r, "{l}")?;
+    }
     writeln!(r, "Total time: {:.1} s.", started.elapsed().as_secs_f64())?;
     let report = dir.join("report.md");
     std::fs::write(&report, r).with_context(|| format!("cannot write {}", report.display()))?;

@@ -70,7 +70,7 @@ pub struct TuneArgs {
 
 /// The final model of `text` and its input effects: a JSON report's "diagnosis.model" (with
 /// "diagnosis.effects") or "model", or a transfer function.
-fn load_model(text: &str) -> Result<(FracTf, Vec<InputEffect>, Vec<String>)> {
+pub(crate) fn load_model(text: &str) -> Result<(FracTf, Vec<InputEffect>, Vec<String>)> {
     let p = Path::new(text);
     if !p
         .extension()
