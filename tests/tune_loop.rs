@@ -54,10 +54,21 @@ fn figures(t: &[f64], y: &[f64], a: f64) -> (f64, f64) {
 /// fractional derivative `D^q x_k = h^-q sum_j w^(q)_j x_(k-j)`, the plant's equation
 /// `sum a_i D^(alpha_i) y = b u(t - tau)` solved for `y_k` (explicit: `tau >= h`), then the
 /// controller's `D^lambda u = kp D^lambda e + ki e` for `u_k`. Returns `(t, y)`.
-fn gl_loop(kp: f64, ki: f64, lambda: f64, tau: f64, a: f64, h: f64, n: usize) -> (Vec<f64>, Vec<f64>) {
+fn gl_loop(
+    kp: f64,
+    ki: f64,
+    lambda: f64,
+    tau: f64,
+    a: f64,
+    h: f64,
+    n: usize,
+) -> (Vec<f64>, Vec<f64>) {
     let g: fracsim::FracTf = PMSM.parse().unwrap();
     let m = (tau / h).round() as usize;
-    assert!(m >= 1 && (m as f64 * h - tau).abs() < 1e-12, "tau a multiple of h");
+    assert!(
+        m >= 1 && (m as f64 * h - tau).abs() < 1e-12,
+        "tau a multiple of h"
+    );
     let combined = |terms: &[fracsim::Term]| {
         let mut w = vec![0.0; n];
         for t in terms {
@@ -103,7 +114,10 @@ fn loop_rows(text: &str, samples: usize) -> Vec<[f64; 4]> {
         "{}",
         text.lines().last().unwrap_or("")
     );
-    assert!(!text.contains("# clamped"), "the linear loop must not clamp");
+    assert!(
+        !text.contains("# clamped"),
+        "the linear loop must not clamp"
+    );
     text.lines()
         .filter(|l| l.starts_with(|c: char| c.is_ascii_digit()))
         .map(|l| {
@@ -133,7 +147,11 @@ fn tuned_fopi_steps_on_the_drive_as_the_continuous_loop_predicts() {
     let out = fracid(&[
         "tune", PMSM, "--wc", "50", "--pm", "60", "--dt", "0.001", "--json",
     ]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let ctrl = dir.path().join("c.json");
     std::fs::write(&ctrl, &out.stdout).unwrap();
     let rep: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
@@ -179,7 +197,11 @@ fn tuned_fopi_steps_on_the_drive_as_the_continuous_loop_predicts() {
             csv.to_str().unwrap(),
         ]);
         drop(sim);
-        assert!(out.status.success(), "{fw}: {}", String::from_utf8_lossy(&out.stderr));
+        assert!(
+            out.status.success(),
+            "{fw}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
         let text = std::fs::read_to_string(&csv).unwrap();
         let rows = loop_rows(&text, (duration / dt) as usize);
         // the reference: 0 before the step, the step after; the command 0 at rest
@@ -198,7 +220,10 @@ fn tuned_fopi_steps_on_the_drive_as_the_continuous_loop_predicts() {
             "{fw} firmware: overshoot {os:.2}% (GL {os_gl:.2}%), rise 10-90% {rise:.4} s (GL \
              {rise_gl:.4} s)"
         );
-        assert!((os - os_gl).abs() <= 3.0, "{fw}: overshoot {os} vs GL {os_gl}");
+        assert!(
+            (os - os_gl).abs() <= 3.0,
+            "{fw}: overshoot {os} vs GL {os_gl}"
+        );
         assert!(
             (rise / rise_gl - 1.0).abs() <= 0.15,
             "{fw}: rise {rise} vs GL {rise_gl}"

@@ -159,10 +159,12 @@ impl FixedCtrl {
     /// g_i / (z - a_i)) / gain_raw`, `z = e^(j omega dt)`, the coefficients as quantised.
     pub fn freq_response(&self, omega: f64, dt: f64, gain_raw: f64) -> Complex64 {
         let z = Complex64::from_polar(1.0, omega * dt);
-        let c = self.sections.iter().fold(
-            Complex64::new(self.d_q24 as f64 / Q24, 0.0),
-            |acc, s| acc + (s.g_q24 as f64 / Q24) / (z - s.a_q30 as f64 / (1u64 << 30) as f64),
-        );
+        let c = self
+            .sections
+            .iter()
+            .fold(Complex64::new(self.d_q24 as f64 / Q24, 0.0), |acc, s| {
+                acc + (s.g_q24 as f64 / Q24) / (z - s.a_q30 as f64 / (1u64 << 30) as f64)
+            });
         c / gain_raw
     }
 
@@ -354,11 +356,16 @@ mod tests {
             let x2 = (b[1] + 0.3 * x1) / (z - 0.5);
             let want = c[0] * x1 + c[1] * x2 + d;
             let got = k.freq_response(w, 1e-3, 1.0);
-            assert!((got - want).norm() < 1e-3 * want.norm(), "{w}: {got} {want}");
+            assert!(
+                (got - want).norm() < 1e-3 * want.norm(),
+                "{w}: {got} {want}"
+            );
         }
-        assert!(FixedCtrl::from_state_space(&[vec![1.0, 0.2], vec![0.0, 0.5]], &b, &c, d, 1.0)
-            .is_err());
-        assert!(FixedCtrl::from_state_space(&[vec![1.0, 0.0], vec![0.3, 1.0]], &b, &c, d, 1.0)
-            .is_err());
+        assert!(
+            FixedCtrl::from_state_space(&[vec![1.0, 0.2], vec![0.0, 0.5]], &b, &c, d, 1.0).is_err()
+        );
+        assert!(
+            FixedCtrl::from_state_space(&[vec![1.0, 0.0], vec![0.3, 1.0]], &b, &c, d, 1.0).is_err()
+        );
     }
 }

@@ -305,10 +305,7 @@ fn arb_ctrl() -> impl Strategy<Value = drive::ctrl::FixedCtrl> {
             dinv_q16: di >> 12,
             sections: s
                 .into_iter()
-                .map(|(a, g)| drive::ctrl::Section {
-                    a_q30: a,
-                    g_q24: g,
-                })
+                .map(|(a, g)| drive::ctrl::Section { a_q30: a, g_q24: g })
                 .collect(),
         })
 }

@@ -412,7 +412,12 @@ fn controller_steps() {
              # STEP e u clamped z_0 .. z_(n-1) (the states after the step)\n",
         );
         for (name, k, lim, errs) in vector_controllers() {
-            s += &format!("CTRL {name} {} {} {lim} {}", k.d_q24, k.dinv_q16, k.sections.len());
+            s += &format!(
+                "CTRL {name} {} {} {lim} {}",
+                k.d_q24,
+                k.dinv_q16,
+                k.sections.len()
+            );
             for sec in &k.sections {
                 s += &format!(" {} {}", sec.a_q30, sec.g_q24);
             }
@@ -432,7 +437,10 @@ fn controller_steps() {
     let text = std::fs::read_to_string(&path).unwrap();
     let mut cur: Option<(drive::ctrl::FixedCtrl, i16, Vec<i64>, Vec<i64>)> = None;
     let (mut steps, mut ctrls, mut clamped) = (0, 0, 0);
-    for line in text.lines().filter(|l| !l.starts_with('#') && !l.trim().is_empty()) {
+    for line in text
+        .lines()
+        .filter(|l| !l.starts_with('#') && !l.trim().is_empty())
+    {
         let f: Vec<&str> = line.split_whitespace().collect();
         let num = |i: usize| f[i].parse::<i64>().unwrap();
         if f[0] == "CTRL" {
@@ -464,5 +472,8 @@ fn controller_steps() {
         }
     }
     assert_eq!(ctrls, 3);
-    assert!(steps >= 270 && clamped >= 10, "{steps} steps, {clamped} clamped");
+    assert!(
+        steps >= 270 && clamped >= 10,
+        "{steps} steps, {clamped} clamped"
+    );
 }

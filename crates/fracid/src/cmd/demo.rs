@@ -332,7 +332,11 @@ pub fn run(a: DemoArgs) -> Result<()> {
     let tuned = crate::cmd::demo_loop::run(sim.port_path(), a.baud, a.sample_rate_hz, &model, dir)?;
     sim.stop();
     if let (Some(rec), Some(fig)) = (&tuned.record, &tuned.figure) {
-        step(&format!("tuned loop: {} and {}", rec.display(), fig.display()));
+        step(&format!(
+            "tuned loop: {} and {}",
+            rec.display(),
+            fig.display()
+        ));
     }
 
     // 4. The report.

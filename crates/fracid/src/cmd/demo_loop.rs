@@ -5,7 +5,7 @@
 //! Kept apart from `demo.rs`: [`run`] takes the drive's port, the model and the output folder and
 //! returns the report's lines and the figure's path.
 
-use crate::cmd::drive_loop::{self, Realisation};
+use crate::cmd::drive_loop::{self, MeasuredStep, Realisation};
 use crate::plot::{self, Figure, Line, Look, TimeChart};
 use anyhow::{Context, Result};
 use drive::client::{Client, ClientConfig, LazyFile, LoopCsvSink, LoopTest};
@@ -46,7 +46,13 @@ pub struct DemoLoop {
 ///
 /// # Errors
 /// As [`run_with`]; the port does not open.
-pub fn run(port: &str, baud: u32, sample_rate_hz: u32, model: &FracTf, dir: &Path) -> Result<DemoLoop> {
+pub fn run(
+    port: &str,
+    baud: u32,
+    sample_rate_hz: u32,
+    model: &FracTf,
+    dir: &Path,
+) -> Result<DemoLoop> {
     let mut client = Client::open(
         port,
         ClientConfig {
@@ -164,11 +170,12 @@ pub fn run_with(
             fmt(m.settling_time)
         ));
     }
-    if let Some((_, _, (os, rise, settle))) = &measured {
+    if let Some(m) = &measured {
         lines.push(format!(
-            "| measured on the drive | {os:.2}% | {} | {} |",
-            fmt(*rise),
-            fmt(*settle)
+            "| measured on the drive | {:.2}% | {} | {} |",
+            m.overshoot_percent,
+            fmt(m.rise_time),
+            fmt(m.settling_time)
         ));
     }
     lines.push(String::new());
@@ -183,7 +190,7 @@ pub fn run_with(
         }
     ));
     let figure = match (&runs.design, &measured) {
-        (Some(run), Some((t, y, _))) => {
+        (Some(run), Some(MeasuredStep { t, y, .. })) => {
             let path = dir.join("loop.png");
             // the prediction at the drive's sample instants (its fine step divides dt)
             let m = (dt / report.step.setup.h).round().max(1.0) as usize;

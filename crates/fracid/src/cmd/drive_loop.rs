@@ -16,9 +16,9 @@ use anyhow::{Context, Result};
 use drive::client::{Acquisition, Client, LoopCsvSink, LoopTest, SampleSink};
 use drive::ctrl::FixedCtrl;
 use drive::protocol::{Configure, StartLoop};
+use num_complex::Complex64;
 use serde_json::Value;
 use std::io::Write;
-use num_complex::Complex64;
 use std::path::PathBuf;
 
 /// Options of `fracid drive loop`.
@@ -75,11 +75,8 @@ fn bad(msg: String) -> anyhow::Error {
 /// Not JSON, no `discrete` realisation (a design without `--dt`), matrices of the wrong shape or
 /// with non-numbers (all bad input, exit 2).
 pub fn parse_realisation(text: &str) -> Result<Realisation> {
-    let v: Value = serde_json::from_str(text).map_err(|e| {
-        bad(format!(
-            "not the JSON of `fracid tune --json`: {e}"
-        ))
-    })?;
+    let v: Value = serde_json::from_str(text)
+        .map_err(|e| bad(format!("not the JSON of `fracid tune --json`: {e}")))?;
     let d = v.get("discrete").filter(|d| !d.is_null()).ok_or_else(|| {
         bad("no discrete realisation (\"discrete\"): design with `fracid tune ... --dt DT --json`, DT the drive's sample period".into())
     })?;
@@ -109,7 +106,11 @@ pub fn parse_realisation(text: &str) -> Result<Realisation> {
     let c: Vec<f64> = matrix("c")?.into_iter().flatten().collect();
     let dm: Vec<f64> = matrix("d")?.into_iter().flatten().collect();
     let n = a.len();
-    if !(dt > 0.0) || b.len() != n || c.len() != n || dm.len() != 1 || a.iter().any(|r| r.len() != n)
+    if !(dt > 0.0)
+        || b.len() != n
+        || c.len() != n
+        || dm.len() != 1
+        || a.iter().any(|r| r.len() != n)
     {
         return Err(bad(format!(
             "discrete realisation of inconsistent shape: A {n} rows, B {}, C {}, D {} entries, dt {dt}",
@@ -248,17 +249,30 @@ pub fn run_on(
         .load_controller(k)
         .map_err(lib_err)
         .context("downloading the controller")?;
-    client.run_loop(cmd, sink).map_err(lib_err).context("the loop run")
+    client
+        .run_loop(cmd, sink)
+        .map_err(lib_err)
+        .context("the loop run")
 }
 
-/// The measured step of a loop run: time from the step, speed, and its figures (overshoot %,
-/// 10-90% rise time, 2% settling time; [`tune::closed::step_figures`]) against the reference
-/// `cmd.r1` (rad/s with `y_lsb`). `None` without samples after the step.
-pub fn measured_step(
-    acq: &Acquisition,
-    cmd: &StartLoop,
-    y_lsb: f64,
-) -> Option<(Vec<f64>, Vec<f64>, (f64, Option<f64>, Option<f64>))> {
+/// The measured step of a loop run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MeasuredStep {
+    /// Time from the step, s.
+    pub t: Vec<f64>,
+    /// Speed, rad/s.
+    pub y: Vec<f64>,
+    /// Overshoot, percent of the step.
+    pub overshoot_percent: f64,
+    /// 10-90% rise time, s (`None`: not reached).
+    pub rise_time: Option<f64>,
+    /// 2% settling time, s (`None`: not within the record).
+    pub settling_time: Option<f64>,
+}
+
+/// The measured step of a loop run and its figures ([`tune::closed::step_figures`]) against the
+/// reference `cmd.r1` (rad/s with `y_lsb`). `None` without samples after the step.
+pub fn measured_step(acq: &Acquisition, cmd: &StartLoop, y_lsb: f64) -> Option<MeasuredStep> {
     let first = acq.index.partition_point(|&i| i < cmd.pre_samples as u64);
     if first >= acq.index.len() {
         return None;
@@ -266,8 +280,15 @@ pub fn measured_step(
     let t0 = cmd.pre_samples as f64 / acq.sample_rate_hz as f64;
     let t: Vec<f64> = acq.t[first..].iter().map(|t| t - t0).collect();
     let y = acq.y[first..].to_vec();
-    let f = tune::closed::step_figures(&t, &y, cmd.r1 as f64 * y_lsb);
-    Some((t, y, f))
+    let (overshoot_percent, rise_time, settling_time) =
+        tune::closed::step_figures(&t, &y, cmd.r1 as f64 * y_lsb);
+    Some(MeasuredStep {
+        t,
+        y,
+        overshoot_percent,
+        rise_time,
+        settling_time,
+    })
 }
 
 /// `fracid drive loop`.
@@ -290,8 +311,7 @@ pub fn run(a: LoopArgs) -> Result<()> {
     let text = crate::cmd::read_text(&a.controller)?;
     let real = parse_realisation(&text).with_context(|| a.controller.display().to_string())?;
     let (pruned, dropped) = prune(&real);
-    let k =
-        fixed_controller(&pruned, &conf).with_context(|| a.controller.display().to_string())?;
+    let k = fixed_controller(&pruned, &conf).with_context(|| a.controller.display().to_string())?;
     let qerr = quantisation_error(&real, &k, &conf);
     crate::eprintln_safe!(
         "controller {}: {} fixed-point sections (Q30 poles, Q24 gains, 64-bit states){}; frequency response \
@@ -333,11 +353,14 @@ pub fn run(a: LoopArgs) -> Result<()> {
         .map(|r| format!("{}..{}", r.start, r.end))
         .collect();
     let figures = match measured_step(&acq, &cmd, conf.y_lsb()) {
-        Some((_, _, (os, rise, settle))) => format!(
-            "; step {} rad/s: overshoot {os:.2}%, rise (10-90%) {}, settling (2%) {}",
+        Some(m) => format!(
+            "; step {} rad/s: overshoot {:.2}%, rise (10-90%) {}, settling (2%) {}",
             a.step,
-            rise.map_or("not reached".into(), |r| format!("{r:.4} s")),
-            settle.map_or("not within the record".into(), |s| format!("{s:.4} s")),
+            m.overshoot_percent,
+            m.rise_time
+                .map_or("not reached".into(), |r| format!("{r:.4} s")),
+            m.settling_time
+                .map_or("not within the record".into(), |s| format!("{s:.4} s")),
         ),
         None => String::new(),
     };
