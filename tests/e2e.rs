@@ -368,6 +368,8 @@ fn demo_checks(extra: &[&str]) -> String {
     assert!((dc - 6.82).abs() < 0.2, "b0 = {dc}");
     let report = std::fs::read_to_string(dir.path().join("report.md")).unwrap();
     assert!(report.contains("## The hidden truth"));
+    // it ends with the tuned loop run on the drive: predicted and measured side by side
+    tune_loop::check_demo_loop(dir.path(), &report);
     // the sweep: 16 points written as measured, with the footer; by default each the trimmed
     // mean of 3 measurements with its spread columns
     let bode = std::fs::read_to_string(dir.path().join("bode.csv")).unwrap();

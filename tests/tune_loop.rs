@@ -233,3 +233,34 @@ fn tuned_fopi_steps_on_the_drive_as_the_continuous_loop_predicts() {
     // the two firmwares run the same fixed-point controller on the same motor: one record
     assert_eq!(records[0], records[1], "C and Rust firmware records differ");
 }
+
+/// The demo's last section (`fracid demo`, its report and files in `dir`): the tuned loop ran on
+/// the drive to completion, predicted and measured overshoots side by side within 3 points.
+pub(super) fn check_demo_loop(dir: &std::path::Path, report: &str) {
+    let at = report
+        .find("## The tuned loop on the drive")
+        .expect("the report's tuned-loop section");
+    assert!(report[at..].contains("loop.png"), "{}", &report[at..]);
+    let pct = |row: &str| -> f64 {
+        let line = report[at..]
+            .lines()
+            .find(|l| l.starts_with(row))
+            .unwrap_or_else(|| panic!("no row {row}"));
+        line.split('|')
+            .nth(2)
+            .unwrap()
+            .trim()
+            .trim_end_matches('%')
+            .parse()
+            .unwrap()
+    };
+    let (pred, meas) = (pct("| predicted"), pct("| measured on the drive"));
+    assert!(
+        (pred - meas).abs() <= 3.0,
+        "predicted {pred}% measured {meas}%"
+    );
+    let csv = std::fs::read_to_string(dir.join("loop.csv")).unwrap();
+    assert!(csv.starts_with("# fracid drive loop"), "{csv}");
+    assert!(csv.trim_end().ends_with("# complete: 600 samples"));
+    assert!(dir.join("loop.png").exists());
+}
