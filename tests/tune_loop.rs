@@ -264,3 +264,54 @@ pub(super) fn check_demo_loop(dir: &std::path::Path, report: &str) {
     assert!(csv.trim_end().ends_with("# complete: 600 samples"));
     assert!(dir.join("loop.png").exists());
 }
+
+/// `fracid drive loop` refuses, before touching the port or the output (exit 2), a controller
+/// without a discrete realisation and one realised for another sample period, and says what to
+/// do; a missing controller file is an I/O error (exit 3).
+#[test]
+fn drive_loop_refuses_a_controller_it_cannot_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let out_csv = dir.path().join("loop.csv");
+    let run = |ctrl: &std::path::Path| {
+        fracid(&[
+            "drive",
+            "loop",
+            "--port",
+            "/nonexistent/port",
+            "--controller",
+            ctrl.to_str().unwrap(),
+            "--step",
+            "10",
+            "--duration",
+            "0.5",
+            "-o",
+            out_csv.to_str().unwrap(),
+        ])
+    };
+    for (args, want) in [
+        (vec!["--wc", "50", "--pm", "60"], "--dt"),
+        (
+            vec!["--wc", "50", "--pm", "60", "--dt", "0.002"],
+            "--sample-rate 500",
+        ),
+    ] {
+        let mut a = vec!["tune", PMSM, "--json"];
+        a.extend(args);
+        let t = fracid(&a);
+        assert!(t.status.success());
+        let ctrl = dir.path().join("c.json");
+        std::fs::write(&ctrl, &t.stdout).unwrap();
+        let out = run(&ctrl);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{err}");
+        assert!(err.contains(want), "{err}");
+        assert!(!out_csv.exists());
+    }
+    let out = run(&dir.path().join("missing.json"));
+    assert_eq!(
+        out.status.code(),
+        Some(3),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}

@@ -205,7 +205,7 @@ pub fn prune(r: &Realisation) -> (Realisation, Vec<usize>) {
 ///
 /// # Errors
 /// A sample rate other than `1/dt`; a realisation the drive cannot run (not triangular, repeated
-/// poles, gains beyond Q16, too many sections): bad input, exit 2.
+/// poles, gains beyond Q24, too many sections): bad input, exit 2.
 pub fn fixed_controller(r: &Realisation, conf: &Configure) -> Result<FixedCtrl> {
     let fs = conf.sample_rate_hz as f64;
     if (r.dt * fs - 1.0).abs() > 1e-6 {
