@@ -173,15 +173,16 @@ impl FixedCtrl {
     ///
     /// States that do not reach the output and feed nothing, or that nothing drives, are
     /// dropped; `A` must then be lower triangular (the realisations of `tune::realise` are)
-    /// with distinct eigenvalues (its diagonal) of modulus at most 1: the modes are found by
+    /// with eigenvalues (its diagonal) of modulus at most 1, equal ones (within 1e-9) only
+    /// between states that do not drive each other: the modes are found by
     /// forward substitution, `A = V diag(a) V^-1` with `V` unit lower triangular, and section
     /// `i` is `a_i`, `g_i = gain_raw (C V)_i (V^-1 B)_i` (its state is the mode's share of the
     /// output). Sections whose `g_i` rounds to 0 are left out.
     ///
     /// # Errors
     /// [`Error::InvalidParam`]: inconsistent sizes, non-finite entries, an `A` that is not lower
-    /// triangular, repeated or unstable poles, more than [`MAX_SECTIONS`] sections, a gain beyond
-    /// the Q24 range (+-128 raw voltage per raw speed LSB).
+    /// triangular, coupled repeated poles or unstable ones, more than [`MAX_SECTIONS`]
+    /// sections, a gain beyond the Q24 range (+-128 raw voltage per raw speed LSB).
     pub fn from_state_space(
         a: &[Vec<f64>],
         b: &[f64],
@@ -232,16 +233,8 @@ impl FixedCtrl {
             }
         }
         let lam: Vec<f64> = keep.iter().map(|&i| a[i][i]).collect();
-        for (p, l) in lam.iter().enumerate() {
-            if l.abs() > 1.0 + 1e-12 {
-                return bad(format!("pole {l} outside the unit circle"));
-            }
-            if lam[..p].iter().any(|q| (q - l).abs() < 1e-9) {
-                return bad(format!(
-                    "repeated pole {l} (a double integrator, or two differences): not a set of \
-                     first-order sections"
-                ));
-            }
+        if let Some(l) = lam.iter().find(|l| l.abs() > 1.0 + 1e-12) {
+            return bad(format!("pole {l} outside the unit circle"));
         }
         // V: column p is the eigenvector of lam[p] (unit at p, zero above)
         let sub = |r: usize, s: usize| a[keep[r]][keep[s]];
@@ -250,6 +243,17 @@ impl FixedCtrl {
             v[p][p] = 1.0;
             for r in p + 1..m {
                 let s: f64 = (p..r).map(|k| sub(r, k) * v[k][p]).sum();
+                if s == 0.0 {
+                    continue; // not coupled: equal poles are two sections
+                }
+                if (lam[p] - lam[r]).abs() < 1e-9 {
+                    return bad(format!(
+                        "repeated pole {} coupled to itself (a double integrator, or a \
+                         difference after a pole that rounds to 0): not a set of first-order \
+                         sections",
+                        lam[p]
+                    ));
+                }
                 v[r][p] = s / (lam[p] - lam[r]);
             }
         }
