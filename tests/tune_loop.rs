@@ -11,20 +11,25 @@ const PMSM: &str = "6.82/(2.655e-5 s^1.7452 + 0.0059 s^0.92 + 1)";
 /// `fracid drive sim` on the paper's PMSM without hidden effects, in virtual time, with the given
 /// firmware: the process and the port it prints.
 fn clean_sim(firmware: &str) -> (KillOnDrop, String) {
+    sim_with(&["--firmware", firmware])
+}
+
+/// `fracid drive sim` in virtual time with `extra` options: the process and its port.
+fn sim_with(extra: &[&str]) -> (KillOnDrop, String) {
     use std::io::{BufRead, BufReader};
+    let mut args = vec![
+        "drive",
+        "sim",
+        "--baud",
+        "921600",
+        "--duration",
+        "120",
+        "--virtual-time",
+    ];
+    args.extend(extra);
     let mut sim = KillOnDrop(
         Command::new(fracid_bin())
-            .args([
-                "drive",
-                "sim",
-                "--baud",
-                "921600",
-                "--duration",
-                "120",
-                "--virtual-time",
-                "--firmware",
-                firmware,
-            ])
+            .args(&args)
             .stdout(Stdio::piped())
             .stderr(Stdio::null())
             .spawn()
@@ -314,4 +319,56 @@ fn drive_loop_refuses_a_controller_it_cannot_run() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
+}
+
+/// A loop run the drive breaks off (a reset at its 300th sample) keeps what arrived: the record
+/// has the rows before the reset and the footer says what is missing and why; exit 1.
+#[cfg(unix)]
+#[test]
+fn a_broken_loop_run_keeps_what_arrived_and_says_what_is_missing() {
+    let _g = realtime_lock();
+    let dir = tempfile::tempdir().unwrap();
+    let out = fracid(&[
+        "tune", PMSM, "--wc", "50", "--pm", "60", "--dt", "0.001", "--json",
+    ]);
+    assert!(out.status.success());
+    let ctrl = dir.path().join("c.json");
+    std::fs::write(&ctrl, &out.stdout).unwrap();
+    let (sim, port) = sim_with(&["--reset-at", "300"]);
+    let csv = dir.path().join("loop.csv");
+    let out = fracid(&[
+        "drive",
+        "loop",
+        "--port",
+        &port,
+        "--baud",
+        "921600",
+        "--keepalive-ms",
+        "2",
+        "--quiet",
+        "--controller",
+        ctrl.to_str().unwrap(),
+        "--step",
+        "50",
+        "--duration",
+        "0.6",
+        "-o",
+        csv.to_str().unwrap(),
+    ]);
+    drop(sim);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(err.contains("incomplete"), "{err}");
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let last = text.trim_end().lines().last().unwrap();
+    assert!(
+        last.starts_with("# incomplete: missing samples") && last.contains("..600"),
+        "{last}"
+    );
+    assert!(last.contains("reset"), "{last}");
+    let rows = text
+        .lines()
+        .filter(|l| l.starts_with(|c: char| c.is_ascii_digit()))
+        .count();
+    assert!((200..=300).contains(&rows), "{rows} rows kept");
 }
