@@ -15,9 +15,10 @@ mkdir -p "$out"
 flags=(-std=c99 -Wall -Wextra -Werror -pedantic -O2 -DFW_OCTET16 -Iinclude)
 "$CC" "${flags[@]}" -c src/fw_codec.c -o "$out/fw_codec.o"
 "$CC" "${flags[@]}" -c src/fw_engine.c -o "$out/fw_engine.o"
-"$CC" "${flags[@]}" -no-pie "$out/fw_codec.o" "$out/fw_engine.o" tools/cycles.c -o "$out/cycles"
+"$CC" "${flags[@]}" -c src/fw_ctrl.c -o "$out/fw_ctrl.o"
+"$CC" "${flags[@]}" -no-pie "$out/fw_codec.o" "$out/fw_engine.o" "$out/fw_ctrl.o" tools/cycles.c -o "$out/cycles"
 # fracfw's own functions (including static ones gcc kept out of line): only these are counted
-nm --defined-only "$out/fw_codec.o" "$out/fw_engine.o" |
+nm --defined-only "$out/fw_codec.o" "$out/fw_engine.o" "$out/fw_ctrl.o" |
     awk 'NF == 3 && ($2 == "T" || $2 == "t") { print $3 }' | sort -u >"$out/fracfw.syms"
 echo "# fracfw interrupt timing: gcc $("$CC" -dumpfullversion) -O2 x86-64, callgrind, $baud baud"
 echo

@@ -11,7 +11,7 @@ flags=(-std=c99 -Wall -Wextra -Werror -pedantic -O1 -g -fno-omit-frame-pointer
 for mode in 8 16; do
     extra=()
     [ "$mode" = 16 ] && extra=(-DFW_OCTET16)
-    "$CC" "${flags[@]}" "${extra[@]}" src/fw_codec.c src/fw_engine.c tests/test_fw.c \
+    "$CC" "${flags[@]}" "${extra[@]}" src/fw_codec.c src/fw_engine.c src/fw_ctrl.c tests/test_fw.c \
         -o "$out/test_fw$mode" -lm
     "$out/test_fw$mode" ../crates/drive/testvectors
 done

@@ -6,6 +6,8 @@
 use std::path::PathBuf;
 use std::process::{Command, Output};
 
+mod tune_loop;
+
 fn fracid_bin() -> PathBuf {
     let exe = std::env::current_exe().expect("test executable path");
     // target/<profile>/deps/e2e-<hash> -> target/<profile>/fracid
@@ -371,6 +373,8 @@ fn demo_checks(extra: &[&str]) -> String {
         report.contains("(use-case runs: time 1, freq 1)"),
         "{report}"
     );
+    // it ends with the tuned loop run on the drive: predicted and measured side by side
+    tune_loop::check_demo_loop(dir.path(), &report);
     // the sweep: 16 points written as measured, with the footer; by default each the trimmed
     // mean of 3 measurements with its spread columns
     let bode = std::fs::read_to_string(dir.path().join("bode.csv")).unwrap();

@@ -19,7 +19,7 @@ fn main() {
     );
     println!("cargo:rerun-if-env-changed=CC");
     let mut objs = Vec::new();
-    for name in ["fw_codec", "fw_engine"] {
+    for name in ["fw_codec", "fw_engine", "fw_ctrl"] {
         let src = fw.join("src").join(format!("{name}.c"));
         println!("cargo:rerun-if-changed={}", src.display());
         let obj = out.join(format!("{name}.o"));

@@ -74,6 +74,11 @@ interrupt void fw_sci_rx_isr(void)
 interrupt void fw_timer0_isr(void)
 {
     int16_t u, y, i;
+    if (fw_loop_running(&fw)) {
+        /* the speed loop: its command comes from the speed at this tick (current unused here) */
+        fw_hw_measure(&y, &i);
+        fw_sample_measure(&fw, y);
+    }
     if (fw_sample_begin(&fw, &u)) {
         fw_hw_apply_voltage(u);
         fw_hw_measure(&y, &i);

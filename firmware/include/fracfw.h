@@ -33,7 +33,7 @@ typedef unsigned char fw_octet;
 
 #define FW_PROTO_VERSION 2u
 #define FW_MAJOR 1u
-#define FW_MINOR 0u
+#define FW_MINOR 1u /* 1.1: the speed loop (LOAD_CTRL, LOAD_SECTION, START_LOOP) */
 #define FW_N_CHANNELS 3u
 /** Samples per DATA block at most (PROTOCOL.md: 66). */
 #define FW_MAX_BLOCK 66u
@@ -72,6 +72,9 @@ typedef unsigned char fw_octet;
 #define FW_T_STATUS 0x07u
 #define FW_T_KEEPALIVE 0x08u
 #define FW_T_END_QUERY 0x09u
+#define FW_T_LOAD_CTRL 0x0Au
+#define FW_T_LOAD_SECTION 0x0Bu
+#define FW_T_START_LOOP 0x0Cu
 #define FW_T_ACK 0x80u
 #define FW_T_HELLO_REPLY 0x81u
 #define FW_T_STATUS_REPLY 0x87u
@@ -87,6 +90,7 @@ typedef unsigned char fw_octet;
 #define FW_NAK_BUSY 4u
 #define FW_NAK_NOT_CONFIGURED 5u
 #define FW_NAK_FAULT 6u
+#define FW_NAK_NO_CONTROLLER 8u
 #define FW_FAULT_NONE 0u
 #define FW_FAULT_ESTOP 1u
 #define FW_FAULT_KEEPALIVE 2u
@@ -97,6 +101,38 @@ typedef unsigned char fw_octet;
 #define FW_END_ESTOP 2u
 #define FW_END_KEEPALIVE 3u
 #define FW_END_LIMIT 4u
+
+/** Controller format of LOAD_CTRL (parallel first-order sections: poles Q30, gains Q24, 64-bit
+ * states Q32). */
+#define FW_CTRL_FORMAT 1u
+/** Sections of the speed controller at most. */
+#define FW_MAX_SECTIONS 24u
+
+/**
+ * The speed controller (PROTOCOL.md section 3, "Speed loop"): u = round((2^8 d e + sum z_i) / 2^32),
+ * then z_i <- round(a_i z_i / 2^30) + 2^8 g_i e', e' the error conditioned on the voltage clamp.
+ * d, g_i: Q24 raw voltage per raw speed LSB; a_i: Q30; z_i: Q32 raw voltage (64-bit, saturated
+ * at +-2^56: +-2^24 raw).
+ */
+typedef struct {
+    int32_t d_q24, dinv_q16;
+    uint16_t n, loaded;
+    int32_t a_q30[FW_MAX_SECTIONS];
+    int32_t g_q24[FW_MAX_SECTIONS];
+    int64_t z[FW_MAX_SECTIONS];
+} fw_ctrl;
+
+/** Zero the controller's states. */
+void fw_ctrl_reset(fw_ctrl *c);
+
+/**
+ * One controller sample: error e = r - y (raw speed LSB), the voltage limit (raw, > 0). Returns
+ * the command clamped to +-u_limit, *clamped = 1 if it was; updates the states (anti-windup:
+ * with the output clamped, the states take the error that gives the clamped output, or, without
+ * feed-through, are frozen while the error pushes further into the clamp). Per section one
+ * 32x64 product (two 32x32->64) and one 32x32->64, no division.
+ */
+int16_t fw_ctrl_step(fw_ctrl *c, int32_t e, int16_t u_limit, uint16_t *clamped);
 
 /** A frame body being queued or sent (not yet COBS-encoded; the CRC is added when sending). */
 typedef struct {
@@ -163,7 +199,7 @@ typedef struct {
     /* the run */
     uint16_t running;
     uint16_t run_id;
-    uint16_t kind; /* 1 PRBS, 2 sine */
+    uint16_t kind; /* 1 PRBS, 2 sine, 3 speed loop */
     uint32_t total, done, sent;
     uint16_t dropped, clamped;
     uint16_t stream;
@@ -192,6 +228,12 @@ typedef struct {
     /* level and ramp sums of u and y over the window: sum x_k, sum (2k - (n-1)) x_k */
     int64_t lvl[2], rmp[2];
     int32_t win_k2; /* 2k - (n-1) of the sample in progress */
+    /* the speed loop: the downloaded controller, the reference step, the speed measured */
+    fw_ctrl ctrl;
+    uint16_t ctrl_ready;
+    int16_t loop_r0, loop_r1;
+    uint32_t loop_pre;
+    int16_t loop_y;
     /* last run, for STATUS and END_QUERY */
     uint16_t last_valid;
     uint16_t last_id;
@@ -228,6 +270,16 @@ int fw_sample_begin(fw_t *fw, int16_t *u_raw);
 
 /** Finish the sample started by fw_sample_begin() with the measured speed and current (raw). */
 void fw_sample_end(fw_t *fw, int16_t y_raw, int16_t i_raw);
+
+/**
+ * The speed measured at this sample's tick, before fw_sample_begin(): a loop run's controller
+ * computes this sample's command from it (u_k from y_k, no sample of delay). Other runs ignore
+ * it. Without it a loop run uses the speed of the previous fw_sample_end() (one sample later).
+ */
+void fw_sample_measure(fw_t *fw, int16_t y_raw);
+
+/** Whether a loop run (START_LOOP) is active: call fw_sample_measure() before each sample. */
+int fw_loop_running(const fw_t *fw);
 
 /** Whether a run is active. */
 int fw_running(const fw_t *fw);

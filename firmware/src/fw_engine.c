@@ -56,6 +56,10 @@ uint16_t fw_run_id(const fw_t *fw) { return fw->running ? fw->run_id : (fw->last
 
 int fw_running(const fw_t *fw) { return fw->running != 0u; }
 
+int fw_loop_running(const fw_t *fw) { return fw->running != 0u && fw->kind == 3u; }
+
+void fw_sample_measure(fw_t *fw, int16_t y_raw) { fw->loop_y = y_raw; }
+
 uint32_t fw_sample_rate(const fw_t *fw) { return fw->configured ? fw->conf.sample_rate_hz : 0ul; }
 
 int fw_tx_busy(const fw_t *fw) { return fw->tx_active != 0u; }
@@ -287,6 +291,7 @@ int fw_sample_begin(fw_t *fw, int16_t *u_raw)
 {
     int32_t v;
     int32_t lim;
+    uint16_t ctrl_clamped = 0;
     *u_raw = 0;
     if (!fw->running) {
         return 0;
@@ -333,6 +338,9 @@ int fw_sample_begin(fw_t *fw, int16_t *u_raw)
             v = fw->prbs_bit ? (int32_t)fw->prbs_off + fw->prbs_amp
                              : (int32_t)fw->prbs_off - fw->prbs_amp;
         }
+    } else if (fw->kind == 3u) {
+        int16_t r = fw->done < fw->loop_pre ? fw->loop_r0 : fw->loop_r1;
+        v = fw_ctrl_step(&fw->ctrl, (int32_t)r - fw->loop_y, fw->conf.u_limit, &ctrl_clamped);
     } else {
         v = fw_sine_command(fw->phase, fw->sine_amp, fw->sine_off);
         if (fw->done >= fw->sine_settle) {
@@ -344,10 +352,10 @@ int fw_sample_begin(fw_t *fw, int16_t *u_raw)
     }
     lim = fw->conf.u_limit;
     fw->cur_flags = 0;
-    if (v > lim || v < -lim) {
+    if (v > lim || v < -lim || ctrl_clamped) {
         fw->clamped = sat_add16(fw->clamped);
         fw->cur_flags = 1;
-        v = v > lim ? lim : -lim;
+        v = v > lim ? lim : (v < -lim ? -lim : v);
     }
     fw->cur_u = (int16_t)v;
     if (!fw->ramping) {
@@ -375,6 +383,9 @@ void fw_sample_end(fw_t *fw, int16_t y_raw, int16_t i_raw)
         fw->lvl[1] += y_raw;
         fw->rmp[0] += (int64_t)fw->win_k2 * fw->cur_u;
         fw->rmp[1] += (int64_t)fw->win_k2 * y_raw;
+    }
+    if (fw->kind == 3u) {
+        fw->loop_y = y_raw; /* for a next sample without fw_sample_measure() */
     }
     if (fw->stream) {
         fw_slot *s = build_slot(fw);
@@ -468,6 +479,10 @@ static void cmd_configure(fw_t *fw, uint16_t seq, const fw_octet *p)
     }
     fw->conf = c;
     fw->configured = 1;
+    /* the controller's gains are in the channel units and its poles at the sample rate */
+    fw->ctrl.n = 0;
+    fw->ctrl.loaded = 0;
+    fw->ctrl_ready = 0;
     fw->fault = FW_FAULT_NONE;
     fw->cnt.configs++;
     ack(fw, FW_T_CONFIGURE, seq, 0, 0);
@@ -559,6 +574,87 @@ static void cmd_sine(fw_t *fw, uint16_t seq, const fw_octet *p)
     ack(fw, FW_T_START_SINE, seq, fw->run_id, fw->total);
 }
 
+static void cmd_load_ctrl(fw_t *fw, uint16_t seq, const fw_octet *p)
+{
+    uint16_t format = get8(p), n = get8(p + 1);
+    if (fw->running) {
+        nak(fw, FW_T_LOAD_CTRL, seq, FW_NAK_BUSY, 0);
+        return;
+    }
+    if (!fw->configured) {
+        nak(fw, FW_T_LOAD_CTRL, seq, FW_NAK_NOT_CONFIGURED, 0);
+        return;
+    }
+    if (format != FW_CTRL_FORMAT) {
+        nak(fw, FW_T_LOAD_CTRL, seq, FW_NAK_BAD_VALUE, 0);
+        return;
+    }
+    if (n > FW_MAX_SECTIONS) {
+        nak(fw, FW_T_LOAD_CTRL, seq, FW_NAK_BAD_VALUE, 1);
+        return;
+    }
+    fw->ctrl.n = n;
+    fw->ctrl.loaded = 0;
+    fw->ctrl.d_q24 = (int32_t)get32(p + 4);
+    fw->ctrl.dinv_q16 = (int32_t)get32(p + 8);
+    fw->ctrl_ready = (uint16_t)(n == 0u);
+    ack(fw, FW_T_LOAD_CTRL, seq, 0, 0);
+}
+
+static void cmd_load_section(fw_t *fw, uint16_t seq, const fw_octet *p)
+{
+    uint16_t i = get8(p);
+    int32_t a = (int32_t)get32(p + 2);
+    if (fw->running) {
+        nak(fw, FW_T_LOAD_SECTION, seq, FW_NAK_BUSY, 0);
+        return;
+    }
+    if (!fw->configured) {
+        nak(fw, FW_T_LOAD_SECTION, seq, FW_NAK_NOT_CONFIGURED, 0);
+        return;
+    }
+    if (i != fw->ctrl.loaded || i >= fw->ctrl.n) {
+        nak(fw, FW_T_LOAD_SECTION, seq, FW_NAK_BAD_VALUE, 0);
+        return;
+    }
+    if (a > 1073741824l || a < -1073741824l) {
+        nak(fw, FW_T_LOAD_SECTION, seq, FW_NAK_BAD_VALUE, 2);
+        return;
+    }
+    fw->ctrl.a_q30[i] = a;
+    fw->ctrl.g_q24[i] = (int32_t)get32(p + 6);
+    fw->ctrl.loaded++;
+    fw->ctrl_ready = (uint16_t)(fw->ctrl.loaded == fw->ctrl.n);
+    ack(fw, FW_T_LOAD_SECTION, seq, 0, 0);
+}
+
+static void cmd_loop(fw_t *fw, uint16_t seq, const fw_octet *p)
+{
+    uint32_t pre = get32(p + 4), total = get32(p + 8);
+    if (!start_check(fw, FW_T_START_LOOP, seq)) {
+        return;
+    }
+    if (!fw->ctrl_ready) {
+        nak(fw, FW_T_START_LOOP, seq, FW_NAK_NO_CONTROLLER, 0);
+        return;
+    }
+    if (pre > total) {
+        nak(fw, FW_T_START_LOOP, seq, FW_NAK_BAD_VALUE, 4);
+        return;
+    }
+    if (total == 0ul) {
+        nak(fw, FW_T_START_LOOP, seq, FW_NAK_BAD_VALUE, 8);
+        return;
+    }
+    begin_run(fw, 3u, total, 1u);
+    fw->loop_r0 = geti16(p);
+    fw->loop_r1 = geti16(p + 2);
+    fw->loop_pre = pre;
+    fw->loop_y = 0;
+    fw_ctrl_reset(&fw->ctrl);
+    ack(fw, FW_T_START_LOOP, seq, fw->run_id, fw->total);
+}
+
 static void cmd_status(fw_t *fw, uint16_t seq)
 {
     fw_answer *a = answer(fw, FW_T_STATUS_REPLY, seq, 16u);
@@ -603,6 +699,15 @@ static void execute(fw_t *fw, uint16_t type, uint16_t seq, const fw_octet *p)
         break;
     case FW_T_START_SINE:
         cmd_sine(fw, seq, p);
+        break;
+    case FW_T_LOAD_CTRL:
+        cmd_load_ctrl(fw, seq, p);
+        break;
+    case FW_T_LOAD_SECTION:
+        cmd_load_section(fw, seq, p);
+        break;
+    case FW_T_START_LOOP:
+        cmd_loop(fw, seq, p);
         break;
     case FW_T_STOP:
         if (fw->running && !fw->ramping) {
@@ -655,6 +760,11 @@ static int32_t payload_len(uint16_t type)
         return 14;
     case FW_T_END_QUERY:
         return 2;
+    case FW_T_LOAD_CTRL:
+    case FW_T_START_LOOP:
+        return 12;
+    case FW_T_LOAD_SECTION:
+        return 10;
     case FW_T_ACK:
         return 8;
     case FW_T_HELLO_REPLY:
@@ -712,7 +822,9 @@ static uint16_t handle_body(fw_t *fw, const fw_octet *b, uint16_t len)
     /* reserved fields must be zero */
     if ((type == FW_T_CONFIGURE && get8(p + 5) != 0u) ||
         (type == FW_T_START_PRBS && get8(p + 1) != 0u) ||
-        (type == FW_T_START_SINE && (get8(p + 13) != 0u || (get8(p + 12) & ~3u) != 0u))) {
+        (type == FW_T_START_SINE && (get8(p + 13) != 0u || (get8(p + 12) & ~3u) != 0u)) ||
+        (type == FW_T_LOAD_CTRL && get16(p + 2) != 0u) ||
+        (type == FW_T_LOAD_SECTION && get8(p + 1) != 0u)) {
         rx_error(fw);
         return 0;
     }

@@ -453,6 +453,139 @@ static void test_engine(void)
           "drops: sent %d", end_sent);
 }
 
+/* ctrl.txt: fw_ctrl_step against the shared fixed-point steps (the Rust FixedCtrl made them) */
+static void test_ctrl(const char *dir)
+{
+    FILE *f = open_vec(dir, "ctrl.txt");
+    static fw_ctrl k;
+    int16_t lim = 1;
+    int steps = 0, ctrls = 0;
+    while (fgets(line, sizeof line, f)) {
+        char *p = line, *q;
+        long long v[64];
+        int nv = 0;
+        if (line[0] == '#') continue;
+        if (strncmp(line, "CTRL", 4) == 0) {
+            p += 4;
+            while (*p == ' ') p++;
+            while (*p && *p != ' ') p++; /* the name */
+        } else if (strncmp(line, "STEP", 4) == 0) {
+            p += 4;
+        } else {
+            continue;
+        }
+        while (nv < 64) {
+            long long t = strtoll(p, &q, 10);
+            if (q == p) break;
+            v[nv++] = t;
+            p = q;
+        }
+        if (line[0] == 'C') {
+            int i;
+            k.d_q24 = (int32_t)v[0];
+            k.dinv_q16 = (int32_t)v[1];
+            lim = (int16_t)v[2];
+            k.n = (uint16_t)v[3];
+            k.loaded = k.n;
+            for (i = 0; i < k.n; i++) {
+                k.a_q30[i] = (int32_t)v[4 + 2 * i];
+                k.g_q24[i] = (int32_t)v[5 + 2 * i];
+            }
+            fw_ctrl_reset(&k);
+            ctrls++;
+        } else {
+            uint16_t cl;
+            int16_t u = fw_ctrl_step(&k, (int32_t)v[0], lim, &cl);
+            int i, same = 1;
+            for (i = 0; i < k.n; i++) same &= k.z[i] == (int64_t)v[3 + i];
+            CHECK(u == v[1] && cl == v[2] && same, "ctrl step %d (e %lld): u %d clamped %u", steps,
+                  v[0], u, cl);
+            steps++;
+        }
+    }
+    fclose(f);
+    CHECK(ctrls == 3 && steps >= 270, "ctrl vectors read: %d controllers, %d steps", ctrls, steps);
+}
+
+/* The speed loop through the protocol: a PI on a plant y_(k+1) = y_k + (u_k - y_k)/8 (raw), the
+ * command computed from the speed given by fw_sample_measure() at each tick. */
+static void test_loop(void)
+{
+    fw_octet p[32], r[512];
+    int n, k, clamped = 0;
+    int32_t y = 0, yref = 0, zref = 0;
+    fw_init(&fw, 0x4242, 20000);
+    memset(p, 0, sizeof p);
+    le16(p, 0), le16(p + 2, 1000), le32(p + 4, 10), le32(p + 8, 300);
+    n = command(&fw, FW_T_START_LOOP, p, 12, r);
+    CHECK((r[1] & 0xFF) == FW_T_NAK && (r[5] & 0xFF) == FW_NAK_NOT_CONFIGURED, "loop unconfigured");
+    configure(&fw, 1000, 32, 3000, 30000);
+    n = command(&fw, FW_T_START_LOOP, p, 12, r);
+    CHECK((r[1] & 0xFF) == FW_T_NAK && (r[5] & 0xFF) == FW_NAK_NO_CONTROLLER, "no controller");
+    /* LOAD_CTRL: format 2 refused; then d = 2, dinv = 1/2, one integrator g = 0.25 */
+    memset(p, 0, sizeof p);
+    p[0] = 2, p[1] = 1;
+    n = command(&fw, FW_T_LOAD_CTRL, p, 12, r);
+    CHECK((r[1] & 0xFF) == FW_T_NAK && (r[5] & 0xFF) == FW_NAK_BAD_VALUE && g16(r + 6) == 0,
+          "unknown controller format");
+    p[0] = FW_CTRL_FORMAT, p[1] = 1;
+    le32(p + 4, 2ul << 24), le32(p + 8, 32768ul);
+    n = command(&fw, FW_T_LOAD_CTRL, p, 12, r);
+    CHECK((r[1] & 0xFF) == FW_T_ACK, "load ctrl");
+    memset(p, 0, sizeof p);
+    p[0] = 1;
+    n = command(&fw, FW_T_LOAD_SECTION, p, 10, r);
+    CHECK((r[1] & 0xFF) == FW_T_NAK && (r[5] & 0xFF) == FW_NAK_BAD_VALUE, "section out of order");
+    p[0] = 0;
+    le32(p + 2, 1ul << 30), le32(p + 6, 1ul << 22);
+    n = command(&fw, FW_T_LOAD_SECTION, p, 10, r);
+    CHECK((r[1] & 0xFF) == FW_T_ACK, "load section");
+    memset(p, 0, sizeof p);
+    le16(p, 0), le16(p + 2, 2000), le32(p + 4, 11), le32(p + 8, 10);
+    n = command(&fw, FW_T_START_LOOP, p, 12, r);
+    CHECK((r[1] & 0xFF) == FW_T_NAK && (r[5] & 0xFF) == FW_NAK_BAD_VALUE && g16(r + 6) == 4,
+          "pre > total");
+    le32(p + 4, 10), le32(p + 8, 300);
+    n = command(&fw, FW_T_START_LOOP, p, 12, r);
+    CHECK(n == 12 && (r[1] & 0xFF) == FW_T_ACK && g32(r + 8) == 300, "loop started");
+    got_n = 0, end_reason = -1;
+    for (k = 0; k < 400; k++) {
+        int16_t u;
+        CHECK(fw_loop_running(&fw) == (k < 300), "loop running at %d", k);
+        fw_sample_measure(&fw, (int16_t)y);
+        if (fw_sample_begin(&fw, &u)) {
+            /* independent PI in exact integers: S = sum of the errors so far, u = round(2 e +
+             * S/4); clamped at 3000, S takes e' = round((4 * 3000 - S)/8), the error that gives
+             * 3000 (Hanus), instead of e */
+            int32_t e = (k < 10 ? 0 : 2000) - yref, v4 = 8 * e + zref, want;
+            want = v4 >= 0 ? (v4 + 2) / 4 : -((-v4 + 2) / 4);
+            if (want > 3000) {
+                int32_t t = 12000 - zref;
+                want = 3000, clamped++;
+                e = t >= 0 ? (t + 4) / 8 : -((-t + 4) / 8);
+            }
+            zref += e;
+            CHECK(u == want, "loop u[%d] = %d, want %ld", k, u, (long)want);
+            fw_sample_end(&fw, (int16_t)y, 0);
+            y += (u - y) / 8;
+            yref = y;
+        }
+        while ((n = pull_frame(&fw, z)) > 0) {
+            fw_octet body[512];
+            if (decode_frame(z, n, body) >= 0 && (body[1] & 0xFF) == FW_T_STREAM_END)
+                end_reason = body[6] & 0xFF, end_total = (int)g32(body + 8);
+        }
+    }
+    CHECK(end_reason == FW_END_COMPLETE && end_total == 300, "loop run complete");
+    CHECK(clamped > 0 && y > 1950 && y < 2050, "loop: clamped %d samples, y = %ld", clamped, (long)y);
+    /* CONFIGURE clears the controller */
+    configure(&fw, 1000, 32, 3000, 30000);
+    memset(p, 0, sizeof p);
+    le32(p + 8, 10);
+    n = command(&fw, FW_T_START_LOOP, p, 12, r);
+    CHECK((r[1] & 0xFF) == FW_T_NAK && (r[5] & 0xFF) == FW_NAK_NO_CONTROLLER, "cleared by CONFIGURE");
+}
+
 static void test_sine(void)
 {
     /* the Q30 sine is within 1e-7 of sin() over the circle (checked on a grid) */
@@ -480,6 +613,8 @@ int main(int argc, char **argv)
     test_prbs(dir);
     test_frames(dir);
     test_engine();
+    test_ctrl(dir);
+    test_loop();
     test_sine();
 #ifdef FW_OCTET16
     printf("fracfw tests (16-bit octet storage, sizeof(fw_t) = %lu): %s\n",

@@ -55,7 +55,7 @@ static void send_frame(const char *label, uint16_t type, const fw_octet *payload
     uint16_t crc, m, k;
     uint16_t seq = host_seq++;
     int n = 0, j;
-    body[n++] = 1;
+    body[n++] = FW_PROTO_VERSION;
     body[n++] = (fw_octet)type;
     body[n++] = (fw_octet)(seq & 0xFFu);
     body[n++] = (fw_octet)(seq >> 8);
@@ -95,12 +95,16 @@ static void drain_all(void)
 /* A first-order motor in raw units: y follows 4 u with a time constant of 8 samples; i = u / 2.
  * `boost` multiplies y (to provoke the speed trip). */
 static int32_t motor_y;
+static int loop_mode; /* a loop run: the speed is given at the tick, before the command */
 static void sample(const char *label, int boost, unsigned line_octets)
 {
     int16_t u = 0;
     int r = 0;
     int32_t y;
     CALLGRIND_TOGGLE_COLLECT;
+    if (loop_mode) {
+        fw_sample_measure(&fw, (int16_t)motor_y);
+    }
     r = fw_sample_begin(&fw, &u);
     if (r) {
         y = motor_y * boost;
@@ -168,6 +172,45 @@ static void start_sine(unsigned long freq_mhz, unsigned settle_cycles, unsigned 
     drain("tx:answer", 64);
     if (!fw_running(&fw)) {
         fail("sine run started");
+    }
+}
+
+/* The speed loop's controller, FW_MAX_SECTIONS sections (the most the drive takes): d = 0.5,
+ * an integrator, and leaky sections with poles from 0.5 to 1 - 2^-20. */
+static void load_ctrl(void)
+{
+    fw_octet p[12];
+    unsigned i;
+    memset(p, 0, sizeof p);
+    p[0] = FW_CTRL_FORMAT;
+    p[1] = FW_MAX_SECTIONS;
+    le32(p + 4, 1ul << 23);   /* d = 0.5, Q24 */
+    le32(p + 8, 2ul << 16);   /* 1/d = 2, Q16 */
+    send_frame("rx:load_ctrl", FW_T_LOAD_CTRL, p, 12);
+    drain("tx:answer", 64);
+    for (i = 0; i < FW_MAX_SECTIONS; i++) {
+        unsigned long a = i == 0 ? (1ul << 30) : (1ul << 30) - ((1ul << 29) >> (i - 1u));
+        memset(p, 0, sizeof p);
+        p[0] = (fw_octet)i;
+        le32(p + 2, a);
+        le32(p + 6, i == 0 ? 838861ul : 1000ul * (i + 1u)); /* 0.05 for the integrator, Q24 */
+        send_frame("rx:load_section", FW_T_LOAD_SECTION, p, 10);
+        drain("tx:answer", 64);
+    }
+}
+
+static void start_loop(unsigned long pre, unsigned long total)
+{
+    fw_octet p[12];
+    memset(p, 0, sizeof p);
+    le16(p, 0u);
+    le16(p + 2, 20000u);
+    le32(p + 4, pre);
+    le32(p + 8, total);
+    send_frame("rx:start_loop", FW_T_START_LOOP, p, 12);
+    drain("tx:answer", 64);
+    if (!fw_loop_running(&fw)) {
+        fail("loop run started");
     }
 }
 
@@ -269,6 +312,21 @@ int main(int argc, char **argv)
     if (fw_running(&fw)) {
         fail("ESTOP ends the run");
     }
+
+    /* The speed loop with the most sections: the command clamped at first (the anti-windup's
+     * conditioned update), then in the linear range; the run's last sample. */
+    configure(32, 500u, 6000, 32000);
+    load_ctrl();
+    motor_y = 0;
+    loop_mode = 1;
+    start_loop(20ul, 300ul);
+    run("sample:loop", 100000u, ka, 1, octets_per_sample);
+    loop_mode = 0;
+    /* the anti-windup path was taken, and the linear one */
+    if (fw.last_clamped == 0u || fw.last_clamped >= 300u) {
+        fail("the loop run is clamped in some samples, not all");
+    }
+    drain_all();
 
     /* A frame longer than any command (a DATA frame echoed back, valid CRC): the receiver stops
      * storing it at FW_RX_MAX_ENCODED octets and counts one error at its delimiter. */

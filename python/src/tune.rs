@@ -74,6 +74,7 @@ pub(crate) fn _tune(
         step: Some(step),
         load,
         effects: fx,
+        u_limit: None,
     };
     let report = py
         .allow_threads(|| tune::report::tune(&g, &spec, &opts).map(|(r, _)| r))

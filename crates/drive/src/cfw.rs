@@ -33,6 +33,52 @@ struct FwConfig {
     i_limit: i16,
 }
 
+/// `fw_ctrl` of `fracfw.h` (FW_MAX_SECTIONS = 24).
+#[repr(C)]
+#[derive(Debug, Clone, Copy)]
+struct FwCtrl {
+    d_q24: i32,
+    dinv_q16: i32,
+    n: u16,
+    loaded: u16,
+    a_q30: [i32; 24],
+    g_q24: [i32; 24],
+    z: [i64; 24],
+}
+
+/// The C firmware's controller (`fw_ctrl_step`) run on `ctrl` from the states `z` (one per
+/// section, at most 24): the command, whether it was clamped, and the states after. For the
+/// bit-identity tests against [`crate::ctrl::FixedCtrl::step`].
+pub fn ctrl_step(
+    ctrl: &crate::ctrl::FixedCtrl,
+    z: &mut [i64],
+    e: i32,
+    u_limit: i16,
+) -> (i16, bool) {
+    let n = ctrl.sections.len().min(24);
+    let mut c = FwCtrl {
+        d_q24: ctrl.d_q24,
+        dinv_q16: ctrl.dinv_q16,
+        n: n as u16,
+        loaded: n as u16,
+        a_q30: [0; 24],
+        g_q24: [0; 24],
+        z: [0; 24],
+    };
+    for (i, s) in ctrl.sections.iter().take(n).enumerate() {
+        c.a_q30[i] = s.a_q30;
+        c.g_q24[i] = s.g_q24;
+        c.z[i] = z.get(i).copied().unwrap_or(0);
+    }
+    let mut cl = 0u16;
+    // SAFETY: a valid fw_ctrl with n <= FW_MAX_SECTIONS, valid out pointer.
+    let u = unsafe { fw_ctrl_step(&mut c, e, u_limit, &mut cl) };
+    for (zi, v) in z.iter_mut().zip(c.z.iter()) {
+        *zi = *v;
+    }
+    (u, cl != 0)
+}
+
 // The fw_t is opaque here: a buffer of fw_sizeof() bytes, 8-byte aligned.
 extern "C" {
     fn fw_sizeof() -> u32;
@@ -43,6 +89,9 @@ extern "C" {
     fn fw_sample_begin(fw: *mut u64, u_raw: *mut i16) -> c_int;
     fn fw_sample_end(fw: *mut u64, y_raw: i16, i_raw: i16);
     fn fw_running(fw: *const u64) -> c_int;
+    fn fw_loop_running(fw: *const u64) -> c_int;
+    fn fw_sample_measure(fw: *mut u64, y_raw: i16);
+    fn fw_ctrl_step(c: *mut FwCtrl, e: i32, u_limit: i16, clamped: *mut u16) -> i16;
     fn fw_drop_last_answer(fw: *mut u64) -> c_int;
     fn fw_get_counters(fw: *const u64, out: *mut FwCounters);
     fn fw_get_config(fw: *const u64, out: *mut FwConfig);
@@ -153,6 +202,18 @@ impl CEngine {
     pub fn running(&self) -> bool {
         // SAFETY: initialised engine.
         unsafe { fw_running(self.cp()) != 0 }
+    }
+
+    /// Whether a loop run is active (the speed must be given before each sample).
+    pub fn loop_running(&self) -> bool {
+        // SAFETY: initialised engine.
+        unsafe { fw_loop_running(self.cp()) != 0 }
+    }
+
+    /// The speed measured at this sample's tick (raw), before [`CEngine::sample_begin`].
+    pub fn sample_measure(&mut self, y_raw: i16) {
+        // SAFETY: initialised engine.
+        unsafe { fw_sample_measure(self.p(), y_raw) }
     }
 
     /// Discard the newest queued answer (it stays cached for a replay). True if one was.
@@ -290,8 +351,8 @@ mod tests {
         let got: Vec<_> = hello.iter().filter_map(|&b| e.rx(b)).collect();
         assert_eq!(got, [0x01]);
         let want = [
-            0x00, 0x04, 0x02, 0x81, 0x01, 0x03, 0x02, 0x01, 0x03, 0x03, 0x42, 0x05, 0xEF, 0xBE,
-            0x20, 0x4E, 0x01, 0x03, 0xF9, 0xBB, 0x00,
+            0x00, 0x04, 0x02, 0x81, 0x01, 0x06, 0x02, 0x01, 0x01, 0x03, 0x42, 0x05, 0xEF, 0xBE,
+            0x20, 0x4E, 0x01, 0x03, 0xDE, 0x97, 0x00,
         ];
         assert_eq!(e.tx_frame().as_deref(), Some(&want[..]));
         assert_eq!(e.tx_frame(), None);

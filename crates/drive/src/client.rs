@@ -395,6 +395,119 @@ impl Acquisition {
     }
 }
 
+/// A speed-loop experiment in physical units: the reference at 0 for `pre_s`, then `step`,
+/// `duration_s` in all.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LoopTest {
+    /// The reference step, rad/s.
+    pub step: f64,
+    /// Time at reference 0 before the step, s.
+    pub pre_s: f64,
+    /// The whole record, s (the step lasts `duration_s - pre_s`).
+    pub duration_s: f64,
+}
+
+impl LoopTest {
+    /// The START_LOOP for the configuration's rate and speed scale.
+    ///
+    /// # Errors
+    /// [`Error::InvalidParam`]: a step beyond the speed channel or the speed trip, non-finite or
+    /// negative times, a duration not longer than `pre_s`, more than 2^32 - 1 samples.
+    pub fn to_command(&self, c: &Configure) -> Result<StartLoop> {
+        let fs = c.sample_rate_hz as f64;
+        let r1 = (self.step / c.y_lsb()).round();
+        if !(r1.is_finite() && r1.abs() <= c.y_limit as f64) {
+            return Err(Error::InvalidParam(format!(
+                "step {} rad/s is beyond the speed trip of {} rad/s",
+                self.step,
+                c.y_limit as f64 * c.y_lsb()
+            )));
+        }
+        if !(self.pre_s.is_finite() && self.pre_s >= 0.0 && self.duration_s.is_finite())
+            || self.duration_s <= self.pre_s
+        {
+            return Err(Error::InvalidParam(format!(
+                "need 0 <= pre ({} s) < duration ({} s)",
+                self.pre_s, self.duration_s
+            )));
+        }
+        let total = (self.duration_s * fs).round();
+        if total > u32::MAX as f64 {
+            return Err(Error::InvalidParam(format!(
+                "{} s at {fs} Hz is more than 2^32 - 1 samples",
+                self.duration_s
+            )));
+        }
+        Ok(StartLoop {
+            r0: 0,
+            r1: r1 as i16,
+            pre_samples: (self.pre_s * fs).round() as u32,
+            total_samples: total as u32,
+        })
+    }
+}
+
+/// Writes a loop run as `t,r,u,y` CSV (r, the reference, from the START_LOOP), with the header
+/// comments and the footer of [`CsvSink`].
+#[derive(Debug)]
+pub struct LoopCsvSink<W: Write> {
+    w: io::BufWriter<W>,
+    cmd: StartLoop,
+    y_lsb: f64,
+    rows: u64,
+}
+
+impl<W: Write> LoopCsvSink<W> {
+    /// A sink for the run of `cmd` with the speed scale `y_lsb` (rad/s per LSB).
+    pub fn new(w: W, cmd: StartLoop, y_lsb: f64) -> Self {
+        Self {
+            w: io::BufWriter::new(w),
+            cmd,
+            y_lsb,
+            rows: 0,
+        }
+    }
+    /// Unwrap the writer.
+    pub fn into_inner(self) -> io::Result<W> {
+        self.w.into_inner().map_err(|e| e.into_error())
+    }
+}
+
+impl<W: Write> SampleSink for LoopCsvSink<W> {
+    fn begin(&mut self, info: &RunInfo) -> io::Result<()> {
+        writeln!(self.w, "# fracid drive loop: {}", info.description)?;
+        writeln!(
+            self.w,
+            "# run_id {}, {} samples planned at {} Hz; units: t s, r rad/s, u V, y rad/s",
+            info.run_id, info.total_samples, info.sample_rate_hz
+        )?;
+        writeln!(self.w, "t,r,u,y")?;
+        self.w.flush()
+    }
+    fn sample(&mut self, index: u64, t: f64, u: f64, y: f64, _i: f64) -> io::Result<()> {
+        let q = |v: f64| (v * 1e6).round() / 1e6;
+        let r = self.cmd.reference(index) as f64 * self.y_lsb;
+        writeln!(self.w, "{t:.6},{},{},{}", q(r), q(u), q(y))?;
+        self.rows += 1;
+        if self.rows.is_multiple_of(64) {
+            self.w.flush()?;
+        }
+        Ok(())
+    }
+    fn finish(&mut self, acq: &Acquisition) -> io::Result<()> {
+        if acq.clamped_blocks > 0 {
+            writeln!(
+                self.w,
+                "# clamped: the drive limited the voltage command in {} data blocks (the \
+                 controller's anti-windup held its states)",
+                acq.clamped_blocks
+            )?;
+        }
+        writeln!(self.w, "{}", acq.footer())?;
+        self.w.flush()
+    }
+}
+
 /// A PRBS experiment in physical units.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PrbsTest {
@@ -958,6 +1071,54 @@ impl Client {
         self.run(Message::StartPrbs(cmd), desc, true, sink)
     }
 
+    /// Download the speed controller (LOAD_CTRL, then each LOAD_SECTION; PROTOCOL.md section 3,
+    /// "Speed loop"), after [`Client::configure`] (a CONFIGURE clears it on the drive).
+    ///
+    /// # Errors
+    /// Not configured; a drive without the speed loop (firmware 1.0 answers NAK UNKNOWN_TYPE:
+    /// [`Error::InvalidParam`] saying so); any NAK or timeout of the download.
+    pub fn load_controller(&mut self, k: &crate::ctrl::FixedCtrl) -> Result<()> {
+        self.conf()?;
+        let (head, sections) = k.messages();
+        match self.request(Message::LoadCtrl(head)) {
+            Err(Error::Nak {
+                code: NakCode::UnknownType,
+                ..
+            }) => {
+                let v = self
+                    .hello
+                    .map(|h| format!(" (firmware {}.{})", h.fw_major, h.fw_minor))
+                    .unwrap_or_default();
+                return Err(Error::InvalidParam(format!(
+                    "the drive{v} has no speed loop: LOAD_CTRL is unknown to it (firmware 1.1 \
+                     or later runs a downloaded controller)"
+                )));
+            }
+            r => r?,
+        };
+        for sec in sections {
+            self.request(Message::LoadSection(sec))?;
+        }
+        Ok(())
+    }
+
+    /// Run a speed loop with the downloaded controller ([`Client::load_controller`]): the
+    /// reference `cmd.r0` for `cmd.pre_samples`, then `cmd.r1`, streaming `u, y, i` into `sink`.
+    ///
+    /// # Errors
+    /// As the other runs; NAK NO_CONTROLLER without a complete controller.
+    pub fn run_loop(&mut self, cmd: &StartLoop, sink: &mut dyn SampleSink) -> Result<Acquisition> {
+        let conf = self.conf()?;
+        let desc = format!(
+            "speed loop: reference {} rad/s for {} samples, then {} rad/s; {} samples",
+            cmd.r0 as f64 * conf.y_lsb(),
+            cmd.pre_samples,
+            cmd.r1 as f64 * conf.y_lsb(),
+            cmd.total_samples
+        );
+        self.run(Message::StartLoop(*cmd), desc, true, sink)
+    }
+
     /// Run one START_SINE and stream into `sink`.
     pub fn run_sine(&mut self, cmd: &StartSine, sink: &mut dyn SampleSink) -> Result<Acquisition> {
         let desc = format!(
@@ -990,6 +1151,7 @@ impl Client {
         let boot = self.hello.map(|h| h.boot_id);
         let settle_samples = match &start {
             Message::StartPrbs(p) => p.settle_samples as u64,
+            Message::StartLoop(l) => l.pre_samples as u64,
             Message::StartSine(s) => s
                 .sample_counts(conf.sample_rate_hz)
                 .map_or(0, |(settle, _)| settle as u64),

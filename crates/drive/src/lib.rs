@@ -4,6 +4,7 @@ pub mod bode;
 pub mod cfw;
 pub mod client;
 pub mod codec;
+pub mod ctrl;
 mod error;
 pub mod prbs;
 pub mod protocol;

@@ -36,6 +36,12 @@ pub mod ty {
     pub const KEEPALIVE: u8 = 0x08;
     /// END_QUERY.
     pub const END_QUERY: u8 = 0x09;
+    /// LOAD_CTRL (firmware 1.1): the controller's header; clears its sections.
+    pub const LOAD_CTRL: u8 = 0x0A;
+    /// LOAD_SECTION (firmware 1.1): one first-order section of the controller.
+    pub const LOAD_SECTION: u8 = 0x0B;
+    /// START_LOOP (firmware 1.1): a speed loop with a reference step.
+    pub const START_LOOP: u8 = 0x0C;
     /// ACK.
     pub const ACK: u8 = 0x80;
     /// HELLO_REPLY.
@@ -215,6 +221,66 @@ impl StartSine {
     }
 }
 
+/// The controller format LOAD_CTRL carries: 1, parallel first-order sections in Q-format
+/// (poles Q30, gains Q24, 64-bit states Q32)
+/// (PROTOCOL.md section 3, "Speed loop").
+pub const CTRL_FORMAT: u8 = 1;
+/// The most sections a controller has.
+pub const MAX_SECTIONS: u8 = 24;
+
+/// LOAD_CTRL payload: the controller `u = d e + sum_i z_i`, `z_i <- a_i z_i + g_i e` (PROTOCOL.md
+/// section 3): its format, number of sections and feed-through; the sections follow in
+/// LOAD_SECTION frames.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct LoadCtrl {
+    /// Controller format ([`CTRL_FORMAT`]); a drive NAKs a format it does not know.
+    pub format: u8,
+    /// Number of sections, 0..=[`MAX_SECTIONS`].
+    pub n_sections: u8,
+    /// Feed-through `d`, Q24 (raw voltage LSB per raw speed LSB, times 2^24).
+    pub d_q24: i32,
+    /// `1/d` for the anti-windup, Q16 (raw speed LSB per raw voltage LSB, times 2^16); 0 without
+    /// feed-through (the sections are then frozen while the output is clamped and the error
+    /// pushes further into the clamp).
+    pub dinv_q16: i32,
+}
+
+/// LOAD_SECTION payload: section `index` of the controller loaded by LOAD_CTRL.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct LoadSection {
+    /// Its index; sections are loaded in order (the next index expected).
+    pub index: u8,
+    /// Pole `a`, Q30 (`|a| <= 1`: `-2^30..=2^30`).
+    pub a_q30: i32,
+    /// Input gain `g`, Q24 (raw voltage LSB per raw speed LSB, times 2^24).
+    pub g_q24: i32,
+}
+
+/// START_LOOP payload: the speed loop with the loaded controller, the reference `r0` for the
+/// first `pre_samples` samples then `r1`, `total_samples` in all.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct StartLoop {
+    /// Reference before the step, raw speed LSB.
+    pub r0: i16,
+    /// Reference from sample `pre_samples` on, raw speed LSB.
+    pub r1: i16,
+    /// Samples at `r0`, `<= total_samples`.
+    pub pre_samples: u32,
+    /// Samples of the run, `>= 1`.
+    pub total_samples: u32,
+}
+
+impl StartLoop {
+    /// The reference of sample `k`, raw.
+    pub fn reference(&self, k: u64) -> i16 {
+        if k < self.pre_samples as u64 {
+            self.r0
+        } else {
+            self.r1
+        }
+    }
+}
+
 /// ACK payload.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Ack {
@@ -244,6 +310,8 @@ pub enum NakCode {
     Fault,
     /// 7: version mismatch.
     Version,
+    /// 8: START_LOOP without a complete controller (LOAD_CTRL and all its sections).
+    NoController,
     /// Any other code.
     Other(u8),
 }
@@ -259,6 +327,7 @@ impl NakCode {
             NakCode::NotConfigured => 5,
             NakCode::Fault => 6,
             NakCode::Version => 7,
+            NakCode::NoController => 8,
             NakCode::Other(c) => c,
         }
     }
@@ -272,6 +341,7 @@ impl NakCode {
             5 => NakCode::NotConfigured,
             6 => NakCode::Fault,
             7 => NakCode::Version,
+            8 => NakCode::NoController,
             c => NakCode::Other(c),
         }
     }
@@ -469,6 +539,12 @@ pub enum Message {
     Keepalive,
     /// END_QUERY for a run id.
     EndQuery(u16),
+    /// LOAD_CTRL.
+    LoadCtrl(LoadCtrl),
+    /// LOAD_SECTION.
+    LoadSection(LoadSection),
+    /// START_LOOP.
+    StartLoop(StartLoop),
     /// ACK.
     Ack(Ack),
     /// HELLO_REPLY.
@@ -553,6 +629,9 @@ impl Message {
             Message::Status => ty::STATUS,
             Message::Keepalive => ty::KEEPALIVE,
             Message::EndQuery(_) => ty::END_QUERY,
+            Message::LoadCtrl(_) => ty::LOAD_CTRL,
+            Message::LoadSection(_) => ty::LOAD_SECTION,
+            Message::StartLoop(_) => ty::START_LOOP,
             Message::Ack(_) => ty::ACK,
             Message::HelloReply(_) => ty::HELLO_REPLY,
             Message::StatusReply(_) => ty::STATUS_REPLY,
@@ -577,6 +656,9 @@ impl Message {
             ty::START_PRBS => 22,
             ty::START_SINE => 14,
             ty::END_QUERY => 2,
+            ty::LOAD_CTRL => 12,
+            ty::LOAD_SECTION => 10,
+            ty::START_LOOP => 12,
             ty::ACK => 8,
             ty::HELLO_REPLY => 12,
             ty::STATUS_REPLY => 16,
@@ -630,6 +712,25 @@ impl Message {
                 w.u8(0);
             }
             Message::EndQuery(r) => w.u16(*r),
+            Message::LoadCtrl(c) => {
+                w.u8(c.format);
+                w.u8(c.n_sections);
+                w.u16(0);
+                w.i32(c.d_q24);
+                w.i32(c.dinv_q16);
+            }
+            Message::LoadSection(c) => {
+                w.u8(c.index);
+                w.u8(0);
+                w.i32(c.a_q30);
+                w.i32(c.g_q24);
+            }
+            Message::StartLoop(l) => {
+                w.i16(l.r0);
+                w.i16(l.r1);
+                w.u32(l.pre_samples);
+                w.u32(l.total_samples);
+            }
             Message::Ack(a) => {
                 w.u8(a.acked_type);
                 w.u8(0);
@@ -762,6 +863,36 @@ impl Message {
                 Message::StartSine(s)
             }
             ty::END_QUERY => Message::EndQuery(r.u16()),
+            ty::LOAD_CTRL => {
+                let format = r.u8();
+                let n_sections = r.u8();
+                if r.u16() != 0 {
+                    return Err(bad);
+                }
+                Message::LoadCtrl(LoadCtrl {
+                    format,
+                    n_sections,
+                    d_q24: r.i32(),
+                    dinv_q16: r.i32(),
+                })
+            }
+            ty::LOAD_SECTION => {
+                let index = r.u8();
+                if r.u8() != 0 {
+                    return Err(bad);
+                }
+                Message::LoadSection(LoadSection {
+                    index,
+                    a_q30: r.i32(),
+                    g_q24: r.i32(),
+                })
+            }
+            ty::START_LOOP => Message::StartLoop(StartLoop {
+                r0: r.i16(),
+                r1: r.i16(),
+                pre_samples: r.u32(),
+                total_samples: r.u32(),
+            }),
             ty::ACK => {
                 let acked_type = r.u8();
                 if r.u8() != 0 {
@@ -866,6 +997,9 @@ pub fn type_name(t: u8) -> &'static str {
         ty::STATUS => "STATUS",
         ty::KEEPALIVE => "KEEPALIVE",
         ty::END_QUERY => "END_QUERY",
+        ty::LOAD_CTRL => "LOAD_CTRL",
+        ty::LOAD_SECTION => "LOAD_SECTION",
+        ty::START_LOOP => "START_LOOP",
         ty::ACK => "ACK",
         ty::HELLO_REPLY => "HELLO_REPLY",
         ty::STATUS_REPLY => "STATUS_REPLY",

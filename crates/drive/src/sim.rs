@@ -574,6 +574,25 @@ impl Plant {
         (ym, i)
     }
 
+    /// The speed measured at the tick, before this sample's command: the output at `t_k`
+    /// ([`fracsim::Simulator::next_output`]; the last output for a model that feeds its input
+    /// through), with the measurement noise and quantisation.
+    fn measure(&mut self, rng: &mut StdRng) -> f64 {
+        let y = self
+            .sim
+            .next_output()
+            .filter(|v| v.is_finite())
+            .unwrap_or(self.y);
+        let mut ym = y;
+        if self.fx.noise_std > 0.0 {
+            ym += self.noise.sample(rng);
+        }
+        if self.fx.speed_quant > 0.0 {
+            ym = (ym / self.fx.speed_quant).round() * self.fx.speed_quant;
+        }
+        ym
+    }
+
     fn reset(&mut self) {
         self.sim.reset();
         for d in &mut self.delay {
@@ -599,6 +618,12 @@ enum Excitation {
         acc: [f64; 4],
         /// Level and ramp sums of u and y (exact integers, as the C firmware's).
         moments: crate::bode::WindowSums,
+    },
+    /// The speed loop: the reference step and the controller with its states.
+    Loop {
+        p: StartLoop,
+        ctrl: crate::ctrl::FixedCtrl,
+        z: Vec<i64>,
     },
 }
 
@@ -635,6 +660,8 @@ struct Firmware {
     run: Option<Run>,
     last_run: Option<(u16, u32, u16, u16)>, // id, done, dropped, clamped
     last_end: Option<StreamEnd>,
+    /// The controller being downloaded: LOAD_CTRL and the sections loaded so far.
+    ctrl_load: Option<(LoadCtrl, Vec<LoadSection>)>,
     fault: u8,
     next_run_id: u16,
     tx_seq: u16,
@@ -690,7 +717,8 @@ struct CState {
 }
 
 const FW_MAJOR: u8 = 1;
-const FW_MINOR: u8 = 0;
+/// 1.1: the speed loop (LOAD_CTRL, LOAD_SECTION, START_LOOP).
+const FW_MINOR: u8 = 1;
 
 impl Firmware {
     fn new(cfg: SimConfig, master: TTYPort, stats: Arc<Mutex<SimStats>>) -> Result<Self> {
@@ -717,6 +745,7 @@ impl Firmware {
             run: None,
             last_run: None,
             last_end: None,
+            ctrl_load: None,
             fault: fault::NONE,
             next_run_id: 1,
             tx_seq: 0,
@@ -1184,7 +1213,31 @@ impl Firmware {
                 }
                 self.conf = Some(*c);
                 self.fault = fault::NONE;
+                // the controller's gains are in the channel units, its poles at the rate
+                self.ctrl_load = None;
                 self.ack(f, 0, 0)
+            }
+            Message::LoadCtrl(c) => self.load_ctrl(f, c),
+            Message::LoadSection(c) => self.load_section(f, c),
+            Message::StartLoop(l) => {
+                if let Some(a) = self.start_check(f) {
+                    return a;
+                }
+                let ctrl = match &self.ctrl_load {
+                    Some((h, s)) if s.len() == h.n_sections as usize => {
+                        crate::ctrl::FixedCtrl::from_messages(h, s)
+                    }
+                    _ => return self.nak(f, NakCode::NoController, 0),
+                };
+                if l.pre_samples > l.total_samples {
+                    return self.nak(f, NakCode::BadValue, 4);
+                }
+                if l.total_samples == 0 {
+                    return self.nak(f, NakCode::BadValue, 8);
+                }
+                let z = vec![0; ctrl.sections.len()];
+                let exc = Excitation::Loop { p: *l, ctrl, z };
+                self.start_run(f, l.total_samples, exc, true, now)
             }
             Message::StartPrbs(p) => {
                 if let Some(a) = self.start_check(f) {
@@ -1259,6 +1312,46 @@ impl Firmware {
             },
             _ => self.nak(f, NakCode::UnknownType, 0),
         }
+    }
+
+    fn load_ctrl(&mut self, f: &Frame, c: &LoadCtrl) -> Vec<u8> {
+        if self.run.is_some() {
+            return self.nak(f, NakCode::Busy, 0);
+        }
+        if self.conf.is_none() {
+            return self.nak(f, NakCode::NotConfigured, 0);
+        }
+        if c.format != CTRL_FORMAT {
+            return self.nak(f, NakCode::BadValue, 0);
+        }
+        if c.n_sections > MAX_SECTIONS {
+            return self.nak(f, NakCode::BadValue, 1);
+        }
+        self.ctrl_load = Some((*c, Vec::new()));
+        self.ack(f, 0, 0)
+    }
+
+    fn load_section(&mut self, f: &Frame, c: &LoadSection) -> Vec<u8> {
+        if self.run.is_some() {
+            return self.nak(f, NakCode::Busy, 0);
+        }
+        if self.conf.is_none() {
+            return self.nak(f, NakCode::NotConfigured, 0);
+        }
+        let next = match &self.ctrl_load {
+            Some((h, s)) if (s.len() as u8) < h.n_sections => s.len() as u8,
+            _ => return self.nak(f, NakCode::BadValue, 0),
+        };
+        if c.index != next {
+            return self.nak(f, NakCode::BadValue, 0);
+        }
+        if c.a_q30.unsigned_abs() > 1 << 30 {
+            return self.nak(f, NakCode::BadValue, 2);
+        }
+        if let Some((_, s)) = self.ctrl_load.as_mut() {
+            s.push(*c);
+        }
+        self.ack(f, 0, 0)
     }
 
     fn start_check(&mut self, f: &Frame) -> Option<Vec<u8>> {
@@ -1434,6 +1527,10 @@ impl Firmware {
             if r.done as u64 >= if r.ramp.is_some() { wall } else { due } {
                 break;
             }
+            let sat = |v: f64| v.round().clamp(-32767.0, 32767.0) as i16;
+            // the loop's speed, measured at the tick before its command is computed
+            let mut loop_y: Option<i16> = None;
+            let mut ctrl_clamped = false;
             let (u_raw_cmd, measuring) = match &mut r.ramp {
                 Some((left, len, _)) => {
                     *left -= 1;
@@ -1478,12 +1575,24 @@ impl Firmware {
                             *phase = phase.wrapping_add(*inc);
                             (v, m)
                         }
+                        Excitation::Loop { p, ctrl, z } => {
+                            let y = self
+                                .plant
+                                .as_mut()
+                                .map_or(0.0, |pl| pl.measure(&mut self.rng));
+                            let y_raw = sat(y / conf.y_lsb());
+                            loop_y = Some(y_raw);
+                            let e = p.reference(k as u64) as i32 - y_raw as i32;
+                            let (u, c) = ctrl.step(z, e, conf.u_limit);
+                            ctrl_clamped = c;
+                            (u as f64, None)
+                        }
                     }
                 }
             };
             let lim = conf.u_limit as f64;
             let mut flags = 0;
-            let u_raw = if u_raw_cmd.abs() > lim {
+            let u_raw = if u_raw_cmd.abs() > lim || ctrl_clamped {
                 r.clamped = r.clamped.saturating_add(1);
                 flags |= 1;
                 u_raw_cmd.clamp(-lim, lim)
@@ -1498,8 +1607,11 @@ impl Firmware {
                 Some(p) => p.step(u, &mut self.rng),
                 None => (0.0, 0.0),
             };
-            let sat = |v: f64| v.round().clamp(-32767.0, 32767.0) as i16;
-            let raw = [sat(u_raw), sat(y / conf.y_lsb()), sat(i / conf.i_lsb())];
+            let raw = [
+                sat(u_raw),
+                loop_y.unwrap_or_else(|| sat(y / conf.y_lsb())),
+                sat(i / conf.i_lsb()),
+            ];
             if let (
                 Some(th),
                 Excitation::Sine {
@@ -1798,7 +1910,18 @@ impl Firmware {
                 c.start += Duration::from_secs_f64(skip as f64 / fs);
                 wall = c.ticks + max_behind;
             }
+            let sat = |v: f64| v.round().clamp(-32767.0, 32767.0) as i16;
             while c.ticks < wall {
+                // a loop run: the speed at the tick, before the command
+                let loop_y = c.eng.loop_running().then(|| {
+                    let y = self
+                        .plant
+                        .as_mut()
+                        .map_or(0.0, |p| p.measure(&mut self.rng));
+                    let y_raw = sat(y / lsb[1]);
+                    c.eng.sample_measure(y_raw);
+                    y_raw
+                });
                 let Some(u_raw) = c.eng.sample_begin() else {
                     break;
                 };
@@ -1806,8 +1929,11 @@ impl Firmware {
                     Some(p) => p.step(u_raw as f64 * lsb[0], &mut self.rng),
                     None => (0.0, 0.0),
                 };
-                let sat = |v: f64| v.round().clamp(-32767.0, 32767.0) as i16;
-                let raw = [u_raw, sat(y / lsb[1]), sat(i / lsb[2])];
+                let raw = [
+                    u_raw,
+                    loop_y.unwrap_or_else(|| sat(y / lsb[1])),
+                    sat(i / lsb[2]),
+                ];
                 c.eng.sample_end(raw[1], raw[2]);
                 c.ticks += 1;
                 self.run_samples_total += 1;

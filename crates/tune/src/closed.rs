@@ -7,6 +7,12 @@
 //! steps with the controller's output held in between, as on the drive. An algebraic loop (both
 //! with a feed-through) is solved at each step: `y = (C_p x_p + D_p (C_c x_c + D_c r + d)) /
 //! (1 + D_p D_c)`.
+//!
+//! Anti-windup: with a voltage limit ([`LoopSetup::u_limit`], or a saturation among the input
+//! effects) the controller's output is clamped and its states are conditioned on the clamp as
+//! the drive's controller does (`drive::ctrl`, Hanus' conditioning): they are updated with the
+//! error `(u_clamped - C_c x_c) / D_c` that gives the clamped output, or, without feed-through,
+//! frozen while the error pushes further into the clamp.
 
 use crate::controller::Controller;
 use crate::error::{invalid, Result};
@@ -30,6 +36,9 @@ pub struct LoopSetup {
     pub h: f64,
     /// The controller's sample period (a multiple of `h`); `None`: continuous.
     pub dt: Option<f64>,
+    /// The voltage limit on the controller's output, input units, with anti-windup (`None`:
+    /// none, unless a saturation effect sets one).
+    pub u_limit: Option<f64>,
 }
 
 impl LoopSetup {
@@ -50,6 +59,7 @@ impl LoopSetup {
             duration: 2.0 * t_load,
             h,
             dt,
+            u_limit: None,
         }
     }
 }
@@ -183,8 +193,9 @@ impl Sys {
 
 /// Simulate the loop of `model` and the controller `c` (its realisation by
 /// [`crate::realise::discrete`] with `spec`), the `effects` applied in order to the controller's
-/// output before the load adds to it: `u_plant = effects(u) + d`. The controller has no
-/// anti-windup: what a saturation does to the design shows.
+/// output before the load adds to it: `u_plant = effects(u) + d`. The controller's output is
+/// clamped to the tightest of [`LoopSetup::u_limit`] and the saturation effects' levels, with
+/// anti-windup (module docs).
 ///
 /// # Errors
 /// A bad setup (non-positive step or duration, more than [`MAX_STEPS`] steps, `dt` not a
@@ -232,6 +243,17 @@ pub fn simulate(
              strictly): the loop would be implicit through a nonlinearity",
         );
     }
+    let limit = effects
+        .iter()
+        .filter_map(|e| match e {
+            InputEffect::Saturation { level } => Some(*level),
+            _ => None,
+        })
+        .chain(setup.u_limit)
+        .fold(f64::INFINITY, f64::min);
+    if limit.is_nan() || limit <= 0.0 {
+        return invalid("u_limit", format!("{limit} must be positive"));
+    }
     let mut y_prev = 0.0;
     let mut run = LoopRun {
         t: Vec::with_capacity(n),
@@ -252,9 +274,19 @@ pub fn simulate(
         let y;
         if k % m == 0 {
             let (cp, cc) = (plant.free(), ctrl.free());
-            y = (cp + dp * (cc + dc * r + d)) / (1.0 + dp * dc);
-            u = cc + dc * (r - y);
-            ctrl.advance(r - y);
+            let y_free = (cp + dp * (cc + dc * r + d)) / (1.0 + dp * dc);
+            let v = cc + dc * (r - y_free);
+            u = v.clamp(-limit, limit);
+            y = if u == v { y_free } else { cp + dp * (u + d) };
+            let e = r - y;
+            if u == v {
+                ctrl.advance(e);
+            } else if dc != 0.0 {
+                // Hanus: the error that gives the clamped output
+                ctrl.advance((u - cc) / dc);
+            } else if !((v > limit && e > 0.0) || (v < -limit && e < 0.0)) {
+                ctrl.advance(e);
+            }
         } else {
             y = plant.free() + dp * (u + d);
         }
@@ -305,6 +337,28 @@ pub fn metrics(run: &LoopRun, setup: &LoopSetup) -> StepMetrics {
         .unwrap_or(run.t.len());
     let (t, y) = (&run.t[..split], &run.y[..split]);
     let a = setup.step;
+    let (overshoot_percent, rise_time, settling_time) = step_figures(t, y, a);
+    let before = if split > 0 { run.y[split - 1] } else { 0.0 };
+    let after = &run.y[split..];
+    let load_peak =
+        after
+            .iter()
+            .map(|v| v - before)
+            .fold(0.0, |m: f64, v| if v.abs() > m.abs() { v } else { m });
+    StepMetrics {
+        overshoot_percent,
+        rise_time,
+        settling_time,
+        load_peak,
+        load_residual: after.last().map_or(0.0, |v| v - before),
+    }
+}
+
+/// The figures of a step response `y(t)` to a step of `a` at `t[0]` from 0 (the final value
+/// taken as `a`, a loop with integral action): the overshoot `100 (max y - a)/a` percent (0 if
+/// none), the 10-90% rise time (levels crossed first, linearly interpolated between samples;
+/// `None` if never reached), the 2% settling time (`None` if not settled within the record).
+pub fn step_figures(t: &[f64], y: &[f64], a: f64) -> (f64, Option<f64>, Option<f64>) {
     let at = |frac: f64| {
         y.iter().position(|&v| v >= frac * a).map(|i| {
             if i == 0 {
@@ -324,19 +378,6 @@ pub fn metrics(run: &LoopRun, setup: &LoopSetup) -> StepMetrics {
     let settling_time = y
         .iter()
         .rposition(|&v| (v - a).abs() > 0.02 * a.abs())
-        .and_then(|i| (i + 1 < t.len()).then(|| t[i + 1]));
-    let before = if split > 0 { run.y[split - 1] } else { 0.0 };
-    let after = &run.y[split..];
-    let load_peak =
-        after
-            .iter()
-            .map(|v| v - before)
-            .fold(0.0, |m: f64, v| if v.abs() > m.abs() { v } else { m });
-    StepMetrics {
-        overshoot_percent: (100.0 * (peak - a) / a).max(0.0),
-        rise_time,
-        settling_time,
-        load_peak,
-        load_residual: after.last().map_or(0.0, |v| v - before),
-    }
+        .and_then(|i| (i + 1 < t.len()).then(|| t[i + 1] - t[0]));
+    ((100.0 * (peak - a) / a).max(0.0), rise_time, settling_time)
 }

@@ -9,50 +9,10 @@ use crate::plant::Plant;
 use crate::realise;
 use crate::{Form, LoopMetrics};
 use fracsim::export::{method_name, StateSpace};
-use fracsim::{ApproxSpec, FracTf, Term};
+use fracsim::{ApproxSpec, FracTf};
+use ident::app::ModelReport;
 use num_complex::Complex64;
 use serde::Serialize;
-
-/// One `coef s^order` term, as in the model JSON of `fracid time`/`freq`.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-pub struct TermJson {
-    /// Coefficient.
-    pub coef: f64,
-    /// Order of `s`.
-    pub order: f64,
-}
-
-/// A transfer function in the model JSON's format: `{num, den, delay, text}`.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct TfJson {
-    /// Numerator terms.
-    pub num: Vec<TermJson>,
-    /// Denominator terms.
-    pub den: Vec<TermJson>,
-    /// Input delay, seconds.
-    pub delay: f64,
-    /// The transfer function as text (read back by the parser).
-    pub text: String,
-}
-
-impl From<&FracTf> for TfJson {
-    fn from(g: &FracTf) -> Self {
-        let t = |v: &[Term]| {
-            v.iter()
-                .map(|t| TermJson {
-                    coef: t.coef,
-                    order: t.order,
-                })
-                .collect()
-        };
-        Self {
-            num: t(&g.num),
-            den: t(&g.den),
-            delay: g.delay,
-            text: g.to_string(),
-        }
-    }
-}
 
 /// The approximation a realisation used.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -125,12 +85,12 @@ pub struct Comparison {
 /// The report of `fracid tune`.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Report {
-    /// The model designed on.
-    pub model: TfJson,
+    /// The model designed on, in the model JSON's format (`ident::app::ModelReport`).
+    pub model: ModelReport,
     /// The request.
     pub spec: Spec,
-    /// `C(s)` as `{num, den}`.
-    pub controller: TfJson,
+    /// `C(s)` as `{num, den, delay, text}`, the model JSON's format.
+    pub controller: ModelReport,
     /// Its gains and orders.
     pub params: Controller,
     /// The continuous loop (with the hold's half-sample delay for `--dt`).
@@ -171,6 +131,9 @@ pub struct SimOptions {
     pub load: Option<f64>,
     /// The model's input effects (from its diagnosis).
     pub effects: Vec<InputEffect>,
+    /// The voltage limit on the controller's output in the simulations, input units, with
+    /// anti-windup (`None`: none, unless a saturation effect sets one).
+    pub u_limit: Option<f64>,
 }
 
 /// Design, realise, simulate and compare: the report and its signals.
@@ -193,6 +156,7 @@ pub fn tune(model: &FracTf, spec: &Spec, opts: &SimOptions) -> Result<(Report, R
     };
     let mut setup = LoopSetup::for_crossover(spec.wc, spec.dt);
     setup.step = opts.step.unwrap_or(1.0);
+    setup.u_limit = opts.u_limit;
     let k0 = model.dc_gain();
     setup.load = opts.load.unwrap_or(if k0.is_finite() && k0 != 0.0 {
         setup.step / k0

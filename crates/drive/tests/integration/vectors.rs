@@ -107,6 +107,41 @@ fn named_frames() -> Vec<(&'static str, Frame)> {
             },
         ),
         (
+            "LOAD_CTRL",
+            Frame {
+                seq: 0x000A,
+                msg: Message::LoadCtrl(LoadCtrl {
+                    format: CTRL_FORMAT,
+                    n_sections: 2,
+                    d_q24: 1_638_400,
+                    dinv_q16: 2621,
+                }),
+            },
+        ),
+        (
+            "LOAD_SECTION",
+            Frame {
+                seq: 0x000B,
+                msg: Message::LoadSection(LoadSection {
+                    index: 1,
+                    a_q30: 1_062_997_818,
+                    g_q24: -1234,
+                }),
+            },
+        ),
+        (
+            "START_LOOP",
+            Frame {
+                seq: 0x000C,
+                msg: Message::StartLoop(StartLoop {
+                    r0: 0,
+                    r1: 2000,
+                    pre_samples: 100,
+                    total_samples: 600,
+                }),
+            },
+        ),
+        (
             "ACK",
             Frame {
                 seq: 0x0003,
@@ -124,7 +159,7 @@ fn named_frames() -> Vec<(&'static str, Frame)> {
                 msg: Message::HelloReply(HelloReply {
                     proto_version: drive::protocol::PROTO_VERSION,
                     fw_major: 1,
-                    fw_minor: 0,
+                    fw_minor: 1,
                     n_channels: 3,
                     max_block_samples: 66,
                     boot_id: 0xBEEF,
@@ -311,4 +346,134 @@ fn prbs_first_bits() {
         n += 1;
     }
     assert!(n >= 2);
+}
+
+/// The controllers of `ctrl.txt`: a fractional PI's sections (from a realisation), a pure
+/// integrator without feed-through (conditional integration), states driven into saturation.
+fn vector_controllers() -> Vec<(&'static str, drive::ctrl::FixedCtrl, i16, Vec<i32>)> {
+    use drive::ctrl::{FixedCtrl, Section};
+    let s = |a: f64, g: i32| Section {
+        a_q30: (a * (1u64 << 30) as f64).round() as i32,
+        g_q24: g,
+    };
+    let mut errs: Vec<i32> = (0..40).map(|k| 2000 - 97 * k).collect();
+    errs.extend((0..40).map(|k| -((k * 7919) % 3001) + 1500));
+    errs.extend([30000, 30000, 30000, -30000, -30000, 5, -5, 0, 1, -1]);
+    vec![
+        (
+            "fopi",
+            FixedCtrl {
+                d_q24: (0.56 * 16_777_216.0f64).round() as i32,
+                dinv_q16: (65536.0f64 / 0.56).round() as i32,
+                sections: vec![
+                    s(1.0, 90_000_000),
+                    s(0.9999990, -333),
+                    s(0.99, -70_000_000),
+                    s(0.5, -5_000_000),
+                    s(-0.25, -3000),
+                    s(0.0, 123_456),
+                ],
+            },
+            12000,
+            errs.clone(),
+        ),
+        (
+            "integrator",
+            FixedCtrl {
+                d_q24: 0,
+                dinv_q16: 0,
+                sections: vec![s(1.0, 40_000 << 8)],
+            },
+            5000,
+            errs.clone(),
+        ),
+        (
+            "saturating",
+            FixedCtrl {
+                d_q24: -7 << 24,
+                dinv_q16: -(65536 / 7),
+                sections: vec![s(1.0, i32::MAX), s(-1.0, i32::MIN), s(0.75, i32::MAX)],
+            },
+            32767,
+            errs,
+        ),
+    ]
+}
+
+/// `ctrl.txt`: the fixed-point controller's outputs and states, sample by sample, for the C
+/// firmware's `fw_ctrl_step` and [`drive::ctrl::FixedCtrl::step`] alike.
+#[test]
+fn controller_steps() {
+    let path = dir().join("ctrl.txt");
+    if std::env::var_os("DRIVE_REGEN_VECTORS").is_some() {
+        let mut s = String::from(
+            "# fracid drive speed-loop controller (PROTOCOL.md section 3): fixed-point steps\n\
+             # CTRL name d_q24 dinv_q16 u_limit n a_q30 g_q24 ... (states start at 0)\n\
+             # STEP e u clamped z_0 .. z_(n-1) (the states after the step)\n",
+        );
+        for (name, k, lim, errs) in vector_controllers() {
+            s += &format!(
+                "CTRL {name} {} {} {lim} {}",
+                k.d_q24,
+                k.dinv_q16,
+                k.sections.len()
+            );
+            for sec in &k.sections {
+                s += &format!(" {} {}", sec.a_q30, sec.g_q24);
+            }
+            s += "\n";
+            let mut z = vec![0; k.sections.len()];
+            for e in errs {
+                let (u, c) = k.step(&mut z, e, lim);
+                s += &format!("STEP {e} {u} {}", c as u8);
+                for v in &z {
+                    s += &format!(" {v}");
+                }
+                s += "\n";
+            }
+        }
+        std::fs::write(&path, s).unwrap();
+    }
+    let text = std::fs::read_to_string(&path).unwrap();
+    let mut cur: Option<(drive::ctrl::FixedCtrl, i16, Vec<i64>, Vec<i64>)> = None;
+    let (mut steps, mut ctrls, mut clamped) = (0, 0, 0);
+    for line in text
+        .lines()
+        .filter(|l| !l.starts_with('#') && !l.trim().is_empty())
+    {
+        let f: Vec<&str> = line.split_whitespace().collect();
+        let num = |i: usize| f[i].parse::<i64>().unwrap();
+        if f[0] == "CTRL" {
+            let n = num(5) as usize;
+            let k = drive::ctrl::FixedCtrl {
+                d_q24: num(2) as i32,
+                dinv_q16: num(3) as i32,
+                sections: (0..n)
+                    .map(|i| drive::ctrl::Section {
+                        a_q30: num(6 + 2 * i) as i32,
+                        g_q24: num(7 + 2 * i) as i32,
+                    })
+                    .collect(),
+            };
+            cur = Some((k, num(4) as i16, vec![0; n], vec![0; n]));
+            ctrls += 1;
+        } else {
+            let (k, lim, z, zc) = cur.as_mut().expect("STEP after CTRL");
+            let e = num(1) as i32;
+            let want_z: Vec<i64> = f[4..].iter().map(|v| v.parse().unwrap()).collect();
+            let (u, c) = k.step(z, e, *lim);
+            assert_eq!((u as i64, c as i64), (num(2), num(3)), "{line}: Rust");
+            assert_eq!(*z, want_z, "{line}: Rust states");
+            let (uc, cc) = drive::cfw::ctrl_step(k, zc, e, *lim);
+            assert_eq!((uc as i64, cc as i64), (num(2), num(3)), "{line}: C");
+            assert_eq!(*zc, want_z, "{line}: C states");
+            clamped += c as usize;
+            steps += 1;
+        }
+    }
+    assert_eq!(ctrls, 3);
+    assert!(
+        steps >= 270 && clamped >= 10,
+        "{steps} steps, {clamped} clamped"
+    );
 }

@@ -247,7 +247,6 @@ pub fn run(a: DemoArgs) -> Result<()> {
     let link_stats = client.stats();
     drop(client);
     let sim_stats = sim.stats();
-    sim.stop();
 
     // 3. Identify and diagnose in this process, with the use cases the commands run (each
     // model fitted and diagnosed once; its text, JSON and plots made from the one result).
@@ -315,6 +314,19 @@ pub fn run(a: DemoArgs) -> Result<()> {
         (1000, 800),
         &super::compare::CompareFigure { c: &cmp, names },
     )?;
+
+    // 3b. The tuned loop on the drive (cmd/demo_loop.rs); the drive was kept running for it.
+    step("the tuned loop on the drive");
+    let model = crate::cmd::demo_loop::model_of(&dir.join("time.json"))?;
+    let tuned = crate::cmd::demo_loop::run(sim.port_path(), a.baud, a.sample_rate_hz, &model, dir)?;
+    sim.stop();
+    if let (Some(rec), Some(fig)) = (&tuned.record, &tuned.figure) {
+        step(&format!(
+            "tuned loop: {} and {}",
+            rec.display(),
+            fig.display()
+        ));
+    }
 
     // 4. The report.
     let mut r = String::new();
@@ -428,6 +440,9 @@ pub fn run(a: DemoArgs) -> Result<()> {
         "- Simulator counters: {} frames sent, {} damaged, {} blocks dropped, {} receive overruns.\n",
         sim_stats.frames_sent, sim_stats.frames_damaged, sim_stats.blocks_dropped, sim_stats.rx_overruns
     )?;
+    for l in &tuned.lines {
+        writeln!(r, "{l}")?;
+    }
     writeln!(r, "Total time: {:.1} s.", started.elapsed().as_secs_f64())?;
     let report = dir.join("report.md");
     std::fs::write(&report, r).with_context(|| format!("cannot write {}", report.display()))?;

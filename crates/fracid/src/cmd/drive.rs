@@ -30,6 +30,9 @@ pub enum DriveCmd {
     Prbs(PrbsArgs),
     /// Run a sine sweep and write a Bode table (freq_hz,gain_db,phase_deg).
     Sine(SineArgs),
+    /// Run a speed loop with a controller of `fracid tune --dt ... --json` (its discrete
+    /// realisation, downloaded to the drive) and a reference step; write t,r,u,y as CSV.
+    Loop(crate::cmd::drive_loop::LoopArgs),
     /// Show the drive's identity and state.
     Status(StatusArgs),
 }
@@ -257,12 +260,13 @@ pub fn run(args: DriveArgs) -> Result<()> {
         DriveCmd::Sim(a) => sim(a),
         DriveCmd::Prbs(a) => prbs(a),
         DriveCmd::Sine(a) => sine(a),
+        DriveCmd::Loop(a) => crate::cmd::drive_loop::run(a),
         DriveCmd::Status(a) => status(a),
     }
 }
 
 /// Library errors to CLI errors: bad parameters exit 2, port/I-O problems exit 3.
-fn lib_err(e: drive::Error) -> anyhow::Error {
+pub(crate) fn lib_err(e: drive::Error) -> anyhow::Error {
     match e {
         drive::Error::InvalidParam(m) => anyhow::Error::new(BadInput(m)),
         drive::Error::Io(io) => anyhow::Error::new(io),
@@ -384,7 +388,7 @@ fn check_link_path(link: &std::path::Path) -> Result<()> {
 }
 
 /// The drive configuration from the options, checked before anything is opened (exit 2).
-fn port_conf(p: &PortArgs) -> Result<Configure> {
+pub(crate) fn port_conf(p: &PortArgs) -> Result<Configure> {
     if p.baud == 0 {
         crate::bad_input!("--baud must be positive");
     }
@@ -415,7 +419,7 @@ fn port_conf(p: &PortArgs) -> Result<Configure> {
 }
 
 /// Open the port, check the sample rate against the drive's, configure.
-fn connect(p: &PortArgs, conf: &Configure) -> Result<Client> {
+pub(crate) fn connect(p: &PortArgs, conf: &Configure) -> Result<Client> {
     let cfg = ClientConfig {
         baud: p.baud,
         timeout: p.timeout_ms.map(Duration::from_millis),
@@ -442,7 +446,7 @@ fn connect(p: &PortArgs, conf: &Configure) -> Result<Client> {
 }
 
 /// `-` as an output path: standard output (`/dev/stdout`), not a file named `-`.
-fn output_path(p: &std::path::Path) -> PathBuf {
+pub(crate) fn output_path(p: &std::path::Path) -> PathBuf {
     if p.as_os_str() == "-" {
         PathBuf::from("/dev/stdout")
     } else {
@@ -500,7 +504,7 @@ fn same_file(a: &std::path::Path, b: &std::path::Path) -> bool {
 /// The outputs of a drive command, checked before the drive is asked anything (exit 2): no two
 /// of them the same file (both would be written into one), none the serial port (the CSV would
 /// go down the line) nor any character device other than standard output and `/dev/null`.
-fn check_outputs(port: &str, outputs: &[(&str, &std::path::Path)]) -> Result<()> {
+pub(crate) fn check_outputs(port: &str, outputs: &[(&str, &std::path::Path)]) -> Result<()> {
     let port = std::path::Path::new(port);
     let allowed = [
         char_device(std::path::Path::new("/dev/stdout")),
@@ -535,7 +539,7 @@ fn check_outputs(port: &str, outputs: &[(&str, &std::path::Path)]) -> Result<()>
 
 /// The output file, created only when the run's first data arrive ([`LazyFile`]); a path that
 /// cannot be written fails here, before the drive is asked anything (exit 3).
-fn output_file(path: &std::path::Path) -> Result<LazyFile> {
+pub(crate) fn output_file(path: &std::path::Path) -> Result<LazyFile> {
     LazyFile::new(path).context("cannot write the output file")
 }
 
@@ -566,7 +570,7 @@ fn check_levels(levels: &[(&str, i32)], conf: &Configure) -> Result<()> {
     Ok(())
 }
 
-fn progress_bar(quiet: bool, unit: &str) -> Option<indicatif::ProgressBar> {
+pub(crate) fn progress_bar(quiet: bool, unit: &str) -> Option<indicatif::ProgressBar> {
     if quiet || !std::io::stderr().is_terminal() {
         return None;
     }
@@ -580,7 +584,7 @@ fn progress_bar(quiet: bool, unit: &str) -> Option<indicatif::ProgressBar> {
     Some(pb)
 }
 
-fn attach(c: &mut Client, pb: &Option<indicatif::ProgressBar>) {
+pub(crate) fn attach(c: &mut Client, pb: &Option<indicatif::ProgressBar>) {
     if let Some(pb) = pb.clone() {
         c.set_progress(move |p: Progress| {
             pb.set_length(p.total);
@@ -591,7 +595,7 @@ fn attach(c: &mut Client, pb: &Option<indicatif::ProgressBar>) {
 
 /// The error of an acquisition whose output was closed under it (a broken pipe): the drive was
 /// stopped (by the client, on the sink's error), what was lost said; exit 3 (I/O).
-fn lost_output(e: anyhow::Error, output: &std::path::Path, what: &str) -> anyhow::Error {
+pub(crate) fn lost_output(e: anyhow::Error, output: &std::path::Path, what: &str) -> anyhow::Error {
     let broken = e.chain().any(|c| {
         c.downcast_ref::<std::io::Error>()
             .is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe)

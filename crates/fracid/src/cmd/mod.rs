@@ -2,8 +2,10 @@
 
 pub mod compare;
 pub mod demo;
+pub mod demo_loop;
 pub mod diagnose;
 pub mod drive;
+pub mod drive_loop;
 pub mod export;
 pub mod fleet;
 pub mod freq;

@@ -55,6 +55,10 @@ pub struct TuneArgs {
     /// reference step, step / G(0)).
     #[arg(long)]
     pub load: Option<f64>,
+    /// The voltage limit on the controller's output in the simulated loops, input units: the
+    /// output is clamped there with anti-windup, as the drive does (`fracid drive loop`).
+    #[arg(long)]
+    pub u_limit: Option<f64>,
     /// Write the report as JSON to stdout instead of text.
     #[arg(long)]
     pub json: bool,
@@ -66,7 +70,7 @@ pub struct TuneArgs {
 
 /// The final model of `text` and its input effects: a JSON report's "diagnosis.model" (with
 /// "diagnosis.effects") or "model", or a transfer function.
-fn load_model(text: &str) -> Result<(FracTf, Vec<InputEffect>, Vec<String>)> {
+pub(crate) fn load_model(text: &str) -> Result<(FracTf, Vec<InputEffect>, Vec<String>)> {
     let p = Path::new(text);
     if !p
         .extension()
@@ -161,7 +165,11 @@ pub fn run(a: TuneArgs) -> Result<()> {
         step: Some(a.step),
         load: a.load,
         effects,
+        u_limit: a.u_limit,
     };
+    if a.u_limit.is_some_and(|v| !(v.is_finite() && v > 0.0)) {
+        crate::bad_input!("--u-limit must be a positive number, got {:?}", a.u_limit);
+    }
     let (report, runs) = tune::report::tune(&g, &spec, &opts)?;
     if a.json {
         println!("{}", serde_json::to_string_pretty(&report)?);

@@ -1,0 +1,290 @@
+//! The last step of `fracid demo`: a FOPI tuned on the identified model (`fracid tune`, wc = 50
+//! rad/s, pm = 60 deg, sampled at the drive's rate) run on the drive in a speed loop (`fracid
+//! drive loop`), the step tune predicts beside the step measured.
+//!
+//! Kept apart from `demo.rs`: [`run`] takes the drive's port, the model and the output folder and
+//! returns the report's lines and the figure's path.
+
+use crate::cmd::drive_loop::{self, MeasuredStep, Realisation};
+use crate::plot::{self, Figure, Line, Look, TimeChart};
+use anyhow::{Context, Result};
+use drive::client::{Client, ClientConfig, LazyFile, LoopCsvSink, LoopTest};
+use drive::protocol::Configure;
+use fracsim::FracTf;
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use std::path::{Path, PathBuf};
+use tune::report::{DiscreteJson, SimOptions};
+use tune::{Form, Spec};
+
+/// The demo's loop: crossover (rad/s), phase margin (deg), the reference step (rad/s), time at
+/// reference 0 before it and the record's length (s).
+pub const WC: f64 = 50.0;
+/// Phase margin, degrees.
+pub const PM_DEG: f64 = 60.0;
+/// The reference step, rad/s.
+pub const STEP: f64 = 50.0;
+/// Time at reference 0 before the step, s.
+pub const PRE_S: f64 = 0.1;
+/// The record, s.
+pub const DURATION_S: f64 = 0.6;
+
+/// What the step adds to the demo's report.
+#[derive(Debug, Clone)]
+pub struct DemoLoop {
+    /// Markdown lines for the report (a heading, the controller, predicted and measured side by
+    /// side, the files).
+    pub lines: Vec<String>,
+    /// The figure (predicted and measured steps), if the loop ran.
+    pub figure: Option<PathBuf>,
+    /// The record `t,r,u,y`, if the loop ran.
+    pub record: Option<PathBuf>,
+}
+
+/// Open the drive at `port` (its own client: call it after the demo's client is closed, the
+/// port is opened exclusively) and run [`run_with`].
+///
+/// # Errors
+/// As [`run_with`]; the port does not open.
+pub fn run(
+    port: &str,
+    baud: u32,
+    sample_rate_hz: u32,
+    model: &FracTf,
+    dir: &Path,
+) -> Result<DemoLoop> {
+    let mut client = Client::open(
+        port,
+        ClientConfig {
+            baud,
+            // a virtual-time drive runs as fast as the host keeps it alive
+            keepalive: std::time::Duration::from_millis(2),
+            ..ClientConfig::default()
+        },
+    )
+    .context("cannot open the drive for the tuned loop")?;
+    let conf = Configure {
+        sample_rate_hz,
+        ..Configure::default()
+    };
+    client.configure(&conf).context("CONFIGURE failed")?;
+    run_with(&mut client, &conf, model, dir)
+}
+
+/// Tune a FOPI on `model` for the drive's rate, run it on the drive behind `client` (configured
+/// with `conf`), write `loop.csv` and `loop.png` into `dir`. A design the tuner refuses is
+/// reported in the lines, not an error.
+///
+/// # Errors
+/// The drive's errors (download, run), the files.
+pub fn run_with(
+    client: &mut Client,
+    conf: &Configure,
+    model: &FracTf,
+    dir: &Path,
+) -> Result<DemoLoop> {
+    let dt = 1.0 / conf.sample_rate_hz as f64;
+    let mut lines = vec![
+        "## The tuned loop on the drive\n".to_string(),
+        format!(
+            "A FOPI designed by `fracid tune` on the identified model for wc = {WC} rad/s, pm = \
+             {PM_DEG} deg, sampled every {dt} s (`--dt`), downloaded to the drive as fixed-point \
+             sections and run in a speed loop (`fracid drive loop`): the reference 0 for {PRE_S} s, \
+             then a step of {STEP} rad/s.\n"
+        ),
+    ];
+    let spec = Spec {
+        form: Form::Fopi,
+        wc: WC,
+        pm_deg: PM_DEG,
+        flat: false,
+        t_high: None,
+        s_low: None,
+        dt: Some(dt),
+        lambda: None,
+    };
+    let opts = SimOptions {
+        step: Some(STEP),
+        u_limit: Some(conf.u_limit as f64 * conf.u_lsb()),
+        ..SimOptions::default()
+    };
+    let (report, runs) = match tune::report::tune(model, &spec, &opts) {
+        Ok(r) => r,
+        Err(e) => {
+            lines.push(format!("The design was refused: {e}.\n"));
+            return Ok(DemoLoop {
+                lines,
+                figure: None,
+                record: None,
+            });
+        }
+    };
+    let Some(disc) = &report.discrete else {
+        anyhow::bail!("the tuner gave no discrete realisation for --dt {dt}");
+    };
+    let real = realisation(disc, &report.controller.text);
+    let (pruned, dropped) = drive_loop::prune(&real);
+    let k = drive_loop::fixed_controller(&pruned, conf)?;
+    let qerr = drive_loop::quantisation_error(&real, &k, conf);
+    let cmd = LoopTest {
+        step: STEP,
+        pre_s: PRE_S,
+        duration_s: DURATION_S,
+    }
+    .to_command(conf)?;
+    let record = dir.join("loop.csv");
+    let mut sink = LoopCsvSink::new(
+        LazyFile::new(&record).with_context(|| record.display().to_string())?,
+        cmd,
+        conf.y_lsb(),
+    );
+    let acq = drive_loop::run_on(client, &k, &cmd, &mut sink)?;
+    sink.into_inner()
+        .and_then(|mut f| std::io::Write::flush(&mut f))
+        .with_context(|| format!("writing {}", record.display()))?;
+    lines.push(format!(
+        "Controller: C(s) = {} (kp = {:.4}, ki = {:.4}, lambda = {:.4}); {} sections on the \
+         drive{}, frequency response within {:.1e} of the realisation.\n",
+        report.controller.text,
+        report.params.kp,
+        report.params.ki,
+        report.params.lambda,
+        k.sections.len(),
+        if dropped.is_empty() {
+            String::new()
+        } else {
+            format!(" ({} negligible state(s) left out)", dropped.len())
+        },
+        qerr
+    ));
+    let measured = drive_loop::measured_step(&acq, &cmd, conf.y_lsb());
+    let predicted = report.step.metrics;
+    let fmt = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.4} s"));
+    lines.push("| step | overshoot | rise 10-90% | settling 2% |".into());
+    lines.push("|---|---:|---:|---:|".into());
+    if let Some(m) = predicted {
+        lines.push(format!(
+            "| predicted (tune's simulation of the sampled loop on the identified model) | {:.2}% | {} | {} |",
+            m.overshoot_percent,
+            fmt(m.rise_time),
+            fmt(m.settling_time)
+        ));
+    }
+    if let Some(m) = &measured {
+        lines.push(format!(
+            "| measured on the drive | {:.2}% | {} | {} |",
+            m.overshoot_percent,
+            fmt(m.rise_time),
+            fmt(m.settling_time)
+        ));
+    }
+    lines.push(String::new());
+    lines.push(format!(
+        "Record `{}`: {}{}.\n",
+        record.file_name().unwrap_or_default().to_string_lossy(),
+        acq.footer().trim_start_matches("# "),
+        if acq.clamped_blocks > 0 {
+            "; the drive clamped the voltage (anti-windup engaged)"
+        } else {
+            ""
+        }
+    ));
+    let figure = match (&runs.design, &measured) {
+        (Some(run), Some(MeasuredStep { t, y, .. })) => {
+            let path = dir.join("loop.png");
+            // the prediction at the drive's sample instants (its fine step divides dt)
+            let m = (dt / report.step.setup.h).round().max(1.0) as usize;
+            let pred: Vec<f64> = t
+                .iter()
+                .enumerate()
+                .map(|(i, _)| run.y.get(i * m).copied().unwrap_or(f64::NAN))
+                .collect();
+            plot::save(
+                &path,
+                (1000, 600),
+                &LoopFigure {
+                    t,
+                    predicted: &pred,
+                    measured: y,
+                },
+            )?;
+            lines.push(format!(
+                "![predicted and measured step]({})\n",
+                path.file_name().unwrap_or_default().to_string_lossy()
+            ));
+            Some(path)
+        }
+        _ => None,
+    };
+    Ok(DemoLoop {
+        lines,
+        figure,
+        record: Some(record),
+    })
+}
+
+/// The final model of a `fracid time --json` / `fracid freq --json` report ("diagnosis.model",
+/// else "model"), as `fracid tune` reads it.
+///
+/// # Errors
+/// The file cannot be read or holds no model.
+pub fn model_of(json: &Path) -> Result<FracTf> {
+    let text = json
+        .to_str()
+        .with_context(|| format!("{} is not a UTF-8 path", json.display()))?;
+    Ok(crate::cmd::tune::load_model(text)?.0)
+}
+
+fn realisation(d: &DiscreteJson, text: &str) -> Realisation {
+    Realisation {
+        dt: d.dt,
+        a: d.a.clone(),
+        b: d.b.iter().flatten().copied().collect(),
+        c: d.c.iter().flatten().copied().collect(),
+        d: d.d.first().and_then(|r| r.first()).copied().unwrap_or(0.0),
+        text: text.to_string(),
+    }
+}
+
+struct LoopFigure<'a> {
+    t: &'a [f64],
+    predicted: &'a [f64],
+    measured: &'a [f64],
+}
+
+impl Figure for LoopFigure<'_> {
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<()>
+    where
+        DB::ErrorType: 'static,
+    {
+        plot::time_series_chart(
+            root,
+            &TimeChart {
+                title: Some("speed step of the tuned FOPI: predicted and measured on the drive"),
+                x_desc: "time after the step (s)",
+                y_desc: Some("speed (rad/s)"),
+                t: self.t,
+                lines: &[
+                    Line {
+                        label: Some("predicted (fracid tune)"),
+                        values: self.predicted,
+                        style: BLUE.stroke_width(2),
+                    },
+                    Line {
+                        label: Some("measured (fracid drive loop)"),
+                        values: self.measured,
+                        style: RED.stroke_width(1),
+                    },
+                ],
+                marker: None,
+                look: Look {
+                    caption: 22,
+                    labels: Some(16),
+                    margin: 10,
+                    x_area: 45,
+                    y_area: 60,
+                },
+            },
+        )
+    }
+}

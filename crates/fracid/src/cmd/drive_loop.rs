@@ -1,0 +1,408 @@
+//! `fracid drive loop`: the controller `fracid tune --dt DT --json` designed, run in a speed loop
+//! on the drive (PROTOCOL.md section 3, "Speed loop").
+//!
+//! The report's discrete realisation (`discrete`: `A, B, C, D` at `dt`) is turned into the
+//! drive's fixed-point parallel first-order sections ([`drive::ctrl::FixedCtrl`]), downloaded
+//! (LOAD_CTRL, LOAD_SECTION), and START_LOOP runs the reference at 0 for `--pre` seconds, then
+//! `--step`. The record is `t,r,u,y` with the acquisition's footer: a broken run keeps what
+//! arrived and says what is missing.
+
+use crate::cmd::drive::{
+    attach, check_outputs, connect, lib_err, lost_output, output_file, output_path, port_conf,
+    progress_bar, PortArgs,
+};
+use crate::interrupt::{Interrupted, StopOnInterrupt};
+use anyhow::{Context, Result};
+use drive::client::{Acquisition, Client, LoopCsvSink, LoopTest, SampleSink};
+use drive::ctrl::FixedCtrl;
+use drive::protocol::{Configure, StartLoop};
+use num_complex::Complex64;
+use serde_json::Value;
+use std::io::Write;
+use std::path::PathBuf;
+
+/// Options of `fracid drive loop`.
+#[derive(Debug, clap::Args)]
+pub struct LoopArgs {
+    /// The port and the drive's configuration.
+    #[command(flatten)]
+    pub port: PortArgs,
+    /// The controller: the JSON of `fracid tune ... --dt DT --json` (its discrete realisation
+    /// is run; DT must be the sample period, 1/--sample-rate).
+    #[arg(long)]
+    pub controller: PathBuf,
+    /// The reference step, rad/s.
+    #[arg(long)]
+    pub step: f64,
+    /// The whole record, s.
+    #[arg(long)]
+    pub duration: f64,
+    /// Time at reference 0 before the step, s.
+    #[arg(long, default_value_t = 0.1)]
+    pub pre: f64,
+    /// Output CSV (t,r,u,y); `-` for standard output.
+    #[arg(long, short)]
+    pub output: PathBuf,
+    /// Exit 0 even if the run is incomplete (the file is marked either way).
+    #[arg(long)]
+    pub allow_incomplete: bool,
+}
+
+/// A discrete controller realisation read from a `fracid tune --json` report.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Realisation {
+    /// Sample period, s.
+    pub dt: f64,
+    /// `A`, by rows.
+    pub a: Vec<Vec<f64>>,
+    /// `B`, a column.
+    pub b: Vec<f64>,
+    /// `C`, a row.
+    pub c: Vec<f64>,
+    /// `D`.
+    pub d: f64,
+    /// The continuous controller as text (for messages).
+    pub text: String,
+}
+
+fn bad(msg: String) -> anyhow::Error {
+    anyhow::Error::new(crate::cmd::BadInput(msg))
+}
+
+/// The discrete realisation of a `fracid tune --json` report.
+///
+/// # Errors
+/// Not JSON, no `discrete` realisation (a design without `--dt`), matrices of the wrong shape or
+/// with non-numbers (all bad input, exit 2).
+pub fn parse_realisation(text: &str) -> Result<Realisation> {
+    let v: Value = serde_json::from_str(text)
+        .map_err(|e| bad(format!("not the JSON of `fracid tune --json`: {e}")))?;
+    let d = v.get("discrete").filter(|d| !d.is_null()).ok_or_else(|| {
+        bad("no discrete realisation (\"discrete\"): design with `fracid tune ... --dt DT --json`, DT the drive's sample period".into())
+    })?;
+    let num = |x: &Value, what: &str| -> Result<f64> {
+        x.as_f64()
+            .filter(|v| v.is_finite())
+            .ok_or_else(|| bad(format!("discrete.{what}: {x} is not a finite number")))
+    };
+    let matrix = |name: &str| -> Result<Vec<Vec<f64>>> {
+        let rows = d
+            .get(name)
+            .and_then(Value::as_array)
+            .ok_or_else(|| bad(format!("discrete.{name} missing or not an array of rows")))?;
+        rows.iter()
+            .map(|r| {
+                r.as_array()
+                    .ok_or_else(|| bad(format!("discrete.{name}: a row is not an array")))?
+                    .iter()
+                    .map(|x| num(x, name))
+                    .collect()
+            })
+            .collect()
+    };
+    let dt = num(d.get("dt").unwrap_or(&Value::Null), "dt")?;
+    let a = matrix("a")?;
+    let b: Vec<f64> = matrix("b")?.into_iter().flatten().collect();
+    let c: Vec<f64> = matrix("c")?.into_iter().flatten().collect();
+    let dm: Vec<f64> = matrix("d")?.into_iter().flatten().collect();
+    let n = a.len();
+    if !(dt > 0.0)
+        || b.len() != n
+        || c.len() != n
+        || dm.len() != 1
+        || a.iter().any(|r| r.len() != n)
+    {
+        return Err(bad(format!(
+            "discrete realisation of inconsistent shape: A {n} rows, B {}, C {}, D {} entries, dt {dt}",
+            b.len(),
+            c.len(),
+            dm.len()
+        )));
+    }
+    let text = v
+        .get("controller")
+        .and_then(|c| c.get("text"))
+        .and_then(Value::as_str)
+        .unwrap_or("?")
+        .to_string();
+    Ok(Realisation {
+        dt,
+        a,
+        b,
+        c,
+        d: dm[0],
+        text,
+    })
+}
+
+/// The states' responses `X(e^(j w dt))` to the error, and the output `C X + D`, of a
+/// lower-triangular realisation (forward substitution); `None` if `A` is not lower triangular.
+fn responses(r: &Realisation, w: f64) -> Option<(Vec<Complex64>, Complex64)> {
+    let z = Complex64::from_polar(1.0, w * r.dt);
+    let n = r.a.len();
+    if (0..n).any(|i| (i + 1..n).any(|j| r.a[i][j] != 0.0)) {
+        return None;
+    }
+    let mut x = vec![Complex64::new(0.0, 0.0); n];
+    for i in 0..n {
+        let s: Complex64 = (0..i).map(|j| x[j] * r.a[i][j]).sum();
+        x[i] = (s + r.b[i]) / (z - r.a[i][i]);
+    }
+    let out = x.iter().zip(&r.c).map(|(x, c)| x * c).sum::<Complex64>() + r.d;
+    Some((x, out))
+}
+
+/// The frequencies the loop runs at and the checks use: 1 rad/s to half Nyquist, 20 a decade.
+fn loop_band(dt: f64) -> Vec<f64> {
+    let top = 0.5 * std::f64::consts::PI / dt;
+    (0..)
+        .map(|i| 10f64.powf(i as f64 / 20.0))
+        .take_while(|&w| w <= top)
+        .collect()
+}
+
+/// Relative share below which a state that feeds no other is left out of the drive's
+/// controller ([`prune`]).
+pub const PRUNE_TOL: f64 = 1e-4;
+
+/// Leave out the states that feed no other state and whose share of the output, `|c_i X_i|`, is
+/// below [`PRUNE_TOL`] of `|C|` at every frequency of [`loop_band`] (1 rad/s to half Nyquist):
+/// the approximation's double integrator below its band (`1/s^lambda` with `lambda > 1`
+/// approximated with a zero at the origin gives `c1/s + c2/s^2`, `c2/c1` about 4e-6 rad/s for the
+/// FOPI of wc = 50 rad/s, a share of 5e-5 at 1 rad/s), which the drive's first-order sections cannot hold (a repeated pole)
+/// and no loop run of seconds can see. Returns the pruned realisation and the states left out.
+pub fn prune(r: &Realisation) -> (Realisation, Vec<usize>) {
+    let mut out = r.clone();
+    let mut dropped = Vec::new();
+    let band = loop_band(r.dt);
+    let mut i = 0;
+    while i < out.a.len() {
+        let n = out.a.len();
+        let leaf = (0..n).all(|j| j == i || out.a[j][i] == 0.0);
+        let small = leaf
+            && out.c[i] != 0.0
+            && band.iter().all(|&w| match responses(&out, w) {
+                Some((x, c)) => (x[i] * out.c[i]).norm() < PRUNE_TOL * c.norm(),
+                None => false,
+            });
+        if small {
+            out.a.remove(i);
+            for row in &mut out.a {
+                row.remove(i);
+            }
+            out.b.remove(i);
+            out.c.remove(i);
+            dropped.push(i + dropped.len());
+        } else {
+            i += 1;
+        }
+    }
+    (out, dropped)
+}
+
+/// The drive's fixed-point controller of `r` for the configuration `conf` (its rate must be
+/// `1/dt`, its channel scales set the raw gains).
+///
+/// # Errors
+/// A sample rate other than `1/dt`; a realisation the drive cannot run (not triangular, repeated
+/// poles, gains beyond Q24, too many sections): bad input, exit 2.
+pub fn fixed_controller(r: &Realisation, conf: &Configure) -> Result<FixedCtrl> {
+    let fs = conf.sample_rate_hz as f64;
+    if (r.dt * fs - 1.0).abs() > 1e-6 {
+        return Err(bad(format!(
+            "the controller is realised for dt = {} s ({} Hz); the drive samples at {fs} Hz: \
+             pass --sample-rate {} or design with --dt {}",
+            r.dt,
+            1.0 / r.dt,
+            (1.0 / r.dt).round(),
+            1.0 / fs
+        )));
+    }
+    let b = r.b.clone();
+    FixedCtrl::from_state_space(&r.a, &b, &r.c, r.d, conf.y_lsb() / conf.u_lsb()).map_err(lib_err)
+}
+
+/// The largest relative deviation of the fixed-point controller's frequency response from the
+/// realisation's (`r`, before [`prune`]) over [`loop_band`]: what pruning and quantisation do.
+pub fn quantisation_error(r: &Realisation, k: &FixedCtrl, conf: &Configure) -> f64 {
+    let gain_raw = conf.y_lsb() / conf.u_lsb();
+    loop_band(r.dt)
+        .into_iter()
+        .filter_map(|w| {
+            let (_, e) = responses(r, w)?;
+            Some((k.freq_response(w, r.dt, gain_raw) - e).norm() / e.norm())
+        })
+        .fold(0.0, f64::max)
+}
+
+/// Download `k` and run the loop `cmd` into `sink`.
+///
+/// # Errors
+/// Those of [`Client::load_controller`] and [`Client::run_loop`].
+pub fn run_on(
+    client: &mut Client,
+    k: &FixedCtrl,
+    cmd: &StartLoop,
+    sink: &mut dyn SampleSink,
+) -> Result<Acquisition> {
+    client
+        .load_controller(k)
+        .map_err(lib_err)
+        .context("downloading the controller")?;
+    client
+        .run_loop(cmd, sink)
+        .map_err(lib_err)
+        .context("the loop run")
+}
+
+/// The measured step of a loop run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MeasuredStep {
+    /// Time from the step, s.
+    pub t: Vec<f64>,
+    /// Speed, rad/s.
+    pub y: Vec<f64>,
+    /// Overshoot, percent of the step.
+    pub overshoot_percent: f64,
+    /// 10-90% rise time, s (`None`: not reached).
+    pub rise_time: Option<f64>,
+    /// 2% settling time, s (`None`: not within the record).
+    pub settling_time: Option<f64>,
+}
+
+/// The measured step of a loop run and its figures ([`tune::closed::step_figures`]) against the
+/// reference `cmd.r1` (rad/s with `y_lsb`). `None` without samples after the step.
+pub fn measured_step(acq: &Acquisition, cmd: &StartLoop, y_lsb: f64) -> Option<MeasuredStep> {
+    let first = acq.index.partition_point(|&i| i < cmd.pre_samples as u64);
+    if first >= acq.index.len() {
+        return None;
+    }
+    let t0 = cmd.pre_samples as f64 / acq.sample_rate_hz as f64;
+    let t: Vec<f64> = acq.t[first..].iter().map(|t| t - t0).collect();
+    let y = acq.y[first..].to_vec();
+    let (overshoot_percent, rise_time, settling_time) =
+        tune::closed::step_figures(&t, &y, cmd.r1 as f64 * y_lsb);
+    Some(MeasuredStep {
+        t,
+        y,
+        overshoot_percent,
+        rise_time,
+        settling_time,
+    })
+}
+
+/// `fracid drive loop`.
+///
+/// # Errors
+/// Bad options or controller (exit 2), the port or the output (exit 3), an incomplete run
+/// without `--allow-incomplete` (exit 1).
+pub fn run(a: LoopArgs) -> Result<()> {
+    let _pipe = crate::interrupt::PipeErrors::arm();
+    let conf = port_conf(&a.port)?;
+    if !(a.step.is_finite() && a.duration.is_finite() && a.pre.is_finite()) {
+        crate::bad_input!("--step, --duration and --pre must be finite numbers");
+    }
+    let test = LoopTest {
+        step: a.step,
+        pre_s: a.pre,
+        duration_s: a.duration,
+    };
+    let cmd = test.to_command(&conf).map_err(lib_err)?;
+    let text = crate::cmd::read_text(&a.controller)?;
+    let real = parse_realisation(&text).with_context(|| a.controller.display().to_string())?;
+    let (pruned, dropped) = prune(&real);
+    let k = fixed_controller(&pruned, &conf).with_context(|| a.controller.display().to_string())?;
+    let qerr = quantisation_error(&real, &k, &conf);
+    crate::eprintln_safe!(
+        "controller {}: {} fixed-point sections (Q30 poles, Q24 gains, 64-bit states){}; frequency response \
+         within {:.2e} of the realisation from 1 rad/s to half Nyquist",
+        real.text,
+        k.sections.len(),
+        if dropped.is_empty() {
+            String::new()
+        } else {
+            format!(
+                ", {} state(s) below {PRUNE_TOL:e} of the output left out",
+                dropped.len()
+            )
+        },
+        qerr
+    );
+    let output = output_path(&a.output);
+    check_outputs(&a.port.port, &[("--output", &output)])?;
+    let mut sink = LoopCsvSink::new(output_file(&output)?, cmd, conf.y_lsb());
+    let mut c = connect(&a.port, &conf)?;
+    let pb = progress_bar(a.port.quiet, "samples");
+    attach(&mut c, &pb);
+    let signals = StopOnInterrupt::arm(c.stop_handle());
+    let acq = run_on(&mut c, &k, &cmd, &mut sink);
+    let signal = signals.signal();
+    drop(signals);
+    if let Some(pb) = pb {
+        pb.finish_and_clear();
+    }
+    let written = sink
+        .into_inner()
+        .and_then(|mut f| f.flush().map(|_| f.is_created()))
+        .with_context(|| format!("writing {}", output.display()));
+    let acq = acq.map_err(|e| lost_output(e, &output, "record"))?;
+    written.map_err(|e| lost_output(e, &output, "record"))?;
+    let missing: Vec<String> = acq
+        .missing
+        .iter()
+        .map(|r| format!("{}..{}", r.start, r.end))
+        .collect();
+    let figures = match measured_step(&acq, &cmd, conf.y_lsb()) {
+        Some(m) => format!(
+            "; step {} rad/s: overshoot {:.2}%, rise (10-90%) {}, settling (2%) {}",
+            a.step,
+            m.overshoot_percent,
+            m.rise_time
+                .map_or("not reached".into(), |r| format!("{r:.4} s")),
+            m.settling_time
+                .map_or("not within the record".into(), |s| format!("{s:.4} s")),
+        ),
+        None => String::new(),
+    };
+    let summary = format!(
+        "{}: {} samples kept{}{figures}",
+        a.output.display(),
+        acq.index.len(),
+        if acq.complete {
+            String::new()
+        } else {
+            format!(
+                ", run incomplete ({}), missing samples {}",
+                acq.problems.join("; "),
+                if missing.is_empty() {
+                    "none".to_string()
+                } else {
+                    missing.join(", ")
+                }
+            )
+        }
+    );
+    if acq.clamped_blocks > 0 {
+        crate::eprintln_safe!(
+            "warning: the drive clamped the voltage in {} blocks (anti-windup engaged): the step \
+             is not the linear loop's",
+            acq.clamped_blocks
+        );
+    }
+    if let Some(signal) = signal {
+        return Err(Interrupted {
+            signal,
+            message: format!("drive stopped; {summary}"),
+        }
+        .into());
+    }
+    if acq.complete {
+        crate::eprintln_safe!("{summary}, complete");
+        Ok(())
+    } else if a.allow_incomplete {
+        crate::eprintln_safe!("warning: {summary}");
+        Ok(())
+    } else {
+        Err(anyhow::anyhow!(summary))
+    }
+}
