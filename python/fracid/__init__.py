@@ -57,7 +57,14 @@ from ._errors import (
     ParseError,
 )
 from ._fracid import DriveSimulator, FracTf, __version__, error_index, gl_simulate, prbs
-from ._fracid import _fit_bode, _fit_time, _load_bode, _load_csv, _time_request_defaults
+from ._fracid import (
+    _fit_bode,
+    _fit_time,
+    _freq_request_defaults,
+    _load_bode,
+    _load_csv,
+    _time_request_defaults,
+)
 from ._export import StateSpace
 from ._tune import tune
 from ._results import (
@@ -82,6 +89,7 @@ __all__ = [
     "gl_simulate",
     "fit_bode",
     "fit_time",
+    "freq_request_defaults",
     "time_request",
     "time_request_defaults",
     "error_index",
@@ -266,24 +274,18 @@ def fit_bode(
     omega: ArrayLike,
     h: ArrayLike,
     *,
-    n: int = 2,
-    m: int = 0,
-    q: Optional[float] = None,
-    q_step: float = 0.01,
-    q_max: float = 1.0,
-    refine_q: bool = True,
-    weights: Union[str, ArrayLike, None] = "vinagre",
-    sk_iterations: int = 0,
-    refine: bool = False,
+    weights: Union[str, ArrayLike, None] = None,
     point_std: Optional[ArrayLike] = None,
+    **options: object,
 ) -> FreqFit:
     """Identify a commensurate fractional model from frequency-response data.
 
-    Fits ``sum_u b_u s^(u q) / (1 + sum_p a_p s^(p q))`` by Levy's weighted linear least squares
+    The same use case and report as ``fracid freq`` (``ident::app::freq::run``): fits
+    ``sum_u b_u s^(u q) / (1 + sum_p a_p s^(p q))`` by Levy's weighted linear least squares
     (QR, Vinagre's weights by default) with the order ``q`` searched on a grid and refined;
-    optionally Sanathanan-Koerner iterations and the nonlinear refit of the PMSM structure
-    ``K / (a2 s^(zeta+theta) + a1 s^zeta + 1)`` with two free orders. The GIL is released
-    during the fit.
+    optionally Sanathanan-Koerner iterations, the nonlinear refit of the PMSM structure
+    ``K / (a2 s^(zeta+theta) + a1 s^zeta + 1)`` with two free orders, and the residual
+    diagnosis. The GIL is released during the fit.
 
     Parameters
     ----------
@@ -291,29 +293,27 @@ def fit_bode(
         Angular frequencies in rad/s, strictly increasing, > 0.
     h : array_like
         Complex response ``G(j omega)`` (linear gain), same length.
-    n, m : int
-        Denominator and numerator degrees in powers of ``s^q`` (default 2 and 0).
-    q : float, optional
-        Fix the order instead of searching it.
-    q_step, q_max : float
-        The grid ``q_step, 2 q_step, ..., q_max`` (the paper: 0.01 up to 1).
-    refine_q : bool
-        Refine the best grid ``q`` by golden section (``False``: the paper's grid answer).
-    weights : {"vinagre", "uniform"} or array_like
-        Weights of the Levy least squares (the paper's eq. 29 by default) or one per point.
-    sk_iterations : int
-        Sanathanan-Koerner reweightings (0: none).
-    refine : bool
-        Refit the PMSM structure with two free orders (needs ``n=2, m=0``).
+    weights : {"auto", "vinagre", "none", "spread"} or array_like
+        Weights of the Levy least squares: ``"auto"`` (the default: ``"spread"`` when
+        ``point_std`` is given, else ``"vinagre"``, the paper's eq. 29), or one weight per point.
     point_std : array_like, optional
         Standard deviation of each point's complex error per real component (e.g. from the
-        spread of repeated sine measurements): the refit then weights by inverse variance and
-        its standard errors reflect it. Default: the paper's ``J``, every point alike.
+        spread of repeated sine measurements): with ``weights="spread"`` (the default when given)
+        Levy weights by Vinagre's over the relative variance and the refit by the inverse
+        variance, its standard errors reflecting it.
+    **options
+        Every other option of ``fracid freq``, by the same name and with the same default (see
+        :func:`freq_request_defaults`): ``n``, ``m`` (degrees in powers of ``s^q``; 2 and 0),
+        ``q`` (a fixed order), ``q_step``, ``q_max`` (the grid; 0.01 up to 1), ``refine_q``
+        (golden section on the grid's best), ``sk_iterations``, ``refine``, ``diagnose``,
+        ``hold`` (a sample period in seconds whose zero-order hold is divided out, or "none"),
+        ``compare`` (model texts scored by ``J``).
 
     Returns
     -------
     FreqFit
-        The Levy fits (refined and grid), ``J(q)``, the SK fit and the refit if asked.
+        The Levy fits (refined and grid), ``J(q)``, the SK fit and the refit if asked, the
+        diagnosis; ``report`` is ``fracid freq --json``'s report itself.
 
     Raises
     ------
@@ -322,22 +322,38 @@ def fit_bode(
     NumericalError
         If the least-squares problem breaks down.
     """
-    n, m, sk_iterations = _count("n", n), _count("m", m), _count("sk_iterations", sk_iterations)
-    raw = _fit_bode(
-        omega,
-        _complex_response(h),
-        n=n,
-        m=m,
-        q=q,
-        q_step=q_step,
-        q_max=q_max,
-        refine_q=refine_q,
-        weights=weights,
-        sk_iterations=sk_iterations,
-        refine=refine,
-        point_std=None if point_std is None else np.asarray(point_std, dtype=float),
-    )
-    return FreqFit._from_raw(raw)
+    known = _freq_request_defaults()
+    request: Dict[str, object] = {}
+    for name, value in options.items():
+        if name not in known or name == "weights":
+            raise DataError(
+                f"fit_bode has no option {name!r}; the options are {', '.join(sorted(known))}"
+            )
+        if value is None:
+            continue
+        if name in ("n", "m", "sk_iterations"):
+            value = _count(name, value)  # type: ignore[arg-type]
+        if name == "hold" and not isinstance(value, str):
+            value = repr(float(value))  # type: ignore[arg-type]
+        if name == "compare":
+            value = [str(g) for g in value]  # type: ignore[attr-defined]
+        request[name] = value
+    per_point = None
+    if weights is not None:
+        if isinstance(weights, str):
+            request["weights"] = weights
+        else:
+            request["weights"] = "given"
+            per_point = np.asarray(weights, dtype=float)
+    std = None if point_std is None else np.asarray(point_std, dtype=float)
+    report = _fit_bode(omega, _complex_response(h), json.dumps(request), per_point, std)
+    return FreqFit._from_report(report)
+
+
+def freq_request_defaults() -> Dict[str, object]:
+    """Every option of :func:`fit_bode` (and ``fracid freq``) with its default: the
+    ``ident::app::freq::FreqRequest`` defaults, held once in the library."""
+    return dict(_freq_request_defaults())
 
 
 def fit_time(

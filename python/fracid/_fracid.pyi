@@ -152,17 +152,11 @@ def error_index(omega: npt.ArrayLike, h: npt.ArrayLike, model: FracTf) -> float:
 def _fit_bode(
     omega: npt.ArrayLike,
     h: npt.ArrayLike,
-    n: int = 2,
-    m: int = 0,
-    q: Optional[float] = None,
-    q_step: float = 0.01,
-    q_max: float = 1.0,
-    refine_q: bool = True,
-    weights: Union[str, npt.ArrayLike, None] = None,
-    sk_iterations: int = 0,
-    refine: bool = False,
+    request: str,
+    weights: Optional[npt.ArrayLike] = None,
     point_std: Optional[npt.ArrayLike] = None,
 ) -> Dict[str, Any]: ...
+def _freq_request_defaults() -> Dict[str, Any]: ...
 def _load_csv(
     path: str, t: Union[str, int], u: Union[str, int], y: Union[str, int], dt: Optional[float] = ...
 ) -> Dict[str, Any]: ...

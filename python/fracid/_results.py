@@ -160,6 +160,13 @@ class FreqFit(_ToDict):
         right half-plane), non-finite, refit parameters the data do not determine.
     warnings : list of str
         What to know without making the model unusable (a negative static gain, no convergence).
+    diagnosis : dict or None
+        The residual diagnosis (``diagnose=True``): effects kept with their evidence, ``J``
+        before and after, and the final ``model``.
+    hold_s : float or None
+        The sample period whose zero-order hold was divided out.
+    report : dict
+        The report as ``fracid freq --json`` prints it.
     """
 
     levy: LevyFit
@@ -171,6 +178,9 @@ class FreqFit(_ToDict):
     best_model: FracTf
     problems: List[str] = field(default_factory=list)
     warnings: List[str] = field(default_factory=list)
+    diagnosis: Optional[Dict[str, Any]] = None
+    hold_s: Optional[float] = None
+    report: Dict[str, Any] = field(default_factory=dict, repr=False)
 
     @property
     def usable(self) -> bool:
@@ -188,17 +198,39 @@ class FreqFit(_ToDict):
         return min(cands)
 
     @classmethod
-    def _from_raw(cls, d: Dict[str, Any]) -> "FreqFit":
+    def _from_report(cls, r: Dict[str, Any]) -> "FreqFit":
+        def levy(d: Dict[str, Any]) -> LevyFit:
+            return LevyFit(
+                q=d["q"], b=d["b"], a=d["a"], model=_tf_of(d["model"]), J=d["J"],
+                levy_cost=d["levy_cost"], sk_iterations=d["sk_iterations"],
+                sk_converged=d["sk_converged"],
+            )
+
+        def curve(c: Optional[List[Dict[str, Any]]]) -> QCurve:
+            c = c or []
+            return QCurve(
+                q=np.array([p["q"] for p in c], dtype=float),
+                J=np.array([np.inf if p["J"] is None else p["J"] for p in c], dtype=float),
+            )
+
+        refined = None
+        if r.get("refined") is not None:
+            d = dict(r["refined"])
+            d["model"] = _tf_of(d["model"])
+            refined = PmsmFit(**d)
         return cls(
-            levy=LevyFit(**d["levy"]),
-            levy_grid=LevyFit(**d["levy_grid"]),
-            curve=QCurve(**d["curve"]),
-            sk=None if d["sk"] is None else LevyFit(**d["sk"]),
-            sk_curve=QCurve(**d["sk_curve"]),
-            refined=None if d["refined"] is None else PmsmFit(**d["refined"]),
-            best_model=d["best_model"],
-            problems=list(d.get("problems", [])),
-            warnings=list(d.get("warnings", [])),
+            levy=levy(r["levy"]),
+            levy_grid=levy(r["levy_grid"]),
+            curve=curve(r["curve"]),
+            sk=None if r.get("sk") is None else levy(r["sk"]),
+            sk_curve=curve(r.get("sk_curve")),
+            refined=refined,
+            best_model=_tf_of(r["best_model"]),
+            problems=list(r["problems"]),
+            warnings=list(r["warnings"]),
+            diagnosis=r.get("diagnosis"),
+            hold_s=r.get("hold_s"),
+            report=r,
         )
 
 

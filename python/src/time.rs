@@ -13,7 +13,10 @@ use pyo3::types::PyDict;
 
 /// A serde value as the Python object `json.loads` makes of it (the same fields as the CLI's
 /// JSON).
-fn to_py<'py, T: serde_core::Serialize>(py: Python<'py>, v: &T) -> PyResult<Bound<'py, PyAny>> {
+pub(crate) fn to_py<'py, T: serde_core::Serialize>(
+    py: Python<'py>,
+    v: &T,
+) -> PyResult<Bound<'py, PyAny>> {
     let text = serde_json::to_string(v)
         .map_err(|e| errors::error(errors::Kind::Numerical, format!("report: {e}")))?;
     py.import("json")?.call_method1("loads", (text,))

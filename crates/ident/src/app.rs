@@ -3,6 +3,7 @@
 //! option parsing and the model's report type, so that the same words give the same model
 //! everywhere.
 
+pub mod freq;
 pub mod observe;
 pub mod time;
 

@@ -572,7 +572,7 @@ pub fn run_freq(a: &super::freq::FreqArgs) -> Result<()> {
         let problems = if a.allow_unusable {
             Vec::new()
         } else {
-            o.problems.clone()
+            o.report.problems.clone()
         };
         Ok((v, problems))
     })

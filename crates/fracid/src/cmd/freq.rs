@@ -9,11 +9,12 @@ use crate::bad_input;
 use crate::plot::{self, Figure};
 use anyhow::{Context, Result};
 use fracsim::FracTf;
-use ident::levy::{error_index, fit_bode, FreqFit, FreqOptions, OrderChoice, QPoint, Weights};
+use ident::app::freq::{FreqData, FreqReport, FreqRequest};
+use ident::levy::{FreqFit, FreqOptions, OrderChoice, QPoint};
 use num_complex::Complex64;
 use plotters::coord::Shift;
 use plotters::prelude::*;
-use serde_json::{json, Value};
+use serde_json::Value;
 use std::f64::consts::PI;
 use std::path::{Path, PathBuf};
 
@@ -202,50 +203,30 @@ fn read_weight_file(path: &Path) -> Result<Vec<f64>> {
 /// fits, the models compared, the diagnosis, and the assessment. The command, the fleet and the
 /// demo present it (text, JSON, plots) without fitting again.
 pub(crate) struct FreqOutcome {
+    /// The use case's report.
+    pub report: FreqReport,
+    /// The table as read, its response with the hold divided out (as fitted): for the table's
+    /// text and the plot's error bars.
     data: BodeData,
-    fit: FreqFit,
-    compare: Vec<(FracTf, f64)>,
-    diagnosis: Option<ident::diagnose::freq::BodeDiagnosis>,
-    hold: Option<f64>,
-    weight_label: String,
-    opts: FreqOptions,
-    /// Why the final model cannot be used (empty when it can).
-    pub problems: Vec<String>,
-    /// Caveats.
-    pub warnings: Vec<String>,
 }
 
 impl FreqOutcome {
     /// The report as `fracid freq --json` prints it.
     pub(crate) fn json(&self) -> Result<Value> {
-        let mut v = to_json(&self.fit, &self.compare, &self.data, &self.weight_label);
-        v["hold_s"] = json!(self.hold);
-        if let Some(d) = &self.diagnosis {
-            v["diagnosis"] = serde_json::to_value(d)?;
-            v["diagnosis"]["model"] = model_json(&d.model);
-        }
-        v["usable"] = json!(self.problems.is_empty());
-        v["problems"] = json!(self.problems);
-        v["warnings"] = json!(self.warnings);
-        Ok(v)
+        Ok(serde_json::to_value(&self.report)?)
     }
 
     /// The report as `fracid freq` prints it.
     pub(crate) fn text(&self) -> String {
+        let (r, f) = (&self.report, &self.report.fitted);
         let mut o = String::new();
-        if let Some(t) = self.hold {
+        if let Some(t) = r.hold_s {
             o += &format!(
                 "hold: the zero-order hold of a {t} s sampled loop divided out of the table\n"
             );
         }
-        o += &table(
-            &self.fit,
-            &self.compare,
-            &self.data,
-            &self.weight_label,
-            &self.opts,
-        );
-        if let Some(d) = &self.diagnosis {
+        o += &table(&f.fit, &f.compare, &self.data, &r.weights, &f.options);
+        if let Some(d) = &f.diagnosis {
             o += &diagnosis_text(d);
         }
         o
@@ -254,13 +235,14 @@ impl FreqOutcome {
     /// Draw the Bode plot to `path`, and with the diagnosis its residual plot beside it (its
     /// path returned).
     pub(crate) fn plot(&self, path: &Path) -> Result<Option<PathBuf>> {
+        let f = &self.report.fitted;
         let fig = BodeFigure {
             data: &self.data,
-            fit: &self.fit,
-            compare: &self.compare,
+            fit: &f.fit,
+            compare: &f.compare,
         };
         plot::save(path, (1400, 900), &fig)?;
-        match &self.diagnosis {
+        match &f.diagnosis {
             Some(d) => {
                 let dp = super::diagnose::residual_plot_path(path);
                 super::diagnose::plot_bode(&dp, d)?;
@@ -297,12 +279,12 @@ pub fn run(a: FreqArgs) -> Result<()> {
             }
         }
     }
-    for w in &o.warnings {
+    for w in &o.report.warnings {
         crate::interrupt::eprint_line(&format!("warning: {w}"));
     }
-    if !o.problems.is_empty() {
+    if !o.report.problems.is_empty() {
         if a.allow_unusable {
-            for p in &o.problems {
+            for p in &o.report.problems {
                 crate::interrupt::eprint_line(&format!(
                     "warning: the model is not usable (kept as --allow-unusable asks): {p}"
                 ));
@@ -310,7 +292,7 @@ pub fn run(a: FreqArgs) -> Result<()> {
         } else {
             anyhow::bail!(
                 "the fitted model is not usable: {} (--allow-unusable keeps it with exit 0)",
-                o.problems.join("; ")
+                o.report.problems.join("; ")
             );
         }
     }
@@ -373,42 +355,26 @@ pub(crate) fn compute(a: &FreqArgs, file: &Path) -> Result<FreqOutcome> {
         ),
         None => None,
     };
-    let mut wkey = a.weights.trim().to_string();
-    if wkey.eq_ignore_ascii_case("auto") {
-        let has_spread = ident::data::header(&text).is_some_and(|h| {
-            h.iter().any(|f| f.eq_ignore_ascii_case("gain_db_std"))
-                && h.iter().any(|f| f.eq_ignore_ascii_case("phase_deg_std"))
-        });
-        wkey = if has_spread { "spread" } else { "vinagre" }.into();
-    }
-    let use_spread = wkey.eq_ignore_ascii_case("spread");
-    let (weights, weight_label, weight_column) = match wkey.to_ascii_lowercase().as_str() {
-        "vinagre" => (Some(Weights::Vinagre), "vinagre (eq. 29)".to_string(), None),
-        // replaced below, once the data (and their spread) are read
-        "spread" => (
-            Some(Weights::Vinagre),
-            "spread: vinagre / relative variance (Levy), inverse variance (refit)".to_string(),
-            None,
-        ),
-        "none" | "uniform" | "1" => (Some(Weights::Uniform), "none".to_string(), None),
-        _ => {
-            // a column of the data file, else a file of weights
-            let header_has = ident::data::header(&text)
-                .is_some_and(|h| h.iter().any(|f| f.eq_ignore_ascii_case(&wkey)));
-            if header_has {
-                (None, format!("column '{wkey}'"), Some(wkey.clone()))
-            } else if Path::new(&wkey).is_file() {
-                let w = read_weight_file(Path::new(&wkey))?;
-                (Some(Weights::PerPoint(w)), format!("file {wkey}"), None)
-            } else {
-                bad_input!(
-                    "--weights '{wkey}' is neither vinagre, none, a column of {} nor a file",
-                    file.display()
-                )
-            }
-        }
+    // per-point weights from a column of the table or a file of weights: the request's "given"
+    let wkey = a.weights.trim().to_string();
+    let word = ["auto", "vinagre", "none", "uniform", "1", "spread"]
+        .iter()
+        .any(|w| wkey.eq_ignore_ascii_case(w));
+    let (weight_column, weight_file) = if word {
+        (None, None)
+    } else if ident::data::header(&text)
+        .is_some_and(|h| h.iter().any(|f| f.eq_ignore_ascii_case(&wkey)))
+    {
+        (Some(wkey.clone()), None)
+    } else if Path::new(&wkey).is_file() {
+        (None, Some(read_weight_file(Path::new(&wkey))?))
+    } else {
+        bad_input!(
+            "--weights '{wkey}' is neither vinagre, none, a column of {} nor a file",
+            file.display()
+        )
     };
-    let mut data = if is_mat {
+    let data = if is_mat {
         BodeData::from(ident::bodefile::load(
             file,
             cols3,
@@ -419,120 +385,65 @@ pub(crate) fn compute(a: &FreqArgs, file: &Path) -> Result<FreqOutcome> {
         parse_bode(&text, cols3, units, weight_column.as_deref())
             .with_context(|| format!("in {}", file.display()))?
     };
-    let hold = match a.hold.trim().to_ascii_lowercase().as_str() {
-        "auto" => ident::hold::sample_period_from_comments(&text)
-            .with_context(|| format!("in {}", file.display()))?,
-        "none" => None,
-        v => match v.parse::<f64>() {
-            Ok(t) if t.is_finite() && t > 0.0 => Some(t),
-            _ => bad_input!("--hold wants a sample period in seconds, auto or none, got '{v}'"),
-        },
-    };
-    if let Some(t) = hold {
-        ident::hold::divide_hold(&data.omega_rad_s, &mut data.h, t)
-            .with_context(|| format!("in {}", file.display()))?;
-    }
-    let mut weights = match (weights, &data.weights) {
-        (Some(w), _) => w,
-        (None, Some(w)) => Weights::PerPoint(w.clone()),
-        (None, None) => Weights::Vinagre, // unreachable: a weight column always yields weights
-    };
-    let point_std = if use_spread {
-        let Some(se) = &data.spread_se else {
-            bad_input!(
-                "--weights spread: {} has no gain_db_std and phase_deg_std columns",
-                file.display()
-            )
-        };
-        let (g, p): (Vec<f64>, Vec<f64>) = se.iter().copied().unzip();
-        let sd = ident::levy::point_std_from_spread(&data.h, &g, &p);
-        if let Some(i) = sd.iter().position(|v| !(*v > 0.0 && v.is_finite())) {
-            bad_input!(
-                "--weights spread: point {} has no spread (0); measure with --repeats 3 or more, \
-                 or use --weights vinagre",
-                i + 1
-            );
-        }
-        weights = Weights::PerPoint(ident::levy::spread_levy_weights(
-            &data.omega_rad_s,
-            &data.h,
-            &sd,
-        )?);
-        Some(sd)
-    } else {
+    let hold_hint = if is_mat {
         None
+    } else {
+        ident::hold::sample_period_from_comments(&text)
+            .with_context(|| format!("in {}", file.display()))?
     };
-    let order = match a.q {
-        Some(q) => OrderChoice::Fixed(q),
-        None => OrderChoice::Search {
-            step: a.q_step,
-            q_max: a.q_max,
-            refine: !a.no_q_refine,
-        },
+    let given = match (weight_column, weight_file, data.weights.clone()) {
+        (Some(c), _, Some(w)) => Some((w, format!("column '{c}'"))),
+        (_, Some(w), _) => Some((w, format!("file {wkey}"))),
+        _ => None,
     };
-    let opts = FreqOptions {
+    let req = request(a, given.is_some());
+    let fd = FreqData {
+        omega_rad_s: data.omega_rad_s.clone(),
+        h: data.h.clone(),
+        weights: given,
+        point_std: None,
+        spread_se: data.spread_se.clone(),
+        hold_hint,
+    };
+    if req.weights == "spread" && fd.spread_se.is_none() {
+        bad_input!(
+            "--weights spread: {} has no gain_db_std and phase_deg_std columns",
+            file.display()
+        );
+    }
+    let report = ident::app::freq::run(&req, &fd, &mut ident::app::observe::Quiet)
+        .with_context(|| format!("identifying {}", file.display()))?;
+    let data = BodeData {
+        h: report.fitted.h.clone(),
+        ..data
+    };
+    Ok(FreqOutcome { report, data })
+}
+
+/// The use-case request of `fracid freq`'s options (`given`: the weights are the data's own, a
+/// column or a file).
+pub(crate) fn request(a: &FreqArgs, given: bool) -> FreqRequest {
+    let weights = if given {
+        "given".to_string()
+    } else if a.weights.trim() == "1" {
+        "none".to_string()
+    } else {
+        a.weights.trim().to_ascii_lowercase()
+    };
+    FreqRequest {
         n: a.n,
         m: a.m,
-        order,
+        q: a.q,
+        q_step: a.q_step,
+        q_max: a.q_max,
+        refine_q: !a.no_q_refine,
         weights,
         sk_iterations: a.sk,
         refine: a.refine,
-        point_std,
-    };
-    let mut compare = Vec::new();
-    for s in &a.compare {
-        let g: FracTf = s
-            .parse()
-            .with_context(|| format!("--compare model '{s}'"))?;
-        let j = error_index(&data.omega_rad_s, &data.h, &g);
-        compare.push((g, j));
+        diagnose: a.diagnose,
+        hold: a.hold.clone(),
+        compare: a.compare.clone(),
     }
-    let fit = fit_bode(&data.omega_rad_s, &data.h, &opts)
-        .with_context(|| format!("identifying {}", file.display()))?;
-
-    let diagnosis = if a.diagnose {
-        Some(
-            ident::diagnose::freq::diagnose_bode(
-                &data.omega_rad_s,
-                &data.h,
-                fit.best_model(),
-                &ident::diagnose::freq::BodeDiagnoseOptions::default(),
-            )
-            .context("diagnosing the residual")?,
-        )
-    } else {
-        None
-    };
-    let (problems, warnings) = assessment(&fit, diagnosis.as_ref());
-    Ok(FreqOutcome {
-        data,
-        fit,
-        compare,
-        diagnosis,
-        hold,
-        weight_label,
-        opts,
-        problems,
-        warnings,
-    })
-}
-
-/// The problems (the final model cannot be used) and warnings of a fit: the library's
-/// ([`ident::levy::FreqFit::problems`], of the best model), and with `--diagnose` those of the
-/// diagnosed model, which is then the final one.
-fn assessment(
-    fit: &FreqFit,
-    diagnosis: Option<&ident::diagnose::freq::BodeDiagnosis>,
-) -> (Vec<String>, Vec<String>) {
-    let (mut problems, mut warnings) = (fit.problems.clone(), fit.warnings.clone());
-    if let Some(d) = diagnosis {
-        if d.model != *fit.best_model() {
-            let (p, w) = ident::levy::checks::model_problems(&d.model);
-            problems.extend(p.into_iter().map(|m| format!("diagnosed model: {m}")));
-            warnings.extend(w.into_iter().map(|m| format!("diagnosed model: {m}")));
-        }
-    }
-    (problems, warnings)
 }
 
 /// Write to stdout; a closed pipe (`fracid freq ... | head`) is not an error.
@@ -542,61 +453,6 @@ fn emit(text: &str) -> Result<()> {
         Err(e) if e.kind() != std::io::ErrorKind::BrokenPipe => Err(e.into()),
         _ => Ok(()),
     }
-}
-
-/// `{"num": [{"coef","order"}], "den": [...], "delay", "text"}`.
-fn model_json(g: &FracTf) -> Value {
-    let terms = |t: &[fracsim::Term]| -> Vec<Value> {
-        t.iter()
-            .map(|t| json!({"coef": t.coef, "order": t.order}))
-            .collect()
-    };
-    json!({"num": terms(&g.num), "den": terms(&g.den), "delay": g.delay, "text": g.to_string()})
-}
-
-fn levy_json(f: &ident::levy::LevyFit) -> Value {
-    json!({"model": model_json(&f.model), "q": f.q, "J": f.j, "b": f.b, "a": f.a,
-           "sk_iterations": f.sk_iterations, "sk_converged": f.sk_converged})
-}
-
-fn curve_json(c: &[QPoint]) -> Value {
-    Value::Array(
-        c.iter()
-            .map(|p| json!({"q": p.q, "J": if p.j.is_finite() { json!(p.j) } else { Value::Null }}))
-            .collect(),
-    )
-}
-
-fn to_json(fit: &FreqFit, compare: &[(FracTf, f64)], data: &BodeData, weights: &str) -> Value {
-    let mut v = json!({
-        "model": model_json(&fit.levy.model),
-        "q": fit.levy.q,
-        "J": fit.levy.j,
-        "J_definition": "(1/f) sum_g |G(j w_g) - Ghat(j w_g)|^2, w in rad/s (paper eq. 30)",
-        "method": "levy",
-        "weights": weights,
-        "points": data.omega_rad_s.len(),
-        "levy": levy_json(&fit.levy),
-        "levy_grid": levy_json(&fit.levy_grid),
-        "curve": curve_json(&fit.curve),
-        "compare": compare.iter().map(|(g, j)| json!({"model": model_json(g), "J": j})).collect::<Vec<_>>(),
-    });
-    if let Some(sk) = &fit.sk {
-        v["sk"] = levy_json(sk);
-        v["sk_curve"] = curve_json(&fit.sk_curve);
-    }
-    if let Some(r) = &fit.refined {
-        v["refined"] = json!({
-            "model": model_json(&r.model),
-            "J": r.j,
-            "K": r.k, "a1": r.a1, "a2": r.a2, "zeta": r.zeta, "theta": r.theta,
-            "std_errors": r.std_errors.map(|s| json!({"K": s[0], "a1": s[1], "a2": s[2], "zeta": s[3], "theta": s[4]})),
-            "converged": r.report.converged,
-            "termination": format!("{:?}", r.report.termination),
-            "iterations": r.report.iterations,
-        });
-    }
-    v
 }
 
 /// `x` to `sig` significant digits, plain or scientific as fits.
