@@ -42,7 +42,7 @@ from __future__ import annotations
 import json
 import os
 import warnings
-from typing import Dict, NamedTuple, Optional, Tuple, Union
+from typing import Any, Dict, NamedTuple, Optional, Tuple, Union
 
 import numpy as np
 import numpy.typing as npt
@@ -60,6 +60,7 @@ from ._fracid import DriveSimulator, FracTf, __version__, error_index, gl_simula
 from ._fracid import (
     _fit_bode,
     _fit_time,
+    _fit_time_joint,
     _freq_request_defaults,
     _load_bode,
     _load_csv,
@@ -89,6 +90,7 @@ __all__ = [
     "gl_simulate",
     "fit_bode",
     "fit_time",
+    "fit_time_joint",
     "freq_request_defaults",
     "time_request",
     "time_request_defaults",
@@ -418,6 +420,35 @@ def fit_time(
     v = None if validate is None else tuple(validate)
     report, arrays = _fit_time(u, y, dt, json.dumps(request), v)
     return TimeFit._from_report(report, arrays)
+
+
+def fit_time_joint(
+    u: ArrayLike,
+    y: ArrayLike,
+    dt: float,
+    structure: Union[str, FracTf, None] = None,
+    *,
+    joint: "list[Tuple[ArrayLike, ArrayLike]]",
+    validate: Optional[Tuple[ArrayLike, ArrayLike]] = None,
+    **options: object,
+) -> Dict[str, Any]:
+    """One model fitted to several records of the same plant at the same ``dt`` (``fracid time
+    --joint``): the plant's parameters shared, each record with its own operating point, output
+    offset and initial state, each used whole; scored on ``validate`` when given.
+
+    Takes the options of :func:`fit_time` (not ``diagnose`` nor ``structure="auto"``) and
+    returns the report as ``fracid time --joint --json`` prints it (``model``, ``params``,
+    ``records`` named ``record``, ``joint[0]``, ..., ``converged``, ``warnings``, ``fit``,
+    ``request``).
+
+    Raises
+    ------
+    DataError
+        For bad arrays or options, records at other steps.
+    """
+    request = time_request(structure, **options)
+    v = None if validate is None else tuple(validate)
+    return dict(_fit_time_joint(u, y, dt, json.dumps(request), [tuple(r) for r in joint], v))
 
 
 def time_request_defaults() -> Dict[str, object]:

@@ -176,6 +176,14 @@ def _fit_time(
     validation: Optional[Tuple[npt.ArrayLike, npt.ArrayLike]] = None,
 ) -> Tuple[Dict[str, Any], Dict[str, Any]]: ...
 def _time_request_defaults() -> Dict[str, Any]: ...
+def _fit_time_joint(
+    u: npt.ArrayLike,
+    y: npt.ArrayLike,
+    dt: float,
+    request: str,
+    joint: List[Tuple[npt.ArrayLike, npt.ArrayLike]],
+    validation: Optional[Tuple[npt.ArrayLike, npt.ArrayLike]] = None,
+) -> Dict[str, Any]: ...
 
 def _tune(
     model: Union[FracTf, str],

@@ -50,8 +50,8 @@ pub(crate) fn _fit_bode<'py>(
         ..FreqData::default()
     };
     let r = py
-        .allow_threads(|| ident::app::freq::run(&req, &data, &mut ident::app::observe::Quiet))
-        .map_err(errors::ident)?;
+        .allow_threads(|| ident::app::freq::run(&req, &data, &mut crate::time::Interruptible))
+        .map_err(|e| crate::time::interrupted(py, e))?;
     crate::time::to_py(py, &r)
 }
 

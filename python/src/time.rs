@@ -31,7 +31,7 @@ pub(crate) fn _time_request_defaults(py: Python<'_>) -> PyResult<Bound<'_, PyAny
 
 /// The observer of a fit run from Python: between stages it runs Python's signal handlers (the
 /// GIL taken for that moment), so Ctrl-C stops a long diagnosis at the next stage.
-struct Interruptible;
+pub(crate) struct Interruptible;
 
 impl Observe for Interruptible {
     fn cancelled(&self) -> bool {
@@ -43,6 +43,80 @@ impl Observe for Interruptible {
             }
         })
     }
+}
+
+/// A record `(u, y)` at `dt` named `name`.
+fn named(name: String, (u, y): (FloatArray<'_>, FloatArray<'_>), dt: f64) -> PyResult<Named> {
+    let u = floats(&format!("{name} u"), &u, 2)?;
+    let y = floats(&format!("{name} y"), &y, 2)?;
+    same_len(
+        (&format!("{name} u"), u.len()),
+        (&format!("{name} y"), y.len()),
+    )?;
+    Ok(Named {
+        record: Record::from_samples(&u, &y, dt).map_err(errors::ident)?,
+        name,
+    })
+}
+
+/// One model fitted to several records (`ident::app::time::run_joint`, as `fracid time
+/// --joint`): `joint` the further records `(u, y)` at the same `dt`. Returns the report as
+/// `fracid time --joint --json` prints it.
+#[pyfunction]
+#[pyo3(signature = (u, y, dt, request, joint, validation = None))]
+pub(crate) fn _fit_time_joint<'py>(
+    py: Python<'py>,
+    u: FloatArray<'py>,
+    y: FloatArray<'py>,
+    dt: f64,
+    request: &str,
+    joint: Vec<(FloatArray<'py>, FloatArray<'py>)>,
+    validation: Option<(FloatArray<'py>, FloatArray<'py>)>,
+) -> PyResult<Bound<'py, PyAny>> {
+    let mut data = time_data(u, y, dt, validation)?;
+    data.joint = joint
+        .into_iter()
+        .enumerate()
+        .map(|(i, r)| named(format!("joint[{i}]"), r, dt))
+        .collect::<PyResult<_>>()?;
+    let req = request_of(request)?;
+    let r = py
+        .allow_threads(|| ident::app::time::run_joint(&req, &data, "record", &mut Interruptible))
+        .map_err(|e| interrupted(py, e))?;
+    to_py(py, &r)
+}
+
+fn request_of(text: &str) -> PyResult<TimeRequest> {
+    serde_json::from_str(text).map_err(|e| errors::data(format!("options: {e}")))
+}
+
+/// The error of a use case: Ctrl-C's KeyboardInterrupt as Python's handler raised it.
+pub(crate) fn interrupted(py: Python<'_>, e: ident::Error) -> PyErr {
+    match e {
+        ident::Error::Cancelled(_) => PyErr::take(py).unwrap_or_else(|| errors::ident(e)),
+        e => errors::ident(e),
+    }
+}
+
+/// The data of a request: the record and an optional validation record.
+fn time_data(
+    u: FloatArray<'_>,
+    y: FloatArray<'_>,
+    dt: f64,
+    validation: Option<(FloatArray<'_>, FloatArray<'_>)>,
+) -> PyResult<TimeData> {
+    let u = floats("u", &u, 2)?;
+    let y = floats("y", &y, 2)?;
+    same_len(("u", u.len()), ("y", y.len()))?;
+    let dt = positive("dt", dt)?;
+    Ok(TimeData {
+        record: Record::from_samples(&u, &y, dt).map_err(errors::ident)?,
+        validation: validation
+            .map(|v| named("validation".into(), v, dt))
+            .transpose()?,
+        joint: Vec::new(),
+        reader_warnings: Vec::new(),
+    })
 }
 
 /// The time-domain use case (`ident::app::time::run`, as `fracid time`): `request` is the JSON of
@@ -59,36 +133,11 @@ pub(crate) fn _fit_time<'py>(
     request: &str,
     validation: Option<(FloatArray<'py>, FloatArray<'py>)>,
 ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyDict>)> {
-    let u = floats("u", &u, 2)?;
-    let y = floats("y", &y, 2)?;
-    same_len(("u", u.len()), ("y", y.len()))?;
-    let dt = positive("dt", dt)?;
-    let req: TimeRequest =
-        serde_json::from_str(request).map_err(|e| errors::data(format!("options: {e}")))?;
-    let validation = match validation {
-        Some((vu, vy)) => {
-            let vu = floats("validation u", &vu, 2)?;
-            let vy = floats("validation y", &vy, 2)?;
-            same_len(("validation u", vu.len()), ("validation y", vy.len()))?;
-            Some(Named {
-                name: "validation".into(),
-                record: Record::from_samples(&vu, &vy, dt).map_err(errors::ident)?,
-            })
-        }
-        None => None,
-    };
-    let data = TimeData {
-        record: Record::from_samples(&u, &y, dt).map_err(errors::ident)?,
-        validation,
-        reader_warnings: Vec::new(),
-    };
+    let data = time_data(u, y, dt, validation)?;
+    let req = request_of(request)?;
     let r = py
         .allow_threads(|| ident::app::time::run(&req, &data, &mut Interruptible))
-        .map_err(|e| match e {
-            // Ctrl-C: the KeyboardInterrupt Python's handler raised, as it raised it
-            ident::Error::Cancelled(_) => PyErr::take(py).unwrap_or_else(|| errors::ident(e)),
-            e => errors::ident(e),
-        })?;
+        .map_err(|e| interrupted(py, e))?;
     let arrays = PyDict::new(py);
     // `yhat` is the leading model's output: the final model's with the diagnosis.
     arrays.set_item("yhat_base", r.fitted.id.yhat.clone().into_pyarray(py))?;

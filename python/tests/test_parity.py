@@ -116,23 +116,9 @@ def write(path, u, y):
             f.write(f"{k * DT!r},{float(u[k])!r},{float(y[k])!r}\n")
 
 
-def same(a, b, where="report"):
+def same(a, b):
     """`a` and `b` equal field by field: numbers to 1e-9 relative, the rest exactly."""
-    if isinstance(a, dict):
-        assert isinstance(b, dict) and set(a) == set(b), (where, sorted(a), sorted(b))
-        for k in a:
-            same(a[k], b[k], f"{where}.{k}")
-    elif isinstance(a, list):
-        assert isinstance(b, list) and len(a) == len(b), (where, a, b)
-        for i, (x, z) in enumerate(zip(a, b)):
-            same(x, z, f"{where}[{i}]")
-    elif isinstance(a, float) or isinstance(b, float):
-        if a is None or b is None:
-            assert a == b, (where, a, b)
-        elif math.isfinite(a) or math.isfinite(b):
-            assert a == pytest.approx(b, rel=1e-9, abs=1e-12), (where, a, b)
-    else:
-        assert a == b, (where, a, b)
+    same_to(a, b, rel=1e-9)
 
 
 def test_every_request_option_has_a_cli_flag():
@@ -314,3 +300,28 @@ def same_to(a, b, rel, where="report"):
             assert float(x) == pytest.approx(float(z), rel=rel, abs=1e-12), (where, a, b)
     else:
         assert a == b, (where, a, b)
+
+
+def test_a_joint_fit_is_the_same(fracid_bin, tmp_path):
+    """`fracid time A --joint B --validate C --json` and `fracid.fit_time_joint`: the same report
+    (the records named by path in one, by position in the other)."""
+    (u, y), (ub, yb), (uv, yv) = record(7), record(9, 1200), record(8, 1000)
+    paths = [tmp_path / f"{n}.csv" for n in ("a", "b", "v")]
+    for p, (uu, yy) in zip(paths, [(u, y), (ub, yb), (uv, yv)]):
+        write(p, uu, yy)
+    p = subprocess.run(
+        [str(fracid_bin), "time", str(paths[0]), "--joint", str(paths[1]), "--validate",
+         str(paths[2]), "--json", "--quiet", "--structure", "commensurate"],
+        capture_output=True, text=True, timeout=300, check=True,
+    )
+    text = p.stdout
+    for path, name in zip(paths, ("record", "joint[0]", "validation")):
+        text = text.replace(json.dumps(str(path))[1:-1], name)
+    cli = json.loads(text)
+    py = fracid.fit_time_joint(
+        u, y, DT, "commensurate", joint=[(ub, yb)], validate=(uv, yv)
+    )
+    same(cli, py)
+    assert [r["file"] for r in py["records"]] == ["record", "joint[0]"]
+    # a model of the plant on a third record (82% measured: it has no term for the 3 ms delay)
+    assert py["fit"]["validation_file"]["nrmse_percent"] > 70.0

@@ -262,6 +262,7 @@ pub fn run(a: DemoArgs) -> Result<()> {
     let time_data = ident::app::time::TimeData {
         record: rec,
         validation: None,
+        joint: Vec::new(),
         reader_warnings,
     };
     let time_report = ident::app::time::run(&time_req, &time_data, &mut ident::app::observe::Quiet)

@@ -593,6 +593,34 @@ pub(crate) fn attach(c: &mut Client, pb: &Option<indicatif::ProgressBar>) {
     }
 }
 
+/// What an acquisition kept, in a line: `FILE: N samples kept`, and for an incomplete run its
+/// problems and the missing samples (`a..b`).
+pub(crate) fn kept_summary(output: &std::path::Path, acq: &drive::client::Acquisition) -> String {
+    let missing: Vec<String> = acq
+        .missing
+        .iter()
+        .map(|r| format!("{}..{}", r.start, r.end))
+        .collect();
+    format!(
+        "{}: {} samples kept{}",
+        output.display(),
+        acq.index.len(),
+        if acq.complete {
+            String::new()
+        } else {
+            format!(
+                ", run incomplete ({}), missing samples {}",
+                acq.problems.join("; "),
+                if missing.is_empty() {
+                    "none".to_string()
+                } else {
+                    missing.join(", ")
+                }
+            )
+        }
+    )
+}
+
 /// The error of an acquisition whose output was closed under it (a broken pipe): the drive was
 /// stopped (by the client, on the sink's error), what was lost said; exit 3 (I/O).
 pub(crate) fn lost_output(e: anyhow::Error, output: &std::path::Path, what: &str) -> anyhow::Error {
@@ -662,29 +690,7 @@ fn prbs(a: PrbsArgs) -> Result<()> {
         .context("the PRBS run")
         .map_err(|e| lost_output(e, &output, "record"))?;
     written.map_err(|e| lost_output(e, &output, "record"))?;
-    let missing: Vec<String> = acq
-        .missing
-        .iter()
-        .map(|r| format!("{}..{}", r.start, r.end))
-        .collect();
-    let summary = format!(
-        "{}: {} samples kept{}",
-        a.output.display(),
-        acq.index.len(),
-        if acq.complete {
-            String::new()
-        } else {
-            format!(
-                ", run incomplete ({}), missing samples {}",
-                acq.problems.join("; "),
-                if missing.is_empty() {
-                    "none".to_string()
-                } else {
-                    missing.join(", ")
-                }
-            )
-        }
-    );
+    let summary = kept_summary(&a.output, &acq);
     for w in acq.warnings() {
         crate::eprintln_safe!("warning: {w}");
     }

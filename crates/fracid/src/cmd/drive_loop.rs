@@ -347,11 +347,6 @@ pub fn run(a: LoopArgs) -> Result<()> {
         .with_context(|| format!("writing {}", output.display()));
     let acq = acq.map_err(|e| lost_output(e, &output, "record"))?;
     written.map_err(|e| lost_output(e, &output, "record"))?;
-    let missing: Vec<String> = acq
-        .missing
-        .iter()
-        .map(|r| format!("{}..{}", r.start, r.end))
-        .collect();
     let figures = match measured_step(&acq, &cmd, conf.y_lsb()) {
         Some(m) => format!(
             "; step {} rad/s: overshoot {:.2}%, rise (10-90%) {}, settling (2%) {}",
@@ -364,24 +359,7 @@ pub fn run(a: LoopArgs) -> Result<()> {
         ),
         None => String::new(),
     };
-    let summary = format!(
-        "{}: {} samples kept{}{figures}",
-        a.output.display(),
-        acq.index.len(),
-        if acq.complete {
-            String::new()
-        } else {
-            format!(
-                ", run incomplete ({}), missing samples {}",
-                acq.problems.join("; "),
-                if missing.is_empty() {
-                    "none".to_string()
-                } else {
-                    missing.join(", ")
-                }
-            )
-        }
-    );
+    let summary = format!("{}{figures}", super::drive::kept_summary(&a.output, &acq));
     if acq.clamped_blocks > 0 {
         crate::eprintln_safe!(
             "warning: the drive clamped the voltage in {} blocks (anti-windup engaged): the step \

@@ -86,6 +86,7 @@ fn rescore_report(a: &ScoreArgs, v: &serde_json::Value, rec: ident::data::Record
     let data = TimeData {
         record: rec,
         validation: None,
+        joint: Vec::new(),
         reader_warnings: Vec::new(),
     };
     let lead = rescore(&req, &spec, &data)?;

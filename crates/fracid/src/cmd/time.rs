@@ -229,6 +229,7 @@ pub(crate) fn time_data(file: &std::path::Path, a: &TimeArgs) -> Result<TimeData
     Ok(TimeData {
         record,
         validation,
+        joint: Vec::new(),
         reader_warnings,
     })
 }
@@ -280,7 +281,10 @@ pub fn run(a: TimeArgs) -> Result<()> {
             .for_each(|w| eprintln!("warning: {w}"))
     };
     if !a.joint.is_empty() {
-        return run_joint(&a, &req, &data).inspect_err(|_| print_reader());
+        let warnings = data.reader_warnings.clone();
+        return run_joint(&a, &req, data).inspect_err(|_| {
+            warnings.iter().for_each(|w| eprintln!("warning: {w}"));
+        });
     }
     let mut spin = Spinner::new(a.quiet);
     let r = ident::app::time::run(&req, &data, &mut spin);
@@ -377,34 +381,54 @@ pub(crate) fn plot_report(
     }
 }
 
-/// `--joint`: one model fitted on several records.
-fn run_joint(a: &TimeArgs, req: &TimeRequest, data: &TimeData) -> Result<()> {
-    if a.diagnose || a.plot.is_some() {
-        crate::bad_input!("--joint does not go with --diagnose or --plot");
+/// `--joint`: one model fitted on several records (`ident::app::time::run_joint`).
+fn run_joint(a: &TimeArgs, req: &TimeRequest, data: TimeData) -> Result<()> {
+    if a.plot.is_some() {
+        crate::bad_input!("--joint does not go with --plot");
+    }
+    if a.diagnose {
+        crate::bad_input!("--joint does not go with --diagnose");
     }
     let read = read_options(a);
-    let rec = &data.record;
-    let duration = rec.t.last().copied().unwrap_or(0.0) - rec.t.first().copied().unwrap_or(0.0);
-    let (model, opts) =
-        ident::app::time::model_and_options(req, duration, data.validation.is_some())?;
-    let mut reader_warnings = data.reader_warnings.clone();
-    let mut recs = vec![rec.clone()];
+    let mut data = data;
     for p in &a.joint {
         let (r, w) = read_record_noting(p, &read)?;
-        reader_warnings.extend(w);
-        recs.push(r);
+        data.reader_warnings.extend(w);
+        data.joint.push(Named {
+            name: p.display().to_string(),
+            record: r,
+        });
     }
-    let mut j = ident::oe::identify_joint(&recs, &model, &opts)?;
-    j.report.warnings.splice(0..0, reader_warnings);
-    let scored = match &data.validation {
-        Some(v) => Some(ScoreReport::new(
-            &v.name,
-            &ident::oe::score(&j.model, &v.record, opts.offsets, opts.initial)?,
-        )),
-        None => None,
-    };
-    let files: Vec<&PathBuf> = std::iter::once(&a.file).chain(&a.joint).collect();
-    print_joint(a, &j, &files, scored.as_ref())
+    let first = a.file.display().to_string();
+    let j = ident::app::time::run_joint(req, &data, &first, &mut Spinner::new(a.quiet))?;
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&j)?);
+    } else {
+        println!("model: {}", j.model.text);
+        println!("parameters (+- standard error):");
+        for p in j.params.iter().filter(|p| p.free) {
+            let se = p.std_error.map_or("-".to_string(), |s| format!("{s:.3e}"));
+            println!("  {:<12} {:>14.6e} +- {se}", p.name, p.value);
+        }
+        for r in &j.records {
+            println!(
+                "fit on {}: NRMSE {:.2}%, RMSE {:.5}",
+                r.file, r.nrmse_percent, r.rmse
+            );
+        }
+        if let Some(sc) = j.fit.as_ref().and_then(|f| f.validation_file.as_ref()) {
+            print!("{}", score_text(sc));
+        }
+    }
+    let file_warnings = j.fit.iter().filter_map(|f| f.validation_file.as_ref());
+    for w in j
+        .warnings
+        .iter()
+        .chain(file_warnings.flat_map(|sc| &sc.warnings))
+    {
+        eprintln!("warning: {w}");
+    }
+    Ok(())
 }
 
 /// Read a time record (t, u, y) from a file, its warnings (an incomplete acquisition fitted on
@@ -429,61 +453,6 @@ pub(crate) fn read_record_noting(
         .map(|w| format!("{}: {w}", path.display()))
         .collect();
     Ok((loaded.record, warnings))
-}
-
-/// The joint fit of several records, as text or JSON.
-fn print_joint(
-    a: &TimeArgs,
-    j: &ident::oe::JointIdentification,
-    files: &[&PathBuf],
-    scored: Option<&ScoreReport>,
-) -> Result<()> {
-    if a.json {
-        let records: Vec<serde_json::Value> = files
-            .iter()
-            .zip(&j.records)
-            .map(|(f, (op, fit, _))| {
-                serde_json::json!({"file": f.display().to_string(), "offsets": op,
-                    "rmse": fit.rmse, "nrmse_percent": fit.nrmse_percent})
-            })
-            .collect();
-        let mut v = serde_json::json!({
-            "model": ident::app::ModelReport::from(&j.tf),
-            "params": j.report.params,
-            "records": records,
-            "converged": j.report.converged,
-            "warnings": j.report.warnings,
-        });
-        if let Some(sc) = scored {
-            v["fit"] = serde_json::json!({ "validation_file": sc });
-        }
-        println!("{}", serde_json::to_string_pretty(&v)?);
-        return Ok(());
-    }
-    println!("model: {}", j.tf);
-    println!("parameters (+- standard error):");
-    for p in j.report.params.iter().filter(|p| p.free) {
-        let se = p.std_error.map_or("-".to_string(), |s| format!("{s:.3e}"));
-        println!("  {:<12} {:>14.6e} +- {se}", p.name, p.value);
-    }
-    for (f, (_, fit, _)) in files.iter().zip(&j.records) {
-        println!(
-            "fit on {}: NRMSE {:.2}%, RMSE {:.5}",
-            f.display(),
-            fit.nrmse_percent,
-            fit.rmse
-        );
-    }
-    if let Some(sc) = scored {
-        print!("{}", score_text(sc));
-        for w in &sc.warnings {
-            eprintln!("warning: {w}");
-        }
-    }
-    for w in &j.report.warnings {
-        eprintln!("warning: {w}");
-    }
-    Ok(())
 }
 
 /// A model scored on a record, as a line of text (its warnings are in the report's).

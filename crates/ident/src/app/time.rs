@@ -115,14 +115,17 @@ pub struct Named {
     pub record: Record,
 }
 
-/// The data of a time-domain request: the record, an optional separate validation record, and
-/// the warnings of the reader that made them (they lead the report's warnings).
+/// The data of a time-domain request: the record, an optional separate validation record, other
+/// estimation records for a joint fit, and the warnings of the reader that made them (they lead
+/// the report's warnings).
 #[derive(Debug, Clone)]
 pub struct TimeData {
     /// The estimation record.
     pub record: Record,
     /// A separate validation record of the same plant.
     pub validation: Option<Named>,
+    /// Further estimation records of the same plant ([`run_joint`]: one model fitted to all).
+    pub joint: Vec<Named>,
     /// The readers' caveats (an incomplete acquisition, the part kept).
     pub reader_warnings: Vec<String>,
 }
@@ -263,6 +266,99 @@ pub struct TimeReport {
     /// What the report was made from, for presentation (plots, arrays): not serialised.
     #[serde(skip)]
     pub fitted: Fitted,
+}
+
+/// One record of a joint fit in its report.
+#[derive(Debug, Clone, Serialize)]
+pub struct JointRecord {
+    /// The record's name (a file's path; `record` for the first one given as arrays).
+    pub file: String,
+    /// Its operating point.
+    pub offsets: crate::data::Offsets,
+    /// The model's RMSE on it (its own initial state and output offset).
+    pub rmse: f64,
+    /// Its NRMSE fit (%).
+    pub nrmse_percent: f64,
+}
+
+/// The report of [`run_joint`].
+#[derive(Debug, Clone, Serialize)]
+pub struct JointReport {
+    /// The model fitted to all records.
+    pub model: ModelReport,
+    /// Its parameters: the plant's, then each further record's own.
+    pub params: Vec<ParamEstimate>,
+    /// Per record, its fit.
+    pub records: Vec<JointRecord>,
+    /// Whether the fit converged.
+    pub converged: bool,
+    /// Caveats (the readers' first).
+    pub warnings: Vec<String>,
+    /// The score on a separate validation record.
+    pub fit: Option<FitFigures>,
+    /// The request as run.
+    pub request: TimeRequest,
+}
+
+/// One model fitted to the record and the further records of `data.joint` (the plant's
+/// parameters shared, each record with its own operating point, output offset and initial
+/// state; each used whole), scored on the validation record when there is one
+/// ([`crate::oe::identify_joint`]); `first` names the first record in the report. Not with the
+/// diagnosis or `structure = "auto"`.
+///
+/// # Errors
+/// [`Error::Options`] for the diagnosis or `auto`; as [`crate::oe::identify_joint`].
+pub fn run_joint(
+    req: &TimeRequest,
+    data: &TimeData,
+    first: &str,
+    obs: &mut dyn Observe,
+) -> Result<JointReport> {
+    if req.diagnose || super::auto_label(&req.structure).0 {
+        return Err(Error::Options(
+            "a joint fit takes a named structure, without the diagnosis".into(),
+        ));
+    }
+    let rec = &data.record;
+    let duration = rec.t.last().copied().unwrap_or(0.0) - rec.t.first().copied().unwrap_or(0.0);
+    let (model, opts) = model_and_options(req, duration, data.validation.is_some())?;
+    let mut recs = vec![rec.clone()];
+    recs.extend(data.joint.iter().map(|n| n.record.clone()));
+    enter(obs, Stage::Fit)?;
+    let mut j = crate::oe::identify_joint(&recs, &model, &opts)?;
+    j.report
+        .warnings
+        .splice(0..0, data.reader_warnings.iter().cloned());
+    let fit = match &data.validation {
+        Some(v) => {
+            enter(obs, Stage::Validate)?;
+            let sc = score(&j.model, &v.record, opts.offsets, opts.initial)?;
+            Some(FitFigures {
+                estimation: sc.fit,
+                validation: None,
+                validation_file: Some(ScoreReport::new(&v.name, &sc)),
+            })
+        }
+        None => None,
+    };
+    let names = std::iter::once(first).chain(data.joint.iter().map(|n| n.name.as_str()));
+    Ok(JointReport {
+        model: ModelReport::from(&j.tf),
+        params: j.report.params.clone(),
+        records: names
+            .zip(&j.records)
+            .map(|(file, (op, f, _))| JointRecord {
+                file: file.to_string(),
+                offsets: *op,
+                rmse: f.rmse,
+                nrmse_percent: f.nrmse_percent,
+            })
+            .collect(),
+        converged: j.report.converged,
+        warnings: j.report.warnings.clone(),
+        fit,
+        request: req.clone(),
+    })
 }
 
 /// The results behind a [`TimeReport`], for plots and arrays.
@@ -406,6 +502,7 @@ pub fn diagnose_options(req: &TimeRequest) -> DiagnoseOptions {
 /// let data = time::TimeData {
 ///     record: Record::from_samples(&u, &y, dt).unwrap(),
 ///     validation: None,
+///     joint: vec![],
 ///     reader_warnings: vec![],
 /// };
 /// let req = time::TimeRequest { structure: "2/(0.2 s + 1)".into(), ..Default::default() };
@@ -747,6 +844,7 @@ mod tests {
         TimeData {
             record: Record::from_samples(&u, &y, dt).unwrap(),
             validation: None,
+            joint: vec![],
             reader_warnings: vec!["file.csv: a reader caveat".into()],
         }
     }
