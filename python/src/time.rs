@@ -32,8 +32,8 @@ fn structure_of(s: &Bound<'_, PyAny>, duration: f64) -> PyResult<(FracModel, boo
             .map_err(errors::ident);
     }
     Err(errors::data(
-        "structure must be 'pmsm', 'commensurate', 'second-order', 'fopdt', 'auto', a model \
-         string or a FracTf",
+        "structure must be 'pmsm', 'commensurate', 'second-order', 'third-order', 'two-mass', \
+         'fopdt', 'auto', a model string or a FracTf",
     ))
 }
 
