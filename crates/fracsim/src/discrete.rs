@@ -27,6 +27,10 @@ mod free;
 #[cfg(target_arch = "x86_64")]
 mod kernel;
 
+/// One factor of a series connection ([`Simulator::from_factors`]): numerator and denominator
+/// `(coef, order)` terms.
+pub type Factor<T> = (Vec<(T, T)>, Vec<(T, T)>);
+
 /// Runs a fractional transfer function on a held (zero-order-hold) input, exactly for its
 /// rational approximation: `u_k` acts on `[t_k, t_(k+1))` and `y_k` is the output at `t_k`.
 ///
@@ -126,7 +130,7 @@ impl<T: Real> Simulator<T> {
     /// # Errors
     /// As [`Simulator::from_terms`] for each factor; no factor; factors that share a pole.
     pub fn from_factors(
-        factors: &[(Vec<(T, T)>, Vec<(T, T)>)],
+        factors: &[Factor<T>],
         delay: T,
         dt: f64,
         spec: &ApproxSpec,

@@ -393,6 +393,9 @@ pub enum Kind {
     General,
 }
 
+/// One factor of [`FracModel::series`]: numerator and denominator `(coefficient, order)` terms.
+pub type ExprFactor = (Vec<(Expr, Expr)>, Vec<(Expr, Expr)>);
+
 /// A fractional transfer function
 /// `sum_i b_i s^beta_i / sum_j a_j s^alpha_j * exp(-tau s)` whose coefficients and orders are
 /// [`Expr`]essions of [`Param`]s, with per-sample [`Effect`]s, simulated with the
@@ -433,7 +436,7 @@ pub struct FracModel {
     /// ([`fracsim::Simulator::from_factors`]); `num` and `den` hold the product multiplied out
     /// (the transfer function of reports). A free integrator ([`FracModel::integrator`]) is in
     /// `den`, not here: the simulation adds it to the first factor.
-    pub series: Vec<(Vec<(Expr, Expr)>, Vec<(Expr, Expr)>)>,
+    pub series: Vec<ExprFactor>,
 }
 
 /// The range of the past input's levels, as deviations from `u0`, for a record whose input spans
@@ -951,7 +954,7 @@ impl FracModel {
         };
         let delay = self.delay.map_or(T::from(0.0), |i| p[i]);
         if !self.series.is_empty() {
-            let mut factors: Vec<(Vec<(T, T)>, Vec<(T, T)>)> = self
+            let mut factors: Vec<fracsim::discrete::Factor<T>> = self
                 .series
                 .iter()
                 .map(|(n, d)| (terms(n), terms(d)))

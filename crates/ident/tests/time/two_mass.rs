@@ -84,7 +84,8 @@ fn the_truth_resonates_near_40_hz() {
 
 /// The diagnosis with defaults, from the default structure (the PMSM), chooses the two-mass
 /// structure, keeps no effect (the resonance's phase lag is not a delay), and its model's
-/// frequency response is within 5% of the truth's from 1 Hz to twice the resonance.
+/// frequency response is within 5% of the truth's from 1 Hz to twice the resonance (measured: 0.25%,
+/// held-out RMSE 0.130 against noise 0.13, the best integer-order model 8.30).
 #[test]
 fn the_diagnosis_holds_the_resonance_of_a_two_mass_drive_train() {
     let (u, y) = record(11);
@@ -140,7 +141,13 @@ fn the_two_mass_model_is_its_product_multiplied_out() {
         .fold(0.0, f64::max);
     // Two exact discretisations of the same rational model: rounding only.
     assert!(worst < 1e-9 * swing, "{worst} of {swing}");
-    for (name, want) in [("K", 2.0 / 3.0), ("b2", 1.0), ("c2", 1.0), ("d", 1.0), ("mu", 1.0)] {
+    for (name, want) in [
+        ("K", 2.0 / 3.0),
+        ("b2", 1.0),
+        ("c2", 1.0),
+        ("d", 1.0),
+        ("mu", 1.0),
+    ] {
         let j = m.index_of(name).unwrap();
         assert_eq!(m.unit_scale(j, 3.0, 2.0), Some(want), "{name}");
     }

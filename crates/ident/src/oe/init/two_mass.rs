@@ -351,8 +351,16 @@ mod tests {
             .unwrap();
         let (err, m) = best;
         let at = |n: &str| m.params[m.index_of(n).unwrap()].value;
-        assert!((w_hz(at("c2")) / 40.0 - 1.0).abs() < 0.01, "{}", w_hz(at("c2")));
-        assert!((w_hz(at("b2")) / 28.0 - 1.0).abs() < 0.01, "{}", w_hz(at("b2")));
+        assert!(
+            (w_hz(at("c2")) / 40.0 - 1.0).abs() < 0.01,
+            "{}",
+            w_hz(at("c2"))
+        );
+        assert!(
+            (w_hz(at("b2")) / 28.0 - 1.0).abs() < 0.01,
+            "{}",
+            w_hz(at("b2"))
+        );
         // Measured 4.2e-3 (weighted relative error squared: about 6% in amplitude, from the
         // order grid's step and the one `d` for two damping coefficients): a start near the
         // truth, which the time-domain fit then refines.
