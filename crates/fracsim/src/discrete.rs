@@ -27,6 +27,10 @@ mod free;
 #[cfg(target_arch = "x86_64")]
 mod kernel;
 
+/// One factor of a series connection ([`Simulator::from_factors`]): numerator and denominator
+/// `(coef, order)` terms.
+pub type Factor<T> = (Vec<(T, T)>, Vec<(T, T)>);
+
 /// Runs a fractional transfer function on a held (zero-order-hold) input, exactly for its
 /// rational approximation: `u_k` acts on `[t_k, t_(k+1))` and `y_k` is the output at `t_k`.
 ///
@@ -115,6 +119,47 @@ impl<T: Real> Simulator<T> {
             return invalid("delay", format!("{d} s is more than 1e8 samples"));
         }
         let model = pole_residue(num, den, band, spec)?;
+        Ok(Self::from_model(model, delay, dt))
+    }
+
+    /// Build for the series connection of `factors`, each `(numerator, denominator)` terms as in
+    /// [`Simulator::from_terms`]: each factor's approximated model in pole-residue form, then
+    /// their product ([`PoleResidue::product`]), discretised as one system. The same model as
+    /// the product multiplied out, without one eigenvalue problem over every cell of every factor.
+    ///
+    /// # Errors
+    /// As [`Simulator::from_terms`] for each factor; no factor; factors that share a pole.
+    pub fn from_factors(
+        factors: &[Factor<T>],
+        delay: T,
+        dt: f64,
+        spec: &ApproxSpec,
+    ) -> Result<Self> {
+        let band = spec.band_for(dt)?;
+        let d = finite("delay", delay.re())?;
+        if d < 0.0 {
+            return invalid("delay", format!("{d} s is negative"));
+        }
+        if d / dt > 1e8 {
+            return invalid("delay", format!("{d} s is more than 1e8 samples"));
+        }
+        let mut model: Option<PoleResidue<T>> = None;
+        for (num, den) in factors {
+            let f = pole_residue(num, den, band, spec)?;
+            model = Some(match model {
+                None => f,
+                Some(m) => m.product(&f)?,
+            });
+        }
+        match model {
+            Some(model) => Ok(Self::from_model(model, delay, dt)),
+            None => invalid("model", "a product of no factors"),
+        }
+    }
+
+    /// Discretise `model` for step `dt` with input delay `delay` (checked by the caller).
+    fn from_model(model: PoleResidue<T>, delay: T, dt: f64) -> Self {
+        let samples = delay.re() / dt;
         let m = samples.floor();
         let eps = delay - m * dt;
         let mut s = Self {
@@ -160,7 +205,7 @@ impl<T: Real> Simulator<T> {
         }
         s.re_x = vec![zero; lanes];
         s.cx_x = vec![Cx::real(zero); s.cx_phi.len()];
-        Ok(s)
+        s
     }
 
     /// The continuous model this simulator discretises (poles and residues, rad/s).

@@ -295,8 +295,9 @@ impl Ctx<'_> {
 
     /// The linear part of the current model applied to `x` (deviation scale).
     fn lin(&self, st: &State, x: &[f64]) -> Option<Vec<f64>> {
-        let tf = st.model.tf(&st.values).ok()?;
-        fracsim::lsim(&tf, x, self.dt, &st.model.approx).ok()
+        let mut sim = st.model.simulator::<f64>(&st.values, self.dt).ok()?;
+        let y = sim.simulate(x);
+        y.iter().all(|v| v.is_finite()).then_some(y)
     }
 
     /// Refit `model` (its values are the start) on the estimation part.

@@ -191,14 +191,20 @@ pub fn order_range(nu: f64) -> Bounds {
     }
 }
 
-/// A linear expression `constant + sum_i c_i p_i` of the parameters, for coefficients and orders
-/// (the PMSM's highest order is `zeta + theta`, the commensurate model's `2 q`).
+/// An expression `(constant + sum_i c_i p_i) prod_f p_f` of the parameters, for coefficients and
+/// orders: linear (the PMSM's highest order is `zeta + theta`, the commensurate model's `2 q`),
+/// times a product of parameters for the coefficients of a product multiplied out (the two-mass
+/// model's `a2 c2` of `(a2 s^.. + ..)(c2 s^2 + ..)`, [`FracModel::two_mass`]).
 #[derive(Debug, Clone, PartialEq, Default, serde::Serialize, serde::Deserialize)]
 pub struct Expr {
     /// The constant part.
     pub constant: f64,
     /// `(parameter index, factor)` pairs.
     pub terms: Vec<(usize, f64)>,
+    /// Parameter indices the linear part is multiplied by (empty: a linear expression). They are
+    /// the dimensionless factors of a product: the units of the coefficient are those of its
+    /// linear part ([`FracModel::unit_scale`]).
+    pub factors: Vec<usize>,
 }
 
 impl Expr {
@@ -206,22 +212,31 @@ impl Expr {
     pub fn cst(c: f64) -> Self {
         Self {
             constant: c,
-            terms: vec![],
+            ..Self::default()
         }
     }
     /// Parameter `i`.
     pub fn p(i: usize) -> Self {
         Self {
-            constant: 0.0,
             terms: vec![(i, 1.0)],
+            ..Self::default()
         }
     }
     /// `sum_i c_i p_i`.
     pub fn sum(terms: &[(usize, f64)]) -> Self {
         Self {
-            constant: 0.0,
             terms: terms.to_vec(),
+            ..Self::default()
         }
+    }
+    /// This expression times the parameters `factors` (see [`Expr::factors`]).
+    pub fn times(mut self, factors: &[usize]) -> Self {
+        self.factors.extend_from_slice(factors);
+        self
+    }
+    /// Whether parameter `i` appears in it (in the linear part or as a factor).
+    pub fn has(&self, i: usize) -> bool {
+        self.terms.iter().any(|&(j, _)| j == i) || self.factors.contains(&i)
     }
     /// The value for parameters `p`.
     #[inline]
@@ -229,6 +244,9 @@ impl Expr {
         let mut v = T::from(self.constant);
         for &(i, c) in &self.terms {
             v += p[i] * c;
+        }
+        for &i in &self.factors {
+            v *= p[i];
         }
         v
     }
@@ -369,9 +387,15 @@ pub enum Kind {
     /// An integer-order reference, `K / (a2 s^2 + a1 s + 1)`, parameters `K, a1, a2`: started
     /// like the FOPDT, by the coarse search at order 1.
     Integer,
+    /// The two-mass drive train [`FracModel::two_mass`]: started from the frequency response
+    /// (the resonance and anti-resonance located on it, [`init`]).
+    TwoMass,
     /// Anything else: starts from the given values.
     General,
 }
+
+/// One factor of [`FracModel::series`]: numerator and denominator `(coefficient, order)` terms.
+pub type ExprFactor = (Vec<(Expr, Expr)>, Vec<(Expr, Expr)>);
 
 /// A fractional transfer function
 /// `sum_i b_i s^beta_i / sum_j a_j s^alpha_j * exp(-tau s)` whose coefficients and orders are
@@ -409,6 +433,12 @@ pub struct FracModel {
     pub past: Option<PastInput>,
     /// Whether a free integrator `1/s` was put in series ([`FracModel::with_integrator`]).
     pub integrator: bool,
+    /// When not empty, the linear part is the series connection of these factors, each
+    /// `(numerator, denominator)` terms, and is simulated factor by factor
+    /// ([`fracsim::Simulator::from_factors`]); `num` and `den` hold the product multiplied out
+    /// (the transfer function of reports). A free integrator ([`FracModel::integrator`]) is in
+    /// `den`, not here: the simulation adds it to the first factor.
+    pub series: Vec<ExprFactor>,
 }
 
 /// The range of the past input's levels, as deviations from `u0`, for a record whose input spans
@@ -464,6 +494,7 @@ impl FracModel {
             kind: Kind::Pmsm,
             past: None,
             integrator: false,
+            series: vec![],
         }
     }
 
@@ -528,6 +559,116 @@ impl FracModel {
             kind: Kind::Integer,
             ..Self::pmsm(1.0, 1.0, 1.0, 1.0, 1.0)
         }
+    }
+
+    /// The integer third-order reference `K / (a3 s^3 + a2 s^2 + a1 s + 1)`, started like the
+    /// second order.
+    ///
+    /// ```
+    /// let m = ident::oe::FracModel::third_order(2.0, 0.0175, 8.75e-5, 1.25e-7);
+    /// let tf = m.tf(&m.values()).unwrap();
+    /// assert_eq!(tf.to_string(), "2/(0.000000125 s^3 + 0.0000875 s^2 + 0.0175 s + 1)");
+    /// ```
+    pub fn third_order(k: f64, a1: f64, a2: f64, a3: f64) -> Self {
+        let mut m = Self::second_order(k, a1, a2);
+        let i = m.add_param(Param::positive("a3", a3));
+        m.den.insert(0, (Expr::p(i), Expr::cst(3.0)));
+        m
+    }
+
+    /// A two-mass drive train: a motor (the PMSM structure, paper eq. 10) driving a load through a
+    /// compliant coupling whose damping is fractional,
+    ///
+    /// `G(s) = K (b2 s^2 + d s^mu + 1) / ((a2 s^(zeta+theta) + a1 s^zeta + 1) (c2 s^2 + d s^mu + 1))`.
+    ///
+    /// For a motor of inertia `J_m` and a load `J_l` on a shaft of stiffness `c` and damping torque
+    /// `c d D^mu` of the twist (viscous for `mu = 1`, viscoelastic for `0 < mu < 1`), the motor
+    /// speed per torque is exactly the rigid drive's times
+    /// `(J_l s^2 + c d s^mu + c) / (J_m J_l/(J_m + J_l) s^2 + c d s^mu + c)`: an anti-resonance at
+    /// `omega_a = b2^-1/2 = (c/J_l)^1/2` (the zeros) below the resonance at
+    /// `omega_r = c2^-1/2 = (c (J_m + J_l)/(J_m J_l))^1/2` (the poles), both damped by the same
+    /// `d s^mu`. Here the rigid drive is the PMSM's fractional model. Parameters
+    /// `K, a1, a2, zeta, theta` as [`FracModel::pmsm`], `b2, c2, d` positive, `mu` in `(0, 2)`:
+    /// `motor = [K, a1, a2, zeta, theta]`, `pair = [b2, c2, d, mu]`. `num` and `den` hold the
+    /// product multiplied out (nine denominator terms; coefficients that are products of
+    /// parameters, [`Expr::factors`]); it is simulated as motor times pair
+    /// ([`FracModel::series`]).
+    ///
+    /// ```
+    /// use ident::oe::FracModel;
+    /// let w = |hz: f64| (2.0 * std::f64::consts::PI * hz).powi(-2);
+    /// let m = FracModel::two_mass([6.77, 0.0064, 2.8e-5, 0.89, 0.89], [w(28.0), w(40.0), 2e-3, 0.7]);
+    /// let tf = m.tf(&m.values()).unwrap();
+    /// assert_eq!((tf.num.len(), tf.den.len()), (3, 9));
+    /// assert!((tf.dc_gain() - 6.77).abs() < 1e-12);
+    /// // The resonance: the response at 40 Hz is several times the motor's alone.
+    /// let motor = fracsim::FracTf::pmsm(6.77, 0.0064, 2.8e-5, 0.89, 0.89).unwrap();
+    /// let w40 = 2.0 * std::f64::consts::PI * 40.0;
+    /// assert!(tf.freq_response(w40).norm() > 5.0 * motor.freq_response(w40).norm());
+    /// ```
+    pub fn two_mass(motor: [f64; 5], pair: [f64; 4]) -> Self {
+        let [k, a1, a2, zeta, theta] = motor;
+        let [b2, c2, d, mu] = pair;
+        let mut m = Self::pmsm(k, a1, a2, zeta, theta);
+        let (ik, ia1, ia2, iz, it) = (0, 1, 2, 3, 4);
+        let ib2 = m.add_param(Param::positive("b2", b2));
+        let ic2 = m.add_param(Param::positive("c2", c2));
+        let id = m.add_param(Param::positive("d", d));
+        let imu = m.add_param(Param::order("mu", mu));
+        let order = |c: f64, t: &[usize]| Expr {
+            constant: c,
+            terms: t.iter().map(|&i| (i, 1.0)).collect(),
+            factors: vec![],
+        };
+        m.num = vec![
+            (Expr::p(ik).times(&[ib2]), Expr::cst(2.0)),
+            (Expr::p(ik).times(&[id]), Expr::p(imu)),
+            (Expr::p(ik), Expr::cst(0.0)),
+        ];
+        // (a2 s^(zeta+theta) + a1 s^zeta + 1) (c2 s^2 + d s^mu + 1), term by term.
+        let motor_terms = [
+            (Some(ia2), vec![iz, it]),
+            (Some(ia1), vec![iz]),
+            (None, vec![]),
+        ];
+        let pair_terms = [
+            (Some(ic2), 2.0, None),
+            (Some(id), 0.0, Some(imu)),
+            (None, 0.0, None),
+        ];
+        // Simulated as motor times pair (one eigenvalue problem over every cell of the product
+        // loses poles).
+        m.series = vec![
+            (vec![(Expr::p(ik), Expr::cst(0.0))], m.den.clone()),
+            (
+                vec![
+                    (Expr::p(ib2), Expr::cst(2.0)),
+                    (Expr::p(id), Expr::p(imu)),
+                    (Expr::cst(1.0), Expr::cst(0.0)),
+                ],
+                vec![
+                    (Expr::p(ic2), Expr::cst(2.0)),
+                    (Expr::p(id), Expr::p(imu)),
+                    (Expr::cst(1.0), Expr::cst(0.0)),
+                ],
+            ),
+        ];
+        m.den = vec![];
+        for (mc, mo) in &motor_terms {
+            for &(pc, po, pmu) in &pair_terms {
+                let coef = match (mc, pc) {
+                    (Some(a), Some(c)) => Expr::p(*a).times(&[c]),
+                    (Some(a), None) => Expr::p(*a),
+                    (None, Some(c)) => Expr::p(c),
+                    (None, None) => Expr::cst(1.0),
+                };
+                let mut o = mo.clone();
+                o.extend(pmu);
+                m.den.push((coef, order(po, &o)));
+            }
+        }
+        m.kind = Kind::TwoMass;
+        m
     }
 
     /// Any fractional transfer function; `free_coefs` and `free_orders` say which of its
@@ -739,7 +880,10 @@ impl FracModel {
     /// How many times parameter `j` appears in the model (coefficients, orders, delay, effects,
     /// initial state).
     fn uses(&self, j: usize) -> usize {
-        let expr = |e: &Expr| e.terms.iter().filter(|&&(i, _)| i == j).count();
+        let expr = |e: &Expr| {
+            e.terms.iter().filter(|&&(i, _)| i == j).count()
+                + e.factors.iter().filter(|&&i| i == j).count()
+        };
         let terms: usize = self
             .num
             .iter()
@@ -792,19 +936,38 @@ impl FracModel {
             return Some(Linear::Level(i));
         }
         match self.num.as_slice() {
-            [(c, _)] if c.constant == 0.0 && c.terms.len() == 1 && c.terms[0].0 == j => {
+            [(c, _)]
+                if c.constant == 0.0
+                    && c.terms.len() == 1
+                    && c.terms[0].0 == j
+                    && c.factors.is_empty() =>
+            {
                 Some(Linear::Gain)
             }
             _ => None,
         }
     }
 
-    /// The simulator of the linear part at `p` (from rest).
-    fn simulator<T: Real>(&self, p: &[T], dt: f64) -> Result<Simulator<T>> {
+    /// The simulator of the linear part at `p` (from rest): of `num/den`, or of the factors of
+    /// [`FracModel::series`].
+    pub(crate) fn simulator<T: Real>(&self, p: &[T], dt: f64) -> Result<Simulator<T>> {
         let terms = |t: &[(Expr, Expr)]| -> Vec<(T, T)> {
             t.iter().map(|(c, o)| (c.eval(p), o.eval(p))).collect()
         };
         let delay = self.delay.map_or(T::from(0.0), |i| p[i]);
+        if !self.series.is_empty() {
+            let mut factors: Vec<fracsim::discrete::Factor<T>> = self
+                .series
+                .iter()
+                .map(|(n, d)| (terms(n), terms(d)))
+                .collect();
+            if self.integrator {
+                for (_, o) in &mut factors[0].1 {
+                    *o += T::from(1.0);
+                }
+            }
+            return Ok(Simulator::from_factors(&factors, delay, dt, &self.approx)?);
+        }
         Ok(Simulator::from_terms(
             &terms(&self.num),
             &terms(&self.den),
@@ -826,12 +989,13 @@ impl FracModel {
             if has(c) {
                 f.push(sy / su);
             }
-            if has(o) {
+            // A factor of a product is dimensionless (see `Expr::factors`).
+            if has(o) || c.factors.contains(&j) {
                 f.push(1.0);
             }
         }
         for (c, o) in &self.den {
-            if has(c) || has(o) {
+            if c.has(j) || has(o) {
                 f.push(1.0);
             }
         }

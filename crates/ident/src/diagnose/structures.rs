@@ -5,8 +5,11 @@
 //! a sign-blind sensor because every linear fit of rectified data is poor).
 //!
 //! The candidates are the user's structure, the PMSM `K/(a2 s^(zeta+theta) + a1 s^zeta + 1)`, the
-//! commensurate `K/(a2 s^(2q) + a1 s^q + 1)`, the integer references first order `K/(T s + 1)` and
-//! second order `K/(a2 s^2 + a1 s + 1)`, and the user's
+//! commensurate `K/(a2 s^(2q) + a1 s^q + 1)`, the integer references first order `K/(T s + 1)`,
+//! second order `K/(a2 s^2 + a1 s + 1)` and third order `K/(a3 s^3 + a2 s^2 + a1 s + 1)`, the
+//! two-mass drive train (the PMSM times a resonant pair with zeros, [`FracModel::two_mass`]; it
+//! starts from the resonance on the measured frequency response, and a record without a periodic
+//! input or without a resonance drops it at once), and the user's
 //! structure with a free integrator (an output that integrates, such as a position). Each is
 //! identified with the same options ([`crate::oe::identify`]: automatic start, initial state,
 //! offsets) and diagnosed ([`super::diagnose`]); the candidates run on all cores. Rule: among the
@@ -74,6 +77,11 @@ pub fn candidates(label: &str, model: &FracModel) -> Vec<(String, FracModel)> {
         ),
         ("first order", first),
         ("second order", FracModel::second_order(1.0, 0.01, 1e-4)),
+        (
+            "third order",
+            FracModel::third_order(1.0, 0.0175, 8.75e-5, 1.25e-7),
+        ),
+        ("two-mass", two_mass()),
     ] {
         if out.iter().any(|(n, _)| n.eq_ignore_ascii_case(name)) {
             continue;
@@ -87,6 +95,16 @@ pub fn candidates(label: &str, model: &FracModel) -> Vec<(String, FracModel)> {
         out.push((format!("{label} + integrator"), m));
     }
     out
+}
+
+/// The two-mass drive train ([`FracModel::two_mass`]) with neutral values (its start comes
+/// from the data, [`crate::oe::init`]): the paper's PMSM orders, a pair at 40 and 30 Hz.
+pub fn two_mass() -> FracModel {
+    let inv_w2 = |hz: f64| (2.0 * std::f64::consts::PI * hz).powi(-2);
+    FracModel::two_mass(
+        [1.0, 0.01, 1e-4, 0.9, 0.9],
+        [inv_w2(30.0), inv_w2(40.0), 1e-3, 1.0],
+    )
 }
 
 /// A diagnosis on the best structure ([`diagnose_best`]).
@@ -335,7 +353,8 @@ pub fn diagnose_best(
 }
 
 /// The structures a plain fit chooses among with `--structure auto`: the PMSM, the commensurate,
-/// and the integer first and second order (those of [`candidates`] that need no user model),
+/// the integer first, second and third order and the two-mass drive train (those of
+/// [`candidates`] that need no user model),
 /// each with `model`'s approximation.
 pub fn auto_candidates(model: &FracModel) -> Vec<(String, FracModel)> {
     candidates("pmsm", model)

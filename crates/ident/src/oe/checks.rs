@@ -238,7 +238,14 @@ pub(crate) fn levels_at_bound(m: &FracModel, params: &[super::ParamEstimate]) ->
 fn same_order_terms(m: &FracModel, p: &[f64]) -> Vec<String> {
     let mut out = vec![];
     for (side, terms) in [("numerator", &m.num), ("denominator", &m.den)] {
-        let fitted = |c: &super::Expr| c.terms.iter().any(|&(i, _)| m.params[i].free);
+        // A coefficient that is a product, or has a parameter another term's coefficient also
+        // has, is tied to other terms (a product multiplied out): not the case meant here.
+        let fitted = |c: &super::Expr| {
+            let alone = |i: usize| terms.iter().filter(|(d, _)| d.has(i)).count() == 1;
+            c.factors.is_empty()
+                && c.terms.iter().any(|&(i, _)| m.params[i].free)
+                && c.terms.iter().all(|&(i, _)| alone(i))
+        };
         for i in 0..terms.len() {
             for j in i + 1..terms.len() {
                 let (oi, oj) = (terms[i].1.eval(p), terms[j].1.eval(p));
@@ -337,7 +344,7 @@ pub(crate) fn assess(id: &Identification, rec: &Record) -> (Vec<String>, Vec<Str
     // Stability of the approximated model: every pole in the open left half-plane (a pole at
     // 0 only when the structure integrates by design).
     let mut simulator = None;
-    match Simulator::<f64>::new(&id.tf, rec.dt, &m.approx) {
+    match m.simulator::<f64>(p, rec.dt) {
         Ok(sim) => {
             let pr = sim.model();
             let worst = pr

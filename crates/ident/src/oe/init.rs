@@ -18,6 +18,8 @@
 //! search over orders and corner frequencies with the gain by least squares), saying which start
 //! was used and why in a [`StartReport`].
 
+mod two_mass;
+
 use super::{FracModel, Kind, Structure};
 use crate::levy::{self, LevyFit};
 use crate::{Error, Result};
@@ -585,14 +587,25 @@ fn coarse_start(lin: &FracModel, u: &[f64], y: &[f64], dt: f64) -> Option<(f64, 
         &[0.5, 0.7, 0.9]
     };
     let (w_lo, w_hi) = (2.0 * PI / (n as f64 * dt), 0.25 * PI / dt);
+    // The third order as `K / ((1 + s/w_c)(1 + s/(2 w_c))(1 + s/(4 w_c)))` (distinct poles: the
+    // modal form refuses repeated ones), the others `K / (1 + (s/w_c)^q / 2)^2`.
+    let third = lin.index_of("a3").is_some();
     let values = |q: f64, wc: f64, k: f64| {
         let a1 = wc.powf(-q);
         with_values(
             lin,
             &[
                 ("K", k),
-                ("a1", a1),
-                ("a2", a1 * a1 / 4.0),
+                ("a1", if third { 1.75 * a1 } else { a1 }),
+                (
+                    "a2",
+                    if third {
+                        0.875 * a1 * a1
+                    } else {
+                        a1 * a1 / 4.0
+                    },
+                ),
+                ("a3", 0.125 * a1 * a1 * a1),
                 ("q", q),
                 ("zeta", q),
                 ("theta", q),
@@ -636,6 +649,9 @@ type Candidate = (Vec<f64>, String);
 /// PMSM its refit with two free orders ([`levy::refine_pmsm`]). Returns the candidates and the
 /// commensurate order.
 fn levy_candidates(lin: &FracModel, frf: &Frf, dt: f64) -> Result<(Vec<Candidate>, f64)> {
+    if lin.kind == Kind::TwoMass {
+        return two_mass::candidates(lin, frf, dt);
+    }
     let (fit, err) = levy_start(frf, true)?;
     let (k, a1, a2, q) = (fit.b[0], fit.a[0], fit.a[1], fit.q);
     let mut out = vec![(
@@ -788,7 +804,13 @@ pub fn auto_start(model: &mut FracModel, u: &[f64], y: &[f64], dt: f64) -> Resul
             }
         }
     };
-    if !why_not_levy.is_empty() {
+    if model.kind == Kind::TwoMass && chosen.is_none() {
+        // The coarse search has no resonance to offer: the structure is dropped at once.
+        return Err(Error::NotEnoughData(format!(
+            "the two-mass structure starts from the frequency response: {why_not_levy}"
+        )));
+    }
+    if !why_not_levy.is_empty() && model.kind != Kind::TwoMass {
         if let Some((s, v)) = coarse_start(&lin, us, ys, dt) {
             if chosen.as_ref().is_none_or(|c| s < c.0) {
                 report = StartReport {

@@ -10,3 +10,4 @@ mod sensitivity;
 mod starts;
 mod steps;
 mod truth;
+mod two_mass;
