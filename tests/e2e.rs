@@ -694,6 +694,46 @@ fn the_diagnosis_holds_a_two_mass_drive_trains_resonance() {
     // The held-out fit is at the noise (RMSE 0.13).
     let rmse = d["after"]["rmse"].as_f64().unwrap();
     assert!(rmse < 0.15, "{rmse}");
+    // The text is the product of its factors (motor * pair), which `fracid sim` simulates (the
+    // nine-term product multiplied out defeats one pole search) and `fracid export` exports: on
+    // the record's own input, from rest, it follows the noiseless truth to a small part of the
+    // swing (about 64).
+    let text = j["model"]["text"].as_str().unwrap();
+    assert!(text.contains(" * "), "{text}");
+    let out = fracid(&["sim", "--model", text, "--input", path.to_str().unwrap()]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let sim: Vec<f64> = String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .filter(|l| !l.starts_with('#') && !l.starts_with('t'))
+        .map(|l| l.rsplit(',').next().unwrap().parse().unwrap())
+        .collect();
+    assert_eq!(sim.len(), u.len());
+    let clean: Vec<f64> = y10
+        .iter()
+        .zip(&y20)
+        .map(|(a, b)| (4.0 * b - a) / 3.0)
+        .collect();
+    let err = (sim
+        .iter()
+        .zip(&clean)
+        .map(|(a, b)| (a - b).powi(2))
+        .sum::<f64>()
+        / sim.len() as f64)
+        .sqrt();
+    eprintln!("fracid sim of the reported model against the truth: RMSE {err:.4}");
+    assert!(err < 0.5, "{err}");
+    let json = dir.path().join("report.json");
+    std::fs::write(&json, j.to_string()).unwrap();
+    let out = fracid(&["export", json.to_str().unwrap(), "--dt", "1e-3"]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
 }
 
 /// A child process killed when the guard goes, also when the test fails.

@@ -115,7 +115,14 @@ def test_structure_auto_matches_the_cli(fracid_bin):
     assert fit.structures is not None
     assert fit.structures["chosen"] == cli["structures"]["chosen"]
     names = [r["name"] for r in fit.structures["scores"]]
-    assert names == ["pmsm", "commensurate", "first order", "second order"]
+    assert names == [
+        "pmsm",
+        "commensurate",
+        "first order",
+        "second order",
+        "third order",
+        "two-mass",
+    ]
     assert fit.validation.rmse == pytest.approx(cli["fit"]["validation"]["rmse"], rel=1e-9)
 
 

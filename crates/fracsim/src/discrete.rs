@@ -93,7 +93,17 @@ impl<T: Real> Simulator<T> {
                 .map(|t| (T::from(t.coef), T::from(t.order)))
                 .collect()
         };
-        Self::from_terms(&conv(&tf.num), &conv(&tf.den), T::from(tf.delay), dt, spec)
+        let whole = Self::from_terms(&conv(&tf.num), &conv(&tf.den), T::from(tf.delay), dt, spec);
+        // A model known as a product whose multiplied-out form fails (its poles crowd too many
+        // cells for one eigenvalue problem): factor by factor.
+        match (whole, tf.factors()) {
+            (Err(e), fs) if !fs.is_empty() => {
+                let factors: Vec<Factor<T>> =
+                    fs.iter().map(|f| (conv(&f.num), conv(&f.den))).collect();
+                Self::from_factors(&factors, T::from(tf.delay), dt, spec).map_err(|_| e)
+            }
+            (r, _) => r,
+        }
     }
 
     /// Build from `(coef, order)` terms of numerator and denominator and an input delay in

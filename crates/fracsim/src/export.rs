@@ -152,7 +152,23 @@ impl Block {
 fn modal(tf: &FracTf, band: (f64, f64), spec: &ApproxSpec) -> Result<PoleResidue<f64>> {
     let pairs =
         |t: &[crate::Term]| -> Vec<(f64, f64)> { t.iter().map(|t| (t.coef, t.order)).collect() };
-    pole_residue(&pairs(&tf.num), &pairs(&tf.den), band, spec)
+    let whole = pole_residue(&pairs(&tf.num), &pairs(&tf.den), band, spec);
+    // A product whose multiplied-out form fails: factor by factor (as `Simulator::new`).
+    match (whole, tf.factors()) {
+        (Err(e), fs) if !fs.is_empty() => {
+            let mut out: Option<PoleResidue<f64>> = None;
+            for f in fs {
+                let m = pole_residue(&pairs(&f.num), &pairs(&f.den), band, spec)
+                    .map_err(|_| e.clone())?;
+                out = Some(match out {
+                    None => m,
+                    Some(o) => o.product(&m).map_err(|_| e.clone())?,
+                });
+            }
+            out.ok_or(e)
+        }
+        (r, _) => r,
+    }
 }
 
 /// The continuous state space of `tf`'s approximation over `band` (rad/s); its delay is carried

@@ -34,7 +34,7 @@ impl Term {
 /// let h = g.freq_response(100.0); // omega in rad/s
 /// assert!(h.norm() < 6.77);
 /// ```
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone)]
 pub struct FracTf {
     /// Numerator terms `b_i s^beta_i`.
     pub num: Vec<Term>,
@@ -42,6 +42,39 @@ pub struct FracTf {
     pub den: Vec<Term>,
     /// Input delay `tau` in seconds.
     pub delay: f64,
+    /// The factors of a series connection the model is also known as (see
+    /// [`FracTf::factors`]); empty when none.
+    factors: Vec<FracTf>,
+    /// Whether `Display` writes the factors ([`FracTf::with_factors`]) rather than the product
+    /// multiplied out.
+    show_factors: bool,
+}
+
+/// Equal terms and delay (the factors known are a way of computing, not part of the model).
+impl PartialEq for FracTf {
+    fn eq(&self, o: &Self) -> bool {
+        self.num == o.num && self.den == o.den && self.delay == o.delay
+    }
+}
+
+/// Frequencies (rad/s) at which a factorisation is checked against the model.
+const FACTOR_CHECK_RAD_S: [f64; 8] = [1.23e-3, 1.23e-2, 0.123, 1.23, 12.3, 123.0, 1234.0, 12345.0];
+
+/// Whether the product of `factors` (at least two, their delays aside) is `tf` (its delay aside)
+/// within `1e-9` relative at [`FACTOR_CHECK_RAD_S`].
+fn factors_match(tf: &FracTf, factors: &[FracTf]) -> bool {
+    factors.len() >= 2
+        && FACTOR_CHECK_RAD_S.iter().all(|&w| {
+            let rational = |g: &FracTf| {
+                let eval = |t: &[Term]| -> Complex64 {
+                    t.iter().map(|t| jw_pow(w, t.order) * t.coef).sum()
+                };
+                eval(&g.num) / eval(&g.den)
+            };
+            let whole = rational(tf);
+            let product: Complex64 = factors.iter().map(rational).product();
+            (product - whole).norm() <= 1e-9 * whole.norm() && whole.norm().is_finite()
+        })
 }
 
 fn normalise(what: &'static str, terms: &[Term]) -> Result<Vec<Term>> {
@@ -93,7 +126,60 @@ impl FracTf {
                 format!("{delay} s is negative (a non-causal model)"),
             );
         }
-        Ok(Self { num, den, delay })
+        Ok(Self {
+            num,
+            den,
+            delay,
+            factors: vec![],
+            show_factors: false,
+        })
+    }
+
+    /// The same model, known as the series connection of `factors` (their delays are ignored:
+    /// the model's own is the whole delay). The simulators use the factors where the product
+    /// multiplied out cannot be put in pole-residue form (a two-mass drive train's nine-term
+    /// denominator: [`crate::Simulator::from_factors`]), and `Display` writes them, `F1 * F2`,
+    /// which the parser reads back as the same model and the same factors.
+    ///
+    /// ```
+    /// use fracsim::FracTf;
+    /// let a: FracTf = "2/(0.1 s^0.8 + 1)".parse().unwrap();
+    /// let b: FracTf = "(0.01 s^2 + 1)/(0.005 s^2 + 0.001 s^0.5 + 1)".parse().unwrap();
+    /// let ab: FracTf = "2*(0.01 s^2 + 1)/((0.1 s^0.8 + 1)*(0.005 s^2 + 0.001 s^0.5 + 1))".parse().unwrap();
+    /// let g = ab.clone().with_factors(vec![a, b]).unwrap();
+    /// let back: FracTf = g.to_string().parse().unwrap();
+    /// assert_eq!(back, ab);
+    /// assert_eq!(back.factors().len(), 2);
+    /// ```
+    ///
+    /// # Errors
+    /// [`Error::Invalid`] when fewer than two factors are given or their product is not the model.
+    pub fn with_factors(mut self, factors: Vec<FracTf>) -> Result<Self> {
+        if !factors_match(&self, &factors) {
+            return invalid("factors", "their product is not the model");
+        }
+        self.factors = factors
+            .into_iter()
+            .map(|mut f| {
+                f.delay = 0.0;
+                f.factors.clear();
+                f.show_factors = false;
+                f
+            })
+            .collect();
+        self.show_factors = true;
+        Ok(self)
+    }
+
+    /// The factors of a series connection the model is known as (given by
+    /// [`FracTf::with_factors`], or read from a product `F1 * F2 * ..` at the top of the text),
+    /// when their product is still the model; else none.
+    pub fn factors(&self) -> &[FracTf] {
+        if factors_match(self, &self.factors) {
+            &self.factors
+        } else {
+            &[]
+        }
     }
 
     /// The PMSM structure of the reference paper (eq. 10):
@@ -266,6 +352,18 @@ fn fmt_poly(terms: &[Term]) -> String {
 impl fmt::Display for FracTf {
     /// The form [`FracTf::from_str`] reads back: `6.82/(2.655e-5 s^1.7452 + 0.0059 s^0.92 + 1)`.
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        if self.show_factors && !self.factors().is_empty() {
+            for (i, g) in self.factors.iter().enumerate() {
+                if i > 0 {
+                    write!(f, " * ")?;
+                }
+                write!(f, "{g}")?;
+            }
+            if self.delay != 0.0 {
+                write!(f, " exp(-{} s)", fmt_num(self.delay))?;
+            }
+            return Ok(());
+        }
         let num = fmt_poly(&self.num);
         if self.num.len() > 1 {
             write!(f, "({num})")?;
@@ -788,7 +886,48 @@ impl FromStr for FracTf {
         }
         // Normalise so that the denominator's order-zero term (or its lowest term) is the
         // scale the user wrote: keep coefficients as given.
-        FracTf::new(v.num, v.den, v.delay)
+        let mut g = FracTf::new(v.num, v.den, v.delay)?;
+        // A product at the top of the text (`F1 * F2`): its factors are kept for the simulators
+        // (see `FracTf::with_factors`), not shown.
+        let mut pieces = vec![];
+        let (mut depth, mut from) = (0i32, 0);
+        for (k, (_, t)) in toks.iter().enumerate() {
+            match t {
+                Tok::LParen => depth += 1,
+                Tok::RParen => depth -= 1,
+                Tok::Star if depth == 0 => {
+                    pieces.push(&toks[from..k]);
+                    from = k + 1;
+                }
+                _ => {}
+            }
+        }
+        pieces.push(&toks[from..]);
+        if pieces.len() >= 2 {
+            let parsed: Option<Vec<FracTf>> = pieces
+                .iter()
+                .map(|ts| {
+                    let mut q = Parser {
+                        toks: ts,
+                        i: 0,
+                        end: src.len(),
+                        depth: 0,
+                    };
+                    let v = q.expr().ok()?;
+                    (q.i == ts.len()).then_some(())?;
+                    FracTf::new(v.num, v.den, v.delay).ok()
+                })
+                .collect();
+            if let Some(fs) = parsed {
+                if let Ok(h) = g.clone().with_factors(fs) {
+                    g = FracTf {
+                        show_factors: false,
+                        ..h
+                    };
+                }
+            }
+        }
+        Ok(g)
     }
 }
 

@@ -834,7 +834,21 @@ impl FracModel {
                 .collect()
         };
         let delay = self.delay.map_or(0.0, |i| p[i]);
-        Ok(FracTf::new(terms(&self.num), terms(&self.den), delay)?)
+        let whole = FracTf::new(terms(&self.num), terms(&self.den), delay)?;
+        if self.series.is_empty() {
+            return Ok(whole);
+        }
+        // Known as its factors (the simulators' way when the product multiplied out fails, and
+        // the text written), the integrator in the first.
+        let mut factors = vec![];
+        for (i, (n, d)) in self.series.iter().enumerate() {
+            let mut d = terms(d);
+            if i == 0 && self.integrator {
+                d.iter_mut().for_each(|t| t.order += 1.0);
+            }
+            factors.push(FracTf::new(terms(n), d, 0.0)?);
+        }
+        Ok(whole.clone().with_factors(factors).unwrap_or(whole))
     }
 
     /// The current parameter values.

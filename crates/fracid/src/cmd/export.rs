@@ -86,7 +86,29 @@ pub fn model_from_json(m: &Value) -> Result<FracTf> {
             None => bad_input!("\"delay\" is not a number: {d}"),
         },
     };
-    Ok(FracTf::new(terms("num")?, terms("den")?, delay)?)
+    let tf = FracTf::new(terms("num")?, terms("den")?, delay)?;
+    // The text, when it is the same model, also says the factors of a product (a two-mass
+    // drive train's): the export's way when the product multiplied out cannot be expanded.
+    match m
+        .get("text")
+        .and_then(Value::as_str)
+        .map(str::parse::<FracTf>)
+    {
+        Some(Ok(g)) if !g.factors().is_empty() && same_model(&g, &tf) => Ok(g),
+        _ => Ok(tf),
+    }
+}
+
+/// Whether two models have the same terms and delay to within the decimal text's rounding.
+fn same_model(a: &FracTf, b: &FracTf) -> bool {
+    let close = |x: f64, y: f64| (x - y).abs() <= 1e-12 * x.abs().max(y.abs());
+    let terms = |s: &[Term], t: &[Term]| {
+        s.len() == t.len()
+            && s.iter()
+                .zip(t)
+                .all(|(x, y)| close(x.coef, y.coef) && close(x.order, y.order))
+    };
+    terms(&a.num, &b.num) && terms(&a.den, &b.den) && close(a.delay, b.delay)
 }
 
 /// The state space the options ask for.

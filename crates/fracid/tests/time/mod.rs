@@ -464,7 +464,8 @@ fn reader_warnings_are_in_the_json_report() {
     );
 }
 
-/// `--structure auto` fits pmsm, commensurate and the integer first and second order and keeps
+/// `--structure auto` fits pmsm, commensurate, the integer first, second and third order and the
+/// two-mass drive train (which fails at once here: the input is not periodic) and keeps
 /// the one the rule picks (held-out RMSE, ties within 2%, then the lowest BIC; usable fits first):
 /// checked here on the table it reports, and the reported model is the chosen row's.
 #[test]
@@ -486,7 +487,14 @@ fn structure_auto_keeps_the_structure_the_data_support() {
     let names: Vec<&str> = rows.iter().map(|r| r["name"].as_str().unwrap()).collect();
     assert_eq!(
         names,
-        ["pmsm", "commensurate", "first order", "second order"]
+        [
+            "pmsm",
+            "commensurate",
+            "first order",
+            "second order",
+            "third order",
+            "two-mass"
+        ]
     );
     let chosen = s["chosen"].as_u64().unwrap() as usize;
     let usable: Vec<&serde_json::Value> = rows
