@@ -109,31 +109,114 @@ pub struct Diagnosed {
     pub diagnosis: super::Diagnosis,
 }
 
-/// Identify one structure (unless given).
-fn identify_one(
+/// The LM iterations of a candidate structure's screening fit ([`identify_candidate`]): the
+/// diagnosis refits' budget ([`super::DiagnoseOptions::fit`]).
+pub const SCREEN_ITERATIONS: usize = 60;
+
+/// A candidate structure's screening fit: its base fit with at most [`SCREEN_ITERATIONS`] LM
+/// iterations, and whether it is the full fit. A screening fit that stopped before that budget
+/// (fewer iterations, and fewer evaluations than any fit's evaluation limit
+/// `100 (n + 1) + iterations`, `n >= 1`) took the full fit's path: it is the full fit.
+fn screen_candidate(
     rec: &Record,
     model: &FracModel,
-    given: Option<Identification>,
     opts: &IdentOptions,
-) -> Result<Identification> {
-    match given {
-        Some(id) => Ok(id),
-        None => identify(rec, model, opts),
+) -> (Result<Identification>, bool) {
+    let budget = SCREEN_ITERATIONS;
+    if opts.fit.lm.max_iterations <= budget || opts.fit.lm.max_evaluations != 0 {
+        return (identify(rec, model, opts), true);
     }
+    let mut screen = opts.clone();
+    screen.fit.lm.max_iterations = budget;
+    match identify(rec, model, &screen) {
+        Ok(id) if id.report.iterations < budget && id.report.evaluations < 200 + budget => {
+            (Ok(id), true)
+        }
+        other => (other, false),
+    }
+}
+
+/// The base fits of the candidate structures (`user` the first's, given), screened
+/// ([`screen_candidate`]): a candidate whose screening fit used its budget is fitted in full, from
+/// the start, on a fresh thread (so that the per-thread pole cache is the full fit's own, as
+/// without the screening), unless it is still more than [`FAR`] times behind the best usable
+/// full base fit (held-out RMSE): then it is kept as screened, marked `true` (not diagnosed).
+fn fit_candidates(
+    rec: &Record,
+    cands: &[(String, FracModel)],
+    user: Identification,
+    opts: &IdentOptions,
+) -> Vec<(Result<Identification>, bool)> {
+    let mut user = Some(user);
+    let screened: Vec<(Result<Identification>, bool)> = std::thread::scope(|scope| {
+        let handles: Vec<_> = cands
+            .iter()
+            .enumerate()
+            .map(|(i, (_, m))| {
+                let given = if i == 0 { user.take() } else { None };
+                scope.spawn(move || match given {
+                    Some(id) => (Ok(id), true),
+                    None => screen_candidate(rec, m, opts),
+                })
+            })
+            .collect();
+        handles
+            .into_iter()
+            .map(|h| h.join().unwrap_or_else(|_| (panicked(), true)))
+            .collect()
+    });
+    let reference = screened
+        .iter()
+        .filter_map(|(id, full)| id.as_ref().ok().filter(|id| *full && id.usable()))
+        .map(base_rmse)
+        .filter(|r| r.is_finite())
+        .fold(f64::INFINITY, f64::min);
+    std::thread::scope(|scope| {
+        let handles: Vec<_> = screened
+            .into_iter()
+            .zip(cands)
+            .map(|((id, full), (_, m))| match id {
+                Ok(id) if !full && base_rmse(&id) > FAR * reference => Ok((Ok(id), true)),
+                id if full => Ok((id, false)),
+                _ => Err(scope.spawn(move || identify(rec, m, opts))),
+            })
+            .collect();
+        handles
+            .into_iter()
+            .map(|h| match h {
+                Ok(done) => done,
+                Err(h) => (h.join().unwrap_or_else(|_| panicked()), false),
+            })
+            .collect()
+    })
+}
+
+/// The error of a fit whose thread panicked.
+fn panicked() -> Result<Identification> {
+    Err(Error::Numerical("a structure's fit panicked".into()))
+}
+
+/// A base fit's held-out RMSE (estimation RMSE without a held-out part).
+fn base_rmse(id: &Identification) -> f64 {
+    id.validation.unwrap_or(id.estimation).rmse
 }
 
 /// Which identified structures to diagnose first, and which only if none of those ends with a
 /// final model: the usable base fits ([`Identification::usable`]) within [`FAR`] of the best
 /// usable base RMSE first (all base fits within `FAR` of the best when none is usable). A base
 /// fit that is not usable cannot be chosen while a usable one has a final model ([`decide`]),
-/// so leaving it out then changes nothing.
-fn diagnosis_order(ids: &[Result<Identification>]) -> (Vec<usize>, Vec<usize>) {
-    let base = |id: &Identification| id.validation.unwrap_or(id.estimation).rmse;
-    let any_usable = ids.iter().flatten().any(|id| id.problems.is_empty());
+/// so leaving it out then changes nothing. The structures `out` (screened out) are in neither.
+fn diagnosis_order(ids: &[Result<Identification>], out: &[usize]) -> (Vec<usize>, Vec<usize>) {
+    let base = base_rmse;
+    let fits = || {
+        ids.iter()
+            .enumerate()
+            .filter(|(i, _)| !out.contains(i))
+            .filter_map(|(_, id)| id.as_ref().ok())
+    };
+    let any_usable = fits().any(|id| id.problems.is_empty());
     let in_pool = |id: &Identification| !any_usable || id.problems.is_empty();
-    let best = ids
-        .iter()
-        .flatten()
+    let best = fits()
         .filter(|id| in_pool(id))
         .map(base)
         .filter(|r| r.is_finite())
@@ -141,6 +224,7 @@ fn diagnosis_order(ids: &[Result<Identification>]) -> (Vec<usize>, Vec<usize>) {
     let (mut first, mut later) = (vec![], vec![]);
     for (i, id) in ids.iter().enumerate() {
         match id {
+            _ if out.contains(&i) => {}
             Ok(id) if in_pool(id) && base(id) <= FAR * best => first.push(i),
             Ok(_) => later.push(i),
             Err(_) => {}
@@ -160,7 +244,17 @@ fn diagnose_these(
         let handles: Vec<_> = which
             .iter()
             .filter_map(|&i| ids[i].as_ref().ok().map(|id| (i, id)))
-            .map(|(i, id)| (i, scope.spawn(move || super::diagnose(rec, id, dopts))))
+            .map(|(i, id)| {
+                (
+                    i,
+                    scope.spawn(move || {
+                        let t = std::time::Instant::now();
+                        let r = super::diagnose(rec, id, dopts);
+                        crate::ttrace::p(&format!("diagnose {}", id.tf), t);
+                        r
+                    }),
+                )
+            })
             .collect();
         handles
             .into_iter()
@@ -327,31 +421,22 @@ pub fn diagnose_best(
     dopts: &super::DiagnoseOptions,
 ) -> Result<Diagnosed> {
     let cands = candidates(label, model);
-    let mut user = Some(user);
-    let ids: Vec<Result<Identification>> = std::thread::scope(|scope| {
-        let handles: Vec<_> = cands
-            .iter()
-            .enumerate()
-            .map(|(i, (_, m))| {
-                let given = if i == 0 { user.take() } else { None };
-                scope.spawn(move || identify_one(rec, m, given, opts))
-            })
-            .collect();
-        handles
-            .into_iter()
-            .map(|h| {
-                h.join()
-                    .unwrap_or_else(|_| Err(Error::Numerical("a structure's fit panicked".into())))
-            })
-            .collect()
-    });
+    let fitted = fit_candidates(rec, &cands, user, opts);
+    let screened_out: Vec<usize> = (0..fitted.len()).filter(|&i| fitted[i].1).collect();
+    let mut ids: Vec<Result<Identification>> = fitted.into_iter().map(|f| f.0).collect();
     // The base fits prune the comparison (see [`diagnosis_order`]); the rest is diagnosed only
-    // when none of the first ends with a final model.
-    let (first, later) = diagnosis_order(&ids);
+    // when none of the first ends with a final model (those screened out fitted in full first).
+    let (first, mut later) = diagnosis_order(&ids, &screened_out);
     let mut diagnoses = diagnose_these(rec, &ids, &first, dopts);
     let skipped = if diagnoses.iter().any(|(_, d)| d.is_ok()) {
+        later.extend(&screened_out);
+        later.sort_unstable();
         later
     } else {
+        for &i in &screened_out {
+            ids[i] = identify(rec, &cands[i].1, opts);
+            later.push(i);
+        }
         diagnoses.extend(diagnose_these(rec, &ids, &later, dopts));
         vec![]
     };
