@@ -640,7 +640,6 @@ pub fn diagnose(rec: &Record, id: &Identification, opts: &DiagnoseOptions) -> Re
         start: id.start.clone(),
         opts,
     };
-    let tt = std::time::Instant::now();
     let base = ctx.state(id.model.clone(), id.report.values.clone())?;
     // The residual tests of the base model are round 0's; those of the final model the last
     // round's when it kept nothing (each made once, by the round's `Look`).
@@ -655,17 +654,13 @@ pub fn diagnose(rec: &Record, id: &Identification, opts: &DiagnoseOptions) -> Re
     for round in 0..opts.max_rounds {
         let mut found = Findings::default();
         {
-            let t = std::time::Instant::now();
             let look = Look::new(&ctx, &st, &kept)?;
-            crate::ttrace::p(&format!("round {round} look"), t);
             if round == 0 {
                 residual_before = Some(look.analysis.clone());
             }
             residual_now = Some(look.analysis.clone());
             for p in &library {
-                let t = std::time::Instant::now();
                 p.probe(&look, &mut found)?;
-                crate::ttrace::p(&format!("round {round} probe {}", p.name()), t);
             }
         }
         if round == 0 {
@@ -689,18 +684,7 @@ pub fn diagnose(rec: &Record, id: &Identification, opts: &DiagnoseOptions) -> Re
                 continue;
             }
             let probe = library.iter().find(|p| p.name() == c.name);
-            let t = std::time::Instant::now();
-            let tc = try_candidate(&ctx, &st, &c, probe.map(|p| p.as_ref()));
-            crate::ttrace::p(
-                &format!(
-                    "round {round} refit {} ({} starts) kept {}",
-                    c.key,
-                    c.starts.len(),
-                    tc.is_ok()
-                ),
-                t,
-            );
-            match tc {
+            match try_candidate(&ctx, &st, &c, probe.map(|p| p.as_ref())) {
                 Ok((ns, k)) => {
                     if best
                         .as_ref()
@@ -733,7 +717,6 @@ pub fn diagnose(rec: &Record, id: &Identification, opts: &DiagnoseOptions) -> Re
         .into_values()
         .filter(|r| r.name == "periodic" || !kept.iter().any(|k| k.name == r.name))
         .collect();
-    crate::ttrace::p("diagnose loop", tt);
     let analysis_of = |st: &State| {
         let e: Vec<f64> = (0..ctx.split).map(|k| ctx.y[k] - st.yhat[k]).collect();
         analyse(&e, &ctx.u[..ctx.split], ctx.dt)

@@ -25,27 +25,3 @@ pub mod metrics;
 pub mod oe;
 
 pub use error::{Error, Result};
-
-/// TEMP tracing.
-#[doc(hidden)]
-pub mod ttrace {
-    use std::sync::OnceLock;
-    use std::time::Instant;
-    static T0: OnceLock<Instant> = OnceLock::new();
-    /// on?
-    pub fn on() -> bool {
-        std::env::var_os("FRACID_TRACE").is_some()
-    }
-    /// print
-    pub fn p(what: &str, since: Instant) {
-        if on() {
-            let t0 = *T0.get_or_init(Instant::now);
-            eprintln!(
-                "[{:?} {:8.2}] {:7.2} ms {what}",
-                std::thread::current().id(),
-                since.duration_since(t0).as_secs_f64() * 1e3,
-                since.elapsed().as_secs_f64() * 1e3
-            );
-        }
-    }
-}

@@ -140,7 +140,10 @@ fn screen_candidate(
 /// ([`screen_candidate`]): a candidate whose screening fit used its budget is fitted in full, from
 /// the start, on a fresh thread (so that the per-thread pole cache is the full fit's own, as
 /// without the screening), unless it is still more than [`FAR`] times behind the best usable
-/// full base fit (held-out RMSE): then it is kept as screened, marked `true` (not diagnosed).
+/// full base fit (held-out RMSE), or not usable when a usable full base fit exists (a fit that
+/// after the refits' budget still has problems, a singular covariance, orders at a bound, is not
+/// expected to end usable and overtake a usable one): then it is kept as screened, marked `true`
+/// (not diagnosed).
 fn fit_candidates(
     rec: &Record,
     cands: &[(String, FracModel)],
@@ -176,7 +179,13 @@ fn fit_candidates(
             .into_iter()
             .zip(cands)
             .map(|((id, full), (_, m))| match id {
-                Ok(id) if !full && base_rmse(&id) > FAR * reference => Ok((Ok(id), true)),
+                Ok(id)
+                    if !full
+                        && (base_rmse(&id) > FAR * reference
+                            || reference.is_finite() && !id.usable()) =>
+                {
+                    Ok((Ok(id), true))
+                }
                 id if full => Ok((id, false)),
                 _ => Err(scope.spawn(move || identify(rec, m, opts))),
             })
@@ -244,17 +253,7 @@ fn diagnose_these(
         let handles: Vec<_> = which
             .iter()
             .filter_map(|&i| ids[i].as_ref().ok().map(|id| (i, id)))
-            .map(|(i, id)| {
-                (
-                    i,
-                    scope.spawn(move || {
-                        let t = std::time::Instant::now();
-                        let r = super::diagnose(rec, id, dopts);
-                        crate::ttrace::p(&format!("diagnose {}", id.tf), t);
-                        r
-                    }),
-                )
-            })
+            .map(|(i, id)| (i, scope.spawn(move || super::diagnose(rec, id, dopts))))
             .collect();
         handles
             .into_iter()
