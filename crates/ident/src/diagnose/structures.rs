@@ -19,6 +19,7 @@
 use crate::data::Record;
 use crate::oe::{identify, FracModel, IdentOptions, Identification};
 use crate::{Error, Result};
+use fracsim::modal::RootsCache;
 use serde::Serialize;
 
 /// Relative margin of held-out RMSE within which two structures are ties (2%: about the
@@ -117,23 +118,32 @@ pub const SCREEN_ITERATIONS: usize = 60;
 /// iterations, and whether it is the full fit. A screening fit that stopped before that budget
 /// (fewer iterations, and fewer evaluations than any fit's evaluation limit
 /// `100 (n + 1) + iterations`, `n >= 1`) took the full fit's path: it is the full fit.
-fn screen_candidate(
-    rec: &Record,
-    model: &FracModel,
-    opts: &IdentOptions,
-) -> (Result<Identification>, bool) {
+fn screen_candidate(rec: &Record, model: &FracModel, opts: &IdentOptions) -> (Fitted, bool) {
     let budget = SCREEN_ITERATIONS;
     if opts.fit.lm.max_iterations <= budget || opts.fit.lm.max_evaluations != 0 {
-        return (identify(rec, model, opts), true);
+        return (identified(rec, model, opts), true);
     }
     let mut screen = opts.clone();
     screen.fit.lm.max_iterations = budget;
-    match identify(rec, model, &screen) {
-        Ok(id) if id.report.iterations < budget && id.report.evaluations < 200 + budget => {
-            (Ok(id), true)
+    match identified(rec, model, &screen) {
+        (Ok(id), cache)
+            if id.report.iterations < budget && id.report.evaluations < 200 + budget =>
+        {
+            ((Ok(id), cache), true)
         }
         other => (other, false),
     }
+}
+
+/// A base fit and the pole cache its thread ended with ([`RootsCache`]): the diagnosis of that
+/// structure starts from it, as it did when it ran on the fit's thread (the base model is then
+/// simulated from the same poles, bit for bit).
+type Fitted = (Result<Identification>, Option<RootsCache>);
+
+/// [`identify`] on this thread, and this thread's pole cache after it.
+fn identified(rec: &Record, model: &FracModel, opts: &IdentOptions) -> Fitted {
+    let id = identify(rec, model, opts);
+    (id, Some(RootsCache::of_this_thread()))
 }
 
 /// The base fits of the candidate structures (`user` the first's, given), screened
@@ -149,28 +159,28 @@ fn fit_candidates(
     cands: &[(String, FracModel)],
     user: Identification,
     opts: &IdentOptions,
-) -> Vec<(Result<Identification>, bool)> {
+) -> Vec<(Fitted, bool)> {
     let mut user = Some(user);
-    let screened: Vec<(Result<Identification>, bool)> = std::thread::scope(|scope| {
+    let screened: Vec<(Fitted, bool)> = std::thread::scope(|scope| {
         let handles: Vec<_> = cands
             .iter()
             .enumerate()
             .map(|(i, (_, m))| {
                 let given = if i == 0 { user.take() } else { None };
                 scope.spawn(move || match given {
-                    Some(id) => (Ok(id), true),
+                    Some(id) => ((Ok(id), None), true),
                     None => screen_candidate(rec, m, opts),
                 })
             })
             .collect();
         handles
             .into_iter()
-            .map(|h| h.join().unwrap_or_else(|_| (panicked(), true)))
+            .map(|h| h.join().unwrap_or_else(|_| ((panicked(), None), true)))
             .collect()
     });
     let reference = screened
         .iter()
-        .filter_map(|(id, full)| id.as_ref().ok().filter(|id| *full && id.usable()))
+        .filter_map(|((id, _), full)| id.as_ref().ok().filter(|id| *full && id.usable()))
         .map(base_rmse)
         .filter(|r| r.is_finite())
         .fold(f64::INFINITY, f64::min);
@@ -178,23 +188,23 @@ fn fit_candidates(
         let handles: Vec<_> = screened
             .into_iter()
             .zip(cands)
-            .map(|((id, full), (_, m))| match id {
+            .map(|(((id, cache), full), (_, m))| match id {
                 Ok(id)
                     if !full
                         && (base_rmse(&id) > FAR * reference
                             || reference.is_finite() && !id.usable()) =>
                 {
-                    Ok((Ok(id), true))
+                    Ok(((Ok(id), cache), true))
                 }
-                id if full => Ok((id, false)),
-                _ => Err(scope.spawn(move || identify(rec, m, opts))),
+                id if full => Ok(((id, cache), false)),
+                _ => Err(scope.spawn(move || identified(rec, m, opts))),
             })
             .collect();
         handles
             .into_iter()
             .map(|h| match h {
                 Ok(done) => done,
-                Err(h) => (h.join().unwrap_or_else(|_| panicked()), false),
+                Err(h) => (h.join().unwrap_or_else(|_| (panicked(), None)), false),
             })
             .collect()
     })
@@ -242,18 +252,27 @@ fn diagnosis_order(ids: &[Result<Identification>], out: &[usize]) -> (Vec<usize>
     (first, later)
 }
 
-/// Diagnose the identified structures `which` on all cores.
+/// Diagnose the identified structures `which` on all cores, each from its fit's pole cache.
 fn diagnose_these(
     rec: &Record,
     ids: &[Result<Identification>],
+    caches: &[Option<RootsCache>],
     which: &[usize],
     dopts: &super::DiagnoseOptions,
 ) -> Vec<(usize, Result<super::Diagnosis>)> {
     std::thread::scope(|scope| {
         let handles: Vec<_> = which
             .iter()
-            .filter_map(|&i| ids[i].as_ref().ok().map(|id| (i, id)))
-            .map(|(i, id)| (i, scope.spawn(move || super::diagnose(rec, id, dopts))))
+            .filter_map(|&i| ids[i].as_ref().ok().map(|id| (i, id, caches[i].clone())))
+            .map(|(i, id, cache)| {
+                let h = scope.spawn(move || {
+                    if let Some(c) = cache {
+                        c.install();
+                    }
+                    super::diagnose(rec, id, dopts)
+                });
+                (i, h)
+            })
             .collect();
         handles
             .into_iter()
@@ -422,21 +441,27 @@ pub fn diagnose_best(
     let cands = candidates(label, model);
     let fitted = fit_candidates(rec, &cands, user, opts);
     let screened_out: Vec<usize> = (0..fitted.len()).filter(|&i| fitted[i].1).collect();
-    let mut ids: Vec<Result<Identification>> = fitted.into_iter().map(|f| f.0).collect();
+    let (mut ids, mut caches): (Vec<Result<Identification>>, Vec<Option<RootsCache>>) =
+        fitted.into_iter().map(|f| f.0).unzip();
     // The base fits prune the comparison (see [`diagnosis_order`]); the rest is diagnosed only
     // when none of the first ends with a final model (those screened out fitted in full first).
     let (first, mut later) = diagnosis_order(&ids, &screened_out);
-    let mut diagnoses = diagnose_these(rec, &ids, &first, dopts);
+    let mut diagnoses = diagnose_these(rec, &ids, &caches, &first, dopts);
     let skipped = if diagnoses.iter().any(|(_, d)| d.is_ok()) {
         later.extend(&screened_out);
         later.sort_unstable();
         later
     } else {
         for &i in &screened_out {
-            ids[i] = identify(rec, &cands[i].1, opts);
+            let m = &cands[i].1;
+            (ids[i], caches[i]) = std::thread::scope(|sc| {
+                sc.spawn(|| identified(rec, m, opts))
+                    .join()
+                    .unwrap_or_else(|_| (panicked(), None))
+            });
             later.push(i);
         }
-        diagnoses.extend(diagnose_these(rec, &ids, &later, dopts));
+        diagnoses.extend(diagnose_these(rec, &ids, &caches, &later, dopts));
         vec![]
     };
     let mut outcomes: Vec<Outcome> = ids
