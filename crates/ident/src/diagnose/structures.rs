@@ -15,6 +15,13 @@
 //! best are ties, and the tie with the lowest BIC `N ln(SSR/N) + k ln N` on the estimation part
 //! wins (`k` free parameters, the effects' included): the simpler model unless the richer one
 //! predicts clearly better.
+//!
+//! The base fits prune the comparison, so that a diagnosis costs a few fits: each candidate's base
+//! fit is screened with the refits' budget of LM iterations ([`SCREEN_ITERATIONS`]; a fit that
+//! stops sooner is the full fit), a screened fit far behind ([`FAR`]) or not usable while a usable
+//! one exists is not fitted further, and only the usable base fits within [`FAR`] of the best are
+//! diagnosed (the others only when none of those ends with a final model). The reason names the
+//! structures left out.
 
 use crate::data::Record;
 use crate::oe::{identify, FracModel, IdentOptions, Identification};
