@@ -64,6 +64,32 @@ pub fn pmsm_start() -> ident::oe::FracModel {
     ident::oe::FracModel::pmsm(5.0, 0.008, 2.0e-5, 0.8, 0.7)
 }
 
+/// The real time records shipped in `data/` (paths under it): each has columns `t,u,y`.
+pub const REAL_RECORDS: [&str; 5] = [
+    "unal_dcmotor/DCmotor_prbs_open_exp.csv",
+    "unal_dcmotor/DCmotor_step_open_exp.csv",
+    "unal_dcmotor/DCmotor_stairs_closed_exp.csv",
+    "apm_tclab/tclab_step_test.csv",
+    "sysidentpy_motor_generator/motor_generator_steps.csv",
+];
+
+/// The path of a file under the repository's `data/`.
+pub fn data_path(rel: &str) -> std::path::PathBuf {
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../data")
+        .join(rel)
+}
+
+/// A real record of [`REAL_RECORDS`], read as `fracid time` reads it (default options).
+///
+/// # Panics
+/// When the file cannot be read (the benches run in the repository).
+pub fn real_record(rel: &str) -> ident::data::Record {
+    ident::data::Record::load(&data_path(rel), &ident::data::ReadOptions::default())
+        .expect("a record of data/")
+        .record
+}
+
 /// Least-squares slope of `log y` against `log x` (the scaling exponent).
 pub fn loglog_slope(x: &[f64], y: &[f64]) -> f64 {
     let n = x.len() as f64;

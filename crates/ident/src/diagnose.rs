@@ -642,8 +642,10 @@ pub fn diagnose(rec: &Record, id: &Identification, opts: &DiagnoseOptions) -> Re
         opts,
     };
     let base = ctx.state(id.model.clone(), id.report.values.clone())?;
-    let e0: Vec<f64> = (0..ctx.split).map(|k| ctx.y[k] - base.yhat[k]).collect();
-    let residual_before = analyse(&e0, &ctx.u[..ctx.split], ctx.dt);
+    // The residual tests of the base model are round 0's; those of the final model the last
+    // round's when it kept nothing (each made once, by the round's `Look`).
+    let mut residual_before: Option<ResidualAnalysis> = None;
+    let mut residual_now: Option<ResidualAnalysis> = None;
     let quantization = find_quantization(&rec.y);
     let library = probes::library();
     let mut st = base.clone();
@@ -654,6 +656,10 @@ pub fn diagnose(rec: &Record, id: &Identification, opts: &DiagnoseOptions) -> Re
         let mut found = Findings::default();
         {
             let look = Look::new(&ctx, &st, &kept)?;
+            if round == 0 {
+                residual_before = Some(look.analysis.clone());
+            }
+            residual_now = Some(look.analysis.clone());
             for p in &library {
                 p.probe(&look, &mut found)?;
             }
@@ -702,6 +708,7 @@ pub fn diagnose(rec: &Record, id: &Identification, opts: &DiagnoseOptions) -> Re
                 rejected.remove(&k.name);
                 kept.push(k);
                 st = ns;
+                residual_now = None;
             }
             None => break,
         }
@@ -711,8 +718,12 @@ pub fn diagnose(rec: &Record, id: &Identification, opts: &DiagnoseOptions) -> Re
         .into_values()
         .filter(|r| r.name == "periodic" || !kept.iter().any(|k| k.name == r.name))
         .collect();
-    let e1: Vec<f64> = (0..ctx.split).map(|k| ctx.y[k] - st.yhat[k]).collect();
-    let residual_after = analyse(&e1, &ctx.u[..ctx.split], ctx.dt);
+    let analysis_of = |st: &State| {
+        let e: Vec<f64> = (0..ctx.split).map(|k| ctx.y[k] - st.yhat[k]).collect();
+        analyse(&e, &ctx.u[..ctx.split], ctx.dt)
+    };
+    let residual_before = residual_before.unwrap_or_else(|| analysis_of(&base));
+    let residual_after = residual_now.unwrap_or_else(|| analysis_of(&st));
     let remaining = remaining_structure(&residual_after, quantization);
     let ya = |s: &State| s.yhat.iter().map(|v| v + y0).collect::<Vec<f64>>();
     let mut model = st.model.clone();

@@ -556,7 +556,7 @@ const PARALLEL_ENTRIES: usize = 1 << 17;
 /// the matrix is large and the machine has two cores (the passes over `J` are bound by memory
 /// bandwidth, which one core does not use up), else of `0..m` alone.
 fn on_row_halves<T: Send>(m: usize, n: usize, f: impl Fn(Range<usize>) -> T + Sync) -> Vec<T> {
-    if !two_cores() || m * n < PARALLEL_ENTRIES || m < 2 {
+    if m * n < PARALLEL_ENTRIES || m < 2 || !two_cores() {
         return vec![f(0..m)];
     }
     let half = m / 2;
@@ -569,9 +569,12 @@ fn on_row_halves<T: Send>(m: usize, n: usize, f: impl Fn(Range<usize>) -> T + Sy
     })
 }
 
-/// Whether the machine has at least two cores (the two-thread paths here and in the fit).
+/// Whether the machine has at least two cores (the two-thread paths here and in the fit). Asked
+/// once per process: `available_parallelism` reads the affinity mask and the cgroup quota files
+/// (system calls and file reads; it was 8% of a 400-sample fit asking per pass).
 pub(crate) fn two_cores() -> bool {
-    std::thread::available_parallelism().is_ok_and(|c| c.get() >= 2)
+    static TWO: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    *TWO.get_or_init(|| std::thread::available_parallelism().is_ok_and(|c| c.get() >= 2))
 }
 
 /// Rows of `J` taken at a time by [`jt_r_rows`]: their part of `r` (32 KiB) stays in the L1

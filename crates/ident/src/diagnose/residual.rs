@@ -154,7 +154,7 @@ pub fn spectral_peaks(e: &[f64], dt: f64, max: usize) -> Vec<SpectralPeak> {
             found.push((k, ratio));
         }
     }
-    // The strongest `max` by their bin's ratio; only these are refined (each refinement is 61
+    // The strongest `max` by their bin's ratio; only these are refined (each refinement is 33
     // DFTs of the whole record: refining every peak over the ratio cost more than the rest of a
     // diagnosis on long records).
     found.sort_by(|a, b| b.1.total_cmp(&a.1));
@@ -162,20 +162,27 @@ pub fn spectral_peaks(e: &[f64], dt: f64, max: usize) -> Vec<SpectralPeak> {
     found
         .into_iter()
         .map(|(k, ratio)| {
-            // Golden-section search of |X| over [k - 1, k + 1] bins.
+            // Golden-section search of |X| over [k - 1, k + 1] bins, one new DFT per step (the
+            // other inner point is the last step's).
             let f = |b: f64| {
                 let (re, im) = dft(&x, 2.0 * PI * b / n as f64);
                 re * re + im * im
             };
             let (mut a, mut b) = (k as f64 - 1.0, k as f64 + 1.0);
             let g = 0.618_033_988_75;
+            let (mut c, mut d) = (b - g * (b - a), a + g * (b - a));
+            let (mut fc, mut fd) = (f(c), f(d));
             for _ in 0..30 {
-                let c = b - g * (b - a);
-                let d = a + g * (b - a);
-                if f(c) > f(d) {
+                if fc > fd {
                     b = d;
+                    (d, fd) = (c, fc);
+                    c = b - g * (b - a);
+                    fc = f(c);
                 } else {
                     a = c;
+                    (c, fc) = (d, fd);
+                    d = a + g * (b - a);
+                    fd = f(d);
                 }
             }
             let bin = 0.5 * (a + b);

@@ -198,7 +198,7 @@ fn jacobian<S: Structure>(
         .chain(lin.iter().skip(1).step_by(2))
         .copied()
         .collect();
-    let half = if nonlin.len() >= 2 && crate::lm::two_cores() && u.len() >= PARALLEL_MIN_SAMPLES {
+    let half = if nonlin.len() >= 2 && u.len() >= PARALLEL_MIN_SAMPLES && crate::lm::two_cores() {
         nonlin.len().div_ceil(2)
     } else {
         0

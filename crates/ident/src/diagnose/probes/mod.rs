@@ -18,7 +18,7 @@ mod periodic;
 mod saturation;
 mod skew;
 
-use super::residual::explained;
+use super::residual::{analyse, explained, ResidualAnalysis};
 use super::{Ambiguity, Ctx, KeptEffect, RejectedEffect, State};
 use crate::oe::{sensitivities, Effect, FracModel, Param};
 use crate::Result;
@@ -153,6 +153,8 @@ pub(crate) struct Look<'a> {
     pub e: Vec<f64>,
     /// Its sum of squares.
     pub ee: f64,
+    /// Its tests ([`analyse`]), made once per round for every probe (and the report).
+    pub analysis: ResidualAnalysis,
     /// The current model's output sensitivities on the estimation part.
     pub sens: Mat<f64>,
     /// Model output, absolute scale, whole record.
@@ -170,6 +172,7 @@ impl<'a> Look<'a> {
         let s = ctx.split;
         let e: Vec<f64> = (0..s).map(|k| ctx.y[k] - st.yhat[k]).collect();
         let ee = e.iter().map(|v| v * v).sum();
+        let analysis = analyse(&e, &ctx.u[..s], ctx.dt);
         let (_, sens) = sensitivities(&st.model, &st.values, &ctx.u[..s], ctx.dt)?;
         let ya: Vec<f64> = st.yhat.iter().map(|v| v + ctx.y0).collect();
         let ua: Vec<f64> = ctx.u.iter().map(|v| v + ctx.u0).collect();
@@ -181,6 +184,7 @@ impl<'a> Look<'a> {
             kept,
             e,
             ee,
+            analysis,
             sens,
             ya,
             ua,

@@ -10,7 +10,6 @@
 //! autocorrelation ([`input_period`]).
 
 use super::{Candidate, Findings, Look, Probe};
-use crate::diagnose::residual::analyse;
 use crate::oe::{Bounds, Effect, FracModel, Param};
 use crate::Result;
 use std::collections::BTreeMap;
@@ -74,7 +73,7 @@ impl Probe for Periodic {
     fn probe(&self, look: &Look<'_>, found: &mut Findings) -> Result<()> {
         let (ctx, st) = (look.ctx, look.st);
         let (s, dt) = (look.s(), ctx.dt);
-        let an = analyse(&look.e, &ctx.u[..s], dt);
+        let an = &look.analysis;
         let period = input_period(&ctx.u, dt);
         for pk in an.peaks.iter().take(2) {
             let near_kept = st.model.effects.iter().any(|ef| {

@@ -1,0 +1,82 @@
+//! The price of the diagnosis against the plain fit (issue 32), in process: `identify` of the
+//! default structure (pmsm) and the whole `--diagnose` path (that fit, then
+//! `diagnose_best`: the candidate structures fitted, screened and diagnosed) on each real time
+//! record in `data/` and on a 1e5-sample PMSM PRBS record; and a 3k-sample fit.
+//! The whole-process ratio (what the user waits for, the table in `README.md`) is
+//! `examples/diag_ratio.rs`.
+//!
+//! `cargo bench -p fracid-benches --bench diagnose`
+
+use divan::{black_box, Bencher};
+use fracid_benches::{pmsm_data, real_record, REAL_RECORDS};
+use ident::data::Record;
+use ident::diagnose::{structures::diagnose_best, DiagnoseOptions};
+use ident::oe::{identify, FracModel, IdentOptions};
+
+fn main() {
+    divan::main();
+}
+
+/// The records: the real ones by their file under `data/`, and `pmsm 1e5`.
+const RECORDS: [&str; 6] = [
+    REAL_RECORDS[0],
+    REAL_RECORDS[1],
+    REAL_RECORDS[2],
+    REAL_RECORDS[3],
+    REAL_RECORDS[4],
+    "pmsm 1e5",
+];
+
+fn record(name: &str) -> Record {
+    if name == "pmsm 1e5" {
+        pmsm_record(100_000)
+    } else {
+        real_record(name)
+    }
+}
+
+/// The PMSM PRBS record of `n` samples with noise sigma 0.05 ([`pmsm_data`]).
+fn pmsm_record(n: usize) -> Record {
+    let (u, y) = pmsm_data(n, 0.05, 1);
+    let t = (0..n).map(|k| k as f64 * fracid_benches::DT).collect();
+    Record::new(t, u, y).expect("a valid record")
+}
+
+/// The default structure, as `fracid time` names it.
+fn pmsm() -> FracModel {
+    FracModel::pmsm(1.0, 0.01, 1e-4, 0.9, 0.9)
+}
+
+/// The plain fit (`fracid time FILE`'s identification).
+#[divan::bench(args = RECORDS, sample_count = 3, sample_size = 1)]
+fn fit(b: Bencher<'_, '_>, name: &str) {
+    let rec = record(name);
+    b.bench(|| identify(black_box(&rec), &pmsm(), &IdentOptions::default()).ok());
+}
+
+/// The fit and the diagnosis (`fracid time FILE --diagnose`'s identification and diagnosis).
+#[divan::bench(args = RECORDS, sample_count = 3, sample_size = 1)]
+fn diagnose(b: Bencher<'_, '_>, name: &str) {
+    let rec = record(name);
+    let opts = IdentOptions::default();
+    b.bench(|| {
+        let id = identify(black_box(&rec), &pmsm(), &opts).ok()?;
+        diagnose_best(
+            &rec,
+            "pmsm",
+            &pmsm(),
+            id,
+            &opts,
+            &DiagnoseOptions::default(),
+        )
+        .ok()
+    });
+}
+
+/// A 3k-sample fit (the PMSM PRBS record, default options: automatic start, initial state,
+/// output offset), what an end-of-line fleet of short records pays per file.
+#[divan::bench(sample_count = 30, sample_size = 1)]
+fn fit_3k(b: Bencher<'_, '_>) {
+    let rec = pmsm_record(3_000);
+    b.bench(|| identify(black_box(&rec), &pmsm(), &IdentOptions::default()).unwrap());
+}
