@@ -601,14 +601,17 @@ mod tests {
     fn summary_fields_come_from_a_time_report() {
         let v = json!({
             "model": {"num": [{"coef": 2.0, "order": 0.0}], "den": [{"coef": 0.1, "order": 0.9}, {"coef": 1.0, "order": 0.0}], "delay": 0.0},
-            "fit": {"estimation": {"nrmse_percent": 97.0}, "validation": {"nrmse_percent": 96.0}},
+            "fit": {"estimation": {"nrmse_percent": 97.0}, "validation": {"nrmse_percent": 98.5}},
             "warnings": ["w1"],
-            "diagnosis": {"after": {"nrmse_percent": 98.5}, "effects": [{"name": "delay"}, {"name": "offset"}]}
+            "base": {"fit": {"validation": {"nrmse_percent": 96.0}}},
+            "diagnosis": {"after": {"nrmse_percent": 98.4}, "effects": [{"name": "delay"}, {"name": "offset"}]}
         });
         let mut r = Row::new(Path::new("x.csv"));
         r.fill_from(&v);
         assert_eq!(r.model.as_deref(), Some("2/(0.1 s^0.9 + 1)"));
         assert_eq!(r.fit_estimation_percent, Some(97.0));
+        // the report leads with the final model: its fit (not the base's, nor the diagnosis's
+        // own refit figure before the record's parameters are polished)
         assert_eq!(r.fit_validation_percent, Some(98.5));
         assert_eq!(r.effects, ["delay", "offset"]);
         assert_eq!(r.warnings, ["w1"]);

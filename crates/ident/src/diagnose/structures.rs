@@ -398,23 +398,32 @@ fn is_integer(m: &FracModel) -> bool {
 }
 
 /// What the chosen model gains over the best integer-order reference on the same held-out data,
-/// in words (empty when the chosen one is itself integer or no reference has a final model).
+/// in words (empty when the chosen one is itself integer or no reference has a usable fit): the
+/// reference's final model, or its base fit when it was not diagnosed (a base fit far behind is
+/// not: see the module documentation).
 fn integer_gain(cands: &[(String, FracModel)], scores: &[StructureScore], chosen: usize) -> String {
     if is_integer(&cands[chosen].1) {
         return "; it is an integer-order model".into();
     }
+    let reference = |s: &StructureScore| match s.rmse_after {
+        Some(r) if r.is_finite() => Some((r, "")),
+        _ => s
+            .rmse
+            .filter(|r| r.is_finite() && s.problems.is_empty())
+            .map(|r| (r, ", its base fit: not diagnosed")),
+    };
     let best_integer = cands
         .iter()
         .zip(scores)
-        .filter(|((_, m), s)| is_integer(m) && s.rmse_after.is_some_and(f64::is_finite))
-        .min_by(|a, b| a.1.rmse_after.unwrap().total_cmp(&b.1.rmse_after.unwrap()));
-    let (Some(((name, _), s)), Some(r)) = (best_integer, scores[chosen].rmse_after) else {
+        .filter(|((_, m), _)| is_integer(m))
+        .filter_map(|((name, _), s)| reference(s).map(|r| (name, r)))
+        .min_by(|a, b| a.1 .0.total_cmp(&b.1 .0));
+    let (Some((name, (ri, how))), Some(r)) = (best_integer, scores[chosen].rmse_after) else {
         return String::new();
     };
-    let ri = s.rmse_after.unwrap_or(f64::NAN);
     format!(
-        "; against the best integer-order model ({name}, RMSE {ri:.4e}) the chosen one's error \
-         is {:+.1}%",
+        "; against the best integer-order model ({name}, RMSE {ri:.4e}{how}) the chosen one's \
+         error is {:+.1}%",
         100.0 * (r / ri - 1.0)
     )
 }
