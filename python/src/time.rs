@@ -140,12 +140,9 @@ pub(crate) fn _fit_time<'py>(
         .map_err(|e| interrupted(py, e))?;
     let arrays = PyDict::new(py);
     // `yhat` is the leading model's output: the final model's with the diagnosis.
-    arrays.set_item("yhat_base", r.fitted.id.yhat.clone().into_pyarray(py))?;
-    let lead = r
-        .diagnosis
-        .as_ref()
-        .map_or(&r.fitted.id.yhat, |d| &d.diagnosis.yhat_after);
-    arrays.set_item("yhat", lead.clone().into_pyarray(py))?;
+    let base = r.base.as_ref().unwrap_or(&r.lead);
+    arrays.set_item("yhat_base", base.yhat.clone().into_pyarray(py))?;
+    arrays.set_item("yhat", r.lead.yhat.clone().into_pyarray(py))?;
     if let Some(d) = &r.diagnosis {
         let g = &d.diagnosis;
         arrays.set_item("yhat_before", g.yhat_before.clone().into_pyarray(py))?;

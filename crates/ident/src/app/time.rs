@@ -206,6 +206,10 @@ pub struct ModelFit {
     /// approximation, operating point, initial state), as [`rescore`] and `fracid score` read it
     /// back.
     pub spec: FracModel,
+    /// Its output on the absolute scale over the whole record (for plots and arrays; not
+    /// serialised).
+    #[serde(skip)]
+    pub yhat: Vec<f64>,
 }
 
 /// The estimation/validation split (docs/design.md §7 `split`).
@@ -664,6 +668,7 @@ fn base_fit(id: &Identification, file: Option<ScoreReport>) -> ModelFit {
         usable: id.usable(),
         problems: id.problems.clone(),
         spec: id.model.clone(),
+        yhat: id.yhat.clone(),
     }
 }
 
@@ -688,6 +693,7 @@ fn polish(fin: &mut ModelFit, req: &TimeRequest, data: &TimeData) {
                 p.free = q.free;
             }
             fin.spec = spec;
+            fin.yhat = id.yhat;
         }
         Err(e) => fin.warnings.push(format!(
             "final model: its record's offset and initial state were not estimated again ({e}); \
@@ -768,6 +774,7 @@ fn final_fit(d: &Diagnosis, base: &ModelFit, dt: f64, file: Option<ScoreReport>)
         usable: problems.is_empty(),
         problems,
         spec: d.model.clone(),
+        yhat: d.yhat_after.clone(),
     }
 }
 
@@ -892,6 +899,23 @@ mod tests {
         let e = run(&req, &data(), &mut stop).unwrap_err();
         assert!(matches!(e, Error::Cancelled(_)), "{e}");
         assert_eq!(stop.stages, vec![Stage::Fit]);
+    }
+
+    #[test]
+    fn each_models_output_gives_its_stated_figures() {
+        let req = TimeRequest {
+            structure: "2/(0.2 s + 1)".into(),
+            diagnose: true,
+            ..Default::default()
+        };
+        let d = data();
+        let r = run(&req, &d, &mut crate::app::observe::Quiet).unwrap();
+        let split = r.split.estimation_samples;
+        for m in [&r.lead, r.base.as_ref().unwrap()] {
+            let held = crate::metrics::Fit::of(&d.record.y[split..], &m.yhat[split..]);
+            let stated = m.fit.validation.unwrap();
+            assert!((held.rmse - stated.rmse).abs() <= 1e-12 * stated.rmse.max(1e-300));
+        }
     }
 
     #[test]
