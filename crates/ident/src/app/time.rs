@@ -551,7 +551,7 @@ pub fn run(req: &TimeRequest, data: &TimeData, obs: &mut dyn Observe) -> Result<
         (id, None)
     };
     let mut id = id;
-    let scores = match &data.validation {
+    let (base_file, final_file) = match &data.validation {
         Some(v) => {
             enter(obs, Stage::Validate)?;
             id.validated_by = Validation {
@@ -562,20 +562,13 @@ pub fn run(req: &TimeRequest, data: &TimeData, obs: &mut dyn Observe) -> Result<
                     v.name
                 ),
             };
-            let base = score(&id.model, &v.record, opts.offsets, opts.initial)?;
-            let fin = match &diagnosis {
-                Some((d, _)) => Some(score(&d.model, &v.record, opts.offsets, opts.initial)?),
-                None => None,
+            let scored = |m: &FracModel| {
+                score(m, &v.record, opts.offsets, opts.initial)
+                    .map(|s| ScoreReport::new(&v.name, &s))
             };
-            Some((
-                ScoreReport::new(&v.name, &base),
-                fin.map(|s| ScoreReport::new(&v.name, &s)),
-            ))
+            let fin = diagnosis.as_ref().map(|(d, _)| scored(&d.model));
+            (Some(scored(&id.model)?), fin.transpose()?)
         }
-        None => None,
-    };
-    let (base_file, final_file) = match scores {
-        Some((b, f)) => (Some(b), f),
         None => (None, None),
     };
     let mut base = base_fit(&id, base_file);
