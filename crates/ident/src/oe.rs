@@ -912,6 +912,7 @@ impl FracModel {
                 Effect::Coulomb { vc } => vc == j,
                 Effect::Saturation { level } => level == j,
                 Effect::Deadzone { width } => width == j,
+                Effect::PowerLaw { p, .. } => p == j,
                 Effect::Sinusoid { a, b, .. } => a == j || b == j,
                 _ => false,
             })
