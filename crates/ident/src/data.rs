@@ -41,6 +41,12 @@ pub const MIN_REST_SAMPLES: usize = 8;
 /// PRBS whose first level lasts 10 of 3000 samples while the output creeps up within its noise).
 pub const MIN_REST_FRACTION: f64 = 0.01;
 
+/// The drift, as a fraction of the output's range, below which an output is steady whatever its
+/// noise ([`Record::rests_until`]): the motor/generator record's first 50 samples, wandering by
+/// less than 0.01% of its range, rest; the creep of a fractional plant 40 ms after a step (many
+/// noise levels: the test `the_default_initial_state_is_rest_only_for_a_record_at_rest`) does not.
+pub const REST_DRIFT: f64 = 1e-3;
+
 /// A uniformly sampled single-input single-output record.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Record {
@@ -1195,8 +1201,8 @@ impl Record {
     /// The first input change when the record **rests** before it: the input constant over at
     /// least [`MIN_REST_SAMPLES`] samples and [`MIN_REST_FRACTION`] of the record, and the output
     /// steady there: no trend (the means of the
-    /// window's two halves apart by no more than 2% of the output's range over the record, or
-    /// than three standard errors of that difference, the noise within the halves; a ramp of
+    /// window's two halves apart by no more than [`REST_DRIFT`] of the output's range over the
+    /// record, or than three standard errors of that difference, the noise within the halves; a ramp of
     /// rise `R` over `k >= 8` samples moves them `R/2` apart against at most `0.87 R / sqrt(k)`)
     /// and no spread (the window's standard deviation within 2% of the output's range or 1.5
     /// noise levels, the noise from the record's first differences, robustly: a window that
@@ -1234,7 +1240,7 @@ impl Record {
         let (ma, mb) = (mean(a), mean(b));
         let within = (var(a, ma) + var(b, mb)) / (k1 - 2) as f64;
         let se = (within * (1.0 / a.len() as f64 + 1.0 / b.len() as f64)).sqrt();
-        let no_trend = (mb - ma).abs() <= (0.02 * (yhi - ylo)).max(3.0 * se);
+        let no_trend = (mb - ma).abs() <= (REST_DRIFT * (yhi - ylo)).max(3.0 * se);
         // and no larger spread than the record's noise (robust, from its first differences): a
         // window that moves and comes back has no trend but spreads
         let mut dy: Vec<f64> = self.y.windows(2).map(|w| (w[1] - w[0]).abs()).collect();

@@ -120,3 +120,37 @@ fn a_record_that_starts_on_a_ramp_fits_at_the_noise_floor() {
     // checked.
     check("ramp", &cut(&past, &rec, 23), false);
 }
+
+/// The default initial state (`auto`) tells a record that rests before its first input change
+/// from one whose input stands still while the output still moves: 150 ms at 0 V then a 10 V step
+/// and the PRBS is fitted from rest, at the noise floor, with no past input; the same input whose
+/// record begins 40 ms after an earlier 10 V step (the speed rising during the constant part) is
+/// fitted with its past estimated, at the noise floor too. Each against the GL truth's parameters.
+#[test]
+fn the_default_initial_state_is_rest_only_for_a_record_at_rest() {
+    let mut rec = vec![0.0; 150];
+    rec.extend(vec![10.0; 100]);
+    rec.extend(prbs_around(10.0));
+    let idle = cut(&[], &rec, 24);
+    assert_eq!(idle.0.rests_until(), Some(150));
+    let id = fit(&idle.0, InitialState::Auto);
+    assert_eq!(id.initial.state, "rest", "{}", id.initial.reason);
+    assert!(id.model.past.is_none());
+    let w = &idle.1[id.split..];
+    let floor = (w.iter().map(|e| e * e).sum::<f64>() / w.len() as f64).sqrt();
+    let v = id.validation.unwrap();
+    eprintln!("at rest: RMSE {:.4} (floor {floor:.4}), {}", v.rmse, id.tf);
+    assert!(v.rmse <= 1.05 * floor, "{} (floor {floor})", v.rmse);
+    assert!((id.report.params[0].value / 6.82 - 1.0).abs() < 0.02);
+
+    let mut moving = vec![10.0; 150];
+    moving.extend(vec![10.0; 100]);
+    moving.extend(prbs_around(10.0));
+    let mut past = vec![0.0; 200];
+    past.extend(vec![10.0; 40]);
+    let late = cut(&past, &moving, 25);
+    assert_eq!(late.0.rests_until(), None);
+    let id = fit(&late.0, InitialState::Auto);
+    assert_eq!(id.initial.state, "estimate", "{}", id.initial.reason);
+    check("auto, constant input while moving", &late, false);
+}
