@@ -239,7 +239,8 @@ impl FixedCtrl {
     /// its state is the mode's share of the output), equal slow eigenvalues (within 1e-9) only
     /// between states that do not drive each other. The fast modes (a difference after poles
     /// that round to 0: a Jordan chain at the origin) are delay taps: the rest of the impulse
-    /// response ([`fast_taps`]). Sections whose `g_p` rounds to 0 are left out.
+    /// response ([`fast_taps`]); a single tap is a section at the origin. Sections whose `g_p`
+    /// rounds to 0 are left out.
     ///
     /// # Errors
     /// [`Error::InvalidParam`]: inconsistent sizes, non-finite entries, an `A` that is not lower
@@ -357,6 +358,16 @@ impl FixedCtrl {
                 });
             }
         }
+        let mut taps = fast_taps(a, b, c, &keep, &modes, gain_raw, &q)?;
+        if taps.len() == 1 {
+            // one tap is a section at the origin, `h_1 / z` (bit for bit: `z <- 0 + 2^8 h_1 e'`),
+            // which format 1 (firmware 1.1) runs: a FOPI's fast poles
+            sections.push(Section {
+                a_q30: 0,
+                g_q24: taps[0],
+            });
+            taps.clear();
+        }
         if sections.len() > MAX_SECTIONS_TAPS as usize {
             return bad(format!(
                 "{} sections (the drive takes at most {MAX_SECTIONS_TAPS}): a lower \
@@ -364,7 +375,6 @@ impl FixedCtrl {
                 sections.len()
             ));
         }
-        let taps = fast_taps(a, b, c, &keep, &modes, gain_raw, &q)?;
         let d_raw = gain_raw * d;
         let d_q24 = q(d_raw, Q24, "the feed-through")?;
         let dinv_q16 = if d_raw.abs() >= 2.0 / 65536.0 {

@@ -2,7 +2,8 @@
 //! on the drive (PROTOCOL.md section 3, "Speed loop").
 //!
 //! The report's discrete realisation (`discrete`: `A, B, C, D` at `dt`) is turned into the
-//! drive's fixed-point parallel first-order sections ([`drive::ctrl::FixedCtrl`]), downloaded
+//! drive's fixed-point parallel first-order sections and, for a FOPID's derivative, delay taps
+//! ([`drive::ctrl::FixedCtrl`]), downloaded
 //! (LOAD_CTRL, LOAD_SECTION), and START_LOOP runs the reference at 0 for `--pre` seconds, then
 //! `--step`. The record is `t,r,u,y` with the acquisition's footer: a broken run keeps what
 //! arrived and says what is missing.
@@ -204,8 +205,8 @@ pub fn prune(r: &Realisation) -> (Realisation, Vec<usize>) {
 /// `1/dt`, its channel scales set the raw gains).
 ///
 /// # Errors
-/// A sample rate other than `1/dt`; a realisation the drive cannot run (not triangular, repeated
-/// poles, gains beyond Q24, too many sections): bad input, exit 2.
+/// A sample rate other than `1/dt`; a realisation the drive cannot run (not triangular, coupled
+/// repeated slow poles, gains beyond Q24, too many sections or delay taps): bad input, exit 2.
 pub fn fixed_controller(r: &Realisation, conf: &Configure) -> Result<FixedCtrl> {
     let fs = conf.sample_rate_hz as f64;
     if (r.dt * fs - 1.0).abs() > 1e-6 {
@@ -314,10 +315,18 @@ pub fn run(a: LoopArgs) -> Result<()> {
     let k = fixed_controller(&pruned, &conf).with_context(|| a.controller.display().to_string())?;
     let qerr = quantisation_error(&real, &k, &conf);
     crate::eprintln_safe!(
-        "controller {}: {} fixed-point sections (Q30 poles, Q24 gains, 64-bit states){}; frequency response \
-         within {:.2e} of the realisation from 1 rad/s to half Nyquist",
+        "controller {}: {} fixed-point sections (Q30 poles, Q24 gains, 64-bit states){}{}; \
+         frequency response within {:.2e} of the realisation from 1 rad/s to half Nyquist",
         real.text,
         k.sections.len(),
+        if k.taps.is_empty() {
+            String::new()
+        } else {
+            format!(
+                " and {} delay taps (the fast modes; controller format 2, firmware 1.2)",
+                k.taps.len()
+            )
+        },
         if dropped.is_empty() {
             String::new()
         } else {
