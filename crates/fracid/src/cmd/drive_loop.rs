@@ -9,17 +9,15 @@
 //! arrived and says what is missing.
 
 use crate::cmd::drive::{
-    attach, check_outputs, connect, lib_err, lost_output, output_file, output_path, port_conf,
-    progress_bar, PortArgs,
+    check_outputs, close_record, lib_err, output_file, output_path, port_conf, record_outcome,
+    run_on_drive, PortArgs,
 };
-use crate::interrupt::{Interrupted, StopOnInterrupt};
 use anyhow::{Context, Result};
 use drive::client::{Acquisition, Client, LoopCsvSink, LoopTest, SampleSink};
 use drive::ctrl::FixedCtrl;
 use drive::protocol::{Configure, StartLoop};
 use num_complex::Complex64;
 use serde_json::Value;
-use std::io::Write;
 use std::path::PathBuf;
 
 /// Options of `fracid drive loop`.
@@ -340,22 +338,10 @@ pub fn run(a: LoopArgs) -> Result<()> {
     let output = output_path(&a.output);
     check_outputs(&a.port.port, &[("--output", &output)])?;
     let mut sink = LoopCsvSink::new(output_file(&output)?, cmd, conf.y_lsb());
-    let mut c = connect(&a.port, &conf)?;
-    let pb = progress_bar(a.port.quiet, "samples");
-    attach(&mut c, &pb);
-    let signals = StopOnInterrupt::arm(c.stop_handle());
-    let acq = run_on(&mut c, &k, &cmd, &mut sink);
-    let signal = signals.signal();
-    drop(signals);
-    if let Some(pb) = pb {
-        pb.finish_and_clear();
-    }
-    let written = sink
-        .into_inner()
-        .and_then(|mut f| f.flush().map(|_| f.is_created()))
-        .with_context(|| format!("writing {}", output.display()));
-    let acq = acq.map_err(|e| lost_output(e, &output, "record"))?;
-    written.map_err(|e| lost_output(e, &output, "record"))?;
+    let (acq, signal) = run_on_drive(&a.port, &conf, "samples", |c| {
+        run_on(c, &k, &cmd, &mut sink)
+    })?;
+    let acq = close_record(acq, sink.into_inner(), &output)?;
     let figures = match measured_step(&acq, &cmd, conf.y_lsb()) {
         Some(m) => format!(
             "; step {} rad/s: overshoot {:.2}%, rise (10-90%) {}, settling (2%) {}",
@@ -376,20 +362,5 @@ pub fn run(a: LoopArgs) -> Result<()> {
             acq.clamped_blocks
         );
     }
-    if let Some(signal) = signal {
-        return Err(Interrupted {
-            signal,
-            message: format!("drive stopped; {summary}"),
-        }
-        .into());
-    }
-    if acq.complete {
-        crate::eprintln_safe!("{summary}, complete");
-        Ok(())
-    } else if a.allow_incomplete {
-        crate::eprintln_safe!("warning: {summary}");
-        Ok(())
-    } else {
-        Err(anyhow::anyhow!(summary))
-    }
+    record_outcome(&acq, signal, summary, None, a.allow_incomplete)
 }
