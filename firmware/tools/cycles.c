@@ -322,12 +322,12 @@ int main(int argc, char **argv)
         fail("ESTOP ends the run");
     }
 
-    /* The speed loop with the most sections and taps (48 + 8), then with the FOPID's 28 + 3
+    /* The speed loop with the most sections and taps (48 + 8), then with the FOPID's 30 + 3
      * (`fracid tune` --form fopid --wc 50 --pm 60 --flat --dt 0.001 on the paper's PMSM): the
      * command clamped at first (the anti-windup's conditioned update), then in the linear range;
      * the run's last sample. */
     {
-        static const unsigned sizes[2][2] = {{FW_MAX_SECTIONS, FW_MAX_TAPS}, {28u, 3u}};
+        static const unsigned sizes[2][2] = {{FW_MAX_SECTIONS, FW_MAX_TAPS}, {30u, 3u}};
         static const char *const labels[2] = {"sample:loop", "sample:loop_fopid"};
         unsigned v;
         for (v = 0; v < 2u; v++) {

@@ -233,14 +233,14 @@ impl FixedCtrl {
     ///
     /// States that do not reach the output and feed nothing, or that nothing drives, are
     /// dropped; `A` must then be lower triangular (the realisations of `tune::realise` are)
-    /// with eigenvalues (its diagonal) of modulus at most 1. Each slow eigenvalue `a_p`
-    /// (`|a_p| >=` [`FAST_POLE`]) is a section: `a_p`, `g_p = gain_raw (C v_p)(w_p B)` with `v_p`,
-    /// `w_p` its right and left eigenvectors by forward and back substitution (`w_p v_p = 1`;
-    /// its state is the mode's share of the output), equal slow eigenvalues (within 1e-9) only
-    /// between states that do not drive each other. The fast modes (a difference after poles
-    /// that round to 0: a Jordan chain at the origin) are delay taps: the rest of the impulse
-    /// response ([`fast_taps`]); a single tap is a section at the origin. Sections whose `g_p`
-    /// rounds to 0 are left out.
+    /// with eigenvalues (its diagonal) of modulus at most 1. Each eigenvalue `a_p` is a section,
+    /// `a_p`, `g_p = gain_raw (C v_p)(w_p B)` with `v_p`, `w_p` its right and left eigenvectors
+    /// by forward and back substitution (`w_p v_p = 1`; its state is the mode's share of the
+    /// output), equal eigenvalues (within 1e-9) only between states that do not drive each
+    /// other; except the chained fast modes (poles below [`FAST_POLE`] driving or driven by
+    /// another: a difference after poles that round to 0, a Jordan chain at the origin), which
+    /// are delay taps: the rest of the impulse response ([`fast_taps`]); a single tap is a
+    /// section at the origin. Sections whose `g_p` rounds to 0 are left out.
     ///
     /// # Errors
     /// [`Error::InvalidParam`]: inconsistent sizes, non-finite entries, an `A` that is not lower
@@ -320,8 +320,18 @@ impl FixedCtrl {
         };
         // the slow modes: section p is lam[p] with g = (C v)(w B), v and w its right and left
         // eigenvectors (v zero above p, w zero below, v_p = w_p = 1, so w v = 1)
+        // the chained fast modes: poles below FAST_POLE that drive or are driven by another
+        // (a difference after poles that round to 0): the delay taps hold them. A fast pole
+        // alone (a FOPI's fastest cells) stays a section.
+        let fast = |p: usize| lam[p].abs() < FAST_POLE;
+        let chained: Vec<bool> = (0..m)
+            .map(|p| {
+                fast(p)
+                    && (0..m).any(|r| r != p && fast(r) && (sub(r, p) != 0.0 || sub(p, r) != 0.0))
+            })
+            .collect();
         let mut modes = Vec::new();
-        for p in (0..m).filter(|&p| lam[p].abs() >= FAST_POLE) {
+        for p in (0..m).filter(|&p| !chained[p]) {
             let mut v = vec![0.0; m];
             v[p] = 1.0;
             for r in p + 1..m {
@@ -358,7 +368,11 @@ impl FixedCtrl {
                 });
             }
         }
-        let mut taps = fast_taps(a, b, c, &keep, &modes, gain_raw, &q)?;
+        let mut taps = if chained.contains(&true) {
+            fast_taps(a, b, c, &keep, &modes, gain_raw, &q)?
+        } else {
+            Vec::new()
+        };
         if taps.len() == 1 {
             // one tap is a section at the origin, `h_1 / z` (bit for bit: `z <- 0 + 2^8 h_1 e'`),
             // which format 1 (firmware 1.1) runs: a FOPI's fast poles
@@ -391,15 +405,15 @@ impl FixedCtrl {
     }
 }
 
-/// Poles of modulus below this are the fast modes the delay taps hold ([`fast_taps`]).
+/// Poles of modulus below this that drive or are driven by another such pole (a chain) are the
+/// fast modes the delay taps hold ([`fast_taps`]).
 pub const FAST_POLE: f64 = 1e-3;
 
-/// The delay taps of the fast modes (poles below [`FAST_POLE`]): the impulse response of the
-/// kept states' system, `C A^(k-1) B` (its Markov parameters), less the slow modes' `sum g_p
-/// lam_p^(k-1)`, in raw Q24, for `k = 1..=MAX_TAPS + 4`; trailing taps that round to 0 are
-/// dropped. A chain of `n` states at the origin ends after `n` samples, a pole below
-/// [`FAST_POLE`] falls by 1e-3 a sample: the taps past the last kept one round to 0 (checked
-/// up to `MAX_TAPS + 4`).
+/// The delay taps of the chained fast modes: the impulse response of the kept states' system,
+/// `C A^(k-1) B` (its Markov parameters), less the sections' `sum g_p lam_p^(k-1)` (`modes`), in
+/// raw Q24, for `k = 1..=MAX_TAPS + 4`; trailing taps that round to 0 are dropped. A chain of `n`
+/// states at the origin ends after `n` samples, a pole below [`FAST_POLE`] falls by 1e-3 a
+/// sample: the taps past the last kept one round to 0 (checked up to `MAX_TAPS + 4`).
 fn fast_taps(
     a: &[Vec<f64>],
     b: &[f64],
@@ -409,9 +423,6 @@ fn fast_taps(
     gain_raw: f64,
     q: &dyn Fn(f64, f64, &str) -> Result<i32>,
 ) -> Result<Vec<i32>> {
-    if keep.iter().all(|&i| a[i][i].abs() >= FAST_POLE) {
-        return Ok(Vec::new());
-    }
     let n_check = MAX_TAPS as usize + 4;
     let mut x: Vec<f64> = keep.iter().map(|&i| b[i]).collect();
     let mut taps = Vec::with_capacity(n_check);
@@ -587,5 +598,32 @@ mod tests {
         assert_eq!(z, [10, 75]);
         assert_eq!(k.step(&mut z, 0, 150), (10 - 75, false));
         assert_eq!(z, [0, 10]);
+    }
+
+    /// A fast pole alone (a FOPI's fastest cells, `e^(p dt)` ~ 1e-20, fed by the error only)
+    /// stays a section (at the origin once quantised): no taps, format 1, which firmware 1.1
+    /// runs.
+    #[test]
+    fn an_unchained_fast_pole_stays_a_section() {
+        let a = [
+            vec![1.0, 0.0, 0.0],
+            vec![0.0, 0.5, 0.0],
+            vec![0.0, 0.0, 1e-20],
+        ];
+        let (b, c) = ([1e-3, 0.2, 0.3], [30.0, 2.0, -4.0]);
+        let k = FixedCtrl::from_state_space(&a, &b, &c, 0.7, 1.0).unwrap();
+        assert!(k.taps.is_empty(), "{k:?}");
+        assert_eq!(k.sections.len(), 3);
+        assert_eq!(k.sections[2].a_q30, 0);
+        assert_eq!(k.format(), CTRL_FORMAT);
+        for w in [1.0, 100.0, 3000.0] {
+            let z = Complex64::from_polar(1.0, w * 1e-3);
+            let want = ss_response(&a, &b, &c, 0.7, z);
+            let got = k.freq_response(w, 1e-3, 1.0);
+            assert!(
+                (got - want).norm() < 1e-6 * want.norm(),
+                "{w}: {got} {want}"
+            );
+        }
     }
 }
