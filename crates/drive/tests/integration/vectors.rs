@@ -416,14 +416,14 @@ fn vector_controllers() -> Vec<(&'static str, drive::ctrl::FixedCtrl, i16, Vec<i
             errs.clone(),
         ),
         (
-            // format 2: a FOPID's fast modes as delay taps (a difference: h_1 = -h_2 large),
-            // taps at the Q24 range's ends, clamped (Hanus through the delay line)
+            // format 2: a FOPID's fast modes as delay taps (differences: taps of both signs),
+            // linear and clamped in turn (Hanus through the delay line)
             "fopid",
             FixedCtrl {
                 d_q24: (0.9 * 16_777_216.0f64).round() as i32,
                 dinv_q16: (65536.0f64 / 0.9).round() as i32,
-                sections: vec![s(1.0, 60_000_000), s(0.995, -900_000), s(0.3, 2_000_000)],
-                taps: vec![-250_000_000, 120_000_000, -3_000_000, i32::MAX, i32::MIN],
+                sections: vec![s(1.0, 3_000_000), s(0.995, -900_000), s(0.3, 2_000_000)],
+                taps: vec![-25_000_000, 12_000_000, -3_000_000, 40_000_000, -40_000_000],
             },
             9000,
             errs,
