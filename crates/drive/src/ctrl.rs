@@ -240,7 +240,10 @@ impl FixedCtrl {
     /// other; except the chained fast modes (poles below [`FAST_POLE`] driving or driven by
     /// another: a difference after poles that round to 0, a Jordan chain at the origin), which
     /// are delay taps: the rest of the impulse response ([`fast_taps`]); a single tap is a
-    /// section at the origin. Sections whose `g_p` rounds to 0 are left out.
+    /// section at the origin. Sections whose `g_p` rounds to 0 are left out. The anti-windup is
+    /// Hanus' conditioning (`dinv` = `1/d`) when it is stable ([`hanus_is_stable`]), else
+    /// conditional integration (`dinv` = 0: the states frozen while the error pushes into the
+    /// clamp).
     ///
     /// # Errors
     /// [`Error::InvalidParam`]: inconsistent sizes, non-finite entries, an `A` that is not lower
@@ -391,7 +394,10 @@ impl FixedCtrl {
         }
         let d_raw = gain_raw * d;
         let d_q24 = q(d_raw, Q24, "the feed-through")?;
-        let dinv_q16 = if d_raw.abs() >= 2.0 / 65536.0 {
+        // Hanus' conditioning runs the controller's inverse while clamped: unstable with a
+        // zero outside the unit circle (a FOPID's derivative puts one near z = -20)
+        let hanus = hanus_is_stable(a, b, c, d, &keep);
+        let dinv_q16 = if hanus && d_raw.abs() >= 2.0 / 65536.0 {
             q(1.0 / d_raw, 65536.0, "1/feed-through").unwrap_or(0)
         } else {
             0
@@ -403,6 +409,25 @@ impl FixedCtrl {
             taps,
         })
     }
+}
+
+/// Whether Hanus' conditioning is stable for the realisation's kept states: the states updated
+/// with the error `(u_clamped - C x) / D` evolve as `x <- (A - B C / D) x + B u_clamped / D`,
+/// whose eigenvalues are the controller's zeros; the conditioning is right when they are within
+/// the unit circle (spectral radius at most `1 + 1e-6`: a FOPI's zeros near `z = 1`), wrong
+/// (the states run away, the command chatters between the limits) otherwise. `false` without
+/// feed-through.
+pub fn hanus_is_stable(a: &[Vec<f64>], b: &[f64], c: &[f64], d: f64, keep: &[usize]) -> bool {
+    if d == 0.0 || !d.is_finite() {
+        return false;
+    }
+    let n = keep.len();
+    let m = nalgebra::DMatrix::from_fn(n, n, |i, j| {
+        a[keep[i]][keep[j]] - b[keep[i]] * c[keep[j]] / d
+    });
+    m.complex_eigenvalues()
+        .iter()
+        .all(|z| z.norm() <= 1.0 + 1e-6)
 }
 
 /// Poles of modulus below this that drive or are driven by another such pole (a chain) are the
@@ -625,5 +650,16 @@ mod tests {
                 "{w}: {got} {want}"
             );
         }
+    }
+
+    /// A zero outside the unit circle (`0.1 + 2/(z - 0.5)`: zero at `z = -19.5`) makes Hanus'
+    /// conditioning unstable: conditional integration (`dinv` 0) instead; the same form with a
+    /// zero inside (`0.1 + 0.02/(z - 0.5)`: `z = 0.3`) keeps Hanus.
+    #[test]
+    fn hanus_only_with_the_zeros_inside_the_unit_circle() {
+        let k = FixedCtrl::from_state_space(&[vec![0.5]], &[1.0], &[2.0], 0.1, 1.0).unwrap();
+        assert_eq!((k.d_q24 != 0, k.dinv_q16), (true, 0));
+        let k = FixedCtrl::from_state_space(&[vec![0.5]], &[1.0], &[0.02], 0.1, 1.0).unwrap();
+        assert_eq!(k.dinv_q16, 655_360);
     }
 }

@@ -335,6 +335,13 @@ pub fn run(a: LoopArgs) -> Result<()> {
         },
         qerr
     );
+    if k.d_q24 != 0 && k.dinv_q16 == 0 {
+        crate::eprintln_safe!(
+            "anti-windup: conditional integration (the states frozen while the error pushes into \
+             the clamp): the controller has a zero outside the unit circle, where Hanus' \
+             conditioning would run away"
+        );
+    }
     let output = output_path(&a.output);
     check_outputs(&a.port.port, &[("--output", &output)])?;
     let mut sink = LoopCsvSink::new(output_file(&output)?, cmd, conf.y_lsb());
