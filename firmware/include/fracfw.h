@@ -33,7 +33,8 @@ typedef unsigned char fw_octet;
 
 #define FW_PROTO_VERSION 2u
 #define FW_MAJOR 1u
-#define FW_MINOR 1u /* 1.1: the speed loop (LOAD_CTRL, LOAD_SECTION, START_LOOP) */
+#define FW_MINOR 2u /* 1.1: the speed loop (LOAD_CTRL, LOAD_SECTION, START_LOOP); 1.2: controller
+                       * format 2 (48 sections, 8 delay taps) */
 #define FW_N_CHANNELS 3u
 /** Samples per DATA block at most (PROTOCOL.md: 66). */
 #define FW_MAX_BLOCK 66u
@@ -102,24 +103,35 @@ typedef unsigned char fw_octet;
 #define FW_END_KEEPALIVE 3u
 #define FW_END_LIMIT 4u
 
-/** Controller format of LOAD_CTRL (parallel first-order sections: poles Q30, gains Q24, 64-bit
- * states Q32). */
+/** Controller format 1 of LOAD_CTRL (parallel first-order sections: poles Q30, gains Q24,
+ * 64-bit states Q32), at most FW_MAX_SECTIONS_V1 sections. */
 #define FW_CTRL_FORMAT 1u
-/** Sections of the speed controller at most. */
-#define FW_MAX_SECTIONS 24u
+/** Controller format 2 (firmware 1.2): format 1's sections, at most FW_MAX_SECTIONS, and at most
+ * FW_MAX_TAPS delay taps on the past conditioned errors. */
+#define FW_CTRL_FORMAT_TAPS 2u
+/** Sections of a format-1 controller at most. */
+#define FW_MAX_SECTIONS_V1 24u
+/** Sections of the speed controller at most (format 2). */
+#define FW_MAX_SECTIONS 48u
+/** Delay taps of the speed controller at most (format 2). */
+#define FW_MAX_TAPS 8u
 
 /**
- * The speed controller (PROTOCOL.md section 3, "Speed loop"): u = round((2^8 d e + sum z_i) / 2^32),
- * then z_i <- round(a_i z_i / 2^30) + 2^8 g_i e', e' the error conditioned on the voltage clamp.
- * d, g_i: Q24 raw voltage per raw speed LSB; a_i: Q30; z_i: Q32 raw voltage (64-bit, saturated
- * at +-2^56: +-2^24 raw).
+ * The speed controller (PROTOCOL.md section 3, "Speed loop"): with s = sum z_i + 2^8 sum h_j w_j,
+ * u = round((2^8 d e + s) / 2^32), then z_i <- round(a_i z_i / 2^30) + 2^8 g_i e' and the delay
+ * line w_j <- w_(j-1), w_1 <- e', e' the error conditioned on the voltage clamp.
+ * d, g_i, h_j: Q24 raw voltage per raw speed LSB; a_i: Q30; z_i: Q32 raw voltage (64-bit,
+ * saturated at +-2^56: +-2^24 raw); w_j: the past conditioned errors (raw, |w_j| <= 2^17).
  */
 typedef struct {
     int32_t d_q24, dinv_q16;
-    uint16_t n, loaded;
+    uint16_t n, loaded;   /**< sections, and sections + taps loaded */
+    uint16_t n_taps, pad; /**< delay taps (format 2) */
     int32_t a_q30[FW_MAX_SECTIONS];
     int32_t g_q24[FW_MAX_SECTIONS];
     int64_t z[FW_MAX_SECTIONS];
+    int32_t h_q24[FW_MAX_TAPS];
+    int32_t w[FW_MAX_TAPS];
 } fw_ctrl;
 
 /** Zero the controller's states. */

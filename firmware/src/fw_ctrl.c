@@ -1,8 +1,11 @@
-/* The speed controller: parallel first-order sections in Q-format (PROTOCOL.md section 3,
- * "Speed loop"; the Rust twin is crates/drive/src/ctrl.rs, bit-identical, tested).
+/* The speed controller: parallel first-order sections in Q-format and a short delay chain
+ * (PROTOCOL.md section 3, "Speed loop"; the Rust twin is crates/drive/src/ctrl.rs,
+ * bit-identical, tested).
  *
- * States z_i: 64-bit, Q32 raw voltage, saturated at +-2^56 (so that the sum of 24 stays below
- * 2^61). Poles a_i: Q30, |a_i| <= 1. Gains d, g_i: Q24 raw voltage per raw speed LSB.
+ * States z_i: 64-bit, Q32 raw voltage, saturated at +-2^56 (so that the sum of 48, with 8 taps
+ * of at most 2^56 each, stays below 2^62). Poles a_i: Q30, |a_i| <= 1. Gains d, g_i, taps h_j:
+ * Q24 raw voltage per raw speed LSB; the delay line w_j: the past conditioned errors,
+ * |w_j| <= 2^17.
  * No right shift of a negative number (C99 leaves it implementation-defined), no left shift of
  * a negative number (undefined): magnitudes are shifted, or multiplied by powers of two. */
 #include "fracfw.h"
@@ -34,6 +37,9 @@ void fw_ctrl_reset(fw_ctrl *c)
     for (i = 0; i < FW_MAX_SECTIONS; i++) {
         c->z[i] = 0;
     }
+    for (i = 0; i < FW_MAX_TAPS; i++) {
+        c->w[i] = 0;
+    }
 }
 
 int16_t fw_ctrl_step(fw_ctrl *c, int32_t e, int16_t u_limit, uint16_t *clamped)
@@ -42,6 +48,9 @@ int16_t fw_ctrl_step(fw_ctrl *c, int32_t e, int16_t u_limit, uint16_t *clamped)
     uint16_t i, cl;
     for (i = 0; i < c->n; i++) {
         zsum += c->z[i];
+    }
+    for (i = 0; i < c->n_taps; i++) {
+        zsum += (int64_t)c->h_q24[i] * c->w[i] * 256;
     }
     v = (int64_t)c->d_q24 * e * 256 + zsum;
     u = round_shift(v, 32u);
@@ -61,6 +70,12 @@ int16_t fw_ctrl_step(fw_ctrl *c, int32_t e, int16_t u_limit, uint16_t *clamped)
     }
     for (i = 0; i < c->n; i++) {
         c->z[i] = clamp64(mul_q30(c->z[i], c->a_q30[i]) + (int64_t)c->g_q24[i] * e_upd * 256, Z_MAX);
+    }
+    for (i = c->n_taps; i > 1u; i--) {
+        c->w[i - 1u] = c->w[i - 2u];
+    }
+    if (c->n_taps > 0u) {
+        c->w[0] = (int32_t)e_upd;
     }
     return (int16_t)us;
 }

@@ -481,6 +481,7 @@ static void cmd_configure(fw_t *fw, uint16_t seq, const fw_octet *p)
     fw->configured = 1;
     /* the controller's gains are in the channel units and its poles at the sample rate */
     fw->ctrl.n = 0;
+    fw->ctrl.n_taps = 0;
     fw->ctrl.loaded = 0;
     fw->ctrl_ready = 0;
     fw->fault = FW_FAULT_NONE;
@@ -576,7 +577,7 @@ static void cmd_sine(fw_t *fw, uint16_t seq, const fw_octet *p)
 
 static void cmd_load_ctrl(fw_t *fw, uint16_t seq, const fw_octet *p)
 {
-    uint16_t format = get8(p), n = get8(p + 1);
+    uint16_t format = get8(p), n = get8(p + 1), taps = get8(p + 2);
     if (fw->running) {
         nak(fw, FW_T_LOAD_CTRL, seq, FW_NAK_BUSY, 0);
         return;
@@ -585,19 +586,24 @@ static void cmd_load_ctrl(fw_t *fw, uint16_t seq, const fw_octet *p)
         nak(fw, FW_T_LOAD_CTRL, seq, FW_NAK_NOT_CONFIGURED, 0);
         return;
     }
-    if (format != FW_CTRL_FORMAT) {
+    if (format != FW_CTRL_FORMAT && format != FW_CTRL_FORMAT_TAPS) {
         nak(fw, FW_T_LOAD_CTRL, seq, FW_NAK_BAD_VALUE, 0);
         return;
     }
-    if (n > FW_MAX_SECTIONS) {
+    if (n > (format == FW_CTRL_FORMAT ? FW_MAX_SECTIONS_V1 : FW_MAX_SECTIONS)) {
         nak(fw, FW_T_LOAD_CTRL, seq, FW_NAK_BAD_VALUE, 1);
         return;
     }
+    if (taps > (format == FW_CTRL_FORMAT ? 0u : FW_MAX_TAPS)) {
+        nak(fw, FW_T_LOAD_CTRL, seq, FW_NAK_BAD_VALUE, 2);
+        return;
+    }
     fw->ctrl.n = n;
+    fw->ctrl.n_taps = taps;
     fw->ctrl.loaded = 0;
     fw->ctrl.d_q24 = (int32_t)get32(p + 4);
     fw->ctrl.dinv_q16 = (int32_t)get32(p + 8);
-    fw->ctrl_ready = (uint16_t)(n == 0u);
+    fw->ctrl_ready = (uint16_t)(n + taps == 0u);
     ack(fw, FW_T_LOAD_CTRL, seq, 0, 0);
 }
 
@@ -613,18 +619,23 @@ static void cmd_load_section(fw_t *fw, uint16_t seq, const fw_octet *p)
         nak(fw, FW_T_LOAD_SECTION, seq, FW_NAK_NOT_CONFIGURED, 0);
         return;
     }
-    if (i != fw->ctrl.loaded || i >= fw->ctrl.n) {
+    if (i != fw->ctrl.loaded || i >= fw->ctrl.n + fw->ctrl.n_taps) {
         nak(fw, FW_T_LOAD_SECTION, seq, FW_NAK_BAD_VALUE, 0);
         return;
     }
-    if (a > 1073741824l || a < -1073741824l) {
+    /* a pole within the unit circle; a tap's pole field 0 */
+    if (a > 1073741824l || a < -1073741824l || (i >= fw->ctrl.n && a != 0)) {
         nak(fw, FW_T_LOAD_SECTION, seq, FW_NAK_BAD_VALUE, 2);
         return;
     }
-    fw->ctrl.a_q30[i] = a;
-    fw->ctrl.g_q24[i] = (int32_t)get32(p + 6);
+    if (i < fw->ctrl.n) {
+        fw->ctrl.a_q30[i] = a;
+        fw->ctrl.g_q24[i] = (int32_t)get32(p + 6);
+    } else {
+        fw->ctrl.h_q24[i - fw->ctrl.n] = (int32_t)get32(p + 6);
+    }
     fw->ctrl.loaded++;
-    fw->ctrl_ready = (uint16_t)(fw->ctrl.loaded == fw->ctrl.n);
+    fw->ctrl_ready = (uint16_t)(fw->ctrl.loaded == fw->ctrl.n + fw->ctrl.n_taps);
     ack(fw, FW_T_LOAD_SECTION, seq, 0, 0);
 }
 
@@ -823,7 +834,7 @@ static uint16_t handle_body(fw_t *fw, const fw_octet *b, uint16_t len)
     if ((type == FW_T_CONFIGURE && get8(p + 5) != 0u) ||
         (type == FW_T_START_PRBS && get8(p + 1) != 0u) ||
         (type == FW_T_START_SINE && (get8(p + 13) != 0u || (get8(p + 12) & ~3u) != 0u)) ||
-        (type == FW_T_LOAD_CTRL && get16(p + 2) != 0u) ||
+        (type == FW_T_LOAD_CTRL && get8(p + 3) != 0u) ||
         (type == FW_T_LOAD_SECTION && get8(p + 1) != 0u)) {
         rx_error(fw);
         return 0;

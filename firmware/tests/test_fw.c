@@ -462,7 +462,7 @@ static void test_ctrl(const char *dir)
     int steps = 0, ctrls = 0;
     while (fgets(line, sizeof line, f)) {
         char *p = line, *q;
-        long long v[64];
+        long long v[160];
         int nv = 0;
         if (line[0] == '#') continue;
         if (strncmp(line, "CTRL", 4) == 0) {
@@ -474,7 +474,7 @@ static void test_ctrl(const char *dir)
         } else {
             continue;
         }
-        while (nv < 64) {
+        while (nv < 160) {
             long long t = strtoll(p, &q, 10);
             if (q == p) break;
             v[nv++] = t;
@@ -491,6 +491,11 @@ static void test_ctrl(const char *dir)
                 k.a_q30[i] = (int32_t)v[4 + 2 * i];
                 k.g_q24[i] = (int32_t)v[5 + 2 * i];
             }
+            k.n_taps = (uint16_t)v[4 + 2 * k.n];
+            for (i = 0; i < k.n_taps; i++) {
+                k.h_q24[i] = (int32_t)v[5 + 2 * k.n + i];
+            }
+            k.loaded = (uint16_t)(k.n + k.n_taps);
             fw_ctrl_reset(&k);
             ctrls++;
         } else {
@@ -498,13 +503,15 @@ static void test_ctrl(const char *dir)
             int16_t u = fw_ctrl_step(&k, (int32_t)v[0], lim, &cl);
             int i, same = 1;
             for (i = 0; i < k.n; i++) same &= k.z[i] == (int64_t)v[3 + i];
+            for (i = 0; i < k.n_taps; i++) same &= k.w[i] == (int32_t)v[3 + k.n + i];
+            same &= nv == 3 + k.n + k.n_taps;
             CHECK(u == v[1] && cl == v[2] && same, "ctrl step %d (e %lld): u %d clamped %u", steps,
                   v[0], u, cl);
             steps++;
         }
     }
     fclose(f);
-    CHECK(ctrls == 3 && steps >= 270, "ctrl vectors read: %d controllers, %d steps", ctrls, steps);
+    CHECK(ctrls == 4 && steps >= 360, "ctrl vectors read: %d controllers, %d steps", ctrls, steps);
 }
 
 /* The speed loop through the protocol: a PI on a plant y_(k+1) = y_k + (u_k - y_k)/8 (raw), the
@@ -522,9 +529,9 @@ static void test_loop(void)
     configure(&fw, 1000, 32, 3000, 30000);
     n = command(&fw, FW_T_START_LOOP, p, 12, r);
     CHECK((r[1] & 0xFF) == FW_T_NAK && (r[5] & 0xFF) == FW_NAK_NO_CONTROLLER, "no controller");
-    /* LOAD_CTRL: format 2 refused; then d = 2, dinv = 1/2, one integrator g = 0.25 */
+    /* LOAD_CTRL: format 3 refused; then d = 2, dinv = 1/2, one integrator g = 0.25 */
     memset(p, 0, sizeof p);
-    p[0] = 2, p[1] = 1;
+    p[0] = 3, p[1] = 1;
     n = command(&fw, FW_T_LOAD_CTRL, p, 12, r);
     CHECK((r[1] & 0xFF) == FW_T_NAK && (r[5] & 0xFF) == FW_NAK_BAD_VALUE && g16(r + 6) == 0,
           "unknown controller format");
@@ -584,6 +591,50 @@ static void test_loop(void)
     le32(p + 8, 10);
     n = command(&fw, FW_T_START_LOOP, p, 12, r);
     CHECK((r[1] & 0xFF) == FW_T_NAK && (r[5] & 0xFF) == FW_NAK_NO_CONTROLLER, "cleared by CONFIGURE");
+    /* format 1: at most 24 sections and no taps; format 2: 48 sections and 8 taps */
+    memset(p, 0, sizeof p);
+    p[0] = FW_CTRL_FORMAT, p[1] = 25;
+    n = command(&fw, FW_T_LOAD_CTRL, p, 12, r);
+    CHECK((r[1] & 0xFF) == FW_T_NAK && (r[5] & 0xFF) == FW_NAK_BAD_VALUE && g16(r + 6) == 1,
+          "format 1: 25 sections");
+    p[1] = 1, p[2] = 1;
+    n = command(&fw, FW_T_LOAD_CTRL, p, 12, r);
+    CHECK((r[1] & 0xFF) == FW_T_NAK && (r[5] & 0xFF) == FW_NAK_BAD_VALUE && g16(r + 6) == 2,
+          "format 1: a tap");
+    p[0] = FW_CTRL_FORMAT_TAPS, p[1] = 49, p[2] = 0;
+    n = command(&fw, FW_T_LOAD_CTRL, p, 12, r);
+    CHECK((r[1] & 0xFF) == FW_T_NAK && (r[5] & 0xFF) == FW_NAK_BAD_VALUE && g16(r + 6) == 1,
+          "format 2: 49 sections");
+    p[1] = 1, p[2] = 9;
+    n = command(&fw, FW_T_LOAD_CTRL, p, 12, r);
+    CHECK((r[1] & 0xFF) == FW_T_NAK && (r[5] & 0xFF) == FW_NAK_BAD_VALUE && g16(r + 6) == 2,
+          "format 2: 9 taps");
+    p[1] = 1, p[2] = 2;
+    le32(p + 4, 2ul << 24), le32(p + 8, 32768ul);
+    n = command(&fw, FW_T_LOAD_CTRL, p, 12, r);
+    CHECK((r[1] & 0xFF) == FW_T_ACK && fw.ctrl.n == 1 && fw.ctrl.n_taps == 2, "format 2 header");
+    memset(p, 0, sizeof p);
+    le32(p + 2, 1ul << 29), le32(p + 6, 1ul << 22);
+    n = command(&fw, FW_T_LOAD_SECTION, p, 10, r);
+    CHECK((r[1] & 0xFF) == FW_T_ACK && fw.ctrl.loaded == 1u, "format 2 section");
+    p[0] = 1;
+    le32(p + 2, 5), le32(p + 6, 7ul << 20);
+    n = command(&fw, FW_T_LOAD_SECTION, p, 10, r);
+    CHECK((r[1] & 0xFF) == FW_T_NAK && (r[5] & 0xFF) == FW_NAK_BAD_VALUE && g16(r + 6) == 2,
+          "a tap with a pole");
+    le32(p + 2, 0);
+    n = command(&fw, FW_T_LOAD_SECTION, p, 10, r);
+    CHECK((r[1] & 0xFF) == FW_T_ACK && fw.ctrl.h_q24[0] == (int32_t)(7ul << 20), "tap 1");
+    memset(p, 0, sizeof p);
+    le32(p + 8, 10);
+    n = command(&fw, FW_T_START_LOOP, p, 12, r);
+    CHECK((r[1] & 0xFF) == FW_T_NAK && (r[5] & 0xFF) == FW_NAK_NO_CONTROLLER, "a tap missing");
+    memset(p, 0, sizeof p);
+    p[0] = 2;
+    le32(p + 6, (uint32_t)-(3l << 20));
+    n = command(&fw, FW_T_LOAD_SECTION, p, 10, r);
+    CHECK((r[1] & 0xFF) == FW_T_ACK && fw.ctrl.h_q24[1] == -(3l << 20) && fw.ctrl_ready == 1u,
+          "tap 2");
 }
 
 static void test_sine(void)

@@ -175,27 +175,36 @@ static void start_sine(unsigned long freq_mhz, unsigned settle_cycles, unsigned 
     }
 }
 
-/* The speed loop's controller, FW_MAX_SECTIONS sections (the most the drive takes): d = 0.5,
- * an integrator, and leaky sections with poles from 0.5 to 1 - 2^-20. */
-static void load_ctrl(void)
+/* The speed loop's controller, `n` sections and `taps` delay taps (format 2): d = 0.5, an
+ * integrator, leaky sections with poles from 0.5 to 1 - 2^-20, taps alternating in sign (a
+ * derivative's differences). */
+static void load_ctrl(unsigned n, unsigned taps)
 {
     fw_octet p[12];
     unsigned i;
     memset(p, 0, sizeof p);
-    p[0] = FW_CTRL_FORMAT;
-    p[1] = FW_MAX_SECTIONS;
+    p[0] = FW_CTRL_FORMAT_TAPS;
+    p[1] = (fw_octet)n;
+    p[2] = (fw_octet)taps;
     le32(p + 4, 1ul << 23);   /* d = 0.5, Q24 */
     le32(p + 8, 2ul << 16);   /* 1/d = 2, Q16 */
     send_frame("rx:load_ctrl", FW_T_LOAD_CTRL, p, 12);
     drain("tx:answer", 64);
-    for (i = 0; i < FW_MAX_SECTIONS; i++) {
-        unsigned long a = i == 0 ? (1ul << 30) : (1ul << 30) - ((1ul << 29) >> (i - 1u));
+    for (i = 0; i < n + taps; i++) {
+        unsigned long a = i == 0 ? (1ul << 30) : (1ul << 30) - ((1ul << 29) >> ((i - 1u) % 21u));
         memset(p, 0, sizeof p);
         p[0] = (fw_octet)i;
-        le32(p + 2, a);
-        le32(p + 6, i == 0 ? 838861ul : 1000ul * (i + 1u)); /* 0.05 for the integrator, Q24 */
+        if (i < n) {
+            le32(p + 2, a);
+            le32(p + 6, i == 0 ? 838861ul : 1000ul * (i + 1u)); /* 0.05 for the integrator, Q24 */
+        } else {
+            le32(p + 6, (i - n) % 2u ? 0xFFF00000ul : 0x00100000ul); /* -+1/16, Q24 */
+        }
         send_frame("rx:load_section", FW_T_LOAD_SECTION, p, 10);
         drain("tx:answer", 64);
+    }
+    if (!fw.ctrl_ready) {
+        fail("controller loaded");
     }
 }
 
@@ -313,20 +322,29 @@ int main(int argc, char **argv)
         fail("ESTOP ends the run");
     }
 
-    /* The speed loop with the most sections: the command clamped at first (the anti-windup's
-     * conditioned update), then in the linear range; the run's last sample. */
-    configure(32, 500u, 6000, 32000);
-    load_ctrl();
-    motor_y = 0;
-    loop_mode = 1;
-    start_loop(20ul, 300ul);
-    run("sample:loop", 100000u, ka, 1, octets_per_sample);
-    loop_mode = 0;
-    /* the anti-windup path was taken, and the linear one */
-    if (fw.last_clamped == 0u || fw.last_clamped >= 300u) {
-        fail("the loop run is clamped in some samples, not all");
+    /* The speed loop with the most sections and taps (48 + 8), then with the FOPID's 30 + 3
+     * (`fracid tune` --form fopid --wc 50 --pm 60 --flat --dt 0.001 on the paper's PMSM): the
+     * command clamped at first (the anti-windup's conditioned update), then in the linear range;
+     * the run's last sample. */
+    {
+        static const unsigned sizes[2][2] = {{FW_MAX_SECTIONS, FW_MAX_TAPS}, {30u, 3u}};
+        static const char *const labels[2] = {"sample:loop", "sample:loop_fopid"};
+        unsigned v;
+        for (v = 0; v < 2u; v++) {
+            configure(32, 500u, 6000, 32000);
+            load_ctrl(sizes[v][0], sizes[v][1]);
+            motor_y = 0;
+            loop_mode = 1;
+            start_loop(20ul, 300ul);
+            run(labels[v], 100000u, ka, 1, octets_per_sample);
+            loop_mode = 0;
+            /* the anti-windup path was taken, and the linear one */
+            if (fw.last_clamped == 0u || fw.last_clamped >= 300u) {
+                fail("the loop run is clamped in some samples, not all");
+            }
+            drain_all();
+        }
     }
-    drain_all();
 
     /* A frame longer than any command (a DATA frame echoed back, valid CRC): the receiver stops
      * storing it at FW_RX_MAX_ENCODED octets and counts one error at its delimiter. */

@@ -33,7 +33,12 @@ struct FwConfig {
     i_limit: i16,
 }
 
-/// `fw_ctrl` of `fracfw.h` (FW_MAX_SECTIONS = 24).
+/// `FW_MAX_SECTIONS` of `fracfw.h`.
+const FW_MAX_SECTIONS: usize = 48;
+/// `FW_MAX_TAPS` of `fracfw.h`.
+const FW_MAX_TAPS: usize = 8;
+
+/// `fw_ctrl` of `fracfw.h`.
 #[repr(C)]
 #[derive(Debug, Clone, Copy)]
 struct FwCtrl {
@@ -41,13 +46,18 @@ struct FwCtrl {
     dinv_q16: i32,
     n: u16,
     loaded: u16,
-    a_q30: [i32; 24],
-    g_q24: [i32; 24],
-    z: [i64; 24],
+    n_taps: u16,
+    pad: u16,
+    a_q30: [i32; FW_MAX_SECTIONS],
+    g_q24: [i32; FW_MAX_SECTIONS],
+    z: [i64; FW_MAX_SECTIONS],
+    h_q24: [i32; FW_MAX_TAPS],
+    w: [i32; FW_MAX_TAPS],
 }
 
-/// The C firmware's controller (`fw_ctrl_step`) run on `ctrl` from the states `z` (one per
-/// section, at most 24): the command, whether it was clamped, and the states after. For the
+/// The C firmware's controller (`fw_ctrl_step`) run on `ctrl` from the states `z` (as
+/// [`crate::ctrl::FixedCtrl::step`]: the sections', then the delay line; at most 48 sections and
+/// 8 taps are used): the command, whether it was clamped, and the states after. For the
 /// bit-identity tests against [`crate::ctrl::FixedCtrl::step`].
 pub fn ctrl_step(
     ctrl: &crate::ctrl::FixedCtrl,
@@ -55,26 +65,41 @@ pub fn ctrl_step(
     e: i32,
     u_limit: i16,
 ) -> (i16, bool) {
-    let n = ctrl.sections.len().min(24);
+    let n = ctrl.sections.len().min(FW_MAX_SECTIONS);
+    let m = ctrl.taps.len().min(FW_MAX_TAPS);
     let mut c = FwCtrl {
         d_q24: ctrl.d_q24,
         dinv_q16: ctrl.dinv_q16,
         n: n as u16,
-        loaded: n as u16,
-        a_q30: [0; 24],
-        g_q24: [0; 24],
-        z: [0; 24],
+        loaded: (n + m) as u16,
+        n_taps: m as u16,
+        pad: 0,
+        a_q30: [0; FW_MAX_SECTIONS],
+        g_q24: [0; FW_MAX_SECTIONS],
+        z: [0; FW_MAX_SECTIONS],
+        h_q24: [0; FW_MAX_TAPS],
+        w: [0; FW_MAX_TAPS],
     };
     for (i, s) in ctrl.sections.iter().take(n).enumerate() {
         c.a_q30[i] = s.a_q30;
         c.g_q24[i] = s.g_q24;
         c.z[i] = z.get(i).copied().unwrap_or(0);
     }
+    for (j, h) in ctrl.taps.iter().take(m).enumerate() {
+        c.h_q24[j] = *h;
+        c.w[j] = z.get(ctrl.sections.len() + j).copied().unwrap_or(0) as i32;
+    }
     let mut cl = 0u16;
-    // SAFETY: a valid fw_ctrl with n <= FW_MAX_SECTIONS, valid out pointer.
+    // SAFETY: a valid fw_ctrl with n <= FW_MAX_SECTIONS, n_taps <= FW_MAX_TAPS, valid out
+    // pointer.
     let u = unsafe { fw_ctrl_step(&mut c, e, u_limit, &mut cl) };
-    for (zi, v) in z.iter_mut().zip(c.z.iter()) {
+    for (zi, v) in z.iter_mut().zip(c.z.iter().take(n)) {
         *zi = *v;
+    }
+    for (j, v) in c.w.iter().take(m).enumerate() {
+        if let Some(zi) = z.get_mut(ctrl.sections.len() + j) {
+            *zi = *v as i64;
+        }
     }
     (u, cl != 0)
 }
@@ -351,8 +376,8 @@ mod tests {
         let got: Vec<_> = hello.iter().filter_map(|&b| e.rx(b)).collect();
         assert_eq!(got, [0x01]);
         let want = [
-            0x00, 0x04, 0x02, 0x81, 0x01, 0x06, 0x02, 0x01, 0x01, 0x03, 0x42, 0x05, 0xEF, 0xBE,
-            0x20, 0x4E, 0x01, 0x03, 0xDE, 0x97, 0x00,
+            0x00, 0x04, 0x02, 0x81, 0x01, 0x06, 0x02, 0x01, 0x02, 0x03, 0x42, 0x05, 0xEF, 0xBE,
+            0x20, 0x4E, 0x01, 0x03, 0xB7, 0xE3, 0x00,
         ];
         assert_eq!(e.tx_frame().as_deref(), Some(&want[..]));
         assert_eq!(e.tx_frame(), None);

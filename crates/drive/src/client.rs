@@ -1076,22 +1076,34 @@ impl Client {
     ///
     /// # Errors
     /// Not configured; a drive without the speed loop (firmware 1.0 answers NAK UNKNOWN_TYPE:
-    /// [`Error::InvalidParam`] saying so); any NAK or timeout of the download.
+    /// [`Error::InvalidParam`] saying so; a drive that refuses the controller's format 2, firmware
+    /// 1.1: the same, saying which firmware runs it); any NAK or timeout of the download.
     pub fn load_controller(&mut self, k: &crate::ctrl::FixedCtrl) -> Result<()> {
         self.conf()?;
         let (head, sections) = k.messages();
+        let v = self
+            .hello
+            .map(|h| format!(" (firmware {}.{})", h.fw_major, h.fw_minor))
+            .unwrap_or_default();
         match self.request(Message::LoadCtrl(head)) {
             Err(Error::Nak {
                 code: NakCode::UnknownType,
                 ..
             }) => {
-                let v = self
-                    .hello
-                    .map(|h| format!(" (firmware {}.{})", h.fw_major, h.fw_minor))
-                    .unwrap_or_default();
                 return Err(Error::InvalidParam(format!(
                     "the drive{v} has no speed loop: LOAD_CTRL is unknown to it (firmware 1.1 \
                      or later runs a downloaded controller)"
+                )));
+            }
+            Err(Error::Nak {
+                code: NakCode::BadValue,
+                detail: 0,
+                ..
+            }) if head.format != crate::protocol::CTRL_FORMAT => {
+                return Err(Error::InvalidParam(format!(
+                    "the drive{v} refuses controller format {}: this controller ({} sections, {} \
+                     delay taps) needs firmware 1.2 or later",
+                    head.format, head.n_sections, head.n_taps
                 )));
             }
             r => r?,

@@ -5,16 +5,24 @@
 //! Per sample, with the error `e = r - y` in raw speed LSB (an integer):
 //!
 //! ```text
-//! v  = 2^8 d e + sum_i z_i                    (Q32 raw voltage, 64-bit)
+//! s  = sum_i z_i + 2^8 sum_j h_j w_j           (Q32 raw voltage, 64-bit; w_j = e'_(k-j))
+//! v  = 2^8 d e + s
 //! u  = round(v / 2^32), clamped to +-u_limit  (the voltage limit)
 //! e' = e                                      (not clamped)
-//!    = (2^32 u - sum z_i) / d                 (clamped, d != 0: Hanus' conditioning)
-//!    = 0 (states frozen) if the error pushes further into the clamp, else e  (clamped, d = 0)
+//!    = (2^32 u - s) / d                       (clamped, d != 0: Hanus' conditioning)
+//!    = states frozen if the error pushes further into the clamp, else e  (clamped, d = 0)
 //! z_i <- round(a_i z_i / 2^30) + 2^8 g_i e'   (saturated at +-2^56)
+//! w_j <- w_(j-1), w_1 <- e'                   (the delay line, format 2)
 //! ```
 //!
-//! `d`, `g_i` are Q24 (raw voltage LSB per raw speed LSB), `a_i` Q30, the states `z_i` 64-bit
-//! Q32 raw voltage.
+//! `d`, `g_i`, `h_j` are Q24 (raw voltage LSB per raw speed LSB), `a_i` Q30, the states `z_i`
+//! 64-bit Q32 raw voltage, the delay line `w_j` the past conditioned errors (raw speed LSB,
+//! `|w_j| <= 2^17`).
+//!
+//! The delay taps (controller format 2) hold what first-order sections cannot: the modes of a
+//! derivative's realisation (`kd s^mu` as a fractional integrator followed by backward
+//! differences, `tune::realise`), whose fastest poles round to `z = 0` and, followed by a
+//! difference (another pole at 0), form a Jordan chain at the origin: a finite impulse response.
 //!
 //! Why parallel first-order sections (the modal, diagonal state space) rather than a dense state
 //! space or a cascade of biquads, on a fixed-point C28x:
@@ -38,7 +46,9 @@
 //! modes (1e-4 raw LSB for a pole at 1e-3 rad/s at 1 kHz).
 
 use crate::error::{Error, Result};
-use crate::protocol::{LoadCtrl, LoadSection, CTRL_FORMAT, MAX_SECTIONS};
+use crate::protocol::{
+    LoadCtrl, LoadSection, CTRL_FORMAT, CTRL_FORMAT_TAPS, MAX_SECTIONS, MAX_SECTIONS_TAPS, MAX_TAPS,
+};
 use num_complex::Complex64;
 
 /// One first-order section: `z <- a z + g e`.
@@ -62,6 +72,9 @@ pub struct FixedCtrl {
     pub dinv_q16: i32,
     /// The sections.
     pub sections: Vec<Section>,
+    /// The delay taps `h_1, h_2, ...` (Q24 raw voltage per raw speed LSB) on the past
+    /// conditioned errors `e'_(k-1), e'_(k-2), ...` (controller format 2; empty in format 1).
+    pub taps: Vec<i32>,
 }
 
 const Q24: f64 = (1u64 << 24) as f64;
@@ -90,11 +103,27 @@ fn mul_q30(z: i64, a: i32) -> i64 {
 }
 
 impl FixedCtrl {
+    /// The length of its state vector ([`FixedCtrl::step`]): one per section, one per tap.
+    pub fn n_states(&self) -> usize {
+        self.sections.len() + self.taps.len()
+    }
+
     /// One sample: the error `e = r - y` (raw speed LSB), the voltage limit (raw, > 0). Returns
-    /// the clamped command (raw) and whether it was clamped; updates the states `z` (one per
-    /// section, Q32). Bit-identical to the C firmware's `fw_ctrl_step` (tested).
+    /// the clamped command (raw) and whether it was clamped; updates the states `z`
+    /// ([`FixedCtrl::n_states`] of them, 0 at the start): the sections' (Q32), then the delay
+    /// line `e'_(k-1), e'_(k-2), ...` (raw). Bit-identical to the C firmware's `fw_ctrl_step`
+    /// (tested).
+    ///
+    /// # Panics
+    /// If `z` is shorter than [`FixedCtrl::n_states`].
     pub fn step(&self, z: &mut [i64], e: i32, u_limit: i16) -> (i16, bool) {
-        let zsum: i64 = z.iter().sum();
+        let ns = self.sections.len();
+        let (zs, w) = z[..self.n_states()].split_at_mut(ns);
+        let zsum: i64 = zs.iter().sum::<i64>()
+            + w.iter()
+                .zip(&self.taps)
+                .map(|(w, h)| *h as i64 * w * 256)
+                .sum::<i64>();
         let v = self.d_q24 as i64 * e as i64 * 256 + zsum;
         let u = round_shift(v, 32);
         let lim = u_limit.max(1) as i64;
@@ -111,24 +140,44 @@ impl FixedCtrl {
         } else {
             e as i64
         };
-        for (zi, s) in z.iter_mut().zip(&self.sections) {
+        for (zi, s) in zs.iter_mut().zip(&self.sections) {
             let p = mul_q30(*zi, s.a_q30) + s.g_q24 as i64 * e_upd * 256;
             *zi = p.clamp(-Z_MAX, Z_MAX);
+        }
+        if !w.is_empty() {
+            w.rotate_right(1);
+            w[0] = e_upd;
         }
         (us as i16, clamped)
     }
 
-    /// The LOAD_CTRL and LOAD_SECTION payloads that download it.
+    /// The controller format it needs: [`CTRL_FORMAT`] (1, which drives of firmware 1.1 run)
+    /// without taps and with at most [`MAX_SECTIONS`] sections, else [`CTRL_FORMAT_TAPS`] (2,
+    /// firmware 1.2).
+    pub fn format(&self) -> u8 {
+        if self.taps.is_empty() && self.sections.len() <= MAX_SECTIONS as usize {
+            CTRL_FORMAT
+        } else {
+            CTRL_FORMAT_TAPS
+        }
+    }
+
+    /// The LOAD_CTRL and LOAD_SECTION payloads that download it: the sections, then the taps.
     pub fn messages(&self) -> (LoadCtrl, Vec<LoadSection>) {
+        let ns = self.sections.len();
+        let taps = self.taps.iter().map(|&h| Section { a_q30: 0, g_q24: h });
         (
             LoadCtrl {
-                format: CTRL_FORMAT,
-                n_sections: self.sections.len() as u8,
+                format: self.format(),
+                n_sections: ns as u8,
+                n_taps: self.taps.len() as u8,
                 d_q24: self.d_q24,
                 dinv_q16: self.dinv_q16,
             },
             self.sections
                 .iter()
+                .copied()
+                .chain(taps)
                 .enumerate()
                 .map(|(i, s)| LoadSection {
                     index: i as u8,
@@ -139,32 +188,43 @@ impl FixedCtrl {
         )
     }
 
-    /// The controller from its download (the drive's side of [`FixedCtrl::messages`]).
+    /// The controller from its download (the drive's side of [`FixedCtrl::messages`]): the
+    /// first `c.n_sections` of `s` are sections, the rest taps.
     pub fn from_messages(c: &LoadCtrl, s: &[LoadSection]) -> Self {
+        let ns = (c.n_sections as usize).min(s.len());
         Self {
             d_q24: c.d_q24,
             dinv_q16: c.dinv_q16,
-            sections: s
+            sections: s[..ns]
                 .iter()
                 .map(|s| Section {
                     a_q30: s.a_q30,
                     g_q24: s.g_q24,
                 })
                 .collect(),
+            taps: s[ns..].iter().map(|s| s.g_q24).collect(),
         }
     }
 
     /// Its frequency response in physical units (V per rad/s) at omega rad/s, sample period
     /// `dt` s, the channel scales `gain_raw = y_lsb / u_lsb` (V/LSB over rad/s/LSB): `(d + sum
-    /// g_i / (z - a_i)) / gain_raw`, `z = e^(j omega dt)`, the coefficients as quantised.
+    /// g_i / (z - a_i) + sum h_j z^-j) / gain_raw`, `z = e^(j omega dt)`, the coefficients as
+    /// quantised.
     pub fn freq_response(&self, omega: f64, dt: f64, gain_raw: f64) -> Complex64 {
         let z = Complex64::from_polar(1.0, omega * dt);
-        let c = self
-            .sections
+        let fir: Complex64 = self
+            .taps
             .iter()
-            .fold(Complex64::new(self.d_q24 as f64 / Q24, 0.0), |acc, s| {
-                acc + (s.g_q24 as f64 / Q24) / (z - s.a_q30 as f64 / (1u64 << 30) as f64)
-            });
+            .enumerate()
+            .map(|(j, &h)| h as f64 / Q24 * z.powi(-(j as i32 + 1)))
+            .sum();
+        let c = fir
+            + self
+                .sections
+                .iter()
+                .fold(Complex64::new(self.d_q24 as f64 / Q24, 0.0), |acc, s| {
+                    acc + (s.g_q24 as f64 / Q24) / (z - s.a_q30 as f64 / (1u64 << 30) as f64)
+                });
         c / gain_raw
     }
 
@@ -173,16 +233,23 @@ impl FixedCtrl {
     ///
     /// States that do not reach the output and feed nothing, or that nothing drives, are
     /// dropped; `A` must then be lower triangular (the realisations of `tune::realise` are)
-    /// with eigenvalues (its diagonal) of modulus at most 1, equal ones (within 1e-9) only
-    /// between states that do not drive each other: the modes are found by
-    /// forward substitution, `A = V diag(a) V^-1` with `V` unit lower triangular, and section
-    /// `i` is `a_i`, `g_i = gain_raw (C V)_i (V^-1 B)_i` (its state is the mode's share of the
-    /// output). Sections whose `g_i` rounds to 0 are left out.
+    /// with eigenvalues (its diagonal) of modulus at most 1. Each eigenvalue `a_p` is a section,
+    /// `a_p`, `g_p = gain_raw (C v_p)(w_p B)` with `v_p`, `w_p` its right and left eigenvectors
+    /// by forward and back substitution (`w_p v_p = 1`; its state is the mode's share of the
+    /// output), equal eigenvalues (within 1e-9) only between states that do not drive each
+    /// other; except the chained fast modes (poles below [`FAST_POLE`] driving or driven by
+    /// another: a difference after poles that round to 0, a Jordan chain at the origin), which
+    /// are delay taps: the rest of the impulse response ([`fast_taps`]); a single tap is a
+    /// section at the origin. Sections whose `g_p` rounds to 0 are left out. The anti-windup is
+    /// Hanus' conditioning (`dinv` = `1/d`) when it is stable ([`hanus_is_stable`]), else
+    /// conditional integration (`dinv` = 0: the states frozen while the error pushes into the
+    /// clamp).
     ///
     /// # Errors
     /// [`Error::InvalidParam`]: inconsistent sizes, non-finite entries, an `A` that is not lower
-    /// triangular, coupled repeated poles or unstable ones, more than [`MAX_SECTIONS`]
-    /// sections, a gain beyond the Q24 range (+-128 raw voltage per raw speed LSB).
+    /// triangular, coupled repeated slow poles or unstable ones, more than
+    /// [`MAX_SECTIONS_TAPS`] sections or [`MAX_TAPS`] taps, a gain beyond the Q24 range (+-128
+    /// raw voltage per raw speed LSB).
     pub fn from_state_space(
         a: &[Vec<f64>],
         b: &[f64],
@@ -236,35 +303,6 @@ impl FixedCtrl {
         if let Some(l) = lam.iter().find(|l| l.abs() > 1.0 + 1e-12) {
             return bad(format!("pole {l} outside the unit circle"));
         }
-        // V: column p is the eigenvector of lam[p] (unit at p, zero above)
-        let sub = |r: usize, s: usize| a[keep[r]][keep[s]];
-        let mut v = vec![vec![0.0; m]; m];
-        for p in 0..m {
-            v[p][p] = 1.0;
-            for r in p + 1..m {
-                let s: f64 = (p..r).map(|k| sub(r, k) * v[k][p]).sum();
-                if s == 0.0 {
-                    continue; // not coupled: equal poles are two sections
-                }
-                if (lam[p] - lam[r]).abs() < 1e-9 {
-                    return bad(format!(
-                        "repeated pole {} coupled to itself (a double integrator, or a \
-                         difference after a pole that rounds to 0): not a set of first-order \
-                         sections",
-                        lam[p]
-                    ));
-                }
-                v[r][p] = s / (lam[p] - lam[r]);
-            }
-        }
-        // w = V^-1 B by forward substitution (V unit lower triangular)
-        let mut w = vec![0.0; m];
-        for r in 0..m {
-            w[r] = b[keep[r]] - (0..r).map(|k| v[r][k] * w[k]).sum::<f64>();
-        }
-        let cv: Vec<f64> = (0..m)
-            .map(|p| (p..m).map(|r| c[keep[r]] * v[r][p]).sum())
-            .collect();
         let q = |x: f64, scale: f64, what: &str| -> Result<i32> {
             let q = (x * scale).round();
             if q.abs() > i32::MAX as f64 {
@@ -276,25 +314,90 @@ impl FixedCtrl {
             }
             Ok(q as i32)
         };
+        let sub = |r: usize, s: usize| a[keep[r]][keep[s]];
+        let repeated = |l: f64| {
+            bad::<()>(format!(
+                "repeated pole {l} coupled to itself (a double integrator): not a set of \
+                 first-order sections"
+            ))
+        };
+        // the slow modes: section p is lam[p] with g = (C v)(w B), v and w its right and left
+        // eigenvectors (v zero above p, w zero below, v_p = w_p = 1, so w v = 1)
+        // the chained fast modes: poles below FAST_POLE that drive or are driven by another
+        // (a difference after poles that round to 0): the delay taps hold them. A fast pole
+        // alone (a FOPI's fastest cells) stays a section.
+        let fast = |p: usize| lam[p].abs() < FAST_POLE;
+        let chained: Vec<bool> = (0..m)
+            .map(|p| {
+                fast(p)
+                    && (0..m).any(|r| r != p && fast(r) && (sub(r, p) != 0.0 || sub(p, r) != 0.0))
+            })
+            .collect();
+        let mut modes = Vec::new();
+        for p in (0..m).filter(|&p| !chained[p]) {
+            let mut v = vec![0.0; m];
+            v[p] = 1.0;
+            for r in p + 1..m {
+                let s: f64 = (p..r).map(|k| sub(r, k) * v[k]).sum();
+                if s != 0.0 {
+                    if (lam[p] - lam[r]).abs() < 1e-9 {
+                        repeated(lam[p])?;
+                    }
+                    v[r] = s / (lam[p] - lam[r]);
+                }
+            }
+            let mut w = vec![0.0; m];
+            w[p] = 1.0;
+            for r in (0..p).rev() {
+                let s: f64 = (r + 1..=p).map(|k| w[k] * sub(k, r)).sum();
+                if s != 0.0 {
+                    if (lam[p] - lam[r]).abs() < 1e-9 {
+                        repeated(lam[p])?;
+                    }
+                    w[r] = s / (lam[p] - lam[r]);
+                }
+            }
+            let cv: f64 = (p..m).map(|r| c[keep[r]] * v[r]).sum();
+            let wb: f64 = (0..=p).map(|r| w[r] * b[keep[r]]).sum();
+            modes.push((lam[p], cv * wb));
+        }
         let mut sections = Vec::new();
-        for p in 0..m {
-            let g = q(gain_raw * cv[p] * w[p], Q24, "a section's gain")?;
+        for &(l, g) in &modes {
+            let g = q(gain_raw * g, Q24, "a section's gain")?;
             if g != 0 {
                 sections.push(Section {
-                    a_q30: (lam[p].clamp(-1.0, 1.0) * (1u64 << 30) as f64).round() as i32,
+                    a_q30: (l.clamp(-1.0, 1.0) * (1u64 << 30) as f64).round() as i32,
                     g_q24: g,
                 });
             }
         }
-        if sections.len() > MAX_SECTIONS as usize {
+        let mut taps = if chained.contains(&true) {
+            fast_taps(a, b, c, &keep, &modes, gain_raw, &q)?
+        } else {
+            Vec::new()
+        };
+        if taps.len() == 1 {
+            // one tap is a section at the origin, `h_1 / z` (bit for bit: `z <- 0 + 2^8 h_1 e'`),
+            // which format 1 (firmware 1.1) runs: a FOPI's fast poles
+            sections.push(Section {
+                a_q30: 0,
+                g_q24: taps[0],
+            });
+            taps.clear();
+        }
+        if sections.len() > MAX_SECTIONS_TAPS as usize {
             return bad(format!(
-                "{} sections (the drive takes at most {MAX_SECTIONS}): a lower approximation order",
+                "{} sections (the drive takes at most {MAX_SECTIONS_TAPS}): a lower \
+                 approximation order",
                 sections.len()
             ));
         }
         let d_raw = gain_raw * d;
         let d_q24 = q(d_raw, Q24, "the feed-through")?;
-        let dinv_q16 = if d_raw.abs() >= 2.0 / 65536.0 {
+        // Hanus' conditioning runs the controller's inverse while clamped: unstable with a
+        // zero outside the unit circle (a FOPID's derivative puts one near z = -20)
+        let hanus = hanus_is_stable(a, b, c, d, &keep);
+        let dinv_q16 = if hanus && d_raw.abs() >= 2.0 / 65536.0 {
             q(1.0 / d_raw, 65536.0, "1/feed-through").unwrap_or(0)
         } else {
             0
@@ -303,8 +406,71 @@ impl FixedCtrl {
             d_q24,
             dinv_q16,
             sections,
+            taps,
         })
     }
+}
+
+/// Whether Hanus' conditioning is stable for the realisation's kept states: the states updated
+/// with the error `(u_clamped - C x) / D` evolve as `x <- (A - B C / D) x + B u_clamped / D`,
+/// whose eigenvalues are the controller's zeros; the conditioning is right when they are within
+/// the unit circle (spectral radius at most `1 + 1e-6`: a FOPI's zeros near `z = 1`), wrong
+/// (the states run away, the command chatters between the limits) otherwise. `false` without
+/// feed-through.
+pub fn hanus_is_stable(a: &[Vec<f64>], b: &[f64], c: &[f64], d: f64, keep: &[usize]) -> bool {
+    if d == 0.0 || !d.is_finite() {
+        return false;
+    }
+    let n = keep.len();
+    let m = nalgebra::DMatrix::from_fn(n, n, |i, j| {
+        a[keep[i]][keep[j]] - b[keep[i]] * c[keep[j]] / d
+    });
+    m.complex_eigenvalues()
+        .iter()
+        .all(|z| z.norm() <= 1.0 + 1e-6)
+}
+
+/// Poles of modulus below this that drive or are driven by another such pole (a chain) are the
+/// fast modes the delay taps hold ([`fast_taps`]).
+pub const FAST_POLE: f64 = 1e-3;
+
+/// The delay taps of the chained fast modes: the impulse response of the kept states' system,
+/// `C A^(k-1) B` (its Markov parameters), less the sections' `sum g_p lam_p^(k-1)` (`modes`), in
+/// raw Q24, for `k = 1..=MAX_TAPS + 4`; trailing taps that round to 0 are dropped. A chain of `n`
+/// states at the origin ends after `n` samples, a pole below [`FAST_POLE`] falls by 1e-3 a
+/// sample: the taps past the last kept one round to 0 (checked up to `MAX_TAPS + 4`).
+fn fast_taps(
+    a: &[Vec<f64>],
+    b: &[f64],
+    c: &[f64],
+    keep: &[usize],
+    modes: &[(f64, f64)],
+    gain_raw: f64,
+    q: &dyn Fn(f64, f64, &str) -> Result<i32>,
+) -> Result<Vec<i32>> {
+    let n_check = MAX_TAPS as usize + 4;
+    let mut x: Vec<f64> = keep.iter().map(|&i| b[i]).collect();
+    let mut taps = Vec::with_capacity(n_check);
+    for k in 1..=n_check {
+        let h: f64 = keep.iter().zip(&x).map(|(&i, x)| c[i] * x).sum();
+        let slow: f64 = modes.iter().map(|(l, g)| g * l.powi(k as i32 - 1)).sum();
+        taps.push(q(gain_raw * (h - slow), Q24, "a delay tap")?);
+        x = keep
+            .iter()
+            .map(|&i| keep.iter().zip(&x).map(|(&j, x)| a[i][j] * x).sum())
+            .collect();
+    }
+    while taps.last() == Some(&0) {
+        taps.pop();
+    }
+    if taps.len() > MAX_TAPS as usize {
+        return Err(Error::InvalidParam(format!(
+            "controller: its fast modes (poles below {FAST_POLE}) need {} delay taps (the drive \
+             takes at most {MAX_TAPS})",
+            taps.len()
+        )));
+    }
+    Ok(taps)
 }
 
 #[cfg(test)]
@@ -371,5 +537,129 @@ mod tests {
         assert!(
             FixedCtrl::from_state_space(&[vec![1.0, 0.0], vec![0.3, 1.0]], &b, &c, d, 1.0).is_err()
         );
+    }
+
+    /// `C (zI - A)^-1 B + D` of a lower-triangular `A` by forward substitution.
+    fn ss_response(a: &[Vec<f64>], b: &[f64], c: &[f64], d: f64, z: Complex64) -> Complex64 {
+        let mut x = vec![Complex64::new(0.0, 0.0); a.len()];
+        for i in 0..a.len() {
+            let s: Complex64 = (0..i).map(|j| x[j] * a[i][j]).sum();
+            x[i] = (s + b[i]) / (z - a[i][i]);
+        }
+        x.iter().zip(c).map(|(x, c)| x * c).sum::<Complex64>() + d
+    }
+
+    /// A FOPID-like realisation: an integrator, then `s^-(1-mu)`'s modes (a slow pole, a fast
+    /// one at 1e-20 and one exactly 0) followed by a backward difference (another pole at 0,
+    /// driven by the fast ones: a Jordan chain at the origin). First-order sections alone
+    /// refused it; now the fast modes are delay taps and the response is the realisation's.
+    #[test]
+    fn difference_after_fast_poles_becomes_delay_taps() {
+        let dt = 1e-3;
+        let (c1, c2, c3, dr) = (0.3, 2.0, 0.7, 0.05);
+        // x0 integrator; x1 (0.9), x2 (1e-20), x3 (0): the modes; x4: the difference's state
+        let a = vec![
+            vec![1.0, 0.0, 0.0, 0.0, 0.0],
+            vec![0.0, 0.9, 0.0, 0.0, 0.0],
+            vec![0.0, 0.0, 1e-20, 0.0, 0.0],
+            vec![0.0, 0.0, 0.0, 0.0, 0.0],
+            vec![0.0, c1, c2, c3, 0.0],
+        ];
+        let b = [dt, 0.1, 1.0, 0.5, dr];
+        let c = [20.0, c1 / dt, c2 / dt, c3 / dt, -1.0 / dt];
+        let d = 0.4 + dr / dt;
+        let gain_raw = 0.02;
+        let k = FixedCtrl::from_state_space(&a, &b, &c, d, gain_raw).unwrap();
+        assert_eq!(k.sections.len(), 2, "{k:?}");
+        assert!(k.sections.iter().all(|s| s.a_q30 != 0));
+        assert_eq!(k.taps.len(), 2, "{k:?}");
+        assert_eq!(k.format(), CTRL_FORMAT_TAPS);
+        for w in [1.0, 30.0, 300.0, 3000.0] {
+            let z = Complex64::from_polar(1.0, w * dt);
+            let want = ss_response(&a, &b, &c, d, z);
+            let got = k.freq_response(w, dt, gain_raw);
+            // the integrator's gain, 4e-4 raw, is 6711 in Q24: its rounding is 7.5e-5 of it
+            assert!(
+                (got - want).norm() < 2e-4 * want.norm(),
+                "{w}: {got} {want}"
+            );
+        }
+        // in time: the impulse response of the fixed-point controller (an error of 100 LSB,
+        // then 0) against the realisation's, within a raw LSB
+        let mut z = vec![0; k.n_states()];
+        let mut x = [0.0; 5];
+        for n in 0..40 {
+            let e = if n == 0 { 100.0 } else { 0.0 };
+            let want: f64 = (0..5).map(|i| c[i] * x[i]).sum::<f64>() + d * e;
+            let (u, _) = k.step(&mut z, e as i32, i16::MAX);
+            assert!(
+                (u as f64 - gain_raw * want).abs() <= 1.0,
+                "sample {n}: {u} vs {}",
+                gain_raw * want
+            );
+            let prev = x;
+            for i in 0..5 {
+                x[i] = (0..5).map(|j| a[i][j] * prev[j]).sum::<f64>() + b[i] * e;
+            }
+        }
+    }
+
+    /// The delay line holds the conditioned errors: with the output clamped, a tap sees the
+    /// error that gave the clamped output (Hanus), not the error itself.
+    #[test]
+    fn delay_line_takes_the_conditioned_error() {
+        let k = FixedCtrl {
+            d_q24: 2 << 24,
+            dinv_q16: 1 << 15,
+            sections: vec![],
+            taps: vec![1 << 24, -(1 << 24)],
+        };
+        let mut z = vec![0; 2];
+        // u = 2 e_k + w_1 - w_2: 2 * 100 = 200 > 150: clamped, e' = 150 / 2 = 75
+        assert_eq!(k.step(&mut z, 100, 150), (150, true));
+        assert_eq!(z, [75, 0]);
+        // u = 2 * 10 + 75 - 0 = 95, not clamped: the line shifts the error in
+        assert_eq!(k.step(&mut z, 10, 150), (95, false));
+        assert_eq!(z, [10, 75]);
+        assert_eq!(k.step(&mut z, 0, 150), (10 - 75, false));
+        assert_eq!(z, [0, 10]);
+    }
+
+    /// A fast pole alone (a FOPI's fastest cells, `e^(p dt)` ~ 1e-20, fed by the error only)
+    /// stays a section (at the origin once quantised): no taps, format 1, which firmware 1.1
+    /// runs.
+    #[test]
+    fn an_unchained_fast_pole_stays_a_section() {
+        let a = [
+            vec![1.0, 0.0, 0.0],
+            vec![0.0, 0.5, 0.0],
+            vec![0.0, 0.0, 1e-20],
+        ];
+        let (b, c) = ([1e-3, 0.2, 0.3], [30.0, 2.0, -4.0]);
+        let k = FixedCtrl::from_state_space(&a, &b, &c, 0.7, 1.0).unwrap();
+        assert!(k.taps.is_empty(), "{k:?}");
+        assert_eq!(k.sections.len(), 3);
+        assert_eq!(k.sections[2].a_q30, 0);
+        assert_eq!(k.format(), CTRL_FORMAT);
+        for w in [1.0, 100.0, 3000.0] {
+            let z = Complex64::from_polar(1.0, w * 1e-3);
+            let want = ss_response(&a, &b, &c, 0.7, z);
+            let got = k.freq_response(w, 1e-3, 1.0);
+            assert!(
+                (got - want).norm() < 1e-6 * want.norm(),
+                "{w}: {got} {want}"
+            );
+        }
+    }
+
+    /// A zero outside the unit circle (`0.1 + 2/(z - 0.5)`: zero at `z = -19.5`) makes Hanus'
+    /// conditioning unstable: conditional integration (`dinv` 0) instead; the same form with a
+    /// zero inside (`0.1 + 0.02/(z - 0.5)`: `z = 0.3`) keeps Hanus.
+    #[test]
+    fn hanus_only_with_the_zeros_inside_the_unit_circle() {
+        let k = FixedCtrl::from_state_space(&[vec![0.5]], &[1.0], &[2.0], 0.1, 1.0).unwrap();
+        assert_eq!((k.d_q24 != 0, k.dinv_q16), (true, 0));
+        let k = FixedCtrl::from_state_space(&[vec![0.5]], &[1.0], &[0.02], 0.1, 1.0).unwrap();
+        assert_eq!(k.dinv_q16, 655_360);
     }
 }

@@ -38,7 +38,8 @@ pub mod ty {
     pub const END_QUERY: u8 = 0x09;
     /// LOAD_CTRL (firmware 1.1): the controller's header; clears its sections.
     pub const LOAD_CTRL: u8 = 0x0A;
-    /// LOAD_SECTION (firmware 1.1): one first-order section of the controller.
+    /// LOAD_SECTION (firmware 1.1): one first-order section of the controller (or, format 2, one
+    /// delay tap).
     pub const LOAD_SECTION: u8 = 0x0B;
     /// START_LOOP (firmware 1.1): a speed loop with a reference step.
     pub const START_LOOP: u8 = 0x0C;
@@ -222,21 +223,33 @@ impl StartSine {
 }
 
 /// The controller format LOAD_CTRL carries: 1, parallel first-order sections in Q-format
-/// (poles Q30, gains Q24, 64-bit states Q32)
+/// (poles Q30, gains Q24, 64-bit states Q32), at most [`MAX_SECTIONS`] (firmware 1.1)
 /// (PROTOCOL.md section 3, "Speed loop").
 pub const CTRL_FORMAT: u8 = 1;
-/// The most sections a controller has.
+/// The most sections a controller of format [`CTRL_FORMAT`] has.
 pub const MAX_SECTIONS: u8 = 24;
+/// Controller format 2 (firmware 1.2): the sections of format 1, at most [`MAX_SECTIONS_TAPS`],
+/// and a short delay chain, at most [`MAX_TAPS`] taps `h_j` on the past conditioned errors
+/// `e'_(k-j)`, `j = 1..=n_taps` (the fast modes of a derivative's realisation: backward
+/// differences after poles that round to 0).
+pub const CTRL_FORMAT_TAPS: u8 = 2;
+/// The most sections a controller of format [`CTRL_FORMAT_TAPS`] has.
+pub const MAX_SECTIONS_TAPS: u8 = 48;
+/// The most delay taps a controller of format [`CTRL_FORMAT_TAPS`] has.
+pub const MAX_TAPS: u8 = 8;
 
-/// LOAD_CTRL payload: the controller `u = d e + sum_i z_i`, `z_i <- a_i z_i + g_i e` (PROTOCOL.md
-/// section 3): its format, number of sections and feed-through; the sections follow in
-/// LOAD_SECTION frames.
+/// LOAD_CTRL payload: the controller `u = d e + sum_i z_i + sum_j h_j e_(k-j)`, `z_i <- a_i z_i +
+/// g_i e` (PROTOCOL.md section 3): its format, number of sections and of delay taps, and
+/// feed-through; the sections, then the taps, follow in LOAD_SECTION frames.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct LoadCtrl {
     /// Controller format ([`CTRL_FORMAT`]); a drive NAKs a format it does not know.
     pub format: u8,
-    /// Number of sections, 0..=[`MAX_SECTIONS`].
+    /// Number of sections, 0..=[`MAX_SECTIONS`] (format 1), 0..=[`MAX_SECTIONS_TAPS`] (format 2).
     pub n_sections: u8,
+    /// Number of delay taps, 0..=[`MAX_TAPS`] (format 2; 0 in format 1, where this byte is
+    /// reserved).
+    pub n_taps: u8,
     /// Feed-through `d`, Q24 (raw voltage LSB per raw speed LSB, times 2^24).
     pub d_q24: i32,
     /// `1/d` for the anti-windup, Q16 (raw speed LSB per raw voltage LSB, times 2^16); 0 without
@@ -245,7 +258,9 @@ pub struct LoadCtrl {
     pub dinv_q16: i32,
 }
 
-/// LOAD_SECTION payload: section `index` of the controller loaded by LOAD_CTRL.
+/// LOAD_SECTION payload: section `index` of the controller loaded by LOAD_CTRL; from index
+/// `n_sections` on (format 2), the delay taps `h_1, h_2, ...` in order (`a_q30` 0, `g_q24` the
+/// tap).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct LoadSection {
     /// Its index; sections are loaded in order (the next index expected).
@@ -715,7 +730,8 @@ impl Message {
             Message::LoadCtrl(c) => {
                 w.u8(c.format);
                 w.u8(c.n_sections);
-                w.u16(0);
+                w.u8(c.n_taps);
+                w.u8(0);
                 w.i32(c.d_q24);
                 w.i32(c.dinv_q16);
             }
@@ -866,12 +882,14 @@ impl Message {
             ty::LOAD_CTRL => {
                 let format = r.u8();
                 let n_sections = r.u8();
-                if r.u16() != 0 {
+                let n_taps = r.u8();
+                if r.u8() != 0 {
                     return Err(bad);
                 }
                 Message::LoadCtrl(LoadCtrl {
                     format,
                     n_sections,
+                    n_taps,
                     d_q24: r.i32(),
                     dinv_q16: r.i32(),
                 })

@@ -717,8 +717,9 @@ struct CState {
 }
 
 const FW_MAJOR: u8 = 1;
-/// 1.1: the speed loop (LOAD_CTRL, LOAD_SECTION, START_LOOP).
-const FW_MINOR: u8 = 1;
+/// 1.1: the speed loop (LOAD_CTRL, LOAD_SECTION, START_LOOP); 1.2: controller format 2 (up to 48
+/// sections and 8 delay taps).
+const FW_MINOR: u8 = 2;
 
 impl Firmware {
     fn new(cfg: SimConfig, master: TTYPort, stats: Arc<Mutex<SimStats>>) -> Result<Self> {
@@ -1224,7 +1225,7 @@ impl Firmware {
                     return a;
                 }
                 let ctrl = match &self.ctrl_load {
-                    Some((h, s)) if s.len() == h.n_sections as usize => {
+                    Some((h, s)) if s.len() == h.n_sections as usize + h.n_taps as usize => {
                         crate::ctrl::FixedCtrl::from_messages(h, s)
                     }
                     _ => return self.nak(f, NakCode::NoController, 0),
@@ -1235,7 +1236,7 @@ impl Firmware {
                 if l.total_samples == 0 {
                     return self.nak(f, NakCode::BadValue, 8);
                 }
-                let z = vec![0; ctrl.sections.len()];
+                let z = vec![0; ctrl.n_states()];
                 let exc = Excitation::Loop { p: *l, ctrl, z };
                 self.start_run(f, l.total_samples, exc, true, now)
             }
@@ -1321,11 +1322,16 @@ impl Firmware {
         if self.conf.is_none() {
             return self.nak(f, NakCode::NotConfigured, 0);
         }
-        if c.format != CTRL_FORMAT {
-            return self.nak(f, NakCode::BadValue, 0);
-        }
-        if c.n_sections > MAX_SECTIONS {
+        let (max_sections, max_taps) = match c.format {
+            CTRL_FORMAT => (MAX_SECTIONS, 0),
+            CTRL_FORMAT_TAPS => (MAX_SECTIONS_TAPS, MAX_TAPS),
+            _ => return self.nak(f, NakCode::BadValue, 0),
+        };
+        if c.n_sections > max_sections {
             return self.nak(f, NakCode::BadValue, 1);
+        }
+        if c.n_taps > max_taps {
+            return self.nak(f, NakCode::BadValue, 2);
         }
         self.ctrl_load = Some((*c, Vec::new()));
         self.ack(f, 0, 0)
@@ -1339,13 +1345,16 @@ impl Firmware {
             return self.nak(f, NakCode::NotConfigured, 0);
         }
         let next = match &self.ctrl_load {
-            Some((h, s)) if (s.len() as u8) < h.n_sections => s.len() as u8,
+            Some((h, s)) if s.len() < h.n_sections as usize + h.n_taps as usize => {
+                (s.len() as u8, s.len() >= h.n_sections as usize)
+            }
             _ => return self.nak(f, NakCode::BadValue, 0),
         };
-        if c.index != next {
+        if c.index != next.0 {
             return self.nak(f, NakCode::BadValue, 0);
         }
-        if c.a_q30.unsigned_abs() > 1 << 30 {
+        // a pole within the unit circle; a tap's pole field 0
+        if c.a_q30.unsigned_abs() > 1 << 30 || (next.1 && c.a_q30 != 0) {
             return self.nak(f, NakCode::BadValue, 2);
         }
         if let Some((_, s)) = self.ctrl_load.as_mut() {

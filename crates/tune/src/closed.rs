@@ -11,8 +11,9 @@
 //! Anti-windup: with a voltage limit ([`LoopSetup::u_limit`], or a saturation among the input
 //! effects) the controller's output is clamped and its states are conditioned on the clamp as
 //! the drive's controller does (`drive::ctrl`, Hanus' conditioning): they are updated with the
-//! error `(u_clamped - C_c x_c) / D_c` that gives the clamped output, or, without feed-through,
-//! frozen while the error pushes further into the clamp.
+//! error `(u_clamped - C_c x_c) / D_c` that gives the clamped output, or, without feed-through or
+//! when that conditioning is unstable (a zero of the controller outside the unit circle, as a
+//! FOPID's derivative gives), frozen while the error pushes further into the clamp.
 
 use crate::controller::Controller;
 use crate::error::{invalid, Result};
@@ -256,6 +257,7 @@ pub fn simulate(
     let css = crate::realise::discrete(c, h * m as f64, spec)?;
     let mut ctrl = Sys::new(css);
     let (dp, dc) = (plant.ss.d, ctrl.ss.d);
+    let hanus = hanus_is_stable(&ctrl.ss);
     if !effects.is_empty() && dp != 0.0 {
         return invalid(
             "effects",
@@ -301,7 +303,7 @@ pub fn simulate(
             let e = r - y;
             if u == v {
                 ctrl.advance(e);
-            } else if dc != 0.0 {
+            } else if hanus {
                 // Hanus: the error that gives the clamped output
                 ctrl.advance((u - cc) / dc);
             } else if !((v > limit && e > 0.0) || (v < -limit && e < 0.0)) {
@@ -328,6 +330,21 @@ pub fn simulate(
         run.y.push(y);
     }
     Ok(run)
+}
+
+/// Whether Hanus' conditioning is stable for the controller `ss`: while clamped its states
+/// evolve as `x <- (A - B C / D) x + B u_clamped / D`, whose eigenvalues are its zeros; right
+/// when they are within the unit circle (spectral radius at most `1 + 1e-6`), wrong otherwise (a
+/// FOPID's derivative puts a zero near `z = -20`: the states run away). `false` without
+/// feed-through. The drive makes the same choice (`drive::ctrl::hanus_is_stable`).
+fn hanus_is_stable(ss: &StateSpace) -> bool {
+    if ss.d == 0.0 || !ss.d.is_finite() {
+        return false;
+    }
+    let m = &ss.a - &ss.b * &ss.c / ss.d;
+    m.complex_eigenvalues()
+        .iter()
+        .all(|z| z.norm() <= 1.0 + 1e-6)
 }
 
 /// A step response's figures.

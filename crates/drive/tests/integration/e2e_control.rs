@@ -665,3 +665,115 @@ fn virtual_time_still_expires_a_silent_host() {
     check_consistent(&acq);
     check_truth(&acq, &s);
 }
+
+/// A drive of firmware 1.1 runs controller format 1 only: it answers LOAD_CTRL of format 2 with
+/// NAK BAD_VALUE detail 0 (as the 1.1 engine did for any other format). The host sends a
+/// controller that fits format 1 (sections only, at most 24) in format 1, which that drive
+/// loads, and for a FOPID's (delay taps) says that it needs firmware 1.2. The drive here is a
+/// firmware-1.1 stand-in on a real pty: HELLO, CONFIGURE, LOAD_CTRL and LOAD_SECTION as 1.1
+/// answers them.
+#[test]
+fn a_drive_of_firmware_1_1_loads_format_1_and_a_fopid_is_said_to_need_1_2() {
+    use drive::codec::{decode_body, encode_body_as, wrap_body};
+    use drive::ctrl::{FixedCtrl, Section};
+    use drive::protocol::{Ack, Frame, HelloReply, Message, Nak, NakCode, PROTO_VERSION};
+    use serialport::{SerialPort, TTYPort};
+    use std::io::{Read, Write};
+    let (mut master, slave) = TTYPort::pair().expect("a pty pair");
+    let path = slave.name().expect("the slave's path");
+    drop(slave);
+    master
+        .set_timeout(Duration::from_millis(20))
+        .expect("timeout");
+    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let stop2 = stop.clone();
+    let drive_1_1 = std::thread::spawn(move || {
+        let (mut buf, mut frame, mut formats) = ([0u8; 512], Vec::new(), Vec::new());
+        while !stop2.load(std::sync::atomic::Ordering::SeqCst) {
+            let n = match master.read(&mut buf) {
+                Ok(n) => n,
+                Err(_) => continue,
+            };
+            for &b in &buf[..n] {
+                if b != 0 {
+                    frame.push(b);
+                    continue;
+                }
+                let body = cobs::decode_vec(&frame);
+                frame.clear();
+                let Ok(Ok(f)) = body.map(|b| decode_body(&b)) else {
+                    continue;
+                };
+                let ack = |t: u8| {
+                    Message::Ack(Ack {
+                        acked_type: t,
+                        run_id: 0,
+                        total_samples: 0,
+                    })
+                };
+                let msg = match f.msg {
+                    Message::Hello => Message::HelloReply(HelloReply {
+                        proto_version: PROTO_VERSION,
+                        fw_major: 1,
+                        fw_minor: 1,
+                        n_channels: 3,
+                        max_block_samples: 66,
+                        boot_id: 0x1111,
+                        max_sample_rate_hz: 20_000,
+                    }),
+                    Message::LoadCtrl(c) => {
+                        formats.push(c.format);
+                        if c.format == 1 && c.n_sections <= 24 {
+                            ack(0x0A)
+                        } else {
+                            Message::Nak(Nak {
+                                nak_type: 0x0A,
+                                code: NakCode::BadValue,
+                                detail: if c.format == 1 { 1 } else { 0 },
+                            })
+                        }
+                    }
+                    Message::Configure(_) => ack(0x02),
+                    Message::LoadSection(_) => ack(0x0B),
+                    _ => continue,
+                };
+                let reply = Frame { seq: f.seq, msg };
+                let _ = master.write_all(&wrap_body(&encode_body_as(&reply, PROTO_VERSION)));
+            }
+        }
+        formats
+    });
+    let mut c = Client::open(
+        &path,
+        ClientConfig {
+            baud: BAUD,
+            timeout: Some(Duration::from_millis(300)),
+            retries: 1,
+            ..ClientConfig::default()
+        },
+    )
+    .expect("client opens");
+    c.configure(&Configure::default()).expect("configure");
+    let s = |a: i32, g: i32| Section { a_q30: a, g_q24: g };
+    let fopi = FixedCtrl {
+        d_q24: 1 << 24,
+        dinv_q16: 1 << 16,
+        sections: vec![s(1 << 30, 5000), s(0, 70)],
+        taps: vec![],
+    };
+    let fopid = FixedCtrl {
+        taps: vec![-9000, 400],
+        ..fopi.clone()
+    };
+    let r1 = c.load_controller(&fopi);
+    let r2 = c.load_controller(&fopid);
+    stop.store(true, std::sync::atomic::Ordering::SeqCst);
+    let formats = drive_1_1.join().unwrap();
+    r1.expect("firmware 1.1 loads a controller of format 1");
+    let e = r2.expect_err("firmware 1.1 refuses format 2").to_string();
+    assert!(
+        e.contains("firmware 1.1") && e.contains("format 2") && e.contains("needs firmware 1.2"),
+        "{e}"
+    );
+    assert_eq!(formats, [1, 2]);
+}

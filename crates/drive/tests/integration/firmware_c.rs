@@ -134,3 +134,98 @@ fn e2e_simulators_run_the_firmware_of_the_environment() {
         std::env::var("FRACID_SIM_FIRMWARE").ok()
     );
 }
+
+/// The controller download's checks (PROTOCOL.md "Speed loop", LOAD_CTRL and LOAD_SECTION) on
+/// the Rust and the C firmware alike: each refusal's NAK code and detail, then a format-2
+/// controller (a section and two taps) loaded and a loop started only once it is complete.
+#[test]
+fn both_firmwares_check_a_controller_download_alike() {
+    use drive::protocol::{
+        LoadCtrl, LoadSection, Message, NakCode, StartLoop, CTRL_FORMAT, CTRL_FORMAT_TAPS,
+    };
+    let _g = lock();
+    let head = |format, n_sections, n_taps| {
+        Message::LoadCtrl(LoadCtrl {
+            format,
+            n_sections,
+            n_taps,
+            d_q24: 1 << 24,
+            dinv_q16: 1 << 16,
+        })
+    };
+    let sec = |index, a_q30, g_q24| {
+        Message::LoadSection(LoadSection {
+            index,
+            a_q30,
+            g_q24,
+        })
+    };
+    let start = Message::StartLoop(StartLoop {
+        r0: 0,
+        r1: 100,
+        pre_samples: 5,
+        total_samples: 10,
+    });
+    // (request, the NAK's detail, or None for an ACK)
+    let script: Vec<(Message, Option<u16>)> = vec![
+        (head(3, 1, 0), Some(0)),
+        (head(CTRL_FORMAT, 25, 0), Some(1)),
+        (head(CTRL_FORMAT, 1, 1), Some(2)),
+        (head(CTRL_FORMAT_TAPS, 49, 0), Some(1)),
+        (head(CTRL_FORMAT_TAPS, 1, 9), Some(2)),
+        (head(CTRL_FORMAT_TAPS, 1, 2), None),
+        (sec(1, 0, 5), Some(0)),
+        (sec(0, 1 << 30, 5000), None),
+        (sec(1, 7, -9000), Some(2)),
+        (sec(1, 0, -9000), None),
+        (sec(2, 0, 400), None),
+        (sec(3, 0, 400), Some(0)),
+    ];
+    for fw in [FirmwareKind::Rust, FirmwareKind::C] {
+        let s = DriveSim::spawn(SimConfig {
+            firmware: fw,
+            clock: SimClock::Virtual,
+            baud: BAUD,
+            ..SimConfig::default()
+        })
+        .expect("simulator starts");
+        let mut c = vclient(s.port_path(), BAUD);
+        for (k, (msg, want)) in script.iter().enumerate() {
+            if k == 9 {
+                // a tap still missing: no controller to run
+                match c.request(start.clone()) {
+                    Err(drive::Error::Nak {
+                        code: NakCode::NoController,
+                        ..
+                    }) => {}
+                    other => panic!("{fw:?}: START_LOOP with a tap missing: {other:?}"),
+                }
+            }
+            let got = c.request(msg.clone());
+            match (want, got) {
+                (None, Ok(Message::Ack(_))) => {}
+                (
+                    Some(d),
+                    Err(drive::Error::Nak {
+                        code: NakCode::BadValue,
+                        detail,
+                        ..
+                    }),
+                ) if detail == *d => {}
+                (w, g) => panic!("{fw:?}: step {k} {msg:?}: want NAK detail {w:?}, got {g:?}"),
+            }
+        }
+        let acq = c
+            .run_loop(
+                &StartLoop {
+                    r0: 0,
+                    r1: 100,
+                    pre_samples: 5,
+                    total_samples: 10,
+                },
+                &mut NullSink,
+            )
+            .expect("the loop runs with the complete controller");
+        assert!(acq.complete, "{fw:?}: {:?}", acq.problems);
+    }
+}

@@ -12,14 +12,22 @@ fn arb_msg() -> impl Strategy<Value = Message> {
         Just(Message::Status),
         Just(Message::Keepalive),
         any::<u16>().prop_map(Message::EndQuery),
-        (any::<u8>(), any::<u8>(), any::<i32>(), any::<i32>()).prop_map(|(f, n, d, di)| {
-            Message::LoadCtrl(LoadCtrl {
-                format: f,
-                n_sections: n,
-                d_q24: d,
-                dinv_q16: di,
-            })
-        }),
+        (
+            any::<u8>(),
+            any::<u8>(),
+            any::<u8>(),
+            any::<i32>(),
+            any::<i32>()
+        )
+            .prop_map(|(f, n, m, d, di)| {
+                Message::LoadCtrl(LoadCtrl {
+                    format: f,
+                    n_sections: n,
+                    n_taps: m,
+                    d_q24: d,
+                    dinv_q16: di,
+                })
+            }),
         (any::<u8>(), any::<i32>(), any::<i32>()).prop_map(|(i, a, g)| {
             Message::LoadSection(LoadSection {
                 index: i,
@@ -298,15 +306,17 @@ fn arb_ctrl() -> impl Strategy<Value = drive::ctrl::FixedCtrl> {
     (
         any::<i32>(),
         any::<i32>(),
-        prop::collection::vec((-(1i32 << 30)..=(1 << 30), any::<i32>()), 0..=24),
+        prop::collection::vec((-(1i32 << 30)..=(1 << 30), any::<i32>()), 0..=48),
+        prop::collection::vec(any::<i32>(), 0..=8),
     )
-        .prop_map(|(d, di, s)| drive::ctrl::FixedCtrl {
+        .prop_map(|(d, di, s, taps)| drive::ctrl::FixedCtrl {
             d_q24: d,
             dinv_q16: di >> 12,
             sections: s
                 .into_iter()
                 .map(|(a, g)| drive::ctrl::Section { a_q30: a, g_q24: g })
                 .collect(),
+            taps,
         })
 }
 
@@ -314,14 +324,15 @@ proptest! {
     #![proptest_config(ProptestConfig::with_cases(256))]
 
     /// The C firmware's controller and the Rust one agree bit for bit (outputs, clamp flags,
-    /// states) on any controller, limit and error sequence.
+    /// states and delay lines) on any controller (up to 48 sections and 8 delay taps), limit
+    /// and error sequence.
     #[test]
     fn controller_c_and_rust_agree(
         k in arb_ctrl(),
         lim in 1i16..=32767,
         errs in prop::collection::vec(-65534i32..=65534, 1..60),
     ) {
-        let mut zr = vec![0; k.sections.len()];
+        let mut zr = vec![0; k.n_states()];
         let mut zc = zr.clone();
         for e in errs {
             let r = k.step(&mut zr, e, lim);

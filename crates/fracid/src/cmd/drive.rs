@@ -642,6 +642,85 @@ pub(crate) fn lost_output(e: anyhow::Error, output: &std::path::Path, what: &str
     }
 }
 
+/// Connect to the drive, show the progress in `unit` (unless quiet or not a terminal), and run
+/// `body` on the client with the first SIGINT/SIGTERM/SIGHUP stopping the drive (what arrived is
+/// kept, the output says what is missing): the body's result and the signal that came during
+/// it, if one did. The acquisition runs of `prbs`, `sine` and `loop` go through it.
+///
+/// # Errors
+/// Connecting to the drive (see [`connect`]).
+pub(crate) fn run_on_drive<T>(
+    port: &PortArgs,
+    conf: &Configure,
+    unit: &str,
+    body: impl FnOnce(&mut Client) -> T,
+) -> Result<(T, Option<i32>)> {
+    let mut c = connect(port, conf)?;
+    let pb = progress_bar(port.quiet, unit);
+    attach(&mut c, &pb);
+    let signals = StopOnInterrupt::arm(c.stop_handle());
+    let out = body(&mut c);
+    let signal = signals.signal();
+    drop(signals);
+    if let Some(pb) = pb {
+        pb.finish_and_clear();
+    }
+    Ok((out, signal))
+}
+
+/// The record of a run (`prbs`, `loop`) closed: its file (the sink's writer) flushed, then the
+/// run's result; a run or a flush that failed because the output was closed says what was lost
+/// ([`lost_output`]).
+///
+/// # Errors
+/// The run's error, then the file's (exit 3 for a closed output).
+pub(crate) fn close_record(
+    acq: Result<drive::client::Acquisition>,
+    file: std::io::Result<LazyFile>,
+    output: &std::path::Path,
+) -> Result<drive::client::Acquisition> {
+    let written = file
+        .and_then(|mut f| f.flush().map(|_| f.is_created()))
+        .with_context(|| format!("writing {}", output.display()));
+    let acq = acq.map_err(|e| lost_output(e, output, "record"))?;
+    written.map_err(|e| lost_output(e, output, "record"))?;
+    Ok(acq)
+}
+
+/// How a recorded run (`prbs`, `loop`) ends, `summary` saying what was kept: a signal (exit by
+/// it: [`Interrupted`]), else `failure` if any, else complete (`summary, complete` on stderr),
+/// else incomplete: a warning with `allow_incomplete`, an error (exit 1) without.
+///
+/// # Errors
+/// As said.
+pub(crate) fn record_outcome(
+    acq: &drive::client::Acquisition,
+    signal: Option<i32>,
+    summary: String,
+    failure: Option<anyhow::Error>,
+    allow_incomplete: bool,
+) -> Result<()> {
+    if let Some(signal) = signal {
+        return Err(Interrupted {
+            signal,
+            message: format!("drive stopped; {summary}"),
+        }
+        .into());
+    }
+    if let Some(e) = failure {
+        return Err(e);
+    }
+    if acq.complete {
+        crate::eprintln_safe!("{summary}, complete");
+        Ok(())
+    } else if allow_incomplete {
+        crate::eprintln_safe!("warning: {summary}");
+        Ok(())
+    } else {
+        Err(anyhow::anyhow!(summary))
+    }
+}
+
 fn prbs(a: PrbsArgs) -> Result<()> {
     let _pipe = crate::interrupt::PipeErrors::arm();
     // Everything is checked before the output is touched or the drive asked anything.
@@ -670,59 +749,30 @@ fn prbs(a: PrbsArgs) -> Result<()> {
     let output = output_path(&a.output);
     check_outputs(&a.port.port, &[("--output", &output)])?;
     let mut sink = CsvSink::new(output_file(&output)?);
-    let mut c = connect(&a.port, &conf)?;
-    let pb = progress_bar(a.port.quiet, "samples");
-    attach(&mut c, &pb);
     // The first SIGINT/SIGTERM/SIGHUP stops the drive; the record keeps what arrived and its
     // footer says what is missing.
-    let signals = StopOnInterrupt::arm(c.stop_handle());
-    let acq = c.run_prbs(&test, &mut sink).map_err(lib_err);
-    let signal = signals.signal();
-    drop(signals);
-    if let Some(pb) = pb {
-        pb.finish_and_clear();
-    }
-    let written = sink
-        .into_inner()
-        .and_then(|mut f| f.flush().map(|_| f.is_created()))
-        .with_context(|| format!("writing {}", output.display()));
-    let acq = acq
-        .context("the PRBS run")
-        .map_err(|e| lost_output(e, &output, "record"))?;
-    written.map_err(|e| lost_output(e, &output, "record"))?;
+    let (acq, signal) = run_on_drive(&a.port, &conf, "samples", |c| {
+        c.run_prbs(&test, &mut sink).map_err(lib_err)
+    })?;
+    let acq = close_record(acq.context("the PRBS run"), sink.into_inner(), &output)?;
     let summary = kept_summary(&a.output, &acq);
     for w in acq.warnings() {
         crate::eprintln_safe!("warning: {w}");
     }
-    if let Some(signal) = signal {
-        if acq.complete {
-            crate::eprintln_safe!("{summary}, complete (the signal came after the run had ended)");
-        }
-        return Err(Interrupted {
-            signal,
-            message: format!("drive stopped; {summary}"),
-        }
-        .into());
+    if signal.is_some() && acq.complete {
+        crate::eprintln_safe!("{summary}, complete (the signal came after the run had ended)");
     }
-    if acq.excitation_missing() {
-        return Err(anyhow::anyhow!(
+    let failure = acq.excitation_missing().then(|| {
+        anyhow::anyhow!(
             "{summary}; no excitation: the input is constant after the settling part{} (see the file's comments)",
             if acq.clamped_blocks > 0 {
                 ", clamped by the drive"
             } else {
                 ""
             }
-        ));
-    }
-    if acq.complete {
-        crate::eprintln_safe!("{summary}, complete");
-        Ok(())
-    } else if a.allow_incomplete {
-        crate::eprintln_safe!("warning: {summary}");
-        Ok(())
-    } else {
-        Err(anyhow::anyhow!(summary))
-    }
+        )
+    });
+    record_outcome(&acq, signal, summary, failure, a.allow_incomplete)
 }
 
 /// The path of the file of single repeats, if any: `--repeats-out`, or by default with
@@ -992,26 +1042,18 @@ fn sine(a: SineArgs) -> Result<()> {
     check_outputs(&a.port.port, &outs)?;
     let mut file = BodeFile::new(&output, header, sweep.repeats > 1)?;
     let mut reps_file = open_repeats_file(&a, &conf, reps_path)?;
-    let mut c = connect(&a.port, &conf)?;
-    let pb = progress_bar(a.port.quiet, "frequencies");
-    attach(&mut c, &pb);
     // The first SIGINT/SIGTERM/SIGHUP stops the drive; the points measured so far are in the
     // file, the rest listed in its footer.
-    let signals = StopOnInterrupt::arm(c.stop_handle());
-    let swept = c
-        .run_sine_sweep_with(&sweep, &mut |ev| match ev {
+    let (swept, signal) = run_on_drive(&a.port, &conf, "frequencies", |c| {
+        c.run_sine_sweep_with(&sweep, &mut |ev| match ev {
             SweepEvent::Repeat(p, rep) => match reps_file.as_mut() {
                 Some(r) => r.repeat(p, rep),
                 None => Ok(()),
             },
             SweepEvent::Point(p) => file.point(p),
         })
-        .map_err(lib_err);
-    let signal = signals.signal();
-    drop(signals);
-    if let Some(pb) = pb {
-        pb.finish_and_clear();
-    }
+        .map_err(lib_err)
+    })?;
     let (points, mut problems) = match swept {
         Ok(r) => r,
         Err(e) => {

@@ -2,23 +2,22 @@
 //! on the drive (PROTOCOL.md section 3, "Speed loop").
 //!
 //! The report's discrete realisation (`discrete`: `A, B, C, D` at `dt`) is turned into the
-//! drive's fixed-point parallel first-order sections ([`drive::ctrl::FixedCtrl`]), downloaded
+//! drive's fixed-point parallel first-order sections and, for a FOPID's derivative, delay taps
+//! ([`drive::ctrl::FixedCtrl`]), downloaded
 //! (LOAD_CTRL, LOAD_SECTION), and START_LOOP runs the reference at 0 for `--pre` seconds, then
 //! `--step`. The record is `t,r,u,y` with the acquisition's footer: a broken run keeps what
 //! arrived and says what is missing.
 
 use crate::cmd::drive::{
-    attach, check_outputs, connect, lib_err, lost_output, output_file, output_path, port_conf,
-    progress_bar, PortArgs,
+    check_outputs, close_record, lib_err, output_file, output_path, port_conf, record_outcome,
+    run_on_drive, PortArgs,
 };
-use crate::interrupt::{Interrupted, StopOnInterrupt};
 use anyhow::{Context, Result};
 use drive::client::{Acquisition, Client, LoopCsvSink, LoopTest, SampleSink};
 use drive::ctrl::FixedCtrl;
 use drive::protocol::{Configure, StartLoop};
 use num_complex::Complex64;
 use serde_json::Value;
-use std::io::Write;
 use std::path::PathBuf;
 
 /// Options of `fracid drive loop`.
@@ -204,8 +203,8 @@ pub fn prune(r: &Realisation) -> (Realisation, Vec<usize>) {
 /// `1/dt`, its channel scales set the raw gains).
 ///
 /// # Errors
-/// A sample rate other than `1/dt`; a realisation the drive cannot run (not triangular, repeated
-/// poles, gains beyond Q24, too many sections): bad input, exit 2.
+/// A sample rate other than `1/dt`; a realisation the drive cannot run (not triangular, coupled
+/// repeated slow poles, gains beyond Q24, too many sections or delay taps): bad input, exit 2.
 pub fn fixed_controller(r: &Realisation, conf: &Configure) -> Result<FixedCtrl> {
     let fs = conf.sample_rate_hz as f64;
     if (r.dt * fs - 1.0).abs() > 1e-6 {
@@ -314,10 +313,18 @@ pub fn run(a: LoopArgs) -> Result<()> {
     let k = fixed_controller(&pruned, &conf).with_context(|| a.controller.display().to_string())?;
     let qerr = quantisation_error(&real, &k, &conf);
     crate::eprintln_safe!(
-        "controller {}: {} fixed-point sections (Q30 poles, Q24 gains, 64-bit states){}; frequency response \
-         within {:.2e} of the realisation from 1 rad/s to half Nyquist",
+        "controller {}: {} fixed-point sections (Q30 poles, Q24 gains, 64-bit states){}{}; \
+         frequency response within {:.2e} of the realisation from 1 rad/s to half Nyquist",
         real.text,
         k.sections.len(),
+        if k.taps.is_empty() {
+            String::new()
+        } else {
+            format!(
+                " and {} delay taps (the fast modes; controller format 2, firmware 1.2)",
+                k.taps.len()
+            )
+        },
         if dropped.is_empty() {
             String::new()
         } else {
@@ -328,25 +335,20 @@ pub fn run(a: LoopArgs) -> Result<()> {
         },
         qerr
     );
+    if k.d_q24 != 0 && k.dinv_q16 == 0 {
+        crate::eprintln_safe!(
+            "anti-windup: conditional integration (the states frozen while the error pushes into \
+             the clamp): the controller has a zero outside the unit circle, where Hanus' \
+             conditioning would run away"
+        );
+    }
     let output = output_path(&a.output);
     check_outputs(&a.port.port, &[("--output", &output)])?;
     let mut sink = LoopCsvSink::new(output_file(&output)?, cmd, conf.y_lsb());
-    let mut c = connect(&a.port, &conf)?;
-    let pb = progress_bar(a.port.quiet, "samples");
-    attach(&mut c, &pb);
-    let signals = StopOnInterrupt::arm(c.stop_handle());
-    let acq = run_on(&mut c, &k, &cmd, &mut sink);
-    let signal = signals.signal();
-    drop(signals);
-    if let Some(pb) = pb {
-        pb.finish_and_clear();
-    }
-    let written = sink
-        .into_inner()
-        .and_then(|mut f| f.flush().map(|_| f.is_created()))
-        .with_context(|| format!("writing {}", output.display()));
-    let acq = acq.map_err(|e| lost_output(e, &output, "record"))?;
-    written.map_err(|e| lost_output(e, &output, "record"))?;
+    let (acq, signal) = run_on_drive(&a.port, &conf, "samples", |c| {
+        run_on(c, &k, &cmd, &mut sink)
+    })?;
+    let acq = close_record(acq, sink.into_inner(), &output)?;
     let figures = match measured_step(&acq, &cmd, conf.y_lsb()) {
         Some(m) => format!(
             "; step {} rad/s: overshoot {:.2}%, rise (10-90%) {}, settling (2%) {}",
@@ -367,20 +369,5 @@ pub fn run(a: LoopArgs) -> Result<()> {
             acq.clamped_blocks
         );
     }
-    if let Some(signal) = signal {
-        return Err(Interrupted {
-            signal,
-            message: format!("drive stopped; {summary}"),
-        }
-        .into());
-    }
-    if acq.complete {
-        crate::eprintln_safe!("{summary}, complete");
-        Ok(())
-    } else if a.allow_incomplete {
-        crate::eprintln_safe!("warning: {summary}");
-        Ok(())
-    } else {
-        Err(anyhow::anyhow!(summary))
-    }
+    record_outcome(&acq, signal, summary, None, a.allow_incomplete)
 }
