@@ -434,7 +434,12 @@ fn zeros_of_h(groups: &[Group<f64>], d: f64) -> Result<Vec<Complex64>> {
 /// zeros sit a hair away from cell poles, where Newton on `H` itself jumps across the pole.
 fn polish(groups: &[Group<f64>], s0: Complex64, found: &[Complex64]) -> Option<Complex64> {
     let one = Cx::<f64>::real(1.0);
-    let scale = |p: f64| 1.0 / (s0.norm() + p);
+    // The scales c_k, once per call (not per cell, group and iteration).
+    let norm0 = s0.norm();
+    let scales: Vec<Vec<f64>> = groups
+        .iter()
+        .map(|h| h.poles.iter().map(|&p| 1.0 / (norm0 + p)).collect())
+        .collect();
     let mut s = Cx::<f64>::cst(s0);
     let f_and_df = |s: Cx<f64>| -> (Cx<f64>, Cx<f64>) {
         let (mut f, mut df) = (Cx::real(0.0), Cx::real(0.0));
@@ -444,9 +449,9 @@ fn polish(groups: &[Group<f64>], s0: Complex64, found: &[Complex64]) -> Option<C
             let mut logd = Cx::real(0.0);
             for (hi, h) in groups.iter().enumerate() {
                 let own = hi == gi;
-                for (&z, &p) in h.zeros.iter().zip(&h.poles) {
+                for ((&z, &p), &c) in h.zeros.iter().zip(&h.poles).zip(&scales[hi]) {
                     let a = s + Cx::real(if own { z } else { p });
-                    t = t * a.scale(scale(p));
+                    t = t * a.scale(c);
                     logd += a.recip();
                 }
             }
@@ -831,7 +836,12 @@ fn expansion<T: Real>(
         let near = cell_poles
             .iter()
             .map(|&(gi, k)| (hg64[gi].poles[k], (gi, k)))
-            .filter(|&(p, _)| (r + p).norm() <= NEAR_CELL_POLE * p.abs())
+            // |r + p| >= its real and imaginary parts' magnitudes: most cells are left out
+            // without the norm (a `hypot` per root and cell).
+            .filter(|&(p, _)| {
+                let bound = NEAR_CELL_POLE * p.abs();
+                (r.re + p).abs() <= bound && r.im.abs() <= bound && (r + p).norm() <= bound
+            })
             .min_by(|a, b| (r + a.0).norm().total_cmp(&(r + b.0).norm()));
         // A hair from the cell pole -p: H and H' are differences of nearly equal numbers
         // divided by (s + p) and its powers, and so are their derivatives. F = H (s + p) has

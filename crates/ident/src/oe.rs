@@ -1078,6 +1078,51 @@ impl FracModel {
         }
     }
 
+    /// The parameters of the input offsets, in the effects' order, when every input effect is a
+    /// constant input offset (`None` when another input effect acts).
+    fn input_offsets(&self) -> Option<Vec<usize>> {
+        self.effects
+            .iter()
+            .filter(|e| e.is_input())
+            .map(|e| match *e {
+                Effect::InputOffset { c } => Some(c),
+                _ => None,
+            })
+            .collect()
+    }
+
+    /// The input of a model whose only input effects are the constant input offsets `offsets`
+    /// (parameters `c_i`): nothing feeds the output back into the input, so the linear part runs
+    /// in the vectorised kernel on the shifted input `u + sum c_i` (values, rounded as the
+    /// per-sample path rounds them), and the offsets' derivative parts (dual parameters) add
+    /// `sum dc_i` times the value model's response to a unit step from rest: the offsets act
+    /// from `t_0 = 0` (the initial state's past input has none), and `y(u + c)` is linear in `c`.
+    fn shifted_input<T: Real>(
+        &self,
+        offsets: &[usize],
+        p: &[T],
+        u: &[f64],
+        dt: f64,
+    ) -> Result<ShiftedInput<T>> {
+        let u0 = self.operating_point.u0;
+        let input: Vec<f64> = u
+            .iter()
+            .map(|&uk| offsets.iter().fold(u0 + uk, |a, &c| a + p[c].re()) - u0)
+            .collect();
+        let c = offsets.iter().fold(T::from(0.0), |a, &c| a + p[c]);
+        let dc = c - T::from(c.re());
+        let step = if dc == T::from(0.0) {
+            vec![]
+        } else {
+            let values: Vec<f64> = p.iter().map(|v| v.re()).collect();
+            let mut step = vec![0.0; u.len()];
+            self.simulator::<f64>(&values, dt)?
+                .run_into(&vec![1.0; u.len()], &mut step);
+            step
+        };
+        Ok(ShiftedInput { input, dc, step })
+    }
+
     /// The sum of the output offsets at `p`.
     fn offsets_sum(&self, p: &[f64]) -> f64 {
         self.effects
@@ -1087,6 +1132,29 @@ impl FracModel {
                 _ => 0.0,
             })
             .sum()
+    }
+}
+
+/// The shifted input of a model with constant input offsets ([`FracModel::shifted_input`]).
+struct ShiftedInput<T> {
+    /// `u + sum c_i` (values).
+    input: Vec<f64>,
+    /// The derivative parts of `sum c_i` (value 0).
+    dc: T,
+    /// The value model's unit step response from rest (empty when `dc` is 0).
+    step: Vec<f64>,
+}
+
+impl<T: Real> ShiftedInput<T> {
+    /// Add the offsets' derivative parts `dc * step_k` to the outputs `y` of samples
+    /// `k0..k0 + y.len()`.
+    fn add_offset_parts(&self, k0: usize, y: &mut [T]) {
+        if self.step.is_empty() {
+            return;
+        }
+        for (yk, &sk) in y.iter_mut().zip(&self.step[k0..]) {
+            *yk += self.dc * T::from(sk);
+        }
     }
 }
 
@@ -1163,18 +1231,27 @@ impl Structure for FracModel {
         yhat: &mut [f64],
         cols: &mut [&mut [f64]],
     ) -> Result<()> {
-        if self.effects.iter().any(|e| e.is_input()) {
-            return parts_through_vec(self, p, u, dt, yhat, cols);
-        }
-        // As `simulate` without input effects, a chunk of samples at a time into a small
-        // buffer, whose parts go straight to `yhat` and `cols` (no record-long dual output).
+        let shift = match self.input_offsets() {
+            None => return parts_through_vec(self, p, u, dt, yhat, cols),
+            Some(offsets) if offsets.is_empty() => None,
+            Some(offsets) => Some(self.shifted_input(&offsets, p, u, dt)?),
+        };
+        // As `simulate` without input effects (or with input offsets only, on the shifted
+        // input), a chunk of samples at a time into a small buffer, whose parts go straight to
+        // `yhat` and `cols` (no record-long dual output).
         let mut sim = self.sim_at_start(p, dt)?;
         let mut buf = vec![Dual::<N>::cst(0.0); PARTS_CHUNK.min(u.len())];
         let mut k0 = 0;
         while k0 < u.len() {
             let k1 = (k0 + PARTS_CHUNK).min(u.len());
             let y = &mut buf[..k1 - k0];
-            sim.run_into(&u[k0..k1], y);
+            match &shift {
+                None => sim.run_into(&u[k0..k1], y),
+                Some(sh) => {
+                    sim.run_into(&sh.input[k0..k1], y);
+                    sh.add_offset_parts(k0, y);
+                }
+            }
             self.output_effects(p, dt, k0, y);
             check_output(y, k0)?;
             split_parts(y, k0, yhat, cols);
@@ -1184,6 +1261,14 @@ impl Structure for FracModel {
     }
 
     fn simulate<T: Real>(&self, p: &[T], u: &[f64], dt: f64, y: &mut [T]) -> Result<()> {
+        if let Some(offsets) = self.input_offsets().filter(|o| !o.is_empty()) {
+            let sh = self.shifted_input(&offsets, p, u, dt)?;
+            let mut sim = self.sim_at_start(p, dt)?;
+            sim.run_into(&sh.input, y);
+            sh.add_offset_parts(0, y);
+            self.output_effects(p, dt, 0, y);
+            return check_output(y, 0);
+        }
         let mut sim = self.sim_at_start(p, dt)?;
         let (u0, y0) = (self.operating_point.u0, self.operating_point.y0);
         if self.effects.iter().all(|e| !e.is_input()) {

@@ -1244,7 +1244,13 @@ mod tests {
         with_friction
             .effects
             .push(crate::oe::Effect::Coulomb { vc });
-        for m in [m, with_friction] {
+        let mut with_offset = m.clone();
+        with_offset.with_integrator();
+        let c = with_offset.add_param(Param::new("u_offset", 0.2, crate::oe::Bounds::Free));
+        with_offset
+            .effects
+            .push(crate::oe::Effect::InputOffset { c });
+        for m in [m, with_friction, with_offset] {
             let p = m.values();
             let free: Vec<usize> = (0..p.len()).filter(|&j| m.params[j].free).collect();
             let theta: Vec<f64> = free.iter().map(|&j| p[j]).collect();
@@ -1286,6 +1292,85 @@ mod tests {
                         jac[(k, i)]
                     );
                 }
+            }
+        }
+    }
+
+    /// A model whose only input effect is an input offset `c` (here behind a free integrator,
+    /// with an initial state and an output offset) runs in the kernel on `u + c`: its output
+    /// equals the model without the offset stepped sample by sample on `u + c` from the same
+    /// initial state (to rounding, 1e-12 of the output's scale), and its dual parts equal central
+    /// differences of the output in `c` (linear: to rounding, 1e-7 of the column's scale) and
+    /// in a plant coefficient `a1` (step 1e-5 relative: 1e-5 of the column's scale).
+    #[test]
+    fn an_input_offset_in_the_kernel_equals_the_shifted_input_stepped() {
+        let (n, dt) = (3_000, 5e-4);
+        let u: Vec<f64> = (0..n)
+            .map(|k| if (k / 17) % 3 == 0 { 1.0 } else { -0.5 })
+            .collect();
+        let mut m = FracModel::pmsm(6.8, 0.006, 2.7e-5, 0.9, 0.8);
+        m.with_integrator();
+        m.with_past_input(vec![0.01, 0.1], (-5.0, 5.0));
+        let plain_effects = m.effects.len();
+        m.with_output_offset(0.3);
+        let levels = m.past.clone().unwrap().levels;
+        for (i, &l) in levels.iter().enumerate() {
+            m.params[l].value = [0.7, -1.1, 0.4][i];
+        }
+        let c = m.add_param(Param::new("u_offset", -0.15, crate::oe::Bounds::Free));
+        m.effects.push(crate::oe::Effect::InputOffset { c });
+        let p = m.values();
+        let mut y = vec![0.0; n];
+        m.simulate(&p, &u, dt, &mut y).unwrap();
+        // The truth for the values: no input effect, each sample stepped on u + c.
+        let mut plain = m.clone();
+        plain.effects.truncate(plain_effects);
+        let mut sim = plain.sim_at_start(&p, dt).unwrap();
+        let y_offset = p[m.index_of("y_offset").unwrap()];
+        let scale = y.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+        for k in 0..n {
+            let want = sim.step(u[k] + p[c]) + y_offset;
+            assert!(
+                (y[k] - want).abs() <= 1e-12 * scale,
+                "y[{k}]: {} vs {want}",
+                y[k]
+            );
+        }
+        let a1 = m.index_of("a1").unwrap();
+        for (j, h, tol) in [(c, 1e-3, 1e-7), (a1, 1e-5 * p[a1], 1e-5)] {
+            let pd: Vec<Dual<1>> = p
+                .iter()
+                .enumerate()
+                .map(|(q, &v)| {
+                    if q == j {
+                        Dual::var(v, 0)
+                    } else {
+                        Dual::cst(v)
+                    }
+                })
+                .collect();
+            let mut yd = vec![Dual::<1>::cst(0.0); n];
+            m.simulate(&pd, &u, dt, &mut yd).unwrap();
+            let at = |v: f64| {
+                let mut q = p.clone();
+                q[j] = v;
+                let mut y = vec![0.0; n];
+                m.simulate(&q, &u, dt, &mut y).unwrap();
+                y
+            };
+            let (hi, lo) = (at(p[j] + h), at(p[j] - h));
+            let fd: Vec<f64> = (0..n).map(|k| (hi[k] - lo[k]) / (2.0 * h)).collect();
+            let cs = fd.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+            assert!(cs > 0.0, "{}: a zero column", m.params[j].name);
+            for k in 0..n {
+                assert!((yd[k].v - y[k]).abs() <= 1e-12 * scale, "value {k}");
+                assert!(
+                    (yd[k].d[0] - fd[k]).abs() <= tol * cs,
+                    "{} sample {k}: {} vs {}",
+                    m.params[j].name,
+                    yd[k].d[0],
+                    fd[k]
+                );
             }
         }
     }
