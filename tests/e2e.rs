@@ -840,6 +840,7 @@ fn the_diagnosis_finds_a_direct_feedthrough() {
     // The reported text is `D + G` as one fraction: `fracid sim` runs it on the record's input
     // from rest and follows the noiseless truth (swing about 20) to a small part of the noise.
     let text = j["model"]["text"].as_str().unwrap();
+    assert!(text.starts_with(&format!("{dhat} + ")), "{text}");
     let out = fracid(&["sim", "--model", text, "--input", file]);
     assert!(
         out.status.success(),

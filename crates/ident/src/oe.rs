@@ -875,6 +875,12 @@ impl FracModel {
         };
         let delay = self.delay.map_or(0.0, |i| p[i]);
         let whole = FracTf::new(terms(&self.num), terms(&self.den), delay)?;
+        if self.kind == Kind::Feedthrough && !self.integrator {
+            // Written `D + K/(..)` (the parser reads it back as the fraction).
+            if let Some(i) = self.index_of("D") {
+                return Ok(whole.clone().with_direct(p[i]).unwrap_or(whole));
+            }
+        }
         if self.series.is_empty() {
             return Ok(whole);
         }

@@ -586,7 +586,8 @@ pub fn diagnose_best(
 
 /// The structures a plain fit chooses among with `--structure auto`: the PMSM, the commensurate,
 /// the integer first, second and third order and the two-mass drive train (those of
-/// [`candidates`] that need no user model),
+/// [`candidates`] that need no user model; [`fit_best`] adds the feed-through when the record
+/// shows an instant response, [`with_feedthrough`]),
 /// each with `model`'s approximation.
 pub fn auto_candidates(model: &FracModel) -> Vec<(String, FracModel)> {
     candidates("pmsm", model)

@@ -224,7 +224,10 @@ fn the_feedthrough_model_is_d_plus_the_pmsm() {
     assert!(rms < 1e-3 * swing, "{rms} of {swing}");
     let tf = m.tf(&m.values()).unwrap();
     assert!((tf.dc_gain() - (6.77 + D)).abs() < 1e-12);
+    // Written as the sum, `2 + 6.77/(..)`, read back as the same fraction.
+    assert!(tf.to_string().starts_with("2 + 6.77/("), "{tf}");
     let back: FracTf = tf.to_string().parse().unwrap();
+    assert_eq!(back, tf);
     let sum: FracTf = format!("{D} + {PMSM}").parse().unwrap();
     for w in [1.0, 100.0, 1e4] {
         let g = sum.freq_response(w);
