@@ -59,17 +59,23 @@ impl InstantResponse {
 /// The instant response of `y` to `u` (same sampling; deviations or not: the differences remove
 /// a constant), estimated on the leading [`MAX_SCREEN_SAMPLES`] samples as the module
 /// documentation says. `None` when the input does not change, the record is too short (fewer
-/// than `4 (LAGS + 1)` samples) or the regression is singular. It costs one pass of `LAGS^2/2`
+/// than `4 (LAGS + 1)` samples) or the regression is singular (an input whose period is within
+/// the lags: its lag-0 change cannot be told from the same change a period earlier). It costs one pass of `LAGS^2/2`
 /// products per sample, no simulation.
 ///
 /// ```
 /// use ident::oe::init::feedthrough::instant_response;
 /// // y = 0.5 u + a first-order lag of u: the instant response is 0.5.
-/// let u: Vec<f64> = (0..2000).map(|k| if (k * 7919 % 13) < 6 { 1.0 } else { -1.0 }).collect();
+/// // A pseudo-random binary input (k^2 mod 1009: no period shorter than the lags).
+/// let u: Vec<f64> = (0..2000).map(|k| if (k * k % 1009) < 504 { 1.0 } else { -1.0 }).collect();
 /// let mut x = 0.0;
-/// let y: Vec<f64> = u.iter().map(|&v| { let y = 0.5 * v + x; x = 0.9 * x + 0.2 * v; y }).collect();
+/// let y: Vec<f64> = u.iter().map(|&v| { let y = 0.5 * v + x; x = 0.5 * x + 0.2 * v; y }).collect();
 /// let r = instant_response(&u, &y).unwrap();
-/// assert!((r.d - 0.5).abs() < 1e-9 && r.is_feedthrough());
+/// // The pulse response's tail beyond the 32 lags (0.5^32) is all that is left.
+/// assert!((r.d - 0.5).abs() < 1e-6 && r.is_feedthrough(), "{r:?}");
+/// // Without the feed-through the instant response is nil.
+/// let y: Vec<f64> = y.iter().zip(&u).map(|(a, b)| a - 0.5 * b).collect();
+/// assert!(!instant_response(&u, &y).unwrap().is_feedthrough());
 /// ```
 pub fn instant_response(u: &[f64], y: &[f64]) -> Option<InstantResponse> {
     let n = u.len().min(y.len()).min(MAX_SCREEN_SAMPLES);
