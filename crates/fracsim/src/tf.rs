@@ -48,6 +48,8 @@ pub struct FracTf {
     /// Whether `Display` writes the factors ([`FracTf::with_factors`]) rather than the product
     /// multiplied out.
     show_factors: bool,
+    /// The direct feed-through `D` the model is written with, `D + G(s)` ([`FracTf::with_direct`]).
+    direct: Option<f64>,
 }
 
 /// Equal terms and delay (the factors known are a way of computing, not part of the model).
@@ -132,6 +134,7 @@ impl FracTf {
             delay,
             factors: vec![],
             show_factors: false,
+            direct: None,
         })
     }
 
@@ -169,6 +172,57 @@ impl FracTf {
             .collect();
         self.show_factors = true;
         Ok(self)
+    }
+
+    /// The same model, written as its direct feed-through `d` plus a strictly proper rest,
+    /// `d + N_r(s)/A(s)` (`N_r = N - d A`), which the parser reads back as the same model. It
+    /// changes only how the model is written.
+    ///
+    /// ```
+    /// use fracsim::FracTf;
+    /// let g: FracTf = "2 + 6.77/(0.000028 s^1.78 + 0.0064 s^0.89 + 1)".parse().unwrap();
+    /// let shown = g.clone().with_direct(2.0).unwrap();
+    /// assert_eq!(shown.to_string(), "2 + 6.77/(0.000028 s^1.78 + 0.0064 s^0.89 + 1)");
+    /// assert_eq!(shown.to_string().parse::<FracTf>().unwrap(), g);
+    /// assert!(g.with_direct(3.0).is_err());
+    /// ```
+    ///
+    /// # Errors
+    /// [`Error::Invalid`] when `N - d A` keeps a term of the denominator's highest order (`d` is
+    /// not the feed-through) or `d` is not finite.
+    pub fn with_direct(mut self, d: f64) -> Result<Self> {
+        finite("feed-through", d)?;
+        self.direct = None;
+        if self.direct_rest(d).is_none() {
+            return invalid(
+                "feed-through",
+                format!("{d} is not the model's feed-through"),
+            );
+        }
+        self.direct = Some(d);
+        Ok(self)
+    }
+
+    /// `N - d A` with the terms that cancel (within 1e-9 of the largest) dropped, when no term
+    /// of the denominator's highest order is left.
+    fn direct_rest(&self, d: f64) -> Option<Vec<Term>> {
+        let mut rest = self.num.clone();
+        for t in &self.den {
+            match rest.iter_mut().find(|r| (r.order - t.order).abs() < 1e-12) {
+                Some(r) => r.coef -= d * t.coef,
+                None => rest.push(Term::new(-d * t.coef, t.order)),
+            }
+        }
+        let big = self
+            .num
+            .iter()
+            .map(|t| t.coef.abs())
+            .chain(self.den.iter().map(|t| (d * t.coef).abs()))
+            .fold(0.0, f64::max);
+        rest.retain(|t| t.coef.abs() > 1e-9 * big);
+        rest.sort_by(|a, b| b.order.total_cmp(&a.order));
+        let top = self.den_order();
+        rest.iter().all(|t| t.order < top - 1e-12).then_some(rest)
     }
 
     /// The factors of a series connection the model is known as (given by
@@ -352,6 +406,25 @@ fn fmt_poly(terms: &[Term]) -> String {
 impl fmt::Display for FracTf {
     /// The form [`FracTf::from_str`] reads back: `6.82/(2.655e-5 s^1.7452 + 0.0059 s^0.92 + 1)`.
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        if let Some(rest) = self
+            .direct
+            .and_then(|d| self.direct_rest(d).map(|r| (d, r)))
+        {
+            let (d, num) = rest;
+            let open = if self.delay != 0.0 { "(" } else { "" };
+            write!(f, "{open}{} + ", fmt_num(d))?;
+            let n = fmt_poly(&num);
+            if num.len() > 1 {
+                write!(f, "({n})")?;
+            } else {
+                write!(f, "{n}")?;
+            }
+            write!(f, "/({})", fmt_poly(&self.den))?;
+            if self.delay != 0.0 {
+                write!(f, ") exp(-{} s)", fmt_num(self.delay))?;
+            }
+            return Ok(());
+        }
         if self.show_factors && !self.factors().is_empty() {
             for (i, g) in self.factors.iter().enumerate() {
                 if i > 0 {
@@ -922,6 +995,7 @@ impl FromStr for FracTf {
                 if let Ok(h) = g.clone().with_factors(fs) {
                     g = FracTf {
                         show_factors: false,
+                        direct: None,
                         ..h
                     };
                 }

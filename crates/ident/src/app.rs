@@ -21,8 +21,9 @@ pub fn default_max_delay(duration_s: f64) -> f64 {
 /// (`K/(a2 s^(2q) + a1 s^q + 1)`), `second-order` and `third-order` (the integer
 /// `K/(a2 s^2 + a1 s + 1)`, `K/(a3 s^3 + a2 s^2 + a1 s + 1)`), `two-mass` (the PMSM times a
 /// resonant pair, `K (b2 s^2 + b1 s^mu + 1) / ((a2 s^(zeta+theta) + a1 s^zeta + 1)
-/// (c2 s^2 + c1 s^mu + 1))`, [`FracModel::two_mass`]), `fopdt` (`K e^(-tau s)/(T s + 1)`, `tau`
-/// up to `max_delay_s`),
+/// (c2 s^2 + c1 s^mu + 1))`, [`FracModel::two_mass`]), `feedthrough` (the PMSM with a direct
+/// feed-through, `D + K/(a2 s^(zeta+theta) + a1 s^zeta + 1)`, [`FracModel::feedthrough`]),
+/// `fopdt` (`K e^(-tau s)/(T s + 1)`, `tau` up to `max_delay_s`),
 /// or a transfer function whose every coefficient and order is fitted from its values (then
 /// `general` is true: it starts from them). Returns `(model, general)`.
 ///
@@ -46,6 +47,10 @@ pub fn structure(spec: &str, max_delay_s: f64) -> Result<(FracModel, bool)> {
             (FracModel::third_order(1.0, 0.0175, 8.75e-5, 1.25e-7), false)
         }
         "two-mass" | "two_mass" => (crate::diagnose::structures::two_mass(), false),
+        "feedthrough" | "feed-through" | "feed_through" => (
+            FracModel::feedthrough([1.0, 0.01, 1e-4, 0.9, 0.9], 0.0),
+            false,
+        ),
         "fopdt" => (
             FracModel::fopdt(1.0, 0.1, 0.05 * max_delay_s, max_delay_s),
             false,
@@ -54,7 +59,7 @@ pub fn structure(spec: &str, max_delay_s: f64) -> Result<(FracModel, bool)> {
             let tf: FracTf = s.parse().map_err(|e| {
                 Error::Options(format!(
                     "structure '{spec}' is not pmsm, commensurate, second-order, third-order, \
-                     two-mass, fopdt, auto or a model: {e}"
+                     two-mass, feedthrough, fopdt, auto or a model: {e}"
                 ))
             })?;
             (FracModel::from_tf(&tf, true, true), true)

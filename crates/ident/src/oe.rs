@@ -390,6 +390,10 @@ pub enum Kind {
     /// The two-mass drive train [`FracModel::two_mass`]: started from the frequency response
     /// (the resonance and anti-resonance located on it, [`init`]).
     TwoMass,
+    /// The PMSM with a direct feed-through [`FracModel::feedthrough`], parameters
+    /// `K, a1, a2, zeta, theta, D`: `D` started from the output's instant response to the input
+    /// steps, the rest as the PMSM on `y - D u` ([`init`]).
+    Feedthrough,
     /// Anything else: starts from the given values.
     General,
 }
@@ -671,6 +675,42 @@ impl FracModel {
         m
     }
 
+    /// The PMSM structure (paper eq. 10) with a direct feed-through `D`:
+    ///
+    /// `G(s) = D + K / (a2 s^(zeta+theta) + a1 s^zeta + 1)`,
+    ///
+    /// an output that responds at once to the input (a battery cell's ohmic drop `R i` beside its
+    /// polarisation, a current-loop output, a sensor that sees the command) plus the PMSM's
+    /// dynamics. `K, a1, a2, zeta, theta` as [`FracModel::pmsm`]; `D` (output over input, like
+    /// `K`) is unbounded in sign. Its transfer function is the sum as one fraction,
+    /// `(D a2 s^(zeta+theta) + D a1 s^zeta + D + K) / (a2 s^(zeta+theta) + a1 s^zeta + 1)` (the
+    /// numerator's coefficients are products of parameters, [`Expr::factors`]), simulated on the
+    /// exact sampled-data path with its feed-through: `y_k = D u_k + (the PMSM's output at t_k)`
+    /// for the input held over each step. The high-frequency gain is `D`, the static gain `D + K`.
+    ///
+    /// ```
+    /// use ident::oe::FracModel;
+    /// let m = FracModel::feedthrough([6.8, 0.006, 2.7e-5, 0.9, 0.8], 0.5);
+    /// let tf = m.tf(&m.values()).unwrap();
+    /// assert!((tf.dc_gain() - 7.3).abs() < 1e-12);
+    /// assert!((tf.freq_response(1e12).re - 0.5).abs() < 1e-6);
+    /// ```
+    pub fn feedthrough(pmsm: [f64; 5], d: f64) -> Self {
+        let [k, a1, a2, zeta, theta] = pmsm;
+        let mut m = Self::pmsm(k, a1, a2, zeta, theta);
+        let (ik, ia1, ia2) = (0, 1, 2);
+        let id = m.add_param(Param::new("D", d, Bounds::Free));
+        // D times each denominator term, K added to the constant one. D is the linear part of
+        // each product (its unit is that of the coefficient), a1 and a2 its factors.
+        m.num = vec![
+            (Expr::p(id).times(&[ia2]), m.den[0].1.clone()),
+            (Expr::p(id).times(&[ia1]), m.den[1].1.clone()),
+            (Expr::sum(&[(ik, 1.0), (id, 1.0)]), Expr::cst(0.0)),
+        ];
+        m.kind = Kind::Feedthrough;
+        m
+    }
+
     /// Any fractional transfer function; `free_coefs` and `free_orders` say which of its
     /// coefficients and orders are fitted (coefficients keep their sign: a negative one is
     /// parametrised as `-exp(theta)`; a free order keeps its sign and its neighbourhood, see
@@ -835,6 +875,12 @@ impl FracModel {
         };
         let delay = self.delay.map_or(0.0, |i| p[i]);
         let whole = FracTf::new(terms(&self.num), terms(&self.den), delay)?;
+        if self.kind == Kind::Feedthrough && !self.integrator {
+            // Written `D + K/(..)` (the parser reads it back as the fraction).
+            if let Some(i) = self.index_of("D") {
+                return Ok(whole.clone().with_direct(p[i]).unwrap_or(whole));
+            }
+        }
         if self.series.is_empty() {
             return Ok(whole);
         }

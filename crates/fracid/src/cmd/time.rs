@@ -52,8 +52,10 @@ pub struct TimeArgs {
     /// Model structure: pmsm (K/(a2 s^(zeta+theta) + a1 s^zeta + 1)), commensurate,
     /// second-order, third-order (the integer K/(a2 s^2 + a1 s + 1), K/(a3 s^3 + ... + 1)),
     /// two-mass (pmsm times (b2 s^2 + d s^mu + 1)/(c2 s^2 + d s^mu + 1): a compliant coupling),
-    /// fopdt, auto (pmsm, commensurate, the integer first, second and third order and two-mass
-    /// each fitted, the one the data support kept: held-out RMSE,
+    /// feedthrough (D + pmsm: an output that responds at once to the input, D its instant
+    /// response), fopdt, auto (pmsm, commensurate, the integer first, second and third order,
+    /// two-mass, and feedthrough when the record shows an instant response, each fitted, the one
+    /// the data support kept: held-out RMSE,
     /// then BIC among ties within 2%; the table is printed), or a
     /// transfer function such as "6.8/(3e-5 s^1.75 + 0.006 s^0.9 + 1)" used as the start.
     #[arg(long, default_value_t = ident::app::time::TimeRequest::default().structure)]

@@ -10,7 +10,10 @@
 //! two-mass drive train (the PMSM times a resonant pair with zeros, [`FracModel::two_mass`]; it
 //! starts from the resonance on the measured frequency response, and a record without a periodic
 //! input or without a resonance drops it at once), and the user's
-//! structure with a free integrator (an output that integrates, such as a position). Each is
+//! structure with a free integrator (an output that integrates, such as a position); and, only
+//! when the record shows an instant response of the output to the input (a cheap regression,
+//! [`with_feedthrough`]), the PMSM with a direct feed-through `D + K/(..)`
+//! ([`FracModel::feedthrough`]). Each is
 //! identified with the same options ([`crate::oe::identify`]: automatic start, initial state,
 //! offsets) and diagnosed ([`super::diagnose`]); the candidates run on all cores. Rule: among the
 //! final models whose base fit is usable ([`Identification::usable`]; all of them when none is),
@@ -122,6 +125,31 @@ pub fn two_mass() -> FracModel {
         [1.0, 0.01, 1e-4, 0.9, 0.9],
         [inv_w2(30.0), inv_w2(40.0), 1e-3, 1.0],
     )
+}
+
+/// The candidates `cands` with the feed-through structure ([`FracModel::feedthrough`], named
+/// `feed-through`, with the approximation of `model`) added when the record shows an instant
+/// response ([`crate::oe::init::feedthrough::instant_response`]: a cheap regression, no
+/// simulation) and no candidate has it already. A record without one keeps its candidates: its
+/// diagnosis costs what it did.
+pub fn with_feedthrough(
+    rec: &Record,
+    mut cands: Vec<(String, FracModel)>,
+    model: &FracModel,
+) -> Vec<(String, FracModel)> {
+    let has = cands
+        .iter()
+        .any(|(_, m)| m.kind == crate::oe::Kind::Feedthrough);
+    let shows = || {
+        crate::oe::init::feedthrough::instant_response(&rec.u, &rec.y)
+            .is_some_and(|r| r.is_feedthrough())
+    };
+    if !has && shows() {
+        let mut m = FracModel::feedthrough([1.0, 0.01, 1e-4, 0.9, 0.9], 0.0);
+        m.approx = model.approx;
+        cands.push(("feed-through".to_string(), m));
+    }
+    cands
 }
 
 /// A diagnosis on the best structure ([`diagnose_best`]).
@@ -472,7 +500,7 @@ pub fn diagnose_best(
     opts: &IdentOptions,
     dopts: &super::DiagnoseOptions,
 ) -> Result<Diagnosed> {
-    let cands = candidates(label, model);
+    let cands = with_feedthrough(rec, candidates(label, model), model);
     let fitted = fit_candidates(rec, &cands, user, opts);
     let screened_out: Vec<usize> = (0..fitted.len()).filter(|&i| fitted[i].1).collect();
     let (mut ids, mut caches): (Vec<Result<Identification>>, Vec<Option<RootsCache>>) =
@@ -558,7 +586,8 @@ pub fn diagnose_best(
 
 /// The structures a plain fit chooses among with `--structure auto`: the PMSM, the commensurate,
 /// the integer first, second and third order and the two-mass drive train (those of
-/// [`candidates`] that need no user model),
+/// [`candidates`] that need no user model; [`fit_best`] adds the feed-through when the record
+/// shows an instant response, [`with_feedthrough`]),
 /// each with `model`'s approximation.
 pub fn auto_candidates(model: &FracModel) -> Vec<(String, FracModel)> {
     candidates("pmsm", model)
@@ -583,7 +612,7 @@ pub fn fit_best(
     model: &FracModel,
     opts: &IdentOptions,
 ) -> Result<(Identification, StructureChoice)> {
-    let cands = auto_candidates(model);
+    let cands = with_feedthrough(rec, auto_candidates(model), model);
     let fits: Vec<Result<Identification>> = std::thread::scope(|scope| {
         let handles: Vec<_> = cands
             .iter()

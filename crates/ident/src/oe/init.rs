@@ -18,6 +18,7 @@
 //! search over orders and corner frequencies with the gain by least squares), saying which start
 //! was used and why in a [`StartReport`].
 
+pub mod feedthrough;
 mod two_mass;
 
 use super::{FracModel, Kind, Structure};
@@ -734,6 +735,9 @@ pub fn auto_start(model: &mut FracModel, u: &[f64], y: &[f64], dt: f64) -> Resul
     }
     if n < 4 {
         return Ok(StartReport::given("too few samples for an automatic start"));
+    }
+    if model.kind == Kind::Feedthrough {
+        return feedthrough::start(model, u, y, dt);
     }
     let mut lin = model.clone();
     lin.effects.clear();

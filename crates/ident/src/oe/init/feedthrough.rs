@@ -1,0 +1,208 @@
+//! The start of the feed-through structure `D + K/(a2 s^(zeta+theta) + a1 s^zeta + 1)`
+//! ([`FracModel::feedthrough`]), and the screen that says whether a record shows a feed-through
+//! at all ([`instant_response`]).
+//!
+//! For the input held over each step (`u_k` acts on `[t_k, t_(k+1))`, the sampled-data path of the
+//! simulator) the sampled output is `y_k = sum_(j >= 0) h_j u_(k-j)` with `h_0 = D`: a strictly
+//! proper plant's output at `t_k` does not yet see `u_k`, so the lag-0 coefficient of the
+//! sampled pulse response is the feed-through and nothing else. Differenced,
+//! `dy_k = sum_j h_j du_(k-j)`: the constant operating point drops out, and the input's changes are
+//! sparse (a PRBS, steps), so a finite pulse response of [`LAGS`] lags explains `dy` up to the
+//! pulse response's tail. `h_0` is estimated by least squares (Frisch-Waugh: the lag-0 column
+//! after the other lags are regressed out); its standard error uses the residual's variance and
+//! its lag-1 autocovariance (differenced white noise is a moving average of order 1).
+//!
+//! The start: `D = h_0` (or the value given when `D` is held), then the PMSM's start
+//! ([`super::auto_start`]) on `y - D u`.
+
+use super::{auto_start, StartReport};
+use crate::oe::FracModel;
+use crate::Result;
+use faer::prelude::*;
+use faer::Mat;
+
+/// Lags of the finite pulse response after lag 0 (at most a quarter of the record).
+pub const LAGS: usize = 32;
+
+/// The screen looks at most at this many leading samples (the estimate's standard error is then
+/// far below any feed-through worth a structure; the cost stays bounded, `LAGS^2/2` products a
+/// sample).
+pub const MAX_SCREEN_SAMPLES: usize = 1 << 15;
+
+/// A record shows a feed-through when the instant response is at least this many standard
+/// errors from zero (a false alarm from Gaussian noise has probability about 2e-9)...
+pub const MIN_Z: f64 = 6.0;
+
+/// ... and explains at least this fraction of the output's standard deviation
+/// (`|D| std(u) / std(y)`): a feed-through too small to matter is not worth a structure.
+pub const MIN_SHARE: f64 = 0.01;
+
+/// The output's instant response to the input ([`instant_response`]).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct InstantResponse {
+    /// The lag-0 coefficient of the sampled pulse response, `h_0 = D` (output over input units).
+    pub d: f64,
+    /// Its standard error.
+    pub std_error: f64,
+    /// `|d| std(u) / std(y)`: the share of the output's standard deviation it explains.
+    pub share: f64,
+}
+
+impl InstantResponse {
+    /// Whether it is a feed-through worth a structure: [`MIN_Z`] standard errors and
+    /// [`MIN_SHARE`] of the output.
+    pub fn is_feedthrough(&self) -> bool {
+        self.d.abs() >= MIN_Z * self.std_error && self.share >= MIN_SHARE
+    }
+}
+
+/// The instant response of `y` to `u` (same sampling; deviations or not: the differences remove
+/// a constant), estimated on the leading [`MAX_SCREEN_SAMPLES`] samples as the module
+/// documentation says. `None` when the input does not change, the record is too short (fewer
+/// than `4 (LAGS + 1)` samples) or the regression is singular (an input whose period is within
+/// the lags: its lag-0 change cannot be told from the same change a period earlier). It costs one pass of `LAGS^2/2`
+/// products per sample, no simulation.
+///
+/// ```
+/// use ident::oe::init::feedthrough::instant_response;
+/// // y = 0.5 u + a first-order lag of u: the instant response is 0.5.
+/// // A pseudo-random binary input (k^2 mod 1009: no period shorter than the lags).
+/// let u: Vec<f64> = (0..2000).map(|k| if (k * k % 1009) < 504 { 1.0 } else { -1.0 }).collect();
+/// let mut x = 0.0;
+/// let y: Vec<f64> = u.iter().map(|&v| { let y = 0.5 * v + x; x = 0.5 * x + 0.2 * v; y }).collect();
+/// let r = instant_response(&u, &y).unwrap();
+/// // The pulse response's tail beyond the 32 lags (0.5^32) is all that is left.
+/// assert!((r.d - 0.5).abs() < 1e-6 && r.is_feedthrough(), "{r:?}");
+/// // Without the feed-through the instant response is nil.
+/// let y: Vec<f64> = y.iter().zip(&u).map(|(a, b)| a - 0.5 * b).collect();
+/// assert!(!instant_response(&u, &y).unwrap().is_feedthrough());
+/// ```
+pub fn instant_response(u: &[f64], y: &[f64]) -> Option<InstantResponse> {
+    let n = u.len().min(y.len()).min(MAX_SCREEN_SAMPLES);
+    if n < 4 * (LAGS + 1) {
+        return None;
+    }
+    let du: Vec<f64> = u[..n].windows(2).map(|w| w[1] - w[0]).collect();
+    let dy: Vec<f64> = y[..n].windows(2).map(|w| w[1] - w[0]).collect();
+    if du.iter().all(|&v| v == 0.0) {
+        return None;
+    }
+    // Rows k = LAGS..du.len(): dy_k against du_k (x0) and du_(k-1..k-LAGS) (z_1..z_LAGS).
+    let rows = LAGS..du.len();
+    let m = rows.len();
+    let lag = |j: usize| &du[LAGS - j..du.len() - j];
+    let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
+    let yv = &dy[LAGS..];
+    let x0 = lag(0);
+    let mut g = Mat::<f64>::zeros(LAGS, LAGS);
+    let mut rhs = Mat::<f64>::zeros(LAGS, 2);
+    for i in 0..LAGS {
+        for j in 0..=i {
+            let v = dot(lag(i + 1), lag(j + 1));
+            g[(i, j)] = v;
+            g[(j, i)] = v;
+        }
+        rhs[(i, 0)] = dot(lag(i + 1), x0);
+        rhs[(i, 1)] = dot(lag(i + 1), yv);
+    }
+    // A lag column that is all zero (a step near the record's start) gets a zero coefficient.
+    let scale = (0..LAGS).map(|i| g[(i, i)]).fold(0.0, f64::max).max(1e-300);
+    for i in 0..LAGS {
+        g[(i, i)] += 1e-12 * scale;
+    }
+    let c = g.llt(faer::Side::Lower).ok()?.solve(&rhs);
+    // The lag-0 column and the output with the other lags regressed out.
+    let mut r0 = x0.to_vec();
+    let mut ry = yv.to_vec();
+    for i in 0..LAGS {
+        let (cx, cy, z) = (c[(i, 0)], c[(i, 1)], lag(i + 1));
+        for k in 0..m {
+            r0[k] -= cx * z[k];
+            ry[k] -= cy * z[k];
+        }
+    }
+    let rr = dot(&r0, &r0);
+    if !(rr > 1e-12 * dot(x0, x0)) {
+        return None;
+    }
+    let d = dot(&r0, &ry) / rr;
+    let e: Vec<f64> = ry.iter().zip(&r0).map(|(a, b)| a - d * b).collect();
+    let dof = m.saturating_sub(LAGS + 1).max(1) as f64;
+    let s0 = dot(&e, &e) / dof;
+    let s1 = dot(&e[1..], &e[..m - 1]) / dof;
+    // d = sum w_k dy_k with w = r0/rr: its variance under noise of autocovariances s0, s1.
+    let w2 = rr / (rr * rr);
+    let w11 = dot(&r0[1..], &r0[..m - 1]) / (rr * rr);
+    let var = s0 * w2 + 2.0 * s1 * w11;
+    let var = if var > 0.0 { var } else { s0 * w2 };
+    let sd = |x: &[f64]| {
+        let mean = x.iter().sum::<f64>() / x.len() as f64;
+        (x.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / x.len() as f64).sqrt()
+    };
+    let share = d.abs() * sd(&u[..n]) / sd(&y[..n]).max(f64::MIN_POSITIVE);
+    (d.is_finite() && var.is_finite()).then_some(InstantResponse {
+        d,
+        std_error: var.sqrt(),
+        share,
+    })
+}
+
+/// The start of a [`crate::oe::Kind::Feedthrough`] model on deviations `u`, `y` (step `dt`): see the module
+/// documentation. The report's fit is the whole model's (feed-through included).
+///
+/// # Errors
+/// As [`super::auto_start`].
+pub(super) fn start(model: &mut FracModel, u: &[f64], y: &[f64], dt: f64) -> Result<StartReport> {
+    let id = model.index_of("D");
+    let given = id.filter(|&i| !model.params[i].free);
+    let found = instant_response(u, y);
+    let (d0, how) = match (given, found) {
+        (Some(i), _) => (model.params[i].value, "held at the given value".to_string()),
+        (None, Some(r)) => (
+            r.d,
+            format!(
+                "from the instant response (lag-0 step of y over u, {:.1} standard errors)",
+                r.d / r.std_error.max(f64::MIN_POSITIVE)
+            ),
+        ),
+        (None, None) => (0.0, "0: no input change to measure it on".to_string()),
+    };
+    let v = model.values();
+    let mut inner = FracModel::pmsm(v[0], v[1], v[2], v[3], v[4]);
+    inner.approx = model.approx;
+    for (p, q) in inner.params.iter_mut().zip(&model.params) {
+        p.free = q.free;
+    }
+    let rest: Vec<f64> = y.iter().zip(u).map(|(a, b)| a - d0 * b).collect();
+    let mut report = auto_start(&mut inner, u, &rest, dt)?;
+    for (p, q) in model.params.iter_mut().zip(&inner.params) {
+        p.value = q.value;
+    }
+    if let Some(i) = id {
+        model.params[i].value = d0;
+    }
+    // The whole model's fit on the part the starts are scored on.
+    let scored = u.len().min(y.len()).min(super::START_SCORE_SAMPLES);
+    let mut lin = model.clone();
+    lin.effects.clear();
+    let mut buf = vec![0.0; scored];
+    if let (Some(sse), Some(_)) = (
+        super::sse_of(
+            &lin,
+            &lin.values(),
+            &u[..scored],
+            &y[..scored],
+            dt,
+            0,
+            &mut buf,
+        ),
+        report.fit_percent,
+    ) {
+        let ys = &y[..scored];
+        let mean = ys.iter().sum::<f64>() / scored as f64;
+        let sst: f64 = ys.iter().map(|v| (v - mean) * (v - mean)).sum();
+        report.fit_percent = Some(100.0 * (1.0 - (sse / sst.max(f64::MIN_POSITIVE)).sqrt()));
+    }
+    report.note = format!("D = {d0:.4e} {how}; the rest of y - D u: {}", report.note);
+    Ok(report)
+}
