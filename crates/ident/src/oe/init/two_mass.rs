@@ -22,10 +22,10 @@
 //!
 //! The response is the periodic estimate when the input is periodic, else ([`aperiodic`]) Welch's
 //! H1 estimate ([`super::welch`]). That one is noisier and smears a sharp peak over the window's
-//! main lobe, so on it the structure must also earn its place: the best candidate's weighted error
-//! on the response must be below [`EVIDENCE_RATIO`] times that of the motor alone (the
-//! commensurate Levy start, [`super::levy_start`]), else the start fails as above, still before
-//! any simulation.
+//! main lobe, so on it the structure must also earn its place: a candidate's weighted error on
+//! the response must be below [`EVIDENCE_RATIO`] times that of its own motor alone (the pair, not
+//! a better motor, explains the response), else the start fails as above, still before any
+//! simulation.
 
 use super::{frf_error, levy_start, with_values, Candidate, Frf, SK_ITERATIONS};
 use crate::levy;
@@ -37,9 +37,9 @@ use num_complex::Complex64;
 /// Rounds of the alternation (each gives a candidate).
 pub const ROUNDS: usize = 2;
 
-/// On Welch's estimate the best two-mass candidate must fit the response with less than this
-/// fraction of the weighted error of the motor alone: the evidence of a resonance that the
-/// estimate's noise and leakage alone do not give.
+/// On Welch's estimate a two-mass candidate must fit the response with less than this fraction
+/// of the weighted error of its own motor alone: the evidence of a resonance that the estimate's
+/// noise and leakage alone do not give (a pair whose zeros nearly cancel its poles adds nothing).
 pub const EVIDENCE_RATIO: f64 = 0.5;
 
 /// The frequency response the two-mass start uses when [`super::periodic_frf`] failed with `why`:
@@ -59,7 +59,13 @@ pub fn aperiodic(
     if lin.kind != crate::oe::Kind::TwoMass {
         return Err(why);
     }
-    super::welch::h1(u, y, dt).map_err(|e| Error::NotEnoughData(format!("{why}; {e}")))
+    // The reasons' own words, without the variant's prefix twice.
+    let plain = |e: Error| match e {
+        Error::NotEnoughData(s) => s,
+        e => e.to_string(),
+    };
+    super::welch::h1(u, y, dt)
+        .map_err(|e| Error::NotEnoughData(format!("{}; {}", plain(why), plain(e))))
 }
 
 /// A pair whose poles' damping ratio `c1 / (2 sqrt(c2))` exceeds this has no resonance peak
@@ -317,23 +323,39 @@ pub fn candidates(lin: &FracModel, frf: &Frf, dt: f64) -> Result<(Vec<Candidate>
     Ok((out, motor[3]))
 }
 
-/// The evidence rule on Welch's estimate (see the module documentation): `Ok` when the best of
-/// `cands` fits `frf` with less than [`EVIDENCE_RATIO`] times the weighted error of the motor
-/// alone.
+/// The evidence rule on Welch's estimate (see the module documentation): `Ok` when one of
+/// `cands` fits `frf` with less than [`EVIDENCE_RATIO`] times the weighted error of its own motor
+/// alone (the candidate without its pair): the resonant pair, not a better motor, explains the
+/// response.
 fn evidence(lin: &FracModel, frf: &Frf, cands: &[Candidate]) -> Result<()> {
-    let best = cands
-        .iter()
-        .filter_map(|(v, _)| lin.tf(v).ok().map(|g| frf_error(frf, &g)))
-        .filter(|e| e.is_finite())
-        .fold(f64::INFINITY, f64::min);
-    let motor = levy_start(frf, true).map_or(f64::INFINITY, |(_, e)| e);
-    if best < EVIDENCE_RATIO * motor {
+    let at = |v: &[f64], n: &str| lin.index_of(n).map_or(f64::NAN, |i| v[i]);
+    // (error, its motor's error) of the candidate whose pair lowers the error most.
+    let mut best = (f64::INFINITY, f64::INFINITY);
+    let mut ratio = f64::INFINITY;
+    for (v, _) in cands {
+        let Ok(whole) = lin.tf(v) else { continue };
+        let Ok(motor) = FracTf::pmsm(
+            at(v, "K"),
+            at(v, "a1"),
+            at(v, "a2"),
+            at(v, "zeta"),
+            at(v, "theta"),
+        ) else {
+            continue;
+        };
+        let (e, m) = (frf_error(frf, &whole), frf_error(frf, &motor));
+        if e.is_finite() && m > 0.0 && m.is_finite() && e / m < ratio {
+            (best, ratio) = ((e, m), e / m);
+        }
+    }
+    if ratio < EVIDENCE_RATIO {
         return Ok(());
     }
     Err(Error::NotEnoughData(format!(
-        "no resonance in the frequency response: the two-mass start fits Welch's estimate with \
-         a weighted error of {best:.2e}, the motor alone with {motor:.2e} (a resonance needs \
-         below {EVIDENCE_RATIO} times it)"
+        "no resonance in the frequency response: on Welch's estimate the two-mass start's \
+         weighted error is {:.2e}, its motor's alone {:.2e} (the resonant pair must bring it \
+         below {EVIDENCE_RATIO} times that)",
+        best.0, best.1
     )))
 }
 
@@ -423,6 +445,53 @@ mod tests {
         let pmsm = FracTf::pmsm(6.77, 0.0064, 2.8e-5, 0.89, 0.89).unwrap();
         let e = candidates(&lin, &frf(&pmsm), 1e-3).unwrap_err();
         assert!(e.to_string().contains("no resonance"), "{e}");
+    }
+
+    /// The evidence rule on Welch's estimate: on a two-mass response its own values pass; on a
+    /// plain PMSM's response a candidate whose pair nearly cancels (zeros 0.1% from its poles)
+    /// adds nothing to its motor and is refused, and so is one with a real pair (which only
+    /// spoils the fit).
+    #[test]
+    fn the_evidence_rule_wants_a_pair_that_explains_the_response() {
+        let inv_w2 = |hz: f64| (2.0 * std::f64::consts::PI * hz).powi(-2);
+        let lin = crate::diagnose::structures::two_mass();
+        let omega: Vec<f64> = (0..120)
+            .map(|i| 2.0 * std::f64::consts::PI * 10f64.powf(i as f64 / 60.0))
+            .collect();
+        let frf = |g: &FracTf| Frf {
+            h: g.bode(&omega),
+            weight: vec![1.0; omega.len()],
+            omega: omega.clone(),
+            period: None,
+            periods_averaged: 0,
+            periods_available: 0,
+        };
+        let cand = |b2: f64, c2: f64, d: f64| -> Candidate {
+            let v = with_values(
+                &lin,
+                &[
+                    ("K", 6.77),
+                    ("a1", 0.0064),
+                    ("a2", 2.8e-5),
+                    ("zeta", 0.89),
+                    ("theta", 0.89),
+                    ("b2", b2),
+                    ("c2", c2),
+                    ("d", d),
+                    ("mu", 1.0),
+                ],
+            );
+            (v, String::new())
+        };
+        let real = cand(inv_w2(28.0), inv_w2(40.0), 4e-4);
+        let g = lin.tf(&real.0).unwrap();
+        evidence(&lin, &frf(&g), std::slice::from_ref(&real)).unwrap();
+        let pmsm = FracTf::pmsm(6.77, 0.0064, 2.8e-5, 0.89, 0.89).unwrap();
+        let cancelling = cand(1.001 * inv_w2(40.0), inv_w2(40.0), 4e-4);
+        for c in [cancelling, real] {
+            let e = evidence(&lin, &frf(&pmsm), &[c]).unwrap_err();
+            assert!(e.to_string().contains("no resonance"), "{e}");
+        }
     }
 
     /// A random binary sequence (8192 samples at 1 ms, a 2 ms clock, never repeated) through
