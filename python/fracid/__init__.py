@@ -398,7 +398,7 @@ def fit_time(
         ``band`` ((w_b, w_h) rad/s), ``order``, ``integrator``, ``delay``, ``max_delay`` (s),
         ``fix`` ("NAME" or "NAME=VALUE", comma-separated), ``free``, ``start`` (dict of start
         values by parameter name), ``auto_start``, ``holdout`` (fraction held out; default 0.3),
-        ``offsets`` ("initial", "mean", "none"), ``fit_offset``, ``initial`` ("estimate",
+        ``offsets`` ("initial", "mean", "none"), ``fit_offset``, ``initial`` ("auto", "estimate",
         "rest"), ``max_iterations`` (500), ``skip``, ``max_lag`` (25), ``diagnose`` (the residual
         diagnosis, docs/design.md §6: the result is in ``TimeFit.diagnosis`` and the model that
         leads is the final one), ``margin``, ``min_r2``, ``max_rounds``.

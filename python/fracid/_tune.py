@@ -48,8 +48,8 @@ def tune(
     ----------
     model : FracTf, str or Diagnosis
         The plant (its delay included). A :class:`Diagnosis` gives its final model and its kept
-        input effects (saturation, dead band, Coulomb friction, input offset), simulated in the
-        loop.
+        input effects (saturation, dead band, power law, Coulomb friction, input offset),
+        simulated in the loop.
     wc : float
         Gain crossover, rad/s.
     pm : float

@@ -31,6 +31,16 @@ mod fast;
 /// noise is about 6 levels at `N = 1e3` and 10 at `N = 1e6`.
 pub const STEP_NOISE_LEVELS: f64 = 20.0;
 
+/// The fewest samples of constant input before the first change for a record to be taken as
+/// resting there ([`Record::rests_until`]): fewer cannot tell a steady output from a ramp.
+pub const MIN_REST_SAMPLES: usize = 8;
+
+/// The smallest part of the record the constant input before the first change must last for the
+/// record to be taken as resting there ([`Record::rests_until`]): a few samples cannot tell rest
+/// from the slow start of a response to an input applied at the first sample (a multi-level
+/// PRBS whose first level lasts 10 of 3000 samples while the output creeps up within its noise).
+pub const MIN_REST_FRACTION: f64 = 0.01;
+
 /// A uniformly sampled single-input single-output record.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Record {
@@ -1180,6 +1190,61 @@ impl Record {
         let noise = med / (0.6745 * std::f64::consts::SQRT_2);
         let (ylo, yhi) = crate::lm::range_of(&self.y);
         yhi - ylo > STEP_NOISE_LEVELS * noise && yhi > ylo
+    }
+
+    /// The first input change when the record **rests** before it: the input constant over at
+    /// least [`MIN_REST_SAMPLES`] samples and [`MIN_REST_FRACTION`] of the record, and the output
+    /// steady there: no trend (the means of the
+    /// window's two halves apart by no more than 2% of the output's range over the record, or
+    /// than three standard errors of that difference, the noise within the halves; a ramp of
+    /// rise `R` over `k >= 8` samples moves them `R/2` apart against at most `0.87 R / sqrt(k)`)
+    /// and no spread (the window's standard deviation within 2% of the output's range or 1.5
+    /// noise levels, the noise from the record's first differences, robustly: a window that
+    /// moves and comes back has no trend but spreads).
+    ///
+    /// The rule for such a record (a step test from rest, a lab record that starts idle): the
+    /// plant is at rest at the operating point of [`OffsetMode::Initial`] (`u0 = u[0]`, `y0` =
+    /// the median of `y` before the first change), so the initial state is that rest, not a
+    /// fitted past input ([`crate::oe::InitialState::Auto`]).
+    ///
+    /// ```
+    /// use ident::data::Record;
+    /// let u: Vec<f64> = (0..200).map(|k| if k < 50 { 0.0 } else { 1.0 }).collect();
+    /// let rise = |k: usize| if k < 50 { 0.0 } else { 1.0 - (-0.05 * (k - 50) as f64).exp() };
+    /// let idle = Record::from_samples(&u, &(0..200).map(rise).collect::<Vec<_>>(), 0.01).unwrap();
+    /// assert_eq!(idle.rests_until(), Some(50));
+    /// // the output still falls from an earlier move while the input stands still
+    /// let y: Vec<f64> = (0..200).map(|k| rise(k) + (-0.02 * k as f64).exp()).collect();
+    /// let moving = Record::from_samples(&u, &y, 0.01).unwrap();
+    /// assert_eq!(moving.rests_until(), None);
+    /// ```
+    pub fn rests_until(&self) -> Option<usize> {
+        let n = self.len();
+        let (ulo, uhi) = crate::lm::range_of(&self.u);
+        let tol = 1e-9 * uhi.abs().max(ulo.abs()).max(1e-300);
+        let k1 = (1..n).find(|&k| (self.u[k] - self.u[0]).abs() > tol)?;
+        if k1 < MIN_REST_SAMPLES || (k1 as f64) < MIN_REST_FRACTION * n as f64 {
+            return None;
+        }
+        let (ylo, yhi) = crate::lm::range_of(&self.y);
+        let half = k1 / 2;
+        let (a, b) = (&self.y[..half], &self.y[half..k1]);
+        let mean = |w: &[f64]| w.iter().sum::<f64>() / w.len() as f64;
+        let var = |w: &[f64], m: f64| w.iter().map(|v| (v - m).powi(2)).sum::<f64>();
+        let (ma, mb) = (mean(a), mean(b));
+        let within = (var(a, ma) + var(b, mb)) / (k1 - 2) as f64;
+        let se = (within * (1.0 / a.len() as f64 + 1.0 / b.len() as f64)).sqrt();
+        let no_trend = (mb - ma).abs() <= (0.02 * (yhi - ylo)).max(3.0 * se);
+        // and no larger spread than the record's noise (robust, from its first differences): a
+        // window that moves and comes back has no trend but spreads
+        let mut dy: Vec<f64> = self.y.windows(2).map(|w| (w[1] - w[0]).abs()).collect();
+        let mid = dy.len() / 2;
+        let (_, &mut med, _) = dy.select_nth_unstable_by(mid, f64::total_cmp);
+        let noise = med / (0.6745 * std::f64::consts::SQRT_2);
+        let m = mean(&self.y[..k1]);
+        let spread = (var(&self.y[..k1], m) / k1 as f64).sqrt();
+        let calm = spread <= (0.02 * (yhi - ylo)).max(1.5 * noise);
+        (no_trend && calm).then_some(k1)
     }
 
     /// Check that the input excites the system: its range over the first `n` samples must exceed

@@ -44,8 +44,8 @@ pub use checks::{Validation, ValidationKind};
 pub use effects::Effect;
 pub use fit::{
     check_params, fit, fit_with_progress, identify, identify_with_progress, past_edges,
-    sensitivities, FitOptions, FitReport, IdentOptions, Identification, InitialState,
-    ParamEstimate, StartMode,
+    sensitivities, FitOptions, FitReport, IdentOptions, Identification, InitialReport,
+    InitialState, ParamEstimate, StartMode,
 };
 pub use init::{StartMethod, StartReport};
 pub use joint::{identify_joint, JointIdentification};
@@ -912,6 +912,7 @@ impl FracModel {
                 Effect::Coulomb { vc } => vc == j,
                 Effect::Saturation { level } => level == j,
                 Effect::Deadzone { width } => width == j,
+                Effect::PowerLaw { p, .. } => p == j,
                 Effect::Sinusoid { a, b, .. } => a == j || b == j,
                 _ => false,
             })

@@ -38,6 +38,9 @@ struct Hidden {
     sat: Option<f64>,
     /// Input dead band half width.
     dz: Option<f64>,
+    /// Input power law `x -> sign(x) (|x| / u_ref)^p u_ref` (exponent `p`; `u_ref` the input's
+    /// largest magnitude), after the clipping and the dead band.
+    power: Option<f64>,
     /// Input offset (a voltage added to the input before everything else).
     u_offset: f64,
     /// The plant's commensurate order instead of the truth's 0.85 (1.0: an integer second-order
@@ -93,6 +96,7 @@ fn generate(u: &[f64], h: Hidden, seed: u64) -> Record {
         .map(|j| s1 * c1[j] + s2 * c2[j] + if j == 0 { 1.0 } else { 0.0 })
         .collect();
     let dly = (h.delay / hf).round() as usize;
+    let u_ref = u.iter().fold(0.0f64, |m, v| m.max((v + h.u_offset).abs()));
     let mut y = vec![0.0; n];
     for i in 0..n {
         // The implicit GL step at t_i uses x(t_i): a held input u_m acts on (m DT, (m+1) DT], so
@@ -108,6 +112,9 @@ fn generate(u: &[f64], h: Hidden, seed: u64) -> Record {
         }
         if let Some(w) = h.dz {
             x = if x.abs() < w { 0.0 } else { x - w * sgn(x) };
+        }
+        if let Some(p) = h.power {
+            x = sgn(x) * u_ref * (x.abs() / u_ref).powf(p);
         }
         if i > 0 {
             x -= h.coulomb * sgn(y[i - 1]);
@@ -319,6 +326,36 @@ fn deadzone_is_found() {
         },
         8,
         ("deadzone", "width", 0.15),
+    );
+}
+
+/// A heater-like input map (power rising with the square of the command): the power law is kept
+/// with its exponent within 20%, and no other effect (saturation, dead band or a periodic
+/// disturbance) takes its place.
+#[test]
+fn a_power_law_input_map_is_found() {
+    finds_only(
+        true,
+        Hidden {
+            power: Some(2.0),
+            ..Default::default()
+        },
+        9,
+        ("power_law", "exponent", 2.0),
+    );
+}
+
+/// A flattening actuator (`p = 0.6`, concave like a soft saturation) is a power law too.
+#[test]
+fn a_flattening_input_map_is_found() {
+    finds_only(
+        true,
+        Hidden {
+            power: Some(0.6),
+            ..Default::default()
+        },
+        10,
+        ("power_law", "exponent", 0.6),
     );
 }
 
@@ -569,7 +606,7 @@ fn with_the_defaults_each_hidden_effect_alone_is_kept() {
     // is kept (nothing on the clean record), its parameter within 20%.
     // (effect, multi-level input, what is hidden, (parameter, truth))
     type Case = (&'static str, bool, Hidden, Option<(&'static str, f64)>);
-    let cases: [Case; 7] = [
+    let cases: [Case; 8] = [
         ("clean", false, Hidden::default(), None),
         (
             "delay",
@@ -624,6 +661,15 @@ fn with_the_defaults_each_hidden_effect_alone_is_kept() {
                 ..Default::default()
             },
             Some(("width", 0.15)),
+        ),
+        (
+            "power_law",
+            true,
+            Hidden {
+                power: Some(2.0),
+                ..Default::default()
+            },
+            Some(("exponent", 2.0)),
         ),
     ];
     let mut wrong = vec![];

@@ -105,6 +105,13 @@ pub enum InputEffect {
         /// The half width, input units.
         width: f64,
     },
+    /// `sign(u) u_ref (|u| / u_ref)^exponent` (a smooth monotone actuator curve).
+    PowerLaw {
+        /// The exponent.
+        exponent: f64,
+        /// The input magnitude the map leaves unchanged, input units.
+        u_ref: f64,
+    },
 }
 
 fn sign(x: f64) -> f64 {
@@ -145,6 +152,16 @@ impl InputEffect {
             "deadzone" => Self::Deadzone {
                 width: get("width")?.abs(),
             },
+            "power_law" => match (get("exponent")?, get("u_ref")?.abs()) {
+                (p, r) if p > 0.0 && r > 0.0 => Self::PowerLaw {
+                    exponent: p,
+                    u_ref: r,
+                },
+                (p, r) => invalid(
+                    "effect",
+                    format!("power_law with exponent {p} and u_ref {r}: both must be positive"),
+                )?,
+            },
             _ => return Ok(None),
         }))
     }
@@ -161,6 +178,9 @@ impl InputEffect {
                 } else {
                     u - width * sign(u)
                 }
+            }
+            Self::PowerLaw { exponent, u_ref } => {
+                sign(u) * u_ref * (u.abs() / u_ref).powf(exponent)
             }
         }
     }

@@ -3,8 +3,9 @@
 //! differences over a band and where they are, and the coefficients term by term when the
 //! structures match (`ident::compare`).
 
+use crate::cmd::model_in;
 use crate::plot::{self, Figure};
-use anyhow::{Context, Result};
+use anyhow::Result;
 use fracsim::FracTf;
 use ident::compare::Comparison;
 use plotters::coord::Shift;
@@ -38,54 +39,6 @@ pub struct CompareArgs {
     pub json: bool,
 }
 
-/// The model from a JSON value of `fracid time`/`fracid freq`: the final one, i.e.
-/// `diagnosis.model` (the refit with what the diagnosis found, `--diagnose`), else
-/// `refined.model` (`freq --refine`), else `model`; each
-/// `{"num": [{"coef","order"}], "den": [...], "delay"}`.
-pub(crate) fn model_from_json(v: &Value) -> Result<FracTf> {
-    let m = ["/diagnosis/model", "/refined/model", "/model"]
-        .iter()
-        .find_map(|p| v.pointer(p).filter(|m| m.get("den").is_some()))
-        .ok_or_else(|| crate::cmd::BadInput("JSON without a \"model\"".into()))?;
-    let terms = |key: &str| -> Result<Vec<fracsim::Term>> {
-        let arr = m
-            .get(key)
-            .and_then(Value::as_array)
-            .ok_or_else(|| crate::cmd::BadInput(format!("JSON model without a \"{key}\" array")))?;
-        arr.iter()
-            .map(|t| {
-                let c = t.get("coef").and_then(Value::as_f64);
-                let o = t.get("order").and_then(Value::as_f64);
-                match (c, o) {
-                    (Some(c), Some(o)) => Ok(fracsim::Term::new(c, o)),
-                    _ => Err(crate::cmd::BadInput(format!("bad term {t} in \"{key}\"")).into()),
-                }
-            })
-            .collect()
-    };
-    let delay = m.get("delay").and_then(Value::as_f64).unwrap_or(0.0);
-    Ok(FracTf::new(terms("num")?, terms("den")?, delay)?)
-}
-
-/// A model from the command line: text, a file of text, or a JSON file.
-pub fn load_model(arg: &str) -> Result<FracTf> {
-    let path = std::path::Path::new(arg);
-    if !path.exists() {
-        return arg
-            .parse::<FracTf>()
-            .with_context(|| format!("{arg:?} is neither a model nor an existing file"));
-    }
-    let text = crate::cmd::read_text(path)?;
-    if text.trim_start().starts_with('{') {
-        let v: Value = serde_json::from_str(&text)
-            .map_err(|e| crate::cmd::BadInput(format!("{arg}: not valid JSON: {e}")))?;
-        return model_from_json(&v).with_context(|| format!("model of {arg}"));
-    }
-    text.trim()
-        .parse::<FracTf>()
-        .with_context(|| format!("model in {arg}"))
-}
-
 /// Run `fracid compare`.
 pub fn run(a: CompareArgs) -> Result<()> {
     if a.band.len() != 2 {
@@ -94,8 +47,8 @@ pub fn run(a: CompareArgs) -> Result<()> {
     if a.names.len() != 2 {
         crate::bad_input!("--names wants NAME_A,NAME_B, got {} names", a.names.len());
     }
-    let ga = load_model(&a.model_a)?;
-    let gb = load_model(&a.model_b)?;
+    let ga = model_in::load(&a.model_a)?.tf;
+    let gb = model_in::load(&a.model_b)?.tf;
     let c = ident::compare::compare(&ga, &gb, (a.band[0], a.band[1]), a.points)?;
     let names = (a.names[0].as_str(), a.names[1].as_str());
     if let Some(p) = &a.plot {

@@ -304,8 +304,8 @@ pub fn run(a: DemoArgs) -> Result<()> {
 
     step("the two models side by side (the paper's Fig. 5)");
     // the final models (after the diagnosis), as `fracid compare time.json freq.json` takes them
-    let ga = super::compare::model_from_json(&time_json)?;
-    let gb = super::compare::model_from_json(&freq_json)?;
+    let ga = super::model_in::from_json(super::model_in::final_model(&time_json))?;
+    let gb = super::model_in::from_json(super::model_in::final_model(&freq_json))?;
     let names = ("time", "frequency");
     let cmp = ident::compare::compare(&ga, &gb, (0.1, 100.0), 2000)?;
     let cmp_txt = super::compare::text(&ga, &gb, &cmp, names);

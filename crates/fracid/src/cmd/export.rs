@@ -6,16 +6,17 @@ use crate::bad_input;
 use crate::cmd::sim::parse_band;
 use anyhow::{Context, Result};
 use fracsim::export::{self, StateSpace};
-use fracsim::{ApproxSpec, FracTf, Term};
+use fracsim::{ApproxSpec, FracTf};
 use serde_json::{json, Value};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 /// Options of `fracid export`.
 #[derive(Debug, clap::Args)]
 pub struct ExportArgs {
     /// The model: a transfer function such as "6.77/(0.000028 s^1.78 + 0.0064 s^0.89 + 1)"
     /// (`exp(-tau s)` allowed), or a JSON file written by `fracid time --json` or
-    /// `fracid freq --json` (its "model").
+    /// `fracid freq --json` (its final model: the diagnosis's refit if any, else the refined
+    /// model, else `model`).
     pub model: String,
     /// Sample period in seconds: export the discrete model, exact for an input held over each
     /// period, its input delay as extra states (whole and fractional samples). Without it the
@@ -42,73 +43,6 @@ pub struct ExportArgs {
     /// Write here instead of stdout.
     #[arg(short, long, value_name = "FILE")]
     pub output: Option<PathBuf>,
-}
-
-/// The model of `text`: a JSON report file (its "model" object), or a transfer function.
-pub fn load_model(text: &str) -> Result<FracTf> {
-    let p = Path::new(text);
-    if p.extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("json"))
-    {
-        let raw = crate::cmd::read_text(p)?;
-        let v: Value = match serde_json::from_str(&raw) {
-            Ok(v) => v,
-            Err(e) => bad_input!("{}: not JSON: {e}", p.display()),
-        };
-        let m = v.get("model").unwrap_or(&v);
-        return model_from_json(m).with_context(|| format!("in {}", p.display()));
-    }
-    Ok(text.parse::<FracTf>()?)
-}
-
-/// `{"num": [{"coef", "order"}], "den": [...], "delay"}` (docs/design.md §7) as a [`FracTf`].
-pub fn model_from_json(m: &Value) -> Result<FracTf> {
-    let terms = |key: &str| -> Result<Vec<Term>> {
-        let Some(arr) = m.get(key).and_then(Value::as_array) else {
-            bad_input!("no \"model\" object with a \"{key}\" list of {{coef, order}} terms");
-        };
-        arr.iter()
-            .map(|t| {
-                let f = |k: &str| t.get(k).and_then(Value::as_f64);
-                match (f("coef"), f("order")) {
-                    (Some(coef), Some(order)) => Ok(Term { coef, order }),
-                    _ => bad_input!(
-                        "a \"{key}\" term is not {{\"coef\": number, \"order\": number}}: {t}"
-                    ),
-                }
-            })
-            .collect()
-    };
-    let delay = match m.get("delay") {
-        None | Some(Value::Null) => 0.0,
-        Some(d) => match d.as_f64() {
-            Some(d) => d,
-            None => bad_input!("\"delay\" is not a number: {d}"),
-        },
-    };
-    let tf = FracTf::new(terms("num")?, terms("den")?, delay)?;
-    // The text, when it is the same model, also says the factors of a product (a two-mass
-    // drive train's): the export's way when the product multiplied out cannot be expanded.
-    match m
-        .get("text")
-        .and_then(Value::as_str)
-        .map(str::parse::<FracTf>)
-    {
-        Some(Ok(g)) if !g.factors().is_empty() && same_model(&g, &tf) => Ok(g),
-        _ => Ok(tf),
-    }
-}
-
-/// Whether two models have the same terms and delay to within the decimal text's rounding.
-fn same_model(a: &FracTf, b: &FracTf) -> bool {
-    let close = |x: f64, y: f64| (x - y).abs() <= 1e-12 * x.abs().max(y.abs());
-    let terms = |s: &[Term], t: &[Term]| {
-        s.len() == t.len()
-            && s.iter()
-                .zip(t)
-                .all(|(x, y)| close(x.coef, y.coef) && close(x.order, y.order))
-    };
-    terms(&a.num, &b.num) && terms(&a.den, &b.den) && close(a.delay, b.delay)
 }
 
 /// The state space the options ask for.
@@ -170,7 +104,7 @@ pub fn run(a: ExportArgs) -> Result<()> {
     if format != "json" && format != "m" {
         bad_input!("--format must be json or m, got '{format}'");
     }
-    let g = load_model(&a.model)?;
+    let g = crate::cmd::model_in::load(&a.model)?.tf;
     let ss = state_space(&g, &a)?;
     let text = if format == "m" {
         ss.to_matlab(&g.to_string())

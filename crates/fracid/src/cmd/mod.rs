@@ -9,6 +9,7 @@ pub mod drive_loop;
 pub mod export;
 pub mod fleet;
 pub mod freq;
+pub mod model_in;
 pub mod score;
 pub mod sim;
 pub mod time;

@@ -107,9 +107,10 @@ pub struct TimeArgs {
     /// Do not fit a constant output offset.
     #[arg(long)]
     pub no_offset: bool,
-    /// Initial state of the plant at the first sample: estimate (the state a past held input
-    /// left, fitted with the model: records that start in motion, mid-transient or on a ramp) or
-    /// rest (at the operating point).
+    /// Initial state of the plant at the first sample: auto (rest when the record rests before
+    /// its first input change, input constant and output steady; else estimate), estimate (the
+    /// state a past held input left, fitted with the model: records that start in motion,
+    /// mid-transient or on a ramp) or rest (at the operating point).
     #[arg(long, default_value_t = ident::app::time::TimeRequest::default().initial)]
     pub initial: String,
     /// Maximum Levenberg-Marquardt iterations.
@@ -521,6 +522,11 @@ fn fit_text(id: &Identification, rec: &Record) -> String {
             edges.join(", ")
         );
     }
+    let _ = writeln!(
+        o,
+        "initial state {}: {}",
+        id.initial.state, id.initial.reason
+    );
     for (order, al, et) in &id.alpha_eta {
         let _ = writeln!(
             o,

@@ -10,7 +10,7 @@ use plotters::coord::Shift;
 use plotters::prelude::*;
 use serde_json::Value;
 use std::fmt::Write as _;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use tune::closed::InputEffect;
 use tune::report::{Report, Runs, SimOptions};
 use tune::{Controller, GainBound, Plant, Spec};
@@ -68,28 +68,15 @@ pub struct TuneArgs {
     pub plot: Option<PathBuf>,
 }
 
-/// The final model of `text` and its input effects: a JSON report's "diagnosis.model" (with
-/// "diagnosis.effects") or "model", or a transfer function.
+/// The final model of `text` and its input effects: a JSON report's final model (as
+/// [`model_in`](super::model_in) reads it) with the diagnosis's kept effects, or a transfer
+/// function.
 pub(crate) fn load_model(text: &str) -> Result<(FracTf, Vec<InputEffect>, Vec<String>)> {
-    let p = Path::new(text);
-    if !p
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("json"))
-    {
-        return Ok((super::export::load_model(text)?, vec![], vec![]));
-    }
-    let raw = std::fs::read_to_string(p)
-        .with_context(|| format!("cannot read model file {}", p.display()))?;
-    let v: Value = match serde_json::from_str(&raw) {
-        Ok(v) => v,
-        Err(e) => bad_input!("{}: not JSON: {e}", p.display()),
-    };
-    let diag = v.get("diagnosis").filter(|d| d.get("model").is_some());
-    let m = diag
-        .and_then(|d| d.get("model"))
-        .or_else(|| v.get("model"))
-        .unwrap_or(&v);
-    let g = super::export::model_from_json(m).with_context(|| format!("in {}", p.display()))?;
+    let super::model_in::Loaded { tf: g, report } = super::model_in::load(text)?;
+    let diag = report
+        .as_ref()
+        .and_then(|v| v.get("diagnosis"))
+        .filter(|d| d.get("model").is_some());
     let (mut effects, mut left) = (Vec::new(), Vec::new());
     let kept = diag
         .and_then(|d| d.get("effects"))
@@ -105,9 +92,7 @@ pub(crate) fn load_model(text: &str) -> Result<(FracTf, Vec<InputEffect>, Vec<St
                 .and_then(|p| p.get(k))
                 .and_then(Value::as_f64)
         };
-        match InputEffect::from_report(name, param)
-            .with_context(|| format!("in {}", p.display()))?
-        {
+        match InputEffect::from_report(name, param).with_context(|| format!("in {text}"))? {
             Some(fx) => effects.push(fx),
             None if name == "delay" => {}
             None => left.push(name.to_string()),

@@ -57,7 +57,8 @@ pub struct TimeRequest {
     pub offsets: String,
     /// Fit a constant output offset.
     pub fit_offset: bool,
-    /// Initial state: `estimate` (a past held input, fitted) or `rest`.
+    /// Initial state: `auto` (rest when the record rests before its first input change, else
+    /// estimated), `estimate` (a past held input, fitted) or `rest`.
     pub initial: String,
     /// Maximum Levenberg-Marquardt iterations.
     pub max_iterations: usize,
@@ -94,7 +95,7 @@ impl Default for TimeRequest {
             holdout: None,
             offsets: "initial".into(),
             fit_offset: true,
-            initial: "estimate".into(),
+            initial: "auto".into(),
             max_iterations: 500,
             skip: 0,
             max_lag: 25,
@@ -241,6 +242,8 @@ pub struct TimeReport {
     pub start_values: BTreeMap<String, f64>,
     /// The operating point removed.
     pub offsets: crate::data::Offsets,
+    /// The initial state the record was fitted from, and why.
+    pub initial_state: crate::oe::InitialReport,
     /// The split.
     pub split: Split,
     /// How the model was validated.
@@ -621,6 +624,7 @@ pub fn run(req: &TimeRequest, data: &TimeData, obs: &mut dyn Observe) -> Result<
             .map(|(p, v)| (p.name.clone(), *v))
             .collect(),
         offsets: id.offsets,
+        initial_state: id.initial.clone(),
         split: Split {
             estimation_samples: id.split,
             validation_samples: rec.len() - id.split,

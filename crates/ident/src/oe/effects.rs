@@ -41,6 +41,17 @@ pub enum Effect {
         /// Parameter index of the half width.
         width: usize,
     },
+    /// A smooth monotone input map, a power law through the origin and `u_ref`:
+    /// `u -> sign(u) u_ref (|u| / u_ref)^p` (`p` = parameter `p`, `u_ref` fixed: the record's
+    /// largest input magnitude, so the map leaves `u_ref` where it is and the model's gain keeps
+    /// its meaning there). `p = 1` is the identity; `p = 2` a heater whose power rises with the
+    /// square of its voltage; `p < 1` a map that flattens like a soft saturation.
+    PowerLaw {
+        /// Parameter index of the exponent.
+        p: usize,
+        /// The input magnitude the map leaves unchanged (fixed).
+        u_ref: f64,
+    },
     /// The sensor measures the magnitude: `y -> |y|`.
     AbsSensor,
     /// An additive output sinusoid `a cos(2 pi f t) + b sin(2 pi f t)` at a fixed frequency.
@@ -92,6 +103,15 @@ impl Effect {
                     u - w * sign(u)
                 }
             }
+            Effect::PowerLaw { p: i, u_ref } => {
+                let x = u.re().abs() / u_ref;
+                if x == 0.0 {
+                    T::from(0.0)
+                } else {
+                    // sign(u) u_ref x^p, its derivative in u carried by `u`'s own part
+                    (u.abs() * (1.0 / u_ref)).powr(p[i]) * (sign(u) * u_ref)
+                }
+            }
             _ => u,
         }
     }
@@ -117,6 +137,7 @@ impl Effect {
             Effect::Coulomb { vc } => vec![vc],
             Effect::Saturation { level } => vec![level],
             Effect::Deadzone { width } => vec![width],
+            Effect::PowerLaw { p, .. } => vec![p],
             Effect::AbsSensor => vec![],
             Effect::Sinusoid { a, b, .. } => vec![a, b],
         }
@@ -130,6 +151,7 @@ impl Effect {
                 | Effect::Coulomb { .. }
                 | Effect::Saturation { .. }
                 | Effect::Deadzone { .. }
+                | Effect::PowerLaw { .. }
         )
     }
 
@@ -141,6 +163,7 @@ impl Effect {
             Effect::Coulomb { .. } => "coulomb_friction",
             Effect::Saturation { .. } => "saturation",
             Effect::Deadzone { .. } => "deadzone",
+            Effect::PowerLaw { .. } => "power_law",
             Effect::AbsSensor => "abs_sensor",
             Effect::Sinusoid { .. } => "periodic",
         }

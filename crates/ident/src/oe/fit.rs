@@ -720,8 +720,70 @@ pub enum InitialState {
     /// windows ending `T/64`, `T/8` and `T` before the first sample (`T` the estimation part's
     /// duration) and before that ([`super::PastInput`]). A record that starts in motion,
     /// mid-transient or on a ramp fits as well as one that starts at rest.
-    #[default]
     Estimate,
+    /// Rest when the record rests before its first input change ([`Record::rests_until`], with
+    /// the operating point of [`OffsetMode::Initial`]), else estimated: a step test from rest is
+    /// fitted from rest (no past input levels to run to their edge), a record that starts in
+    /// motion gets its past input.
+    #[default]
+    Auto,
+}
+
+impl InitialState {
+    /// The state a record is fitted and scored with under `offsets`: a step at the first sample
+    /// ([`Record::starts_with_step`]) is fitted from rest whatever was asked (its excitation is
+    /// the step from the input 0 before the record); [`InitialState::Auto`] resolved by
+    /// [`Record::rests_until`]; otherwise as asked.
+    pub fn resolve(self, rec: &Record, offsets: OffsetMode) -> InitialState {
+        self.resolve_why(rec, offsets).0
+    }
+
+    /// [`InitialState::resolve`] and the reason, in words.
+    pub fn resolve_why(self, rec: &Record, offsets: OffsetMode) -> (InitialState, String) {
+        let initial = offsets == OffsetMode::Initial;
+        match self {
+            _ if initial && rec.starts_with_step() => (
+                InitialState::Rest,
+                "a step at the first sample: fitted from rest, the input 0 before the record"
+                    .into(),
+            ),
+            InitialState::Auto => match rec.rests_until().filter(|_| initial) {
+                Some(k) => (
+                    InitialState::Rest,
+                    format!(
+                        "the record rests for its first {k} samples (input constant, output \
+                         steady) before its first input change: fitted from rest at the \
+                         operating point"
+                    ),
+                ),
+                None => (
+                    InitialState::Estimate,
+                    "the record does not rest before its first input change: the state at the \
+                     first sample is estimated, as the response to a past held input"
+                        .into(),
+                ),
+            },
+            s => (s, format!("{} as asked", s.as_str())),
+        }
+    }
+
+    /// Its name, as the options take it.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            InitialState::Rest => "rest",
+            InitialState::Estimate => "estimate",
+            InitialState::Auto => "auto",
+        }
+    }
+}
+
+/// The initial state a record was fitted from, and why (docs/design.md §5).
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct InitialReport {
+    /// `rest` or `estimate`.
+    pub state: String,
+    /// Why, in words.
+    pub reason: String,
 }
 
 impl std::str::FromStr for InitialState {
@@ -730,8 +792,9 @@ impl std::str::FromStr for InitialState {
         match s.trim().to_ascii_lowercase().as_str() {
             "estimate" => Ok(Self::Estimate),
             "rest" | "zero" => Ok(Self::Rest),
+            "auto" => Ok(Self::Auto),
             _ => Err(Error::Options(format!(
-                "initial state '{s}' must be estimate or rest"
+                "initial state '{s}' must be auto, estimate or rest"
             ))),
         }
     }
@@ -787,6 +850,8 @@ pub struct Identification {
     /// Why the model cannot be used (unstable, no finite static gain, parameters the data do not
     /// determine, non-finite scores); empty when it can. Warnings are in the report.
     pub problems: Vec<String>,
+    /// The initial state the record was fitted from, and why.
+    pub initial: InitialReport,
 }
 
 impl Identification {
@@ -943,11 +1008,7 @@ fn identify_at_scale(
     // A step at the first sample from rest (docs/design.md §5): its excitation is the step from
     // the input 0 before the record, the plant at rest; the initial state is that rest.
     let step_from_rest = opts.offsets == OffsetMode::Initial && rec.starts_with_step();
-    let initial = if step_from_rest {
-        InitialState::Rest
-    } else {
-        opts.initial
-    };
+    let (initial, initial_why) = opts.initial.resolve_why(rec, opts.offsets);
     let mut m = model.clone();
     let n_free = m.params.iter().filter(|p| p.free).count() + usize::from(opts.fit_offset);
     let need = (10 * n_free).max(20);
@@ -990,7 +1051,7 @@ fn identify_at_scale(
                 super::past_range(&rec.u, offsets.u0),
             );
         }
-        InitialState::Rest => m.past = None,
+        InitialState::Rest | InitialState::Auto => m.past = None,
     }
     for p in &mut m.params {
         p.value = p.bounds.clamp_inside(p.value);
@@ -1023,6 +1084,10 @@ fn identify_at_scale(
         start_report,
         validated_by,
         problems: vec![],
+        initial: InitialReport {
+            state: initial.as_str().into(),
+            reason: initial_why,
+        },
     };
     // A level of the initial state at the edge of its range is not a structure problem: one
     // warning of its own instead of the parameter's.

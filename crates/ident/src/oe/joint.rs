@@ -68,6 +68,17 @@ pub fn identify_joint(
             first.dt, r.dt
         )));
     }
+    // One initial-state rule for all: from rest only when every record rests (a record's own
+    // past input levels would otherwise be parameters that another record's rest leaves unused).
+    let rests = |r: &Record| opts.initial.resolve(r, opts.offsets) == InitialState::Rest;
+    let opts = &IdentOptions {
+        initial: if opts.initial == InitialState::Auto && !recs.iter().all(rests) {
+            InitialState::Estimate
+        } else {
+            opts.initial
+        },
+        ..opts.clone()
+    };
     // The start: the model fitted to the first record alone, whole.
     let one = IdentOptions {
         holdout: 0.0,
@@ -81,7 +92,7 @@ pub fn identify_joint(
         let op = rec.offsets(opts.offsets, rec.len());
         let mut m = base.clone();
         m.operating_point = op;
-        if opts.initial == InitialState::Estimate {
+        if opts.initial.resolve(rec, opts.offsets) == InitialState::Estimate {
             m.with_past_input(
                 past_edges(rec.len() as f64 * rec.dt),
                 super::past_range(&rec.u, op.u0),

@@ -67,12 +67,8 @@ pub fn score(
         m.params[i].value = 0.0;
         m.params[i].free = true;
     }
-    // A step at the first sample is scored from rest, as it is fitted (`identify`).
-    let initial = if offsets == OffsetMode::Initial && rec.starts_with_step() {
-        InitialState::Rest
-    } else {
-        initial
-    };
+    // scored from the state it is fitted from (`identify`)
+    let initial = initial.resolve(rec, offsets);
     match initial {
         InitialState::Estimate => {
             m.with_past_input(
@@ -88,7 +84,7 @@ pub fn score(
                 m.params[i].free = true;
             }
         }
-        InitialState::Rest => m.past = None,
+        InitialState::Rest | InitialState::Auto => m.past = None,
     }
     let u: Vec<f64> = rec.u.iter().map(|v| v - op.u0).collect();
     let y: Vec<f64> = rec.y.iter().map(|v| v - op.y0).collect();

@@ -241,3 +241,36 @@ fn dead_band_and_friction_are_overcome_by_the_integral_action() {
     let ml = metrics(&lin, &setup);
     assert!(m.rise_time.unwrap() > ml.rise_time.unwrap(), "{m:?} {ml:?}");
 }
+
+/// An input power law (a heater-like actuator, exponent 2): the integral action still brings the
+/// output to the reference, and at rest the plant sees the linear loop's input through the map
+/// (`sign(u) u_ref (|u|/u_ref)^2` of the controller's output equals the linear loop's output).
+#[test]
+fn an_input_power_law_settles_where_the_map_gives_the_linear_input() {
+    use tune::closed::InputEffect;
+    let g: FracTf = PMSM.parse().unwrap();
+    let spec = spec(Form::Fopi, 300.0, 60.0, true);
+    let c = design(&g, &spec).unwrap().controller;
+    let mut setup = LoopSetup::for_crossover(300.0, None);
+    setup.t_load = 0.3;
+    setup.duration = 0.3;
+    let lin = simulate(&g, &c, &setup, &ApproxSpec::default(), &[]).unwrap();
+    let u_lin = *lin.u.last().unwrap();
+    let u_ref = 4.0 * u_lin.abs();
+    let fx = InputEffect::from_report("power_law", |k| match k {
+        "exponent" => Some(2.0),
+        "u_ref" => Some(u_ref),
+        _ => None,
+    })
+    .unwrap()
+    .unwrap();
+    let run = simulate(&g, &c, &setup, &ApproxSpec::default(), &[fx]).unwrap();
+    let end = *run.y.last().unwrap();
+    assert!((end - 1.0).abs() < 0.02, "{end}");
+    let u_end = *run.u.last().unwrap();
+    let seen = u_end.signum() * u_ref * (u_end.abs() / u_ref).powi(2);
+    assert!((seen / u_lin - 1.0).abs() < 0.02, "{seen} vs {u_lin}");
+    // (|u|/u_ref)^2 < |u|/u_ref below u_ref: the loop needs the larger command
+    assert!(u_end.abs() > 1.5 * u_lin.abs(), "{u_end} vs {u_lin}");
+    assert!(InputEffect::from_report("power_law", |k| (k == "exponent").then_some(2.0)).is_err());
+}

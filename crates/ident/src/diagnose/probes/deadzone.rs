@@ -5,7 +5,7 @@
 //! ([`super::probe_static_map`]). Ambiguous with a gain and an offset for a two-level input.
 
 use super::{named, probe_static_map, Findings, Look, Probe, StaticMap};
-use crate::oe::{Effect, FracModel};
+use crate::oe::{Bounds, Effect, FracModel};
 use crate::Result;
 use std::collections::BTreeMap;
 
@@ -30,8 +30,10 @@ impl Probe for Deadzone {
             param: "dz_width",
             what: "half width",
             grid: (1..=12).map(|i| 0.03 * i as f64).collect(),
-            map: dead_band,
-            effect: |width| Effect::Deadzone { width },
+            scaled: true,
+            bounds: Bounds::Positive,
+            map: |v, w, _| dead_band(v, w),
+            effect: |width, _| Effect::Deadzone { width },
         };
         probe_static_map(look, found, &spec);
         Ok(())

@@ -15,12 +15,13 @@ mod friction;
 mod input_offset;
 mod output_offset;
 mod periodic;
+mod power_law;
 mod saturation;
 mod skew;
 
 use super::residual::{analyse, explained, ResidualAnalysis};
 use super::{Ambiguity, Ctx, KeptEffect, RejectedEffect, State};
-use crate::oe::{sensitivities, Effect, FracModel, Param};
+use crate::oe::{sensitivities, Bounds, Effect, FracModel, Param};
 use crate::Result;
 use faer::Mat;
 use std::collections::BTreeMap;
@@ -246,6 +247,7 @@ pub(crate) fn library() -> Vec<Box<dyn Probe>> {
         Box::new(abs_sensor::AbsSensor),
         Box::new(saturation::Saturation),
         Box::new(deadzone::Deadzone),
+        Box::new(power_law::PowerLaw),
     ]
 }
 
@@ -265,26 +267,32 @@ pub(crate) fn named(
         .collect()
 }
 
-/// A static input map `u -> map(u, l)` with one threshold `l` (saturation, dead band).
+/// A static input map `u -> map(u, g)` with one parameter `g` (a saturation's level, a dead
+/// band's half width, a power law's exponent).
 pub(crate) struct StaticMap {
     /// Report name.
     pub name: &'static str,
     /// Parameter name in the model.
     pub param: &'static str,
-    /// What the threshold is, in words and as the report key.
+    /// What the parameter is, in words.
     pub what: &'static str,
-    /// Thresholds searched, as fractions of the largest input magnitude.
+    /// Values of the parameter searched: thresholds as fractions of the largest input magnitude
+    /// (`scaled`), else the values themselves (exponents).
     pub grid: Vec<f64>,
-    /// The map.
-    pub map: fn(f64, f64) -> f64,
-    /// The effect with its parameter index.
-    pub effect: fn(usize) -> Effect,
+    /// Whether the grid is in fractions of the largest input magnitude.
+    pub scaled: bool,
+    /// The range the refit keeps the parameter in.
+    pub bounds: Bounds,
+    /// The map of the absolute input `v` at `g`, given the largest input magnitude `umax`.
+    pub map: fn(v: f64, g: f64, umax: f64) -> f64,
+    /// The effect with its parameter index, given the largest input magnitude.
+    pub effect: fn(usize, f64) -> Effect,
 }
 
 /// Probe a static input map: ambiguous with a gain and an offset for a two-level input;
-/// otherwise the signature `G (map(u, l) - u)` over the grid of `l`, regressed with the model's
+/// otherwise the signature `G (map(u, g) - u)` over the grid of `g`, regressed with the model's
 /// sensitivities, the coefficient positive (the effect enters with coefficient 1); the best
-/// threshold starts the refit.
+/// value starts the refit.
 pub(crate) fn probe_static_map(look: &Look<'_>, found: &mut Findings, sm: &StaticMap) {
     if look.has(sm.param) {
         return;
@@ -304,14 +312,15 @@ pub(crate) fn probe_static_map(look: &Look<'_>, found: &mut Findings, sm: &Stati
     }
     let s = look.s();
     let mut best: Option<(f64, f64, f64)> = None;
-    for l in sm.grid.iter().map(|f| f * umax) {
-        let d: Vec<f64> = look.ua.iter().map(|&v| (sm.map)(v, l) - v).collect();
+    let scale = if sm.scaled { umax } else { 1.0 };
+    for g in sm.grid.iter().map(|f| f * scale) {
+        let d: Vec<f64> = look.ua.iter().map(|&v| (sm.map)(v, g, umax) - v).collect();
         if d[..s].iter().all(|v| *v == 0.0) {
             continue;
         }
         if let Some((r2, beta)) = look.through_model(&d) {
             if beta[0] > 0.0 && best.is_none_or(|b| r2 > b.0) {
-                best = Some((r2, l, beta[0]));
+                best = Some((r2, g, beta[0]));
             }
         }
     }
@@ -319,8 +328,8 @@ pub(crate) fn probe_static_map(look: &Look<'_>, found: &mut Findings, sm: &Stati
         return;
     };
     let mut m = look.st.model.clone();
-    let i = m.add_param(Param::positive(sm.param, l));
-    m.effects.insert(0, (sm.effect)(i));
+    let i = m.add_param(Param::new(sm.param, l, sm.bounds));
+    m.effects.insert(0, (sm.effect)(i, umax));
     found.candidates.push(Candidate {
         lead: None,
         name: sm.name,

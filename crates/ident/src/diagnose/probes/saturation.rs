@@ -5,7 +5,7 @@
 //! and an offset): then it is reported as ambiguous, never fitted.
 
 use super::{named, probe_static_map, Findings, Look, Probe, StaticMap};
-use crate::oe::{Effect, FracModel};
+use crate::oe::{Bounds, Effect, FracModel};
 use crate::Result;
 use std::collections::BTreeMap;
 
@@ -22,8 +22,10 @@ impl Probe for Saturation {
             param: "sat_level",
             what: "level",
             grid: (0..12).map(|i| 0.45 + 0.05 * i as f64).collect(),
-            map: |v, l| v.clamp(-l, l),
-            effect: |level| Effect::Saturation { level },
+            scaled: true,
+            bounds: Bounds::Positive,
+            map: |v, l, _| v.clamp(-l, l),
+            effect: |level, _| Effect::Saturation { level },
         };
         probe_static_map(look, found, &spec);
         Ok(())
