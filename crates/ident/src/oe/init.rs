@@ -12,7 +12,9 @@
 //!   weighs it by (Parseval); harmonics with little input power or a coherence below 1/2 are left out.
 //! - Otherwise: Welch's averaged cross-periodogram `H = S_yu / S_uu` (Hann window, 50% overlap),
 //!   weighted by the coherence (Ljung 1999, section 6.4) ([`estimate_frf`], for reports; the start
-//!   does not use it, its estimate from short noisy records drifted to degenerate models).
+//!   does not use it, its estimate from short noisy records drifted to degenerate models). The
+//!   two-mass start, which has no coarse fallback, uses Welch's H1 estimate on FFT segments with
+//!   the coherence choosing the frequencies (`welch`, `two_mass::aperiodic`).
 //!
 //! [`auto_start`] tries the Levy start first and falls back to [`coarse start`](auto_start) (a
 //! search over orders and corner frequencies with the gain by least squares), saying which start
@@ -20,6 +22,7 @@
 
 pub mod feedthrough;
 mod two_mass;
+mod welch;
 
 use super::{FracModel, Kind, Structure};
 use crate::levy::{self, LevyFit};
@@ -460,7 +463,8 @@ pub fn levy_start(frf: &Frf, two_poles: bool) -> Result<(LevyFit, f64)> {
 pub enum StartMethod {
     /// The values given in the model.
     Given,
-    /// A Levy fit of the frequency response of a periodic input ([`levy_start`]).
+    /// A Levy fit of the frequency response of a periodic input ([`levy_start`]); for the
+    /// two-mass structure also of Welch's estimate when the input is not periodic.
     Levy,
     /// The coarse time-domain search ([`auto_start`]).
     Coarse,
@@ -755,12 +759,17 @@ pub fn auto_start(model: &mut FracModel, u: &[f64], y: &[f64], dt: f64) -> Resul
     } else if model.kind == Kind::Integer {
         "an integer-order model starts from the coarse search".to_string()
     } else {
-        match periodic_frf(u, y, dt).and_then(|frf| {
+        // Welch's estimate (with how it was made) where the input is not periodic: the two-mass
+        // structure only.
+        let frf = periodic_frf(u, y, dt)
+            .map(|f| (f, None))
+            .or_else(|e| two_mass::aperiodic(&lin, u, y, dt, e).map(|(f, how)| (f, Some(how))));
+        match frf.and_then(|(frf, how)| {
             let (c, q) = levy_candidates(&lin, &frf, dt)?;
-            Ok((frf, c, q))
+            Ok((frf, c, q, how))
         }) {
             Err(e) => format!("no Levy start: {e}"),
-            Ok((frf, cands, q)) => {
+            Ok((frf, cands, q, how)) => {
                 let mut best: Option<(f64, Vec<f64>, String)> = None;
                 for ((v, label), sse) in candidate_sses(&lin, cands, us, ys, dt, &mut buf) {
                     if let Some(s) = sse {
@@ -794,6 +803,9 @@ pub fn auto_start(model: &mut FracModel, u: &[f64], y: &[f64], dt: f64) -> Resul
                             levy_q: Some(q),
                             harmonics: frf.omega.len(),
                         };
+                        if let Some(how) = how {
+                            report.note = format!("Levy fit of {how}: {label}");
+                        }
                         chosen = Some((s, v));
                         if fit_percent(s) >= GOOD_START_PERCENT {
                             String::new()

@@ -19,6 +19,13 @@
 //! whose pair has positive coefficients, poles damped below [`MAX_PAIR_DAMPING`] and a resonance
 //! inside the measured band ("no resonance in the frequency response"). The structure comparison
 //! then drops the structure at the cost of a few Levy solves.
+//!
+//! The response is the periodic estimate when the input is periodic, else ([`aperiodic`]) Welch's
+//! H1 estimate ([`super::welch`]). That one is noisier and smears a sharp peak over the window's
+//! main lobe, so on it the structure must also earn its place: a candidate's weighted error on
+//! the response must be below [`EVIDENCE_RATIO`] times that of its own motor alone (the pair, not
+//! a better motor, explains the response), else the start fails as above, still before any
+//! simulation.
 
 use super::{frf_error, levy_start, with_values, Candidate, Frf, SK_ITERATIONS};
 use crate::levy;
@@ -29,6 +36,37 @@ use num_complex::Complex64;
 
 /// Rounds of the alternation (each gives a candidate).
 pub const ROUNDS: usize = 2;
+
+/// On Welch's estimate a two-mass candidate must fit the response with less than this fraction
+/// of the weighted error of its own motor alone: the evidence of a resonance that the estimate's
+/// noise and leakage alone do not give (a pair whose zeros nearly cancel its poles adds nothing).
+pub const EVIDENCE_RATIO: f64 = 0.5;
+
+/// The frequency response the two-mass start uses when [`super::periodic_frf`] failed with `why`:
+/// Welch's H1 estimate ([`super::welch::h1`]) of deviations `y` over `u`, with a sentence saying
+/// how it was made. Other structures keep their coarse start: for them `why` is returned.
+///
+/// # Errors
+/// `why` for structures other than the two-mass; the errors of [`super::welch::h1`] (with `why`
+/// said first).
+pub fn aperiodic(
+    lin: &FracModel,
+    u: &[f64],
+    y: &[f64],
+    dt: f64,
+    why: Error,
+) -> Result<(Frf, String)> {
+    if lin.kind != crate::oe::Kind::TwoMass {
+        return Err(why);
+    }
+    // The reasons' own words, without the variant's prefix twice.
+    let plain = |e: Error| match e {
+        Error::NotEnoughData(s) => s,
+        e => e.to_string(),
+    };
+    super::welch::h1(u, y, dt)
+        .map_err(|e| Error::NotEnoughData(format!("{}; {}", plain(why), plain(e))))
+}
 
 /// A pair whose poles' damping ratio `c1 / (2 sqrt(c2))` exceeds this has no resonance peak
 /// (`1/sqrt(2)` is where the peak of a second-order pole pair vanishes).
@@ -279,7 +317,46 @@ pub fn candidates(lin: &FracModel, frf: &Frf, dt: f64) -> Result<(Vec<Candidate>
             why.join("; ")
         )));
     }
+    if frf.period.is_none() {
+        evidence(lin, frf, &out)?;
+    }
     Ok((out, motor[3]))
+}
+
+/// The evidence rule on Welch's estimate (see the module documentation): `Ok` when one of
+/// `cands` fits `frf` with less than [`EVIDENCE_RATIO`] times the weighted error of its own motor
+/// alone (the candidate without its pair): the resonant pair, not a better motor, explains the
+/// response.
+fn evidence(lin: &FracModel, frf: &Frf, cands: &[Candidate]) -> Result<()> {
+    let at = |v: &[f64], n: &str| lin.index_of(n).map_or(f64::NAN, |i| v[i]);
+    // (error, its motor's error) of the candidate whose pair lowers the error most.
+    let mut best = (f64::INFINITY, f64::INFINITY);
+    let mut ratio = f64::INFINITY;
+    for (v, _) in cands {
+        let Ok(whole) = lin.tf(v) else { continue };
+        let Ok(motor) = FracTf::pmsm(
+            at(v, "K"),
+            at(v, "a1"),
+            at(v, "a2"),
+            at(v, "zeta"),
+            at(v, "theta"),
+        ) else {
+            continue;
+        };
+        let (e, m) = (frf_error(frf, &whole), frf_error(frf, &motor));
+        if e.is_finite() && m > 0.0 && m.is_finite() && e / m < ratio {
+            (best, ratio) = ((e, m), e / m);
+        }
+    }
+    if ratio < EVIDENCE_RATIO {
+        return Ok(());
+    }
+    Err(Error::NotEnoughData(format!(
+        "no resonance in the frequency response: on Welch's estimate the two-mass start's \
+         weighted error is {:.2e}, its motor's alone {:.2e} (the resonant pair must bring it \
+         below {EVIDENCE_RATIO} times that)",
+        best.0, best.1
+    )))
 }
 
 #[cfg(test)]
@@ -368,5 +445,116 @@ mod tests {
         let pmsm = FracTf::pmsm(6.77, 0.0064, 2.8e-5, 0.89, 0.89).unwrap();
         let e = candidates(&lin, &frf(&pmsm), 1e-3).unwrap_err();
         assert!(e.to_string().contains("no resonance"), "{e}");
+    }
+
+    /// The evidence rule on Welch's estimate: on a two-mass response its own values pass; on a
+    /// plain PMSM's response a candidate whose pair nearly cancels (zeros 0.1% from its poles)
+    /// adds nothing to its motor and is refused, and so is one with a real pair (which only
+    /// spoils the fit).
+    #[test]
+    fn the_evidence_rule_wants_a_pair_that_explains_the_response() {
+        let inv_w2 = |hz: f64| (2.0 * std::f64::consts::PI * hz).powi(-2);
+        let lin = crate::diagnose::structures::two_mass();
+        let omega: Vec<f64> = (0..120)
+            .map(|i| 2.0 * std::f64::consts::PI * 10f64.powf(i as f64 / 60.0))
+            .collect();
+        let frf = |g: &FracTf| Frf {
+            h: g.bode(&omega),
+            weight: vec![1.0; omega.len()],
+            omega: omega.clone(),
+            period: None,
+            periods_averaged: 0,
+            periods_available: 0,
+        };
+        let cand = |b2: f64, c2: f64, d: f64| -> Candidate {
+            let v = with_values(
+                &lin,
+                &[
+                    ("K", 6.77),
+                    ("a1", 0.0064),
+                    ("a2", 2.8e-5),
+                    ("zeta", 0.89),
+                    ("theta", 0.89),
+                    ("b2", b2),
+                    ("c2", c2),
+                    ("d", d),
+                    ("mu", 1.0),
+                ],
+            );
+            (v, String::new())
+        };
+        let real = cand(inv_w2(28.0), inv_w2(40.0), 4e-4);
+        let g = lin.tf(&real.0).unwrap();
+        evidence(&lin, &frf(&g), std::slice::from_ref(&real)).unwrap();
+        let pmsm = FracTf::pmsm(6.77, 0.0064, 2.8e-5, 0.89, 0.89).unwrap();
+        let cancelling = cand(1.001 * inv_w2(40.0), inv_w2(40.0), 4e-4);
+        for c in [cancelling, real] {
+            let e = evidence(&lin, &frf(&pmsm), &[c]).unwrap_err();
+            assert!(e.to_string().contains("no resonance"), "{e}");
+        }
+    }
+
+    /// A random binary sequence (8192 samples at 1 ms, a 2 ms clock, never repeated) through
+    /// `truth`, plus white noise of standard deviation 0.05 (the outputs swing about +-7).
+    fn aperiodic_record(truth: &FracModel) -> (Vec<f64>, Vec<f64>) {
+        use crate::oe::Structure;
+        let mut state = 7u64;
+        let mut next = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut u = vec![0.0; 8192];
+        for k in (0..u.len()).step_by(2) {
+            let b = if next() < 0.5 { -1.0 } else { 1.0 };
+            u[k] = b;
+            u[k + 1] = b;
+        }
+        let mut y = vec![0.0; u.len()];
+        truth.simulate(&truth.values(), &u, 1e-3, &mut y).unwrap();
+        for v in &mut y {
+            // Uniform noise of standard deviation 0.05.
+            *v += 0.05 * 12f64.sqrt() * (next() - 0.5);
+        }
+        (u, y)
+    }
+
+    /// Without a periodic input the two-mass start comes from Welch's estimate: on a two-mass
+    /// drive train (resonance 40 Hz, anti-resonance 28 Hz) it starts near the resonance and says
+    /// how it was made; on a plain PMSM it fails with "no resonance" from the Levy fits on the
+    /// estimate, before any candidate is simulated (that error is raised before the candidates
+    /// are returned to be simulated). Other structures get no Welch start: their coarse start is
+    /// unchanged.
+    #[test]
+    fn an_aperiodic_record_starts_from_welchs_estimate() {
+        let inv_w2 = |hz: f64| (2.0 * std::f64::consts::PI * hz).powi(-2);
+        let truth = FracModel::two_mass(
+            [6.77, 0.0064, 2.8e-5, 0.89, 0.89],
+            [inv_w2(28.0), inv_w2(40.0), 4e-4, 1.0],
+        );
+        let (u, y) = aperiodic_record(&truth);
+        assert_eq!(super::super::periodic_part(&u), None);
+        let mut m = crate::diagnose::structures::two_mass();
+        let r = super::super::auto_start(&mut m, &u, &y, 1e-3).unwrap();
+        assert!(r.note.contains("Welch's estimate"), "{}", r.note);
+        let c2 = m.params[m.index_of("c2").unwrap()].value;
+        let f_r = c2.powf(-0.5) / (2.0 * std::f64::consts::PI);
+        eprintln!("{}; fit {:?}; resonance {f_r:.2} Hz", r.note, r.fit_percent);
+        assert!((f_r / 40.0 - 1.0).abs() < 0.05, "resonance {f_r} Hz");
+        assert!(r.fit_percent.unwrap() > 90.0, "{r:?}");
+
+        let pmsm = FracModel::pmsm(6.77, 0.0064, 2.8e-5, 0.89, 0.89);
+        let (u, y) = aperiodic_record(&pmsm);
+        let mut m = crate::diagnose::structures::two_mass();
+        let t0 = std::time::Instant::now();
+        let e = super::super::auto_start(&mut m, &u, &y, 1e-3).unwrap_err();
+        eprintln!("{:.1} ms: {e}", 1e3 * t0.elapsed().as_secs_f64());
+        assert!(e.to_string().contains("no resonance"), "{e}");
+        // Other structures: the coarse search, as before.
+        let mut m = FracModel::pmsm(1.0, 1.0, 1.0, 1.0, 1.0);
+        let r = super::super::auto_start(&mut m, &u, &y, 1e-3).unwrap();
+        assert_eq!(r.method, super::super::StartMethod::Coarse, "{r:?}");
+        assert!(r.note.contains("not periodic"), "{}", r.note);
     }
 }
