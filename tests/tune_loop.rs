@@ -139,6 +139,46 @@ fn gl_loop(c: Pid, tau: f64, a: f64, h: f64, n: usize) -> (Vec<f64>, Vec<f64>) {
     ((0..n).map(|k| k as f64 * h).collect(), y)
 }
 
+/// `fracid drive loop` of the controller `ctrl` on a fresh simulated drive with `firmware`: the
+/// 50 rad/s step after 0.1 s of rest, 0.6 s in all, plus `extra` options; the run must succeed.
+/// Returns its stderr and the record's text.
+fn loop_on_drive(
+    dir: &std::path::Path,
+    firmware: &str,
+    ctrl: &std::path::Path,
+    extra: &[&str],
+) -> (String, String) {
+    let (sim, port) = clean_sim(firmware);
+    let csv = dir.join(format!("loop_{firmware}.csv"));
+    let mut args = vec![
+        "drive",
+        "loop",
+        "--port",
+        &port,
+        "--baud",
+        "921600",
+        "--keepalive-ms",
+        "2",
+        "--quiet",
+        "--controller",
+        ctrl.to_str().unwrap(),
+        "--step",
+        "50",
+        "--pre",
+        "0.1",
+        "--duration",
+        "0.6",
+        "-o",
+        csv.to_str().unwrap(),
+    ];
+    args.extend(extra);
+    let out = fracid(&args);
+    drop(sim);
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(out.status.success(), "{firmware}: {err}");
+    (err, std::fs::read_to_string(&csv).unwrap())
+}
+
 /// The rows `t,r,u,y` of a loop record, its footer checked complete.
 fn loop_rows(text: &str, samples: usize) -> Vec<[f64; 4]> {
     assert!(
@@ -230,37 +270,8 @@ fn check_on_the_drive(spec: &[&str]) -> String {
     let mut records = Vec::new();
     let mut messages = String::new();
     for fw in ["c", "rust"] {
-        let (sim, port) = clean_sim(fw);
-        let csv = dir.path().join(format!("loop_{fw}.csv"));
-        let out = fracid(&[
-            "drive",
-            "loop",
-            "--port",
-            &port,
-            "--baud",
-            "921600",
-            "--keepalive-ms",
-            "2",
-            "--quiet",
-            "--controller",
-            ctrl.to_str().unwrap(),
-            "--step",
-            "50",
-            "--pre",
-            "0.1",
-            "--duration",
-            "0.6",
-            "-o",
-            csv.to_str().unwrap(),
-        ]);
-        drop(sim);
-        assert!(
-            out.status.success(),
-            "{fw}: {}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        messages += &String::from_utf8_lossy(&out.stderr);
-        let text = std::fs::read_to_string(&csv).unwrap();
+        let (err, text) = loop_on_drive(dir.path(), fw, &ctrl, &[]);
+        messages += &err;
         let rows = loop_rows(&text, (duration / dt) as usize);
         // the reference: 0 before the step, the step after; the command 0 at rest
         for r in &rows {
@@ -341,36 +352,8 @@ fn a_clamped_fopid_does_not_wind_up_on_the_drive() {
     );
     let mut records = Vec::new();
     for fw in ["c", "rust"] {
-        let (sim, port) = clean_sim(fw);
-        let csv = dir.path().join(format!("loop_{fw}.csv"));
-        let out = fracid(&[
-            "drive",
-            "loop",
-            "--port",
-            &port,
-            "--baud",
-            "921600",
-            "--keepalive-ms",
-            "2",
-            "--quiet",
-            "--controller",
-            ctrl.to_str().unwrap(),
-            "--step",
-            "50",
-            "--pre",
-            "0.1",
-            "--duration",
-            "0.6",
-            "--u-limit",
-            "9",
-            "-o",
-            csv.to_str().unwrap(),
-        ]);
-        drop(sim);
-        let err = String::from_utf8_lossy(&out.stderr);
-        assert!(out.status.success(), "{fw}: {err}");
+        let (err, text) = loop_on_drive(dir.path(), fw, &ctrl, &["--u-limit", "9"]);
         assert!(err.contains("conditional integration"), "{fw}: {err}");
-        let text = std::fs::read_to_string(&csv).unwrap();
         assert!(text.contains("# clamped"), "{fw}: the clamp engaged");
         let rows: Vec<Vec<f64>> = text
             .lines()
