@@ -68,8 +68,9 @@ pub fn identify_joint(
             first.dt, r.dt
         )));
     }
-    // One initial-state rule for all: from rest only when every record rests (a record's own
-    // past input levels would otherwise be parameters that another record's rest leaves unused).
+    // One initial-state rule for all: `auto` is rest only when every record rests, else every
+    // record gets its past input estimated (a record's own past levels would otherwise be
+    // parameters that another record's rest leaves unused).
     let rests = |r: &Record| opts.initial.resolve(r, opts.offsets) == InitialState::Rest;
     let opts = &IdentOptions {
         initial: if opts.initial == InitialState::Auto && !recs.iter().all(rests) {
@@ -92,7 +93,7 @@ pub fn identify_joint(
         let op = rec.offsets(opts.offsets, rec.len());
         let mut m = base.clone();
         m.operating_point = op;
-        if opts.initial.resolve(rec, opts.offsets) == InitialState::Estimate {
+        if opts.initial == InitialState::Estimate {
             m.with_past_input(
                 past_edges(rec.len() as f64 * rec.dt),
                 super::past_range(&rec.u, op.u0),
