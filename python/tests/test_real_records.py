@@ -258,14 +258,16 @@ XFAIL: dict[str, str] = {
         "with --diagnose 0.222 K (pmsm + delay)"
     ),
     # 5000 samples (the source's 500000 decimated by 100), t in source samples (period not
-    # stated). fracid with defaults, from rest: held-out RMSE 1083 (NRMSE -15.9%); baseline
+    # stated). fracid with defaults, from rest: held-out RMSE 1083 (NRMSE -15.9%: not usable,
+    # exit 1, worse than the held-out part's mean); baseline
     # order 3: RMSE 511.8 (NRMSE 45.22%), order 1 + 2-sample delay: 515.4. With --diagnose:
     # 518.8 (44.48%), first order + delay + input offset (an integer model) chosen. With t divided
     # by 1e4 the same data fit 39.85% (RMSE 562.0) with defaults: the start still depends on the
     # time unit.
     "motor_generator_steps": (
-        "fracid with defaults holds out -15.9% (RMSE 1083, no delay in the paper's structure) "
-        "where the integer baseline holds out 45.2%"
+        "fracid with defaults exits 1: its model predicts the held-out steps worse than their "
+        "mean (-15.9%, RMSE 1083; the paper's structure, no delay) where the integer baseline "
+        "holds out 45.2%"
     ),
 }
 

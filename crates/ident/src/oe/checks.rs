@@ -292,6 +292,21 @@ fn singular_and_no_better_than_a_constant(id: &Identification) -> Option<String>
     })
 }
 
+/// A model that predicts a held-out part with input changes of its own
+/// ([`ValidationKind::HeldOut`]) worse than that part's own mean (NRMSE below 0): it does not
+/// describe the dynamics these data show, whatever its estimation fit. (A step test's settled
+/// tail, [`ValidationKind::ResponseTail`], is exempt: there `||y - mean(y)||` is only noise.)
+fn worse_than_the_mean_held_out(id: &Identification) -> Option<String> {
+    let v = id.validation?;
+    (id.validated_by.kind == ValidationKind::HeldOut && v.nrmse_percent < 0.0).then(|| {
+        format!(
+            "the model predicts the held-out part worse than its mean (NRMSE {:.1}%, RMSE \
+             {:.4e}): it does not describe these data (another structure, a delay: try --diagnose)",
+            v.nrmse_percent, v.rmse
+        )
+    })
+}
+
 /// Whether the model integrates by design (a denominator with no order-zero term).
 fn integrates(m: &FracModel, p: &[f64]) -> bool {
     !m.den
@@ -416,6 +431,7 @@ pub(crate) fn assess(id: &Identification, rec: &Record) -> (Vec<String>, Vec<Str
     }
     problems.extend(same_order_terms(m, p));
     problems.extend(singular_and_no_better_than_a_constant(id));
+    problems.extend(worse_than_the_mean_held_out(id));
     if !id.report.converged {
         warnings.push(format!(
             "the fit did not converge ({}, {} iterations): the parameters may not be at the \
