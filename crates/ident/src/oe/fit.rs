@@ -1220,6 +1220,20 @@ mod tests {
     use super::*;
     use crate::oe::FracModel;
 
+    /// The parameters `p` as dual numbers, the derivative taken with respect to `p[j]`.
+    fn seeded(p: &[f64], j: usize) -> Vec<Dual<1>> {
+        p.iter()
+            .enumerate()
+            .map(|(q, &v)| {
+                if q == j {
+                    Dual::var(v, 0)
+                } else {
+                    Dual::cst(v)
+                }
+            })
+            .collect()
+    }
+
     /// The Jacobian as the fit takes it (dual parts written a chunk at a time straight into
     /// the columns, linear columns computed into them, `skip` samples left out, two threads)
     /// against each parameter's `Dual<1>` simulation of the whole record through
@@ -1267,17 +1281,7 @@ mod tests {
                 assert!((yhat[k] - y[k]).abs() <= 1e-12 * scale, "yhat[{k}]");
             }
             for (i, &j) in free.iter().enumerate() {
-                let pd: Vec<Dual<1>> = p
-                    .iter()
-                    .enumerate()
-                    .map(|(q, &v)| {
-                        if q == j {
-                            Dual::var(v, 0)
-                        } else {
-                            Dual::cst(v)
-                        }
-                    })
-                    .collect();
+                let pd = seeded(&p, j);
                 let mut yd = vec![Dual::<1>::cst(0.0); n];
                 m.simulate(&pd, &u, dt, &mut yd).unwrap();
                 let col: Vec<f64> = yd[skip..].iter().map(|v| v.d[0]).collect();
@@ -1338,17 +1342,7 @@ mod tests {
         }
         let a1 = m.index_of("a1").unwrap();
         for (j, h, tol) in [(c, 1e-3, 1e-7), (a1, 1e-5 * p[a1], 1e-5)] {
-            let pd: Vec<Dual<1>> = p
-                .iter()
-                .enumerate()
-                .map(|(q, &v)| {
-                    if q == j {
-                        Dual::var(v, 0)
-                    } else {
-                        Dual::cst(v)
-                    }
-                })
-                .collect();
+            let pd = seeded(&p, j);
             let mut yd = vec![Dual::<1>::cst(0.0); n];
             m.simulate(&pd, &u, dt, &mut yd).unwrap();
             let at = |v: f64| {
