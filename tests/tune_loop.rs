@@ -139,22 +139,19 @@ fn gl_loop(c: Pid, tau: f64, a: f64, h: f64, n: usize) -> (Vec<f64>, Vec<f64>) {
     ((0..n).map(|k| k as f64 * h).collect(), y)
 }
 
-/// `fracid drive loop` of the controller `ctrl` on a fresh simulated drive with `firmware`: the
-/// 50 rad/s step after 0.1 s of rest, 0.6 s in all, plus `extra` options; the run must succeed.
-/// Returns its stderr and the record's text.
-fn loop_on_drive(
-    dir: &std::path::Path,
-    firmware: &str,
+/// `fracid drive loop` of the controller `ctrl` on the drive at `port`, a 50 rad/s step, the
+/// record to `csv`, plus `extra` options.
+fn drive_loop(
+    port: &str,
     ctrl: &std::path::Path,
+    csv: &std::path::Path,
     extra: &[&str],
-) -> (String, String) {
-    let (sim, port) = clean_sim(firmware);
-    let csv = dir.join(format!("loop_{firmware}.csv"));
+) -> std::process::Output {
     let mut args = vec![
         "drive",
         "loop",
         "--port",
-        &port,
+        port,
         "--baud",
         "921600",
         "--keepalive-ms",
@@ -164,15 +161,27 @@ fn loop_on_drive(
         ctrl.to_str().unwrap(),
         "--step",
         "50",
-        "--pre",
-        "0.1",
-        "--duration",
-        "0.6",
         "-o",
         csv.to_str().unwrap(),
     ];
     args.extend(extra);
-    let out = fracid(&args);
+    fracid(&args)
+}
+
+/// [`drive_loop`] on a fresh simulated drive with `firmware`: the step after 0.1 s of rest,
+/// 0.6 s in all, plus `extra` options; the run must succeed. Returns its stderr and the record's
+/// text.
+fn loop_on_drive(
+    dir: &std::path::Path,
+    firmware: &str,
+    ctrl: &std::path::Path,
+    extra: &[&str],
+) -> (String, String) {
+    let (sim, port) = clean_sim(firmware);
+    let csv = dir.join(format!("loop_{firmware}.csv"));
+    let mut args = vec!["--pre", "0.1", "--duration", "0.6"];
+    args.extend(extra);
+    let out = drive_loop(&port, ctrl, &csv, &args);
     drop(sim);
     let err = String::from_utf8_lossy(&out.stderr).into_owned();
     assert!(out.status.success(), "{firmware}: {err}");
@@ -494,25 +503,7 @@ fn a_broken_loop_run_keeps_what_arrived_and_says_what_is_missing() {
     std::fs::write(&ctrl, &out.stdout).unwrap();
     let (sim, port) = sim_with(&["--reset-at", "300"]);
     let csv = dir.path().join("loop.csv");
-    let out = fracid(&[
-        "drive",
-        "loop",
-        "--port",
-        &port,
-        "--baud",
-        "921600",
-        "--keepalive-ms",
-        "2",
-        "--quiet",
-        "--controller",
-        ctrl.to_str().unwrap(),
-        "--step",
-        "50",
-        "--duration",
-        "0.6",
-        "-o",
-        csv.to_str().unwrap(),
-    ]);
+    let out = drive_loop(&port, &ctrl, &csv, &["--duration", "0.6"]);
     drop(sim);
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(1), "{err}");
