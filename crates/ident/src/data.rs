@@ -31,6 +31,15 @@ mod fast;
 /// noise is about 6 levels at `N = 1e3` and 10 at `N = 1e6`.
 pub const STEP_NOISE_LEVELS: f64 = 20.0;
 
+/// The noise level of `y` from its first differences, robustly: `median |dy| / (0.6745 sqrt 2)`
+/// (`y` has at least two samples).
+fn diff_noise(y: &[f64]) -> f64 {
+    let mut dy: Vec<f64> = y.windows(2).map(|w| (w[1] - w[0]).abs()).collect();
+    let mid = dy.len() / 2;
+    let (_, &mut med, _) = dy.select_nth_unstable_by(mid, f64::total_cmp);
+    med / (0.6745 * std::f64::consts::SQRT_2)
+}
+
 /// The fewest samples of constant input before the first change for a record to be taken as
 /// resting there ([`Record::rests_until`]): fewer cannot tell a steady output from a ramp.
 pub const MIN_REST_SAMPLES: usize = 8;
@@ -1190,10 +1199,7 @@ impl Record {
         if !constant || self.u[0] == 0.0 || !self.u[0].is_finite() || self.len() < 3 {
             return false;
         }
-        let mut dy: Vec<f64> = self.y.windows(2).map(|w| (w[1] - w[0]).abs()).collect();
-        let mid = dy.len() / 2;
-        let (_, &mut med, _) = dy.select_nth_unstable_by(mid, f64::total_cmp);
-        let noise = med / (0.6745 * std::f64::consts::SQRT_2);
+        let noise = diff_noise(&self.y);
         let (ylo, yhi) = crate::lm::range_of(&self.y);
         yhi - ylo > STEP_NOISE_LEVELS * noise && yhi > ylo
     }
@@ -1243,10 +1249,7 @@ impl Record {
         let no_trend = (mb - ma).abs() <= (REST_DRIFT * (yhi - ylo)).max(3.0 * se);
         // and no larger spread than the record's noise (robust, from its first differences): a
         // window that moves and comes back has no trend but spreads
-        let mut dy: Vec<f64> = self.y.windows(2).map(|w| (w[1] - w[0]).abs()).collect();
-        let mid = dy.len() / 2;
-        let (_, &mut med, _) = dy.select_nth_unstable_by(mid, f64::total_cmp);
-        let noise = med / (0.6745 * std::f64::consts::SQRT_2);
+        let noise = diff_noise(&self.y);
         let m = mean(&self.y[..k1]);
         let spread = (var(&self.y[..k1], m) / k1 as f64).sqrt();
         let calm = spread <= (0.02 * (yhi - ylo)).max(1.5 * noise);
