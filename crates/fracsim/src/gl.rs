@@ -5,6 +5,7 @@
 //! each step with the full memory: exact in the limit `h -> 0`, first order in `h`, `O(N^2)` work.
 
 use crate::error::{finite, invalid, Error, Result};
+use crate::lanes::dot;
 use crate::tf::{FracTf, Term};
 
 /// The Grunwald-Letnikov weights `c_0..c_(n-1)` of order `nu`.
@@ -87,17 +88,17 @@ pub fn simulate(tf: &FracTf, u: &[f64], dt: f64) -> Result<Vec<f64>> {
     if wd[0].abs() < 1e-300 {
         return Err(Error::Numerical("singular Grunwald-Letnikov step".into()));
     }
-    let mut y = vec![0.0; n];
+    // The memory sums `sum_j w_j x_(k-j)` run over the signals stored back to front
+    // (`rev[n-1-i] = x_i`), so each is a forward dot product of two contiguous slices
+    // ([`crate::lanes::dot`], eight partial sums): the same sums, about 4x faster than one chain.
+    let x_rev: Vec<f64> = x.iter().rev().copied().collect();
+    let mut y_rev = vec![0.0; n];
     for k in 0..n {
-        let mut rhs = 0.0;
-        for j in 0..=k {
-            rhs += wn[j] * x[k - j];
-        }
-        for j in 1..=k {
-            rhs -= wd[j] * y[k - j];
-        }
-        y[k] = rhs / wd[0];
+        let rhs = dot(&wn[..=k], &x_rev[n - 1 - k..]) - dot(&wd[1..=k], &y_rev[n - k..]);
+        y_rev[n - 1 - k] = rhs / wd[0];
     }
+    y_rev.reverse();
+    let y = y_rev;
     if let Some(i) = y.iter().position(|v| !v.is_finite()) {
         return Err(Error::Numerical(format!(
             "the output is not finite at sample {i}"
@@ -128,6 +129,37 @@ pub const HELD_MAX_FINE: usize = 200_000;
 /// # Errors
 /// As [`simulate`]; `n = 0`; more than [`HELD_MAX_FINE`] fine samples.
 pub fn simulate_held(tf: &FracTf, u: &[f64], dt: f64, n: usize) -> Result<Vec<f64>> {
+    check_held(u, dt, n, 2)?;
+    let (coarse, fine) = (run_held(tf, u, dt, n)?, run_held(tf, u, dt, 2 * n)?);
+    Ok(fine.iter().zip(&coarse).map(|(f, c)| 2.0 * f - c).collect())
+}
+
+/// As [`simulate_held`], extrapolated once more: Grunwald-Letnikov at `h = dt/n`, `dt/(2n)` and
+/// `dt/(4n)` on the held input, the two first-order Richardson values `2 y_(h/2) - y_h` and
+/// `2 y_(h/4) - y_(h/2)` combined as `(4 b - a)/3`, which is
+/// `y = (8 y_(h/4) - 6 y_(h/2) + y_h)/3`: the reference for lightly damped or fast models, where
+/// one extrapolation leaves about 1e-3 of the swing. Three runs (the middle one shared).
+///
+/// ```
+/// use fracsim::{gl, FracTf};
+/// let g: FracTf = "6.77/(0.0064 s^0.89 + 1)".parse().unwrap();
+/// let y = gl::simulate_held_twice(&g, &vec![1.0; 31], 1e-3, 5).unwrap();
+/// assert!((y[30] - 6.615241).abs() < 2e-4 * 6.615241); // oracle at t = 0.03 s
+/// ```
+///
+/// # Errors
+/// As [`simulate_held`], with `4 n` fine samples per sample counted against [`HELD_MAX_FINE`].
+pub fn simulate_held_twice(tf: &FracTf, u: &[f64], dt: f64, n: usize) -> Result<Vec<f64>> {
+    check_held(u, dt, n, 4)?;
+    let y1 = run_held(tf, u, dt, n)?;
+    let y2 = run_held(tf, u, dt, 2 * n)?;
+    let y4 = run_held(tf, u, dt, 4 * n)?;
+    let y = y1.iter().zip(&y2).zip(&y4);
+    Ok(y.map(|((a, b), c)| (8.0 * c - 6.0 * b + a) / 3.0).collect())
+}
+
+/// The step, the substeps and the finest grid's size (`u.len() * finest * n`) of the held runs.
+fn check_held(u: &[f64], dt: f64, n: usize, finest: usize) -> Result<()> {
     finite("dt", dt)?;
     if dt <= 0.0 {
         return invalid("dt", format!("{dt} s must be positive"));
@@ -135,7 +167,7 @@ pub fn simulate_held(tf: &FracTf, u: &[f64], dt: f64, n: usize) -> Result<Vec<f6
     if n == 0 {
         return invalid("substeps", "need at least one substep per sample");
     }
-    let fine = u.len().saturating_mul(2 * n);
+    let fine = u.len().saturating_mul(finest * n);
     if fine > HELD_MAX_FINE {
         return invalid(
             "input",
@@ -146,11 +178,12 @@ pub fn simulate_held(tf: &FracTf, u: &[f64], dt: f64, n: usize) -> Result<Vec<f6
             ),
         );
     }
-    let run = |m: usize| -> Result<Vec<f64>> {
-        let held: Vec<f64> = u.iter().flat_map(|&x| std::iter::repeat_n(x, m)).collect();
-        let y = simulate(tf, &held, dt / m as f64)?;
-        Ok((0..u.len()).map(|k| y[k * m]).collect())
-    };
-    let (coarse, fine) = (run(n)?, run(2 * n)?);
-    Ok(fine.iter().zip(&coarse).map(|(f, c)| 2.0 * f - c).collect())
+    Ok(())
+}
+
+/// Grunwald-Letnikov at `h = dt/m` on `u` held over each sample, read at the sample instants.
+fn run_held(tf: &FracTf, u: &[f64], dt: f64, m: usize) -> Result<Vec<f64>> {
+    let held: Vec<f64> = u.iter().flat_map(|&x| std::iter::repeat_n(x, m)).collect();
+    let y = simulate(tf, &held, dt / m as f64)?;
+    Ok((0..u.len()).map(|k| y[k * m]).collect())
 }

@@ -29,6 +29,7 @@ pub mod discrete;
 pub mod export;
 pub mod fft;
 pub mod gl;
+pub mod lanes;
 pub mod modal;
 pub mod prbs;
 pub mod special;

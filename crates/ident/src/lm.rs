@@ -886,26 +886,7 @@ pub(crate) fn sum_of(v: &[f64], f: impl Fn(f64) -> f64) -> f64 {
     acc.iter().sum::<f64>() + tail
 }
 
-/// `sum_i f(a_i, b_i)` over the common length, in eight interleaved partial sums (as
-/// [`sum_of`]).
-pub(crate) fn sum_of2(a: &[f64], b: &[f64], f: impl Fn(f64, f64) -> f64) -> f64 {
-    const LANES: usize = 8;
-    let n = a.len().min(b.len());
-    let (ca, cb) = (a[..n].chunks_exact(LANES), b[..n].chunks_exact(LANES));
-    let tail: f64 = ca
-        .remainder()
-        .iter()
-        .zip(cb.remainder())
-        .map(|(&x, &y)| f(x, y))
-        .sum();
-    let mut acc = [0.0; LANES];
-    for (x, y) in ca.zip(cb) {
-        for l in 0..LANES {
-            acc[l] += f(x[l], y[l]);
-        }
-    }
-    acc.iter().sum::<f64>() + tail
-}
+pub(crate) use fracsim::lanes::sum_of2;
 
 /// `(min, max)` of `v` (`(inf, -inf)` when empty; NaNs are passed over, as by `f64::min`), in
 /// eight lanes (one vectorised pass; a fold of `f64::min` is a chain of dependent operations).
