@@ -6,6 +6,7 @@
 use std::path::PathBuf;
 use std::process::{Command, Output};
 
+#[cfg(unix)] // the drive simulator runs on a pseudo-terminal
 mod tune_loop;
 
 fn fracid_bin() -> PathBuf {
@@ -873,9 +874,14 @@ impl Drop for KillOnDrop {
     }
 }
 
-/// `fracid drive sim` on a pty, fast line; its port path. The child is kept for its stdout pipe.
+/// `fracid drive sim --baud 921600 --duration 120 EXTRA` on a pty: the process (killed on drop),
+/// the port path it prints and its stdout (kept by the caller for a live pipe, or dropped); its
+/// stderr goes to `stderr`.
 #[cfg(unix)]
-fn drive_sim_piped() -> (
+fn spawn_drive_sim(
+    extra: &[&str],
+    stderr: std::process::Stdio,
+) -> (
     KillOnDrop,
     String,
     std::io::BufReader<std::process::ChildStdout>,
@@ -885,13 +891,13 @@ fn drive_sim_piped() -> (
     let mut sim = KillOnDrop(
         Command::new(fracid_bin())
             .args(["drive", "sim", "--baud", "921600", "--duration", "120"])
+            .args(extra)
             .stdout(Stdio::piped())
-            .stderr(Stdio::null())
+            .stderr(stderr)
             .spawn()
             .expect("start the drive simulator"),
     );
     let mut port = String::new();
-    // kept open to the end: the simulator's stdout stays a live pipe
     let mut sim_out = BufReader::new(sim.0.stdout.take().expect("sim stdout"));
     sim_out
         .read_line(&mut port)
@@ -899,6 +905,17 @@ fn drive_sim_piped() -> (
     let port = port.trim().to_string();
     assert!(!port.is_empty(), "no port from the simulator");
     (sim, port, sim_out)
+}
+
+/// `fracid drive sim` on a pty, fast line, real time; its port path. The child is kept for its
+/// stdout pipe.
+#[cfg(unix)]
+fn drive_sim_piped() -> (
+    KillOnDrop,
+    String,
+    std::io::BufReader<std::process::ChildStdout>,
+) {
+    spawn_drive_sim(&[], std::process::Stdio::null())
 }
 
 /// `fracid drive ARGS --port PORT --baud 921600 -o OUT --quiet`, stderr piped.
@@ -1374,40 +1391,14 @@ fn bad_simulator_options_are_refused_with_exit_2() {
 #[cfg(unix)]
 fn drive_sim(extra: &[&str]) -> (KillOnDrop, String, String) {
     use std::io::{BufRead, BufReader};
-    use std::process::Stdio;
-    let mut args = vec![
-        "drive",
-        "sim",
-        "--baud",
-        "921600",
-        "--duration",
-        "120",
-        "--delay",
-        "0.002",
-        "--noise",
-        "0.05",
-        "--seed",
-        "7",
-    ];
+    let mut args = vec!["--delay", "0.002", "--noise", "0.05", "--seed", "7"];
     args.extend(extra);
-    let mut sim = KillOnDrop(
-        Command::new(fracid_bin())
-            .args(&args)
-            .stdout(Stdio::piped())
-            .stderr(Stdio::piped())
-            .spawn()
-            .expect("start the drive simulator"),
-    );
-    let mut port = String::new();
-    BufReader::new(sim.0.stdout.take().expect("sim stdout"))
-        .read_line(&mut port)
-        .expect("the simulator prints its port");
+    let (mut sim, port, _) = spawn_drive_sim(&args, std::process::Stdio::piped());
     let mut banner = String::new();
     BufReader::new(sim.0.stderr.take().expect("sim stderr"))
         .read_line(&mut banner)
         .expect("the simulator says what it runs");
-    assert!(!port.trim().is_empty(), "no port from the simulator");
-    (sim, port.trim().to_string(), banner)
+    (sim, port, banner)
 }
 
 /// `fracid drive prbs` and `fracid drive sine` against a simulator in virtual time (a host

@@ -3,8 +3,8 @@
 //! (the C firmware and the Rust one, in virtual time), and the measured step is checked against
 //! an independent Grunwald-Letnikov simulation of the continuous loop.
 
-use super::{fracid, fracid_bin, realtime_lock, KillOnDrop};
-use std::process::{Command, Stdio};
+use super::{fracid, realtime_lock, KillOnDrop};
+use std::process::Stdio;
 
 const PMSM: &str = "6.82/(2.655e-5 s^1.7452 + 0.0059 s^0.92 + 1)";
 
@@ -16,30 +16,10 @@ fn clean_sim(firmware: &str) -> (KillOnDrop, String) {
 
 /// `fracid drive sim` in virtual time with `extra` options: the process and its port.
 fn sim_with(extra: &[&str]) -> (KillOnDrop, String) {
-    use std::io::{BufRead, BufReader};
-    let mut args = vec![
-        "drive",
-        "sim",
-        "--baud",
-        "921600",
-        "--duration",
-        "120",
-        "--virtual-time",
-    ];
+    let mut args = vec!["--virtual-time"];
     args.extend(extra);
-    let mut sim = KillOnDrop(
-        Command::new(fracid_bin())
-            .args(&args)
-            .stdout(Stdio::piped())
-            .stderr(Stdio::null())
-            .spawn()
-            .expect("start the drive simulator"),
-    );
-    let mut port = String::new();
-    BufReader::new(sim.0.stdout.take().expect("sim stdout"))
-        .read_line(&mut port)
-        .expect("the simulator prints its port");
-    (sim, port.trim().to_string())
+    let (sim, port, _) = super::spawn_drive_sim(&args, Stdio::null());
+    (sim, port)
 }
 
 /// Overshoot (percent of the step `a`) and 10-90% rise time (linear interpolation between

@@ -81,8 +81,8 @@ class FracTf:
         method : {"oustaloup", "refined", "trigeassou", "gl"}
             An Oustaloup, refined Oustaloup or Poinot-Trigeassou approximation of each operator,
             the whole model discretised exactly for the held input; or ``"gl"``, the
-            Grunwald-Letnikov reference at dt/10 and dt/20, Richardson-extrapolated (O(N^2), at
-            most 10000 samples).
+            Grunwald-Letnikov reference at dt/10 and dt/20, Richardson-extrapolated (the whole
+            memory: at most 10000 samples).
         band : (float, float), optional
             Approximation band in rad/s (default ``[1e-3, 30 pi/dt]``).
         order : int

@@ -272,7 +272,7 @@ impl PyFracTf {
     }
 }
 
-/// Grunwald-Letnikov simulation (the implicit reference scheme, O(N^2), at most 2e5 samples).
+/// Grunwald-Letnikov simulation (the implicit reference scheme with the whole memory, at most 2e5 samples).
 #[pyfunction]
 pub(crate) fn gl_simulate<'py>(
     py: Python<'py>,

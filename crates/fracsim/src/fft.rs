@@ -60,6 +60,50 @@ pub fn rfft(x: &[f64]) -> Vec<Complex64> {
     spectrum
 }
 
+/// Linear convolutions of real sequences by FFT, the transform plans kept between calls
+/// (Grunwald-Letnikov's long memory sums, [`crate::gl`]).
+pub(crate) struct Convolver {
+    planner: realfft::RealFftPlanner<f64>,
+}
+
+impl Convolver {
+    pub(crate) fn new() -> Self {
+        Self {
+            planner: realfft::RealFftPlanner::new(),
+        }
+    }
+
+    /// The spectrum of `x` zero-padded to `size` samples (`size >= x.len()`).
+    pub(crate) fn spectrum(&mut self, x: &[f64], size: usize) -> Vec<Complex64> {
+        let r2c = self.planner.plan_fft_forward(size);
+        let mut input = vec![0.0; size];
+        input[..x.len()].copy_from_slice(x);
+        let mut out = r2c.make_output_vec();
+        r2c.process(&mut input, &mut out)
+            .expect("buffers made by the plan");
+        out
+    }
+
+    /// The circular convolution of the two sequences whose `size`-point spectra are `a` and `b`
+    /// (from [`Convolver::spectrum`]): the linear one wherever no product wraps around.
+    pub(crate) fn convolve(&mut self, a: &[Complex64], b: &[Complex64], size: usize) -> Vec<f64> {
+        let c2r = self.planner.plan_fft_inverse(size);
+        let mut prod: Vec<Complex64> = a.iter().zip(b).map(|(x, y)| x * y).collect();
+        // The products of two real sequences' spectra are real at 0 and at size/2; rounding
+        // aside. The inverse transform wants them exactly real.
+        prod[0].im = 0.0;
+        if size % 2 == 0 {
+            prod[size / 2].im = 0.0;
+        }
+        let mut out = c2r.make_output_vec();
+        c2r.process(&mut prod, &mut out)
+            .expect("buffers made by the plan, real end bins");
+        let scale = 1.0 / size as f64;
+        out.iter_mut().for_each(|v| *v *= scale);
+        out
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

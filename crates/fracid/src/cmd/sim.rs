@@ -58,7 +58,7 @@ pub struct SimArgs {
     /// paper's PMSM and PRBS at 0.5 ms, 0.005% / 0.04% / 0.04% of the output swing RMS from the
     /// exact response). gl: the
     /// Grunwald-Letnikov reference at dt/10 and dt/20 with the input held, Richardson-extrapolated
-    /// (no approximation band; O(N^2): at most 10000 samples).
+    /// (no approximation band; the whole memory: at most 10000 samples).
     #[arg(long, default_value = "refined")]
     pub method: String,
     /// Approximation band "w_b,w_h" in rad/s (default: 1e-3 to 30 x Nyquist).
