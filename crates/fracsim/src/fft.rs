@@ -92,7 +92,7 @@ impl Convolver {
         // The products of two real sequences' spectra are real at 0 and at size/2; rounding
         // aside. The inverse transform wants them exactly real.
         prod[0].im = 0.0;
-        if size % 2 == 0 {
+        if size.is_multiple_of(2) {
             prod[size / 2].im = 0.0;
         }
         let mut out = c2r.make_output_vec();
