@@ -138,6 +138,10 @@ pub struct LmOptions {
     pub scale: bool,
     /// Compute the covariance and standard errors at the solution. Default true.
     pub covariance: bool,
+    /// Stall test `(k, rel)`: stop ([`Termination::SmallCostChange`]) when the cost fell by less
+    /// than the fraction `rel` over the last `k` accepted iterations (a fit that creeps on at a
+    /// rate that cannot matter to its caller). Default `None` (off).
+    pub stall: Option<(usize, f64)>,
 }
 
 impl Default for LmOptions {
@@ -151,6 +155,7 @@ impl Default for LmOptions {
             initial_lambda: 1e-3,
             scale: true,
             covariance: true,
+            stall: None,
         }
     }
 }
@@ -347,6 +352,8 @@ pub fn minimize(problem: &mut impl Problem, p0: &[f64], opts: &LmOptions) -> Res
     // The QR of `[J r]` at the current point: R and Q^T r give the gradient, the column norms,
     // every damped step and its predicted cost, and the covariance at the end.
     let mut qr = qr_of_jr(&jac, &r);
+    // The cost at the start and after each accepted iteration (the stall test).
+    let mut history = vec![cost];
     let termination = 'outer: loop {
         // -- gradient test and scaling --
         let col_norms = col_norms_of(&qr.0);
@@ -435,9 +442,16 @@ pub fn minimize(problem: &mut impl Problem, p0: &[f64], opts: &LmOptions) -> Res
                 lambda *= (1.0 - t * t * t).max(1.0 / 3.0);
                 nu = 2.0;
                 qr = qr_of_jr(&jac, &r);
-                if small_cost || small_step {
+                history.push(cost);
+                let stalled = opts.stall.is_some_and(|(k, rel)| {
+                    k > 0
+                        && history.len() > k
+                        && history[history.len() - 1 - k] - cost
+                            <= rel * history[history.len() - 1 - k]
+                });
+                if small_cost || small_step || stalled {
                     gcos = gradient_cosine(&jt_r_of(&qr.0, &qr.1), &col_norms_of(&qr.0), norm(&r));
-                    break 'outer if small_cost {
+                    break 'outer if small_cost || !small_step {
                         Termination::SmallCostChange
                     } else {
                         Termination::SmallStep
