@@ -1684,6 +1684,47 @@ mod tests {
         }
     }
 
+    #[test]
+    fn the_stall_test_stops_a_fit_whose_cost_no_longer_falls() {
+        let tight = LmOptions {
+            ftol: 1e-15,
+            xtol: 1e-15,
+            gtol: 1e-15,
+            ..LmOptions::default()
+        };
+        let p0 = [0.5, 3.0];
+        let plain = minimize(&mut NoisyExp::new(), &p0, &tight).unwrap();
+        // A window longer than the fit never fires: the same path, bit for bit.
+        let long = LmOptions {
+            stall: Some((1000, 0.5)),
+            ..tight.clone()
+        };
+        let never = minimize(&mut NoisyExp::new(), &p0, &long).unwrap();
+        assert_eq!(never.params, plain.params);
+        assert_eq!(never.iterations, plain.iterations);
+        // Near the optimum an iteration removes far less than 1% of the cost (the noise's sum of
+        // squares stays): the test stops there, sooner than the tight tolerances, within 2% of
+        // the optimum's cost (LM converges fast near it, so the rest of the way is smaller still).
+        let one_percent = LmOptions {
+            stall: Some((1, 1e-2)),
+            ..tight
+        };
+        let stalled = minimize(&mut NoisyExp::new(), &p0, &one_percent).unwrap();
+        assert_eq!(stalled.termination, Termination::SmallCostChange);
+        assert!(
+            stalled.iterations < plain.iterations,
+            "stalled {} iterations, plain {}",
+            stalled.iterations,
+            plain.iterations
+        );
+        assert!(
+            stalled.ssr() >= plain.ssr() && stalled.ssr() <= 1.02 * plain.ssr(),
+            "stalled SSR {}, plain {}",
+            stalled.ssr(),
+            plain.ssr()
+        );
+    }
+
     /// `y = a exp(-b t)` with the amplitude `a = 3 / (1 + exp(-theta_0))` (a logistic map to
     /// (0, 3)) near its edge, `b = theta_1`; counts evaluations. `scales` says whether it tells
     /// [`refine`] how the amplitude's column scales ([`Problem::column_scale`]).
