@@ -96,14 +96,29 @@ pub struct DiagnoseOptions {
     pub max_delay_samples: usize,
     /// Candidates refitted per round, strongest first (default 4).
     pub max_refits: usize,
-    /// The output-error fit options of the refits (default: 60 LM iterations).
+    /// The output-error fit options of the refits (default: 60 LM iterations, and the stall test
+    /// [`REFIT_STALL`]).
     pub fit: FitOptions,
 }
+
+/// The refits' stall test ([`crate::lm::LmOptions::stall`]): a refit stops when its cost fell by
+/// less than 1e-4 (relative) over its last 5 iterations. At that rate the rest of the 60-iteration
+/// budget could remove about 0.1% of the sum of squares, a fiftieth of the smallest gain an
+/// effect must bring (the 5% held-out margin is about 10% of the sum of squares): a refit that
+/// creeps on (a delay of a fraction of a sample against orders that mimic it) stops where the
+/// decision can no longer change.
+pub const REFIT_STALL: (usize, f64) = (5, 1e-4);
+
+/// LM iterations each start of a candidate with several starts gets before only the best of them
+/// (lowest estimation sum of squares) is refitted on, with the rest of the budget
+/// ([`best_refit`]).
+pub const START_SCREEN_ITERATIONS: usize = 5;
 
 impl Default for DiagnoseOptions {
     fn default() -> Self {
         let mut fit = FitOptions::default();
         fit.lm.max_iterations = 60;
+        fit.lm.stall = Some(REFIT_STALL);
         Self {
             margin: 0.05,
             min_r2: 0.005,
@@ -324,8 +339,13 @@ impl Ctx<'_> {
             }
             p.value = p.bounds.clamp_inside(p.value);
         }
+        self.fit_from(model, &self.opts.fit)
+    }
+
+    /// Fit `model` from its values as they are on the estimation part with `opts`.
+    fn fit_from(&self, mut model: FracModel, opts: &FitOptions) -> Result<State> {
         let s = self.split;
-        let rep = fit(&model, &self.u[..s], &self.y[..s], self.dt, &self.opts.fit)?;
+        let rep = fit(&model, &self.u[..s], &self.y[..s], self.dt, opts)?;
         for (p, v) in model.params.iter_mut().zip(&rep.values) {
             p.value = *v;
         }
@@ -390,7 +410,7 @@ fn try_candidate(
         reason,
         params,
     };
-    let mut ns = best_refit(rctx, c.starts.iter().cloned())
+    let mut ns = best_refit(rctx, &c.starts)
         .map_err(|e| rejection(format!("the refit failed: {e}"), BTreeMap::new()))?;
     let params_of = |ns: &State| {
         let mut params = probe.map_or_else(BTreeMap::new, |p| p.params(&ns.model, &ns.values));
@@ -492,12 +512,44 @@ fn try_candidate(
     Ok((ns, k))
 }
 
-/// The refit with the smallest estimation sum of squares over `starts`.
-fn best_refit(ctx: &Ctx<'_>, starts: impl Iterator<Item = FracModel>) -> Result<State> {
+/// The refit over `starts` with the smallest estimation sum of squares. With several starts (a
+/// delay's grid point and lags), each is refitted for [`START_SCREEN_ITERATIONS`] LM iterations
+/// and only the best of those goes on from where it stopped with the rest of the budget: the
+/// starts of one candidate mostly end in the same minimum, and the one ahead after a few
+/// iterations is the one to finish (successive halving), so the candidate costs about one refit
+/// and not one per start.
+fn best_refit(ctx: &Ctx<'_>, starts: &[FracModel]) -> Result<State> {
+    let budget = ctx.opts.fit.lm.max_iterations;
+    if starts.len() < 2 || budget <= 2 * START_SCREEN_ITERATIONS {
+        return lowest(starts.iter().map(|m| ctx.refit(m.clone())));
+    }
+    let mut short = ctx.opts.clone();
+    short.fit.lm.max_iterations = START_SCREEN_ITERATIONS;
+    let screen = Ctx {
+        opts: &short,
+        ..ctx.clone()
+    };
+    let best = lowest(starts.iter().map(|m| screen.refit(m.clone())))?;
+    let mut rest = ctx.opts.fit.clone();
+    rest.lm.max_iterations = budget - START_SCREEN_ITERATIONS;
+    let mut model = best.model.clone();
+    for p in &mut model.params {
+        p.value = p.bounds.clamp_inside(p.value);
+    }
+    // The continuation cannot end worse than where it started (LM only accepts descents), but
+    // it can fail (a model at the edge of what the approximation represents): keep the screen's.
+    Ok(match ctx.fit_from(model, &rest) {
+        Ok(s) if s.ssr <= best.ssr => s,
+        _ => best,
+    })
+}
+
+/// The state with the smallest estimation sum of squares among `fits`, or their errors.
+fn lowest(fits: impl Iterator<Item = Result<State>>) -> Result<State> {
     let mut fitted: Option<State> = None;
     let mut errs = vec![];
-    for m in starts {
-        match ctx.refit(m) {
+    for f in fits {
+        match f {
             Ok(s) if fitted.as_ref().is_none_or(|f| s.ssr < f.ssr) => fitted = Some(s),
             Ok(_) => {}
             Err(e) => errs.push(e.to_string()),

@@ -138,6 +138,10 @@ pub struct LmOptions {
     pub scale: bool,
     /// Compute the covariance and standard errors at the solution. Default true.
     pub covariance: bool,
+    /// Stall test `(k, rel)`: stop ([`Termination::SmallCostChange`]) when the cost fell by less
+    /// than the fraction `rel` over the last `k` accepted iterations (a fit that creeps on at a
+    /// rate that cannot matter to its caller). Default `None` (off).
+    pub stall: Option<(usize, f64)>,
 }
 
 impl Default for LmOptions {
@@ -151,6 +155,7 @@ impl Default for LmOptions {
             initial_lambda: 1e-3,
             scale: true,
             covariance: true,
+            stall: None,
         }
     }
 }
@@ -347,6 +352,8 @@ pub fn minimize(problem: &mut impl Problem, p0: &[f64], opts: &LmOptions) -> Res
     // The QR of `[J r]` at the current point: R and Q^T r give the gradient, the column norms,
     // every damped step and its predicted cost, and the covariance at the end.
     let mut qr = qr_of_jr(&jac, &r);
+    // The cost at the start and after each accepted iteration (the stall test).
+    let mut history = vec![cost];
     let termination = 'outer: loop {
         // -- gradient test and scaling --
         let col_norms = col_norms_of(&qr.0);
@@ -435,9 +442,16 @@ pub fn minimize(problem: &mut impl Problem, p0: &[f64], opts: &LmOptions) -> Res
                 lambda *= (1.0 - t * t * t).max(1.0 / 3.0);
                 nu = 2.0;
                 qr = qr_of_jr(&jac, &r);
-                if small_cost || small_step {
+                history.push(cost);
+                let stalled = opts.stall.is_some_and(|(k, rel)| {
+                    k > 0
+                        && history.len() > k
+                        && history[history.len() - 1 - k] - cost
+                            <= rel * history[history.len() - 1 - k]
+                });
+                if small_cost || small_step || stalled {
                     gcos = gradient_cosine(&jt_r_of(&qr.0, &qr.1), &col_norms_of(&qr.0), norm(&r));
-                    break 'outer if small_cost {
+                    break 'outer if small_cost || !small_step {
                         Termination::SmallCostChange
                     } else {
                         Termination::SmallStep
@@ -1649,6 +1663,47 @@ mod tests {
             }
             Ok(())
         }
+    }
+
+    #[test]
+    fn the_stall_test_stops_a_fit_whose_cost_no_longer_falls() {
+        let tight = LmOptions {
+            ftol: 1e-15,
+            xtol: 1e-15,
+            gtol: 1e-15,
+            ..LmOptions::default()
+        };
+        let p0 = [0.5, 3.0];
+        let plain = minimize(&mut NoisyExp::new(), &p0, &tight).unwrap();
+        // A window longer than the fit never fires: the same path, bit for bit.
+        let long = LmOptions {
+            stall: Some((1000, 0.5)),
+            ..tight.clone()
+        };
+        let never = minimize(&mut NoisyExp::new(), &p0, &long).unwrap();
+        assert_eq!(never.params, plain.params);
+        assert_eq!(never.iterations, plain.iterations);
+        // Near the optimum an iteration removes far less than 1% of the cost (the noise's sum of
+        // squares stays): the test stops there, sooner than the tight tolerances, within 2% of
+        // the optimum's cost (LM converges fast near it, so the rest of the way is smaller still).
+        let one_percent = LmOptions {
+            stall: Some((1, 1e-2)),
+            ..tight
+        };
+        let stalled = minimize(&mut NoisyExp::new(), &p0, &one_percent).unwrap();
+        assert_eq!(stalled.termination, Termination::SmallCostChange);
+        assert!(
+            stalled.iterations < plain.iterations,
+            "stalled {} iterations, plain {}",
+            stalled.iterations,
+            plain.iterations
+        );
+        assert!(
+            stalled.ssr() >= plain.ssr() && stalled.ssr() <= 1.02 * plain.ssr(),
+            "stalled SSR {}, plain {}",
+            stalled.ssr(),
+            plain.ssr()
+        );
     }
 
     /// `y = a exp(-b t)` with the amplitude `a = 3 / (1 + exp(-theta_0))` (a logistic map to
