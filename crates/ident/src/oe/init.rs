@@ -576,7 +576,9 @@ pub(super) fn sse_of<S: Structure>(
 /// model) and each of 10 corner frequencies `w_c` log-spaced from `2 pi / T` to a quarter of the
 /// Nyquist frequency, the model `K / (1 + (s/w_c)^q / 2)^2` (`K / (s/w_c + 1)` for the FOPDT) is
 /// simulated, `K` is the linear least-squares gain; the smallest squared error wins. Returns
-/// `(sse, values)`.
+/// `(sse, values)`. The trials are screened with at most [`COARSE_APPROX_ORDER`] as the
+/// approximation's order (each is a model built cold); the best few are simulated again with the
+/// model's own approximation, which decides and gives the winner's `K` and `sse`.
 ///
 /// The trials are simulated on the leading [`MAX_COARSE_SAMPLES`] samples (all of a shorter
 /// record); the corner frequencies span the whole record's band, and the winner's `sse` is that
@@ -753,7 +755,8 @@ fn levy_candidates(lin: &FracModel, frf: &Frf, dt: f64) -> Result<(Vec<Candidate
 ///   order `q` in `{0.5, 0.7, 0.9}` (`q = 1` for the FOPDT and the integer second order) and 10 corner frequencies `w_c`
 ///   log-spaced from `2 pi / T` to a quarter of the Nyquist frequency, the model
 ///   `K / (1 + (s/w_c)^q / 2)^2` (`K / (s/w_c + 1)`) is simulated with `K` by linear least
-///   squares; the smallest squared error wins (`zeta = theta = q`, `a1 = w_c^-q`, `a2 = a1^2/4`).
+///   squares; the smallest squared error wins (`zeta = theta = q`, `a1 = w_c^-q`, `a2 = a1^2/4`;
+///   screened with fewer approximation cells, the best few scored again with the model's own).
 /// - `General` models keep their values.
 ///
 /// The cost is bounded on long records: the periodic response averages at most
