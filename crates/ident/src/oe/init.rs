@@ -651,13 +651,11 @@ fn coarse_start(lin: &FracModel, u: &[f64], y: &[f64], dt: f64) -> Option<(f64, 
     // Stable: equal screening errors keep the trials' order.
     screened.sort_by(|a, b| a.0.total_cmp(&b.0));
     let mut best: Option<(f64, f64, f64, f64)> = None; // (sse, q, w_c, K)
-    let mut rescored = 0;
-    for &(s_cheap, q, wc) in &screened {
+    for (rescored, &(s_cheap, q, wc)) in screened.iter().enumerate() {
         let near = s_cheap <= COARSE_RESCORE_WITHIN * screened[0].0;
         if rescored >= COARSE_RESCORED || (!near && best.is_some()) {
             break;
         }
-        rescored += 1;
         if let Some((sse, k)) = score(lin, q, wc) {
             if best.is_none_or(|b| sse < b.0) {
                 best = Some((sse, q, wc, k));
