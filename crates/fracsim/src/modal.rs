@@ -61,6 +61,11 @@ impl<T: Real> Group<T> {
     /// [`Group::eval`] with cell `skip` (its `(s + z)/(s + p)`) left out: the rest of the cells
     /// `R(s)` times `P(1/s)`, and the `s`-derivative (`R'` by the logarithmic derivative).
     fn eval_without(&self, s: Cx<T>, skip: Option<usize>) -> (Cx<T>, Cx<T>) {
+        if s.im == T::from(0.0) {
+            // On the real axis (most poles are real): real arithmetic, a quarter of the work.
+            let (v, d) = self.eval_without_real(s.re, skip);
+            return (Cx::real(v), Cx::real(d));
+        }
         let zero = Cx::real(T::from(0.0));
         let mut cells = Cx::real(T::from(1.0));
         let mut logd = zero;
@@ -69,9 +74,9 @@ impl<T: Real> Group<T> {
                 continue;
             }
             let a = s + Cx::real(z);
-            let b = s + Cx::real(p);
-            cells = cells * a / b;
-            logd += a.recip() - b.recip();
+            let rb = (s + Cx::real(p)).recip();
+            cells = cells * a * rb;
+            logd += a.recip() - rb;
         }
         // P(x) = sum_k c_k x^k at x = 1/s, and P'(x) (Horner).
         let x = s.recip();
@@ -81,6 +86,29 @@ impl<T: Real> Group<T> {
             p = p * x + Cx::real(c);
         }
         // d/ds P(1/s) = -P'(x) x^2
+        let dps = -(dp * x * x);
+        (cells * p, cells * (logd * p + dps))
+    }
+
+    /// [`Group::eval_without`] at a real `s` (every part of its imaginary part zero).
+    fn eval_without_real(&self, s: T, skip: Option<usize>) -> (T, T) {
+        let one = T::from(1.0);
+        let (mut cells, mut logd) = (one, T::from(0.0));
+        for (l, (&z, &p)) in self.zeros.iter().zip(&self.poles).enumerate() {
+            if skip == Some(l) {
+                continue;
+            }
+            let a = s + z;
+            let rb = one / (s + p);
+            cells = cells * a * rb;
+            logd += one / a - rb;
+        }
+        let x = one / s;
+        let (mut p, mut dp) = (T::from(0.0), T::from(0.0));
+        for &c in self.coef.iter().rev() {
+            dp = dp * x + p;
+            p = p * x + c;
+        }
         let dps = -(dp * x * x);
         (cells * p, cells * (logd * p + dps))
     }
@@ -433,58 +461,103 @@ fn zeros_of_h(groups: &[Group<f64>], d: f64) -> Result<Vec<Complex64>> {
 /// (`c_k = 1/(|s0| + p_k)`, a constant scale), which has the zeros of `H` but not its poles: the slow
 /// zeros sit a hair away from cell poles, where Newton on `H` itself jumps across the pole.
 fn polish(groups: &[Group<f64>], s0: Complex64, found: &[Complex64]) -> Option<Complex64> {
-    let one = Cx::<f64>::real(1.0);
     // The scales c_k, once per call (not per cell, group and iteration).
     let norm0 = s0.norm();
     let scales: Vec<Vec<f64>> = groups
         .iter()
         .map(|h| h.poles.iter().map(|&p| 1.0 / (norm0 + p)).collect())
         .collect();
-    let mut s = Cx::<f64>::cst(s0);
-    let f_and_df = |s: Cx<f64>| -> (Cx<f64>, Cx<f64>) {
-        let (mut f, mut df) = (Cx::real(0.0), Cx::real(0.0));
-        for (gi, g) in groups.iter().enumerate() {
-            // term_g = P_g(1/s) prod_(k in g) (s + z_k) c_k prod_(k not in g) (s + p_k) c_k
-            let mut t = one;
-            let mut logd = Cx::real(0.0);
-            for (hi, h) in groups.iter().enumerate() {
-                let own = hi == gi;
-                for ((&z, &p), &c) in h.zeros.iter().zip(&h.poles).zip(&scales[hi]) {
-                    let a = s + Cx::real(if own { z } else { p });
-                    t = t * a.scale(c);
-                    logd += a.recip();
-                }
-            }
-            let x = s.recip();
-            let (mut pv, mut dp) = (Cx::real(0.0), Cx::real(0.0));
-            for &c in g.coef.iter().rev() {
-                dp = dp * x + pv;
-                pv = pv * x + Cx::real(c);
-            }
-            let dps = -(dp * x * x);
-            f += t * pv;
-            df += t * (logd * pv + dps);
+    let mut work = (
+        vec![[0.0; 4]; groups.len()],
+        vec![[Complex64::new(0.0, 0.0); 4]; groups.len()],
+    );
+    let mut s = s0;
+    // A real root's iterates stay on the real axis: real arithmetic there (most roots are real).
+    type Work = (Vec<[f64; 4]>, Vec<[Complex64; 4]>);
+    let f_and_df = |s: Complex64, work: &mut Work| -> (Complex64, Complex64) {
+        if s.im == 0.0 {
+            let (f, df) = f_and_df_of(groups, &scales, s.re, &mut work.0);
+            (Complex64::new(f, 0.0), Complex64::new(df, 0.0))
+        } else {
+            f_and_df_of(groups, &scales, s, &mut work.1)
         }
-        (f, df)
     };
     for _ in 0..60 {
-        let (f, df) = f_and_df(s);
+        let (f, df) = f_and_df(s, &mut work);
         // Maehly's deflation: the roots found already repel the iteration.
-        let sv = s.val();
-        let defl: Complex64 = found.iter().map(|r| 1.0 / (sv - r)).sum();
-        let q = (f / df).val();
-        let step = Cx::<f64>::cst(q / (1.0 - q * defl));
+        let defl: Complex64 = found.iter().map(|r| 1.0 / (s - r)).sum();
+        let q = f / df;
+        let step = q / (1.0 - q * defl);
         if !(step.re.is_finite() && step.im.is_finite()) {
             return None;
         }
-        s = s - step;
-        if step.val().norm() <= 4.0 * f64::EPSILON * s.val().norm() {
-            return Some(s.val());
+        s -= step;
+        if step.norm() <= 4.0 * f64::EPSILON * s.norm() {
+            return Some(s);
         }
     }
     // Accept a root that stalls within rounding of F.
-    let (f, df) = f_and_df(s);
-    (f.val().norm() <= 1e-10 * (df.val() * s.val()).norm().max(1e-300)).then(|| s.val())
+    let (f, df) = f_and_df(s, &mut work);
+    (f.norm() <= 1e-10 * (df * s).norm().max(1e-300)).then_some(s)
+}
+
+/// The arithmetic [`f_and_df_of`] runs in: `f64` on the real axis, `Complex64` off it.
+trait Field:
+    Copy
+    + std::ops::Add<Output = Self>
+    + std::ops::Sub<Output = Self>
+    + std::ops::Mul<Output = Self>
+    + std::ops::Div<Output = Self>
+    + std::ops::Neg<Output = Self>
+    + From<f64>
+{
+}
+impl Field for f64 {}
+impl Field for Complex64 {}
+
+/// `F(s) = sum_g P_g(1/s) prod_(k in g) (s + z_k) c_k prod_(k not in g) (s + p_k) c_k` and its
+/// `s`-derivative ([`polish`]'s function), in `O(cells)`: each group's products and logarithmic
+/// derivatives over its own zeros and poles (`work[g]`: `prod (s + z) c`, `prod (s + p) c`,
+/// `sum 1/(s + z)`, `sum 1/(s + p)`), then each term from its own zeros and the other groups' poles.
+fn f_and_df_of<C: Field>(
+    groups: &[Group<f64>],
+    scales: &[Vec<f64>],
+    s: C,
+    work: &mut [[C; 4]],
+) -> (C, C) {
+    let (zero, one) = (C::from(0.0), C::from(1.0));
+    for ((g, sc), w) in groups.iter().zip(scales).zip(work.iter_mut()) {
+        let (mut pz, mut pp, mut lz, mut lp) = (one, one, zero, zero);
+        for ((&z, &p), &c) in g.zeros.iter().zip(&g.poles).zip(sc) {
+            let a = s + C::from(z);
+            let b = s + C::from(p);
+            pz = pz * (a * C::from(c));
+            pp = pp * (b * C::from(c));
+            lz = lz + one / a;
+            lp = lp + one / b;
+        }
+        *w = [pz, pp, lz, lp];
+    }
+    let x = one / s;
+    let (mut f, mut df) = (zero, zero);
+    for (gi, g) in groups.iter().enumerate() {
+        let (mut t, mut logd) = (work[gi][0], work[gi][2]);
+        for (hi, w) in work.iter().enumerate() {
+            if hi != gi {
+                t = t * w[1];
+                logd = logd + w[3];
+            }
+        }
+        let (mut pv, mut dp) = (zero, zero);
+        for &c in g.coef.iter().rev() {
+            dp = dp * x + pv;
+            pv = pv * x + C::from(c);
+        }
+        let dps = -(dp * x * x);
+        f = f + t * pv;
+        df = df + t * (logd * pv + dps);
+    }
+    (f, df)
 }
 
 /// Add root `r` of `H` to `roots` (real when its imaginary part is within rounding of zero), and
