@@ -225,6 +225,7 @@ RECORDS = {
     "tclab_step": ("apm_tclab/tclab_step_test.csv", 30),
     "motor_generator_steps": ("sysidentpy_motor_generator/motor_generator_steps.csv", 10),
     "dcmotor_step_open": ("unal_dcmotor/DCmotor_step_open_exp.csv", 10),
+    "robot_arm_flexible": ("slicot_robot_arm/robot_arm.csv", 10),
 }
 
 # Where fracid loses, the measured figures and the reason. Measured 2026-11-25 with the lead's
@@ -256,6 +257,21 @@ XFAIL: dict[str, str] = {
     "tclab_step": (
         "fracid's tail RMSE 0.314 K vs integer baseline 0.284 K (first order + 15 s delay); "
         "with --diagnose 0.222 K (pmsm + delay)"
+    ),
+    # 1024 samples, t in samples (no period stated), a flexible robot arm on an electric motor:
+    # reaction torque -> arm acceleration, a sine sweep over 0-0.2 cycles/sample, a negative gain
+    # and two lightly damped modes (0.059 and 0.126 cycles/sample) with anti-resonances. fracid
+    # with defaults (pmsm, started by the coarse search's resonant trials with a negative gain,
+    # held out samples 717..1024): RMSE 0.1040 (NRMSE 60.44%), better than the baseline's
+    # second order, RMSE 0.1362 (NRMSE 48.18%; first order + 9 samples 0.2562, third order
+    # 0.1450), but exit 1: the model's damping term (a1 = 0.0123, its order zeta = 1.0) is not
+    # determined (standard errors 10 times the values). With --diagnose: 0.0900 (65.77%), the
+    # integer second order with a delay of 3.5 samples chosen (exit 0). Before session 14 no
+    # coarse trial had a positive gain, the fit started from the default values and every
+    # structure ended at 0% (RMSE 0.2629, the held-out part's own spread).
+    "robot_arm_flexible": (
+        "fracid with defaults exits 1 (a1, zeta, theta not determined) although its held-out "
+        "RMSE 0.1040 (60.4%) beats the integer baseline's 0.1362 (48.2%, second order)"
     ),
     # 5000 samples (the source's 500000 decimated by 100), t in source samples (period not
     # stated). fracid with defaults, from rest: held-out RMSE 1083 (NRMSE -15.9%: not usable,
@@ -308,7 +324,9 @@ def test_fracid_beats_integer_baseline(fracid_bin, name, request):
 # Measured (held-out RMSE, fracid --diagnose vs baseline): UNAL PRBS 2.978 vs 3.366 (integer second
 # order + delay chosen), closed-loop staircase 5.580 vs 5.581 (first order + delay), TCLab 0.2220 K vs
 # 0.2837 K (pmsm + delay), UNAL step tail 3.216 vs 3.214 (third order), motor/generator 518.8 vs
-# 511.8 (first order + delay + input offset; within the 2% tie). Session 13.
+# 511.8 (first order + delay + input offset; within the 2% tie). Session 13. Flexible robot arm
+# (session 14): 0.0900 vs 0.1362 (integer second order + delay chosen; the baseline's second order
+# without delay).
 @pytest.mark.parametrize("name", sorted(RECORDS))
 def test_fracid_diagnose_matches_or_beats_integer_baseline(fracid_bin, name):
     pytest.importorskip("scipy")

@@ -1164,6 +1164,7 @@ fn auto_start(m: &mut FracModel, u: &[f64], y: &[f64], dt: f64) -> Result<init::
     let mut rep = init::auto_start(&mut inner, &uc, &dyc, dt)?;
     for (p, q) in m.params.iter_mut().zip(&inner.params) {
         p.value = q.value;
+        p.bounds = q.bounds; // a negative gain's free sign
     }
     if let (Some(k), Some(c)) = (m.index_of("K"), m.index_of("u_offset")) {
         let gain = m.params[k].value;

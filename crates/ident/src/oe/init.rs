@@ -572,6 +572,18 @@ pub(super) fn sse_of<S: Structure>(
     sse.is_finite().then_some(sse)
 }
 
+/// The coarse search's resonant fallback trials: these damping ratios at each of
+/// [`RESONANT_CORNERS`] corner frequencies (structures with a second-order denominator only).
+const RESONANT_DAMPING: [f64; 2] = [0.05, 0.2];
+
+/// The coarse search's fallbacks run only when the output deviations take each sign in at least
+/// this share of the samples.
+const MIN_SIGN_SHARE: f64 = 0.1;
+
+/// The number of corner frequencies of the resonant trials, log-spaced over the coarse band (a
+/// lightly damped peak is narrow: a finer grid than the damped trials').
+const RESONANT_CORNERS: usize = 24;
+
 /// The coarse search: for each commensurate order `q` in `{0.5, 0.7, 0.9}` (`q = 1` for the FOPDT
 /// model) and each of 10 corner frequencies `w_c` log-spaced from `2 pi / T` to a quarter of the
 /// Nyquist frequency, the model `K / (1 + (s/w_c)^q / 2)^2` (`K / (s/w_c + 1)` for the FOPDT) is
@@ -579,6 +591,18 @@ pub(super) fn sse_of<S: Structure>(
 /// `(sse, values)`. The trials are screened with at most [`COARSE_APPROX_ORDER`] as the
 /// approximation's order (each is a model built cold); the best few are simulated again with the
 /// model's own approximation, which decides and gives the winner's `K` and `sse`.
+///
+/// When no trial has a positive least-squares gain (today's search finds no start: the model
+/// kept its given values), two fallbacks are tried and the better taken: structures with a
+/// second-order denominator (`a2`: the PMSM, commensurate and integer second and third order)
+/// try a lightly damped resonance, `K / (s^2/w^2 + 2 z s/w + 1)` at order 1 (the third order
+/// times `1/(1 + s/(4 w))`) for `z` in [`RESONANT_DAMPING`] at [`RESONANT_CORNERS`] frequencies
+/// `w` over the same band (from a critically damped trial the fit cannot reach a lightly damped
+/// mode: its output-error cost has a narrow valley at the resonance); and every trial may keep a
+/// negative gain (a torque or sensor measured with the opposite sign: the output falls when the
+/// input rises; the caller then frees `K`'s sign). A record any damped trial describes with a
+/// positive gain keeps today's start, and so does an output whose deviations keep one sign in all
+/// but [`MIN_SIGN_SHARE`] of the samples (a sign-blind sensor's: no sign of the gain to tell).
 ///
 /// The trials are simulated on the leading [`MAX_COARSE_SAMPLES`] samples (all of a shorter
 /// record); the corner frequencies span the whole record's band, and the winner's `sse` is that
@@ -597,22 +621,14 @@ fn coarse_start(lin: &FracModel, u: &[f64], y: &[f64], dt: f64) -> Option<(f64, 
     // The third order as `K / ((1 + s/w_c)(1 + s/(2 w_c))(1 + s/(4 w_c)))` (distinct poles: the
     // modal form refuses repeated ones), the others `K / (1 + (s/w_c)^q / 2)^2`.
     let third = lin.index_of("a3").is_some();
-    let values = |q: f64, wc: f64, k: f64| {
-        let a1 = wc.powf(-q);
+    let with = |a1: f64, a2: f64, a3: f64, q: f64, wc: f64| {
         with_values(
             lin,
             &[
-                ("K", k),
-                ("a1", if third { 1.75 * a1 } else { a1 }),
-                (
-                    "a2",
-                    if third {
-                        0.875 * a1 * a1
-                    } else {
-                        a1 * a1 / 4.0
-                    },
-                ),
-                ("a3", 0.125 * a1 * a1 * a1),
+                ("K", 1.0),
+                ("a1", a1),
+                ("a2", a2),
+                ("a3", a3),
                 ("q", q),
                 ("zeta", q),
                 ("theta", q),
@@ -621,49 +637,126 @@ fn coarse_start(lin: &FracModel, u: &[f64], y: &[f64], dt: f64) -> Option<(f64, 
             ],
         )
     };
+    let damped = |q: f64, wc: f64| {
+        let a1 = wc.powf(-q);
+        if third {
+            with(1.75 * a1, 0.875 * a1 * a1, 0.125 * a1 * a1 * a1, q, wc)
+        } else {
+            with(a1, a1 * a1 / 4.0, 0.0, q, wc)
+        }
+    };
+    // `s^2/w^2 + 2 z s/w + 1`, times `1 + s/(4 w)` for the third order.
+    let resonant = |w: f64, z: f64| {
+        if third {
+            let (a1, a2, a3) = (
+                2.0 * z / w + 0.25 / w,
+                (1.0 + 0.5 * z) / (w * w),
+                0.25 / w.powi(3),
+            );
+            with(a1, a2, a3, 1.0, w)
+        } else {
+            with(2.0 * z / w, 1.0 / (w * w), 0.0, 1.0, w)
+        }
+    };
+    // Each trial simulated by `model` at unit gain: (sse, K) with K by linear least squares.
     let mut yhat = vec![0.0; m];
-    // The trial with unit gain simulated by `model`: `(sse, K)` with `K` its least-squares gain
-    // (positive), `None` when it does not simulate.
-    let mut score = |model: &FracModel, q: f64, wc: f64| -> Option<(f64, f64)> {
-        model.simulate(&values(q, wc, 1.0), u, dt, &mut yhat).ok()?;
+    let mut trial = |model: &FracModel, v: &[f64]| -> Option<(f64, f64)> {
+        model.simulate(v, u, dt, &mut yhat).ok()?;
         let gg: f64 = yhat.iter().map(|v| v * v).sum();
         if !(gg > 0.0 && gg.is_finite()) {
             return None;
         }
         let k = yhat.iter().zip(y).map(|(a, b)| a * b).sum::<f64>() / gg;
         let sse: f64 = yhat.iter().zip(y).map(|(a, b)| (b - k * a).powi(2)).sum();
-        (k > 0.0).then_some((sse, k))
+        sse.is_finite().then_some((sse, k))
     };
-    // Every trial is a model built cold (no nearby model's poles to start from: the trials are
-    // far apart), so they are screened with fewer approximation cells ([`COARSE_APPROX_ORDER`]);
-    // the best few are scored again with the model's own approximation, which decides.
+    // (sse, K, unit-gain values): today's best (damped, K > 0), the best resonant one with
+    // K > 0, and the best of either kind with K < 0.
+    type Best = Option<(f64, f64, Vec<f64>)>;
+    let keep = |best: &mut Best, sse: f64, k: f64, v: Vec<f64>| {
+        if best.as_ref().is_none_or(|b| sse < b.0) {
+            *best = Some((sse, k, v));
+        }
+    };
+    // Every damped trial is a model built cold (no nearby model's poles to start from: the
+    // trials are far apart), so they are screened with fewer approximation cells
+    // ([`COARSE_APPROX_ORDER`]); of each sign of the gain, the best few are scored again with the
+    // model's own approximation, which decides.
     let mut cheap = lin.clone();
     cheap.approx.order = cheap.approx.order.min(COARSE_APPROX_ORDER);
-    let mut screened: Vec<(f64, f64, f64)> = vec![]; // (screening sse, q, w_c)
+    let (mut pos, mut neg): (Vec<(f64, Vec<f64>)>, Vec<(f64, Vec<f64>)>) = (vec![], vec![]);
     for &q in qs {
         for i in 0..10 {
-            let wc = w_lo * (w_hi / w_lo).powf(i as f64 / 9.0);
-            if let Some((sse, _)) = score(&cheap, q, wc) {
-                screened.push((sse, q, wc));
+            let v = damped(q, w_lo * (w_hi / w_lo).powf(i as f64 / 9.0));
+            if let Some((sse, k)) = trial(&cheap, &v) {
+                if k > 0.0 { &mut pos } else { &mut neg }.push((sse, v));
             }
         }
     }
-    // Stable: equal screening errors keep the trials' order.
-    screened.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let mut best: Option<(f64, f64, f64, f64)> = None; // (sse, q, w_c, K)
-    for (rescored, &(s_cheap, q, wc)) in screened.iter().enumerate() {
-        let near = s_cheap <= COARSE_RESCORE_WITHIN * screened[0].0;
-        if rescored >= COARSE_RESCORED || (!near && best.is_some()) {
-            break;
+    let mut rescore = |mut screened: Vec<(f64, Vec<f64>)>, best: &mut Best, positive: bool| {
+        // Stable: equal screening errors keep the trials' order.
+        screened.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let first = screened.first().map_or(0.0, |t| t.0);
+        for (rescored, (s_cheap, v)) in screened.into_iter().enumerate() {
+            let near = s_cheap <= COARSE_RESCORE_WITHIN * first;
+            if rescored >= COARSE_RESCORED || (!near && best.is_some()) {
+                break;
+            }
+            if let Some((sse, k)) = trial(lin, &v) {
+                if (k > 0.0) == positive {
+                    keep(best, sse, k, v);
+                }
+            }
         }
-        if let Some((sse, k)) = score(lin, q, wc) {
-            if best.is_none_or(|b| sse < b.0) {
-                best = Some((sse, q, wc, k));
+    };
+    let (mut usual, mut resonance, mut negative): (Best, Best, Best) = (None, None, None);
+    rescore(pos, &mut usual, true);
+    if usual.is_none() {
+        rescore(neg, &mut negative, false);
+    }
+    // The fallbacks only for an output that swings both ways about its operating point: one that
+    // keeps one sign (a sign-blind sensor's) tells no sign of the gain, and starts as before.
+    let share = |pos: bool| y.iter().filter(|&&v| (v > 0.0) == pos && v != 0.0).count();
+    let both_ways = (share(true).min(share(false)) as f64) >= MIN_SIGN_SHARE * m as f64;
+    if !both_ways {
+        negative = None;
+    }
+    // The resonant trials only as the fallback (no cost where the damped trials found a start).
+    if usual.is_none() && both_ways && lin.index_of("a2").is_some() {
+        for i in 0..RESONANT_CORNERS {
+            let w = w_lo * (w_hi / w_lo).powf(i as f64 / (RESONANT_CORNERS - 1) as f64);
+            for z in RESONANT_DAMPING {
+                let v = resonant(w, z);
+                if let Some((sse, k)) = trial(lin, &v) {
+                    let best = if k > 0.0 {
+                        &mut resonance
+                    } else {
+                        &mut negative
+                    };
+                    keep(best, sse, k, v);
+                }
             }
         }
     }
-    let (sse, q, wc, k) = best?;
-    let v = values(q, wc, k);
+    // Today's start when there is one; else (no damped trial with a positive gain: none at all
+    // before the fallbacks) the better of the resonant positive-gain trials and the trials of
+    // negative gain. The fallbacks change no start the damped trials make.
+    let (sse, k, mut v) = match (usual, resonance, negative) {
+        (Some(a), _, _) => a,
+        (None, Some(b), Some(c)) => {
+            if b.0 <= c.0 {
+                b
+            } else {
+                c
+            }
+        }
+        (None, b, c) => b.or(c)?,
+    };
+    // The gain as fitted, whatever its sign (not clamped into `K`'s positive range: the caller
+    // frees it when it is negative).
+    if let Some(i) = lin.index_of("K").filter(|&i| lin.params[i].free) {
+        v[i] = k;
+    }
     if m == n {
         return Some((sse, v));
     }
@@ -755,11 +848,13 @@ fn levy_candidates(lin: &FracModel, frf: &Frf, dt: f64) -> Result<(Vec<Candidate
 ///   `K / (1 + (s/w_c)^q / 2)^2` (`K / (s/w_c + 1)`) is simulated with `K` by linear least
 ///   squares; the smallest squared error wins (`zeta = theta = q`, `a1 = w_c^-q`, `a2 = a1^2/4`;
 ///   screened with fewer approximation cells, the best few scored again with the model's own).
+///   When no trial has a positive gain: lightly damped trials (second-order denominators) and
+///   negative gains ([`coarse_start`]); a negative `K` is then fitted with a free sign.
 /// - `General` models keep their values.
 ///
 /// The cost is bounded on long records: the periodic response averages at most
 /// [`MAX_FRF_SAMPLES`] samples of whole periods (at least 8 periods), the coarse search
-/// simulates its 30 trials on the leading [`MAX_COARSE_SAMPLES`] samples, and each start's fit
+/// simulates its 30 damped trials (and, when none has a positive gain, 48 resonant ones) on the leading [`MAX_COARSE_SAMPLES`] samples, and each start's fit
 /// (and the choice between the Levy and the coarse start) is measured on the leading
 /// [`START_SCORE_SAMPLES`] samples of the estimation part (all of a shorter one; the report's
 /// note says so when it is a part). It is only the start: the fit then runs on the whole
@@ -894,6 +989,11 @@ pub fn auto_start(model: &mut FracModel, u: &[f64], y: &[f64], dt: f64) -> Resul
         Some((_, v)) => {
             for (p, x) in model.params.iter_mut().zip(v) {
                 p.value = x;
+                // A negative gain from the coarse search: `K` keeps the sign it started with
+                // no more (its positive range would clamp it).
+                if p.name == "K" && x < 0.0 {
+                    p.bounds = super::Bounds::Free;
+                }
             }
             if scored < n {
                 report.note.push_str(&format!(

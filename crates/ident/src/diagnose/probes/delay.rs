@@ -28,6 +28,11 @@ impl Probe for Delay {
             }
             return Ok(());
         }
+        if ctx.lead != 0 {
+            // The input is already advanced (a time-stamp skew kept): a delay on top would be
+            // one time shift fitted twice.
+            return Ok(());
+        }
         let (s, dt) = (look.s(), ctx.dt);
         let max = ctx.opts.max_delay_samples.max(1);
         let mut best = (f64::INFINITY, 0.0);

@@ -22,6 +22,21 @@ impl Probe for Skew {
         if ctx.lead != 0 {
             return Ok(());
         }
+        // An advance on a model that already delays its input is one time shift fitted twice
+        // (the output both lags and leads the input): the delay's own refit sets the shift, and
+        // the final model (one `tau`) could not say the two. Not a timing skew.
+        if st.model.delay.is_some() {
+            if !look.kept("delay") {
+                found.reject_as(
+                    "delay<0",
+                    "delay",
+                    "not tested: an advance of the input (a time-stamp skew) with the model's \
+                     fitted delay would be one time shift fitted twice"
+                        .into(),
+                );
+            }
+            return Ok(());
+        }
         let (s, dt) = (look.s(), ctx.dt);
         let h = ctx.opts.max_delay_samples.max(1);
         let rc = crate::metrics::crosscorr(&look.e, &ctx.u[..s], h);

@@ -177,6 +177,7 @@ pub(super) fn start(model: &mut FracModel, u: &[f64], y: &[f64], dt: f64) -> Res
     let mut report = auto_start(&mut inner, u, &rest, dt)?;
     for (p, q) in model.params.iter_mut().zip(&inner.params) {
         p.value = q.value;
+        p.bounds = q.bounds; // a negative gain's free sign
     }
     if let Some(i) = id {
         model.params[i].value = d0;
