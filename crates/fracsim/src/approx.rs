@@ -87,9 +87,10 @@ impl ApproxSpec {
         if dt <= 0.0 {
             return invalid("dt", format!("{dt} s must be positive"));
         }
-        let (w_b, w_h) = self
-            .band
-            .unwrap_or((DEFAULT_BAND_LOW * (1e-3 / dt), 30.0 * std::f64::consts::PI / dt));
+        let (w_b, w_h) = self.band.unwrap_or((
+            DEFAULT_BAND_LOW * (1e-3 / dt),
+            30.0 * std::f64::consts::PI / dt,
+        ));
         check_band(w_b, w_h)?;
         Ok((w_b, w_h))
     }

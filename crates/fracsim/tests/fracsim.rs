@@ -308,7 +308,9 @@ fn time_scaled(g: &FracTf, c: f64) -> FracTf {
 /// and the step response of the same model was off by up to 75% of its swing.
 #[test]
 fn the_time_unit_of_a_record_does_not_change_its_simulation() {
-    let g: FracTf = "6.77/(0.000028 s^1.78 + 0.0064 s^0.89 + 1)".parse().unwrap();
+    let g: FracTf = "6.77/(0.000028 s^1.78 + 0.0064 s^0.89 + 1)"
+        .parse()
+        .unwrap();
     let dt = 1e-3;
     let u = fracsim::prbs::Prbs {
         periods: 5,
@@ -330,7 +332,10 @@ fn the_time_unit_of_a_record_does_not_change_its_simulation() {
                 .zip(&yc)
                 .map(|(a, b)| (a - b).abs())
                 .fold(0.0, f64::max);
-            assert!(worst <= 1e-9 * swing, "{method:?}, c = {c}: {worst} of {swing}");
+            assert!(
+                worst <= 1e-9 * swing,
+                "{method:?}, c = {c}: {worst} of {swing}"
+            );
         }
     }
 }

@@ -182,7 +182,10 @@ fn the_time_unit_of_a_record_does_not_change_the_fit() {
         let id = fit(c);
         let nrmse = id.validation.unwrap().nrmse_percent;
         eprintln!("c = {c}: {} (held-out {nrmse:.4}%)", id.tf);
-        assert!((nrmse - nrmse0).abs() < 1e-3, "c = {c}: {nrmse} vs {nrmse0}");
+        assert!(
+            (nrmse - nrmse0).abs() < 1e-3,
+            "c = {c}: {nrmse} vs {nrmse0}"
+        );
         for (name, factor) in [
             ("K", 1.0),
             ("zeta", 1.0),
