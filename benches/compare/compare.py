@@ -3,7 +3,7 @@
 
 Both fit K/(a2 s^(zeta+theta) + a1 s^zeta + 1) to the same CSV (t,u,y), from the same start, with
 the same parametrisation (log of K, a1, a2; logit of zeta/2, theta/2) and the same discrete model:
-each s^nu is the Oustaloup approximation (band [1e-3, 30 pi/dt] rad/s, N = 8, 2N+1 cells, integer
+each s^nu is the Oustaloup approximation (band [1e-6/dt, 30 pi/dt] rad/s, N = 8, 2N+1 cells, integer
 part split off as a bilinear differentiator), each cell discretised bilinear (Tustin) as a
 first-order section, the input delayed by half a step (linear interpolation) to compensate the
 bilinear map's treatment of a held input -- exactly fracid's default ApproxSpec.
@@ -26,20 +26,22 @@ import scipy
 from scipy import optimize, signal
 
 N_ORDER = 8
-W_B = 1e-3
+# The band's lower edge at a 1 ms step (rad/s); fracid's default scales it as 1/dt.
+W_B_1MS = 1e-3
 
 
 def oustaloup_sections(nu, dt):
     """Bilinear first-order sections (b0, b1, a1) and gain of fracid's Oustaloup s^nu."""
     c = 2.0 / dt
     w_h = 30.0 * np.pi / dt
+    w_b = W_B_1MS * 1e-3 / dt
     n_int = int(np.floor(nu))
     f = nu - n_int
     cells = 2 * N_ORDER + 1
-    step = np.log(w_h / W_B) / cells
+    step = np.log(w_h / w_b) / cells
     k = np.arange(cells) + 0.5
-    z = np.exp((k - 0.5 * f) * step) * W_B
-    p = np.exp((k + 0.5 * f) * step) * W_B
+    z = np.exp((k - 0.5 * f) * step) * w_b
+    p = np.exp((k + 0.5 * f) * step) * w_b
     gain = np.exp(f * np.log(w_h))
     den = p + c
     secs = [((zz + c) / d, -(c - zz) / d, -(c - pp) / d) for zz, pp, d in zip(z, p, den)]

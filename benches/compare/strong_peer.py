@@ -5,7 +5,7 @@ Fits y = K/(a2 s^(zeta+theta) + a1 s^zeta + 1) u + c to a CSV record (columns t,
 are comments) the way a capable scipy user would, with no Python loop over samples:
 
 - every s^nu is approximated by the refined Oustaloup filter (Xue, Zhao & Chen 2006; N = 8,
-  band [1e-3, 30 pi/dt] rad/s -- fracid's default ApproxSpec), its integer part kept exact;
+  band [1e-6/dt, 30 pi/dt] rad/s -- fracid's default ApproxSpec), its integer part kept exact;
 - the whole model is one continuous state space (the denominator divided by s when an order is
   at least 1, so that it is proper, and solved for y around its feed-through);
 - exact zero-order hold by the matrix exponential of [[A, B], [0, 0]] dt (scipy.linalg.expm),
@@ -39,7 +39,8 @@ import numpy as np  # noqa: E402
 from scipy import linalg, optimize, signal  # noqa: E402
 
 N_ORDER = 8
-W_B = 1e-3
+# The band's lower edge at a 1 ms step (rad/s); fracid's default scales it as 1/dt.
+W_B_1MS = 1e-3
 
 
 def refined_oustaloup(nu, w_b, w_h, n=N_ORDER):
@@ -56,10 +57,12 @@ def refined_oustaloup(nu, w_b, w_h, n=N_ORDER):
     gain = np.exp(f * np.log(hi))
     if f == 0.0:
         return n_int, gain, np.array(zeros), np.array(poles)
+    # fracid's unit frequency for Xue's constant term: w_u^2 = w_b w_h / 100
+    w_u2 = w_b * w_h / 100.0
     bw = b * w_h
-    disc = np.sqrt(bw * bw - f * (1.0 - f) * 4.0 * d * d)
+    disc = np.sqrt(bw * bw - f * (1.0 - f) * 4.0 * d * d * w_u2)
     p_big = (bw + disc) / ((1.0 - f) * 2.0 * d)
-    p_small = (f / (1.0 - f)) / p_big
+    p_small = (f * w_u2 / (1.0 - f)) / p_big
     zeros += [0.0, b * w_h / d]
     poles += [p_big, p_small]
     zeros, poles = np.array(zeros), np.array(poles)
@@ -100,7 +103,7 @@ def model_ss(p, dt):
     w_h = 30.0 * np.pi / dt
     parts = []
     for coef, nu in [(a2, zeta + theta), (a1, zeta)]:
-        n_int, g, z, q = refined_oustaloup(nu, W_B, w_h)
+        n_int, g, z, q = refined_oustaloup(nu, W_B_1MS * 1e-3 / dt, w_h)
         if n_int > 1:
             raise ValueError(f"order {nu} above 2")
         parts.append((coef, n_int, g, list(z), list(q)))

@@ -84,7 +84,7 @@ class FracTf:
             Grunwald-Letnikov reference at dt/10 and dt/20, Richardson-extrapolated (the whole
             memory: at most 10000 samples).
         band : (float, float), optional
-            Approximation band in rad/s (default ``[1e-3, 30 pi/dt]``).
+            Approximation band in rad/s (default ``[1e-6/dt, 30 pi/dt]``).
         order : int
             Approximation order N (2N+1 cells).
 
@@ -111,7 +111,7 @@ class FracTf:
             states. ``None``: the continuous model (then ``band`` is needed), its delay in
             ``input_delay``.
         method, band, order
-            The approximation (as :meth:`simulate`; band default ``[1e-3, 30 pi/dt]``).
+            The approximation (as :meth:`simulate`; band default ``[1e-6/dt, 30 pi/dt]``).
         continuous : bool
             With ``dt``: the continuous model anyway (``dt`` only sets the default band).
 

@@ -221,7 +221,7 @@ impl PyFracTf {
                 None => {
                     return Err(errors::data(
                         "a continuous state space needs band=(w_b, w_h) in rad/s, or dt for \
-                         the discrete model (its default band is [1e-3, 30 pi/dt])",
+                         the discrete model (its default band is [1e-6/dt, 30 pi/dt])",
                     ))
                 }
             },

@@ -68,35 +68,37 @@ impl Default for ApproxSpec {
 
 impl ApproxSpec {
     /// The band used at sampling step `dt` (seconds): the given one, or by default
-    /// `[1e-3, 30 pi/dt]` rad/s: from well below any record's lowest frequency to 30 times Nyquist.
+    /// `[1e-6/dt, 30 pi/dt]` rad/s (`[1e-3, 30 pi/1e-3]` at 1 ms): from thirty times Nyquist down
+    /// eight decades, below the lowest frequency of any record of up to a million samples.
     /// Oustaloup-type approximations err near the band edges by roughly `nu w/w_h` (the cells
     /// missing above `w_h`), so the top edge must sit far above the highest frequency the samples
     /// carry; the bilinear map keeps the low-frequency effect of those cells.
     ///
+    /// Both edges are relative to `dt`, so a record written with its time in seconds, in
+    /// milliseconds or in samples is simulated alike: the approximation of `s^nu` over
+    /// `[w_b/c, w_h/c]` is `c^-nu` times that over `[w_b, w_h]` at `c s` (every method; see
+    /// [`refined_oustaloup`] for its unit frequency), and a model whose coefficients are scaled
+    /// as `a c^nu` gives the same samples at step `c dt`.
+    ///
     /// # Errors
-    /// An invalid band ([`Error::Band`]) or step; a step so long that the default band is empty.
+    /// An invalid band ([`Error::Band`]) or step.
     pub fn band_for(&self, dt: f64) -> Result<(f64, f64)> {
         finite("dt", dt)?;
         if dt <= 0.0 {
             return invalid("dt", format!("{dt} s must be positive"));
         }
-        let Some((w_b, w_h)) = self.band else {
-            let w_h = 30.0 * std::f64::consts::PI / dt;
-            if w_h <= 1e-3 {
-                return invalid(
-                    "dt",
-                    format!(
-                        "{dt:e} s is too long for the default band [1e-3, 30 pi/dt] rad/s: \
-                         give the band"
-                    ),
-                );
-            }
-            return Ok((1e-3, w_h));
-        };
+        let (w_b, w_h) = self.band.unwrap_or((
+            DEFAULT_BAND_LOW * (1e-3 / dt),
+            30.0 * std::f64::consts::PI / dt,
+        ));
         check_band(w_b, w_h)?;
         Ok((w_b, w_h))
     }
 }
+
+/// The default band's lower edge at a 1 ms step, rad/s: it scales as `1/dt`
+/// ([`ApproxSpec::band_for`]).
+pub const DEFAULT_BAND_LOW: f64 = 1e-3;
 
 /// Check `0 < w_b < w_h`, both finite.
 ///
@@ -237,9 +239,17 @@ pub fn oustaloup<T: Real>(nu: T, w_b: f64, w_h: f64, n: usize) -> Result<Rationa
 }
 
 /// Xue's refined Oustaloup approximation of `s^nu` (Xue, Zhao & Chen 2006), `b = 10`, `d = 9`:
-/// `s^f ~ K (d s^2 + b w_h s)/(d(1-f) s^2 + b w_h s + d f) prod_k (s + w'_k)/(s + w_k)`, the
-/// Oustaloup cells spread over the widened band `[d w_b/b, b w_h/d]`, and `K` set so that the
-/// magnitude is exact at the band centre `sqrt(w_b w_h)`.
+/// `s^f ~ K (d s^2 + b w_h s)/(d(1-f) s^2 + b w_h s + d f w_u^2) prod_k (s + w'_k)/(s + w_k)`,
+/// the Oustaloup cells spread over the widened band `[d w_b/b, b w_h/d]`, and `K` set so that the
+/// magnitude is exact at the band centre `w_c = sqrt(w_b w_h)`.
+///
+/// The published formula's constant term is `d f`, in units of `(rad/s)^2` with an implied unit
+/// frequency of 1 rad/s: its low pole `~ 0.9 f w_u^2/w_h` then moves into the band when the band
+/// is low (a record whose time is in samples or hours), and the approximation depended on the
+/// time unit. Here the unit frequency is the band's: `w_u = w_c/10` (0.97 rad/s on the default
+/// band at a 1 ms step, so the formula as published there), which puts that pole two decades
+/// below `w_b` on any band, and the approximation over `[w_b/c, w_h/c]` is exactly `c^-f` times
+/// that over `[w_b, w_h]` at `c s`.
 ///
 /// ```
 /// use fracsim::approx::refined_oustaloup;
@@ -260,12 +270,14 @@ pub fn refined_oustaloup<T: Real>(nu: T, w_b: f64, w_h: f64, n: usize) -> Result
     if f.re() == 0.0 {
         return Ok(r);
     }
-    // d(1-f) s^2 + b w_h s + d f = d(1-f)(s + p1)(s + p2), p1 p2 = f/(1-f)
+    // d(1-f) s^2 + b w_h s + d f w_u^2 = d(1-f)(s + p1)(s + p2), p1 p2 = f w_u^2/(1-f), with
+    // the band's unit frequency w_u^2 = w_b w_h / 100 (see above).
+    let w_u2 = w_b * w_h / 100.0;
     let one_m_f = -f + 1.0;
     let bw = T::from(b * w_h);
-    let disc = (bw * bw - f * one_m_f * (4.0 * d * d)).sqrt();
+    let disc = (bw * bw - f * one_m_f * (4.0 * d * d * w_u2)).sqrt();
     let p_big = (bw + disc) / (one_m_f * (2.0 * d));
-    let p_small = (f / one_m_f) / p_big;
+    let p_small = (f * w_u2 / one_m_f) / p_big;
     r.zeros.push(T::from(0.0));
     r.zeros.push(T::from(b * w_h / d));
     r.poles.push(p_big);

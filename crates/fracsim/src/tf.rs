@@ -410,9 +410,14 @@ impl fmt::Display for FracTf {
             .direct
             .and_then(|d| self.direct_rest(d).map(|r| (d, r)))
         {
-            let (d, num) = rest;
+            let (d, mut num) = rest;
             let open = if self.delay != 0.0 { "(" } else { "" };
-            write!(f, "{open}{} + ", fmt_num(d))?;
+            // A single negative term is subtracted: `2 - 6.77/(..)`, not `2 + -6.77/(..)`.
+            let minus = num.len() == 1 && num[0].coef < 0.0;
+            if minus {
+                num[0].coef = -num[0].coef;
+            }
+            write!(f, "{open}{} {} ", fmt_num(d), if minus { '-' } else { '+' })?;
             let n = fmt_poly(&num);
             if num.len() > 1 {
                 write!(f, "({n})")?;

@@ -12,9 +12,11 @@ use crate::oe::FracModel;
 use crate::{Error, Result};
 use fracsim::{FracTf, Term};
 
-/// The largest input delay searched when none is given: a fifth of the record, at most 1 s.
-pub fn default_max_delay(duration_s: f64) -> f64 {
-    (0.2 * duration_s).min(1.0)
+/// The largest input delay searched when none is given: a fifth of the record, at most 1000
+/// samples of `dt_s` (1 s at 1 ms; once 1 s whatever the step, one sample of a record logged every
+/// second, a hundredth of one with the time in units of 100 samples).
+pub fn default_max_delay(duration_s: f64, dt_s: f64) -> f64 {
+    (0.2 * duration_s).min(1000.0 * dt_s)
 }
 
 /// The model named by `spec`: `pmsm` (`K/(a2 s^(zeta+theta) + a1 s^zeta + 1)`), `commensurate`

@@ -681,8 +681,9 @@ impl FracModel {
     ///
     /// an output that responds at once to the input (a battery cell's ohmic drop `R i` beside its
     /// polarisation, a current-loop output, a sensor that sees the command) plus the PMSM's
-    /// dynamics. `K, a1, a2, zeta, theta` as [`FracModel::pmsm`]; `D` (output over input, like
-    /// `K`) is unbounded in sign. Its transfer function is the sum as one fraction,
+    /// dynamics. `a1, a2, zeta, theta` as [`FracModel::pmsm`]; `K` and `D` (output over input)
+    /// are unbounded in sign: the dynamic path may invert the instant one (`D > 0 > K`: the
+    /// output jumps one way and settles the other, a non-minimum-phase-like response). Its transfer function is the sum as one fraction,
     /// `(D a2 s^(zeta+theta) + D a1 s^zeta + D + K) / (a2 s^(zeta+theta) + a1 s^zeta + 1)` (the
     /// numerator's coefficients are products of parameters, [`Expr::factors`]), simulated on the
     /// exact sampled-data path with its feed-through: `y_k = D u_k + (the PMSM's output at t_k)`
@@ -699,6 +700,7 @@ impl FracModel {
         let [k, a1, a2, zeta, theta] = pmsm;
         let mut m = Self::pmsm(k, a1, a2, zeta, theta);
         let (ik, ia1, ia2) = (0, 1, 2);
+        m.params[ik].bounds = Bounds::Free;
         let id = m.add_param(Param::new("D", d, Bounds::Free));
         // D times each denominator term, K added to the constant one. D is the linear part of
         // each product (its unit is that of the coefficient), a1 and a2 its factors.

@@ -30,7 +30,7 @@ pub struct ExportArgs {
     /// default), oustaloup or trigeassou.
     #[arg(long, default_value = "refined")]
     pub approx: String,
-    /// Approximation band "w_b,w_h" in rad/s (default with --dt: [1e-3, 30 pi/dt], as `fracid sim`).
+    /// Approximation band "w_b,w_h" in rad/s (default with --dt: [1e-6/dt, 30 pi/dt], as `fracid sim`).
     #[arg(long, value_name = "W_B,W_H")]
     pub band: Option<String>,
     /// Approximation order N (2N+1 cells per operator).
@@ -64,7 +64,7 @@ pub fn state_space(g: &FracTf, a: &ExportArgs) -> Result<StateSpace> {
             let Some(band) = spec.band else {
                 bad_input!(
                     "a continuous export needs --band w_b,w_h (rad/s), or --dt T for the discrete \
-                     model (its default band is [1e-3, 30 pi/T])"
+                     model (its default band is [1e-6/T, 30 pi/T])"
                 );
             };
             export::continuous(g, band, &spec)?

@@ -61,7 +61,7 @@ pub struct SimArgs {
     /// (no approximation band; the whole memory: at most 10000 samples).
     #[arg(long, default_value = "refined")]
     pub method: String,
-    /// Approximation band "w_b,w_h" in rad/s (default: 1e-3 to 30 x Nyquist).
+    /// Approximation band "w_b,w_h" in rad/s (default: 1e-6/dt to 30 x Nyquist).
     #[arg(long, value_name = "W_B,W_H")]
     pub band: Option<String>,
     /// Approximation order N (2N+1 cells).

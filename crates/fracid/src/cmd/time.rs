@@ -65,7 +65,7 @@ pub struct TimeArgs {
     /// held input (see `fracid sim --help`).
     #[arg(long, default_value_t = ident::app::time::TimeRequest::default().approx)]
     pub approx: String,
-    /// Approximation band "w_b,w_h" in rad/s (default fracsim's [1e-3, 30 pi/dt]).
+    /// Approximation band "w_b,w_h" in rad/s (default fracsim's [1e-6/dt, 30 pi/dt]).
     #[arg(long)]
     pub band: Option<String>,
     /// Approximation order N (2N+1 cells; default fracsim's, 8).
@@ -86,8 +86,8 @@ pub struct TimeArgs {
     /// (exp(-tau s)) is then fitted from its value.
     #[arg(long)]
     pub delay: bool,
-    /// Largest input delay (seconds) for --delay and fopdt (default: 1 s, at most a fifth of the
-    /// record).
+    /// Largest input delay (seconds) for --delay and fopdt (default: a fifth of the record, at
+    /// most 1000 samples).
     #[arg(long)]
     pub max_delay: Option<f64>,
     /// Fraction of the record held out for validation (at the end); default 0.3, or 0 with

@@ -33,7 +33,7 @@ pub struct TimeRequest {
     pub structure: String,
     /// Approximation of the fractional operators: `refined`, `oustaloup` or `trigeassou`.
     pub approx: String,
-    /// Approximation band `(w_b, w_h)` in rad/s (`None`: fracsim's `[1e-3, 30 pi/dt]`).
+    /// Approximation band `(w_b, w_h)` in rad/s (`None`: fracsim's `[1e-6/dt, 30 pi/dt]`).
     pub band: Option<(f64, f64)>,
     /// Approximation order `N` (`None`: fracsim's, 8).
     pub order: Option<usize>,
@@ -41,7 +41,7 @@ pub struct TimeRequest {
     pub integrator: bool,
     /// Fit an input delay (seconds, up to `max_delay`).
     pub delay: bool,
-    /// Largest input delay in seconds (`None`: a fifth of the record, at most 1 s).
+    /// Largest input delay in seconds (`None`: a fifth of the record, at most 1000 samples).
     pub max_delay: Option<f64>,
     /// Parameters held: `NAME` or `NAME=VALUE`, comma-separated ([`super::fix_free`]).
     pub fix: String,
@@ -328,7 +328,7 @@ pub fn run_joint(
     }
     let rec = &data.record;
     let duration = rec.t.last().copied().unwrap_or(0.0) - rec.t.first().copied().unwrap_or(0.0);
-    let (model, opts) = model_and_options(req, duration, data.validation.is_some())?;
+    let (model, opts) = model_and_options(req, duration, rec.dt, data.validation.is_some())?;
     let mut recs = vec![rec.clone()];
     recs.extend(data.joint.iter().map(|n| n.record.clone()));
     enter(obs, Stage::Fit)?;
@@ -389,14 +389,15 @@ pub struct DiagnosisReport {
     pub model: ModelReport,
 }
 
-/// The model and fit options of a request on a record of `duration_s` seconds, with a separate
-/// validation record or not.
+/// The model and fit options of a request on a record of `duration_s` seconds sampled every
+/// `dt_s` seconds, with a separate validation record or not.
 ///
 /// # Errors
 /// [`Error::Options`] for any option out of range or not understood.
 pub fn model_and_options(
     req: &TimeRequest,
     duration_s: f64,
+    dt_s: f64,
     has_validation: bool,
 ) -> Result<(FracModel, IdentOptions)> {
     let max_delay = match req.max_delay {
@@ -406,7 +407,7 @@ pub fn model_and_options(
             )))
         }
         Some(d) => d,
-        None => super::default_max_delay(duration_s),
+        None => super::default_max_delay(duration_s, dt_s),
     };
     let (mut m, _) = super::structure(&req.structure, max_delay)?;
     m.approx.method = req.approx.parse()?;
@@ -525,7 +526,7 @@ pub fn run(req: &TimeRequest, data: &TimeData, obs: &mut dyn Observe) -> Result<
     let t0 = std::time::Instant::now();
     let rec = &data.record;
     let duration = rec.t.last().copied().unwrap_or(0.0) - rec.t.first().copied().unwrap_or(0.0);
-    let (model, opts) = model_and_options(req, duration, data.validation.is_some())?;
+    let (model, opts) = model_and_options(req, duration, rec.dt, data.validation.is_some())?;
     if req.skip >= rec.len() {
         return Err(Error::Options(format!(
             "skip = {} leaves no sample of {}",
@@ -797,7 +798,7 @@ pub fn rescore(req: &TimeRequest, spec: &FracModel, data: &TimeData) -> Result<F
 fn rescore_id(req: &TimeRequest, spec: &FracModel, data: &TimeData) -> Result<Identification> {
     let rec = &data.record;
     let duration = rec.t.last().copied().unwrap_or(0.0) - rec.t.first().copied().unwrap_or(0.0);
-    let (_, mut opts) = model_and_options(req, duration, data.validation.is_some())?;
+    let (_, mut opts) = model_and_options(req, duration, rec.dt, data.validation.is_some())?;
     opts.start = StartMode::Given;
     let mut m = spec.clone();
     for p in &mut m.params {

@@ -866,7 +866,7 @@ impl Identification {
 /// by output error ([`fit`]), simulate the whole record and score both parts.
 ///
 /// The approximation is the model's [`fracsim::ApproxSpec`] (default: refined Oustaloup, `N = 8`,
-/// band `[1e-3, 30 pi/dt]` rad/s), and the approximated model is simulated exactly for the held
+/// band `[1e-6/dt, 30 pi/dt]` rad/s), and the approximated model is simulated exactly for the held
 /// input ([`fracsim::Simulator`]), so the fit sees only the approximation's error, not a
 /// discretisation's. On the paper's PMSM with a held PRBS at 0.5 ms and noise sigma = 0.1 (an
 /// independent Grunwald-Letnikov truth, `tests/time/held.rs`) the fit reaches the noise floor

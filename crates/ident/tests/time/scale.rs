@@ -127,3 +127,77 @@ fn every_parameter_is_scaled_back_offsets_and_initial_state_included() {
         assert!(((id.offsets.y0 / sy - base.offsets.y0) / base.offsets.y0).abs() < 1e-9);
     }
 }
+
+/// Issue 29 leftover: a record's time unit does not change the fit. The paper's PMSM
+/// `K/(a2 s^(zeta+theta) + a1 s^zeta + 1)` (its time-domain model) on its PRBS (order 7, 3 ms clock,
+/// four periods at `dt` = 0.5 ms), truth by Grunwald-Letnikov with the input held (10 and 20
+/// substeps, Richardson; no rational approximation), seeded Gaussian noise of 0.13 (the paper's
+/// PMSM tests' noise). The record is written with its time in seconds, in milliseconds and in
+/// samples, and fitted with the defaults (the PMSM structure, its automatic start, the default
+/// approximation band): the held-out NRMSE is the same within 0.001 percentage points, `K` and the
+/// orders are the same and the coefficients transform as `a1' = a1 c^zeta`,
+/// `a2' = a2 c^(zeta+theta)` within 0.01 of their standard errors. The simulated outputs of the
+/// scaled models agree to rounding (`fracsim`'s test of the time unit); what is left is the
+/// optimiser: its log-coefficients move with the orders by `zeta ln c`, so its path differs and it
+/// stops at the same optimum within its stopping rule (relative cost change, small steps), far
+/// inside the noise's standard errors. Before the band and Xue's correction followed the step,
+/// the record in samples fitted another model (time in source samples of the motor/generator
+/// record: held-out NRMSE -15.9% against 39.8% with its time in seconds).
+#[test]
+fn the_time_unit_of_a_record_does_not_change_the_fit() {
+    let dt = 5e-4;
+    let u = Prbs {
+        periods: 4,
+        ..Prbs::paper()
+    }
+    .signal(dt)
+    .unwrap();
+    let g: FracTf = "6.82/(2.655e-5 s^1.7452 + 0.0059 s^0.92 + 1)"
+        .parse()
+        .unwrap();
+    let y10 = fracsim::gl::simulate_held(&g, &u, dt, 10).unwrap();
+    let y20 = fracsim::gl::simulate_held(&g, &u, dt, 20).unwrap();
+    let noise = super::truth::noise(u.len(), 0.13, 29);
+    let y: Vec<f64> = y10
+        .iter()
+        .zip(&y20)
+        .zip(&noise)
+        .map(|((a, b), e)| (4.0 * b - a) / 3.0 + e)
+        .collect();
+    let (model, _) = ident::app::structure("pmsm", 0.2).unwrap();
+    let fit = |c: f64| {
+        let rec = Record::from_samples(&u, &y, dt * c).unwrap();
+        identify(&rec, &model, &IdentOptions::default()).unwrap()
+    };
+    let base = fit(1.0);
+    let at = |id: &ident::oe::Identification, name: &str| {
+        let i = id.model.index_of(name).unwrap();
+        (id.report.values[i], id.report.params[i].std_error.unwrap())
+    };
+    let (zeta, theta) = (at(&base, "zeta").0, at(&base, "theta").0);
+    let nrmse0 = base.validation.unwrap().nrmse_percent;
+    eprintln!("s: {} (held-out {nrmse0:.4}%)", base.tf);
+    assert!(nrmse0 > 90.0, "the base fit itself: {nrmse0}");
+    for c in [1e3, 1.0 / dt] {
+        let id = fit(c);
+        let nrmse = id.validation.unwrap().nrmse_percent;
+        eprintln!("c = {c}: {} (held-out {nrmse:.4}%)", id.tf);
+        assert!(
+            (nrmse - nrmse0).abs() < 1e-3,
+            "c = {c}: {nrmse} vs {nrmse0}"
+        );
+        for (name, factor) in [
+            ("K", 1.0),
+            ("zeta", 1.0),
+            ("theta", 1.0),
+            ("a1", c.powf(zeta)),
+            ("a2", c.powf(zeta + theta)),
+        ] {
+            let ((b, se), (v, _)) = (at(&base, name), at(&id, name));
+            assert!(
+                (v / factor - b).abs() < 0.01 * se,
+                "c = {c}: {name} = {v:e} / {factor:e} vs {b:e} +- {se:e}"
+            );
+        }
+    }
+}

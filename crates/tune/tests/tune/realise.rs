@@ -90,7 +90,7 @@ fn a_coarser_sample_period_shows_its_hold() {
 /// The realisation's step response against the exact one in the time domain: `kp + ki s^-lambda`
 /// answers a unit step with `kp + ki t^lambda / Gamma(lambda + 1)`, and a held-input
 /// discretisation is exact at the samples for the approximated operator, so the difference is the
-/// approximation's alone (refined Oustaloup over [1e-3, 30 pi/dt] rad/s: 1e-4 to 4.2e-4 relative
+/// approximation's alone (refined Oustaloup over [1e-6/dt, 30 pi/dt] rad/s, [1e-3, 30 pi/dt] at this 1 ms step: 1e-4 to 4.2e-4 relative
 /// from the fifth sample to 1 s as measured; tolerance 2e-3).
 #[test]
 fn step_response_is_the_fractional_integral() {

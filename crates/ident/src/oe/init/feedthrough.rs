@@ -13,7 +13,9 @@
 //! its lag-1 autocovariance (differenced white noise is a moving average of order 1).
 //!
 //! The start: `D = h_0` (or the value given when `D` is held), then the PMSM's start
-//! ([`super::auto_start`]) on `y - D u`.
+//! ([`super::auto_start`], whose gain is positive) on `y - D u` and on `D u - y`, the one that
+//! fits better kept with its gain's sign (`K < 0` for the second: the dynamic path inverts the
+//! instant one); a held `K` keeps its sign.
 
 use super::{auto_start, StartReport};
 use crate::oe::FracModel;
@@ -168,17 +170,34 @@ pub(super) fn start(model: &mut FracModel, u: &[f64], y: &[f64], dt: f64) -> Res
         (None, None) => (0.0, "0: no input change to measure it on".to_string()),
     };
     let v = model.values();
-    let mut inner = FracModel::pmsm(v[0], v[1], v[2], v[3], v[4]);
-    inner.approx = model.approx;
-    for (p, q) in inner.params.iter_mut().zip(&model.params) {
-        p.free = q.free;
+    // The dynamic part's start for each sign of K (a held K: its own), the better kept.
+    let signs: &[f64] = match model.params[0].free {
+        true => &[1.0, -1.0],
+        false if v[0] < 0.0 => &[-1.0],
+        false => &[1.0],
+    };
+    let mut best: Option<(FracModel, StartReport, f64)> = None;
+    for &sign in signs {
+        let mut inner = FracModel::pmsm(sign * v[0], v[1], v[2], v[3], v[4]);
+        inner.approx = model.approx;
+        for (p, q) in inner.params.iter_mut().zip(&model.params) {
+            p.free = q.free;
+        }
+        let rest: Vec<f64> = y.iter().zip(u).map(|(a, b)| sign * (a - d0 * b)).collect();
+        let report = auto_start(&mut inner, u, &rest, dt)?;
+        let fit = report.fit_percent.unwrap_or(f64::NEG_INFINITY);
+        if best.as_ref().is_none_or(|b| fit > b.2) {
+            best = Some((inner, report, sign));
+        }
     }
-    let rest: Vec<f64> = y.iter().zip(u).map(|(a, b)| a - d0 * b).collect();
-    let mut report = auto_start(&mut inner, u, &rest, dt)?;
+    let Some((inner, mut report, sign)) = best else {
+        return Ok(StartReport::given("no sign of K to start from"));
+    };
     for (p, q) in model.params.iter_mut().zip(&inner.params) {
         p.value = q.value;
         p.bounds = q.bounds; // a negative gain's free sign
     }
+    model.params[0].value *= sign;
     if let Some(i) = id {
         model.params[i].value = d0;
     }
@@ -204,6 +223,11 @@ pub(super) fn start(model: &mut FracModel, u: &[f64], y: &[f64], dt: f64) -> Res
         let sst: f64 = ys.iter().map(|v| (v - mean) * (v - mean)).sum();
         report.fit_percent = Some(100.0 * (1.0 - (sse / sst.max(f64::MIN_POSITIVE)).sqrt()));
     }
-    report.note = format!("D = {d0:.4e} {how}; the rest of y - D u: {}", report.note);
+    let rest = if sign < 0.0 {
+        "D u - y (K < 0)"
+    } else {
+        "y - D u"
+    };
+    report.note = format!("D = {d0:.4e} {how}; the rest, {rest}: {}", report.note);
     Ok(report)
 }
