@@ -681,7 +681,9 @@ fn coarse_start(lin: &FracModel, u: &[f64], y: &[f64], dt: f64) -> Option<(f64, 
     // model's own approximation, which decides.
     let mut cheap = lin.clone();
     cheap.approx.order = cheap.approx.order.min(COARSE_APPROX_ORDER);
-    let (mut pos, mut neg): (Vec<(f64, Vec<f64>)>, Vec<(f64, Vec<f64>)>) = (vec![], vec![]);
+    // (screening sse, unit-gain values) of the trials with a positive and a negative gain.
+    type Screened = Vec<(f64, Vec<f64>)>;
+    let (mut pos, mut neg): (Screened, Screened) = (vec![], vec![]);
     for &q in qs {
         for i in 0..10 {
             let v = damped(q, w_lo * (w_hi / w_lo).powf(i as f64 / 9.0));
@@ -690,7 +692,7 @@ fn coarse_start(lin: &FracModel, u: &[f64], y: &[f64], dt: f64) -> Option<(f64, 
             }
         }
     }
-    let mut rescore = |mut screened: Vec<(f64, Vec<f64>)>, best: &mut Best, positive: bool| {
+    let mut rescore = |mut screened: Screened, best: &mut Best, positive: bool| {
         // Stable: equal screening errors keep the trials' order.
         screened.sort_by(|a, b| a.0.total_cmp(&b.0));
         let first = screened.first().map_or(0.0, |t| t.0);
