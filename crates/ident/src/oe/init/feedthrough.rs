@@ -195,7 +195,11 @@ pub(super) fn start(model: &mut FracModel, u: &[f64], y: &[f64], dt: f64) -> Res
     };
     for (p, q) in model.params.iter_mut().zip(&inner.params) {
         p.value = q.value;
-        p.bounds = q.bounds; // a negative gain's free sign
+        // A gain the inner start freed (a negative one from the coarse search) stays free; the
+        // feed-through's own ranges are never narrowed (its K is free in sign already).
+        if matches!(q.bounds, crate::oe::Bounds::Free) {
+            p.bounds = q.bounds;
+        }
     }
     model.params[0].value *= sign;
     if let Some(i) = id {
