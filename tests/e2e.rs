@@ -159,11 +159,7 @@ fn extreme_input_is_an_error_not_a_crash_or_a_hang() {
         // hung building 2e8 cells
         (vec!["sim", "--order", "100000000"], 2, "order N"),
         // printed a band edge with 300 decimal digits
-        (
-            vec!["sim", "--dt", "1e300"],
-            2,
-            "too long for the default band",
-        ),
+        (vec!["sim", "--dt", "1e300"], 2, "puts the default band at"),
     ] {
         let out = fracid(&args);
         let err = String::from_utf8_lossy(&out.stderr);

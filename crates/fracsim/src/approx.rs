@@ -91,6 +91,18 @@ impl ApproxSpec {
             DEFAULT_BAND_LOW * (1e-3 / dt),
             30.0 * std::f64::consts::PI / dt,
         ));
+        // The cells' products (up to 2N + 1 corner frequencies multiplied) must stay normal
+        // floats: a default band beyond 1e+-100 rad/s comes only from an absurd step.
+        let sane = |w: f64| (1e-100..=1e100).contains(&w);
+        if self.band.is_none() && !(sane(w_b) && sane(w_h)) {
+            return invalid(
+                "dt",
+                format!(
+                    "{dt} s puts the default band at [{w_b:.1e}, {w_h:.1e}] rad/s, outside \
+                     1e-100..1e100: give a step in seconds or a band"
+                ),
+            );
+        }
         check_band(w_b, w_h)?;
         Ok((w_b, w_h))
     }
