@@ -98,7 +98,7 @@ impl ApproxSpec {
             return invalid(
                 "dt",
                 format!(
-                    "{dt} s puts the default band at [{w_b:.1e}, {w_h:.1e}] rad/s, outside \
+                    "{dt:.1e} s puts the default band at [{w_b:.1e}, {w_h:.1e}] rad/s, outside \
                      1e-100..1e100: give a step in seconds or a band"
                 ),
             );
