@@ -70,12 +70,16 @@ def test_step_response_against_mittag_leffler_oracle():
     # sample (dt/10 and dt/20, Richardson-extrapolated), as `simulate` runs it.
     y_gl = fracid.gl_simulate(g, u, dt)
     y_held = g.simulate(u, dt, method="gl")
-    y_default = g.simulate(u, dt)  # refined Oustaloup, exact for the held step
+    # refined Oustaloup over the default band (relative to the step: [0.1, 9.4e6] rad/s at 10 us),
+    # exact for the held step: measured 2.2e-4 of the oracle at 10 ms and 3.3e-4 at 30 ms (below
+    # 2e-4 with the absolute band of sessions 1-13, whose low edge 1e-3 rad/s made the fit depend
+    # on the time unit; the relative band's low edge is 2.5 decades below 1/t here)
+    y_default = g.simulate(u, dt)
     y_ou = g.simulate(u, dt, method="oustaloup", order=10)
     for k, v in oracle.items():
         assert y_gl[k] == pytest.approx(v, rel=1e-2), k
         assert y_held[k] == pytest.approx(v, rel=1e-4), k
-        assert y_default[k] == pytest.approx(v, rel=2e-4), k
+        assert y_default[k] == pytest.approx(v, rel=5e-4), k
         assert y_ou[k] == pytest.approx(v, rel=1e-3), k
 
 
