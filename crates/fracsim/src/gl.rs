@@ -134,11 +134,15 @@ fn memory_sums(wn: &[f64], wd: &[f64], x: &[f64]) -> Vec<f64> {
         if k0 > 0 {
             // Outputs k0..end from y_0..y_(k0-1): no product wraps if size >= end.
             let size = end.next_power_of_two();
-            if !weights.iter().any(|(s, _)| *s == size) {
-                let w = long_lags(wd, size.min(n));
-                weights.push((size, fft.spectrum(&w, size)));
-            }
-            let sw = &weights.iter().find(|(s, _)| *s == size).expect("pushed").1;
+            let at = match weights.iter().position(|(s, _)| *s == size) {
+                Some(at) => at,
+                None => {
+                    let w = long_lags(wd, size.min(n));
+                    weights.push((size, fft.spectrum(&w, size)));
+                    weights.len() - 1
+                }
+            };
+            let sw = &weights[at].1;
             let y_known: Vec<f64> = y_rev[n - k0..].iter().rev().copied().collect();
             let sy = fft.spectrum(&y_known, size);
             let c = fft.convolve(&sy, sw, size);
