@@ -33,7 +33,7 @@ pub const STEP_NOISE_LEVELS: f64 = 20.0;
 
 /// The noise level of `y` from its first differences, robustly: `median |dy| / (0.6745 sqrt 2)`
 /// (`y` has at least two samples).
-pub(crate) fn diff_noise(y: &[f64]) -> f64 {
+fn diff_noise(y: &[f64]) -> f64 {
     let mut dy: Vec<f64> = y.windows(2).map(|w| (w[1] - w[0]).abs()).collect();
     let mid = dy.len() / 2;
     let (_, &mut med, _) = dy.select_nth_unstable_by(mid, f64::total_cmp);
