@@ -19,6 +19,7 @@ stays, the loss is reported, not hidden.
 
 from __future__ import annotations
 
+import functools
 import json
 import subprocess
 from pathlib import Path
@@ -187,6 +188,17 @@ def integer_baseline(t, u, y, n_est, first, max_delay):
     return best, rows
 
 
+@functools.lru_cache(maxsize=None)
+def baseline_on_split(name: str, n_est: int, first: int):
+    """``integer_baseline`` of record ``name`` on fracid's split, fitted once per split: the plain
+    and the ``--diagnose`` test of a record share it (the same split), the fits are the slowest
+    part of this file."""
+    rel, max_delay = RECORDS[name]
+    t, u, y = load_tuy(DATA / rel)
+    assert 0 < n_est <= first < len(y), f"{name}: split {n_est}/{first} of {len(y)}"
+    return integer_baseline(t, u, y, n_est, first, max_delay)
+
+
 def load_tuy(path: Path):
     d = np.genfromtxt(path, delimiter=",", names=True)
     return (np.asarray(d["t"], float), np.asarray(d["u"], float), np.asarray(d["y"], float))
@@ -299,17 +311,14 @@ TOL_RMSE = 0.02
 @pytest.mark.parametrize("name", sorted(RECORDS))
 def test_fracid_beats_integer_baseline(fracid_bin, name, request):
     pytest.importorskip("scipy")
-    rel, max_delay = RECORDS[name]
-    path = DATA / rel
+    path = DATA / RECORDS[name][0]
     if not path.is_file():
         pytest.fail(f"{path} is missing: the real records ship with the repository in data/")
     if name in XFAIL:
         request.node.add_marker(pytest.mark.xfail(reason=XFAIL[name], strict=False))
     out = run_fracid(fracid_bin, path)
     n_est, first, fr_nrmse, fr_rmse, kind = held_out(out)
-    t, u, y = load_tuy(path)
-    assert 0 < n_est <= first < len(y), f"{name}: split {n_est}/{first} of {len(y)}"
-    best, rows = integer_baseline(t, u, y, n_est, first, max_delay)
+    best, rows = baseline_on_split(name, n_est, first)
     table = ", ".join(
         f"order {r['order']} delay {r['delay_samples']}: {r['val_nrmse']:.2f}% / {r['val_rmse']:.4g}"
         for r in rows
@@ -331,13 +340,10 @@ def test_fracid_beats_integer_baseline(fracid_bin, name, request):
 @pytest.mark.parametrize("name", sorted(RECORDS))
 def test_fracid_diagnose_matches_or_beats_integer_baseline(fracid_bin, name):
     pytest.importorskip("scipy")
-    rel, max_delay = RECORDS[name]
-    path = DATA / rel
-    out = run_fracid(fracid_bin, path, "--diagnose")
+    out = run_fracid(fracid_bin, DATA / RECORDS[name][0], "--diagnose")
     assert out["model_is"].startswith("final"), out["model_is"]
     n_est, first, fr_nrmse, fr_rmse, kind = held_out(out)
-    t, u, y = load_tuy(path)
-    best, rows = integer_baseline(t, u, y, n_est, first, max_delay)
+    best, _ = baseline_on_split(name, n_est, first)
     assert fr_rmse <= best["val_rmse"] * (1.0 + TOL_RMSE), (
         f"{name} ({kind}): fracid --diagnose held-out RMSE {fr_rmse:.4g} (NRMSE {fr_nrmse:.2f}%) "
         f"> integer baseline RMSE {best['val_rmse']:.4g} (NRMSE {best['val_nrmse']:.2f}%)"
