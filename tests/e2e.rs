@@ -1397,13 +1397,12 @@ fn drive_sim(extra: &[&str]) -> (KillOnDrop, String, String) {
     (sim, port, banner)
 }
 
-/// `fracid drive prbs` and `fracid drive sine` against a simulator in virtual time (a host
-/// keepalive every 2 ms): the PRBS CSV and the Bode CSV.
+/// The link options of a host command on a simulated drive in virtual time: the port, the fast
+/// line, a keepalive every 2 ms (a simulator in virtual time runs at most half of it past the
+/// host's last frame), no progress output.
 #[cfg(unix)]
-fn drive_records(port: &str, dir: &std::path::Path, tag: &str) -> (String, String) {
-    let prbs = dir.join(format!("prbs_{tag}.csv"));
-    let bode = dir.join(format!("bode_{tag}.csv"));
-    let common = [
+fn virtual_time_link(port: &str) -> [&str; 7] {
+    [
         "--port",
         port,
         "--baud",
@@ -1411,7 +1410,16 @@ fn drive_records(port: &str, dir: &std::path::Path, tag: &str) -> (String, Strin
         "--keepalive-ms",
         "2",
         "--quiet",
-    ];
+    ]
+}
+
+/// `fracid drive prbs` and `fracid drive sine` against a simulator in virtual time (a host
+/// keepalive every 2 ms): the PRBS CSV and the Bode CSV.
+#[cfg(unix)]
+fn drive_records(port: &str, dir: &std::path::Path, tag: &str) -> (String, String) {
+    let prbs = dir.join(format!("prbs_{tag}.csv"));
+    let bode = dir.join(format!("bode_{tag}.csv"));
+    let common = virtual_time_link(port);
     let mut a = vec!["drive", "prbs", "--settle", "0.1", "-o"];
     a.push(prbs.to_str().unwrap());
     a.extend(common);

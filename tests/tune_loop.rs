@@ -127,23 +127,16 @@ fn drive_loop(
     csv: &std::path::Path,
     extra: &[&str],
 ) -> std::process::Output {
-    let mut args = vec![
-        "drive",
-        "loop",
-        "--port",
-        port,
-        "--baud",
-        "921600",
-        "--keepalive-ms",
-        "2",
-        "--quiet",
+    let mut args = vec!["drive", "loop"];
+    args.extend(super::virtual_time_link(port));
+    args.extend([
         "--controller",
         ctrl.to_str().unwrap(),
         "--step",
         "50",
         "-o",
         csv.to_str().unwrap(),
-    ];
+    ]);
     args.extend(extra);
     fracid(&args)
 }
