@@ -433,14 +433,12 @@ fn lead_part(u: &[f64], y: &[f64], skip: usize) -> Option<usize> {
 /// `p_j` (physical, not reparametrised), by forward-mode dual numbers through the discrete
 /// simulation. Returns `(yhat, S)` with `S` of size `len(u) x n_free`.
 ///
+/// Not generic over [`Structure`] (nor are [`fit`] and [`fit_with_progress`]): compiled once, in
+/// this crate, instead of once more in every crate, example and test binary that calls it.
+///
 /// # Errors
 /// As [`Structure::simulate`]; more than 16 free parameters.
-pub fn sensitivities<S: Structure>(
-    s: &S,
-    p: &[f64],
-    u: &[f64],
-    dt: f64,
-) -> Result<(Vec<f64>, Mat<f64>)> {
+pub fn sensitivities(s: &FracModel, p: &[f64], u: &[f64], dt: f64) -> Result<(Vec<f64>, Mat<f64>)> {
     let free: Vec<usize> = (0..s.params().len())
         .filter(|&j| s.params()[j].free)
         .collect();
@@ -483,13 +481,7 @@ pub fn sensitivities<S: Structure>(
 /// [`Error::Data`] for lengths that differ, non-finite data; [`Error::NotEnoughData`] for fewer
 /// samples than free parameters; [`Error::Options`] for a start outside a range or no free
 /// parameter; a simulation error at the start. Non-convergence is not an error (see the report).
-pub fn fit<S: Structure>(
-    s: &S,
-    u: &[f64],
-    y: &[f64],
-    dt: f64,
-    opts: &FitOptions,
-) -> Result<FitReport> {
+pub fn fit(s: &FracModel, u: &[f64], y: &[f64], dt: f64, opts: &FitOptions) -> Result<FitReport> {
     fit_with_progress(s, u, y, dt, opts, &mut |_, _| {})
 }
 
@@ -498,8 +490,8 @@ pub fn fit<S: Structure>(
 ///
 /// # Errors
 /// As [`fit`].
-pub fn fit_with_progress<S: Structure>(
-    s: &S,
+pub fn fit_with_progress(
+    s: &FracModel,
     u: &[f64],
     y: &[f64],
     dt: f64,
@@ -516,7 +508,7 @@ type Buffers = std::thread::JoinHandle<RefineBuffers>;
 /// buffers from `buffers` (made on the other core while the caller made the start) when their
 /// sizes match.
 #[allow(clippy::too_many_arguments)]
-fn fit_in<S: Structure>(
+pub(super) fn fit_in<S: Structure>(
     s: &S,
     u: &[f64],
     y: &[f64],

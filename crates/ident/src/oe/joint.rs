@@ -1,7 +1,7 @@
 //! Several records of one plant fitted jointly: one model, each record with its own operating
 //! point, output offset and initial state (MATLAB's multi-experiment `iddata` with `oe`).
 
-use super::fit::{fit_with_progress, past_edges, IdentOptions, InitialState};
+use super::fit::{fit_in, past_edges, IdentOptions, InitialState};
 use super::{FracModel, Param, Structure};
 use crate::data::{Offsets, Record};
 use crate::metrics::Fit;
@@ -122,7 +122,7 @@ pub fn identify_joint(
         ranges,
         params,
     };
-    let report = fit_with_progress(&joint, &u, &y, first.dt, &opts.fit, &mut |_, _| {})?;
+    let report = fit_in(&joint, &u, &y, first.dt, &opts.fit, &mut |_, _| {}, None)?;
     let mut records = vec![];
     for ((m, map), &(a, b)) in joint.parts.iter().zip(&joint.ranges) {
         let ps: Vec<f64> = map.iter().map(|&j| report.values[j]).collect();
