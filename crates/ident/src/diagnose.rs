@@ -900,3 +900,81 @@ pub(crate) fn diagnose_until(
         split: ctx.split,
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::data::OffsetMode;
+    use crate::oe::{identify, IdentOptions, Structure};
+
+    /// A long record for [`lead_screen`]: `6 x 2^14` samples at 1 ms (its estimation part beyond
+    /// `4 x 2^14`), a commensurate plant driven by a random binary input (a new level every 20
+    /// samples) that reaches it `delay` whole samples late (the input shifted, so the delay does
+    /// not rest on the simulator's own), 2% noise. Seeded: the same record every run.
+    fn long_record(delay: usize) -> Record {
+        let (n, dt) = (6 * LEAD_SCREEN_SAMPLES, 1e-3);
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut uniform = move || {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            ((state >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+        };
+        let mut level = 1.0;
+        let u: Vec<f64> = (0..n)
+            .map(|k| {
+                if k % 20 == 0 {
+                    level = if uniform() < 0.5 { -1.0 } else { 1.0 };
+                }
+                level
+            })
+            .collect();
+        let late: Vec<f64> = (0..n)
+            .map(|k| if k >= delay { u[k - delay] } else { 0.0 })
+            .collect();
+        let truth = FracModel::commensurate(2.0, 0.05, 1e-3, 0.8);
+        let mut y = vec![0.0; n];
+        truth.simulate(&truth.values(), &late, dt, &mut y).unwrap();
+        let mean = y.iter().sum::<f64>() / n as f64;
+        let sd = (y.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n as f64).sqrt();
+        for v in &mut y {
+            // Box-Muller.
+            let (a, b) = (uniform(), uniform());
+            *v += 0.02 * sd * (-2.0 * a.ln()).sqrt() * (std::f64::consts::TAU * b).cos();
+        }
+        Record::from_samples(&u, &y, dt).unwrap()
+    }
+
+    fn diagnosed(rec: &Record) -> Diagnosis {
+        let opts = IdentOptions {
+            offsets: OffsetMode::None,
+            ..IdentOptions::default()
+        };
+        let id = identify(rec, &FracModel::commensurate(1.0, 0.05, 1e-3, 0.8), &opts).unwrap();
+        assert!(id.split >= 4 * LEAD_SCREEN_SAMPLES, "split {}", id.split);
+        diagnose(rec, &id, &DiagnoseOptions::default()).unwrap()
+    }
+
+    #[test]
+    fn a_long_clean_record_rejects_the_delay_on_its_leading_part() {
+        let d = diagnosed(&long_record(0));
+        assert!(d.effects.is_empty(), "{:?}", d.effects);
+        let delay = d.rejected.iter().find(|r| r.name == "delay").unwrap();
+        assert!(
+            delay
+                .reason
+                .contains("refitted on the first 16384 estimation samples only"),
+            "{}",
+            delay.reason
+        );
+    }
+
+    #[test]
+    fn a_long_record_keeps_a_delay_that_passes_the_leading_part() {
+        let d = diagnosed(&long_record(3));
+        let names: Vec<&str> = d.effects.iter().map(|e| e.name.as_str()).collect();
+        assert_eq!(names, ["delay"], "{:?}", d.rejected);
+        let tau = d.effects[0].params["tau"];
+        assert!((tau - 3e-3).abs() < 3e-4, "tau = {tau}");
+    }
+}
