@@ -27,7 +27,9 @@
 //! stops sooner is the full fit), a screened fit far behind ([`FAR`]) or not usable while a usable
 //! one exists is not fitted further, and only the usable base fits within [`FAR`] of the best are
 //! diagnosed (the others only when none of those ends with a final model). The reason names the
-//! structures left out.
+//! structures left out. A structure whose base fit is final and usable is diagnosed at once, while
+//! the others are still being fitted, and given up when a better base fit puts it beyond [`FAR`]:
+//! the same diagnosis as after all the fits, used only when the rule above asks for it.
 
 use crate::data::Record;
 use crate::oe::{identify, FracModel, IdentOptions, Identification};
