@@ -388,11 +388,17 @@ fn fit_candidates(
                 let given = if i == 0 { user.take() } else { None };
                 let pre = user_rmse.filter(|_| m.integrator && !user_integrates);
                 scope.spawn(move || {
-                    let (fitted, full) = match (given, pre) {
-                        (Some(id), _) => ((Ok(id), None), true),
-                        (None, Some(r)) => pre_screen(rec, m, opts, r),
-                        (None, None) => screen_candidate(rec, m, opts),
-                    };
+                    // A screening fit that panics is a failed full fit (as the join of its thread
+                    // made it), and is counted as ended: the others may be waiting for it.
+                    let screened =
+                        std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                            match (given, pre) {
+                                (Some(id), _) => ((Ok(id), None), true),
+                                (None, Some(r)) => pre_screen(rec, m, opts, r),
+                                (None, None) => screen_candidate(rec, m, opts),
+                            }
+                        }));
+                    let (fitted, full) = screened.unwrap_or_else(|_| ((panicked(), None), true));
                     shared.screened(&fitted, full);
                     let (fitted, out) = if full {
                         (fitted, false)
