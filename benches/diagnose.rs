@@ -18,12 +18,13 @@ fn main() {
 }
 
 /// The records: the real ones by their file under `data/`, and `pmsm 1e5`.
-const RECORDS: [&str; 6] = [
+const RECORDS: [&str; 7] = [
     REAL_RECORDS[0],
     REAL_RECORDS[1],
     REAL_RECORDS[2],
     REAL_RECORDS[3],
     REAL_RECORDS[4],
+    REAL_RECORDS[5],
     "pmsm 1e5",
 ];
 

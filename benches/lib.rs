@@ -65,12 +65,13 @@ pub fn pmsm_start() -> ident::oe::FracModel {
 }
 
 /// The real time records shipped in `data/` (paths under it): each has columns `t,u,y`.
-pub const REAL_RECORDS: [&str; 5] = [
+pub const REAL_RECORDS: [&str; 6] = [
     "unal_dcmotor/DCmotor_prbs_open_exp.csv",
     "unal_dcmotor/DCmotor_step_open_exp.csv",
     "unal_dcmotor/DCmotor_stairs_closed_exp.csv",
     "apm_tclab/tclab_step_test.csv",
     "sysidentpy_motor_generator/motor_generator_steps.csv",
+    "slicot_robot_arm/robot_arm.csv",
 ];
 
 /// The path of a file under the repository's `data/`.

@@ -410,8 +410,6 @@ fn try_candidate(
         reason,
         params,
     };
-    let mut ns = best_refit(rctx, &c.starts)
-        .map_err(|e| rejection(format!("the refit failed: {e}"), BTreeMap::new()))?;
     let params_of = |ns: &State| {
         let mut params = probe.map_or_else(BTreeMap::new, |p| p.params(&ns.model, &ns.values));
         if let Some(l) = c.lead {
@@ -419,6 +417,33 @@ fn try_candidate(
         }
         params
     };
+    let screened = lead_screen(rctx, st, &c.starts);
+    if let Some((lead, removed)) = &screened {
+        if removed.1 < LEAD_SCREEN_GAIN {
+            return Err(rejection(
+                format!(
+                    "refitted on the first {lead} estimation samples only (a long record's \
+                     leading part, excited like the whole), it removes {:.2}% of their sum of \
+                     squares, less than the {:.0}% screen (the {:.0}% held-out margin needs \
+                     about {:.0}%): not refitted on the whole record (evidence: {})",
+                    100.0 * removed.1,
+                    100.0 * LEAD_SCREEN_GAIN,
+                    100.0 * ctx.opts.margin,
+                    100.0 * (1.0 - (1.0 - ctx.opts.margin).powi(2)),
+                    c.evidence
+                ),
+                params_of(&removed.0),
+            ));
+        }
+    }
+    let refitted = match screened {
+        // The whole record's refit goes on from the leading part's (as a long record's fit
+        // does from its own leading part, [`crate::oe::fit`]), with the whole budget.
+        Some((_, (part, _))) => rctx.fit_from(clamped(part.model), &ctx.opts.fit),
+        None => best_refit(rctx, &c.starts),
+    };
+    let mut ns =
+        refitted.map_err(|e| rejection(format!("the refit failed: {e}"), BTreeMap::new()))?;
     let mut verdict = Verdict::of(ctx, st, &ns);
     // A base parameter at a bound says the missing effect (or the structure) bent the base fit,
     // not that the effect is spurious: refit once from a fresh start of the base parameters.
@@ -512,6 +537,49 @@ fn try_candidate(
     Ok((ns, k))
 }
 
+/// Estimation samples of the leading part a long record's candidate is first refitted on
+/// ([`lead_screen`]): the fit's own leading part ([`crate::oe::fit`], `2^14` samples).
+pub const LEAD_SCREEN_SAMPLES: usize = 1 << 14;
+
+/// The fraction of the leading part's sum of squares a candidate's refit there must remove to be
+/// refitted on the whole record ([`lead_screen`]): 1%, a tenth of what the held-out margin asks
+/// (`1 - 0.95^2`, about 10% of the sum of squares), and some 15 times what refitting the base
+/// model's own 10 parameters on `2^14` samples removes by itself (`k / N`, 0.06%).
+pub const LEAD_SCREEN_GAIN: f64 = 0.01;
+
+/// A long record's screen of a candidate (at least `4 x` [`LEAD_SCREEN_SAMPLES`] estimation
+/// samples, the first of them excited like the whole: input and output standard deviations at
+/// least half the estimation part's, the fit's own rule): the candidate refitted
+/// ([`best_refit`]) on the leading [`LEAD_SCREEN_SAMPLES`] estimation samples only, and the
+/// fraction of their sum of squares (under the current model `st`) it removes. A candidate that
+/// does not remove [`LEAD_SCREEN_GAIN`] there is not refitted on the whole record (a refit of
+/// `7 x 10^4` samples costs about as much as the rest of the diagnosis); one that does is
+/// refitted on the whole estimation part from the leading part's refit (one start, the whole
+/// budget: what a long record's fit does from its own leading part, [`crate::oe::fit`]). `None`
+/// for a record too short or whose leading part is not excited like the whole.
+fn lead_screen(ctx: &Ctx<'_>, st: &State, starts: &[FracModel]) -> Option<(usize, (State, f64))> {
+    let (s, lead) = (ctx.split, LEAD_SCREEN_SAMPLES);
+    if s < 4 * lead {
+        return None;
+    }
+    let sd = |x: &[f64]| {
+        let m = x.iter().sum::<f64>() / x.len() as f64;
+        (x.iter().map(|v| (v - m).powi(2)).sum::<f64>() / x.len() as f64).sqrt()
+    };
+    let excited = |x: &[f64]| sd(&x[..lead]) >= 0.5 * sd(&x[..s]);
+    if !(excited(&ctx.u) && excited(&ctx.y)) {
+        return None;
+    }
+    let before: f64 = (0..lead).map(|k| (ctx.y[k] - st.yhat[k]).powi(2)).sum();
+    let part = Ctx {
+        split: lead,
+        ..ctx.clone()
+    };
+    let fitted = best_refit(&part, starts).ok()?;
+    let removed = 1.0 - fitted.ssr / before.max(1e-300);
+    Some((lead, (fitted, removed)))
+}
+
 /// The refit over `starts` with the smallest estimation sum of squares. With several starts (a
 /// delay's grid point and lags), each is refitted for [`START_SCREEN_ITERATIONS`] LM iterations
 /// and only the best of those goes on from where it stopped with the rest of the budget: the
@@ -532,16 +600,21 @@ fn best_refit(ctx: &Ctx<'_>, starts: &[FracModel]) -> Result<State> {
     let best = lowest(starts.iter().map(|m| screen.refit(m.clone())))?;
     let mut rest = ctx.opts.fit.clone();
     rest.lm.max_iterations = budget - START_SCREEN_ITERATIONS;
-    let mut model = best.model.clone();
-    for p in &mut model.params {
-        p.value = p.bounds.clamp_inside(p.value);
-    }
+    let model = clamped(best.model.clone());
     // The continuation cannot end worse than where it started (LM only accepts descents), but
     // it can fail (a model at the edge of what the approximation represents): keep the screen's.
     Ok(match ctx.fit_from(model, &rest) {
         Ok(s) if s.ssr <= best.ssr => s,
         _ => best,
     })
+}
+
+/// `model` with each value moved inside its range (a refit starts strictly inside).
+fn clamped(mut model: FracModel) -> FracModel {
+    for p in &mut model.params {
+        p.value = p.bounds.clamp_inside(p.value);
+    }
+    model
 }
 
 /// The state with the smallest estimation sum of squares among `fits`, or their errors.
@@ -666,6 +739,19 @@ fn remaining_structure(an: &ResidualAnalysis, q: Option<Quantization>) -> Vec<St
 /// [`Error::Data`] for a record that does not match the identification; simulation errors of the
 /// base model. Refits that fail are reported as rejected candidates, not errors.
 pub fn diagnose(rec: &Record, id: &Identification, opts: &DiagnoseOptions) -> Result<Diagnosis> {
+    diagnose_until(rec, id, opts, &|| false)
+}
+
+/// [`diagnose`], given up ([`Error::Cancelled`]) as soon as `stop()` says so: it is asked before
+/// each round and each refit (a diagnosis started before it was known whether it is needed,
+/// [`structures::diagnose_best`]).
+pub(crate) fn diagnose_until(
+    rec: &Record,
+    id: &Identification,
+    opts: &DiagnoseOptions,
+    stop: &dyn Fn() -> bool,
+) -> Result<Diagnosis> {
+    let cancelled = || Error::Cancelled("the diagnosis of a structure not needed".into());
     if rec.len() != id.yhat.len() || id.split == 0 || id.split > rec.len() {
         return Err(Error::Data(format!(
             "the record has {} samples but the identification {} (split {})",
@@ -705,6 +791,9 @@ pub fn diagnose(rec: &Record, id: &Identification, opts: &DiagnoseOptions) -> Re
     let mut rejected: BTreeMap<String, RejectedEffect> = BTreeMap::new();
     let mut ambiguous: Vec<Ambiguity> = vec![];
     for round in 0..opts.max_rounds {
+        if stop() {
+            return Err(cancelled());
+        }
         let mut found = Findings::default();
         {
             let look = Look::new(&ctx, &st, &kept)?;
@@ -735,6 +824,9 @@ pub fn diagnose(rec: &Record, id: &Identification, opts: &DiagnoseOptions) -> Re
                     params: BTreeMap::new(),
                 });
                 continue;
+            }
+            if stop() {
+                return Err(cancelled());
             }
             let probe = library.iter().find(|p| p.name() == c.name);
             match try_candidate(&ctx, &st, &c, probe.map(|p| p.as_ref())) {
@@ -807,4 +899,82 @@ pub fn diagnose(rec: &Record, id: &Identification, opts: &DiagnoseOptions) -> Re
         yhat_after: ya(&st),
         split: ctx.split,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::data::OffsetMode;
+    use crate::oe::{identify, IdentOptions, Structure};
+
+    /// A long record for [`lead_screen`]: `6 x 2^14` samples at 1 ms (its estimation part beyond
+    /// `4 x 2^14`), a commensurate plant driven by a random binary input (a new level every 20
+    /// samples) that reaches it `delay` whole samples late (the input shifted, so the delay does
+    /// not rest on the simulator's own), 2% noise. Seeded: the same record every run.
+    fn long_record(delay: usize) -> Record {
+        let (n, dt) = (6 * LEAD_SCREEN_SAMPLES, 1e-3);
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut uniform = move || {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            ((state >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+        };
+        let mut level = 1.0;
+        let u: Vec<f64> = (0..n)
+            .map(|k| {
+                if k % 20 == 0 {
+                    level = if uniform() < 0.5 { -1.0 } else { 1.0 };
+                }
+                level
+            })
+            .collect();
+        let late: Vec<f64> = (0..n)
+            .map(|k| if k >= delay { u[k - delay] } else { 0.0 })
+            .collect();
+        let truth = FracModel::commensurate(2.0, 0.05, 1e-3, 0.8);
+        let mut y = vec![0.0; n];
+        truth.simulate(&truth.values(), &late, dt, &mut y).unwrap();
+        let mean = y.iter().sum::<f64>() / n as f64;
+        let sd = (y.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n as f64).sqrt();
+        for v in &mut y {
+            // Box-Muller.
+            let (a, b) = (uniform(), uniform());
+            *v += 0.02 * sd * (-2.0 * a.ln()).sqrt() * (std::f64::consts::TAU * b).cos();
+        }
+        Record::from_samples(&u, &y, dt).unwrap()
+    }
+
+    fn diagnosed(rec: &Record) -> Diagnosis {
+        let opts = IdentOptions {
+            offsets: OffsetMode::None,
+            ..IdentOptions::default()
+        };
+        let id = identify(rec, &FracModel::commensurate(1.0, 0.05, 1e-3, 0.8), &opts).unwrap();
+        assert!(id.split >= 4 * LEAD_SCREEN_SAMPLES, "split {}", id.split);
+        diagnose(rec, &id, &DiagnoseOptions::default()).unwrap()
+    }
+
+    #[test]
+    fn a_long_clean_record_rejects_the_delay_on_its_leading_part() {
+        let d = diagnosed(&long_record(0));
+        assert!(d.effects.is_empty(), "{:?}", d.effects);
+        let delay = d.rejected.iter().find(|r| r.name == "delay").unwrap();
+        assert!(
+            delay
+                .reason
+                .contains("refitted on the first 16384 estimation samples only"),
+            "{}",
+            delay.reason
+        );
+    }
+
+    #[test]
+    fn a_long_record_keeps_a_delay_that_passes_the_leading_part() {
+        let d = diagnosed(&long_record(3));
+        let names: Vec<&str> = d.effects.iter().map(|e| e.name.as_str()).collect();
+        assert_eq!(names, ["delay"], "{:?}", d.rejected);
+        let tau = d.effects[0].params["tau"];
+        assert!((tau - 3e-3).abs() < 3e-4, "tau = {tau}");
+    }
 }

@@ -27,7 +27,9 @@
 //! stops sooner is the full fit), a screened fit far behind ([`FAR`]) or not usable while a usable
 //! one exists is not fitted further, and only the usable base fits within [`FAR`] of the best are
 //! diagnosed (the others only when none of those ends with a final model). The reason names the
-//! structures left out.
+//! structures left out. A structure whose base fit is final and usable is diagnosed at once, while
+//! the others are still being fitted, and given up when a better base fit puts it beyond [`FAR`]:
+//! the same diagnosis as after all the fits, used only when the rule above asks for it.
 
 use crate::data::Record;
 use crate::oe::{identify, FracModel, IdentOptions, Identification};
@@ -244,72 +246,202 @@ fn identified(rec: &Record, model: &FracModel, opts: &IdentOptions) -> Fitted {
     (id, Some(RootsCache::of_this_thread()))
 }
 
+/// One candidate structure's base fit, whether it was screened out (kept as screened, not
+/// diagnosed: see [`fit_candidates`]), and its diagnosis when one was started as soon as the base
+/// fit was final (`None`: not started, or given up).
+struct Based {
+    fitted: Fitted,
+    out: bool,
+    early: Option<Result<super::Diagnosis>>,
+}
+
+/// What the candidates' threads share ([`fit_candidates`]).
+struct Shared {
+    progress: std::sync::Mutex<Progress>,
+    screened: std::sync::Condvar,
+}
+
+/// How far the candidates' base fits are.
+struct Progress {
+    /// Screening fits still running.
+    screening: usize,
+    /// The best usable full base fit's held-out RMSE among the screening fits (the screening's
+    /// reference, known once `screening` is 0).
+    reference: f64,
+    /// The best usable final base fit's held-out RMSE so far.
+    best: f64,
+}
+
+impl Shared {
+    fn lock(&self) -> std::sync::MutexGuard<'_, Progress> {
+        self.progress
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+    }
+
+    /// A screening fit ended (`full`: it is the full fit).
+    fn screened(&self, fitted: &Fitted, full: bool) {
+        let mut p = self.lock();
+        if let (Ok(id), true) = (&fitted.0, full) {
+            let r = base_rmse(id);
+            if id.usable() && r.is_finite() {
+                p.reference = p.reference.min(r);
+                p.best = p.best.min(r);
+            }
+        }
+        p.screening -= 1;
+        if p.screening == 0 {
+            self.screened.notify_all();
+        }
+    }
+
+    /// The screening's reference, once every screening fit has ended.
+    fn reference(&self) -> f64 {
+        let mut p = self.lock();
+        while p.screening > 0 {
+            p = self
+                .screened
+                .wait(p)
+                .unwrap_or_else(std::sync::PoisonError::into_inner);
+        }
+        p.reference
+    }
+
+    /// The diagnosis of a final base fit, started at once (while other candidates are still
+    /// being fitted) when it is usable and within [`FAR`] of the best usable final base fit so
+    /// far, and given up as soon as a better one puts it beyond `FAR` (it is then not diagnosed,
+    /// [`diagnosis_order`]). On a fresh thread from the fit's pole cache, as
+    /// [`diagnose_these`]: the same diagnosis, bit for bit.
+    fn diagnose_early(
+        &self,
+        rec: &Record,
+        fitted: &Fitted,
+        dopts: &super::DiagnoseOptions,
+    ) -> Option<Result<super::Diagnosis>> {
+        let (Ok(id), cache) = fitted else {
+            return None;
+        };
+        let r = base_rmse(id);
+        if !id.usable() || !r.is_finite() {
+            return None;
+        }
+        {
+            let mut p = self.lock();
+            p.best = p.best.min(r);
+            if r > FAR * p.best {
+                return None;
+            }
+        }
+        let stop = || r > FAR * self.lock().best;
+        let cache = cache.clone();
+        Some(std::thread::scope(|scope| {
+            scope
+                .spawn(|| {
+                    if let Some(c) = cache {
+                        c.install();
+                    }
+                    super::diagnose_until(rec, id, dopts, &stop)
+                })
+                .join()
+                .unwrap_or_else(|_| {
+                    Err(Error::Numerical("a structure's diagnosis panicked".into()))
+                })
+        }))
+    }
+}
+
 /// The base fits of the candidate structures (`user` the first's, given), screened
 /// ([`screen_candidate`]): a candidate whose screening fit used its budget is fitted in full, from
 /// the start, on a fresh thread (so that the per-thread pole cache is the full fit's own, as
 /// without the screening), unless it is still more than [`FAR`] times behind the best usable
-/// full base fit (held-out RMSE), or not usable when a usable full base fit exists (a fit that
-/// after the refits' budget still has problems, a singular covariance, orders at a bound, is not
-/// expected to end usable and overtake a usable one): then it is kept as screened, marked `true`
-/// (not diagnosed).
+/// full base fit among the screening fits (held-out RMSE), or not usable when a usable full base
+/// fit exists (a fit that after the refits' budget still has problems, a singular covariance,
+/// orders at a bound, is not expected to end usable and overtake a usable one): then it is kept as
+/// screened, marked `out` (not diagnosed). Each candidate runs on its own thread; one whose base
+/// fit is final and usable is diagnosed at once ([`Shared::diagnose_early`]) while the others are
+/// still being fitted (a core would otherwise wait for the slowest fit).
 fn fit_candidates(
     rec: &Record,
     cands: &[(String, FracModel)],
     user: Identification,
     opts: &IdentOptions,
-) -> Vec<(Fitted, bool)> {
+    dopts: &super::DiagnoseOptions,
+) -> Vec<Based> {
     // The user's usable base fit's held-out RMSE: the reference of the pre-screen.
     let user_rmse = Some(base_rmse(&user)).filter(|r| user.usable() && r.is_finite());
     let user_integrates = cands.first().is_some_and(|(_, m)| m.integrator);
     let mut user = Some(user);
-    let screened: Vec<(Fitted, bool)> = std::thread::scope(|scope| {
+    let shared = Shared {
+        progress: std::sync::Mutex::new(Progress {
+            screening: cands.len(),
+            reference: f64::INFINITY,
+            best: f64::INFINITY,
+        }),
+        screened: std::sync::Condvar::new(),
+    };
+    let shared = &shared;
+    std::thread::scope(|scope| {
         let handles: Vec<_> = cands
             .iter()
             .enumerate()
             .map(|(i, (_, m))| {
                 let given = if i == 0 { user.take() } else { None };
                 let pre = user_rmse.filter(|_| m.integrator && !user_integrates);
-                scope.spawn(move || match (given, pre) {
-                    (Some(id), _) => ((Ok(id), None), true),
-                    (None, Some(r)) => pre_screen(rec, m, opts, r),
-                    (None, None) => screen_candidate(rec, m, opts),
+                scope.spawn(move || {
+                    // A screening fit that panics is a failed full fit (as the join of its thread
+                    // made it), and is counted as ended: the others may be waiting for it.
+                    let screened =
+                        std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                            match (given, pre) {
+                                (Some(id), _) => ((Ok(id), None), true),
+                                (None, Some(r)) => pre_screen(rec, m, opts, r),
+                                (None, None) => screen_candidate(rec, m, opts),
+                            }
+                        }));
+                    let (fitted, full) = screened.unwrap_or_else(|_| ((panicked(), None), true));
+                    shared.screened(&fitted, full);
+                    let (fitted, out) = if full {
+                        (fitted, false)
+                    } else {
+                        let reference = shared.reference();
+                        match fitted {
+                            (Ok(id), cache)
+                                if base_rmse(&id) > FAR * reference
+                                    || reference.is_finite() && !id.usable() =>
+                            {
+                                ((Ok(id), cache), true)
+                            }
+                            _ => (fresh_fit(rec, m, opts), false),
+                        }
+                    };
+                    let early = if out {
+                        None
+                    } else {
+                        shared.diagnose_early(rec, &fitted, dopts)
+                    };
+                    Based { fitted, out, early }
                 })
             })
             .collect();
         handles
             .into_iter()
-            .map(|h| h.join().unwrap_or_else(|_| ((panicked(), None), true)))
-            .collect()
-    });
-    let reference = screened
-        .iter()
-        .filter_map(|((id, _), full)| id.as_ref().ok().filter(|id| *full && id.usable()))
-        .map(base_rmse)
-        .filter(|r| r.is_finite())
-        .fold(f64::INFINITY, f64::min);
-    std::thread::scope(|scope| {
-        let handles: Vec<_> = screened
-            .into_iter()
-            .zip(cands)
-            .map(|(((id, cache), full), (_, m))| match id {
-                Ok(id)
-                    if !full
-                        && (base_rmse(&id) > FAR * reference
-                            || reference.is_finite() && !id.usable()) =>
-                {
-                    Ok(((Ok(id), cache), true))
-                }
-                id if full => Ok(((id, cache), false)),
-                _ => Err(scope.spawn(move || identified(rec, m, opts))),
-            })
-            .collect();
-        handles
-            .into_iter()
-            .map(|h| match h {
-                Ok(done) => done,
-                Err(h) => (h.join().unwrap_or_else(|_| (panicked(), None)), false),
+            .map(|h| {
+                h.join().unwrap_or_else(|_| Based {
+                    fitted: (panicked(), None),
+                    out: false,
+                    early: None,
+                })
             })
             .collect()
+    })
+}
+
+/// [`identified`] on a fresh thread (its pole cache empty).
+fn fresh_fit(rec: &Record, m: &FracModel, opts: &IdentOptions) -> Fitted {
+    std::thread::scope(|sc| {
+        sc.spawn(|| identified(rec, m, opts))
+            .join()
+            .unwrap_or_else(|_| (panicked(), None))
     })
 }
 
@@ -551,29 +683,46 @@ pub fn diagnose_best(
     dopts: &super::DiagnoseOptions,
 ) -> Result<Diagnosed> {
     let cands = with_feedthrough(rec, candidates(label, model), model);
-    let fitted = fit_candidates(rec, &cands, user, opts);
-    let screened_out: Vec<usize> = (0..fitted.len()).filter(|&i| fitted[i].1).collect();
-    let (mut ids, mut caches): (Vec<Result<Identification>>, Vec<Option<RootsCache>>) =
-        fitted.into_iter().map(|f| f.0).unzip();
+    let based = fit_candidates(rec, &cands, user, opts, dopts);
+    let screened_out: Vec<usize> = (0..based.len()).filter(|&i| based[i].out).collect();
+    let mut early = vec![];
+    let (mut ids, mut caches): (Vec<Result<Identification>>, Vec<Option<RootsCache>>) = based
+        .into_iter()
+        .map(|b| {
+            // A diagnosis given up is made again if it is needed after all.
+            early.push(b.early.filter(|d| !matches!(d, Err(Error::Cancelled(_)))));
+            b.fitted
+        })
+        .unzip();
     // The base fits prune the comparison (see [`diagnosis_order`]); the rest is diagnosed only
     // when none of the first ends with a final model (those screened out fitted in full first).
+    // A diagnosis started early is used when it is needed (the same diagnosis), dropped when not.
     let (first, mut later) = diagnosis_order(&ids, &screened_out);
-    let mut diagnoses = diagnose_these(rec, &ids, &caches, &first, dopts);
+    let mut diagnose =
+        |ids: &[Result<Identification>], caches: &[Option<RootsCache>], which: &[usize]| {
+            let missing: Vec<usize> = which
+                .iter()
+                .copied()
+                .filter(|&i| early[i].is_none())
+                .collect();
+            let mut done: Vec<(usize, Result<super::Diagnosis>)> = which
+                .iter()
+                .filter_map(|&i| early[i].take().map(|d| (i, d)))
+                .collect();
+            done.extend(diagnose_these(rec, ids, caches, &missing, dopts));
+            done
+        };
+    let mut diagnoses = diagnose(&ids, &caches, &first);
     let skipped = if diagnoses.iter().any(|(_, d)| d.is_ok()) {
         later.extend(&screened_out);
         later.sort_unstable();
         later
     } else {
         for &i in &screened_out {
-            let m = &cands[i].1;
-            (ids[i], caches[i]) = std::thread::scope(|sc| {
-                sc.spawn(|| identified(rec, m, opts))
-                    .join()
-                    .unwrap_or_else(|_| (panicked(), None))
-            });
+            (ids[i], caches[i]) = fresh_fit(rec, &cands[i].1, opts);
             later.push(i);
         }
-        diagnoses.extend(diagnose_these(rec, &ids, &caches, &later, dopts));
+        diagnoses.extend(diagnose(&ids, &caches, &later));
         vec![]
     };
     let mut outcomes: Vec<Outcome> = ids
