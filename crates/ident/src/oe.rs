@@ -295,6 +295,14 @@ pub trait Structure: Sync {
         false
     }
 
+    /// The part parameter `j` plays when the output is linear in it ([`Structure::is_linear`]):
+    /// [`fit`] then solves the gain, the initial-state levels and the output offset by linear
+    /// least squares inside each step (variable projection). Default: `None` (no such part).
+    fn linear_role(&self, j: usize) -> Option<LinearRole> {
+        let _ = j;
+        None
+    }
+
     /// The exact sensitivities `out[i][k - skip] = d yhat_k / d p_(which[i])`, `k >= skip`, of
     /// parameters for which [`Structure::is_linear`] is true, given `yhat` (the output at `p`
     /// over the whole of `u`, as [`Structure::simulate`] wrote it). `out[i]` has
@@ -320,6 +328,19 @@ pub trait Structure: Sync {
             ))),
         }
     }
+}
+
+/// The part a parameter the output is linear in plays ([`Structure::linear_role`]), with
+/// `yhat = K (G0 u + sum_i w_i F_i) + c`: `G0 u` the response with unit gain from the initial
+/// state of the fixed levels, `F_i` level `i`'s free response with unit gain.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LinearRole {
+    /// A constant output offset `c`.
+    Offset,
+    /// The gain `K` (the factor of the only numerator term).
+    Gain,
+    /// A level `w_i` of the initial state's past input (its free response scales with `K`).
+    Level,
 }
 
 /// [`Structure::simulate_parts`] through a record-long `Vec<Dual<N>>` (the default).
@@ -1213,6 +1234,14 @@ impl Structure for FracModel {
 
     fn is_linear(&self, j: usize) -> bool {
         self.linearity(j).is_some()
+    }
+
+    fn linear_role(&self, j: usize) -> Option<LinearRole> {
+        self.linearity(j).map(|l| match l {
+            Linear::Offset => LinearRole::Offset,
+            Linear::Gain => LinearRole::Gain,
+            Linear::Level(_) => LinearRole::Level,
+        })
     }
 
     fn linear_sensitivities(

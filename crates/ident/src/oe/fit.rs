@@ -12,6 +12,8 @@ use faer::Mat;
 use fracsim::{Dual, FracTf};
 use std::time::{Duration, Instant};
 
+mod varpro;
+
 /// Options of [`fit`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct FitOptions {
@@ -625,7 +627,14 @@ fn fit_in<S: Structure>(
                 cold
             }
         }
-        None => minimize(&mut prob, &start, &lm)?,
+        None => {
+            let projected =
+                varpro::plan(s, &free).and_then(|plan| varpro::fit(&mut prob, &plan, &start, &lm));
+            match projected {
+                Some(rep) => rep?,
+                None => minimize(&mut prob, &start, &lm)?,
+            }
+        }
     };
     rep.iterations += lead_work.0;
     rep.evaluations += lead_work.1;
