@@ -165,7 +165,13 @@ impl<'a, S: Structure> Reduced<'a, S> {
             th[i] = t;
         }
         let p = physical(s, self.free, self.base, &th);
-        s.simulate(&p, self.u, self.dt, &mut self.yhat)?;
+        let which: Vec<usize> = plan.lin.iter().map(|&i| self.free[i]).collect();
+        let m = self.y.len() - skip;
+        let mut cols = vec![vec![0.0; m]; which.len()];
+        {
+            let mut out: Vec<&mut [f64]> = cols.iter_mut().map(|c| c.as_mut_slice()).collect();
+            s.simulate_with_linear(&p, &which, self.u, self.dt, &mut self.yhat, skip, &mut out)?;
+        }
         let y = &self.y[skip..];
         if self.start_ssr.is_none() {
             let r: Vec<f64> = self.yhat[skip..]
@@ -174,13 +180,6 @@ impl<'a, S: Structure> Reduced<'a, S> {
                 .map(|(a, b)| a - b)
                 .collect();
             self.start_ssr = Some(dot(&r, &r));
-        }
-        let which: Vec<usize> = plan.lin.iter().map(|&i| self.free[i]).collect();
-        let m = y.len();
-        let mut cols = vec![vec![0.0; m]; which.len()];
-        {
-            let mut out: Vec<&mut [f64]> = cols.iter_mut().map(|c| c.as_mut_slice()).collect();
-            s.linear_sensitivities(&p, &which, self.u, self.dt, &self.yhat, skip, &mut out)?;
         }
         let gain_j = which[plan.gain];
         let k = p[gain_j];
