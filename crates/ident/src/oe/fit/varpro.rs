@@ -334,7 +334,7 @@ impl<S: Structure> Problem for Reduced<'_, S> {
 
 /// The relative cost change under which the reduced fit hands over to the joint fit (which
 /// stops by the caller's tests).
-const REDUCED_FTOL: f64 = 1e-8;
+const REDUCED_FTOL: f64 = 1e-7;
 
 /// Fit by variable projection, then the joint fit `prob` (every free parameter) from its
 /// result; `None` when the reduced fit fails (the caller fits jointly from the start). A level
