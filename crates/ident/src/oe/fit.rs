@@ -462,6 +462,12 @@ pub fn sensitivities<S: Structure>(
 /// parameters, see [`Bounds`]); standard errors are `sqrt(diag(sigma^2 (J^T J)^-1))` in `theta`,
 /// `sigma^2 = SSR/(m - n)`, times `|dp/dtheta|` (delta method).
 ///
+/// When the gain is free and the initial state is estimated ([`Structure::linear_role`]), the
+/// fit first runs over the other parameters only, the gain, the levels and the output offset
+/// solved by linear least squares at each step (variable projection, Golub & Pereyra 1973, with
+/// Kaufman's Jacobian); the joint fit of every free parameter then starts from its result and
+/// stops by the same tests (a level the projection held at an edge of its range held there).
+///
 /// A long record (at least `4 * 2^14` fitted samples, whose first `2^14` are excited like the
 /// whole: input and output standard deviations at least half the record's) is first fitted on
 /// those `2^14` samples (to within 0.3 of its standard errors: the whole record's optimum is
