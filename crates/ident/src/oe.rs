@@ -295,6 +295,35 @@ pub trait Structure: Sync {
         false
     }
 
+    /// [`Structure::simulate`] (`T = f64`) into `yhat`, then
+    /// [`Structure::linear_sensitivities`] of `which` into `out` at the same `p`. Default: the
+    /// two calls; a structure can share their work (one model built for both).
+    ///
+    /// # Errors
+    /// As the two calls.
+    #[allow(clippy::too_many_arguments)]
+    fn simulate_with_linear(
+        &self,
+        p: &[f64],
+        which: &[usize],
+        u: &[f64],
+        dt: f64,
+        yhat: &mut [f64],
+        skip: usize,
+        out: &mut [&mut [f64]],
+    ) -> Result<()> {
+        self.simulate(p, u, dt, yhat)?;
+        self.linear_sensitivities(p, which, u, dt, yhat, skip, out)
+    }
+
+    /// The part parameter `j` plays when the output is linear in it ([`Structure::is_linear`]):
+    /// [`fit`] then solves the gain, the initial-state levels and the output offset by linear
+    /// least squares inside each step (variable projection). Default: `None` (no such part).
+    fn linear_role(&self, j: usize) -> Option<LinearRole> {
+        let _ = j;
+        None
+    }
+
     /// The exact sensitivities `out[i][k - skip] = d yhat_k / d p_(which[i])`, `k >= skip`, of
     /// parameters for which [`Structure::is_linear`] is true, given `yhat` (the output at `p`
     /// over the whole of `u`, as [`Structure::simulate`] wrote it). `out[i]` has
@@ -320,6 +349,19 @@ pub trait Structure: Sync {
             ))),
         }
     }
+}
+
+/// The part a parameter the output is linear in plays ([`Structure::linear_role`]), with
+/// `yhat = K (G0 u + sum_i w_i F_i) + c`: `G0 u` the response with unit gain from the initial
+/// state of the fixed levels, `F_i` level `i`'s free response with unit gain.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LinearRole {
+    /// A constant output offset `c`.
+    Offset,
+    /// The gain `K` (the factor of the only numerator term).
+    Gain,
+    /// A level `w_i` of the initial state's past input (its free response scales with `K`).
+    Level,
 }
 
 /// [`Structure::simulate_parts`] through a record-long `Vec<Dual<N>>` (the default).
@@ -1171,6 +1213,69 @@ impl FracModel {
         Ok(ShiftedInput { input, dc, step })
     }
 
+    /// [`Structure::linear_sensitivities`], the levels' free responses from `rest` (the model
+    /// at `p` from rest) when given.
+    #[allow(clippy::too_many_arguments)]
+    fn linear_sensitivities_with(
+        &self,
+        p: &[f64],
+        which: &[usize],
+        u: &[f64],
+        dt: f64,
+        yhat: &[f64],
+        skip: usize,
+        out: &mut [&mut [f64]],
+        rest: Option<Simulator<f64>>,
+    ) -> Result<()> {
+        // The levels' columns: free responses, all in one pass.
+        let mut levels: Vec<Vec<f64>> = vec![];
+        let mut level_cols: Vec<&mut [f64]> = vec![];
+        for (&j, col) in which.iter().zip(out.iter_mut()) {
+            match self.linearity(j) {
+                None => {
+                    return Err(Error::Options(format!(
+                        "the output is not linear in {}",
+                        self.params[j].name
+                    )))
+                }
+                Some(Linear::Offset) => col.iter_mut().for_each(|v| *v = 1.0),
+                Some(Linear::Gain) if p[j] != 0.0 => {
+                    let (c, k) = (self.offsets_sum(p), p[j]);
+                    for (v, &yk) in col.iter_mut().zip(&yhat[skip..]) {
+                        *v = (yk - c) / k;
+                    }
+                }
+                Some(Linear::Gain) => {
+                    let mut q = p.to_vec();
+                    q[j] = 1.0;
+                    let mut y = vec![0.0; u.len()];
+                    self.simulate(&q, u, dt, &mut y)?;
+                    let c = self.offsets_sum(p);
+                    for (v, yk) in col.iter_mut().zip(&y[skip..]) {
+                        *v = yk - c;
+                    }
+                }
+                Some(Linear::Level(i)) => {
+                    let Some(past) = &self.past else {
+                        unreachable!("a level is a level of the past input")
+                    };
+                    let mut unit = vec![0.0; past.levels.len()];
+                    unit[i] = 1.0;
+                    levels.push(unit);
+                    level_cols.push(&mut **col);
+                }
+            }
+        }
+        if let (Some(past), false) = (&self.past, levels.is_empty()) {
+            let mut rest = match rest {
+                Some(sim) => sim,
+                None => self.simulator(p, dt)?,
+            };
+            rest.free_responses(&levels, &past.edges, skip, &mut level_cols)?;
+        }
+        Ok(())
+    }
+
     /// The sum of the output offsets at `p`.
     fn offsets_sum(&self, p: &[f64]) -> f64 {
         self.effects
@@ -1215,6 +1320,14 @@ impl Structure for FracModel {
         self.linearity(j).is_some()
     }
 
+    fn linear_role(&self, j: usize) -> Option<LinearRole> {
+        self.linearity(j).map(|l| match l {
+            Linear::Offset => LinearRole::Offset,
+            Linear::Gain => LinearRole::Gain,
+            Linear::Level(_) => LinearRole::Level,
+        })
+    }
+
     fn linear_sensitivities(
         &self,
         p: &[f64],
@@ -1225,50 +1338,35 @@ impl Structure for FracModel {
         skip: usize,
         out: &mut [&mut [f64]],
     ) -> Result<()> {
-        // The levels' columns: free responses, all in one pass.
-        let mut levels: Vec<Vec<f64>> = vec![];
-        let mut level_cols: Vec<&mut [f64]> = vec![];
-        for (&j, col) in which.iter().zip(out.iter_mut()) {
-            match self.linearity(j) {
-                None => {
-                    return Err(Error::Options(format!(
-                        "the output is not linear in {}",
-                        self.params[j].name
-                    )))
-                }
-                Some(Linear::Offset) => col.iter_mut().for_each(|v| *v = 1.0),
-                Some(Linear::Gain) if p[j] != 0.0 => {
-                    let (c, k) = (self.offsets_sum(p), p[j]);
-                    for (v, &yk) in col.iter_mut().zip(&yhat[skip..]) {
-                        *v = (yk - c) / k;
-                    }
-                }
-                Some(Linear::Gain) => {
-                    let mut q = p.to_vec();
-                    q[j] = 1.0;
-                    let mut y = vec![0.0; u.len()];
-                    self.simulate(&q, u, dt, &mut y)?;
-                    let c = self.offsets_sum(p);
-                    for (v, yk) in col.iter_mut().zip(&y[skip..]) {
-                        *v = yk - c;
-                    }
-                }
-                Some(Linear::Level(i)) => {
-                    let Some(past) = &self.past else {
-                        unreachable!("a level is a level of the past input")
-                    };
-                    let mut unit = vec![0.0; past.levels.len()];
-                    unit[i] = 1.0;
-                    levels.push(unit);
-                    level_cols.push(&mut **col);
-                }
-            }
+        self.linear_sensitivities_with(p, which, u, dt, yhat, skip, out, None)
+    }
+
+    fn simulate_with_linear(
+        &self,
+        p: &[f64],
+        which: &[usize],
+        u: &[f64],
+        dt: f64,
+        yhat: &mut [f64],
+        skip: usize,
+        out: &mut [&mut [f64]],
+    ) -> Result<()> {
+        if self.effects.iter().any(|e| e.is_input()) {
+            self.simulate(p, u, dt, yhat)?;
+            return self.linear_sensitivities(p, which, u, dt, yhat, skip, out);
         }
-        if let (Some(past), false) = (&self.past, levels.is_empty()) {
-            self.simulator(p, dt)?
-                .free_responses(&levels, &past.edges, skip, &mut level_cols)?;
+        // As `simulate` without input effects, the model built once for the output and the
+        // levels' free responses.
+        let rest = self.simulator(p, dt)?;
+        let mut sim = rest.clone();
+        if let Some(past) = &self.past {
+            let levels: Vec<f64> = past.levels.iter().map(|&i| p[i]).collect();
+            sim.set_past_input(&levels, &past.edges)?;
         }
-        Ok(())
+        sim.run_into(u, yhat);
+        self.output_effects(p, dt, 0, yhat);
+        check_output(yhat, 0)?;
+        self.linear_sensitivities_with(p, which, u, dt, yhat, skip, out, Some(rest))
     }
 
     fn simulate_parts<const N: usize>(
