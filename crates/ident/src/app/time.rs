@@ -800,6 +800,12 @@ fn rescore_id(req: &TimeRequest, spec: &FracModel, data: &TimeData) -> Result<Id
     let duration = rec.t.last().copied().unwrap_or(0.0) - rec.t.first().copied().unwrap_or(0.0);
     let (_, mut opts) = model_and_options(req, duration, rec.dt, data.validation.is_some())?;
     opts.start = StartMode::Given;
+    if spec.past.is_some() && opts.initial == crate::oe::InitialState::Auto {
+        // The diagnosis found that the record was not at rest at its first sample (the
+        // `initial_state` effect): its final model is scored with the initial state estimated,
+        // as it was fitted, although the record looks steady before its first input change.
+        opts.initial = crate::oe::InitialState::Estimate;
+    }
     let mut m = spec.clone();
     for p in &mut m.params {
         p.free = false;

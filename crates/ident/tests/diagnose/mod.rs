@@ -719,3 +719,65 @@ fn an_effect_whose_refit_sends_an_order_to_its_bound_is_refitted_from_a_fresh_st
         "{ev}"
     );
 }
+
+/// A record of the truth that starts `idle` samples before its first input change (zero input,
+/// then the zero-mean PRBS of [`input`]), the plant either at rest or still relaxing from a past
+/// input: `past` volts held for 3 s that ended 0.5 s before the first sample (a fractional
+/// plant's memory decays as a power of time, so the output creeps on through the whole record
+/// while it looks steady over the idle samples). The GL truth runs over the past and the record
+/// alike (full memory); the past is cut off, the noise is 2% of the whole output's spread.
+fn relaxing(idle: usize, past: f64) -> Record {
+    let (held, gap) = (1500, 250); // 3 s and 0.5 s at DT
+    let mut u = vec![past; held];
+    u.extend(vec![0.0; gap]);
+    u.extend(rest_then_prbs(idle));
+    let all = generate(&u, Hidden::default(), 31);
+    let y = &all.y[held + gap..];
+    Record::from_samples(&u[held + gap..], y, DT).unwrap()
+}
+
+#[test]
+fn a_record_that_only_looks_at_rest_gets_its_initial_state() {
+    // Output still relaxing from a 1 V input held before the record: the 60 idle samples (0.12 s)
+    // before the first input change pass the rest test (so the defaults fit from rest), and the
+    // diagnosis finds that the record was not at rest: the held-out error falls by more than the
+    // 5% margin, to within 5% of the fit that estimates the initial state from the start (what
+    // the data support).
+    let rec = relaxing(60, 1.0);
+    assert_eq!(rec.rests_until(), Some(60), "the record looks at rest");
+    let d = run_best(&rec, "commensurate", InitialState::Auto);
+    assert_eq!(d.id.initial.state, "rest");
+    let diag = &d.diagnosis;
+    assert!(
+        names(diag).contains(&"initial_state"),
+        "kept {:?}",
+        names(diag)
+    );
+    assert!(
+        falls(diag),
+        "before {:?} after {:?}",
+        diag.before,
+        diag.after
+    );
+    let model = FracModel::commensurate(1.0, 0.05, 1e-3, 0.8);
+    let est = identify(
+        &rec,
+        &model,
+        &IdentOptions {
+            initial: InitialState::Estimate,
+            ..IdentOptions::default()
+        },
+    )
+    .unwrap();
+    let reference = est.validation.unwrap().rmse;
+    assert!(
+        diag.after.rmse <= 1.05 * reference,
+        "after {} vs estimated from the start {reference}",
+        diag.after.rmse
+    );
+    // The same record from true rest: the initial state is not added.
+    let rest = relaxing(60, 0.0);
+    assert_eq!(rest.rests_until(), Some(60));
+    let d = run_best(&rest, "commensurate", InitialState::Auto).diagnosis;
+    assert!(!names(&d).contains(&"initial_state"), "{:?}", names(&d));
+}

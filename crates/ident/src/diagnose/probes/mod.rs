@@ -12,6 +12,7 @@ mod abs_sensor;
 mod deadzone;
 mod delay;
 mod friction;
+mod initial_state;
 mod input_offset;
 mod output_offset;
 mod periodic;
@@ -242,6 +243,7 @@ pub(crate) fn library() -> Vec<Box<dyn Probe>> {
         Box::new(skew::Skew),
         Box::new(friction::Friction),
         Box::new(input_offset::InputOffset),
+        Box::new(initial_state::InitialState),
         Box::new(output_offset::OutputOffset),
         Box::new(periodic::Periodic),
         Box::new(abs_sensor::AbsSensor),
