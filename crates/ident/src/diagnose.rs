@@ -403,7 +403,7 @@ fn try_candidate(
     st: &State,
     c: &Candidate,
     probe: Option<&dyn Probe>,
-) -> std::result::Result<(State, KeptEffect), RejectedEffect> {
+) -> std::result::Result<(State, KeptEffect, Option<usize>), RejectedEffect> {
     let lead_ctx = c.lead.map(|l| ctx.with_lead(l));
     let rctx = lead_ctx.as_ref().unwrap_or(ctx);
     let rejection = |reason: String, params: BTreeMap<String, f64>| RejectedEffect {
@@ -411,9 +411,9 @@ fn try_candidate(
         reason,
         params,
     };
-    let params_of = |ns: &State| {
+    let params_of = |ns: &State, lead: Option<usize>| {
         let mut params = probe.map_or_else(BTreeMap::new, |p| p.params(&ns.model, &ns.values));
-        if let Some(l) = c.lead {
+        if let Some(l) = lead {
             params.insert("tau".into(), -(l as f64) * ctx.dt);
         }
         params
@@ -433,7 +433,7 @@ fn try_candidate(
                     100.0 * (1.0 - (1.0 - ctx.opts.margin).powi(2)),
                     c.evidence
                 ),
-                params_of(&removed.0),
+                params_of(&removed.0, c.lead),
             ));
         }
     }
@@ -445,6 +445,11 @@ fn try_candidate(
     };
     let mut ns =
         refitted.map_err(|e| rejection(format!("the refit failed: {e}"), BTreeMap::new()))?;
+    let lead = c.lead.map(|l| longer_lead(ctx, l, &mut ns));
+    let longer_ctx = lead
+        .filter(|&l| Some(l) != c.lead)
+        .map(|l| ctx.with_lead(l));
+    let rctx = longer_ctx.as_ref().unwrap_or(rctx);
     let mut verdict = Verdict::of(ctx, st, &ns);
     // A base parameter at a bound says the missing effect (or the structure) bent the base fit,
     // not that the effect is spurious: refit once from a fresh start of the base parameters.
@@ -467,7 +472,7 @@ fn try_candidate(
             }
         }
     }
-    let params = params_of(&ns);
+    let params = params_of(&ns, lead);
     let part = if ns.val.is_some() {
         "validation"
     } else {
@@ -535,7 +540,31 @@ fn try_candidate(
         rmse_change_percent: 100.0 * verdict.change,
         bic_change: verdict.dbic,
     };
-    Ok((ns, k))
+    Ok((ns, k, lead))
+}
+
+/// The advance of the recorded input (a time-stamp skew) a candidate was refitted with, made
+/// longer one sample at a time while the refit (from the last one) lowers the estimation sum of
+/// squares: the probe picks its advance with the base model held, and a base model fitted to a
+/// skewed record has bent its dynamics to follow it, so that advance falls short (measured: a
+/// 3-sample skew of a first-order plant, held-model choice 1 sample, [`crate::app::time`]'s test
+/// `a_kept_time_skew_states_the_figures_of_its_final_model`). Up to the largest delay searched.
+fn longer_lead(ctx: &Ctx<'_>, lead: usize, ns: &mut State) -> usize {
+    let h = ctx.opts.max_delay_samples.max(1);
+    let mut l = lead;
+    while l < h {
+        match ctx
+            .with_lead(l + 1)
+            .fit_from(ns.model.clone(), &ctx.opts.fit)
+        {
+            Ok(f) if f.ssr < ns.ssr => {
+                *ns = f;
+                l += 1;
+            }
+            _ => break,
+        }
+    }
+    l
 }
 
 /// Estimation samples of the leading part a long record's candidate is first refitted on
@@ -831,12 +860,12 @@ pub(crate) fn diagnose_until(
             }
             let probe = library.iter().find(|p| p.name() == c.name);
             match try_candidate(&ctx, &st, &c, probe.map(|p| p.as_ref())) {
-                Ok((ns, k)) => {
+                Ok((ns, k, lead)) => {
                     if best
                         .as_ref()
                         .is_none_or(|(b, _, _, _)| ctx.score(&ns) < ctx.score(b))
                     {
-                        best = Some((ns, k, c.key.clone(), c.lead));
+                        best = Some((ns, k, c.key.clone(), lead));
                     }
                 }
                 Err(r) => {
