@@ -26,6 +26,11 @@
 //! the response must be below [`EVIDENCE_RATIO`] times that of its own motor alone (the pair, not
 //! a better motor, explains the response), else the start fails as above, still before any
 //! simulation.
+//!
+//! When all of this fails, [`fallback`] tries once more on Welch's estimate up to half the Nyquist
+//! frequency: a negative gain (the sign from the lowest frequency), the resonance at a peak of the
+//! response, two resonant modes (the motor's pair at a second peak), each start placed in the time
+//! domain and kept only when its pair explains a share of the output's variance.
 
 use super::{frf_error, levy_start, with_values, Candidate, Frf, SK_ITERATIONS};
 use crate::levy;
@@ -878,5 +883,54 @@ mod tests {
         let r = super::super::auto_start(&mut m, &u, &y, 1e-3).unwrap();
         assert_eq!(r.method, super::super::StartMethod::Coarse, "{r:?}");
         assert!(r.note.contains("not periodic"), "{}", r.note);
+    }
+
+    /// The fallback on a negative gain: the two-mass drive train of the test above seen through a
+    /// sensor of the opposite sign (`-y`, aperiodic input) has no Levy start (its coefficients
+    /// would be negative); the fallback takes the sign from the lowest frequency and the resonance
+    /// from the peak, and starts with `K < 0` and the resonance within 10% of 40 Hz (Welch's bins
+    /// are 1.95 Hz apart at 512 samples, the time-domain placement scales by 8%). The plain PMSM
+    /// with the opposite sign has no resonance: the fallback refuses it too.
+    #[test]
+    fn a_negative_gain_starts_from_the_resonance_peak() {
+        let inv_w2 = |hz: f64| (2.0 * std::f64::consts::PI * hz).powi(-2);
+        let truth = FracModel::two_mass(
+            [6.77, 0.0064, 2.8e-5, 0.89, 0.89],
+            [inv_w2(28.0), inv_w2(40.0), 4e-4, 1.0],
+        );
+        let (u, y) = aperiodic_record(&truth);
+        let y: Vec<f64> = y.iter().map(|v| -v).collect();
+        let mut m = crate::diagnose::structures::two_mass();
+        let r = super::super::auto_start(&mut m, &u, &y, 1e-3).unwrap();
+        let at = |n: &str| m.params[m.index_of(n).unwrap()].value;
+        let f_r = at("c2").powf(-0.5) / (2.0 * std::f64::consts::PI);
+        let f_m = (at("a2").powf(-0.5 / at("zeta"))) / (2.0 * std::f64::consts::PI);
+        eprintln!(
+            "{}; fit {:?}; resonance {f_r:.2} Hz, motor {f_m:.2} Hz",
+            r.note, r.fit_percent
+        );
+        assert!(at("K") < 0.0, "{}", r.note);
+        assert!(r.note.contains("half the Nyquist"), "{}", r.note);
+        assert!((f_r / 40.0 - 1.0).abs() < 0.1, "resonance {f_r} Hz");
+        assert!(r.fit_percent.unwrap() > 50.0, "{r:?}");
+
+        let pmsm = FracModel::pmsm(6.77, 0.0064, 2.8e-5, 0.89, 0.89);
+        let (u, y) = aperiodic_record(&pmsm);
+        let y: Vec<f64> = y.iter().map(|v| -v).collect();
+        let mut m = crate::diagnose::structures::two_mass();
+        let e = super::super::auto_start(&mut m, &u, &y, 1e-3).unwrap_err();
+        assert!(e.to_string().contains("no resonance"), "{e}");
+    }
+
+    /// The peaks: a resonance is a local maximum 3 dB above the higher trough beside it (between
+    /// it and the neighbouring local maximum, or the edge); the trough below is returned with it;
+    /// a ripple (4% up) is not one, nor is a falling response.
+    #[test]
+    fn peaks_are_prominent_local_maxima() {
+        let mag = [1.0, 0.9, 0.2, 3.0, 1.5, 1.2, 1.3, 1.25, 1.8, 0.1, 0.05];
+        // 3.0 at 3: troughs 0.2 (left) and 1.2 (right): 2.5x. 1.3 at 6: 1.2 and 1.25: no.
+        // 1.8 at 8: troughs 1.25 (after the ripple at 6) and 0.05: 1.44x.
+        assert_eq!(peaks(&mag), vec![(3, 2), (8, 7)]);
+        assert!(peaks(&[3.0, 2.0, 1.0, 0.5]).is_empty());
     }
 }
