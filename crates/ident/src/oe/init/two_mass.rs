@@ -583,10 +583,11 @@ pub const PEAK_SCALES: [f64; 5] = [0.85, 0.92, 1.0, 1.08, 1.17];
 /// one after the other, the pair's frequencies (`b2`, `c2` over `s^2`, `d` over `s`: the
 /// anti-resonance, resonance and damping ratios kept) and, for a resonant motor
 /// (`zeta = theta = 1`), the motor's (`a2` over `s^2`, `a1` over `s`) scaled by the factor `s`
-/// of [`PEAK_SCALES`] that fits best. A candidate is kept when its pair explains at least
-/// [`super::MIN_FALLBACK_EXPLAINED`] of the output's variance (about its mean) beyond its motor
-/// alone (`b2 = c2`: the pair cancels, the gain refitted): the coarse search's rule for its
-/// fallback trials. The errors are of outputs simulated from rest, which on a record in motion
+/// of [`PEAK_SCALES`] that fits best. A candidate is kept when it explains at least
+/// [`super::MIN_FALLBACK_EXPLAINED`] of the output's variance (about its mean) and its pair as
+/// much beyond its motor alone (`b2 = c2`: the pair cancels, the gain refitted): the coarse
+/// search's rule for its fallback trials (the motor/generator record's best peak start fitted
+/// -340% without the first condition). The errors are of outputs simulated from rest, which on a record in motion
 /// (the arm's) carry the initial transient in both: a ratio of the two errors would drown the
 /// pair's share in it (measured on the arm: the best start's error 0.54 of its motor's alone,
 /// 45% of the variance explained beyond it).
@@ -662,7 +663,8 @@ fn time_refined(
         // The share of the output's variance the pair explains beyond its motor alone.
         let gain = (alone - sse) / sst;
         best_gain = best_gain.max(gain);
-        if gain >= super::MIN_FALLBACK_EXPLAINED {
+        let explains = sse <= (1.0 - super::MIN_FALLBACK_EXPLAINED) * sst;
+        if explains && gain >= super::MIN_FALLBACK_EXPLAINED {
             let sign = if v[ik] < 0.0 { "negative gain, " } else { "" };
             out.push((
                 v,
