@@ -921,10 +921,19 @@ pub fn auto_start(model: &mut FracModel, u: &[f64], y: &[f64], dt: f64) -> Resul
         let frf = periodic_frf(u, y, dt)
             .map(|f| (f, None))
             .or_else(|e| two_mass::aperiodic(&lin, u, y, dt, e).map(|(f, how)| (f, Some(how))));
-        match frf.and_then(|(frf, how)| {
+        let started = frf.and_then(|(frf, how)| {
             let (c, q) = levy_candidates(&lin, &frf, dt)?;
             Ok((frf, c, q, how))
-        }) {
+        });
+        // The two-mass structure's fallback: a negative gain, resonance peaks up to half the
+        // Nyquist frequency (two_mass::fallback).
+        let started = match started {
+            Err(e) if lin.kind == Kind::TwoMass => {
+                two_mass::fallback(&lin, u, y, dt, e).map(|(frf, c, q, how)| (frf, c, q, Some(how)))
+            }
+            other => other,
+        };
+        match started {
             Err(e) => format!("no Levy start: {e}"),
             Ok((frf, cands, q, how)) => {
                 let mut best: Option<(f64, Vec<f64>, String)> = None;

@@ -48,6 +48,16 @@ const MIN_COHERENCE: f64 = 0.5;
 /// [`Error::NotEnoughData`] when the record is too short for [`MIN_SEGMENTS`] segments of
 /// [`MIN_SEGMENT`] samples, the input has no power, or fewer than 6 frequencies are kept.
 pub fn h1(u: &[f64], y: &[f64], dt: f64) -> Result<(Frf, String)> {
+    h1_up_to(u, y, dt, MAX_FRACTION_OF_NYQUIST)
+}
+
+/// [`h1`] with the bins kept up to `fraction` of the Nyquist frequency (instead of
+/// [`MAX_FRACTION_OF_NYQUIST`]): the two-mass start's fallback looks for resonance peaks up to
+/// half the Nyquist frequency ([`super::two_mass::PEAK_FRACTION_OF_NYQUIST`]).
+///
+/// # Errors
+/// As [`h1`].
+pub fn h1_up_to(u: &[f64], y: &[f64], dt: f64, fraction: f64) -> Result<(Frf, String)> {
     let n = u.len().min(y.len()).min(MAX_FRF_SAMPLES);
     // Segments of l samples every l/2: (n - l)/(l/2) + 1 >= MIN_SEGMENTS.
     let fits = |l: usize| l <= n && (n - l) / (l / 2) + 1 >= MIN_SEGMENTS;
@@ -65,7 +75,7 @@ pub fn h1(u: &[f64], y: &[f64], dt: f64) -> Result<(Frf, String)> {
     let win: Vec<f64> = (0..l)
         .map(|k| 0.5 - 0.5 * (2.0 * PI * k as f64 / l as f64).cos())
         .collect();
-    let top = ((MAX_FRACTION_OF_NYQUIST * l as f64 / 2.0).floor() as usize).min(l / 2);
+    let top = ((fraction * l as f64 / 2.0).floor() as usize).min(l / 2);
     let mut suu = vec![0.0; top + 1];
     let mut syy = vec![0.0; top + 1];
     let mut syu = vec![Complex64::new(0.0, 0.0); top + 1];
