@@ -9,7 +9,7 @@
 //!
 //! i.e. `(J^T J + lambda D^2) d = -J^T r` (Marquardt's eq. with the scaling `D`): `[J r]` is
 //! factored once per iteration, giving `R` and `Q^T r` (by Cholesky QR when its scaled columns are
-//! well conditioned, else by Householder QR, faer), and each trial `lambda` solves the small
+//! well conditioned, else by Householder QR), and each trial `lambda` solves the small
 //! stacked system `[R; sqrt(lambda) D] d = [-Q^T r; 0]` by QR again. [`refine`] finishes a fit
 //! from near its optimum with fewer Jacobians. `D = diag(d_i)` with `d_i` the largest Euclidean norm of column `i`
 //! of `J` seen so far (Moré 1978), which makes the method invariant to the units of each
@@ -21,8 +21,8 @@
 //! with `converged == false` and the [`Termination`] reason.
 
 use crate::{Error, Result};
-use faer::prelude::*;
-use faer::Mat;
+/// The dense matrix of [`Problem::eval`]'s Jacobian: nalgebra's `DMatrix` (column-major).
+pub use nalgebra::DMatrix as Mat;
 use std::ops::Range;
 
 /// A nonlinear least-squares problem: residuals `r(p)` and their Jacobian `dr/dp`.
@@ -34,7 +34,7 @@ pub trait Problem {
     /// Number of residuals `m` (the length of `r`).
     fn n_residuals(&self) -> usize;
     /// Evaluate the residuals `r(p)` into `r` (length [`Problem::n_residuals`]) and, when `jac`
-    /// is `Some`, the Jacobian `J_ij = d r_i / d p_j` into it (an `m x n` faer matrix, already
+    /// is `Some`, the Jacobian `J_ij = d r_i / d p_j` into it (an `m x n` column-major nalgebra matrix, already
     /// sized; every entry must be written).
     ///
     /// # Errors
@@ -269,8 +269,7 @@ fn norm(v: &[f64]) -> f64 {
 /// Minimise `1/2 sum_i r_i(p)^2` from `p0` by Levenberg-Marquardt (see the [module docs](self)).
 ///
 /// ```
-/// use ident::lm::{minimize, LmOptions, Problem};
-/// use faer::Mat;
+/// use ident::lm::{minimize, LmOptions, Mat, Problem};
 ///
 /// // Fit y = a exp(-b t) to exact data with a = 2, b = 0.5.
 /// struct Exp { t: Vec<f64>, y: Vec<f64> }
@@ -538,14 +537,14 @@ fn gauss_newton_step(
     let free: Vec<usize> = (0..n).filter(|&j| !held[j]).collect();
     let mut d = vec![0.0; n];
     if !free.is_empty() {
-        let ata = rmat.transpose() * rmat;
+        let ata = rmat.tr_mul(rmat);
         let k = free.len();
         let mut a = Mat::<f64>::from_fn(k, k, |i, j| ata[(free[i], free[j])]);
         for j in 0..k {
             let d2 = a[(j, j)];
             a[(j, j)] += lambda * if d2 > 0.0 { d2 } else { 1.0 };
         }
-        let llt = a.llt(faer::Side::Lower).ok()?;
+        let llt = a.cholesky()?;
         let rhs = Mat::<f64>::from_fn(k, 1, |i, _| -g[free[i]]);
         let x = llt.solve(&rhs);
         for (i, &j) in free.iter().enumerate() {
@@ -610,6 +609,60 @@ fn jt_r_rows(jac: &Mat<f64>, r: &[f64], rows: Range<usize>) -> Vec<f64> {
     g
 }
 
+/// `G += J[rows]^T J[rows]` (`G` is `n x n`): the upper triangle by [`dot`]s of the
+/// columns' parts (`rows` is a block that stays in the cache), mirrored below.
+fn gram_add(gram: &mut Mat<f64>, jac: &Mat<f64>, rows: Range<usize>) {
+    let n = jac.ncols();
+    for j in 0..n {
+        let cj = &jac.col_as_slice(j)[rows.clone()];
+        for i in 0..=j {
+            let v = gram[(i, j)] + dot(&jac.col_as_slice(i)[rows.clone()], cj);
+            gram[(i, j)] = v;
+            gram[(j, i)] = v;
+        }
+    }
+}
+
+/// Column `j` of a matrix as one slice (nalgebra's dense matrices are column-major).
+pub(crate) trait ColSlices {
+    /// Column `j`, contiguous.
+    fn col_as_slice(&self, j: usize) -> &[f64];
+    /// Column `j`, contiguous and writable.
+    fn col_as_slice_mut(&mut self, j: usize) -> &mut [f64];
+}
+
+impl ColSlices for Mat<f64> {
+    fn col_as_slice(&self, j: usize) -> &[f64] {
+        let m = self.nrows();
+        &self.as_slice()[j * m..(j + 1) * m]
+    }
+
+    fn col_as_slice_mut(&mut self, j: usize) -> &mut [f64] {
+        let m = self.nrows();
+        &mut self.as_mut_slice()[j * m..(j + 1) * m]
+    }
+}
+
+/// The least-squares solution `X` of `min ||A X - B||` (`A` is `m x n`, `m >= n`) by Householder
+/// QR (nalgebra's): `R X = (Q^T B)[..n]` by back substitution. A zero pivot (dependent columns)
+/// gives infinite or NaN entries, not an error: callers check them.
+pub(crate) fn lstsq(a: &Mat<f64>, b: &Mat<f64>) -> Mat<f64> {
+    let n = a.ncols();
+    let qr = a.clone().qr();
+    let mut qtb = b.clone();
+    qr.q_tr_mul(&mut qtb);
+    let r = qr.r();
+    let k = r.nrows().min(n);
+    let mut x = Mat::<f64>::zeros(n, b.ncols());
+    for c in 0..b.ncols() {
+        for i in (0..k).rev() {
+            let s: f64 = (i + 1..n).map(|j| r[(i, j)] * x[(j, c)]).sum();
+            x[(i, c)] = (qtb[(i, c)] - s) / r[(i, i)];
+        }
+    }
+    x
+}
+
 /// `J^T r`, in two halves of the rows on two threads for a large `J`.
 fn jt_r(jac: &Mat<f64>, r: &[f64]) -> Vec<f64> {
     let parts = on_row_halves(jac.nrows(), jac.ncols(), |rows| jt_r_rows(jac, r, rows));
@@ -659,8 +712,7 @@ fn col_norms_of(rmat: &Mat<f64>) -> Vec<f64> {
 /// counts the work of both).
 ///
 /// ```
-/// use ident::lm::{refine, LmOptions, Problem, RefineOptions};
-/// use faer::Mat;
+/// use ident::lm::{refine, LmOptions, Mat, Problem, RefineOptions};
 /// struct Exp { t: Vec<f64>, y: Vec<f64> }
 /// impl Problem for Exp {
 ///     fn n_params(&self) -> usize { 2 }
@@ -788,7 +840,7 @@ pub fn refine_with(
             })
             .flatten();
         let Some((mut rmat, qtr)) = qr.filter(|(rm, q)| {
-            all_finite(q) && (0..rm.ncols()).all(|j| rm.col(j).iter().all(|v| v.is_finite()))
+            all_finite(q) && (0..rm.ncols()).all(|j| rm.column(j).iter().all(|v| v.is_finite()))
         }) else {
             return handover(problem, &p, evaluations, round);
         };
@@ -833,7 +885,7 @@ pub fn refine_with(
                     .filter(|f| f.is_finite() && *f > 0.0)
                 {
                     scale[j] *= f;
-                    rmat.col_mut(j).iter_mut().for_each(|v| *v *= f);
+                    rmat.column_mut(j).iter_mut().for_each(|v| *v *= f);
                 }
             }
             p = trial;
@@ -1014,15 +1066,7 @@ fn cholesky_qr_of_jr(jac: &Mat<f64>, r: &[f64]) -> Option<(Mat<f64>, Vec<f64>)> 
         let mut a = rows.start;
         while a < rows.end {
             let b = (a + JT_R_BLOCK).min(rows.end);
-            let jr = jac.subrows(a, b - a);
-            faer::linalg::matmul::matmul(
-                gram.as_mut(),
-                faer::Accum::Add,
-                jr.transpose(),
-                jr,
-                1.0,
-                faer::Par::Seq,
-            );
+            gram_add(&mut gram, jac, a..b);
             g.iter_mut()
                 .zip(jt_r_rows(jac, r, a..b))
                 .for_each(|(x, y)| *x += y);
@@ -1191,7 +1235,7 @@ fn damped_step(rmat: &Mat<f64>, qtr: &[f64], diag: &[f64], lambda: f64) -> Vec<f
         }
     });
     let b = Mat::<f64>::from_fn(k + n, 1, |i, _| if i < k { -qtr[i] } else { 0.0 });
-    let x = a.qr().solve_lstsq(&b);
+    let x = lstsq(&a, &b);
     (0..n).map(|j| x[(j, 0)]).collect()
 }
 
@@ -1218,11 +1262,7 @@ fn covariance_and_errors(
         None
     } else {
         let sub = Mat::<f64>::from_fn(rmat.nrows(), nk, |i, j| rmat[(i, kept[j])]);
-        let r_sub = if sub.nrows() >= nk {
-            sub.qr().thin_R().to_owned()
-        } else {
-            sub
-        };
+        let r_sub = if sub.nrows() >= nk { sub.qr().r() } else { sub };
         covariance(&r_sub, sigma2).map(|c| {
             let mut full = vec![f64::NAN; n * n];
             for (a, &i) in kept.iter().enumerate() {
@@ -1303,7 +1343,7 @@ mod tests {
     }
 
     /// The blocked QR of `[J r]` (three blocks and a part; then, large enough for two halves of
-    /// the rows on two threads, each of several blocks) against faer's QR of the whole: the same
+    /// the rows on two threads, each of several blocks) against nalgebra's QR of the whole: the same
     /// `R` and `Q^T r` up to the sign of each row, to rounding.
     #[test]
     fn blocked_qr_equals_the_whole_qr() {
@@ -1374,15 +1414,14 @@ mod tests {
         }
     }
 
-    /// `(rmat, qtr)` equals the R of `whole = [J r]` (by faer's QR) up to the signs of its rows:
+    /// `(rmat, qtr)` equals the R of `whole = [J r]` (by nalgebra's QR) up to the signs of its rows:
     /// `R` to `tol` times each row's diagonal, `Q^T r` to `tol` times that or `|r|` (in a nearly
     /// dependent direction its error is about machine epsilon times the condition number times
     /// `|r|`, whichever of two backward-stable factorisations makes it).
     fn assert_same_r(whole: &Mat<f64>, (rmat, qtr): (Mat<f64>, Vec<f64>), tol: f64) {
         let n = whole.ncols() - 1;
-        let qr = whole.qr();
-        let want = qr.thin_R();
-        let rnorm = whole.col(n).norm_l2();
+        let want = whole.clone().qr().r();
+        let rnorm = whole.column(n).norm();
         for i in 0..n {
             let sign = (want[(i, i)] * rmat[(i, i)]).signum();
             let scale = want[(i, i)].abs();
@@ -1401,13 +1440,13 @@ mod tests {
         }
     }
 
-    /// The unblocked Householder `R` against faer's QR, up to the signs of its rows: a tall
+    /// The unblocked Householder `R` against nalgebra's QR, up to the signs of its rows: a tall
     /// random matrix, a wide one (fewer rows than columns), one with columns of `1e200` and
     /// `1e-200` (whose squares over- and underflow: `R(A D) = R(A) D` for a positive diagonal
-    /// `D`, faer's `R` of `A` times `D` is the reference). Then a rank-deficient one (a column
+    /// `D`, nalgebra's `R` of `A` times `D` is the reference). Then a rank-deficient one (a column
     /// already zero below the diagonal, a zero column), whose `R` is not unique: `R^T R = A^T A`.
     #[test]
-    fn householder_r_equals_faers_qr() {
+    fn householder_r_equals_nalgebras_qr() {
         let mut rnd = uniform(5);
         let cases: Vec<(Mat<f64>, Vec<f64>)> = vec![
             (Mat::from_fn(300, 7, |_, _| rnd()), vec![1.0; 7]),
@@ -1430,7 +1469,7 @@ mod tests {
         for (case, (b, d)) in cases.iter().enumerate() {
             let a = Mat::<f64>::from_fn(b.nrows(), b.ncols(), |i, j| b[(i, j)] * d[j]);
             let got = r_of(&a);
-            let want = b.qr().thin_R().to_owned();
+            let want = b.clone().qr().r();
             for i in 0..got.nrows() {
                 let sign = if want[(i, i)] * got[(i, i)] < 0.0 {
                     -1.0
@@ -1439,7 +1478,7 @@ mod tests {
                 };
                 for j in i..b.ncols() {
                     let err = (sign * got[(i, j)] / d[j] - want[(i, j)]).abs();
-                    assert!(err <= 1e-13 * b.col(j).norm_l2(), "case {case}: R[{i},{j}]");
+                    assert!(err <= 1e-13 * b.column(j).norm(), "case {case}: R[{i},{j}]");
                 }
             }
         }

@@ -19,9 +19,9 @@
 //! table of a few points, so the margin is larger than in the time domain.
 
 use crate::levy::error_index;
+use crate::lm::Mat;
 use crate::lm::{minimize, FiniteDiff, LmOptions, Problem};
 use crate::{Error, Result};
-use faer::Mat;
 use fracsim::{FracTf, Term};
 use num_complex::Complex64;
 use serde::Serialize;

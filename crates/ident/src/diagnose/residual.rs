@@ -17,9 +17,8 @@
 //!   residual's sum of squares it explains, `R^2`, is the evidence. `N R^2` is `chi^2(p)` under the
 //!   null of no effect with a white residual.
 
+use crate::lm::Mat;
 use crate::metrics::{autocorr, bound99, crosscorr};
-use faer::prelude::*;
-use faer::Mat;
 use serde::Serialize;
 use std::f64::consts::PI;
 
@@ -251,7 +250,7 @@ fn project_out(a: &Mat<f64>, b: &Mat<f64>) -> Mat<f64> {
             }
         }
     }
-    let x = a.qr().solve_lstsq(b);
+    let x = crate::lm::lstsq(&a, b);
     let fitted = &a * &x;
     let mut out = b.clone();
     for c in 0..b.ncols() {
@@ -302,7 +301,7 @@ pub fn explained(e: &[f64], sig: &[Vec<f64>], sens: &Mat<f64>) -> (f64, Vec<f64>
         return (0.0, vec![0.0; p]);
     }
     let rhs = Mat::<f64>::from_fn(n, 1, |r, _| ep[r]);
-    let x = s.qr().solve_lstsq(&rhs);
+    let x = crate::lm::lstsq(&s, &rhs);
     let fitted = &s * &x;
     let rr: f64 = (0..n).map(|r| (ep[r] - fitted[(r, 0)]).powi(2)).sum();
     let r2 = (1.0 - rr / ee).clamp(0.0, 1.0);

@@ -11,9 +11,9 @@
 //! orders inside `(0, 2)` whatever step LM takes. The sign of `K` is kept from the start.
 
 use super::{check_bode, error_index, LevyFit};
+use crate::lm::Mat;
 use crate::lm::{minimize, LmOptions, LmReport, Problem};
 use crate::{Error, Result};
-use faer::Mat;
 use fracsim::{jw_pow, FracTf};
 use num_complex::Complex64;
 use std::f64::consts::FRAC_PI_2;

@@ -3,12 +3,12 @@
 
 use super::{init, Bounds, FracModel, Param, Structure};
 use crate::data::{OffsetMode, Offsets, Record};
+use crate::lm::Mat;
 use crate::lm::{
     minimize, refine_with, LmOptions, Problem, RefineBuffers, RefineOptions, Termination,
 };
 use crate::metrics::Fit;
 use crate::{Error, Result};
-use faer::Mat;
 use fracsim::{Dual, FracTf};
 use std::time::{Duration, Instant};
 
@@ -207,10 +207,12 @@ fn jacobian<S: Structure>(
     };
     let (first, second) = nonlin.split_at(half);
     // The dual halves write straight into their columns of the Jacobian.
-    let mut slots: Vec<Option<&mut [f64]>> = jac
-        .col_iter_mut()
-        .map(|c| c.try_as_col_major_mut().map(|c| c.as_slice_mut()))
-        .collect();
+    let (m, n) = (jac.nrows(), jac.ncols());
+    let mut slots: Vec<Option<&mut [f64]>> = if m == 0 {
+        (0..n).map(|_| Some(&mut [][..])).collect()
+    } else {
+        jac.as_mut_slice().chunks_exact_mut(m).map(Some).collect()
+    };
     let mut take = |group: &[usize]| -> Vec<&mut [f64]> {
         group.iter().filter_map(|&i| slots[i].take()).collect()
     };

@@ -26,8 +26,8 @@ mod welch;
 
 use super::{FracModel, Kind, Structure};
 use crate::levy::{self, LevyFit};
+use crate::lm::Mat;
 use crate::{Error, Result};
-use faer::Mat;
 use num_complex::Complex64;
 use std::f64::consts::PI;
 
@@ -181,8 +181,8 @@ pub fn periodic_frf(u: &[f64], y: &[f64], dt: f64) -> Result<Frf> {
         .map(|r| Complex64::from_polar(1.0, -2.0 * PI * r as f64 / p as f64))
         .collect();
     let ks = log_bins(top, 400);
-    // The DFTs of every averaged period at every harmonic in one matrix product (faer's kernels
-    // pick the machine's vector width at run time): [u_period y_1 .. y_navg]^T (p x (navg + 1),
+    // The DFTs of every averaged period at every harmonic in one matrix product (nalgebra's,
+    // by matrixmultiply's kernels for large sizes): [u_period y_1 .. y_navg]^T (p x (navg + 1),
     // the periods as columns) times the twiddles [cos_k, -sin_k ...] (p x 2 nh).
     let mut tw = Mat::<f64>::zeros(p, 2 * ks.len());
     for (c, &k) in ks.iter().enumerate() {
@@ -203,7 +203,7 @@ pub fn periodic_frf(u: &[f64], y: &[f64], dt: f64) -> Result<Frf> {
         .enumerate()
     {
         periods
-            .col_mut(j)
+            .column_mut(j)
             .iter_mut()
             .zip(seg)
             .for_each(|(a, &b)| *a = b);

@@ -22,9 +22,9 @@ mod skew;
 
 use super::residual::{analyse, explained, ResidualAnalysis};
 use super::{Ambiguity, Ctx, KeptEffect, RejectedEffect, State};
+use crate::lm::Mat;
 use crate::oe::{sensitivities, Bounds, Effect, FracModel, Param};
 use crate::Result;
-use faer::Mat;
 use std::collections::BTreeMap;
 
 /// A candidate effect: its evidence and the model(s) to refit from.

@@ -13,10 +13,10 @@
 //! the standard errors.
 
 use super::{jacobian, physical, OeProblem};
-use crate::lm::{dot, minimize, LmOptions, LmReport, Problem};
+use crate::lm::Mat;
+use crate::lm::{dot, minimize, ColSlices, LmOptions, LmReport, Problem};
 use crate::oe::{Bounds, LinearRole, Structure};
 use crate::{Error, Result};
-use faer::Mat;
 
 /// Which free parameters (indices into the fit's `free`) are solved linearly.
 #[derive(Debug, Clone)]
@@ -314,15 +314,7 @@ impl<S: Structure> Problem for Reduced<'_, S> {
             .zip(y)
             .for_each(|((rk, f), yk)| *rk = f - yk);
         for c in 0..which.len() {
-            let Some(d) = out
-                .col_mut(c)
-                .try_as_col_major_mut()
-                .map(|d| d.as_slice_mut())
-            else {
-                return Err(Error::Numerical(
-                    "the Jacobian is not stored column by column".into(),
-                ));
-            };
+            let d = out.col_as_slice_mut(c);
             for qk in &self.basis {
                 let h = dot(qk, d);
                 d.iter_mut().zip(qk).for_each(|(a, b)| *a -= h * b);

@@ -18,10 +18,9 @@
 //! instant one); a held `K` keeps its sign.
 
 use super::{auto_start, StartReport};
+use crate::lm::Mat;
 use crate::oe::FracModel;
 use crate::Result;
-use faer::prelude::*;
-use faer::Mat;
 
 /// Lags of the finite pulse response after lag 0 (at most a quarter of the record).
 pub const LAGS: usize = 32;
@@ -112,7 +111,7 @@ pub fn instant_response(u: &[f64], y: &[f64]) -> Option<InstantResponse> {
     for i in 0..LAGS {
         g[(i, i)] += 1e-12 * scale;
     }
-    let c = g.llt(faer::Side::Lower).ok()?.solve(&rhs);
+    let c = g.cholesky()?.solve(&rhs);
     // The lag-0 column and the output with the other lags regressed out.
     let mut r0 = x0.to_vec();
     let mut ry = yv.to_vec();
