@@ -914,13 +914,25 @@ fn drive_sim_piped() -> (
     spawn_drive_sim(&[], std::process::Stdio::null())
 }
 
-/// `fracid drive ARGS --port PORT --baud 921600 -o OUT --quiet`, stderr piped.
+/// `fracid drive ARGS --port PORT --baud 921600 -o OUT --quiet`, stderr piped, with SIGINT and
+/// SIGQUIT at their default action: a suite started as a background job of a non-interactive
+/// shell inherits them ignored, and fracid (as a shell's background job should) then leaves
+/// Ctrl-C alone, which the signal tests are not about.
 #[cfg(unix)]
 fn drive_cmd(args: &[&str], port: &str, out: &std::path::Path) -> KillOnDrop {
+    use std::os::unix::process::CommandExt;
     use std::process::Stdio;
+    let mut cmd = Command::new(fracid_bin());
+    // SAFETY: only signal(2), async-signal-safe, between fork and exec.
+    unsafe {
+        cmd.pre_exec(|| {
+            libc::signal(libc::SIGINT, libc::SIG_DFL);
+            libc::signal(libc::SIGQUIT, libc::SIG_DFL);
+            Ok(())
+        });
+    }
     KillOnDrop(
-        Command::new(fracid_bin())
-            .arg("drive")
+        cmd.arg("drive")
             .args(args)
             .args(["--port", port, "--baud", "921600", "--quiet"])
             .arg("-o")
