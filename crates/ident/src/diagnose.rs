@@ -268,15 +268,23 @@ pub(crate) struct Ctx<'a> {
     opts: &'a DiagnoseOptions,
 }
 
+/// `u` advanced by `lead` samples (`u'_k = u_(k + lead)`, the last value held): the input a kept
+/// time-stamp skew is fitted and scored on, here and in the final model's figures
+/// ([`crate::app::time`]).
+pub(crate) fn advanced(u: &[f64], lead: usize) -> Vec<f64> {
+    let n = u.len();
+    (0..n).map(|k| u[(k + lead).min(n - 1)]).collect()
+}
+
 impl Ctx<'_> {
     /// The same context with the recorded input advanced by `lead` samples
     /// (`u'_k = u_(k + lead)`, the last value held).
     fn with_lead(&self, lead: usize) -> Self {
-        let n = self.rec.len();
         let mut c = self.clone();
         c.lead = lead;
-        c.u = (0..n)
-            .map(|k| self.rec.u[(k + lead).min(n - 1)] - self.u0)
+        c.u = advanced(&self.rec.u, lead)
+            .into_iter()
+            .map(|v| v - self.u0)
             .collect();
         c
     }

@@ -722,9 +722,7 @@ fn skew_samples(d: &Diagnosis, dt: f64) -> Option<usize> {
 /// the last value held), as the diagnosis fitted it.
 fn input_advanced(data: &TimeData, lead: usize) -> TimeData {
     let mut shifted = data.clone();
-    let u = &data.record.u;
-    let n = u.len();
-    shifted.record.u = (0..n).map(|k| u[(k + lead).min(n - 1)]).collect();
+    shifted.record.u = crate::diagnose::advanced(&data.record.u, lead);
     shifted
 }
 
