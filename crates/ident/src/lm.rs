@@ -142,6 +142,13 @@ pub struct LmOptions {
     /// than the fraction `rel` over the last `k` accepted iterations (a fit that creeps on at a
     /// rate that cannot matter to its caller). Default `None` (off).
     pub stall: Option<(usize, f64)>,
+    /// Give-up test `(k, target)`: stop ([`Termination::SmallCostChange`]) when, after at least
+    /// `k` accepted iterations, the cost would still be above `target` (a cost, `1/2` the sum of
+    /// squares) even if it went on falling by its mean fall over the last `k` accepted iterations
+    /// at every iteration left of [`Self::max_iterations`]: a fit that cannot end where its caller
+    /// needs it (the stall test's assumption, a cost whose fall does not speed up, with the
+    /// caller's target instead of a fixed fraction). Default `None` (off).
+    pub give_up: Option<(usize, f64)>,
 }
 
 impl Default for LmOptions {
@@ -156,6 +163,7 @@ impl Default for LmOptions {
             scale: true,
             covariance: true,
             stall: None,
+            give_up: None,
         }
     }
 }
@@ -448,7 +456,14 @@ pub fn minimize(problem: &mut impl Problem, p0: &[f64], opts: &LmOptions) -> Res
                         && history[history.len() - 1 - k] - cost
                             <= rel * history[history.len() - 1 - k]
                 });
-                if small_cost || small_step || stalled {
+                let hopeless = opts.give_up.is_some_and(|(k, target)| {
+                    k > 0 && history.len() > k && {
+                        let fall = (history[history.len() - 1 - k] - cost) / k as f64;
+                        let left = opts.max_iterations.saturating_sub(iterations) as f64;
+                        cost - fall.max(0.0) * left > target
+                    }
+                });
+                if small_cost || small_step || stalled || hopeless {
                     gcos = gradient_cosine(&jt_r_of(&qr.0, &qr.1), &col_norms_of(&qr.0), norm(&r));
                     break 'outer if small_cost || !small_step {
                         Termination::SmallCostChange
@@ -1743,6 +1758,45 @@ mod tests {
             stalled.ssr(),
             plain.ssr()
         );
+    }
+
+    #[test]
+    fn the_give_up_test_stops_only_a_fit_that_cannot_reach_its_target() {
+        let tight = LmOptions {
+            ftol: 1e-15,
+            xtol: 1e-15,
+            gtol: 1e-15,
+            ..LmOptions::default()
+        };
+        let p0 = [0.5, 3.0];
+        let plain = minimize(&mut NoisyExp::new(), &p0, &tight).unwrap();
+        let best = 0.5 * plain.ssr();
+        // A target the fit reaches (twice the optimum's cost): the test never fires, the same
+        // path bit for bit (a rule that fired on a fit still falling towards its target would
+        // change it).
+        let reachable = LmOptions {
+            give_up: Some((1, 2.0 * best)),
+            ..tight.clone()
+        };
+        let same = minimize(&mut NoisyExp::new(), &p0, &reachable).unwrap();
+        assert_eq!(same.params, plain.params);
+        assert_eq!(same.iterations, plain.iterations);
+        // A target below the optimum's cost (half of it): no fit reaches it; the test stops the
+        // fit as soon as its fall per iteration times the iterations left no longer bridges the
+        // gap, sooner than the plain fit, and above the target (what the caller decides on).
+        let unreachable = LmOptions {
+            give_up: Some((1, 0.5 * best)),
+            ..tight
+        };
+        let gave_up = minimize(&mut NoisyExp::new(), &p0, &unreachable).unwrap();
+        assert_eq!(gave_up.termination, Termination::SmallCostChange);
+        assert!(
+            gave_up.iterations < plain.iterations,
+            "gave up after {} iterations, plain {}",
+            gave_up.iterations,
+            plain.iterations
+        );
+        assert!(0.5 * gave_up.ssr() > 0.5 * best && gave_up.ssr() >= plain.ssr());
     }
 
     /// `y = a exp(-b t)` with the amplitude `a = 3 / (1 + exp(-theta_0))` (a logistic map to

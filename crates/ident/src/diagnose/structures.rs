@@ -186,9 +186,9 @@ pub const PRE_SCREEN_ITERATIONS: usize = 10;
 /// (an input offset, a slow pole) and ends far behind (10-70x the user's held-out RMSE on the
 /// real records in `data/`). It is first fitted with [`PRE_SCREEN_ITERATIONS`]: a fit that stopped
 /// sooner is the full fit; one still more than `FAR^2` times the user's usable base fit's held-out
-/// RMSE `user_rmse` is kept as it is and screened out (the best usable base fit is at most the
-/// user's, so it trails that by twice the margin at which a screening fit is left out,
-/// [`FAR`]); the others go on to [`screen_candidate`] on a fresh thread (its pole cache then the
+/// RMSE `user_rmse`, or behind it and not usable ([`pre_screened_out`]), is kept as it is and
+/// screened out (the best usable base fit is at most the user's, so it trails that by twice the
+/// margin at which a screening fit is left out, [`FAR`]); the others go on to [`screen_candidate`] on a fresh thread (its pole cache then the
 /// screening fit's own, as without the pre-screen).
 fn pre_screen(
     rec: &Record,
@@ -201,7 +201,7 @@ fn pre_screen(
         && fitted
             .0
             .as_ref()
-            .is_ok_and(|id| base_rmse(id) > FAR * FAR * user_rmse);
+            .is_ok_and(|id| pre_screened_out(base_rmse(id), id.usable(), user_rmse));
     if full || hopeless {
         return (fitted, full);
     }
@@ -211,6 +211,20 @@ fn pre_screen(
             .join()
             .unwrap_or_else(|_| ((panicked(), None), true))
     })
+}
+
+/// Whether the pre-screened fit of the user's structure with a free integrator (held-out RMSE
+/// `rmse`, `usable` or not) is screened out ([`pre_screen`]), `user_rmse` the user's usable
+/// base fit's held-out RMSE: more
+/// than `FAR^2` times behind it, or behind it and not usable. The second is the screening's own
+/// rule for a fit not usable when a usable one exists ([`fit_candidates`]) applied after
+/// [`PRE_SCREEN_ITERATIONS`]; it asks the fit to be behind the user's as well, so that an output
+/// that does integrate (where the user's structure without the integrator ends far behind and
+/// the integrator's fit passes it within a few iterations) is still fitted in full. A structure
+/// so screened out is not diagnosed unless no other ends with a final model (then it is fitted in
+/// full, as every screened-out one, [`diagnose_best`]).
+fn pre_screened_out(rmse: f64, usable: bool, user_rmse: f64) -> bool {
+    rmse > FAR * FAR * user_rmse || (!usable && rmse > user_rmse)
 }
 
 /// [`screen_candidate`] with `budget` LM iterations.
@@ -402,6 +416,10 @@ fn fit_candidates(
                     shared.screened(&fitted, full);
                     let (fitted, out) = if full {
                         (fitted, false)
+                    } else if fitted.0.is_err() {
+                        // A failed screening fit is fitted in full whatever the reference: no
+                        // need to wait for it.
+                        (fresh_fit(rec, m, opts), false)
                     } else {
                         let reference = shared.reference();
                         match fitted {
@@ -874,4 +892,28 @@ fn base_score(name: &str, f: &Result<Identification>) -> StructureScore {
         }
     }
     s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The pre-screen leaves out a fit far behind the user's, or behind it with problems, and
+    /// keeps one that passes the user's even with problems after its few iterations (an output
+    /// that integrates) and one behind but usable within `FAR^2`.
+    #[test]
+    fn the_pre_screen_leaves_out_only_fits_behind_the_users() {
+        let user = 1.0;
+        // Far behind, usable or not.
+        assert!(pre_screened_out(4.5, true, user));
+        assert!(pre_screened_out(4.5, false, user));
+        // Behind (motor/generator's 1.9x after 10 iterations) with problems.
+        assert!(pre_screened_out(1.9, false, user));
+        // Behind but usable: fitted in full.
+        assert!(!pre_screened_out(1.9, true, user));
+        // Ahead of the user's (the output integrates), with problems after 10 iterations:
+        // fitted in full.
+        assert!(!pre_screened_out(0.3, false, user));
+        assert!(!pre_screened_out(0.3, true, user));
+    }
 }
