@@ -388,7 +388,7 @@ fn zeros_of_h_modal(groups: &[Group<f64>], d: f64) -> Option<Vec<Complex64>> {
     eigenvalues(a - (&b * c.transpose()) / d).ok()
 }
 
-/// The eigenvalues of `m` after balancing (real Schur form).
+/// The eigenvalues of `m` after balancing (the QR iteration without Schur vectors, [`crate::eig`]).
 fn eigenvalues(mut m: DMatrix<f64>) -> Result<Vec<Complex64>> {
     if m.nrows() == 0 {
         return Ok(vec![]);
@@ -400,10 +400,9 @@ fn eigenvalues(mut m: DMatrix<f64>) -> Result<Vec<Complex64>> {
     }
     let n = m.nrows();
     nalgebra::linalg::balancing::balance_parlett_reinsch(&mut m);
-    let schur = nalgebra::Schur::try_new(m, f64::EPSILON, 100 * n).ok_or_else(|| {
+    crate::eig::eigenvalues_only(m, 100 * n).ok_or_else(|| {
         Error::Numerical("the eigenvalues of the approximated model did not converge".into())
-    })?;
-    Ok(schur.complex_eigenvalues().iter().copied().collect())
+    })
 }
 
 /// The zeros of `H` (values): eigenvalues of the closed realisation `A - B C/d`.
