@@ -225,7 +225,9 @@ pub struct LmReport {
     pub std_errors: Option<Vec<f64>>,
     /// The Marquardt factor at the end (relative to `D^2`).
     pub lambda: f64,
-    /// `max_j |g_j| / (||J_j|| ||r||)` at the end (see [`LmOptions::gtol`]).
+    /// `max_j |g_j| / (||J_j|| ||r||)` at the end (see [`LmOptions::gtol`]); without
+    /// [`LmOptions::covariance`], a fit that stops at an accepted step does not compute the
+    /// Jacobian there (nothing needs it), and this is the cosine at the point before.
     pub gradient_cosine: f64,
 }
 
@@ -420,6 +422,27 @@ pub fn minimize(problem: &mut impl Problem, p0: &[f64], opts: &LmOptions) -> Res
             if ok && rho > 0.0 && actual > 0.0 {
                 // accept
                 std::mem::swap(&mut p, &mut p_trial);
+                let stalled = opts.stall.is_some_and(|(k, rel)| {
+                    k > 0
+                        && history.len() >= k
+                        && history[history.len() - k] - cost_trial
+                            <= rel * history[history.len() - k]
+                });
+                if !opts.covariance && (small_cost || small_step || stalled) {
+                    // The fit stops here and nothing needs the Jacobian at this point (no
+                    // covariance): the residual is the trial's, the gradient's cosine the last
+                    // point's.
+                    std::mem::swap(&mut r, &mut r_trial);
+                    cost = cost_trial.max(0.0);
+                    let t = 2.0 * rho - 1.0;
+                    lambda *= (1.0 - t * t * t).max(1.0 / 3.0);
+                    history.push(cost);
+                    break 'outer if small_cost || !small_step {
+                        Termination::SmallCostChange
+                    } else {
+                        Termination::SmallStep
+                    };
+                }
                 evaluations += 1;
                 let jac_ok = problem.eval(&p, &mut r, Some(&mut jac)).is_ok()
                     && check_finite(&r, &jac, "at an accepted point").is_ok();
