@@ -1727,6 +1727,43 @@ mod tests {
         }
     }
 
+    /// Without covariance, a fit that stops at an accepted step skips the Jacobian there and
+    /// nothing else: the same parameters, iterations, Marquardt factor and cost as with it (by
+    /// the cost test and by the stall test), one Jacobian fewer, and the residual is that point's.
+    #[test]
+    fn without_covariance_the_last_jacobian_is_skipped_and_nothing_else_changes() {
+        // Stopped by the cost test at an accepted step, and by the stall test.
+        let by_cost = LmOptions {
+            ftol: 1e-4,
+            ..LmOptions::default()
+        };
+        let by_stall = LmOptions {
+            stall: Some((1, 1e-2)),
+            ..LmOptions::default()
+        };
+        for with in [by_cost, by_stall] {
+            let without = LmOptions {
+                covariance: false,
+                ..with.clone()
+            };
+            let p0 = [0.5, 3.0];
+            let (mut a, mut b) = (NoisyExp::new(), NoisyExp::new());
+            let ra = minimize(&mut a, &p0, &with).unwrap();
+            let rb = minimize(&mut b, &p0, &without).unwrap();
+            assert_eq!(ra.params, rb.params);
+            assert_eq!(ra.iterations, rb.iterations);
+            assert_eq!(ra.lambda, rb.lambda);
+            assert_eq!(ra.termination, rb.termination);
+            assert!(ra.std_errors.is_some() && rb.std_errors.is_none());
+            assert_eq!(b.jacobians + 1, a.jacobians, "{with:?}");
+            assert_eq!(rb.evaluations + 1, ra.evaluations);
+            assert!((ra.cost - rb.cost).abs() <= 1e-14 * ra.cost);
+            let mut r = vec![0.0; a.t.len()];
+            a.eval(&rb.params, &mut r, None).unwrap();
+            assert_eq!(r, rb.residuals);
+        }
+    }
+
     #[test]
     fn the_stall_test_stops_a_fit_whose_cost_no_longer_falls() {
         let tight = LmOptions {
