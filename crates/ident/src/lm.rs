@@ -233,7 +233,9 @@ pub struct LmReport {
     pub std_errors: Option<Vec<f64>>,
     /// The Marquardt factor at the end (relative to `D^2`).
     pub lambda: f64,
-    /// `max_j |g_j| / (||J_j|| ||r||)` at the end (see [`LmOptions::gtol`]).
+    /// `max_j |g_j| / (||J_j|| ||r||)` at the end (see [`LmOptions::gtol`]); without
+    /// [`LmOptions::covariance`], a fit that stops at an accepted step does not compute the
+    /// Jacobian there (nothing needs it), and this is the cosine at the point before.
     pub gradient_cosine: f64,
 }
 
@@ -428,6 +430,27 @@ pub fn minimize(problem: &mut impl Problem, p0: &[f64], opts: &LmOptions) -> Res
             if ok && rho > 0.0 && actual > 0.0 {
                 // accept
                 std::mem::swap(&mut p, &mut p_trial);
+                let stalled = opts.stall.is_some_and(|(k, rel)| {
+                    k > 0
+                        && history.len() >= k
+                        && history[history.len() - k] - cost_trial
+                            <= rel * history[history.len() - k]
+                });
+                if !opts.covariance && (small_cost || small_step || stalled) {
+                    // The fit stops here and nothing needs the Jacobian at this point (no
+                    // covariance): the residual is the trial's, the gradient's cosine the last
+                    // point's.
+                    std::mem::swap(&mut r, &mut r_trial);
+                    cost = cost_trial.max(0.0);
+                    let t = 2.0 * rho - 1.0;
+                    lambda *= (1.0 - t * t * t).max(1.0 / 3.0);
+                    history.push(cost);
+                    break 'outer if small_cost || !small_step {
+                        Termination::SmallCostChange
+                    } else {
+                        Termination::SmallStep
+                    };
+                }
                 evaluations += 1;
                 let jac_ok = problem.eval(&p, &mut r, Some(&mut jac)).is_ok()
                     && check_finite(&r, &jac, "at an accepted point").is_ok();
@@ -1716,6 +1739,43 @@ mod tests {
                 }
             }
             Ok(())
+        }
+    }
+
+    /// Without covariance, a fit that stops at an accepted step skips the Jacobian there and
+    /// nothing else: the same parameters, iterations, Marquardt factor and cost as with it (by
+    /// the cost test and by the stall test), one Jacobian fewer, and the residual is that point's.
+    #[test]
+    fn without_covariance_the_last_jacobian_is_skipped_and_nothing_else_changes() {
+        // Stopped by the cost test at an accepted step, and by the stall test.
+        let by_cost = LmOptions {
+            ftol: 1e-4,
+            ..LmOptions::default()
+        };
+        let by_stall = LmOptions {
+            stall: Some((1, 1e-2)),
+            ..LmOptions::default()
+        };
+        for with in [by_cost, by_stall] {
+            let without = LmOptions {
+                covariance: false,
+                ..with.clone()
+            };
+            let p0 = [0.5, 3.0];
+            let (mut a, mut b) = (NoisyExp::new(), NoisyExp::new());
+            let ra = minimize(&mut a, &p0, &with).unwrap();
+            let rb = minimize(&mut b, &p0, &without).unwrap();
+            assert_eq!(ra.params, rb.params);
+            assert_eq!(ra.iterations, rb.iterations);
+            assert_eq!(ra.lambda, rb.lambda);
+            assert_eq!(ra.termination, rb.termination);
+            assert!(ra.std_errors.is_some() && rb.std_errors.is_none());
+            assert_eq!(b.jacobians + 1, a.jacobians, "{with:?}");
+            assert_eq!(rb.evaluations + 1, ra.evaluations);
+            assert!((ra.cost - rb.cost).abs() <= 1e-14 * ra.cost);
+            let mut r = vec![0.0; a.t.len()];
+            a.eval(&rb.params, &mut r, None).unwrap();
+            assert_eq!(r, rb.residuals);
         }
     }
 
