@@ -904,7 +904,6 @@ pub fn fit_best(
         .map(|((name, _), f)| base_score(name, f))
         .collect();
     let Some((chosen, best)) = decide(&scores) else {
-        let mut fits = fits;
         return Err(match fits.swap_remove(0) {
             Err(e) => e,
             Ok(_) => Error::Numerical("no structure could be fitted".into()),
@@ -917,7 +916,6 @@ pub fn fit_best(
     for (i, what) in &reduced {
         reason.push_str(&format!("; {}: {what}", cands[*i].0));
     }
-    let mut fits = fits;
     let id = fits.swap_remove(chosen)?;
     let choice = StructureChoice {
         scores,
