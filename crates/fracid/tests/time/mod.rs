@@ -540,9 +540,10 @@ fn structure_auto_keeps_the_structure_the_data_support() {
         ]
     );
     let chosen = s["chosen"].as_u64().unwrap() as usize;
+    // Usable: a base fit (no `failed`) with no problems.
     let usable: Vec<&serde_json::Value> = rows
         .iter()
-        .filter(|r| r["problems"].as_array().unwrap().is_empty())
+        .filter(|r| r["problems"].as_array().unwrap().is_empty() && r["failed"].is_null())
         .collect();
     let best = usable
         .iter()
