@@ -125,7 +125,14 @@ fn the_diagnosis_holds_the_resonance_of_a_two_mass_drive_train() {
     assert!(d
         .choice
         .reason
-        .contains("against the best integer-order model"));
+        .contains("against the best usable integer-order model"));
+    let r = d
+        .choice
+        .integer_reference
+        .as_ref()
+        .expect("an integer reference");
+    let row = d.choice.scores.iter().find(|s| s.name == r.name).unwrap();
+    assert!(row.problems.is_empty() && row.failed.is_none(), "{row:?}");
 }
 
 /// Without a periodic input: the same drive train driven by a PRBS that is not repeated (the
