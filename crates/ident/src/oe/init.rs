@@ -619,9 +619,12 @@ fn coarse_start(lin: &FracModel, u: &[f64], y: &[f64], dt: f64) -> Option<(f64, 
         &[0.5, 0.7, 0.9]
     };
     let (w_lo, w_hi) = (2.0 * PI / (n as f64 * dt), 0.25 * PI / dt);
-    // The third order as `K / ((1 + s/w_c)(1 + s/(2 w_c))(1 + s/(4 w_c)))` (distinct poles: the
-    // modal form refuses repeated ones), the others `K / (1 + (s/w_c)^q / 2)^2`.
+    // The third order as `K / ((1 + s/w_c)(1 + s/(2 w_c))(1 + s/(4 w_c)))` and the integer second
+    // order as `K / ((1 + s/(1.5 w_c))(1 + s/(3 w_c)))` (the same `a1 = 1/w_c`; distinct poles:
+    // the modal form cannot represent a repeated pole, and `(1 + s/(2 w_c))^2` is one exactly),
+    // the others `K / (1 + (s/w_c)^q / 2)^2` (a fractional `q` spreads the approximation's poles).
     let third = lin.index_of("a3").is_some();
+    let integer_second = lin.kind == Kind::Integer && !third;
     let with = |a1: f64, a2: f64, a3: f64, q: f64, wc: f64| {
         with_values(
             lin,
@@ -642,6 +645,8 @@ fn coarse_start(lin: &FracModel, u: &[f64], y: &[f64], dt: f64) -> Option<(f64, 
         let a1 = wc.powf(-q);
         if third {
             with(1.75 * a1, 0.875 * a1 * a1, 0.125 * a1 * a1 * a1, q, wc)
+        } else if integer_second {
+            with(a1, a1 * a1 / 4.5, 0.0, q, wc)
         } else {
             with(a1, a1 * a1 / 4.0, 0.0, q, wc)
         }
@@ -984,9 +989,16 @@ pub fn auto_start(model: &mut FracModel, u: &[f64], y: &[f64], dt: f64) -> Resul
         }
     };
     if model.kind == Kind::TwoMass && chosen.is_none() {
-        // The coarse search has no resonance to offer: the structure is dropped at once.
+        // The coarse search has no resonance to offer: the structure is dropped at once, with the
+        // reason once (not behind the error variant's words again).
+        let why = why_not_levy
+            .strip_prefix("no Levy start: ")
+            .unwrap_or(&why_not_levy);
+        let why = why
+            .strip_prefix("not enough information in the data: ")
+            .unwrap_or(why);
         return Err(Error::NotEnoughData(format!(
-            "the two-mass structure starts from the frequency response: {why_not_levy}"
+            "the two-mass structure has no start: {why}"
         )));
     }
     if !why_not_levy.is_empty() && model.kind != Kind::TwoMass {
