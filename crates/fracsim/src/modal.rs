@@ -932,16 +932,9 @@ fn expansion<T: Real>(
         let (_, df) = eval_sum_times(hg, lam, times);
         let (nv, _) = eval_sum_times(ng, lam, times);
         let res = nv / df;
-        if r.im == 0.0 {
-            out.real.push((lam.re, res.re));
-        } else {
-            out.complex.push((lam, res));
-        }
+        push_pole(&mut out, lam, res, r.im == 0.0);
     }
-    numerator_poles(&mut out, hg, ng)?;
-    let n_inf = ng.iter().fold(T::from(0.0), |acc, g| acc + g.coef[0]);
-    out.direct = n_inf / d;
-    Ok(out)
+    finish(out, hg, ng, d)
 }
 
 /// [`expansion`] of a model with no cells (every order an integer: a rational model, nothing
@@ -992,12 +985,28 @@ fn rational_expansion<T: Real>(
             lam_n = lam_n * lam;
         }
         let res = nv * lam_n / den;
-        if lam.im.re() == 0.0 {
-            out.real.push((lam.re, res.re));
-        } else {
-            out.complex.push((lam, res));
-        }
+        push_pole(&mut out, lam, res, lam.im.re() == 0.0);
     }
+    finish(out, hg, ng, d)
+}
+
+/// A pole and its residue into `out`: its real part when `real`, else the pair (upper half plane).
+fn push_pole<T: Real>(out: &mut PoleResidue<T>, lam: Cx<T>, res: Cx<T>, real: bool) {
+    if real {
+        out.real.push((lam.re, res.re));
+    } else {
+        out.complex.push((lam, res));
+    }
+}
+
+/// The expansion's end, shared by both constructions: the numerator's own poles and the direct
+/// term `N_H(inf)/d`.
+fn finish<T: Real>(
+    mut out: PoleResidue<T>,
+    hg: &[Group<T>],
+    ng: &[Group<T>],
+    d: T,
+) -> Result<PoleResidue<T>> {
     numerator_poles(&mut out, hg, ng)?;
     let n_inf = ng.iter().fold(T::from(0.0), |acc, g| acc + g.coef[0]);
     out.direct = n_inf / d;

@@ -1779,14 +1779,19 @@ mod tests {
         }
     }
 
-    #[test]
-    fn the_stall_test_stops_a_fit_whose_cost_no_longer_falls() {
-        let tight = LmOptions {
+    /// Tolerances no fit meets: only the stall or give-up test (or the iteration cap) stops it.
+    fn tight_options() -> LmOptions {
+        LmOptions {
             ftol: 1e-15,
             xtol: 1e-15,
             gtol: 1e-15,
             ..LmOptions::default()
-        };
+        }
+    }
+
+    #[test]
+    fn the_stall_test_stops_a_fit_whose_cost_no_longer_falls() {
+        let tight = tight_options();
         let p0 = [0.5, 3.0];
         let plain = minimize(&mut NoisyExp::new(), &p0, &tight).unwrap();
         // A window longer than the fit never fires: the same path, bit for bit.
@@ -1822,12 +1827,7 @@ mod tests {
 
     #[test]
     fn the_give_up_test_stops_only_a_fit_that_cannot_reach_its_target() {
-        let tight = LmOptions {
-            ftol: 1e-15,
-            xtol: 1e-15,
-            gtol: 1e-15,
-            ..LmOptions::default()
-        };
+        let tight = tight_options();
         let p0 = [0.5, 3.0];
         let plain = minimize(&mut NoisyExp::new(), &p0, &tight).unwrap();
         let best = 0.5 * plain.ssr();
