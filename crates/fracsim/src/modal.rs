@@ -186,6 +186,15 @@ pub struct PoleResidue<T> {
 }
 
 impl<T: Real> PoleResidue<T> {
+    /// No pole and no feed-through (an expansion being built).
+    fn empty() -> Self {
+        Self {
+            real: vec![],
+            complex: vec![],
+            direct: T::from(0.0),
+        }
+    }
+
     /// The frequency response at `omega` rad/s (values only).
     pub fn freq_response(&self, omega: f64) -> Complex64 {
         let s = Complex64::new(0.0, omega);
@@ -895,14 +904,10 @@ fn expansion<T: Real>(
     hg64: &[Group<f64>],
     d: T,
 ) -> Result<PoleResidue<T>> {
-    let mut out = PoleResidue {
-        real: vec![],
-        complex: vec![],
-        direct: T::from(0.0),
-    };
     if hg.iter().chain(ng).all(|g| g.poles.is_empty()) {
         return rational_expansion(roots, hg, ng, d);
     }
+    let mut out = PoleResidue::empty();
     // The denominator's cell poles (as indices into the groups, to take them in type T).
     let cell_poles: Vec<(usize, usize)> = hg64
         .iter()
@@ -951,11 +956,7 @@ fn rational_expansion<T: Real>(
     ng: &[Group<T>],
     d: T,
 ) -> Result<PoleResidue<T>> {
-    let mut out = PoleResidue {
-        real: vec![],
-        complex: vec![],
-        direct: T::from(0.0),
-    };
+    let mut out = PoleResidue::empty();
     // Every pole in `T` (one Newton step from its root), conjugates included.
     let mut lams: Vec<Cx<T>> = vec![];
     for &r in roots.iter().filter(|r| r.im >= 0.0) {

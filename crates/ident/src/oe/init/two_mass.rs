@@ -267,21 +267,7 @@ fn levy_candidates(lin: &FracModel, frf: &Frf, dt: f64) -> Result<(Vec<Candidate
             .tf(&whole.values())
             .map_or(f64::NAN, |g| frf_error(frf, &g));
         out.push((
-            with_values(
-                lin,
-                &[
-                    ("K", k),
-                    ("a1", a1),
-                    ("a2", a2),
-                    ("zeta", q),
-                    ("theta", q),
-                    ("b2", b2),
-                    ("c2", c2),
-                    ("d", d),
-                    ("mu", mu),
-                    ("tau", dt),
-                ],
-            ),
+            start_values(lin, [k, a1, a2, q], [b2, c2, d, mu], dt),
             format!(
                 "{what}: motor q = {q:.3}, resonance {:.2} Hz, anti-resonance {:.2} Hz \
                  (weighted error {err:.2e})",
@@ -576,21 +562,7 @@ fn peak_candidates(lin: &FracModel, frf: &Frf, dt: f64) -> Vec<Candidate> {
                 continue;
             };
             out.push((
-                with_values(
-                    lin,
-                    &[
-                        ("K", k),
-                        ("a1", a1),
-                        ("a2", a2),
-                        ("zeta", q),
-                        ("theta", q),
-                        ("b2", b2),
-                        ("c2", c2),
-                        ("d", d),
-                        ("mu", 1.0),
-                        ("tau", dt),
-                    ],
-                ),
+                start_values(lin, [k, a1, a2, q], [b2, c2, d, 1.0], dt),
                 format!(
                     "peak of Welch's estimate: resonance {:.4} Hz, anti-resonance {:.4} Hz, {what}",
                     hz(w_r),
@@ -720,6 +692,27 @@ fn time_refined(
     Ok(out)
 }
 
+/// The start's values of `lin` (the two-mass structure): the motor `[K, a1, a2, q]` with both
+/// orders `zeta = theta = q`, the pair `[b2, c2, d, mu]`, the delay's start `tau = dt`.
+fn start_values(lin: &FracModel, motor: [f64; 4], pair: [f64; 4], dt: f64) -> Vec<f64> {
+    let [k, a1, a2, q] = motor;
+    let [b2, c2, d, mu] = pair;
+    with_values(
+        lin,
+        &[
+            ("K", k),
+            ("a1", a1),
+            ("a2", a2),
+            ("zeta", q),
+            ("theta", q),
+            ("b2", b2),
+            ("c2", c2),
+            ("d", d),
+            ("mu", mu),
+            ("tau", dt),
+        ],
+    )
+}
 #[cfg(test)]
 mod tests {
     use super::*;
