@@ -593,8 +593,9 @@ fn score_of(name: &str, o: &Outcome) -> StructureScore {
     s
 }
 
-/// The decision in words: the chosen row (with its effects, when diagnosed), the rule, and what it
-/// gains over the best integer-order candidate.
+/// The decision in words: the chosen row (with its effects, when diagnosed), the rule, what it
+/// gains over the best integer-order candidate, and what each of the `reduced` candidates
+/// ([`reduce_degenerate`]) lost.
 fn reason(
     cands: &[(String, FracModel)],
     scores: &[StructureScore],
@@ -602,6 +603,7 @@ fn reason(
     best: f64,
     held_out: bool,
     diagnosed: bool,
+    reduced: &[(usize, String)],
 ) -> (String, Option<IntegerReference>) {
     let s = &scores[chosen];
     let with = match (diagnosed, s.effects.is_empty()) {
@@ -620,7 +622,11 @@ fn reason(
         s.bic_after.unwrap_or(f64::NAN),
         s.free_params,
     );
-    (words, reference)
+    let reduced: String = reduced
+        .iter()
+        .map(|(i, what)| format!("; {}: {what}", cands[*i].0))
+        .collect();
+    (words + &reduced, reference)
 }
 
 /// Whether a candidate is an integer-order reference (every order a whole number).
@@ -841,10 +847,8 @@ pub fn diagnose_best(
         .id
         .as_ref()
         .is_some_and(|id| id.validation.is_some());
-    let (mut reason, integer_reference) = reason(&cands, &scores, chosen, best, held_out, true);
-    for (i, what) in &reduced {
-        reason.push_str(&format!("; {}: {what}", cands[*i].0));
-    }
+    let (mut reason, integer_reference) =
+        reason(&cands, &scores, chosen, best, held_out, true, &reduced);
     if !skipped.is_empty() {
         let names: Vec<&str> = skipped.iter().map(|&i| cands[i].0.as_str()).collect();
         reason.push_str(&format!(
@@ -930,10 +934,8 @@ pub fn fit_best(
     let held_out = fits[chosen]
         .as_ref()
         .is_ok_and(|id| id.validation.is_some());
-    let (mut reason, integer_reference) = reason(&cands, &scores, chosen, best, held_out, false);
-    for (i, what) in &reduced {
-        reason.push_str(&format!("; {}: {what}", cands[*i].0));
-    }
+    let (reason, integer_reference) =
+        reason(&cands, &scores, chosen, best, held_out, false, &reduced);
     let id = fits.swap_remove(chosen)?;
     let choice = StructureChoice {
         scores,
@@ -989,12 +991,7 @@ fn reduce_degenerate(
         let mut given = opts.clone();
         given.start = crate::oe::StartMode::Given;
         let before = base_rmse(id);
-        let (refit, cache) = std::thread::scope(|scope| {
-            scope
-                .spawn(|| identified(rec, &reduced, &given))
-                .join()
-                .unwrap_or_else(|_| (panicked(), None))
-        });
+        let (refit, cache) = fresh_fit(rec, &reduced, &given);
         let determined = |r: &Identification| {
             r.report
                 .params
