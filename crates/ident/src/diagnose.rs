@@ -312,9 +312,8 @@ impl Ctx<'_> {
     }
 
     fn bic(&self, st: &State) -> f64 {
-        let n = self.split as f64;
-        let k = st.model.params.iter().filter(|p| p.free).count() as f64;
-        n * (st.ssr / n).max(1e-300).ln() + k * n.ln()
+        let k = st.model.params.iter().filter(|p| p.free).count();
+        bic(st.ssr, self.split, k)
     }
 
     /// The linear part of the current model applied to `x` (deviation scale).
@@ -578,6 +577,14 @@ fn keep_ceiling(ctx: &Ctx<'_>, st: &State, c: &Candidate) -> f64 {
     let dk = c.starts.first().map_or(0.0, free) - free(&st.model);
     let margin = st.val.is_none().then_some(ctx.opts.margin);
     ceiling(st.ssr, ctx.split, dk, margin)
+}
+
+/// Schwarz's (1978) Bayesian information criterion of a least-squares fit with `k` free
+/// parameters and sum of squares `ssr` over `n` samples, `n ln(ssr/n) + k ln n` (Gaussian errors,
+/// constants dropped): the diagnosis's and the structure comparison's.
+pub(crate) fn bic(ssr: f64, n: usize, k: usize) -> f64 {
+    let n = n as f64;
+    n * (ssr / n).max(1e-300).ln() + k as f64 * n.ln()
 }
 
 /// [`keep_ceiling`] for a current sum of squares `ssr` over `n` estimation samples, `dk` added
@@ -1048,13 +1055,9 @@ mod tests {
     /// [`Ctx::bic`] computes it.
     #[test]
     fn the_keep_ceiling_is_where_bic_and_the_margin_stop_agreeing() {
-        let bic = |ssr: f64, n: usize, k: f64| {
-            let n = n as f64;
-            n * (ssr / n).ln() + k * n.ln()
-        };
-        let (ssr, n, k) = (12.5, 3000, 7.0);
-        for dk in [0.0, 1.0, 3.0] {
-            let c = ceiling(ssr, n, dk, None);
+        let (ssr, n, k) = (12.5, 3000, 7);
+        for dk in [0, 1, 3] {
+            let c = ceiling(ssr, n, dk as f64, None);
             assert!(bic(c * (1.0 + 1e-9), n, k + dk) > bic(ssr, n, k), "dk {dk}");
             assert!(bic(c * (1.0 - 1e-9), n, k + dk) < bic(ssr, n, k), "dk {dk}");
         }

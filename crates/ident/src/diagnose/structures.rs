@@ -584,7 +584,7 @@ fn score_of(name: &str, o: &Outcome) -> StructureScore {
             s.effects = d.effects.iter().map(|e| e.name.clone()).collect();
             s.free_params = k;
             s.rmse_after = Some(d.after.rmse);
-            s.bic_after = Some(n * (ssr / n).max(1e-300).ln() + k as f64 * n.ln());
+            s.bic_after = Some(super::bic(ssr, id.split, k));
         }
         (Some(_), Some(Err(e))) => s.failed = Some(format!("its diagnosis failed: {e}")),
         (None, Some(Err(e))) => s.failed = Some(e.to_string()),
@@ -961,7 +961,7 @@ fn base_score(name: &str, f: &Result<Identification>) -> StructureScore {
             s.rmse_after = s.rmse;
             s.problems = id.problems.clone();
             s.free_params = k;
-            s.bic_after = Some(n * (ssr / n).max(1e-300).ln() + k as f64 * n.ln());
+            s.bic_after = Some(super::bic(ssr, id.split, k));
         }
         Err(e) => s.failed = Some(e.to_string()),
     }
