@@ -34,5 +34,28 @@ pub enum Error {
     Sim(#[from] fracsim::Error),
 }
 
+impl Error {
+    /// What went wrong without the variant's leading words (`"invalid data: "`, ...): for a
+    /// message that wraps another error's reason. An I/O error keeps its path, a simulation
+    /// error its own words.
+    ///
+    /// ```
+    /// let e = ident::Error::NotEnoughData("no resonance".into());
+    /// assert_eq!(e.detail(), "no resonance");
+    /// assert_eq!(e.to_string(), "not enough information in the data: no resonance");
+    /// ```
+    #[must_use]
+    pub fn detail(&self) -> String {
+        match self {
+            Self::Data(m)
+            | Self::NotEnoughData(m)
+            | Self::Options(m)
+            | Self::Numerical(m)
+            | Self::Cancelled(m) => m.clone(),
+            Self::Io { .. } | Self::Sim(_) => self.to_string(),
+        }
+    }
+}
+
 /// `Result` with [`Error`].
 pub type Result<T, E = Error> = std::result::Result<T, E>;

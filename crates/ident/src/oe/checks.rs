@@ -292,6 +292,34 @@ fn singular_and_no_better_than_a_constant(id: &Identification) -> Option<String>
     })
 }
 
+/// The free plant parameters (not the initial state's levels nor the output offset) whose
+/// standard error is [`UNDETERMINED`] times their value or more, and those whose standard error
+/// exceeds their value, each as `name = value +- se`.
+fn weak_parameters(id: &Identification) -> (Vec<String>, Vec<String>) {
+    let (mut undetermined, mut poor) = (Vec::new(), Vec::new());
+    for (i, e) in id.report.params.iter().enumerate() {
+        if !e.free || id.model.is_initial_state(i) || e.name == "y_offset" {
+            continue;
+        }
+        let said = |se: f64| format!("{} = {:.4e} +- {se:.2e}", e.name, e.value);
+        match e.std_error {
+            Some(se) if se > UNDETERMINED * e.value.abs() => undetermined.push(said(se)),
+            Some(se) if se > e.value.abs() => poor.push(said(se)),
+            _ => {}
+        }
+    }
+    (undetermined, poor)
+}
+
+/// "1 parameter is" / "3 parameters are".
+fn are(n: usize) -> String {
+    if n == 1 {
+        "1 parameter is".into()
+    } else {
+        format!("{n} parameters are")
+    }
+}
+
 /// A model that predicts a held-out part with input changes of its own
 /// ([`ValidationKind::HeldOut`]) worse than that part's own mean (NRMSE below 0): it does not
 /// describe the dynamics these data show, whatever its estimation fit. (A step test's settled
@@ -411,23 +439,21 @@ pub(crate) fn assess(id: &Identification, rec: &Record) -> (Vec<String>, Vec<Str
             warnings.push(w);
         }
     }
-    for (i, e) in id.report.params.iter().enumerate() {
-        if !e.free || m.is_initial_state(i) || e.name == "y_offset" {
-            continue;
-        }
-        match e.std_error {
-            Some(se) if se > UNDETERMINED * e.value.abs() => problems.push(format!(
-                "{} = {:.4e} +- {se:.2e} is not determined by these data (standard error \
-                 {UNDETERMINED} times the value or more)",
-                e.name, e.value
-            )),
-            Some(se) if se > e.value.abs() => warnings.push(format!(
-                "{} = {:.4e} +- {se:.2e} is poorly identifiable from these data (standard error \
-                 larger than the value)",
-                e.name, e.value
-            )),
-            _ => {}
-        }
+    let (undetermined, poor) = weak_parameters(id);
+    if !undetermined.is_empty() {
+        problems.push(format!(
+            "{} not determined by these data (standard error {UNDETERMINED} times the value or \
+             more): {}",
+            are(undetermined.len()),
+            undetermined.join(", ")
+        ));
+    }
+    if !poor.is_empty() {
+        warnings.push(format!(
+            "{} poorly identifiable from these data (standard error larger than the value): {}",
+            are(poor.len()),
+            poor.join(", ")
+        ));
     }
     problems.extend(same_order_terms(m, p));
     problems.extend(singular_and_no_better_than_a_constant(id));

@@ -913,6 +913,9 @@ pub fn auto_start(model: &mut FracModel, u: &[f64], y: &[f64], dt: f64) -> Resul
     let mut buf = vec![0.0; scored];
     let mut report = StartReport::given("");
     let mut chosen: Option<(f64, Vec<f64>)> = None;
+    // Why the Levy start is not used, and for the two-mass structure (which has no other start)
+    // the error itself, so its reason is said without the variant's words.
+    let mut levy_error: Option<Error> = None;
     let why_not_levy = if model.kind == Kind::Fopdt {
         "the FOPDT model starts from the coarse search".to_string()
     } else if model.kind == Kind::Integer {
@@ -936,7 +939,11 @@ pub fn auto_start(model: &mut FracModel, u: &[f64], y: &[f64], dt: f64) -> Resul
             other => other,
         };
         match started {
-            Err(e) => format!("no Levy start: {e}"),
+            Err(e) => {
+                let why = format!("no Levy start: {e}");
+                levy_error = Some(e);
+                why
+            }
             Ok((frf, cands, q, how)) => {
                 let mut best: Option<(f64, Vec<f64>, String)> = None;
                 for ((v, label), sse) in candidate_sses(&lin, cands, us, ys, dt, &mut buf) {
@@ -991,12 +998,7 @@ pub fn auto_start(model: &mut FracModel, u: &[f64], y: &[f64], dt: f64) -> Resul
     if model.kind == Kind::TwoMass && chosen.is_none() {
         // The coarse search has no resonance to offer: the structure is dropped at once, with the
         // reason once (not behind the error variant's words again).
-        let why = why_not_levy
-            .strip_prefix("no Levy start: ")
-            .unwrap_or(&why_not_levy);
-        let why = why
-            .strip_prefix("not enough information in the data: ")
-            .unwrap_or(why);
+        let why = levy_error.map_or(why_not_levy, |e| e.detail());
         return Err(Error::NotEnoughData(format!(
             "the two-mass structure has no start: {why}"
         )));
