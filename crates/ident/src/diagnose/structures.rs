@@ -29,7 +29,10 @@
 //! diagnosed (the others only when none of those ends with a final model). The reason names the
 //! structures left out. A structure whose base fit is final and usable is diagnosed at once, while
 //! the others are still being fitted, and given up when a better base fit puts it beyond [`FAR`]:
-//! the same diagnosis as after all the fits, used only when the rule above asks for it.
+//! the same diagnosis as after all the fits, used only when the rule above asks for it. A
+//! two-mass screening fit that has degenerated already is refitted as its smallest reduced
+//! structure instead of in full when that fits as well ([`reduce_screened`]); every degenerate
+//! two-mass fit is made well posed on its own thread before it is diagnosed ([`reduce_one`]).
 
 use crate::data::Record;
 use crate::oe::{identify, FracModel, IdentOptions, Identification};
