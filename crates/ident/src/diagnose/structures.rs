@@ -1342,6 +1342,44 @@ fn product(a: &crate::oe::Expr, b: &crate::oe::Expr) -> crate::oe::Expr {
 mod tests {
     use super::*;
 
+    /// The smallest reduced two-mass structure ([`reduce_screened`]) started from a degenerate
+    /// fit's values (the robot arm's screening fit, rounded): `g = K b2`, `nu = zeta + theta`,
+    /// `c = c2 + d`, `lambda` the coefficients' mean order, five free parameters; the reduced model's frequency response at three frequencies is compared with
+    /// `g (jw)^2 / ((a2 (jw)^nu + 1)(c (jw)^lambda + 1))` written out here (1e-12 relative).
+    #[test]
+    fn the_smallest_reduction_starts_from_the_degenerate_fits_products() {
+        let (k, a1, a2, zeta, theta, b2, c2, d, mu) = (
+            -0.0129, 1.9e-43, 6.73, 0.923, 0.922, 121.6, 1.63, 0.0357, 0.184,
+        );
+        let m = FracModel::two_mass([k, a1, a2, zeta, theta], [b2, c2, d, mu]);
+        let c = Collapse {
+            undamped: true,
+            at_origin: true,
+            pair_merged: true,
+            values: [k, a1, a2, zeta, theta, b2, c2, d, mu],
+        };
+        let r = reduced_model(&m, &c);
+        let v = r.values();
+        let at = |n: &str| v[r.index_of(n).unwrap_or_else(|| panic!("no {n}"))];
+        assert_eq!(r.params.iter().filter(|p| p.free).count(), 5);
+        assert!((at("g") - k * b2).abs() < 1e-12);
+        assert!((at("nu") - (zeta + theta)).abs() < 1e-12);
+        assert!((at("c") - (c2 + d)).abs() < 1e-12);
+        let lambda = (2.0 * c2 + mu * d) / (c2 + d);
+        assert!((at("lambda") - lambda).abs() < 1e-12);
+        let tf = r.tf(&v).unwrap();
+        for w in [0.01, 0.3, 2.0] {
+            let s = num_complex::Complex64::new(0.0, w);
+            let want = k * b2 * s.powf(2.0)
+                / ((a2 * s.powf(zeta + theta) + 1.0) * ((c2 + d) * s.powf(lambda) + 1.0));
+            let got = tf.freq_response(w);
+            assert!(
+                (got - want).norm() <= 1e-12 * want.norm(),
+                "{w}: {got} {want}"
+            );
+        }
+    }
+
     /// The pre-screen leaves out a fit far behind the user's, or behind it with problems, and
     /// keeps one that passes the user's even with problems after its few iterations (an output
     /// that integrates) and one behind but usable within `FAR^2`.
