@@ -29,7 +29,10 @@
 //! diagnosed (the others only when none of those ends with a final model). The reason names the
 //! structures left out. A structure whose base fit is final and usable is diagnosed at once, while
 //! the others are still being fitted, and given up when a better base fit puts it beyond [`FAR`]:
-//! the same diagnosis as after all the fits, used only when the rule above asks for it.
+//! the same diagnosis as after all the fits, used only when the rule above asks for it. A
+//! two-mass screening fit that has degenerated already is refitted as its smallest reduced
+//! structure instead of in full when that fits as well ([`reduce_screened`]); every degenerate
+//! two-mass fit is made well posed on its own thread before it is diagnosed ([`reduce_one`]).
 
 use crate::data::Record;
 use crate::oe::{identify, FracModel, IdentOptions, Identification};
@@ -274,6 +277,9 @@ struct Based {
     fitted: Fitted,
     out: bool,
     early: Option<Result<super::Diagnosis>>,
+    /// The reduced structure and the words, when the fit was a degenerate two-mass fit made well
+    /// posed ([`reduce_one`]): `fitted` is then the reduced refit.
+    reduced: Option<(FracModel, String)>,
 }
 
 /// What the candidates' threads share ([`fit_candidates`]).
@@ -421,12 +427,12 @@ fn fit_candidates(
                         }));
                     let (fitted, full) = screened.unwrap_or_else(|_| ((panicked(), None), true));
                     shared.screened(&fitted, full);
-                    let (fitted, out) = if full {
-                        (fitted, false)
+                    let (mut fitted, out, smallest) = if full {
+                        (fitted, false, None)
                     } else if fitted.0.is_err() {
                         // A failed screening fit is fitted in full whatever the reference: no
                         // need to wait for it.
-                        (fresh_fit(rec, m, opts), false)
+                        (fresh_fit(rec, m, opts), false, None)
                     } else {
                         let reference = shared.reference();
                         match fitted {
@@ -434,17 +440,29 @@ fn fit_candidates(
                                 if base_rmse(&id) > FAR * reference
                                     || reference.is_finite() && !id.usable() =>
                             {
-                                ((Ok(id), cache), true)
+                                ((Ok(id), cache), true, None)
                             }
-                            _ => (fresh_fit(rec, m, opts), false),
+                            (Ok(id), _) => match reduce_screened(rec, &id, opts) {
+                                Some((fitted, reduced)) => (fitted, false, Some(reduced)),
+                                None => (fresh_fit(rec, m, opts), false, None),
+                            },
+                            other => (other, false, None),
                         }
                     };
+                    // A degenerate two-mass fit is made well posed here, before its diagnosis
+                    // (the degenerate fit itself is then never diagnosed).
+                    let reduced = smallest.or_else(|| reduce_one(rec, &mut fitted, opts));
                     let early = if out {
                         None
                     } else {
                         shared.diagnose_early(rec, &fitted, dopts)
                     };
-                    Based { fitted, out, early }
+                    Based {
+                        fitted,
+                        out,
+                        early,
+                        reduced,
+                    }
                 })
             })
             .collect();
@@ -455,6 +473,7 @@ fn fit_candidates(
                     fitted: (panicked(), None),
                     out: false,
                     early: None,
+                    reduced: None,
                 })
             })
             .collect()
@@ -771,20 +790,22 @@ pub fn diagnose_best(
     let based = fit_candidates(rec, &cands, user, opts, dopts);
     let screened_out: Vec<usize> = (0..based.len()).filter(|&i| based[i].out).collect();
     let mut early = vec![];
+    // A degenerate two-mass fit made well posed on its thread ([`reduce_one`]): renamed
+    // `two-mass (reduced)`, its fit the reduced refit.
+    let mut reduced = vec![];
     let (mut ids, mut caches): (Vec<Result<Identification>>, Vec<Option<RootsCache>>) = based
         .into_iter()
-        .map(|b| {
+        .enumerate()
+        .map(|(i, b)| {
             // A diagnosis given up is made again if it is needed after all.
             early.push(b.early.filter(|d| !matches!(d, Err(Error::Cancelled(_)))));
+            if let Some((model, what)) = b.reduced {
+                cands[i] = (format!("{} (reduced)", cands[i].0), model);
+                reduced.push((i, what));
+            }
             b.fitted
         })
         .unzip();
-    // A degenerate two-mass fit made well posed: its early diagnosis (of the degenerate fit) is
-    // dropped, the reduced one diagnosed like the others.
-    let reduced = reduce_degenerate(rec, &mut cands, &mut ids, &mut caches, opts);
-    for (i, _) in &reduced {
-        early[*i] = None;
-    }
     // The base fits prune the comparison (see [`diagnosis_order`]); the rest is diagnosed only
     // when none of the first ends with a final model (those screened out fitted in full first).
     // A diagnosis started early is used when it is needed (the same diagnosis), dropped when not.
@@ -984,39 +1005,99 @@ fn reduce_degenerate(
 ) -> Vec<(usize, String)> {
     let mut out = vec![];
     for i in 0..ids.len() {
-        let Ok(id) = &ids[i] else { continue };
-        let Some((reduced, what)) = reduced_two_mass(id) else {
-            continue;
-        };
-        let mut given = opts.clone();
-        given.start = crate::oe::StartMode::Given;
-        let before = base_rmse(id);
-        let (refit, cache) = fresh_fit(rec, &reduced, &given);
-        let determined = |r: &Identification| {
-            r.report
-                .params
-                .iter()
-                .all(|p| !p.free || p.at_bound || p.std_error.is_some_and(f64::is_finite))
-        };
-        match refit {
-            Ok(r) if r.usable() && determined(&r) && base_rmse(&r) <= (1.0 + TIE) * before => {
-                cands[i] = (format!("{} (reduced)", cands[i].0), reduced);
-                ids[i] = Ok(r);
-                caches[i] = cache;
-                out.push((i, what));
-            }
-            _ => {
-                if let Ok(id) = &mut ids[i] {
-                    id.problems.push(format!(
-                        "degenerate: {what}; the reduced structure did not fit as well with \
-                         every parameter determined, so these parameters are not determined \
-                         by the data"
-                    ));
-                }
-            }
+        let mut fitted = (std::mem::replace(&mut ids[i], panicked()), caches[i].take());
+        let reduced = reduce_one(rec, &mut fitted, opts);
+        (ids[i], caches[i]) = fitted;
+        if let Some((model, what)) = reduced {
+            cands[i] = (format!("{} (reduced)", cands[i].0), model);
+            out.push((i, what));
         }
     }
     out
+}
+
+/// [`reduce_degenerate`] for one candidate's base fit `fitted`: when it is a degenerate two-mass
+/// fit whose reduced refit passes, the refit (and its pole cache) replaces it and the reduced
+/// structure is returned with the words; when the refit does not pass, the fit gets the problem
+/// saying which parameters are not determined; otherwise it is left as it is.
+fn reduce_one(
+    rec: &Record,
+    fitted: &mut Fitted,
+    opts: &IdentOptions,
+) -> Option<(FracModel, String)> {
+    let Ok(id) = &mut fitted.0 else { return None };
+    let (reduced, what) = reduced_two_mass(id)?;
+    let mut given = opts.clone();
+    given.start = crate::oe::StartMode::Given;
+    let before = base_rmse(id);
+    let (refit, cache) = fresh_fit(rec, &reduced, &given);
+    match refit {
+        Ok(r) if r.usable() && determined(&r) && base_rmse(&r) <= (1.0 + TIE) * before => {
+            *fitted = (Ok(r), cache);
+            Some((reduced, what))
+        }
+        _ => {
+            id.problems.push(format!(
+                "degenerate: {what}; the reduced structure did not fit as well with every \
+                 parameter determined, so these parameters are not determined by the data"
+            ));
+            None
+        }
+    }
+}
+
+/// A degenerate two-mass screening fit `screened` (it used its budget, and [`reduced_two_mass`]
+/// finds a collapse) refitted at once as the smallest reduced structure, every collapse made
+/// (`g s/(a2 s^nu + 1) * s/(c s^lambda + 1)`, [`reduced_model`]) from the screening fit's values,
+/// instead of being fitted in full first: the refit (on a fresh thread, with its pole cache)
+/// and the reduced structure with the words when the refit passes [`reduce_one`]'s test with
+/// the screening fit's held-out RMSE as the bound (no [`TIE`]: it must fit at least as well as
+/// the degenerate fit so far). The full fit of a degenerate two-mass structure moves along the
+/// directions it cannot determine for the whole iteration budget (on the robot arm of
+/// `data/slicot_robot_arm` 500 iterations, not converged, ~90% of the diagnosis' CPU time)
+/// and is then reduced ([`reduce_one`]) to at most these collapses; when the smallest form
+/// already fits as well with every parameter determined, the full fit cannot end at a simpler
+/// description. `None` (fit in full, then reduce, as before) when the fit is not degenerate or
+/// the refit does not pass.
+fn reduce_screened(
+    rec: &Record,
+    screened: &Identification,
+    opts: &IdentOptions,
+) -> Option<(Fitted, (FracModel, String))> {
+    let c = collapse_of(screened).filter(|c| c.undamped || c.at_origin)?;
+    let smallest = Collapse {
+        undamped: true,
+        at_origin: true,
+        pair_merged: true,
+        ..c
+    };
+    let reduced = reduced_model(&screened.model, &smallest);
+    let mut given = opts.clone();
+    given.start = crate::oe::StartMode::Given;
+    let (refit, cache) = fresh_fit(rec, &reduced, &given);
+    let r = refit.ok()?;
+    if !(r.usable() && determined(&r) && base_rmse(&r) <= base_rmse(screened)) {
+        return None;
+    }
+    let [k, a1, _, _, _, b2, c2, d, mu] = c.values;
+    let what = format!(
+        "the screening fit ({} iterations) degenerate (the covariance singular; a1 = {a1:.1e}, \
+         K = {k:.2e}, b2/c2 = {:.1}, mu = {mu:.3}, d = {d:.2e}) refitted at once as the smallest \
+         reduced structure: the motor a2 s^nu + 1 (nu = zeta + theta), the numerator g s^2 \
+         (g = K b2), the pair c s^lambda + 1 (c = c2 + d), which fits at least as well with \
+         every parameter determined",
+        screened.report.iterations,
+        b2 / c2,
+    );
+    Some(((Ok(r), cache), (reduced, what)))
+}
+
+/// Whether every free parameter of the fit `r` not at a bound has a finite standard error.
+fn determined(r: &Identification) -> bool {
+    r.report
+        .params
+        .iter()
+        .all(|p| !p.free || p.at_bound || p.std_error.is_some_and(f64::is_finite))
 }
 
 /// A two-mass fit's term below this share of the others over the band has collapsed: the motor's
@@ -1034,6 +1115,61 @@ pub const MERGED_ORDERS: f64 = 0.1;
 /// acceleration: the response starts as `s^2`). A drive train's `b2 / c2 = 1 + J_l/J_m`.
 pub const ZEROS_AT_ORIGIN: f64 = 100.0;
 
+/// How a two-mass fit has degenerated ([`reduced_two_mass`]).
+#[derive(Clone, Copy)]
+struct Collapse {
+    /// The motor's damping term collapsed ([`COLLAPSED`]).
+    undamped: bool,
+    /// The zeros moved to `s = 0` ([`ZEROS_AT_ORIGIN`]).
+    at_origin: bool,
+    /// With the zeros at the origin, the pair's damping merged with its inertia
+    /// ([`MERGED_ORDERS`]).
+    pair_merged: bool,
+    /// `K, a1, a2, zeta, theta, b2, c2, d, mu`.
+    values: [f64; 9],
+}
+
+/// The collapses of a two-mass fit `id` with a singular covariance (a free parameter without a
+/// standard error), without an integrator or a delay; `None` for any other fit.
+fn collapse_of(id: &Identification) -> Option<Collapse> {
+    let m = &id.model;
+    if m.kind != crate::oe::Kind::TwoMass || m.integrator || m.delay.is_some() {
+        return None;
+    }
+    let singular = id
+        .report
+        .params
+        .iter()
+        .any(|p| p.free && p.std_error.is_none());
+    if !singular {
+        return None;
+    }
+    let v = m.values();
+    let at = |n: &str| m.index_of(n).map(|i| v[i]);
+    let values = [
+        at("K")?,
+        at("a1")?,
+        at("a2")?,
+        at("zeta")?,
+        at("theta")?,
+        at("b2")?,
+        at("c2")?,
+        at("d")?,
+        at("mu")?,
+    ];
+    let [_, a1, a2, zeta, theta, b2, c2, _, mu] = values;
+    let corner = a2.powf(-1.0 / (zeta + theta));
+    let at_origin = b2 >= ZEROS_AT_ORIGIN * c2;
+    Some(Collapse {
+        undamped: a1 * corner.powf(zeta) <= COLLAPSED,
+        at_origin,
+        // The pair's damping term of order near 2 merges with its inertia term (only `c2 + d` is
+        // determined); with the zeros at the origin the pair is then `c s^lambda + 1`.
+        pair_merged: at_origin && (2.0 - mu).abs() <= MERGED_ORDERS,
+        values,
+    })
+}
+
 /// The well-posed form of a degenerate two-mass fit `id` (its covariance singular, see
 /// [`COLLAPSED`] and [`ZEROS_AT_ORIGIN`]), with a sentence saying what was removed, or `None`
 /// when the fit is not degenerate so. The structure with the collapsed parts removed, started
@@ -1047,40 +1183,42 @@ pub const ZEROS_AT_ORIGIN: f64 = 100.0;
 /// `G = g s^2 / ((a2 s^nu + 1)(c2 s^2 + d s^mu + 1))` when both, simulated as motor times pair
 /// ([`FracModel::series`]).
 pub fn reduced_two_mass(id: &Identification) -> Option<(FracModel, String)> {
-    let m = &id.model;
-    if m.kind != crate::oe::Kind::TwoMass {
+    let c = collapse_of(id)?;
+    if !(c.undamped || c.at_origin) {
         return None;
     }
-    let singular = id
-        .report
-        .params
-        .iter()
-        .any(|p| p.free && p.std_error.is_none());
-    if !singular {
-        return None;
+    let [k, a1, _, _, _, b2, _, _, mu] = c.values;
+    let mut what = vec![];
+    if c.undamped {
+        what.push(format!(
+            "the motor's damping term a1 s^zeta collapsed (a1 = {a1:.1e}): removed, the motor \
+             a2 s^nu + 1 with nu = zeta + theta"
+        ));
     }
-    let v = m.values();
-    let at = |n: &str| m.index_of(n).map(|i| v[i]);
-    let (k, a1, a2, zeta, theta, b2, c2, d, mu) = (
-        at("K")?,
-        at("a1")?,
-        at("a2")?,
-        at("zeta")?,
-        at("theta")?,
-        at("b2")?,
-        at("c2")?,
-        at("d")?,
-        at("mu")?,
-    );
-    let corner = a2.powf(-1.0 / (zeta + theta));
-    let undamped = a1 * corner.powf(zeta) <= COLLAPSED;
-    let at_origin = b2 >= ZEROS_AT_ORIGIN * c2;
-    // The pair's damping term of order near 2 merges with its inertia term (only `c2 + d` is
-    // determined); with the zeros at the origin the pair is then `c s^lambda + 1`.
-    let pair_merged = at_origin && (2.0 - mu).abs() <= MERGED_ORDERS;
-    if !(undamped || at_origin) {
-        return None;
+    if c.at_origin {
+        what.push(format!(
+            "the zeros moved to s = 0 (K = {k:.2e}, b2 = {b2:.2e}, only K b2 determined): the \
+             numerator g s^2 with g = K b2"
+        ));
     }
+    if c.pair_merged {
+        what.push(format!(
+            "the pair's damping order mu = {mu:.3} reached its inertia's 2 (only c2 + d \
+             determined): the pair c s^lambda + 1"
+        ));
+    }
+    Some((reduced_model(&id.model, &c), what.join("; ")))
+}
+
+/// The two-mass model `m` with the collapses `c` removed, started from `c`'s values
+/// ([`reduced_two_mass`]).
+fn reduced_model(m: &FracModel, c: &Collapse) -> FracModel {
+    let Collapse {
+        undamped,
+        at_origin,
+        pair_merged,
+        values: [k, a1, a2, zeta, theta, b2, c2, d, mu],
+    } = *c;
     use crate::oe::{Bounds, Expr, Param};
     let mut r = m.clone();
     r.operating_point = Default::default();
@@ -1180,29 +1318,7 @@ pub fn reduced_two_mass(id: &Identification) -> Option<(FracModel, String)> {
     r.delay = None;
     r.effects.clear();
     r.integrator = false;
-    if m.integrator || m.delay.is_some() {
-        return None;
-    }
-    let mut what = vec![];
-    if undamped {
-        what.push(format!(
-            "the motor's damping term a1 s^zeta collapsed (a1 = {a1:.1e}): removed, the motor \
-             a2 s^nu + 1 with nu = zeta + theta"
-        ));
-    }
-    if at_origin {
-        what.push(format!(
-            "the zeros moved to s = 0 (K = {k:.2e}, b2 = {b2:.2e}, only K b2 determined): the \
-             numerator g s^2 with g = K b2"
-        ));
-    }
-    if pair_merged {
-        what.push(format!(
-            "the pair's damping order mu = {mu:.3} reached its inertia's 2 (only c2 + d \
-             determined): the pair c s^lambda + 1"
-        ));
-    }
-    Some((r, what.join("; ")))
+    r
 }
 
 /// The product of two coefficients that are each a parameter or a constant (the factors of
@@ -1225,6 +1341,44 @@ fn product(a: &crate::oe::Expr, b: &crate::oe::Expr) -> crate::oe::Expr {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The smallest reduced two-mass structure ([`reduce_screened`]) started from a degenerate
+    /// fit's values (the robot arm's screening fit, rounded): `g = K b2`, `nu = zeta + theta`,
+    /// `c = c2 + d`, `lambda` the coefficients' mean order, five free parameters; the reduced model's frequency response at three frequencies is compared with
+    /// `g (jw)^2 / ((a2 (jw)^nu + 1)(c (jw)^lambda + 1))` written out here (1e-12 relative).
+    #[test]
+    fn the_smallest_reduction_starts_from_the_degenerate_fits_products() {
+        let (k, a1, a2, zeta, theta, b2, c2, d, mu) = (
+            -0.0129, 1.9e-43, 6.73, 0.923, 0.922, 121.6, 1.63, 0.0357, 0.184,
+        );
+        let m = FracModel::two_mass([k, a1, a2, zeta, theta], [b2, c2, d, mu]);
+        let c = Collapse {
+            undamped: true,
+            at_origin: true,
+            pair_merged: true,
+            values: [k, a1, a2, zeta, theta, b2, c2, d, mu],
+        };
+        let r = reduced_model(&m, &c);
+        let v = r.values();
+        let at = |n: &str| v[r.index_of(n).unwrap_or_else(|| panic!("no {n}"))];
+        assert_eq!(r.params.iter().filter(|p| p.free).count(), 5);
+        assert!((at("g") - k * b2).abs() < 1e-12);
+        assert!((at("nu") - (zeta + theta)).abs() < 1e-12);
+        assert!((at("c") - (c2 + d)).abs() < 1e-12);
+        let lambda = (2.0 * c2 + mu * d) / (c2 + d);
+        assert!((at("lambda") - lambda).abs() < 1e-12);
+        let tf = r.tf(&v).unwrap();
+        for w in [0.01, 0.3, 2.0] {
+            let s = num_complex::Complex64::new(0.0, w);
+            let want = k * b2 * s.powf(2.0)
+                / ((a2 * s.powf(zeta + theta) + 1.0) * ((c2 + d) * s.powf(lambda) + 1.0));
+            let got = tf.freq_response(w);
+            assert!(
+                (got - want).norm() <= 1e-12 * want.norm(),
+                "{w}: {got} {want}"
+            );
+        }
+    }
 
     /// The pre-screen leaves out a fit far behind the user's, or behind it with problems, and
     /// keeps one that passes the user's even with problems after its few iterations (an output

@@ -230,7 +230,10 @@ fn record_input() -> Vec<f64> {
 /// Measured (2026-11-26): `two-mass (reduced)` chosen, no effect, held-out RMSE 0.05184 (the
 /// degenerate fit's 0.05180), converged, 5 structural parameters each with a standard error
 /// (`g = -1.459 +- 0.049`, `nu = 1.8543 +- 0.004`, `lambda = 1.9940 +- 0.0001`), BIC -4200.3
-/// against the degenerate fit's -4172.3. Bounds: the RMSE at most 0.060 (16% above the measured
+/// against the degenerate fit's -4172.3. Since session 17 the diagnosis reduces the two-mass
+/// screening fit (60 iterations, already degenerate) at once, without the 500-iteration fit
+/// (`structures::reduce_screened`): the same structure, held-out RMSE 0.05179, BIC -4198.9,
+/// `g = -1.460 +- 0.049`, `nu = 1.8549 +- 0.004`, `lambda = 1.9940 +- 0.0001`. Bounds: the RMSE at most 0.060 (16% above the measured
 /// one: a change of the LM path or the approximation moves the end point a little) and at most
 /// 0.8 times the old choice's 0.0900: the gain that must hold is the resonant structure's, clearly
 /// better than the integer second order with a delay; and the base fit converged with every
