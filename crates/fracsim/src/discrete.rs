@@ -132,6 +132,27 @@ impl<T: Real> Simulator<T> {
         Ok(Self::from_model(model, delay, dt))
     }
 
+    /// Build from a model already in pole-residue form (say, another's
+    /// [`PoleResidue::frequency_scaled`]) and an input delay in seconds.
+    ///
+    /// # Errors
+    /// A step that is not positive and finite; a delay that is not finite, negative or over 1e8
+    /// samples.
+    pub fn from_pole_residue(model: PoleResidue<T>, delay: T, dt: f64) -> Result<Self> {
+        let dt = finite("dt", dt)?;
+        if dt <= 0.0 {
+            return invalid("dt", format!("{dt} s must be positive"));
+        }
+        let d = finite("delay", delay.re())?;
+        if d < 0.0 {
+            return invalid("delay", format!("{d} s is negative"));
+        }
+        if d / dt > 1e8 {
+            return invalid("delay", format!("{d} s is more than 1e8 samples"));
+        }
+        Ok(Self::from_model(model, delay, dt))
+    }
+
     /// Build for the series connection of `factors`, each `(numerator, denominator)` terms as in
     /// [`Simulator::from_terms`]: each factor's approximated model in pole-residue form, then
     /// their product ([`PoleResidue::product`]), discretised as one system. The same model as

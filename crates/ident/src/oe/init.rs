@@ -670,10 +670,8 @@ fn coarse_start(lin: &FracModel, u: &[f64], y: &[f64], dt: f64) -> Option<(f64, 
             with(2.0 * z / w, 1.0 / (w * w), 0.0, 1.0, w)
         }
     };
-    // Each trial simulated by `model` at unit gain: (sse, K) with K by linear least squares.
-    let mut yhat = vec![0.0; m];
-    let mut trial = |model: &FracModel, v: &[f64]| -> Option<(f64, f64)> {
-        model.simulate(v, u, dt, &mut yhat).ok()?;
+    // Each trial's unit-gain output scored: (sse, K) with K by linear least squares.
+    let score = |yhat: &[f64]| -> Option<(f64, f64)> {
         let gg: f64 = yhat.iter().map(|v| v * v).sum();
         if !(gg > 0.0 && gg.is_finite()) {
             return None;
@@ -681,6 +679,12 @@ fn coarse_start(lin: &FracModel, u: &[f64], y: &[f64], dt: f64) -> Option<(f64, 
         let k = yhat.iter().zip(y).map(|(a, b)| a * b).sum::<f64>() / gg;
         let sse: f64 = yhat.iter().zip(y).map(|(a, b)| (b - k * a).powi(2)).sum();
         sse.is_finite().then_some((sse, k))
+    };
+    // Each trial simulated by `model` at unit gain.
+    let mut yhat = vec![0.0; m];
+    let mut trial = |model: &FracModel, v: &[f64]| -> Option<(f64, f64)> {
+        model.simulate(v, u, dt, &mut yhat).ok()?;
+        score(&yhat)
     };
     // (sse, K, unit-gain values): today's best (damped, K > 0), the best resonant one with
     // K > 0, and the best of either kind with K < 0.
@@ -699,10 +703,26 @@ fn coarse_start(lin: &FracModel, u: &[f64], y: &[f64], dt: f64) -> Option<(f64, 
     // (screening sse, unit-gain values) of the trials with a positive and a negative gain.
     type Screened = Vec<(f64, Vec<f64>)>;
     let (mut pos, mut neg): (Screened, Screened) = (vec![], vec![]);
+    // The damped trials of one order are one system at ten corners, `G(s/w_c)`: each is screened
+    // as the trial at the middle corner `w_ref` (approximated over the model's band) with its
+    // frequency axis scaled by `w_c/w_ref` ([`fracsim::modal::PoleResidue::frequency_scaled`]),
+    // its cells placed about its corner as the reference's are about `w_ref`: one eigenvalue
+    // problem for the ten (each built cold, they were most of the start's cost on a short record).
+    // A structure whose trials are not one system scaled (checked on their terms) builds each.
+    let w_ref = (w_lo * w_hi).sqrt();
+    let mut screen_out = vec![0.0; m];
     for &q in qs {
+        let reference = Screening::of(&cheap, &damped(q, w_ref), dt);
         for i in 0..10 {
-            let v = damped(q, w_lo * (w_hi / w_lo).powf(i as f64 / 9.0));
-            if let Some((sse, k)) = trial(&cheap, &v) {
+            let wc = w_lo * (w_hi / w_lo).powf(i as f64 / 9.0);
+            let v = damped(q, wc);
+            let scored = match &reference {
+                Some(r) if r.scales_to(&cheap, &v, wc / w_ref) => r
+                    .simulate(wc / w_ref, u, dt, &mut screen_out)
+                    .and_then(|()| score(&screen_out)),
+                _ => trial(&cheap, &v),
+            };
+            if let Some((sse, k)) = scored {
                 if k > 0.0 { &mut pos } else { &mut neg }.push((sse, v));
             }
         }
@@ -793,6 +813,69 @@ fn coarse_start(lin: &FracModel, u: &[f64], y: &[f64], dt: f64) -> Option<(f64, 
     }
     let mut buf = vec![0.0; n];
     sse_of(lin, &v, u_all, y_all, dt, 0, &mut buf).map(|s| (s, v))
+}
+
+/// A coarse trial's approximated model at a reference corner, for the trials that are the same
+/// system at other corners (`G(s/c)`, see [`coarse_start`]).
+struct Screening {
+    /// Its `(coefficient, order)` terms, numerator and denominator.
+    num: Vec<(f64, f64)>,
+    den: Vec<(f64, f64)>,
+    /// Its input delay (s), which a corner does not scale.
+    delay: f64,
+    /// Its pole-residue form.
+    model: fracsim::modal::PoleResidue<f64>,
+}
+
+impl Screening {
+    /// The terms and delay of `m` at `v`, when its linear part is one rational-in-operators
+    /// transfer function with nothing else (no series factors, effects or initial state).
+    fn terms(m: &FracModel, v: &[f64]) -> Option<(Vec<(f64, f64)>, Vec<(f64, f64)>, f64)> {
+        if !m.series.is_empty() || !m.effects.is_empty() || m.past.is_some() {
+            return None;
+        }
+        let eval = |t: &[(super::Expr, super::Expr)]| -> Vec<(f64, f64)> {
+            t.iter().map(|(c, o)| (c.eval(v), o.eval(v))).collect()
+        };
+        Some((eval(&m.num), eval(&m.den), m.delay.map_or(0.0, |i| v[i])))
+    }
+
+    /// `m` at `v`, approximated over its band for `dt` (`None` when it does not build or is not
+    /// one transfer function).
+    fn of(m: &FracModel, v: &[f64], dt: f64) -> Option<Self> {
+        let (num, den, delay) = Self::terms(m, v)?;
+        let band = m.approx.band_for(dt).ok()?;
+        let model = fracsim::modal::pole_residue(&num, &den, band, &m.approx).ok()?;
+        Some(Self {
+            num,
+            den,
+            delay,
+            model,
+        })
+    }
+
+    /// Whether `m` at `v` is this system with its frequency axis scaled by `c`: the same orders
+    /// and delay, each coefficient of order `alpha` this one's times `c^-alpha` (to 1e-9).
+    fn scales_to(&self, m: &FracModel, v: &[f64], c: f64) -> bool {
+        let Some((num, den, delay)) = Self::terms(m, v) else {
+            return false;
+        };
+        let same = |a: &[(f64, f64)], b: &[(f64, f64)]| {
+            a.len() == b.len()
+                && a.iter().zip(b).all(|(&(ca, oa), &(cb, ob))| {
+                    oa == ob && (cb - ca * c.powf(-oa)).abs() <= 1e-9 * cb.abs().max(ca.abs())
+                })
+        };
+        delay == self.delay && same(&self.num, &num) && same(&self.den, &den)
+    }
+
+    /// The unit-gain output of the system scaled by `c` for the input `u` from rest, into `y`.
+    fn simulate(&self, c: f64, u: &[f64], dt: f64, y: &mut [f64]) -> Option<()> {
+        let model = self.model.frequency_scaled(c).ok()?;
+        let mut sim = fracsim::Simulator::from_pole_residue(model, self.delay, dt).ok()?;
+        sim.run_into(u, y);
+        y.iter().all(|v| v.is_finite()).then_some(())
+    }
 }
 
 /// The approximation order `N` the coarse search screens its trials with (at most the model's):
