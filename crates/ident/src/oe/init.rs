@@ -694,9 +694,9 @@ fn coarse_start(lin: &FracModel, u: &[f64], y: &[f64], dt: f64) -> Option<(f64, 
             *best = Some((sse, k, v));
         }
     };
-    // Every damped trial is a model built cold (no nearby model's poles to start from: the
-    // trials are far apart), so they are screened with fewer approximation cells
-    // ([`COARSE_APPROX_ORDER`]); of each sign of the gain, the best few are scored again with the
+    // The damped trials are far apart (no nearby model's poles to start from), so they are
+    // screened with fewer approximation cells ([`COARSE_APPROX_ORDER`]) and one model per order,
+    // frequency-scaled (below); of each sign of the gain, the best few are scored again with the
     // model's own approximation, which decides.
     let mut cheap = lin.clone();
     cheap.approx.order = cheap.approx.order.min(COARSE_APPROX_ORDER);
@@ -815,12 +815,15 @@ fn coarse_start(lin: &FracModel, u: &[f64], y: &[f64], dt: f64) -> Option<(f64, 
     sse_of(lin, &v, u_all, y_all, dt, 0, &mut buf).map(|s| (s, v))
 }
 
+/// `(coefficient, order)` terms of a transfer function's numerator or denominator.
+type Terms = Vec<(f64, f64)>;
+
 /// A coarse trial's approximated model at a reference corner, for the trials that are the same
 /// system at other corners (`G(s/c)`, see [`coarse_start`]).
 struct Screening {
     /// Its `(coefficient, order)` terms, numerator and denominator.
-    num: Vec<(f64, f64)>,
-    den: Vec<(f64, f64)>,
+    num: Terms,
+    den: Terms,
     /// Its input delay (s), which a corner does not scale.
     delay: f64,
     /// Its pole-residue form.
@@ -830,11 +833,11 @@ struct Screening {
 impl Screening {
     /// The terms and delay of `m` at `v`, when its linear part is one rational-in-operators
     /// transfer function with nothing else (no series factors, effects or initial state).
-    fn terms(m: &FracModel, v: &[f64]) -> Option<(Vec<(f64, f64)>, Vec<(f64, f64)>, f64)> {
+    fn terms(m: &FracModel, v: &[f64]) -> Option<(Terms, Terms, f64)> {
         if !m.series.is_empty() || !m.effects.is_empty() || m.past.is_some() {
             return None;
         }
-        let eval = |t: &[(super::Expr, super::Expr)]| -> Vec<(f64, f64)> {
+        let eval = |t: &[(super::Expr, super::Expr)]| -> Terms {
             t.iter().map(|(c, o)| (c.eval(v), o.eval(v))).collect()
         };
         Some((eval(&m.num), eval(&m.den), m.delay.map_or(0.0, |i| v[i])))
@@ -879,7 +882,7 @@ impl Screening {
 }
 
 /// The approximation order `N` the coarse search screens its trials with (at most the model's):
-/// `2N + 1` cells per operator, the eigenvalue problem of each trial's model about an eighth of
+/// `2N + 1` cells per operator, the eigenvalue problem of a trial's model about an eighth of
 /// the default `N = 8`'s. Its error (a few percent of the response near the band's cells) is far
 /// below the differences between the trials (corner frequencies a factor 1.9 apart, orders 0.2).
 const COARSE_APPROX_ORDER: usize = 4;
@@ -1428,6 +1431,59 @@ mod tests {
             // be off by w dt/2 = 0.37 rad at the top.
             let r = w * dt / (2.0 * std::f64::consts::PI);
             assert!(err < 6.0 * r * r + 1e-4, "omega {w}: relative error {err}");
+        }
+    }
+
+    /// A damped trial screened as the reference trial frequency-scaled ([`Screening`]) is the
+    /// trial itself approximated over the band scaled alike and built cold (the truth: its own
+    /// eigenvalue problem; the refined Oustaloup cells and gain scale with the band): the
+    /// outputs agree to 1e-9 of the output's range (rounding in the poles, residues and the
+    /// discretisation), for the three orders the coarse search tries. A trial of another order is
+    /// not the reference's system scaled, nor is a trial of the same order off the damped family.
+    #[test]
+    fn a_scaled_screening_model_is_the_trial_approximated_on_the_scaled_band() {
+        let dt = 1e-4;
+        let n = 3000;
+        let u: Vec<f64> = (0..n)
+            .map(|k| if (k * 7919 / 13) % 5 < 2 { 1.0 } else { -1.0 })
+            .collect();
+        let mut cheap = FracModel::pmsm(1.0, 0.01, 1e-4, 0.9, 0.9);
+        cheap.approx.order = COARSE_APPROX_ORDER;
+        let damped = |q: f64, wc: f64, a2_factor: f64| {
+            let a1 = wc.powf(-q);
+            with_values(
+                &cheap,
+                &[
+                    ("K", 1.0),
+                    ("a1", a1),
+                    ("a2", a1 * a1 * a2_factor),
+                    ("zeta", q),
+                    ("theta", q),
+                ],
+            )
+        };
+        let (w_ref, wc) = (400.0, 3000.0);
+        let c = wc / w_ref;
+        let band = cheap.approx.band_for(dt).unwrap();
+        for q in [0.5, 0.7, 0.9] {
+            let reference = Screening::of(&cheap, &damped(q, w_ref, 0.25), dt).unwrap();
+            let v = damped(q, wc, 0.25);
+            assert!(reference.scales_to(&cheap, &v, c));
+            let mut fast = vec![0.0; n];
+            reference.simulate(c, &u, dt, &mut fast).unwrap();
+            let mut on_scaled_band = cheap.clone();
+            on_scaled_band.approx.band = Some((band.0 * c, band.1 * c));
+            let mut truth = vec![0.0; n];
+            on_scaled_band.simulate(&v, &u, dt, &mut truth).unwrap();
+            let (lo, hi) = crate::lm::range_of(&truth);
+            let worst = fast
+                .iter()
+                .zip(&truth)
+                .map(|(a, b)| (a - b).abs())
+                .fold(0.0, f64::max);
+            assert!(worst <= 1e-9 * (hi - lo), "q {q}: {worst:e} of {}", hi - lo);
+            assert!(!reference.scales_to(&cheap, &damped(q + 0.05, wc, 0.25), c));
+            assert!(!reference.scales_to(&cheap, &damped(q, wc, 0.3), c));
         }
     }
 
