@@ -132,6 +132,27 @@ impl<T: Real> Simulator<T> {
         Ok(Self::from_model(model, delay, dt))
     }
 
+    /// Build from a model already in pole-residue form (say, another's
+    /// [`PoleResidue::frequency_scaled`]) and an input delay in seconds.
+    ///
+    /// # Errors
+    /// A step that is not positive and finite; a delay that is not finite, negative or over 1e8
+    /// samples.
+    pub fn from_pole_residue(model: PoleResidue<T>, delay: T, dt: f64) -> Result<Self> {
+        let dt = finite("dt", dt)?;
+        if dt <= 0.0 {
+            return invalid("dt", format!("{dt} s must be positive"));
+        }
+        let d = finite("delay", delay.re())?;
+        if d < 0.0 {
+            return invalid("delay", format!("{d} s is negative"));
+        }
+        if d / dt > 1e8 {
+            return invalid("delay", format!("{d} s is more than 1e8 samples"));
+        }
+        Ok(Self::from_model(model, delay, dt))
+    }
+
     /// Build for the series connection of `factors`, each `(numerator, denominator)` terms as in
     /// [`Simulator::from_terms`]: each factor's approximated model in pole-residue form, then
     /// their product ([`PoleResidue::product`]), discretised as one system. The same model as
@@ -391,10 +412,22 @@ impl<T: Real> Simulator<T> {
     /// [`Error::Invalid`] for lengths that do not match or edges that are not positive, finite
     /// and increasing.
     pub fn set_past_input(&mut self, levels: &[T], edges: &[f64]) -> Result<()> {
-        if levels.len() != edges.len() + 1 {
+        let weights = self.past_weights(levels.len(), edges)?;
+        self.set_past_input_weighted(levels, edges, &weights);
+        Ok(())
+    }
+
+    /// Each mode's window weights `W_j` of [`Simulator::set_past_input`] for `n_levels` levels
+    /// on the windows `edges` (they do not depend on the levels: several level sets share them,
+    /// see [`Simulator::free_responses`]).
+    ///
+    /// # Errors
+    /// As [`Simulator::set_past_input`].
+    pub(crate) fn past_weights(&self, n_levels: usize, edges: &[f64]) -> Result<PastWeights<T>> {
+        if n_levels != edges.len() + 1 {
             return invalid(
                 "past input",
-                format!("{} levels for {} edges", levels.len(), edges.len()),
+                format!("{n_levels} levels for {} edges", edges.len()),
             );
         }
         let mut prev = 0.0;
@@ -407,14 +440,13 @@ impl<T: Real> Simulator<T> {
             }
             prev = e;
         }
-        self.reset();
         let zero = T::from(0.0);
         let tau = self.delay;
         // Weight of each window for a mode with pole `lam`, as the plant sees it (after the delay).
         let weights = |lam: Cx<T>| -> Vec<Cx<T>> {
-            let mut w = Vec::with_capacity(levels.len());
+            let mut w = Vec::with_capacity(n_levels);
             let mut c_in = 0.0;
-            for j in 0..levels.len() {
+            for j in 0..n_levels {
                 let c = T::from(c_in) - tau;
                 let c = if c.re() > 0.0 { c } else { zero };
                 let wj = if j < edges.len() {
@@ -435,6 +467,32 @@ impl<T: Real> Simulator<T> {
             }
             w
         };
+        Ok(PastWeights {
+            real: self
+                .model
+                .real
+                .iter()
+                .map(|&(lam, _)| weights(Cx::real(lam)))
+                .collect(),
+            complex: self
+                .model
+                .complex
+                .iter()
+                .map(|&(lam, _)| weights(lam))
+                .collect(),
+        })
+    }
+
+    /// [`Simulator::set_past_input`] with the modes' window weights `w` given (from
+    /// [`Simulator::past_weights`] of the same `edges`; `levels` checked there).
+    pub(crate) fn set_past_input_weighted(
+        &mut self,
+        levels: &[T],
+        edges: &[f64],
+        w: &PastWeights<T>,
+    ) {
+        self.reset();
+        let zero = T::from(0.0);
         let drive = |w: &[Cx<T>]| -> Cx<T> {
             let mut s = Cx::real(zero);
             for (wj, &b) in w.iter().zip(levels) {
@@ -442,12 +500,12 @@ impl<T: Real> Simulator<T> {
             }
             s
         };
-        for (i, &(lam, r)) in self.model.real.iter().enumerate() {
-            self.re_x[i] = (Cx::real(r) * drive(&weights(Cx::real(lam)))).re;
+        for (i, &(_, r)) in self.model.real.iter().enumerate() {
+            self.re_x[i] = (Cx::real(r) * drive(&w.real[i])).re;
         }
         let two = T::from(2.0);
-        for (i, &(lam, r)) in self.model.complex.iter().enumerate() {
-            self.cx_x[i] = (r * drive(&weights(lam))).scale(two);
+        for (i, &(_, r)) in self.model.complex.iter().enumerate() {
+            self.cx_x[i] = (r * drive(&w.complex[i])).scale(two);
         }
         // The delay line: u_(-i) for i = 1..=n-1 sits at hist[(n + 1 - i) % n] (see `push`).
         let n = self.hist.len();
@@ -456,7 +514,6 @@ impl<T: Real> Simulator<T> {
             let j = edges.iter().position(|&e| t <= e).unwrap_or(edges.len());
             self.hist[(n + 1 - i) % n] = levels[j];
         }
-        Ok(())
     }
 
     /// Back to rest: all states and the delay line zeroed.
@@ -797,6 +854,14 @@ pub fn lsim(tf: &FracTf, u: &[f64], dt: f64, spec: &ApproxSpec) -> Result<Vec<f6
         )));
     }
     Ok(y)
+}
+
+/// The window weights `W_j` of each mode for a past held input ([`Simulator::past_weights`]):
+/// one row per real mode and per complex pair, in the model's order.
+#[derive(Debug, Clone)]
+pub(crate) struct PastWeights<T> {
+    real: Vec<Vec<Cx<T>>>,
+    complex: Vec<Vec<Cx<T>>>,
 }
 
 #[cfg(test)]

@@ -186,6 +186,42 @@ pub struct PoleResidue<T> {
 }
 
 impl<T: Real> PoleResidue<T> {
+    /// The model with its frequency axis scaled by `c`: `G~(s/c) = direct + sum c r_i/(s - c
+    /// lambda_i)`, the poles and residues times `c`, the feed-through unchanged. For a model
+    /// approximated over a band, this is the frequency-scaled system (each coefficient
+    /// `a s^alpha` of the original times `c^-alpha`) approximated with its cells at `c` times the
+    /// original's: no eigenvalue problem.
+    ///
+    /// ```
+    /// use fracsim::{modal::pole_residue, ApproxSpec};
+    /// // 1/(0.1 s + 1) scaled by 2 is 1/(0.05 s + 1): the pole -20 with residue 20.
+    /// let pr = pole_residue::<f64>(&[(1.0, 0.0)], &[(0.1, 1.0), (1.0, 0.0)], (1e-3, 1e4),
+    ///                              &ApproxSpec::default()).unwrap();
+    /// let fast = pr.frequency_scaled(2.0).unwrap();
+    /// assert!((fast.real[0].0 + 20.0).abs() < 1e-12 && (fast.real[0].1 - 20.0).abs() < 1e-12);
+    /// ```
+    ///
+    /// # Errors
+    /// [`Error::Invalid`] when `c` is not positive and finite.
+    pub fn frequency_scaled(&self, c: f64) -> Result<Self> {
+        if !(c > 0.0 && c.is_finite()) {
+            return invalid(
+                "frequency scale",
+                format!("{c} must be positive and finite"),
+            );
+        }
+        let k = T::from(c);
+        Ok(Self {
+            real: self.real.iter().map(|&(l, r)| (l * k, r * k)).collect(),
+            complex: self
+                .complex
+                .iter()
+                .map(|&(l, r)| (l.scale(k), r.scale(k)))
+                .collect(),
+            direct: self.direct,
+        })
+    }
+
     /// No pole and no feed-through (an expansion being built).
     fn empty() -> Self {
         Self {

@@ -116,6 +116,10 @@ impl<P: Problem> Problem for FiniteDiff<P> {
     }
 }
 
+/// The largest last step, in standard errors, after which the covariance may be that of the
+/// point before it ([`LmOptions::covariance_before_last_step`]).
+const LAST_STEP_SE: f64 = 0.01;
+
 /// Options of [`minimize`]. `LmOptions::default()` suits most problems.
 #[derive(Debug, Clone, PartialEq)]
 pub struct LmOptions {
@@ -149,6 +153,13 @@ pub struct LmOptions {
     /// needs it (the stall test's assumption, a cost whose fall does not speed up, with the
     /// caller's target instead of a fixed fraction). Default `None` (off).
     pub give_up: Option<(usize, f64)>,
+    /// With [`Self::covariance`]: when an accepted step `d` ends the fit by the cost or the step
+    /// test and is within a hundredth of a standard error (`|J d| <= 0.01 sigma`, `sigma^2` the
+    /// residual variance at the new point; the Jacobian, and so the covariance, moves by far less
+    /// than the estimate's own uncertainty over such a step), the covariance is computed from
+    /// the Jacobian of the point before that step, with the residual variance of the final point,
+    /// instead of evaluating a Jacobian at the final point for it. Default false.
+    pub covariance_before_last_step: bool,
 }
 
 impl Default for LmOptions {
@@ -164,6 +175,7 @@ impl Default for LmOptions {
             covariance: true,
             stall: None,
             give_up: None,
+            covariance_before_last_step: false,
         }
     }
 }
@@ -436,10 +448,22 @@ pub fn minimize(problem: &mut impl Problem, p0: &[f64], opts: &LmOptions) -> Res
                         && history[history.len() - k] - cost_trial
                             <= rel * history[history.len() - k]
                 });
-                if !opts.covariance && (small_cost || small_step || stalled) {
+                // `|J d|` against the residual's standard deviation at the new point: the step
+                // in standard errors (in the metric of `J^T J`).
+                let covariance_from_before =
+                    opts.covariance_before_last_step && (small_cost || small_step) && m > n && {
+                        let jd2: f64 = (0..n)
+                            .map(|i| (i..n).map(|j| rmat[(i, j)] * d[j]).sum::<f64>().powi(2))
+                            .sum();
+                        let sigma2 = 2.0 * cost_trial / (m - n) as f64;
+                        jd2 <= LAST_STEP_SE * LAST_STEP_SE * sigma2
+                    };
+                if (!opts.covariance && (small_cost || small_step || stalled))
+                    || covariance_from_before
+                {
                     // The fit stops here and nothing needs the Jacobian at this point (no
-                    // covariance): the residual is the trial's, the gradient's cosine the last
-                    // point's.
+                    // covariance, or the covariance of the point before a step this small): the
+                    // residual is the trial's, the gradient's cosine the last point's.
                     std::mem::swap(&mut r, &mut r_trial);
                     cost = cost_trial.max(0.0);
                     let t = 2.0 * rho - 1.0;
@@ -509,8 +533,9 @@ pub fn minimize(problem: &mut impl Problem, p0: &[f64], opts: &LmOptions) -> Res
     };
 
     let (covariance, std_errors) = if opts.covariance && m > n {
-        // The R of `J` is the leading block of the R of `[J r]` (`qr` is always that of the
-        // current `J` and `r`).
+        // The R of `J` is the leading block of the R of `[J r]` (`qr` is that of the current
+        // `J` and `r`, or of the point before a last step under the cost test with
+        // `covariance_before_last_step`; the residual variance is the final point's).
         let held: Vec<bool> = (0..n).map(|j| problem.at_bound(j, p[j])).collect();
         covariance_and_errors(&qr.0, sumsq(&r) / (m - n) as f64, &held)
     } else {
@@ -1776,6 +1801,50 @@ mod tests {
             let mut r = vec![0.0; a.t.len()];
             a.eval(&rb.params, &mut r, None).unwrap();
             assert_eq!(r, rb.residuals);
+        }
+    }
+
+    /// With `covariance_before_last_step`, a fit whose last step (accepted, under the cost test)
+    /// is within a hundredth of a standard error skips the Jacobian at its end: the same path,
+    /// one Jacobian fewer, and standard errors within 1e-4 relative of the plain fit's (the
+    /// Jacobian at the final point: the truth). Why 1e-4: the decay rate's standard error is
+    /// 0.45% of its value, so a step of 0.01 SE moves it by 5e-5 relative, and the columns
+    /// `exp(-b t)`, `-a t exp(-b t)` (`b t` up to 4) by up to about 2e-4 relative. A last step
+    /// larger than 0.01 SE (a loose cost test) still gets its Jacobian: the same result, bit for
+    /// bit.
+    #[test]
+    fn the_covariance_before_a_tiny_last_step_is_the_final_points() {
+        for (ftol, reused) in [(1e-6, true), (0.5, false)] {
+            let plain = LmOptions {
+                ftol,
+                ..LmOptions::default()
+            };
+            let before = LmOptions {
+                covariance_before_last_step: true,
+                ..plain.clone()
+            };
+            let p0 = [0.5, 3.0];
+            let (mut a, mut b) = (NoisyExp::new(), NoisyExp::new());
+            let ra = minimize(&mut a, &p0, &plain).unwrap();
+            let rb = minimize(&mut b, &p0, &before).unwrap();
+            assert_eq!(ra.params, rb.params);
+            assert_eq!(ra.iterations, rb.iterations);
+            assert_eq!(ra.termination, rb.termination);
+            let (sa, sb) = (ra.std_errors.unwrap(), rb.std_errors.unwrap());
+            if reused {
+                assert_eq!(b.jacobians + 1, a.jacobians);
+                assert_eq!(rb.evaluations + 1, ra.evaluations);
+                for (x, y) in sa.iter().zip(&sb) {
+                    assert!((x - y).abs() <= 1e-4 * x, "{sa:?} {sb:?}");
+                }
+                // The residual is the final point's.
+                let mut r = vec![0.0; b.t.len()];
+                b.eval(&rb.params, &mut r, None).unwrap();
+                assert_eq!(r, rb.residuals);
+            } else {
+                assert_eq!(b.jacobians, a.jacobians);
+                assert_eq!(sa, sb);
+            }
         }
     }
 

@@ -96,8 +96,16 @@ impl Simulator<f64> {
         let head = (self.delay_whole + 1).min(n);
         let mut xr = Vec::with_capacity(levels.len());
         let mut xc = Vec::with_capacity(levels.len());
+        // The modes' window weights, once for every level set (of one length: edges + 1).
+        let weights = self.past_weights(edges.len() + 1, edges)?;
         for (set, out) in levels.iter().zip(outs.iter_mut()) {
-            self.set_past_input(set, edges)?;
+            if set.len() != edges.len() + 1 {
+                return invalid(
+                    "past input",
+                    format!("{} levels for {} edges", set.len(), edges.len()),
+                );
+            }
+            self.set_past_input_weighted(set, edges, &weights);
             for k in 0..head {
                 let y = self.step(0.0);
                 if k >= skip {

@@ -351,8 +351,12 @@ pub(super) fn fit<S: Structure>(
     };
     let rr = minimize(&mut red, &tn0, &red_lm).ok()?;
     red.solve(&rr.params).ok()?;
+    // The joint fit starts at the projection's optimum (to the projection's cost test): its
+    // steps are small, and its last one (under the cost test) is far below the standard errors,
+    // so the covariance is that of the point before it (one Jacobian fewer).
     let joint_lm = LmOptions {
         initial_lambda: rr.lambda.clamp(1e-12, lm.initial_lambda),
+        covariance_before_last_step: true,
         ..lm.clone()
     };
     let rep = joint_holding(prob, &red.theta, &red.held, &joint_lm);
