@@ -42,9 +42,12 @@ fn fit(rec: &Record, initial: InitialState) -> Identification {
     identify(rec, &FracModel::pmsm(1.0, 0.01, 1e-4, 0.9, 0.9), &opts).unwrap()
 }
 
-/// With the defaults: validation RMSE within 5% of the noise's own RMS over the validation window
-/// (the floor a perfect model reaches; measured 3.5-3.8%: the truth's own error at 1 ms and the
-/// slow fractional tail of the past, which four held levels approximate, stay in it), the gain within 2% and each order within 0.05 of the
+/// With the defaults: validation RMSE within 7% of the noise's own RMS over the validation window
+/// (the floor a perfect model reaches; measured 5.6% in motion, below the floor mid-transient and
+/// on the ramp: the truth's own error at 1 ms and the slow fractional tail of the past stay in
+/// it; the past has only the windows the record determines (`ident::oe::past`): in motion one
+/// level, a finer window lowering the sum of squares by 0.8%, less than BIC asks; four fixed
+/// levels, not determined, reached 3.5-3.8%), the gain within 2% and each order within 0.05 of the
 /// truth; from rest (when `rest_fails`) the validation RMSE is at least twice sigma, so the test
 /// tells the two apart.
 fn check(name: &str, (rec, noise): &(Record, Vec<f64>), rest_fails: bool) {
@@ -70,7 +73,8 @@ fn check(name: &str, (rec, noise): &(Record, Vec<f64>), rest_fails: bool) {
     );
     let w = &noise[id.split..];
     let floor = (w.iter().map(|e| e * e).sum::<f64>() / w.len() as f64).sqrt();
-    assert!(v.rmse <= 1.05 * floor, "{name}: {} (floor {floor})", v.rmse);
+    eprintln!("{name}: validation {:.4}, floor {floor:.4}", v.rmse);
+    assert!(v.rmse <= 1.07 * floor, "{name}: {} (floor {floor})", v.rmse);
     assert!(
         (p[0].value / 6.82 - 1.0).abs() < 0.02,
         "{name}: K {}",
@@ -153,4 +157,85 @@ fn the_default_initial_state_is_rest_only_for_a_record_at_rest() {
     let id = fit(&late.0, InitialState::Auto);
     assert_eq!(id.initial.state, "estimate", "{}", id.initial.reason);
     check("auto, constant input while moving", &late, false);
+}
+
+/// The RMS of `y - yhat` over the first `n` samples.
+fn head_rms(rec: &Record, id: &Identification, n: usize) -> f64 {
+    let s: f64 = (0..n).map(|k| (rec.y[k] - id.yhat[k]).powi(2)).sum();
+    (s / n as f64).sqrt()
+}
+
+/// The initial state's past is chosen by what the record determines (docs/design.md §5,
+/// `ident::oe::past`). A record that starts 40 ms after a 10 V step (the speed still rising fast:
+/// the GL truth's output moves by about 10 sigma over the first 20 samples) needs a finer past
+/// than one level held since before the record, and gets it: more than one window, every level
+/// determined (finite standard error, none at an edge of its range), every plant parameter
+/// determined too and within 3 standard errors (and 2%/0.05) of the truth, and the estimated
+/// state reproduces the first 20 samples to the noise (their RMS error within 1.5 sigma; from
+/// rest it is many sigma). The same input from true rest (a past of zeros), fitted with
+/// `--initial estimate`, keeps one level (the data pay for no finer window) and that level is
+/// within 3 standard errors of the truth (the input 0, `-u0` as a deviation).
+#[test]
+fn the_past_has_the_windows_the_record_determines() {
+    let mut past = vec![0.0; 200];
+    past.extend(vec![10.0; 40]);
+    let (rec, _) = cut(&past, &prbs_around(10.0), 26);
+    let id = fit(&rec, InitialState::Estimate);
+    let rest = fit(&rec, InitialState::Rest);
+    let state = id.model.past.clone().expect("an estimated past");
+    let (head, head_rest) = (head_rms(&rec, &id, 20), head_rms(&rec, &rest, 20));
+    let levels: Vec<_> = state.levels.iter().map(|&i| &id.report.params[i]).collect();
+    eprintln!(
+        "moving: edges {:?}, levels {:?}, head RMS {head:.4} (from rest {head_rest:.4}), \
+         validation {:.4}",
+        state.edges,
+        levels
+            .iter()
+            .map(|p| (p.value, p.std_error))
+            .collect::<Vec<_>>(),
+        id.validation.as_ref().unwrap().rmse
+    );
+    assert!(!state.edges.is_empty(), "one level: {:?}", state.edges);
+    for p in &levels {
+        assert!(
+            p.std_error.is_some_and(f64::is_finite) && !p.at_bound,
+            "{} = {} +- {:?} (at bound {})",
+            p.name,
+            p.value,
+            p.std_error,
+            p.at_bound
+        );
+    }
+    let truth = [("K", 6.82), ("zeta", 0.92), ("theta", 0.8252)];
+    for p in id.report.params.iter().filter(|p| p.free) {
+        let se = p.std_error.unwrap_or(f64::NAN);
+        assert!(se.is_finite() && !p.at_bound, "{} +- {se}", p.name);
+        if let Some(&(_, t)) = truth.iter().find(|(n, _)| *n == p.name) {
+            assert!(
+                (p.value - t).abs() <= 3.0 * se + 0.02 * t,
+                "{} = {} +- {se}, truth {t}",
+                p.name,
+                p.value
+            );
+        }
+    }
+    assert!(head <= 1.5 * SIGMA, "first samples: {head}");
+    assert!(head_rest >= 5.0 * SIGMA, "from rest: {head_rest}");
+
+    let (still, _) = cut(&[], &prbs_around(10.0), 27);
+    let id = fit(&still, InitialState::Estimate);
+    let state = id.model.past.clone().expect("an estimated past");
+    let p = &id.report.params[state.levels[0]];
+    eprintln!(
+        "at rest: edges {:?}, level {} +- {:?}",
+        state.edges, p.value, p.std_error
+    );
+    assert!(state.edges.is_empty(), "{:?}", state.edges);
+    // At rest at the input 0: the past's deviation from the operating point is -u0.
+    let (se, truth) = (p.std_error.expect("a standard error"), -id.offsets.u0);
+    assert!(
+        (p.value - truth).abs() <= 3.0 * se,
+        "{} +- {se}, truth {truth}",
+        p.value
+    );
 }
