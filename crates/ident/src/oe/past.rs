@@ -76,7 +76,7 @@ pub fn choose(
         return Ok(current(m, p));
     };
     let n_eff = screen.n_eff;
-    while n_eff >= 3.0 {
+    while n_eff >= 3.0 && chosen.len() < candidates.len() {
         let Some((c, s, l)) = screen.best_next(&chosen) else {
             break;
         };
