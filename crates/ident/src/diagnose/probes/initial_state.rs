@@ -8,9 +8,10 @@
 //! slow heat path, minutes against an idle window of seconds) passes it. Whether the record was
 //! at rest is then a question for the data like any effect: the alternative is the initial state
 //! the fit uses for a record that does not rest ([`crate::oe::InitialState::Estimate`]: the state
-//! a past held input left, its levels on windows ending `T/64`, `T/8` and `T` before the first
-//! sample and before that, [`crate::oe::past_edges`]), kept only when it pays on held-out data
-//! and by BIC (four parameters, `4 ln N`).
+//! a past held input left, one level held since before the record and finer windows ending at
+//! [`crate::oe::past_edges`] only where the linear screen at the base fit pays by BIC in
+//! independent residuals with every level determined, [`crate::oe::past::choose`]), kept only
+//! when it pays on held-out data and by BIC (one parameter a level).
 //!
 //! Signature: the model's output change per unit of each past level (the model resimulated with
 //! that level alone, other parameters held; exact for the linear part), regressed with the model's
