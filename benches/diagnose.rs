@@ -1,14 +1,16 @@
 //! The price of the diagnosis against the plain fit (issue 32), in process: `identify` of the
 //! default structure (pmsm) and the whole `--diagnose` path (that fit, then
 //! `diagnose_best`: the candidate structures fitted, screened and diagnosed) on each real time
-//! record in `data/` and on a 1e5-sample PMSM PRBS record; and a 3k-sample fit.
+//! record in `data/` and on a 1e5-sample PMSM PRBS record; and a 3k-sample fit at dt 0.1 ms
+//! and 0.5 ms.
 //! The whole-process ratio (what the user waits for, the table in `README.md`) is
 //! `examples/diag_ratio.rs`.
 //!
 //! `cargo bench -p fracid-benches --bench diagnose`
 
 use divan::{black_box, Bencher};
-use fracid_benches::{pmsm_data, real_record, REAL_RECORDS};
+use fracid_benches::{noise, pmsm_data, prbs_input, real_record, REAL_RECORDS};
+use fracsim::{lsim, ApproxSpec};
 use ident::data::Record;
 use ident::diagnose::{structures::diagnose_best, DiagnoseOptions};
 use ident::oe::{identify, FracModel, IdentOptions};
@@ -79,5 +81,20 @@ fn diagnose(b: Bencher<'_, '_>, name: &str) {
 #[divan::bench(sample_count = 30, sample_size = 1)]
 fn fit_3k(b: Bencher<'_, '_>) {
     let rec = pmsm_record(3_000);
+    b.bench(|| identify(black_box(&rec), &pmsm(), &IdentOptions::default()).unwrap());
+}
+
+/// The same 3k-sample fit at dt = 0.5 ms (the record `fit_short -- 3000 30 5e-4` fits: the
+/// benches' PRBS at that step, whose period the start finds, so it starts from a Levy fit).
+#[divan::bench(sample_count = 30, sample_size = 1)]
+fn fit_3k_dt05(b: Bencher<'_, '_>) {
+    let (n, dt) = (3_000, 5e-4);
+    let u = prbs_input(n, dt);
+    let mut y = lsim(&fracid_benches::pmsm(), &u, dt, &ApproxSpec::default()).expect("simulation");
+    for (y, e) in y.iter_mut().zip(noise(n, 0.05, 1)) {
+        *y += e;
+    }
+    let t = (0..n).map(|k| k as f64 * dt).collect();
+    let rec = Record::new(t, u, y).expect("a valid record");
     b.bench(|| identify(black_box(&rec), &pmsm(), &IdentOptions::default()).unwrap());
 }

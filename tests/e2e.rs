@@ -646,7 +646,7 @@ fn the_diagnosis_holds_a_two_mass_drive_trains_resonance() {
         s["reason"]
             .as_str()
             .unwrap()
-            .contains("against the best integer-order model"),
+            .contains("against the best usable integer-order model"),
         "{s}"
     );
     let terms = |side: &str| -> Vec<fracsim::Term> {

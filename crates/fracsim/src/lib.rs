@@ -11,6 +11,7 @@
 //!   fractional-sample delays included, run as a bank of first-order recursive filters.
 //! - [`export`]: the approximation as a state space (A, B, C, D), continuous or discrete with the
 //!   exact hold, to MATLAB.
+//! - [`eig`]: eigenvalues of a real matrix (QR iteration without Schur vectors): the poles.
 //! - [`gl`]: Grunwald-Letnikov, the reference simulator.
 //! - [`prbs`]: maximum-length pseudo-random binary sequences.
 //! - [`special`]: the Mittag-Leffler function and the exact step response of `K/(a s^q + 1)`.
@@ -26,6 +27,7 @@ pub use tf::{jw_pow, FracTf, Term};
 pub mod approx;
 pub mod cx;
 pub mod discrete;
+pub mod eig;
 pub mod export;
 pub mod fft;
 pub mod gl;

@@ -312,9 +312,8 @@ impl Ctx<'_> {
     }
 
     fn bic(&self, st: &State) -> f64 {
-        let n = self.split as f64;
-        let k = st.model.params.iter().filter(|p| p.free).count() as f64;
-        n * (st.ssr / n).max(1e-300).ln() + k * n.ln()
+        let k = st.model.params.iter().filter(|p| p.free).count();
+        bic(st.ssr, self.split, k)
     }
 
     /// The linear part of the current model applied to `x` (deviation scale).
@@ -449,6 +448,18 @@ fn try_candidate(
         // The whole record's refit goes on from the leading part's (as a long record's fit
         // does from its own leading part, [`crate::oe::fit`]), with the whole budget.
         Some((_, (part, _))) => rctx.fit_from(clamped(part.model), &ctx.opts.fit),
+        // A candidate whose refit is judged where it ends (no longer advance refitted after
+        // it, no leading part) gives up when it cannot end below its keep ceiling.
+        None if c.lead.is_none() && ctx.split < 4 * LEAD_SCREEN_SAMPLES => {
+            let opts = with_give_up(ctx, st, c);
+            best_refit(
+                &Ctx {
+                    opts: &opts,
+                    ..rctx.clone()
+                },
+                &c.starts,
+            )
+        }
         None => best_refit(rctx, &c.starts),
     };
     let mut ns =
@@ -549,6 +560,52 @@ fn try_candidate(
         bic_change: verdict.dbic,
     };
     Ok((ns, k, lead))
+}
+
+/// Accepted LM iterations over which a refit's fall is measured by its give-up test
+/// ([`with_give_up`]).
+pub const GIVE_UP_WINDOW: usize = 2;
+
+/// The largest estimation sum of squares a refit of candidate `c` can end at and still be kept
+/// (module documentation, Decision): BIC must fall, `n ln(S'/S) + dk ln n < 0`, so `S' < S
+/// exp(-dk ln n / n)` (`S` the current model's sum of squares, `dk` the parameters the candidate
+/// adds, `n` the estimation samples); without a held-out part the margin is on the estimation
+/// RMSE as well, `S' <= (1 - margin)^2 S`. A refit that ends above it is rejected, whatever its
+/// held-out error.
+fn keep_ceiling(ctx: &Ctx<'_>, st: &State, c: &Candidate) -> f64 {
+    let free = |m: &FracModel| m.params.iter().filter(|p| p.free).count() as f64;
+    let dk = c.starts.first().map_or(0.0, free) - free(&st.model);
+    let margin = st.val.is_none().then_some(ctx.opts.margin);
+    ceiling(st.ssr, ctx.split, dk, margin)
+}
+
+/// Schwarz's (1978) Bayesian information criterion of a least-squares fit with `k` free
+/// parameters and sum of squares `ssr` over `n` samples, `n ln(ssr/n) + k ln n` (Gaussian errors,
+/// constants dropped): the diagnosis's and the structure comparison's.
+pub(crate) fn bic(ssr: f64, n: usize, k: usize) -> f64 {
+    let n = n as f64;
+    n * (ssr / n).max(1e-300).ln() + k as f64 * n.ln()
+}
+
+/// [`keep_ceiling`] for a current sum of squares `ssr` over `n` estimation samples, `dk` added
+/// parameters, and the margin when it applies to the estimation RMSE (no held-out part).
+fn ceiling(ssr: f64, n: usize, dk: f64, margin: Option<f64>) -> f64 {
+    let n = n as f64;
+    let bic = ssr * (-dk * n.ln() / n).exp();
+    margin.map_or(bic, |m| bic.min(ssr * (1.0 - m).powi(2)))
+}
+
+/// The diagnosis options with the refits' give-up test ([`crate::lm::LmOptions::give_up`]) at
+/// candidate `c`'s [`keep_ceiling`], over [`GIVE_UP_WINDOW`] accepted iterations: a refit
+/// whose cost, falling on at its mean fall over its last 2 accepted iterations for every
+/// iteration left, would still end above the ceiling stops there, and is rejected as it would
+/// have been at the end of its budget. The assumption is the stall test's (a refit's fall does
+/// not speed up), with the decision's own threshold instead of a fixed 1e-4. Refits that reach
+/// the ceiling are not touched (the same refit, bit for bit).
+fn with_give_up(ctx: &Ctx<'_>, st: &State, c: &Candidate) -> DiagnoseOptions {
+    let mut opts = ctx.opts.clone();
+    opts.fit.lm.give_up = Some((GIVE_UP_WINDOW, 0.5 * keep_ceiling(ctx, st, c)));
+    opts
 }
 
 /// The advance of the recorded input (a time-stamp skew) a candidate was refitted with, made
@@ -991,6 +1048,24 @@ mod tests {
         let id = identify(rec, &FracModel::commensurate(1.0, 0.05, 1e-3, 0.8), &opts).unwrap();
         assert!(id.split >= 4 * LEAD_SCREEN_SAMPLES, "split {}", id.split);
         diagnose(rec, &id, &DiagnoseOptions::default()).unwrap()
+    }
+
+    /// The keep ceiling is the decision's own threshold: a refit just above it is rejected by
+    /// BIC (or by the margin without a held-out part), one just below it is not, with BIC as
+    /// [`Ctx::bic`] computes it.
+    #[test]
+    fn the_keep_ceiling_is_where_bic_and_the_margin_stop_agreeing() {
+        let (ssr, n, k) = (12.5, 3000, 7);
+        for dk in [0, 1, 3] {
+            let c = ceiling(ssr, n, dk as f64, None);
+            assert!(bic(c * (1.0 + 1e-9), n, k + dk) > bic(ssr, n, k), "dk {dk}");
+            assert!(bic(c * (1.0 - 1e-9), n, k + dk) < bic(ssr, n, k), "dk {dk}");
+        }
+        // Without a held-out part the 5% margin on the estimation RMSE binds first (BIC asks
+        // 0.27% of the sum of squares per added parameter here, the margin 9.75%).
+        let c = ceiling(ssr, n, 1.0, Some(0.05));
+        assert!((c - ssr * 0.95f64.powi(2)).abs() < 1e-12, "{c}");
+        assert!(((c / n as f64).sqrt() / (ssr / n as f64).sqrt() - 0.95).abs() < 1e-12);
     }
 
     #[test]

@@ -142,6 +142,13 @@ pub struct LmOptions {
     /// than the fraction `rel` over the last `k` accepted iterations (a fit that creeps on at a
     /// rate that cannot matter to its caller). Default `None` (off).
     pub stall: Option<(usize, f64)>,
+    /// Give-up test `(k, target)`: stop ([`Termination::SmallCostChange`]) when, after at least
+    /// `k` accepted iterations, the cost would still be above `target` (a cost, `1/2` the sum of
+    /// squares) even if it went on falling by its mean fall over the last `k` accepted iterations
+    /// at every iteration left of [`Self::max_iterations`]: a fit that cannot end where its caller
+    /// needs it (the stall test's assumption, a cost whose fall does not speed up, with the
+    /// caller's target instead of a fixed fraction). Default `None` (off).
+    pub give_up: Option<(usize, f64)>,
 }
 
 impl Default for LmOptions {
@@ -156,6 +163,7 @@ impl Default for LmOptions {
             scale: true,
             covariance: true,
             stall: None,
+            give_up: None,
         }
     }
 }
@@ -225,7 +233,9 @@ pub struct LmReport {
     pub std_errors: Option<Vec<f64>>,
     /// The Marquardt factor at the end (relative to `D^2`).
     pub lambda: f64,
-    /// `max_j |g_j| / (||J_j|| ||r||)` at the end (see [`LmOptions::gtol`]).
+    /// `max_j |g_j| / (||J_j|| ||r||)` at the end (see [`LmOptions::gtol`]); without
+    /// [`LmOptions::covariance`], a fit that stops at an accepted step does not compute the
+    /// Jacobian there (nothing needs it), and this is the cosine at the point before.
     pub gradient_cosine: f64,
 }
 
@@ -420,6 +430,27 @@ pub fn minimize(problem: &mut impl Problem, p0: &[f64], opts: &LmOptions) -> Res
             if ok && rho > 0.0 && actual > 0.0 {
                 // accept
                 std::mem::swap(&mut p, &mut p_trial);
+                let stalled = opts.stall.is_some_and(|(k, rel)| {
+                    k > 0
+                        && history.len() >= k
+                        && history[history.len() - k] - cost_trial
+                            <= rel * history[history.len() - k]
+                });
+                if !opts.covariance && (small_cost || small_step || stalled) {
+                    // The fit stops here and nothing needs the Jacobian at this point (no
+                    // covariance): the residual is the trial's, the gradient's cosine the last
+                    // point's.
+                    std::mem::swap(&mut r, &mut r_trial);
+                    cost = cost_trial.max(0.0);
+                    let t = 2.0 * rho - 1.0;
+                    lambda *= (1.0 - t * t * t).max(1.0 / 3.0);
+                    history.push(cost);
+                    break 'outer if small_cost || !small_step {
+                        Termination::SmallCostChange
+                    } else {
+                        Termination::SmallStep
+                    };
+                }
                 evaluations += 1;
                 let jac_ok = problem.eval(&p, &mut r, Some(&mut jac)).is_ok()
                     && check_finite(&r, &jac, "at an accepted point").is_ok();
@@ -448,7 +479,14 @@ pub fn minimize(problem: &mut impl Problem, p0: &[f64], opts: &LmOptions) -> Res
                         && history[history.len() - 1 - k] - cost
                             <= rel * history[history.len() - 1 - k]
                 });
-                if small_cost || small_step || stalled {
+                let hopeless = opts.give_up.is_some_and(|(k, target)| {
+                    k > 0 && history.len() > k && {
+                        let fall = (history[history.len() - 1 - k] - cost) / k as f64;
+                        let left = opts.max_iterations.saturating_sub(iterations) as f64;
+                        cost - fall.max(0.0) * left > target
+                    }
+                });
+                if small_cost || small_step || stalled || hopeless {
                     gcos = gradient_cosine(&jt_r_of(&qr.0, &qr.1), &col_norms_of(&qr.0), norm(&r));
                     break 'outer if small_cost || !small_step {
                         Termination::SmallCostChange
@@ -1704,14 +1742,56 @@ mod tests {
         }
     }
 
+    /// Without covariance, a fit that stops at an accepted step skips the Jacobian there and
+    /// nothing else: the same parameters, iterations, Marquardt factor and cost as with it (by
+    /// the cost test and by the stall test), one Jacobian fewer, and the residual is that point's.
     #[test]
-    fn the_stall_test_stops_a_fit_whose_cost_no_longer_falls() {
-        let tight = LmOptions {
+    fn without_covariance_the_last_jacobian_is_skipped_and_nothing_else_changes() {
+        // Stopped by the cost test at an accepted step, and by the stall test.
+        let by_cost = LmOptions {
+            ftol: 1e-4,
+            ..LmOptions::default()
+        };
+        let by_stall = LmOptions {
+            stall: Some((1, 1e-2)),
+            ..LmOptions::default()
+        };
+        for with in [by_cost, by_stall] {
+            let without = LmOptions {
+                covariance: false,
+                ..with.clone()
+            };
+            let p0 = [0.5, 3.0];
+            let (mut a, mut b) = (NoisyExp::new(), NoisyExp::new());
+            let ra = minimize(&mut a, &p0, &with).unwrap();
+            let rb = minimize(&mut b, &p0, &without).unwrap();
+            assert_eq!(ra.params, rb.params);
+            assert_eq!(ra.iterations, rb.iterations);
+            assert_eq!(ra.lambda, rb.lambda);
+            assert_eq!(ra.termination, rb.termination);
+            assert!(ra.std_errors.is_some() && rb.std_errors.is_none());
+            assert_eq!(b.jacobians + 1, a.jacobians, "{with:?}");
+            assert_eq!(rb.evaluations + 1, ra.evaluations);
+            assert!((ra.cost - rb.cost).abs() <= 1e-14 * ra.cost);
+            let mut r = vec![0.0; a.t.len()];
+            a.eval(&rb.params, &mut r, None).unwrap();
+            assert_eq!(r, rb.residuals);
+        }
+    }
+
+    /// Tolerances no fit meets: only the stall or give-up test (or the iteration cap) stops it.
+    fn tight_options() -> LmOptions {
+        LmOptions {
             ftol: 1e-15,
             xtol: 1e-15,
             gtol: 1e-15,
             ..LmOptions::default()
-        };
+        }
+    }
+
+    #[test]
+    fn the_stall_test_stops_a_fit_whose_cost_no_longer_falls() {
+        let tight = tight_options();
         let p0 = [0.5, 3.0];
         let plain = minimize(&mut NoisyExp::new(), &p0, &tight).unwrap();
         // A window longer than the fit never fires: the same path, bit for bit.
@@ -1743,6 +1823,40 @@ mod tests {
             stalled.ssr(),
             plain.ssr()
         );
+    }
+
+    #[test]
+    fn the_give_up_test_stops_only_a_fit_that_cannot_reach_its_target() {
+        let tight = tight_options();
+        let p0 = [0.5, 3.0];
+        let plain = minimize(&mut NoisyExp::new(), &p0, &tight).unwrap();
+        let best = 0.5 * plain.ssr();
+        // A target the fit reaches (twice the optimum's cost): the test never fires, the same
+        // path bit for bit (a rule that fired on a fit still falling towards its target would
+        // change it).
+        let reachable = LmOptions {
+            give_up: Some((1, 2.0 * best)),
+            ..tight.clone()
+        };
+        let same = minimize(&mut NoisyExp::new(), &p0, &reachable).unwrap();
+        assert_eq!(same.params, plain.params);
+        assert_eq!(same.iterations, plain.iterations);
+        // A target below the optimum's cost (half of it): no fit reaches it; the test stops the
+        // fit as soon as its fall per iteration times the iterations left no longer bridges the
+        // gap, sooner than the plain fit, and above the target (what the caller decides on).
+        let unreachable = LmOptions {
+            give_up: Some((1, 0.5 * best)),
+            ..tight
+        };
+        let gave_up = minimize(&mut NoisyExp::new(), &p0, &unreachable).unwrap();
+        assert_eq!(gave_up.termination, Termination::SmallCostChange);
+        assert!(
+            gave_up.iterations < plain.iterations,
+            "gave up after {} iterations, plain {}",
+            gave_up.iterations,
+            plain.iterations
+        );
+        assert!(0.5 * gave_up.ssr() > 0.5 * best && gave_up.ssr() >= plain.ssr());
     }
 
     /// `y = a exp(-b t)` with the amplitude `a = 3 / (1 + exp(-theta_0))` (a logistic map to

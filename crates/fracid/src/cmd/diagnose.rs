@@ -31,6 +31,7 @@ pub fn structures_text(c: &StructureChoice, diagnosed: bool) -> String {
     for (i, s) in c.scores.iter().enumerate() {
         let mark = if i == c.chosen { "*" } else { " " };
         let nums = match (s.rmse, s.rmse_after, s.bic_after) {
+            _ if s.failed.is_some() => "no result".into(),
             (Some(r), Some(_), Some(b)) if !diagnosed => {
                 format!("RMSE {r:.4e}, BIC {b:.1}, {} free", s.free_params)
             }
@@ -46,7 +47,12 @@ pub fn structures_text(c: &StructureChoice, diagnosed: bool) -> String {
             _ => "not diagnosed".into(),
         };
         let _ = writeln!(o, "  {mark} {:<22} {nums}", s.name);
-        let _ = writeln!(o, "      {}", s.model);
+        if !s.model.is_empty() {
+            let _ = writeln!(o, "      {}", s.model);
+        }
+        if let Some(f) = &s.failed {
+            let _ = writeln!(o, "      failed: {f}");
+        }
         if !s.problems.is_empty() {
             let _ = writeln!(o, "      base fit not usable: {}", s.problems.join("; "));
         }

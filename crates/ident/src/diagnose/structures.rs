@@ -46,11 +46,15 @@ pub const TIE: f64 = 0.02;
 pub struct StructureScore {
     /// Its name (`pmsm`, `commensurate`, `first order`, or the user's words, `+ integrator`).
     pub name: String,
-    /// The fitted linear part, or why the fit failed.
+    /// The fitted linear part (empty when the fit failed).
     pub model: String,
+    /// Why the structure has no result, in one line: its fit failed, or its diagnosis did
+    /// (`None` when neither). Said once: not repeated in `problems`.
+    pub failed: Option<String>,
     /// Held-out RMSE of the base fit (estimation RMSE without a held-out part).
     pub rmse: Option<f64>,
-    /// Why the base fit cannot be used (empty when it can).
+    /// Why the base fit cannot be used (empty when it can, or when there is no base fit: see
+    /// `failed`).
     pub problems: Vec<String>,
     /// The effects its diagnosis kept.
     pub effects: Vec<String>,
@@ -83,6 +87,9 @@ pub struct StructureChoice {
     pub held_out: bool,
     /// The decision in words.
     pub reason: String,
+    /// The usable integer-order model the chosen one is compared with (`None` when the chosen one
+    /// is itself integer or no integer-order candidate is usable).
+    pub integer_reference: Option<IntegerReference>,
 }
 
 /// The candidate structures for a user's `model` named `label` (see the module documentation).
@@ -186,9 +193,9 @@ pub const PRE_SCREEN_ITERATIONS: usize = 10;
 /// (an input offset, a slow pole) and ends far behind (10-70x the user's held-out RMSE on the
 /// real records in `data/`). It is first fitted with [`PRE_SCREEN_ITERATIONS`]: a fit that stopped
 /// sooner is the full fit; one still more than `FAR^2` times the user's usable base fit's held-out
-/// RMSE `user_rmse` is kept as it is and screened out (the best usable base fit is at most the
-/// user's, so it trails that by twice the margin at which a screening fit is left out,
-/// [`FAR`]); the others go on to [`screen_candidate`] on a fresh thread (its pole cache then the
+/// RMSE `user_rmse`, or behind it and not usable ([`pre_screened_out`]), is kept as it is and
+/// screened out (the best usable base fit is at most the user's, so it trails that by twice the
+/// margin at which a screening fit is left out, [`FAR`]); the others go on to [`screen_candidate`] on a fresh thread (its pole cache then the
 /// screening fit's own, as without the pre-screen).
 fn pre_screen(
     rec: &Record,
@@ -201,7 +208,7 @@ fn pre_screen(
         && fitted
             .0
             .as_ref()
-            .is_ok_and(|id| base_rmse(id) > FAR * FAR * user_rmse);
+            .is_ok_and(|id| pre_screened_out(base_rmse(id), id.usable(), user_rmse));
     if full || hopeless {
         return (fitted, full);
     }
@@ -211,6 +218,20 @@ fn pre_screen(
             .join()
             .unwrap_or_else(|_| ((panicked(), None), true))
     })
+}
+
+/// Whether the pre-screened fit of the user's structure with a free integrator (held-out RMSE
+/// `rmse`, `usable` or not) is screened out ([`pre_screen`]), `user_rmse` the user's usable
+/// base fit's held-out RMSE: more
+/// than `FAR^2` times behind it, or behind it and not usable. The second is the screening's own
+/// rule for a fit not usable when a usable one exists ([`fit_candidates`]) applied after
+/// [`PRE_SCREEN_ITERATIONS`]; it asks the fit to be behind the user's as well, so that an output
+/// that does integrate (where the user's structure without the integrator ends far behind and
+/// the integrator's fit passes it within a few iterations) is still fitted in full. A structure
+/// so screened out is not diagnosed unless no other ends with a final model (then it is fitted in
+/// full, as every screened-out one, [`diagnose_best`]).
+fn pre_screened_out(rmse: f64, usable: bool, user_rmse: f64) -> bool {
+    rmse > FAR * FAR * user_rmse || (!usable && rmse > user_rmse)
 }
 
 /// [`screen_candidate`] with `budget` LM iterations.
@@ -402,6 +423,10 @@ fn fit_candidates(
                     shared.screened(&fitted, full);
                     let (fitted, out) = if full {
                         (fitted, false)
+                    } else if fitted.0.is_err() {
+                        // A failed screening fit is fitted in full whatever the reference: no
+                        // need to wait for it.
+                        (fresh_fit(rec, m, opts), false)
                     } else {
                         let reference = shared.reference();
                         match fitted {
@@ -533,6 +558,7 @@ impl StructureScore {
         Self {
             name: name.to_string(),
             model: String::new(),
+            failed: None,
             rmse: None,
             problems: vec![],
             effects: vec![],
@@ -558,19 +584,18 @@ fn score_of(name: &str, o: &Outcome) -> StructureScore {
             s.effects = d.effects.iter().map(|e| e.name.clone()).collect();
             s.free_params = k;
             s.rmse_after = Some(d.after.rmse);
-            s.bic_after = Some(n * (ssr / n).max(1e-300).ln() + k as f64 * n.ln());
+            s.bic_after = Some(super::bic(ssr, id.split, k));
         }
-        (_, Some(Err(e))) => {
-            s.model = format!("failed: {e}");
-            s.problems.push(e.to_string());
-        }
+        (Some(_), Some(Err(e))) => s.failed = Some(format!("its diagnosis failed: {e}")),
+        (None, Some(Err(e))) => s.failed = Some(e.to_string()),
         _ => {}
     }
     s
 }
 
-/// The decision in words: the chosen row (with its effects, when diagnosed), the rule, and what it
-/// gains over the best integer-order candidate.
+/// The decision in words: the chosen row (with its effects, when diagnosed), the rule, what it
+/// gains over the best integer-order candidate, and what each of the `reduced` candidates
+/// ([`reduce_degenerate`]) lost.
 fn reason(
     cands: &[(String, FracModel)],
     scores: &[StructureScore],
@@ -578,24 +603,30 @@ fn reason(
     best: f64,
     held_out: bool,
     diagnosed: bool,
-) -> String {
+    reduced: &[(usize, String)],
+) -> (String, Option<IntegerReference>) {
     let s = &scores[chosen];
     let with = match (diagnosed, s.effects.is_empty()) {
         (false, _) => String::new(),
         (true, true) => " with no effect".into(),
         (true, false) => format!(" with {}", s.effects.join(", ")),
     };
-    format!(
+    let (gain, reference) = integer_gain(cands, scores, chosen);
+    let words = format!(
         "{} chosen: {} RMSE {:.4e}{with} (best {best:.4e}; ties within {:.0}%), the lowest BIC \
-         among the ties ({:.1}, {} free parameters){}",
+         among the ties ({:.1}, {} free parameters){gain}",
         s.name,
         if held_out { "held-out" } else { "estimation" },
         s.rmse_after.unwrap_or(f64::NAN),
         100.0 * TIE,
         s.bic_after.unwrap_or(f64::NAN),
         s.free_params,
-        integer_gain(cands, scores, chosen)
-    )
+    );
+    let reduced: String = reduced
+        .iter()
+        .map(|(i, what)| format!("; {}: {what}", cands[*i].0))
+        .collect();
+    (words + &reduced, reference)
 }
 
 /// Whether a candidate is an integer-order reference (every order a whole number).
@@ -607,34 +638,88 @@ fn is_integer(m: &FracModel) -> bool {
         .all(|(_, o)| o.terms.is_empty() && o.eval(&v).fract() == 0.0)
 }
 
-/// What the chosen model gains over the best integer-order reference on the same held-out data,
-/// in words (empty when the chosen one is itself integer or no reference has a usable fit): the
-/// reference's final model, or its base fit when it was not diagnosed (a base fit far behind is
-/// not: see the module documentation).
-fn integer_gain(cands: &[(String, FracModel)], scores: &[StructureScore], chosen: usize) -> String {
+/// The integer-order model the chosen one is compared with ([`StructureChoice::integer_reference`]).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct IntegerReference {
+    /// Its name in the comparison (`first order`, `second order`, `third order`).
+    pub name: String,
+    /// Its RMSE, on the same data as the chosen one's (held-out, or the estimation part).
+    pub rmse: f64,
+    /// Whether that is its final model's (diagnosed); else its base fit's.
+    pub diagnosed: bool,
+    /// The chosen model's RMSE relative to it, `rmse_chosen / rmse - 1` (negative: better).
+    pub relative_change: f64,
+}
+
+/// What the chosen model gains over the best integer-order reference on the same held-out data:
+/// the words, and the reference (`None` when the chosen one is itself integer, or when no
+/// integer-order candidate is usable: the words then say so). Only a usable integer model is a
+/// reference: its base fit usable ([`Identification::usable`]: every parameter determined, a
+/// held-out fit better than the mean) and, when diagnosed, its diagnosis not failed; then its
+/// final model, or its base fit when it was not diagnosed (a base fit far behind is not: see the
+/// module documentation). An integer model whose base fit is not usable can have a lower RMSE
+/// than the chosen one (its undetermined parameters fit the noise): it is no reference.
+fn integer_gain(
+    cands: &[(String, FracModel)],
+    scores: &[StructureScore],
+    chosen: usize,
+) -> (String, Option<IntegerReference>) {
     if is_integer(&cands[chosen].1) {
-        return "; it is an integer-order model".into();
+        return ("; it is an integer-order model".into(), None);
     }
-    let reference = |s: &StructureScore| match s.rmse_after {
-        Some(r) if r.is_finite() => Some((r, "")),
-        _ => s
-            .rmse
-            .filter(|r| r.is_finite() && s.problems.is_empty())
-            .map(|r| (r, ", its base fit: not diagnosed")),
+    let reference = |s: &StructureScore| {
+        if s.failed.is_some() || !s.problems.is_empty() {
+            return None;
+        }
+        match s.rmse_after {
+            Some(r) if r.is_finite() => Some((r, true)),
+            _ => s.rmse.filter(|r| r.is_finite()).map(|r| (r, false)),
+        }
     };
-    let best_integer = cands
+    let integers: Vec<(&String, &StructureScore)> = cands
         .iter()
         .zip(scores)
         .filter(|((_, m), _)| is_integer(m))
-        .filter_map(|((name, _), s)| reference(s).map(|r| (name, r)))
+        .map(|((name, _), s)| (name, s))
+        .collect();
+    let best_integer = integers
+        .iter()
+        .filter_map(|(name, s)| reference(s).map(|r| (*name, r)))
         .min_by(|a, b| a.1 .0.total_cmp(&b.1 .0));
-    let (Some((name, (ri, how))), Some(r)) = (best_integer, scores[chosen].rmse_after) else {
-        return String::new();
+    let Some(r) = scores[chosen].rmse_after else {
+        return (String::new(), None);
     };
-    format!(
-        "; against the best integer-order model ({name}, RMSE {ri:.4e}{how}) the chosen one's \
-         error is {:+.1}%",
-        100.0 * (r / ri - 1.0)
+    let Some((name, (ri, diagnosed))) = best_integer else {
+        if integers.is_empty() {
+            return (String::new(), None);
+        }
+        let names: Vec<&str> = integers.iter().map(|(n, _)| n.as_str()).collect();
+        return (
+            format!(
+                "; no integer-order model is usable to compare with ({}: failed or not usable)",
+                names.join(", ")
+            ),
+            None,
+        );
+    };
+    let change = r / ri - 1.0;
+    let how = if diagnosed {
+        ""
+    } else {
+        ", its base fit: not diagnosed"
+    };
+    (
+        format!(
+            "; against the best usable integer-order model ({name}, RMSE {ri:.4e}{how}) the \
+             chosen one's error is {:+.1}%",
+            100.0 * change
+        ),
+        Some(IntegerReference {
+            name: name.clone(),
+            rmse: ri,
+            diagnosed,
+            relative_change: change,
+        }),
     )
 }
 
@@ -682,7 +767,7 @@ pub fn diagnose_best(
     opts: &IdentOptions,
     dopts: &super::DiagnoseOptions,
 ) -> Result<Diagnosed> {
-    let cands = with_feedthrough(rec, candidates(label, model), model);
+    let mut cands = with_feedthrough(rec, candidates(label, model), model);
     let based = fit_candidates(rec, &cands, user, opts, dopts);
     let screened_out: Vec<usize> = (0..based.len()).filter(|&i| based[i].out).collect();
     let mut early = vec![];
@@ -694,6 +779,12 @@ pub fn diagnose_best(
             b.fitted
         })
         .unzip();
+    // A degenerate two-mass fit made well posed: its early diagnosis (of the degenerate fit) is
+    // dropped, the reduced one diagnosed like the others.
+    let reduced = reduce_degenerate(rec, &mut cands, &mut ids, &mut caches, opts);
+    for (i, _) in &reduced {
+        early[*i] = None;
+    }
     // The base fits prune the comparison (see [`diagnosis_order`]); the rest is diagnosed only
     // when none of the first ends with a final model (those screened out fitted in full first).
     // A diagnosis started early is used when it is needed (the same diagnosis), dropped when not.
@@ -756,7 +847,8 @@ pub fn diagnose_best(
         .id
         .as_ref()
         .is_some_and(|id| id.validation.is_some());
-    let mut reason = reason(&cands, &scores, chosen, best, held_out, true);
+    let (mut reason, integer_reference) =
+        reason(&cands, &scores, chosen, best, held_out, true, &reduced);
     if !skipped.is_empty() {
         let names: Vec<&str> = skipped.iter().map(|&i| cands[i].0.as_str()).collect();
         reason.push_str(&format!(
@@ -778,6 +870,7 @@ pub fn diagnose_best(
             chosen,
             held_out,
             reason,
+            integer_reference,
         },
         diagnosis,
     })
@@ -811,8 +904,8 @@ pub fn fit_best(
     model: &FracModel,
     opts: &IdentOptions,
 ) -> Result<(Identification, StructureChoice)> {
-    let cands = with_feedthrough(rec, auto_candidates(model), model);
-    let fits: Vec<Result<Identification>> = std::thread::scope(|scope| {
+    let mut cands = with_feedthrough(rec, auto_candidates(model), model);
+    let mut fits: Vec<Result<Identification>> = std::thread::scope(|scope| {
         let handles: Vec<_> = cands
             .iter()
             .map(|(_, m)| scope.spawn(move || identify(rec, m, opts)))
@@ -825,13 +918,14 @@ pub fn fit_best(
             })
             .collect()
     });
+    let mut caches = vec![None; fits.len()];
+    let reduced = reduce_degenerate(rec, &mut cands, &mut fits, &mut caches, opts);
     let scores: Vec<StructureScore> = cands
         .iter()
         .zip(&fits)
         .map(|((name, _), f)| base_score(name, f))
         .collect();
     let Some((chosen, best)) = decide(&scores) else {
-        let mut fits = fits;
         return Err(match fits.swap_remove(0) {
             Err(e) => e,
             Ok(_) => Error::Numerical("no structure could be fitted".into()),
@@ -840,14 +934,15 @@ pub fn fit_best(
     let held_out = fits[chosen]
         .as_ref()
         .is_ok_and(|id| id.validation.is_some());
-    let reason = reason(&cands, &scores, chosen, best, held_out, false);
-    let mut fits = fits;
+    let (reason, integer_reference) =
+        reason(&cands, &scores, chosen, best, held_out, false, &reduced);
     let id = fits.swap_remove(chosen)?;
     let choice = StructureChoice {
         scores,
         chosen,
         held_out,
         reason,
+        integer_reference,
     };
     Ok((id, choice))
 }
@@ -866,12 +961,375 @@ fn base_score(name: &str, f: &Result<Identification>) -> StructureScore {
             s.rmse_after = s.rmse;
             s.problems = id.problems.clone();
             s.free_params = k;
-            s.bic_after = Some(n * (ssr / n).max(1e-300).ln() + k as f64 * n.ln());
+            s.bic_after = Some(super::bic(ssr, id.split, k));
         }
-        Err(e) => {
-            s.model = format!("failed: {e}");
-            s.problems.push(e.to_string());
-        }
+        Err(e) => s.failed = Some(e.to_string()),
     }
     s
+}
+
+/// The degenerate two-mass fits among `ids` made well posed ([`reduced_two_mass`]): each is
+/// refitted as its reduced structure from the degenerate fit's limit, and replaces it (the
+/// candidate renamed `two-mass (reduced)`) when the refit is usable with every free parameter
+/// determined (a standard error) and its base RMSE within [`TIE`] of the degenerate fit's (the
+/// same description of the data, well posed). Otherwise the degenerate fit is kept with a problem
+/// saying which parameters are not determined (it is then not usable: a determined structure is
+/// preferred, see the module documentation). Returns the replaced indices with the words.
+fn reduce_degenerate(
+    rec: &Record,
+    cands: &mut [(String, FracModel)],
+    ids: &mut [Result<Identification>],
+    caches: &mut [Option<RootsCache>],
+    opts: &IdentOptions,
+) -> Vec<(usize, String)> {
+    let mut out = vec![];
+    for i in 0..ids.len() {
+        let Ok(id) = &ids[i] else { continue };
+        let Some((reduced, what)) = reduced_two_mass(id) else {
+            continue;
+        };
+        let mut given = opts.clone();
+        given.start = crate::oe::StartMode::Given;
+        let before = base_rmse(id);
+        let (refit, cache) = fresh_fit(rec, &reduced, &given);
+        let determined = |r: &Identification| {
+            r.report
+                .params
+                .iter()
+                .all(|p| !p.free || p.at_bound || p.std_error.is_some_and(f64::is_finite))
+        };
+        match refit {
+            Ok(r) if r.usable() && determined(&r) && base_rmse(&r) <= (1.0 + TIE) * before => {
+                cands[i] = (format!("{} (reduced)", cands[i].0), reduced);
+                ids[i] = Ok(r);
+                caches[i] = cache;
+                out.push((i, what));
+            }
+            _ => {
+                if let Ok(id) = &mut ids[i] {
+                    id.problems.push(format!(
+                        "degenerate: {what}; the reduced structure did not fit as well with \
+                         every parameter determined, so these parameters are not determined \
+                         by the data"
+                    ));
+                }
+            }
+        }
+    }
+    out
+}
+
+/// A two-mass fit's term below this share of the others over the band has collapsed: the motor's
+/// damping term `a1 s^zeta` at its largest relative to `max(1, a2 s^(zeta+theta))` (at the
+/// corner `w = a2^(-1/(zeta+theta))`).
+pub const COLLAPSED: f64 = 1e-6;
+
+/// A two-mass fit whose pair's damping order `mu` is this close to 2 has merged its damping term
+/// `d s^mu` with the inertia term `c2 s^2` ([`reduced_two_mass`]).
+pub const MERGED_ORDERS: f64 = 0.1;
+
+/// A two-mass fit's anti-resonance this far below its resonance (`b2 / c2`, the squared ratio of
+/// the two frequencies) with the covariance singular has moved its zeros to `s = 0`: the gain `K`
+/// tends to 0 and `b2` to infinity with only `K b2` determined (an output that is an
+/// acceleration: the response starts as `s^2`). A drive train's `b2 / c2 = 1 + J_l/J_m`.
+pub const ZEROS_AT_ORIGIN: f64 = 100.0;
+
+/// The well-posed form of a degenerate two-mass fit `id` (its covariance singular, see
+/// [`COLLAPSED`] and [`ZEROS_AT_ORIGIN`]), with a sentence saying what was removed, or `None`
+/// when the fit is not degenerate so. The structure with the collapsed parts removed, started
+/// from the degenerate fit's limit:
+///
+/// - the motor's damping term gone (`a1 -> 0`): the motor `a2 s^nu + 1`, `nu = zeta + theta`
+///   (`zeta` alone then had no effect);
+/// - the zeros at the origin (`K -> 0`, `b2 -> infinity`): the numerator `g s^2`, `g = K b2` (the
+///   one product the data determined; `K d s^mu` vanishes with `K`).
+///
+/// `G = g s^2 / ((a2 s^nu + 1)(c2 s^2 + d s^mu + 1))` when both, simulated as motor times pair
+/// ([`FracModel::series`]).
+pub fn reduced_two_mass(id: &Identification) -> Option<(FracModel, String)> {
+    let m = &id.model;
+    if m.kind != crate::oe::Kind::TwoMass {
+        return None;
+    }
+    let singular = id
+        .report
+        .params
+        .iter()
+        .any(|p| p.free && p.std_error.is_none());
+    if !singular {
+        return None;
+    }
+    let v = m.values();
+    let at = |n: &str| m.index_of(n).map(|i| v[i]);
+    let (k, a1, a2, zeta, theta, b2, c2, d, mu) = (
+        at("K")?,
+        at("a1")?,
+        at("a2")?,
+        at("zeta")?,
+        at("theta")?,
+        at("b2")?,
+        at("c2")?,
+        at("d")?,
+        at("mu")?,
+    );
+    let corner = a2.powf(-1.0 / (zeta + theta));
+    let undamped = a1 * corner.powf(zeta) <= COLLAPSED;
+    let at_origin = b2 >= ZEROS_AT_ORIGIN * c2;
+    // The pair's damping term of order near 2 merges with its inertia term (only `c2 + d` is
+    // determined); with the zeros at the origin the pair is then `c s^lambda + 1`.
+    let pair_merged = at_origin && (2.0 - mu).abs() <= MERGED_ORDERS;
+    if !(undamped || at_origin) {
+        return None;
+    }
+    use crate::oe::{Bounds, Expr, Param};
+    let mut r = m.clone();
+    r.operating_point = Default::default();
+    r.params.clear();
+    r.num.clear();
+    r.den.clear();
+    r.series.clear();
+    r.kind = crate::oe::Kind::General;
+    let add = |r: &mut FracModel, p: Param| r.add_param(p);
+    // The numerator: K (b2 s^2 + d s^mu + 1) or g s^2.
+    let (num_factor, pair_num, ig_or_k) = if at_origin {
+        let ig = add(&mut r, Param::new("g", k * b2, Bounds::Free));
+        // `s^2` split as `s` per factor when the pair's order may fall below 2 (each factor
+        // proper), else all on the pair.
+        let split = if pair_merged { 1.0 } else { 0.0 };
+        (
+            vec![(Expr::p(ig), Expr::cst(split))],
+            vec![(Expr::cst(1.0), Expr::cst(2.0 - split))],
+            (ig, None),
+        )
+    } else {
+        let ik = add(&mut r, Param::new("K", k, Bounds::Free));
+        let ib2 = add(&mut r, Param::positive("b2", b2));
+        (vec![(Expr::p(ik), Expr::cst(0.0))], vec![], (ik, Some(ib2)))
+    };
+    // The motor: a2 s^(zeta+theta) + a1 s^zeta + 1, or a2 s^nu + 1.
+    let ia2 = add(&mut r, Param::positive("a2", a2));
+    let motor_den: Vec<(Expr, Expr)> = if undamped {
+        let inu = add(&mut r, Param::order("nu", zeta + theta));
+        vec![
+            (Expr::p(ia2), Expr::p(inu)),
+            (Expr::cst(1.0), Expr::cst(0.0)),
+        ]
+    } else {
+        let ia1 = add(&mut r, Param::positive("a1", a1));
+        let iz = add(&mut r, Param::order("zeta", zeta));
+        let it = add(&mut r, Param::order("theta", theta));
+        vec![
+            (Expr::p(ia2), Expr::sum(&[(iz, 1.0), (it, 1.0)])),
+            (Expr::p(ia1), Expr::p(iz)),
+            (Expr::cst(1.0), Expr::cst(0.0)),
+        ]
+    };
+    let (pair_den, pair_num) = if pair_merged {
+        // c2 s^2 + d s^mu ~ c s^lambda: the sum, at the coefficients' mean order.
+        let ic = add(&mut r, Param::positive("c", c2 + d));
+        let il = add(
+            &mut r,
+            Param::new(
+                "lambda",
+                (2.0 * c2 + mu * d) / (c2 + d),
+                Bounds::Interval(0.0, 4.0),
+            ),
+        );
+        (
+            vec![(Expr::p(ic), Expr::p(il)), (Expr::cst(1.0), Expr::cst(0.0))],
+            pair_num,
+        )
+    } else {
+        let ic2 = add(&mut r, Param::positive("c2", c2));
+        let id_ = add(&mut r, Param::positive("d", d));
+        let imu = add(&mut r, Param::order("mu", mu));
+        let den = vec![
+            (Expr::p(ic2), Expr::cst(2.0)),
+            (Expr::p(id_), Expr::p(imu)),
+            (Expr::cst(1.0), Expr::cst(0.0)),
+        ];
+        let num = match ig_or_k {
+            (_, Some(ib2)) => vec![
+                (Expr::p(ib2), Expr::cst(2.0)),
+                (Expr::p(id_), Expr::p(imu)),
+                (Expr::cst(1.0), Expr::cst(0.0)),
+            ],
+            _ => pair_num,
+        };
+        (den, num)
+    };
+    // The product multiplied out (the transfer function of reports), term by term.
+    let times = |a: &[(Expr, Expr)], b: &[(Expr, Expr)]| -> Vec<(Expr, Expr)> {
+        let mut out = vec![];
+        for (ca, oa) in a {
+            for (cb, ob) in b {
+                let coef = product(ca, cb);
+                let mut order = oa.clone();
+                order.constant += ob.constant;
+                order.terms.extend(ob.terms.iter().copied());
+                out.push((coef, order));
+            }
+        }
+        out
+    };
+    r.num = times(&num_factor, &pair_num);
+    r.den = times(&motor_den, &pair_den);
+    r.series = vec![(num_factor, motor_den), (pair_num, pair_den)];
+    // A structure as the candidates are: the fit adds its offsets and initial state again.
+    r.past = None;
+    r.delay = None;
+    r.effects.clear();
+    r.integrator = false;
+    if m.integrator || m.delay.is_some() {
+        return None;
+    }
+    let mut what = vec![];
+    if undamped {
+        what.push(format!(
+            "the motor's damping term a1 s^zeta collapsed (a1 = {a1:.1e}): removed, the motor \
+             a2 s^nu + 1 with nu = zeta + theta"
+        ));
+    }
+    if at_origin {
+        what.push(format!(
+            "the zeros moved to s = 0 (K = {k:.2e}, b2 = {b2:.2e}, only K b2 determined): the \
+             numerator g s^2 with g = K b2"
+        ));
+    }
+    if pair_merged {
+        what.push(format!(
+            "the pair's damping order mu = {mu:.3} reached its inertia's 2 (only c2 + d \
+             determined): the pair c s^lambda + 1"
+        ));
+    }
+    Some((r, what.join("; ")))
+}
+
+/// The product of two coefficients that are each a parameter or a constant (the factors of
+/// [`reduced_two_mass`]): a constant times the other, else the first parameter times the second.
+fn product(a: &crate::oe::Expr, b: &crate::oe::Expr) -> crate::oe::Expr {
+    use crate::oe::Expr;
+    let is_const = |e: &Expr| e.terms.is_empty() && e.factors.is_empty();
+    match (is_const(a), is_const(b)) {
+        (true, true) => Expr::cst(a.constant * b.constant),
+        (true, false) if a.constant == 1.0 => b.clone(),
+        (false, true) if b.constant == 1.0 => a.clone(),
+        _ => {
+            let (lin, other) = if is_const(b) { (b, a) } else { (a, b) };
+            let idx: Vec<usize> = other.terms.iter().map(|t| t.0).collect();
+            lin.clone().times(&idx)
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The pre-screen leaves out a fit far behind the user's, or behind it with problems, and
+    /// keeps one that passes the user's even with problems after its few iterations (an output
+    /// that integrates) and one behind but usable within `FAR^2`.
+    #[test]
+    fn the_pre_screen_leaves_out_only_fits_behind_the_users() {
+        let user = 1.0;
+        // Far behind, usable or not.
+        assert!(pre_screened_out(4.5, true, user));
+        assert!(pre_screened_out(4.5, false, user));
+        // Behind (motor/generator's 1.9x after 10 iterations) with problems.
+        assert!(pre_screened_out(1.9, false, user));
+        // Behind but usable: fitted in full.
+        assert!(!pre_screened_out(1.9, true, user));
+        // Ahead of the user's (the output integrates), with problems after 10 iterations:
+        // fitted in full.
+        assert!(!pre_screened_out(0.3, false, user));
+        assert!(!pre_screened_out(0.3, true, user));
+    }
+
+    /// A row with a final RMSE (diagnosed or a plain fit's base RMSE), usable or not.
+    fn row(name: &str, rmse: f64, problems: &[&str]) -> StructureScore {
+        StructureScore {
+            rmse: Some(rmse),
+            rmse_after: Some(rmse),
+            bic_after: Some(0.0),
+            problems: problems.iter().map(|p| p.to_string()).collect(),
+            ..StructureScore::named(name)
+        }
+    }
+
+    fn cands() -> Vec<(String, FracModel)> {
+        let mut first = FracModel::fopdt(1.0, 0.1, 0.01, 1.0);
+        first.delay = None;
+        vec![
+            (
+                "commensurate".into(),
+                FracModel::commensurate(1.0, 0.01, 1e-4, 0.9),
+            ),
+            ("first order".into(), first),
+            (
+                "second order".into(),
+                FracModel::second_order(1.0, 0.01, 1e-4),
+            ),
+            (
+                "third order".into(),
+                FracModel::third_order(1.0, 0.0175, 8.75e-5, 1.25e-7),
+            ),
+        ]
+    }
+
+    /// The motor/generator record's case (session 15): the third order's RMSE is the lowest of
+    /// the integer models but its base fit is not usable (a3 not determined), the second order
+    /// failed: the reference is the first order, the one usable integer model, not the third.
+    #[test]
+    fn the_integer_reference_is_a_usable_integer_model() {
+        let mut second = StructureScore::named("second order");
+        second.failed = Some("numerical breakdown".into());
+        let scores = vec![
+            row("commensurate", 549.6, &[]),
+            row("first order", 599.2, &[]),
+            second,
+            row("third order", 531.1, &["a3 = 7.5e-1 is not determined"]),
+        ];
+        let (words, r) = integer_gain(&cands(), &scores, 0);
+        let r = r.expect("a usable integer reference");
+        assert_eq!(r.name, "first order", "{words}");
+        assert_eq!(r.rmse, 599.2);
+        assert!((r.relative_change - (549.6 / 599.2 - 1.0)).abs() < 1e-12);
+        assert!(words.contains("first order, RMSE 5.9920e2"), "{words}");
+        assert!(!words.contains("third order"), "{words}");
+        // No integer model usable: no reference, and the words say so.
+        let scores = vec![
+            row("commensurate", 549.6, &[]),
+            row("first order", 599.2, &["K not determined"]),
+            row("second order", 540.0, &["the covariance is singular"]),
+            row("third order", 531.1, &["a3 not determined"]),
+        ];
+        let (words, r) = integer_gain(&cands(), &scores, 0);
+        assert!(r.is_none(), "{r:?}");
+        assert!(
+            words.contains("no integer-order model is usable"),
+            "{words}"
+        );
+        // A chosen integer model is its own reference.
+        let (words, r) = integer_gain(&cands(), &scores, 1);
+        assert!(r.is_none() && words.contains("it is an integer-order model"));
+    }
+
+    /// A failed fit is said once, in `failed`: not repeated as a problem of a base fit it does
+    /// not have (the text printed both, session 15).
+    #[test]
+    fn a_failed_fit_is_said_once() {
+        let e: Result<Identification> = Err(Error::NotEnoughData("no resonance".into()));
+        let s = base_score("two-mass", &e);
+        assert_eq!(
+            s.failed.as_deref(),
+            Some("not enough information in the data: no resonance")
+        );
+        assert!(s.problems.is_empty() && s.model.is_empty(), "{s:?}");
+        let o = Outcome {
+            id: None,
+            diagnosis: Some(Err(Error::NotEnoughData("no resonance".into()))),
+        };
+        let s = score_of("two-mass", &o);
+        assert!(s.failed.is_some() && s.problems.is_empty(), "{s:?}");
+    }
 }

@@ -125,7 +125,14 @@ fn the_diagnosis_holds_the_resonance_of_a_two_mass_drive_train() {
     assert!(d
         .choice
         .reason
-        .contains("against the best integer-order model"));
+        .contains("against the best usable integer-order model"));
+    let r = d
+        .choice
+        .integer_reference
+        .as_ref()
+        .expect("an integer reference");
+    let row = d.choice.scores.iter().find(|s| s.name == r.name).unwrap();
+    assert!(row.problems.is_empty() && row.failed.is_none(), "{row:?}");
 }
 
 /// Without a periodic input: the same drive train driven by a PRBS that is not repeated (the
@@ -213,13 +220,21 @@ fn record_input() -> Vec<f64> {
 /// time domain) starts it; before, the structure could not start and the integer second order
 /// with a delay was chosen at a held-out RMSE of 0.0900 (NRMSE 65.77%).
 ///
-/// Measured (2026-11-26): the two-mass chosen, no effect, held-out RMSE 0.05180 (NRMSE 80.30%),
-/// the start "resonance 0.1094 Hz, anti-resonance 0.0859 Hz, motor q = 0.976" with a negative
-/// gain. Bounds: the RMSE at most 0.060 (16% above the measured one: the fit ends on a shallow,
-/// partly degenerate valley, `a1` near 0 and only `K b2` determined, where a change of the LM
-/// path or the approximation moves the end point a little) and at most 0.8 times the old choice's
-/// 0.0900: the gain that must hold is the resonant structure's, clearly better than the integer
-/// second order with a delay.
+/// The two-mass fit itself degenerates here (session 15: 500 iterations, not converged, the
+/// covariance singular: `a1 ~ 1e-43`, `K ~ -8e-5` with `b2 ~ 1.8e4`, only `K b2` determined,
+/// `mu = 1.958` merging the pair's damping with its inertia): the record is an acceleration (the
+/// response starts as `s^2`) of two lightly damped modes. The comparison refits it reduced
+/// ([`ident::diagnose::structures::reduced_two_mass`]): `g s/(a2 s^nu + 1) * s/(c s^lambda + 1)`,
+/// which converges with every parameter determined.
+///
+/// Measured (2026-11-26): `two-mass (reduced)` chosen, no effect, held-out RMSE 0.05184 (the
+/// degenerate fit's 0.05180), converged, 5 structural parameters each with a standard error
+/// (`g = -1.459 +- 0.049`, `nu = 1.8543 +- 0.004`, `lambda = 1.9940 +- 0.0001`), BIC -4200.3
+/// against the degenerate fit's -4172.3. Bounds: the RMSE at most 0.060 (16% above the measured
+/// one: a change of the LM path or the approximation moves the end point a little) and at most
+/// 0.8 times the old choice's 0.0900: the gain that must hold is the resonant structure's, clearly
+/// better than the integer second order with a delay; and the base fit converged with every
+/// free parameter (but a past-input level at its bound) determined.
 #[test]
 fn the_flexible_robot_arm_is_diagnosed_as_a_resonant_drive_train() {
     use ident::app::observe::Quiet;
@@ -245,7 +260,27 @@ fn the_flexible_robot_arm_is_diagnosed_as_a_resonant_drive_train() {
         "arm: {}; start {}; held out {:?}",
         d.structures.reason, r.start.note, r.lead.fit.validation
     );
-    assert_eq!(chosen.name, "two-mass", "{}", d.structures.reason);
+    assert!(
+        chosen.name.starts_with("two-mass"),
+        "{}",
+        d.structures.reason
+    );
+    assert!(
+        r.converged,
+        "the chosen base fit did not converge: {}",
+        r.stop_reason
+    );
+    let base = r.base.as_ref().expect("the base fit");
+    assert!(base.usable, "{:?}", base.problems);
+    for p in base.params.iter().filter(|p| p.free && !p.at_bound) {
+        let se = p.std_error.unwrap_or(f64::NAN);
+        assert!(
+            se.is_finite() && se < 10.0 * p.value.abs(),
+            "{} = {} +- {se}: not determined",
+            p.name,
+            p.value
+        );
+    }
     let held = r.lead.fit.validation.expect("a held-out part");
     assert!(held.rmse <= 0.060, "held-out RMSE {}", held.rmse);
     assert!(held.rmse <= 0.8 * 0.0900, "held-out RMSE {}", held.rmse);

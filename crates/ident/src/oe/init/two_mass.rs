@@ -69,8 +69,7 @@ pub fn aperiodic(
         Error::NotEnoughData(s) => s,
         e => e.to_string(),
     };
-    super::welch::h1(u, y, dt)
-        .map_err(|e| Error::NotEnoughData(format!("{}; {}", plain(why), plain(e))))
+    super::welch::h1(u, y, dt).map_err(|e| Error::NotEnoughData(joined(&plain(why), &plain(e))))
 }
 
 /// A pair whose poles' damping ratio `c1 / (2 sqrt(c2))` exceeds this has no resonance peak
@@ -83,10 +82,9 @@ fn pair_of(omega: &[f64], ratio: &[Complex64], weight: &[f64]) -> Result<([f64; 
     let fit = levy::levy_fixed_q(omega, ratio, 1.0, 2, 2, weight, SK_ITERATIONS)?;
     let (b, a) = (&fit.b, &fit.a);
     if !(b.iter().chain(a).all(|&c| c > 0.0 && c.is_finite())) {
-        return Err(Error::Numerical(format!(
-            "the resonant pair's Levy fit has a coefficient that is not positive (b = {b:?}, \
-             a = {a:?})"
-        )));
+        return Err(Error::Numerical(
+            "the resonant pair's Levy fit has a coefficient that is not positive".into(),
+        ));
     }
     Ok(([b[1] / b[0], b[2] / b[0], a[0], a[1]], b[0]))
 }
@@ -97,6 +95,37 @@ fn resonant(pair: &[f64; 4], w_lo: f64, w_hi: f64) -> bool {
     let w_r = c2.powf(-0.5);
     let damping = c1 / (2.0 * c2.sqrt());
     damping < MAX_PAIR_DAMPING && w_r >= w_lo && w_r <= w_hi
+}
+
+/// Why `pair` (`(b1, b2, c1, c2)`) is no resonance inside `[w_lo, w_hi]` rad/s, in words for a
+/// report (no coefficient vectors): a coefficient that is not positive, or its poles' frequency
+/// and damping ratio against the rule of [`resonant`].
+fn pair_words(pair: &[f64; 4], w_lo: f64, w_hi: f64) -> String {
+    let [_, _, c1, c2] = *pair;
+    if !pair.iter().all(|&c| c > 0.0 && c.is_finite()) {
+        return "no resonant pair (a coefficient of its pair is not positive)".into();
+    }
+    let hz = |w: f64| w / (2.0 * std::f64::consts::PI);
+    format!(
+        "no resonant pair (poles at {:.3} Hz with damping ratio {:.2}; a resonance needs below \
+         {MAX_PAIR_DAMPING:.2}, inside {:.3}-{:.3} Hz)",
+        hz(c2.powf(-0.5)),
+        c1 / (2.0 * c2.sqrt()),
+        hz(w_lo),
+        hz(w_hi)
+    )
+}
+
+/// The reasons `a` then `b` (each `"; "`-separated clauses) with the clauses `a` has already left
+/// out of `b`: a start that failed twice on the same estimate says so once.
+fn joined(a: &str, b: &str) -> String {
+    let mut parts: Vec<&str> = a.split("; ").filter(|p| !p.is_empty()).collect();
+    for p in b.split("; ") {
+        if !p.is_empty() && !parts.contains(&p) {
+            parts.push(p);
+        }
+    }
+    parts.join("; ")
 }
 
 /// `(b2 s^2 + b1 s + 1)/(c2 s^2 + c1 s + 1)`.
@@ -238,21 +267,7 @@ fn levy_candidates(lin: &FracModel, frf: &Frf, dt: f64) -> Result<(Vec<Candidate
             .tf(&whole.values())
             .map_or(f64::NAN, |g| frf_error(frf, &g));
         out.push((
-            with_values(
-                lin,
-                &[
-                    ("K", k),
-                    ("a1", a1),
-                    ("a2", a2),
-                    ("zeta", q),
-                    ("theta", q),
-                    ("b2", b2),
-                    ("c2", c2),
-                    ("d", d),
-                    ("mu", mu),
-                    ("tau", dt),
-                ],
-            ),
+            start_values(lin, [k, a1, a2, q], [b2, c2, d, mu], dt),
             format!(
                 "{what}: motor q = {q:.3}, resonance {:.2} Hz, anti-resonance {:.2} Hz \
                  (weighted error {err:.2e})",
@@ -273,7 +288,8 @@ fn levy_candidates(lin: &FracModel, frf: &Frf, dt: f64) -> Result<(Vec<Candidate
         }
         Ok((m, pair, _)) => {
             why.push(format!(
-                "the quartic Levy fit gives motor {m:?}, pair {pair:?}"
+                "the quartic Levy fit has {}",
+                pair_words(&pair, w_lo, w_hi)
             ));
             if m.iter().all(|&c| c > 0.0 && c.is_finite()) {
                 motor = Some(m);
@@ -303,12 +319,8 @@ fn levy_candidates(lin: &FracModel, frf: &Frf, dt: f64) -> Result<(Vec<Candidate
         let m = [k * b0, a1, a2, q];
         if !usable(&m, &pair) {
             why.push(format!(
-                "the pair fitted has poles at {:.3} Hz with damping ratio {:.2} (a resonance \
-                 needs below {MAX_PAIR_DAMPING:.2}, inside {:.3}-{:.3} Hz)",
-                hz(pair[3]),
-                pair[2] / (2.0 * pair[3].sqrt()),
-                w_lo / (2.0 * std::f64::consts::PI),
-                w_hi / (2.0 * std::f64::consts::PI)
+                "the pair fitted has {}",
+                pair_words(&pair, w_lo, w_hi)
             ));
             break;
         }
@@ -421,14 +433,17 @@ pub fn fallback(
         Error::NotEnoughData(s) => s.clone(),
         e => e.to_string(),
     };
-    let (frf, how) = super::welch::h1_up_to(u, y, dt, PEAK_FRACTION_OF_NYQUIST)
-        .map_err(|e| Error::NotEnoughData(format!("{}; {}", plain(&why), plain(&e))))?;
+    let (frf, how) = super::welch::h1_up_to(u, y, dt, PEAK_FRACTION_OF_NYQUIST).map_err(|e| {
+        Error::NotEnoughData(format!(
+            "no frequency response to start from: {}",
+            joined(&plain(&why), &plain(&e))
+        ))
+    })?;
     let h0 = frf.h[0];
     if h0.re.abs() < h0.im.abs() {
         return Err(Error::NotEnoughData(format!(
-            "{}; no resonance in the frequency response: the sign of the gain is not determined \
+            "no resonance in the frequency response: the sign of the gain is not determined \
              (phase {:.0} degrees at the lowest frequency of Welch's estimate)",
-            plain(&why),
             h0.arg().to_degrees()
         )));
     }
@@ -446,15 +461,15 @@ pub fn fallback(
         }
     }
     out.extend(peak_candidates(lin, &pos, dt));
-    let refused = |e: Error| Error::NotEnoughData(format!("{}; {}", plain(&why), plain(&e)));
+    // The Levy start failed already (`why`): the fallback's own reason is the one to give.
     if out.is_empty() {
-        return Err(refused(Error::NotEnoughData(
-            "no resonance in the frequency response: no peak of Welch's estimate (up to half \
-             the Nyquist frequency) makes a start"
+        return Err(Error::NotEnoughData(
+            "no resonance in the frequency response: neither the Levy fits nor any peak of \
+             Welch's estimate (up to half the Nyquist frequency) give a resonant pair"
                 .into(),
-        )));
+        ));
     }
-    let out = time_refined(lin, out, u, y, dt).map_err(refused)?;
+    let out = time_refined(lin, out, u, y, dt)?;
     Ok((
         frf,
         out,
@@ -547,21 +562,7 @@ fn peak_candidates(lin: &FracModel, frf: &Frf, dt: f64) -> Vec<Candidate> {
                 continue;
             };
             out.push((
-                with_values(
-                    lin,
-                    &[
-                        ("K", k),
-                        ("a1", a1),
-                        ("a2", a2),
-                        ("zeta", q),
-                        ("theta", q),
-                        ("b2", b2),
-                        ("c2", c2),
-                        ("d", d),
-                        ("mu", 1.0),
-                        ("tau", dt),
-                    ],
-                ),
+                start_values(lin, [k, a1, a2, q], [b2, c2, d, 1.0], dt),
                 format!(
                     "peak of Welch's estimate: resonance {:.4} Hz, anti-resonance {:.4} Hz, {what}",
                     hz(w_r),
@@ -626,6 +627,7 @@ fn time_refined(
     };
     let mut out = vec![];
     let mut best_gain = f64::NEG_INFINITY;
+    let mut best_explained = f64::NEG_INFINITY;
     let sst = {
         let mean = y.iter().sum::<f64>() / m as f64;
         y.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>()
@@ -663,6 +665,7 @@ fn time_refined(
         // The share of the output's variance the pair explains beyond its motor alone.
         let gain = (alone - sse) / sst;
         best_gain = best_gain.max(gain);
+        best_explained = best_explained.max(1.0 - sse / sst);
         let explains = sse <= (1.0 - super::MIN_FALLBACK_EXPLAINED) * sst;
         if explains && gain >= super::MIN_FALLBACK_EXPLAINED {
             let sign = if v[ik] < 0.0 { "negative gain, " } else { "" };
@@ -678,9 +681,10 @@ fn time_refined(
     }
     if out.is_empty() {
         return Err(Error::NotEnoughData(format!(
-            "no resonance in the frequency response: no peak start's pair explains the output \
-             (the best one explains {:.1}% of its variance beyond its motor alone; {:.0}% \
-             needed)",
+            "no resonance in the frequency response: no peak start explains the output (the \
+             best explains {:.1}% of its variance, the best pair {:.1}% beyond its motor alone; \
+             {:.0}% of each needed)",
+            100.0 * best_explained,
             100.0 * best_gain,
             100.0 * super::MIN_FALLBACK_EXPLAINED
         )));
@@ -688,6 +692,27 @@ fn time_refined(
     Ok(out)
 }
 
+/// The start's values of `lin` (the two-mass structure): the motor `[K, a1, a2, q]` with both
+/// orders `zeta = theta = q`, the pair `[b2, c2, d, mu]`, the delay's start `tau = dt`.
+fn start_values(lin: &FracModel, motor: [f64; 4], pair: [f64; 4], dt: f64) -> Vec<f64> {
+    let [k, a1, a2, q] = motor;
+    let [b2, c2, d, mu] = pair;
+    with_values(
+        lin,
+        &[
+            ("K", k),
+            ("a1", a1),
+            ("a2", a2),
+            ("zeta", q),
+            ("theta", q),
+            ("b2", b2),
+            ("c2", c2),
+            ("d", d),
+            ("mu", mu),
+            ("tau", dt),
+        ],
+    )
+}
 #[cfg(test)]
 mod tests {
     use super::*;
