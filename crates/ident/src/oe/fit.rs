@@ -818,8 +818,9 @@ impl std::str::FromStr for InitialState {
     }
 }
 
-/// The window edges (seconds before the first sample) of the past input that stands for the
-/// initial state of a record whose estimation part lasts `duration` seconds.
+/// The candidate window edges (seconds before the first sample) of the past input that stands
+/// for the initial state of a record whose estimation part lasts `duration` seconds; the windows
+/// a record gets are those among them its data determine ([`super::past`]).
 pub fn past_edges(duration: f64) -> Vec<f64> {
     vec![duration / 64.0, duration / 8.0, duration]
 }
@@ -1064,18 +1065,15 @@ fn identify_at_scale(
     }
     // A past chosen by the data (docs/design.md §5, [`super::past`]): one level held since
     // `-inf` first, finer windows only while the record determines them. A model that comes
-    // with its past keeps its windows.
+    // with its past (a report rescored) keeps its windows.
     let past_range = super::past_range(&rec.u, offsets.u0);
-    let choose_past = initial == InitialState::Estimate && m.past.is_none();
-    match initial {
-        InitialState::Estimate if choose_past => {
-            m.with_past_input(vec![], past_range);
+    let choose_past = match initial {
+        InitialState::Estimate => super::past::prepare(&mut m, past_range)?,
+        InitialState::Rest | InitialState::Auto => {
+            m.past = None;
+            false
         }
-        InitialState::Estimate => {
-            m.with_past_input(past_edges(split as f64 * rec.dt), past_range);
-        }
-        InitialState::Rest | InitialState::Auto => m.past = None,
-    }
+    };
     for p in &mut m.params {
         p.value = p.bounds.clamp_inside(p.value);
     }

@@ -92,6 +92,25 @@ pub fn choose(
     })
 }
 
+/// The initial state's past of `m` set up for a fit that estimates it on a record whose levels
+/// are kept within `range` ([`super::past_range`]): a model without a past starts with one level
+/// held since before the record (returns `true`: its finer windows are then chosen by
+/// [`refine`] after the fit); a model that comes with a past (a saved report's, a fit's to be
+/// rescored) keeps its windows, the levels restarting at 0 within `range` (returns `false`).
+/// Every fit that estimates a record's initial state starts here: [`super::identify`],
+/// [`super::score`], [`super::identify_joint`].
+///
+/// # Errors
+/// None in practice ([`FracModel::with_past_windows`] with one value per window).
+pub fn prepare(m: &mut FracModel, range: (f64, f64)) -> Result<bool> {
+    let edges = m.past.as_ref().map(|p| p.edges.clone());
+    let chosen = edges.is_none();
+    let edges = edges.unwrap_or_default();
+    let zeros = vec![0.0; edges.len() + 1];
+    m.with_past_windows(edges, &zeros, range)?;
+    Ok(chosen)
+}
+
 /// Whether a sum of squares `ssr_new` with one parameter more than `ssr` lowers the Bayesian
 /// information criterion counted in `n_eff` independent residuals.
 fn pays(n_eff: f64, ssr: f64, ssr_new: f64) -> bool {
