@@ -688,6 +688,9 @@ fn best_refit(ctx: &Ctx<'_>, starts: &[FracModel]) -> Result<State> {
     }
     let mut short = ctx.opts.clone();
     short.fit.lm.max_iterations = START_SCREEN_ITERATIONS;
+    // The screen's budget is what it says under variable projection too (the reduced fit's
+    // iterations and the joint fit's together).
+    short.fit.shared_budget = true;
     let screen = Ctx {
         opts: &short,
         ..ctx.clone()
