@@ -112,7 +112,8 @@ pub const REFIT_STALL: (usize, f64) = (5, 1e-4);
 
 /// LM iterations each start of a candidate with several starts gets before only the best of them
 /// (lowest estimation sum of squares) is refitted on, with the rest of the budget
-/// ([`best_refit`]).
+/// ([`best_refit`]); under variable projection the reduced and the joint fit share them
+/// ([`crate::oe::FitOptions::shared_budget`]: each had all 5 before, 10 in all).
 pub const START_SCREEN_ITERATIONS: usize = 5;
 
 impl Default for DiagnoseOptions {
@@ -688,6 +689,9 @@ fn best_refit(ctx: &Ctx<'_>, starts: &[FracModel]) -> Result<State> {
     }
     let mut short = ctx.opts.clone();
     short.fit.lm.max_iterations = START_SCREEN_ITERATIONS;
+    // The screen's budget is what it says under variable projection too (the reduced fit's
+    // iterations and the joint fit's together).
+    short.fit.shared_budget = true;
     let screen = Ctx {
         opts: &short,
         ..ctx.clone()

@@ -22,6 +22,12 @@ pub struct FitOptions {
     pub lm: LmOptions,
     /// Leading samples left out of the residual (a start-up transient the model cannot explain).
     pub skip: usize,
+    /// Whether a fit by variable projection (see [`fit`]) counts the reduced fit's iterations
+    /// against `lm.max_iterations`, so that the reduced and the joint fit together take at most
+    /// that many (a short screen that means its budget, [`crate::diagnose::START_SCREEN_ITERATIONS`]).
+    /// Default `false`: each of the two fits has the whole budget (the fits of every record were
+    /// tuned with it).
+    pub shared_budget: bool,
 }
 
 impl Default for FitOptions {
@@ -37,6 +43,7 @@ impl Default for FitOptions {
                 ..LmOptions::default()
             },
             skip: 0,
+            shared_budget: false,
         }
     }
 }
@@ -638,7 +645,7 @@ pub(super) fn fit_in<S: Structure>(
                 .with(|p| p.get())
                 .then(|| varpro::plan(s, &free))
                 .flatten()
-                .and_then(|plan| varpro::fit(&mut prob, &plan, &start, &lm));
+                .and_then(|plan| varpro::fit(&mut prob, &plan, &start, &lm, opts.shared_budget));
             match projected {
                 Some(rep) => rep?,
                 None => minimize(&mut prob, &start, &lm)?,
@@ -1527,6 +1534,45 @@ mod tests {
             projected.iterations,
             joint.iterations
         );
+    }
+
+    /// A shared budget ([`FitOptions::shared_budget`]) on the record of
+    /// [`the_projected_fit_ends_at_the_joint_fits_optimum`]: with 5 iterations the reduced and the
+    /// joint fit together take at most 5 (each takes up to 5 without it: 10 here), and a budget
+    /// the fit does not reach changes nothing (the same fit to the bit).
+    #[test]
+    fn a_shared_budget_bounds_the_projected_fits_iterations_together() {
+        let (n, dt) = (3000, 1e-4);
+        let mut rnd = xorshift(0x5851_f42d_4c95_7f2d);
+        let u = prbs_like(n, &mut rnd);
+        let edges = past_edges(n as f64 * dt);
+        let with_state = |m: &mut FracModel| {
+            m.with_past_input(edges.clone(), (-5.0, 5.0));
+            m.with_output_offset(0.0);
+        };
+        let mut truth = FracModel::pmsm(6.82, 0.0059, 2.655e-5, 0.92, 0.8252);
+        with_state(&mut truth);
+        let mut y = vec![0.0; n];
+        truth.simulate(&truth.values(), &u, dt, &mut y).unwrap();
+        for v in &mut y {
+            *v += 0.05 * 3f64.sqrt() * (2.0 * rnd() - 1.0);
+        }
+        let mut start = FracModel::pmsm(6.0, 0.005, 3e-5, 0.85, 0.9);
+        with_state(&mut start);
+        let mut opts = FitOptions::default();
+        opts.lm.max_iterations = 5;
+        let each = fit(&start, &u, &y, dt, &opts).unwrap();
+        opts.shared_budget = true;
+        let shared = fit(&start, &u, &y, dt, &opts).unwrap();
+        assert!(each.iterations > 5, "{} iterations", each.iterations);
+        assert!(shared.iterations <= 5, "{} iterations", shared.iterations);
+        opts.lm.max_iterations = 500;
+        let whole = fit(&start, &u, &y, dt, &opts).unwrap();
+        opts.shared_budget = false;
+        let plain = fit(&start, &u, &y, dt, &opts).unwrap();
+        assert!(plain.converged && plain.iterations < 500);
+        assert_eq!(whole.values, plain.values);
+        assert_eq!(whole.iterations, plain.iterations);
     }
 
     /// A lead that misleads: the plant's gain is twice as large over the leading part as over

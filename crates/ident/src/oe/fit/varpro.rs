@@ -333,12 +333,14 @@ const REDUCED_FTOL: f64 = 1e-7;
 /// the projection held at an edge of its range stays held there in the joint fit (its standard
 /// error NaN, the others' the covariance with it fixed, as [`minimize`] reports a parameter at
 /// a bound). The joint fit starts from the start `theta0` instead when the projection's result
-/// fits worse than it.
+/// fits worse than it. With `shared`, the two fits share `lm.max_iterations` (the joint fit
+/// has the iterations the reduced one left); else each has all of them.
 pub(super) fn fit<S: Structure>(
     prob: &mut OeProblem<'_, S>,
     plan: &Plan,
     theta0: &[f64],
     lm: &LmOptions,
+    shared: bool,
 ) -> Option<Result<LmReport>> {
     let (free, base) = (prob.free.clone(), prob.base.clone());
     let (s, u, y, dt, skip) = (prob.s, prob.u, prob.y, prob.dt, prob.skip);
@@ -353,10 +355,16 @@ pub(super) fn fit<S: Structure>(
     red.solve(&rr.params).ok()?;
     // The joint fit starts at the projection's optimum (to the projection's cost test): its
     // steps are small, and its last one (under the cost test) is far below the standard errors,
-    // so the covariance is that of the point before it (one Jacobian fewer).
+    // so the covariance is that of the point before it (one Jacobian fewer). A shared budget:
+    // the joint fit has the iterations the reduced one left.
     let joint_lm = LmOptions {
         initial_lambda: rr.lambda.clamp(1e-12, lm.initial_lambda),
         covariance_before_last_step: true,
+        max_iterations: if shared {
+            lm.max_iterations.saturating_sub(rr.iterations)
+        } else {
+            lm.max_iterations
+        },
         ..lm.clone()
     };
     let rep = joint_holding(prob, &red.theta, &red.held, &joint_lm);
