@@ -21,7 +21,7 @@
 //! | `coulomb_friction` | `G * (-sign_b(y0 + yhat_prev))`, `sign_b` 0 within the noise band | `Vc > 0`, LM (see below) |
 //! | `input_offset` | `G * 1` | `u_offset`, LM |
 //! | `output_offset` | `1` | `y_offset`, LM |
-//! | `initial_state` | the model's response to each past held input level (resimulated) | `u_past0..` (the initial state of `InitialState::Estimate`, the windows the data determine), LM |
+//! | `initial_state` | the model's response to each past held input level (resimulated) | `u_past0..3` (the initial state of `InitialState::Estimate`), LM |
 //! | `periodic` | `cos, sin (2 pi f t)`, `f` a spectral peak | `f` fixed at the peak; cosine and sine amplitudes, LM |
 //! | `abs_sensor` | `abs(y0 + yhat) - (y0 + yhat)` | none; the linear part is refitted |
 //! | `saturation` | `G * (clamp(u, -L, L) - u)` over a grid of `L` | `L > 0`: grid, then LM |

@@ -37,7 +37,6 @@ pub(crate) mod effects;
 mod fit;
 pub mod init;
 mod joint;
-pub mod past;
 mod score;
 
 pub(crate) use checks::levels_at_bound;
@@ -847,42 +846,6 @@ impl FracModel {
             .collect();
         self.past = Some(PastInput { edges, levels });
         self
-    }
-
-    /// Set the initial state's past input to the windows ending `edges` seconds before the first
-    /// sample ([`PastInput`]), level `j` (newest first) starting at `values[j]` kept within
-    /// `range`: the levels already present are reused in their order (`u_past0 ..`), more are
-    /// added. A choice of windows made by the data ([`past::choose`]).
-    ///
-    /// # Errors
-    /// [`Error::Options`] when `values` is not one per window (`edges.len() + 1`), or the model
-    /// already has more levels than that.
-    pub fn with_past_windows(
-        &mut self,
-        edges: Vec<f64>,
-        values: &[f64],
-        range: (f64, f64),
-    ) -> Result<&mut Self> {
-        let have = self.past.as_ref().map_or(0, |p| p.levels.len());
-        if values.len() != edges.len() + 1 || have > values.len() {
-            return Err(Error::Options(format!(
-                "{} level(s) for {} window(s) of a past with {have} level(s)",
-                values.len(),
-                edges.len() + 1
-            )));
-        }
-        let bounds = Bounds::Interval(range.0, range.1);
-        let mut levels = self.past.take().map(|p| p.levels).unwrap_or_default();
-        while levels.len() < values.len() {
-            let j = levels.len();
-            levels.push(self.add_param(Param::new(&format!("u_past{j}"), 0.0, bounds)));
-        }
-        for (&i, &v) in levels.iter().zip(values) {
-            self.params[i].bounds = bounds;
-            self.params[i].value = bounds.clamp_inside(v);
-        }
-        self.past = Some(PastInput { edges, levels });
-        Ok(self)
     }
 
     /// Put a free integrator in series, `G(s)/s`, for an output that integrates (a position

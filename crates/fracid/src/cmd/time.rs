@@ -512,27 +512,17 @@ fn fit_text(id: &Identification, rec: &Record) -> String {
             .iter()
             .map(|(_, p)| {
                 let tag = if p.at_bound { " (AT BOUND)" } else { "" };
-                let se = p.std_error.map_or("-".to_string(), |s| format!("{s:.2e}"));
-                format!("{:.4} +- {se}{tag}", p.value)
+                format!("{:.4}{tag}", p.value)
             })
             .collect();
         let edges: Vec<String> = past.edges.iter().map(|e| format!("{e:.4}")).collect();
-        let _ = if edges.is_empty() {
-            writeln!(
-                o,
-                "initial state: the past input's deviation {} held since before the record (the \
-                 state it left; finer windows the data did not determine)",
-                levels.join(", ")
-            )
-        } else {
-            writeln!(
-                o,
-                "initial state: the past input's deviation (newest first) {} on windows ending \
-                 {} s before the record and before that",
-                levels.join(", "),
-                edges.join(", ")
-            )
-        };
+        let _ = writeln!(
+            o,
+            "initial state: the past input's deviation (newest first) {} on windows ending {} s \
+             before the record",
+            levels.join(", "),
+            edges.join(", ")
+        );
     }
     let _ = writeln!(
         o,

@@ -825,9 +825,8 @@ impl std::str::FromStr for InitialState {
     }
 }
 
-/// The candidate window edges (seconds before the first sample) of the past input that stands
-/// for the initial state of a record whose estimation part lasts `duration` seconds; the windows
-/// a record gets are those among them its data determine ([`super::past`]).
+/// The window edges (seconds before the first sample) of the past input that stands for the
+/// initial state of a record whose estimation part lasts `duration` seconds.
 pub fn past_edges(duration: f64) -> Vec<f64> {
     vec![duration / 64.0, duration / 8.0, duration]
 }
@@ -1070,39 +1069,21 @@ fn identify_at_scale(
     if opts.fit_offset && m.index_of("y_offset").is_none() {
         m.with_output_offset(0.0);
     }
-    // A past chosen by the data (docs/design.md §5, [`super::past`]): one level held since
-    // `-inf` first, finer windows only while the record determines them. A model that comes
-    // with its past (a report rescored) keeps its windows.
-    let past_range = super::past_range(&rec.u, offsets.u0);
-    let choose_past = match initial {
-        InitialState::Estimate => super::past::prepare(&mut m, past_range)?,
-        InitialState::Rest | InitialState::Auto => {
-            m.past = None;
-            false
+    match initial {
+        InitialState::Estimate => {
+            m.with_past_input(
+                past_edges(split as f64 * rec.dt),
+                super::past_range(&rec.u, offsets.u0),
+            );
         }
-    };
+        InitialState::Rest | InitialState::Auto => m.past = None,
+    }
     for p in &mut m.params {
         p.value = p.bounds.clamp_inside(p.value);
     }
     let start = m.values();
     let (u_est, y_est) = (&u[..split], &y[..split]);
-    let mut report = fit_in(&m, u_est, y_est, rec.dt, &opts.fit, progress, buffers)?;
-    if choose_past {
-        let candidates = past_edges(split as f64 * rec.dt);
-        let mut refit =
-            |f: &FracModel| fit_in(f, u_est, y_est, rec.dt, &opts.fit, &mut *progress, None);
-        report = super::past::refine(
-            &mut m,
-            report,
-            u_est,
-            y_est,
-            rec.dt,
-            &opts.fit,
-            &candidates,
-            past_range,
-            &mut refit,
-        )?;
-    }
+    let report = fit_in(&m, u_est, y_est, rec.dt, &opts.fit, progress, buffers)?;
     for (p, v) in m.params.iter_mut().zip(&report.values) {
         p.value = *v;
     }
@@ -1179,8 +1160,7 @@ fn refine_buffers(
     }
     let offset = usize::from(opts.fit_offset && m.index_of("y_offset").is_none());
     let levels = match (initial, &m.past) {
-        // The one level the past starts with (super::past).
-        (InitialState::Estimate, None) => 1,
+        (InitialState::Estimate, None) => past_edges(1.0).len() + 1,
         _ => 0,
     };
     let cols = m.params.iter().filter(|p| p.free).count() + offset + levels;

@@ -2,7 +2,6 @@
 //! point, output offset and initial state (MATLAB's multi-experiment `iddata` with `oe`).
 
 use super::fit::{fit_in, past_edges, IdentOptions, InitialState};
-use super::past;
 use super::{FracModel, Param, Structure};
 use crate::data::{Offsets, Record};
 use crate::metrics::Fit;
@@ -33,38 +32,6 @@ impl Structure for Joint {
     }
 }
 
-/// A further record's own past (the first record's is the one its fit chose): the windows this
-/// record determines at the first record's model (the linear screen of [`past::choose`], the
-/// plant held, as the diagnosis's `initial_state` probe screens), their levels starting at the
-/// screen's solution. The first record's levels that this record's past does not use stay in
-/// the model, unused by its simulation.
-fn own_past(m: &mut FracModel, rec: &Record, opts: &IdentOptions) -> Result<()> {
-    let op = m.operating_point;
-    let range = super::past_range(&rec.u, op.u0);
-    let mut at = m.clone();
-    at.past = None;
-    if let Some(i) = at.index_of("y_offset") {
-        at.params[i].value = 0.0;
-    }
-    let u: Vec<f64> = rec.u.iter().map(|v| v - op.u0).collect();
-    let y: Vec<f64> = rec.y.iter().map(|v| v - op.y0).collect();
-    let choice = past::choose(
-        &at,
-        &at.values(),
-        &u,
-        &y,
-        rec.dt,
-        opts.fit.skip.min(rec.len()),
-        &past_edges(rec.len() as f64 * rec.dt),
-        range,
-    )?;
-    if let Some(p) = &mut m.past {
-        p.levels.truncate(choice.levels.len());
-    }
-    m.with_past_windows(choice.edges, &choice.levels, range)?;
-    Ok(())
-}
-
 /// The result of [`identify_joint`].
 #[derive(Debug, Clone)]
 pub struct JointIdentification {
@@ -80,9 +47,7 @@ pub struct JointIdentification {
 
 /// Fit one model to several records of the same plant (same sampling step): the start is the
 /// model [`super::identify`] fits to the first record; then every record is simulated from its own
-/// initial state ([`InitialState`]; estimated, on the windows of the past each record determines:
-/// the first record's as its fit chose them, a further record's by the linear screen at that
-/// model, [`past::choose`]) with its own output offset, and the plant's parameters are
+/// initial state ([`InitialState`]) with its own output offset, and the plant's parameters are
 /// fitted to all of them at once. Each record is used whole (validate on another record with
 /// [`super::score`]).
 ///
@@ -128,18 +93,18 @@ pub fn identify_joint(
         let op = rec.offsets(opts.offsets, rec.len());
         let mut m = base.clone();
         m.operating_point = op;
-        if opts.initial == InitialState::Estimate && r > 0 {
-            own_past(&mut m, rec, opts)?;
+        if opts.initial == InitialState::Estimate {
+            m.with_past_input(
+                past_edges(rec.len() as f64 * rec.dt),
+                super::past_range(&rec.u, op.u0),
+            );
         }
         let map: Vec<usize> = (0..m.params.len())
             .map(|i| {
                 if r > 0 && own(&m, i) {
                     let mut p = m.params[i].clone();
                     p.name = format!("{}@{}", p.name, r + 1);
-                    // its output offset from 0, its past's levels from the screen's
-                    if !m.is_initial_state(i) {
-                        p.value = 0.0;
-                    }
+                    p.value = 0.0;
                     params.push(p);
                     params.len() - 1
                 } else {

@@ -22,16 +22,12 @@ pub struct Scored {
     pub record_params: Vec<ParamEstimate>,
     /// Warnings (an input with no excitation: the score says little about the dynamics).
     pub warnings: Vec<String>,
-    /// The windows the record's initial state was estimated on (`None`: scored from rest).
-    pub past: Option<super::PastInput>,
 }
 
 /// Score `model` (its parameter values as they are) on `rec`: the operating point by `offsets`,
 /// then the record's output offset (when the model has one) and, with
 /// [`InitialState::Estimate`], its initial state as a past held input, fitted with everything
-/// else held (on the windows of the model's own past when it has one, else on those this record
-/// determines, as a fit chooses them: [`super::past`]); the fit (RMSE, NRMSE) over the whole
-/// record.
+/// else held; the fit (RMSE, NRMSE) over the whole record.
 ///
 /// ```
 /// use ident::data::{OffsetMode, Record};
@@ -73,24 +69,22 @@ pub fn score(
     }
     // scored from the state it is fitted from (`identify`)
     let initial = initial.resolve(rec, offsets);
-    // The windows of the past as a fit chooses them ([`super::past`]): a model that comes with
-    // its past (the report's) keeps its windows, one without starts with one level and gets
-    // the finer windows this record determines.
-    let range = super::past_range(&rec.u, op.u0);
-    let choose_past = match initial {
-        InitialState::Estimate => super::past::prepare(&mut m, range)?,
-        InitialState::Rest | InitialState::Auto => {
-            m.past = None;
-            false
+    match initial {
+        InitialState::Estimate => {
+            m.with_past_input(
+                past_edges(n as f64 * rec.dt),
+                super::past_range(&rec.u, op.u0),
+            );
+            for &i in &m
+                .past
+                .as_ref()
+                .map(|p| p.levels.clone())
+                .unwrap_or_default()
+            {
+                m.params[i].free = true;
+            }
         }
-    };
-    for &i in &m
-        .past
-        .as_ref()
-        .map(|p| p.levels.clone())
-        .unwrap_or_default()
-    {
-        m.params[i].free = true;
+        InitialState::Rest | InitialState::Auto => m.past = None,
     }
     let u: Vec<f64> = rec.u.iter().map(|v| v - op.u0).collect();
     let y: Vec<f64> = rec.y.iter().map(|v| v - op.y0).collect();
@@ -98,22 +92,7 @@ pub fn score(
     let mut warnings = vec![];
     let mut record_params = vec![];
     if m.params.iter().any(|p| p.free) {
-        let opts = FitOptions::default();
-        let mut rep = fit(&m, &u, &y, rec.dt, &opts)?;
-        if choose_past {
-            let mut refit = |f: &FracModel| fit(f, &u, &y, rec.dt, &opts);
-            rep = super::past::refine(
-                &mut m,
-                rep,
-                &u,
-                &y,
-                rec.dt,
-                &opts,
-                &past_edges(n as f64 * rec.dt),
-                range,
-                &mut refit,
-            )?;
-        }
+        let rep = fit(&m, &u, &y, rec.dt, &FitOptions::default())?;
         values = rep.values;
         record_params = rep.params.into_iter().filter(|p| p.free).collect();
         warnings.extend(super::checks::levels_at_bound(&m, &record_params));
@@ -142,6 +121,5 @@ pub fn score(
         offsets: op,
         record_params,
         warnings,
-        past: m.past,
     })
 }

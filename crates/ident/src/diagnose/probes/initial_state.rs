@@ -8,10 +8,9 @@
 //! slow heat path, minutes against an idle window of seconds) passes it. Whether the record was
 //! at rest is then a question for the data like any effect: the alternative is the initial state
 //! the fit uses for a record that does not rest ([`crate::oe::InitialState::Estimate`]: the state
-//! a past held input left, one level held since before the record and finer windows ending at
-//! [`crate::oe::past_edges`] only where the linear screen at the base fit pays by BIC in
-//! independent residuals with every level determined, [`crate::oe::past::choose`]), kept only
-//! when it pays on held-out data and by BIC (one parameter a level).
+//! a past held input left, its levels on windows ending `T/64`, `T/8` and `T` before the first
+//! sample and before that, [`crate::oe::past_edges`]), kept only when it pays on held-out data
+//! and by BIC (four parameters, `4 ln N`).
 //!
 //! Signature: the model's output change per unit of each past level (the model resimulated with
 //! that level alone, other parameters held; exact for the linear part), regressed with the model's
@@ -28,7 +27,6 @@
 //! kept, an input offset is reported as ambiguous with it (the input-offset probe).
 
 use super::{named, Candidate, Findings, Look, Probe};
-use crate::oe::past::choose;
 use crate::oe::{past_edges, past_range, FracModel, Structure};
 use crate::Result;
 use std::collections::BTreeMap;
@@ -68,29 +66,10 @@ impl Probe for InitialState {
         }
         let s = look.s();
         let mut m = st.model.clone();
-        // The windows the record determines at the base model (`crate::oe::past`): one level held
-        // since before the record, finer ones only while they pay; the levels restart at 0 in the
-        // refit.
-        let range = past_range(&ctx.rec.u, ctx.u0);
-        let choice = match choose(
-            &st.model,
-            &st.values,
-            &ctx.u[..s],
-            &ctx.y[..s],
-            ctx.dt,
-            ctx.opts.fit.skip.min(s),
-            &past_edges(s as f64 * ctx.dt),
-            range,
-        ) {
-            Ok(c) => c,
-            Err(_) => return Ok(()),
-        };
-        let edges = choice.edges.clone();
-        if m.with_past_windows(choice.edges, &vec![0.0; edges.len() + 1], range)
-            .is_err()
-        {
-            return Ok(());
-        }
+        m.with_past_input(
+            past_edges(s as f64 * ctx.dt),
+            past_range(&ctx.rec.u, ctx.u0),
+        );
         let Some(levels) = m.past.as_ref().map(|p| p.levels.clone()) else {
             return Ok(());
         };
@@ -125,21 +104,14 @@ impl Probe for InitialState {
             r2,
             evidence: format!(
                 "the record was fitted from rest (it looks steady for the samples before its first \
-                 input change); a past held input {} (the state it left, other parameters held) \
-                 explains {:.1}% of the residual sum of squares",
-                if edges.is_empty() {
-                    "since before the record".to_string()
-                } else {
-                    format!(
-                        "on windows ending {} s before the first sample and before that (the \
-                         windows the data determine)",
-                        edges
-                            .iter()
-                            .map(|e| format!("{e:.3e}"))
-                            .collect::<Vec<_>>()
-                            .join(", ")
-                    )
-                },
+                 input change); a past held input on windows ending {} s before the first sample \
+                 (the state it left, other parameters held) explains {:.1}% of the residual sum \
+                 of squares",
+                past_edges(s as f64 * ctx.dt)
+                    .iter()
+                    .map(|e| format!("{e:.3e}"))
+                    .collect::<Vec<_>>()
+                    .join(", "),
                 100.0 * r2
             ),
             starts: vec![m],
