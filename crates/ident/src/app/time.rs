@@ -321,6 +321,7 @@ pub fn run_joint(
     first: &str,
     obs: &mut dyn Observe,
 ) -> Result<JointReport> {
+    fresh_pole_cache();
     if req.diagnose || super::auto_label(&req.structure).0 {
         return Err(Error::Options(
             "a joint fit takes a named structure, without the diagnosis".into(),
@@ -483,6 +484,13 @@ pub fn runs() -> usize {
     RUNS.load(std::sync::atomic::Ordering::Relaxed)
 }
 
+/// Empties this thread's cache of solved poles (`fracsim::modal::RootsCache`) at the start of a
+/// request: its hints move the last bits of a fit, so without this a record fitted after others
+/// on the same thread (a fleet's loop, a Dask worker) would not give the fit it gives alone.
+fn fresh_pole_cache() {
+    fracsim::modal::RootsCache::default().install();
+}
+
 /// The diagnosis options of a request.
 pub fn diagnose_options(req: &TimeRequest) -> DiagnoseOptions {
     DiagnoseOptions {
@@ -523,6 +531,7 @@ pub fn diagnose_options(req: &TimeRequest) -> DiagnoseOptions {
 /// ([`Error::NotEnoughData`], [`Error::Data`]), numerical breakdown, [`Error::Cancelled`].
 pub fn run(req: &TimeRequest, data: &TimeData, obs: &mut dyn Observe) -> Result<TimeReport> {
     RUNS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    fresh_pole_cache();
     let t0 = std::time::Instant::now();
     let rec = &data.record;
     let duration = rec.t.last().copied().unwrap_or(0.0) - rec.t.first().copied().unwrap_or(0.0);
@@ -823,6 +832,7 @@ fn final_fit(d: &Diagnosis, base: &ModelFit, dt: f64, file: Option<ScoreReport>)
 /// # Errors
 /// As [`run`].
 pub fn rescore(req: &TimeRequest, spec: &FracModel, data: &TimeData) -> Result<FitFigures> {
+    fresh_pole_cache();
     let id = rescore_id(req, spec, data)?;
     Ok(FitFigures {
         estimation: id.estimation,

@@ -1459,12 +1459,10 @@ mod tests {
         assert!(without.iterations > 6, "{}", without.iterations);
     }
 
-    /// A short PRBS-like record of the paper's PMSM from an initial state (a past held input)
-    /// with an output offset and noise: the fit by variable projection first ends at the joint
-    /// fit's optimum (cost within 1e-9 relative, every parameter within 1e-3 of its standard
-    /// error, the same standard errors within 1e-3), in fewer iterations.
-    #[test]
-    fn the_projected_fit_ends_at_the_joint_fits_optimum() {
+    /// A 3000-sample PRBS-like record (dt 0.1 ms) of the paper's PMSM with a past input and an
+    /// output offset, `set` giving the truth their values, noise of standard deviation 0.05;
+    /// and the fit's start (the structure with its state, other plant values).
+    fn pmsm_in_motion(set: impl Fn(&mut FracModel)) -> (Vec<f64>, Vec<f64>, f64, FracModel) {
         let (n, dt) = (3000, 1e-4);
         let mut rnd = xorshift(0x5851_f42d_4c95_7f2d);
         let u = prbs_like(n, &mut rnd);
@@ -1475,12 +1473,7 @@ mod tests {
         };
         let mut truth = FracModel::pmsm(6.82, 0.0059, 2.655e-5, 0.92, 0.8252);
         with_state(&mut truth);
-        let levels = truth.past.clone().unwrap().levels;
-        for (&i, v) in levels.iter().zip([0.9, -0.6, 0.4, 0.2, -0.1]) {
-            truth.params[i].value = v;
-        }
-        let c = truth.index_of("y_offset").unwrap();
-        truth.params[c].value = 0.3;
+        set(&mut truth);
         let mut y = vec![0.0; n];
         truth.simulate(&truth.values(), &u, dt, &mut y).unwrap();
         for v in &mut y {
@@ -1488,6 +1481,23 @@ mod tests {
         }
         let mut start = FracModel::pmsm(6.0, 0.005, 3e-5, 0.85, 0.9);
         with_state(&mut start);
+        (u, y, dt, start)
+    }
+
+    /// A short PRBS-like record of the paper's PMSM from an initial state (a past held input)
+    /// with an output offset and noise: the fit by variable projection first ends at the joint
+    /// fit's optimum (cost within 1e-9 relative, every parameter within 1e-3 of its standard
+    /// error, the same standard errors within 1e-3), in fewer iterations.
+    #[test]
+    fn the_projected_fit_ends_at_the_joint_fits_optimum() {
+        let (u, y, dt, start) = pmsm_in_motion(|truth| {
+            let levels = truth.past.clone().unwrap().levels;
+            for (&i, v) in levels.iter().zip([0.9, -0.6, 0.4, 0.2, -0.1]) {
+                truth.params[i].value = v;
+            }
+            let c = truth.index_of("y_offset").unwrap();
+            truth.params[c].value = 0.3;
+        });
         let free: Vec<usize> = (0..start.params.len()).collect();
         assert!(varpro::plan(&start, &free).is_some());
         let opts = FitOptions::default();
@@ -1516,29 +1526,13 @@ mod tests {
         );
     }
 
-    /// A shared budget ([`FitOptions::shared_budget`]) on the record of
-    /// [`the_projected_fit_ends_at_the_joint_fits_optimum`]: with 5 iterations the reduced and the
+    /// A shared budget ([`FitOptions::shared_budget`]) on the record of [`pmsm_in_motion`] with
+    /// the past and the offset at 0: with 5 iterations the reduced and the
     /// joint fit together take at most 5 (each takes up to 5 without it: 10 here), and a budget
     /// the fit does not reach changes nothing (the same fit to the bit).
     #[test]
     fn a_shared_budget_bounds_the_projected_fits_iterations_together() {
-        let (n, dt) = (3000, 1e-4);
-        let mut rnd = xorshift(0x5851_f42d_4c95_7f2d);
-        let u = prbs_like(n, &mut rnd);
-        let edges = past_edges(n as f64 * dt);
-        let with_state = |m: &mut FracModel| {
-            m.with_past_input(edges.clone(), (-5.0, 5.0));
-            m.with_output_offset(0.0);
-        };
-        let mut truth = FracModel::pmsm(6.82, 0.0059, 2.655e-5, 0.92, 0.8252);
-        with_state(&mut truth);
-        let mut y = vec![0.0; n];
-        truth.simulate(&truth.values(), &u, dt, &mut y).unwrap();
-        for v in &mut y {
-            *v += 0.05 * 3f64.sqrt() * (2.0 * rnd() - 1.0);
-        }
-        let mut start = FracModel::pmsm(6.0, 0.005, 3e-5, 0.85, 0.9);
-        with_state(&mut start);
+        let (u, y, dt, start) = pmsm_in_motion(|_| {});
         let mut opts = FitOptions::default();
         opts.lm.max_iterations = 5;
         let each = fit(&start, &u, &y, dt, &opts).unwrap();
