@@ -4,7 +4,11 @@
 //! of the in-process time, then the fitted parameters with their standard errors, the RMSE, the
 //! LM iterations and evaluations (to compare fits before and after a change).
 //!
-//! `cargo run --release -p fracid-benches --example fit_short -- [samples] [repeats] [dt]`
+//! `cargo run --release -p fracid-benches --example fit_short -- [samples] [repeats] [dt] [cold]`
+//!
+//! With `cold`, each repeat starts from an empty pole cache (`fracsim::modal::RootsCache`), as
+//! each request of `ident::app::time::run` (the CLI, Python, a fleet) does; without it each
+//! repeat's model builds are hinted by the previous identical fit's solved poles.
 
 use fracid_benches::{noise, prbs_input};
 use fracsim::{lsim, ApproxSpec};
@@ -20,6 +24,7 @@ fn main() {
         .get(3)
         .and_then(|s| s.parse().ok())
         .unwrap_or(fracid_benches::DT);
+    let cold = args.get(4).is_some_and(|s| s == "cold");
     let u = prbs_input(n, dt);
     let mut y = lsim(&fracid_benches::pmsm(), &u, dt, &ApproxSpec::default()).expect("simulation");
     for (y, e) in y.iter_mut().zip(noise(n, 0.05, 1)) {
@@ -32,6 +37,9 @@ fn main() {
     let mut ms = vec![];
     let mut last = None;
     for _ in 0..repeats.max(1) {
+        if cold {
+            fracsim::modal::RootsCache::default().install();
+        }
         let t0 = Instant::now();
         let id = identify(&rec, &model, &opts).expect("identify");
         ms.push(t0.elapsed().as_secs_f64() * 1e3);
@@ -40,8 +48,9 @@ fn main() {
     ms.sort_by(f64::total_cmp);
     let id = last.expect("one run");
     println!(
-        "samples {n} dt {dt:e}: min {:.2} ms, median {:.2} ms ({} runs); rmse {:.8}, \
+        "samples {n} dt {dt:e}{}: min {:.2} ms, median {:.2} ms ({} runs); rmse {:.8}, \
          iterations {}, evaluations {}",
+        if cold { " (cold pole cache)" } else { "" },
         ms[0],
         ms[ms.len() / 2],
         ms.len(),
