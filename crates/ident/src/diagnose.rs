@@ -237,6 +237,28 @@ pub struct Diagnosis {
     /// First validation sample.
     #[serde(skip)]
     pub split: usize,
+    /// The model after each number of kept effects, the base model first (`path[r]` after `r`
+    /// effects): what the structure comparison's successive halving compares
+    /// ([`structures::BEHIND`]).
+    #[serde(skip)]
+    pub path: Vec<Step>,
+    /// The number of kept effects at which the diagnosis was ended before its next round (or
+    /// refit) because its structure was more than [`structures::BEHIND`] behind another after
+    /// as many effects (`None`: it ran to its end). Such a diagnosis is not a final model: only
+    /// `path` up to there is.
+    #[serde(skip)]
+    pub halted: Option<usize>,
+}
+
+/// One point of a diagnosis's [`Diagnosis::path`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Step {
+    /// Held-out RMSE (estimation RMSE without a held-out part), as [`Diagnosis::after`].
+    pub rmse: f64,
+    /// BIC on the estimation part, as the structure comparison computes it.
+    pub bic: f64,
+    /// Free parameters.
+    pub free_params: usize,
 }
 
 /// A fitted model and its scores.
@@ -315,6 +337,18 @@ impl Ctx<'_> {
     fn bic(&self, st: &State) -> f64 {
         let k = st.model.params.iter().filter(|p| p.free).count();
         bic(st.ssr, self.split, k)
+    }
+
+    /// The point of the path ([`Diagnosis::path`]) at `st`, its BIC computed as the structure
+    /// comparison does (from the estimation RMSE).
+    fn step(&self, st: &State) -> Step {
+        let free_params = st.model.params.iter().filter(|p| p.free).count();
+        let ssr = st.est.rmse.powi(2) * self.split as f64;
+        Step {
+            rmse: self.score(st),
+            bic: bic(ssr, self.split, free_params),
+            free_params,
+        }
     }
 
     /// The linear part of the current model applied to `x` (deviation scale).
@@ -838,17 +872,20 @@ fn remaining_structure(an: &ResidualAnalysis, q: Option<Quantization>) -> Vec<St
 /// [`Error::Data`] for a record that does not match the identification; simulation errors of the
 /// base model. Refits that fail are reported as rejected candidates, not errors.
 pub fn diagnose(rec: &Record, id: &Identification, opts: &DiagnoseOptions) -> Result<Diagnosis> {
-    diagnose_until(rec, id, opts, &|| false)
+    diagnose_until(rec, id, opts, &|| false, &|_, _| false)
 }
 
 /// [`diagnose`], given up ([`Error::Cancelled`]) as soon as `stop()` says so: it is asked before
 /// each round and each refit (a diagnosis started before it was known whether it is needed,
-/// [`structures::diagnose_best`]).
+/// [`structures::diagnose_best`]). `halt(r, rmse)`, asked at the same points with the number of
+/// effects kept so far and the current model's held-out RMSE, ends the diagnosis there instead
+/// ([`Diagnosis::halted`]: the structure comparison's successive halving).
 pub(crate) fn diagnose_until(
     rec: &Record,
     id: &Identification,
     opts: &DiagnoseOptions,
     stop: &dyn Fn() -> bool,
+    halt: &dyn Fn(usize, f64) -> bool,
 ) -> Result<Diagnosis> {
     let cancelled = || Error::Cancelled("the diagnosis of a structure not needed".into());
     if rec.len() != id.yhat.len() || id.split == 0 || id.split > rec.len() {
@@ -888,10 +925,18 @@ pub(crate) fn diagnose_until(
     let mut st = base.clone();
     let mut kept: Vec<KeptEffect> = vec![];
     let mut rejected: BTreeMap<String, RejectedEffect> = BTreeMap::new();
+    // Candidates proposed without a signature that a refit rejected ([`DiagnoseOptions::min_r2`]).
+    let mut refuted: Vec<String> = vec![];
     let mut ambiguous: Vec<Ambiguity> = vec![];
-    for round in 0..opts.max_rounds {
+    let mut path = vec![ctx.step(&st)];
+    let mut halted = None;
+    'rounds: for round in 0..opts.max_rounds {
         if stop() {
             return Err(cancelled());
+        }
+        if halt(round, ctx.score(&st)) {
+            halted = Some(round);
+            break;
         }
         let mut found = Findings::default();
         {
@@ -924,8 +969,19 @@ pub(crate) fn diagnose_until(
                 });
                 continue;
             }
+            // A candidate proposed without a signature (its evidence at the floor: the delay a
+            // base fit's free orders mimic) is refitted in the first round that proposes it; once
+            // a refit has rejected it, a later round (the model with one more effect) does not
+            // refit it again, and its rejection stands.
+            if c.r2 <= opts.min_r2 && refuted.contains(&c.key) {
+                continue;
+            }
             if stop() {
                 return Err(cancelled());
+            }
+            if halt(round, ctx.score(&st)) {
+                halted = Some(round);
+                break 'rounds;
             }
             let probe = library.iter().find(|p| p.name() == c.name);
             match try_candidate(&ctx, &st, &c, probe.map(|p| p.as_ref())) {
@@ -938,6 +994,9 @@ pub(crate) fn diagnose_until(
                     }
                 }
                 Err(r) => {
+                    if c.r2 <= opts.min_r2 {
+                        refuted.push(c.key.clone());
+                    }
                     rejected.insert(c.key.clone(), r);
                 }
             }
@@ -951,6 +1010,7 @@ pub(crate) fn diagnose_until(
                 rejected.remove(&k.name);
                 kept.push(k);
                 st = ns;
+                path.push(ctx.step(&st));
                 residual_now = None;
             }
             None => break,
@@ -997,6 +1057,8 @@ pub(crate) fn diagnose_until(
         yhat_before: ya(&base),
         yhat_after: ya(&st),
         split: ctx.split,
+        path,
+        halted,
     })
 }
 
