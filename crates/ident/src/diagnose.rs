@@ -48,7 +48,10 @@
 //! and the evidence says so (the structure may be short of a term). The report gives each kept
 //! effect's share of the residual sum of squares removed by the refit
 //! ([`KeptEffect::ssr_removed_percent`]). The best kept candidate of a round is added; the loop repeats
-//! (at most [`DiagnoseOptions::max_rounds`]) while something is kept. Without a validation part the
+//! (at most [`DiagnoseOptions::max_rounds`]) while something is kept. A candidate proposed
+//! without a signature (its evidence set at the [`DiagnoseOptions::min_r2`] floor, such as the
+//! delay probed by joint refits from one and two samples) is refitted in the first round that
+//! proposes it only: once a refit rejected it, that rejection stands. Without a validation part the
 //! margin is applied to the estimation RMSE. On a step test the held-out part is the tail of the
 //! response ([`crate::oe::ValidationKind::ResponseTail`]): it scores the settled level a model
 //! extrapolates (its static gain), which is what an over-fitted step response gets wrong (on the

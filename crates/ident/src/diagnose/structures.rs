@@ -33,6 +33,9 @@
 //! two-mass screening fit that has degenerated already is refitted as its smallest reduced
 //! structure instead of in full when that fits as well ([`reduce_screened`]); every degenerate
 //! two-mass fit is made well posed on its own thread before it is diagnosed ([`reduce_one`]).
+//! The diagnoses then prune each other round by round (successive halving, [`BEHIND`]): a
+//! structure more than 1.1x behind the best after as many kept effects is given no more rounds
+//! (its row shows its model at that point, and the reason names it).
 
 use crate::data::Record;
 use crate::oe::{identify, FracModel, IdentOptions, Identification};
