@@ -709,20 +709,24 @@ fn confirm_halving(
     }
 }
 
-/// The rows of the structures whose paths are `cuts` ([`halving`]) before their ends (or whose
-/// diagnoses were halted) show their models at the cut: the effects kept up to there, their
-/// held-out RMSE, BIC and free parameters. Returns those structures with the effects kept.
+/// The rows of the structures whose paths are cut ([`halving`], `cuts`) before `max_rounds`
+/// effects show their models at the cut: the effects kept up to there, their held-out RMSE, BIC
+/// and free parameters (a path that ended there shows what it showed). Returns those structures
+/// with the effects kept: every cut, whether its diagnosis was halted there at run time or ran
+/// its next round and kept nothing (which depends on the threads' timing), so that the reason
+/// does not.
 fn halve_rows(
     scores: &mut [StructureScore],
     outcomes: &[Outcome],
     cuts: &[Option<usize>],
+    max_rounds: usize,
 ) -> Vec<(usize, usize)> {
     let mut halved = vec![];
     for (i, o) in outcomes.iter().enumerate() {
         let (Some(r), Some(Ok(d))) = (cuts[i], &o.diagnosis) else {
             continue;
         };
-        if d.halted.is_none() && r + 1 >= d.path.len() {
+        if r >= max_rounds {
             continue;
         }
         let step = d.path[r];
@@ -1037,7 +1041,7 @@ pub fn diagnose_best(
         .zip(&outcomes)
         .map(|((name, _), o)| score_of(name, o))
         .collect();
-    let halved = halve_rows(&mut scores, &outcomes, &cuts);
+    let halved = halve_rows(&mut scores, &outcomes, &cuts, dopts.max_rounds);
     let Some((chosen, best)) = decide(&scores) else {
         return Err(match outcomes.swap_remove(0).diagnosis {
             Some(Err(e)) => e,
