@@ -384,7 +384,8 @@ impl Shared {
 /// full base fit among the screening fits (held-out RMSE), or not usable when a usable full base
 /// fit exists (a fit that after the refits' budget still has problems, a singular covariance,
 /// orders at a bound, is not expected to end usable and overtake a usable one): then it is kept as
-/// screened, marked `out` (not diagnosed). Each candidate runs on its own thread; one whose base
+/// screened, marked `out` (not diagnosed). A screening fit that failed in its start
+/// ([`no_start`]) is kept as it is: the full fit would fail the same way. Each candidate runs on its own thread; one whose base
 /// fit is final and usable is diagnosed at once ([`Shared::diagnose_early`]) while the others are
 /// still being fitted (a core would otherwise wait for the slowest fit).
 fn fit_candidates(
@@ -427,7 +428,7 @@ fn fit_candidates(
                         }));
                     let (fitted, full) = screened.unwrap_or_else(|_| ((panicked(), None), true));
                     shared.screened(&fitted, full);
-                    let (mut fitted, out, smallest) = if full {
+                    let (mut fitted, out, smallest) = if full || no_start(&fitted) {
                         (fitted, false, None)
                     } else if fitted.0.is_err() {
                         // A failed screening fit is fitted in full whatever the reference: no
@@ -478,6 +479,13 @@ fn fit_candidates(
             })
             .collect()
     })
+}
+
+/// Whether a screening fit failed in its start ([`Error::NoStart`], the two-mass structure
+/// without a resonance): the start does not depend on the iteration budget, so the full fit
+/// fails the same way and is not run.
+fn no_start(fitted: &Fitted) -> bool {
+    matches!(fitted.0, Err(Error::NoStart(_)))
 }
 
 /// [`identified`] on a fresh thread (its pole cache empty).

@@ -75,11 +75,11 @@ impl Probe for Delay {
             taus.push(dt);
             taus.push(2.0 * dt);
         }
-        let starts: Vec<FracModel> = taus
+        let starts: Vec<FracModel> = distinct_starts(&taus, (max as f64 - 0.5) * dt)
             .into_iter()
             .map(|tau| {
                 let mut m = st.model.clone();
-                m.with_delay(tau.min((max as f64 - 0.5) * dt), max as f64 * dt);
+                m.with_delay(tau, max as f64 * dt);
                 m
             })
             .collect();
@@ -107,5 +107,41 @@ impl Probe for Delay {
 
     fn params(&self, model: &FracModel, values: &[f64]) -> BTreeMap<String, f64> {
         named(model, values, &[("tau", "tau")])
+    }
+}
+
+/// The refit's start delays `taus` (s), each at most `top`, in their order with repeats left out:
+/// the grid's best point is often one of the lags' (a correlation peak at lag 0 or 1 gives
+/// `dt` and `dt/2`, both on the grid), and a repeated start is the same refit again (the best
+/// start is the first with the smallest sum of squares, [`crate::diagnose`], so leaving out a
+/// later repeat changes nothing).
+fn distinct_starts(taus: &[f64], top: f64) -> Vec<f64> {
+    let mut out: Vec<f64> = Vec::with_capacity(taus.len());
+    for tau in taus.iter().map(|t| t.min(top)) {
+        if !out.contains(&tau) {
+            out.push(tau);
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::distinct_starts;
+
+    #[test]
+    fn a_start_delay_is_refitted_once() {
+        let dt = 1e-3;
+        // a correlation peak at lag 1 whose grid point is one sample: dt, dt, dt/2
+        assert_eq!(distinct_starts(&[dt, dt, 0.5 * dt], 9.5 * dt), vec![dt, 0.5 * dt]);
+        // lag 0 with the grid's best at dt/2: dt/2, dt, dt/2
+        assert_eq!(distinct_starts(&[0.5 * dt, dt, 0.5 * dt], 9.5 * dt), vec![0.5 * dt, dt]);
+        // starts beyond the top are clamped first, then told apart
+        assert_eq!(distinct_starts(&[3.0 * dt, dt, 2.0 * dt], 1.5 * dt), vec![1.5 * dt, dt]);
+        // distinct starts are all kept, in their order
+        assert_eq!(
+            distinct_starts(&[2.5 * dt, dt, 2.0 * dt], 9.5 * dt),
+            vec![2.5 * dt, dt, 2.0 * dt]
+        );
     }
 }
