@@ -924,6 +924,9 @@ pub fn auto_candidates(model: &FracModel) -> Vec<(String, FracModel)> {
 /// `--structure auto` without the diagnosis: fit every structure of [`auto_candidates`] alike
 /// (on all cores) and keep the one the rule of the module documentation picks from the base fits
 /// (held-out RMSE, ties within [`TIE`], then BIC on the estimation part; usable fits first).
+/// A degenerate two-mass fit is made well posed as in the diagnosis: reduced at once from its
+/// screening fit when the smallest reduced structure fits as well ([`auto_fit`]), else fitted in
+/// full and then reduced ([`reduce_degenerate`]).
 /// Returns the chosen identification and the comparison.
 ///
 /// # Errors
@@ -934,21 +937,35 @@ pub fn fit_best(
     opts: &IdentOptions,
 ) -> Result<(Identification, StructureChoice)> {
     let mut cands = with_feedthrough(rec, auto_candidates(model), model);
-    let mut fits: Vec<Result<Identification>> = std::thread::scope(|scope| {
-        let handles: Vec<_> = cands
-            .iter()
-            .map(|(_, m)| scope.spawn(move || identify(rec, m, opts)))
-            .collect();
-        handles
-            .into_iter()
-            .map(|h| {
-                h.join()
-                    .unwrap_or_else(|_| Err(Error::Numerical("a structure's fit panicked".into())))
-            })
-            .collect()
-    });
+    let fitted: Vec<(Result<Identification>, Option<(FracModel, String)>)> =
+        std::thread::scope(|scope| {
+            let handles: Vec<_> = cands
+                .iter()
+                .map(|(_, m)| scope.spawn(move || auto_fit(rec, m, opts)))
+                .collect();
+            handles
+                .into_iter()
+                .map(|h| h.join().unwrap_or_else(|_| (panicked(), None)))
+                .collect()
+        });
+    let mut at_once = vec![];
+    let mut fits: Vec<Result<Identification>> = fitted
+        .into_iter()
+        .enumerate()
+        .map(|(i, (fit, reduced))| {
+            if let Some((model, what)) = reduced {
+                cands[i] = (format!("{} (reduced)", cands[i].0), model);
+                at_once.push((i, what));
+            }
+            fit
+        })
+        .collect();
     let mut caches = vec![None; fits.len()];
-    let reduced = reduce_degenerate(rec, &mut cands, &mut fits, &mut caches, opts);
+    // The reduced refits have no two-mass parameters: [`reduce_degenerate`] leaves them as they
+    // are.
+    let mut reduced = reduce_degenerate(rec, &mut cands, &mut fits, &mut caches, opts);
+    reduced.extend(at_once);
+    reduced.sort_by_key(|(i, _)| *i);
     let scores: Vec<StructureScore> = cands
         .iter()
         .zip(&fits)
@@ -974,6 +991,34 @@ pub fn fit_best(
         integer_reference,
     };
     Ok((id, choice))
+}
+
+/// One structure's fit for [`fit_best`] (on the thread it is called on), and the reduced structure
+/// with the words when it was a degenerate two-mass fit reduced at once. A two-mass structure is
+/// screened first ([`screen_candidate`]), as the diagnosis does ([`fit_candidates`]): a screening
+/// fit that is the full fit is kept; one that failed in its start ([`no_start`]) is that error; a
+/// degenerate one is refitted at once as the smallest reduced structure ([`reduce_screened`])
+/// instead of running its full budget along the directions it cannot determine; otherwise the
+/// structure is fitted in full on a fresh thread (its pole cache empty, as without the
+/// screening). Other structures are fitted in full.
+fn auto_fit(
+    rec: &Record,
+    m: &FracModel,
+    opts: &IdentOptions,
+) -> (Result<Identification>, Option<(FracModel, String)>) {
+    if m.kind != crate::oe::Kind::TwoMass {
+        return (identify(rec, m, opts), None);
+    }
+    let ((fit, _), full) = screen_candidate(rec, m, opts);
+    if full || matches!(fit, Err(Error::NoStart(_))) {
+        return (fit, None);
+    }
+    if let Ok(id) = &fit {
+        if let Some(((refit, _), reduced)) = reduce_screened(rec, id, opts) {
+            return (refit, Some(reduced));
+        }
+    }
+    (fresh_fit(rec, m, opts).0, None)
 }
 
 /// A base fit's row of the comparison: its held-out RMSE (estimation without a held-out part)
