@@ -286,6 +286,21 @@ struct Based {
 struct Shared {
     progress: std::sync::Mutex<Progress>,
     screened: std::sync::Condvar,
+    /// Signalled when a screening fit starts or ends ([`Shared::turn`]).
+    turn: std::sync::Condvar,
+    /// Screening fits run at once at most: the cores.
+    at_once: usize,
+}
+
+/// A running screening fit's place ([`Shared::turn`]): given back when dropped (also when the
+/// fit panics).
+struct Turn<'a>(&'a Shared);
+
+impl Drop for Turn<'_> {
+    fn drop(&mut self) {
+        self.0.lock().running -= 1;
+        self.0.turn.notify_all();
+    }
 }
 
 /// How far the candidates' base fits are.
@@ -297,6 +312,10 @@ struct Progress {
     reference: f64,
     /// The best usable final base fit's held-out RMSE so far.
     best: f64,
+    /// Screening fits started so far (they start in the candidates' order, [`Shared::turn`]).
+    started: usize,
+    /// Screening fits running now.
+    running: usize,
 }
 
 impl Shared {
@@ -320,6 +339,28 @@ impl Shared {
         if p.screening == 0 {
             self.screened.notify_all();
         }
+    }
+
+    /// Wait for the turn of the screening fit ranked `rank` (0 the first screened candidate):
+    /// screening fits start in the candidates' order, at most [`Shared::at_once`] running at a
+    /// time. The order is a priority: the user's relatives (the commensurate structure) come
+    /// first, and their base fits, when final, are diagnosed at once ([`Shared::diagnose_early`])
+    /// beside the user's; with every screening fit started together the cores were shared
+    /// evenly among all of them and such a diagnosis started last, alone on one core at the end.
+    /// Each fit runs on its own fresh thread as before (its pole cache its own): what it
+    /// computes does not depend on when it runs.
+    fn turn(&self, rank: usize) -> Turn<'_> {
+        let mut p = self.lock();
+        while p.started != rank || p.running >= self.at_once {
+            p = self
+                .turn
+                .wait(p)
+                .unwrap_or_else(std::sync::PoisonError::into_inner);
+        }
+        p.started += 1;
+        p.running += 1;
+        self.turn.notify_all();
+        Turn(self)
     }
 
     /// The screening's reference, once every screening fit has ended.
@@ -385,7 +426,8 @@ impl Shared {
 /// fit exists (a fit that after the refits' budget still has problems, a singular covariance,
 /// orders at a bound, is not expected to end usable and overtake a usable one): then it is kept as
 /// screened, marked `out` (not diagnosed). A screening fit that failed in its start
-/// ([`no_start`]) is kept as it is: the full fit would fail the same way. Each candidate runs on its own thread; one whose base
+/// ([`no_start`]) is kept as it is: the full fit would fail the same way. Each candidate runs on its own thread (the screening fits
+/// started in the candidates' order, at most one per core at a time, [`Shared::turn`]); one whose base
 /// fit is final and usable is diagnosed at once ([`Shared::diagnose_early`]) while the others are
 /// still being fitted (a core would otherwise wait for the slowest fit).
 fn fit_candidates(
@@ -404,8 +446,12 @@ fn fit_candidates(
             screening: cands.len(),
             reference: f64::INFINITY,
             best: f64::INFINITY,
+            started: 0,
+            running: 0,
         }),
         screened: std::sync::Condvar::new(),
+        turn: std::sync::Condvar::new(),
+        at_once: std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get),
     };
     let shared = &shared;
     std::thread::scope(|scope| {
@@ -420,11 +466,14 @@ fn fit_candidates(
                     // made it), and is counted as ended: the others may be waiting for it.
                     let screened =
                         std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-                            match (given, pre) {
-                                (Some(id), _) => ((Ok(id), None), true),
-                                (None, Some(r)) => pre_screen(rec, m, opts, r),
-                                (None, None) => screen_candidate(rec, m, opts),
-                            }
+                            let Some(id) = given else {
+                                let _turn = shared.turn(i - 1);
+                                return match pre {
+                                    Some(r) => pre_screen(rec, m, opts, r),
+                                    None => screen_candidate(rec, m, opts),
+                                };
+                            };
+                            ((Ok(id), None), true)
                         }));
                     let (fitted, full) = screened.unwrap_or_else(|_| ((panicked(), None), true));
                     shared.screened(&fitted, full);
@@ -1431,6 +1480,48 @@ mod tests {
                 "{w}: {got} {want}"
             );
         }
+    }
+
+    /// A first-order plant `2/(0.05 s + 1)` (exact for the held input) driven by a square wave:
+    /// no resonance anywhere in its frequency response, so the two-mass structure has no start.
+    /// The screening fit fails in its start ([`Error::NoStart`], told apart from a failure after
+    /// some iterations, which is fitted again in full), and the full fit (500 iterations) fails
+    /// with the same words: the start does not depend on the budget, which is why the comparison
+    /// does not fit it again ([`no_start`]).
+    #[test]
+    fn a_two_mass_fit_without_a_resonance_fails_in_its_start_whatever_its_budget() {
+        let dt = 1e-3;
+        let u: Vec<f64> = (0..4000)
+            .map(|k| if (k / 97) % 3 == 0 { 1.0 } else { -1.0 })
+            .collect();
+        let (a, mut x) = ((-dt / 0.05f64).exp(), 0.0);
+        let y: Vec<f64> = u
+            .iter()
+            .map(|&v| {
+                let o = x;
+                x = a * x + 2.0 * (1.0 - a) * v;
+                o
+            })
+            .collect();
+        let rec = Record::from_samples(&u, &y, dt).unwrap();
+        let opts = IdentOptions::default();
+        assert!(opts.fit.lm.max_iterations > SCREEN_ITERATIONS);
+        let (fitted, full) = screen_candidate(&rec, &two_mass(), &opts);
+        assert!(!full, "the screening path ran");
+        assert!(no_start(&fitted), "{:?}", fitted.0.as_ref().err());
+        let screened = fitted.0.unwrap_err().to_string();
+        assert!(
+            screened.starts_with("not enough information in the data: the two-mass structure has no start"),
+            "{screened}"
+        );
+        let whole = identify(&rec, &two_mass(), &opts).unwrap_err();
+        assert!(matches!(whole, Error::NoStart(_)), "{whole:?}");
+        assert_eq!(whole.to_string(), screened);
+        // A failure that is not the start's is fitted again.
+        assert!(!no_start(&(
+            Err(Error::NotEnoughData("no resonance".into())),
+            None
+        )));
     }
 
     /// The pre-screen leaves out a fit far behind the user's, or behind it with problems, and
