@@ -464,17 +464,16 @@ fn fit_candidates(
                 scope.spawn(move || {
                     // A screening fit that panics is a failed full fit (as the join of its thread
                     // made it), and is counted as ended: the others may be waiting for it.
-                    let screened =
-                        std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-                            let Some(id) = given else {
-                                let _turn = shared.turn(i - 1);
-                                return match pre {
-                                    Some(r) => pre_screen(rec, m, opts, r),
-                                    None => screen_candidate(rec, m, opts),
-                                };
+                    let screened = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                        let Some(id) = given else {
+                            let _turn = shared.turn(i - 1);
+                            return match pre {
+                                Some(r) => pre_screen(rec, m, opts, r),
+                                None => screen_candidate(rec, m, opts),
                             };
-                            ((Ok(id), None), true)
-                        }));
+                        };
+                        ((Ok(id), None), true)
+                    }));
                     let (fitted, full) = screened.unwrap_or_else(|_| ((panicked(), None), true));
                     shared.screened(&fitted, full);
                     let (mut fitted, out, smallest) = if full || no_start(&fitted) {
@@ -1511,7 +1510,9 @@ mod tests {
         assert!(no_start(&fitted), "{:?}", fitted.0.as_ref().err());
         let screened = fitted.0.unwrap_err().to_string();
         assert!(
-            screened.starts_with("not enough information in the data: the two-mass structure has no start"),
+            screened.starts_with(
+                "not enough information in the data: the two-mass structure has no start"
+            ),
             "{screened}"
         );
         let whole = identify(&rec, &two_mass(), &opts).unwrap_err();

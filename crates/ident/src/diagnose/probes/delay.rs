@@ -157,8 +157,14 @@ mod tests {
         };
         let ssr = whole(&m, &v);
         assert!(ssr > 0.0 && ssr.is_finite());
-        assert_eq!(m.ssr_below(&v, &u, &y, dt, f64::INFINITY).unwrap(), Some(ssr));
-        assert_eq!(m.ssr_below(&v, &u, &y, dt, ssr * (1.0 + 1e-12)).unwrap(), Some(ssr));
+        assert_eq!(
+            m.ssr_below(&v, &u, &y, dt, f64::INFINITY).unwrap(),
+            Some(ssr)
+        );
+        assert_eq!(
+            m.ssr_below(&v, &u, &y, dt, ssr * (1.0 + 1e-12)).unwrap(),
+            Some(ssr)
+        );
         assert_eq!(m.ssr_below(&v, &u, &y, dt, ssr).unwrap(), None);
         assert_eq!(m.ssr_below(&v, &u, &y, dt, 0.5 * ssr).unwrap(), None);
         // An input effect: simulated whole, the same rule.
@@ -172,7 +178,10 @@ mod tests {
         let mut w = v.clone();
         w.push(0.8);
         let ssr = whole(&sat, &w);
-        assert_eq!(sat.ssr_below(&w, &u, &y, dt, f64::INFINITY).unwrap(), Some(ssr));
+        assert_eq!(
+            sat.ssr_below(&w, &u, &y, dt, f64::INFINITY).unwrap(),
+            Some(ssr)
+        );
         assert_eq!(sat.ssr_below(&w, &u, &y, dt, ssr).unwrap(), None);
     }
 
@@ -180,11 +189,20 @@ mod tests {
     fn a_start_delay_is_refitted_once() {
         let dt = 1e-3;
         // a correlation peak at lag 1 whose grid point is one sample: dt, dt, dt/2
-        assert_eq!(distinct_starts(&[dt, dt, 0.5 * dt], 9.5 * dt), vec![dt, 0.5 * dt]);
+        assert_eq!(
+            distinct_starts(&[dt, dt, 0.5 * dt], 9.5 * dt),
+            vec![dt, 0.5 * dt]
+        );
         // lag 0 with the grid's best at dt/2: dt/2, dt, dt/2
-        assert_eq!(distinct_starts(&[0.5 * dt, dt, 0.5 * dt], 9.5 * dt), vec![0.5 * dt, dt]);
+        assert_eq!(
+            distinct_starts(&[0.5 * dt, dt, 0.5 * dt], 9.5 * dt),
+            vec![0.5 * dt, dt]
+        );
         // starts beyond the top are clamped first, then told apart
-        assert_eq!(distinct_starts(&[3.0 * dt, dt, 2.0 * dt], 1.5 * dt), vec![1.5 * dt, dt]);
+        assert_eq!(
+            distinct_starts(&[3.0 * dt, dt, 2.0 * dt], 1.5 * dt),
+            vec![1.5 * dt, dt]
+        );
         // distinct starts are all kept, in their order
         assert_eq!(
             distinct_starts(&[2.5 * dt, dt, 2.0 * dt], 9.5 * dt),

@@ -61,9 +61,9 @@ impl Probe for Skew {
         let mut best = (f64::INFINITY, 0usize);
         for m in 1..=h {
             let c = ctx.with_lead(m);
-            if let Ok(Some(ssr)) = st
-                .model
-                .ssr_below(&st.values, &c.u[..s], &ctx.y[..s], dt, best.0)
+            if let Ok(Some(ssr)) =
+                st.model
+                    .ssr_below(&st.values, &c.u[..s], &ctx.y[..s], dt, best.0)
             {
                 best = (ssr, m);
             }
