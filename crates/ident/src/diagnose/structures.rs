@@ -985,17 +985,16 @@ pub fn fit_best(
     opts: &IdentOptions,
 ) -> Result<(Identification, StructureChoice)> {
     let mut cands = with_feedthrough(rec, auto_candidates(model), model);
-    let fitted: Vec<(Result<Identification>, Option<(FracModel, String)>)> =
-        std::thread::scope(|scope| {
-            let handles: Vec<_> = cands
-                .iter()
-                .map(|(_, m)| scope.spawn(move || auto_fit(rec, m, opts)))
-                .collect();
-            handles
-                .into_iter()
-                .map(|h| h.join().unwrap_or_else(|_| (panicked(), None)))
-                .collect()
-        });
+    let fitted: Vec<AutoFit> = std::thread::scope(|scope| {
+        let handles: Vec<_> = cands
+            .iter()
+            .map(|(_, m)| scope.spawn(move || auto_fit(rec, m, opts)))
+            .collect();
+        handles
+            .into_iter()
+            .map(|h| h.join().unwrap_or_else(|_| (panicked(), None)))
+            .collect()
+    });
     let mut at_once = vec![];
     let mut fits: Vec<Result<Identification>> = fitted
         .into_iter()
@@ -1041,6 +1040,10 @@ pub fn fit_best(
     Ok((id, choice))
 }
 
+/// A structure's fit for [`fit_best`] and, when it was reduced at once, the reduced structure with
+/// the words ([`auto_fit`]).
+type AutoFit = (Result<Identification>, Option<(FracModel, String)>);
+
 /// One structure's fit for [`fit_best`] (on the thread it is called on), and the reduced structure
 /// with the words when it was a degenerate two-mass fit reduced at once. A two-mass structure is
 /// screened first ([`screen_candidate`]), as the diagnosis does ([`fit_candidates`]): a screening
@@ -1049,11 +1052,7 @@ pub fn fit_best(
 /// instead of running its full budget along the directions it cannot determine; otherwise the
 /// structure is fitted in full on a fresh thread (its pole cache empty, as without the
 /// screening). Other structures are fitted in full.
-fn auto_fit(
-    rec: &Record,
-    m: &FracModel,
-    opts: &IdentOptions,
-) -> (Result<Identification>, Option<(FracModel, String)>) {
+fn auto_fit(rec: &Record, m: &FracModel, opts: &IdentOptions) -> AutoFit {
     if m.kind != crate::oe::Kind::TwoMass {
         return (identify(rec, m, opts), None);
     }
