@@ -12,6 +12,12 @@ pub enum Error {
     /// Fewer data points than unknowns, or no excitation.
     #[error("not enough information in the data: {0}")]
     NotEnoughData(String),
+    /// The structure has no start in these data (the two-mass structure without a resonance in
+    /// the record's frequency response): said as [`Error::NotEnoughData`], told apart because
+    /// it is decided before any iteration, so that a fit with a larger iteration budget fails
+    /// the same way (the structure comparison does not fit it again).
+    #[error("not enough information in the data: {0}")]
+    NoStart(String),
     /// An option or starting value is out of range.
     #[error("invalid option: {0}")]
     Options(String),
@@ -49,6 +55,7 @@ impl Error {
         match self {
             Self::Data(m)
             | Self::NotEnoughData(m)
+            | Self::NoStart(m)
             | Self::Options(m)
             | Self::Numerical(m)
             | Self::Cancelled(m) => m.clone(),

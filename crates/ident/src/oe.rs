@@ -1129,6 +1129,58 @@ impl FracModel {
     }
 
     /// The simulator at `p` in the initial state (the past input's, or rest).
+    /// The sum of squares of `y - yhat` over the samples of `y`, `yhat` the model output at `p`
+    /// on `u` ([`Structure::simulate`]), or `None` when it is at least `limit` or the output is not
+    /// finite. For a search that keeps the smallest sum (the delay probe's grid): the output is
+    /// simulated [`PARTS_CHUNK`] samples at a time (the simulator runs on from its state, the
+    /// output effects by sample index: the same outputs as one run) and the sum, accumulated in
+    /// sample order as a plain sum is, given up as soon as it reaches `limit` (its terms are not
+    /// negative, so it cannot end below). A model with input effects is simulated whole.
+    ///
+    /// # Errors
+    /// As [`Structure::simulate`], when the model cannot be simulated at all.
+    pub fn ssr_below(
+        &self,
+        p: &[f64],
+        u: &[f64],
+        y: &[f64],
+        dt: f64,
+        limit: f64,
+    ) -> Result<Option<f64>> {
+        let n = y.len().min(u.len());
+        let mut yhat = vec![0.0; n.min(PARTS_CHUNK)];
+        let mut acc = 0.0;
+        if self.effects.iter().any(|e| e.is_input()) {
+            let mut whole = vec![0.0; n];
+            if self.simulate(p, &u[..n], dt, &mut whole).is_err() {
+                return Ok(None);
+            }
+            for (a, b) in y.iter().zip(&whole) {
+                acc += (a - b) * (a - b);
+            }
+            return Ok((acc < limit).then_some(acc));
+        }
+        let mut sim = self.sim_at_start(p, dt)?;
+        let mut k0 = 0;
+        while k0 < n {
+            let k1 = (k0 + PARTS_CHUNK).min(n);
+            let part = &mut yhat[..k1 - k0];
+            sim.run_into(&u[k0..k1], part);
+            self.output_effects(p, dt, k0, part);
+            if check_output(part, k0).is_err() {
+                return Ok(None);
+            }
+            for (a, b) in y[k0..k1].iter().zip(part.iter()) {
+                acc += (a - b) * (a - b);
+            }
+            if acc >= limit {
+                return Ok(None);
+            }
+            k0 = k1;
+        }
+        Ok((acc < limit).then_some(acc))
+    }
+
     fn sim_at_start<T: Real>(&self, p: &[T], dt: f64) -> Result<Simulator<T>> {
         let mut sim = self.simulator(p, dt)?;
         if let Some(past) = &self.past {

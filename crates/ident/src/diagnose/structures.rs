@@ -289,6 +289,21 @@ struct Based {
 struct Shared {
     progress: std::sync::Mutex<Progress>,
     screened: std::sync::Condvar,
+    /// Signalled when a screening fit starts or ends ([`Shared::turn`]).
+    turn: std::sync::Condvar,
+    /// Screening fits run at once at most: the cores.
+    at_once: usize,
+}
+
+/// A running screening fit's place ([`Shared::turn`]): given back when dropped (also when the
+/// fit panics).
+struct Turn<'a>(&'a Shared);
+
+impl Drop for Turn<'_> {
+    fn drop(&mut self) {
+        self.0.lock().running -= 1;
+        self.0.turn.notify_all();
+    }
 }
 
 /// How far the candidates' base fits are.
@@ -300,6 +315,10 @@ struct Progress {
     reference: f64,
     /// The best usable final base fit's held-out RMSE so far.
     best: f64,
+    /// Screening fits started so far (they start in the candidates' order, [`Shared::turn`]).
+    started: usize,
+    /// Screening fits running now.
+    running: usize,
 }
 
 impl Shared {
@@ -323,6 +342,28 @@ impl Shared {
         if p.screening == 0 {
             self.screened.notify_all();
         }
+    }
+
+    /// Wait for the turn of the screening fit ranked `rank` (0 the first screened candidate):
+    /// screening fits start in the candidates' order, at most [`Shared::at_once`] running at a
+    /// time. The order is a priority: the user's relatives (the commensurate structure) come
+    /// first, and their base fits, when final, are diagnosed at once ([`Shared::diagnose_early`])
+    /// beside the user's; with every screening fit started together the cores were shared
+    /// evenly among all of them and such a diagnosis started last, alone on one core at the end.
+    /// Each fit runs on its own fresh thread as before (its pole cache its own): what it
+    /// computes does not depend on when it runs.
+    fn turn(&self, rank: usize) -> Turn<'_> {
+        let mut p = self.lock();
+        while p.started != rank || p.running >= self.at_once {
+            p = self
+                .turn
+                .wait(p)
+                .unwrap_or_else(std::sync::PoisonError::into_inner);
+        }
+        p.started += 1;
+        p.running += 1;
+        self.turn.notify_all();
+        Turn(self)
     }
 
     /// The screening's reference, once every screening fit has ended.
@@ -393,7 +434,9 @@ impl Shared {
 /// full base fit among the screening fits (held-out RMSE), or not usable when a usable full base
 /// fit exists (a fit that after the refits' budget still has problems, a singular covariance,
 /// orders at a bound, is not expected to end usable and overtake a usable one): then it is kept as
-/// screened, marked `out` (not diagnosed). Each candidate runs on its own thread; one whose base
+/// screened, marked `out` (not diagnosed). A screening fit that failed in its start
+/// ([`no_start`]) is kept as it is: the full fit would fail the same way. Each candidate runs on its own thread (the screening fits
+/// started in the candidates' order, at most one per core at a time, [`Shared::turn`]); one whose base
 /// fit is final and usable is diagnosed at once ([`Shared::diagnose_early`]) while the others are
 /// still being fitted (a core would otherwise wait for the slowest fit).
 fn fit_candidates(
@@ -412,8 +455,12 @@ fn fit_candidates(
             screening: cands.len(),
             reference: f64::INFINITY,
             best: f64::INFINITY,
+            started: 0,
+            running: 0,
         }),
         screened: std::sync::Condvar::new(),
+        turn: std::sync::Condvar::new(),
+        at_once: std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get),
     };
     let shared = &shared;
     std::thread::scope(|scope| {
@@ -426,17 +473,19 @@ fn fit_candidates(
                 scope.spawn(move || {
                     // A screening fit that panics is a failed full fit (as the join of its thread
                     // made it), and is counted as ended: the others may be waiting for it.
-                    let screened =
-                        std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-                            match (given, pre) {
-                                (Some(id), _) => ((Ok(id), None), true),
-                                (None, Some(r)) => pre_screen(rec, m, opts, r),
-                                (None, None) => screen_candidate(rec, m, opts),
-                            }
-                        }));
+                    let screened = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                        let Some(id) = given else {
+                            let _turn = shared.turn(i - 1);
+                            return match pre {
+                                Some(r) => pre_screen(rec, m, opts, r),
+                                None => screen_candidate(rec, m, opts),
+                            };
+                        };
+                        ((Ok(id), None), true)
+                    }));
                     let (fitted, full) = screened.unwrap_or_else(|_| ((panicked(), None), true));
                     shared.screened(&fitted, full);
-                    let (mut fitted, out, smallest) = if full {
+                    let (mut fitted, out, smallest) = if full || no_start(&fitted) {
                         (fitted, false, None)
                     } else if fitted.0.is_err() {
                         // A failed screening fit is fitted in full whatever the reference: no
@@ -487,6 +536,13 @@ fn fit_candidates(
             })
             .collect()
     })
+}
+
+/// Whether a screening fit failed in its start ([`Error::NoStart`], the two-mass structure
+/// without a resonance): the start does not depend on the iteration budget, so the full fit
+/// fails the same way and is not run.
+fn no_start(fitted: &Fitted) -> bool {
+    matches!(fitted.0, Err(Error::NoStart(_)))
 }
 
 /// [`identified`] on a fresh thread (its pole cache empty).
@@ -1113,6 +1169,9 @@ pub fn auto_candidates(model: &FracModel) -> Vec<(String, FracModel)> {
 /// `--structure auto` without the diagnosis: fit every structure of [`auto_candidates`] alike
 /// (on all cores) and keep the one the rule of the module documentation picks from the base fits
 /// (held-out RMSE, ties within [`TIE`], then BIC on the estimation part; usable fits first).
+/// A degenerate two-mass fit is made well posed as in the diagnosis: reduced at once from its
+/// screening fit when the smallest reduced structure fits as well ([`auto_fit`]), else fitted in
+/// full and then reduced ([`reduce_degenerate`]).
 /// Returns the chosen identification and the comparison.
 ///
 /// # Errors
@@ -1123,21 +1182,34 @@ pub fn fit_best(
     opts: &IdentOptions,
 ) -> Result<(Identification, StructureChoice)> {
     let mut cands = with_feedthrough(rec, auto_candidates(model), model);
-    let mut fits: Vec<Result<Identification>> = std::thread::scope(|scope| {
+    let fitted: Vec<AutoFit> = std::thread::scope(|scope| {
         let handles: Vec<_> = cands
             .iter()
-            .map(|(_, m)| scope.spawn(move || identify(rec, m, opts)))
+            .map(|(_, m)| scope.spawn(move || auto_fit(rec, m, opts)))
             .collect();
         handles
             .into_iter()
-            .map(|h| {
-                h.join()
-                    .unwrap_or_else(|_| Err(Error::Numerical("a structure's fit panicked".into())))
-            })
+            .map(|h| h.join().unwrap_or_else(|_| (panicked(), None)))
             .collect()
     });
+    let mut at_once = vec![];
+    let mut fits: Vec<Result<Identification>> = fitted
+        .into_iter()
+        .enumerate()
+        .map(|(i, (fit, reduced))| {
+            if let Some((model, what)) = reduced {
+                cands[i] = (format!("{} (reduced)", cands[i].0), model);
+                at_once.push((i, what));
+            }
+            fit
+        })
+        .collect();
     let mut caches = vec![None; fits.len()];
-    let reduced = reduce_degenerate(rec, &mut cands, &mut fits, &mut caches, opts);
+    // The reduced refits have no two-mass parameters: [`reduce_degenerate`] leaves them as they
+    // are.
+    let mut reduced = reduce_degenerate(rec, &mut cands, &mut fits, &mut caches, opts);
+    reduced.extend(at_once);
+    reduced.sort_by_key(|(i, _)| *i);
     let scores: Vec<StructureScore> = cands
         .iter()
         .zip(&fits)
@@ -1163,6 +1235,34 @@ pub fn fit_best(
         integer_reference,
     };
     Ok((id, choice))
+}
+
+/// A structure's fit for [`fit_best`] and, when it was reduced at once, the reduced structure with
+/// the words ([`auto_fit`]).
+type AutoFit = (Result<Identification>, Option<(FracModel, String)>);
+
+/// One structure's fit for [`fit_best`] (on the thread it is called on), and the reduced structure
+/// with the words when it was a degenerate two-mass fit reduced at once. A two-mass structure is
+/// screened first ([`screen_candidate`]), as the diagnosis does ([`fit_candidates`]): a screening
+/// fit that is the full fit is kept; one that failed in its start ([`no_start`]) is that error; a
+/// degenerate one is refitted at once as the smallest reduced structure ([`reduce_screened`])
+/// instead of running its full budget along the directions it cannot determine; otherwise the
+/// structure is fitted in full on a fresh thread (its pole cache empty, as without the
+/// screening). Other structures are fitted in full.
+fn auto_fit(rec: &Record, m: &FracModel, opts: &IdentOptions) -> AutoFit {
+    if m.kind != crate::oe::Kind::TwoMass {
+        return (identify(rec, m, opts), None);
+    }
+    let ((fit, _), full) = screen_candidate(rec, m, opts);
+    if full || matches!(fit, Err(Error::NoStart(_))) {
+        return (fit, None);
+    }
+    if let Ok(id) = &fit {
+        if let Some(((refit, _), reduced)) = reduce_screened(rec, id, opts) {
+            return (refit, Some(reduced));
+        }
+    }
+    (fresh_fit(rec, m, opts).0, None)
 }
 
 /// A base fit's row of the comparison: its held-out RMSE (estimation without a held-out part)
@@ -1575,6 +1675,50 @@ mod tests {
                 "{w}: {got} {want}"
             );
         }
+    }
+
+    /// A first-order plant `2/(0.05 s + 1)` (exact for the held input) driven by a square wave:
+    /// no resonance anywhere in its frequency response, so the two-mass structure has no start.
+    /// The screening fit fails in its start ([`Error::NoStart`], told apart from a failure after
+    /// some iterations, which is fitted again in full), and the full fit (500 iterations) fails
+    /// with the same words: the start does not depend on the budget, which is why the comparison
+    /// does not fit it again ([`no_start`]).
+    #[test]
+    fn a_two_mass_fit_without_a_resonance_fails_in_its_start_whatever_its_budget() {
+        let dt = 1e-3;
+        let u: Vec<f64> = (0..4000)
+            .map(|k| if (k / 97) % 3 == 0 { 1.0 } else { -1.0 })
+            .collect();
+        let (a, mut x) = ((-dt / 0.05f64).exp(), 0.0);
+        let y: Vec<f64> = u
+            .iter()
+            .map(|&v| {
+                let o = x;
+                x = a * x + 2.0 * (1.0 - a) * v;
+                o
+            })
+            .collect();
+        let rec = Record::from_samples(&u, &y, dt).unwrap();
+        let opts = IdentOptions::default();
+        assert!(opts.fit.lm.max_iterations > SCREEN_ITERATIONS);
+        let (fitted, full) = screen_candidate(&rec, &two_mass(), &opts);
+        assert!(!full, "the screening path ran");
+        assert!(no_start(&fitted), "{:?}", fitted.0.as_ref().err());
+        let screened = fitted.0.unwrap_err().to_string();
+        assert!(
+            screened.starts_with(
+                "not enough information in the data: the two-mass structure has no start"
+            ),
+            "{screened}"
+        );
+        let whole = identify(&rec, &two_mass(), &opts).unwrap_err();
+        assert!(matches!(whole, Error::NoStart(_)), "{whole:?}");
+        assert_eq!(whole.to_string(), screened);
+        // A failure that is not the start's is fitted again.
+        assert!(!no_start(&(
+            Err(Error::NotEnoughData("no resonance".into())),
+            None
+        )));
     }
 
     /// The pre-screen leaves out a fit far behind the user's, or behind it with problems, and

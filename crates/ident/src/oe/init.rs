@@ -978,8 +978,9 @@ fn levy_candidates(lin: &FracModel, frf: &Frf, dt: f64) -> Result<(Vec<Candidate
 /// estimation part.
 ///
 /// # Errors
-/// None at present (kept fallible); a model that fails to simulate at every trial keeps its
-/// values and the report says so.
+/// [`Error::NoStart`] for the two-mass structure when neither the Levy fits nor Welch's estimate
+/// give a resonant pair (it has no other start). Otherwise none: a model that fails to simulate
+/// at every trial keeps its values and the report says so.
 pub fn auto_start(model: &mut FracModel, u: &[f64], y: &[f64], dt: f64) -> Result<StartReport> {
     let n = u.len().min(y.len());
     let (u, y) = (&u[..n], &y[..n]);
@@ -1091,7 +1092,7 @@ pub fn auto_start(model: &mut FracModel, u: &[f64], y: &[f64], dt: f64) -> Resul
         // The coarse search has no resonance to offer: the structure is dropped at once, with the
         // reason once (not behind the error variant's words again).
         let why = levy_error.map_or(why_not_levy, |e| e.detail());
-        return Err(Error::NotEnoughData(format!(
+        return Err(Error::NoStart(format!(
             "the two-mass structure has no start: {why}"
         )));
     }

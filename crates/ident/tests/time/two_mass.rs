@@ -288,3 +288,55 @@ fn the_flexible_robot_arm_is_diagnosed_as_a_resonant_drive_train() {
     assert!(held.rmse <= 0.060, "held-out RMSE {}", held.rmse);
     assert!(held.rmse <= 0.8 * 0.0900, "held-out RMSE {}", held.rmse);
 }
+
+/// `--structure auto` (without the diagnosis) on the robot arm makes the degenerate two-mass fit
+/// well posed as the diagnosis does: its screening fit (60 iterations, already degenerate) is
+/// refitted at once as the smallest reduced structure (`structures::reduce_screened`), not fitted
+/// for its 500 iterations first (session 18: the whole run 0.71 -> 0.21 s CPU). Measured
+/// (2026-11-26): `two-mass (reduced)` chosen at the held-out RMSE 0.051793, the diagnosis's own
+/// (before: 0.051839 from the full fit's limit). The reduced refit is the diagnosis's refit (the
+/// same screening fit, the same refit on a fresh thread), so the two choices agree to rounding
+/// (1e-9 relative); the words say the screening fit was reduced (the full fit's reduction says
+/// what collapsed, without "refitted at once").
+#[test]
+fn auto_reduces_the_arms_degenerate_two_mass_screening_fit_at_once() {
+    use ident::app::observe::Quiet;
+    use ident::app::time::{run, TimeData, TimeRequest};
+    let path = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../data/slicot_robot_arm/robot_arm.csv");
+    let loaded = Record::load(&path, &ident::data::ReadOptions::default()).expect("the arm record");
+    let data = TimeData {
+        record: loaded.record,
+        validation: None,
+        joint: vec![],
+        reader_warnings: vec![],
+    };
+    let auto = TimeRequest {
+        structure: "auto".into(),
+        ..Default::default()
+    };
+    let r = run(&auto, &data, &mut Quiet).unwrap();
+    let c = r.structures.as_ref().expect("the comparison");
+    let chosen = &c.scores[c.chosen];
+    assert_eq!(chosen.name, "two-mass (reduced)", "{}", c.reason);
+    assert!(c.reason.contains("refitted at once"), "{}", c.reason);
+    let held = r.lead.fit.validation.expect("a held-out part").rmse;
+    let diagnosed = run(
+        &TimeRequest {
+            diagnose: true,
+            ..auto.clone()
+        },
+        &data,
+        &mut Quiet,
+    )
+    .unwrap();
+    let d = diagnosed.diagnosis.as_ref().expect("a diagnosis");
+    let base = d.structures.scores[d.structures.chosen]
+        .rmse
+        .expect("the chosen base fit's RMSE");
+    assert_eq!(d.structures.scores[d.structures.chosen].name, chosen.name);
+    assert!(
+        (held - base).abs() <= 1e-9 * base,
+        "auto {held} against the diagnosis's base fit {base}"
+    );
+}

@@ -6,7 +6,7 @@
 //! two samples); it then ranks last and the held-out margin and BIC decide.
 
 use super::{named, Candidate, Findings, Look, Probe};
-use crate::oe::{FracModel, Structure};
+use crate::oe::FracModel;
 use crate::Result;
 use std::collections::BTreeMap;
 
@@ -35,19 +35,18 @@ impl Probe for Delay {
         }
         let (s, dt) = (look.s(), ctx.dt);
         let max = ctx.opts.max_delay_samples.max(1);
+        // The grid's smallest sum of squares: a delay whose partial sum already reaches the best
+        // so far is given up there ([`FracModel::ssr_below`]; the same best, most delays of the
+        // grid far from it cost a few thousand samples instead of the record).
         let mut best = (f64::INFINITY, 0.0);
-        let mut y = vec![0.0; s];
         for j in 1..=2 * max {
             let tau = j as f64 * dt / 2.0;
             let mut m = st.model.clone();
             m.with_delay(tau, max as f64 * dt);
             let mut v = st.values.clone();
             v.push(tau);
-            if m.simulate(&v, &ctx.u[..s], dt, &mut y).is_ok() {
-                let ssr: f64 = (0..s).map(|k| (ctx.y[k] - y[k]).powi(2)).sum();
-                if ssr < best.0 {
-                    best = (ssr, tau);
-                }
+            if let Ok(Some(ssr)) = m.ssr_below(&v, &ctx.u[..s], &ctx.y[..s], dt, best.0) {
+                best = (ssr, tau);
             }
         }
         let r2_held = (1.0 - best.0 / look.ee.max(1e-300)).max(0.0);
@@ -75,11 +74,11 @@ impl Probe for Delay {
             taus.push(dt);
             taus.push(2.0 * dt);
         }
-        let starts: Vec<FracModel> = taus
+        let starts: Vec<FracModel> = distinct_starts(&taus, (max as f64 - 0.5) * dt)
             .into_iter()
             .map(|tau| {
                 let mut m = st.model.clone();
-                m.with_delay(tau.min((max as f64 - 0.5) * dt), max as f64 * dt);
+                m.with_delay(tau, max as f64 * dt);
                 m
             })
             .collect();
@@ -107,5 +106,107 @@ impl Probe for Delay {
 
     fn params(&self, model: &FracModel, values: &[f64]) -> BTreeMap<String, f64> {
         named(model, values, &[("tau", "tau")])
+    }
+}
+
+/// The refit's start delays `taus` (s), each at most `top`, in their order with repeats left out:
+/// the grid's best point is often one of the lags' (a correlation peak at lag 0 or 1 gives
+/// `dt` and `dt/2`, both on the grid), and a repeated start is the same refit again (the best
+/// start is the first with the smallest sum of squares, [`crate::diagnose`], so leaving out a
+/// later repeat changes nothing).
+fn distinct_starts(taus: &[f64], top: f64) -> Vec<f64> {
+    let mut out: Vec<f64> = Vec::with_capacity(taus.len());
+    for tau in taus.iter().map(|t| t.min(top)) {
+        if !out.contains(&tau) {
+            out.push(tau);
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::distinct_starts;
+    use crate::oe::{FracModel, Structure};
+
+    /// [`FracModel::ssr_below`] against the model simulated whole and the sum taken after it
+    /// (the delay grid's former way): the same sum bit for bit on a model with a fractional
+    /// delay, a past held input (the initial state) and an output offset over 20000 samples (a
+    /// few chunks), `None` exactly when the sum is not below the limit; and a model with an input
+    /// effect (a saturation: the whole run) the same.
+    #[test]
+    fn the_chunked_sum_of_squares_is_the_whole_runs() {
+        let dt = 5e-4;
+        let n = 20_000;
+        let u: Vec<f64> = (0..n)
+            .map(|k| if (k / 173) % 3 == 0 { 1.0 } else { -0.5 })
+            .collect();
+        let y: Vec<f64> = (0..n).map(|k| 2.0 * (k as f64 * 1e-3).sin()).collect();
+        let mut m = FracModel::pmsm(6.8, 0.0064, 2.8e-5, 0.89, 0.89);
+        m.with_delay(2.5 * dt, 10.0 * dt);
+        m.with_past_input(vec![0.01, 0.05], (-3.0, 3.0));
+        m.with_output_offset(0.3);
+        let mut v = m.values();
+        for (i, level) in m.past.clone().unwrap().levels.iter().zip([0.7, -0.4, 0.2]) {
+            v[*i] = level;
+        }
+        let whole = |m: &FracModel, v: &[f64]| {
+            let mut yhat = vec![0.0; n];
+            m.simulate(v, &u, dt, &mut yhat).unwrap();
+            (0..n).map(|k| (y[k] - yhat[k]).powi(2)).sum::<f64>()
+        };
+        let ssr = whole(&m, &v);
+        assert!(ssr > 0.0 && ssr.is_finite());
+        assert_eq!(
+            m.ssr_below(&v, &u, &y, dt, f64::INFINITY).unwrap(),
+            Some(ssr)
+        );
+        assert_eq!(
+            m.ssr_below(&v, &u, &y, dt, ssr * (1.0 + 1e-12)).unwrap(),
+            Some(ssr)
+        );
+        assert_eq!(m.ssr_below(&v, &u, &y, dt, ssr).unwrap(), None);
+        assert_eq!(m.ssr_below(&v, &u, &y, dt, 0.5 * ssr).unwrap(), None);
+        // An input effect: simulated whole, the same rule.
+        let mut sat = m.clone();
+        let level = sat.add_param(crate::oe::Param::new(
+            "level",
+            0.8,
+            crate::oe::Bounds::Positive,
+        ));
+        sat.effects.push(crate::oe::Effect::Saturation { level });
+        let mut w = v.clone();
+        w.push(0.8);
+        let ssr = whole(&sat, &w);
+        assert_eq!(
+            sat.ssr_below(&w, &u, &y, dt, f64::INFINITY).unwrap(),
+            Some(ssr)
+        );
+        assert_eq!(sat.ssr_below(&w, &u, &y, dt, ssr).unwrap(), None);
+    }
+
+    #[test]
+    fn a_start_delay_is_refitted_once() {
+        let dt = 1e-3;
+        // a correlation peak at lag 1 whose grid point is one sample: dt, dt, dt/2
+        assert_eq!(
+            distinct_starts(&[dt, dt, 0.5 * dt], 9.5 * dt),
+            vec![dt, 0.5 * dt]
+        );
+        // lag 0 with the grid's best at dt/2: dt/2, dt, dt/2
+        assert_eq!(
+            distinct_starts(&[0.5 * dt, dt, 0.5 * dt], 9.5 * dt),
+            vec![0.5 * dt, dt]
+        );
+        // starts beyond the top are clamped first, then told apart
+        assert_eq!(
+            distinct_starts(&[3.0 * dt, dt, 2.0 * dt], 1.5 * dt),
+            vec![1.5 * dt, dt]
+        );
+        // distinct starts are all kept, in their order
+        assert_eq!(
+            distinct_starts(&[2.5 * dt, dt, 2.0 * dt], 9.5 * dt),
+            vec![2.5 * dt, dt, 2.0 * dt]
+        );
     }
 }

@@ -6,7 +6,7 @@
 //! advanced input.
 
 use super::{Candidate, Findings, Look, Probe};
-use crate::oe::{FracModel, Structure};
+use crate::oe::FracModel;
 use crate::Result;
 use std::collections::BTreeMap;
 
@@ -56,15 +56,16 @@ impl Probe for Skew {
         if neg_peak <= bound {
             return Ok(());
         }
+        // The smallest sum of squares over the advances, each given up as soon as its partial
+        // sum reaches the best so far ([`crate::oe::FracModel::ssr_below`]: the same best).
         let mut best = (f64::INFINITY, 0usize);
-        let mut y = vec![0.0; s];
         for m in 1..=h {
             let c = ctx.with_lead(m);
-            if st.model.simulate(&st.values, &c.u[..s], dt, &mut y).is_ok() {
-                let ssr: f64 = (0..s).map(|k| (ctx.y[k] - y[k]).powi(2)).sum();
-                if ssr < best.0 {
-                    best = (ssr, m);
-                }
+            if let Ok(Some(ssr)) =
+                st.model
+                    .ssr_below(&st.values, &c.u[..s], &ctx.y[..s], dt, best.0)
+            {
+                best = (ssr, m);
             }
         }
         let mut r2 = (1.0 - best.0 / look.ee.max(1e-300)).max(0.0);
