@@ -830,8 +830,9 @@ fn roots_of_h_cached(
         // The same `H` to rounding (a dual model's values, computed through its derivative
         // parts, a few ulps from the plain model's just solved): its roots as they are (the
         // expansion takes one Newton step from each in any case), counted as hinted (a failed
-        // expansion check solves cold).
-        Some((dist, r)) if dist <= SAME_H => return Ok((r, true)),
+        // expansion check solves cold), and cached for these values as a solved root set is
+        // (which entries the cache keeps decides the next builds' hints).
+        Some((dist, r)) if dist <= SAME_H => (r, true),
         Some((dist, r)) if dist <= HINT_DISTANCE => roots_of_h(groups, d, &r)?,
         _ => roots_of_h(groups, d, &[])?,
     };
