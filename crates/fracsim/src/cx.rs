@@ -14,6 +14,20 @@ pub struct Cx<T> {
     pub im: T,
 }
 
+/// `1/k!` for `k = 1..=17`, the Taylor coefficients of [`Cx::phi1`] (`k!` is exact in `f64`
+/// up to `18!`, each quotient rounded once).
+const PHI1_COEF: [f64; 17] = {
+    let mut c = [0.0; 17];
+    let mut fact = 1.0;
+    let mut k = 1;
+    while k <= 17 {
+        fact *= k as f64;
+        c[k - 1] = 1.0 / fact;
+        k += 1;
+    }
+    c
+};
+
 impl<T: Real> Cx<T> {
     /// `re + j im`.
     #[inline]
@@ -86,14 +100,7 @@ impl<T: Real> Cx<T> {
     pub fn phi1(self) -> Self {
         if self.val().norm() < 0.5 {
             let mut acc = Self::real(T::from(0.0));
-            let mut fact = 1.0;
-            let coef: Vec<f64> = (1..=17)
-                .map(|k| {
-                    fact *= k as f64;
-                    1.0 / fact
-                })
-                .collect();
-            for &c in coef.iter().rev() {
+            for &c in PHI1_COEF.iter().rev() {
                 acc = acc * self + Self::real(T::from(c));
             }
             acc

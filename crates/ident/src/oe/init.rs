@@ -670,14 +670,15 @@ fn coarse_start(lin: &FracModel, u: &[f64], y: &[f64], dt: f64) -> Option<(f64, 
             with(2.0 * z / w, 1.0 / (w * w), 0.0, 1.0, w)
         }
     };
-    // Each trial's unit-gain output scored: (sse, K) with K by linear least squares.
+    // Each trial's unit-gain output scored: (sse, K) with K by linear least squares (the sums
+    // in interleaved partial sums, `fracsim::lanes`: vectorised).
     let score = |yhat: &[f64]| -> Option<(f64, f64)> {
-        let gg: f64 = yhat.iter().map(|v| v * v).sum();
+        let gg = crate::lm::dot(yhat, yhat);
         if !(gg > 0.0 && gg.is_finite()) {
             return None;
         }
-        let k = yhat.iter().zip(y).map(|(a, b)| a * b).sum::<f64>() / gg;
-        let sse: f64 = yhat.iter().zip(y).map(|(a, b)| (b - k * a).powi(2)).sum();
+        let k = crate::lm::dot(yhat, y) / gg;
+        let sse = fracsim::lanes::sum_of2(yhat, y, |a, b| (b - k * a) * (b - k * a));
         sse.is_finite().then_some((sse, k))
     };
     // Each trial simulated by `model` at unit gain.

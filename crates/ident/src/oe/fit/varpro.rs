@@ -67,7 +67,8 @@ pub(super) fn plan<S: Structure>(s: &S, free: &[usize]) -> Option<Plan> {
 
 /// Orthonormalise `cols` in place (modified Gram-Schmidt, twice: as accurate as Householder for
 /// a handful of columns); returns `R` (row-major, `c x c`) with `cols_in = Q R`, or `None` when
-/// a column is (numerically) in the span of those before it.
+/// a column is (numerically) in the span of those before it. The fallback of [`LinearBasis`]
+/// when the Gram matrix is too ill-conditioned for its Cholesky factor.
 fn orthonormalise(cols: &mut [Vec<f64>]) -> Option<Vec<f64>> {
     let c = cols.len();
     let mut r = vec![0.0; c * c];
@@ -92,6 +93,140 @@ fn orthonormalise(cols: &mut [Vec<f64>]) -> Option<Vec<f64>> {
     Some(r)
 }
 
+/// The smallest pivot of the equilibrated Gram matrix's Cholesky factor (the sine of the angle
+/// between a column and the span of those before it) a [`LinearBasis`] is built from: below it,
+/// the Gram matrix's rounding (`~eps`, on the pivot's square) would show in the solution, and the
+/// columns are orthonormalised instead.
+const GRAM_MIN_PIVOT: f64 = 1e-5;
+
+/// The linear parameters' columns `A` (`c` of them) with the Cholesky factor of their
+/// equilibrated Gram matrix, `D A^T A D = L L^T` (`D` = `1/||A_j||` on the diagonal): the least
+/// squares solution `x = D (L L^T)^-1 D A^T y` and the projection orthogonal to the columns,
+/// `d - A x(d)`, without forming an orthonormal basis (the semi-normal equations; Björck,
+/// *Numerical methods for least squares problems*, 1996, sec. 6.6.5: with one step of iterative
+/// refinement, as accurate as a QR factorisation for well-conditioned columns). For an
+/// orthonormalised basis `A = Q`, `D = L = I`.
+#[derive(Debug, Clone, Default)]
+struct LinearBasis {
+    cols: Vec<Vec<f64>>,
+    /// `D`, the columns' inverse norms.
+    scale: Vec<f64>,
+    /// `L`, row-major `c x c`, lower triangle.
+    chol: Vec<f64>,
+    /// For an orthonormalised basis `Q` of columns `A = Q R`: `R` (row-major `c x c`), which
+    /// maps the solution in `Q` to the solution in `A`.
+    r: Option<Vec<f64>>,
+}
+
+impl LinearBasis {
+    /// From the columns `cols` and their Gram matrix `gram` (row-major `c x c`, `A^T A`); `None`
+    /// when a pivot is below [`GRAM_MIN_PIVOT`] (or a column is zero or not finite).
+    fn from_gram(cols: Vec<Vec<f64>>, gram: &[f64]) -> Option<Self> {
+        let c = cols.len();
+        let scale: Vec<f64> = (0..c)
+            .map(|j| 1.0 / gram[j * c + j].sqrt())
+            .collect::<Vec<f64>>();
+        if !scale.iter().all(|d| d.is_finite() && *d > 0.0) {
+            return None;
+        }
+        let mut l = vec![0.0; c * c];
+        for i in 0..c {
+            for j in 0..=i {
+                let mut v = gram[i * c + j] * scale[i] * scale[j];
+                for k in 0..j {
+                    v -= l[i * c + k] * l[j * c + k];
+                }
+                if i == j {
+                    if !(v > GRAM_MIN_PIVOT * GRAM_MIN_PIVOT) {
+                        return None;
+                    }
+                    l[i * c + i] = v.sqrt();
+                } else {
+                    l[i * c + j] = v / l[j * c + j];
+                }
+            }
+        }
+        Some(Self {
+            cols,
+            scale,
+            chol: l,
+            r: None,
+        })
+    }
+
+    /// By modified Gram-Schmidt ([`orthonormalise`]); `None` when the columns are singular.
+    fn orthonormal(mut cols: Vec<Vec<f64>>) -> Option<Self> {
+        let r = orthonormalise(&mut cols)?;
+        let c = cols.len();
+        let mut chol = vec![0.0; c * c];
+        (0..c).for_each(|i| chol[i * c + i] = 1.0);
+        Some(Self {
+            cols,
+            scale: vec![1.0; c],
+            chol,
+            r: Some(r),
+        })
+    }
+
+    /// `x = (A^T A)^-1 h` for `h = A^T v`.
+    fn solve_normal(&self, h: &[f64]) -> Vec<f64> {
+        let (c, l, d) = (self.cols.len(), &self.chol, &self.scale);
+        let mut x: Vec<f64> = h.iter().zip(d).map(|(a, b)| a * b).collect();
+        for i in 0..c {
+            let t: f64 = (0..i).map(|k| l[i * c + k] * x[k]).sum();
+            x[i] = (x[i] - t) / l[i * c + i];
+        }
+        for i in (0..c).rev() {
+            let t: f64 = (i + 1..c).map(|k| l[k * c + i] * x[k]).sum();
+            x[i] = (x[i] - t) / l[i * c + i];
+        }
+        x.iter_mut().zip(d).for_each(|(a, b)| *a *= b);
+        x
+    }
+
+    /// `A^T v`.
+    fn at(&self, v: &[f64]) -> Vec<f64> {
+        self.cols.iter().map(|a| dot(a, v)).collect()
+    }
+
+    /// `out += s A x`.
+    fn add_ax(&self, x: &[f64], s: f64, out: &mut [f64]) {
+        for (a, &xj) in self.cols.iter().zip(x) {
+            let f = s * xj;
+            out.iter_mut().zip(a).for_each(|(o, b)| *o += f * b);
+        }
+    }
+
+    /// The least-squares solution `x` of `A x ~ y` given `aty = A^T y`, and `A x` (into
+    /// `fitted`). From the Gram matrix, refined once: `x += (A^T A)^-1 A^T (y - A x)`. For an
+    /// orthonormalised basis, `x` is in the original columns (`R^-1 Q^T y`).
+    fn least_squares(&self, aty: &[f64], y: &[f64], fitted: &mut [f64]) -> Vec<f64> {
+        let mut x = self.solve_normal(aty);
+        fitted.iter_mut().for_each(|v| *v = 0.0);
+        self.add_ax(&x, 1.0, fitted);
+        let Some(r) = &self.r else {
+            let res: Vec<f64> = y.iter().zip(fitted.iter()).map(|(a, b)| a - b).collect();
+            let dx = self.solve_normal(&self.at(&res));
+            self.add_ax(&dx, 1.0, fitted);
+            x.iter_mut().zip(&dx).for_each(|(a, b)| *a += b);
+            return x;
+        };
+        let c = x.len();
+        let qty = x.clone();
+        for i in (0..c).rev() {
+            let t: f64 = (i + 1..c).map(|j| r[i * c + j] * x[j]).sum();
+            x[i] = (qty[i] - t) / r[i * c + i];
+        }
+        x
+    }
+
+    /// `d` projected orthogonally to the columns, in place: `d -= A (A^T A)^-1 A^T d`.
+    fn project_out(&self, d: &mut [f64]) {
+        let z = self.solve_normal(&self.at(d));
+        self.add_ax(&z, -1.0, d);
+    }
+}
+
 /// The reduced problem over the parameters of [`Plan::nonlin`] (in `theta`, reparametrised).
 pub(super) struct Reduced<'a, S: Structure> {
     s: &'a S,
@@ -108,9 +243,8 @@ pub(super) struct Reduced<'a, S: Structure> {
     at: Option<Vec<f64>>,
     /// Its fitted output over the fitted samples.
     fitted: Vec<f64>,
-    /// An orthonormal basis of the linear parameters' columns there (a held level's response
-    /// in the gain's).
-    basis: Vec<Vec<f64>>,
+    /// The linear parameters' columns there (a held level's response in the gain's).
+    basis: LinearBasis,
     yhat: Vec<f64>,
     /// The sum of squares at the start (before any linear solution).
     start_ssr: Option<f64>,
@@ -144,7 +278,7 @@ impl<'a, S: Structure> Reduced<'a, S> {
             theta: theta.to_vec(),
             at: None,
             fitted: vec![0.0; m],
-            basis: vec![],
+            basis: LinearBasis::default(),
             yhat: vec![0.0; u.len()],
             start_ssr: None,
             held: vec![],
@@ -192,37 +326,101 @@ impl<'a, S: Structure> Reduced<'a, S> {
             .iter()
             .map(|&l| cols[l].iter().map(|v| v / k).collect())
             .collect();
-        let mut g = cols[plan.gain].clone();
+        let mut g = std::mem::take(&mut cols[plan.gain]);
         for (&l, fi) in plan.levels.iter().zip(&f) {
             let w = p[which[l]];
             g.iter_mut().zip(fi).for_each(|(a, b)| *a -= w * b);
         }
-        let mut held: Vec<Option<f64>> = vec![None; f.len()];
-        for _ in 0..=f.len() {
-            // Columns: the gain's (G0 u and the held levels' responses), the free levels', 1.
-            let mut gk = g.clone();
-            for (h, fi) in held.iter().zip(&f) {
+        // The columns the bases are made of: G0 u, the levels' responses, 1; their Gram
+        // matrix and their products with y, once (a held level's response joins the gain's
+        // column, a combination of these).
+        let mut raw: Vec<Vec<f64>> = Vec::with_capacity(f.len() + 2);
+        raw.push(g);
+        raw.extend(f);
+        if plan.offset.is_some() {
+            raw.push(vec![1.0; m]);
+        }
+        let nr = raw.len();
+        let mut gram = vec![0.0; nr * nr];
+        for i in 0..nr {
+            for j in 0..=i {
+                let v = dot(&raw[i], &raw[j]);
+                gram[i * nr + j] = v;
+                gram[j * nr + i] = v;
+            }
+        }
+        let raw_y: Vec<f64> = raw.iter().map(|a| dot(a, y)).collect();
+        let nf = nr - 1 - usize::from(plan.offset.is_some());
+        let mut held: Vec<Option<f64>> = vec![None; nf];
+        for _ in 0..=nf {
+            // Columns: the gain's (G0 u and the held levels' responses), the free levels', 1,
+            // as combinations `t` (row-major `c x nr`) of the raw columns.
+            let free_levels: Vec<usize> = (0..nf).filter(|&i| held[i].is_none()).collect();
+            let mut comb: Vec<Vec<f64>> = vec![];
+            let mut first = vec![0.0; nr];
+            first[0] = 1.0;
+            for (i, h) in held.iter().enumerate() {
                 if let Some(v) = h {
-                    gk.iter_mut().zip(fi).for_each(|(a, b)| *a += v * b);
+                    first[1 + i] = *v;
                 }
             }
-            let mut basis = vec![gk];
-            let free_levels: Vec<usize> = (0..f.len()).filter(|&i| held[i].is_none()).collect();
-            basis.extend(free_levels.iter().map(|&i| f[i].clone()));
+            comb.push(first);
+            for &i in &free_levels {
+                let mut t = vec![0.0; nr];
+                t[1 + i] = 1.0;
+                comb.push(t);
+            }
             if plan.offset.is_some() {
-                basis.push(vec![1.0; m]);
+                let mut t = vec![0.0; nr];
+                t[nr - 1] = 1.0;
+                comb.push(t);
             }
-            let mut q = basis;
-            let c = q.len();
-            let r = orthonormalise(&mut q).ok_or_else(|| {
-                Error::Numerical("variable projection: the linear basis is singular".into())
-            })?;
-            let qty: Vec<f64> = q.iter().map(|qk| dot(qk, y)).collect();
-            let mut x = qty.clone();
-            for i in (0..c).rev() {
-                let t: f64 = (i + 1..c).map(|j| r[i * c + j] * x[j]).sum();
-                x[i] = (qty[i] - t) / r[i * c + i];
+            let c = comb.len();
+            let mut ga = vec![0.0; c * c];
+            for a in 0..c {
+                for b in 0..c {
+                    let mut v = 0.0;
+                    for i in 0..nr {
+                        if comb[a][i] == 0.0 {
+                            continue;
+                        }
+                        for j in 0..nr {
+                            v += comb[a][i] * gram[i * nr + j] * comb[b][j];
+                        }
+                    }
+                    ga[a * c + b] = v;
+                }
             }
+            let aty: Vec<f64> = comb
+                .iter()
+                .map(|t| t.iter().zip(&raw_y).map(|(a, b)| a * b).sum())
+                .collect();
+            let cols = || -> Vec<Vec<f64>> {
+                comb.iter()
+                    .map(|t| {
+                        let nz: Vec<usize> = (0..nr).filter(|&i| t[i] != 0.0).collect();
+                        if let [i] = nz[..] {
+                            if t[i] == 1.0 {
+                                return raw[i].clone();
+                            }
+                        }
+                        let mut v = vec![0.0; m];
+                        for &i in &nz {
+                            let w = t[i];
+                            v.iter_mut().zip(&raw[i]).for_each(|(a, b)| *a += w * b);
+                        }
+                        v
+                    })
+                    .collect()
+            };
+            let basis = LinearBasis::from_gram(cols(), &ga)
+                .or_else(|| LinearBasis::orthonormal(cols()))
+                .ok_or_else(|| {
+                    Error::Numerical("variable projection: the linear basis is singular".into())
+                })?;
+            let aty = if basis.r.is_some() { basis.at(y) } else { aty };
+            let mut fitted = vec![0.0; m];
+            let x = basis.least_squares(&aty, y, &mut fitted);
             let a = x[0];
             if !(a.is_finite() && a != 0.0)
                 || (params[gain_j].bounds == Bounds::Positive && a <= 0.0)
@@ -232,7 +430,7 @@ impl<'a, S: Structure> Reduced<'a, S> {
                 ));
             }
             let mut again = false;
-            let mut w = vec![0.0; f.len()];
+            let mut w = vec![0.0; nf];
             for (slot, &i) in free_levels.iter().enumerate() {
                 w[i] = x[1 + slot] / a;
                 let b = params[which[plan.levels[i]]].bounds;
@@ -245,13 +443,6 @@ impl<'a, S: Structure> Reduced<'a, S> {
             }
             if again {
                 continue;
-            }
-            self.fitted.iter_mut().for_each(|v| *v = 0.0);
-            for (qk, &h) in q.iter().zip(&qty) {
-                self.fitted
-                    .iter_mut()
-                    .zip(qk)
-                    .for_each(|(a, b)| *a += h * b);
             }
             let to = |k: usize, v: f64| {
                 let j = which[k];
@@ -267,8 +458,9 @@ impl<'a, S: Structure> Reduced<'a, S> {
             }
             self.theta = th;
             self.at = Some(theta_n.to_vec());
-            self.basis = q;
-            self.held = (0..f.len())
+            self.basis = basis;
+            self.fitted = fitted;
+            self.held = (0..nf)
                 .filter(|&i| held[i].is_some())
                 .map(|i| plan.lin[plan.levels[i]])
                 .collect();
@@ -314,11 +506,7 @@ impl<S: Structure> Problem for Reduced<'_, S> {
             .zip(y)
             .for_each(|((rk, f), yk)| *rk = f - yk);
         for c in 0..which.len() {
-            let d = out.col_as_slice_mut(c);
-            for qk in &self.basis {
-                let h = dot(qk, d);
-                d.iter_mut().zip(qk).for_each(|(a, b)| *a -= h * b);
-            }
+            self.basis.project_out(out.col_as_slice_mut(c));
         }
         Ok(())
     }
@@ -441,4 +629,101 @@ fn joint_holding<S: Structure>(
             .collect()
     });
     Ok(rep)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Columns `1, t, sin(3 t), exp(-t) + eps t^2` over `m` samples and an output in their span
+    /// plus a known residual orthogonal to nothing in particular.
+    fn columns(m: usize, eps: f64) -> (Vec<Vec<f64>>, Vec<f64>) {
+        let t: Vec<f64> = (0..m).map(|k| k as f64 / m as f64).collect();
+        let cols = vec![
+            vec![1.0; m],
+            t.clone(),
+            t.iter().map(|v| (3.0 * v).sin()).collect(),
+            t.iter().map(|v| (-v).exp() + eps * v * v).collect(),
+        ];
+        let y = t.iter().map(|v| (7.0 * v).cos() + 0.5 * v).collect();
+        (cols, y)
+    }
+
+    fn gram(cols: &[Vec<f64>]) -> Vec<f64> {
+        let c = cols.len();
+        let mut g = vec![0.0; c * c];
+        for i in 0..c {
+            for j in 0..c {
+                g[i * c + j] = dot(&cols[i], &cols[j]);
+            }
+        }
+        g
+    }
+
+    #[test]
+    fn the_gram_basis_solves_and_projects_as_the_orthonormalised_one() {
+        let (cols, y) = columns(3000, 1.0);
+        let g = gram(&cols);
+        let fast = LinearBasis::from_gram(cols.clone(), &g).expect("well conditioned");
+        assert!(fast.r.is_none());
+        let slow = LinearBasis::orthonormal(cols.clone()).expect("independent columns");
+        let (mut f1, mut f2) = (vec![0.0; y.len()], vec![0.0; y.len()]);
+        let x1 = fast.least_squares(&fast.at(&y), &y, &mut f1);
+        let x2 = slow.least_squares(&slow.at(&y), &y, &mut f2);
+        // The same solution (to far below any standard error: the columns' condition number
+        // times the rounding), the same fitted output.
+        for (a, b) in x1.iter().zip(&x2) {
+            assert!((a - b).abs() <= 1e-10 * (1.0 + b.abs()), "{x1:?} vs {x2:?}");
+        }
+        for (a, b) in f1.iter().zip(&f2) {
+            assert!((a - b).abs() <= 1e-11);
+        }
+        // The residual is orthogonal to every column (the normal equations hold).
+        let r: Vec<f64> = y.iter().zip(&f1).map(|(a, b)| a - b).collect();
+        let ry = dot(&r, &r).sqrt();
+        for c in &cols {
+            assert!(dot(c, &r).abs() <= 1e-12 * ry * dot(c, c).sqrt());
+        }
+        // The projection removes the columns' span: y projected is that residual.
+        let mut p = y.clone();
+        fast.project_out(&mut p);
+        for (a, b) in p.iter().zip(&r) {
+            assert!((a - b).abs() <= 1e-11);
+        }
+    }
+
+    #[test]
+    fn a_nearly_dependent_basis_is_orthonormalised_instead() {
+        // A column equal to a combination of the others up to about 1e-9 of its norm: its
+        // pivot is below GRAM_MIN_PIVOT, the Gram factor refuses it, Gram-Schmidt takes it.
+        let (mut cols, y) = columns(2000, 0.0);
+        let near: Vec<f64> = cols[0]
+            .iter()
+            .zip(&cols[1])
+            .enumerate()
+            .map(|(k, (a, b))| 2.0 * a - b + 1e-9 * ((k % 7) as f64 - 3.0))
+            .collect();
+        cols[3] = near;
+        let g = gram(&cols);
+        assert!(LinearBasis::from_gram(cols.clone(), &g).is_none());
+        let slow = LinearBasis::orthonormal(cols.clone()).expect("independent to 1e-12");
+        let mut f = vec![0.0; y.len()];
+        let x = slow.least_squares(&slow.at(&y), &y, &mut f);
+        // x solves the least-squares problem in the original columns: A x = fitted.
+        let mut ax = vec![0.0; y.len()];
+        for (c, &xj) in cols.iter().zip(&x) {
+            ax.iter_mut().zip(c).for_each(|(a, b)| *a += xj * b);
+        }
+        for (a, b) in ax.iter().zip(&f) {
+            assert!((a - b).abs() <= 1e-6, "{a} vs {b}");
+        }
+        // Exactly dependent columns: neither.
+        cols[3] = cols[0]
+            .iter()
+            .zip(&cols[1])
+            .map(|(a, b)| 2.0 * a - b)
+            .collect();
+        assert!(LinearBasis::from_gram(cols.clone(), &gram(&cols)).is_none());
+        assert!(LinearBasis::orthonormal(cols).is_none());
+    }
 }
