@@ -23,5 +23,7 @@ pub mod lm;
 pub mod matfile;
 pub mod metrics;
 pub mod oe;
+#[cfg(test)]
+mod testdata;
 
 pub use error::{Error, Result};

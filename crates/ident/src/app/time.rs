@@ -890,15 +890,7 @@ mod tests {
         let u: Vec<f64> = (0..600)
             .map(|k| if (k / 37) % 2 == 0 { 1.0 } else { -1.0 })
             .collect();
-        let (a, mut x) = ((-dt / 0.1f64).exp(), 0.0);
-        let y: Vec<f64> = u
-            .iter()
-            .map(|&v| {
-                let o = x;
-                x = a * x + 2.0 * (1.0 - a) * v;
-                o
-            })
-            .collect();
+        let y = crate::testdata::first_order_held(&u, dt, 0.1, 2.0);
         TimeData {
             record: Record::from_samples(&u, &y, dt).unwrap(),
             validation: None,

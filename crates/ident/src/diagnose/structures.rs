@@ -1689,15 +1689,7 @@ mod tests {
         let u: Vec<f64> = (0..4000)
             .map(|k| if (k / 97) % 3 == 0 { 1.0 } else { -1.0 })
             .collect();
-        let (a, mut x) = ((-dt / 0.05f64).exp(), 0.0);
-        let y: Vec<f64> = u
-            .iter()
-            .map(|&v| {
-                let o = x;
-                x = a * x + 2.0 * (1.0 - a) * v;
-                o
-            })
-            .collect();
+        let y = crate::testdata::first_order_held(&u, dt, 0.05, 2.0);
         let rec = Record::from_samples(&u, &y, dt).unwrap();
         let opts = IdentOptions::default();
         assert!(opts.fit.lm.max_iterations > SCREEN_ITERATIONS);

@@ -1,0 +1,15 @@
+//! Records with a known answer for the unit tests.
+
+/// The output of `gain / (tau s + 1)` driven by the held input `u` from rest, exact for the held
+/// input (the zero-order-hold discretisation `x[k+1] = a x[k] + gain (1 - a) u[k]`, `a =
+/// exp(-dt / tau)`, `y[k] = x[k]`): independent of the simulators under test.
+pub(crate) fn first_order_held(u: &[f64], dt: f64, tau: f64, gain: f64) -> Vec<f64> {
+    let (a, mut x) = ((-dt / tau).exp(), 0.0);
+    u.iter()
+        .map(|&v| {
+            let o = x;
+            x = a * x + gain * (1.0 - a) * v;
+            o
+        })
+        .collect()
+}
