@@ -1148,7 +1148,6 @@ impl FracModel {
         limit: f64,
     ) -> Result<Option<f64>> {
         let n = y.len().min(u.len());
-        let mut yhat = vec![0.0; n.min(PARTS_CHUNK)];
         let mut acc = 0.0;
         if self.effects.iter().any(|e| e.is_input()) {
             let mut whole = vec![0.0; n];
@@ -1160,7 +1159,59 @@ impl FracModel {
             }
             return Ok((acc < limit).then_some(acc));
         }
-        let mut sim = self.sim_at_start(p, dt)?;
+        let sim = self.sim_at_start(p, dt)?;
+        Ok(self.ssr_chunked(sim, p, u, y, dt, limit))
+    }
+
+    /// The linear part's modal form at `p` ([`FracModel::simulator`]'s poles and residues, the
+    /// same whatever the delay): built once for a grid of sums ([`FracModel::ssr_below_on`]).
+    ///
+    /// # Errors
+    /// As [`FracModel::simulator`].
+    pub(crate) fn plant(&self, p: &[f64], dt: f64) -> Result<fracsim::modal::PoleResidue<f64>> {
+        Ok(self.simulator(p, dt)?.model().clone())
+    }
+
+    /// [`FracModel::ssr_below`] with the linear part's modal form `plant` given
+    /// ([`FracModel::plant`] of a model that differs from `self` at most in its delay): only the
+    /// held input's weights for the delay `p[tau]` and the initial state are computed, the
+    /// discretisation being the one [`FracModel::simulator`] makes of the same modal form, so the
+    /// sum is the same bit for bit. A model with input effects is simulated whole, as there.
+    ///
+    /// # Errors
+    /// As [`FracModel::ssr_below`].
+    pub(crate) fn ssr_below_on(
+        &self,
+        plant: &fracsim::modal::PoleResidue<f64>,
+        p: &[f64],
+        u: &[f64],
+        y: &[f64],
+        dt: f64,
+        limit: f64,
+    ) -> Result<Option<f64>> {
+        if self.effects.iter().any(|e| e.is_input()) {
+            return self.ssr_below(p, u, y, dt, limit);
+        }
+        let delay = self.delay.map_or(0.0, |i| p[i]);
+        let mut sim = Simulator::from_pole_residue(plant.clone(), delay, dt)?;
+        self.set_start(&mut sim, p)?;
+        Ok(self.ssr_chunked(sim, p, u, y, dt, limit))
+    }
+
+    /// The chunked, given-up-early sum of [`FracModel::ssr_below`] from the simulator `sim` at
+    /// the start (a model without input effects).
+    fn ssr_chunked(
+        &self,
+        mut sim: Simulator<f64>,
+        p: &[f64],
+        u: &[f64],
+        y: &[f64],
+        dt: f64,
+        limit: f64,
+    ) -> Option<f64> {
+        let n = y.len().min(u.len());
+        let mut yhat = vec![0.0; n.min(PARTS_CHUNK)];
+        let mut acc = 0.0;
         let mut k0 = 0;
         while k0 < n {
             let k1 = (k0 + PARTS_CHUNK).min(n);
@@ -1168,26 +1219,32 @@ impl FracModel {
             sim.run_into(&u[k0..k1], part);
             self.output_effects(p, dt, k0, part);
             if check_output(part, k0).is_err() {
-                return Ok(None);
+                return None;
             }
             for (a, b) in y[k0..k1].iter().zip(part.iter()) {
                 acc += (a - b) * (a - b);
             }
             if acc >= limit {
-                return Ok(None);
+                return None;
             }
             k0 = k1;
         }
-        Ok((acc < limit).then_some(acc))
+        (acc < limit).then_some(acc)
     }
 
     fn sim_at_start<T: Real>(&self, p: &[T], dt: f64) -> Result<Simulator<T>> {
         let mut sim = self.simulator(p, dt)?;
+        self.set_start(&mut sim, p)?;
+        Ok(sim)
+    }
+
+    /// `sim` (at rest) put in the initial state at `p`: the past input's, if any.
+    fn set_start<T: Real>(&self, sim: &mut Simulator<T>, p: &[T]) -> Result<()> {
         if let Some(past) = &self.past {
             let levels: Vec<T> = past.levels.iter().map(|&i| p[i]).collect();
             sim.set_past_input(&levels, &past.edges)?;
         }
-        Ok(sim)
+        Ok(())
     }
 
     /// The output effects (none of them an input effect) applied to the linear part's outputs

@@ -58,14 +58,18 @@ impl Probe for Skew {
         }
         // The smallest sum of squares over the advances, each given up as soon as its partial
         // sum reaches the best so far ([`crate::oe::FracModel::ssr_below`]: the same best).
+        // The model is the same for every advance: its plant is built once
+        // ([`crate::oe::FracModel::ssr_below_on`]: the same sums bit for bit).
         let mut best = (f64::INFINITY, 0usize);
-        for m in 1..=h {
-            let c = ctx.with_lead(m);
-            if let Ok(Some(ssr)) =
-                st.model
-                    .ssr_below(&st.values, &c.u[..s], &ctx.y[..s], dt, best.0)
-            {
-                best = (ssr, m);
+        if let Ok(plant) = st.model.plant(&st.values, dt) {
+            for m in 1..=h {
+                let c = ctx.with_lead(m);
+                if let Ok(Some(ssr)) =
+                    st.model
+                        .ssr_below_on(&plant, &st.values, &c.u[..s], &ctx.y[..s], dt, best.0)
+                {
+                    best = (ssr, m);
+                }
             }
         }
         let mut r2 = (1.0 - best.0 / look.ee.max(1e-300)).max(0.0);
