@@ -1128,7 +1128,6 @@ impl FracModel {
         }
     }
 
-    /// The simulator at `p` in the initial state (the past input's, or rest).
     /// The sum of squares of `y - yhat` over the samples of `y`, `yhat` the model output at `p`
     /// on `u` ([`Structure::simulate`]), or `None` when it is at least `limit` or the output is not
     /// finite. For a search that keeps the smallest sum (the delay probe's grid): the output is
@@ -1232,6 +1231,7 @@ impl FracModel {
         (acc < limit).then_some(acc)
     }
 
+    /// The simulator at `p` in the initial state (the past input's, or rest).
     fn sim_at_start<T: Real>(&self, p: &[T], dt: f64) -> Result<Simulator<T>> {
         let mut sim = self.simulator(p, dt)?;
         self.set_start(&mut sim, p)?;

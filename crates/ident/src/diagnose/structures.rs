@@ -435,9 +435,9 @@ impl Shared {
 /// fit exists (a fit that after the refits' budget still has problems, a singular covariance,
 /// orders at a bound, is not expected to end usable and overtake a usable one): then it is kept as
 /// screened, marked `out` (not diagnosed). A screening fit that failed in its start
-/// ([`no_start`]) is kept as it is: the full fit would fail the same way. Each candidate runs on its own thread (the screening fits
-/// started in the candidates' order, at most one per core at a time, [`Shared::turn`]); one whose base
-/// fit is final and usable is diagnosed at once ([`Shared::diagnose_early`]) while the others are
+/// ([`no_start`]) is kept as it is: the full fit would fail the same way. Each candidate runs on
+/// its own thread (the screening fits started in the candidates' order, at most one per core at
+/// a time, [`Shared::turn`]); one whose base fit is final and usable is diagnosed at once ([`Shared::diagnose_early`]) while the others are
 /// still being fitted (a core would otherwise wait for the slowest fit).
 fn fit_candidates(
     rec: &Record,
@@ -1253,11 +1253,11 @@ fn auto_fit(rec: &Record, m: &FracModel, opts: &IdentOptions) -> AutoFit {
     if m.kind != crate::oe::Kind::TwoMass {
         return (identify(rec, m, opts), None);
     }
-    let ((fit, _), full) = screen_candidate(rec, m, opts);
-    if full || matches!(fit, Err(Error::NoStart(_))) {
-        return (fit, None);
+    let (screened, full) = screen_candidate(rec, m, opts);
+    if full || no_start(&screened) {
+        return (screened.0, None);
     }
-    if let Ok(id) = &fit {
+    if let Ok(id) = &screened.0 {
         if let Some(((refit, _), reduced)) = reduce_screened(rec, id, opts) {
             return (refit, Some(reduced));
         }

@@ -137,6 +137,16 @@ mod tests {
     use super::distinct_starts;
     use crate::oe::{FracModel, Structure};
 
+    /// `m`'s values with its three past held-input levels at 0.7, -0.4, 0.2 (an initial state
+    /// away from rest).
+    fn past_levels_set(m: &FracModel) -> Vec<f64> {
+        let mut v = m.values();
+        for (i, level) in m.past.as_ref().unwrap().levels.iter().zip([0.7, -0.4, 0.2]) {
+            v[*i] = level;
+        }
+        v
+    }
+
     /// [`FracModel::ssr_below`] against the model simulated whole and the sum taken after it
     /// (the delay grid's former way): the same sum bit for bit on a model with a fractional
     /// delay, a past held input (the initial state) and an output offset over 20000 samples (a
@@ -154,10 +164,7 @@ mod tests {
         m.with_delay(2.5 * dt, 10.0 * dt);
         m.with_past_input(vec![0.01, 0.05], (-3.0, 3.0));
         m.with_output_offset(0.3);
-        let mut v = m.values();
-        for (i, level) in m.past.clone().unwrap().levels.iter().zip([0.7, -0.4, 0.2]) {
-            v[*i] = level;
-        }
+        let v = past_levels_set(&m);
         let whole = |m: &FracModel, v: &[f64]| {
             let mut yhat = vec![0.0; n];
             m.simulate(v, &u, dt, &mut yhat).unwrap();
@@ -213,17 +220,7 @@ mod tests {
         let mut base = FracModel::pmsm(6.8, 0.0064, 2.8e-5, 0.89, 0.89);
         base.with_past_input(vec![0.01, 0.05], (-3.0, 3.0));
         base.with_output_offset(0.3);
-        let mut v0 = base.values();
-        for (i, level) in base
-            .past
-            .clone()
-            .unwrap()
-            .levels
-            .iter()
-            .zip([0.7, -0.4, 0.2])
-        {
-            v0[*i] = level;
-        }
+        let v0 = past_levels_set(&base);
         let plant = base.plant(&v0, dt).unwrap();
         let max = 10;
         let (mut reused, mut v) = (base.clone(), v0.clone());

@@ -99,6 +99,20 @@ fn orthonormalise(cols: &mut [Vec<f64>]) -> Option<Vec<f64>> {
 /// columns are orthonormalised instead.
 const GRAM_MIN_PIVOT: f64 = 1e-5;
 
+/// The Gram matrix `A^T A` of the columns `cols` (row-major `c x c`; each product once).
+fn gram(cols: &[Vec<f64>]) -> Vec<f64> {
+    let c = cols.len();
+    let mut g = vec![0.0; c * c];
+    for i in 0..c {
+        for j in 0..=i {
+            let v = dot(&cols[i], &cols[j]);
+            g[i * c + j] = v;
+            g[j * c + i] = v;
+        }
+    }
+    g
+}
+
 /// The linear parameters' columns `A` (`c` of them) with the Cholesky factor of their
 /// equilibrated Gram matrix, `D A^T A D = L L^T` (`D` = `1/||A_j||` on the diagonal): the least
 /// squares solution `x = D (L L^T)^-1 D A^T y` and the projection orthogonal to the columns,
@@ -341,14 +355,7 @@ impl<'a, S: Structure> Reduced<'a, S> {
             raw.push(vec![1.0; m]);
         }
         let nr = raw.len();
-        let mut gram = vec![0.0; nr * nr];
-        for i in 0..nr {
-            for j in 0..=i {
-                let v = dot(&raw[i], &raw[j]);
-                gram[i * nr + j] = v;
-                gram[j * nr + i] = v;
-            }
-        }
+        let gram = gram(&raw);
         let raw_y: Vec<f64> = raw.iter().map(|a| dot(a, y)).collect();
         let nf = nr - 1 - usize::from(plan.offset.is_some());
         let mut held: Vec<Option<f64>> = vec![None; nf];
@@ -647,17 +654,6 @@ mod tests {
         ];
         let y = t.iter().map(|v| (7.0 * v).cos() + 0.5 * v).collect();
         (cols, y)
-    }
-
-    fn gram(cols: &[Vec<f64>]) -> Vec<f64> {
-        let c = cols.len();
-        let mut g = vec![0.0; c * c];
-        for i in 0..c {
-            for j in 0..c {
-                g[i * c + j] = dot(&cols[i], &cols[j]);
-            }
-        }
-        g
     }
 
     #[test]
