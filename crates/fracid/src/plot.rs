@@ -124,6 +124,14 @@ pub fn save(path: &Path, size: (u32, u32), fig: &impl Figure) -> Result<()> {
     Ok(())
 }
 
+/// A legend entry for a line: a `len_px`-pixel stroke in `style`.
+pub fn line_legend(
+    style: ShapeStyle,
+    len_px: i32,
+) -> impl Fn((i32, i32)) -> PathElement<(i32, i32)> {
+    move |(x, y)| PathElement::new(vec![(x, y), (x + len_px, y)], style)
+}
+
 /// Padded (min, max) of the finite values, never an empty range.
 pub fn range_of<'a>(values: impl IntoIterator<Item = &'a f64>) -> (f64, f64) {
     let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
@@ -221,15 +229,13 @@ where
         mesh.label_style(("sans-serif", size));
     }
     mesh.draw()?;
-    let legend =
-        |style: ShapeStyle| move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], style);
     for l in c.lines {
         let s = ch.draw_series(LineSeries::new(
             c.t.iter().copied().zip(l.values.iter().copied()),
             l.style,
         ))?;
         if let Some(label) = l.label {
-            s.label(label).legend(legend(l.style));
+            s.label(label).legend(line_legend(l.style, 20));
         }
     }
     if let Some((at, label, style)) = c.marker {
@@ -238,7 +244,7 @@ where
             style,
         )))?
         .label(label)
-        .legend(legend(style));
+        .legend(line_legend(style, 20));
     }
     if c.marker.is_some() || c.lines.iter().any(|l| l.label.is_some()) {
         let mut labels = ch.configure_series_labels();

@@ -172,16 +172,12 @@ impl Figure for CompareFigure<'_> {
                 .draw_series(LineSeries::new(pa, ca.stroke_width(2)))
                 .map_err(e)?
                 .label(self.names.0)
-                .legend(move |(x, y)| {
-                    PathElement::new(vec![(x, y), (x + 24, y)], ca.stroke_width(2))
-                });
+                .legend(plot::line_legend(ca.stroke_width(2), 24));
             chart
                 .draw_series(DashedLineSeries::new(pb, 8, 5, cb.stroke_width(2)))
                 .map_err(e)?
                 .label(self.names.1)
-                .legend(move |(x, y)| {
-                    PathElement::new(vec![(x, y), (x + 24, y)], cb.stroke_width(2))
-                });
+                .legend(plot::line_legend(cb.stroke_width(2), 24));
             let (f, d) = if i == 0 {
                 (
                     c.gain.freq_hz,
@@ -200,7 +196,7 @@ impl Figure for CompareFigure<'_> {
                 )))
                 .map_err(e)?
                 .label(format!("{d} at {f:.3} Hz"))
-                .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 24, y)], BLACK.mix(0.4)));
+                .legend(plot::line_legend(BLACK.mix(0.4).into(), 24));
             chart
                 .configure_series_labels()
                 .position(SeriesLabelPosition::LowerLeft)

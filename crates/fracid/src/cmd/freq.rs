@@ -738,33 +738,33 @@ fn mag_phase(h: &[Complex64]) -> (Vec<f64>, Vec<f64>) {
     (mag, ph)
 }
 
-impl Figure for BodeFigure<'_> {
-    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<()>
-    where
-        DB::ErrorType: 'static,
-    {
-        let e = |e: DrawingAreaErrorKind<DB::ErrorType>| anyhow::anyhow!("drawing failed: {e}");
-        let (left, right) = root.split_horizontally(880);
-        let (top, bottom) = left.split_vertically(450);
+/// Where the Bode panels draw: the frequency axis (Hz) and the dense grid the models are drawn on.
+struct Axis {
+    f_lo: f64,
+    f_hi: f64,
+    dense_hz: Vec<f64>,
+}
 
-        // frequency range: whole decades around the data
-        let f_hz: Vec<f64> = self
-            .data
-            .omega_rad_s
-            .iter()
-            .map(|w| w / (2.0 * PI))
-            .collect();
-        // a little room beyond the data on the log axis
-        let f_lo = f_hz[0] / 1.5;
-        let f_hi = (f_hz[f_hz.len() - 1] * 1.5).max(f_lo * 10.0);
-        let dense: Vec<f64> = (0..=400)
+impl BodeFigure<'_> {
+    /// The frequency axis: whole decades around the data, with a little room beyond it.
+    fn axis(&self) -> Axis {
+        let w = &self.data.omega_rad_s;
+        let f_lo = w[0] / (2.0 * PI) / 1.5;
+        let f_hi = (w[w.len() - 1] / (2.0 * PI) * 1.5).max(f_lo * 10.0);
+        let dense_hz = (0..=400)
             .map(|i| f_lo * (f_hi / f_lo).powf(i as f64 / 400.0))
             .collect();
-        let dense_w: Vec<f64> = dense.iter().map(|f| 2.0 * PI * f).collect();
+        Axis {
+            f_lo,
+            f_hi,
+            dense_hz,
+        }
+    }
 
-        let (meas_mag, mut meas_ph) = mag_phase(&self.data.h);
-        unwrap_deg(&mut meas_ph);
-
+    /// The models' curves on the dense grid: Levy, Sanathanan-Koerner, the refined fit, then the
+    /// compared models (dashed).
+    fn curves(&self, dense_hz: &[f64]) -> Vec<Curve> {
+        let dense_w: Vec<f64> = dense_hz.iter().map(|f| 2.0 * PI * f).collect();
         let mut curves: Vec<Curve> = Vec::new();
         let mut add = |label: String, color: RGBColor, dashed: bool, g: &FracTf| {
             let (m, p) = mag_phase(&g.bode(&dense_w));
@@ -773,34 +773,26 @@ impl Figure for BodeFigure<'_> {
         let levy = &self.fit.levy;
         add(
             format!("Levy, q = {}: J = {}", sig(levy.q, 4), sig(levy.j, 3)),
-            RGBColor(31, 119, 180),
+            BLUE_LEVY,
             false,
             &levy.model,
         );
         if let Some(sk) = &self.fit.sk {
-            add(
-                format!(
-                    "Sanathanan-Koerner, q = {}: J = {}",
-                    sig(sk.q, 4),
-                    sig(sk.j, 3)
-                ),
-                RGBColor(44, 160, 44),
-                false,
-                &sk.model,
+            let label = format!(
+                "Sanathanan-Koerner, q = {}: J = {}",
+                sig(sk.q, 4),
+                sig(sk.j, 3)
             );
+            add(label, GREEN_SK, false, &sk.model);
         }
         if let Some(r) = &self.fit.refined {
-            add(
-                format!(
-                    "refined, zeta = {}, theta = {}: J = {}",
-                    sig(r.zeta, 3),
-                    sig(r.theta, 3),
-                    sig(r.j, 3)
-                ),
-                RGBColor(214, 39, 40),
-                false,
-                &r.model,
+            let label = format!(
+                "refined, zeta = {}, theta = {}: J = {}",
+                sig(r.zeta, 3),
+                sig(r.theta, 3),
+                sig(r.j, 3)
             );
+            add(label, RED_REFINED, false, &r.model);
         }
         let others = [
             RGBColor(255, 127, 14),
@@ -812,108 +804,98 @@ impl Figure for BodeFigure<'_> {
             if label.chars().count() > 50 {
                 label = format!("compare {}", i + 1);
             }
-            add(
-                format!("{label}: J = {}", sig(*j, 3)),
-                others[i % others.len()],
-                true,
-                g,
-            );
+            let label = format!("{label}: J = {}", sig(*j, 3));
+            add(label, others[i % others.len()], true, g);
         }
+        curves
+    }
 
-        // ranges: the data plus the models, within reason
-        let mag_all: Vec<f64> = meas_mag
-            .iter()
-            .chain(curves.iter().flat_map(|c| c.3.iter()))
-            .copied()
-            .collect();
-        let ph_all: Vec<f64> = meas_ph
-            .iter()
-            .chain(curves.iter().flat_map(|c| c.4.iter()))
-            .copied()
-            .collect();
-        let (mlo, mhi) = plot::range_of(&mag_all);
-        let (plo, phi) = plot::range_of(&ph_all);
-
-        let font = ("sans-serif", 20);
+    /// One Bode panel (magnitude when `is_mag`, else phase): the curves, the measured points with
+    /// their error bars, and (on the magnitude) the legend both panels share.
+    fn bode_panel<DB: DrawingBackend>(
+        &self,
+        area: &DrawingArea<DB, Shift>,
+        is_mag: bool,
+        axis: &Axis,
+        curves: &[Curve],
+        meas: &[f64],
+        y_range: (f64, f64),
+    ) -> Result<()>
+    where
+        DB::ErrorType: 'static,
+    {
+        let e = |e: DrawingAreaErrorKind<DB::ErrorType>| anyhow::anyhow!("drawing failed: {e}");
         let label_font = ("sans-serif", 17);
-        for (area, is_mag) in [(&top, true), (&bottom, false)] {
-            let (ylo, yhi) = if is_mag { (mlo, mhi) } else { (plo, phi) };
-            let mut chart = ChartBuilder::on(area)
-                .caption(
-                    if is_mag {
-                        "Bode magnitude"
-                    } else {
-                        "Bode phase"
-                    },
-                    font,
-                )
-                .margin(12)
-                .x_label_area_size(45)
-                .y_label_area_size(70)
-                .build_cartesian_2d((f_lo..f_hi).log_scale(), ylo..yhi)
-                .map_err(e)?;
-            chart
-                .configure_mesh()
-                .x_desc("frequency (Hz)")
-                .y_desc(if is_mag {
-                    "magnitude (dB)"
-                } else {
-                    "phase (deg)"
-                })
-                .label_style(label_font)
-                .axis_desc_style(label_font)
-                .x_label_formatter(&|v| sig(*v, 2))
-                .draw()
-                .map_err(e)?;
-            for (label, color, dashed, m, p) in &curves {
-                let ys = if is_mag { m } else { p };
-                let pts: Vec<(f64, f64)> = dense.iter().copied().zip(ys.iter().copied()).collect();
-                let style = color.stroke_width(2);
-                let c = *color;
-                if *dashed {
-                    chart
-                        .draw_series(DashedLineSeries::new(pts, 8, 5, style))
-                        .map_err(e)?
-                        .label(label.as_str())
-                        .legend(move |(x, y)| {
-                            PathElement::new(vec![(x, y), (x + 24, y)], c.stroke_width(2))
-                        });
-                } else {
-                    chart
-                        .draw_series(LineSeries::new(pts, style))
-                        .map_err(e)?
-                        .label(label.as_str())
-                        .legend(move |(x, y)| {
-                            PathElement::new(vec![(x, y), (x + 24, y)], c.stroke_width(2))
-                        });
-                }
-            }
-            let meas = if is_mag { &meas_mag } else { &meas_ph };
-            if let Some(se) = &self.data.spread_se {
-                // error bars: +-1 standard error of each point (from the repeats' spread)
-                chart
-                    .draw_series(f_hz.iter().zip(meas).zip(se).map(|((&f, &y), &(g, p))| {
-                        let d = if is_mag { g } else { p };
-                        PathElement::new(vec![(f, y - d), (f, y + d)], BLACK.stroke_width(2))
-                    }))
-                    .map_err(e)?;
-            }
-            chart
-                .draw_series(
-                    f_hz.iter()
-                        .zip(meas)
-                        .map(|(&f, &y)| Circle::new((f, y), 5, BLACK.filled())),
-                )
+        let (title, y_desc) = if is_mag {
+            ("Bode magnitude", "magnitude (dB)")
+        } else {
+            ("Bode phase", "phase (deg)")
+        };
+        let mut chart = ChartBuilder::on(area)
+            .caption(title, ("sans-serif", 20))
+            .margin(12)
+            .x_label_area_size(45)
+            .y_label_area_size(70)
+            .build_cartesian_2d((axis.f_lo..axis.f_hi).log_scale(), y_range.0..y_range.1)
+            .map_err(e)?;
+        chart
+            .configure_mesh()
+            .x_desc("frequency (Hz)")
+            .y_desc(y_desc)
+            .label_style(label_font)
+            .axis_desc_style(label_font)
+            .x_label_formatter(&|v| sig(*v, 2))
+            .draw()
+            .map_err(e)?;
+        for (label, color, dashed, m, p) in curves {
+            let ys = if is_mag { m } else { p };
+            let pts: Vec<(f64, f64)> = axis
+                .dense_hz
+                .iter()
+                .copied()
+                .zip(ys.iter().copied())
+                .collect();
+            let style = color.stroke_width(2);
+            let series = if *dashed {
+                chart.draw_series(DashedLineSeries::new(pts, 8, 5, style))
+            } else {
+                chart.draw_series(LineSeries::new(pts, style))
+            };
+            series
                 .map_err(e)?
-                .label(if self.data.spread_se.is_some() {
-                    "measured (bars: +-1 standard error)"
-                } else {
-                    "measured"
-                })
-                .legend(|(x, y)| Circle::new((x + 12, y), 5, BLACK.filled()));
-            if !is_mag {
-                continue; // one legend (on the magnitude) serves both panels
-            }
+                .label(label.as_str())
+                .legend(plot::line_legend(style, 24));
+        }
+        let f_hz: Vec<f64> = self
+            .data
+            .omega_rad_s
+            .iter()
+            .map(|w| w / (2.0 * PI))
+            .collect();
+        if let Some(se) = &self.data.spread_se {
+            // error bars: +-1 standard error of each point (from the repeats' spread)
+            chart
+                .draw_series(f_hz.iter().zip(meas).zip(se).map(|((&f, &y), &(g, p))| {
+                    let d = if is_mag { g } else { p };
+                    PathElement::new(vec![(f, y - d), (f, y + d)], BLACK.stroke_width(2))
+                }))
+                .map_err(e)?;
+        }
+        chart
+            .draw_series(
+                f_hz.iter()
+                    .zip(meas)
+                    .map(|(&f, &y)| Circle::new((f, y), 5, BLACK.filled())),
+            )
+            .map_err(e)?
+            .label(if self.data.spread_se.is_some() {
+                "measured (bars: +-1 standard error)"
+            } else {
+                "measured"
+            })
+            .legend(|(x, y)| Circle::new((x + 12, y), 5, BLACK.filled()));
+        if is_mag {
+            // one legend (on the magnitude) serves both panels
             chart
                 .configure_series_labels()
                 .position(SeriesLabelPosition::LowerLeft)
@@ -923,104 +905,128 @@ impl Figure for BodeFigure<'_> {
                 .draw()
                 .map_err(e)?;
         }
+        Ok(())
+    }
 
-        // J(q)
+    /// The Levy error index J against the commensurate order q (Levy and Sanathanan-Koerner
+    /// sweeps), the chosen q, and the refined fit's J as a dashed line.
+    fn j_panel<DB: DrawingBackend>(&self, area: &DrawingArea<DB, Shift>) -> Result<()>
+    where
+        DB::ErrorType: 'static,
+    {
+        let e = |e: DrawingAreaErrorKind<DB::ErrorType>| anyhow::anyhow!("drawing failed: {e}");
+        let positive = |p: &&QPoint| p.j.is_finite() && p.j > 0.0;
         let finite: Vec<&QPoint> = self
             .fit
             .curve
             .iter()
             .chain(&self.fit.sk_curve)
-            .filter(|p| p.j.is_finite() && p.j > 0.0)
+            .filter(positive)
             .collect();
-        if finite.len() >= 2 {
-            let jlo = finite.iter().map(|p| p.j).fold(f64::INFINITY, f64::min);
-            let jhi = finite.iter().map(|p| p.j).fold(0.0, f64::max);
-            let jlo = match &self.fit.refined {
-                Some(r) if r.j > 0.0 => jlo.min(r.j),
-                _ => jlo,
-            };
-            let (jlo, jhi) = (jlo / 2.0, (jhi * 2.0).max(jlo * 10.0));
-            let qhi = finite.iter().map(|p| p.q).fold(0.0, f64::max);
-            let mut chart = ChartBuilder::on(&right)
-                .caption("Levy error index J(q)", font)
-                .margin(12)
-                .x_label_area_size(45)
-                .y_label_area_size(80)
-                .build_cartesian_2d(0.0..qhi * 1.02, (jlo..jhi).log_scale())
-                .map_err(e)?;
-            chart
-                .configure_mesh()
-                .x_desc("commensurate order q")
-                .y_desc("J (eq. 30)")
-                .label_style(label_font)
-                .axis_desc_style(label_font)
-                .y_label_formatter(&|v| format!("{v:.0e}"))
-                .draw()
-                .map_err(e)?;
-            for (curve, label, color) in [
-                (&self.fit.curve, "Levy", RGBColor(31, 119, 180)),
-                (
-                    &self.fit.sk_curve,
-                    "Sanathanan-Koerner",
-                    RGBColor(44, 160, 44),
-                ),
-            ] {
-                if curve.is_empty() {
-                    continue;
-                }
-                let pts: Vec<(f64, f64)> = curve
-                    .iter()
-                    .filter(|p| p.j.is_finite() && p.j > 0.0)
-                    .map(|p| (p.q, p.j))
-                    .collect();
-                chart
-                    .draw_series(LineSeries::new(pts, color.stroke_width(2)))
-                    .map_err(e)?
-                    .label(label)
-                    .legend(move |(x, y)| {
-                        PathElement::new(vec![(x, y), (x + 24, y)], color.stroke_width(2))
-                    });
-            }
-            let best = (self.fit.levy.q, self.fit.levy.j);
-            chart
-                .draw_series(std::iter::once(Circle::new(best, 6, BLACK.filled())))
-                .map_err(e)?
-                .label(format!("chosen q = {}", sig(best.0, 4)))
-                .legend(|(x, y)| Circle::new((x + 12, y), 5, BLACK.filled()));
-            if let Some(r) = &self.fit.refined {
-                let red = RGBColor(214, 39, 40);
-                let jr = r.j.max(jlo * 1.01);
-                chart
-                    .draw_series(DashedLineSeries::new(
-                        vec![(0.0, jr), (qhi * 1.02, jr)],
-                        8,
-                        5,
-                        red.stroke_width(2),
-                    ))
-                    .map_err(e)?
-                    .label(format!("refined J = {}", sig(r.j, 3)))
-                    .legend(move |(x, y)| {
-                        PathElement::new(vec![(x, y), (x + 24, y)], red.stroke_width(2))
-                    });
-            }
-            chart
-                .configure_series_labels()
-                .position(SeriesLabelPosition::UpperRight)
-                .background_style(WHITE.mix(0.85))
-                .border_style(BLACK)
-                .label_font(("sans-serif", 15))
-                .draw()
-                .map_err(e)?;
-        } else {
-            right
-                .draw_text(
-                    "J(q): fixed q, no curve",
-                    &("sans-serif", 18).into_text_style(&right),
-                    (40, 60),
-                )
-                .map_err(e)?;
+        if finite.len() < 2 {
+            area.draw_text(
+                "J(q): fixed q, no curve",
+                &("sans-serif", 18).into_text_style(area),
+                (40, 60),
+            )
+            .map_err(e)?;
+            return Ok(());
         }
+        let jlo = finite.iter().map(|p| p.j).fold(f64::INFINITY, f64::min);
+        let jhi = finite.iter().map(|p| p.j).fold(0.0, f64::max);
+        let jlo = match &self.fit.refined {
+            Some(r) if r.j > 0.0 => jlo.min(r.j),
+            _ => jlo,
+        };
+        let (jlo, jhi) = (jlo / 2.0, (jhi * 2.0).max(jlo * 10.0));
+        let qhi = finite.iter().map(|p| p.q).fold(0.0, f64::max);
+        let label_font = ("sans-serif", 17);
+        let mut chart = ChartBuilder::on(area)
+            .caption("Levy error index J(q)", ("sans-serif", 20))
+            .margin(12)
+            .x_label_area_size(45)
+            .y_label_area_size(80)
+            .build_cartesian_2d(0.0..qhi * 1.02, (jlo..jhi).log_scale())
+            .map_err(e)?;
+        chart
+            .configure_mesh()
+            .x_desc("commensurate order q")
+            .y_desc("J (eq. 30)")
+            .label_style(label_font)
+            .axis_desc_style(label_font)
+            .y_label_formatter(&|v| format!("{v:.0e}"))
+            .draw()
+            .map_err(e)?;
+        for (curve, label, color) in [
+            (&self.fit.curve, "Levy", BLUE_LEVY),
+            (&self.fit.sk_curve, "Sanathanan-Koerner", GREEN_SK),
+        ] {
+            if curve.is_empty() {
+                continue;
+            }
+            let pts: Vec<(f64, f64)> = curve.iter().filter(positive).map(|p| (p.q, p.j)).collect();
+            let style = color.stroke_width(2);
+            chart
+                .draw_series(LineSeries::new(pts, style))
+                .map_err(e)?
+                .label(label)
+                .legend(plot::line_legend(style, 24));
+        }
+        let best = (self.fit.levy.q, self.fit.levy.j);
+        chart
+            .draw_series(std::iter::once(Circle::new(best, 6, BLACK.filled())))
+            .map_err(e)?
+            .label(format!("chosen q = {}", sig(best.0, 4)))
+            .legend(|(x, y)| Circle::new((x + 12, y), 5, BLACK.filled()));
+        if let Some(r) = &self.fit.refined {
+            let style = RED_REFINED.stroke_width(2);
+            let jr = r.j.max(jlo * 1.01);
+            chart
+                .draw_series(DashedLineSeries::new(
+                    vec![(0.0, jr), (qhi * 1.02, jr)],
+                    8,
+                    5,
+                    style,
+                ))
+                .map_err(e)?
+                .label(format!("refined J = {}", sig(r.j, 3)))
+                .legend(plot::line_legend(style, 24));
+        }
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::UpperRight)
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK)
+            .label_font(("sans-serif", 15))
+            .draw()
+            .map_err(e)?;
         Ok(())
+    }
+}
+
+/// The Levy fit's colour (curve and J(q) sweep).
+const BLUE_LEVY: RGBColor = RGBColor(31, 119, 180);
+/// The Sanathanan-Koerner fit's colour.
+const GREEN_SK: RGBColor = RGBColor(44, 160, 44);
+/// The refined fit's colour.
+const RED_REFINED: RGBColor = RGBColor(214, 39, 40);
+
+impl Figure for BodeFigure<'_> {
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<()>
+    where
+        DB::ErrorType: 'static,
+    {
+        let (left, right) = root.split_horizontally(880);
+        let (top, bottom) = left.split_vertically(450);
+        let axis = self.axis();
+        let curves = self.curves(&axis.dense_hz);
+        let (meas_mag, meas_ph) = mag_phase(&self.data.h);
+        // ranges: the data plus the models, within reason
+        let mag_range = plot::range_of(meas_mag.iter().chain(curves.iter().flat_map(|c| &c.3)));
+        let ph_range = plot::range_of(meas_ph.iter().chain(curves.iter().flat_map(|c| &c.4)));
+        self.bode_panel(&top, true, &axis, &curves, &meas_mag, mag_range)?;
+        self.bode_panel(&bottom, false, &axis, &curves, &meas_ph, ph_range)?;
+        self.j_panel(&right)
     }
 }
 
