@@ -336,85 +336,114 @@ fn loop_curves(p: &Plant, c: &Controller, omega: &[f64]) -> (Vec<f64>, Vec<f64>)
     (mag, ph)
 }
 
-impl Figure for TuneFigure<'_> {
-    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<()>
+/// One controller's open loop on the frequency grid: its name, `|L|` (dB) and `arg L` (deg), and
+/// its line style.
+struct LoopCurve {
+    name: String,
+    mag_db: Vec<f64>,
+    phase_deg: Vec<f64>,
+    style: ShapeStyle,
+}
+
+impl TuneFigure<'_> {
+    /// The designed controller's loop, then the integer PI's when there is one.
+    fn loop_curves(&self, omega: &[f64]) -> Vec<LoopCurve> {
+        let plant = Plant::new(self.g.clone(), self.r.spec.dt);
+        let curve = |name: String, c: &Controller, style: ShapeStyle| {
+            let (mag_db, phase_deg) = loop_curves(&plant, c, omega);
+            LoopCurve {
+                name,
+                mag_db,
+                phase_deg,
+                style,
+            }
+        };
+        let mut curves = vec![curve(
+            self.r.spec.form.name().to_uppercase(),
+            &self.r.params,
+            BLUE.stroke_width(2),
+        )];
+        if let Some(c) = &self.runs.pi_controller {
+            curves.push(curve("integer PI".into(), c, RED.stroke_width(2)));
+        }
+        curves
+    }
+
+    /// The Bode magnitude (`is_mag`) or phase of the loops, with the 0 dB / -180 deg guide.
+    fn bode_panel<DB: DrawingBackend>(
+        area: &DrawingArea<DB, Shift>,
+        is_mag: bool,
+        omega: &[f64],
+        curves: &[LoopCurve],
+    ) -> Result<()>
     where
         DB::ErrorType: 'static,
     {
         let e = |e: DrawingAreaErrorKind<DB::ErrorType>| anyhow::anyhow!("drawing failed: {e}");
-        let wc = self.r.spec.wc;
-        let plant = Plant::new(self.g.clone(), self.r.spec.dt);
-        let omega: Vec<f64> = (0..=400)
-            .map(|i| wc * 10f64.powf(-2.0 + 4.0 * i as f64 / 400.0))
-            .collect();
-        let mut curves = vec![(
-            self.r.spec.form.name().to_uppercase(),
-            loop_curves(&plant, &self.r.params, &omega),
-            BLUE.stroke_width(2),
-        )];
-        if let Some(c) = &self.runs.pi_controller {
-            curves.push((
-                "integer PI".into(),
-                loop_curves(&plant, c, &omega),
-                RED.stroke_width(2),
-            ));
-        }
-        let panels = root.split_evenly((2, 2));
-        let font = ("sans-serif", 20);
-        let small = ("sans-serif", 15);
-        let legend =
-            |style: ShapeStyle| move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], style);
-        // Bode magnitude and phase
-        for (k, title) in [(0usize, "|L(jw)| (dB)"), (1, "arg L(jw) (deg)")] {
-            let (lo, hi) = plot::range_of(curves.iter().flat_map(|(_, c, _)| {
-                if k == 0 {
-                    c.0.iter()
-                } else {
-                    c.1.iter()
-                }
-            }));
-            let mut ch = ChartBuilder::on(&panels[k])
-                .caption(title, font)
-                .margin(12)
-                .x_label_area_size(40)
-                .y_label_area_size(60)
-                .build_cartesian_2d((omega[0]..omega[omega.len() - 1]).log_scale(), lo..hi)
-                .map_err(e)?;
-            ch.configure_mesh()
-                .x_desc("omega (rad/s)")
-                .label_style(small)
-                .draw()
-                .map_err(e)?;
-            let guide = if k == 0 { 0.0 } else { -180.0 };
-            if guide > lo && guide < hi {
-                ch.draw_series(std::iter::once(PathElement::new(
-                    vec![(omega[0], guide), (omega[omega.len() - 1], guide)],
-                    BLACK.mix(0.4),
-                )))
-                .map_err(e)?;
+        fn ys(c: &LoopCurve, is_mag: bool) -> &[f64] {
+            if is_mag {
+                &c.mag_db
+            } else {
+                &c.phase_deg
             }
-            for (name, c, style) in &curves {
-                let ys = if k == 0 { &c.0 } else { &c.1 };
-                ch.draw_series(LineSeries::new(
-                    omega.iter().copied().zip(ys.iter().copied()),
-                    *style,
-                ))
-                .map_err(e)?
-                .label(name.as_str())
-                .legend(legend(*style));
-            }
-            ch.configure_series_labels()
-                .background_style(WHITE.mix(0.8))
-                .border_style(BLACK)
-                .label_font(small)
-                .draw()
-                .map_err(e)?;
         }
-        // Nichols: gain against phase
-        let (plo, phi) = plot::range_of(curves.iter().flat_map(|(_, c, _)| c.1.iter()));
-        let (mlo, mhi) = plot::range_of(curves.iter().flat_map(|(_, c, _)| c.0.iter()));
-        let mut ch = ChartBuilder::on(&panels[2])
-            .caption("Nichols: |L| (dB) against arg L (deg)", font)
+        let (lo, hi) = plot::range_of(curves.iter().flat_map(|c| ys(c, is_mag).iter()));
+        let (title, guide) = if is_mag {
+            ("|L(jw)| (dB)", 0.0)
+        } else {
+            ("arg L(jw) (deg)", -180.0)
+        };
+        let (w_lo, w_hi) = (omega[0], omega[omega.len() - 1]);
+        let mut ch = ChartBuilder::on(area)
+            .caption(title, FONT)
+            .margin(12)
+            .x_label_area_size(40)
+            .y_label_area_size(60)
+            .build_cartesian_2d((w_lo..w_hi).log_scale(), lo..hi)
+            .map_err(e)?;
+        ch.configure_mesh()
+            .x_desc("omega (rad/s)")
+            .label_style(SMALL)
+            .draw()
+            .map_err(e)?;
+        if guide > lo && guide < hi {
+            ch.draw_series(std::iter::once(PathElement::new(
+                vec![(w_lo, guide), (w_hi, guide)],
+                BLACK.mix(0.4),
+            )))
+            .map_err(e)?;
+        }
+        for c in curves {
+            ch.draw_series(LineSeries::new(
+                omega.iter().copied().zip(ys(c, is_mag).iter().copied()),
+                c.style,
+            ))
+            .map_err(e)?
+            .label(c.name.as_str())
+            .legend(plot::line_legend(c.style, 20));
+        }
+        ch.configure_series_labels()
+            .background_style(WHITE.mix(0.8))
+            .border_style(BLACK)
+            .label_font(SMALL)
+            .draw()
+            .map_err(e)?;
+        Ok(())
+    }
+
+    /// The Nichols chart: the loops' gain against their phase, and the critical point.
+    fn nichols_panel<DB: DrawingBackend>(
+        area: &DrawingArea<DB, Shift>,
+        curves: &[LoopCurve],
+    ) -> Result<()>
+    where
+        DB::ErrorType: 'static,
+    {
+        let e = |e: DrawingAreaErrorKind<DB::ErrorType>| anyhow::anyhow!("drawing failed: {e}");
+        let (plo, phi) = plot::range_of(curves.iter().flat_map(|c| c.phase_deg.iter()));
+        let (mlo, mhi) = plot::range_of(curves.iter().flat_map(|c| c.mag_db.iter()));
+        let mut ch = ChartBuilder::on(area)
+            .caption("Nichols: |L| (dB) against arg L (deg)", FONT)
             .margin(12)
             .x_label_area_size(40)
             .y_label_area_size(60)
@@ -422,17 +451,17 @@ impl Figure for TuneFigure<'_> {
             .map_err(e)?;
         ch.configure_mesh()
             .x_desc("arg L (deg)")
-            .label_style(small)
+            .label_style(SMALL)
             .draw()
             .map_err(e)?;
-        for (name, c, style) in &curves {
+        for c in curves {
             ch.draw_series(LineSeries::new(
-                c.1.iter().copied().zip(c.0.iter().copied()),
-                *style,
+                c.phase_deg.iter().copied().zip(c.mag_db.iter().copied()),
+                c.style,
             ))
             .map_err(e)?
-            .label(name.as_str())
-            .legend(legend(*style));
+            .label(c.name.as_str())
+            .legend(plot::line_legend(c.style, 20));
         }
         ch.draw_series(std::iter::once(Circle::new(
             (-180.0, 0.0),
@@ -440,7 +469,15 @@ impl Figure for TuneFigure<'_> {
             BLACK.filled(),
         )))
         .map_err(e)?;
-        // the closed loop: reference step then load step
+        Ok(())
+    }
+
+    /// The closed loop: the reference step then the load step, for the design (alone and with
+    /// the model's effects) and the integer PI. Nothing when there is no design run.
+    fn step_panel<DB: DrawingBackend>(&self, area: &DrawingArea<DB, Shift>) -> Result<()>
+    where
+        DB::ErrorType: 'static,
+    {
         let Some(run) = &self.runs.design else {
             return Ok(());
         };
@@ -471,7 +508,7 @@ impl Figure for TuneFigure<'_> {
             });
         }
         plot::time_series_chart(
-            &panels[3],
+            area,
             &TimeChart {
                 title: Some("closed loop: reference step, then load step"),
                 x_desc: "t (s)",
@@ -487,7 +524,29 @@ impl Figure for TuneFigure<'_> {
                     y_area: 60,
                 },
             },
-        )?;
-        Ok(())
+        )
+    }
+}
+
+/// The panels' caption font.
+const FONT: (&str, u32) = ("sans-serif", 20);
+/// The panels' label font.
+const SMALL: (&str, u32) = ("sans-serif", 15);
+
+impl Figure for TuneFigure<'_> {
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<()>
+    where
+        DB::ErrorType: 'static,
+    {
+        let wc = self.r.spec.wc;
+        let omega: Vec<f64> = (0..=400)
+            .map(|i| wc * 10f64.powf(-2.0 + 4.0 * i as f64 / 400.0))
+            .collect();
+        let curves = self.loop_curves(&omega);
+        let panels = root.split_evenly((2, 2));
+        Self::bode_panel(&panels[0], true, &omega, &curves)?;
+        Self::bode_panel(&panels[1], false, &omega, &curves)?;
+        Self::nichols_panel(&panels[2], &curves)?;
+        self.step_panel(&panels[3])
     }
 }
