@@ -504,6 +504,104 @@ fn short_tf(g: &FracTf, digits: usize) -> String {
     format!("{num}/({}){delay}", poly(&g.den))
 }
 
+/// A table column: (row name, value) pairs.
+type Column = Vec<(String, String)>;
+
+/// The table's columns and their heads: the Levy fit (at the grid q and the refined q when they
+/// differ), Sanathanan-Koerner, the refined LM fit with its standard errors.
+fn columns(fit: &FreqFit) -> (Vec<String>, Vec<Column>) {
+    let mut heads: Vec<String> = Vec::new();
+    let mut columns: Vec<Column> = Vec::new();
+    let levy_col = |f: &ident::levy::LevyFit| -> Column {
+        let mut c = vec![("q (zeta)".to_string(), sig(f.q, 4))];
+        for (u, b) in f.b.iter().enumerate() {
+            c.push((format!("b{u}"), sig(*b, 5)));
+        }
+        for (p, a) in f.a.iter().enumerate() {
+            c.push((format!("a{}", p + 1), sig(*a, 5)));
+        }
+        c.push(("J".into(), sci(f.j, 4)));
+        c
+    };
+    if fit.levy_grid.q != fit.levy.q {
+        heads.push("Levy, grid q".into());
+        columns.push(levy_col(&fit.levy_grid));
+        heads.push("Levy, refined q".into());
+    } else {
+        heads.push("Levy".into());
+    }
+    columns.push(levy_col(&fit.levy));
+    if let Some(sk) = &fit.sk {
+        heads.push(format!("SK ({} it.)", sk.sk_iterations));
+        columns.push(levy_col(sk));
+    }
+    if let Some(r) = &fit.refined {
+        heads.push("refined (LM)".into());
+        let pm = |x: f64, i: usize| match r.std_errors {
+            Some(s) => format!("{} ± {}", sig(x, 5), sig(s[i], 2)),
+            None => sig(x, 5),
+        };
+        columns.push(vec![
+            ("q (zeta)".into(), pm(r.zeta, 3)),
+            ("theta".into(), pm(r.theta, 4)),
+            ("b0".into(), pm(r.k, 0)),
+            ("a1".into(), pm(r.a1, 1)),
+            ("a2".into(), pm(r.a2, 2)),
+            ("J".into(), sci(r.j, 4)),
+        ]);
+    }
+    (heads, columns)
+}
+
+/// The columns laid out as text: the rows are the orders (theta when `theta`), then b_u, a_p and
+/// J; a value a column lacks is "-".
+fn grid(heads: &[String], columns: &[Column], theta: bool) -> String {
+    use std::fmt::Write;
+    let mut rows: Vec<String> = vec!["q (zeta)".into()];
+    if theta {
+        rows.push("theta".into());
+    }
+    for c in columns {
+        for (k, _) in c {
+            if !rows.contains(k) && k != "J" {
+                rows.push(k.clone());
+            }
+        }
+    }
+    rows.push("J".into());
+    let widths: Vec<usize> = columns
+        .iter()
+        .zip(heads)
+        .map(|(c, h)| {
+            c.iter()
+                .map(|(_, v)| v.chars().count())
+                .chain([h.chars().count()])
+                .max()
+                .unwrap_or(8)
+                + 2
+        })
+        .collect();
+    let mut out = String::new();
+    let _ = write!(out, "{:<10}", "");
+    for (h, w) in heads.iter().zip(&widths) {
+        let _ = write!(out, "{h:>w$}");
+    }
+    out.push('\n');
+    for r in &rows {
+        let _ = write!(out, "{r:<10}");
+        for (c, w) in columns.iter().zip(&widths) {
+            let v = c
+                .iter()
+                .find(|(k, _)| k == r)
+                .map_or("-".to_string(), |(_, v)| v.clone());
+            let _ = write!(out, "{v:>w$}");
+        }
+        out.push('\n');
+    }
+    out.push('\n');
+    out
+}
+
 fn table(
     fit: &FreqFit,
     compare: &[(FracTf, f64)],
@@ -531,88 +629,8 @@ fn table(
         out,
         "J = (1/f) sum |G(jw) - Ghat(jw)|^2, w in rad/s (paper eq. 30)\n"
     );
-    // columns
-    let mut heads: Vec<String> = Vec::new();
-    let mut colv: Vec<Vec<(String, String)>> = Vec::new();
-    let levy_col = |f: &ident::levy::LevyFit| -> Vec<(String, String)> {
-        let mut c = vec![("q (zeta)".to_string(), sig(f.q, 4))];
-        for (u, b) in f.b.iter().enumerate() {
-            c.push((format!("b{u}"), sig(*b, 5)));
-        }
-        for (p, a) in f.a.iter().enumerate() {
-            c.push((format!("a{}", p + 1), sig(*a, 5)));
-        }
-        c.push(("J".into(), sci(f.j, 4)));
-        c
-    };
-    let grid_differs = fit.levy_grid.q != fit.levy.q;
-    if grid_differs {
-        heads.push("Levy, grid q".into());
-        colv.push(levy_col(&fit.levy_grid));
-        heads.push("Levy, refined q".into());
-    } else {
-        heads.push("Levy".into());
-    }
-    colv.push(levy_col(&fit.levy));
-    if let Some(sk) = &fit.sk {
-        heads.push(format!("SK ({} it.)", sk.sk_iterations));
-        colv.push(levy_col(sk));
-    }
-    if let Some(r) = &fit.refined {
-        heads.push("refined (LM)".into());
-        let pm = |x: f64, i: usize| match r.std_errors {
-            Some(s) => format!("{} ± {}", sig(x, 5), sig(s[i], 2)),
-            None => sig(x, 5),
-        };
-        colv.push(vec![
-            ("q (zeta)".into(), pm(r.zeta, 3)),
-            ("theta".into(), pm(r.theta, 4)),
-            ("b0".into(), pm(r.k, 0)),
-            ("a1".into(), pm(r.a1, 1)),
-            ("a2".into(), pm(r.a2, 2)),
-            ("J".into(), sci(r.j, 4)),
-        ]);
-    }
-    // rows: the orders, then b_u, a_p, J
-    let mut rows: Vec<String> = vec!["q (zeta)".into()];
-    if fit.refined.is_some() {
-        rows.push("theta".into());
-    }
-    for c in &colv {
-        for (k, _) in c {
-            if !rows.contains(k) && k != "J" {
-                rows.push(k.clone());
-            }
-        }
-    }
-    rows.push("J".into());
-    let width = |i: usize| {
-        colv[i]
-            .iter()
-            .map(|(_, v)| v.chars().count())
-            .chain([heads[i].chars().count()])
-            .max()
-            .unwrap_or(8)
-            + 2
-    };
-    let widths: Vec<usize> = (0..heads.len()).map(width).collect();
-    let _ = write!(out, "{:<10}", "");
-    for (h, w) in heads.iter().zip(&widths) {
-        let _ = write!(out, "{h:>w$}");
-    }
-    out.push('\n');
-    for r in &rows {
-        let _ = write!(out, "{r:<10}");
-        for (c, w) in colv.iter().zip(&widths) {
-            let v = c
-                .iter()
-                .find(|(k, _)| k == r)
-                .map_or("-".to_string(), |(_, v)| v.clone());
-            let _ = write!(out, "{v:>w$}");
-        }
-        out.push('\n');
-    }
-    out.push('\n');
+    let (heads, columns) = columns(fit);
+    out.push_str(&grid(&heads, &columns, fit.refined.is_some()));
     if let OrderChoice::Search { step, q_max, .. } = opts.order {
         if fit.levy_grid.q + step > q_max {
             let _ = writeln!(
