@@ -282,63 +282,17 @@ where
     }
     .min(files.len().max(1));
     let t0 = Instant::now();
-    let next = AtomicUsize::new(0);
     // A standard output that cannot be written (a full disk, /dev/full) must not stop the fits
     // nor the summary files: the first error is kept and reported at the end (exit 3).
     let stdout_error: Mutex<Option<std::io::Error>> = Mutex::new(None);
     let taken = Mutex::new(Vec::new());
-    let rows: Mutex<Vec<(usize, Row)>> = Mutex::new(Vec::with_capacity(files.len()));
-    let one = |i: usize| -> Row {
-        let file = &files[i];
-        let mut row = Row::new(file);
-        let t = Instant::now();
-        let res = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| fit(file)))
-            .unwrap_or_else(|e| Err(anyhow::anyhow!("internal error: {}", panic_text(&*e))));
-        let res = res.and_then(|(v, problems)| {
-            let p = report_path(file, fa.out.as_deref(), kind, &taken);
-            std::fs::write(&p, serde_json::to_string_pretty(&v)? + "\n")
-                .with_context(|| format!("cannot write {}", p.display()))?;
-            Ok((v, p, problems))
-        });
-        row.seconds = t.elapsed().as_secs_f64();
-        match res {
-            Ok((v, p, problems)) => {
-                row.fill_from(&v);
-                row.report = Some(p.display().to_string());
-                if !problems.is_empty() {
-                    row.status = "failed";
-                    row.exit_code = 1;
-                    row.error = Some(unusable_message(&problems));
-                }
-            }
-            Err(e) => {
-                row.status = "failed";
-                row.exit_code = crate::exit_code(&e);
-                row.error = Some(format!("{e:#}"));
-            }
+    let rows = on_pool(files.len(), jobs, |i| {
+        let row = fit_one(&files[i], fa.out.as_deref(), kind, &taken, &fit);
+        if !json_out {
+            print_row(&row, &stdout_error);
         }
         row
-    };
-    std::thread::scope(|s| {
-        for _ in 0..jobs {
-            s.spawn(|| loop {
-                let i = next.fetch_add(1, Ordering::Relaxed);
-                if i >= files.len() {
-                    break;
-                }
-                let row = one(i);
-                if !json_out {
-                    print_row(&row, &stdout_error);
-                }
-                rows.lock()
-                    .unwrap_or_else(|e| e.into_inner())
-                    .push((i, row));
-            });
-        }
     });
-    let mut rows = rows.into_inner().unwrap_or_else(|e| e.into_inner());
-    rows.sort_by_key(|(i, _)| *i);
-    let rows: Vec<Row> = rows.into_iter().map(|(_, r)| r).collect();
     let wall = t0.elapsed().as_secs_f64();
     let failed: Vec<&Row> = rows.iter().filter(|r| r.status != "ok").collect();
     let summary = json!({
@@ -376,7 +330,78 @@ where
     if failed.is_empty() {
         return Ok(());
     }
-    for r in &failed {
+    Err(fleet_error(&failed, rows.len()))
+}
+
+/// `one(i)` for every `i < n` on `jobs` threads, each taking the next index; the results in index
+/// order.
+fn on_pool<T: Send>(n: usize, jobs: usize, one: impl Fn(usize) -> T + Sync) -> Vec<T> {
+    let next = AtomicUsize::new(0);
+    let done: Mutex<Vec<(usize, T)>> = Mutex::new(Vec::with_capacity(n));
+    std::thread::scope(|s| {
+        for _ in 0..jobs {
+            s.spawn(|| loop {
+                let i = next.fetch_add(1, Ordering::Relaxed);
+                if i >= n {
+                    break;
+                }
+                let r = one(i);
+                done.lock().unwrap_or_else(|e| e.into_inner()).push((i, r));
+            });
+        }
+    });
+    let mut done = done.into_inner().unwrap_or_else(|e| e.into_inner());
+    done.sort_by_key(|(i, _)| *i);
+    done.into_iter().map(|(_, r)| r).collect()
+}
+
+/// One file fitted by `fit` (a panic caught as an internal error), its report written beside it
+/// (or in `out`), and its summary row: failed with the exit code `fracid` would give when the fit
+/// fails or reports problems.
+fn fit_one<F>(
+    file: &Path,
+    out: Option<&Path>,
+    kind: &str,
+    taken: &Mutex<Vec<PathBuf>>,
+    fit: &F,
+) -> Row
+where
+    F: Fn(&Path) -> Result<(Value, Vec<String>)>,
+{
+    let mut row = Row::new(file);
+    let t = Instant::now();
+    let res = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| fit(file)))
+        .unwrap_or_else(|e| Err(anyhow::anyhow!("internal error: {}", panic_text(&*e))));
+    let res = res.and_then(|(v, problems)| {
+        let p = report_path(file, out, kind, taken);
+        std::fs::write(&p, serde_json::to_string_pretty(&v)? + "\n")
+            .with_context(|| format!("cannot write {}", p.display()))?;
+        Ok((v, p, problems))
+    });
+    row.seconds = t.elapsed().as_secs_f64();
+    match res {
+        Ok((v, p, problems)) => {
+            row.fill_from(&v);
+            row.report = Some(p.display().to_string());
+            if !problems.is_empty() {
+                row.status = "failed";
+                row.exit_code = 1;
+                row.error = Some(unusable_message(&problems));
+            }
+        }
+        Err(e) => {
+            row.status = "failed";
+            row.exit_code = crate::exit_code(&e);
+            row.error = Some(format!("{e:#}"));
+        }
+    }
+    row
+}
+
+/// The failed files on standard error, and the fleet's error: bad input (exit 2) or I/O (exit 3)
+/// when every failure is one, else a run-time failure (exit 1).
+fn fleet_error(failed: &[&Row], total: usize) -> anyhow::Error {
+    for r in failed {
         eprintln!(
             "failed (exit {}): {}: {}",
             r.exit_code,
@@ -388,17 +413,17 @@ where
     let msg = format!(
         "{} of {} files failed: {}",
         failed.len(),
-        rows.len(),
+        total,
         names.join(", ")
     );
     let code = failed[0].exit_code;
-    Err(if failed.iter().all(|r| r.exit_code == code) && code == 2 {
+    if failed.iter().all(|r| r.exit_code == code) && code == 2 {
         anyhow::Error::new(BadInput(msg))
     } else if failed.iter().all(|r| r.exit_code == code) && code == 3 {
         anyhow::Error::new(std::io::Error::other(msg))
     } else {
         anyhow::anyhow!(msg)
-    })
+    }
 }
 
 /// The error of a model that is not usable, worded as `fracid time FILE` words it.
