@@ -132,6 +132,29 @@ pub fn line_legend(
     move |(x, y)| PathElement::new(vec![(x, y), (x + len_px, y)], style)
 }
 
+/// The figures' boxed legend at `position`: white at 85%, a black border, 15-pixel labels.
+///
+/// # Errors
+/// A drawing error.
+pub fn boxed_legend<'a, DB, CT>(
+    chart: &mut ChartContext<'a, DB, CT>,
+    position: SeriesLabelPosition,
+) -> Result<()>
+where
+    DB: DrawingBackend + 'a,
+    DB::ErrorType: 'static,
+    CT: CoordTranslate,
+{
+    chart
+        .configure_series_labels()
+        .position(position)
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .label_font(("sans-serif", 15))
+        .draw()
+        .map_err(|e| anyhow::anyhow!("drawing failed: {e}"))
+}
+
 /// Padded (min, max) of the finite values, never an empty range.
 pub fn range_of<'a>(values: impl IntoIterator<Item = &'a f64>) -> (f64, f64) {
     let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);

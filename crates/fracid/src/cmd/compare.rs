@@ -197,14 +197,7 @@ impl Figure for CompareFigure<'_> {
                 .map_err(e)?
                 .label(format!("{d} at {f:.3} Hz"))
                 .legend(plot::line_legend(BLACK.mix(0.4).into(), 24));
-            chart
-                .configure_series_labels()
-                .position(SeriesLabelPosition::LowerLeft)
-                .background_style(WHITE.mix(0.85))
-                .border_style(BLACK)
-                .label_font(("sans-serif", 15))
-                .draw()
-                .map_err(e)?;
+            plot::boxed_legend(&mut chart, SeriesLabelPosition::LowerLeft)?;
         }
         Ok(())
     }

@@ -914,14 +914,7 @@ impl BodeFigure<'_> {
             .legend(|(x, y)| Circle::new((x + 12, y), 5, BLACK.filled()));
         if is_mag {
             // one legend (on the magnitude) serves both panels
-            chart
-                .configure_series_labels()
-                .position(SeriesLabelPosition::LowerLeft)
-                .background_style(WHITE.mix(0.85))
-                .border_style(BLACK)
-                .label_font(("sans-serif", 15))
-                .draw()
-                .map_err(e)?;
+            plot::boxed_legend(&mut chart, SeriesLabelPosition::LowerLeft)?;
         }
         Ok(())
     }
@@ -1010,14 +1003,7 @@ impl BodeFigure<'_> {
                 .label(format!("refined J = {}", sig(r.j, 3)))
                 .legend(plot::line_legend(style, 24));
         }
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK)
-            .label_font(("sans-serif", 15))
-            .draw()
-            .map_err(e)?;
+        plot::boxed_legend(&mut chart, SeriesLabelPosition::UpperRight)?;
         Ok(())
     }
 }
