@@ -272,37 +272,9 @@ impl FixedCtrl {
         if all.clone().any(|v| !v.is_finite()) || !(gain_raw > 0.0) {
             return bad("non-finite entries or channel scales".into());
         }
-        // drop states that are unobservable and feed nothing, or driven by nothing
-        let mut keep: Vec<usize> = (0..n).collect();
-        loop {
-            let before = keep.len();
-            let k2 = keep.clone();
-            keep.retain(|&i| {
-                let feeds = k2.iter().any(|&j| j != i && a[j][i] != 0.0);
-                let driven = b[i] != 0.0 || k2.iter().any(|&j| j != i && a[i][j] != 0.0);
-                (c[i] != 0.0 || feeds) && driven
-            });
-            if keep.len() == before {
-                break;
-            }
-        }
+        let keep = kept_states(a, b, c);
+        let lam = triangular_poles(a, &keep)?;
         let m = keep.len();
-        let scale = a.iter().flatten().fold(1.0f64, |s, v| s.max(v.abs()));
-        for (p, &i) in keep.iter().enumerate() {
-            for &j in &keep[p + 1..] {
-                if a[i][j].abs() > 1e-12 * scale {
-                    return bad(format!(
-                        "A is not lower triangular (A[{i}][{j}] = {}): the drive runs parallel \
-                         first-order sections of a triangular realisation",
-                        a[i][j]
-                    ));
-                }
-            }
-        }
-        let lam: Vec<f64> = keep.iter().map(|&i| a[i][i]).collect();
-        if let Some(l) = lam.iter().find(|l| l.abs() > 1.0 + 1e-12) {
-            return bad(format!("pole {l} outside the unit circle"));
-        }
         let q = |x: f64, scale: f64, what: &str| -> Result<i32> {
             let q = (x * scale).round();
             if q.abs() > i32::MAX as f64 {
@@ -315,14 +287,6 @@ impl FixedCtrl {
             Ok(q as i32)
         };
         let sub = |r: usize, s: usize| a[keep[r]][keep[s]];
-        let repeated = |l: f64| {
-            bad::<()>(format!(
-                "repeated pole {l} coupled to itself (a double integrator): not a set of \
-                 first-order sections"
-            ))
-        };
-        // the slow modes: section p is lam[p] with g = (C v)(w B), v and w its right and left
-        // eigenvectors (v zero above p, w zero below, v_p = w_p = 1, so w v = 1)
         // the chained fast modes: poles below FAST_POLE that drive or are driven by another
         // (a difference after poles that round to 0): the delay taps hold them. A fast pole
         // alone (a FOPI's fastest cells) stays a section.
@@ -333,34 +297,7 @@ impl FixedCtrl {
                     && (0..m).any(|r| r != p && fast(r) && (sub(r, p) != 0.0 || sub(p, r) != 0.0))
             })
             .collect();
-        let mut modes = Vec::new();
-        for p in (0..m).filter(|&p| !chained[p]) {
-            let mut v = vec![0.0; m];
-            v[p] = 1.0;
-            for r in p + 1..m {
-                let s: f64 = (p..r).map(|k| sub(r, k) * v[k]).sum();
-                if s != 0.0 {
-                    if (lam[p] - lam[r]).abs() < 1e-9 {
-                        repeated(lam[p])?;
-                    }
-                    v[r] = s / (lam[p] - lam[r]);
-                }
-            }
-            let mut w = vec![0.0; m];
-            w[p] = 1.0;
-            for r in (0..p).rev() {
-                let s: f64 = (r + 1..=p).map(|k| w[k] * sub(k, r)).sum();
-                if s != 0.0 {
-                    if (lam[p] - lam[r]).abs() < 1e-9 {
-                        repeated(lam[p])?;
-                    }
-                    w[r] = s / (lam[p] - lam[r]);
-                }
-            }
-            let cv: f64 = (p..m).map(|r| c[keep[r]] * v[r]).sum();
-            let wb: f64 = (0..=p).map(|r| w[r] * b[keep[r]]).sum();
-            modes.push((lam[p], cv * wb));
-        }
+        let modes = slow_modes(a, b, c, &keep, &lam, &chained)?;
         let mut sections = Vec::new();
         for &(l, g) in &modes {
             let g = q(gain_raw * g, Q24, "a section's gain")?;
@@ -409,6 +346,104 @@ impl FixedCtrl {
             taps,
         })
     }
+}
+
+/// The states a realisation keeps: those observable or feeding another, and driven by the input
+/// or another state (repeated until none is dropped).
+fn kept_states(a: &[Vec<f64>], b: &[f64], c: &[f64]) -> Vec<usize> {
+    let mut keep: Vec<usize> = (0..a.len()).collect();
+    loop {
+        let before = keep.len();
+        let k2 = keep.clone();
+        keep.retain(|&i| {
+            let feeds = k2.iter().any(|&j| j != i && a[j][i] != 0.0);
+            let driven = b[i] != 0.0 || k2.iter().any(|&j| j != i && a[i][j] != 0.0);
+            (c[i] != 0.0 || feeds) && driven
+        });
+        if keep.len() == before {
+            return keep;
+        }
+    }
+}
+
+/// The poles (the diagonal) of the kept states' block of `a`, which must be lower triangular
+/// (to `1e-12` of its largest entry) with every pole within the unit circle.
+///
+/// # Errors
+/// [`Error::InvalidParam`] when it is not.
+fn triangular_poles(a: &[Vec<f64>], keep: &[usize]) -> Result<Vec<f64>> {
+    let scale = a.iter().flatten().fold(1.0f64, |s, v| s.max(v.abs()));
+    for (p, &i) in keep.iter().enumerate() {
+        for &j in &keep[p + 1..] {
+            if a[i][j].abs() > 1e-12 * scale {
+                return Err(Error::InvalidParam(format!(
+                    "controller: A is not lower triangular (A[{i}][{j}] = {}): the drive runs \
+                     parallel first-order sections of a triangular realisation",
+                    a[i][j]
+                )));
+            }
+        }
+    }
+    let lam: Vec<f64> = keep.iter().map(|&i| a[i][i]).collect();
+    if let Some(l) = lam.iter().find(|l| l.abs() > 1.0 + 1e-12) {
+        return Err(Error::InvalidParam(format!(
+            "controller: pole {l} outside the unit circle"
+        )));
+    }
+    Ok(lam)
+}
+
+/// The slow modes as (pole, gain): section `p` is `lam[p]` with `g = (C v)(w B)`, `v` and `w`
+/// its right and left eigenvectors in the triangular block (`v` zero above `p`, `w` zero below,
+/// `v_p = w_p = 1`, so `w v = 1`); the `chained` fast modes are left to the delay taps.
+///
+/// # Errors
+/// [`Error::InvalidParam`] for a repeated pole coupled to itself (a double integrator).
+fn slow_modes(
+    a: &[Vec<f64>],
+    b: &[f64],
+    c: &[f64],
+    keep: &[usize],
+    lam: &[f64],
+    chained: &[bool],
+) -> Result<Vec<(f64, f64)>> {
+    let m = keep.len();
+    let sub = |r: usize, s: usize| a[keep[r]][keep[s]];
+    let repeated = |l: f64| {
+        Err(Error::InvalidParam(format!(
+            "controller: repeated pole {l} coupled to itself (a double integrator): not a set \
+             of first-order sections"
+        )))
+    };
+    let mut modes = Vec::new();
+    for p in (0..m).filter(|&p| !chained[p]) {
+        let mut v = vec![0.0; m];
+        v[p] = 1.0;
+        for r in p + 1..m {
+            let s: f64 = (p..r).map(|k| sub(r, k) * v[k]).sum();
+            if s != 0.0 {
+                if (lam[p] - lam[r]).abs() < 1e-9 {
+                    return repeated(lam[p]);
+                }
+                v[r] = s / (lam[p] - lam[r]);
+            }
+        }
+        let mut w = vec![0.0; m];
+        w[p] = 1.0;
+        for r in (0..p).rev() {
+            let s: f64 = (r + 1..=p).map(|k| w[k] * sub(k, r)).sum();
+            if s != 0.0 {
+                if (lam[p] - lam[r]).abs() < 1e-9 {
+                    return repeated(lam[p]);
+                }
+                w[r] = s / (lam[p] - lam[r]);
+            }
+        }
+        let cv: f64 = (p..m).map(|r| c[keep[r]] * v[r]).sum();
+        let wb: f64 = (0..=p).map(|r| w[r] * b[keep[r]]).sum();
+        modes.push((lam[p], cv * wb));
+    }
+    Ok(modes)
 }
 
 /// Whether Hanus' conditioning is stable for the realisation's kept states: the states updated
