@@ -257,6 +257,10 @@ pub const VIRTUAL_MAX_UNREAD: usize = 512;
 /// are on their way).
 const VIRTUAL_QUIET_READ: u32 = 8;
 
+/// Longest the kernel is taken to lag in moving bytes written to the pty master to the slave's
+/// input queue (where FIONREAD counts them).
+const VIRTUAL_PTY_LAG: Duration = Duration::from_millis(2);
+
 /// Wall time a host may leave the line unread before the virtual clock stops waiting for it.
 pub const VIRTUAL_HOST_GRACE: Duration = Duration::from_secs(2);
 
@@ -725,11 +729,11 @@ struct Firmware {
     host_absent: bool,
     /// The drive's clock shared with an in-process host ([`DriveSim::virtual_clock`]).
     vclock: Option<VirtualClock>,
-    /// Unread bytes in the pty when last counted (FIONREAD).
-    unread_seen: usize,
-    /// Bytes written to the pty since then: the count is taken again only when these could
-    /// bring it over [`VIRTUAL_MAX_UNREAD`].
-    unconfirmed: usize,
+    /// Wall time of the last write to the pty.
+    last_write: Option<Instant>,
+    /// The pty was counted within [`VIRTUAL_MAX_UNREAD`] at least [`VIRTUAL_PTY_LAG`] after the
+    /// last write: until the next write it need not be counted again.
+    unread_settled: bool,
     /// Steps since the master was last read (virtual time, quiet line).
     quiet_steps: u32,
 }
@@ -821,8 +825,8 @@ impl Firmware {
             wait_since: None,
             host_absent: false,
             vclock,
-            unread_seen: 0,
-            unconfirmed: 0,
+            last_write: None,
+            unread_settled: false,
             quiet_steps: 0,
         };
         Ok(Self { c, ..fw })
@@ -976,15 +980,18 @@ impl Firmware {
 
     /// Whether the virtual clock may take its next step now, or what it waits for.
     fn may_advance(&mut self, wall: Instant) -> Advance {
-        // The host reads what was sent. The pty is counted only when what was written since the
-        // last count could put it over the limit.
-        if self.unread_seen + self.unconfirmed > VIRTUAL_MAX_UNREAD {
-            if let Some(s) = self.slave.as_ref() {
-                self.unread_seen = unread(s);
-            }
-        }
-        let unread = self.unread_seen;
-        if self.out_backlog.is_empty() && unread <= VIRTUAL_MAX_UNREAD {
+        // The host reads what was sent: the pty is counted at every step, unless nothing was
+        // written since a count within the limit that the kernel's moving of the bytes could no
+        // longer lag (the count can then only have fallen).
+        let over = !self.unread_settled && {
+            let u = self.slave.as_ref().map_or(0, unread);
+            let settled = self
+                .last_write
+                .is_none_or(|t| t.elapsed() >= VIRTUAL_PTY_LAG);
+            self.unread_settled = u <= VIRTUAL_MAX_UNREAD && settled;
+            u > VIRTUAL_MAX_UNREAD
+        };
+        if self.out_backlog.is_empty() && !over {
             self.host_absent = false;
         } else if !self.host_absent {
             if self
@@ -1029,14 +1036,7 @@ impl Firmware {
             return;
         };
         let fd = m.as_raw_fd();
-        // Count the pty before writing only if the write could put it over the limit.
-        let near_full =
-            self.unread_seen + self.unconfirmed + self.out_backlog.len() > VIRTUAL_MAX_UNREAD;
-        let before = if near_full {
-            self.slave.as_ref().map(unread)
-        } else {
-            None
-        };
+        let before = self.slave.as_ref().map(unread);
         let mut wrote = false;
         loop {
             let buf = self.out_backlog.make_contiguous();
@@ -1047,7 +1047,6 @@ impl Firmware {
             let n = unsafe { libc::write(fd, buf.as_ptr().cast(), buf.len()) };
             if n > 0 {
                 self.out_backlog.drain(..n as usize);
-                self.unconfirmed += n as usize;
                 wrote = true;
             } else {
                 let e = std::io::Error::last_os_error();
@@ -1063,20 +1062,19 @@ impl Firmware {
         if self.host_absent {
             self.out_backlog.clear();
         }
+        if wrote {
+            self.last_write = Some(Instant::now());
+            self.unread_settled = false;
+        }
         // The kernel moves what the master wrote to the slave's input queue in a worker thread:
         // until it has, FIONREAD does not count it, and a clock running flat out could write
-        // the pty full before the host's lag shows. Near the limit, wait (up to 0.3 ms) until
-        // the count moves (it may not: the host read it at once); then it counts what was
-        // written.
+        // the pty full before the host's lag shows. Wait (up to 0.3 ms) until the count moves (it
+        // may not: the host read it at once).
         if let (true, Some(u0), Some(slave)) = (wrote, before, self.slave.as_ref()) {
             let t0 = Instant::now();
-            let mut u = unread(slave);
-            while u == u0 && t0.elapsed() < Duration::from_micros(300) {
+            while unread(slave) == u0 && t0.elapsed() < Duration::from_micros(300) {
                 std::thread::yield_now();
-                u = unread(slave);
             }
-            self.unread_seen = u;
-            self.unconfirmed = 0;
         }
     }
 
@@ -1104,8 +1102,7 @@ impl Firmware {
                     (Ok((m, name)), Some(link)) => {
                         if self.cfg.clock == SimClock::Virtual {
                             self.slave = watch_pty(&m, &name).ok();
-                            self.unread_seen = 0;
-                            self.unconfirmed = 0;
+                            self.unread_settled = false;
                         }
                         if retarget_link(link, &name).is_ok() {
                             self.master = Some(m);
