@@ -33,7 +33,8 @@ pub struct ClientConfig {
     pub timeout: Option<Duration>,
     /// Resends after the first attempt.
     pub retries: u32,
-    /// Interval between KEEPALIVE frames during a run.
+    /// Interval between KEEPALIVE frames during a run (of the drive's clock with
+    /// [`ClientConfig::clock`], else of the wall clock).
     pub keepalive: Duration,
     /// Silence on the stream before the client polls the drive; None = max(400 ms, 4 blocks).
     pub stream_timeout: Option<Duration>,

@@ -18,7 +18,8 @@
 //! Its clock ([`SimClock`]) is the wall clock by default: samples are produced in batches every
 //! ~0.5 ms as their time comes, as a real drive would. In virtual time ([`SimClock::Virtual`]) the
 //! same drive runs as fast as the host allows, waiting for the host only where the protocol needs
-//! it (the host reading what was sent, the keepalive).
+//! it (the host reading what was sent, the keepalive; a host in the same process keeps its
+//! keepalive on the drive's clock, [`crate::vclock`]).
 
 use crate::codec::{self, StreamDecoder};
 use crate::error::{Error, Result};
@@ -234,13 +235,18 @@ pub enum SimClock {
     /// - the host reads what the drive sent: the clock waits while more than
     ///   [`VIRTUAL_MAX_UNREAD`] bytes sent are unread in the pty, and bytes the pty cannot take
     ///   yet are kept, not lost (a host that merely reads late loses no DATA block);
-    /// - the keepalive: during a run the clock runs at most half the keepalive interval past the
-    ///   host's last frame before that host sends its next one. A host that sends a KEEPALIVE every
-    ///   `k` ms of wall time lets the drive run `keepalive / 2` per `k` ms: a host of a
-    ///   virtual-time simulator sends them often ([`crate::client::ClientConfig::keepalive`] of a
-    ///   few ms).
+    /// - the keepalive. A host in this process that shares the drive's clock
+    ///   ([`DriveSim::virtual_clock`], [`crate::client::ClientConfig::clock`]) keeps its keepalive
+    ///   on it: the clock runs up to the instant the host's next KEEPALIVE is due and waits
+    ///   there for a frame, waking the host ([`crate::vclock`]). Any other host keeps it on the
+    ///   wall clock: during a run the clock runs at most half the keepalive interval past the
+    ///   host's last frame before that host sends its next one, so a host that sends a KEEPALIVE
+    ///   every `k` ms of wall time lets the drive run `keepalive / 2` per `k` ms (such a host
+    ///   sends them often: [`crate::client::ClientConfig::keepalive`] of a few ms).
     ///
-    /// A host silent for a whole keepalive interval of wall time, or one that reads nothing for
+    /// The waits block on the pty (the host's bytes end them at once) instead of sleeping; with
+    /// nothing on the line either way the master is read every 8 steps. A host silent for a
+    /// whole keepalive interval of wall time, or one that reads nothing for
     /// [`VIRTUAL_HOST_GRACE`], no longer holds the clock: the keepalive expires and bytes are lost
     /// as in real time. With no run and nothing to send, the clock follows the wall clock.
     Virtual,
