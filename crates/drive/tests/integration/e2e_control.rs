@@ -674,11 +674,14 @@ fn virtual_time_with_the_host_on_its_clock_waits_only_for_the_keepalive() {
     assert!(acq.complete, "{:?}", acq.problems);
     assert_eq!(end_of(&acq).reason, EndReason::Complete);
     assert!(drive_s >= 6.0, "{drive_s}");
-    // START and the KEEPALIVEs (and a STATUS poll or two on a loaded machine)
+    // START and one KEEPALIVE per interval of drive time (the drive's clock cannot pass the
+    // host's due time without a frame); a host thread preempted between publishing its due time
+    // and writing its frame costs a spare wake-up and KEEPALIVE, hence the slack above
     let intervals = drive_s / 0.150;
     assert!(frames >= (intervals as u64).saturating_sub(2), "{frames}");
-    assert!(frames as f64 <= intervals + 4.0, "{frames}");
-    assert!(wakes as f64 <= intervals + 2.0, "{wakes}");
+    assert!(frames as f64 <= 1.5 * intervals + 4.0, "{frames}");
+    assert!(wakes as f64 <= 1.5 * intervals + 2.0, "{wakes}");
+    // each wait ends when the host's frame arrives
     assert!(waits <= 2 * wakes + 4, "{waits} waits for {wakes} wake-ups");
 }
 
