@@ -14,10 +14,12 @@ use crate::bode::{self, BodePoint};
 use crate::codec::{self, StreamDecoder};
 use crate::error::{Error, Result};
 use crate::protocol::*;
+use crate::vclock::VirtualClock;
 use serialport::{SerialPort, TTYPort};
 use std::collections::VecDeque;
 use std::io::{self, Read, Write};
 use std::ops::Range;
+use std::os::fd::AsRawFd;
 use std::sync::atomic::{AtomicU8, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -31,7 +33,8 @@ pub struct ClientConfig {
     pub timeout: Option<Duration>,
     /// Resends after the first attempt.
     pub retries: u32,
-    /// Interval between KEEPALIVE frames during a run.
+    /// Interval between KEEPALIVE frames during a run (of the drive's clock with
+    /// [`ClientConfig::clock`], else of the wall clock).
     pub keepalive: Duration,
     /// Silence on the stream before the client polls the drive; None = max(400 ms, 4 blocks).
     pub stream_timeout: Option<Duration>,
@@ -39,6 +42,12 @@ pub struct ClientConfig {
     pub reconnect_timeout: Duration,
     /// Open the port exclusively (TIOCEXCL); released when the client closes it.
     pub exclusive: bool,
+    /// The drive's clock of a simulator in virtual time in this process
+    /// ([`crate::sim::DriveSim::virtual_clock`]): the keepalive is kept on the drive's time
+    /// (a KEEPALIVE every `keepalive` of drive time, and at once when the drive's clock waits
+    /// for it), so that the drive need not wait for a wall-clock timer
+    /// ([`crate::vclock`]). None (default): the keepalive runs on the wall clock.
+    pub clock: Option<VirtualClock>,
 }
 
 impl Default for ClientConfig {
@@ -51,6 +60,7 @@ impl Default for ClientConfig {
             stream_timeout: None,
             reconnect_timeout: Duration::from_secs(3),
             exclusive: true,
+            clock: None,
         }
     }
 }
@@ -720,6 +730,10 @@ pub struct Client {
     conf: Option<Configure>,
     inbox: VecDeque<Frame>,
     last_tx: Instant,
+    /// Drive time of the last frame sent (with [`ClientConfig::clock`]).
+    last_tx_drive: Duration,
+    /// A run is being received: the keepalive is kept.
+    in_run: bool,
     stats: ClientStats,
     progress: Option<Box<dyn FnMut(Progress) + Send>>,
     stop_req: StopHandle,
@@ -755,6 +769,8 @@ impl Client {
             conf: None,
             inbox: VecDeque::new(),
             last_tx: Instant::now(),
+            last_tx_drive: Duration::ZERO,
+            in_run: false,
             stats: ClientStats::default(),
             progress: None,
             stop_req: StopHandle::default(),
@@ -803,6 +819,10 @@ impl Client {
     }
 
     fn close_port(&mut self) {
+        if let Some(c) = &self.cfg.clock {
+            // detached: the drive no longer waits for this host's keepalive
+            c.host_sent(None);
+        }
         if let Some(mut p) = self.port.take() {
             // Release TIOCEXCL explicitly: on a pty the flag can outlive our descriptor.
             if self.cfg.exclusive {
@@ -854,6 +874,10 @@ impl Client {
     fn send(&mut self, frame: &Frame) -> Result<()> {
         let bytes = codec::encode(frame);
         self.last_tx = Instant::now();
+        if let Some(c) = &self.cfg.clock {
+            self.last_tx_drive = c.now();
+            c.host_sent(Some(self.last_tx_drive + self.cfg.keepalive));
+        }
         if self.port.is_none() {
             self.reconnect()?;
         }
@@ -868,10 +892,73 @@ impl Client {
         Ok(())
     }
 
+    /// Time since the last frame sent: of the drive's clock with [`ClientConfig::clock`], else
+    /// of the wall clock.
+    fn since_last_tx(&self) -> Duration {
+        match &self.cfg.clock {
+            Some(c) => c.now().saturating_sub(self.last_tx_drive),
+            None => self.last_tx.elapsed(),
+        }
+    }
+
+    /// During a run, send a KEEPALIVE if the interval has passed since the last frame, or if
+    /// the drive's clock waits for one ([`ClientConfig::clock`]).
+    fn keepalive_if_due(&mut self) -> Result<()> {
+        let waits = self
+            .cfg
+            .clock
+            .as_ref()
+            .is_some_and(VirtualClock::drive_waits);
+        if self.in_run && (waits || self.since_last_tx() >= self.cfg.keepalive) {
+            let seq = self.next_seq();
+            self.send(&Frame {
+                seq,
+                msg: Message::Keepalive,
+            })?;
+        }
+        Ok(())
+    }
+
+    /// With [`ClientConfig::clock`]: wait up to `wait` for the port to be readable or the drive
+    /// to wake this host (then send the KEEPALIVE it waits for). True if the port is readable.
+    fn wait_port_or_drive(&mut self, fd: std::os::fd::RawFd, wait: Duration) -> Result<bool> {
+        let Some(c) = self.cfg.clock.clone() else {
+            return Ok(true);
+        };
+        let mut pfd = [
+            libc::pollfd {
+                fd,
+                events: libc::POLLIN,
+                revents: 0,
+            },
+            libc::pollfd {
+                fd: c.wake_fd(),
+                events: libc::POLLIN,
+                revents: 0,
+            },
+        ];
+        let ts = libc::timespec {
+            tv_sec: wait.as_secs() as libc::time_t,
+            tv_nsec: wait.subsec_nanos() as libc::c_long,
+        };
+        // SAFETY: two valid pollfds, a valid timespec, no signal mask.
+        let r = unsafe { libc::ppoll(pfd.as_mut_ptr(), 2, &ts, std::ptr::null()) };
+        if r > 0 && pfd[1].revents != 0 {
+            c.drain_wake();
+            self.keepalive_if_due()?;
+        }
+        Ok(r != 0 && pfd[0].revents != 0)
+    }
+
     /// Read for up to `wait`; valid frames go to the inbox. Reopens the port if it failed.
     fn pump(&mut self, wait: Duration) -> Result<()> {
         if self.port.is_none() {
             self.reconnect()?;
+        }
+        if let Some(fd) = self.port.as_ref().map(|p| p.as_raw_fd()) {
+            if !self.wait_port_or_drive(fd, wait)? {
+                return Ok(());
+            }
         }
         let Some(p) = self.port.as_mut() else {
             return Ok(());
@@ -1197,7 +1284,10 @@ impl Client {
             self.stop_after_sink_error();
             return Err(Error::Io(e));
         }
-        match self.stream(&mut acq, sink, &conf, boot) {
+        self.in_run = true;
+        let streamed_run = self.stream(&mut acq, sink, &conf, boot);
+        self.in_run = false;
+        match streamed_run {
             Ok(()) => {}
             Err(RunFail::Sink(e)) => {
                 self.stop_after_sink_error();
@@ -1262,17 +1352,11 @@ impl Client {
                     acq.problems.push(format!("{name} not acknowledged: {e}"));
                 }
             }
-            if self.last_tx.elapsed() >= self.cfg.keepalive {
-                let seq = self.next_seq();
-                self.send(&Frame {
-                    seq,
-                    msg: Message::Keepalive,
-                })
-                .map_err(RunFail::Drive)?;
-            }
+            self.keepalive_if_due().map_err(RunFail::Drive)?;
             // Wait for the line no longer than until the next KEEPALIVE is due (a short keepalive
-            // interval is kept even while nothing arrives, as in a sine run without streaming).
-            let keepalive_due = self.cfg.keepalive.saturating_sub(self.last_tx.elapsed());
+            // interval is kept even while nothing arrives, as in a sine run without streaming;
+            // on the drive's clock the drive wakes this host when it waits for one).
+            let keepalive_due = self.cfg.keepalive.saturating_sub(self.since_last_tx());
             self.pump(keepalive_due.min(Duration::from_millis(20)))
                 .map_err(RunFail::Drive)?;
             let mut ended = false;

@@ -9,5 +9,6 @@ mod error;
 pub mod prbs;
 pub mod protocol;
 pub mod sim;
+pub mod vclock;
 
 pub use error::{Error, Result};

@@ -18,12 +18,14 @@
 //! Its clock ([`SimClock`]) is the wall clock by default: samples are produced in batches every
 //! ~0.5 ms as their time comes, as a real drive would. In virtual time ([`SimClock::Virtual`]) the
 //! same drive runs as fast as the host allows, waiting for the host only where the protocol needs
-//! it (the host reading what was sent, the keepalive).
+//! it (the host reading what was sent, the keepalive; a host in the same process keeps its
+//! keepalive on the drive's clock, [`crate::vclock`]).
 
 use crate::codec::{self, StreamDecoder};
 use crate::error::{Error, Result};
 use crate::prbs::Lfsr;
 use crate::protocol::*;
+use crate::vclock::VirtualClock;
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 use rand_distr::{Distribution, Normal};
@@ -233,13 +235,18 @@ pub enum SimClock {
     /// - the host reads what the drive sent: the clock waits while more than
     ///   [`VIRTUAL_MAX_UNREAD`] bytes sent are unread in the pty, and bytes the pty cannot take
     ///   yet are kept, not lost (a host that merely reads late loses no DATA block);
-    /// - the keepalive: during a run the clock runs at most half the keepalive interval past the
-    ///   host's last frame before that host sends its next one. A host that sends a KEEPALIVE every
-    ///   `k` ms of wall time lets the drive run `keepalive / 2` per `k` ms: a host of a
-    ///   virtual-time simulator sends them often ([`crate::client::ClientConfig::keepalive`] of a
-    ///   few ms).
+    /// - the keepalive. A host in this process that shares the drive's clock
+    ///   ([`DriveSim::virtual_clock`], [`crate::client::ClientConfig::clock`]) keeps its keepalive
+    ///   on it: the clock runs up to the instant the host's next KEEPALIVE is due and waits
+    ///   there for a frame, waking the host ([`crate::vclock`]). Any other host keeps it on the
+    ///   wall clock: during a run the clock runs at most half the keepalive interval past the
+    ///   host's last frame before that host sends its next one, so a host that sends a KEEPALIVE
+    ///   every `k` ms of wall time lets the drive run `keepalive / 2` per `k` ms (such a host
+    ///   sends them often: [`crate::client::ClientConfig::keepalive`] of a few ms).
     ///
-    /// A host silent for a whole keepalive interval of wall time, or one that reads nothing for
+    /// The waits block on the pty (the host's bytes end them at once) instead of sleeping; with
+    /// nothing on the line either way the master is read every 8 steps. A host silent for a
+    /// whole keepalive interval of wall time, or one that reads nothing for
     /// [`VIRTUAL_HOST_GRACE`], no longer holds the clock: the keepalive expires and bytes are lost
     /// as in real time. With no run and nothing to send, the clock follows the wall clock.
     Virtual,
@@ -250,6 +257,15 @@ pub const VIRTUAL_STEP: Duration = Duration::from_micros(500);
 
 /// Unread bytes in the pty above which the virtual clock waits for the host to read.
 pub const VIRTUAL_MAX_UNREAD: usize = 512;
+
+/// Virtual time, nothing on the line either way: the master is read every this many steps
+/// (every 4 ms of drive time; at once after a wait for the host, and every step while bytes
+/// are on their way).
+const VIRTUAL_QUIET_READ: u32 = 8;
+
+/// Longest the kernel is taken to lag in moving bytes written to the pty master to the slave's
+/// input queue (where FIONREAD counts them).
+const VIRTUAL_PTY_LAG: Duration = Duration::from_millis(2);
 
 /// Wall time a host may leave the line unread before the virtual clock stops waiting for it.
 pub const VIRTUAL_HOST_GRACE: Duration = Duration::from_secs(2);
@@ -339,6 +355,11 @@ pub struct SimStats {
     pub truth_run_id: u16,
     /// Events, in order (fault injections, resets, runs).
     pub events: Vec<String>,
+    /// Virtual time: blocking waits on the wall clock while a run was on (for the host to read,
+    /// or for its KEEPALIVE). With a host that shares the drive's clock
+    /// ([`crate::vclock::VirtualClock`]) about one per keepalive interval of drive time, plus
+    /// the flow control of a host slower than the drive; never one per step.
+    pub wall_waits: u64,
 }
 
 /// A running simulator. Dropping it stops the thread.
@@ -346,6 +367,7 @@ pub struct SimStats {
 pub struct DriveSim {
     path: String,
     clock: SimClock,
+    vclock: Option<VirtualClock>,
     stop: Arc<AtomicBool>,
     stats: Arc<Mutex<SimStats>>,
     lose_answer: Arc<AtomicU16>,
@@ -381,6 +403,7 @@ impl DriveSim {
         let cfg_clock = cfg.clock;
         let mut fw = Firmware::new(cfg, master, stats.clone())?;
         fw.slave = watch;
+        let vclock = fw.vclock.clone();
         let lose_answer = fw.lose_answer.clone();
         let stop2 = stop.clone();
         let thread = std::thread::Builder::new()
@@ -390,6 +413,7 @@ impl DriveSim {
         Ok(Self {
             path,
             clock: cfg_clock,
+            vclock,
             stop,
             stats,
             lose_answer,
@@ -412,6 +436,12 @@ impl DriveSim {
     /// The simulator's clock.
     pub fn clock(&self) -> SimClock {
         self.clock
+    }
+
+    /// In virtual time, the drive's clock for a host in this process to keep its keepalive on
+    /// ([`crate::client::ClientConfig::clock`]); None in real time.
+    pub fn virtual_clock(&self) -> Option<VirtualClock> {
+        self.vclock.clone()
     }
 
     /// A snapshot of the counters.
@@ -703,6 +733,25 @@ struct Firmware {
     wait_since: Option<Instant>,
     /// The host has read nothing for [`VIRTUAL_HOST_GRACE`]: the clock no longer waits for it.
     host_absent: bool,
+    /// The drive's clock shared with an in-process host ([`DriveSim::virtual_clock`]).
+    vclock: Option<VirtualClock>,
+    /// Wall time of the last write to the pty.
+    last_write: Option<Instant>,
+    /// The pty was counted within [`VIRTUAL_MAX_UNREAD`] at least [`VIRTUAL_PTY_LAG`] after the
+    /// last write: until the next write it need not be counted again.
+    unread_settled: bool,
+    /// Steps since the master was last read (virtual time, quiet line).
+    quiet_steps: u32,
+}
+
+/// What the virtual clock does next ([`Firmware::may_advance`]).
+enum Advance {
+    /// Take a step.
+    Go,
+    /// Wait for the host to read what was sent.
+    WaitRead,
+    /// Wait for a frame of the host (its KEEPALIVE), at most this long on the wall clock.
+    WaitFrame(Duration),
 }
 
 /// The C engine and what the simulator tracks around it.
@@ -733,6 +782,10 @@ impl Firmware {
             seen: Default::default(),
             seen_rx_errors: 0,
         });
+        let vclock = match cfg.clock {
+            SimClock::Virtual => Some(VirtualClock::new(now)?),
+            SimClock::RealTime => None,
+        };
         let fw = Self {
             cfg,
             master: Some(master),
@@ -777,6 +830,10 @@ impl Firmware {
             slave: None,
             wait_since: None,
             host_absent: false,
+            vclock,
+            last_write: None,
+            unread_settled: false,
+            quiet_steps: 0,
         };
         Ok(Self { c, ..fw })
     }
@@ -825,26 +882,72 @@ impl Firmware {
     }
 
     /// Virtual time: write what waits for the pty, then advance the clock by one step, or wait
-    /// for the host where the protocol needs it ([`SimClock::Virtual`]).
+    /// for the host where the protocol needs it ([`SimClock::Virtual`]). A wait blocks on the
+    /// wall clock until the host acts (its bytes arrive, or it reads), not for a fixed sleep.
     fn virtual_tick(&mut self) {
         self.flush_out();
         let wall = Instant::now();
         if !self.busy() {
-            // Nothing to simulate: time passes as on the wall clock.
-            std::thread::sleep(Duration::from_micros(400));
+            // Nothing to simulate: time passes as on the wall clock (a frame of the host ends
+            // the wait at once).
+            self.wait_input(Duration::from_micros(400));
             let w = Instant::now();
             self.vnow += w.duration_since(self.wall_last);
             self.wall_last = w;
             self.wait_since = None;
+            self.publish_clock();
             return;
         }
         self.wall_last = wall;
-        if self.may_advance(wall) {
-            self.vnow += VIRTUAL_STEP;
-            self.wait_since = None;
-        } else {
-            self.wait_since.get_or_insert(wall);
-            std::thread::sleep(Duration::from_micros(100));
+        match self.may_advance(wall) {
+            Advance::Go => {
+                self.vnow += VIRTUAL_STEP;
+                self.wait_since = None;
+                self.publish_clock();
+            }
+            Advance::WaitRead => {
+                self.wait_since.get_or_insert(wall);
+                self.with_stats(|s| s.wall_waits += 1);
+                std::thread::sleep(Duration::from_micros(50));
+            }
+            Advance::WaitFrame(left) => {
+                self.wait_since.get_or_insert(wall);
+                self.with_stats(|s| s.wall_waits += 1);
+                self.wait_input(left.clamp(Duration::from_micros(100), Duration::from_millis(50)));
+            }
+        }
+    }
+
+    /// Publish the drive's clock to a host that shares it.
+    fn publish_clock(&self) {
+        if let Some(c) = &self.vclock {
+            c.set_now(self.vnow);
+        }
+    }
+
+    /// Block until the host's bytes arrive on the master, or `max` passes (the master is read
+    /// at the next step).
+    fn wait_input(&mut self, max: Duration) {
+        self.quiet_steps = VIRTUAL_QUIET_READ;
+        let Some(m) = self.master.as_ref() else {
+            std::thread::sleep(max);
+            return;
+        };
+        let mut pfd = libc::pollfd {
+            fd: m.as_raw_fd(),
+            events: libc::POLLIN,
+            revents: 0,
+        };
+        let ts = libc::timespec {
+            tv_sec: max.as_secs() as libc::time_t,
+            tv_nsec: max.subsec_nanos() as libc::c_long,
+        };
+        // SAFETY: one valid pollfd, a valid timespec, no signal mask.
+        let r = unsafe { libc::ppoll(&mut pfd, 1, &ts, std::ptr::null()) };
+        if r > 0 && pfd.revents & (libc::POLLHUP | libc::POLLERR) != 0 {
+            // No host has the slave open (a pty master reports a hang-up then): nothing can
+            // arrive, do not spin.
+            std::thread::sleep(max);
         }
     }
 
@@ -854,13 +957,17 @@ impl Firmware {
             Some(c) => c.eng.running(),
             None => self.run.is_some(),
         };
-        running
-            || !self.rx_pending.is_empty()
+        running || !self.line_quiet()
+    }
+
+    /// No bytes on their way in either direction.
+    fn line_quiet(&self) -> bool {
+        !(!self.rx_pending.is_empty()
             || !self.rx_fifo.is_empty()
             || !self.tx_prio.is_empty()
             || !self.tx_data.is_empty()
             || !self.tx_bytes.is_empty()
-            || !self.out_backlog.is_empty()
+            || !self.out_backlog.is_empty())
     }
 
     /// The keepalive interval of the run in progress, if any.
@@ -877,11 +984,20 @@ impl Firmware {
         Some(Duration::from_millis(ms as u64))
     }
 
-    /// Whether the virtual clock may take its next step now.
-    fn may_advance(&mut self, wall: Instant) -> bool {
-        // The host reads what was sent.
-        let unread = self.slave.as_ref().map_or(0, unread);
-        if self.out_backlog.is_empty() && unread <= VIRTUAL_MAX_UNREAD {
+    /// Whether the virtual clock may take its next step now, or what it waits for.
+    fn may_advance(&mut self, wall: Instant) -> Advance {
+        // The host reads what was sent: the pty is counted at every step, unless nothing was
+        // written since a count within the limit that the kernel's moving of the bytes could no
+        // longer lag (the count can then only have fallen).
+        let over = !self.unread_settled && {
+            let u = self.slave.as_ref().map_or(0, unread);
+            let settled = self
+                .last_write
+                .is_none_or(|t| t.elapsed() >= VIRTUAL_PTY_LAG);
+            self.unread_settled = u <= VIRTUAL_MAX_UNREAD && settled;
+            u > VIRTUAL_MAX_UNREAD
+        };
+        if self.out_backlog.is_empty() && !over {
             self.host_absent = false;
         } else if !self.host_absent {
             if self
@@ -894,21 +1010,25 @@ impl Firmware {
                      clock runs on without it"
                 ));
             } else {
-                return false;
+                return Advance::WaitRead;
             }
         }
-        // The keepalive: not past half its interval after the host's last frame, unless a frame
-        // is arriving or the host has really been silent that long.
+        // The keepalive. A host sharing the drive's clock has said when its next KEEPALIVE is
+        // due: the clock runs up to then and waits for it (waking the host). Otherwise the
+        // clock runs at most half the interval past the host's last frame. Either way, unless a
+        // frame is arriving or the host has really been silent the whole interval (wall time).
         if let Some(ka) = self.run_keepalive() {
-            let horizon = self.last_rx_frame + ka / 2;
-            if self.vnow + VIRTUAL_STEP > horizon
-                && self.rx_pending.is_empty()
-                && wall.duration_since(self.last_rx_wall) < ka
-            {
-                return false;
+            let host_due = self.vclock.as_ref().and_then(VirtualClock::host_due);
+            let horizon = host_due.unwrap_or(self.last_rx_frame + ka / 2);
+            let silent = wall.duration_since(self.last_rx_wall);
+            if self.vnow + VIRTUAL_STEP > horizon && self.rx_pending.is_empty() && silent < ka {
+                if let (Some(c), Some(_)) = (&self.vclock, host_due) {
+                    c.wake_host();
+                }
+                return Advance::WaitFrame(ka - silent);
             }
         }
-        true
+        Advance::Go
     }
 
     /// Virtual time: write what waits for the pty, as much as it takes (the rest waits; all of it
@@ -948,10 +1068,14 @@ impl Firmware {
         if self.host_absent {
             self.out_backlog.clear();
         }
+        if wrote {
+            self.last_write = Some(Instant::now());
+            self.unread_settled = false;
+        }
         // The kernel moves what the master wrote to the slave's input queue in a worker thread:
         // until it has, FIONREAD does not count it, and a clock running flat out could write
-        // the pty full before the host's lag shows. Wait (up to 0.3 ms) until the count moves (it may
-        // not: the host read it at once).
+        // the pty full before the host's lag shows. Wait (up to 0.3 ms) until the count moves (it
+        // may not: the host read it at once).
         if let (true, Some(u0), Some(slave)) = (wrote, before, self.slave.as_ref()) {
             let t0 = Instant::now();
             while unread(slave) == u0 && t0.elapsed() < Duration::from_micros(300) {
@@ -984,6 +1108,7 @@ impl Firmware {
                     (Ok((m, name)), Some(link)) => {
                         if self.cfg.clock == SimClock::Virtual {
                             self.slave = watch_pty(&m, &name).ok();
+                            self.unread_settled = false;
                         }
                         if retarget_link(link, &name).is_ok() {
                             self.master = Some(m);
@@ -1006,8 +1131,21 @@ impl Firmware {
     /// Read what the host sent, pace it to the line rate, pass it through the FIFO model.
     fn receive(&mut self, elapsed: f64, now: Instant) {
         let mut buf = [0u8; 1024];
-        if let Some(m) = self.master.as_mut() {
-            match m.read(&mut buf) {
+        let virtual_time = self.cfg.clock == SimClock::Virtual;
+        if virtual_time && self.line_quiet() && self.quiet_steps < VIRTUAL_QUIET_READ {
+            // Nothing on the line either way: the master is read every few steps only.
+            self.quiet_steps += 1;
+        } else if let Some(m) = self.master.as_mut() {
+            self.quiet_steps = 0;
+            let got = if virtual_time {
+                // The master is non-blocking in virtual time: one read, no poll first.
+                // SAFETY: reads into a valid buffer of `buf.len()` bytes from a descriptor we own.
+                let n = unsafe { libc::read(m.as_raw_fd(), buf.as_mut_ptr().cast(), buf.len()) };
+                usize::try_from(n).map_err(|_| std::io::Error::last_os_error())
+            } else {
+                m.read(&mut buf)
+            };
+            match got {
                 Ok(n) if n > 0 => {
                     let dead = self.dead_until.is_some();
                     if !dead {

@@ -51,10 +51,6 @@ pub(crate) fn client(path: &str, baud: u32) -> Client {
     c
 }
 
-/// The host's keepalive interval against a simulator in virtual time: short, so that the drive's
-/// clock need not wait for it ([`SimClock::Virtual`]).
-pub(crate) const VIRTUAL_KEEPALIVE: Duration = Duration::from_millis(2);
-
 /// A fault-free simulator in virtual time (the default model and effects).
 pub(crate) fn vsim(baud: u32) -> DriveSim {
     vspawn(SimConfig {
@@ -72,18 +68,20 @@ pub(crate) fn vspawn(cfg: SimConfig) -> DriveSim {
     .expect("simulator starts")
 }
 
-/// [`client`] for a simulator in virtual time: keepalive every [`VIRTUAL_KEEPALIVE`].
-pub(crate) fn vclient(path: &str, baud: u32) -> Client {
-    let mut c = Client::open(path, vclient_config(baud)).expect("client opens");
+/// [`client`] for a simulator in virtual time: the keepalive on the drive's clock.
+pub(crate) fn vclient(sim: &DriveSim, baud: u32) -> Client {
+    let mut c = Client::open(sim.port_path(), vclient_config(sim, baud)).expect("client opens");
     c.configure(&Configure::default()).expect("configure");
     c
 }
 
-/// The client settings of [`vclient`].
-pub(crate) fn vclient_config(baud: u32) -> ClientConfig {
+/// The client settings of [`vclient`]: the default keepalive interval, kept on the simulator's
+/// clock ([`ClientConfig::clock`]), so that the drive's clock need not wait for a wall-clock
+/// timer.
+pub(crate) fn vclient_config(sim: &DriveSim, baud: u32) -> ClientConfig {
     ClientConfig {
         baud,
-        keepalive: VIRTUAL_KEEPALIVE,
+        clock: sim.virtual_clock(),
         ..ClientConfig::default()
     }
 }
@@ -124,7 +122,7 @@ pub(crate) fn check_consistent(acq: &Acquisition) {
 fn clean_run_is_complete() {
     let _g = lock();
     let s = vsim(115_200);
-    let mut c = vclient(s.port_path(), 115_200);
+    let mut c = vclient(&s, 115_200);
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("prbs.csv");
     let mut sink = CsvSink::new(std::fs::File::create(&path).unwrap());
@@ -308,7 +306,7 @@ fn drive_reset_mid_run() {
 fn sine_sweep_matches_the_model() {
     let _g = lock();
     let s = vsim(115_200);
-    let mut c = vclient(s.port_path(), 115_200);
+    let mut c = vclient(&s, 115_200);
     let mut sweep = SineSweep::log(5.0, 40.0, 3);
     sweep.min_settle_s = 0.1;
     sweep.cycles = 3;

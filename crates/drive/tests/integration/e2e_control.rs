@@ -30,10 +30,10 @@ fn fast_sim(clock: SimClock) -> DriveSim {
     .expect("simulator starts")
 }
 
-/// The client settings for a simulator in virtual time: keepalive every
-/// [`super::e2e::VIRTUAL_KEEPALIVE`].
-fn vcfg() -> ClientConfig {
-    super::e2e::vclient_config(BAUD)
+/// The client settings for a simulator in virtual time: the keepalive on the drive's clock
+/// ([`super::e2e::vclient_config`]).
+fn vcfg(s: &DriveSim) -> ClientConfig {
+    super::e2e::vclient_config(s, BAUD)
 }
 
 /// A client of [`fast_sim`] (at its baud rate).
@@ -298,7 +298,7 @@ fn keepalive_expiry_ramps_down() {
 /// A run that trips: ends with LIMIT at the first sample beyond the limit, which is kept.
 fn trip(conf: Configure, test: PrbsTest, channel: usize, limit: i16, code: u8) -> u64 {
     let s = fast_sim(SimClock::Virtual);
-    let mut c = fast_client(&s, vcfg(), &conf);
+    let mut c = fast_client(&s, vcfg(&s), &conf);
     let acq = c.run_prbs(&test, &mut NullSink).unwrap();
     let end = end_of(&acq);
     let n = end.total_samples as u64;
@@ -372,7 +372,7 @@ fn streamed_sine_dft_matches_the_drive() {
     let t0 = Instant::now();
     let s = fast_sim(SimClock::Virtual);
     let conf = Configure::default();
-    let mut c = fast_client(&s, vcfg(), &conf);
+    let mut c = fast_client(&s, vcfg(&s), &conf);
     let fs = conf.sample_rate_hz;
     let mut worst_phasor: f64 = 0.0;
     let (mut worst_db, mut worst_deg): (f64, f64) = (0.0, 0.0);
@@ -446,7 +446,7 @@ fn retried_start_runs_once() {
     let _g = lock();
     let t0 = Instant::now();
     let s = fast_sim(SimClock::Virtual);
-    let mut c = fast_client(&s, vcfg(), &Configure::default());
+    let mut c = fast_client(&s, vcfg(&s), &Configure::default());
     // the drive starts the run but its ACK is lost: the client resends START with the same seq
     s.lose_next_answer(ty::START_PRBS);
     let acq = c.run_prbs(&short_prbs(), &mut NullSink).unwrap();
@@ -602,7 +602,13 @@ fn virtual_time_waits_for_a_host_that_reads_late() {
         keepalive_ms: 5000,
         ..Configure::default()
     };
-    let mut c = fast_client(&s, vcfg(), &conf);
+    // the host's keepalive on the drive's clock, but longer than the run: only the flow control
+    // can hold the clock
+    let host = ClientConfig {
+        keepalive: Duration::from_secs(4),
+        ..vcfg(&s)
+    };
+    let mut c = fast_client(&s, host, &conf);
     let mut sink = PausingSink {
         sim: &s,
         at: 200,
@@ -627,6 +633,56 @@ fn virtual_time_waits_for_a_host_that_reads_late() {
     check_consistent(&acq);
     check_truth(&acq, &s);
     assert!(took < Duration::from_millis(1200), "{took:?}");
+}
+
+/// Virtual time with the host's keepalive on the drive's clock is paced by the protocol alone: a
+/// 1 Hz sine run without streaming (6 s of drive time, nothing on the line but the answers)
+/// takes one KEEPALIVE per keepalive interval (150 ms) of drive time, and the drive's clock
+/// blocks on the wall clock about once for each (it wakes the host, which answers at once),
+/// never per step. A drive clock bounded by a wall-clock keepalive timer (the host's every
+/// 150 ms of wall time, the drive at most 250 ms past it) or a simulator that sleeps between
+/// steps would wait on the wall clock tens to thousands of times. Counters, not timings.
+#[test]
+fn virtual_time_with_the_host_on_its_clock_waits_only_for_the_keepalive() {
+    let _g = lock();
+    let s = fast_sim(SimClock::Virtual);
+    let clock = s
+        .virtual_clock()
+        .expect("a simulator in virtual time has a clock");
+    let mut c = fast_client(&s, vcfg(&s), &Configure::default());
+    let cmd = StartSine {
+        freq_mhz: 1000,
+        amplitude: 1000,
+        offset: 3000,
+        settle_cycles: 2,
+        cycles: 4,
+        flags: SINE_DFT,
+    };
+    let (st0, wakes0, t0) = (s.stats(), clock.wakes(), clock.now());
+    let acq = c.run_sine(&cmd, &mut NullSink).unwrap();
+    let (st, wakes, drive_s) = (
+        s.stats(),
+        clock.wakes() - wakes0,
+        (clock.now() - t0).as_secs_f64(),
+    );
+    let frames = st.frames_received - st0.frames_received;
+    let waits = st.wall_waits - st0.wall_waits;
+    eprintln!(
+        "virtual time, host on the drive's clock: {drive_s:.2} s of drive time, {frames} frames \
+         from the host, {wakes} wake-ups, {waits} waits on the wall clock"
+    );
+    assert!(acq.complete, "{:?}", acq.problems);
+    assert_eq!(end_of(&acq).reason, EndReason::Complete);
+    assert!(drive_s >= 6.0, "{drive_s}");
+    // START and one KEEPALIVE per interval of drive time (the drive's clock cannot pass the
+    // host's due time without a frame); a host thread preempted between publishing its due time
+    // and writing its frame costs a spare wake-up and KEEPALIVE, hence the slack above
+    let intervals = drive_s / 0.150;
+    assert!(frames >= (intervals as u64).saturating_sub(2), "{frames}");
+    assert!(frames as f64 <= 1.5 * intervals + 4.0, "{frames}");
+    assert!(wakes as f64 <= 1.5 * intervals + 2.0, "{wakes}");
+    // each wait ends when the host's frame arrives
+    assert!(waits <= 2 * wakes + 4, "{waits} waits for {wakes} wake-ups");
 }
 
 /// Virtual time does not hide a silent host: with no KEEPALIVE and no STATUS poll (the stream

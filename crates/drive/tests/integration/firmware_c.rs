@@ -38,7 +38,7 @@ fn spawn(firmware: FirmwareKind) -> DriveSim {
 /// A PRBS run and a streamed sine with the DFT, on one firmware.
 fn record(firmware: FirmwareKind) -> (Acquisition, Acquisition, Vec<String>) {
     let s = spawn(firmware);
-    let mut c = vclient(s.port_path(), BAUD);
+    let mut c = vclient(&s, BAUD);
     let prbs = c.run_prbs(&short_prbs(), &mut NullSink).unwrap();
     assert!(prbs.complete, "{firmware:?}: {:?}", prbs.problems);
     check_consistent(&prbs);
@@ -189,7 +189,7 @@ fn both_firmwares_check_a_controller_download_alike() {
             ..SimConfig::default()
         })
         .expect("simulator starts");
-        let mut c = vclient(s.port_path(), BAUD);
+        let mut c = vclient(&s, BAUD);
         for (k, (msg, want)) in script.iter().enumerate() {
             if k == 9 {
                 // a tap still missing: no controller to run

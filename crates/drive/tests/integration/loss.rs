@@ -154,7 +154,7 @@ fn a_command_clamped_away_is_flagged_in_the_record() {
     let _g = lock();
     // virtual time: nothing here depends on the wall clock
     let s = crate::e2e::vsim(BAUD);
-    let mut c = crate::e2e::vclient(s.port_path(), BAUD);
+    let mut c = crate::e2e::vclient(&s, BAUD);
     let dir = tempfile::tempdir().unwrap();
     // 30 V +- 1 V against the default 24 V clamp: every sample at 24 V.
     let path = dir.path().join("clamped.csv");

@@ -1,7 +1,7 @@
 //! Leakage-free sine measurements on the simulated drive, against an independent evaluation of the
 //! fractional model's sampled response (not the simulator).
 
-use super::e2e::{lock, VIRTUAL_KEEPALIVE};
+use super::e2e::lock;
 use drive::bode::whole_cycle_mhz;
 use drive::client::{bode_point, drive_phasors, host_phasors, Client, ClientConfig, NullSink};
 use drive::protocol::{Configure, StartSine, SINE_DFT, SINE_STREAM};
@@ -55,7 +55,7 @@ fn sine_points_around_6_v_match_the_exact_sampled_response() {
         s.port_path(),
         ClientConfig {
             baud: BAUD,
-            keepalive: VIRTUAL_KEEPALIVE,
+            clock: s.virtual_clock(),
             ..ClientConfig::default()
         },
     )
@@ -161,7 +161,7 @@ fn repeats_shrink_the_error_and_report_the_noise() {
         s.port_path(),
         ClientConfig {
             baud: BAUD,
-            keepalive: VIRTUAL_KEEPALIVE,
+            clock: s.virtual_clock(),
             ..ClientConfig::default()
         },
     )

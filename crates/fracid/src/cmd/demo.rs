@@ -91,8 +91,9 @@ pub fn run(a: DemoArgs) -> Result<()> {
         speed_quant: 0.01,
         ..Effects::default()
     };
-    // Virtual time: nobody watches the demo's drive on the wall clock (the host below sends its
-    // keepalive every 2 ms so that the drive need not wait for it).
+    // Virtual time: nobody watches the demo's drive on the wall clock. The host below shares the
+    // drive's clock and keeps its keepalive on it (`drive::vclock`), so that the drive's clock
+    // runs as fast as the two can go, waiting only where the protocol needs it.
     let sim_cfg = SimConfig {
         clock: SimClock::Virtual,
         baud: a.baud,
@@ -126,7 +127,7 @@ pub fn run(a: DemoArgs) -> Result<()> {
         sim.port_path(),
         ClientConfig {
             baud: a.baud,
-            keepalive: std::time::Duration::from_millis(2),
+            clock: sim.virtual_clock(),
             ..ClientConfig::default()
         },
     )
@@ -319,7 +320,17 @@ pub fn run(a: DemoArgs) -> Result<()> {
     // 3b. The tuned loop on the drive (cmd/demo_loop.rs); the drive was kept running for it.
     step("the tuned loop on the drive");
     let model = crate::cmd::demo_loop::model_of(&dir.join("time.json"))?;
-    let tuned = crate::cmd::demo_loop::run(sim.port_path(), a.baud, a.sample_rate_hz, &model, dir)?;
+    let tuned = crate::cmd::demo_loop::run(
+        sim.port_path(),
+        ClientConfig {
+            baud: a.baud,
+            clock: sim.virtual_clock(),
+            ..ClientConfig::default()
+        },
+        a.sample_rate_hz,
+        &model,
+        dir,
+    )?;
     sim.stop();
     if let (Some(rec), Some(fig)) = (&tuned.record, &tuned.figure) {
         step(&format!(

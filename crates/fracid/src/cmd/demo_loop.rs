@@ -41,28 +41,21 @@ pub struct DemoLoop {
     pub record: Option<PathBuf>,
 }
 
-/// Open the drive at `port` (its own client: call it after the demo's client is closed, the
-/// port is opened exclusively) and run [`run_with`].
+/// Open the drive at `port` with `client_cfg` (its own client: call it after the demo's client
+/// is closed, the port is opened exclusively; the demo passes the simulator's virtual clock in
+/// it) and run [`run_with`].
 ///
 /// # Errors
 /// As [`run_with`]; the port does not open.
 pub fn run(
     port: &str,
-    baud: u32,
+    client_cfg: ClientConfig,
     sample_rate_hz: u32,
     model: &FracTf,
     dir: &Path,
 ) -> Result<DemoLoop> {
-    let mut client = Client::open(
-        port,
-        ClientConfig {
-            baud,
-            // a virtual-time drive runs as fast as the host keeps it alive
-            keepalive: std::time::Duration::from_millis(2),
-            ..ClientConfig::default()
-        },
-    )
-    .context("cannot open the drive for the tuned loop")?;
+    let mut client =
+        Client::open(port, client_cfg).context("cannot open the drive for the tuned loop")?;
     let conf = Configure {
         sample_rate_hz,
         ..Configure::default()
