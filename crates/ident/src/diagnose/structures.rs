@@ -29,7 +29,8 @@
 //! diagnosed (the others only when none of those ends with a final model). The reason names the
 //! structures left out. A structure whose base fit is final and usable is diagnosed at once, while
 //! the others are still being fitted, and given up when a better base fit puts it beyond [`FAR`]:
-//! the same diagnosis as after all the fits, used only when the rule above asks for it. A
+//! the same diagnosis as after all the fits, used only when the rule above asks for it. The
+//! user's own fit runs beside the first screening fits ([`diagnose_best_fitting`]). A
 //! two-mass screening fit that has degenerated already is refitted as its smallest reduced
 //! structure instead of in full when that fits as well ([`reduce_screened`]); every degenerate
 //! two-mass fit is made well posed on its own thread before it is diagnosed ([`reduce_one`]).
@@ -295,6 +296,20 @@ struct Shared {
     turn: std::sync::Condvar,
     /// Screening fits run at once at most: the cores.
     at_once: usize,
+    /// Signalled when the user's fit ends ([`Shared::user_rmse`]).
+    user_done: std::sync::Condvar,
+}
+
+/// Where the user's fit is ([`fit_candidates`]: it runs on the calling thread beside the
+/// candidates' screening fits).
+#[derive(Clone, Copy, PartialEq)]
+enum UserFit {
+    /// Still running.
+    Running,
+    /// Ended: its held-out RMSE when usable (the reference of the pre-screen).
+    Done(Option<f64>),
+    /// Failed: the comparison is given up.
+    Failed,
 }
 
 /// A running screening fit's place ([`Shared::turn`]): given back when dropped (also when the
@@ -319,8 +334,10 @@ struct Progress {
     best: f64,
     /// Screening fits started so far (they start in the candidates' order, [`Shared::turn`]).
     started: usize,
-    /// Screening fits running now.
+    /// Screening fits running now (the user's fit counted while it runs).
     running: usize,
+    /// The user's fit.
+    user: UserFit,
 }
 
 impl Shared {
@@ -354,24 +371,60 @@ impl Shared {
     /// evenly among all of them and such a diagnosis started last, alone on one core at the end.
     /// Each fit runs on its own fresh thread as before (its pole cache its own): what it
     /// computes does not depend on when it runs.
-    fn turn(&self, rank: usize) -> Turn<'_> {
+    /// `None` when the user's fit failed (nothing more is fitted).
+    fn turn(&self, rank: usize) -> Option<Turn<'_>> {
         let mut p = self.lock();
-        while p.started != rank || p.running >= self.at_once {
+        while p.user != UserFit::Failed && (p.started != rank || p.running >= self.at_once) {
             p = self
                 .turn
                 .wait(p)
                 .unwrap_or_else(std::sync::PoisonError::into_inner);
         }
+        if p.user == UserFit::Failed {
+            return None;
+        }
         p.started += 1;
         p.running += 1;
         self.turn.notify_all();
-        Turn(self)
+        Some(Turn(self))
     }
 
-    /// The screening's reference, once every screening fit has ended.
+    /// The user's fit ended (`rmse`: its held-out RMSE when usable, `None` when it failed): its
+    /// core is given back.
+    fn user_ended(&self, rmse: Option<Option<f64>>) {
+        let mut p = self.lock();
+        p.user = rmse.map_or(UserFit::Failed, UserFit::Done);
+        p.running -= 1;
+        self.turn.notify_all();
+        self.user_done.notify_all();
+        self.screened.notify_all();
+    }
+
+    /// The user's usable base fit's held-out RMSE, once its fit has ended (`Err`: it failed).
+    fn user_rmse(&self) -> std::result::Result<Option<f64>, ()> {
+        let mut p = self.lock();
+        while p.user == UserFit::Running {
+            p = self
+                .user_done
+                .wait(p)
+                .unwrap_or_else(std::sync::PoisonError::into_inner);
+        }
+        match p.user {
+            UserFit::Done(r) => Ok(r),
+            _ => Err(()),
+        }
+    }
+
+    /// Whether the user's fit failed.
+    fn failed(&self) -> bool {
+        self.lock().user == UserFit::Failed
+    }
+
+    /// The screening's reference, once every screening fit has ended (at once when the user's
+    /// fit failed: nothing more is used).
     fn reference(&self) -> f64 {
         let mut p = self.lock();
-        while p.screening > 0 {
+        while p.screening > 0 && p.user != UserFit::Failed {
             p = self
                 .screened
                 .wait(p)
@@ -406,7 +459,10 @@ impl Shared {
                 return None;
             }
         }
-        let stop = || r > FAR * self.lock().best;
+        let stop = || {
+            let p = self.lock();
+            r > FAR * p.best || p.user == UserFit::Failed
+        };
         let halt = |round, rmse| board.halt(i, round, rmse);
         let cache = cache.clone();
         let d = std::thread::scope(|scope| {
@@ -429,115 +485,164 @@ impl Shared {
     }
 }
 
-/// The base fits of the candidate structures (`user` the first's, given), screened
-/// ([`screen_candidate`]): a candidate whose screening fit used its budget is fitted in full, from
-/// the start, on a fresh thread (so that the per-thread pole cache is the full fit's own, as
-/// without the screening), unless it is still more than [`FAR`] times behind the best usable
-/// full base fit among the screening fits (held-out RMSE), or not usable when a usable full base
-/// fit exists (a fit that after the refits' budget still has problems, a singular covariance,
-/// orders at a bound, is not expected to end usable and overtake a usable one): then it is kept as
-/// screened, marked `out` (not diagnosed). A screening fit that failed in its start
+/// The base fits of the candidate structures (`user` fits the first, on the calling thread,
+/// while the others' screening fits run beside it: it holds a core as a screening fit does),
+/// screened ([`screen_candidate`]): a candidate whose screening fit used its budget is fitted in
+/// full, from the start, on a fresh thread (so that the per-thread pole cache is the full fit's
+/// own, as without the screening), unless it is still more than [`FAR`] times behind the best
+/// usable full base fit among the screening fits (held-out RMSE), or not usable when a usable
+/// full base fit exists (a fit that after the refits' budget still has problems, a singular
+/// covariance, orders at a bound, is not expected to end usable and overtake a usable one): then
+/// it is kept as screened, marked `out` (not diagnosed). A screening fit that failed in its start
 /// ([`no_start`]) is kept as it is: the full fit would fail the same way. Each candidate runs on
 /// its own thread (the screening fits started in the candidates' order, at most one per core at
-/// a time, [`Shared::turn`]); one whose base fit is final and usable is diagnosed at once ([`Shared::diagnose_early`]) while the others are
-/// still being fitted (a core would otherwise wait for the slowest fit).
+/// a time, [`Shared::turn`]); one whose base fit is final and usable is diagnosed at once
+/// ([`Shared::diagnose_early`]) while the others are still being fitted (a core would otherwise
+/// wait for the slowest fit). What each fit and diagnosis computes does not depend on when it
+/// runs; the pre-screen of the user's structure with an integrator waits for the user's fit.
+///
+/// # Errors
+/// The user's fit's error (the candidates' fits not started yet are not started).
 fn fit_candidates(
     rec: &Record,
     cands: &[(String, FracModel)],
-    user: Identification,
+    user: impl FnOnce() -> Result<Identification>,
     opts: &IdentOptions,
     (dopts, board): (&super::DiagnoseOptions, &Board),
-) -> Vec<Based> {
-    // The user's usable base fit's held-out RMSE: the reference of the pre-screen.
-    let user_rmse = Some(base_rmse(&user)).filter(|r| user.usable() && r.is_finite());
+) -> Result<Vec<Based>> {
     let user_integrates = cands.first().is_some_and(|(_, m)| m.integrator);
-    let mut user = Some(user);
     let shared = Shared {
         progress: std::sync::Mutex::new(Progress {
             screening: cands.len(),
             reference: f64::INFINITY,
             best: f64::INFINITY,
             started: 0,
-            running: 0,
+            running: 1,
+            user: UserFit::Running,
         }),
         screened: std::sync::Condvar::new(),
         turn: std::sync::Condvar::new(),
         at_once: std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get),
+        user_done: std::sync::Condvar::new(),
     };
     let shared = &shared;
+    let (send_user, take_user) = std::sync::mpsc::channel::<Identification>();
+    let mut take_user = Some(take_user);
     std::thread::scope(|scope| {
         let handles: Vec<_> = cands
             .iter()
             .enumerate()
             .map(|(i, (_, m))| {
-                let given = if i == 0 { user.take() } else { None };
-                let pre = user_rmse.filter(|_| m.integrator && !user_integrates);
+                let given = if i == 0 { take_user.take() } else { None };
+                let pre_screened = m.integrator && !user_integrates;
                 scope.spawn(move || {
                     // A screening fit that panics is a failed full fit (as the join of its thread
                     // made it), and is counted as ended: the others may be waiting for it.
                     let screened = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-                        let Some(id) = given else {
-                            let _turn = shared.turn(i - 1);
-                            return match pre {
+                        let Some(given) = given else {
+                            let _turn = shared.turn(i - 1)?;
+                            if !pre_screened {
+                                return Some(screen_candidate(rec, m, opts));
+                            }
+                            return Some(match shared.user_rmse().ok()? {
                                 Some(r) => pre_screen(rec, m, opts, r),
                                 None => screen_candidate(rec, m, opts),
-                            };
+                            });
                         };
-                        ((Ok(id), None), true)
+                        Some(((Ok(given.recv().ok()?), None), true))
                     }));
-                    let (fitted, full) = screened.unwrap_or_else(|_| ((panicked(), None), true));
+                    let Some((fitted, full)) =
+                        screened.unwrap_or_else(|_| Some(((panicked(), None), true)))
+                    else {
+                        // The user's fit failed: nothing is fitted or diagnosed.
+                        return None;
+                    };
                     shared.screened(&fitted, full);
-                    let (mut fitted, out, smallest) = if full || no_start(&fitted) {
-                        (fitted, false, None)
-                    } else if fitted.0.is_err() {
-                        // A failed screening fit is fitted in full whatever the reference: no
-                        // need to wait for it.
-                        (fresh_fit(rec, m, opts), false, None)
-                    } else {
-                        let reference = shared.reference();
-                        match fitted {
-                            (Ok(id), cache)
-                                if base_rmse(&id) > FAR * reference
-                                    || reference.is_finite() && !id.usable() =>
-                            {
-                                ((Ok(id), cache), true, None)
-                            }
-                            (Ok(id), _) => match reduce_screened(rec, &id, opts) {
-                                Some((fitted, reduced)) => (fitted, false, Some(reduced)),
-                                None => (fresh_fit(rec, m, opts), false, None),
-                            },
-                            other => (other, false, None),
-                        }
-                    };
-                    // A degenerate two-mass fit is made well posed here, before its diagnosis
-                    // (the degenerate fit itself is then never diagnosed).
-                    let reduced = smallest.or_else(|| reduce_one(rec, &mut fitted, opts));
-                    let early = if out {
-                        None
-                    } else {
-                        shared.diagnose_early(rec, (i, board), &fitted, dopts)
-                    };
-                    Based {
-                        fitted,
-                        out,
-                        early,
-                        reduced,
+                    if shared.failed() {
+                        return None;
                     }
+                    Some(settle(
+                        rec,
+                        m,
+                        opts,
+                        (i, fitted, full),
+                        (shared, dopts, board),
+                    ))
                 })
             })
             .collect();
-        handles
+        let fitted = std::panic::catch_unwind(std::panic::AssertUnwindSafe(user));
+        let rmse = match &fitted {
+            Ok(Ok(u)) => Some(Some(base_rmse(u)).filter(|r| u.usable() && r.is_finite())),
+            _ => None,
+        };
+        shared.user_ended(rmse);
+        // (A send fails only when the first candidate's thread panicked: joined below.) The
+        // sender is dropped here, so that the first candidate's thread ends when nothing is sent.
+        let fitted = fitted.map(|f| f.map(|u| send_user.send(u).is_ok()));
+        drop(send_user);
+        let based: Vec<Based> = handles
             .into_iter()
             .map(|h| {
-                h.join().unwrap_or_else(|_| Based {
+                h.join().ok().flatten().unwrap_or_else(|| Based {
                     fitted: (panicked(), None),
                     out: false,
                     early: None,
                     reduced: None,
                 })
             })
-            .collect()
+            .collect();
+        match fitted {
+            Ok(f) => f.map(|_| based),
+            Err(panic) => std::panic::resume_unwind(panic),
+        }
     })
+}
+
+/// A candidate's base fit after its screening ([`fit_candidates`]): fitted in full, kept as
+/// screened (`out`), or reduced, and diagnosed at once when final and usable.
+fn settle(
+    rec: &Record,
+    m: &FracModel,
+    opts: &IdentOptions,
+    (i, fitted, full): (usize, Fitted, bool),
+    (shared, dopts, board): (&Shared, &super::DiagnoseOptions, &Board),
+) -> Based {
+    let (mut fitted, out, smallest) = if full || no_start(&fitted) {
+        (fitted, false, None)
+    } else if fitted.0.is_err() {
+        // A failed screening fit is fitted in full whatever the reference: no need to wait for
+        // it.
+        (fresh_fit(rec, m, opts), false, None)
+    } else {
+        let reference = shared.reference();
+        match fitted {
+            (Ok(id), cache)
+                if base_rmse(&id) > FAR * reference || reference.is_finite() && !id.usable() =>
+            {
+                ((Ok(id), cache), true, None)
+            }
+            (Ok(id), _) => match reduce_screened(rec, &id, opts) {
+                Some((fitted, reduced)) => (fitted, false, Some(reduced)),
+                None => (fresh_fit(rec, m, opts), false, None),
+            },
+            other => (other, false, None),
+        }
+    };
+    // A degenerate two-mass fit is made well posed here, before its diagnosis (the degenerate
+    // fit itself is then never diagnosed).
+    let reduced = smallest.or_else(|| reduce_one(rec, &mut fitted, opts));
+    let early = if out {
+        None
+    } else {
+        shared.diagnose_early(rec, (i, board), &fitted, dopts)
+    };
+    Based {
+        fitted,
+        out,
+        early,
+        reduced,
+    }
 }
 
 /// Whether a screening fit failed in its start ([`Error::NoStart`], the two-mass structure
@@ -855,9 +960,27 @@ pub fn diagnose_best(
     opts: &IdentOptions,
     dopts: &super::DiagnoseOptions,
 ) -> Result<Diagnosed> {
+    diagnose_best_fitting(rec, label, model, || Ok(user), opts, dopts)
+}
+
+/// [`diagnose_best`] with the user's structure fitted by `user` on the calling thread, while the
+/// other candidates' fits run beside it on the other cores (the user's fit alone held one core
+/// and left the others idle): the same fits and diagnoses, the same result. `user` runs once,
+/// on this thread (it may hold what cannot be sent to another thread, a progress observer).
+///
+/// # Errors
+/// `user`'s error; as [`diagnose_best`].
+pub fn diagnose_best_fitting(
+    rec: &Record,
+    label: &str,
+    model: &FracModel,
+    user: impl FnOnce() -> Result<Identification>,
+    opts: &IdentOptions,
+    dopts: &super::DiagnoseOptions,
+) -> Result<Diagnosed> {
     let mut cands = with_feedthrough(rec, candidates(label, model), model);
     let board = Board::default();
-    let based = fit_candidates(rec, &cands, user, opts, (dopts, &board));
+    let based = fit_candidates(rec, &cands, user, opts, (dopts, &board))?;
     let screened_out: Vec<usize> = (0..based.len()).filter(|&i| based[i].out).collect();
     let mut early = vec![];
     // A degenerate two-mass fit made well posed on its thread ([`reduce_one`]): renamed
@@ -1656,5 +1779,55 @@ mod tests {
         };
         let s = score_of("two-mass", &o);
         assert!(s.failed.is_some() && s.problems.is_empty(), "{s:?}");
+    }
+
+    /// The user's fit run beside the candidates' ([`diagnose_best_fitting`]) against the same fit
+    /// made first and given ([`diagnose_best`]), the user's structure the PMSM, on a first-order
+    /// plant `2/(0.1 s + 1)` with a 3-sample delay driven by a held square wave (noise-free
+    /// held-input data): the same chosen
+    /// structure, the same rows (held-out RMSE and BIC bit for bit) and the same reason; and a
+    /// user's fit that fails ends the comparison with its error, whatever the candidates do.
+    #[test]
+    fn the_users_fit_beside_the_candidates_gives_the_same_choice() {
+        let dt = 0.01;
+        let u: Vec<f64> = (0..900)
+            .map(|k| if (k / 37) % 3 == 0 { 1.0 } else { -0.5 })
+            .collect();
+        let y0 = crate::testdata::first_order_held(&u, dt, 0.1, 2.0);
+        let y: Vec<f64> = (0..u.len()).map(|k| y0[k.saturating_sub(3)]).collect();
+        let rec = Record::from_samples(&u, &y, dt).unwrap();
+        let model = FracModel::pmsm(1.0, 0.1, 0.01, 0.9, 0.5);
+        let opts = IdentOptions::default();
+        let dopts = super::super::DiagnoseOptions::default();
+        let user = || identify(&rec, &model, &opts);
+        let given = diagnose_best(&rec, "pmsm", &model, user().unwrap(), &opts, &dopts).unwrap();
+        let beside = diagnose_best_fitting(&rec, "pmsm", &model, user, &opts, &dopts).unwrap();
+        let rows = |d: &Diagnosed| {
+            d.choice
+                .scores
+                .iter()
+                .map(|s| {
+                    (
+                        s.name.clone(),
+                        s.rmse,
+                        s.rmse_after,
+                        s.bic_after,
+                        s.effects.clone(),
+                    )
+                })
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(given.choice.chosen, beside.choice.chosen);
+        assert_eq!(rows(&given), rows(&beside));
+        assert_eq!(given.choice.reason, beside.choice.reason);
+        let failed = diagnose_best_fitting(
+            &rec,
+            "pmsm",
+            &model,
+            || Err(Error::Cancelled("the user's fit".into())),
+            &opts,
+            &dopts,
+        );
+        assert!(matches!(failed, Err(Error::Cancelled(_))), "{failed:?}");
     }
 }
