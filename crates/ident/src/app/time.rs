@@ -7,7 +7,7 @@
 use super::observe::{enter, Observe, Stage};
 use super::ModelReport;
 use crate::data::Record;
-use crate::diagnose::structures::{diagnose_best, fit_best, StructureChoice};
+use crate::diagnose::structures::{diagnose_best_fitting, fit_best, StructureChoice};
 use crate::diagnose::{DiagnoseOptions, Diagnosis};
 use crate::metrics::{residual_test, Fit, ResidualTest};
 use crate::oe::{
@@ -544,24 +544,29 @@ pub fn run(req: &TimeRequest, data: &TimeData, obs: &mut dyn Observe) -> Result<
         )));
     }
     let (auto, label) = super::auto_label(&req.structure);
-    let (id, auto_choice) = if auto && !req.diagnose {
+    let (id, auto_choice, diagnosis) = if req.diagnose {
+        // The user's structure is fitted here while the other candidates' fits start on the
+        // other cores ([`diagnose_best_fitting`]); the stages are entered as before.
+        enter(obs, Stage::Fit)?;
+        let n = crate::diagnose::structures::candidates(label, &model).len();
+        let user = || {
+            let id =
+                identify_with_progress(rec, &model, &opts, &mut |k, rmse| obs.simulation(k, rmse))?;
+            enter(obs, Stage::Diagnose { n })?;
+            Ok(id)
+        };
+        let d = diagnose_best_fitting(rec, label, &model, user, &opts, &diagnose_options(req))?;
+        (d.id, None, Some((d.diagnosis, d.choice)))
+    } else if auto {
         let n = crate::diagnose::structures::auto_candidates(&model).len();
         enter(obs, Stage::Structures { n })?;
         let (id, c) = fit_best(rec, &model, &opts)?;
-        (id, Some(c))
+        (id, Some(c), None)
     } else {
         enter(obs, Stage::Fit)?;
         let id =
             identify_with_progress(rec, &model, &opts, &mut |k, rmse| obs.simulation(k, rmse))?;
-        (id, None)
-    };
-    let (id, diagnosis) = if req.diagnose {
-        let n = crate::diagnose::structures::candidates(label, &model).len();
-        enter(obs, Stage::Diagnose { n })?;
-        let d = diagnose_best(rec, label, &model, id, &opts, &diagnose_options(req))?;
-        (d.id, Some((d.diagnosis, d.choice)))
-    } else {
-        (id, None)
+        (id, None, None)
     };
     let mut id = id;
     let (base_file, final_file) = match &data.validation {

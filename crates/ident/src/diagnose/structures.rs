@@ -29,14 +29,17 @@
 //! diagnosed (the others only when none of those ends with a final model). The reason names the
 //! structures left out. A structure whose base fit is final and usable is diagnosed at once, while
 //! the others are still being fitted, and given up when a better base fit puts it beyond [`FAR`]:
-//! the same diagnosis as after all the fits, used only when the rule above asks for it. A
+//! the same diagnosis as after all the fits, used only when the rule above asks for it. The
+//! user's own fit runs beside the first screening fits ([`diagnose_best_fitting`]). A
 //! two-mass screening fit that has degenerated already is refitted as its smallest reduced
 //! structure instead of in full when that fits as well ([`reduce_screened`]); every degenerate
 //! two-mass fit is made well posed on its own thread before it is diagnosed ([`reduce_one`]).
-//! The diagnoses then prune each other round by round (successive halving, [`BEHIND`]): a
-//! structure more than 1.1x behind the best after as many kept effects is given no more rounds
-//! (its row shows its model at that point, and the reason names it).
+//! The diagnoses then prune each other round by round (successive halving, `halving.rs`,
+//! [`BEHIND`]): a structure more than 1.1x behind the best after as many kept effects is given no
+//! more rounds (its row shows its model at that point, and the reason names it).
 
+pub use super::halving::BEHIND;
+use super::halving::{confirm_halving, halve_rows, Board};
 use crate::data::Record;
 use crate::oe::{identify, FracModel, IdentOptions, Identification};
 use crate::{Error, Result};
@@ -293,6 +296,20 @@ struct Shared {
     turn: std::sync::Condvar,
     /// Screening fits run at once at most: the cores.
     at_once: usize,
+    /// Signalled when the user's fit ends ([`Shared::user_rmse`]).
+    user_done: std::sync::Condvar,
+}
+
+/// Where the user's fit is ([`fit_candidates`]: it runs on the calling thread beside the
+/// candidates' screening fits).
+#[derive(Clone, Copy, PartialEq)]
+enum UserFit {
+    /// Still running.
+    Running,
+    /// Ended: its held-out RMSE when usable (the reference of the pre-screen).
+    Done(Option<f64>),
+    /// Failed: the comparison is given up.
+    Failed,
 }
 
 /// A running screening fit's place ([`Shared::turn`]): given back when dropped (also when the
@@ -317,8 +334,10 @@ struct Progress {
     best: f64,
     /// Screening fits started so far (they start in the candidates' order, [`Shared::turn`]).
     started: usize,
-    /// Screening fits running now.
+    /// Screening fits running now (the user's fit counted while it runs).
     running: usize,
+    /// The user's fit.
+    user: UserFit,
 }
 
 impl Shared {
@@ -352,24 +371,60 @@ impl Shared {
     /// evenly among all of them and such a diagnosis started last, alone on one core at the end.
     /// Each fit runs on its own fresh thread as before (its pole cache its own): what it
     /// computes does not depend on when it runs.
-    fn turn(&self, rank: usize) -> Turn<'_> {
+    /// `None` when the user's fit failed (nothing more is fitted).
+    fn turn(&self, rank: usize) -> Option<Turn<'_>> {
         let mut p = self.lock();
-        while p.started != rank || p.running >= self.at_once {
+        while p.user != UserFit::Failed && (p.started != rank || p.running >= self.at_once) {
             p = self
                 .turn
                 .wait(p)
                 .unwrap_or_else(std::sync::PoisonError::into_inner);
         }
+        if p.user == UserFit::Failed {
+            return None;
+        }
         p.started += 1;
         p.running += 1;
         self.turn.notify_all();
-        Turn(self)
+        Some(Turn(self))
     }
 
-    /// The screening's reference, once every screening fit has ended.
+    /// The user's fit ended (`rmse`: its held-out RMSE when usable, `None` when it failed): its
+    /// core is given back.
+    fn user_ended(&self, rmse: Option<Option<f64>>) {
+        let mut p = self.lock();
+        p.user = rmse.map_or(UserFit::Failed, UserFit::Done);
+        p.running -= 1;
+        self.turn.notify_all();
+        self.user_done.notify_all();
+        self.screened.notify_all();
+    }
+
+    /// The user's usable base fit's held-out RMSE, once its fit has ended (`Err`: it failed).
+    fn user_rmse(&self) -> std::result::Result<Option<f64>, ()> {
+        let mut p = self.lock();
+        while p.user == UserFit::Running {
+            p = self
+                .user_done
+                .wait(p)
+                .unwrap_or_else(std::sync::PoisonError::into_inner);
+        }
+        match p.user {
+            UserFit::Done(r) => Ok(r),
+            _ => Err(()),
+        }
+    }
+
+    /// Whether the user's fit failed.
+    fn failed(&self) -> bool {
+        self.lock().user == UserFit::Failed
+    }
+
+    /// The screening's reference, once every screening fit has ended (at once when the user's
+    /// fit failed: nothing more is used).
     fn reference(&self) -> f64 {
         let mut p = self.lock();
-        while p.screening > 0 {
+        while p.screening > 0 && p.user != UserFit::Failed {
             p = self
                 .screened
                 .wait(p)
@@ -404,7 +459,10 @@ impl Shared {
                 return None;
             }
         }
-        let stop = || r > FAR * self.lock().best;
+        let stop = || {
+            let p = self.lock();
+            r > FAR * p.best || p.user == UserFit::Failed
+        };
         let halt = |round, rmse| board.halt(i, round, rmse);
         let cache = cache.clone();
         let d = std::thread::scope(|scope| {
@@ -427,115 +485,164 @@ impl Shared {
     }
 }
 
-/// The base fits of the candidate structures (`user` the first's, given), screened
-/// ([`screen_candidate`]): a candidate whose screening fit used its budget is fitted in full, from
-/// the start, on a fresh thread (so that the per-thread pole cache is the full fit's own, as
-/// without the screening), unless it is still more than [`FAR`] times behind the best usable
-/// full base fit among the screening fits (held-out RMSE), or not usable when a usable full base
-/// fit exists (a fit that after the refits' budget still has problems, a singular covariance,
-/// orders at a bound, is not expected to end usable and overtake a usable one): then it is kept as
-/// screened, marked `out` (not diagnosed). A screening fit that failed in its start
+/// The base fits of the candidate structures (`user` fits the first, on the calling thread,
+/// while the others' screening fits run beside it: it holds a core as a screening fit does),
+/// screened ([`screen_candidate`]): a candidate whose screening fit used its budget is fitted in
+/// full, from the start, on a fresh thread (so that the per-thread pole cache is the full fit's
+/// own, as without the screening), unless it is still more than [`FAR`] times behind the best
+/// usable full base fit among the screening fits (held-out RMSE), or not usable when a usable
+/// full base fit exists (a fit that after the refits' budget still has problems, a singular
+/// covariance, orders at a bound, is not expected to end usable and overtake a usable one): then
+/// it is kept as screened, marked `out` (not diagnosed). A screening fit that failed in its start
 /// ([`no_start`]) is kept as it is: the full fit would fail the same way. Each candidate runs on
 /// its own thread (the screening fits started in the candidates' order, at most one per core at
-/// a time, [`Shared::turn`]); one whose base fit is final and usable is diagnosed at once ([`Shared::diagnose_early`]) while the others are
-/// still being fitted (a core would otherwise wait for the slowest fit).
+/// a time, [`Shared::turn`]); one whose base fit is final and usable is diagnosed at once
+/// ([`Shared::diagnose_early`]) while the others are still being fitted (a core would otherwise
+/// wait for the slowest fit). What each fit and diagnosis computes does not depend on when it
+/// runs; the pre-screen of the user's structure with an integrator waits for the user's fit.
+///
+/// # Errors
+/// The user's fit's error (the candidates' fits not started yet are not started).
 fn fit_candidates(
     rec: &Record,
     cands: &[(String, FracModel)],
-    user: Identification,
+    user: impl FnOnce() -> Result<Identification>,
     opts: &IdentOptions,
     (dopts, board): (&super::DiagnoseOptions, &Board),
-) -> Vec<Based> {
-    // The user's usable base fit's held-out RMSE: the reference of the pre-screen.
-    let user_rmse = Some(base_rmse(&user)).filter(|r| user.usable() && r.is_finite());
+) -> Result<Vec<Based>> {
     let user_integrates = cands.first().is_some_and(|(_, m)| m.integrator);
-    let mut user = Some(user);
     let shared = Shared {
         progress: std::sync::Mutex::new(Progress {
             screening: cands.len(),
             reference: f64::INFINITY,
             best: f64::INFINITY,
             started: 0,
-            running: 0,
+            running: 1,
+            user: UserFit::Running,
         }),
         screened: std::sync::Condvar::new(),
         turn: std::sync::Condvar::new(),
         at_once: std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get),
+        user_done: std::sync::Condvar::new(),
     };
     let shared = &shared;
+    let (send_user, take_user) = std::sync::mpsc::channel::<Identification>();
+    let mut take_user = Some(take_user);
     std::thread::scope(|scope| {
         let handles: Vec<_> = cands
             .iter()
             .enumerate()
             .map(|(i, (_, m))| {
-                let given = if i == 0 { user.take() } else { None };
-                let pre = user_rmse.filter(|_| m.integrator && !user_integrates);
+                let given = if i == 0 { take_user.take() } else { None };
+                let pre_screened = m.integrator && !user_integrates;
                 scope.spawn(move || {
                     // A screening fit that panics is a failed full fit (as the join of its thread
                     // made it), and is counted as ended: the others may be waiting for it.
                     let screened = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-                        let Some(id) = given else {
-                            let _turn = shared.turn(i - 1);
-                            return match pre {
+                        let Some(given) = given else {
+                            let _turn = shared.turn(i - 1)?;
+                            if !pre_screened {
+                                return Some(screen_candidate(rec, m, opts));
+                            }
+                            return Some(match shared.user_rmse().ok()? {
                                 Some(r) => pre_screen(rec, m, opts, r),
                                 None => screen_candidate(rec, m, opts),
-                            };
+                            });
                         };
-                        ((Ok(id), None), true)
+                        Some(((Ok(given.recv().ok()?), None), true))
                     }));
-                    let (fitted, full) = screened.unwrap_or_else(|_| ((panicked(), None), true));
+                    let Some((fitted, full)) =
+                        screened.unwrap_or_else(|_| Some(((panicked(), None), true)))
+                    else {
+                        // The user's fit failed: nothing is fitted or diagnosed.
+                        return None;
+                    };
                     shared.screened(&fitted, full);
-                    let (mut fitted, out, smallest) = if full || no_start(&fitted) {
-                        (fitted, false, None)
-                    } else if fitted.0.is_err() {
-                        // A failed screening fit is fitted in full whatever the reference: no
-                        // need to wait for it.
-                        (fresh_fit(rec, m, opts), false, None)
-                    } else {
-                        let reference = shared.reference();
-                        match fitted {
-                            (Ok(id), cache)
-                                if base_rmse(&id) > FAR * reference
-                                    || reference.is_finite() && !id.usable() =>
-                            {
-                                ((Ok(id), cache), true, None)
-                            }
-                            (Ok(id), _) => match reduce_screened(rec, &id, opts) {
-                                Some((fitted, reduced)) => (fitted, false, Some(reduced)),
-                                None => (fresh_fit(rec, m, opts), false, None),
-                            },
-                            other => (other, false, None),
-                        }
-                    };
-                    // A degenerate two-mass fit is made well posed here, before its diagnosis
-                    // (the degenerate fit itself is then never diagnosed).
-                    let reduced = smallest.or_else(|| reduce_one(rec, &mut fitted, opts));
-                    let early = if out {
-                        None
-                    } else {
-                        shared.diagnose_early(rec, (i, board), &fitted, dopts)
-                    };
-                    Based {
-                        fitted,
-                        out,
-                        early,
-                        reduced,
+                    if shared.failed() {
+                        return None;
                     }
+                    Some(settle(
+                        rec,
+                        m,
+                        opts,
+                        (i, fitted, full),
+                        (shared, dopts, board),
+                    ))
                 })
             })
             .collect();
-        handles
+        let fitted = std::panic::catch_unwind(std::panic::AssertUnwindSafe(user));
+        let rmse = match &fitted {
+            Ok(Ok(u)) => Some(Some(base_rmse(u)).filter(|r| u.usable() && r.is_finite())),
+            _ => None,
+        };
+        shared.user_ended(rmse);
+        // (A send fails only when the first candidate's thread panicked: joined below.) The
+        // sender is dropped here, so that the first candidate's thread ends when nothing is sent.
+        let fitted = fitted.map(|f| f.map(|u| send_user.send(u).is_ok()));
+        drop(send_user);
+        let based: Vec<Based> = handles
             .into_iter()
             .map(|h| {
-                h.join().unwrap_or_else(|_| Based {
+                h.join().ok().flatten().unwrap_or_else(|| Based {
                     fitted: (panicked(), None),
                     out: false,
                     early: None,
                     reduced: None,
                 })
             })
-            .collect()
+            .collect();
+        match fitted {
+            Ok(f) => f.map(|_| based),
+            Err(panic) => std::panic::resume_unwind(panic),
+        }
     })
+}
+
+/// A candidate's base fit after its screening ([`fit_candidates`]): fitted in full, kept as
+/// screened (`out`), or reduced, and diagnosed at once when final and usable.
+fn settle(
+    rec: &Record,
+    m: &FracModel,
+    opts: &IdentOptions,
+    (i, fitted, full): (usize, Fitted, bool),
+    (shared, dopts, board): (&Shared, &super::DiagnoseOptions, &Board),
+) -> Based {
+    let (mut fitted, out, smallest) = if full || no_start(&fitted) {
+        (fitted, false, None)
+    } else if fitted.0.is_err() {
+        // A failed screening fit is fitted in full whatever the reference: no need to wait for
+        // it.
+        (fresh_fit(rec, m, opts), false, None)
+    } else {
+        let reference = shared.reference();
+        match fitted {
+            (Ok(id), cache)
+                if base_rmse(&id) > FAR * reference || reference.is_finite() && !id.usable() =>
+            {
+                ((Ok(id), cache), true, None)
+            }
+            (Ok(id), _) => match reduce_screened(rec, &id, opts) {
+                Some((fitted, reduced)) => (fitted, false, Some(reduced)),
+                None => (fresh_fit(rec, m, opts), false, None),
+            },
+            other => (other, false, None),
+        }
+    };
+    // A degenerate two-mass fit is made well posed here, before its diagnosis (the degenerate
+    // fit itself is then never diagnosed).
+    let reduced = smallest.or_else(|| reduce_one(rec, &mut fitted, opts));
+    let early = if out {
+        None
+    } else {
+        shared.diagnose_early(rec, (i, board), &fitted, dopts)
+    };
+    Based {
+        fitted,
+        out,
+        early,
+        reduced,
+    }
 }
 
 /// Whether a screening fit failed in its start ([`Error::NoStart`], the two-mass structure
@@ -596,99 +703,9 @@ fn diagnosis_order(ids: &[Result<Identification>], out: &[usize]) -> (Vec<usize>
     (first, later)
 }
 
-/// How far behind another structure after as many kept effects a structure's diagnosis may be
-/// and still be given its next round (successive halving): a structure whose held-out RMSE
-/// (estimation RMSE without a held-out part) after `r >= 1` effects exceeds `BEHIND` times the
-/// best among the structures diagnosed after `r` effects (or after all of theirs, when they
-/// ended sooner) is given no more rounds, and its row shows its model after those `r` effects
-/// ([`halving`]). The best is never halted; a halted structure ends more than `BEHIND` behind
-/// the best final model, beyond the ties ([`TIE`]), so it cannot be chosen. Like [`FAR`] for the
-/// base fits, it assumes a structure that far behind after as many effects does not overtake
-/// by its later ones: 10% is twice what one more effect must gain (the 5% held-out margin). On
-/// the real records in `data/`, the structures so halted (on the TCLab heater record the PMSM
-/// and the commensurate, 14.6% and 13.5% behind after one effect each) kept nothing more when
-/// diagnosed to the end; the nearest case kept was the first order of the motor/generator record,
-/// 6.7% behind after one effect, which its second brought within the ties (1.4%).
-pub const BEHIND: f64 = 1.1;
-
-/// The successive halving's board: the held-out RMSE after each number of kept effects of the
-/// structures being diagnosed (indices of the candidates), published by each diagnosis as it
-/// goes ([`super::diagnose_until`]'s `halt`). A diagnosis is halted before its next round or
-/// refit only when the values published already prove [`BEHIND`]'s rule (another structure's
-/// value after at most as many effects bounds its value after as many from above: a kept
-/// effect lowers the RMSE); [`halving`] applies the rule on the finished paths and
-/// [`diagnose_best`] rediagnoses in full any structure halted on a value it does not confirm.
-#[derive(Default)]
-struct Board {
-    paths: std::sync::Mutex<std::collections::BTreeMap<usize, Vec<f64>>>,
-}
-
-impl Board {
-    /// Publish that structure `i` has kept `r` effects with held-out RMSE `rmse` (a diagnosis
-    /// made again starts its path again), and whether it is halted: `r >= 1` and `rmse` more
-    /// than [`BEHIND`] times another's RMSE after at most `r` effects (its latest so far).
-    fn halt(&self, i: usize, r: usize, rmse: f64) -> bool {
-        let mut paths = self
-            .paths
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner);
-        let path = paths.entry(i).or_default();
-        path.truncate(r);
-        if path.len() == r {
-            path.push(rmse);
-        }
-        if r == 0 {
-            return false;
-        }
-        let best = paths
-            .iter()
-            .filter(|(j, _)| **j != i)
-            .filter_map(|(_, p)| p.get(r.min(p.len().saturating_sub(1))))
-            .copied()
-            .filter(|v| v.is_finite())
-            .fold(f64::INFINITY, f64::min);
-        rmse > BEHIND * best
-    }
-
-    /// Structure `i`'s diagnosis was given up or failed: its path is no reference.
-    fn clear(&self, i: usize) {
-        self.paths
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner)
-            .remove(&i);
-    }
-}
-
-/// [`BEHIND`]'s rule on the diagnoses' paths (`paths[i]`: held-out RMSE after `r` kept effects
-/// at `r`; `None` outside the comparison): for each `r >= 1` in turn, the best RMSE after `r`
-/// effects (a path that ended sooner, or was cut sooner, at its last value), and each path not
-/// cut yet with a value after `r` effects more than `BEHIND` times that best is cut at `r`.
-/// Returns where each path is cut (`None`: not cut).
-fn halving(paths: &[Option<&[f64]>]) -> Vec<Option<usize>> {
-    let mut cut: Vec<Option<usize>> = vec![None; paths.len()];
-    let longest = paths.iter().flatten().map(|p| p.len()).max().unwrap_or(0);
-    for r in 1..longest {
-        let at = |i: usize, p: &[f64]| p[cut[i].unwrap_or(p.len() - 1).min(r)];
-        let best = paths
-            .iter()
-            .enumerate()
-            .filter_map(|(i, p)| p.filter(|p| !p.is_empty()).map(|p| at(i, p)))
-            .filter(|v| v.is_finite())
-            .fold(f64::INFINITY, f64::min);
-        for (i, p) in paths.iter().enumerate() {
-            if let Some(p) = p {
-                if cut[i].is_none() && p.len() > r && p[r] > BEHIND * best {
-                    cut[i] = Some(r);
-                }
-            }
-        }
-    }
-    cut
-}
-
 /// Diagnose the identified structures `which` on all cores, each from its fit's pole cache, on
 /// the successive halving's `board` when given ([`Board`]).
-fn diagnose_these(
+pub(super) fn diagnose_these(
     rec: &Record,
     ids: &[Result<Identification>],
     caches: &[Option<RootsCache>],
@@ -722,84 +739,10 @@ fn diagnose_these(
     })
 }
 
-/// [`BEHIND`]'s rule applied to the finished `diagnoses` ([`halving`]; among the usable base
-/// fits when one is, as [`decide`]): where each structure's path is cut. A diagnosis halted at
-/// run time on a value the rule does not confirm (a structure given up since, or outside the
-/// comparison) is made again in full, without halting, until every halt is confirmed.
-fn confirm_halving(
-    rec: &Record,
-    ids: &[Result<Identification>],
-    caches: &[Option<RootsCache>],
-    diagnoses: &mut [(usize, Result<super::Diagnosis>)],
-    dopts: &super::DiagnoseOptions,
-) -> Vec<Option<usize>> {
-    loop {
-        let usable = |i: usize| ids[i].as_ref().is_ok_and(|id| id.problems.is_empty());
-        let any_usable = diagnoses.iter().any(|(i, d)| d.is_ok() && usable(*i));
-        let mut paths: Vec<Option<Vec<f64>>> = vec![None; ids.len()];
-        for (i, d) in diagnoses.iter() {
-            if let Ok(d) = d {
-                if !any_usable || usable(*i) {
-                    paths[*i] = Some(d.path.iter().map(|s| s.rmse).collect());
-                }
-            }
-        }
-        let refs: Vec<Option<&[f64]>> = paths.iter().map(|p| p.as_deref()).collect();
-        let cuts = halving(&refs);
-        let redo: Vec<usize> = diagnoses
-            .iter()
-            .filter(|(i, d)| {
-                d.as_ref()
-                    .is_ok_and(|d| d.halted.is_some() && cuts[*i].is_none())
-            })
-            .map(|(i, _)| *i)
-            .collect();
-        if redo.is_empty() {
-            return cuts;
-        }
-        for (i, d) in diagnose_these(rec, ids, caches, &redo, (dopts, None)) {
-            if let Some(slot) = diagnoses.iter_mut().find(|(j, _)| *j == i) {
-                slot.1 = d;
-            }
-        }
-    }
-}
-
-/// The rows of the structures whose paths are cut ([`halving`], `cuts`) before `max_rounds`
-/// effects show their models at the cut: the effects kept up to there, their held-out RMSE, BIC
-/// and free parameters (a path that ended there shows what it showed). Returns those structures
-/// with the effects kept: every cut, whether its diagnosis was halted there at run time or ran
-/// its next round and kept nothing (which depends on the threads' timing), so that the reason
-/// does not.
-fn halve_rows(
-    scores: &mut [StructureScore],
-    outcomes: &[Outcome],
-    cuts: &[Option<usize>],
-    max_rounds: usize,
-) -> Vec<(usize, usize)> {
-    let mut halved = vec![];
-    for (i, o) in outcomes.iter().enumerate() {
-        let (Some(r), Some(Ok(d))) = (cuts[i], &o.diagnosis) else {
-            continue;
-        };
-        if r >= max_rounds {
-            continue;
-        }
-        let step = d.path[r];
-        let s = &mut scores[i];
-        s.effects.truncate(r);
-        s.rmse_after = Some(step.rmse);
-        s.bic_after = Some(step.bic);
-        s.free_params = step.free_params;
-        halved.push((i, r));
-    }
-    halved
-}
-
 /// One structure's identification (when it succeeded) and diagnosis (`None`: not diagnosed).
-struct Outcome {
-    id: Option<Identification>,
-    diagnosis: Option<Result<super::Diagnosis>>,
+pub(super) struct Outcome {
+    pub(super) id: Option<Identification>,
+    pub(super) diagnosis: Option<Result<super::Diagnosis>>,
 }
 
 impl StructureScore {
@@ -1017,9 +960,27 @@ pub fn diagnose_best(
     opts: &IdentOptions,
     dopts: &super::DiagnoseOptions,
 ) -> Result<Diagnosed> {
+    diagnose_best_fitting(rec, label, model, || Ok(user), opts, dopts)
+}
+
+/// [`diagnose_best`] with the user's structure fitted by `user` on the calling thread, while the
+/// other candidates' fits run beside it on the other cores (the user's fit alone held one core
+/// and left the others idle): the same fits and diagnoses, the same result. `user` runs once,
+/// on this thread (it may hold what cannot be sent to another thread, a progress observer).
+///
+/// # Errors
+/// `user`'s error; as [`diagnose_best`].
+pub fn diagnose_best_fitting(
+    rec: &Record,
+    label: &str,
+    model: &FracModel,
+    user: impl FnOnce() -> Result<Identification>,
+    opts: &IdentOptions,
+    dopts: &super::DiagnoseOptions,
+) -> Result<Diagnosed> {
     let mut cands = with_feedthrough(rec, candidates(label, model), model);
     let board = Board::default();
-    let based = fit_candidates(rec, &cands, user, opts, (dopts, &board));
+    let based = fit_candidates(rec, &cands, user, opts, (dopts, &board))?;
     let screened_out: Vec<usize> = (0..based.len()).filter(|&i| based[i].out).collect();
     let mut early = vec![];
     // A degenerate two-mass fit made well posed on its thread ([`reduce_one`]): renamed
@@ -1820,60 +1781,53 @@ mod tests {
         assert!(s.failed.is_some() && s.problems.is_empty(), "{s:?}");
     }
 
-    /// The successive halving on the TCLab heater record's paths (held-out RMSE after 0, 1, ..
-    /// effects, rounded from a full diagnosis): the PMSM (14.6% behind the second order after
-    /// one effect) is cut there; the commensurate (13.5%) is cut at its last point (nothing
-    /// changes); the third order (6.4%) and the leader are not; on the motor/generator record's
-    /// the first order, 6.7% behind after one effect, is not (its second brought it within the
-    /// ties). A structure that ended sooner counts at its last value; one outside the
-    /// comparison (`None`) is neither cut nor a reference.
+    /// The user's fit run beside the candidates' ([`diagnose_best_fitting`]) against the same fit
+    /// made first and given ([`diagnose_best`]), the user's structure the PMSM, on a first-order
+    /// plant `2/(0.1 s + 1)` with a 3-sample delay driven by a held square wave (noise-free
+    /// held-input data): the same chosen
+    /// structure, the same rows (held-out RMSE and BIC bit for bit) and the same reason; and a
+    /// user's fit that fails ends the comparison with its error, whatever the candidates do.
     #[test]
-    fn the_halving_cuts_only_paths_far_behind_after_as_many_effects() {
-        let second = [0.4275, 0.2628];
-        let third = [0.3417, 0.2796];
-        let pmsm = [0.4516, 0.3011, 0.2950];
-        let comm = [0.6058, 0.2983];
-        let outside = [0.1, 0.01, 0.001];
-        let cuts = halving(&[Some(&pmsm), Some(&comm), Some(&second), Some(&third), None]);
-        assert_eq!(cuts, [Some(1), Some(1), None, None, None]);
-        // The outside path would cut every other one.
-        assert_eq!(halving(&[Some(&second), Some(&outside)]), [Some(1), None]);
-        let motor_pmsm = [562.0, 511.8];
-        let first = [599.2, 546.2, 518.8];
-        assert_eq!(halving(&[Some(&motor_pmsm), Some(&first)]), [None, None]);
-        // After two effects the best is the first path's last value (it ended after one):
-        // 0.56 is more than 1.1 x 0.50, 0.54 is not.
-        let ended = [1.0, 0.50];
-        let behind = [1.0, 0.545, 0.56];
-        let near = [1.0, 0.545, 0.54];
-        assert_eq!(
-            halving(&[Some(&ended), Some(&behind), Some(&near)]),
-            [None, Some(2), None]
+    fn the_users_fit_beside_the_candidates_gives_the_same_choice() {
+        let dt = 0.01;
+        let u: Vec<f64> = (0..900)
+            .map(|k| if (k / 37) % 3 == 0 { 1.0 } else { -0.5 })
+            .collect();
+        let y0 = crate::testdata::first_order_held(&u, dt, 0.1, 2.0);
+        let y: Vec<f64> = (0..u.len()).map(|k| y0[k.saturating_sub(3)]).collect();
+        let rec = Record::from_samples(&u, &y, dt).unwrap();
+        let model = FracModel::pmsm(1.0, 0.1, 0.01, 0.9, 0.5);
+        let opts = IdentOptions::default();
+        let dopts = super::super::DiagnoseOptions::default();
+        let user = || identify(&rec, &model, &opts);
+        let given = diagnose_best(&rec, "pmsm", &model, user().unwrap(), &opts, &dopts).unwrap();
+        let beside = diagnose_best_fitting(&rec, "pmsm", &model, user, &opts, &dopts).unwrap();
+        let rows = |d: &Diagnosed| {
+            d.choice
+                .scores
+                .iter()
+                .map(|s| {
+                    (
+                        s.name.clone(),
+                        s.rmse,
+                        s.rmse_after,
+                        s.bic_after,
+                        s.effects.clone(),
+                    )
+                })
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(given.choice.chosen, beside.choice.chosen);
+        assert_eq!(rows(&given), rows(&beside));
+        assert_eq!(given.choice.reason, beside.choice.reason);
+        let failed = diagnose_best_fitting(
+            &rec,
+            "pmsm",
+            &model,
+            || Err(Error::Cancelled("the user's fit".into())),
+            &opts,
+            &dopts,
         );
-    }
-
-    /// The board halts a diagnosis only on values already published that bound the best after
-    /// as many effects from above (another's latest value after at most as many), never before
-    /// the first effect, and a diagnosis made again starts its path again.
-    #[test]
-    fn the_board_halts_only_on_what_is_published() {
-        let b = Board::default();
-        assert!(!b.halt(0, 0, 0.45));
-        assert!(!b.halt(1, 0, 0.43));
-        // Structure 1 is still in its first round: its base value 0.43 is the bound.
-        assert!(!b.halt(0, 1, 0.45));
-        assert!(!b.halt(0, 1, 0.47));
-        assert!(b.halt(0, 1, 0.48));
-        // Structure 1 keeps an effect: 0.26.
-        assert!(!b.halt(1, 1, 0.26));
-        assert!(b.halt(0, 1, 0.30));
-        // Structure 0 made again: its path starts again, 1's is kept.
-        assert!(!b.halt(0, 0, 0.45));
-        assert!(!b.halt(1, 2, 0.25));
-        assert!(b.halt(0, 1, 0.2861));
-        assert!(!b.halt(0, 1, 0.2859));
-        // Given up: no reference any more.
-        b.clear(1);
-        assert!(!b.halt(0, 2, 10.0));
+        assert!(matches!(failed, Err(Error::Cancelled(_))), "{failed:?}");
     }
 }
