@@ -12,6 +12,7 @@ use crate::{Error, Result};
 use fracsim::{Dual, FracTf};
 use std::time::{Duration, Instant};
 
+mod held;
 mod varpro;
 
 /// Options of [`fit`].
@@ -1081,8 +1082,10 @@ fn identify_at_scale(
     for p in &mut m.params {
         p.value = p.bounds.clamp_inside(p.value);
     }
-    let start = m.values();
     let (u_est, y_est) = (&u[..split], &y[..split]);
+    // Only record parameters free (the plant held): their exact estimate as the start.
+    held::exact_start(&mut m, u_est, y_est, rec.dt, opts.fit.skip.min(split));
+    let start = m.values();
     let report = fit_in(&m, u_est, y_est, rec.dt, &opts.fit, progress, buffers)?;
     for (p, v) in m.params.iter_mut().zip(&report.values) {
         p.value = *v;
