@@ -151,7 +151,6 @@ fn box_least_squares(cols: &[Vec<f64>], r: &[f64], bounds: &[Bounds]) -> Option<
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::oe::Structure as _;
 
     /// The PMSM with a 3-edge past input and an output offset, the plant held, on a record
     /// simulated at known record parameters (noise free): the exact start recovers them (1e-8:
