@@ -279,7 +279,7 @@ XFAIL: dict[str, str] = {
     # the fopdt structure reaches 0.311 from rest, 0.2995 with the initial state estimated.
     "tclab_step": (
         "fracid's tail RMSE 0.452 K vs integer baseline 0.284 K (first order + 15 s delay); "
-        "with --diagnose 0.280 K (third order + initial_state)"
+        "with --diagnose 0.263 K (second order + initial_state)"
     ),
     # 1024 samples, t in samples (no period stated), a flexible robot arm on an electric motor:
     # reaction torque -> arm acceleration, a sine sweep over 0-0.2 cycles/sample, a negative gain
