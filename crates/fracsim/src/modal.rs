@@ -30,7 +30,7 @@
 use crate::approx::{approximate, ApproxSpec, Rational};
 use crate::cx::Cx;
 use crate::error::{finite, invalid, Error, Result};
-use crate::scalar::{Dual, Real};
+use crate::scalar::Real;
 use nalgebra::{DMatrix, DVector};
 use num_complex::Complex64;
 
@@ -961,7 +961,6 @@ fn expansion<T: Real>(
         .enumerate()
         .flat_map(|(gi, g)| (0..g.poles.len()).map(move |k| (gi, k)))
         .collect();
-    let mut second: Option<SecondDerivative> = None;
     for &r in roots.iter().filter(|r| r.im >= 0.0) {
         // One Newton step in the scalar type: exact derivatives of the root.
         let s0 = Cx::<T>::cst(r);
@@ -986,14 +985,6 @@ fn expansion<T: Real>(
             // A step of zero (a value root polished to the last bit): `F'` at `lam` is the one
             // just computed.
             df
-        } else if T::has_parts() && !exact_second_eval() {
-            // `F'(lam) = F'(s0) + F''(s0) (lam - s0)`: exact in the derivative parts (first
-            // order is all a dual number carries; `F''`'s own derivative parts multiply the
-            // value of `lam - s0`, a rounding-sized step), and in the value to the step's
-            // square. `F''(s0)` in values only: a dual-number evaluation of `F'` fewer.
-            let h2 = second.get_or_insert_with(|| SecondDerivative::of(hg64));
-            let times64 = near.map(|(p, _)| p);
-            df + Cx::cst(h2.at(r, times64)) * (lam - s0)
         } else {
             eval_sum_times(hg, lam, times).1
         };
@@ -1002,50 +993,6 @@ fn expansion<T: Real>(
         push_pole(&mut out, lam, res, r.im == 0.0);
     }
     finish(out, hg, ng, d)
-}
-
-/// `F''(s)` of `F = H` (or `H (s + p)`), values only: [`eval_sum_times`] over the groups' values
-/// with `s` a dual number in the direction of its real part (for an analytic function the
-/// derivative of `F'` along the real axis is `F''`).
-struct SecondDerivative(Vec<Group<Dual<1>>>);
-
-impl SecondDerivative {
-    fn of(hg64: &[Group<f64>]) -> Self {
-        let cst = |v: &[f64]| v.iter().map(|&x| Dual::cst(x)).collect();
-        Self(
-            hg64.iter()
-                .map(|g| Group {
-                    zeros: cst(&g.zeros),
-                    poles: cst(&g.poles),
-                    coef: cst(&g.coef),
-                })
-                .collect(),
-        )
-    }
-
-    fn at(&self, s: Complex64, times: Option<f64>) -> Complex64 {
-        let s = Cx {
-            re: Dual::<1>::var(s.re, 0),
-            im: Dual::cst(s.im),
-        };
-        let (_, df) = eval_sum_times(&self.0, s, times.map(Dual::cst));
-        Complex64::new(df.re.d[0], df.im.d[0])
-    }
-}
-
-#[cfg(test)]
-thread_local! {
-    /// Tests only: [`expansion`] of a dual model evaluates `F'` at the stepped root again (the
-    /// reference its first-order update is tested against).
-    static EXACT_SECOND_EVAL: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
-}
-
-/// Whether [`expansion`] evaluates `F'` at the stepped root of a dual model again (tests only).
-fn exact_second_eval() -> bool {
-    #[cfg(test)]
-    return EXACT_SECOND_EVAL.with(|e| e.get());
-    #[cfg(not(test))]
-    false
 }
 
 /// [`expansion`] of a model with no cells (every order an integer: a rational model, nothing
@@ -1416,68 +1363,6 @@ mod tests {
             sum.abs() <= 1e-9 * scale,
             "d/dzeta sum r/lambda = {sum}, not zero (scale {scale})"
         );
-    }
-
-    /// The first-order update of `F'` at the stepped root ([`SecondDerivative`]) against the
-    /// exact evaluation there it replaces, on the PMSM at dt = 2e-4 (near-cancelling pairs a hair
-    /// from cell poles, taken through `F = H (s + p)`) and at a lightly damped resonance (complex
-    /// poles), with two dual parts (the order and a coefficient): every pole, residue and
-    /// derivative part the same to 1e-12 relative (plus 1e-13 of the largest residue). The two
-    /// differ by the step's square (the roots are polished to rounding) and by rounding.
-    #[test]
-    fn the_first_order_update_of_the_derivative_equals_its_evaluation() {
-        use crate::scalar::Dual;
-        let dt = 2e-4;
-        let band = (1e-3, 30.0 * std::f64::consts::PI / dt);
-        for (zeta, a1) in [(0.9, 0.006), (0.97, 2e-4)] {
-            let build = |exact: bool| {
-                RootsCache::default().install();
-                EXACT_SECOND_EVAL.with(|e| e.set(exact));
-                let c = |v: f64| Dual::<2>::cst(v);
-                let z = Dual::<2>::var(zeta, 0);
-                let pr = pole_residue::<Dual<2>>(
-                    &[(c(6.8), c(0.0))],
-                    &[
-                        (c(2.7e-5), z + c(0.8)),
-                        (Dual::var(a1, 1), z),
-                        (c(1.0), c(0.0)),
-                    ],
-                    band,
-                    &ApproxSpec::default(),
-                )
-                .unwrap();
-                EXACT_SECOND_EVAL.with(|e| e.set(false));
-                pr
-            };
-            let (fast, exact) = (build(false), build(true));
-            assert!(!exact.complex.is_empty() || zeta < 0.95);
-            assert_eq!(fast.real.len(), exact.real.len());
-            assert_eq!(fast.complex.len(), exact.complex.len());
-            let parts = |v: Dual<2>| [v.v, v.d[0], v.d[1]];
-            let r_max = exact
-                .real
-                .iter()
-                .map(|p| p.1.v.abs())
-                .chain(exact.complex.iter().map(|p| p.1.re.v.hypot(p.1.im.v)))
-                .fold(0.0, f64::max);
-            let mut pairs: Vec<(Dual<2>, Dual<2>, f64)> = vec![];
-            for (a, b) in fast.real.iter().zip(&exact.real) {
-                pairs.push((a.0, b.0, 0.0));
-                pairs.push((a.1, b.1, r_max));
-            }
-            for (a, b) in fast.complex.iter().zip(&exact.complex) {
-                pairs.extend([(a.0.re, b.0.re, 0.0), (a.0.im, b.0.im, 0.0)]);
-                pairs.extend([(a.1.re, b.1.re, r_max), (a.1.im, b.1.im, r_max)]);
-            }
-            for (a, b, scale) in pairs {
-                for (x, y) in parts(a).into_iter().zip(parts(b)) {
-                    assert!(
-                        (x - y).abs() <= 1e-12 * y.abs() + 1e-13 * scale,
-                        "zeta {zeta}: {a:?} vs {b:?}"
-                    );
-                }
-            }
-        }
     }
 
     /// A model built from the poles of a nearby one (the cache's hint) equals the cold build, for

@@ -54,12 +54,6 @@ pub trait Real:
     fn run_simulator(sim: &mut crate::Simulator<Self>, u: &[f64], y: &mut [Self]) {
         sim.run_generic(u, y);
     }
-    /// Whether the type carries derivative parts beside its value (a dual number): code that
-    /// only needs those parts to first order may then take a cheaper route.
-    #[doc(hidden)]
-    fn has_parts() -> bool {
-        false
-    }
     /// Absolute value.
     fn abs(self) -> Self {
         if self.re() < 0.0 {
@@ -262,9 +256,6 @@ impl<const N: usize> Real for Dual<N> {
     #[inline]
     fn re(self) -> f64 {
         self.v
-    }
-    fn has_parts() -> bool {
-        N > 0
     }
     fn run_simulator(sim: &mut crate::Simulator<Self>, u: &[f64], y: &mut [Self]) {
         crate::discrete::run_dual(sim, u, y);
