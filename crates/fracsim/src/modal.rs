@@ -981,7 +981,13 @@ fn expansion<T: Real>(
         let times = near.map(|(_, (gi, k))| hg[gi].poles[k]);
         let (f, df) = eval_sum_times(hg, s0, times);
         let lam = s0 - f / df;
-        let (_, df) = eval_sum_times(hg, lam, times);
+        let df = if lam == s0 {
+            // A step of zero (a value root polished to the last bit): `F'` at `lam` is the one
+            // just computed.
+            df
+        } else {
+            eval_sum_times(hg, lam, times).1
+        };
         let (nv, _) = eval_sum_times(ng, lam, times);
         let res = nv / df;
         push_pole(&mut out, lam, res, r.im == 0.0);

@@ -113,6 +113,36 @@ fn gram(cols: &[Vec<f64>]) -> Vec<f64> {
     g
 }
 
+/// `D` and `L` of the equilibrated Gram matrix `D A^T A D = L L^T` ([`LinearBasis`]) of `c`
+/// columns from their Gram matrix `gram` (row-major `c x c`); `None` when a pivot is below
+/// [`GRAM_MIN_PIVOT`] (or a column is zero or not finite).
+fn equilibrated_cholesky(gram: &[f64], c: usize) -> Option<(Vec<f64>, Vec<f64>)> {
+    let scale: Vec<f64> = (0..c)
+        .map(|j| 1.0 / gram[j * c + j].sqrt())
+        .collect::<Vec<f64>>();
+    if !scale.iter().all(|d| d.is_finite() && *d > 0.0) {
+        return None;
+    }
+    let mut l = vec![0.0; c * c];
+    for i in 0..c {
+        for j in 0..=i {
+            let mut v = gram[i * c + j] * scale[i] * scale[j];
+            for k in 0..j {
+                v -= l[i * c + k] * l[j * c + k];
+            }
+            if i == j {
+                if !(v > GRAM_MIN_PIVOT * GRAM_MIN_PIVOT) {
+                    return None;
+                }
+                l[i * c + i] = v.sqrt();
+            } else {
+                l[i * c + j] = v / l[j * c + j];
+            }
+        }
+    }
+    Some((scale, l))
+}
+
 /// The linear parameters' columns `A` (`c` of them) with the Cholesky factor of their
 /// equilibrated Gram matrix, `D A^T A D = L L^T` (`D` = `1/||A_j||` on the diagonal): the least
 /// squares solution `x = D (L L^T)^-1 D A^T y` and the projection orthogonal to the columns,
@@ -135,37 +165,20 @@ struct LinearBasis {
 impl LinearBasis {
     /// From the columns `cols` and their Gram matrix `gram` (row-major `c x c`, `A^T A`); `None`
     /// when a pivot is below [`GRAM_MIN_PIVOT`] (or a column is zero or not finite).
+    #[cfg(test)]
     fn from_gram(cols: Vec<Vec<f64>>, gram: &[f64]) -> Option<Self> {
-        let c = cols.len();
-        let scale: Vec<f64> = (0..c)
-            .map(|j| 1.0 / gram[j * c + j].sqrt())
-            .collect::<Vec<f64>>();
-        if !scale.iter().all(|d| d.is_finite() && *d > 0.0) {
-            return None;
-        }
-        let mut l = vec![0.0; c * c];
-        for i in 0..c {
-            for j in 0..=i {
-                let mut v = gram[i * c + j] * scale[i] * scale[j];
-                for k in 0..j {
-                    v -= l[i * c + k] * l[j * c + k];
-                }
-                if i == j {
-                    if !(v > GRAM_MIN_PIVOT * GRAM_MIN_PIVOT) {
-                        return None;
-                    }
-                    l[i * c + i] = v.sqrt();
-                } else {
-                    l[i * c + j] = v / l[j * c + j];
-                }
-            }
-        }
-        Some(Self {
+        let (scale, chol) = equilibrated_cholesky(gram, cols.len())?;
+        Some(Self::with_factor(cols, scale, chol))
+    }
+
+    /// From the columns and the factor [`equilibrated_cholesky`] made of their Gram matrix.
+    fn with_factor(cols: Vec<Vec<f64>>, scale: Vec<f64>, chol: Vec<f64>) -> Self {
+        Self {
             cols,
             scale,
-            chol: l,
+            chol,
             r: None,
-        })
+        }
     }
 
     /// By modified Gram-Schmidt ([`orthonormalise`]); `None` when the columns are singular.
@@ -264,6 +277,9 @@ pub(super) struct Reduced<'a, S: Structure> {
     start_ssr: Option<f64>,
     /// The levels (indices into `free`) the last solution held at an edge of their range.
     held: Vec<usize>,
+    /// Column buffers of `m` samples a former basis left, for the next solution's columns
+    /// (each solution would otherwise allocate and fault in its own).
+    spare: Vec<Vec<f64>>,
 }
 
 impl<'a, S: Structure> Reduced<'a, S> {
@@ -296,6 +312,7 @@ impl<'a, S: Structure> Reduced<'a, S> {
             yhat: vec![0.0; u.len()],
             start_ssr: None,
             held: vec![],
+            spare: vec![],
         }
     }
 
@@ -315,7 +332,12 @@ impl<'a, S: Structure> Reduced<'a, S> {
         let p = physical(s, self.free, self.base, &th);
         let which: Vec<usize> = plan.lin.iter().map(|&i| self.free[i]).collect();
         let m = self.y.len() - skip;
-        let mut cols = vec![vec![0.0; m]; which.len()];
+        let mut cols: Vec<Vec<f64>> = (0..which.len())
+            .map(|_| match self.spare.pop() {
+                Some(c) if c.len() == m => c,
+                _ => vec![0.0; m],
+            })
+            .collect();
         {
             let mut out: Vec<&mut [f64]> = cols.iter_mut().map(|c| c.as_mut_slice()).collect();
             s.simulate_with_linear(&p, &which, self.u, self.dt, &mut self.yhat, skip, &mut out)?;
@@ -334,11 +356,16 @@ impl<'a, S: Structure> Reduced<'a, S> {
         if !(k.is_finite() && k != 0.0) {
             return Err(Error::Numerical("variable projection: a zero gain".into()));
         }
-        // The basis: F_i = d yhat/d w_i / K; G0 u = d yhat/d K - sum_i w_i F_i.
+        // The basis: F_i = d yhat/d w_i / K; G0 u = d yhat/d K - sum_i w_i F_i (each column
+        // made in its own buffer).
         let f: Vec<Vec<f64>> = plan
             .levels
             .iter()
-            .map(|&l| cols[l].iter().map(|v| v / k).collect())
+            .map(|&l| {
+                let mut c = std::mem::take(&mut cols[l]);
+                c.iter_mut().for_each(|v| *v /= k);
+                c
+            })
             .collect();
         let mut g = std::mem::take(&mut cols[plan.gain]);
         for (&l, fi) in plan.levels.iter().zip(&f) {
@@ -351,8 +378,11 @@ impl<'a, S: Structure> Reduced<'a, S> {
         let mut raw: Vec<Vec<f64>> = Vec::with_capacity(f.len() + 2);
         raw.push(g);
         raw.extend(f);
-        if plan.offset.is_some() {
-            raw.push(vec![1.0; m]);
+        if let Some(o) = plan.offset {
+            // The offset's sensitivity: 1 at every sample.
+            let mut ones = std::mem::take(&mut cols[o]);
+            ones.iter_mut().for_each(|v| *v = 1.0);
+            raw.push(ones);
         }
         let nr = raw.len();
         let gram = gram(&raw);
@@ -420,13 +450,23 @@ impl<'a, S: Structure> Reduced<'a, S> {
                     })
                     .collect()
             };
-            let basis = LinearBasis::from_gram(cols(), &ga)
-                .or_else(|| LinearBasis::orthonormal(cols()))
-                .ok_or_else(|| {
+            // With no level held the columns are the raw ones: moved into the basis (and back
+            // should a level be held after all), not copied.
+            let unit = held.iter().all(Option::is_none);
+            let basis = match equilibrated_cholesky(&ga, c) {
+                Some((scale, chol)) if unit => {
+                    LinearBasis::with_factor(std::mem::take(&mut raw), scale, chol)
+                }
+                Some((scale, chol)) => LinearBasis::with_factor(cols(), scale, chol),
+                None => LinearBasis::orthonormal(cols()).ok_or_else(|| {
                     Error::Numerical("variable projection: the linear basis is singular".into())
-                })?;
+                })?,
+            };
             let aty = if basis.r.is_some() { basis.at(y) } else { aty };
-            let mut fitted = vec![0.0; m];
+            let mut fitted = match self.spare.pop() {
+                Some(v) if v.len() == m => v,
+                _ => vec![0.0; m],
+            };
             let x = basis.least_squares(&aty, y, &mut fitted);
             let a = x[0];
             if !(a.is_finite() && a != 0.0)
@@ -449,6 +489,10 @@ impl<'a, S: Structure> Reduced<'a, S> {
                 }
             }
             if again {
+                if raw.is_empty() {
+                    raw = basis.cols;
+                }
+                self.spare.push(fitted);
                 continue;
             }
             let to = |k: usize, v: f64| {
@@ -465,8 +509,11 @@ impl<'a, S: Structure> Reduced<'a, S> {
             }
             self.theta = th;
             self.at = Some(theta_n.to_vec());
-            self.basis = basis;
-            self.fitted = fitted;
+            let old = std::mem::replace(&mut self.basis, basis);
+            self.spare.extend(old.cols);
+            self.spare.push(std::mem::replace(&mut self.fitted, fitted));
+            self.spare.extend(raw.into_iter().filter(|c| c.len() == m));
+            self.spare.truncate(which.len() + 2);
             self.held = (0..nf)
                 .filter(|&i| held[i].is_some())
                 .map(|i| plan.lin[plan.levels[i]])
