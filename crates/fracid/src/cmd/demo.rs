@@ -11,9 +11,13 @@
 
 use crate::bad_input;
 use anyhow::{Context, Result};
-use drive::client::{Client, ClientConfig, CsvSink, LazyFile, PrbsTest, SineSweep, SweepEvent};
-use drive::protocol::Configure;
-use drive::sim::{DriveSim, Effects, SimClock, SimConfig};
+use drive::bode::BodePoint;
+use drive::client::{
+    Acquisition, Client, ClientConfig, ClientStats, CsvSink, LazyFile, PrbsTest, SineSweep,
+    SweepEvent,
+};
+use drive::protocol::{Configure, HelloReply};
+use drive::sim::{DriveSim, Effects, SimClock, SimConfig, SimStats};
 use serde_json::Value;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -85,6 +89,86 @@ pub fn run(a: DemoArgs) -> Result<()> {
     let dir = &a.out;
 
     // 1. The simulated drive, with effects nobody declares to the identification.
+    let (sim, true_model) = spawn_drive(&a)?;
+
+    // 2. Acquire.
+    let mut client = Client::open(
+        sim.port_path(),
+        ClientConfig {
+            baud: a.baud,
+            clock: sim.virtual_clock(),
+            ..ClientConfig::default()
+        },
+    )
+    .context("cannot open the simulated drive")?;
+    let hello = client.hello().context("the drive did not answer HELLO")?;
+    let cfg = Configure {
+        sample_rate_hz: a.sample_rate_hz,
+        ..Configure::default()
+    };
+    client.configure(&cfg).context("CONFIGURE failed")?;
+    let prbs = acquire_prbs(&mut client, &a)?;
+    let sweep = acquire_sweep(&mut client, &a)?;
+    let link_stats = client.stats();
+    drop(client);
+    let sim_stats = sim.stats();
+
+    // 3. Identify and diagnose in this process, with the use cases the commands run (each
+    // model fitted and diagnosed once; its text, JSON and plots made from the one result).
+    let models = identify(&a, &prbs.steady_path, &sweep.path)?;
+    step("the two models side by side (the paper's Fig. 5)");
+    let cmp_txt = compare_models(dir, &models)?;
+
+    // 3b. The tuned loop on the drive (cmd/demo_loop.rs); the drive was kept running for it.
+    step("the tuned loop on the drive");
+    let model = crate::cmd::demo_loop::model_of(&dir.join("time.json"))?;
+    let tuned = crate::cmd::demo_loop::run(
+        sim.port_path(),
+        ClientConfig {
+            baud: a.baud,
+            clock: sim.virtual_clock(),
+            ..ClientConfig::default()
+        },
+        a.sample_rate_hz,
+        &model,
+        dir,
+    )?;
+    sim.stop();
+    if let (Some(rec), Some(fig)) = (&tuned.record, &tuned.figure) {
+        step(&format!(
+            "tuned loop: {} and {}",
+            rec.display(),
+            fig.display()
+        ));
+    }
+
+    // 4. The report.
+    let outcome = Outcome {
+        hello,
+        prbs,
+        sweep,
+        link_stats,
+        sim_stats,
+        models,
+        cmp_txt,
+        true_model,
+        loop_lines: tuned.lines,
+    };
+    let mut r = report_md(&a, &outcome)?;
+    writeln!(r, "Total time: {:.1} s.", started.elapsed().as_secs_f64())?;
+    let report = dir.join("report.md");
+    std::fs::write(&report, r).with_context(|| format!("cannot write {}", report.display()))?;
+    step(&format!(
+        "done in {:.1} s: report {}",
+        started.elapsed().as_secs_f64(),
+        report.display()
+    ));
+    Ok(())
+}
+
+/// The simulated drive on virtual time with the demo's hidden effects, and its true motor model
+/// as text.
+fn spawn_drive(a: &DemoArgs) -> Result<(DriveSim, String)> {
     let effects = Effects {
         delay_s: a.hidden_delay,
         noise_std: a.hidden_noise,
@@ -112,7 +196,7 @@ pub fn run(a: DemoArgs) -> Result<()> {
         },
         ..sim_cfg
     };
-    let true_model = sim_cfg.model.clone();
+    let true_model = sim_cfg.model.to_string();
     let firmware_c = sim_cfg.firmware == drive::sim::FirmwareKind::C;
     let sim = DriveSim::spawn(sim_cfg).context("cannot start the drive simulator")?;
     step(&format!(
@@ -121,43 +205,38 @@ pub fn run(a: DemoArgs) -> Result<()> {
         sim.port_path(),
         a.baud
     ));
+    Ok((sim, true_model))
+}
 
-    // 2. Acquire.
-    let mut client = Client::open(
-        sim.port_path(),
-        ClientConfig {
-            baud: a.baud,
-            clock: sim.virtual_clock(),
-            ..ClientConfig::default()
-        },
-    )
-    .context("cannot open the simulated drive")?;
-    let hello = client.hello().context("the drive did not answer HELLO")?;
-    let cfg = Configure {
-        sample_rate_hz: a.sample_rate_hz,
-        ..Configure::default()
-    };
-    client.configure(&cfg).context("CONFIGURE failed")?;
-    let prbs_path = dir.join("prbs.csv");
-    let prbs_test = PrbsTest {
+/// The PRBS run as acquired, and the record the identification gets.
+struct Prbs {
+    test: PrbsTest,
+    acq: Acquisition,
+    /// From this time on (s) the record is at its steady operating point.
+    t_start: f64,
+    steady_path: PathBuf,
+}
+
+/// The PRBS run into `prbs.csv` (the file created when the drive acknowledges the START, as
+/// `fracid drive prbs`), and `prbs_steady.csv` from 0.1 s before the PRBS on.
+///
+/// # Errors
+/// A failed or incomplete run (what arrived stays in the file), a file that cannot be written.
+fn acquire_prbs(client: &mut Client, a: &DemoArgs) -> Result<Prbs> {
+    let prbs_path = a.out.join("prbs.csv");
+    let test = PrbsTest {
         periods: a.periods,
         ..PrbsTest::paper()
     };
     step(&format!(
         "PRBS: order {}, clock {} s, {} periods, {} V around {} V, at {} Hz",
-        prbs_test.order,
-        prbs_test.clock_s,
-        prbs_test.periods,
-        prbs_test.amplitude_v,
-        prbs_test.offset_v,
-        a.sample_rate_hz
+        test.order, test.clock_s, test.periods, test.amplitude_v, test.offset_v, a.sample_rate_hz
     ));
-    // created when the drive has acknowledged the START (as `fracid drive prbs`)
     let file = LazyFile::new(&prbs_path)
         .with_context(|| format!("cannot create {}", prbs_path.display()))?;
     let mut sink = CsvSink::new(file);
     let acq = client
-        .run_prbs(&prbs_test, &mut sink)
+        .run_prbs(&test, &mut sink)
         .context("the PRBS run failed")?;
     drop(sink);
     if !acq.complete {
@@ -175,26 +254,46 @@ pub fn run(a: DemoArgs) -> Result<()> {
     // The record starts with the motor at rest; the drive then holds the operating point for
     // `settle_s` before the PRBS. Identification works on deviations from a steady operating
     // point, so it gets the record from 0.1 s before the PRBS on (the raw record stays as acquired).
-    let t_start = (prbs_test.settle_s - 0.1).max(0.0);
-    let steady_path = dir.join("prbs_steady.csv");
-    {
-        let mut w = std::io::BufWriter::new(
-            std::fs::File::create(&steady_path)
-                .with_context(|| format!("cannot create {}", steady_path.display()))?,
-        );
-        use std::io::Write as _;
-        writeln!(
-            w,
-            "# {} from t = {t_start} s (steady operating point)",
-            prbs_path.display()
-        )?;
-        writeln!(w, "t,u,y")?;
-        for k in (0..acq.t.len()).filter(|&k| acq.t[k] >= t_start - 1e-9) {
-            writeln!(w, "{:.6},{},{}", acq.t[k], acq.u[k], acq.y[k])?;
-        }
-        w.flush()?;
+    let t_start = (test.settle_s - 0.1).max(0.0);
+    let steady_path = a.out.join("prbs_steady.csv");
+    let mut w = std::io::BufWriter::new(
+        std::fs::File::create(&steady_path)
+            .with_context(|| format!("cannot create {}", steady_path.display()))?,
+    );
+    use std::io::Write as _;
+    writeln!(
+        w,
+        "# {} from t = {t_start} s (steady operating point)",
+        prbs_path.display()
+    )?;
+    writeln!(w, "t,u,y")?;
+    for k in (0..acq.t.len()).filter(|&k| acq.t[k] >= t_start - 1e-9) {
+        writeln!(w, "{:.6},{},{}", acq.t[k], acq.u[k], acq.y[k])?;
     }
+    w.flush()?;
+    Ok(Prbs {
+        test,
+        acq,
+        t_start,
+        steady_path,
+    })
+}
 
+/// The sine sweep's Bode table as measured.
+struct Sweep {
+    sweep: SineSweep,
+    points: Vec<BodePoint>,
+    lost: Vec<String>,
+    path: PathBuf,
+}
+
+/// The sine sweep (1-100 Hz, 16 frequencies, `--repeats` each) into `bode.csv`, written point
+/// by point as measured; the frequencies that gave no point named in it.
+///
+/// # Errors
+/// A failed sweep (the points measured stay in the file, with the error), a file that cannot
+/// be written.
+fn acquire_sweep(client: &mut Client, a: &DemoArgs) -> Result<Sweep> {
     let mut sweep = SineSweep::log(1.0, 100.0, 16);
     sweep.repeats = a.repeats;
     step(&format!(
@@ -204,7 +303,7 @@ pub fn run(a: DemoArgs) -> Result<()> {
         sweep.freqs_hz[sweep.freqs_hz.len() - 1],
         sweep.repeats
     ));
-    let bode_path = dir.join("bode.csv");
+    let path = a.out.join("bode.csv");
     let mut comment = format!(
         "fracid demo sine sweep\n{}",
         drive::bode::hold_line(1.0 / f64::from(a.sample_rate_hz))
@@ -217,7 +316,7 @@ pub fn run(a: DemoArgs) -> Result<()> {
         );
     }
     // written point by point as measured, the file created with the first point
-    let mut bode_file = super::drive::BodeFile::new(&bode_path, comment, sweep.repeats > 1)?;
+    let mut bode_file = super::drive::BodeFile::new(&path, comment, sweep.repeats > 1)?;
     let (points, lost) = match client.run_sine_sweep_with(&sweep, &mut |ev| match ev {
         SweepEvent::Repeat(..) => Ok(()),
         SweepEvent::Point(p) => bode_file.point(p),
@@ -239,18 +338,40 @@ pub fn run(a: DemoArgs) -> Result<()> {
         .collect();
     bode_file
         .finish(&lost, &missing)
-        .with_context(|| format!("writing {}", bode_path.display()))?;
+        .with_context(|| format!("writing {}", path.display()))?;
     step(&format!(
         "Bode table: {} points -> {}",
         points.len(),
-        bode_path.display()
+        path.display()
     ));
-    let link_stats = client.stats();
-    drop(client);
-    let sim_stats = sim.stats();
+    Ok(Sweep {
+        sweep,
+        points,
+        lost,
+        path,
+    })
+}
 
-    // 3. Identify and diagnose in this process, with the use cases the commands run (each
-    // model fitted and diagnosed once; its text, JSON and plots made from the one result).
+/// Both identifications' text and JSON, the commands they stand for, and how many use-case
+/// runs each took.
+struct Models {
+    time_cmd: String,
+    time_txt: String,
+    time_json: Value,
+    freq_argv: Vec<String>,
+    freq_txt: String,
+    freq_json: Value,
+    time_runs: usize,
+    freq_runs: usize,
+}
+
+/// `fracid time STEADY --diagnose` and `fracid freq BODE --weights W --refine --diagnose` in this
+/// process (`time.*` and `freq.*`, text, JSON and plot, in the output folder).
+///
+/// # Errors
+/// A failed identification, a file that cannot be written.
+fn identify(a: &DemoArgs, steady_path: &Path, bode_path: &Path) -> Result<Models> {
+    let dir = &a.out;
     let (time_runs, freq_runs) = (ident::app::time::runs(), super::freq::runs());
     step("time domain: output-error fit and diagnosis");
     let time_req = ident::app::time::TimeRequest {
@@ -259,7 +380,7 @@ pub fn run(a: DemoArgs) -> Result<()> {
     };
     let time_cmd = format!("time {} --diagnose", steady_path.display());
     let (rec, reader_warnings) =
-        super::time::read_record_noting(&steady_path, &ident::data::ReadOptions::default())?;
+        super::time::read_record_noting(steady_path, &ident::data::ReadOptions::default())?;
     let time_data = ident::app::time::TimeData {
         record: rec,
         validation: None,
@@ -281,15 +402,14 @@ pub fn run(a: DemoArgs) -> Result<()> {
     let weights = if a.repeats >= 5 { "spread" } else { "vinagre" };
     let freq_argv = [
         "freq",
-        path_str(&bode_path)?,
+        path_str(bode_path)?,
         "--weights",
         weights,
         "--refine",
         "--diagnose",
     ];
     let freq_args = super::freq::args_from(&freq_argv)?;
-    let freq =
-        super::freq::compute(&freq_args, &bode_path).context("identifying the Bode table")?;
+    let freq = super::freq::compute(&freq_args, bode_path).context("identifying the Bode table")?;
     let freq_txt = freq.text();
     let freq_json = freq.json()?;
     write_file(&dir.join("freq.txt"), &freq_txt)?;
@@ -298,15 +418,26 @@ pub fn run(a: DemoArgs) -> Result<()> {
         &(serde_json::to_string_pretty(&freq_json)? + "\n"),
     )?;
     freq.plot(&dir.join("bode.png"))?;
-    let (time_runs, freq_runs) = (
-        ident::app::time::runs() - time_runs,
-        super::freq::runs() - freq_runs,
-    );
+    Ok(Models {
+        time_cmd,
+        time_txt,
+        time_json,
+        freq_argv: freq_argv.iter().map(|s| s.to_string()).collect(),
+        freq_txt,
+        freq_json,
+        time_runs: ident::app::time::runs() - time_runs,
+        freq_runs: super::freq::runs() - freq_runs,
+    })
+}
 
-    step("the two models side by side (the paper's Fig. 5)");
-    // the final models (after the diagnosis), as `fracid compare time.json freq.json` takes them
-    let ga = super::model_in::from_json(super::model_in::final_model(&time_json))?;
-    let gb = super::model_in::from_json(super::model_in::final_model(&freq_json))?;
+/// The two final models (after the diagnosis, as `fracid compare time.json freq.json` takes
+/// them) over 0.1-100 Hz: `compare.txt` and `compare.png`; the text.
+///
+/// # Errors
+/// A model that cannot be read back, a file that cannot be written.
+fn compare_models(dir: &Path, models: &Models) -> Result<String> {
+    let ga = super::model_in::from_json(super::model_in::final_model(&models.time_json))?;
+    let gb = super::model_in::from_json(super::model_in::final_model(&models.freq_json))?;
     let names = ("time", "frequency");
     let cmp = ident::compare::compare(&ga, &gb, (0.1, 100.0), 2000)?;
     let cmp_txt = super::compare::text(&ga, &gb, &cmp, names);
@@ -316,90 +447,49 @@ pub fn run(a: DemoArgs) -> Result<()> {
         (1000, 800),
         &super::compare::CompareFigure { c: &cmp, names },
     )?;
+    Ok(cmp_txt)
+}
 
-    // 3b. The tuned loop on the drive (cmd/demo_loop.rs); the drive was kept running for it.
-    step("the tuned loop on the drive");
-    let model = crate::cmd::demo_loop::model_of(&dir.join("time.json"))?;
-    let tuned = crate::cmd::demo_loop::run(
-        sim.port_path(),
-        ClientConfig {
-            baud: a.baud,
-            clock: sim.virtual_clock(),
-            ..ClientConfig::default()
-        },
-        a.sample_rate_hz,
-        &model,
-        dir,
-    )?;
-    sim.stop();
-    if let (Some(rec), Some(fig)) = (&tuned.record, &tuned.figure) {
-        step(&format!(
-            "tuned loop: {} and {}",
-            rec.display(),
-            fig.display()
-        ));
-    }
+/// What the report tells.
+struct Outcome {
+    hello: HelloReply,
+    prbs: Prbs,
+    sweep: Sweep,
+    link_stats: ClientStats,
+    sim_stats: SimStats,
+    models: Models,
+    cmp_txt: String,
+    true_model: String,
+    loop_lines: Vec<String>,
+}
 
-    // 4. The report.
+/// The report (`report.md`) but its total time: the drive, the acquisition, each model with
+/// its text and plot, the comparison, the hidden truth against what the diagnoses found, the
+/// tuned loop.
+///
+/// # Errors
+/// None in practice (formatting into a `String`).
+fn report_md(a: &DemoArgs, o: &Outcome) -> Result<String> {
     let mut r = String::new();
     writeln!(r, "# fracid demo report\n")?;
     writeln!(
         r,
         "Drive: simulated F2812 (protocol {}, firmware {}.{}) on a pseudo-terminal at {} baud. The \
          identification was told nothing about the drive's hidden effects; they are revealed at the end.\n",
-        hello.proto_version, hello.fw_major, hello.fw_minor, a.baud
+        o.hello.proto_version, o.hello.fw_major, o.hello.fw_minor, a.baud
     )?;
-    writeln!(r, "## Acquisition\n")?;
-    writeln!(
-        r,
-        "- PRBS: order {}, clock {} s, {} periods, {} V around {} V, {} Hz: {} samples, complete: {}.",
-        prbs_test.order,
-        prbs_test.clock_s,
-        prbs_test.periods,
-        prbs_test.amplitude_v,
-        prbs_test.offset_v,
-        a.sample_rate_hz,
-        acq.t.len(),
-        acq.complete
-    )?;
-    writeln!(
-        r,
-        "- Sine sweep: {} of {} frequencies measured, {} time(s) each{}{}.",
-        points.len(),
-        sweep.freqs_hz.len(),
-        sweep.repeats,
-        if sweep.repeats > 1 {
-            " (the paper's trimmed mean; the spread is in the table and drawn as error bars)"
-        } else {
-            ""
-        },
-        if lost.is_empty() {
-            String::new()
-        } else {
-            format!(" (lost: {})", lost.join("; "))
-        }
-    )?;
-    writeln!(r, "- Link: {link_stats:?}.")?;
-    writeln!(
-        r,
-        "- Files: `prbs.csv` (as acquired), `prbs_steady.csv` (from {t_start} s, the steady operating \
-         point before the PRBS), `bode.csv`.\n"
-    )?;
-    writeln!(
-        r,
-        "Each model was fitted and diagnosed once, in this process, by the use cases `fracid \
-         time` and `fracid freq` run (use-case runs: time {time_runs}, freq {freq_runs}).\n"
-    )?;
-    writeln!(r, "## Time domain (`fracid {time_cmd}`)\n")?;
+    acquisition_md(&mut r, a, o)?;
+    let m = &o.models;
+    writeln!(r, "## Time domain (`fracid {}`)\n", m.time_cmd)?;
     writeln!(r, "![time-domain fit](time.png)\n")?;
-    writeln!(r, "```\n{}```\n", time_txt)?;
+    writeln!(r, "```\n{}```\n", m.time_txt)?;
     writeln!(
         r,
         "## Frequency domain (`fracid {}`)\n",
-        freq_argv.join(" ")
+        m.freq_argv.join(" ")
     )?;
     writeln!(r, "![Bode plot](bode.png)\n")?;
-    writeln!(r, "```\n{}```\n", freq_txt)?;
+    writeln!(r, "```\n{}```\n", m.freq_txt)?;
     writeln!(
         r,
         "## Time- and frequency-domain models compared (`fracid compare time.json freq.json ...`)\n"
@@ -410,9 +500,68 @@ pub fn run(a: DemoArgs) -> Result<()> {
          differ most over 0.1-100 Hz, and their coefficients.\n"
     )?;
     writeln!(r, "![the two models](compare.png)\n")?;
-    writeln!(r, "```\n{}```\n", cmp_txt)?;
+    writeln!(r, "```\n{}```\n", o.cmp_txt)?;
+    truth_md(&mut r, a, o)?;
+    for l in &o.loop_lines {
+        writeln!(r, "{l}")?;
+    }
+    Ok(r)
+}
+
+/// The report's acquisition section: the PRBS, the sweep, the link, the files, the use-case runs.
+fn acquisition_md(r: &mut String, a: &DemoArgs, o: &Outcome) -> Result<()> {
+    let (p, s) = (&o.prbs, &o.sweep);
+    writeln!(r, "## Acquisition\n")?;
+    writeln!(
+        r,
+        "- PRBS: order {}, clock {} s, {} periods, {} V around {} V, {} Hz: {} samples, complete: {}.",
+        p.test.order,
+        p.test.clock_s,
+        p.test.periods,
+        p.test.amplitude_v,
+        p.test.offset_v,
+        a.sample_rate_hz,
+        p.acq.t.len(),
+        p.acq.complete
+    )?;
+    writeln!(
+        r,
+        "- Sine sweep: {} of {} frequencies measured, {} time(s) each{}{}.",
+        s.points.len(),
+        s.sweep.freqs_hz.len(),
+        s.sweep.repeats,
+        if s.sweep.repeats > 1 {
+            " (the paper's trimmed mean; the spread is in the table and drawn as error bars)"
+        } else {
+            ""
+        },
+        if s.lost.is_empty() {
+            String::new()
+        } else {
+            format!(" (lost: {})", s.lost.join("; "))
+        }
+    )?;
+    writeln!(r, "- Link: {:?}.", o.link_stats)?;
+    writeln!(
+        r,
+        "- Files: `prbs.csv` (as acquired), `prbs_steady.csv` (from {} s, the steady operating \
+         point before the PRBS), `bode.csv`.\n",
+        p.t_start
+    )?;
+    writeln!(
+        r,
+        "Each model was fitted and diagnosed once, in this process, by the use cases `fracid \
+         time` and `fracid freq` run (use-case runs: time {}, freq {}).\n",
+        o.models.time_runs, o.models.freq_runs
+    )?;
+    Ok(())
+}
+
+/// The report's hidden truth: the motor model and effects the drive had, what each diagnosis
+/// found, the simulator's counters.
+fn truth_md(r: &mut String, a: &DemoArgs, o: &Outcome) -> Result<()> {
     writeln!(r, "## The hidden truth\n")?;
-    writeln!(r, "- Motor model: `{true_model}`.")?;
+    writeln!(r, "- Motor model: `{}`.", o.true_model)?;
     writeln!(
         r,
         "- Hidden effects: input delay {} s, speed noise {} rad/s (standard deviation), speed \
@@ -440,28 +589,18 @@ pub fn run(a: DemoArgs) -> Result<()> {
     writeln!(
         r,
         "- The time-domain diagnosis found: {}.",
-        found(&time_json)
+        found(&o.models.time_json)
     )?;
     writeln!(
         r,
         "- The frequency-domain diagnosis found: {}.",
-        found(&freq_json)
+        found(&o.models.freq_json)
     )?;
+    let st = &o.sim_stats;
     writeln!(
         r,
         "- Simulator counters: {} frames sent, {} damaged, {} blocks dropped, {} receive overruns.\n",
-        sim_stats.frames_sent, sim_stats.frames_damaged, sim_stats.blocks_dropped, sim_stats.rx_overruns
+        st.frames_sent, st.frames_damaged, st.blocks_dropped, st.rx_overruns
     )?;
-    for l in &tuned.lines {
-        writeln!(r, "{l}")?;
-    }
-    writeln!(r, "Total time: {:.1} s.", started.elapsed().as_secs_f64())?;
-    let report = dir.join("report.md");
-    std::fs::write(&report, r).with_context(|| format!("cannot write {}", report.display()))?;
-    step(&format!(
-        "done in {:.1} s: report {}",
-        started.elapsed().as_secs_f64(),
-        report.display()
-    ));
     Ok(())
 }
