@@ -937,10 +937,7 @@ impl Client {
                 revents: 0,
             },
         ];
-        let ts = libc::timespec {
-            tv_sec: wait.as_secs() as libc::time_t,
-            tv_nsec: wait.subsec_nanos() as libc::c_long,
-        };
+        let ts = crate::vclock::timespec(wait);
         // SAFETY: two valid pollfds, a valid timespec, no signal mask.
         let r = unsafe { libc::ppoll(pfd.as_mut_ptr(), 2, &ts, std::ptr::null()) };
         if r > 0 && pfd[1].revents != 0 {

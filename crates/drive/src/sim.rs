@@ -938,10 +938,7 @@ impl Firmware {
             events: libc::POLLIN,
             revents: 0,
         };
-        let ts = libc::timespec {
-            tv_sec: max.as_secs() as libc::time_t,
-            tv_nsec: max.subsec_nanos() as libc::c_long,
-        };
+        let ts = crate::vclock::timespec(max);
         // SAFETY: one valid pollfd, a valid timespec, no signal mask.
         let r = unsafe { libc::ppoll(&mut pfd, 1, &ts, std::ptr::null()) };
         if r > 0 && pfd.revents & (libc::POLLHUP | libc::POLLERR) != 0 {

@@ -145,3 +145,11 @@ impl VirtualClock {
         self.0.wakes.load(Ordering::Relaxed)
     }
 }
+
+/// `d` as the `timespec` of `ppoll` (the drive's and the host's waits on the pty).
+pub(crate) fn timespec(d: std::time::Duration) -> libc::timespec {
+    libc::timespec {
+        tv_sec: d.as_secs() as libc::time_t,
+        tv_nsec: d.subsec_nanos() as libc::c_long,
+    }
+}
