@@ -343,53 +343,17 @@ pub fn diagnose_bode(
     }
     let before = error_of(omega, h, g);
     let res = residuals(omega, h, g);
-    let f = omega.len() as f64;
-    let mut effects = vec![];
-    let mut rejected = vec![];
-    let aic = |ssr: f64, k: usize| 2.0 * f * (ssr / (2.0 * f)).max(1e-300).ln() + 2.0 * k as f64;
-    let reference = refit(omega, h, g, Extra::None, 0.0).ok();
-    let mut model = g.clone();
-    let mut after = before;
-    // Evidence.
-    let phi: Vec<f64> = res.iter().map(|r| r.2.to_radians()).collect();
-    let sp2: f64 = phi.iter().map(|p| p * p).sum();
-    let sw2: f64 = omega.iter().map(|w| w * w).sum();
-    let tau0 = -omega.iter().zip(&phi).map(|(w, p)| w * p).sum::<f64>() / sw2;
-    let r2_delay = if sp2 > 0.0 {
-        1.0 - omega
-            .iter()
-            .zip(&phi)
-            .map(|(w, p)| (p + tau0 * w).powi(2))
-            .sum::<f64>()
-            / sp2
-    } else {
-        0.0
+    let judge = Judge {
+        omega,
+        h,
+        g,
+        opts,
+        reference: refit(omega, h, g, Extra::None, 0.0).ok(),
+        wmin: omega.iter().copied().fold(f64::INFINITY, f64::min),
+        wmax: omega.iter().copied().fold(0.0, f64::max),
     };
-    let lr: Vec<Complex64> = omega
-        .iter()
-        .zip(h)
-        .map(|(&w, &hv)| (hv / g.freq_response(w)).ln())
-        .collect();
-    let sl2: f64 = lr.iter().map(|z| z.norm_sqr()).sum();
-    let (wmin, wmax) = (
-        omega.iter().copied().fold(f64::INFINITY, f64::min),
-        omega.iter().copied().fold(0.0, f64::max),
-    );
-    let mut best_pole = (0.0, 0.0);
-    for i in 0..=80 {
-        let t = 0.1 / wmax * (100.0 * wmax / wmin).powf(i as f64 / 80.0);
-        let p: Vec<Complex64> = omega
-            .iter()
-            .map(|&w| -Complex64::new(1.0, w * t).ln())
-            .collect();
-        // c real: least squares of Re(lr - p) on a constant.
-        let c = lr.iter().zip(&p).map(|(a, b)| (a - b).re).sum::<f64>() / f;
-        let ss: f64 = lr.iter().zip(&p).map(|(a, b)| (a - b - c).norm_sqr()).sum();
-        let r2 = if sl2 > 0.0 { 1.0 - ss / sl2 } else { 0.0 };
-        if r2 > best_pole.0 {
-            best_pole = (r2, t);
-        }
-    }
+    let (tau0, r2_delay) = delay_evidence(omega, &res);
+    let (r2_pole, t_pole) = judge.pole_evidence();
     let cands = [
         (
             "delay",
@@ -404,167 +368,47 @@ pub fn diagnose_bode(
         (
             "extra_pole",
             Extra::Pole,
-            best_pole.0,
-            best_pole.1,
+            r2_pole,
+            t_pole,
             format!(
                 "magnitude and phase residual of one corner at {:.3e} rad/s (T = {:.3e} s) explains {:.1}% \
                  of the log-ratio sum of squares",
-                1.0 / best_pole.1.max(1e-300),
-                best_pole.1,
-                100.0 * best_pole.0
+                1.0 / t_pole.max(1e-300),
+                t_pole,
+                100.0 * r2_pole
             ),
         ),
     ];
-    let mut best: Option<(FracTf, BodeError, KeptEffect)> = None;
+    let mut rejected = vec![];
+    let mut best: Option<Found> = None;
+    let mut keep_better = |found: Found| {
+        if best.as_ref().is_none_or(|b| found.1.j < b.1.j) {
+            best = Some(found);
+        }
+    };
     for (name, extra, r2, x0, evidence) in cands {
-        let mut reject = |reason: String, params: BTreeMap<String, f64>| {
-            rejected.push(RejectedEffect {
+        // A model with free orders can bend its high-frequency roll-off to mimic a delay, which
+        // then leaves no linear phase trend in its residual. So the delay is also tried by joint
+        // refits from probe delays across the band; the margin and AIC tests decide.
+        if extra == Extra::Delay && (!(x0 > 0.0) || r2 < opts.min_r2) {
+            if let Some(found) = judge.probe_delay(&evidence, r2) {
+                keep_better(found);
+                continue;
+            }
+        }
+        match judge.candidate(extra, r2, x0, tau0, &evidence, name) {
+            Ok(found) => keep_better(found),
+            Err((reason, params)) => rejected.push(RejectedEffect {
                 name: name.into(),
                 reason,
                 params,
-            })
-        };
-        // A model with free orders can bend its high-frequency roll-off to mimic a delay, which
-        // then leaves no linear phase trend in its residual. So the delay is also tried by joint
-        // refits from probe delays across the band; the margin and AIC tests below decide.
-        if extra == Extra::Delay && (!(x0 > 0.0) || r2 < opts.min_r2) {
-            if let Some((_, _, ssr_ref, k_ref)) = reference.as_ref() {
-                // Orders at or beyond 2 are held by the refit; a model that bent an order
-                // there to mimic the delay gets a second start with it pulled back inside.
-                let w_c = (wmin * wmax).sqrt();
-                let starts = [Some(g.clone()), orders_inside(g, w_c)];
-                let probe = starts
-                    .iter()
-                    .flatten()
-                    .flat_map(|g0| [0.3, 1.0, 3.0].map(|c| (g0, c / wmax)))
-                    .filter_map(|(g0, tau)| refit(omega, h, g0, extra, tau).ok())
-                    .min_by(|a, b| a.2.total_cmp(&b.2));
-                if let Some((m, x, ssr, k)) = probe {
-                    let change = ssr / ssr_ref.max(1e-300) - 1.0;
-                    let daic = aic(ssr, k) - aic(*ssr_ref, *k_ref);
-                    if change <= -opts.margin && daic < 0.0 && x * wmax >= 1e-3 {
-                        let err = error_of(omega, h, &m);
-                        let mut params = BTreeMap::new();
-                        params.insert("tau".to_string(), x);
-                        if best.as_ref().is_none_or(|b| err.j < b.1.j) {
-                            best = Some((
-                                m,
-                                err,
-                                KeptEffect {
-                                    name: name.into(),
-                                    params,
-                                    evidence: format!(
-                                        "{evidence} (the model's free orders absorb it), but a joint \
-                                         refit from a probe delay finds tau = {x:.3e} s: J {:.3e} (refit \
-                                         without it) -> {:.3e} ({:+.1}%), AIC {daic:+.1}",
-                                        ssr_ref / f,
-                                        ssr / f,
-                                        100.0 * change
-                                    ),
-                                    r2,
-                                    ssr_removed_percent: -100.0 * change,
-                                    rmse_change_percent: 100.0
-                                        * ((ssr / ssr_ref.max(1e-300)).sqrt() - 1.0),
-                                    bic_change: daic,
-                                },
-                            ));
-                        }
-                        continue;
-                    }
-                }
-            }
-        }
-        if !(x0 > 0.0) {
-            reject(
-                match extra {
-                    Extra::Delay => format!(
-                        "the phase residual is a lead (tau = {tau0:.3e} s < 0), not a delay, and joint \
-                         refits from probe delays do not lower J by the {:.0}% margin with AIC",
-                        100.0 * opts.margin
-                    ),
-                    _ => {
-                        "no single corner in or near the measured band reduces the residual".into()
-                    }
-                },
-                BTreeMap::new(),
-            );
-            continue;
-        }
-        if r2 < opts.min_r2 {
-            reject(
-                format!(
-                    "weak evidence: {evidence} (below the {:.0}% needed){}",
-                    100.0 * opts.min_r2,
-                    if extra == Extra::Delay {
-                        "; joint refits from probe delays do not pass the margin and AIC either"
-                    } else {
-                        ""
-                    }
-                ),
-                BTreeMap::new(),
-            );
-            continue;
-        }
-        let Some((_, _, ssr_ref, k_ref)) = reference.as_ref() else {
-            reject("the reference refit failed".into(), BTreeMap::new());
-            continue;
-        };
-        match refit(omega, h, g, extra, x0) {
-            Err(e) => reject(format!("the refit failed: {e}"), BTreeMap::new()),
-            Ok((m, x, ssr, k)) => {
-                let mut params = BTreeMap::new();
-                params.insert(
-                    if extra == Extra::Delay { "tau" } else { "T" }.to_string(),
-                    x,
-                );
-                let err = error_of(omega, h, &m);
-                let change = ssr / ssr_ref.max(1e-300) - 1.0;
-                let daic = aic(ssr, k) - aic(*ssr_ref, *k_ref);
-                let gain = format!(
-                    "J {:.3e} (refit without it) -> {:.3e} ({:+.1}%), AIC {daic:+.1}",
-                    ssr_ref / f,
-                    ssr / f,
-                    100.0 * change
-                );
-                let degenerate = match extra {
-                    Extra::Delay => x * wmax < 1e-3,
-                    _ => x * wmax < 0.05 || x * wmin > 20.0,
-                };
-                if change > -opts.margin {
-                    reject(
-                        format!(
-                            "{gain}: J does not fall by the {:.0}% margin ({evidence})",
-                            100.0 * opts.margin
-                        ),
-                        params,
-                    );
-                } else if daic >= 0.0 {
-                    reject(format!("{gain}: AIC does not agree ({evidence})"), params);
-                } else if degenerate {
-                    reject(
-                        format!("{gain}, but the fitted parameter is outside the measured band"),
-                        params,
-                    );
-                } else if best.as_ref().is_none_or(|b| err.j < b.1.j) {
-                    let k = KeptEffect {
-                        name: name.into(),
-                        params,
-                        evidence: format!("{evidence}; {gain}"),
-                        r2,
-                        ssr_removed_percent: 100.0 * (1.0 - ssr / ssr_ref.max(1e-300)),
-                        rmse_change_percent: 100.0 * ((ssr / ssr_ref.max(1e-300)).sqrt() - 1.0),
-                        bic_change: daic,
-                    };
-                    best = Some((m, err, k));
-                }
-            }
+            }),
         }
     }
-    if let Some((m, err, k)) = best {
-        model = m;
-        after = err;
-        effects.push(k);
-    }
+    let (model, after, effects) = match best {
+        Some((m, err, k)) => (m, err, vec![k]),
+        None => (g.clone(), before, vec![]),
+    };
     // What remains: a residual beyond the data's print resolution, and its sign pattern.
     let res_after = residuals(omega, h, &model);
     let mut remaining = vec![];
@@ -583,7 +427,7 @@ pub fn diagnose_bode(
     Ok(BodeDiagnosis {
         before,
         after,
-        refit_without_effect: reference.map(|(m, _, _, _)| error_of(omega, h, &m)),
+        refit_without_effect: judge.reference.map(|(m, _, _, _)| error_of(omega, h, &m)),
         effects,
         rejected,
         unexplained: !remaining.is_empty(),
@@ -592,6 +436,209 @@ pub fn diagnose_bode(
         residual_before: res,
         residual_after: res_after,
     })
+}
+
+/// A kept candidate: its model, its error and what the report says of it.
+type Found = (FracTf, BodeError, KeptEffect);
+
+/// The delay's evidence in the residual `(w, dB, deg)`: the least-squares `tau` of the phase
+/// residual on `-w` (s) and the share of the phase residual's sum of squares it explains.
+fn delay_evidence(omega: &[f64], res: &[(f64, f64, f64)]) -> (f64, f64) {
+    let phi: Vec<f64> = res.iter().map(|r| r.2.to_radians()).collect();
+    let sp2: f64 = phi.iter().map(|p| p * p).sum();
+    let sw2: f64 = omega.iter().map(|w| w * w).sum();
+    let tau0 = -omega.iter().zip(&phi).map(|(w, p)| w * p).sum::<f64>() / sw2;
+    let r2 = if sp2 > 0.0 {
+        1.0 - omega
+            .iter()
+            .zip(&phi)
+            .map(|(w, p)| (p + tau0 * w).powi(2))
+            .sum::<f64>()
+            / sp2
+    } else {
+        0.0
+    };
+    (tau0, r2)
+}
+
+/// The data, the model, and the refit without an effect that each candidate is judged against.
+struct Judge<'a> {
+    omega: &'a [f64],
+    h: &'a [Complex64],
+    g: &'a FracTf,
+    opts: &'a BodeDiagnoseOptions,
+    /// The refit with no effect: (model, -, sum of squares, free parameters).
+    reference: Option<(FracTf, f64, f64, usize)>,
+    wmin: f64,
+    wmax: f64,
+}
+
+impl Judge<'_> {
+    /// `2 f ln(ssr / 2f) + 2k` over the `f` points.
+    fn aic(&self, ssr: f64, k: usize) -> f64 {
+        let f = self.omega.len() as f64;
+        2.0 * f * (ssr / (2.0 * f)).max(1e-300).ln() + 2.0 * k as f64
+    }
+
+    /// The extra pole's evidence: over 81 time constants from `0.1 / w_max` to `100 / w_min`,
+    /// the one whose `-ln(1 + j w T)` plus a real constant explains most of the log ratio
+    /// `ln(H / G)`'s sum of squares, as (share explained, T).
+    fn pole_evidence(&self) -> (f64, f64) {
+        let (omega, f) = (self.omega, self.omega.len() as f64);
+        let lr: Vec<Complex64> = omega
+            .iter()
+            .zip(self.h)
+            .map(|(&w, &hv)| (hv / self.g.freq_response(w)).ln())
+            .collect();
+        let sl2: f64 = lr.iter().map(|z| z.norm_sqr()).sum();
+        let mut best_pole = (0.0, 0.0);
+        for i in 0..=80 {
+            let t = 0.1 / self.wmax * (100.0 * self.wmax / self.wmin).powf(i as f64 / 80.0);
+            let p: Vec<Complex64> = omega
+                .iter()
+                .map(|&w| -Complex64::new(1.0, w * t).ln())
+                .collect();
+            // c real: least squares of Re(lr - p) on a constant.
+            let c = lr.iter().zip(&p).map(|(a, b)| (a - b).re).sum::<f64>() / f;
+            let ss: f64 = lr.iter().zip(&p).map(|(a, b)| (a - b - c).norm_sqr()).sum();
+            let r2 = if sl2 > 0.0 { 1.0 - ss / sl2 } else { 0.0 };
+            if r2 > best_pole.0 {
+                best_pole = (r2, t);
+            }
+        }
+        best_pole
+    }
+
+    /// The delay by joint refits from probe delays `0.3, 1, 3 / w_max` (from the model, and from
+    /// it with orders at or beyond 2 pulled back inside: a model that bent an order there to
+    /// mimic the delay), kept when the best lowers J by the margin with AIC and its delay is in
+    /// the band; `None` otherwise.
+    fn probe_delay(&self, evidence: &str, r2: f64) -> Option<Found> {
+        let (omega, h, f) = (self.omega, self.h, self.omega.len() as f64);
+        let (_, _, ssr_ref, k_ref) = self.reference.as_ref()?;
+        let w_c = (self.wmin * self.wmax).sqrt();
+        let starts = [Some(self.g.clone()), orders_inside(self.g, w_c)];
+        let (m, x, ssr, k) = starts
+            .iter()
+            .flatten()
+            .flat_map(|g0| [0.3, 1.0, 3.0].map(|c| (g0, c / self.wmax)))
+            .filter_map(|(g0, tau)| refit(omega, h, g0, Extra::Delay, tau).ok())
+            .min_by(|a, b| a.2.total_cmp(&b.2))?;
+        let change = ssr / ssr_ref.max(1e-300) - 1.0;
+        let daic = self.aic(ssr, k) - self.aic(*ssr_ref, *k_ref);
+        if !(change <= -self.opts.margin && daic < 0.0 && x * self.wmax >= 1e-3) {
+            return None;
+        }
+        let err = error_of(omega, h, &m);
+        let mut params = BTreeMap::new();
+        params.insert("tau".to_string(), x);
+        let kept = KeptEffect {
+            name: "delay".into(),
+            params,
+            evidence: format!(
+                "{evidence} (the model's free orders absorb it), but a joint \
+                 refit from a probe delay finds tau = {x:.3e} s: J {:.3e} (refit \
+                 without it) -> {:.3e} ({:+.1}%), AIC {daic:+.1}",
+                ssr_ref / f,
+                ssr / f,
+                100.0 * change
+            ),
+            r2,
+            ssr_removed_percent: -100.0 * change,
+            rmse_change_percent: 100.0 * ((ssr / ssr_ref.max(1e-300)).sqrt() - 1.0),
+            bic_change: daic,
+        };
+        Some((m, err, kept))
+    }
+
+    /// One candidate (`extra` from its evidence's `x0`, `r2` of it explained) refitted jointly
+    /// with the model and judged: kept when J falls by the margin, AIC agrees and its parameter
+    /// is in the measured band; else the reason and its parameters.
+    fn candidate(
+        &self,
+        extra: Extra,
+        r2: f64,
+        x0: f64,
+        tau0: f64,
+        evidence: &str,
+        name: &str,
+    ) -> std::result::Result<Found, (String, BTreeMap<String, f64>)> {
+        let (omega, h, f, opts) = (self.omega, self.h, self.omega.len() as f64, self.opts);
+        if !(x0 > 0.0) {
+            let reason = match extra {
+                Extra::Delay => format!(
+                    "the phase residual is a lead (tau = {tau0:.3e} s < 0), not a delay, and joint \
+                     refits from probe delays do not lower J by the {:.0}% margin with AIC",
+                    100.0 * opts.margin
+                ),
+                _ => "no single corner in or near the measured band reduces the residual".into(),
+            };
+            return Err((reason, BTreeMap::new()));
+        }
+        if r2 < opts.min_r2 {
+            let reason = format!(
+                "weak evidence: {evidence} (below the {:.0}% needed){}",
+                100.0 * opts.min_r2,
+                if extra == Extra::Delay {
+                    "; joint refits from probe delays do not pass the margin and AIC either"
+                } else {
+                    ""
+                }
+            );
+            return Err((reason, BTreeMap::new()));
+        }
+        let Some((_, _, ssr_ref, k_ref)) = self.reference.as_ref() else {
+            return Err(("the reference refit failed".into(), BTreeMap::new()));
+        };
+        let (m, x, ssr, k) = refit(omega, h, self.g, extra, x0)
+            .map_err(|e| (format!("the refit failed: {e}"), BTreeMap::new()))?;
+        let mut params = BTreeMap::new();
+        params.insert(
+            if extra == Extra::Delay { "tau" } else { "T" }.to_string(),
+            x,
+        );
+        let err = error_of(omega, h, &m);
+        let change = ssr / ssr_ref.max(1e-300) - 1.0;
+        let daic = self.aic(ssr, k) - self.aic(*ssr_ref, *k_ref);
+        let gain = format!(
+            "J {:.3e} (refit without it) -> {:.3e} ({:+.1}%), AIC {daic:+.1}",
+            ssr_ref / f,
+            ssr / f,
+            100.0 * change
+        );
+        let degenerate = match extra {
+            Extra::Delay => x * self.wmax < 1e-3,
+            _ => x * self.wmax < 0.05 || x * self.wmin > 20.0,
+        };
+        if change > -opts.margin {
+            return Err((
+                format!(
+                    "{gain}: J does not fall by the {:.0}% margin ({evidence})",
+                    100.0 * opts.margin
+                ),
+                params,
+            ));
+        }
+        if daic >= 0.0 {
+            return Err((format!("{gain}: AIC does not agree ({evidence})"), params));
+        }
+        if degenerate {
+            return Err((
+                format!("{gain}, but the fitted parameter is outside the measured band"),
+                params,
+            ));
+        }
+        let kept = KeptEffect {
+            name: name.into(),
+            params,
+            evidence: format!("{evidence}; {gain}"),
+            r2,
+            ssr_removed_percent: 100.0 * (1.0 - ssr / ssr_ref.max(1e-300)),
+            rmse_change_percent: 100.0 * ((ssr / ssr_ref.max(1e-300)).sqrt() - 1.0),
+            bic_change: daic,
+        };
+        Ok((m, err, kept))
+    }
 }
 
 #[cfg(test)]
