@@ -595,34 +595,7 @@ pub fn run(req: &TimeRequest, data: &TimeData, obs: &mut dyn Observe) -> Result<
     let rt = estimation_residual_test(&id, rec, req.max_lag);
     let (lead, base, model_is, diagnosis) = match diagnosis {
         Some((d, c)) => {
-            let mut fin = final_fit(&d, &base, rec.dt, final_file);
-            match skew_samples(&d, rec.dt) {
-                Some(lead) => {
-                    polish(&mut fin, req, &input_advanced(data, lead));
-                    fin.warnings.push(skew_warning(lead, rec.dt));
-                }
-                None => polish(&mut fin, req, data),
-            }
-            let caveats = at_bound(&fin);
-            fin.warnings.extend(caveats);
-            let is = format!(
-                "final: the diagnosis's recommended model ({} with {}); the base fit is under base",
-                c.scores[c.chosen].name,
-                if d.effects.is_empty() {
-                    "no effect".to_string()
-                } else {
-                    d.effects
-                        .iter()
-                        .map(|e| e.name.as_str())
-                        .collect::<Vec<_>>()
-                        .join(", ")
-                }
-            );
-            let report = DiagnosisReport {
-                model: fin.model.clone(),
-                diagnosis: d,
-                structures: c,
-            };
+            let (fin, is, report) = final_model(d, c, &base, req, data, final_file);
             (fin, Some(base), is, Some(report))
         }
         None => (
@@ -718,6 +691,49 @@ fn polish(fin: &mut ModelFit, req: &TimeRequest, data: &TimeData) {
              the figures are the diagnosis's"
         )),
     }
+}
+
+/// The diagnosis's final model as the report leads with it: its record parameters estimated
+/// again with the plant held ([`polish`], on the input advanced by a kept time-stamp skew), its
+/// caveats, the sentence saying what it is, and the diagnosis's report.
+fn final_model(
+    d: Diagnosis,
+    c: StructureChoice,
+    base: &ModelFit,
+    req: &TimeRequest,
+    data: &TimeData,
+    final_file: Option<ScoreReport>,
+) -> (ModelFit, String, DiagnosisReport) {
+    let rec = &data.record;
+    let mut fin = final_fit(&d, base, rec.dt, final_file);
+    match skew_samples(&d, rec.dt) {
+        Some(lead) => {
+            polish(&mut fin, req, &input_advanced(data, lead));
+            fin.warnings.push(skew_warning(lead, rec.dt));
+        }
+        None => polish(&mut fin, req, data),
+    }
+    let caveats = at_bound(&fin);
+    fin.warnings.extend(caveats);
+    let is = format!(
+        "final: the diagnosis's recommended model ({} with {}); the base fit is under base",
+        c.scores[c.chosen].name,
+        if d.effects.is_empty() {
+            "no effect".to_string()
+        } else {
+            d.effects
+                .iter()
+                .map(|e| e.name.as_str())
+                .collect::<Vec<_>>()
+                .join(", ")
+        }
+    );
+    let report = DiagnosisReport {
+        model: fin.model.clone(),
+        diagnosis: d,
+        structures: c,
+    };
+    (fin, is, report)
 }
 
 /// The advance of the recorded input (samples) the diagnosis kept: a `delay` with a negative
