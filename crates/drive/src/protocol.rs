@@ -822,185 +822,226 @@ impl Message {
         if p.len() != want {
             return Err(FrameError::Length { ty, len: p.len() });
         }
-        let bad = FrameError::Field(ty);
         let mut r = R(p, 0);
-        Ok(match ty {
-            ty::HELLO => Message::Hello,
-            ty::STOP => Message::Stop,
-            ty::ESTOP => Message::Estop,
-            ty::STATUS => Message::Status,
-            ty::KEEPALIVE => Message::Keepalive,
-            ty::CONFIGURE => {
-                let sample_rate_hz = r.u32();
-                let block_samples = r.u8();
-                if r.u8() != 0 {
-                    return Err(bad);
-                }
-                Message::Configure(Configure {
-                    sample_rate_hz,
-                    block_samples,
-                    keepalive_ms: r.u16(),
-                    scale_u_uv: r.u32(),
-                    scale_y_urad_s: r.u32(),
-                    scale_i_ua: r.u32(),
-                    u_limit: r.i16(),
-                    y_limit: r.i16(),
-                    i_limit: r.i16(),
-                })
+        match ty {
+            ty::HELLO => Ok(Message::Hello),
+            ty::STOP => Ok(Message::Stop),
+            ty::ESTOP => Ok(Message::Estop),
+            ty::STATUS => Ok(Message::Status),
+            ty::KEEPALIVE => Ok(Message::Keepalive),
+            ty::CONFIGURE | ty::START_PRBS | ty::START_SINE | ty::END_QUERY => {
+                parse_run_command(ty, &mut r)
             }
-            ty::START_PRBS => {
-                let order = r.u8();
-                if r.u8() != 0 {
-                    return Err(bad);
-                }
-                Message::StartPrbs(StartPrbs {
-                    order,
-                    taps: r.u32(),
-                    seed: r.u32(),
-                    clock_samples: r.u16(),
-                    amplitude: r.i16(),
-                    offset: r.i16(),
-                    periods: r.u16(),
-                    settle_samples: r.u32(),
-                })
-            }
-            ty::START_SINE => {
-                let s = StartSine {
-                    freq_mhz: r.u32(),
-                    amplitude: r.i16(),
-                    offset: r.i16(),
-                    settle_cycles: r.u16(),
-                    cycles: r.u16(),
-                    flags: r.u8(),
-                };
-                if r.u8() != 0 || s.flags & !(SINE_STREAM | SINE_DFT) != 0 {
-                    return Err(bad);
-                }
-                Message::StartSine(s)
-            }
-            ty::END_QUERY => Message::EndQuery(r.u16()),
-            ty::LOAD_CTRL => {
-                let format = r.u8();
-                let n_sections = r.u8();
-                let n_taps = r.u8();
-                if r.u8() != 0 {
-                    return Err(bad);
-                }
-                Message::LoadCtrl(LoadCtrl {
-                    format,
-                    n_sections,
-                    n_taps,
-                    d_q24: r.i32(),
-                    dinv_q16: r.i32(),
-                })
-            }
-            ty::LOAD_SECTION => {
-                let index = r.u8();
-                if r.u8() != 0 {
-                    return Err(bad);
-                }
-                Message::LoadSection(LoadSection {
-                    index,
-                    a_q30: r.i32(),
-                    g_q24: r.i32(),
-                })
-            }
-            ty::START_LOOP => Message::StartLoop(StartLoop {
-                r0: r.i16(),
-                r1: r.i16(),
-                pre_samples: r.u32(),
-                total_samples: r.u32(),
-            }),
-            ty::ACK => {
-                let acked_type = r.u8();
-                if r.u8() != 0 {
-                    return Err(bad);
-                }
-                Message::Ack(Ack {
-                    acked_type,
-                    run_id: r.u16(),
-                    total_samples: r.u32(),
-                })
-            }
-            ty::HELLO_REPLY => {
-                let proto_version = r.u8();
-                let fw_major = r.u8();
-                let fw_minor = r.u8();
-                let n_channels = r.u8();
-                let max_block_samples = r.u8();
-                if r.u8() != 0 {
-                    return Err(bad);
-                }
-                Message::HelloReply(HelloReply {
-                    proto_version,
-                    fw_major,
-                    fw_minor,
-                    n_channels,
-                    max_block_samples,
-                    boot_id: r.u16(),
-                    max_sample_rate_hz: r.u32(),
-                })
-            }
-            ty::STATUS_REPLY => Message::StatusReply(StatusReply {
-                state: DriveState::from_code(r.u8()).ok_or(bad)?,
-                fault: r.u8(),
-                run_id: r.u16(),
-                samples_done: r.u32(),
-                blocks_dropped: r.u16(),
-                boot_id: r.u16(),
-                rx_errors: r.u16(),
-                clamped: r.u16(),
-            }),
-            ty::NAK => Message::Nak(Nak {
-                nak_type: r.u8(),
-                code: NakCode::from_code(r.u8()),
-                detail: r.u16(),
-            }),
-            ty::DATA => {
-                let run_id = r.u16();
-                let first_index = r.u32();
-                let n = r.u8();
-                let flags = r.u8();
-                if n == 0 || n > MAX_BLOCK_SAMPLES || flags & !1 != 0 {
-                    return Err(bad);
-                }
-                let samples = (0..n).map(|_| [r.i16(), r.i16(), r.i16()]).collect();
-                Message::Data(DataBlock {
-                    run_id,
-                    first_index,
-                    flags,
-                    samples,
-                })
-            }
-            ty::STREAM_END => {
-                let run_id = r.u16();
-                let reason = EndReason::from_code(r.u8());
-                if r.u8() != 0 {
-                    return Err(bad);
-                }
-                Message::StreamEnd(StreamEnd {
-                    run_id,
-                    reason,
-                    total_samples: r.u32(),
-                    samples_sent: r.u32(),
-                    blocks_dropped: r.u16(),
-                })
-            }
-            ty::SINE_RESULT => Message::SineResult(SineResult {
-                run_id: r.u16(),
-                n: r.u32(),
-                u_re: r.i32(),
-                u_im: r.i32(),
-                y_re: r.i32(),
-                y_im: r.i32(),
-                u_mean: r.i32(),
-                u_ramp: r.i32(),
-                y_mean: r.i32(),
-                y_ramp: r.i32(),
-            }),
-            other => return Err(FrameError::UnknownType(other)),
-        })
+            ty::LOAD_CTRL | ty::LOAD_SECTION | ty::START_LOOP => parse_loop_command(ty, &mut r),
+            ty::ACK | ty::HELLO_REPLY | ty::STATUS_REPLY | ty::NAK => parse_reply(ty, &mut r),
+            ty::DATA | ty::STREAM_END | ty::SINE_RESULT => parse_stream(ty, &mut r),
+            other => Err(FrameError::UnknownType(other)),
+        }
     }
+}
+
+/// Parse a run command from the host: CONFIGURE, START_PRBS, START_SINE, END_QUERY.
+/// The length is already checked by [`Message::parse`]; reserved fields are checked here.
+fn parse_run_command(ty: u8, r: &mut R<'_>) -> Result<Message, FrameError> {
+    let bad = FrameError::Field(ty);
+    Ok(match ty {
+        ty::CONFIGURE => {
+            let sample_rate_hz = r.u32();
+            let block_samples = r.u8();
+            if r.u8() != 0 {
+                return Err(bad);
+            }
+            Message::Configure(Configure {
+                sample_rate_hz,
+                block_samples,
+                keepalive_ms: r.u16(),
+                scale_u_uv: r.u32(),
+                scale_y_urad_s: r.u32(),
+                scale_i_ua: r.u32(),
+                u_limit: r.i16(),
+                y_limit: r.i16(),
+                i_limit: r.i16(),
+            })
+        }
+        ty::START_PRBS => {
+            let order = r.u8();
+            if r.u8() != 0 {
+                return Err(bad);
+            }
+            Message::StartPrbs(StartPrbs {
+                order,
+                taps: r.u32(),
+                seed: r.u32(),
+                clock_samples: r.u16(),
+                amplitude: r.i16(),
+                offset: r.i16(),
+                periods: r.u16(),
+                settle_samples: r.u32(),
+            })
+        }
+        ty::START_SINE => {
+            let s = StartSine {
+                freq_mhz: r.u32(),
+                amplitude: r.i16(),
+                offset: r.i16(),
+                settle_cycles: r.u16(),
+                cycles: r.u16(),
+                flags: r.u8(),
+            };
+            if r.u8() != 0 || s.flags & !(SINE_STREAM | SINE_DFT) != 0 {
+                return Err(bad);
+            }
+            Message::StartSine(s)
+        }
+        ty::END_QUERY => Message::EndQuery(r.u16()),
+        other => return Err(FrameError::UnknownType(other)),
+    })
+}
+
+/// Parse a closed-loop command from the host: LOAD_CTRL, LOAD_SECTION, START_LOOP.
+/// The length is already checked by [`Message::parse`]; reserved fields are checked here.
+fn parse_loop_command(ty: u8, r: &mut R<'_>) -> Result<Message, FrameError> {
+    let bad = FrameError::Field(ty);
+    Ok(match ty {
+        ty::LOAD_CTRL => {
+            let format = r.u8();
+            let n_sections = r.u8();
+            let n_taps = r.u8();
+            if r.u8() != 0 {
+                return Err(bad);
+            }
+            Message::LoadCtrl(LoadCtrl {
+                format,
+                n_sections,
+                n_taps,
+                d_q24: r.i32(),
+                dinv_q16: r.i32(),
+            })
+        }
+        ty::LOAD_SECTION => {
+            let index = r.u8();
+            if r.u8() != 0 {
+                return Err(bad);
+            }
+            Message::LoadSection(LoadSection {
+                index,
+                a_q30: r.i32(),
+                g_q24: r.i32(),
+            })
+        }
+        ty::START_LOOP => Message::StartLoop(StartLoop {
+            r0: r.i16(),
+            r1: r.i16(),
+            pre_samples: r.u32(),
+            total_samples: r.u32(),
+        }),
+        other => return Err(FrameError::UnknownType(other)),
+    })
+}
+
+/// Parse a reply from the drive: ACK, HELLO_REPLY, STATUS_REPLY, NAK.
+/// The length is already checked by [`Message::parse`]; reserved fields are checked here.
+fn parse_reply(ty: u8, r: &mut R<'_>) -> Result<Message, FrameError> {
+    let bad = FrameError::Field(ty);
+    Ok(match ty {
+        ty::ACK => {
+            let acked_type = r.u8();
+            if r.u8() != 0 {
+                return Err(bad);
+            }
+            Message::Ack(Ack {
+                acked_type,
+                run_id: r.u16(),
+                total_samples: r.u32(),
+            })
+        }
+        ty::HELLO_REPLY => {
+            let proto_version = r.u8();
+            let fw_major = r.u8();
+            let fw_minor = r.u8();
+            let n_channels = r.u8();
+            let max_block_samples = r.u8();
+            if r.u8() != 0 {
+                return Err(bad);
+            }
+            Message::HelloReply(HelloReply {
+                proto_version,
+                fw_major,
+                fw_minor,
+                n_channels,
+                max_block_samples,
+                boot_id: r.u16(),
+                max_sample_rate_hz: r.u32(),
+            })
+        }
+        ty::STATUS_REPLY => Message::StatusReply(StatusReply {
+            state: DriveState::from_code(r.u8()).ok_or(bad)?,
+            fault: r.u8(),
+            run_id: r.u16(),
+            samples_done: r.u32(),
+            blocks_dropped: r.u16(),
+            boot_id: r.u16(),
+            rx_errors: r.u16(),
+            clamped: r.u16(),
+        }),
+        ty::NAK => Message::Nak(Nak {
+            nak_type: r.u8(),
+            code: NakCode::from_code(r.u8()),
+            detail: r.u16(),
+        }),
+        other => return Err(FrameError::UnknownType(other)),
+    })
+}
+
+/// Parse a stream message from the drive: DATA, STREAM_END, SINE_RESULT.
+/// The length is already checked by [`Message::parse`]; reserved fields are checked here.
+fn parse_stream(ty: u8, r: &mut R<'_>) -> Result<Message, FrameError> {
+    let bad = FrameError::Field(ty);
+    Ok(match ty {
+        ty::DATA => {
+            let run_id = r.u16();
+            let first_index = r.u32();
+            let n = r.u8();
+            let flags = r.u8();
+            if n == 0 || n > MAX_BLOCK_SAMPLES || flags & !1 != 0 {
+                return Err(bad);
+            }
+            let samples = (0..n).map(|_| [r.i16(), r.i16(), r.i16()]).collect();
+            Message::Data(DataBlock {
+                run_id,
+                first_index,
+                flags,
+                samples,
+            })
+        }
+        ty::STREAM_END => {
+            let run_id = r.u16();
+            let reason = EndReason::from_code(r.u8());
+            if r.u8() != 0 {
+                return Err(bad);
+            }
+            Message::StreamEnd(StreamEnd {
+                run_id,
+                reason,
+                total_samples: r.u32(),
+                samples_sent: r.u32(),
+                blocks_dropped: r.u16(),
+            })
+        }
+        ty::SINE_RESULT => Message::SineResult(SineResult {
+            run_id: r.u16(),
+            n: r.u32(),
+            u_re: r.i32(),
+            u_im: r.i32(),
+            y_re: r.i32(),
+            y_im: r.i32(),
+            u_mean: r.i32(),
+            u_ramp: r.i32(),
+            y_mean: r.i32(),
+            y_ramp: r.i32(),
+        }),
+        other => return Err(FrameError::UnknownType(other)),
+    })
 }
 
 /// The specification's name of a type code ("?" if unknown).
