@@ -694,120 +694,19 @@ impl Message {
             | Message::Estop
             | Message::Status
             | Message::Keepalive => {}
-            Message::Configure(c) => {
-                w.u32(c.sample_rate_hz);
-                w.u8(c.block_samples);
-                w.u8(0);
-                w.u16(c.keepalive_ms);
-                w.u32(c.scale_u_uv);
-                w.u32(c.scale_y_urad_s);
-                w.u32(c.scale_i_ua);
-                w.i16(c.u_limit);
-                w.i16(c.y_limit);
-                w.i16(c.i_limit);
+            Message::Configure(_)
+            | Message::StartPrbs(_)
+            | Message::StartSine(_)
+            | Message::EndQuery(_) => write_run_command(self, &mut w),
+            Message::LoadCtrl(_) | Message::LoadSection(_) | Message::StartLoop(_) => {
+                write_loop_command(self, &mut w)
             }
-            Message::StartPrbs(p) => {
-                w.u8(p.order);
-                w.u8(0);
-                w.u32(p.taps);
-                w.u32(p.seed);
-                w.u16(p.clock_samples);
-                w.i16(p.amplitude);
-                w.i16(p.offset);
-                w.u16(p.periods);
-                w.u32(p.settle_samples);
-            }
-            Message::StartSine(s) => {
-                w.u32(s.freq_mhz);
-                w.i16(s.amplitude);
-                w.i16(s.offset);
-                w.u16(s.settle_cycles);
-                w.u16(s.cycles);
-                w.u8(s.flags);
-                w.u8(0);
-            }
-            Message::EndQuery(r) => w.u16(*r),
-            Message::LoadCtrl(c) => {
-                w.u8(c.format);
-                w.u8(c.n_sections);
-                w.u8(c.n_taps);
-                w.u8(0);
-                w.i32(c.d_q24);
-                w.i32(c.dinv_q16);
-            }
-            Message::LoadSection(c) => {
-                w.u8(c.index);
-                w.u8(0);
-                w.i32(c.a_q30);
-                w.i32(c.g_q24);
-            }
-            Message::StartLoop(l) => {
-                w.i16(l.r0);
-                w.i16(l.r1);
-                w.u32(l.pre_samples);
-                w.u32(l.total_samples);
-            }
-            Message::Ack(a) => {
-                w.u8(a.acked_type);
-                w.u8(0);
-                w.u16(a.run_id);
-                w.u32(a.total_samples);
-            }
-            Message::HelloReply(h) => {
-                w.u8(h.proto_version);
-                w.u8(h.fw_major);
-                w.u8(h.fw_minor);
-                w.u8(h.n_channels);
-                w.u8(h.max_block_samples);
-                w.u8(0);
-                w.u16(h.boot_id);
-                w.u32(h.max_sample_rate_hz);
-            }
-            Message::StatusReply(s) => {
-                w.u8(s.state.code());
-                w.u8(s.fault);
-                w.u16(s.run_id);
-                w.u32(s.samples_done);
-                w.u16(s.blocks_dropped);
-                w.u16(s.boot_id);
-                w.u16(s.rx_errors);
-                w.u16(s.clamped);
-            }
-            Message::Nak(n) => {
-                w.u8(n.nak_type);
-                w.u8(n.code.code());
-                w.u16(n.detail);
-            }
-            Message::Data(d) => {
-                w.u16(d.run_id);
-                w.u32(d.first_index);
-                w.u8(d.samples.len() as u8);
-                w.u8(d.flags);
-                for s in &d.samples {
-                    for &c in s {
-                        w.i16(c);
-                    }
-                }
-            }
-            Message::StreamEnd(e) => {
-                w.u16(e.run_id);
-                w.u8(e.reason.code());
-                w.u8(0);
-                w.u32(e.total_samples);
-                w.u32(e.samples_sent);
-                w.u16(e.blocks_dropped);
-            }
-            Message::SineResult(s) => {
-                w.u16(s.run_id);
-                w.u32(s.n);
-                w.i32(s.u_re);
-                w.i32(s.u_im);
-                w.i32(s.y_re);
-                w.i32(s.y_im);
-                w.i32(s.u_mean);
-                w.i32(s.u_ramp);
-                w.i32(s.y_mean);
-                w.i32(s.y_ramp);
+            Message::Ack(_)
+            | Message::HelloReply(_)
+            | Message::StatusReply(_)
+            | Message::Nak(_) => write_reply(self, &mut w),
+            Message::Data(_) | Message::StreamEnd(_) | Message::SineResult(_) => {
+                write_stream(self, &mut w)
             }
         }
     }
@@ -837,6 +736,155 @@ impl Message {
             ty::DATA | ty::STREAM_END | ty::SINE_RESULT => parse_stream(ty, &mut r),
             other => Err(FrameError::UnknownType(other)),
         }
+    }
+}
+
+/// Append the payload bytes of a run command from the host:
+/// CONFIGURE, START_PRBS, START_SINE, END_QUERY.
+/// Messages of other families write nothing here; [`Message::write_payload`] dispatches.
+fn write_run_command(msg: &Message, w: &mut W<'_>) {
+    match msg {
+        Message::Configure(c) => {
+            w.u32(c.sample_rate_hz);
+            w.u8(c.block_samples);
+            w.u8(0);
+            w.u16(c.keepalive_ms);
+            w.u32(c.scale_u_uv);
+            w.u32(c.scale_y_urad_s);
+            w.u32(c.scale_i_ua);
+            w.i16(c.u_limit);
+            w.i16(c.y_limit);
+            w.i16(c.i_limit);
+        }
+        Message::StartPrbs(p) => {
+            w.u8(p.order);
+            w.u8(0);
+            w.u32(p.taps);
+            w.u32(p.seed);
+            w.u16(p.clock_samples);
+            w.i16(p.amplitude);
+            w.i16(p.offset);
+            w.u16(p.periods);
+            w.u32(p.settle_samples);
+        }
+        Message::StartSine(s) => {
+            w.u32(s.freq_mhz);
+            w.i16(s.amplitude);
+            w.i16(s.offset);
+            w.u16(s.settle_cycles);
+            w.u16(s.cycles);
+            w.u8(s.flags);
+            w.u8(0);
+        }
+        Message::EndQuery(r) => w.u16(*r),
+        _ => {}
+    }
+}
+
+/// Append the payload bytes of a closed-loop command from the host:
+/// LOAD_CTRL, LOAD_SECTION, START_LOOP.
+/// Messages of other families write nothing here; [`Message::write_payload`] dispatches.
+fn write_loop_command(msg: &Message, w: &mut W<'_>) {
+    match msg {
+        Message::LoadCtrl(c) => {
+            w.u8(c.format);
+            w.u8(c.n_sections);
+            w.u8(c.n_taps);
+            w.u8(0);
+            w.i32(c.d_q24);
+            w.i32(c.dinv_q16);
+        }
+        Message::LoadSection(c) => {
+            w.u8(c.index);
+            w.u8(0);
+            w.i32(c.a_q30);
+            w.i32(c.g_q24);
+        }
+        Message::StartLoop(l) => {
+            w.i16(l.r0);
+            w.i16(l.r1);
+            w.u32(l.pre_samples);
+            w.u32(l.total_samples);
+        }
+        _ => {}
+    }
+}
+
+/// Append the payload bytes of a reply from the drive: ACK, HELLO_REPLY, STATUS_REPLY, NAK.
+/// Messages of other families write nothing here; [`Message::write_payload`] dispatches.
+fn write_reply(msg: &Message, w: &mut W<'_>) {
+    match msg {
+        Message::Ack(a) => {
+            w.u8(a.acked_type);
+            w.u8(0);
+            w.u16(a.run_id);
+            w.u32(a.total_samples);
+        }
+        Message::HelloReply(h) => {
+            w.u8(h.proto_version);
+            w.u8(h.fw_major);
+            w.u8(h.fw_minor);
+            w.u8(h.n_channels);
+            w.u8(h.max_block_samples);
+            w.u8(0);
+            w.u16(h.boot_id);
+            w.u32(h.max_sample_rate_hz);
+        }
+        Message::StatusReply(s) => {
+            w.u8(s.state.code());
+            w.u8(s.fault);
+            w.u16(s.run_id);
+            w.u32(s.samples_done);
+            w.u16(s.blocks_dropped);
+            w.u16(s.boot_id);
+            w.u16(s.rx_errors);
+            w.u16(s.clamped);
+        }
+        Message::Nak(n) => {
+            w.u8(n.nak_type);
+            w.u8(n.code.code());
+            w.u16(n.detail);
+        }
+        _ => {}
+    }
+}
+
+/// Append the payload bytes of a stream message from the drive: DATA, STREAM_END, SINE_RESULT.
+/// Messages of other families write nothing here; [`Message::write_payload`] dispatches.
+fn write_stream(msg: &Message, w: &mut W<'_>) {
+    match msg {
+        Message::Data(d) => {
+            w.u16(d.run_id);
+            w.u32(d.first_index);
+            w.u8(d.samples.len() as u8);
+            w.u8(d.flags);
+            for s in &d.samples {
+                for &c in s {
+                    w.i16(c);
+                }
+            }
+        }
+        Message::StreamEnd(e) => {
+            w.u16(e.run_id);
+            w.u8(e.reason.code());
+            w.u8(0);
+            w.u32(e.total_samples);
+            w.u32(e.samples_sent);
+            w.u16(e.blocks_dropped);
+        }
+        Message::SineResult(s) => {
+            w.u16(s.run_id);
+            w.u32(s.n);
+            w.i32(s.u_re);
+            w.i32(s.u_im);
+            w.i32(s.y_re);
+            w.i32(s.y_im);
+            w.i32(s.u_mean);
+            w.i32(s.u_ramp);
+            w.i32(s.y_mean);
+            w.i32(s.y_ramp);
+        }
+        _ => {}
     }
 }
 
