@@ -694,120 +694,19 @@ impl Message {
             | Message::Estop
             | Message::Status
             | Message::Keepalive => {}
-            Message::Configure(c) => {
-                w.u32(c.sample_rate_hz);
-                w.u8(c.block_samples);
-                w.u8(0);
-                w.u16(c.keepalive_ms);
-                w.u32(c.scale_u_uv);
-                w.u32(c.scale_y_urad_s);
-                w.u32(c.scale_i_ua);
-                w.i16(c.u_limit);
-                w.i16(c.y_limit);
-                w.i16(c.i_limit);
+            Message::Configure(_)
+            | Message::StartPrbs(_)
+            | Message::StartSine(_)
+            | Message::EndQuery(_) => write_run_command(self, &mut w),
+            Message::LoadCtrl(_) | Message::LoadSection(_) | Message::StartLoop(_) => {
+                write_loop_command(self, &mut w)
             }
-            Message::StartPrbs(p) => {
-                w.u8(p.order);
-                w.u8(0);
-                w.u32(p.taps);
-                w.u32(p.seed);
-                w.u16(p.clock_samples);
-                w.i16(p.amplitude);
-                w.i16(p.offset);
-                w.u16(p.periods);
-                w.u32(p.settle_samples);
-            }
-            Message::StartSine(s) => {
-                w.u32(s.freq_mhz);
-                w.i16(s.amplitude);
-                w.i16(s.offset);
-                w.u16(s.settle_cycles);
-                w.u16(s.cycles);
-                w.u8(s.flags);
-                w.u8(0);
-            }
-            Message::EndQuery(r) => w.u16(*r),
-            Message::LoadCtrl(c) => {
-                w.u8(c.format);
-                w.u8(c.n_sections);
-                w.u8(c.n_taps);
-                w.u8(0);
-                w.i32(c.d_q24);
-                w.i32(c.dinv_q16);
-            }
-            Message::LoadSection(c) => {
-                w.u8(c.index);
-                w.u8(0);
-                w.i32(c.a_q30);
-                w.i32(c.g_q24);
-            }
-            Message::StartLoop(l) => {
-                w.i16(l.r0);
-                w.i16(l.r1);
-                w.u32(l.pre_samples);
-                w.u32(l.total_samples);
-            }
-            Message::Ack(a) => {
-                w.u8(a.acked_type);
-                w.u8(0);
-                w.u16(a.run_id);
-                w.u32(a.total_samples);
-            }
-            Message::HelloReply(h) => {
-                w.u8(h.proto_version);
-                w.u8(h.fw_major);
-                w.u8(h.fw_minor);
-                w.u8(h.n_channels);
-                w.u8(h.max_block_samples);
-                w.u8(0);
-                w.u16(h.boot_id);
-                w.u32(h.max_sample_rate_hz);
-            }
-            Message::StatusReply(s) => {
-                w.u8(s.state.code());
-                w.u8(s.fault);
-                w.u16(s.run_id);
-                w.u32(s.samples_done);
-                w.u16(s.blocks_dropped);
-                w.u16(s.boot_id);
-                w.u16(s.rx_errors);
-                w.u16(s.clamped);
-            }
-            Message::Nak(n) => {
-                w.u8(n.nak_type);
-                w.u8(n.code.code());
-                w.u16(n.detail);
-            }
-            Message::Data(d) => {
-                w.u16(d.run_id);
-                w.u32(d.first_index);
-                w.u8(d.samples.len() as u8);
-                w.u8(d.flags);
-                for s in &d.samples {
-                    for &c in s {
-                        w.i16(c);
-                    }
-                }
-            }
-            Message::StreamEnd(e) => {
-                w.u16(e.run_id);
-                w.u8(e.reason.code());
-                w.u8(0);
-                w.u32(e.total_samples);
-                w.u32(e.samples_sent);
-                w.u16(e.blocks_dropped);
-            }
-            Message::SineResult(s) => {
-                w.u16(s.run_id);
-                w.u32(s.n);
-                w.i32(s.u_re);
-                w.i32(s.u_im);
-                w.i32(s.y_re);
-                w.i32(s.y_im);
-                w.i32(s.u_mean);
-                w.i32(s.u_ramp);
-                w.i32(s.y_mean);
-                w.i32(s.y_ramp);
+            Message::Ack(_)
+            | Message::HelloReply(_)
+            | Message::StatusReply(_)
+            | Message::Nak(_) => write_reply(self, &mut w),
+            Message::Data(_) | Message::StreamEnd(_) | Message::SineResult(_) => {
+                write_stream(self, &mut w)
             }
         }
     }
@@ -822,185 +721,375 @@ impl Message {
         if p.len() != want {
             return Err(FrameError::Length { ty, len: p.len() });
         }
-        let bad = FrameError::Field(ty);
         let mut r = R(p, 0);
-        Ok(match ty {
-            ty::HELLO => Message::Hello,
-            ty::STOP => Message::Stop,
-            ty::ESTOP => Message::Estop,
-            ty::STATUS => Message::Status,
-            ty::KEEPALIVE => Message::Keepalive,
-            ty::CONFIGURE => {
-                let sample_rate_hz = r.u32();
-                let block_samples = r.u8();
-                if r.u8() != 0 {
-                    return Err(bad);
-                }
-                Message::Configure(Configure {
-                    sample_rate_hz,
-                    block_samples,
-                    keepalive_ms: r.u16(),
-                    scale_u_uv: r.u32(),
-                    scale_y_urad_s: r.u32(),
-                    scale_i_ua: r.u32(),
-                    u_limit: r.i16(),
-                    y_limit: r.i16(),
-                    i_limit: r.i16(),
-                })
+        match ty {
+            ty::HELLO => Ok(Message::Hello),
+            ty::STOP => Ok(Message::Stop),
+            ty::ESTOP => Ok(Message::Estop),
+            ty::STATUS => Ok(Message::Status),
+            ty::KEEPALIVE => Ok(Message::Keepalive),
+            ty::CONFIGURE | ty::START_PRBS | ty::START_SINE | ty::END_QUERY => {
+                parse_run_command(ty, &mut r)
             }
-            ty::START_PRBS => {
-                let order = r.u8();
-                if r.u8() != 0 {
-                    return Err(bad);
-                }
-                Message::StartPrbs(StartPrbs {
-                    order,
-                    taps: r.u32(),
-                    seed: r.u32(),
-                    clock_samples: r.u16(),
-                    amplitude: r.i16(),
-                    offset: r.i16(),
-                    periods: r.u16(),
-                    settle_samples: r.u32(),
-                })
-            }
-            ty::START_SINE => {
-                let s = StartSine {
-                    freq_mhz: r.u32(),
-                    amplitude: r.i16(),
-                    offset: r.i16(),
-                    settle_cycles: r.u16(),
-                    cycles: r.u16(),
-                    flags: r.u8(),
-                };
-                if r.u8() != 0 || s.flags & !(SINE_STREAM | SINE_DFT) != 0 {
-                    return Err(bad);
-                }
-                Message::StartSine(s)
-            }
-            ty::END_QUERY => Message::EndQuery(r.u16()),
-            ty::LOAD_CTRL => {
-                let format = r.u8();
-                let n_sections = r.u8();
-                let n_taps = r.u8();
-                if r.u8() != 0 {
-                    return Err(bad);
-                }
-                Message::LoadCtrl(LoadCtrl {
-                    format,
-                    n_sections,
-                    n_taps,
-                    d_q24: r.i32(),
-                    dinv_q16: r.i32(),
-                })
-            }
-            ty::LOAD_SECTION => {
-                let index = r.u8();
-                if r.u8() != 0 {
-                    return Err(bad);
-                }
-                Message::LoadSection(LoadSection {
-                    index,
-                    a_q30: r.i32(),
-                    g_q24: r.i32(),
-                })
-            }
-            ty::START_LOOP => Message::StartLoop(StartLoop {
-                r0: r.i16(),
-                r1: r.i16(),
-                pre_samples: r.u32(),
-                total_samples: r.u32(),
-            }),
-            ty::ACK => {
-                let acked_type = r.u8();
-                if r.u8() != 0 {
-                    return Err(bad);
-                }
-                Message::Ack(Ack {
-                    acked_type,
-                    run_id: r.u16(),
-                    total_samples: r.u32(),
-                })
-            }
-            ty::HELLO_REPLY => {
-                let proto_version = r.u8();
-                let fw_major = r.u8();
-                let fw_minor = r.u8();
-                let n_channels = r.u8();
-                let max_block_samples = r.u8();
-                if r.u8() != 0 {
-                    return Err(bad);
-                }
-                Message::HelloReply(HelloReply {
-                    proto_version,
-                    fw_major,
-                    fw_minor,
-                    n_channels,
-                    max_block_samples,
-                    boot_id: r.u16(),
-                    max_sample_rate_hz: r.u32(),
-                })
-            }
-            ty::STATUS_REPLY => Message::StatusReply(StatusReply {
-                state: DriveState::from_code(r.u8()).ok_or(bad)?,
-                fault: r.u8(),
-                run_id: r.u16(),
-                samples_done: r.u32(),
-                blocks_dropped: r.u16(),
-                boot_id: r.u16(),
-                rx_errors: r.u16(),
-                clamped: r.u16(),
-            }),
-            ty::NAK => Message::Nak(Nak {
-                nak_type: r.u8(),
-                code: NakCode::from_code(r.u8()),
-                detail: r.u16(),
-            }),
-            ty::DATA => {
-                let run_id = r.u16();
-                let first_index = r.u32();
-                let n = r.u8();
-                let flags = r.u8();
-                if n == 0 || n > MAX_BLOCK_SAMPLES || flags & !1 != 0 {
-                    return Err(bad);
-                }
-                let samples = (0..n).map(|_| [r.i16(), r.i16(), r.i16()]).collect();
-                Message::Data(DataBlock {
-                    run_id,
-                    first_index,
-                    flags,
-                    samples,
-                })
-            }
-            ty::STREAM_END => {
-                let run_id = r.u16();
-                let reason = EndReason::from_code(r.u8());
-                if r.u8() != 0 {
-                    return Err(bad);
-                }
-                Message::StreamEnd(StreamEnd {
-                    run_id,
-                    reason,
-                    total_samples: r.u32(),
-                    samples_sent: r.u32(),
-                    blocks_dropped: r.u16(),
-                })
-            }
-            ty::SINE_RESULT => Message::SineResult(SineResult {
-                run_id: r.u16(),
-                n: r.u32(),
-                u_re: r.i32(),
-                u_im: r.i32(),
-                y_re: r.i32(),
-                y_im: r.i32(),
-                u_mean: r.i32(),
-                u_ramp: r.i32(),
-                y_mean: r.i32(),
-                y_ramp: r.i32(),
-            }),
-            other => return Err(FrameError::UnknownType(other)),
-        })
+            ty::LOAD_CTRL | ty::LOAD_SECTION | ty::START_LOOP => parse_loop_command(ty, &mut r),
+            ty::ACK | ty::HELLO_REPLY | ty::STATUS_REPLY | ty::NAK => parse_reply(ty, &mut r),
+            ty::DATA | ty::STREAM_END | ty::SINE_RESULT => parse_stream(ty, &mut r),
+            other => Err(FrameError::UnknownType(other)),
+        }
     }
+}
+
+/// Append the payload bytes of a run command from the host:
+/// CONFIGURE, START_PRBS, START_SINE, END_QUERY.
+/// Messages of other families write nothing here; [`Message::write_payload`] dispatches.
+fn write_run_command(msg: &Message, w: &mut W<'_>) {
+    match msg {
+        Message::Configure(c) => {
+            w.u32(c.sample_rate_hz);
+            w.u8(c.block_samples);
+            w.u8(0);
+            w.u16(c.keepalive_ms);
+            w.u32(c.scale_u_uv);
+            w.u32(c.scale_y_urad_s);
+            w.u32(c.scale_i_ua);
+            w.i16(c.u_limit);
+            w.i16(c.y_limit);
+            w.i16(c.i_limit);
+        }
+        Message::StartPrbs(p) => {
+            w.u8(p.order);
+            w.u8(0);
+            w.u32(p.taps);
+            w.u32(p.seed);
+            w.u16(p.clock_samples);
+            w.i16(p.amplitude);
+            w.i16(p.offset);
+            w.u16(p.periods);
+            w.u32(p.settle_samples);
+        }
+        Message::StartSine(s) => {
+            w.u32(s.freq_mhz);
+            w.i16(s.amplitude);
+            w.i16(s.offset);
+            w.u16(s.settle_cycles);
+            w.u16(s.cycles);
+            w.u8(s.flags);
+            w.u8(0);
+        }
+        Message::EndQuery(r) => w.u16(*r),
+        _ => {}
+    }
+}
+
+/// Append the payload bytes of a closed-loop command from the host:
+/// LOAD_CTRL, LOAD_SECTION, START_LOOP.
+/// Messages of other families write nothing here; [`Message::write_payload`] dispatches.
+fn write_loop_command(msg: &Message, w: &mut W<'_>) {
+    match msg {
+        Message::LoadCtrl(c) => {
+            w.u8(c.format);
+            w.u8(c.n_sections);
+            w.u8(c.n_taps);
+            w.u8(0);
+            w.i32(c.d_q24);
+            w.i32(c.dinv_q16);
+        }
+        Message::LoadSection(c) => {
+            w.u8(c.index);
+            w.u8(0);
+            w.i32(c.a_q30);
+            w.i32(c.g_q24);
+        }
+        Message::StartLoop(l) => {
+            w.i16(l.r0);
+            w.i16(l.r1);
+            w.u32(l.pre_samples);
+            w.u32(l.total_samples);
+        }
+        _ => {}
+    }
+}
+
+/// Append the payload bytes of a reply from the drive: ACK, HELLO_REPLY, STATUS_REPLY, NAK.
+/// Messages of other families write nothing here; [`Message::write_payload`] dispatches.
+fn write_reply(msg: &Message, w: &mut W<'_>) {
+    match msg {
+        Message::Ack(a) => {
+            w.u8(a.acked_type);
+            w.u8(0);
+            w.u16(a.run_id);
+            w.u32(a.total_samples);
+        }
+        Message::HelloReply(h) => {
+            w.u8(h.proto_version);
+            w.u8(h.fw_major);
+            w.u8(h.fw_minor);
+            w.u8(h.n_channels);
+            w.u8(h.max_block_samples);
+            w.u8(0);
+            w.u16(h.boot_id);
+            w.u32(h.max_sample_rate_hz);
+        }
+        Message::StatusReply(s) => {
+            w.u8(s.state.code());
+            w.u8(s.fault);
+            w.u16(s.run_id);
+            w.u32(s.samples_done);
+            w.u16(s.blocks_dropped);
+            w.u16(s.boot_id);
+            w.u16(s.rx_errors);
+            w.u16(s.clamped);
+        }
+        Message::Nak(n) => {
+            w.u8(n.nak_type);
+            w.u8(n.code.code());
+            w.u16(n.detail);
+        }
+        _ => {}
+    }
+}
+
+/// Append the payload bytes of a stream message from the drive: DATA, STREAM_END, SINE_RESULT.
+/// Messages of other families write nothing here; [`Message::write_payload`] dispatches.
+fn write_stream(msg: &Message, w: &mut W<'_>) {
+    match msg {
+        Message::Data(d) => {
+            w.u16(d.run_id);
+            w.u32(d.first_index);
+            w.u8(d.samples.len() as u8);
+            w.u8(d.flags);
+            for s in &d.samples {
+                for &c in s {
+                    w.i16(c);
+                }
+            }
+        }
+        Message::StreamEnd(e) => {
+            w.u16(e.run_id);
+            w.u8(e.reason.code());
+            w.u8(0);
+            w.u32(e.total_samples);
+            w.u32(e.samples_sent);
+            w.u16(e.blocks_dropped);
+        }
+        Message::SineResult(s) => {
+            w.u16(s.run_id);
+            w.u32(s.n);
+            w.i32(s.u_re);
+            w.i32(s.u_im);
+            w.i32(s.y_re);
+            w.i32(s.y_im);
+            w.i32(s.u_mean);
+            w.i32(s.u_ramp);
+            w.i32(s.y_mean);
+            w.i32(s.y_ramp);
+        }
+        _ => {}
+    }
+}
+
+/// Parse a run command from the host: CONFIGURE, START_PRBS, START_SINE, END_QUERY.
+/// The length is already checked by [`Message::parse`]; reserved fields are checked here.
+fn parse_run_command(ty: u8, r: &mut R<'_>) -> Result<Message, FrameError> {
+    let bad = FrameError::Field(ty);
+    Ok(match ty {
+        ty::CONFIGURE => {
+            let sample_rate_hz = r.u32();
+            let block_samples = r.u8();
+            if r.u8() != 0 {
+                return Err(bad);
+            }
+            Message::Configure(Configure {
+                sample_rate_hz,
+                block_samples,
+                keepalive_ms: r.u16(),
+                scale_u_uv: r.u32(),
+                scale_y_urad_s: r.u32(),
+                scale_i_ua: r.u32(),
+                u_limit: r.i16(),
+                y_limit: r.i16(),
+                i_limit: r.i16(),
+            })
+        }
+        ty::START_PRBS => {
+            let order = r.u8();
+            if r.u8() != 0 {
+                return Err(bad);
+            }
+            Message::StartPrbs(StartPrbs {
+                order,
+                taps: r.u32(),
+                seed: r.u32(),
+                clock_samples: r.u16(),
+                amplitude: r.i16(),
+                offset: r.i16(),
+                periods: r.u16(),
+                settle_samples: r.u32(),
+            })
+        }
+        ty::START_SINE => {
+            let s = StartSine {
+                freq_mhz: r.u32(),
+                amplitude: r.i16(),
+                offset: r.i16(),
+                settle_cycles: r.u16(),
+                cycles: r.u16(),
+                flags: r.u8(),
+            };
+            if r.u8() != 0 || s.flags & !(SINE_STREAM | SINE_DFT) != 0 {
+                return Err(bad);
+            }
+            Message::StartSine(s)
+        }
+        ty::END_QUERY => Message::EndQuery(r.u16()),
+        other => return Err(FrameError::UnknownType(other)),
+    })
+}
+
+/// Parse a closed-loop command from the host: LOAD_CTRL, LOAD_SECTION, START_LOOP.
+/// The length is already checked by [`Message::parse`]; reserved fields are checked here.
+fn parse_loop_command(ty: u8, r: &mut R<'_>) -> Result<Message, FrameError> {
+    let bad = FrameError::Field(ty);
+    Ok(match ty {
+        ty::LOAD_CTRL => {
+            let format = r.u8();
+            let n_sections = r.u8();
+            let n_taps = r.u8();
+            if r.u8() != 0 {
+                return Err(bad);
+            }
+            Message::LoadCtrl(LoadCtrl {
+                format,
+                n_sections,
+                n_taps,
+                d_q24: r.i32(),
+                dinv_q16: r.i32(),
+            })
+        }
+        ty::LOAD_SECTION => {
+            let index = r.u8();
+            if r.u8() != 0 {
+                return Err(bad);
+            }
+            Message::LoadSection(LoadSection {
+                index,
+                a_q30: r.i32(),
+                g_q24: r.i32(),
+            })
+        }
+        ty::START_LOOP => Message::StartLoop(StartLoop {
+            r0: r.i16(),
+            r1: r.i16(),
+            pre_samples: r.u32(),
+            total_samples: r.u32(),
+        }),
+        other => return Err(FrameError::UnknownType(other)),
+    })
+}
+
+/// Parse a reply from the drive: ACK, HELLO_REPLY, STATUS_REPLY, NAK.
+/// The length is already checked by [`Message::parse`]; reserved fields are checked here.
+fn parse_reply(ty: u8, r: &mut R<'_>) -> Result<Message, FrameError> {
+    let bad = FrameError::Field(ty);
+    Ok(match ty {
+        ty::ACK => {
+            let acked_type = r.u8();
+            if r.u8() != 0 {
+                return Err(bad);
+            }
+            Message::Ack(Ack {
+                acked_type,
+                run_id: r.u16(),
+                total_samples: r.u32(),
+            })
+        }
+        ty::HELLO_REPLY => {
+            let proto_version = r.u8();
+            let fw_major = r.u8();
+            let fw_minor = r.u8();
+            let n_channels = r.u8();
+            let max_block_samples = r.u8();
+            if r.u8() != 0 {
+                return Err(bad);
+            }
+            Message::HelloReply(HelloReply {
+                proto_version,
+                fw_major,
+                fw_minor,
+                n_channels,
+                max_block_samples,
+                boot_id: r.u16(),
+                max_sample_rate_hz: r.u32(),
+            })
+        }
+        ty::STATUS_REPLY => Message::StatusReply(StatusReply {
+            state: DriveState::from_code(r.u8()).ok_or(bad)?,
+            fault: r.u8(),
+            run_id: r.u16(),
+            samples_done: r.u32(),
+            blocks_dropped: r.u16(),
+            boot_id: r.u16(),
+            rx_errors: r.u16(),
+            clamped: r.u16(),
+        }),
+        ty::NAK => Message::Nak(Nak {
+            nak_type: r.u8(),
+            code: NakCode::from_code(r.u8()),
+            detail: r.u16(),
+        }),
+        other => return Err(FrameError::UnknownType(other)),
+    })
+}
+
+/// Parse a stream message from the drive: DATA, STREAM_END, SINE_RESULT.
+/// The length is already checked by [`Message::parse`]; reserved fields are checked here.
+fn parse_stream(ty: u8, r: &mut R<'_>) -> Result<Message, FrameError> {
+    let bad = FrameError::Field(ty);
+    Ok(match ty {
+        ty::DATA => {
+            let run_id = r.u16();
+            let first_index = r.u32();
+            let n = r.u8();
+            let flags = r.u8();
+            if n == 0 || n > MAX_BLOCK_SAMPLES || flags & !1 != 0 {
+                return Err(bad);
+            }
+            let samples = (0..n).map(|_| [r.i16(), r.i16(), r.i16()]).collect();
+            Message::Data(DataBlock {
+                run_id,
+                first_index,
+                flags,
+                samples,
+            })
+        }
+        ty::STREAM_END => {
+            let run_id = r.u16();
+            let reason = EndReason::from_code(r.u8());
+            if r.u8() != 0 {
+                return Err(bad);
+            }
+            Message::StreamEnd(StreamEnd {
+                run_id,
+                reason,
+                total_samples: r.u32(),
+                samples_sent: r.u32(),
+                blocks_dropped: r.u16(),
+            })
+        }
+        ty::SINE_RESULT => Message::SineResult(SineResult {
+            run_id: r.u16(),
+            n: r.u32(),
+            u_re: r.i32(),
+            u_im: r.i32(),
+            y_re: r.i32(),
+            y_im: r.i32(),
+            u_mean: r.i32(),
+            u_ramp: r.i32(),
+            y_mean: r.i32(),
+            y_ramp: r.i32(),
+        }),
+        other => return Err(FrameError::UnknownType(other)),
+    })
 }
 
 /// The specification's name of a type code ("?" if unknown).
