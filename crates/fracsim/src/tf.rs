@@ -965,49 +965,139 @@ impl FromStr for FracTf {
         // Normalise so that the denominator's order-zero term (or its lowest term) is the
         // scale the user wrote: keep coefficients as given.
         let mut g = FracTf::new(v.num, v.den, v.delay)?;
-        // A product at the top of the text (`F1 * F2`): its factors are kept for the simulators
-        // (see `FracTf::with_factors`), not shown.
-        let mut pieces = vec![];
-        let (mut depth, mut from) = (0i32, 0);
-        for (k, (_, t)) in toks.iter().enumerate() {
-            match t {
-                Tok::LParen => depth += 1,
-                Tok::RParen => depth -= 1,
-                Tok::Star if depth == 0 => {
-                    pieces.push(&toks[from..k]);
-                    from = k + 1;
-                }
-                _ => {}
-            }
-        }
-        pieces.push(&toks[from..]);
-        if pieces.len() >= 2 {
-            let parsed: Option<Vec<FracTf>> = pieces
-                .iter()
-                .map(|ts| {
-                    let mut q = Parser {
-                        toks: ts,
-                        i: 0,
-                        end: src.len(),
-                        depth: 0,
-                    };
-                    let v = q.expr().ok()?;
-                    (q.i == ts.len()).then_some(())?;
-                    FracTf::new(v.num, v.den, v.delay).ok()
-                })
-                .collect();
-            if let Some(fs) = parsed {
-                if let Ok(h) = g.clone().with_factors(fs) {
-                    g = FracTf {
-                        show_factors: false,
-                        direct: None,
-                        ..h
-                    };
-                }
+        // A series connection as people write it (`F1 * F2`, `N/((D1)(D2))`): its factors are
+        // kept for the simulators (see `FracTf::with_factors`), not shown.
+        if let Some(fs) = written_factors(&toks, src.len()) {
+            if let Ok(h) = g.clone().with_factors(fs) {
+                g = FracTf {
+                    show_factors: false,
+                    direct: None,
+                    ..h
+                };
             }
         }
         Ok(g)
     }
+}
+
+type Toks<'a> = &'a [(usize, Tok)];
+
+/// `toks` cut at the tokens outside parentheses for which `cut(previous, this)` holds (the cut
+/// token itself dropped when `drop` holds for it).
+fn split_top<'a>(
+    toks: Toks<'a>,
+    cut: impl Fn(Option<&Tok>, &Tok) -> bool,
+    drop: impl Fn(&Tok) -> bool,
+) -> Vec<Toks<'a>> {
+    let (mut pieces, mut depth, mut from) = (vec![], 0i32, 0);
+    for (k, (_, t)) in toks.iter().enumerate() {
+        if depth == 0 && k > 0 && cut(toks.get(k - 1).map(|p| &p.1), t) {
+            pieces.push(&toks[from..k]);
+            from = if drop(t) { k + 1 } else { k };
+        }
+        match t {
+            Tok::LParen => depth += 1,
+            Tok::RParen => depth -= 1,
+            _ => {}
+        }
+    }
+    pieces.push(&toks[from..]);
+    pieces
+}
+
+/// The groups a product is written as: `(A)(B)`, `(A) * (B)`, either inside one more pair of
+/// parentheses; a text that is no such product is one group.
+fn product_groups(toks: Toks<'_>) -> Vec<Toks<'_>> {
+    // one pair of parentheses around the whole: the first closes at the last token
+    let mut depth = 0i32;
+    let wrapped = matches!(toks.first(), Some((_, Tok::LParen)))
+        && toks.iter().enumerate().all(|(k, (_, t))| {
+            match t {
+                Tok::LParen => depth += 1,
+                Tok::RParen => depth -= 1,
+                _ => {}
+            }
+            depth > 0 || k == toks.len() - 1
+        });
+    let inner = if wrapped {
+        &toks[1..toks.len() - 1]
+    } else {
+        toks
+    };
+    let groups = split_top(
+        inner,
+        |prev, t| *t == Tok::Star || (prev == Some(&Tok::RParen) && *t == Tok::LParen),
+        |t| *t == Tok::Star,
+    );
+    if groups.len() >= 2 {
+        groups
+    } else {
+        vec![toks]
+    }
+}
+
+/// The series factors the text is written as, each proper: a product at the top of the text
+/// (`F1 * F2`, each factor as written), or a quotient whose denominator is a product
+/// (`N/((D1)(D2))`, `N/(D1)/(D2)`): one factor per denominator group, the numerator's groups
+/// each joined to the remaining factor of highest denominator order that stays proper with it
+/// (so `6.82/((a2 s^1.75 + a1 s^0.92 + 1)(m s^2 + c s + 1))` is simulated as its two stores in
+/// series rather than as one nine-term denominator). None when the text is no such product.
+fn written_factors(toks: Toks<'_>, end: usize) -> Option<Vec<FracTf>> {
+    let parse = |ts: Toks<'_>| -> Option<Val> {
+        let mut q = Parser {
+            toks: ts,
+            i: 0,
+            end,
+            depth: 0,
+        };
+        let v = q.expr().ok()?;
+        (q.i == ts.len()).then_some(v)
+    };
+    let tf = |v: Val| FracTf::new(v.num, v.den, v.delay.max(0.0)).ok();
+    let top = split_top(toks, |_, t| *t == Tok::Star, |_| true);
+    if top.len() >= 2 {
+        return top.into_iter().map(|ts| tf(parse(ts)?)).collect();
+    }
+    let quotient = split_top(toks, |_, t| *t == Tok::Slash, |_| true);
+    let (num, dens) = quotient.split_first()?;
+    let den_groups: Vec<Toks<'_>> = dens.iter().flat_map(|d| product_groups(d)).collect();
+    if den_groups.len() < 2 {
+        return None;
+    }
+    let mut factors: Vec<FracTf> = den_groups
+        .into_iter()
+        .map(|d| {
+            let v = parse(d)?;
+            tf(Val {
+                num: v.den,
+                den: v.num,
+                delay: 0.0,
+            })
+        })
+        .collect::<Option<_>>()?;
+    let mut nums: Vec<FracTf> = product_groups(num)
+        .into_iter()
+        .map(|n| tf(parse(n)?))
+        .collect::<Option<_>>()?;
+    nums.sort_by(|a, b| {
+        (b.num_order() - b.den_order()).total_cmp(&(a.num_order() - a.den_order()))
+    });
+    for n in nums {
+        let k = (0..factors.len())
+            .filter(|&k| {
+                factors[k].num_order() + n.num_order()
+                    <= factors[k].den_order() + n.den_order() + 1e-12
+            })
+            .max_by(|&a, &b| factors[a].den_order().total_cmp(&factors[b].den_order()))?;
+        let f = &factors[k];
+        let joined = Val {
+            num: poly_mul(&f.num, &n.num, 0).ok()?,
+            den: poly_mul(&f.den, &n.den, 0).ok()?,
+            delay: 0.0,
+        };
+        factors[k] = tf(joined)?;
+    }
+    Some(factors)
 }
 
 #[cfg(test)]
