@@ -210,15 +210,27 @@ def load_tuy(path: Path):
 # ---------------------------------------------------------------------------------------------
 
 
-def run_fracid(binary, path: Path, *extra: str) -> dict:
+def run_fracid(binary, path: Path, *extra: str) -> tuple[dict, int]:
+    """``fracid time PATH --json EXTRA``: its report and exit code. Exit 0, or exit 1 with a
+    report that says the model is not usable (``"usable": false``, its figures still stated:
+    the comparison then records the loss); anything else fails here."""
     p = subprocess.run(
         [str(binary), "time", str(path), "--json", *extra],
         capture_output=True,
         text=True,
         timeout=600,
     )
-    assert p.returncode == 0, f"fracid time {path} exit {p.returncode}\n{p.stderr}"
-    return json.loads(p.stdout)
+    assert p.returncode in (0, 1), f"fracid time {path} exit {p.returncode}\n{p.stderr}"
+    out = json.loads(p.stdout)
+    assert (p.returncode == 0) == bool(out["usable"]), (p.returncode, out["usable"], p.stderr)
+    return out, p.returncode
+
+
+def exit_note(out: dict, code: int) -> str:
+    """What an exit other than 0 said, for an assertion's message."""
+    if code == 0:
+        return ""
+    return f" (exit {code}, not usable: {'; '.join(out.get('problems') or [])})"
 
 
 def held_out(out: dict):
@@ -239,6 +251,13 @@ RECORDS = {
     "motor_generator_steps": ("sysidentpy_motor_generator/motor_generator_steps.csv", 10),
     "dcmotor_step_open": ("unal_dcmotor/DCmotor_step_open_exp.csv", 10),
     "robot_arm_flexible": ("slicot_robot_arm/robot_arm.csv", 10),
+    "battery_random_current": ("dmegc_battery/random_current_cycle26.csv", 10),
+    "battery_pulse_relaxation": ("dmegc_battery/pulse_discharge.csv", 10),
+    "battery_hppc_block": ("ornl_nissan_leaf_cell/hppc_25c_pulse4.csv", 10),
+    "cd_player_arm": ("slicot_cd_player_arm/cd_player_arm.csv", 10),
+    "dcmotor_prbs_low_speed": ("unal_undcmotor/DCmotor_prbs_open_low.csv", 10),
+    "closed_speed_profile": ("unal_undcmotor/DCmotor_profile_closed_exp.csv", 10),
+    "tclab_pwm_steps": ("apm_tclab/tclab_pwm_steps.csv", 30),
 }
 
 # Where fracid loses, the measured figures and the reason. Measured 2026-11-26 (session 14, after
@@ -316,6 +335,80 @@ XFAIL: dict[str, str] = {
         "fracid's held-out RMSE 562.0 (39.8%) vs integer baseline 511.8 (45.2%, third order); "
         "with --diagnose 505.04 (45.94%), pmsm + initial_state"
     ),
+    # The records added 2026-12-05, measured on main e364c0a (`fracid time FILE
+    # --json`, defaults; the baseline on fracid's split). Exit 1 = "not usable", its figures
+    # still reported.
+    # DMEGC 18650 cell, random current 0-6 A in 120 s steps, 446 samples at 10 s, current ->
+    # voltage; held out the last 30% (312..446). fracid (pmsm) exits 1: covariance singular,
+    # theta at its bound 2, held-out RMSE 0.4102 V (NRMSE -213.4%); baseline second order 0.1305
+    # (0.28%; first and third order 0.1351). No all-pole model holds the cell's ohmic feed-through.
+    "battery_random_current": (
+        "fracid exits 1 (covariance singular), held-out RMSE 0.4102 V vs integer baseline 0.1305 V"
+    ),
+    # DMEGC 18650 cell, 11 pulses of 1.30 A (10 min) with 20 min rests, 1981 samples at 10 s;
+    # held out 1387..1981. fracid (pmsm, initial state estimated) exits 1: covariance singular,
+    # held-out RMSE 0.2856 V (NRMSE -368.3%); baseline first order 0.03850 V (36.89%).
+    "battery_pulse_relaxation": (
+        "fracid exits 1 (covariance singular), held-out RMSE 0.2856 V vs integer baseline 0.0385 V"
+    ),
+    # Nissan Leaf cell, one HPPC block (-30 A 30 s, rest, +22.5 A 10 s, -10 A 1080 s), 1161
+    # samples at 1 s. fracid's split: estimation 0..60 (the first pulse and its rest), held out
+    # 60..1161 (the rule that the held-out part has input changes of its own). fracid (pmsm)
+    # exits 1: the fitted model (orders 2.68 and 0.68) is unstable, a pole at 0.258 + 0.882j
+    # rad/s, and its held-out simulation diverges (RMSE 1.475e119 V); baseline third order
+    # 0.02500 V (NRMSE -59.05%: the held-out part's slow decline is not in its 60 estimation
+    # samples).
+    "battery_hppc_block": (
+        "fracid exits 1 (an unstable model), held-out RMSE 1.5e119 V vs integer baseline 0.0250 V"
+    ),
+    # CD-player arm (DaISy, SLICOT), input 1 -> output 1, 2048 samples in sample units; held out
+    # 1434..2048. fracid (pmsm) exits 1: an absurd static gain (2674), five parameters not
+    # determined, held-out RMSE 0.7540 (NRMSE -138.6%); baseline third order 0.1009 (68.06%;
+    # first and second order 0.1022).
+    "cd_player_arm": (
+        "fracid exits 1 (absurd gain), held-out RMSE 0.7540 vs integer baseline 0.1009"
+    ),
+    # UNDCMotor closed speed loop, reference profile -> speed, 201 samples at 0.02 s; held out
+    # 141..201 (the ramp down's end and the rest at 0). fracid (pmsm) 4.852 deg/s (89.98%);
+    # baseline third order + 1 sample 1.801 (96.28%), second order + 1 sample 1.803.
+    "closed_speed_profile": (
+        "fracid's held-out RMSE 4.852 deg/s vs integer baseline 1.801 (third order + 1 sample)"
+    ),
+    # TCLab heater PWM steps 0 -> 100 -> 255 -> 50, 851 samples at 1 s, degF; validated on the
+    # response tail 747..851, fitted from rest (63 s idle). fracid (pmsm) exits 1: an absurd
+    # static gain (1.7e8), three parameters not determined; tail RMSE 1.642 degF (NRMSE
+    # -73.25%); baseline third order 1.509 (-59.22%; first order + 8 s 1.518).
+    "tclab_pwm_steps": (
+        "fracid exits 1 (absurd gain), tail RMSE 1.642 degF vs baseline 1.509 degF"
+    ),
+}
+
+# Where fracid's --diagnose loses or exits 1 (strict, as above). Measured 2026-12-05 on main
+# e364c0a with `fracid time FILE --json --diagnose` (its recommended model, `fit`).
+XFAIL_DIAGNOSE: dict[str, str] = {
+    # The feed-through structure is chosen (with initial_state): held-out RMSE 0.07575 V (NRMSE
+    # 42.13%), better than the baseline's 0.1305 V, but exit 1: four of its parameters are not
+    # determined (a1, a2, zeta, theta with standard errors of 1e6-1e7).
+    "battery_random_current": (
+        "fracid --diagnose exits 1 (a1, a2, zeta, theta not determined) although its held-out "
+        "RMSE 0.0757 V beats the integer baseline's 0.1305 V"
+    ),
+    # Feed-through chosen, no effect kept: held-out RMSE 0.04792 V (21.44%) against the
+    # baseline's first order 0.03850 V, and exit 1 (a1, a2, zeta not determined).
+    "battery_pulse_relaxation": (
+        "fracid --diagnose exits 1, held-out RMSE 0.0479 V vs integer baseline 0.0385 V"
+    ),
+    # pmsm + integrator chosen, reduced to 0.803/(7.2e18 s): held-out RMSE 0.02034 V (-29.42%),
+    # below the baseline's 0.02500 V, but exit 1 (not usable).
+    "battery_hppc_block": (
+        "fracid --diagnose exits 1 although its held-out RMSE 0.0203 V is below the integer "
+        "baseline's 0.0250 V"
+    ),
+    # Feed-through chosen: held-out RMSE 0.10092 (68.06%), the baseline's third order 0.10092
+    # (68.06%): a tie, and exit 1 (a2 = 9.7e-5 +- 3.4e-3 not determined).
+    "cd_player_arm": (
+        "fracid --diagnose exits 1 (a2 not determined), held-out RMSE 0.1009 ties the baseline's 0.1009"
+    ),
 }
 
 # fracid's held-out RMSE may exceed the best integer baseline's by at most this fraction. Both are
@@ -334,21 +427,25 @@ def test_fracid_beats_integer_baseline(fracid_bin, name, request):
         pytest.fail(f"{path} is missing: the real records ship with the repository in data/")
     if name in XFAIL:
         request.node.add_marker(pytest.mark.xfail(reason=XFAIL[name], strict=True))
-    out = run_fracid(fracid_bin, path)
+    out, code = run_fracid(fracid_bin, path)
     n_est, first, fr_nrmse, fr_rmse, kind = held_out(out)
     best, rows = baseline_on_split(name, n_est, first)
     table = ", ".join(
         f"order {r['order']} delay {r['delay_samples']}: {r['val_nrmse']:.2f}% / {r['val_rmse']:.4g}"
         for r in rows
     )
-    assert fr_rmse <= best["val_rmse"] * (1.0 + TOL_RMSE), (
-        f"{name} ({kind}): fracid held-out RMSE {fr_rmse:.4g} (NRMSE {fr_nrmse:.2f}%) > integer "
-        f"baseline RMSE {best['val_rmse']:.4g} (NRMSE {best['val_nrmse']:.2f}%); rows: {table}"
+    assert code == 0 and fr_rmse <= best["val_rmse"] * (1.0 + TOL_RMSE), (
+        f"{name} ({kind}): fracid held-out RMSE {fr_rmse:.4g} (NRMSE {fr_nrmse:.2f}%)"
+        f"{exit_note(out, code)} vs integer baseline RMSE {best['val_rmse']:.4g} "
+        f"(NRMSE {best['val_nrmse']:.2f}%); rows: {table}"
     )
 
 
 # With --diagnose (what a user runs to close the loop) fracid's recommended model, scored on the
-# same held-out samples, is at least as good as the best integer baseline on every record.
+# same held-out samples, is at least as good as the best integer baseline on every record but
+# those in XFAIL_DIAGNOSE. The records added 2026-12-05 (main e364c0a): low-speed PRBS
+# 5.472 vs 5.769 deg/s (pmsm, the plain fit), closed speed profile 1.836 vs 1.801 (third order;
+# within TOL_RMSE, 1.9% above), TCLab PWM steps 0.3809 vs 1.509 degF (commensurate).
 # Measured (held-out RMSE, fracid --diagnose vs baseline, session 16): UNAL PRBS 2.978 vs 3.366
 # (integer second order + delay chosen), closed-loop staircase 5.579 vs 5.581 (first order +
 # delay), TCLab 0.2628 K vs 0.2837 K (second order + initial_state: the record only looked at
@@ -359,15 +456,18 @@ def test_fracid_beats_integer_baseline(fracid_bin, name, request):
 # resonance peaks; 0.0900 before session 15, an integer second order + delay; the baseline's
 # second order without delay).
 @pytest.mark.parametrize("name", sorted(RECORDS))
-def test_fracid_diagnose_matches_or_beats_integer_baseline(fracid_bin, name):
+def test_fracid_diagnose_matches_or_beats_integer_baseline(fracid_bin, name, request):
     pytest.importorskip("scipy")
-    out = run_fracid(fracid_bin, DATA / RECORDS[name][0], "--diagnose")
+    if name in XFAIL_DIAGNOSE:
+        request.node.add_marker(pytest.mark.xfail(reason=XFAIL_DIAGNOSE[name], strict=True))
+    out, code = run_fracid(fracid_bin, DATA / RECORDS[name][0], "--diagnose")
     assert out["model_is"].startswith("final"), out["model_is"]
     n_est, first, fr_nrmse, fr_rmse, kind = held_out(out)
     best, _ = baseline_on_split(name, n_est, first)
-    assert fr_rmse <= best["val_rmse"] * (1.0 + TOL_RMSE), (
-        f"{name} ({kind}): fracid --diagnose held-out RMSE {fr_rmse:.4g} (NRMSE {fr_nrmse:.2f}%) "
-        f"> integer baseline RMSE {best['val_rmse']:.4g} (NRMSE {best['val_nrmse']:.2f}%)"
+    assert code == 0 and fr_rmse <= best["val_rmse"] * (1.0 + TOL_RMSE), (
+        f"{name} ({kind}): fracid --diagnose held-out RMSE {fr_rmse:.4g} (NRMSE {fr_nrmse:.2f}%)"
+        f"{exit_note(out, code)} vs integer baseline RMSE {best['val_rmse']:.4g} "
+        f"(NRMSE {best['val_nrmse']:.2f}%)"
     )
 
 
