@@ -1434,7 +1434,10 @@ impl Client {
             // Wait for the line no longer than until the next KEEPALIVE is due (a short keepalive
             // interval is kept even while nothing arrives, as in a sine run without streaming;
             // on the drive's clock the drive wakes this host when it waits for one).
-            let keepalive_due = self.cfg.keepalive.saturating_sub(self.since_last_keepalive());
+            let keepalive_due = self
+                .cfg
+                .keepalive
+                .saturating_sub(self.since_last_keepalive());
             self.pump(keepalive_due.min(Duration::from_millis(20)))
                 .map_err(RunFail::Drive)?;
             let mut ended = false;

@@ -815,18 +815,31 @@ mod tests {
             .map(|i| (0..n).map(|j| if i == j { 0.5 } else { 0.0 }).collect())
             .collect();
         let t0 = std::time::Instant::now();
-        let e = FixedCtrl::from_state_space(&a, &vec![1.0; n], &vec![1.0; n], 0.1, 1.0)
-            .unwrap_err();
+        let e =
+            FixedCtrl::from_state_space(&a, &vec![1.0; n], &vec![1.0; n], 0.1, 1.0).unwrap_err();
         assert!(t0.elapsed().as_secs_f64() < 0.5, "{:?}", t0.elapsed());
         assert!(e.to_string().contains("1600 states"), "{e}");
         // the limit itself is converted (a diagonal realisation of distinct poles, too many
         // sections for the drive: refused for that, after the work)
         let n = MAX_REALISATION_STATES;
         let a: Vec<Vec<f64>> = (0..n)
-            .map(|i| (0..n).map(|j| if i == j { 0.9 * i as f64 / n as f64 } else { 0.0 }).collect())
+            .map(|i| {
+                (0..n)
+                    .map(|j| {
+                        if i == j {
+                            0.9 * i as f64 / n as f64
+                        } else {
+                            0.0
+                        }
+                    })
+                    .collect()
+            })
             .collect();
-        let e = FixedCtrl::from_state_space(&a, &vec![1.0; n], &vec![1.0; n], 0.1, 1.0)
-            .unwrap_err();
-        assert!(e.to_string().contains("sections (the drive takes at most"), "{e}");
+        let e =
+            FixedCtrl::from_state_space(&a, &vec![1.0; n], &vec![1.0; n], 0.1, 1.0).unwrap_err();
+        assert!(
+            e.to_string().contains("sections (the drive takes at most"),
+            "{e}"
+        );
     }
 }

@@ -349,7 +349,9 @@ fn hanus_is_stable(ss: &StateSpace) -> Result<bool> {
     let mut m = &ss.a - &ss.b * &ss.c / ss.d;
     let n = m.nrows();
     if m.iter().any(|v| !v.is_finite()) {
-        return Err(fracsim::Error::Numerical("the controller's realisation is not finite".into()).into());
+        return Err(
+            fracsim::Error::Numerical("the controller's realisation is not finite".into()).into(),
+        );
     }
     nalgebra::linalg::balancing::balance_parlett_reinsch(&mut m);
     let zeros = fracsim::eig::eigenvalues_only(m, 100 * n.max(1)).ok_or_else(|| {

@@ -396,7 +396,11 @@ fn count_only_retention_keeps_no_sample_and_the_same_account() {
     }
     want.retain(|r| r.start < r.end);
     assert_eq!(acq.missing, want, "{:?}", acq.problems);
-    assert!(!want.is_empty(), "the line should have lost something: {:?}", s.stats());
+    assert!(
+        !want.is_empty(),
+        "the line should have lost something: {:?}",
+        s.stats()
+    );
     assert!(!acq.complete);
     let text = String::from_utf8(sink.csv.into_inner().unwrap()).unwrap();
     assert_eq!(text.lines().last().unwrap(), acq.footer());
