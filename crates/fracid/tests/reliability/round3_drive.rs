@@ -370,7 +370,7 @@ fn drive_state(port: &str) -> String {
 
 /// Signal `sig` to a `fracid drive ARGS` on a fresh simulated drive (real time) once `rows`
 /// data rows are in its output: it must end by itself with 128 + sig, saying which signal, with
-/// the drive stopped (Idle) and the output finished with its footer (`footer` starts it).
+/// the drive stopped (not Running) and the output finished with its footer (`footer` starts it).
 #[cfg(unix)]
 fn a_signal_stops_the_run(
     fw: drive::sim::FirmwareKind,
@@ -417,8 +417,13 @@ fn a_signal_stops_the_run(
     let text = std::fs::read_to_string(&out).unwrap();
     let last = text.trim_end().lines().last().unwrap();
     assert!(last.starts_with(footer), "{fw:?} {cmd:?} {name}: {last}");
+    // stopped: Idle after the STOP (or, on a machine loaded enough to stall the host for the
+    // keepalive interval, ended by the keepalive): never left Running
     let st = drive_state(&port);
-    assert!(st.contains("state Idle"), "{fw:?} {cmd:?} {name}: {st}");
+    assert!(
+        st.contains("state Idle") || st.contains("fault 2,"),
+        "{fw:?} {cmd:?} {name}: {st} ({err})"
+    );
 }
 
 /// Item 10: SIGQUIT (Ctrl-\), SIGUSR1 or SIGALRM during `drive loop`, `drive prbs` or `drive
