@@ -31,10 +31,11 @@ typedef uint16_t fw_octet;
 typedef unsigned char fw_octet;
 #endif
 
-#define FW_PROTO_VERSION 2u
+#define FW_PROTO_VERSION 3u /* 3: KEEPALIVE carries the run id; only the run's keeps it alive */
 #define FW_MAJOR 1u
-#define FW_MINOR 2u /* 1.1: the speed loop (LOAD_CTRL, LOAD_SECTION, START_LOOP); 1.2: controller
-                       * format 2 (48 sections, 8 delay taps) */
+#define FW_MINOR 3u /* 1.1: the speed loop (LOAD_CTRL, LOAD_SECTION, START_LOOP); 1.2: controller
+                       * format 2 (48 sections, 8 delay taps); 1.3: protocol 3 (the keepalive
+                       * of the run's own host only) */
 #define FW_N_CHANNELS 3u
 /** Samples per DATA block at most (PROTOCOL.md: 66). */
 #define FW_MAX_BLOCK 66u
@@ -175,6 +176,7 @@ typedef struct {
     uint32_t blocks_dropped; /**< since boot */
     uint32_t end_frames_lost; /**< STREAM_END/SINE_RESULT that found no slot (END_QUERY recovers) */
     uint32_t configs;         /**< accepted CONFIGUREs */
+    uint32_t keepalives;      /**< KEEPALIVEs of the running run (each reset its timer) */
 } fw_counters;
 
 /** The whole drive-side state. Allocate one (statically) and call fw_init(). */

@@ -761,8 +761,9 @@ static int32_t payload_len(uint16_t type)
     case FW_T_STOP:
     case FW_T_ESTOP:
     case FW_T_STATUS:
-    case FW_T_KEEPALIVE:
         return 0;
+    case FW_T_KEEPALIVE:
+        return 2; /* run_id (protocol 3) */
     case FW_T_CONFIGURE:
         return 26;
     case FW_T_START_PRBS:
@@ -841,8 +842,17 @@ static uint16_t handle_body(fw_t *fw, const fw_octet *b, uint16_t len)
     }
     /* a valid frame */
     fw->cnt.frames_received++;
-    fw->quiet_samples = 0;
-    if (type >= 0x80u || type == FW_T_KEEPALIVE) {
+    if (type == FW_T_KEEPALIVE) {
+        /* Only a KEEPALIVE of the running run resets its keepalive timer (PROTOCOL.md,
+         * section 7): any other frame (another program's HELLO and STATUS, a KEEPALIVE of
+         * another run) leaves it running, so a run whose host is gone ends. */
+        if (fw->running && get16(p) == fw->run_id) {
+            fw->quiet_samples = 0;
+            fw->cnt.keepalives++;
+        }
+        return (uint16_t)(0x100u | type);
+    }
+    if (type >= 0x80u) {
         return (uint16_t)(0x100u | type);
     }
     if (type == FW_T_HELLO) {

@@ -350,6 +350,67 @@ static void run_samples(fw_t *e, int max, int drain)
     }
 }
 
+/* Run up to max samples with a plant y = u/2 while other frames arrive: a STATUS every 200
+ * samples and a HELLO every 250 (another program polling the drive), and with ka_every > 0 a
+ * KEEPALIVE of run ka_id every ka_every samples. Returns the samples the run produced; *reason is
+ * its STREAM_END's reason (-1: none). */
+static int run_with_frames(fw_t *e, int max, unsigned ka_id, int ka_every, int *reason)
+{
+    int k, produced = 0;
+    fw_octet ka[2];
+    *reason = -1;
+    le16(ka, ka_id);
+    for (k = 0; k < max; k++) {
+        int16_t u;
+        int n;
+        if (k % 200 == 100) send_cmd(e, FW_T_STATUS, 0, 0, host_seq++);
+        if (k % 250 == 50) send_cmd(e, FW_T_HELLO, 0, 0, host_seq++);
+        if (ka_every > 0 && k % ka_every == 0) send_cmd(e, FW_T_KEEPALIVE, ka, 2, host_seq++);
+        if (fw_sample_begin(e, &u)) {
+            fw_sample_end(e, (int16_t)(u / 2), (int16_t)(u / 4));
+            produced++;
+        }
+        while ((n = pull_frame(e, z)) > 0) {
+            fw_octet body[512];
+            int len = decode_frame(z, n, body);
+            if (len >= 0 && (body[1] & 0xFF) == FW_T_STREAM_END) *reason = body[6] & 0xFF;
+        }
+    }
+    return produced;
+}
+
+/* The keepalive is the run's own (protocol 3): another program's STATUS and HELLO, and a
+ * KEEPALIVE of another run id, do not keep a run alive (it ends KEEPALIVE after 500 + 50
+ * samples, as without any frame: an orphaned run stops); a KEEPALIVE of its run id every 300
+ * samples does (the run completes). */
+static void test_keepalive_is_the_runs_own(void)
+{
+    fw_octet p[32], r[512];
+    int n, produced, reason;
+    unsigned id;
+    fw_counters cnt;
+    fw_init(&fw, 0x4321, 20000);
+    configure(&fw, 1000, 32, 3500, 30000);
+    prbs_payload(p, 4, 1000, 3000, 10); /* 10 + 4 * 254 = 1026 samples */
+    n = command(&fw, FW_T_START_PRBS, p, 22, r);
+    CHECK(n == 12 && (r[1] & 0xFF) == FW_T_ACK, "start");
+    id = g16(r + 6);
+    produced = run_with_frames(&fw, 1500, id + 1u, 100, &reason);
+    CHECK(reason == FW_END_KEEPALIVE && produced == 501 + 50,
+          "polled, another run's keepalive: reason %d after %d samples", reason, produced);
+    fw_get_counters(&fw, &cnt);
+    CHECK(cnt.keepalives == 0, "no keepalive of the run counted: %lu", (unsigned long)cnt.keepalives);
+    configure(&fw, 1000, 32, 3500, 30000); /* clears the latched KEEPALIVE fault */
+    n = command(&fw, FW_T_START_PRBS, p, 22, r);
+    CHECK(n == 12 && (r[1] & 0xFF) == FW_T_ACK, "start again");
+    id = g16(r + 6);
+    produced = run_with_frames(&fw, 1500, id, 300, &reason);
+    CHECK(reason == FW_END_COMPLETE && produced == 1026,
+          "the run's keepalive: reason %d after %d samples", reason, produced);
+    fw_get_counters(&fw, &cnt);
+    CHECK(cnt.keepalives == 4, "keepalives of the run: %lu", (unsigned long)cnt.keepalives);
+}
+
 static void test_engine(void)
 {
     fw_octet p[32], r[512];
@@ -664,6 +725,7 @@ int main(int argc, char **argv)
     test_prbs(dir);
     test_frames(dir);
     test_engine();
+    test_keepalive_is_the_runs_own();
     test_ctrl(dir);
     test_loop();
     test_sine();

@@ -229,7 +229,9 @@ static unsigned run(const char *label, unsigned max, unsigned ka, int boost, uns
     unsigned k;
     for (k = 0; k < max && fw_running(&fw); k++) {
         if (ka && k % ka == ka - 1u) {
-            send_frame("rx:keepalive", FW_T_KEEPALIVE, 0, 0);
+            fw_octet id[2]; /* the run's id: only its own KEEPALIVE keeps it alive */
+            le16(id, fw_run_id(&fw));
+            send_frame("rx:keepalive", FW_T_KEEPALIVE, id, 2);
         }
         sample(label, boost, line);
     }

@@ -44,7 +44,7 @@ def record(drive, tmp_path_factory):
 
 def test_hello_and_status(sim, drive):
     h = drive.hello()
-    assert h["proto_version"] == 2
+    assert h["proto_version"] == 3
     assert h["n_channels"] == 3
     assert h["max_sample_rate_hz"] >= FS
     st = drive.status()

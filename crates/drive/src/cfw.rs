@@ -17,6 +17,7 @@ struct FwCounters {
     blocks_dropped: u32,
     end_frames_lost: u32,
     configs: u32,
+    keepalives: u32,
 }
 
 #[repr(C)]
@@ -139,6 +140,8 @@ pub struct CCounters {
     pub blocks_dropped: u32,
     /// Accepted CONFIGUREs.
     pub configs: u32,
+    /// KEEPALIVEs of the running run (each reset its keepalive timer).
+    pub keepalives: u32,
 }
 
 /// The scaling and rate of the engine's active configuration.
@@ -258,6 +261,7 @@ impl CEngine {
             runs_started: c.runs_started,
             blocks_dropped: c.blocks_dropped,
             configs: c.configs,
+            keepalives: c.keepalives,
         }
     }
 
@@ -372,12 +376,12 @@ mod tests {
     fn engine_answers_hello() {
         // HELLO seq 1 and HELLO_REPLY (boot 0xBEEF, 20 kHz) from testvectors/frames.txt
         let mut e = CEngine::new(0xBEEF, 20_000);
-        let hello = [0x00, 0x04, 0x02, 0x01, 0x01, 0x03, 0x53, 0x79, 0x00];
+        let hello = [0x00, 0x04, 0x03, 0x01, 0x01, 0x03, 0xE8, 0x65, 0x00];
         let got: Vec<_> = hello.iter().filter_map(|&b| e.rx(b)).collect();
         assert_eq!(got, [0x01]);
         let want = [
-            0x00, 0x04, 0x02, 0x81, 0x01, 0x06, 0x02, 0x01, 0x02, 0x03, 0x42, 0x05, 0xEF, 0xBE,
-            0x20, 0x4E, 0x01, 0x03, 0xB7, 0xE3, 0x00,
+            0x00, 0x04, 0x03, 0x81, 0x01, 0x06, 0x03, 0x01, 0x03, 0x03, 0x42, 0x05, 0xEF, 0xBE,
+            0x20, 0x4E, 0x01, 0x03, 0xD5, 0xC4, 0x00,
         ];
         assert_eq!(e.tx_frame().as_deref(), Some(&want[..]));
         assert_eq!(e.tx_frame(), None);

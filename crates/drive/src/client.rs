@@ -48,6 +48,23 @@ pub struct ClientConfig {
     /// for it), so that the drive need not wait for a wall-clock timer
     /// ([`crate::vclock`]). None (default): the keepalive runs on the wall clock.
     pub clock: Option<VirtualClock>,
+    /// What the [`Acquisition`] of a run keeps of its samples ([`Retention`]): all of them
+    /// (default), or only their count and gaps, the sink receiving them as they arrive (a long
+    /// run written to a file in bounded memory).
+    pub samples: Retention,
+}
+
+/// What an [`Acquisition`] keeps of the samples that arrive; the run's [`SampleSink`] receives
+/// every one of them either way, and the counts, gaps, footer and completeness are the same.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum Retention {
+    /// Every sample in the acquisition's vectors (`index`, `t`, `u`, `y`, `i`, `raw`: about 46
+    /// bytes a sample, more with the vectors' growth).
+    #[default]
+    Keep,
+    /// None: the vectors stay empty; [`Acquisition::received`], the missing ranges and the
+    /// excitation check ([`Acquisition::after_settle`]) are kept as the samples arrive.
+    CountOnly,
 }
 
 impl Default for ClientConfig {
@@ -61,6 +78,7 @@ impl Default for ClientConfig {
             reconnect_timeout: Duration::from_secs(3),
             exclusive: true,
             clock: None,
+            samples: Retention::Keep,
         }
     }
 }
@@ -301,7 +319,14 @@ pub struct Acquisition {
     pub run_id: u16,
     /// Sample rate, Hz.
     pub sample_rate_hz: u32,
-    /// Sample indices received (increasing).
+    /// Samples received (whether kept or not, [`Retention`]).
+    pub received: u64,
+    /// Index of the last sample received.
+    pub last_index: Option<u64>,
+    /// The voltage command after the settling part, as the samples arrived.
+    pub after_settle: AfterSettle,
+    /// Sample indices received (increasing); empty with [`Retention::CountOnly`], as are `t`,
+    /// `u`, `y`, `i` and `raw`.
     pub index: Vec<u64>,
     /// Time of each sample, s (index / sample rate).
     pub t: Vec<f64>,
@@ -340,11 +365,37 @@ pub struct Acquisition {
     pub settle_samples: u64,
 }
 
+/// The voltage command of the samples after the settling part of a run, summarised as they arrive
+/// ([`Acquisition::excitation_missing`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct AfterSettle {
+    /// Samples received after the settling part.
+    pub samples: u64,
+    /// The first one's command: raw (the drive's clamped command), and V.
+    pub first: Option<(i16, f64)>,
+    /// Whether every one's raw command equals the first's.
+    pub constant: bool,
+}
+
+impl AfterSettle {
+    /// One more sample after the settling part: its raw command and the command in V.
+    pub fn push(&mut self, raw_u: i16, u: f64) {
+        match self.first {
+            None => {
+                self.first = Some((raw_u, u));
+                self.constant = true;
+            }
+            Some((r, _)) => self.constant &= r == raw_u,
+        }
+        self.samples += 1;
+    }
+}
+
 impl Acquisition {
     /// The footer line written by [`CsvSink`].
     pub fn footer(&self) -> String {
         if self.complete {
-            format!("# complete: {} samples", self.index.len())
+            format!("# complete: {} samples", self.received)
         } else {
             let ranges: Vec<String> = self
                 .missing
@@ -371,16 +422,15 @@ impl Acquisition {
     ///
     /// ```
     /// let mut a = drive::client::Acquisition::default();
-    /// a.index = vec![0, 1, 2];
-    /// a.raw = vec![[24000, 0, 0]; 3];
+    /// for _ in 0..3 {
+    ///     a.after_settle.push(24000, 24.0);
+    /// }
     /// assert!(a.excitation_missing());
-    /// a.raw[2][0] = 22000;
+    /// a.after_settle.push(22000, 22.0);
     /// assert!(!a.excitation_missing());
     /// ```
     pub fn excitation_missing(&self) -> bool {
-        let first = self.index.partition_point(|&i| i < self.settle_samples);
-        let after = self.raw.get(first..).unwrap_or(&[]);
-        after.len() >= 2 && after.iter().all(|s| s[0] == after[0][0])
+        self.after_settle.samples >= 2 && self.after_settle.constant
     }
 
     /// The comment lines [`CsvSink`] writes before the footer: the drive's clamping of the
@@ -394,11 +444,10 @@ impl Acquisition {
                 self.clamped_blocks
             ));
         }
-        if self.excitation_missing() {
+        if let (true, Some((_, u))) = (self.excitation_missing(), self.after_settle.first) {
             w.push(format!(
                 "no excitation: u is {} V in every sample after the settling part; not usable for identification",
-                (self.u[self.index.partition_point(|&i| i < self.settle_samples)] * 1e6).round()
-                    / 1e6
+                (u * 1e6).round() / 1e6
             ));
         }
         w
@@ -729,11 +778,13 @@ pub struct Client {
     hello: Option<HelloReply>,
     conf: Option<Configure>,
     inbox: VecDeque<Frame>,
-    last_tx: Instant,
-    /// Drive time of the last frame sent (with [`ClientConfig::clock`]).
-    last_tx_drive: Duration,
-    /// A run is being received: the keepalive is kept.
-    in_run: bool,
+    /// When the drive's keepalive timer was last reset by this host: its last KEEPALIVE or
+    /// START.
+    last_keepalive: Instant,
+    /// The same on the drive's clock (with [`ClientConfig::clock`]).
+    last_keepalive_drive: Duration,
+    /// The run being received, whose keepalive is kept (KEEPALIVE carries its id).
+    run: Option<u16>,
     stats: ClientStats,
     progress: Option<Box<dyn FnMut(Progress) + Send>>,
     stop_req: StopHandle,
@@ -768,9 +819,9 @@ impl Client {
             hello: None,
             conf: None,
             inbox: VecDeque::new(),
-            last_tx: Instant::now(),
-            last_tx_drive: Duration::ZERO,
-            in_run: false,
+            last_keepalive: Instant::now(),
+            last_keepalive_drive: Duration::ZERO,
+            run: None,
             stats: ClientStats::default(),
             progress: None,
             stop_req: StopHandle::default(),
@@ -801,6 +852,11 @@ impl Client {
         let mut s = self.stats;
         s.bad_frames = self.dec.stats().errors;
         s
+    }
+
+    /// What the acquisitions of the next runs keep of their samples ([`ClientConfig::samples`]).
+    pub fn set_retention(&mut self, samples: Retention) {
+        self.cfg.samples = samples;
     }
 
     /// The port path.
@@ -873,10 +929,25 @@ impl Client {
 
     fn send(&mut self, frame: &Frame) -> Result<()> {
         let bytes = codec::encode(frame);
-        self.last_tx = Instant::now();
+        // Only a KEEPALIVE of the run (or the START that begins it) resets the drive's keepalive
+        // timer (PROTOCOL.md, section 7): the interval is counted from those.
+        let resets = matches!(
+            frame.msg,
+            Message::Keepalive(_)
+                | Message::StartPrbs(_)
+                | Message::StartSine(_)
+                | Message::StartLoop(_)
+        );
+        if resets {
+            self.last_keepalive = Instant::now();
+        }
         if let Some(c) = &self.cfg.clock {
-            self.last_tx_drive = c.now();
-            c.host_sent(Some(self.last_tx_drive + self.cfg.keepalive));
+            let now = c.now();
+            if resets {
+                self.last_keepalive_drive = now;
+            }
+            // the host speaks again by then (its next KEEPALIVE is due no later)
+            c.host_sent(Some(now + self.cfg.keepalive));
         }
         if self.port.is_none() {
             self.reconnect()?;
@@ -892,28 +963,32 @@ impl Client {
         Ok(())
     }
 
-    /// Time since the last frame sent: of the drive's clock with [`ClientConfig::clock`], else
-    /// of the wall clock.
-    fn since_last_tx(&self) -> Duration {
+    /// Time since the last KEEPALIVE (or START) sent: of the drive's clock with
+    /// [`ClientConfig::clock`], else of the wall clock.
+    fn since_last_keepalive(&self) -> Duration {
         match &self.cfg.clock {
-            Some(c) => c.now().saturating_sub(self.last_tx_drive),
-            None => self.last_tx.elapsed(),
+            Some(c) => c.now().saturating_sub(self.last_keepalive_drive),
+            None => self.last_keepalive.elapsed(),
         }
     }
 
-    /// During a run, send a KEEPALIVE if the interval has passed since the last frame, or if
-    /// the drive's clock waits for one ([`ClientConfig::clock`]).
+    /// During a run, send a KEEPALIVE of the run if the interval has passed since the last one,
+    /// or if the drive's clock waits for one ([`ClientConfig::clock`]). Other frames (a STATUS
+    /// poll, a HELLO after a reconnection) do not keep the run alive.
     fn keepalive_if_due(&mut self) -> Result<()> {
+        let Some(run_id) = self.run else {
+            return Ok(());
+        };
         let waits = self
             .cfg
             .clock
             .as_ref()
             .is_some_and(VirtualClock::drive_waits);
-        if self.in_run && (waits || self.since_last_tx() >= self.cfg.keepalive) {
+        if waits || self.since_last_keepalive() >= self.cfg.keepalive {
             let seq = self.next_seq();
             self.send(&Frame {
                 seq,
-                msg: Message::Keepalive,
+                msg: Message::Keepalive(run_id),
             })?;
         }
         Ok(())
@@ -1004,6 +1079,9 @@ impl Client {
             self.send(&frame)?;
             let deadline = Instant::now() + self.timeout();
             while Instant::now() < deadline {
+                // a command during a run (a STATUS poll, its retries) keeps the run alive only
+                // through the KEEPALIVEs sent meanwhile
+                self.keepalive_if_due()?;
                 if let Some(ans) = self.take_answer(seq, &frame.msg) {
                     if let Message::Nak(n) = ans {
                         return Err(Error::Nak {
@@ -1243,6 +1321,8 @@ impl Client {
         sink: &mut dyn SampleSink,
     ) -> Result<Acquisition> {
         let want_dft = matches!(start, Message::StartSine(s) if s.flags & SINE_DFT != 0);
+        // a sine run's samples are kept whatever the retention: the host's DFT reads them
+        let keep = self.cfg.samples == Retention::Keep || matches!(start, Message::StartSine(_));
         let conf = self.conf()?;
         let boot = self.hello.map(|h| h.boot_id);
         let settle_samples = match &start {
@@ -1281,9 +1361,9 @@ impl Client {
             self.stop_after_sink_error();
             return Err(Error::Io(e));
         }
-        self.in_run = true;
-        let streamed_run = self.stream(&mut acq, sink, &conf, boot);
-        self.in_run = false;
+        self.run = Some(ack.run_id);
+        let streamed_run = self.stream(&mut acq, sink, &conf, boot, keep);
+        self.run = None;
         match streamed_run {
             Ok(()) => {}
             Err(RunFail::Sink(e)) => {
@@ -1323,6 +1403,7 @@ impl Client {
         sink: &mut dyn SampleSink,
         conf: &Configure,
         boot: Option<u16>,
+        keep: bool,
     ) -> Result<(), RunFail> {
         let fs = conf.sample_rate_hz;
         let (ul, yl, il) = (conf.u_lsb(), conf.y_lsb(), conf.i_lsb());
@@ -1353,7 +1434,10 @@ impl Client {
             // Wait for the line no longer than until the next KEEPALIVE is due (a short keepalive
             // interval is kept even while nothing arrives, as in a sine run without streaming;
             // on the drive's clock the drive wakes this host when it waits for one).
-            let keepalive_due = self.cfg.keepalive.saturating_sub(self.since_last_tx());
+            let keepalive_due = self
+                .cfg
+                .keepalive
+                .saturating_sub(self.since_last_keepalive());
             self.pump(keepalive_due.min(Duration::from_millis(20)))
                 .map_err(RunFail::Drive)?;
             let mut ended = false;
@@ -1370,15 +1454,25 @@ impl Client {
                             if idx < next || idx >= acq.total_samples.max(next + 1) + 1_000_000 {
                                 continue; // duplicate or absurd
                             }
+                            if idx > next {
+                                acq.missing.push(next..idx); // clipped in `finish`
+                            }
                             next = idx + 1;
                             let t = idx as f64 / fs as f64;
                             let (u, y, i) = (s[0] as f64 * ul, s[1] as f64 * yl, s[2] as f64 * il);
-                            acq.index.push(idx);
-                            acq.t.push(t);
-                            acq.u.push(u);
-                            acq.y.push(y);
-                            acq.i.push(i);
-                            acq.raw.push(*s);
+                            acq.received += 1;
+                            acq.last_index = Some(idx);
+                            if idx >= acq.settle_samples {
+                                acq.after_settle.push(s[0], u);
+                            }
+                            if keep {
+                                acq.index.push(idx);
+                                acq.t.push(t);
+                                acq.u.push(u);
+                                acq.y.push(y);
+                                acq.i.push(i);
+                                acq.raw.push(*s);
+                            }
                             sink.sample(idx, t, u, y, i).map_err(RunFail::Sink)?;
                         }
                     }
@@ -1700,7 +1794,7 @@ fn finish(acq: &mut Acquisition, streamed: bool, want_dft: bool) {
     }
     if !streamed {
         // Nothing was to arrive but the summary (and the DFT).
-        if !acq.index.is_empty() {
+        if acq.received > 0 {
             acq.problems
                 .push("DATA from a run that does not stream".into());
         }
@@ -1710,20 +1804,18 @@ fn finish(acq: &mut Acquisition, streamed: bool, want_dft: bool) {
     }
     // Missing ranges: complement of the received indices in 0..span, where span covers both what
     // the drive produced and what was planned (a run that ended early misses its planned rest).
+    // The gaps between received samples were recorded as they arrived (`stream`).
     let span = acq.total_samples.max(acq.planned_samples);
-    let mut missing = Vec::new();
-    let mut expect = 0u64;
-    for &i in &acq.index {
-        if i > expect {
-            missing.push(expect..i.min(span));
-        }
-        expect = i + 1;
-    }
+    let mut missing: Vec<Range<u64>> = std::mem::take(&mut acq.missing)
+        .into_iter()
+        .map(|r| r.start..r.end.min(span))
+        .collect();
+    let expect = acq.last_index.map_or(0, |l| l + 1);
     if expect < span {
         missing.push(expect..span);
     }
     missing.retain(|r| r.start < r.end);
-    if acq.index.last().is_some_and(|&l| l >= acq.total_samples) {
+    if acq.last_index.is_some_and(|l| l >= acq.total_samples) {
         acq.problems.push("samples beyond the announced end".into());
     }
     // Lost on the way (within what the drive produced), as opposed to never produced.
@@ -1732,7 +1824,7 @@ fn finish(acq: &mut Acquisition, streamed: bool, want_dft: bool) {
         .map(|r| r.end.min(acq.total_samples).saturating_sub(r.start))
         .sum();
     if let Some(e) = acq.end {
-        let got = acq.index.len() as u64;
+        let got = acq.received;
         if lost == 0 && got != e.samples_sent as u64 {
             acq.problems.push(format!(
                 "drive sent {} samples, host got {}",

@@ -248,8 +248,14 @@ impl FixedCtrl {
     /// # Errors
     /// [`Error::InvalidParam`]: inconsistent sizes, non-finite entries, an `A` that is not lower
     /// triangular, coupled repeated slow poles or unstable ones, more than
-    /// [`MAX_SECTIONS_TAPS`] sections or [`MAX_TAPS`] taps, a gain beyond the Q24 range (+-128
-    /// raw voltage per raw speed LSB).
+    /// [`MAX_SECTIONS_TAPS`] sections or [`MAX_TAPS`] taps (more than
+    /// [`MAX_REALISATION_STATES`] states are refused before any work), a gain beyond the Q24
+    /// range (+-128 raw voltage per raw speed LSB), a controller whose output is always 0.
+    /// [`Error::Numerical`]: the zeros for the anti-windup did not converge
+    /// ([`hanus_is_stable`]).
+    ///
+    /// A realisation without states (a pure gain, `u = D e`: a proportional speed loop) is a
+    /// controller of no sections, which both controller formats and firmwares run.
     pub fn from_state_space(
         a: &[Vec<f64>],
         b: &[f64],
@@ -261,6 +267,13 @@ impl FixedCtrl {
             Err(Error::InvalidParam(format!("controller: {m}")))
         }
         let n = a.len();
+        if n > MAX_REALISATION_STATES {
+            return bad(format!(
+                "{n} states: the drive holds at most {MAX_SECTIONS_TAPS} sections and \
+                 {MAX_TAPS} delay taps (realisations of up to {MAX_REALISATION_STATES} states \
+                 are converted): a lower approximation order"
+            ));
+        }
         if b.len() != n || c.len() != n || a.iter().any(|r| r.len() != n) {
             return bad(format!(
                 "A is {n}x?, B has {}, C has {} entries: sizes differ",
@@ -333,12 +346,18 @@ impl FixedCtrl {
         let d_q24 = q(d_raw, Q24, "the feed-through")?;
         // Hanus' conditioning runs the controller's inverse while clamped: unstable with a
         // zero outside the unit circle (a FOPID's derivative puts one near z = -20)
-        let hanus = hanus_is_stable(a, b, c, d, &keep);
+        let hanus = hanus_is_stable(a, b, c, d, &keep)?;
         let dinv_q16 = if hanus && d_raw.abs() >= 2.0 / 65536.0 {
             q(1.0 / d_raw, 65536.0, "1/feed-through").unwrap_or(0)
         } else {
             0
         };
+        if d_q24 == 0 && sections.is_empty() && taps.is_empty() {
+            return bad(format!(
+                "its output is 0 whatever the error (feed-through {d}, no state that reaches \
+                 the output, or gains that round to 0 at these channel scales): nothing to run"
+            ));
+        }
         Ok(Self {
             d_q24,
             dinv_q16,
@@ -452,18 +471,53 @@ fn slow_modes(
 /// the unit circle (spectral radius at most `1 + 1e-6`: a FOPI's zeros near `z = 1`), wrong
 /// (the states run away, the command chatters between the limits) otherwise. `false` without
 /// feed-through.
-pub fn hanus_is_stable(a: &[Vec<f64>], b: &[f64], c: &[f64], d: f64, keep: &[usize]) -> bool {
+///
+/// The eigenvalues come from the QR iteration of [`fracsim::eig`] after balancing, which gives up
+/// after `100 n` double-shift steps (nalgebra's has no limit and never ends on some matrices
+/// with eigenvalues on the unit circle, such as those of poles at `z = -1`). Without kept states
+/// (a pure gain) there is nothing to condition: `true`.
+///
+/// # Errors
+/// [`Error::Numerical`]: the iteration did not converge, or the matrix is not finite.
+pub fn hanus_is_stable(
+    a: &[Vec<f64>],
+    b: &[f64],
+    c: &[f64],
+    d: f64,
+    keep: &[usize],
+) -> Result<bool> {
     if d == 0.0 || !d.is_finite() {
-        return false;
+        return Ok(false);
     }
     let n = keep.len();
-    let m = nalgebra::DMatrix::from_fn(n, n, |i, j| {
+    if n == 0 {
+        return Ok(true);
+    }
+    let mut m = nalgebra::DMatrix::from_fn(n, n, |i, j| {
         a[keep[i]][keep[j]] - b[keep[i]] * c[keep[j]] / d
     });
-    m.complex_eigenvalues()
-        .iter()
-        .all(|z| z.norm() <= 1.0 + 1e-6)
+    if m.iter().any(|v| !v.is_finite()) {
+        return Err(Error::Numerical(
+            "controller: its closed realisation `A - B C / D` is not finite".into(),
+        ));
+    }
+    nalgebra::linalg::balancing::balance_parlett_reinsch(&mut m);
+    let zeros = fracsim::eig::eigenvalues_only(m, 100 * n).ok_or_else(|| {
+        Error::Numerical(format!(
+            "controller: the zeros of its {n}-state realisation (for the anti-windup) did not \
+             converge in {} QR steps",
+            100 * n
+        ))
+    })?;
+    Ok(zeros.iter().all(|z| z.norm() <= 1.0 + 1e-6))
 }
+
+/// The most states a realisation may have for [`FixedCtrl::from_state_space`]: twice what the
+/// drive holds ([`MAX_SECTIONS_TAPS`] sections and [`MAX_TAPS`] taps), room for the states the
+/// conversion drops (unobservable, undriven, negligible). Checked before any work that grows
+/// with the size (the pruning and the conversion are cubic in it): a controller of 1,600 states
+/// took two minutes before the drive refused it.
+pub const MAX_REALISATION_STATES: usize = 2 * (MAX_SECTIONS_TAPS as usize + MAX_TAPS as usize);
 
 /// Poles of modulus below this that drive or are driven by another such pole (a chain) are the
 /// fast modes the delay taps hold ([`fast_taps`]).
@@ -696,5 +750,96 @@ mod tests {
         assert_eq!((k.d_q24 != 0, k.dinv_q16), (true, 0));
         let k = FixedCtrl::from_state_space(&[vec![0.5]], &[1.0], &[0.02], 0.1, 1.0).unwrap();
         assert_eq!(k.dinv_q16, 655_360);
+    }
+
+    /// Issue 46, item 5: a realisation without states (a pure gain, a proportional speed loop)
+    /// panicked in nalgebra's Schur decomposition of the empty closed realisation. It is a
+    /// controller of no sections: `u = d e`, Hanus' `1/d` (nothing to condition).
+    #[test]
+    fn a_pure_gain_is_a_controller_of_no_sections() {
+        let k = FixedCtrl::from_state_space(&[], &[], &[], 0.5, 10.0).unwrap();
+        assert!(k.sections.is_empty() && k.taps.is_empty(), "{k:?}");
+        assert_eq!((k.d_q24, k.dinv_q16), (5 << 24, 65536 / 5));
+        assert_eq!(k.format(), CTRL_FORMAT);
+        let mut z: Vec<i64> = vec![];
+        assert_eq!(k.step(&mut z, 100, 30000), (500, false));
+        assert_eq!(k.step(&mut z, -7000, 30000), (-30000, true));
+        // so is one whose states are all dropped (none reaches the output)
+        let k = FixedCtrl::from_state_space(&[vec![0.5]], &[1.0], &[0.0], 0.5, 10.0).unwrap();
+        assert!(k.sections.is_empty(), "{k:?}");
+        // but a controller whose output is always 0 is refused, in words
+        let e = FixedCtrl::from_state_space(&[], &[], &[], 0.0, 10.0).unwrap_err();
+        assert!(e.to_string().contains("nothing to run"), "{e}");
+        let e = FixedCtrl::from_state_space(&[vec![0.5]], &[1.0], &[0.0], 0.0, 10.0).unwrap_err();
+        assert!(e.to_string().contains("nothing to run"), "{e}");
+    }
+
+    /// Issue 46, item 6: poles at `z = -1` and a chain at the origin whose closed realisation
+    /// `A - B C / D` nalgebra's QR iteration never finishes (it has no iteration limit): the
+    /// conversion hung forever. Now it ends at once, with an error if the iteration does not
+    /// converge. (Found by a search over small realisations with entries in {-1, 0, 1}.)
+    #[test]
+    fn poles_at_minus_one_end_in_an_answer_not_a_hang() {
+        let a = vec![
+            vec![-1.0, 0.0, 0.0, 0.0],
+            vec![1.0, 0.0, 0.0, 0.0],
+            vec![-1.0, -1.0, 0.0, 0.0],
+            vec![0.0, 0.0, -1.0, 0.0],
+        ];
+        let (b, c, d) = (vec![-1.0, 0.0, -1.0, 0.0], vec![1.0, 0.0, 0.0, -1.0], 1.0);
+        // the matrix is one nalgebra's Schur does not reduce in 10^5 steps
+        let m = nalgebra::DMatrix::from_fn(4, 4, |i, j| a[i][j] - b[i] * c[j] / d);
+        assert!(nalgebra::linalg::Schur::try_new(m, f64::EPSILON, 100_000).is_none());
+        let (tx, rx) = std::sync::mpsc::channel();
+        std::thread::spawn(move || {
+            let t0 = std::time::Instant::now();
+            let r = FixedCtrl::from_state_space(&a, &b, &c, d, 1.0);
+            let _ = tx.send((r, t0.elapsed()));
+        });
+        let (r, took) = rx
+            .recv_timeout(std::time::Duration::from_secs(20))
+            .expect("the conversion hangs");
+        assert!(took.as_secs_f64() < 1.0, "{took:?}");
+        match r {
+            Err(Error::Numerical(m)) => assert!(m.contains("did not converge"), "{m}"),
+            other => panic!("{other:?}"),
+        }
+    }
+
+    /// Issue 46, item 4: more states than [`MAX_REALISATION_STATES`] are refused before any work
+    /// (1,600 took minutes in the cubic steps before the section count was checked).
+    #[test]
+    fn an_oversized_realisation_is_refused_at_once() {
+        let n = 1600;
+        let a: Vec<Vec<f64>> = (0..n)
+            .map(|i| (0..n).map(|j| if i == j { 0.5 } else { 0.0 }).collect())
+            .collect();
+        let t0 = std::time::Instant::now();
+        let e =
+            FixedCtrl::from_state_space(&a, &vec![1.0; n], &vec![1.0; n], 0.1, 1.0).unwrap_err();
+        assert!(t0.elapsed().as_secs_f64() < 0.5, "{:?}", t0.elapsed());
+        assert!(e.to_string().contains("1600 states"), "{e}");
+        // the limit itself is converted (a diagonal realisation of distinct poles, too many
+        // sections for the drive: refused for that, after the work)
+        let n = MAX_REALISATION_STATES;
+        let a: Vec<Vec<f64>> = (0..n)
+            .map(|i| {
+                (0..n)
+                    .map(|j| {
+                        if i == j {
+                            0.9 * i as f64 / n as f64
+                        } else {
+                            0.0
+                        }
+                    })
+                    .collect()
+            })
+            .collect();
+        let e =
+            FixedCtrl::from_state_space(&a, &vec![1.0; n], &vec![1.0; n], 0.1, 1.0).unwrap_err();
+        assert!(
+            e.to_string().contains("sections (the drive takes at most"),
+            "{e}"
+        );
     }
 }

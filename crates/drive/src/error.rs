@@ -61,6 +61,10 @@ pub enum Error {
     /// An invalid parameter (host side).
     #[error("invalid parameter: {0}")]
     InvalidParam(String),
+    /// A numerical computation on the host did not succeed (an eigenvalue iteration that did
+    /// not converge).
+    #[error("numerical failure: {0}")]
+    Numerical(String),
     /// The drive answered with something unexpected.
     #[error("protocol violation: {0}")]
     Protocol(String),

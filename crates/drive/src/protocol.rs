@@ -5,12 +5,14 @@ use crate::error::FrameError;
 
 /// Protocol version carried in the low nibble of the first body byte. Version 2: SINE_RESULT
 /// carries the window's level and ramp moments (38 bytes; 22 in version 1), so that the host
-/// removes the operating point and its drift (PROTOCOL.md, section 3).
-pub const PROTO_VERSION: u8 = 2;
+/// removes the operating point and its drift (PROTOCOL.md, section 3). Version 3: KEEPALIVE
+/// carries the run id (2 bytes; empty before), and only a KEEPALIVE of the running run keeps it
+/// alive: not any valid frame, such as another program's STATUS (PROTOCOL.md, section 7).
+pub const PROTO_VERSION: u8 = 3;
 
 /// The earlier protocol versions a host probes with when a drive does not answer HELLO, to tell
 /// a drive of another version ([`crate::Error::Version`]) from a silent one.
-pub const OLDER_VERSIONS: [u8; 1] = [1];
+pub const OLDER_VERSIONS: [u8; 2] = [2, 1];
 /// Number of channels per sample (u, y, i).
 pub const N_CHANNELS: usize = 3;
 /// Largest number of samples in one DATA block.
@@ -550,8 +552,8 @@ pub enum Message {
     Estop,
     /// STATUS.
     Status,
-    /// KEEPALIVE.
-    Keepalive,
+    /// KEEPALIVE of a run id: keeps that run alive (protocol 3).
+    Keepalive(u16),
     /// END_QUERY for a run id.
     EndQuery(u16),
     /// LOAD_CTRL.
@@ -642,7 +644,7 @@ impl Message {
             Message::Stop => ty::STOP,
             Message::Estop => ty::ESTOP,
             Message::Status => ty::STATUS,
-            Message::Keepalive => ty::KEEPALIVE,
+            Message::Keepalive(_) => ty::KEEPALIVE,
             Message::EndQuery(_) => ty::END_QUERY,
             Message::LoadCtrl(_) => ty::LOAD_CTRL,
             Message::LoadSection(_) => ty::LOAD_SECTION,
@@ -666,7 +668,8 @@ impl Message {
     /// them (DATA: n at offset 6). None for unknown types.
     pub fn payload_len(ty: u8, payload: &[u8]) -> Option<usize> {
         Some(match ty {
-            ty::HELLO | ty::STOP | ty::ESTOP | ty::STATUS | ty::KEEPALIVE => 0,
+            ty::HELLO | ty::STOP | ty::ESTOP | ty::STATUS => 0,
+            ty::KEEPALIVE => 2,
             ty::CONFIGURE => 26,
             ty::START_PRBS => 22,
             ty::START_SINE => 14,
@@ -689,11 +692,8 @@ impl Message {
     pub fn write_payload(&self, out: &mut Vec<u8>) {
         let mut w = W(out);
         match self {
-            Message::Hello
-            | Message::Stop
-            | Message::Estop
-            | Message::Status
-            | Message::Keepalive => {}
+            Message::Hello | Message::Stop | Message::Estop | Message::Status => {}
+            Message::Keepalive(run_id) => w.u16(*run_id),
             Message::Configure(_)
             | Message::StartPrbs(_)
             | Message::StartSine(_)
@@ -727,7 +727,7 @@ impl Message {
             ty::STOP => Ok(Message::Stop),
             ty::ESTOP => Ok(Message::Estop),
             ty::STATUS => Ok(Message::Status),
-            ty::KEEPALIVE => Ok(Message::Keepalive),
+            ty::KEEPALIVE => Ok(Message::Keepalive(r.u16())),
             ty::CONFIGURE | ty::START_PRBS | ty::START_SINE | ty::END_QUERY => {
                 parse_run_command(ty, &mut r)
             }

@@ -707,7 +707,8 @@ struct Firmware {
     tx_budget: f64,
     burst_left: usize,
     last_tick: Instant,
-    last_rx_frame: Instant,
+    /// When the run's keepalive timer was last reset: its START, or a KEEPALIVE of its run id.
+    last_keepalive: Instant,
     rx_errors: u16,
     // faults
     run_samples_total: u64,
@@ -723,8 +724,8 @@ struct Firmware {
     vnow: Instant,
     /// Wall time of the loop's last pass (idle, the clock follows the wall clock).
     wall_last: Instant,
-    /// Wall time of the last frame received.
-    last_rx_wall: Instant,
+    /// Wall time of `last_keepalive`.
+    last_keepalive_wall: Instant,
     /// Bytes sent that the pty could not take yet.
     out_backlog: VecDeque<u8>,
     /// The pty slave, held open to see what the host has not read.
@@ -767,8 +768,8 @@ struct CState {
 
 const FW_MAJOR: u8 = 1;
 /// 1.1: the speed loop (LOAD_CTRL, LOAD_SECTION, START_LOOP); 1.2: controller format 2 (up to 48
-/// sections and 8 delay taps).
-const FW_MINOR: u8 = 2;
+/// sections and 8 delay taps); 1.3: protocol 3 (only a KEEPALIVE of the run keeps it alive).
+const FW_MINOR: u8 = 3;
 
 impl Firmware {
     fn new(cfg: SimConfig, master: TTYPort, stats: Arc<Mutex<SimStats>>) -> Result<Self> {
@@ -814,7 +815,7 @@ impl Firmware {
             tx_budget: 0.0,
             burst_left: 0,
             last_tick: now,
-            last_rx_frame: now,
+            last_keepalive: now,
             rx_errors: 0,
             run_samples_total: 0,
             stall_until: None,
@@ -825,7 +826,7 @@ impl Firmware {
             c: None,
             vnow: now,
             wall_last: now,
-            last_rx_wall: now,
+            last_keepalive_wall: now,
             out_backlog: VecDeque::new(),
             slave: None,
             wait_since: None,
@@ -1012,12 +1013,13 @@ impl Firmware {
         }
         // The keepalive. A host sharing the drive's clock has said when its next KEEPALIVE is
         // due: the clock runs up to then and waits for it (waking the host). Otherwise the
-        // clock runs at most half the interval past the host's last frame. Either way, unless a
-        // frame is arriving or the host has really been silent the whole interval (wall time).
+        // clock runs at most half the interval past the run's last KEEPALIVE. Either way, unless
+        // a frame is arriving or the run's host has really been silent the whole interval (wall
+        // time: no KEEPALIVE of the run, whatever else came).
         if let Some(ka) = self.run_keepalive() {
             let host_due = self.vclock.as_ref().and_then(VirtualClock::host_due);
-            let horizon = host_due.unwrap_or(self.last_rx_frame + ka / 2);
-            let silent = wall.duration_since(self.last_rx_wall);
+            let horizon = host_due.unwrap_or(self.last_keepalive + ka / 2);
+            let silent = wall.duration_since(self.last_keepalive_wall);
             if self.vnow + VIRTUAL_STEP > horizon && self.rx_pending.is_empty() && silent < ka {
                 if let (Some(c), Some(_)) = (&self.vclock, host_due) {
                     c.wake_host();
@@ -1210,8 +1212,6 @@ impl Firmware {
             self.with_stats(|s| s.rx_errors += errs);
         }
         for f in frames {
-            self.last_rx_frame = now;
-            self.last_rx_wall = Instant::now();
             self.with_stats(|s| s.frames_received += 1);
             self.handle(f, now);
         }
@@ -1270,7 +1270,15 @@ impl Firmware {
     fn handle_command(&mut self, f: Frame, now: Instant) {
         let t = f.msg.type_code();
         match f.msg {
-            Message::Keepalive => return,
+            Message::Keepalive(id) => {
+                // Only a KEEPALIVE of the running run keeps it alive (PROTOCOL.md, section 7):
+                // not any valid frame, such as another program's STATUS.
+                if self.run.as_ref().is_some_and(|r| r.id == id) {
+                    self.last_keepalive = now;
+                    self.last_keepalive_wall = Instant::now();
+                }
+                return;
+            }
             Message::Hello => {
                 self.cache = None;
                 let r = Message::HelloReply(HelloReply {
@@ -1542,7 +1550,8 @@ impl Firmware {
             last_u: 0.0,
         });
         self.last_end = None;
-        self.last_rx_frame = now;
+        self.last_keepalive = now;
+        self.last_keepalive_wall = Instant::now();
         self.with_stats(|s| {
             s.runs_started += 1;
             s.truth.clear();
@@ -1654,7 +1663,7 @@ impl Firmware {
         let keepalive = Duration::from_millis(conf.keepalive_ms as u64);
         let mut end: Option<EndReason> = None;
         loop {
-            if r.ramp.is_none() && now.duration_since(self.last_rx_frame) > keepalive {
+            if r.ramp.is_none() && now.duration_since(self.last_keepalive) > keepalive {
                 let n = (fs * 0.05).ceil().max(1.0) as u32;
                 r.ramp = Some((n, n, EndReason::Keepalive));
                 self.fault = fault::KEEPALIVE;
@@ -1980,8 +1989,6 @@ impl Firmware {
         let Some(mut c) = self.c.take() else { return };
         for b in bytes {
             let Some(t) = c.eng.rx(b) else { continue };
-            self.last_rx_frame = now;
-            self.last_rx_wall = Instant::now();
             self.with_stats(|s| s.frames_received += 1);
             let lose = 0x100 | t as u16;
             if self
@@ -1994,6 +2001,11 @@ impl Firmware {
                 self.event(format!("answer to type {t:#04x} lost on the line"));
             }
             let k = c.eng.counters();
+            if k.keepalives != c.seen.keepalives || k.runs_started != c.seen.runs_started {
+                // the engine's keepalive timer was reset (a KEEPALIVE of its run, a START)
+                self.last_keepalive = now;
+                self.last_keepalive_wall = Instant::now();
+            }
             if k.configs != c.seen.configs {
                 // a CONFIGURE was accepted: a motor at its sample rate
                 self.plant = c

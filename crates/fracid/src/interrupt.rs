@@ -1,9 +1,17 @@
-//! Ctrl-C (SIGINT), SIGTERM and SIGHUP during a drive run: the first of them asks the drive to
-//! STOP (the run ends, what arrived is kept and the record says what is missing); the command
-//! then ends with [`Interrupted`], exit code 128 + the signal number (130 for SIGINT, 143 for
-//! SIGTERM, 129 for SIGHUP: what a shell reports for a process the signal ended, so a caller
-//! such as `timeout` or a service manager sees which signal ended the run). A second signal of
-//! the same kind ends the process as usual.
+//! Ctrl-C (SIGINT), SIGTERM, SIGHUP and every other signal whose default action ends the process
+//! and that a process may catch ([`HANDLED`]: SIGQUIT (Ctrl-\\), SIGUSR1, SIGUSR2, SIGALRM,
+//! SIGVTALRM, SIGPROF, SIGXCPU, SIGXFSZ and, on Linux, SIGPOLL, SIGPWR, SIGSTKFLT and the
+//! real-time signals) during a drive run: the first of them asks the drive to STOP (the run ends,
+//! what arrived is kept and the record says what is missing); the command then ends with
+//! [`Interrupted`], exit code 128 + the signal number (130 for SIGINT, 143 for SIGTERM, 129 for
+//! SIGHUP, 131 for SIGQUIT: what a shell reports for a process the signal ended, so a caller such
+//! as `timeout` or a service manager sees which signal ended the run). A second signal of the
+//! same kind ends the process as usual.
+//!
+//! Not caught: SIGKILL and SIGSTOP (they cannot be), SIGPIPE (ignored for the whole run by
+//! [`PipeErrors`]: a write to a closed output fails instead, and the drive is stopped), and the
+//! signals of the program's own faults (SIGSEGV, SIGBUS, SIGILL, SIGFPE, SIGABRT, SIGTRAP,
+//! SIGSYS), after which it cannot go on: as for `kill -9`, the drive's keepalive ends the run.
 //!
 //! The signal handler only sets atomics (async-signal-safe) and resets itself to the default
 //! disposition (`SA_RESETHAND`); a small watcher thread turns the flag into [`StopHandle::stop`].
@@ -60,18 +68,55 @@ impl std::fmt::Display for Interrupted {
 
 impl std::error::Error for Interrupted {}
 
-/// `SIGINT (Ctrl-C)`, `SIGTERM`, `SIGHUP`, or `signal N`.
+/// `SIGINT (Ctrl-C)`, `SIGTERM`, `SIGHUP`, `SIGQUIT (Ctrl-\)`, ... (the names of [`HANDLED`]),
+/// `SIGRTMIN+k`, or `signal N`.
 pub fn signal_name(signal: i32) -> String {
     #[cfg(unix)]
     {
-        match signal {
-            libc::SIGINT => return "SIGINT (Ctrl-C)".into(),
-            libc::SIGTERM => return "SIGTERM".into(),
-            libc::SIGHUP => return "SIGHUP".into(),
-            _ => {}
+        if let Some((_, name)) = HANDLED.iter().find(|(s, _)| *s == signal) {
+            return (*name).into();
+        }
+        #[cfg(target_os = "linux")]
+        if (libc::SIGRTMIN()..=libc::SIGRTMAX()).contains(&signal) {
+            return format!("SIGRTMIN+{}", signal - libc::SIGRTMIN());
         }
     }
     format!("signal {signal}")
+}
+
+/// The signals a drive run turns into a STOP, with their names: those whose default action ends
+/// the process and that may be caught, but for SIGPIPE and the program's own faults (see the
+/// module's documentation); on Linux the real-time signals too ([`handled_signals`]).
+#[cfg(unix)]
+pub const HANDLED: &[(libc::c_int, &str)] = &[
+    (libc::SIGINT, "SIGINT (Ctrl-C)"),
+    (libc::SIGTERM, "SIGTERM"),
+    (libc::SIGHUP, "SIGHUP"),
+    (libc::SIGQUIT, "SIGQUIT (Ctrl-\\)"),
+    (libc::SIGUSR1, "SIGUSR1"),
+    (libc::SIGUSR2, "SIGUSR2"),
+    (libc::SIGALRM, "SIGALRM"),
+    (libc::SIGVTALRM, "SIGVTALRM"),
+    (libc::SIGPROF, "SIGPROF"),
+    (libc::SIGXCPU, "SIGXCPU"),
+    (libc::SIGXFSZ, "SIGXFSZ"),
+    #[cfg(target_os = "linux")]
+    (libc::SIGPOLL, "SIGPOLL"),
+    #[cfg(target_os = "linux")]
+    (libc::SIGPWR, "SIGPWR"),
+    #[cfg(target_os = "linux")]
+    (libc::SIGSTKFLT, "SIGSTKFLT"),
+];
+
+/// The numbers of [`HANDLED`] and, on Linux, of the real-time signals (SIGRTMIN..=SIGRTMAX, as
+/// the C library numbers them: not those it keeps for itself).
+#[cfg(unix)]
+pub fn handled_signals() -> Vec<libc::c_int> {
+    #[allow(unused_mut)]
+    let mut v: Vec<libc::c_int> = HANDLED.iter().map(|(s, _)| *s).collect();
+    #[cfg(target_os = "linux")]
+    v.extend(libc::SIGRTMIN()..=libc::SIGRTMAX());
+    v
 }
 
 /// While alive, a write to a closed pipe (`fracid drive prbs -o - | head -1`) fails with an
@@ -113,8 +158,8 @@ impl Drop for PipeErrors {
     }
 }
 
-/// Turns the first SIGINT, SIGTERM or SIGHUP into a STOP while alive; restores the previous
-/// handling on drop.
+/// Turns the first of the signals [`handled_signals`] lists (SIGINT, SIGTERM, SIGHUP, SIGQUIT,
+/// ...) into a STOP while alive; restores the previous handling on drop.
 /// One at a time per process.
 pub struct StopOnInterrupt {
     #[cfg(unix)]
@@ -138,7 +183,7 @@ impl StopOnInterrupt {
         }
     }
 
-    /// The signal (SIGINT, SIGTERM or SIGHUP) that arrived while armed, if one did.
+    /// The signal ([`handled_signals`]) that arrived while armed, if one did.
     pub fn signal(&self) -> Option<i32> {
         #[cfg(unix)]
         {
@@ -162,9 +207,6 @@ mod unix {
 
     /// The first signal that arrived (0: none).
     pub(super) static SIGNAL: AtomicI32 = AtomicI32::new(0);
-
-    /// The signals handled, in this order.
-    const SIGNALS: [libc::c_int; 3] = [libc::SIGINT, libc::SIGTERM, libc::SIGHUP];
 
     extern "C" fn on_signal(sig: libc::c_int) {
         // Async-signal-safe: one atomic operation. SA_RESETHAND already restored the default
@@ -196,9 +238,10 @@ mod unix {
         pub(super) fn new(stop: StopHandle) -> Option<Self> {
             // SAFETY: plain sigaction/pthread_sigmask calls on initialised structures; the
             // handler only touches an atomic.
+            let all = super::handled_signals();
             unsafe {
                 let mut old_actions = Vec::new();
-                for sig in SIGNALS {
+                for &sig in &all {
                     let mut old: libc::sigaction = std::mem::zeroed();
                     if libc::sigaction(sig, std::ptr::null(), &mut old) == 0
                         && old.sa_sigaction != libc::SIG_IGN
@@ -217,7 +260,7 @@ mod unix {
                     .name("fracid-sigint".into())
                     .spawn(move || {
                         // This thread takes the signals (the run's thread blocks them).
-                        let set = signal_set(&SIGNALS);
+                        let set = signal_set(&all);
                         libc::pthread_sigmask(libc::SIG_UNBLOCK, &set, std::ptr::null_mut());
                         let mut sent = false;
                         while !d.load(Ordering::SeqCst) {

@@ -48,7 +48,8 @@ enum Commands {
 /// 2 bad input (malformed model, data or options; clap also uses 2 for usage errors),
 /// 3 I/O (a file or port that cannot be opened or written); an impossible `tune` specification
 /// is a runtime failure (1), 128 + N for a drive run ended by
-/// signal N after its record was finished (130 Ctrl-C, 143 SIGTERM, 129 SIGHUP). Drive faults (timeouts, NAKs, protocol
+/// signal N after its record was finished (130 Ctrl-C, 143 SIGTERM, 129 SIGHUP, 131 SIGQUIT, ...:
+/// `interrupt::handled_signals`). Drive faults (timeouts, NAKs, protocol
 /// violations, a reset) are runtime failures.
 fn exit_code(err: &anyhow::Error) -> u8 {
     for cause in err.chain() {

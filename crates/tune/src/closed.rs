@@ -257,7 +257,7 @@ pub fn simulate(
     let css = crate::realise::discrete(c, h * m as f64, spec)?;
     let mut ctrl = Sys::new(css);
     let (dp, dc) = (plant.ss.d, ctrl.ss.d);
-    let hanus = hanus_is_stable(&ctrl.ss);
+    let hanus = hanus_is_stable(&ctrl.ss)?;
     if !effects.is_empty() && dp != 0.0 {
         return invalid(
             "effects",
@@ -336,15 +336,30 @@ pub fn simulate(
 /// evolve as `x <- (A - B C / D) x + B u_clamped / D`, whose eigenvalues are its zeros; right
 /// when they are within the unit circle (spectral radius at most `1 + 1e-6`), wrong otherwise (a
 /// FOPID's derivative puts a zero near `z = -20`: the states run away). `false` without
-/// feed-through. The drive makes the same choice (`drive::ctrl::hanus_is_stable`).
-fn hanus_is_stable(ss: &StateSpace) -> bool {
+/// feed-through. The drive makes the same choice (`drive::ctrl::hanus_is_stable`). The
+/// eigenvalues by QR iteration with an iteration limit (`fracsim::eig`; nalgebra's has none and
+/// never ends on poles at `z = -1`).
+///
+/// # Errors
+/// The QR iteration did not converge (numerical, exit 1).
+fn hanus_is_stable(ss: &StateSpace) -> Result<bool> {
     if ss.d == 0.0 || !ss.d.is_finite() {
-        return false;
+        return Ok(false);
     }
-    let m = &ss.a - &ss.b * &ss.c / ss.d;
-    m.complex_eigenvalues()
-        .iter()
-        .all(|z| z.norm() <= 1.0 + 1e-6)
+    let mut m = &ss.a - &ss.b * &ss.c / ss.d;
+    let n = m.nrows();
+    if m.iter().any(|v| !v.is_finite()) {
+        return Err(
+            fracsim::Error::Numerical("the controller's realisation is not finite".into()).into(),
+        );
+    }
+    nalgebra::linalg::balancing::balance_parlett_reinsch(&mut m);
+    let zeros = fracsim::eig::eigenvalues_only(m, 100 * n.max(1)).ok_or_else(|| {
+        fracsim::Error::Numerical(
+            "the controller's zeros (for its anti-windup) did not converge".into(),
+        )
+    })?;
+    Ok(zeros.iter().all(|z| z.norm() <= 1.0 + 1e-6))
 }
 
 /// A step response's figures.
@@ -417,4 +432,40 @@ pub fn step_figures(t: &[f64], y: &[f64], a: f64) -> (f64, Option<f64>, Option<f
         .rposition(|&v| (v - a).abs() > 0.02 * a.abs())
         .and_then(|i| (i + 1 < t.len()).then(|| t[i + 1] - t[0]));
     ((100.0 * (peak - a) / a).max(0.0), rise_time, settling_time)
+}
+
+#[cfg(test)]
+mod tests {
+    /// Issue 46, item 6: a closed realisation `A - B C / D` (poles at `z = -1` and a chain at the
+    /// origin) that nalgebra's QR iteration, without an iteration limit, never reduced: the check
+    /// hung. Now it ends at once (an error: the iteration does not converge).
+    #[test]
+    fn hanus_check_ends_on_poles_at_minus_one() {
+        let a = nalgebra::DMatrix::from_row_slice(
+            4,
+            4,
+            &[
+                -1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, -1.0, -1.0, 0.0, 0.0, 0.0, 0.0, -1.0, 0.0,
+            ],
+        );
+        let ss = super::StateSpace {
+            a,
+            b: nalgebra::DMatrix::from_column_slice(4, 1, &[-1.0, 0.0, -1.0, 0.0]),
+            c: nalgebra::DMatrix::from_row_slice(1, 4, &[1.0, 0.0, 0.0, -1.0]),
+            d: 1.0,
+            dt: Some(1e-3),
+            input_delay: 0.0,
+            delay_states: 0,
+            band: (1e-3, 1e3),
+            spec: fracsim::ApproxSpec::default(),
+        };
+        let (tx, rx) = std::sync::mpsc::channel();
+        std::thread::spawn(move || {
+            let _ = tx.send(super::hanus_is_stable(&ss).map_err(|e| e.to_string()));
+        });
+        let r = rx
+            .recv_timeout(std::time::Duration::from_secs(20))
+            .expect("the check hangs");
+        assert!(r.unwrap_err().contains("did not converge"));
+    }
 }

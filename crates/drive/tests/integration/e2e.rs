@@ -324,3 +324,87 @@ fn sine_sweep_matches_the_model() {
         assert!((p.phase_deg - phase).abs() < 1.5, "{p:?} vs {phase}");
     }
 }
+
+/// A sink that keeps the indices it received and writes the CSV of [`CsvSink`] to memory.
+struct TeeSink {
+    csv: CsvSink<Vec<u8>>,
+    indices: Vec<u64>,
+}
+
+impl drive::client::SampleSink for TeeSink {
+    fn begin(&mut self, info: &drive::client::RunInfo) -> std::io::Result<()> {
+        self.csv.begin(info)
+    }
+    fn sample(&mut self, index: u64, t: f64, u: f64, y: f64, i: f64) -> std::io::Result<()> {
+        self.indices.push(index);
+        self.csv.sample(index, t, u, y, i)
+    }
+    fn finish(&mut self, acq: &Acquisition) -> std::io::Result<()> {
+        self.csv.finish(acq)
+    }
+}
+
+/// Issue 46, item 9: with [`Retention::CountOnly`] (what `fracid drive loop` uses, so a long run
+/// needs no memory for its samples) the acquisition keeps none of them, and still says what a
+/// kept one says: the count, the missing ranges (the complement of the indices the sink
+/// received, on a line that drops bytes), the footer, completeness. Bytes are dropped both ways,
+/// so the record has gaps.
+#[test]
+fn count_only_retention_keeps_no_sample_and_the_same_account() {
+    use drive::client::Retention;
+    let _g = lock();
+    let s = sim(
+        Faults {
+            drop_rate: 3e-4,
+            seed: 5,
+            ..Faults::default()
+        },
+        115_200,
+        None,
+    );
+    let mut c = client(s.port_path(), 115_200);
+    c.set_retention(Retention::CountOnly);
+    let mut sink = TeeSink {
+        csv: CsvSink::new(Vec::new()),
+        indices: Vec::new(),
+    };
+    let acq = c
+        .run_prbs(
+            &PrbsTest {
+                periods: 4,
+                ..short_prbs()
+            },
+            &mut sink,
+        )
+        .unwrap();
+    assert!(acq.index.is_empty() && acq.t.is_empty() && acq.y.is_empty() && acq.raw.is_empty());
+    let got = &sink.indices;
+    assert_eq!(acq.received, got.len() as u64);
+    assert_eq!(acq.last_index, got.last().copied());
+    // the missing ranges: the complement of what arrived in the run's span
+    let span = acq.total_samples.max(acq.planned_samples);
+    let mut want = Vec::new();
+    let mut next = 0;
+    for &i in got {
+        if i > next {
+            want.push(next..i.min(span));
+        }
+        next = i + 1;
+    }
+    if next < span {
+        want.push(next..span);
+    }
+    want.retain(|r| r.start < r.end);
+    assert_eq!(acq.missing, want, "{:?}", acq.problems);
+    assert!(
+        !want.is_empty(),
+        "the line should have lost something: {:?}",
+        s.stats()
+    );
+    assert!(!acq.complete);
+    let text = String::from_utf8(sink.csv.into_inner().unwrap()).unwrap();
+    assert_eq!(text.lines().last().unwrap(), acq.footer());
+    assert!(acq.footer().starts_with("# incomplete: missing samples "));
+    // the excitation, judged as the samples arrived: a PRBS that varies
+    assert!(acq.after_settle.samples > 100 && !acq.excitation_missing());
+}

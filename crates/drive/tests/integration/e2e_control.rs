@@ -474,17 +474,18 @@ fn retried_start_runs_once() {
     eprintln!("retried START test: {:?}", t0.elapsed());
 }
 
-/// A drive of protocol version 1 (SINE_RESULT of 22 bytes) ignores version-2 frames, and a
-/// version-2 host ignores its answers: before, the host reported a drive that does not answer
-/// (`Timeout`). Now it probes with a version-1 HELLO and names both versions. The drive here is
-/// a version-1 stand-in on a real pty that answers only HELLOs framed in version 1 (in version 1).
+/// A drive of an earlier protocol version (2: an empty KEEPALIVE that any frame stood in for)
+/// ignores version-3 frames, and a version-3 host ignores its answers: before, the host reported
+/// a drive that does not answer (`Timeout`). Now it probes with a HELLO of each earlier version
+/// and names both versions. The drive here is a version-2 stand-in on a real pty that answers only
+/// HELLOs framed in version 2 (in version 2).
 #[test]
 fn a_drive_of_another_protocol_version_is_named() {
     use drive::codec::{encode_body_as, wrap_body};
     use drive::protocol::{Frame, HelloReply, Message, PROTO_VERSION};
     use serialport::{SerialPort, TTYPort};
     use std::io::{Read, Write};
-    assert_eq!(PROTO_VERSION, 2);
+    assert_eq!(PROTO_VERSION, 3);
     let (mut master, slave) = TTYPort::pair().expect("a pty pair");
     let path = slave.name().expect("the slave's path");
     drop(slave);
@@ -514,21 +515,21 @@ fn a_drive_of_another_protocol_version_is_named() {
                     continue;
                 }
                 seen.push(body[0]);
-                if body[0] == 1 && body[1] == 0x01 {
+                if body[0] == 2 && body[1] == 0x01 {
                     let seq = u16::from_le_bytes([body[2], body[3]]);
                     let reply = Frame {
                         seq,
                         msg: Message::HelloReply(HelloReply {
-                            proto_version: 1,
+                            proto_version: 2,
                             fw_major: 1,
-                            fw_minor: 0,
+                            fw_minor: 2,
                             n_channels: 3,
                             max_block_samples: 66,
                             boot_id: 0xBEEF,
                             max_sample_rate_hz: 20_000,
                         }),
                     };
-                    let _ = master.write_all(&wrap_body(&encode_body_as(&reply, 1)));
+                    let _ = master.write_all(&wrap_body(&encode_body_as(&reply, 2)));
                 }
             }
         }
@@ -550,17 +551,18 @@ fn a_drive_of_another_protocol_version_is_named() {
         panic!("no client for a drive of another version")
     };
     assert!(
-        matches!(e, Error::Version { drive: 1, host: 2 }),
+        matches!(e, Error::Version { drive: 2, host: 3 }),
         "{e:?} after {:?}",
         t0.elapsed()
     );
     let msg = e.to_string();
     assert!(
-        msg.contains("protocol version 1") && msg.contains("speaks 2"),
+        msg.contains("protocol version 2") && msg.contains("speaks 3"),
         "{msg}"
     );
-    // the host said HELLO in its version (twice: one retry), then once in version 1
-    assert_eq!(seen, [2, 2, 1], "versions of the host's frames");
+    // the host said HELLO in its version (twice: one retry), then once in version 2, which
+    // answered
+    assert_eq!(seen, [3, 3, 2], "versions of the host's frames");
 }
 
 /// A sink that stops reading (sleeps) once, at sample `at`, for `pause`, and notes how many
@@ -832,4 +834,80 @@ fn a_drive_of_firmware_1_1_loads_format_1_and_a_fopid_is_said_to_need_1_2() {
         "{e}"
     );
     assert_eq!(formats, [1, 2]);
+}
+
+/// Issue 46, item 11: the host of a run dies without STOP (its client dropped after the START),
+/// and another program polls the drive every 0.2 s (`fracid drive status` under `watch`: HELLO,
+/// then STATUS). Before, any valid frame reset the keepalive timer, so the polls kept the orphaned
+/// run (and the motor) going with no host; now only a KEEPALIVE of the run's id does: the run
+/// ends on the keepalive, ramped down, fault KEEPALIVE latched. With both firmwares.
+#[test]
+fn an_orphaned_run_is_not_kept_alive_by_another_programs_polls() {
+    use drive::protocol::Message;
+    use drive::sim::FirmwareKind;
+    let _g = lock();
+    for firmware in [FirmwareKind::Rust, FirmwareKind::C] {
+        let s = DriveSim::spawn(SimConfig {
+            baud: BAUD,
+            firmware,
+            ..SimConfig::default()
+        })
+        .expect("simulator starts");
+        let conf = Configure::default();
+        // 10 periods of 254 samples: 2.6 s of run, far longer than the keepalive (500 ms)
+        let cmd = PrbsTest {
+            periods: 10,
+            ..short_prbs()
+        }
+        .to_command(&conf)
+        .unwrap();
+        let run_id = {
+            let mut host = fast_client(&s, ClientConfig::default(), &conf);
+            match host.request(Message::StartPrbs(cmd)).unwrap() {
+                Message::Ack(a) => a.run_id,
+                other => panic!("{other:?}"),
+            }
+            // the host goes away without STOP
+        };
+        // a new program each time, as `fracid drive status` is: HELLO, then STATUS
+        let watch = || {
+            Client::open(
+                s.port_path(),
+                ClientConfig {
+                    baud: BAUD,
+                    ..ClientConfig::default()
+                },
+            )
+            .unwrap()
+        };
+        let t0 = Instant::now();
+        let mut states = Vec::new();
+        while t0.elapsed() < Duration::from_millis(1600) {
+            let st = watch().status().unwrap();
+            assert_eq!(st.run_id, run_id);
+            states.push(st.state);
+            std::thread::sleep(Duration::from_millis(200));
+        }
+        let mut watcher = watch();
+        let st = watcher.status().unwrap();
+        assert_eq!(
+            (st.state, st.fault),
+            (DriveState::Fault, fault::KEEPALIVE),
+            "{firmware:?}: polled for 1.6 s after its host went away: {st:?} ({states:?})"
+        );
+        assert!(st.samples_done < 1000, "{firmware:?}: {st:?}");
+        match watcher.request(Message::EndQuery(run_id)).unwrap() {
+            Message::StreamEnd(e) => {
+                assert_eq!(e.reason, EndReason::Keepalive, "{firmware:?}: {e:?}");
+                // 500 ms of silence from its host at 1 kHz, then the 50 ms ramp (a block of
+                // slack for the wall clock)
+                assert!(
+                    (540..=600).contains(&e.total_samples),
+                    "{firmware:?}: {e:?}"
+                );
+            }
+            other => panic!("{firmware:?}: {other:?}"),
+        }
+        assert_eq!(s.stats().output, 0, "{firmware:?}: the output is zero");
+    }
 }

@@ -10,7 +10,7 @@ fn arb_msg() -> impl Strategy<Value = Message> {
         Just(Message::Stop),
         Just(Message::Estop),
         Just(Message::Status),
-        Just(Message::Keepalive),
+        any::<u16>().prop_map(Message::Keepalive),
         any::<u16>().prop_map(Message::EndQuery),
         (
             any::<u8>(),

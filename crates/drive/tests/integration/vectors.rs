@@ -96,7 +96,7 @@ fn named_frames() -> Vec<(&'static str, Frame)> {
             "KEEPALIVE",
             Frame {
                 seq: 0x0008,
-                msg: Message::Keepalive,
+                msg: Message::Keepalive(0x0103),
             },
         ),
         (
@@ -173,7 +173,7 @@ fn named_frames() -> Vec<(&'static str, Frame)> {
                 msg: Message::HelloReply(HelloReply {
                     proto_version: drive::protocol::PROTO_VERSION,
                     fw_major: 1,
-                    fw_minor: 2,
+                    fw_minor: 3,
                     n_channels: 3,
                     max_block_samples: 66,
                     boot_id: 0xBEEF,
@@ -295,9 +295,10 @@ fn frames() {
     let path = dir().join("frames.txt");
     let named = named_frames();
     if std::env::var_os("DRIVE_REGEN_VECTORS").is_some() {
-        let mut s = String::from(
-            "# fracid drive protocol v2: one frame per line: NAME seq(hex) wire-bytes(hex, with both 0x00 delimiters)\n\
-             # body = ver(0x02) type seq(LE) payload crc16-mcrf4xx(LE over ver..payload); wire = 00 COBS(body) 00\n",
+        let v = PROTO_VERSION;
+        let mut s = format!(
+            "# fracid drive protocol v{v}: one frame per line: NAME seq(hex) wire-bytes(hex, with both 0x00 delimiters)\n\
+             # body = ver(0x{v:02X}) type seq(LE) payload crc16-mcrf4xx(LE over ver..payload); wire = 00 COBS(body) 00\n",
         );
         for (name, f) in &named {
             s += &format!("{name} {:04X} {}\n", f.seq, hex(&codec::encode(f)));

@@ -604,7 +604,7 @@ pub(crate) fn kept_summary(output: &std::path::Path, acq: &drive::client::Acquis
     format!(
         "{}: {} samples kept{}",
         output.display(),
-        acq.index.len(),
+        acq.received,
         if acq.complete {
             String::new()
         } else {
@@ -643,7 +643,8 @@ pub(crate) fn lost_output(e: anyhow::Error, output: &std::path::Path, what: &str
 }
 
 /// Connect to the drive, show the progress in `unit` (unless quiet or not a terminal), and run
-/// `body` on the client with the first SIGINT/SIGTERM/SIGHUP stopping the drive (what arrived is
+/// `body` on the client with the first signal of [`crate::interrupt::handled_signals`] (SIGINT,
+/// SIGTERM, SIGHUP, SIGQUIT, ...) stopping the drive (what arrived is
 /// kept, the output says what is missing): the body's result and the signal that came during
 /// it, if one did. The acquisition runs of `prbs`, `sine` and `loop` go through it.
 ///
@@ -749,7 +750,7 @@ fn prbs(a: PrbsArgs) -> Result<()> {
     let output = output_path(&a.output);
     check_outputs(&a.port.port, &[("--output", &output)])?;
     let mut sink = CsvSink::new(output_file(&output)?);
-    // The first SIGINT/SIGTERM/SIGHUP stops the drive; the record keeps what arrived and its
+    // The first SIGINT/SIGTERM/SIGHUP/SIGQUIT/... stops the drive; the record keeps what arrived and its
     // footer says what is missing.
     let (acq, signal) = run_on_drive(&a.port, &conf, "samples", |c| {
         c.run_prbs(&test, &mut sink).map_err(lib_err)
@@ -1042,7 +1043,7 @@ fn sine(a: SineArgs) -> Result<()> {
     check_outputs(&a.port.port, &outs)?;
     let mut file = BodeFile::new(&output, header, sweep.repeats > 1)?;
     let mut reps_file = open_repeats_file(&a, &conf, reps_path)?;
-    // The first SIGINT/SIGTERM/SIGHUP stops the drive; the points measured so far are in the
+    // The first SIGINT/SIGTERM/SIGHUP/SIGQUIT/... stops the drive; the points measured so far are in the
     // file, the rest listed in its footer.
     let (swept, signal) = run_on_drive(&a.port, &conf, "frequencies", |c| {
         c.run_sine_sweep_with(&sweep, &mut |ev| match ev {

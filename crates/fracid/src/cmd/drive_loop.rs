@@ -13,9 +13,9 @@ use crate::cmd::drive::{
     run_on_drive, PortArgs,
 };
 use anyhow::{Context, Result};
-use drive::client::{Acquisition, Client, LoopCsvSink, LoopTest, SampleSink};
-use drive::ctrl::FixedCtrl;
-use drive::protocol::{Configure, StartLoop};
+use drive::client::{Acquisition, Client, LoopCsvSink, LoopTest, Retention, RunInfo, SampleSink};
+use drive::ctrl::{FixedCtrl, MAX_REALISATION_STATES};
+use drive::protocol::{Configure, StartLoop, MAX_SECTIONS_TAPS, MAX_TAPS};
 use num_complex::Complex64;
 use serde_json::Value;
 use std::path::PathBuf;
@@ -71,8 +71,9 @@ fn bad(msg: String) -> anyhow::Error {
 /// The discrete realisation of a `fracid tune --json` report.
 ///
 /// # Errors
-/// Not JSON, no `discrete` realisation (a design without `--dt`), matrices of the wrong shape or
-/// with non-numbers (all bad input, exit 2).
+/// Not JSON, no `discrete` realisation (a design without `--dt`), more states than
+/// [`MAX_REALISATION_STATES`] (refused before its numbers are read), matrices of the wrong shape
+/// or with non-numbers (all bad input, exit 2).
 pub fn parse_realisation(text: &str) -> Result<Realisation> {
     let v: Value = serde_json::from_str(text)
         .map_err(|e| bad(format!("not the JSON of `fracid tune --json`: {e}")))?;
@@ -100,6 +101,15 @@ pub fn parse_realisation(text: &str) -> Result<Realisation> {
             .collect()
     };
     let dt = num(d.get("dt").unwrap_or(&Value::Null), "dt")?;
+    // the size first: the pruning and the conversion grow with its cube
+    let n_states = d.get("a").and_then(Value::as_array).map_or(0, Vec::len);
+    if n_states > MAX_REALISATION_STATES {
+        return Err(bad(format!(
+            "the controller has {n_states} states; the drive holds at most {MAX_SECTIONS_TAPS} \
+             sections and {MAX_TAPS} delay taps (realisations of up to {MAX_REALISATION_STATES} \
+             states are converted): design it with a lower approximation order"
+        )));
+    }
     let a = matrix("a")?;
     let b: Vec<f64> = matrix("b")?.into_iter().flatten().collect();
     let c: Vec<f64> = matrix("c")?.into_iter().flatten().collect();
@@ -290,6 +300,123 @@ pub fn measured_step(acq: &Acquisition, cmd: &StartLoop, y_lsb: f64) -> Option<M
     })
 }
 
+/// The figures of the measured step ([`tune::closed::step_figures`]: overshoot, 10-90% rise,
+/// 2% settling), computed as the samples arrive, so a long run needs no memory for them: the
+/// same numbers as `step_figures` on the whole step (tested).
+#[derive(Debug, Clone, Copy)]
+pub struct StepFigures {
+    /// The step, rad/s.
+    a: f64,
+    /// Time of the first sample of the step, s (the origin of the step's time).
+    t_first: Option<f64>,
+    /// The previous sample `(t, y)` of the step.
+    prev: Option<(f64, f64)>,
+    /// Times at which 10% and 90% of the step were first reached.
+    at10: Option<f64>,
+    at90: Option<f64>,
+    peak: f64,
+    /// `Some` once a sample was out of the 2% band: the time (from the step's start) of the
+    /// sample after the last one out, if one came.
+    settle: Option<Option<f64>>,
+}
+
+impl StepFigures {
+    /// For a step of `a` rad/s.
+    pub fn new(a: f64) -> Self {
+        Self {
+            a,
+            t_first: None,
+            prev: None,
+            at10: None,
+            at90: None,
+            peak: f64::NEG_INFINITY,
+            settle: None,
+        }
+    }
+
+    /// The next sample of the step: time from the step (s), speed (rad/s).
+    pub fn push(&mut self, t: f64, y: f64) {
+        let a = self.a;
+        let t0 = *self.t_first.get_or_insert(t);
+        let cross = |frac: f64, at: &mut Option<f64>, prev: Option<(f64, f64)>| {
+            if at.is_none() && y >= frac * a {
+                *at = Some(match prev {
+                    None => t,
+                    // linear interpolation between the samples around the level
+                    Some((t_p, y_p)) => t_p + (t - t_p) * (frac * a - y_p) / (y - y_p),
+                });
+            }
+        };
+        cross(0.1, &mut self.at10, self.prev);
+        cross(0.9, &mut self.at90, self.prev);
+        self.peak = self.peak.max(y);
+        if (y - a).abs() > 0.02 * a.abs() {
+            self.settle = Some(None);
+        } else if self.settle == Some(None) {
+            self.settle = Some(Some(t - t0));
+        }
+        self.prev = Some((t, y));
+    }
+
+    /// `(overshoot %, rise time, settling time)` as [`tune::closed::step_figures`] gives them;
+    /// `None` without samples.
+    pub fn figures(&self) -> Option<(f64, Option<f64>, Option<f64>)> {
+        self.t_first?;
+        let rise = match (self.at10, self.at90) {
+            (Some(a), Some(b)) => Some(b - a),
+            _ => None,
+        };
+        let overshoot = (100.0 * (self.peak - self.a) / self.a).max(0.0);
+        Some((overshoot, rise, self.settle.flatten()))
+    }
+}
+
+/// The record's sink of a loop run ([`LoopCsvSink`]) that also takes the step's figures as the
+/// samples arrive ([`StepFigures`]).
+pub struct StepSink<W: std::io::Write> {
+    csv: LoopCsvSink<W>,
+    step: StepFigures,
+    /// The step's first sample and its time, s.
+    pre_samples: u64,
+    t0: f64,
+}
+
+impl<W: std::io::Write> StepSink<W> {
+    /// For the run of `cmd`, the record written to `w`, speeds scaled by `y_lsb` (rad/s per LSB),
+    /// at `sample_rate_hz`.
+    pub fn new(w: W, cmd: StartLoop, y_lsb: f64, sample_rate_hz: u32) -> Self {
+        Self {
+            csv: LoopCsvSink::new(w, cmd, y_lsb),
+            step: StepFigures::new(cmd.r1 as f64 * y_lsb),
+            pre_samples: cmd.pre_samples as u64,
+            t0: cmd.pre_samples as f64 / sample_rate_hz as f64,
+        }
+    }
+
+    /// The record's writer and the step's figures.
+    ///
+    /// # Errors
+    /// Flushing the record failed.
+    pub fn into_inner(self) -> (std::io::Result<W>, StepFigures) {
+        (self.csv.into_inner(), self.step)
+    }
+}
+
+impl<W: std::io::Write> SampleSink for StepSink<W> {
+    fn begin(&mut self, info: &RunInfo) -> std::io::Result<()> {
+        self.csv.begin(info)
+    }
+    fn sample(&mut self, index: u64, t: f64, u: f64, y: f64, i: f64) -> std::io::Result<()> {
+        if index >= self.pre_samples {
+            self.step.push(t - self.t0, y);
+        }
+        self.csv.sample(index, t, u, y, i)
+    }
+    fn finish(&mut self, acq: &Acquisition) -> std::io::Result<()> {
+        self.csv.finish(acq)
+    }
+}
+
 /// `fracid drive loop`.
 ///
 /// # Errors
@@ -344,20 +471,26 @@ pub fn run(a: LoopArgs) -> Result<()> {
     }
     let output = output_path(&a.output);
     check_outputs(&a.port.port, &[("--output", &output)])?;
-    let mut sink = LoopCsvSink::new(output_file(&output)?, cmd, conf.y_lsb());
+    // the samples go to the file and the step's figures as they arrive: none is kept in memory
+    let mut sink = StepSink::new(
+        output_file(&output)?,
+        cmd,
+        conf.y_lsb(),
+        conf.sample_rate_hz,
+    );
     let (acq, signal) = run_on_drive(&a.port, &conf, "samples", |c| {
+        c.set_retention(Retention::CountOnly);
         run_on(c, &k, &cmd, &mut sink)
     })?;
-    let acq = close_record(acq, sink.into_inner(), &output)?;
-    let figures = match measured_step(&acq, &cmd, conf.y_lsb()) {
-        Some(m) => format!(
+    let (file, step) = sink.into_inner();
+    let acq = close_record(acq, file, &output)?;
+    let figures = match step.figures() {
+        Some((overshoot_percent, rise_time, settling_time)) => format!(
             "; step {} rad/s: overshoot {:.2}%, rise (10-90%) {}, settling (2%) {}",
             a.step,
-            m.overshoot_percent,
-            m.rise_time
-                .map_or("not reached".into(), |r| format!("{r:.4} s")),
-            m.settling_time
-                .map_or("not within the record".into(), |s| format!("{s:.4} s")),
+            overshoot_percent,
+            rise_time.map_or("not reached".into(), |r| format!("{r:.4} s")),
+            settling_time.map_or("not within the record".into(), |s| format!("{s:.4} s")),
         ),
         None => String::new(),
     };
@@ -370,4 +503,60 @@ pub fn run(a: LoopArgs) -> Result<()> {
         );
     }
     record_outcome(&acq, signal, summary, None, a.allow_incomplete)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The figures taken as the samples arrive are those of `tune::closed::step_figures` on the
+    /// whole step, bit for bit: steps that overshoot or not, settle or not, start above the
+    /// levels, stay in the band throughout, or end out of it.
+    #[test]
+    fn streamed_step_figures_equal_step_figures() {
+        let mut seed = 0x2545_f491_4f6c_dd1du64;
+        let mut rnd = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut cases: Vec<(Vec<f64>, f64)> = vec![
+            (vec![], 1.0),
+            (vec![1.0; 10], 1.0),
+            (vec![2.0, 1.0, 1.0], 1.0),
+            (vec![0.0, 0.5, 1.3, 0.99, 1.0, 1.5], 1.0),
+            (vec![0.0, -0.5, -1.2, -1.0], -1.0),
+        ];
+        for k in 0..200 {
+            let n = 1 + (rnd() * 400.0) as usize;
+            let (wn, zeta) = (5.0 + 50.0 * rnd(), 0.1 + rnd());
+            let a = 10.0 + 90.0 * rnd();
+            let noise = if k % 2 == 0 { 0.0 } else { 0.05 * a };
+            let y: Vec<f64> = (0..n)
+                .map(|i| {
+                    let t = i as f64 * 1e-3;
+                    let wd = wn * (1.0 - zeta * zeta).abs().sqrt();
+                    a * (1.0 - (-zeta * wn * t).exp() * (wd * t).cos()) + noise * (rnd() - 0.5)
+                })
+                .collect();
+            cases.push((y, a));
+        }
+        for (y, a) in cases {
+            let t: Vec<f64> = (0..y.len())
+                .map(|i| (i + 100) as f64 / 1000.0 - 0.1)
+                .collect();
+            let mut f = StepFigures::new(a);
+            for (t, y) in t.iter().zip(&y) {
+                f.push(*t, *y);
+            }
+            match f.figures() {
+                None => assert!(y.is_empty()),
+                Some(got) => {
+                    let want = tune::closed::step_figures(&t, &y, a);
+                    assert_eq!(format!("{got:?}"), format!("{want:?}"), "{y:?}");
+                }
+            }
+        }
+    }
 }
