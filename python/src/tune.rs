@@ -61,6 +61,7 @@ pub(crate) fn _tune(
         s_low: bound(s_low),
         dt,
         lambda: lambda_,
+        floors: tune::Floors::default(),
     };
     let mut fx = Vec::new();
     for (name, params) in &effects {

@@ -51,7 +51,7 @@ impl std::str::FromStr for Form {
 
 /// `C(s) = kp + ki / s^lambda + kd s^mu` (`kd = 0` for the PI forms, `lambda = mu = 1` for the
 /// integer forms).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, serde::Deserialize)]
 pub struct Controller {
     /// Proportional gain.
     pub kp: f64,
@@ -82,6 +82,40 @@ impl Controller {
             d += self.mu * self.kd * jw_pow(omega, self.mu);
         }
         d
+    }
+
+    /// The controller a transfer function is, when it has this form:
+    /// `(kd s^(lambda+mu) + kp s^lambda + ki) / (a s^lambda)` with `0 < lambda < 2` (the text
+    /// `fracid tune` prints for `C(s)`), no delay; `None` otherwise.
+    pub fn from_tf(tf: &FracTf) -> Option<Self> {
+        let [den] = tf.den.as_slice() else {
+            return None;
+        };
+        let lambda = den.order;
+        if !(lambda > 0.0 && lambda < 2.0 && den.coef != 0.0 && tf.delay == 0.0) {
+            return None;
+        }
+        let mut c = Controller {
+            kp: 0.0,
+            ki: 0.0,
+            lambda,
+            kd: 0.0,
+            mu: 1.0,
+        };
+        for t in &tf.num {
+            let k = t.coef / den.coef;
+            if t.order.abs() < 1e-12 {
+                c.ki = k;
+            } else if (t.order - lambda).abs() < 1e-12 {
+                c.kp = k;
+            } else if t.order > lambda && t.order - lambda < 2.0 && c.kd == 0.0 {
+                c.kd = k;
+                c.mu = t.order - lambda;
+            } else {
+                return None;
+            }
+        }
+        (c.ki != 0.0).then_some(c)
     }
 
     /// `C(s) = (kd s^(lambda+mu) + kp s^lambda + ki) / s^lambda` as a [`FracTf`] (no delay).

@@ -29,13 +29,39 @@ use num_complex::Complex64;
 use serde::Serialize;
 use std::f64::consts::{FRAC_PI_2, PI};
 
-/// A bound on a closed-loop gain at one frequency: `|T(j omega)|` or `|S(j omega)| <= db`.
+/// A bound on a closed-loop gain over a band: `|T(j w)| <= db` for every `w >= omega` (noise),
+/// or `|S(j w)| <= db` for every `w <= omega` (disturbances).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct GainBound {
-    /// The frequency in rad/s.
+    /// The band's edge in rad/s.
     pub omega: f64,
-    /// The largest gain allowed, dB.
+    /// The largest gain allowed over the band, dB.
     pub db: f64,
+}
+
+/// The robustness every design must have unless the request relaxes it: a design that misses
+/// one is refused, the floor it misses named.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Floors {
+    /// The largest sensitivity peak `Ms` allowed (default 2: the Nyquist curve stays at least
+    /// `1/Ms = 0.5` from `-1`, which alone guarantees 6 dB of gain margin and 29 deg of phase).
+    pub ms_max: f64,
+    /// The smallest gain margin in dB, up and (for a conditionally stable loop) down (default 6).
+    pub gm_min_db: f64,
+    /// The smallest integrator order (default 0.5): integral action, a step's error dying out
+    /// like `t^-lambda` at least as fast as `t^-0.5` and the low-frequency sensitivity falling at
+    /// `20 lambda` dB a decade. 0 accepts any.
+    pub lambda_min: f64,
+}
+
+impl Default for Floors {
+    fn default() -> Self {
+        Self {
+            ms_max: 2.0,
+            gm_min_db: 6.0,
+            lambda_min: 0.5,
+        }
+    }
 }
 
 /// What the loop must do.
@@ -57,6 +83,8 @@ pub struct Spec {
     pub dt: Option<f64>,
     /// FOPI without `--flat`: the integrator order (otherwise searched).
     pub lambda: Option<f64>,
+    /// The robustness floors.
+    pub floors: Floors,
 }
 
 /// Tolerances of the final check: the design equations are solved to rounding, so these only
@@ -64,6 +92,10 @@ pub struct Spec {
 const TOL_GAIN: f64 = 1e-3;
 const TOL_PM_DEG: f64 = 0.1;
 const TOL_SLOPE: f64 = 1e-3;
+/// The crossovers accepted, rad/s: beyond, the analysis's grid (`wc 1e-6` to `wc 1e5`) leaves
+/// the floating-point range a drive's model is written in.
+const WC_MIN: f64 = 1e-6;
+const WC_MAX: f64 = 1e9;
 /// The grid of fractional orders searched, `(0, 2)` exclusive.
 const ORDER_MIN: f64 = 0.02;
 const ORDER_MAX: f64 = 1.98;
@@ -73,14 +105,40 @@ const ORDER_MAX: f64 = 1.98;
 pub struct Design {
     /// The controller.
     pub controller: Controller,
-    /// The loop's measured properties.
+    /// The loop's measured properties (continuous, with the hold's half-sample delay for a
+    /// sampled loop).
     pub metrics: LoopMetrics,
+    /// For a sampled loop (`dt`): the properties of the loop the drive runs, the controller's
+    /// realisation with the model discretised for the held input ([`crate::sampled`]).
+    pub sampled: Option<LoopMetrics>,
+    /// Caveats of the sampled loop's evaluation.
+    pub sampled_note: Option<String>,
 }
 
 impl Spec {
     fn validate(&self) -> Result<()> {
         if !(self.wc.is_finite() && self.wc > 0.0) {
             return invalid("wc", format!("{} rad/s must be positive", self.wc));
+        }
+        if !(WC_MIN..=WC_MAX).contains(&self.wc) {
+            return invalid(
+                "wc",
+                format!(
+                    "{:e} rad/s is outside [{WC_MIN:e}, {WC_MAX:e}] rad/s, the crossovers the \
+                     analysis covers",
+                    self.wc
+                ),
+            );
+        }
+        let f = self.floors;
+        if !(f.ms_max.is_finite() && f.ms_max >= 1.0) {
+            return invalid("max-ms", format!("{} must be a number >= 1", f.ms_max));
+        }
+        if !(f.gm_min_db.is_finite() && f.gm_min_db >= 0.0) {
+            return invalid("min-gm", format!("{} dB must be >= 0", f.gm_min_db));
+        }
+        if !(f.lambda_min.is_finite() && (0.0..2.0).contains(&f.lambda_min)) {
+            return invalid("min-lambda", format!("{} must be in [0, 2)", f.lambda_min));
         }
         if !(self.pm_deg > 0.0 && self.pm_deg < 180.0) {
             return invalid("pm", format!("{} deg must be in (0, 180)", self.pm_deg));
@@ -140,18 +198,37 @@ struct Target {
     slope: f64,
 }
 
-/// Why candidates were refused, kept for the message.
+/// Why candidates were refused, kept for the message: the first of each kind of reason (the
+/// words without the numbers and the candidate's orders), with how many more gave it.
 #[derive(Default)]
-struct Refusals(Vec<String>);
+struct Refusals(Vec<String>, Vec<(String, usize)>);
 
 impl Refusals {
+    fn kind(s: &str) -> String {
+        let rest = s.split_once(": ").map_or(s, |x| x.1);
+        rest.chars()
+            .filter(|c| c.is_alphabetic() || *c == ' ')
+            .collect()
+    }
     fn push(&mut self, s: String) {
-        if !self.0.contains(&s) && self.0.len() < 6 {
+        let k = Self::kind(&s);
+        if let Some(i) = self.1.iter().position(|(x, _)| *x == k) {
+            self.1[i].1 += 1;
+        } else if self.0.len() < 8 {
             self.0.push(s);
+            self.1.push((k, 0));
         }
     }
     fn text(&self) -> String {
-        self.0.join("; ")
+        self.0
+            .iter()
+            .zip(&self.1)
+            .map(|(s, (_, more))| match more {
+                0 => s.clone(),
+                n => format!("{s} (and {n} more like it)"),
+            })
+            .collect::<Vec<_>>()
+            .join("; ")
     }
 }
 
@@ -394,16 +471,38 @@ fn choose(
         ranked.push((coarse_ms(&t.plant, &c, t.wc), c));
     }
     ranked.sort_by(|a, b| a.0.total_cmp(&b.0));
+    // the reasons of the candidates that reached the loop's checks, best-ranked first: the
+    // binding constraint is named before the candidates that never had positive gains
+    let mut checked = Refusals::default();
     let mut best: Option<Design> = None;
     for (_, c) in ranked {
         let m = analyse(&t.plant, &c, t.wc);
         if let Err(e) = check(t, spec, &c, &m) {
-            why.push(e);
+            checked.push(e);
             continue;
         }
+        let (sampled, sampled_note) = match spec.dt {
+            Some(dt) => {
+                let l = crate::sampled::SampledLoop::new(
+                    &t.plant.tf,
+                    &c,
+                    dt,
+                    &fracsim::ApproxSpec::default(),
+                )?;
+                let sm = l.analyse(t.wc);
+                if let Err(e) = check_sampled(spec, &c, &sm) {
+                    checked.push(e);
+                    continue;
+                }
+                (Some(sm), l.note)
+            }
+            None => (None, None),
+        };
         best = Some(Design {
             controller: c,
             metrics: m,
+            sampled,
+            sampled_note,
         });
         break;
     }
@@ -415,7 +514,17 @@ fn choose(
             spec.wc,
             spec.pm_deg,
             if spec.flat { ", flat phase" } else { "" },
-            why.text()
+            if checked.0.is_empty() {
+                why.text()
+            } else if why.0.is_empty() {
+                checked.text()
+            } else {
+                format!(
+                    "{}; others: {}",
+                    checked.text(),
+                    why.0.first().map_or("", String::as_str)
+                )
+            }
         )),
     }
 }
@@ -439,34 +548,92 @@ fn coarse_ms(p: &Plant, c: &Controller, wc: f64) -> f64 {
         .fold(0.0, f64::max)
 }
 
-/// Whether the loop meets every specification; the reason otherwise.
+/// Whether the loop meets every specification and floor; the reason otherwise.
 fn check(t: &Target, spec: &Spec, c: &Controller, m: &LoopMetrics) -> Result<(), String> {
+    stable_and_on_spec(t.wc, spec, &label(c), m)?;
+    floors_met(spec, c, m).map_err(|e| format!("{}: {e}", label(c)))?;
+    bounds_met(&t.plant, spec, c).map_err(|e| format!("{}: {e}", label(c)))
+}
+
+/// How far the sampled loop may cross from `wc` (relative) and its margin from the one asked
+/// (deg): the design accounts for the hold's half-sample delay, not for the realisation's own
+/// lags nor the hold's aliasing, which cost a few tenths to a few degrees below a tenth of the
+/// Nyquist frequency.
+const TOL_SAMPLED_WC: f64 = 0.05;
+const TOL_SAMPLED_PM_DEG: f64 = 3.0;
+
+/// The sampled loop: stable, crossing once near `wc` with nearly the margin asked, the floors.
+fn check_sampled(spec: &Spec, c: &Controller, m: &LoopMetrics) -> Result<(), String> {
+    let name = format!(
+        "{} sampled every {} s",
+        label(c),
+        spec.dt.unwrap_or(f64::NAN)
+    );
+    let loose = Spec {
+        flat: false,
+        ..spec.clone()
+    };
+    match stable_and_on_spec(spec.wc, &loose, &name, m) {
+        Err(e) if !e.contains("crosses at") => return Err(e),
+        _ => {}
+    }
+    if (m.wc / spec.wc - 1.0).abs() > TOL_SAMPLED_WC
+        || (m.pm_deg - spec.pm_deg).abs() > TOL_SAMPLED_PM_DEG
+    {
+        return Err(format!(
+            "{name}: the sampled loop crosses at {:.4} rad/s with pm {:.2} deg (asked {} rad/s, \
+             {} deg; accepted within {}% and {} deg)",
+            m.wc,
+            m.pm_deg,
+            spec.wc,
+            spec.pm_deg,
+            TOL_SAMPLED_WC * 100.0,
+            TOL_SAMPLED_PM_DEG
+        ));
+    }
+    floors_met(spec, c, m).map_err(|e| format!("{name}: {e}"))
+}
+
+/// A stable closed loop crossing once, at `wc` with the margin asked (and flat if asked).
+pub(crate) fn stable_and_on_spec(
+    wc: f64,
+    spec: &Spec,
+    label: &str,
+    m: &LoopMetrics,
+) -> Result<(), String> {
+    if let Some(note) = &m.stability_note {
+        return Err(format!("{label}: the closed loop is not stable ({note})"));
+    }
     if m.unstable_poles != 0 {
         return Err(format!(
-            "{}: the closed loop is unstable ({} poles in the right half-plane)",
-            label(c),
-            m.unstable_poles
+            "{label}: the closed loop is unstable ({} poles in the right half-plane{})",
+            m.unstable_poles,
+            match m.plant_unstable_poles {
+                p if p > 0 => format!("; the model has {p} of its own"),
+                _ => String::new(),
+            }
         ));
     }
     if m.crossovers != 1 {
         return Err(format!(
-            "{}: |L| crosses 0 dB {} times",
-            label(c),
-            m.crossovers
+            "{label}: |L| crosses 0 dB {} times (at {})",
+            m.crossovers,
+            m.crossover_omegas
+                .iter()
+                .map(|w| format!("{w:.4}"))
+                .collect::<Vec<_>>()
+                .join(", ")
         ));
     }
-    if (m.wc / t.wc - 1.0).abs() > TOL_GAIN || (m.pm_deg - spec.pm_deg).abs() > TOL_PM_DEG {
+    if (m.wc / wc - 1.0).abs() > TOL_GAIN || (m.pm_deg - spec.pm_deg).abs() > TOL_PM_DEG {
         return Err(format!(
-            "{}: the loop crosses at {:.4} rad/s with pm {:.3} deg",
-            label(c),
-            m.wc,
-            m.pm_deg
+            "{label}: the loop crosses at {:.4} rad/s with pm {:.3} deg",
+            m.wc, m.pm_deg
         ));
     }
     if spec.flat && m.phase_slope.abs() > TOL_SLOPE {
         return Err(format!(
-            "{}: phase slope {:.2e} rad at wc{}",
-            label(c),
+            "{label}: phase slope {:.2e} rad at wc{}",
             m.phase_slope,
             if spec.form == Form::Pi {
                 " (a PI has only kp and ki, taken by wc and pm: a flat phase needs --form fopi)"
@@ -475,27 +642,100 @@ fn check(t: &Target, spec: &Spec, c: &Controller, m: &LoopMetrics) -> Result<(),
             }
         ));
     }
+    Ok(())
+}
+
+/// The robustness floors ([`Floors`]), each named with the option that relaxes it.
+pub(crate) fn floors_met(spec: &Spec, c: &Controller, m: &LoopMetrics) -> Result<(), String> {
+    let f = spec.floors;
+    if m.ms > f.ms_max {
+        return Err(format!(
+            "sensitivity peak Ms = {:.3} at {:.4} rad/s above the floor {} (--max-ms)",
+            m.ms, m.ms_omega, f.ms_max
+        ));
+    }
+    if let Some(g) = m.gm_db.filter(|&g| g < f.gm_min_db) {
+        return Err(format!(
+            "gain margin {g:.2} dB below the floor {} dB (--min-gm)",
+            f.gm_min_db
+        ));
+    }
+    if let Some(g) = m.gm_low_db.filter(|&g| g < f.gm_min_db) {
+        return Err(format!(
+            "the loop turns unstable if its gain falls by {g:.2} dB, below the floor {} dB \
+             (--min-gm)",
+            f.gm_min_db
+        ));
+    }
+    if !(c.ki > 0.0 && c.lambda >= f.lambda_min) {
+        return Err(format!(
+            "no integral action: integrator order lambda = {:.3} below the floor {} \
+             (--min-lambda)",
+            c.lambda, f.lambda_min
+        ));
+    }
+    Ok(())
+}
+
+/// The bounds over their bands: `|T| <= db` for every `w >= omega_h`, `|S| <= db` for every
+/// `w <= omega_l` (on the analysis's refined grid, each local peak refined by golden section).
+pub(crate) fn bounds_met(p: &Plant, spec: &Spec, c: &Controller) -> Result<(), String> {
+    let grid = crate::analysis::loop_grid(p, c, spec.wc);
     if let Some(b) = spec.t_high {
-        let v = t_db(&t.plant, c, b.omega);
+        let (w, v) = band_peak(&grid, b.omega, f64::INFINITY, |w| t_db(p, c, w));
         if v > b.db {
             return Err(format!(
-                "{}: |T(j{})| = {v:.2} dB > {} dB",
-                label(c),
-                b.omega,
-                b.db
+                "|T| = {v:.2} dB at {w:.4} rad/s > {} dB (asked above {} rad/s)",
+                b.db, b.omega
             ));
         }
     }
     if let Some(b) = spec.s_low {
-        let v = s_db(&t.plant, c, b.omega);
+        let (w, v) = band_peak(&grid, 0.0, b.omega, |w| s_db(p, c, w));
         if v > b.db {
             return Err(format!(
-                "{}: |S(j{})| = {v:.2} dB > {} dB",
-                label(c),
-                b.omega,
-                b.db
+                "|S| = {v:.2} dB at {w:.4} rad/s > {} dB (asked below {} rad/s)",
+                b.db, b.omega
             ));
         }
     }
     Ok(())
+}
+
+/// The largest value of `f` over `[lo, hi]` rad/s: on the grid's points inside and the band's
+/// finite edges, each local maximum refined by golden section between its neighbours.
+pub(crate) fn band_peak(grid: &[f64], lo: f64, hi: f64, f: impl Fn(f64) -> f64) -> (f64, f64) {
+    let mut w: Vec<f64> = grid
+        .iter()
+        .copied()
+        .filter(|&x| x >= lo && x <= hi)
+        .collect();
+    for e in [lo, hi] {
+        if e > 0.0 && e.is_finite() {
+            w.push(e);
+        }
+    }
+    w.sort_by(f64::total_cmp);
+    w.dedup();
+    let v: Vec<f64> = w.iter().map(|&x| f(x)).collect();
+    let mut best = (f64::NAN, f64::NEG_INFINITY);
+    for i in 0..w.len() {
+        let left = if i > 0 { v[i - 1] } else { f64::NEG_INFINITY };
+        let right = if i + 1 < v.len() {
+            v[i + 1]
+        } else {
+            f64::NEG_INFINITY
+        };
+        let mut cand = (w[i], v[i]);
+        if v[i] >= left && v[i] >= right && i > 0 && i + 1 < w.len() {
+            let (x, y) = crate::analysis::golden_max(w[i - 1].ln(), w[i + 1].ln(), |x| f(x.exp()));
+            if y > cand.1 {
+                cand = (x.exp(), y);
+            }
+        }
+        if cand.1 > best.1 {
+            best = cand;
+        }
+    }
+    best
 }

@@ -13,15 +13,17 @@
 mod error;
 
 pub mod analysis;
+pub mod argument;
 pub mod closed;
 pub mod controller;
 pub mod design;
 pub mod plant;
 pub mod realise;
 pub mod report;
+pub mod sampled;
 
 pub use analysis::LoopMetrics;
 pub use controller::{Controller, Form};
-pub use design::{design, Design, GainBound, Spec};
+pub use design::{design, Design, Floors, GainBound, Spec};
 pub use error::{Error, Result};
 pub use plant::Plant;

@@ -95,6 +95,7 @@ pub fn run_with(
         s_low: None,
         dt: Some(dt),
         lambda: None,
+        floors: tune::Floors::default(),
     };
     let opts = SimOptions {
         step: Some(STEP),

@@ -35,12 +35,23 @@ pub struct TuneArgs {
     /// Flat phase at wc (d arg L / d ln w = 0: the overshoot robust to gain changes).
     #[arg(long)]
     pub flat: bool,
-    /// |T(j w)| <= DB at a high frequency W rad/s (noise rejection).
+    /// |T(j w)| <= DB for every w >= W rad/s (noise rejection over the band above W).
     #[arg(long, value_name = "W,DB")]
     pub t_high: Option<String>,
-    /// |S(j w)| <= DB at a low frequency W rad/s (disturbance rejection).
+    /// |S(j w)| <= DB for every w <= W rad/s (disturbance rejection over the band below W).
     #[arg(long, value_name = "W,DB")]
     pub s_low: Option<String>,
+    /// Robustness floor: the largest sensitivity peak Ms accepted (a design above it is refused).
+    #[arg(long, default_value_t = 2.0)]
+    pub max_ms: f64,
+    /// Robustness floor: the smallest gain margin accepted, dB (up, and down for a
+    /// conditionally stable loop).
+    #[arg(long, default_value_t = 6.0)]
+    pub min_gm: f64,
+    /// Robustness floor: the smallest integrator order accepted (integral action); 0 accepts a
+    /// fractional integrator of any order.
+    #[arg(long, default_value_t = 0.5)]
+    pub min_lambda: f64,
     /// A fixed integrator order for a fopi without --flat (otherwise the smallest Ms is chosen).
     #[arg(long)]
     pub lambda: Option<f64>,
@@ -131,6 +142,11 @@ pub fn spec_of(a: &TuneArgs) -> Result<Spec> {
             .transpose()?,
         dt: a.dt,
         lambda: a.lambda,
+        floors: tune::Floors {
+            ms_max: a.max_ms,
+            gm_min_db: a.min_gm,
+            lambda_min: a.min_lambda,
+        },
     })
 }
 
@@ -211,14 +227,27 @@ pub fn text(r: &Report) -> String {
     let l = &r.loop_;
     let _ = writeln!(
         o,
-        "loop:       wc = {:.4} rad/s, pm = {:.3} deg, gm = {}, Ms = {:.4} (at {:.1} rad/s), \
+        "loop:       wc = {:.4} rad/s, pm = {:.3} deg, gm = {}{}, Ms = {:.4} (at {:.1} rad/s), \
          d arg L/d ln w at wc = {:.2e} rad",
         l.wc,
         l.pm_deg,
         l.gm_db.map_or("inf".into(), |g| format!("{g:.2} dB")),
+        l.gm_low_db
+            .map_or(String::new(), |g| format!(" (down: {g:.2} dB)")),
         l.ms,
         l.ms_omega,
         l.phase_slope
+    );
+    let _ = writeln!(
+        o,
+        "stability:  {} closed-loop poles in the right half-plane (characteristic equation); \
+         the model has {}",
+        l.unstable_poles,
+        match l.plant_unstable_poles {
+            0 => "none of its own".to_string(),
+            n if n > 0 => format!("{n} of its own"),
+            _ => "an uncounted number of its own".to_string(),
+        }
     );
     if let Some(d) = &r.discrete {
         let _ = writeln!(
@@ -232,11 +261,20 @@ pub fn text(r: &Report) -> String {
             d.approximation.band[0],
             d.approximation.band[1],
             d.sampled_loop
-                .map_or("no crossover near wc".into(), |m| format!(
-                    "wc = {:.3} rad/s, pm = {:.2} deg",
-                    m.wc, m.pm_deg
+                .as_ref()
+                .map_or("not evaluated".into(), |m| format!(
+                    "wc = {:.3} rad/s, pm = {:.2} deg, gm = {}, Ms = {:.4}, {} closed-loop poles \
+                     outside the unit circle",
+                    m.wc,
+                    m.pm_deg,
+                    m.gm_db.map_or("inf".into(), |g| format!("{g:.2} dB")),
+                    m.ms,
+                    m.unstable_poles
                 ))
         );
+        if let Some(n) = &d.sampled_note {
+            let _ = writeln!(o, "            note: {n}");
+        }
     }
     match (&r.step.metrics, &r.step.not_simulated) {
         (Some(m), _) => {
