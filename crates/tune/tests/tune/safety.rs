@@ -278,6 +278,27 @@ fn a_sampled_loop_is_judged_on_the_sampled_model() {
     };
     let sl = tune::sampled::SampledLoop::new(&g, &old, 0.02, &Default::default()).unwrap();
     let m = sl.analyse(100.0);
+    // the sampled loop's response against this file's: the model's held-input sampling as the
+    // aliasing sum `sum_k G(j w_k) (1 - e^(-j w_k dt)) / (j w_k dt)`, `w_k = w + 2 pi k/dt` (its
+    // terms fall as k^-2.78), times the realisation's response
+    let ss = tune::realise::discrete(&old, 0.02, &Default::default()).unwrap();
+    let gj = |w: f64| {
+        let j = |a: f64| C::from_polar(w.abs().powf(a), a * std::f64::consts::FRAC_PI_2 * w.signum());
+        6.77 / (0.000028 * j(1.78) + 0.0064 * j(0.89) + 1.0)
+    };
+    for w in [5.0, 30.0, 96.0, 150.0] {
+        let dt = 0.02;
+        let ws = 2.0 * std::f64::consts::PI / dt;
+        let gd: C = (-200_000..=200_000)
+            .map(|k| {
+                let wk = w + ws * k as f64;
+                gj(wk) * (1.0 - C::from_polar(1.0, -wk * dt)) / C::new(0.0, wk * dt)
+            })
+            .sum();
+        let truth = tune::realise::discrete_response(&ss, w) * gd;
+        let got = sl.at(w);
+        assert!((got / truth - 1.0).norm() < 2e-3, "{w}: {got} vs {truth}");
+    }
     eprintln!("the old controller's sampled loop: {m:?}");
     assert!(m.unstable_poles > 0, "{m:?}");
     assert!(m.pm_min_deg < 0.0, "{m:?}");
