@@ -177,12 +177,18 @@ impl Spec {
                 "lambda",
                 "with --flat the integrator order is what the flatness decides",
             ),
-            (Form::Fopi, _, Some(l)) if !(l > 0.0 && l < 2.0) => {
+            (Form::Fopi | Form::Fopd, true, Some(_)) => invalid(
+                "lambda",
+                "with --flat the order is what the flatness decides",
+            ),
+            (Form::Fopi | Form::Fopd, _, Some(l)) if !(l > 0.0 && l < 2.0) => {
                 invalid("lambda", format!("{l} must be in (0, 2)"))
             }
-            (Form::Pi | Form::Pid | Form::Fopid, _, Some(_)) => {
-                invalid("lambda", "only a fopi takes a fixed --lambda")
-            }
+            (Form::Pi | Form::Pid | Form::Fopid, _, Some(_)) => invalid(
+                "lambda",
+                "only a fopi (its integrator's order) or a fopd (its differentiator's) takes a \
+                 fixed --lambda",
+            ),
             _ => Ok(()),
         }
     }
@@ -259,6 +265,7 @@ pub fn design(model: &FracTf, spec: &Spec) -> Result<Design> {
         Form::Fopi => (-180.0, 0.0),
         Form::Pid => (-90.0, 90.0),
         Form::Fopid => (-180.0, 180.0),
+        Form::Fopd => (0.0, 180.0),
     };
     if !(need_deg > lo && need_deg < hi) {
         return infeasible(format!(
@@ -281,6 +288,7 @@ pub fn design(model: &FracTf, spec: &Spec) -> Result<Design> {
         Form::Fopi => fopi_candidates(&t, spec),
         Form::Pid => vec![pid(&t, spec.flat, &mut why)?],
         Form::Fopid => fopid_candidates(&t, spec),
+        Form::Fopd => fopd_candidates(&t, spec),
     };
     choose(&t, spec, candidates, why)
 }
@@ -316,8 +324,47 @@ fn fopi_candidates(t: &Target, spec: &Spec) -> Vec<Controller> {
         return order_grid(192).map(|l| fopi_at(t, l)).collect();
     }
     // every root of the flatness condition in lambda, by bracketing then bisection
-    let f = |l: f64| fopi_flatness(t, l);
-    let grid: Vec<f64> = order_grid(400).collect();
+    bracket_roots(|l| fopi_flatness(t, l), 400)
+        .into_iter()
+        .map(|l| fopi_at(t, l))
+        .collect()
+}
+
+/// The FOPD `kp + kd s^mu` meeting magnitude and phase at `wc` for a differentiator order `mu`.
+fn fopd_at(t: &Target, mu: f64) -> Controller {
+    let (s, c) = (mu * FRAC_PI_2).sin_cos();
+    let kd = t.c.im / (t.wc.powf(mu) * s);
+    Controller {
+        kp: t.c.re - kd * t.wc.powf(mu) * c,
+        ki: 0.0,
+        lambda: 1.0,
+        kd,
+        mu,
+    }
+}
+
+/// The FOPD candidates: the fixed order (`spec.lambda`), or the roots in `mu` of the flatness
+/// `Im(mu kd (j wc)^mu / C) = slope`, or a grid of orders.
+fn fopd_candidates(t: &Target, spec: &Spec) -> Vec<Controller> {
+    if let Some(mu) = spec.lambda {
+        return vec![fopd_at(t, mu)];
+    }
+    if !spec.flat {
+        return order_grid(192).map(|mu| fopd_at(t, mu)).collect();
+    }
+    let f = |mu: f64| {
+        let c = fopd_at(t, mu);
+        (c.dlog_omega(t.wc) / t.c).im - t.slope
+    };
+    bracket_roots(f, 400)
+        .into_iter()
+        .map(|mu| fopd_at(t, mu))
+        .collect()
+}
+
+/// The roots of `f` over the order grid of `n` steps, bracketed then bisected.
+fn bracket_roots(f: impl Fn(f64) -> f64, n: usize) -> Vec<f64> {
+    let grid: Vec<f64> = order_grid(n).collect();
     let mut roots = Vec::new();
     for w in grid.windows(2) {
         let (fa, fb) = (f(w[0]), f(w[1]));
@@ -336,7 +383,7 @@ fn fopi_candidates(t: &Target, spec: &Spec) -> Vec<Controller> {
             roots.push(0.5 * (a + b));
         }
     }
-    roots.into_iter().map(|l| fopi_at(t, l)).collect()
+    roots
 }
 
 fn pid(t: &Target, flat: bool, why: &mut Refusals) -> Result<Controller> {
@@ -411,16 +458,21 @@ fn choose(
     mut why: Refusals,
 ) -> Result<Design> {
     if candidates.is_empty() && spec.flat {
+        let slope = |l: f64| match spec.form {
+            Form::Fopd => (fopd_at(t, l).dlog_omega(t.wc) / t.c).im,
+            _ => fopi_flatness(t, l) + t.slope,
+        };
         let (lo, hi) = order_grid(400)
-            .map(|l| fopi_flatness(t, l) + t.slope)
+            .map(slope)
             .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
                 (lo.min(v), hi.max(v))
             });
         return infeasible(format!(
             "a flat phase at wc needs the controller's phase slope to be {:.4} rad per unit of \
-             ln(omega); with magnitude and phase met, a FOPI of order in (0, 2) gives slopes in \
+             ln(omega); with magnitude and phase met, a {} of order in (0, 2) gives slopes in \
              [{lo:.4}, {hi:.4}] only",
-            t.slope
+            t.slope,
+            spec.form.name()
         ));
     }
     // Positive gains first, then ranked by a coarse sensitivity peak; the full analysis and check
@@ -428,7 +480,21 @@ fn choose(
     // has passed the full check, and its Ms is the full analysis's).
     let mut ranked: Vec<(f64, Controller)> = Vec::new();
     for c in candidates {
-        if !(c.kp >= 0.0 && c.ki > 0.0 && c.kd >= 0.0) {
+        let gains_ok = if spec.form.has_integrator() {
+            c.kp >= 0.0 && c.ki > 0.0 && c.kd >= 0.0
+        } else {
+            c.kp >= 0.0 && c.kd > 0.0
+        };
+        if !gains_ok && !spec.form.has_integrator() {
+            why.push(format!(
+                "{} needs kp = {:.4e}, kd = {:.4e} (need kp >= 0, kd > 0)",
+                label(&c),
+                c.kp,
+                c.kd
+            ));
+            continue;
+        }
+        if !gains_ok {
             why.push(format!(
                 "lambda = {:.3}{} needs kp = {:.4e}, ki = {:.4e}{} (need kp >= 0, ki > 0{})",
                 c.lambda,
@@ -531,7 +597,9 @@ fn choose(
 
 /// The orders of a candidate, for the messages.
 fn label(c: &Controller) -> String {
-    if c.kd > 0.0 {
+    if c.ki == 0.0 {
+        format!("mu = {:.3}", c.mu)
+    } else if c.kd > 0.0 {
         format!("lambda = {:.3}, mu = {:.3}", c.lambda, c.mu)
     } else {
         format!("lambda = {:.3}", c.lambda)
@@ -667,7 +735,7 @@ pub(crate) fn floors_met(spec: &Spec, c: &Controller, m: &LoopMetrics) -> Result
             f.gm_min_db
         ));
     }
-    if !(c.ki > 0.0 && c.lambda >= f.lambda_min) {
+    if spec.form.has_integrator() && !(c.ki > 0.0 && c.lambda >= f.lambda_min) {
         return Err(format!(
             "no integral action: integrator order lambda = {:.3} below the floor {} \
              (--min-lambda)",

@@ -255,13 +255,6 @@ impl SampledLoop {
         let mut budget = 2_000_000usize;
         let mut delta = 0.0;
         let mut prev = (omega[0], f(omega[0]));
-        if prev.1.norm() < 10.0 {
-            return Err(format!(
-                "|L| is not large at {:.3e} rad/s: the loop has no integral action to start \
-                 the count from",
-                omega[0]
-            ));
-        }
         for &w in &omega[1..] {
             let cur = (w, f(w));
             delta += turn(&f, prev, cur, &mut budget)?;

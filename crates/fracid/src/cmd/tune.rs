@@ -23,7 +23,8 @@ pub struct TuneArgs {
     /// `fracid time --json` or `fracid freq --json` (the final model: "diagnosis.model" when the
     /// file has one, else "model").
     pub model: String,
-    /// The controller: fopi (kp + ki/s^lambda), fopid (+ kd s^mu), pi or pid.
+    /// The controller: fopi (kp + ki/s^lambda), fopid (+ kd s^mu), fopd (kp + kd s^mu), pi or
+    /// pid.
     #[arg(long, default_value = "fopi")]
     pub form: String,
     /// Gain crossover in rad/s.
@@ -52,7 +53,8 @@ pub struct TuneArgs {
     /// fractional integrator of any order.
     #[arg(long, default_value_t = 0.5)]
     pub min_lambda: f64,
-    /// A fixed integrator order for a fopi without --flat (otherwise the smallest Ms is chosen).
+    /// A fixed order without --flat: a fopi's integrator, a fopd's differentiator (otherwise the
+    /// smallest Ms is chosen).
     #[arg(long)]
     pub lambda: Option<f64>,
     /// Sample period of the loop in seconds: the hold's half-sample delay joins the design, and

@@ -283,7 +283,12 @@ fn a_sampled_loop_is_judged_on_the_sampled_model() {
     // terms fall as k^-2.78), times the realisation's response
     let ss = tune::realise::discrete(&old, 0.02, &Default::default()).unwrap();
     let gj = |w: f64| {
-        let j = |a: f64| C::from_polar(w.abs().powf(a), a * std::f64::consts::FRAC_PI_2 * w.signum());
+        let j = |a: f64| {
+            C::from_polar(
+                w.abs().powf(a),
+                a * std::f64::consts::FRAC_PI_2 * w.signum(),
+            )
+        };
         6.77 / (0.000028 * j(1.78) + 0.0064 * j(0.89) + 1.0)
     };
     for w in [5.0, 30.0, 96.0, 150.0] {
@@ -416,4 +421,41 @@ fn absurd_crossovers_are_refused_quickly() {
     // with the metrics' search bounded, the analysis of any controller returns
     let m = analyse(&Plant::new(g, None), &pi(1.0, 1.0), 1.0);
     assert_eq!(m.unstable_poles, 0);
+}
+
+/// A FOPD `kp + kd s^mu` on an integrating model (a position loop), `1.0263/(s (0.71 s + 1))`:
+/// magnitude, margin and flatness met on this file's evaluation; with the order fixed at 1 (a
+/// PD), magnitude and margin.
+#[test]
+fn a_fopd_is_designed() {
+    let g: fracsim::FracTf = "1.0263/(s (0.71 s + 1))".parse().unwrap();
+    let l = |c: &Controller, w: f64| {
+        let s = C::new(0.0, w);
+        (c.kp + c.kd * C::from_polar(w.powf(c.mu), c.mu * std::f64::consts::FRAC_PI_2)) * 1.0263
+            / (s * (0.71 * s + 1.0))
+    };
+    let d = design(&g, &spec(Form::Fopd, 2.0, 60.0, true)).unwrap();
+    let c = d.controller;
+    assert_eq!(c.ki, 0.0);
+    assert!(
+        c.kp > 0.0 && c.kd > 0.0 && c.mu > 0.0 && c.mu < 2.0,
+        "{c:?}"
+    );
+    let lw = l(&c, 2.0);
+    assert!((lw.norm() - 1.0).abs() < 1e-6 && (180.0 + lw.arg().to_degrees() - 60.0).abs() < 1e-6);
+    let h = 1e-4f64;
+    let slope = (l(&c, 2.0 * h.exp()) / l(&c, 2.0 * (-h).exp())).arg() / (2.0 * h);
+    assert!(slope.abs() < 1e-3, "{slope}");
+    let pd = design(
+        &g,
+        &Spec {
+            lambda: Some(1.0),
+            ..spec(Form::Fopd, 2.0, 60.0, false)
+        },
+    )
+    .unwrap()
+    .controller;
+    assert_eq!(pd.mu, 1.0);
+    let lw = l(&pd, 2.0);
+    assert!((lw.norm() - 1.0).abs() < 1e-6 && (180.0 + lw.arg().to_degrees() - 60.0).abs() < 1e-6);
 }
