@@ -173,10 +173,6 @@ impl Spec {
                 "form",
                 "fopid has five parameters: give --flat (with --t-high and --s-low if wanted)",
             ),
-            (Form::Fopi, true, Some(_)) => invalid(
-                "lambda",
-                "with --flat the integrator order is what the flatness decides",
-            ),
             (Form::Fopi | Form::Fopd, true, Some(_)) => invalid(
                 "lambda",
                 "with --flat the order is what the flatness decides",
@@ -715,7 +711,21 @@ pub(crate) fn stable_and_on_spec(
 
 /// The robustness floors ([`Floors`]), each named with the option that relaxes it.
 pub(crate) fn floors_met(spec: &Spec, c: &Controller, m: &LoopMetrics) -> Result<(), String> {
-    let f = spec.floors;
+    spec.floors.met(spec.form.has_integrator(), c, m)
+}
+
+impl Floors {
+    /// Whether the loop `m` of `c` meets the floors (the integral action's only when
+    /// `integral`); the first one missed, named with the option that relaxes it, otherwise.
+    ///
+    /// # Errors
+    /// The floor missed.
+    pub fn met(&self, integral: bool, c: &Controller, m: &LoopMetrics) -> Result<(), String> {
+        floors_of(self, integral, c, m)
+    }
+}
+
+fn floors_of(f: &Floors, integral: bool, c: &Controller, m: &LoopMetrics) -> Result<(), String> {
     if m.ms > f.ms_max {
         return Err(format!(
             "sensitivity peak Ms = {:.3} at {:.4} rad/s above the floor {} (--max-ms)",
@@ -735,7 +745,7 @@ pub(crate) fn floors_met(spec: &Spec, c: &Controller, m: &LoopMetrics) -> Result
             f.gm_min_db
         ));
     }
-    if spec.form.has_integrator() && !(c.ki > 0.0 && c.lambda >= f.lambda_min) {
+    if integral && !(c.ki > 0.0 && c.lambda >= f.lambda_min) {
         return Err(format!(
             "no integral action: integrator order lambda = {:.3} below the floor {} \
              (--min-lambda)",

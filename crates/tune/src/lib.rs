@@ -17,6 +17,7 @@ pub mod argument;
 pub mod closed;
 pub mod controller;
 pub mod design;
+pub mod given;
 pub mod plant;
 pub mod realise;
 pub mod report;

@@ -148,35 +148,8 @@ pub fn tune(model: &FracTf, spec: &Spec, opts: &SimOptions) -> Result<(Report, R
         }),
         None => None,
     };
-    let mut setup = LoopSetup::for_crossover(spec.wc, spec.dt);
-    setup.step = opts.step.unwrap_or(1.0);
-    setup.u_limit = opts.u_limit;
-    let k0 = model.dc_gain();
-    setup.load = opts.load.unwrap_or(if k0.is_finite() && k0 != 0.0 {
-        setup.step / k0
-    } else {
-        setup.step
-    });
-    if !(setup.step.is_finite() && setup.step != 0.0 && setup.load.is_finite()) {
-        return crate::error::invalid(
-            "step",
-            format!(
-                "the reference step ({}) must be finite and nonzero, the load ({}) finite",
-                setup.step, setup.load
-            ),
-        );
-    }
-    let (run, not_simulated) = tolerate(closed::simulate(model, &c, &setup, &approx, &[]))?;
-    let with_effects = if opts.effects.is_empty() || run.is_none() {
-        None
-    } else {
-        Some(closed::simulate(model, &c, &setup, &approx, &opts.effects)?)
-    };
-    let step = StepJson {
-        setup,
-        metrics: run.as_ref().map(|r| closed::metrics(r, &setup)),
-        not_simulated,
-    };
+    let setup = setup_of(model, spec.wc, spec.dt, opts)?;
+    let (step, run, with_effects) = simulate_loop(model, &c, &setup, opts)?;
     let pi_spec = Spec {
         form: Form::Pi,
         flat: false,
@@ -233,6 +206,58 @@ pub fn tune(model: &FracTf, spec: &Spec, opts: &SimOptions) -> Result<(Report, R
     ))
 }
 
+/// The closed-loop simulation's setup for a crossover `wc` (module docs of [`closed`]), with the
+/// options' steps.
+///
+/// # Errors
+/// A step that is not finite and nonzero, a load that is not finite.
+pub fn setup_of(model: &FracTf, wc: f64, dt: Option<f64>, opts: &SimOptions) -> Result<LoopSetup> {
+    let mut setup = LoopSetup::for_crossover(wc, dt);
+    setup.step = opts.step.unwrap_or(1.0);
+    setup.u_limit = opts.u_limit;
+    let k0 = model.dc_gain();
+    setup.load = opts.load.unwrap_or(if k0.is_finite() && k0 != 0.0 {
+        setup.step / k0
+    } else {
+        setup.step
+    });
+    if !(setup.step.is_finite() && setup.step != 0.0 && setup.load.is_finite()) {
+        return crate::error::invalid(
+            "step",
+            format!(
+                "the reference step ({}) must be finite and nonzero, the load ({}) finite",
+                setup.step, setup.load
+            ),
+        );
+    }
+    Ok(setup)
+}
+
+/// The loop of `c` simulated alone and with the options' effects: the summary and the runs.
+///
+/// # Errors
+/// Those of the simulation but the simulator's limits on the model (see [`tolerate`]).
+pub fn simulate_loop(
+    model: &FracTf,
+    c: &Controller,
+    setup: &LoopSetup,
+    opts: &SimOptions,
+) -> Result<(StepJson, Option<LoopRun>, Option<LoopRun>)> {
+    let approx = ApproxSpec::default();
+    let (run, not_simulated) = tolerate(closed::simulate(model, c, setup, &approx, &[]))?;
+    let with_effects = if opts.effects.is_empty() || run.is_none() {
+        None
+    } else {
+        Some(closed::simulate(model, c, setup, &approx, &opts.effects)?)
+    };
+    let step = StepJson {
+        setup: *setup,
+        metrics: run.as_ref().map(|r| closed::metrics(r, setup)),
+        not_simulated,
+    };
+    Ok((step, run, with_effects))
+}
+
 /// A simulation the simulator cannot run on this model (its errors, not a bad request) leaves the
 /// design standing: the run is `None` with the reason.
 fn tolerate(r: Result<LoopRun>) -> Result<(Option<LoopRun>, Option<String>)> {
@@ -243,7 +268,7 @@ fn tolerate(r: Result<LoopRun>) -> Result<(Option<LoopRun>, Option<String>)> {
     }
 }
 
-fn discrete_json(ss: &StateSpace) -> DiscreteJson {
+pub(crate) fn discrete_json(ss: &StateSpace) -> DiscreteJson {
     let rows = |m: &nalgebra::DMatrix<f64>| -> Vec<Vec<f64>> {
         (0..m.nrows())
             .map(|i| m.row(i).iter().copied().collect())

@@ -319,3 +319,52 @@ fn unusable_reports_and_absurd_crossovers_are_bad_input() {
     assert_eq!(out.status.code(), Some(2));
     assert!(t.elapsed().as_secs_f64() < 10.0);
 }
+
+/// `--analyse C`: a design's own controller analysed gives the design's loop (exit 0), the
+/// controller once returned for the resonant model is shown unstable with its three crossovers
+/// (exit 1, the report first), and a `--form fopd` design meets its specification.
+#[test]
+fn a_given_controller_is_analysed() {
+    let v = json_of(&fracid(&[
+        "tune", PMSM, "--wc", "300", "--pm", "60", "--flat", "--json",
+    ]));
+    let c = v["controller"]["text"].as_str().unwrap();
+    let a = json_of(&fracid(&["tune", PMSM, "--analyse", c, "--json"]));
+    for k in ["wc", "pm_deg", "ms", "gm_db"] {
+        let (x, y) = (
+            a["loop"][k].as_f64().unwrap(),
+            v["loop"][k].as_f64().unwrap(),
+        );
+        assert!((x - y).abs() <= 1e-6 * y.abs(), "{k}: {x} vs {y}");
+    }
+    assert_eq!(a["misses"].as_array().unwrap().len(), 0);
+    let out = fracid(&[
+        "tune",
+        "100/(s^2 + 0.001 s + 10000)",
+        "--analyse",
+        "(0.6444633298468005 s^1.336875 + 13.252662292151571)/(s^1.336875)",
+    ]);
+    assert_eq!(out.status.code(), Some(1));
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        text.contains("2 closed-loop poles in the right half-plane"),
+        "{text}"
+    );
+    assert!(text.contains("3 crossovers"), "{text}");
+    let d = json_of(&fracid(&[
+        "tune",
+        "1.0263/(s (0.71 s + 1))",
+        "--form",
+        "fopd",
+        "--wc",
+        "2",
+        "--pm",
+        "60",
+        "--flat",
+        "--json",
+    ]));
+    assert_eq!(d["params"]["ki"].as_f64(), Some(0.0));
+    let lw = l(&d, 2.0);
+    assert!((lw.0.hypot(lw.1) - 1.0).abs() < 1e-6);
+    assert!((180.0 + lw.1.atan2(lw.0).to_degrees() - 60.0).abs() < 1e-6);
+}
