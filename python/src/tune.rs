@@ -62,6 +62,7 @@ pub(crate) fn _tune(
         dt,
         lambda: lambda_,
         floors: tune::Floors::default(),
+        orders: tune::Orders::default(),
     };
     let mut fx = Vec::new();
     for (name, params) in &effects {

@@ -81,10 +81,12 @@ pub struct Spec {
     pub s_low: Option<GainBound>,
     /// The sample period of the loop in seconds: the hold's half-sample delay joins the plant.
     pub dt: Option<f64>,
-    /// FOPI without `--flat`: the integrator order (otherwise searched).
+    /// A fixed integrator order (fopi without `--flat`, fopid); otherwise searched.
     pub lambda: Option<f64>,
     /// The robustness floors.
     pub floors: Floors,
+    /// Fixed or capped orders.
+    pub orders: Orders,
 }
 
 /// Tolerances of the final check: the design equations are solved to rounding, so these only
@@ -168,24 +170,89 @@ impl Spec {
                 }
             }
         }
-        match (self.form, self.flat, self.lambda) {
-            (Form::Fopid, false, _) => invalid(
+        self.orders.validate(self.form, self.flat, self.lambda)?;
+        match (self.form, self.flat) {
+            (Form::Fopid, false) => invalid(
                 "form",
                 "fopid has five parameters: give --flat (with --t-high and --s-low if wanted)",
             ),
-            (Form::Fopi | Form::Fopd, true, Some(_)) => invalid(
-                "lambda",
-                "with --flat the order is what the flatness decides",
-            ),
-            (Form::Fopi | Form::Fopd, _, Some(l)) if !(l > 0.0 && l < 2.0) => {
-                invalid("lambda", format!("{l} must be in (0, 2)"))
-            }
-            (Form::Pi | Form::Pid | Form::Fopid, _, Some(_)) => invalid(
-                "lambda",
-                "only a fopi (its integrator's order) or a fopd (its differentiator's) takes a \
-                 fixed --lambda",
-            ),
             _ => Ok(()),
+        }
+    }
+}
+
+/// The orders a design may use: fixed (`Spec::lambda`, [`Orders::mu`]) or capped.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
+pub struct Orders {
+    /// A fixed differentiator order (fopid, fopd).
+    pub mu: Option<f64>,
+    /// The largest integrator order searched (fopi, fopid).
+    pub lambda_max: Option<f64>,
+    /// The largest differentiator order searched (fopid, fopd).
+    pub mu_max: Option<f64>,
+}
+
+impl Orders {
+    fn validate(&self, form: Form, flat: bool, lambda: Option<f64>) -> Result<()> {
+        let in_range = |v: Option<f64>| v.is_none_or(|v| v > 0.0 && v < 2.0);
+        if !(in_range(lambda) && in_range(self.mu)) {
+            return invalid(
+                "order",
+                format!("fixed orders must be in (0, 2): {lambda:?}, {:?}", self.mu),
+            );
+        }
+        if !(self.lambda_max.is_none_or(|v| v > ORDER_MIN && v <= 2.0)
+            && self.mu_max.is_none_or(|v| v > ORDER_MIN && v <= 2.0))
+        {
+            return invalid(
+                "order",
+                format!("caps must be in ({ORDER_MIN}, 2]: {self:?}"),
+            );
+        }
+        let (takes_lambda, takes_mu) = match form {
+            Form::Fopi => (true, false),
+            Form::Fopid => (true, true),
+            Form::Fopd => (false, true),
+            Form::Pi | Form::Pid => (false, false),
+        };
+        if (lambda.is_some() || self.lambda_max.is_some()) && !takes_lambda {
+            return invalid(
+                "lambda",
+                format!("a {} has no fractional integrator", form.name()),
+            );
+        }
+        if (self.mu.is_some() || self.mu_max.is_some()) && !takes_mu {
+            return invalid(
+                "mu",
+                format!("a {} has no fractional differentiator", form.name()),
+            );
+        }
+        if flat && form != Form::Fopid && (lambda.is_some() || self.mu.is_some()) {
+            return invalid(
+                "order",
+                "with --flat the order is what the flatness decides",
+            );
+        }
+        for (name, v, cap) in [
+            ("lambda", lambda, self.lambda_max),
+            ("mu", self.mu, self.mu_max),
+        ] {
+            if let (Some(v), Some(c)) = (v, cap) {
+                if v > c {
+                    return invalid(name, format!("{v} above its cap {c}"));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The orders to try: `fixed`, else a grid of `n` steps over (0, 2) up to the cap.
+    fn grid(fixed: Option<f64>, cap: Option<f64>, n: usize) -> Vec<f64> {
+        match fixed {
+            Some(v) => vec![v],
+            None => order_grid(n)
+                .filter(|&v| cap.is_none_or(|c| v <= c))
+                .collect(),
         }
     }
 }
@@ -286,6 +353,22 @@ pub fn design(model: &FracTf, spec: &Spec) -> Result<Design> {
         Form::Fopid => fopid_candidates(&t, spec),
         Form::Fopd => fopd_candidates(&t, spec),
     };
+    let o = spec.orders;
+    let within = |c: &Controller| {
+        (c.ki == 0.0 || o.lambda_max.is_none_or(|m| c.lambda <= m))
+            && (c.kd == 0.0 || o.mu_max.is_none_or(|m| c.mu <= m))
+    };
+    if !candidates.is_empty() && !candidates.iter().any(within) {
+        return infeasible(format!(
+            "every {} meeting the equations has its orders above the caps (--max-lambda \
+             {:?}, --max-mu {:?}): {}",
+            spec.form.name(),
+            o.lambda_max,
+            o.mu_max,
+            candidates.iter().map(label).collect::<Vec<_>>().join("; ")
+        ));
+    }
+    let candidates: Vec<Controller> = candidates.into_iter().filter(within).collect();
     choose(&t, spec, candidates, why)
 }
 
@@ -313,11 +396,11 @@ fn order_grid(n: usize) -> impl Iterator<Item = f64> + Clone {
 }
 
 fn fopi_candidates(t: &Target, spec: &Spec) -> Vec<Controller> {
-    if let Some(l) = spec.lambda {
-        return vec![fopi_at(t, l)];
-    }
     if !spec.flat {
-        return order_grid(192).map(|l| fopi_at(t, l)).collect();
+        return Orders::grid(spec.lambda, spec.orders.lambda_max, 192)
+            .into_iter()
+            .map(|l| fopi_at(t, l))
+            .collect();
     }
     // every root of the flatness condition in lambda, by bracketing then bisection
     bracket_roots(|l| fopi_flatness(t, l), 400)
@@ -342,11 +425,11 @@ fn fopd_at(t: &Target, mu: f64) -> Controller {
 /// The FOPD candidates: the fixed order (`spec.lambda`), or the roots in `mu` of the flatness
 /// `Im(mu kd (j wc)^mu / C) = slope`, or a grid of orders.
 fn fopd_candidates(t: &Target, spec: &Spec) -> Vec<Controller> {
-    if let Some(mu) = spec.lambda {
-        return vec![fopd_at(t, mu)];
-    }
     if !spec.flat {
-        return order_grid(192).map(|mu| fopd_at(t, mu)).collect();
+        return Orders::grid(spec.orders.mu, spec.orders.mu_max, 192)
+            .into_iter()
+            .map(|mu| fopd_at(t, mu))
+            .collect();
     }
     let f = |mu: f64| {
         let c = fopd_at(t, mu);
@@ -417,11 +500,11 @@ fn pid(t: &Target, flat: bool, why: &mut Refusals) -> Result<Controller> {
 }
 
 fn fopid_candidates(t: &Target, spec: &Spec) -> Vec<Controller> {
-    let _ = spec;
     let mut out = Vec::new();
     let j = |w: f64, a: f64| fracsim::jw_pow(w, a);
-    for lambda in order_grid(48) {
-        for mu in order_grid(48) {
+    let mus = Orders::grid(spec.orders.mu, spec.orders.mu_max, 48);
+    for lambda in Orders::grid(spec.lambda, spec.orders.lambda_max, 48) {
+        for &mu in &mus {
             let (il, dm) = (1.0 / j(t.wc, lambda), j(t.wc, mu));
             // Im: ki Im(il) + kd Im(dm) = b; flat: ki Im(-lambda il / C) + kd Im(mu dm / C) = s
             let (a11, a12) = (il.im, dm.im);

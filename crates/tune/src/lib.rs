@@ -25,6 +25,6 @@ pub mod sampled;
 
 pub use analysis::LoopMetrics;
 pub use controller::{Controller, Form};
-pub use design::{design, Design, Floors, GainBound, Spec};
+pub use design::{design, Design, Floors, GainBound, Orders, Spec};
 pub use error::{Error, Result};
 pub use plant::Plant;

@@ -96,6 +96,7 @@ pub fn run_with(
         dt: Some(dt),
         lambda: None,
         floors: tune::Floors::default(),
+        orders: tune::Orders::default(),
     };
     let opts = SimOptions {
         step: Some(STEP),

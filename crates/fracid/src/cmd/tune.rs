@@ -59,10 +59,19 @@ pub struct TuneArgs {
     /// fractional integrator of any order.
     #[arg(long, default_value_t = 0.5)]
     pub min_lambda: f64,
-    /// A fixed order without --flat: a fopi's integrator, a fopd's differentiator (otherwise the
-    /// smallest Ms is chosen).
+    /// A fixed integrator order: a fopi's without --flat, a fopid's (otherwise searched for the
+    /// smallest Ms).
     #[arg(long)]
     pub lambda: Option<f64>,
+    /// A fixed differentiator order: a fopid's, a fopd's without --flat.
+    #[arg(long)]
+    pub mu: Option<f64>,
+    /// The largest integrator order searched (fopi, fopid).
+    #[arg(long)]
+    pub max_lambda: Option<f64>,
+    /// The largest differentiator order searched (fopid, fopd).
+    #[arg(long)]
+    pub max_mu: Option<f64>,
     /// Sample period of the loop in seconds: the hold's half-sample delay joins the design, and
     /// the controller's discrete realisation is given.
     #[arg(long)]
@@ -157,6 +166,11 @@ pub fn spec_of(a: &TuneArgs) -> Result<Spec> {
             ms_max: a.max_ms,
             gm_min_db: a.min_gm,
             lambda_min: a.min_lambda,
+        },
+        orders: tune::Orders {
+            mu: a.mu,
+            lambda_max: a.max_lambda,
+            mu_max: a.max_mu,
         },
     })
 }

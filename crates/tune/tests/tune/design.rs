@@ -78,6 +78,7 @@ pub(crate) fn spec(form: Form, wc: f64, pm_deg: f64, flat: bool) -> Spec {
         dt: None,
         lambda: None,
         floors: tune::Floors::default(),
+        orders: tune::Orders::default(),
     }
 }
 

@@ -449,7 +449,10 @@ fn a_fopd_is_designed() {
     let pd = design(
         &g,
         &Spec {
-            lambda: Some(1.0),
+            orders: tune::Orders {
+                mu: Some(1.0),
+                ..Default::default()
+            },
             ..spec(Form::Fopd, 2.0, 60.0, false)
         },
     )
@@ -458,4 +461,46 @@ fn a_fopd_is_designed() {
     assert_eq!(pd.mu, 1.0);
     let lw = l(&pd, 2.0);
     assert!((lw.norm() - 1.0).abs() < 1e-6 && (180.0 + lw.arg().to_degrees() - 60.0).abs() < 1e-6);
+}
+
+/// Fixed and capped orders: a FOPID with `lambda` fixed and `mu` capped keeps to them (and meets
+/// its specification on this file's evaluation); a flat FOPI whose flatness needs an order above
+/// the cap is refused saying so.
+#[test]
+fn orders_are_fixed_or_capped() {
+    let g: fracsim::FracTf = "6.77/(0.000028 s^1.78 + 0.0064 s^0.89 + 1) exp(-0.001 s)"
+        .parse()
+        .unwrap();
+    let s = Spec {
+        lambda: Some(1.0),
+        orders: tune::Orders {
+            mu_max: Some(0.6),
+            ..Default::default()
+        },
+        ..spec(Form::Fopid, 300.0, 60.0, true)
+    };
+    let c = design(&g, &s).unwrap().controller;
+    assert_eq!(c.lambda, 1.0);
+    assert!(c.mu <= 0.6, "{c:?}");
+    let l = |w: f64| {
+        let j = |a: f64| C::from_polar(w.powf(a), a * std::f64::consts::FRAC_PI_2);
+        (c.kp + c.ki / j(c.lambda) + c.kd * j(c.mu)) * 6.77
+            / (0.000028 * j(1.78) + 0.0064 * j(0.89) + 1.0)
+            * C::from_polar(1.0, -0.001 * w)
+    };
+    assert!((l(300.0).norm() - 1.0).abs() < 1e-6);
+    assert!((180.0 + l(300.0).arg().to_degrees() - 60.0).abs() < 1e-6);
+    // the flat FOPI at 300 rad/s needs lambda = 1.577
+    let capped = Spec {
+        orders: tune::Orders {
+            lambda_max: Some(1.2),
+            ..Default::default()
+        },
+        ..spec(Form::Fopi, 300.0, 60.0, true)
+    };
+    let e = design(&g, &capped).unwrap_err().to_string();
+    assert!(
+        e.contains("above the caps") && e.contains("lambda = 1.577"),
+        "{e}"
+    );
 }
