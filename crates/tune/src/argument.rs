@@ -161,15 +161,34 @@ pub fn rhp_zeros(phi: &Quasi, hint: f64, extra: &[f64]) -> Result<u32, NoCount> 
         .iter()
         .map(|t| t.order)
         .fold(f64::NEG_INFINITY, f64::max);
-    if !(top_a > top_b + 1e-12) {
-        return Err(NoCount::NotProper);
-    }
-    let c_top: f64 = phi
+    // A delayed part of the same highest order (a loop with a feed-through, `|L(j inf)| = r`):
+    // without a delay it merges with the rest; with one, `Phi / (c s^n) = 1 + r e^(-j w tau)`
+    // stays in the right half-plane for r < 1 (the change past the sweep is then within
+    // +-pi/2), and the count is refused for r near or above 1 (a neutral loop).
+    let c_b_top: f64 = phi
+        .b
+        .iter()
+        .filter(|t| (t.order - top_a).abs() < 1e-12)
+        .map(|t| t.coef)
+        .sum();
+    let c_a_top: f64 = phi
         .a
         .iter()
         .filter(|t| (t.order - top_a).abs() < 1e-12)
         .map(|t| t.coef)
         .sum();
+    let (c_top, r_top) = if top_b > top_a + 1e-12 {
+        return Err(NoCount::NotProper);
+    } else if top_b < top_a - 1e-12 {
+        (c_a_top, 0.0)
+    } else if phi.tau == 0.0 {
+        (c_a_top + c_b_top, 0.0)
+    } else {
+        (c_a_top, (c_b_top / c_a_top).abs())
+    };
+    if !(c_top != 0.0 && r_top < 0.9) {
+        return Err(NoCount::NotProper);
+    }
     let hint = if hint.is_finite() && hint > 0.0 {
         hint
     } else {
@@ -197,7 +216,12 @@ pub fn rhp_zeros(phi: &Quasi, hint: f64, extra: &[f64]) -> Result<u32, NoCount> 
         }
     }
     let high_ok = |w: f64| {
-        let rest = sum_abs(&phi.a, w, top_a) + sum_abs(&phi.b, w, f64::NAN);
+        let b_rest = if phi.tau == 0.0 || r_top > 0.0 {
+            sum_abs(&phi.b, w, top_a)
+        } else {
+            sum_abs(&phi.b, w, f64::NAN)
+        };
+        let rest = sum_abs(&phi.a, w, top_a) + b_rest;
         c_top.abs() * w.powf(top_a) >= DOMINANCE * rest
     };
     let mut w_hi = hint.max(w_lo * 10.0);
@@ -442,6 +466,24 @@ mod tests {
         assert_eq!(
             rhp_zeros(&q(&[(1.0, 1.0), (1.0, 0.0)], &[(3.0, 0.0)], 1.0), 1.0, &[]),
             Ok(2)
+        );
+        // s + 1 + (0.5 s + 3) e^(-s): a feed-through of 0.5, unstable like the one above; without
+        // the delay, 1.5 s + 4: stable
+        assert_eq!(
+            rhp_zeros(
+                &q(&[(1.0, 1.0), (1.0, 0.0)], &[(0.5, 1.0), (3.0, 0.0)], 1.0),
+                1.0,
+                &[]
+            ),
+            Ok(2)
+        );
+        assert_eq!(
+            rhp_zeros(
+                &q(&[(1.0, 1.0), (1.0, 0.0)], &[(0.5, 1.0), (3.0, 0.0)], 0.0),
+                1.0,
+                &[]
+            ),
+            Ok(0)
         );
         // s + 1 + 0.5 e^(-s): stable
         assert_eq!(

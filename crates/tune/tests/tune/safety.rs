@@ -6,7 +6,7 @@
 
 use num_complex::Complex64 as C;
 use tune::analysis::{analyse, plant_unstable};
-use tune::closed::{metrics, simulate, LoopSetup};
+use tune::closed::{simulate, LoopSetup};
 use tune::{design, Controller, Floors, Form, GainBound, Plant, Spec};
 
 fn spec(form: Form, wc: f64, pm_deg: f64, flat: bool) -> Spec {
