@@ -189,6 +189,50 @@ pub fn rhp_zeros(phi: &Quasi, hint: f64, extra: &[f64]) -> Result<u32, NoCount> 
     if !(c_top != 0.0 && r_top < 0.9) {
         return Err(NoCount::NotProper);
     }
+    let (w_lo, w_hi) = sweep_ends(phi, hint, (o_lo, c_lo), (top_a, c_top, r_top))?;
+    let grid = sweep_grid(phi, w_lo, w_hi, extra)?;
+    let mut budget = MAX_EVALS.saturating_sub(grid.len());
+    let vals: Vec<Complex64> = grid.iter().map(|&w| phi.eval(w)).collect();
+    let tiny = |w: f64, v: Complex64| {
+        let (sa, sb) = phi.sizes(w);
+        v.norm() <= 1e-13 * (sa + sb)
+    };
+    let start = o_lo * FRAC_PI_2 + if c_lo < 0.0 { PI } else { 0.0 };
+    let end = top_a * FRAC_PI_2 + if c_top < 0.0 { PI } else { 0.0 };
+    let wrap = |d: f64| (Complex64::from_polar(1.0, d)).arg();
+    let mut delta = wrap(vals[0].arg() - start);
+    for i in 1..grid.len() {
+        if tiny(grid[i], vals[i]) {
+            return Err(NoCount::OnAxis(grid[i]));
+        }
+        delta += turn(
+            phi,
+            (grid[i - 1], vals[i - 1]),
+            (grid[i], vals[i]),
+            0,
+            &mut budget,
+        )?;
+    }
+    delta += wrap(end - vals[vals.len() - 1].arg());
+    let z = (top_a * PI - o_lo * PI - 2.0 * delta) / (2.0 * PI);
+    let r = z.round();
+    if (z - r).abs() > 0.1 || r < 0.0 {
+        return Err(NoCount::TooMuchWork(format!(
+            "the winding number {z:.3} is not an integer"
+        )));
+    }
+    Ok(r as u32)
+}
+
+/// The ends of the sweep: `w_lo` where the lowest-order term (`o_lo`, `c_lo`) outweighs the rest
+/// [`DOMINANCE`] times and the delay has not yet turned the delayed part, `w_hi` where the
+/// highest-order one does (`r_top > 0`: a delayed part of that order, left out).
+fn sweep_ends(
+    phi: &Quasi,
+    hint: f64,
+    (o_lo, c_lo): (f64, f64),
+    (top_a, c_top, r_top): (f64, f64, f64),
+) -> Result<(f64, f64), NoCount> {
     let hint = if hint.is_finite() && hint > 0.0 {
         hint
     } else {
@@ -233,38 +277,7 @@ pub fn rhp_zeros(phi: &Quasi, hint: f64, extra: &[f64]) -> Result<u32, NoCount> 
             ));
         }
     }
-    let grid = sweep_grid(phi, w_lo, w_hi, extra)?;
-    let mut budget = MAX_EVALS.saturating_sub(grid.len());
-    let vals: Vec<Complex64> = grid.iter().map(|&w| phi.eval(w)).collect();
-    let tiny = |w: f64, v: Complex64| {
-        let (sa, sb) = phi.sizes(w);
-        v.norm() <= 1e-13 * (sa + sb)
-    };
-    let start = o_lo * FRAC_PI_2 + if c_lo < 0.0 { PI } else { 0.0 };
-    let end = top_a * FRAC_PI_2 + if c_top < 0.0 { PI } else { 0.0 };
-    let wrap = |d: f64| (Complex64::from_polar(1.0, d)).arg();
-    let mut delta = wrap(vals[0].arg() - start);
-    for i in 1..grid.len() {
-        if tiny(grid[i], vals[i]) {
-            return Err(NoCount::OnAxis(grid[i]));
-        }
-        delta += turn(
-            phi,
-            (grid[i - 1], vals[i - 1]),
-            (grid[i], vals[i]),
-            0,
-            &mut budget,
-        )?;
-    }
-    delta += wrap(end - vals[vals.len() - 1].arg());
-    let z = (top_a * PI - o_lo * PI - 2.0 * delta) / (2.0 * PI);
-    let r = z.round();
-    if (z - r).abs() > 0.1 || r < 0.0 {
-        return Err(NoCount::TooMuchWork(format!(
-            "the winding number {z:.3} is not an integer"
-        )));
-    }
-    Ok(r as u32)
+    Ok((w_lo, w_hi))
 }
 
 /// The sweep's frequencies: 50 a decade over `[w_lo, w_hi]`, closer where the delayed part

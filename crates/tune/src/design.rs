@@ -621,35 +621,13 @@ fn choose(
     let mut checked = Refusals::default();
     let mut best: Option<Design> = None;
     for (_, c) in ranked {
-        let m = analyse(&t.plant, &c, t.wc);
-        if let Err(e) = check(t, spec, &c, &m) {
-            checked.push(e);
-            continue;
-        }
-        let (sampled, sampled_note) = match spec.dt {
-            Some(dt) => {
-                let l = crate::sampled::SampledLoop::new(
-                    &t.plant.tf,
-                    &c,
-                    dt,
-                    &fracsim::ApproxSpec::default(),
-                )?;
-                let sm = l.analyse(t.wc);
-                if let Err(e) = check_sampled(spec, &c, &sm) {
-                    checked.push(e);
-                    continue;
-                }
-                (Some(sm), l.note)
+        match judge(t, spec, c)? {
+            Ok(d) => {
+                best = Some(d);
+                break;
             }
-            None => (None, None),
-        };
-        best = Some(Design {
-            controller: c,
-            metrics: m,
-            sampled,
-            sampled_note,
-        });
-        break;
+            Err(e) => checked.push(e),
+        }
     }
     match best {
         Some(d) => Ok(d),
@@ -672,6 +650,36 @@ fn choose(
             }
         )),
     }
+}
+
+/// One candidate analysed and checked: on the loop, then, with `dt`, on the sampled loop
+/// ([`crate::sampled`]); the design, or why not.
+///
+/// # Errors
+/// The realisation's errors.
+fn judge(t: &Target, spec: &Spec, c: Controller) -> Result<Result<Design, String>> {
+    let m = analyse(&t.plant, &c, t.wc);
+    if let Err(e) = check(t, spec, &c, &m) {
+        return Ok(Err(e));
+    }
+    let (sampled, sampled_note) = match spec.dt {
+        Some(dt) => {
+            let approx = fracsim::ApproxSpec::default();
+            let l = crate::sampled::SampledLoop::new(&t.plant.tf, &c, dt, &approx)?;
+            let sm = l.analyse(t.wc);
+            if let Err(e) = check_sampled(spec, &c, &sm) {
+                return Ok(Err(e));
+            }
+            (Some(sm), l.note)
+        }
+        None => (None, None),
+    };
+    Ok(Ok(Design {
+        controller: c,
+        metrics: m,
+        sampled,
+        sampled_note,
+    }))
 }
 
 /// The orders of a candidate, for the messages.
