@@ -276,11 +276,7 @@ fn run_analysis(a: &TuneArgs, g: &FracTf, c: &Controller, opts: &SimOptions) -> 
     if r.misses.is_empty() {
         Ok(())
     } else {
-        Err(tune::Error::Infeasible(format!(
-            "the given controller's loop misses: {}",
-            r.misses.join("; ")
-        ))
-        .into())
+        Err(tune::Error::Unsafe(r.misses.join("; ")).into())
     }
 }
 
