@@ -504,3 +504,28 @@ fn orders_are_fixed_or_capped() {
         "{e}"
     );
 }
+
+/// The PI the tuner returned (exit 0, "unstable_poles 0", Ms 1.11) for
+/// `10000/((s + 1)(s^2 + 0.01 s + 10000))` at wc = 0.2 rad/s, pm = 80 deg: its closed loop
+/// `s^4 + 1.01 s^3 + 10000.01 s^2 + (10000 + 1e4 kp) s + 1e4 ki` has two roots in the right
+/// half-plane (the loop crosses -1 at the resonance, 0.05 rad/s wide at 100 rad/s). Now the
+/// analysis says so and the design is refused.
+#[test]
+fn a_lightly_damped_resonance_above_the_crossover_is_seen() {
+    let g: fracsim::FracTf = "10000/((s + 1)(s^2 + 0.01 s + 10000))".parse().unwrap();
+    let old = pi(0.023_313_483_589_497_214, 0.203_906_661_146_673_08);
+    let ch = padd(
+        &pmul(&[0.0, 1.0, 1.0], &[1e4, 0.01, 1.0]),
+        &[1e4 * old.ki, 1e4 * old.kp],
+    );
+    let truth = roots(&ch).iter().filter(|r| r.re > 0.0).count() as i64;
+    assert_eq!(truth, 2);
+    let m = analyse(&Plant::new(g.clone(), None), &old, 0.2);
+    assert_eq!(m.unstable_poles, truth, "{m:?}");
+    let relaxed_spec = Spec {
+        floors: relaxed(),
+        ..spec(Form::Pi, 0.2, 80.0, false)
+    };
+    let e = design(&g, &relaxed_spec).unwrap_err().to_string();
+    assert!(e.contains("unstable (2 poles"), "{e}");
+}
