@@ -241,7 +241,13 @@ fn given_controller(arg: &str) -> Result<Controller> {
 /// `--analyse`: the given controller's loop on the model, in words or JSON; exit 1 (after the
 /// report) when it misses stability or a floor.
 fn run_analysis(a: &TuneArgs, g: &FracTf, c: &Controller, opts: &SimOptions) -> Result<()> {
-    if a.pm.is_some() || a.flat || a.t_high.is_some() || a.s_low.is_some() || a.plot.is_some() {
+    let design_only = [a.lambda, a.mu, a.max_lambda, a.max_mu, a.pm];
+    if design_only.iter().any(Option::is_some)
+        || a.flat
+        || a.t_high.is_some()
+        || a.s_low.is_some()
+        || a.plot.is_some()
+    {
         bad_input!("--analyse takes --wc, --dt, the floors and the simulation's options only");
     }
     let floors = tune::Floors {
