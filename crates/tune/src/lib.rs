@@ -14,6 +14,7 @@ mod error;
 
 pub mod analysis;
 pub mod argument;
+mod check;
 pub mod closed;
 pub mod controller;
 pub mod design;
