@@ -355,12 +355,14 @@ pub fn design(model: &FracTf, spec: &Spec) -> Result<Design> {
             && (c.kd == 0.0 || o.mu_max.is_none_or(|m| c.mu <= m))
     };
     if !candidates.is_empty() && !candidates.iter().any(within) {
+        let caps: Vec<String> = [("--max-lambda", o.lambda_max), ("--max-mu", o.mu_max)]
+            .iter()
+            .filter_map(|(n, v)| v.map(|v| format!("{n} {v}")))
+            .collect();
         return infeasible(format!(
-            "every {} meeting the equations has its orders above the caps (--max-lambda \
-             {:?}, --max-mu {:?}): {}",
+            "every {} meeting the equations has its orders above the caps ({}): {}",
             spec.form.name(),
-            o.lambda_max,
-            o.mu_max,
+            caps.join(", "),
             candidates.iter().map(label).collect::<Vec<_>>().join("; ")
         ));
     }
