@@ -36,13 +36,21 @@ def tune(
     step: float = 1.0,
     load: Optional[float] = None,
     effects: Optional[Iterable[Any]] = None,
+    mu: Optional[float] = None,
+    max_lambda: Optional[float] = None,
+    max_mu: Optional[float] = None,
+    max_ms: float = 2.0,
+    min_gm: float = 6.0,
+    min_lambda: float = 0.5,
 ) -> Dict[str, Any]:
     """Design ``C(s) = kp + ki / s^lambda (+ kd s^mu)`` on ``model``, as ``fracid tune --json``.
 
     The gain crossover ``wc``, the phase margin ``pm`` and, with ``flat``, a flat phase at ``wc``
     (``d arg L / d ln w = 0``, iso-damping) are met exactly (Monje, Vinagre, Feliu & Chen 2008);
-    a specification no controller of the form meets raises :class:`InfeasibleError` with the
-    reason.
+    every design is checked on the loop (stability counted on its characteristic equation,
+    margins on a grid refined around every lightly damped pole, the sampled loop with ``dt``) and
+    against the robustness floors; a specification no controller of the form meets raises
+    :class:`InfeasibleError` with the binding constraint.
 
     Parameters
     ----------
@@ -54,17 +62,23 @@ def tune(
         Gain crossover, rad/s.
     pm : float
         Phase margin, degrees.
-    form : {"fopi", "fopid", "pi", "pid"}
-        The controller structure; ``fopid`` needs ``flat``.
+    form : {"fopi", "fopid", "fopd", "pi", "pid"}
+        The controller structure (``fopd``: ``kp + kd s^mu``); ``fopid`` needs ``flat``.
     flat : bool
         Flat phase at ``wc``.
     dt : float, optional
         Sample period, s: the hold's half-sample delay joins the design and the report gives the
         discrete realisation (``report["discrete"]``).
     t_high, s_low : (float, float), optional
-        ``(w, dB)``: ``|T(j w)| <= dB`` at a high frequency, ``|S(j w)| <= dB`` at a low one.
-    lambda_ : float, optional
-        A fixed integrator order for a ``fopi`` without ``flat``.
+        ``(w, dB)``: ``|T| <= dB`` over the whole band above ``w``, ``|S| <= dB`` below it.
+    lambda_, mu : float, optional
+        Fixed orders: the integrator's (``fopi`` without ``flat``, ``fopid``), the
+        differentiator's (``fopid``, ``fopd`` without ``flat``).
+    max_lambda, max_mu : float, optional
+        Caps on the orders searched.
+    max_ms, min_gm, min_lambda : float
+        The robustness floors (``Ms <= 2``, a gain margin of 6 dB, integral action with
+        ``lambda >= 0.5`` by default): a design that misses one is refused.
     step, load : float, optional
         The simulated reference step (output units) and load step at the plant's input (default:
         the input that holds the reference step, ``step / G(0)``).
@@ -105,6 +119,12 @@ def tune(
         step=float(step),
         load=load,
         effects=_effects(fx),
+        mu=mu,
+        max_lambda=max_lambda,
+        max_mu=max_mu,
+        max_ms=float(max_ms),
+        min_gm=float(min_gm),
+        min_lambda=float(min_lambda),
     )
     report: Dict[str, Any] = json.loads(text)
     return report

@@ -34,7 +34,8 @@ fn model_of(model: &Bound<'_, PyAny>) -> PyResult<FracTf> {
 
 /// Design, realise and simulate; the report as JSON text.
 #[pyfunction]
-#[pyo3(signature = (model, wc, pm, form = "fopi", flat = false, dt = None, t_high = None, s_low = None, lambda_ = None, step = 1.0, load = None, effects = Vec::new()))]
+#[allow(clippy::too_many_arguments)]
+#[pyo3(signature = (model, wc, pm, form = "fopi", flat = false, dt = None, t_high = None, s_low = None, lambda_ = None, step = 1.0, load = None, effects = Vec::new(), mu = None, max_lambda = None, max_mu = None, max_ms = 2.0, min_gm = 6.0, min_lambda = 0.5))]
 pub(crate) fn _tune(
     py: Python<'_>,
     model: Bound<'_, PyAny>,
@@ -49,6 +50,12 @@ pub(crate) fn _tune(
     step: f64,
     load: Option<f64>,
     effects: Vec<(String, HashMap<String, f64>)>,
+    mu: Option<f64>,
+    max_lambda: Option<f64>,
+    max_mu: Option<f64>,
+    max_ms: f64,
+    min_gm: f64,
+    min_lambda: f64,
 ) -> PyResult<String> {
     let g = model_of(&model)?;
     let bound = |b: Option<(f64, f64)>| b.map(|(omega, db)| GainBound { omega, db });
@@ -61,6 +68,16 @@ pub(crate) fn _tune(
         s_low: bound(s_low),
         dt,
         lambda: lambda_,
+        floors: tune::Floors {
+            ms_max: max_ms,
+            gm_min_db: min_gm,
+            lambda_min: min_lambda,
+        },
+        orders: tune::Orders {
+            mu,
+            lambda_max: max_lambda,
+            mu_max: max_mu,
+        },
     };
     let mut fx = Vec::new();
     for (name, params) in &effects {

@@ -97,3 +97,21 @@ def test_input_effects_are_simulated():
     assert lin["step_with_effects"] is None
     assert sat["effects"] == [{"name": "saturation", "level": 0.16}]
     assert sat["step_with_effects"]["rise_time"] > lin["step"]["metrics"]["rise_time"]
+
+
+def test_floors_refuse_a_fragile_loop_and_can_be_relaxed(fracid_bin):
+    """The design the tuner returned with Ms 18.5 is refused naming the floor, as the CLI does;
+    relaxed, it is returned with that Ms (checked here on |1/(1+L)| around the resonance)."""
+    g = "1/((s + 1)(0.0011111 s^2 + 0.0013333 s + 1))"
+    with pytest.raises(fracid.InfeasibleError, match="--max-ms"):
+        fracid.tune(g, wc=2, pm=60, flat=True)
+    r = fracid.tune(g, wc=2, pm=60, flat=True, max_ms=100, min_gm=0)
+    close(r, cli(fracid_bin, g, "--wc", 2, "--pm", 60, "--flat", "--max-ms", 100, "--min-gm", 0))
+    c = r["params"]
+    w = np.linspace(20.0, 40.0, 400001)
+    s = 1j * w
+    cw = c["kp"] + c["ki"] / (np.abs(w) ** c["lambda"] * np.exp(1j * c["lambda"] * np.pi / 2))
+    l = cw / ((s + 1) * (0.0011111 * s**2 + 0.0013333 * s + 1))
+    ms = np.max(1 / np.abs(1 + l))
+    assert r["loop"]["ms"] == pytest.approx(ms, rel=1e-4)
+    assert ms > 15

@@ -83,7 +83,7 @@ fn exit_code(err: &anyhow::Error) -> u8 {
         }
         if let Some(e) = cause.downcast_ref::<tune::Error>() {
             return match e {
-                tune::Error::Infeasible(_) => 1,
+                tune::Error::Infeasible(_) | tune::Error::Unsafe(_) => 1,
                 tune::Error::Sim(fracsim::Error::Numerical(_)) => 1,
                 _ => 2,
             };

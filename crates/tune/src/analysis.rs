@@ -1,14 +1,16 @@
-//! The loop `L(s) = C(s) P(s)` analysed: crossovers, margins, the sensitivity peak, and the
-//! Nyquist criterion (the argument principle on the D contour, indented around the origin).
+//! The loop `L(s) = C(s) P(s)` analysed: crossovers, margins and the sensitivity peak on a grid
+//! refined around every lightly damped pole and zero, and the closed loop's stability from its
+//! characteristic function ([`crate::argument`]).
 
+use crate::argument::{near_zeros, product, refine_around, rhp_zeros, NoCount, Quasi};
 use crate::controller::Controller;
 use crate::plant::Plant;
+use fracsim::Term;
 use num_complex::Complex64;
 use serde::Serialize;
-use std::f64::consts::PI;
 
 /// What a designed loop achieves.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct LoopMetrics {
     /// The gain crossover in rad/s (`|L(j wc)| = 1`; the lowest one when there are several).
     pub wc: f64,
@@ -16,20 +18,34 @@ pub struct LoopMetrics {
     pub pm_deg: f64,
     /// How many times `|L|` crosses 1.
     pub crossovers: usize,
+    /// Every gain crossover, rad/s, in increasing order.
+    pub crossover_omegas: Vec<f64>,
     /// The smallest phase margin over every gain crossover, degrees.
     pub pm_min_deg: f64,
-    /// The gain margin in dB at the phase crossovers (`arg L = -180 deg`); `None` (infinite) when
-    /// `L` never crosses the negative real axis where it matters.
+    /// The gain margin in dB: how much the loop gain may rise before the closed loop turns
+    /// unstable (`-20 log10 |L|` at the phase crossovers where `|L| < 1`); `None` (infinite)
+    /// when `L` never crosses the negative real axis inside the unit circle.
     pub gm_db: Option<f64>,
+    /// The lower gain margin in dB: how much the loop gain may fall before the closed loop turns
+    /// unstable (`20 log10 |L|` at the phase crossovers where `|L| > 1`, a conditionally stable
+    /// loop); `None` (infinite) when there are none.
+    pub gm_low_db: Option<f64>,
     /// The sensitivity peak `Ms = max |1/(1+L(j w))|`.
     pub ms: f64,
     /// The frequency of the sensitivity peak, rad/s.
     pub ms_omega: f64,
     /// The phase slope at `wc`, `d arg L / d ln omega` (rad): 0 for a flat phase.
     pub phase_slope: f64,
-    /// The number of closed-loop poles in the right half-plane by the Nyquist criterion (0:
-    /// stable), assuming a stable model.
+    /// The number of closed-loop poles in the right half-plane (0: stable), the zeros of the
+    /// characteristic function `D_c D_p + N_c N_p e^(-s tau)` by the argument principle
+    /// ([`crate::argument`]); `-1` when they could not be counted (see `stability_note`).
     pub unstable_poles: i64,
+    /// The number of the model's own poles in the right half-plane (the zeros of its
+    /// denominator, counted the same way); `-1` when not counted.
+    pub plant_unstable_poles: i64,
+    /// Why the closed loop's poles could not be counted (a pole on the imaginary axis, a loop
+    /// that does not roll off), when they could not.
+    pub stability_note: Option<String>,
 }
 
 /// `L(j omega)`.
@@ -42,14 +58,99 @@ pub fn phase_slope(p: &Plant, c: &Controller, omega: f64) -> f64 {
     (c.dlog_omega(omega) / c.freq_response(omega)).im + p.dlog(omega).im
 }
 
-/// The frequency grid of the analysis: `per_decade` points per decade over
-/// `[wc 1e-6, wc 1e5]`.
-fn grid(wc: f64, per_decade: usize) -> Vec<f64> {
+/// The controller's numerator and denominator terms: `(kd s^(lambda+mu) + kp s^lambda + ki) /
+/// s^lambda`, or `(kd s^mu + kp) / 1` without integral action.
+pub fn controller_terms(c: &Controller) -> (Vec<Term>, Vec<Term>) {
+    let keep = |v: Vec<Term>| v.into_iter().filter(|t| t.coef != 0.0).collect::<Vec<_>>();
+    if c.ki != 0.0 {
+        (
+            keep(vec![
+                Term::new(c.kd, c.lambda + c.mu),
+                Term::new(c.kp, c.lambda),
+                Term::new(c.ki, 0.0),
+            ]),
+            vec![Term::new(1.0, c.lambda)],
+        )
+    } else {
+        (
+            keep(vec![Term::new(c.kd, c.mu), Term::new(c.kp, 0.0)]),
+            vec![Term::new(1.0, 0.0)],
+        )
+    }
+}
+
+/// The closed loop's characteristic function `D_c D_p + N_c N_p e^(-s tau)` (its zeros are the
+/// closed loop's poles), `tau` the plant's delay with the hold's.
+pub fn characteristic(p: &Plant, c: &Controller) -> Quasi {
+    let (nc, dc) = controller_terms(c);
+    Quasi {
+        a: product(&dc, &p.tf.den),
+        b: product(&nc, &p.tf.num),
+        tau: p.delay(),
+    }
+}
+
+/// The closed loop's poles in the right half-plane (see [`crate::argument`]).
+///
+/// # Errors
+/// [`NoCount`]: a closed-loop pole on the imaginary axis (or at the origin), a loop that does
+/// not roll off, too much work.
+pub fn closed_loop_unstable(
+    p: &Plant,
+    c: &Controller,
+    hint: f64,
+    extra: &[f64],
+) -> Result<u32, NoCount> {
+    let phi = characteristic(p, c);
+    if phi.lowest().0 > 1e-12 {
+        return Err(NoCount::OnAxis(0.0));
+    }
+    rhp_zeros(&phi, hint, extra)
+}
+
+/// The model's poles in the right half-plane (its denominator's zeros; those at the origin, an
+/// integrator's, are not counted).
+///
+/// # Errors
+/// [`NoCount`] (a pole on the imaginary axis away from the origin, too much work).
+pub fn plant_unstable(p: &Plant, hint: f64) -> Result<u32, NoCount> {
+    let d = Quasi {
+        a: p.tf.den.clone(),
+        b: Vec::new(),
+        tau: 0.0,
+    };
+    let extra = refine_around(&near_zeros(&p.tf.den, hint * 1e-7, hint * 1e6));
+    rhp_zeros(&d, hint, &extra)
+}
+
+/// The frequency grid of the analysis: 200 points a decade over `[wc 1e-6, wc 1e5]`, refined
+/// around every lightly damped pole or zero of the model and zero of the controller found in
+/// `[wc 1e-7, wc 1e6]` ([`near_zeros`]): a resonance narrower than the grid's step is resolved.
+pub fn loop_grid(p: &Plant, c: &Controller, wc: f64) -> Vec<f64> {
     let (lo, hi) = ((wc * 1e-6).ln(), (wc * 1e5).ln());
-    let n = (11.0 * per_decade as f64) as usize;
-    (0..=n)
+    let n = 11 * 200;
+    let mut g: Vec<f64> = (0..=n)
         .map(|i| (lo + (hi - lo) * i as f64 / n as f64).exp())
-        .collect()
+        .collect();
+    let (first, last) = (g[0], g[n]);
+    g.extend(
+        resonances(p, c, wc)
+            .into_iter()
+            .filter(|&w| w >= first && w <= last),
+    );
+    g.sort_by(f64::total_cmp);
+    g.dedup();
+    g
+}
+
+/// The frequencies [`refine_around`] adds for the model's and the controller's narrow features.
+pub fn resonances(p: &Plant, c: &Controller, wc: f64) -> Vec<f64> {
+    let (nc, _) = controller_terms(c);
+    let (lo, hi) = (wc * 1e-7, wc * 1e6);
+    let mut f = near_zeros(&p.tf.den, lo, hi);
+    f.extend(near_zeros(&p.tf.num, lo, hi));
+    f.extend(near_zeros(&nc, lo, hi));
+    refine_around(&f)
 }
 
 /// Bisection in `ln omega` of where the predicate `above` changes between `a` and `b`.
@@ -69,103 +170,122 @@ fn bisect_log(mut a: f64, mut b: f64, above: impl Fn(f64) -> bool) -> f64 {
     (a * b).sqrt()
 }
 
-/// The change of `arg(1 + L)` from `w0` to `w1`, subdividing where it turns fast.
-fn arg_change(p: &Plant, c: &Controller, w0: f64, w1: f64, depth: u32) -> f64 {
-    let f = |w: f64| Complex64::new(1.0, 0.0) + loop_response(p, c, w);
-    let d = (f(w1) / f(w0)).arg();
-    if d.abs() < 0.3 || depth > 40 {
-        return d;
-    }
-    let m = (w0 * w1).sqrt();
-    arg_change(p, c, w0, m, depth + 1) + arg_change(p, c, m, w1, depth + 1)
+/// The crossovers, the gain margins and the sensitivity peak of the loop `l` sampled on the
+/// sorted grid `omega` (the peak refined by golden section around every local maximum within
+/// a third of the largest).
+pub(crate) struct Sweep {
+    pub cross: Vec<f64>,
+    pub gm: Option<f64>,
+    pub gm_low: Option<f64>,
+    pub ms: f64,
+    pub ms_omega: f64,
 }
 
-/// Closed-loop poles in the right half-plane by the Nyquist criterion. On the D contour (up the
-/// imaginary axis, around the origin on the right by `s = eps e^(j theta)`, closed at infinity
-/// where a strictly proper `L` vanishes), the change of `arg(1 + L)` is
-/// `2 Delta_+ - n pi`, with `Delta_+` its change from `eps` to infinity along `j omega` and
-/// `L ~ K s^-n` near the origin. With no open-loop pole in the right half-plane (a stable model;
-/// the controller's only pole is at the origin) the closed loop has `-total / 2 pi` of them.
-fn nyquist_unstable(p: &Plant, c: &Controller, omega: &[f64]) -> i64 {
-    let mut delta = 0.0;
-    for w in omega.windows(2) {
-        delta += arg_change(p, c, w[0], w[1], 0);
+pub(crate) fn sweep(omega: &[f64], l: impl Fn(f64) -> Complex64) -> Sweep {
+    let vals: Vec<Complex64> = omega.iter().map(|&w| l(w)).collect();
+    let sens = |v: Complex64| 1.0 / (Complex64::new(1.0, 0.0) + v).norm();
+    let mut cross = Vec::new();
+    let (mut gm, mut gm_low): (Option<f64>, Option<f64>) = (None, None);
+    for i in 1..omega.len() {
+        let (a, b) = (vals[i - 1], vals[i]);
+        if (a.norm() >= 1.0) != (b.norm() >= 1.0) {
+            cross.push(bisect_log(omega[i - 1], omega[i], |w| l(w).norm() >= 1.0));
+        }
+        // the negative real axis: Im changes sign where Re < 0
+        if a.im * b.im <= 0.0 && (a.re < 0.0 || b.re < 0.0) && a.im != b.im {
+            let w = bisect_log(omega[i - 1], omega[i], |w| l(w).im > 0.0);
+            let lw = l(w);
+            if lw.re < 0.0 {
+                let g = -20.0 * lw.norm().log10();
+                if g >= 0.0 {
+                    gm = Some(gm.map_or(g, |x: f64| x.min(g)));
+                } else {
+                    gm_low = Some(gm_low.map_or(-g, |x: f64| x.min(-g)));
+                }
+            }
+        }
     }
-    let n = p.low_order() + if c.ki != 0.0 { c.lambda } else { 0.0 };
-    let total = 2.0 * delta - n.max(0.0) * PI;
-    (-total / (2.0 * PI)).round() as i64
+    let s: Vec<f64> = vals.iter().map(|&v| sens(v)).collect();
+    let top = s.iter().copied().fold(0.0, f64::max);
+    let (mut ms, mut ms_omega) = (0.0, omega[0]);
+    for i in 0..s.len() {
+        let left = if i > 0 { s[i - 1] } else { f64::NEG_INFINITY };
+        let right = if i + 1 < s.len() {
+            s[i + 1]
+        } else {
+            f64::NEG_INFINITY
+        };
+        if s[i] >= left && s[i] >= right && s[i] >= top / 3.0 {
+            let (lo, hi) = (
+                omega[i.saturating_sub(1)],
+                omega[(i + 1).min(omega.len() - 1)],
+            );
+            let (x, v) = golden_max(lo.ln(), hi.ln(), |x| sens(l(x.exp())));
+            let (x, v) = if v > s[i] {
+                (x.exp(), v)
+            } else {
+                (omega[i], s[i])
+            };
+            if v > ms {
+                (ms, ms_omega) = (v, x);
+            }
+        }
+    }
+    Sweep {
+        cross,
+        gm,
+        gm_low,
+        ms,
+        ms_omega,
+    }
+}
+
+/// `d` wrapped into `(-180, 180]` degrees.
+pub(crate) fn wrap_deg(d: f64) -> f64 {
+    let mut d = d % 360.0;
+    if d > 180.0 {
+        d -= 360.0;
+    }
+    if d <= -180.0 {
+        d += 360.0;
+    }
+    d
 }
 
 /// The analysis of `L = C P` around the intended crossover `wc_design` (rad/s).
 pub fn analyse(p: &Plant, c: &Controller, wc_design: f64) -> LoopMetrics {
-    let omega = grid(wc_design, 200);
-    let l: Vec<Complex64> = omega.iter().map(|&w| loop_response(p, c, w)).collect();
-    let mag = |w: f64| loop_response(p, c, w).norm() >= 1.0;
-    let mut cross = Vec::new();
-    let mut gm: Option<f64> = None;
-    let (mut ms, mut ms_i) = (0.0, 0);
-    for i in 0..omega.len() {
-        let s = 1.0 / (Complex64::new(1.0, 0.0) + l[i]).norm();
-        if s > ms {
-            (ms, ms_i) = (s, i);
-        }
-        if i == 0 {
-            continue;
-        }
-        let (a, b) = (l[i - 1], l[i]);
-        if (a.norm() >= 1.0) != (b.norm() >= 1.0) {
-            cross.push(bisect_log(omega[i - 1], omega[i], mag));
-        }
-        // the negative real axis: Im changes sign where Re < 0
-        if a.im * b.im <= 0.0 && (a.re < 0.0 || b.re < 0.0) && a.im != b.im {
-            let w = bisect_log(omega[i - 1], omega[i], |w| loop_response(p, c, w).im > 0.0);
-            let lw = loop_response(p, c, w);
-            if lw.re < 0.0 {
-                let g = -20.0 * lw.norm().log10();
-                gm = Some(gm.map_or(g, |x: f64| x.min(g)));
-            }
-        }
-    }
-    // refine the sensitivity peak by golden section around the best sample
-    let (lo, hi) = (
-        omega[ms_i.saturating_sub(1)],
-        omega[(ms_i + 1).min(omega.len() - 1)],
-    );
-    let sens = |w: f64| 1.0 / (Complex64::new(1.0, 0.0) + loop_response(p, c, w)).norm();
-    let (ms_omega, ms_ref) = golden_max(lo.ln(), hi.ln(), |x| sens(x.exp()));
-    if ms_ref > ms {
-        ms = ms_ref;
-    }
-    let pm = |w: f64| 180.0 + loop_response(p, c, w).arg().to_degrees();
-    let wrap = |d: f64| {
-        let mut d = d;
-        while d > 180.0 {
-            d -= 360.0;
-        }
-        while d <= -180.0 {
-            d += 360.0;
-        }
-        d
-    };
-    let wc = cross.first().copied().unwrap_or(f64::NAN);
-    let pm_min = cross
+    let extra = resonances(p, c, wc_design);
+    let omega = loop_grid(p, c, wc_design);
+    let sw = sweep(&omega, |w| loop_response(p, c, w));
+    let pm = |w: f64| wrap_deg(180.0 + loop_response(p, c, w).arg().to_degrees());
+    let wc = sw.cross.first().copied().unwrap_or(f64::NAN);
+    let pm_min = sw
+        .cross
         .iter()
-        .map(|&w| wrap(pm(w)))
+        .map(|&w| pm(w))
         .fold(f64::INFINITY, f64::min);
+    let (unstable_poles, stability_note) = match closed_loop_unstable(p, c, wc_design, &extra) {
+        Ok(n) => (i64::from(n), None),
+        Err(e) => (-1, Some(e.to_string())),
+    };
     LoopMetrics {
         wc,
-        pm_deg: wrap(pm(wc)),
-        crossovers: cross.len(),
+        pm_deg: pm(wc),
+        crossovers: sw.cross.len(),
+        crossover_omegas: sw.cross,
         pm_min_deg: pm_min,
-        gm_db: gm,
-        ms,
-        ms_omega: ms_omega.exp(),
+        gm_db: sw.gm,
+        gm_low_db: sw.gm_low,
+        ms: sw.ms,
+        ms_omega: sw.ms_omega,
         phase_slope: phase_slope(p, c, wc),
-        unstable_poles: nyquist_unstable(p, c, &omega),
+        unstable_poles,
+        plant_unstable_poles: plant_unstable(p, wc_design).map_or(-1, i64::from),
+        stability_note,
     }
 }
 
-fn golden_max(mut a: f64, mut b: f64, f: impl Fn(f64) -> f64) -> (f64, f64) {
+pub(crate) fn golden_max(mut a: f64, mut b: f64, f: impl Fn(f64) -> f64) -> (f64, f64) {
     let g = (5f64.sqrt() - 1.0) / 2.0;
     let mut x1 = b - g * (b - a);
     let mut x2 = a + g * (b - a);

@@ -18,6 +18,10 @@ pub enum Error {
     /// design is refused rather than returned missing it.
     #[error("impossible specification: {0}")]
     Infeasible(String),
+    /// A given controller's loop that misses stability or a robustness floor (`fracid tune
+    /// --analyse`): the analysis stands, the loop is not one to run.
+    #[error("the loop misses: {0}")]
+    Unsafe(String),
     /// An error of the simulator (the model, its approximation or discretisation).
     #[error(transparent)]
     Sim(#[from] fracsim::Error),

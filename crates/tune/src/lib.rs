@@ -13,15 +13,19 @@
 mod error;
 
 pub mod analysis;
+pub mod argument;
+mod check;
 pub mod closed;
 pub mod controller;
 pub mod design;
+pub mod given;
 pub mod plant;
 pub mod realise;
 pub mod report;
+pub mod sampled;
 
 pub use analysis::LoopMetrics;
 pub use controller::{Controller, Form};
-pub use design::{design, Design, GainBound, Spec};
+pub use design::{design, Design, Floors, GainBound, Orders, Spec};
 pub use error::{Error, Result};
 pub use plant::Plant;

@@ -213,8 +213,15 @@ pub fn discrete(c: &Controller, dt: f64, spec: &ApproxSpec) -> Result<StateSpace
         c: DMatrix::zeros(1, 0),
         d: 1.0,
     };
-    let integ = modal_ss(&integrator_modes(c.lambda, band, spec)?, dt);
-    let mut all = one.plus(c.kp, &integ, c.ki);
+    let mut all = if c.ki != 0.0 {
+        let integ = modal_ss(&integrator_modes(c.lambda, band, spec)?, dt);
+        one.plus(c.kp, &integ, c.ki)
+    } else {
+        DMats {
+            d: c.kp,
+            ..one.clone()
+        }
+    };
     if c.kd != 0.0 {
         let n = c.mu.ceil().max(1.0);
         let rest = n - c.mu;

@@ -5,13 +5,11 @@ use crate::closed::{self, InputEffect, LoopRun, LoopSetup, StepMetrics};
 use crate::controller::Controller;
 use crate::design::{design, Design, Spec};
 use crate::error::Result;
-use crate::plant::Plant;
 use crate::realise;
 use crate::{Form, LoopMetrics};
 use fracsim::export::{method_name, StateSpace};
 use fracsim::{ApproxSpec, FracTf};
 use ident::app::ModelReport;
-use num_complex::Complex64;
 use serde::Serialize;
 
 /// The approximation a realisation used.
@@ -23,15 +21,6 @@ pub struct ApproxJson {
     pub order: usize,
     /// The band `[w_b, w_h]`, rad/s.
     pub band: [f64; 2],
-}
-
-/// Gain crossover and phase margin of a loop.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-pub struct Margins {
-    /// Gain crossover, rad/s.
-    pub wc: f64,
-    /// Phase margin, degrees.
-    pub pm_deg: f64,
 }
 
 /// The discrete realisation `x_(k+1) = A x_k + B e_k`, `u_k = C x_k + D e_k`.
@@ -51,9 +40,12 @@ pub struct DiscreteJson {
     pub c: Vec<Vec<f64>>,
     /// `D`.
     pub d: Vec<Vec<f64>>,
-    /// The sampled loop with this realisation (`C(e^(j w dt)) G(j w) e^(-j w dt/2)`): where it
-    /// crosses over near the design's `wc`, and its margin (`None` if it does not cross there).
-    pub sampled_loop: Option<Margins>,
+    /// The sampled loop the drive runs: this realisation with the model discretised for the
+    /// held input ([`crate::sampled`]), judged like the continuous one (stability, crossovers,
+    /// margins, Ms); the design is refused when it misses the specification or a floor.
+    pub sampled_loop: Option<LoopMetrics>,
+    /// Caveats of the sampled loop's evaluation.
+    pub sampled_note: Option<String>,
 }
 
 /// The closed loop's simulated responses, summarised.
@@ -145,44 +137,19 @@ pub fn tune(model: &FracTf, spec: &Spec, opts: &SimOptions) -> Result<(Report, R
     let Design {
         controller: c,
         metrics,
+        sampled,
+        sampled_note,
     } = design(model, spec)?;
     let discrete = match spec.dt {
-        Some(dt) => Some(discrete_json(
-            model,
-            &realise::discrete(&c, dt, &approx)?,
-            spec.wc,
-        )),
+        Some(dt) => Some(DiscreteJson {
+            sampled_loop: sampled,
+            sampled_note,
+            ..discrete_json(&realise::discrete(&c, dt, &approx)?)
+        }),
         None => None,
     };
-    let mut setup = LoopSetup::for_crossover(spec.wc, spec.dt);
-    setup.step = opts.step.unwrap_or(1.0);
-    setup.u_limit = opts.u_limit;
-    let k0 = model.dc_gain();
-    setup.load = opts.load.unwrap_or(if k0.is_finite() && k0 != 0.0 {
-        setup.step / k0
-    } else {
-        setup.step
-    });
-    if !(setup.step.is_finite() && setup.step != 0.0 && setup.load.is_finite()) {
-        return crate::error::invalid(
-            "step",
-            format!(
-                "the reference step ({}) must be finite and nonzero, the load ({}) finite",
-                setup.step, setup.load
-            ),
-        );
-    }
-    let (run, not_simulated) = tolerate(closed::simulate(model, &c, &setup, &approx, &[]))?;
-    let with_effects = if opts.effects.is_empty() || run.is_none() {
-        None
-    } else {
-        Some(closed::simulate(model, &c, &setup, &approx, &opts.effects)?)
-    };
-    let step = StepJson {
-        setup,
-        metrics: run.as_ref().map(|r| closed::metrics(r, &setup)),
-        not_simulated,
-    };
+    let setup = setup_of(model, spec.wc, spec.dt, opts)?;
+    let (step, run, with_effects) = simulate_loop(model, &c, &setup, opts)?;
     let pi_spec = Spec {
         form: Form::Pi,
         flat: false,
@@ -239,6 +206,58 @@ pub fn tune(model: &FracTf, spec: &Spec, opts: &SimOptions) -> Result<(Report, R
     ))
 }
 
+/// The closed-loop simulation's setup for a crossover `wc` (module docs of [`closed`]), with the
+/// options' steps.
+///
+/// # Errors
+/// A step that is not finite and nonzero, a load that is not finite.
+pub fn setup_of(model: &FracTf, wc: f64, dt: Option<f64>, opts: &SimOptions) -> Result<LoopSetup> {
+    let mut setup = LoopSetup::for_crossover(wc, dt);
+    setup.step = opts.step.unwrap_or(1.0);
+    setup.u_limit = opts.u_limit;
+    let k0 = model.dc_gain();
+    setup.load = opts.load.unwrap_or(if k0.is_finite() && k0 != 0.0 {
+        setup.step / k0
+    } else {
+        setup.step
+    });
+    if !(setup.step.is_finite() && setup.step != 0.0 && setup.load.is_finite()) {
+        return crate::error::invalid(
+            "step",
+            format!(
+                "the reference step ({}) must be finite and nonzero, the load ({}) finite",
+                setup.step, setup.load
+            ),
+        );
+    }
+    Ok(setup)
+}
+
+/// The loop of `c` simulated alone and with the options' effects: the summary and the runs.
+///
+/// # Errors
+/// Those of the simulation but the simulator's limits on the model (see [`tolerate`]).
+pub fn simulate_loop(
+    model: &FracTf,
+    c: &Controller,
+    setup: &LoopSetup,
+    opts: &SimOptions,
+) -> Result<(StepJson, Option<LoopRun>, Option<LoopRun>)> {
+    let approx = ApproxSpec::default();
+    let (run, not_simulated) = tolerate(closed::simulate(model, c, setup, &approx, &[]))?;
+    let with_effects = if opts.effects.is_empty() || run.is_none() {
+        None
+    } else {
+        Some(closed::simulate(model, c, setup, &approx, &opts.effects)?)
+    };
+    let step = StepJson {
+        setup: *setup,
+        metrics: run.as_ref().map(|r| closed::metrics(r, setup)),
+        not_simulated,
+    };
+    Ok((step, run, with_effects))
+}
+
 /// A simulation the simulator cannot run on this model (its errors, not a bad request) leaves the
 /// design standing: the run is `None` with the reason.
 fn tolerate(r: Result<LoopRun>) -> Result<(Option<LoopRun>, Option<String>)> {
@@ -249,7 +268,7 @@ fn tolerate(r: Result<LoopRun>) -> Result<(Option<LoopRun>, Option<String>)> {
     }
 }
 
-fn discrete_json(model: &FracTf, ss: &StateSpace, wc: f64) -> DiscreteJson {
+pub(crate) fn discrete_json(ss: &StateSpace) -> DiscreteJson {
     let rows = |m: &nalgebra::DMatrix<f64>| -> Vec<Vec<f64>> {
         (0..m.nrows())
             .map(|i| m.row(i).iter().copied().collect())
@@ -267,46 +286,7 @@ fn discrete_json(model: &FracTf, ss: &StateSpace, wc: f64) -> DiscreteJson {
         b: rows(&ss.b),
         c: rows(&ss.c),
         d: vec![vec![ss.d]],
-        sampled_loop: sampled_margins(model, ss, wc),
+        sampled_loop: None,
+        sampled_note: None,
     }
-}
-
-/// The crossover of the sampled loop nearest `wc` within `[wc/3, min(3 wc, pi/dt)]`, and its
-/// phase margin (the model's phase unwrapped, the realisation's phase continuous there).
-fn sampled_margins(model: &FracTf, ss: &StateSpace, wc: f64) -> Option<Margins> {
-    let dt = ss.dt?;
-    let plant = Plant::new(model.clone(), Some(dt));
-    let l = |w: f64| realise::discrete_response(ss, w) * plant.freq_response(w);
-    let (lo, hi) = (wc / 3.0, (3.0 * wc).min(std::f64::consts::PI / dt));
-    let n = 600;
-    let ws: Vec<f64> = (0..=n)
-        .map(|i| lo * (hi / lo).powf(i as f64 / n as f64))
-        .collect();
-    let mut best: Option<f64> = None;
-    for w in ws.windows(2) {
-        if (l(w[0]).norm() >= 1.0) != (l(w[1]).norm() >= 1.0) {
-            let (mut a, mut b) = (w[0], w[1]);
-            let above = l(a).norm() >= 1.0;
-            for _ in 0..60 {
-                let m = (a * b).sqrt();
-                if (l(m).norm() >= 1.0) == above {
-                    a = m;
-                } else {
-                    b = m;
-                }
-            }
-            let x = (a * b).sqrt();
-            if best.is_none_or(|o| (x / wc).ln().abs() < (o / wc).ln().abs()) {
-                best = Some(x);
-            }
-        }
-    }
-    let w = best?;
-    // the phase: the model's unwrapped plus the realisation's (principal: within (-180, 180))
-    let c: Complex64 = realise::discrete_response(ss, w);
-    let phase = plant.phase_unwrapped(w) + c.arg();
-    Some(Margins {
-        wc: w,
-        pm_deg: 180.0 + phase.to_degrees(),
-    })
 }

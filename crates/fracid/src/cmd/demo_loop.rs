@@ -95,6 +95,8 @@ pub fn run_with(
         s_low: None,
         dt: Some(dt),
         lambda: None,
+        floors: tune::Floors::default(),
+        orders: tune::Orders::default(),
     };
     let opts = SimOptions {
         step: Some(STEP),

@@ -16,7 +16,9 @@ pub struct ExportArgs {
     /// The model: a transfer function such as "6.77/(0.000028 s^1.78 + 0.0064 s^0.89 + 1)"
     /// (`exp(-tau s)` allowed), or a JSON file written by `fracid time --json` or
     /// `fracid freq --json` (its final model: the diagnosis's refit if any, else the refined
-    /// model, else `model`).
+    /// model, else `model`), or a report of `fracid tune --json` (its controller). A controller
+    /// `kp + ki/s^lambda (+ kd s^mu)` (the text `fracid tune` prints) is realised with --dt as
+    /// `fracid tune --dt` realises it.
     pub model: String,
     /// Sample period in seconds: export the discrete model, exact for an input held over each
     /// period, its input delay as extra states (whole and fractional samples). Without it the
@@ -72,6 +74,30 @@ pub fn state_space(g: &FracTf, a: &ExportArgs) -> Result<StateSpace> {
     })
 }
 
+/// The controller of a `fracid tune --json` report (its `params`), which is what exporting
+/// such a report means; `None` for any other document.
+fn tuned_controller(v: &Value) -> Option<tune::Controller> {
+    v.get("controller")?;
+    serde_json::from_value(v.get("params")?.clone()).ok()
+}
+
+/// A controller `kp + ki/s^lambda (+ kd s^mu)` realised as `fracid tune --dt` realises it
+/// (`tune::realise::discrete`: the fractional integrator's modes, each held exactly, the
+/// derivative as backward differences), with the options' approximation. The general route
+/// cannot: a pure fractional integrator has no order-0 denominator term and its clustered poles
+/// are lost.
+fn controller_state_space(c: &tune::Controller, dt: f64, a: &ExportArgs) -> Result<StateSpace> {
+    if !(dt.is_finite() && dt > 0.0) {
+        bad_input!("--dt must be a positive number of seconds, got {dt}");
+    }
+    let spec = ApproxSpec {
+        method: a.approx.parse()?,
+        band: a.band.as_deref().map(parse_band).transpose()?,
+        order: a.order,
+    };
+    Ok(tune::realise::discrete(c, dt, &spec)?)
+}
+
 /// The JSON document of an exported state space.
 pub fn json_of(ss: &StateSpace, g: &FracTf) -> Value {
     json!({
@@ -104,8 +130,15 @@ pub fn run(a: ExportArgs) -> Result<()> {
     if format != "json" && format != "m" {
         bad_input!("--format must be json or m, got '{format}'");
     }
-    let g = crate::cmd::model_in::load(&a.model)?.tf;
-    let ss = state_space(&g, &a)?;
+    let loaded = crate::cmd::model_in::load(&a.model)?;
+    let g = match loaded.report.as_ref().and_then(tuned_controller) {
+        Some(c) => c.tf()?,
+        None => loaded.tf,
+    };
+    let ss = match (tune::Controller::from_tf(&g), a.dt, a.continuous) {
+        (Some(c), Some(dt), false) => controller_state_space(&c, dt, &a)?,
+        _ => state_space(&g, &a)?,
+    };
     let text = if format == "m" {
         ss.to_matlab(&g.to_string())
     } else {

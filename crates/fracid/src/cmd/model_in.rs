@@ -61,11 +61,37 @@ pub fn load(arg: &str) -> Result<Loaded> {
         Ok(v) => v,
         Err(e) => bad_input!("{}: not valid JSON: {e}", path.display()),
     };
+    refuse_unusable(&v, path)?;
     let tf = from_json(final_model(&v)).with_context(|| format!("model of {}", path.display()))?;
     Ok(Loaded {
         tf,
         report: Some(v),
     })
+}
+
+/// A report that marks its model unusable (`"usable": false`, with its `problems`) is refused
+/// as bad input: a design, an export or a comparison on it would look like a result.
+///
+/// # Errors
+/// Bad input naming the report's problems.
+fn refuse_unusable(v: &Value, path: &Path) -> Result<()> {
+    if v.get("usable").and_then(Value::as_bool) != Some(false) {
+        return Ok(());
+    }
+    let problems: Vec<&str> = v
+        .get("problems")
+        .and_then(Value::as_array)
+        .map(|p| p.iter().filter_map(Value::as_str).collect())
+        .unwrap_or_default();
+    bad_input!(
+        "{}: the report marks its model unusable ({}); refit or fix the record first",
+        path.display(),
+        if problems.is_empty() {
+            "no problem named".to_string()
+        } else {
+            problems.join("; ")
+        }
+    )
 }
 
 /// The report's final model object (see the module's documentation), or `v` itself when it is

@@ -23,27 +23,55 @@ pub struct TuneArgs {
     /// `fracid time --json` or `fracid freq --json` (the final model: "diagnosis.model" when the
     /// file has one, else "model").
     pub model: String,
-    /// The controller: fopi (kp + ki/s^lambda), fopid (+ kd s^mu), pi or pid.
+    /// The controller: fopi (kp + ki/s^lambda), fopid (+ kd s^mu), fopd (kp + kd s^mu), pi or
+    /// pid.
     #[arg(long, default_value = "fopi")]
     pub form: String,
-    /// Gain crossover in rad/s.
+    /// Gain crossover in rad/s (with --analyse: where to centre the analysis, optional).
     #[arg(long)]
-    pub wc: f64,
-    /// Phase margin in degrees.
+    pub wc: Option<f64>,
+    /// Phase margin in degrees (not with --analyse).
     #[arg(long)]
-    pub pm: f64,
+    pub pm: Option<f64>,
+    /// Analyse this controller instead of designing one: its text as `fracid tune` prints it,
+    /// "(kd s^(lambda+mu) + kp s^lambda + ki)/(s^lambda)" or "kp + ki/s^lambda", or a
+    /// `fracid tune --json` report. Stability, margins, Ms, the sampled loop with --dt, the floors
+    /// it misses (exit 1 when it misses any, after the report).
+    #[arg(long, value_name = "C")]
+    pub analyse: Option<String>,
     /// Flat phase at wc (d arg L / d ln w = 0: the overshoot robust to gain changes).
     #[arg(long)]
     pub flat: bool,
-    /// |T(j w)| <= DB at a high frequency W rad/s (noise rejection).
+    /// |T(j w)| <= DB for every w >= W rad/s (noise rejection over the band above W).
     #[arg(long, value_name = "W,DB")]
     pub t_high: Option<String>,
-    /// |S(j w)| <= DB at a low frequency W rad/s (disturbance rejection).
+    /// |S(j w)| <= DB for every w <= W rad/s (disturbance rejection over the band below W).
     #[arg(long, value_name = "W,DB")]
     pub s_low: Option<String>,
-    /// A fixed integrator order for a fopi without --flat (otherwise the smallest Ms is chosen).
+    /// Robustness floor: the largest sensitivity peak Ms accepted (a design above it is refused).
+    #[arg(long, default_value_t = 2.0)]
+    pub max_ms: f64,
+    /// Robustness floor: the smallest gain margin accepted, dB (up, and down for a
+    /// conditionally stable loop).
+    #[arg(long, default_value_t = 6.0)]
+    pub min_gm: f64,
+    /// Robustness floor: the smallest integrator order accepted (integral action); 0 accepts a
+    /// fractional integrator of any order.
+    #[arg(long, default_value_t = 0.5)]
+    pub min_lambda: f64,
+    /// A fixed integrator order: a fopi's without --flat, a fopid's (otherwise searched for the
+    /// smallest Ms).
     #[arg(long)]
     pub lambda: Option<f64>,
+    /// A fixed differentiator order: a fopid's, a fopd's without --flat.
+    #[arg(long)]
+    pub mu: Option<f64>,
+    /// The largest integrator order searched (fopi, fopid).
+    #[arg(long)]
+    pub max_lambda: Option<f64>,
+    /// The largest differentiator order searched (fopid, fopd).
+    #[arg(long)]
+    pub max_mu: Option<f64>,
     /// Sample period of the loop in seconds: the hold's half-sample delay joins the design, and
     /// the controller's discrete realisation is given.
     #[arg(long)]
@@ -114,10 +142,13 @@ fn parse_bound(name: &str, s: &str) -> Result<GainBound> {
 
 /// The specification the options ask for.
 pub fn spec_of(a: &TuneArgs) -> Result<Spec> {
+    let (Some(wc), Some(pm_deg)) = (a.wc, a.pm) else {
+        bad_input!("a design needs --wc and --pm (or --analyse C to analyse a given controller)");
+    };
     Ok(Spec {
         form: a.form.parse()?,
-        wc: a.wc,
-        pm_deg: a.pm,
+        wc,
+        pm_deg,
         flat: a.flat,
         t_high: a
             .t_high
@@ -131,6 +162,16 @@ pub fn spec_of(a: &TuneArgs) -> Result<Spec> {
             .transpose()?,
         dt: a.dt,
         lambda: a.lambda,
+        floors: tune::Floors {
+            ms_max: a.max_ms,
+            gm_min_db: a.min_gm,
+            lambda_min: a.min_lambda,
+        },
+        orders: tune::Orders {
+            mu: a.mu,
+            lambda_max: a.max_lambda,
+            mu_max: a.max_mu,
+        },
     })
 }
 
@@ -145,7 +186,6 @@ pub fn run(a: TuneArgs) -> Result<()> {
             "note: the model's effect '{name}' acts on the output, not in the loop: not simulated"
         );
     }
-    let spec = spec_of(&a)?;
     let opts = SimOptions {
         step: Some(a.step),
         load: a.load,
@@ -155,6 +195,10 @@ pub fn run(a: TuneArgs) -> Result<()> {
     if a.u_limit.is_some_and(|v| !(v.is_finite() && v > 0.0)) {
         crate::bad_input!("--u-limit must be a positive number, got {:?}", a.u_limit);
     }
+    if let Some(c) = &a.analyse {
+        return run_analysis(&a, &g, &given_controller(c)?, &opts);
+    }
+    let spec = spec_of(&a)?;
     let (report, runs) = tune::report::tune(&g, &spec, &opts)?;
     if a.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
@@ -175,7 +219,77 @@ pub fn run(a: TuneArgs) -> Result<()> {
     Ok(())
 }
 
+/// The controller of `--analyse`: a `fracid tune --json` report's `params`, or a transfer
+/// function of the form `fracid tune` prints (`tune::Controller::from_tf`), as text or in a file.
+fn given_controller(arg: &str) -> Result<Controller> {
+    let super::model_in::Loaded { tf, report } = super::model_in::load(arg)?;
+    if let Some(p) = report.as_ref().and_then(|v| v.get("params")) {
+        match serde_json::from_value::<Controller>(p.clone()) {
+            Ok(c) => return Ok(c),
+            Err(e) => bad_input!("{arg}: \"params\" is not a controller: {e}"),
+        }
+    }
+    match Controller::from_tf(&tf) {
+        Some(c) => Ok(c),
+        None => bad_input!(
+            "--analyse {arg:?}: not a controller (kd s^(lambda+mu) + kp s^lambda + ki)/s^lambda \
+             with 0 < lambda < 2"
+        ),
+    }
+}
+
+/// `--analyse`: the given controller's loop on the model, in words or JSON; exit 1 (after the
+/// report) when it misses stability or a floor.
+fn run_analysis(a: &TuneArgs, g: &FracTf, c: &Controller, opts: &SimOptions) -> Result<()> {
+    let design_only = [a.lambda, a.mu, a.max_lambda, a.max_mu, a.pm];
+    if design_only.iter().any(Option::is_some)
+        || a.flat
+        || a.t_high.is_some()
+        || a.s_low.is_some()
+        || a.plot.is_some()
+    {
+        bad_input!("--analyse takes --wc, --dt, the floors and the simulation's options only");
+    }
+    let floors = tune::Floors {
+        ms_max: a.max_ms,
+        gm_min_db: a.min_gm,
+        lambda_min: a.min_lambda,
+    };
+    let (r, _) = tune::given::analyse_given(g, c, a.wc, a.dt, floors, opts)?;
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&r)?);
+    } else {
+        let mut o = String::new();
+        let _ = writeln!(o, "model:      {}", r.model.text);
+        let _ = writeln!(o, "controller: C(s) = {}", r.controller.text);
+        let _ = writeln!(o, "            {}", params_line(&r.params));
+        let _ = write!(o, "{}", loop_lines(&r.loop_));
+        if let Some(d) = &r.discrete {
+            let _ = write!(o, "{}", discrete_line(d));
+        }
+        let _ = write!(o, "{}", step_line(&r.step));
+        let _ = writeln!(
+            o,
+            "verdict:    {}",
+            if r.misses.is_empty() {
+                "stable, every floor met".to_string()
+            } else {
+                r.misses.join("; ")
+            }
+        );
+        print!("{o}");
+    }
+    if r.misses.is_empty() {
+        Ok(())
+    } else {
+        Err(tune::Error::Unsafe(r.misses.join("; ")).into())
+    }
+}
+
 fn params_line(c: &Controller) -> String {
+    if c.ki == 0.0 {
+        return format!("kp = {:.6e}, kd = {:.6e}, mu = {:.4}", c.kp, c.kd, c.mu);
+    }
     let mut s = format!(
         "kp = {:.6e}, ki = {:.6e}, lambda = {:.4}",
         c.kp, c.ki, c.lambda
@@ -188,6 +302,103 @@ fn params_line(c: &Controller) -> String {
 
 fn opt(v: Option<f64>, unit: &str) -> String {
     v.map_or("-".into(), |v| format!("{v:.4}{unit}"))
+}
+
+/// The `loop:` and `stability:` lines.
+fn loop_lines(l: &tune::LoopMetrics) -> String {
+    let mut o = String::new();
+    let _ = writeln!(
+        o,
+        "loop:       wc = {:.4} rad/s, pm = {:.3} deg, gm = {}{}, Ms = {:.4} (at {:.1} rad/s), \
+         d arg L/d ln w at wc = {:.2e} rad",
+        l.wc,
+        l.pm_deg,
+        l.gm_db.map_or("inf".into(), |g| format!("{g:.2} dB")),
+        l.gm_low_db
+            .map_or(String::new(), |g| format!(" (down: {g:.2} dB)")),
+        l.ms,
+        l.ms_omega,
+        l.phase_slope
+    );
+    let _ = writeln!(
+        o,
+        "stability:  {}; the model has {}",
+        match (&l.stability_note, l.unstable_poles) {
+            (Some(n), _) => format!("not counted ({n})"),
+            (None, k) =>
+                format!("{k} closed-loop poles in the right half-plane (characteristic equation)"),
+        },
+        match l.plant_unstable_poles {
+            0 => "none of its own".to_string(),
+            n if n > 0 => format!("{n} of its own"),
+            _ => "an uncounted number of its own".to_string(),
+        }
+    );
+    if l.crossovers > 1 {
+        let _ = writeln!(
+            o,
+            "            {} crossovers: {}",
+            l.crossovers,
+            l.crossover_omegas
+                .iter()
+                .map(|w| format!("{w:.4}"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+    }
+    o
+}
+
+/// The `discrete:` line (and its note).
+fn discrete_line(d: &tune::report::DiscreteJson) -> String {
+    let mut o = String::new();
+    let _ = writeln!(
+        o,
+        "discrete:   {} states at dt = {} s ({} N = {}, band [{:.3e}, {:.3e}] rad/s); \
+         sampled loop: {}",
+        d.states,
+        d.dt,
+        d.approximation.method,
+        d.approximation.order,
+        d.approximation.band[0],
+        d.approximation.band[1],
+        d.sampled_loop
+            .as_ref()
+            .map_or("not evaluated".into(), |m| format!(
+                "wc = {:.3} rad/s, pm = {:.2} deg, gm = {}, Ms = {:.4}, {} closed-loop poles \
+                 outside the unit circle",
+                m.wc,
+                m.pm_deg,
+                m.gm_db.map_or("inf".into(), |g| format!("{g:.2} dB")),
+                m.ms,
+                m.unstable_poles
+            ))
+    );
+    if let Some(n) = &d.sampled_note {
+        let _ = writeln!(o, "            note: {n}");
+    }
+    o
+}
+
+/// The `step:` line.
+fn step_line(st: &tune::report::StepJson) -> String {
+    match (&st.metrics, &st.not_simulated) {
+        (Some(m), _) => format!(
+            "step:       overshoot {:.2}%, rise (10-90%) {} s, settling (2%) {} s; load step {} \
+             at t = {:.4} s: peak {:.4}, left {:.2e}\n",
+            m.overshoot_percent,
+            opt(m.rise_time, ""),
+            opt(m.settling_time, ""),
+            st.setup.load,
+            st.setup.t_load,
+            m.load_peak,
+            m.load_residual
+        ),
+        (None, why) => format!(
+            "step:       not simulated ({})\n",
+            why.as_deref().unwrap_or("-")
+        ),
+    }
 }
 
 /// The report in words.
@@ -208,59 +419,11 @@ pub fn text(r: &Report) -> String {
     );
     let _ = writeln!(o, "controller: C(s) = {}", r.controller.text);
     let _ = writeln!(o, "            {}", params_line(&r.params));
-    let l = &r.loop_;
-    let _ = writeln!(
-        o,
-        "loop:       wc = {:.4} rad/s, pm = {:.3} deg, gm = {}, Ms = {:.4} (at {:.1} rad/s), \
-         d arg L/d ln w at wc = {:.2e} rad",
-        l.wc,
-        l.pm_deg,
-        l.gm_db.map_or("inf".into(), |g| format!("{g:.2} dB")),
-        l.ms,
-        l.ms_omega,
-        l.phase_slope
-    );
+    let _ = write!(o, "{}", loop_lines(&r.loop_));
     if let Some(d) = &r.discrete {
-        let _ = writeln!(
-            o,
-            "discrete:   {} states at dt = {} s ({} N = {}, band [{:.3e}, {:.3e}] rad/s); \
-             sampled loop: {}",
-            d.states,
-            d.dt,
-            d.approximation.method,
-            d.approximation.order,
-            d.approximation.band[0],
-            d.approximation.band[1],
-            d.sampled_loop
-                .map_or("no crossover near wc".into(), |m| format!(
-                    "wc = {:.3} rad/s, pm = {:.2} deg",
-                    m.wc, m.pm_deg
-                ))
-        );
+        let _ = write!(o, "{}", discrete_line(d));
     }
-    match (&r.step.metrics, &r.step.not_simulated) {
-        (Some(m), _) => {
-            let _ = writeln!(
-                o,
-                "step:       overshoot {:.2}%, rise (10-90%) {} s, settling (2%) {} s; load step {} \
-                 at t = {:.4} s: peak {:.4}, left {:.2e}",
-                m.overshoot_percent,
-                opt(m.rise_time, ""),
-                opt(m.settling_time, ""),
-                r.step.setup.load,
-                r.step.setup.t_load,
-                m.load_peak,
-                m.load_residual
-            );
-        }
-        (None, why) => {
-            let _ = writeln!(
-                o,
-                "step:       not simulated ({})",
-                why.as_deref().unwrap_or("-")
-            );
-        }
-    }
+    let _ = write!(o, "{}", step_line(&r.step));
     if let Some(m) = &r.step_with_effects {
         let names: Vec<String> = r.effects.iter().map(|e| format!("{e:?}")).collect();
         let _ = writeln!(

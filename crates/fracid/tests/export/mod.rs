@@ -129,3 +129,46 @@ fn bad_requests_exit_2() {
     let o = fracid(&["export", "/nonexistent/fit.json", "--dt", "1e-3"]);
     assert_eq!(o.status.code(), Some(3));
 }
+
+/// A FOPI as `fracid tune` prints it, and a `fracid tune --json` report, export the controller's
+/// realisation (before: "found 4 of the 19 poles"; the report's plant): the discrete steps match
+/// `tune`'s own realisation in the report for the same `dt`.
+#[test]
+fn a_tuned_controller_exports() {
+    let dir = tempfile::tempdir().unwrap();
+    let pmsm = "6.77/(0.000028 s^1.78 + 0.0064 s^0.89 + 1) exp(-0.001 s)";
+    let out = fracid(&[
+        "tune", pmsm, "--wc", "50", "--pm", "60", "--dt", "0.001", "--json",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let rep = dir.path().join("c.json");
+    std::fs::write(&rep, &out.stdout).unwrap();
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let text = v["controller"]["text"].as_str().unwrap().to_string();
+    let d = &v["discrete"];
+    let from_report = step(
+        &serde_json::json!({"a": d["a"], "b": d["b"], "c": d["c"], "d": d["d"]}),
+        200,
+    );
+    for arg in [text.as_str(), rep.to_str().unwrap()] {
+        let o = dir.path().join("x.json");
+        let out = fracid(&["export", arg, "--dt", "0.001", "-o", o.to_str().unwrap()]);
+        assert!(
+            out.status.success(),
+            "{arg}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let e = json_file(&o);
+        let s = step(&e, 200);
+        for (a, b) in s.iter().zip(&from_report) {
+            assert!(
+                (a - b).abs() <= 1e-9 * b.abs().max(1.0),
+                "{arg}: {a} vs {b}"
+            );
+        }
+    }
+}

@@ -205,3 +205,166 @@ fn a_design_the_simulator_cannot_run_is_still_reported() {
         .contains("integrator"));
     assert!((v["loop"]["pm_deg"].as_f64().unwrap() - 50.0).abs() < 1e-6);
 }
+
+/// The defects the tuner returned with exit 0, end to end: each now exits non-zero with the
+/// reason (the loop the tuner returned is shown unstable or fragile in `tune`'s tests).
+#[test]
+fn unsafe_loops_are_refused_with_the_reason() {
+    let cases: [(&[&str], &str); 5] = [
+        (
+            &["100/(s^2 + 0.001 s + 10000)", "--wc", "0.22", "--pm", "60"],
+            "unstable",
+        ),
+        (
+            &[
+                "6.77/(0.000028 s^1.78 + 0.0064 s^0.89 + 1)",
+                "--wc",
+                "100",
+                "--pm",
+                "60",
+                "--dt",
+                "0.02",
+            ],
+            "(--max-ms)",
+        ),
+        (
+            &[
+                "1/((s + 1)(0.0011111 s^2 + 0.0013333 s + 1))",
+                "--wc",
+                "2",
+                "--pm",
+                "60",
+                "--flat",
+            ],
+            "(--max-ms)",
+        ),
+        (
+            &[
+                "1/((s + 1)(0.0011111 s^2 + 0.0013333 s + 1))",
+                "--wc",
+                "2",
+                "--pm",
+                "60",
+                "--flat",
+                "--max-ms",
+                "100",
+                "--min-gm",
+                "0",
+                "--t-high",
+                "10,-17",
+            ],
+            "|T| = ",
+        ),
+        (
+            &["6.77/(-0.0064 s^0.89 + 1)", "--wc", "300", "--pm", "60"],
+            "the model has 1",
+        ),
+    ];
+    for (args, why) in cases {
+        let out = fracid(&[&["tune"], args].concat());
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{args:?}: {err}");
+        assert!(err.contains(why), "{args:?}: {err}");
+        assert!(out.stdout.is_empty());
+    }
+}
+
+/// An unstable model with a stabilising PI: `1/(s - 1)` at wc = 5 rad/s, pm = 60 deg, the
+/// closed loop `s^2 + (kp - 1) s + ki` stable (kp > 1, ki > 0), the model's pole counted.
+#[test]
+fn an_unstable_model_is_stabilised() {
+    let v = json_of(&fracid(&[
+        "tune",
+        "1/(s - 1)",
+        "--form",
+        "pi",
+        "--wc",
+        "5",
+        "--pm",
+        "60",
+        "--json",
+    ]));
+    let (kp, ki) = (
+        v["params"]["kp"].as_f64().unwrap(),
+        v["params"]["ki"].as_f64().unwrap(),
+    );
+    assert!(kp > 1.0 && ki > 0.0, "{}", v["params"]);
+    assert_eq!(v["loop"]["unstable_poles"], 0);
+    assert_eq!(v["loop"]["plant_unstable_poles"], 1);
+}
+
+/// A report marked unusable is refused (exit 2, its problems named), and an absurd crossover
+/// returns at once with exit 2 (before: the design on the unusable model; a run that never
+/// ended).
+#[test]
+fn unusable_reports_and_absurd_crossovers_are_bad_input() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("fit.json");
+    let term = |c: f64, o: f64| serde_json::json!({"coef": c, "order": o});
+    let doc = serde_json::json!({
+        "model": {"num": [term(6.77, 0.0)], "den": [term(0.0064, 0.89), term(1.0, 0.0)], "delay": 0.0},
+        "usable": false,
+        "problems": ["the validation NRMSE is 85%"]
+    });
+    std::fs::write(&p, doc.to_string()).unwrap();
+    let out = fracid(&["tune", p.to_str().unwrap(), "--wc", "100", "--pm", "60"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("unusable") && err.contains("NRMSE is 85%"),
+        "{err}"
+    );
+    let t = std::time::Instant::now();
+    let out = fracid(&["tune", PMSM, "--wc", "1e-100", "--pm", "60"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(t.elapsed().as_secs_f64() < 10.0);
+}
+
+/// `--analyse C`: a design's own controller analysed gives the design's loop (exit 0), the
+/// controller once returned for the resonant model is shown unstable with its three crossovers
+/// (exit 1, the report first), and a `--form fopd` design meets its specification.
+#[test]
+fn a_given_controller_is_analysed() {
+    let v = json_of(&fracid(&[
+        "tune", PMSM, "--wc", "300", "--pm", "60", "--flat", "--json",
+    ]));
+    let c = v["controller"]["text"].as_str().unwrap();
+    let a = json_of(&fracid(&["tune", PMSM, "--analyse", c, "--json"]));
+    for k in ["wc", "pm_deg", "ms", "gm_db"] {
+        let (x, y) = (
+            a["loop"][k].as_f64().unwrap(),
+            v["loop"][k].as_f64().unwrap(),
+        );
+        assert!((x - y).abs() <= 1e-6 * y.abs(), "{k}: {x} vs {y}");
+    }
+    assert_eq!(a["misses"].as_array().unwrap().len(), 0);
+    let out = fracid(&[
+        "tune",
+        "100/(s^2 + 0.001 s + 10000)",
+        "--analyse",
+        "(0.6444633298468005 s^1.336875 + 13.252662292151571)/(s^1.336875)",
+    ]);
+    assert_eq!(out.status.code(), Some(1));
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        text.contains("2 closed-loop poles in the right half-plane"),
+        "{text}"
+    );
+    assert!(text.contains("3 crossovers"), "{text}");
+    let d = json_of(&fracid(&[
+        "tune",
+        "1.0263/(s (0.71 s + 1))",
+        "--form",
+        "fopd",
+        "--wc",
+        "2",
+        "--pm",
+        "60",
+        "--flat",
+        "--json",
+    ]));
+    assert_eq!(d["params"]["ki"].as_f64(), Some(0.0));
+    let lw = l(&d, 2.0);
+    assert!((lw.0.hypot(lw.1) - 1.0).abs() < 1e-6);
+    assert!((180.0 + lw.1.atan2(lw.0).to_degrees() - 60.0).abs() < 1e-6);
+}

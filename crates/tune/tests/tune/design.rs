@@ -77,6 +77,8 @@ pub(crate) fn spec(form: Form, wc: f64, pm_deg: f64, flat: bool) -> Spec {
         s_low: None,
         dt: None,
         lambda: None,
+        floors: tune::Floors::default(),
+        orders: tune::Orders::default(),
     }
 }
 

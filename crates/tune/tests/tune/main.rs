@@ -4,3 +4,4 @@
 mod closed_loop;
 mod design;
 mod realise;
+mod safety;
