@@ -1,0 +1,6 @@
+//! The benchmark zoo: hundreds of generated drives whose truth is computed by code that shares
+//! nothing with fracsim (`truth`), the cases drawn from them (`cases`) and the scoreboard that
+//! judges fracid's reports against that truth (`score`). See benches/README.md for the table and
+//! the command that makes it.
+
+pub mod truth;
