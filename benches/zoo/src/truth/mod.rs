@@ -4,7 +4,13 @@
 //! INTERFACE AGREED BETWEEN THE ZOO'S BRANCHES (zoo-truth implements it, zoo-cases uses it):
 //! the names and signatures below stay; bodies are zoo-truth's.
 
-use num_complex::Complex64;
+mod effects;
+mod exact;
+mod gl;
+mod lattice;
+mod plant;
+mod run;
+mod series;
 
 /// One term `coef * s^order` of a numerator or denominator.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -31,12 +37,12 @@ pub struct Plant {
 impl Plant {
     /// The product of two transfer functions (terms multiplied out, orders added, delays added).
     pub fn product(&self, other: &Plant) -> Plant {
-        todo!("zoo-truth")
+        plant::product(self, other)
     }
 
     /// The frequency response at `omega` [rad/s], the delay included.
-    pub fn response(&self, omega: f64) -> Complex64 {
-        todo!("zoo-truth")
+    pub fn response(&self, omega: f64) -> num_complex::Complex64 {
+        plant::response(self, omega)
     }
 }
 
@@ -98,10 +104,18 @@ pub enum Error {
     /// The plant cannot be simulated (improper, empty denominator, ...).
     #[error("plant not simulable: {0}")]
     Plant(String),
+    /// The drive or the sample time cannot be simulated (non-finite values, dt <= 0, ...).
+    #[error("drive not simulable: {0}")]
+    Drive(String),
 }
 
 /// Simulates `plant` with `effects` under `drive` at sample time `dt` [s], from rest, the input
 /// held over each sample; the output sampled at the sample instants.
-pub fn simulate(plant: &Plant, effects: &Effects, drive: &Drive<'_>, dt: f64) -> Result<Record, Error> {
-    todo!("zoo-truth")
+pub fn simulate(
+    plant: &Plant,
+    effects: &Effects,
+    drive: &Drive<'_>,
+    dt: f64,
+) -> Result<Record, Error> {
+    run::simulate(plant, effects, drive, dt)
 }

@@ -1,0 +1,288 @@
+//! `simulate`: the plant's input is held over each sample, so it is a sum of steps at known
+//! instants and the output at the sample instants is exact superposition of step responses
+//! sampled on two lattices: the command's steps arrive `delay_s` after the sample instants, the
+//! Coulomb friction's (which acts on the mechanics, not through the input delay) at them.
+//!
+//! Open loop without friction: the static input effects applied to `u`, one convolution (FFT),
+//! the output effects after. With an output that feeds back (Coulomb friction, the speed loop):
+//! step by step, each sample's output just before the new input (`y(t_k^-)`) deciding the
+//! friction's sign and the controller's output, then the recorded `y(t_k^+)` (which differs only
+//! by a feed-through's jump).
+
+use super::effects;
+use super::lattice::StepResponse;
+use super::plant::{self, feedthrough};
+use super::series::convolve;
+use super::{Drive, Effects, Error, Plant, Record};
+
+/// The step responses per lag `l` (samples since the step's sample instant).
+struct Lags {
+    /// A unit step of the command at sample 0, seen at sample `l` (`delay_s` included).
+    command: Vec<f64>,
+    /// The lag at which a command step arrives exactly at a sample instant (whole-sample delay).
+    command_on_sample: Option<usize>,
+    /// A unit step of the plant's input at sample 0 without the delay (friction).
+    friction: Vec<f64>,
+}
+
+impl Lags {
+    fn new(step: &StepResponse, delay_s: f64, dt: f64, n: usize, with_friction: bool) -> Lags {
+        let ratio = delay_s / dt;
+        let whole = (ratio + 1e-9).floor();
+        let frac = if ratio - whole < 1e-9 {
+            0.0
+        } else {
+            ratio - whole
+        };
+        let whole = whole as usize;
+        let mut command = vec![0.0; n];
+        let at_samples = if frac == 0.0 || with_friction {
+            step.lattice(0.0, dt, n)
+        } else {
+            vec![]
+        };
+        let command_on_sample = if frac == 0.0 {
+            if whole < n {
+                command[whole..].copy_from_slice(&at_samples[..n - whole]);
+            }
+            Some(whole)
+        } else {
+            let first = whole + 1;
+            let shifted = step.lattice((1.0 - frac) * dt, dt, n.saturating_sub(first));
+            if first < n {
+                command[first..].copy_from_slice(&shifted[..n - first]);
+            }
+            None
+        };
+        Lags {
+            command,
+            command_on_sample,
+            friction: if with_friction { at_samples } else { vec![] },
+        }
+    }
+}
+
+fn check_drive(drive: &Drive<'_>, dt: f64) -> Result<usize, Error> {
+    let bad = |msg: &str| Err(Error::Drive(msg.to_string()));
+    if !dt.is_finite() || dt <= 0.0 {
+        return bad("the sample time must be finite and > 0");
+    }
+    match drive {
+        Drive::Open(u) => {
+            if u.iter().any(|v| !v.is_finite()) {
+                return bad("the input has a non-finite value");
+            }
+            Ok(u.len())
+        }
+        Drive::SpeedLoop {
+            reference,
+            kp,
+            ki,
+            u_limit,
+        } => {
+            if reference.iter().any(|v| !v.is_finite()) {
+                return bad("the reference has a non-finite value");
+            }
+            if !kp.is_finite() || !ki.is_finite() || !u_limit.is_finite() || *u_limit < 0.0 {
+                return bad("the PI's gains must be finite and its limit finite and >= 0");
+            }
+            Ok(reference.len())
+        }
+    }
+}
+
+pub(crate) fn simulate(
+    plant: &Plant,
+    effects: &Effects,
+    drive: &Drive<'_>,
+    dt: f64,
+) -> Result<Record, Error> {
+    plant::check(plant)?;
+    effects::check(effects).map_err(Error::Drive)?;
+    let n = check_drive(drive, dt)?;
+    let step = StepResponse::new(plant);
+    let feedback = effects.coulomb.is_some() || matches!(drive, Drive::SpeedLoop { .. });
+    let lags = Lags::new(&step, plant.delay_s, dt, n, feedback);
+    match drive {
+        Drive::Open(u) if !feedback => Ok(open_loop(&lags, effects, u, dt)),
+        _ => Ok(stepwise(&lags, feedthrough(plant), effects, drive, dt, n)),
+    }
+}
+
+fn open_loop(lags: &Lags, effects: &Effects, u: &[f64], dt: f64) -> Record {
+    let mut last = 0.0;
+    let steps: Vec<f64> = u
+        .iter()
+        .map(|&v| {
+            let held = effects::input(effects, v);
+            let step = held - last;
+            last = held;
+            step
+        })
+        .collect();
+    let plant_out = convolve(&steps, &lags.command, u.len());
+    let y = plant_out
+        .iter()
+        .enumerate()
+        .map(|(k, &v)| effects::output(effects, v, k as f64 * dt))
+        .collect();
+    Record { u: u.to_vec(), y }
+}
+
+/// A discrete PI with anti-windup by conditional integration (the sum stops growing while the
+/// output is clamped and the error pushes further into the clamp).
+struct Pi {
+    kp: f64,
+    ki_dt: f64,
+    limit: f64,
+    sum: f64,
+}
+
+impl Pi {
+    fn output(&mut self, error: f64) -> f64 {
+        let next = self.sum + self.ki_dt * error;
+        let raw = self.kp * error + next;
+        let winding = (raw > self.limit && error > 0.0) || (raw < -self.limit && error < 0.0);
+        if !winding {
+            self.sum = next;
+        }
+        (self.kp * error + self.sum).clamp(-self.limit, self.limit)
+    }
+}
+
+fn sign(v: f64) -> f64 {
+    if v > 0.0 {
+        1.0
+    } else if v < 0.0 {
+        -1.0
+    } else {
+        0.0
+    }
+}
+
+fn stepwise(
+    lags: &Lags,
+    d: f64,
+    effects: &Effects,
+    drive: &Drive<'_>,
+    dt: f64,
+    n: usize,
+) -> Record {
+    let mut pi = match drive {
+        Drive::SpeedLoop {
+            kp, ki, u_limit, ..
+        } => Some(Pi {
+            kp: *kp,
+            ki_dt: ki * dt,
+            limit: *u_limit,
+            sum: 0.0,
+        }),
+        Drive::Open(_) => None,
+    };
+    let (mut command_steps, mut friction_steps) = (vec![0.0; n], vec![0.0; n]);
+    let (mut last_held, mut last_friction) = (0.0, 0.0);
+    let mut record = Record {
+        u: Vec::with_capacity(n),
+        y: Vec::with_capacity(n),
+    };
+    for k in 0..n {
+        let t = k as f64 * dt;
+        let mut before: f64 = (0..k).map(|m| command_steps[m] * lags.command[k - m]).sum();
+        if !lags.friction.is_empty() {
+            before += (0..k)
+                .map(|m| friction_steps[m] * lags.friction[k - m])
+                .sum::<f64>();
+        }
+        let arriving = match lags.command_on_sample {
+            Some(l) if l >= 1 && k >= l => d * command_steps[k - l],
+            _ => 0.0,
+        };
+        let y_minus = before - arriving;
+        let u = match (drive, pi.as_mut()) {
+            (Drive::SpeedLoop { reference, .. }, Some(pi)) => {
+                pi.output(reference[k] - effects::output(effects, y_minus, t))
+            }
+            (Drive::Open(u), _) => u[k],
+            _ => unreachable!("a speed loop has its PI"),
+        };
+        let held = effects::input(effects, u);
+        command_steps[k] = held - last_held;
+        last_held = held;
+        let friction = effects.coulomb.map_or(0.0, |c| -c * sign(y_minus));
+        friction_steps[k] = friction - last_friction;
+        last_friction = friction;
+        let mut y_plus = before + lags.command[0] * command_steps[k];
+        if !lags.friction.is_empty() {
+            y_plus += lags.friction[0] * friction_steps[k];
+        }
+        record.u.push(u);
+        record.y.push(effects::output(effects, y_plus, t));
+    }
+    record
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::truth::Term;
+
+    fn first_order(delay_s: f64) -> Plant {
+        Plant {
+            num: vec![Term {
+                coef: 2.0,
+                order: 0.0,
+            }],
+            den: vec![
+                Term {
+                    coef: 1.0,
+                    order: 0.0,
+                },
+                Term {
+                    coef: 0.1,
+                    order: 1.0,
+                },
+            ],
+            delay_s,
+        }
+    }
+
+    #[test]
+    fn smoke_first_order_and_half_order() {
+        let u = vec![1.0; 50];
+        let r = simulate(
+            &first_order(0.0),
+            &Effects::default(),
+            &Drive::Open(&u),
+            0.01,
+        )
+        .unwrap();
+        for (k, y) in r.y.iter().enumerate() {
+            let t = k as f64 * 0.01;
+            assert!(
+                (y - 2.0 * (1.0 - (-t / 0.1).exp())).abs() < 1e-12,
+                "{k} {y}"
+            );
+        }
+        let half = Plant {
+            num: vec![Term {
+                coef: 1.0,
+                order: 0.0,
+            }],
+            den: vec![
+                Term {
+                    coef: 1.0,
+                    order: 0.0,
+                },
+                Term {
+                    coef: 1.0,
+                    order: 0.5,
+                },
+            ],
+            delay_s: 0.0,
+        };
+        let r = simulate(&half, &Effects::default(), &Drive::Open(&u), 0.1).unwrap();
+        // 1 - E_{1/2}(-sqrt t) = 1 - exp(t) erfc(sqrt t): at t = 1, erfc(1) = 0.157299207050285.
+        let want = 1.0 - std::f64::consts::E * 0.157_299_207_050_285;
+        assert!((r.y[10] - want).abs() < 1e-3, "{} {want}", r.y[10]);
+    }
+}
