@@ -29,7 +29,12 @@ pub struct Floor {
     pub diagnose_effects: usize,
 }
 
-const fn f(class: Class, plain_right: usize, diagnose_right: usize, diagnose_effects: usize) -> Floor {
+const fn f(
+    class: Class,
+    plain_right: usize,
+    diagnose_right: usize,
+    diagnose_effects: usize,
+) -> Floor {
     Floor {
         class,
         plain_right,
@@ -78,11 +83,18 @@ pub fn below_floors(rows: &[ClassRow]) -> Vec<String> {
         let checks = [
             ("plain right", r.plain.right, fl.plain_right),
             ("diagnose right", r.diagnose.right, fl.diagnose_right),
-            ("diagnose effects exact", r.diagnose.effects_exact, fl.diagnose_effects),
+            (
+                "diagnose effects exact",
+                r.diagnose.effects_exact,
+                fl.diagnose_effects,
+            ),
         ];
         for (what, got, floor) in checks {
             if got < floor {
-                out.push(format!("{}: {what} {got} below its floor {floor}", fl.class.name()));
+                out.push(format!(
+                    "{}: {what} {got} below its floor {floor}",
+                    fl.class.name()
+                ));
             }
         }
     }

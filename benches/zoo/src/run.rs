@@ -81,7 +81,14 @@ fn io(path: &Path) -> impl FnOnce(std::io::Error) -> Error + '_ {
 pub fn generate(o: &Options) -> Result<Vec<cases::Truth>, Error> {
     let (cases_dir, truth_dir) = (o.out.join("cases"), o.out.join("truth"));
     let chunks: Vec<Vec<usize>> = (0..o.jobs.max(1))
-        .map(|j| o.indices.iter().copied().skip(j).step_by(o.jobs.max(1)).collect())
+        .map(|j| {
+            o.indices
+                .iter()
+                .copied()
+                .skip(j)
+                .step_by(o.jobs.max(1))
+                .collect()
+        })
         .collect();
     let results: Vec<Result<Vec<cases::Truth>, cases::Error>> = std::thread::scope(|s| {
         let handles: Vec<_> = chunks
@@ -147,7 +154,10 @@ pub fn fleet_args(cases_dir: &Path, reports: &Path, jobs: usize, diagnose: bool)
 
 /// Runs one fleet; returns the summary's rows by file stem and the cost.
 pub fn fleet(o: &Options, diagnose: bool) -> Result<(HashMap<String, Row>, FleetCost), Error> {
-    let reports = o.out.join("reports").join(if diagnose { "diagnose" } else { "plain" });
+    let reports = o
+        .out
+        .join("reports")
+        .join(if diagnose { "diagnose" } else { "plain" });
     let args = fleet_args(&o.out.join("cases"), &reports, o.jobs, diagnose);
     let cpu0 = children_cpu_s();
     let start = Instant::now();
@@ -170,8 +180,19 @@ pub fn fleet(o: &Options, diagnose: bool) -> Result<(HashMap<String, Row>, Fleet
             ),
         )
     })?;
+    let rows = summary_rows(&summary);
+    Ok((rows, FleetCost { wall_s, cpu_s }))
+}
+
+/// The rows of a fleet summary (`time-summary.json`) by file stem.
+pub fn summary_rows(summary: &Value) -> HashMap<String, Row> {
     let mut rows = HashMap::new();
-    for r in summary.get("rows").and_then(Value::as_array).into_iter().flatten() {
+    for r in summary
+        .get("rows")
+        .and_then(Value::as_array)
+        .into_iter()
+        .flatten()
+    {
         let Some(file) = r.get("file").and_then(Value::as_str) else {
             continue;
         };
@@ -188,11 +209,15 @@ pub fn fleet(o: &Options, diagnose: bool) -> Result<(HashMap<String, Row>, Fleet
             },
         );
     }
-    Ok((rows, FleetCost { wall_s, cpu_s }))
+    rows
 }
 
 fn read_report(o: &Options, path: score::Path, name: &str) -> Option<Value> {
-    let file = o.out.join("reports").join(path.name()).join(format!("{name}.time.json"));
+    let file = o
+        .out
+        .join("reports")
+        .join(path.name())
+        .join(format!("{name}.time.json"));
     let text = std::fs::read_to_string(file).ok()?;
     serde_json::from_str(&text).ok()
 }
@@ -209,7 +234,14 @@ pub fn score_all(
         let y_clean = write::read_column(&write::clean_path(&o.out.join("truth"), &t.name), 1)?;
         for (p, path) in score::Path::BOTH.into_iter().enumerate() {
             let report = read_report(o, path, &t.name);
-            outcomes.push(score::score(t, &y, &y_clean, path, rows[p].get(&t.name), report.as_ref()));
+            outcomes.push(score::score(
+                t,
+                &y,
+                &y_clean,
+                path,
+                rows[p].get(&t.name),
+                report.as_ref(),
+            ));
         }
     }
     Ok(outcomes)
@@ -236,8 +268,64 @@ pub fn run(o: &Options) -> Result<Results, Error> {
         fracid_command: format!(
             "{} {}",
             o.fracid.display(),
-            fleet_args(&o.out.join("cases"), &o.out.join("reports/plain"), o.jobs, false).join(" ")
+            fleet_args(
+                &o.out.join("cases"),
+                &o.out.join("reports/plain"),
+                o.jobs,
+                false
+            )
+            .join(" ")
         ),
+    };
+    write_results(&o.out, &results)?;
+    Ok(results)
+}
+
+/// Scores an earlier run again (its cases, truth, reports and fleet summaries as they are on disk):
+/// for a change of the scoreboard alone.
+pub fn rescore(o: &Options) -> Result<Results, Error> {
+    let mut truths = Vec::new();
+    let truth_dir = o.out.join("truth");
+    let entries = std::fs::read_dir(&truth_dir).map_err(io(&truth_dir))?;
+    for entry in entries {
+        let path = entry.map_err(io(&truth_dir))?.path();
+        if path.to_string_lossy().ends_with(".truth.json") {
+            truths.push(write::read_truth(&path)?);
+        }
+    }
+    truths.sort_by_key(|t| t.index);
+    let rows = |p: score::Path| -> Result<HashMap<String, Row>, Error> {
+        let file = o
+            .out
+            .join("reports")
+            .join(p.name())
+            .join("time-summary.json");
+        let text = std::fs::read_to_string(&file).map_err(io(&file))?;
+        let v: Value = serde_json::from_str(&text)
+            .map_err(|e| Error::Io(file.display().to_string(), e.into()))?;
+        Ok(summary_rows(&v))
+    };
+    let outcomes = score_all(
+        o,
+        &truths,
+        &[rows(score::Path::Plain)?, rows(score::Path::Diagnose)?],
+    )?;
+    let earlier: Option<Results> = std::fs::read_to_string(o.out.join("table.json"))
+        .ok()
+        .and_then(|t| serde_json::from_str(&t).ok());
+    let results = Results {
+        table: table::by_class(&outcomes),
+        outcomes,
+        generate_s: earlier.as_ref().map_or(0.0, |r| r.generate_s),
+        plain: earlier
+            .as_ref()
+            .map(|r| r.plain.clone())
+            .unwrap_or_default(),
+        diagnose: earlier
+            .as_ref()
+            .map(|r| r.diagnose.clone())
+            .unwrap_or_default(),
+        fracid_command: earlier.map(|r| r.fracid_command).unwrap_or_default(),
     };
     write_results(&o.out, &results)?;
     Ok(results)
@@ -252,7 +340,8 @@ pub fn write_results(out: &Path, r: &Results) -> Result<(), Error> {
     put("table.md", table::markdown(&r.table))?;
     put("table.csv", table::csv(&r.table))?;
     put("cases.csv", table::cases_csv(&r.outcomes))?;
-    let json = serde_json::to_string_pretty(r).map_err(|e| Error::Io(out.display().to_string(), e.into()))?;
+    let json = serde_json::to_string_pretty(r)
+        .map_err(|e| Error::Io(out.display().to_string(), e.into()))?;
     put("table.json", json)
 }
 

@@ -24,7 +24,11 @@ fn fracid_bin() -> PathBuf {
     }
     let dir = profile_dir();
     let bin = dir.join(format!("fracid{}", std::env::consts::EXE_SUFFIX));
-    let profile = dir.file_name().and_then(|s| s.to_str()).unwrap_or("debug").to_string();
+    let profile = dir
+        .file_name()
+        .and_then(|s| s.to_str())
+        .unwrap_or("debug")
+        .to_string();
     let target = dir.parent().expect("target dir").to_path_buf();
     // Build it (or confirm it is fresh) with the cargo that runs this test.
     let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
@@ -33,7 +37,14 @@ fn fracid_bin() -> PathBuf {
         .env("CARGO_TARGET_DIR", &target)
         .current_dir(env!("CARGO_MANIFEST_DIR"));
     if profile != "debug" {
-        cmd.args(["--profile", if profile == "release" { "release" } else { &profile }]);
+        cmd.args([
+            "--profile",
+            if profile == "release" {
+                "release"
+            } else {
+                &profile
+            },
+        ]);
     }
     let built = cmd.status().map(|s| s.success()).unwrap_or(false);
     assert!(
@@ -70,8 +81,17 @@ fn ci_subset_stays_above_its_floors() {
     );
     assert_eq!(r.outcomes.len(), 2 * zoo::ci::CASES);
     // Every case got a row from both fleets (the fleet path ran on every file).
-    let missing: Vec<_> = r.outcomes.iter().filter(|o| o.exit_code.is_none()).map(|o| &o.name).collect();
+    let missing: Vec<_> = r
+        .outcomes
+        .iter()
+        .filter(|o| o.exit_code.is_none())
+        .map(|o| &o.name)
+        .collect();
     assert!(missing.is_empty(), "no summary row for {missing:?}");
     let below = zoo::ci::below_floors(&r.table);
-    assert!(below.is_empty(), "classes below their floors:\n{}\n{table}", below.join("\n"));
+    assert!(
+        below.is_empty(),
+        "classes below their floors:\n{}\n{table}",
+        below.join("\n")
+    );
 }

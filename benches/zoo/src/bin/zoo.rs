@@ -15,7 +15,9 @@ use zoo::cases::Sizing;
 use zoo::run::{self, Options};
 
 #[derive(Parser)]
-#[command(about = "The benchmark zoo: generated drives with an independent truth, and the scoreboard")]
+#[command(
+    about = "The benchmark zoo: generated drives with an independent truth, and the scoreboard"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Cmd,
@@ -50,6 +52,11 @@ enum Cmd {
         #[arg(long)]
         fracid: Option<PathBuf>,
     },
+    /// Score an earlier run again (OUT as `run` left it) and write the table
+    Score {
+        #[command(flatten)]
+        common: Common,
+    },
     /// Generate the cases only (OUT/cases/*.csv, OUT/truth/*)
     Generate {
         #[command(flatten)]
@@ -68,7 +75,12 @@ fn options(c: &Common, fracid: Option<PathBuf>) -> Result<Options, String> {
     };
     let fracid = match fracid.or_else(run::default_fracid) {
         Some(p) => p,
-        None => return Err("no fracid binary: build it (cargo build --release -p fracid) or give --fracid".into()),
+        None => {
+            return Err(
+                "no fracid binary: build it (cargo build --release -p fracid) or give --fracid"
+                    .into(),
+            )
+        }
     };
     Ok(Options {
         seed,
@@ -101,6 +113,11 @@ fn main() -> ExitCode {
                     eprintln!("below floor: {line}");
                 }
             }
+            Ok(())
+        }),
+        Cmd::Score { common } => options(common, Some(PathBuf::from("fracid"))).and_then(|o| {
+            let r = run::rescore(&o).map_err(|e| e.to_string())?;
+            print!("{}", zoo::score::table::markdown(&r.table));
             Ok(())
         }),
         Cmd::Generate { common } => {

@@ -97,7 +97,11 @@ fn prbs(n: usize, shape: &Shape, rng: &mut StdRng) -> Vec<f64> {
     let mut level = shape.high;
     while out.len() < n {
         if rng.gen_bool(0.5) {
-            level = if level == shape.high { shape.low } else { shape.high };
+            level = if level == shape.high {
+                shape.low
+            } else {
+                shape.high
+            };
         }
         out.extend(std::iter::repeat_n(level, clock.min(n - out.len())));
     }
@@ -130,7 +134,11 @@ fn segments(n: usize, levels: &[f64], first: Option<usize>) -> Vec<f64> {
     out.extend(std::iter::repeat_n(levels[0], head));
     let each = (n - head) / rest.len();
     for (i, level) in rest.iter().enumerate() {
-        let len = if i + 1 == rest.len() { n - out.len() } else { each };
+        let len = if i + 1 == rest.len() {
+            n - out.len()
+        } else {
+            each
+        };
         out.extend(std::iter::repeat_n(*level, len));
     }
     out
@@ -212,7 +220,10 @@ mod tests {
             for n in [300, 1001, 5000] {
                 let u = make(kind, n, &shape, &mut rng);
                 assert_eq!(u.len(), n, "{kind:?}");
-                assert!(u.iter().all(|v| (-2.0 - 1e-9..=3.0 + 1e-9).contains(v)), "{kind:?}");
+                assert!(
+                    u.iter().all(|v| (-2.0 - 1e-9..=3.0 + 1e-9).contains(v)),
+                    "{kind:?}"
+                );
                 let distinct = u.iter().any(|v| (v - u[0]).abs() > 1e-9);
                 assert!(distinct, "{kind:?} is constant");
             }

@@ -147,11 +147,7 @@ const RICH: &[Excitation] = &[
     Excitation::Chirp,
     Excitation::Multisine,
 ];
-const DRIVES: &[PlantKind] = &[
-    PlantKind::Pmsm,
-    PlantKind::Integer1,
-    PlantKind::Integer2,
-];
+const DRIVES: &[PlantKind] = &[PlantKind::Pmsm, PlantKind::Integer1, PlantKind::Integer2];
 
 impl Class {
     /// The name in files and tables.
@@ -162,7 +158,10 @@ impl Class {
 
     /// The class of a name.
     pub fn from_name(name: &str) -> Option<Class> {
-        NAMES.iter().position(|n| *n == name).map(|i| ALL_CLASSES[i])
+        NAMES
+            .iter()
+            .position(|n| *n == name)
+            .map(|i| ALL_CLASSES[i])
     }
 
     /// The plant families a case of this class is drawn from.
@@ -196,10 +195,18 @@ impl Class {
             ],
             Class::TwoMassMotor | Class::TwoMassLoad | Class::MultiMode => RICH,
             Class::FrictionReversal | Class::AbsSensor | Class::InMotion => RICH,
-            Class::FrictionOneWay => &[Excitation::Prbs, Excitation::MultiLevel, Excitation::Multisine],
+            Class::FrictionOneWay => &[
+                Excitation::Prbs,
+                Excitation::MultiLevel,
+                Excitation::Multisine,
+            ],
             Class::Deadband | Class::Saturation => MULTI,
             Class::StaticMapTwoLevel => &[Excitation::Prbs],
-            Class::PowerLaw => &[Excitation::MultiLevel, Excitation::Staircase, Excitation::StepsUpDown],
+            Class::PowerLaw => &[
+                Excitation::MultiLevel,
+                Excitation::Staircase,
+                Excitation::StepsUpDown,
+            ],
             Class::ClosedLoop => &[Excitation::ClosedLoop],
             _ => OPEN,
         }
@@ -390,8 +397,9 @@ fn input_range(class: Class, rng: &mut StdRng) -> (f64, f64) {
 /// The sample time and length for a plant.
 fn timing(d: &plants::Drawn, sizing: Sizing, rng: &mut StdRng) -> (f64, usize) {
     let dt = (d.fast_s / log_uniform(rng, 2.0, 8.0)).clamp(1e-4, 2.0);
-    let record_s = d.slow_s * log_uniform(rng, 15.0, 60.0);
-    let mut n = ((record_s / dt) as usize).clamp(300, sizing.max_samples.max(300));
+    let record_s = d.slow_s * log_uniform(rng, 20.0, 100.0);
+    let least = log_uniform(rng, 300.0, 3000.0);
+    let mut n = ((record_s / dt).max(least) as usize).clamp(300, sizing.max_samples.max(300));
     if sizing.long_fraction > 0.0 && rng.gen_bool(sizing.long_fraction) {
         n = log_uniform(rng, 2e4, 1e5) as usize;
     }
@@ -443,7 +451,10 @@ fn draw(
     let reference: Vec<f64>;
     let drive = match pi {
         Some(p) => {
-            reference = input.iter().map(|r| r * drawn.dc_gain.unwrap_or(1.0)).collect();
+            reference = input
+                .iter()
+                .map(|r| r * drawn.dc_gain.unwrap_or(1.0))
+                .collect();
             Drive::SpeedLoop {
                 reference: &reference,
                 kp: p.kp,
@@ -455,25 +466,78 @@ fn draw(
     };
     // The plant's own output first (the output effects sized on its swing), then the record.
     let plant_only = truth::simulate(&plant, &effects, &drive, dt)?;
-    if let Err(why) = usable(&plant_only.y[lead_in..], drawn.dc_gain, high.abs().max(low.abs())) {
+    if let Err(why) = usable(
+        &plant_only.y[lead_in..],
+        drawn.dc_gain,
+        high.abs().max(low.abs()),
+    ) {
         return Ok(Err(why));
     }
     let y_plant = plant_only.y[lead_in..].to_vec();
     let plant_swing = swing(&y_plant);
-    output_effects(class, pending, &mut effects, plant_swing, n as f64 * dt, dt, rng);
+    output_effects(
+        class,
+        pending,
+        &mut effects,
+        plant_swing,
+        n as f64 * dt,
+        dt,
+        rng,
+    );
     let record = if effects_on_output(&effects) {
         truth::simulate(&plant, &effects, &drive, dt)?
     } else {
         plant_only
     };
-    let u = record.u[lead_in..].to_vec();
-    let y_clean = record.y[lead_in..].to_vec();
+    let head = Head {
+        seed,
+        index,
+        class,
+        plant_kind,
+        about: drawn.about,
+        plant,
+        excitation,
+        pi,
+        dt,
+        lead_in,
+        dc_gain: drawn.dc_gain,
+    };
+    Ok(finish(head, effects, record, y_plant, rng))
+}
+
+/// What a draw settled before the noise.
+struct Head {
+    seed: u64,
+    index: usize,
+    class: Class,
+    plant_kind: PlantKind,
+    about: String,
+    plant: Plant,
+    excitation: Excitation,
+    pi: Option<PiLoop>,
+    dt: f64,
+    lead_in: usize,
+    dc_gain: Option<f64>,
+}
+
+/// Drops the lead-in, adds the noise (and the quantiser), finds the band and judges the case.
+fn finish(
+    h: Head,
+    effects: Effects,
+    record: truth::Record,
+    y_plant: Vec<f64>,
+    rng: &mut StdRng,
+) -> Result<Case, String> {
+    let u = record.u[h.lead_in..].to_vec();
+    let y_clean = record.y[h.lead_in..].to_vec();
+    let n = u.len();
     let out_swing = swing(&y_clean);
     if !(out_swing > 0.0) || y_clean.iter().any(|v| !v.is_finite()) {
-        return Ok(Err("the record's output is flat or not finite".into()));
+        return Err("the record's output is flat or not finite".into());
     }
     let noise_fraction = log_uniform(rng, 1e-3, 0.1);
-    let quantisation_step = (class == Class::Quantisation).then(|| out_swing / log_uniform(rng, 20.0, 300.0));
+    let quantisation_step =
+        (h.class == Class::Quantisation).then(|| out_swing / log_uniform(rng, 20.0, 300.0));
     let y = noisy(&y_clean, noise_fraction * out_swing, quantisation_step, rng);
     let noise: Vec<f64> = y.iter().zip(&y_clean).map(|(a, b)| a - b).collect();
     let noise_rms = (noise.iter().map(|e| e * e).sum::<f64>() / n as f64).sqrt();
@@ -481,45 +545,45 @@ fn draw(
         Some(p) => u.iter().map(|x| x.signum() * x.abs().powf(p)).collect(),
         None => u.clone(),
     };
-    let band_omega = band::excited(&plant, &band_input, &noise, dt);
+    let band_omega = band::excited(&h.plant, &band_input, &noise, h.dt);
     let verdict = rules::judge(&rules::Facts {
         effects: &effects,
-        delay_s: plant.delay_s,
-        dt,
-        dc_gain: drawn.dc_gain,
+        delay_s: h.plant.delay_s,
+        dt: h.dt,
+        dc_gain: h.dc_gain,
         u: &u,
         y_plant: &y_plant,
         noise_rms,
         band: &band_omega,
     });
     let truth = Truth {
-        name: format!("{index:04}_{}", class.name()),
-        seed,
-        index,
-        class,
-        plant_kind,
-        about: drawn.about.clone(),
-        plant,
+        name: format!("{:04}_{}", h.index, h.class.name()),
+        seed: h.seed,
+        index: h.index,
+        class: h.class,
+        plant_kind: h.plant_kind,
+        about: h.about,
+        plant: h.plant,
         effects,
-        excitation,
-        pi,
-        dt,
+        excitation: h.excitation,
+        pi: h.pi,
+        dt: h.dt,
         samples: n,
-        lead_in_samples: lead_in,
+        lead_in_samples: h.lead_in,
         swing: out_swing,
         noise_fraction,
         noise_rms,
         quantisation_step,
         band_omega,
-        dc_gain: drawn.dc_gain,
+        dc_gain: h.dc_gain,
         verdict,
     };
-    Ok(Ok(Case {
+    Ok(Case {
         truth,
         u,
         y,
         y_clean,
-    }))
+    })
 }
 
 fn swing(y: &[f64]) -> f64 {
@@ -563,7 +627,10 @@ fn input_effects(class: Class, shape: &Shape, rng: &mut StdRng) -> (Effects, Pen
         1 => e.deadband = Some(a * rng.gen_range(0.1..=0.3)),
         2 => e.saturation = Some(a * rng.gen_range(0.5..=0.85)),
         3 => e.power_law = Some(rng.gen_range(1.5..=2.5)),
-        4 => e.input_offset = a * rng.gen_range(0.05..=0.3) * if rng.gen_bool(0.5) { 1.0 } else { -1.0 },
+        4 => {
+            e.input_offset =
+                a * rng.gen_range(0.05..=0.3) * if rng.gen_bool(0.5) { 1.0 } else { -1.0 }
+        }
         _ => {}
     };
     match class {
@@ -614,10 +681,12 @@ fn output_effects(
         Class::Periodic => e.periodic = periodic(rng),
         Class::AbsSensor => e.abs_sensor = true,
         Class::Offsets => {
-            e.output_offset = swing * rng.gen_range(0.1..=1.0) * if rng.gen_bool(0.5) { 1.0 } else { -1.0 }
+            e.output_offset =
+                swing * rng.gen_range(0.1..=1.0) * if rng.gen_bool(0.5) { 1.0 } else { -1.0 }
         }
         Class::Drift => {
-            e.drift_per_s = swing * rng.gen_range(0.05..=0.3) / record_s * if rng.gen_bool(0.5) { 1.0 } else { -1.0 }
+            e.drift_per_s = swing * rng.gen_range(0.05..=0.3) / record_s
+                * if rng.gen_bool(0.5) { 1.0 } else { -1.0 }
         }
         _ => {}
     }
@@ -643,4 +712,92 @@ fn noisy(y: &[f64], sigma: f64, step: Option<f64>, rng: &mut StdRng) -> Vec<f64>
             }
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const SMALL: Sizing = Sizing {
+        max_samples: 1500,
+        long_fraction: 0.0,
+    };
+
+    #[test]
+    fn a_seed_gives_the_same_cases_and_another_seed_others() {
+        for index in [0, 12, 24, 47] {
+            let a = generate(7, index, SMALL).unwrap();
+            let b = generate(7, index, SMALL).unwrap();
+            assert_eq!(a.truth, b.truth);
+            assert_eq!((&a.u, &a.y, &a.y_clean), (&b.u, &b.y, &b.y_clean));
+            let c = generate(8, index, SMALL).unwrap();
+            assert_ne!(a.y, c.y, "case {index}: seeds 7 and 8 drew the same record");
+        }
+    }
+
+    #[test]
+    fn every_class_is_present_in_range_and_judged() {
+        let zoo = generate_zoo(3, ALL_CLASSES.len(), SMALL).unwrap();
+        for (case, class) in zoo.iter().zip(ALL_CLASSES) {
+            let t = &case.truth;
+            assert_eq!(t.class, class);
+            assert_eq!(Class::from_name(class.name()), Some(class));
+            assert!(t.name.ends_with(class.name()));
+            assert!((1e-4..=2.0).contains(&t.dt), "{}: dt {}", t.name, t.dt);
+            assert!((300..=SMALL.max_samples).contains(&t.samples), "{}", t.name);
+            assert_eq!(
+                (case.u.len(), case.y.len(), case.y_clean.len()),
+                (t.samples, t.samples, t.samples)
+            );
+            assert!(
+                class.plants().contains(&t.plant_kind)
+                    && class.excitations().contains(&t.excitation)
+            );
+            assert!(t.noise_fraction >= 1e-3 && t.noise_fraction <= 0.1);
+            let rms = (case
+                .y
+                .iter()
+                .zip(&case.y_clean)
+                .map(|(a, b)| (a - b).powi(2))
+                .sum::<f64>()
+                / t.samples as f64)
+                .sqrt();
+            assert!(
+                (rms - t.noise_rms).abs() <= 1e-9 * (1.0 + rms),
+                "{}",
+                t.name
+            );
+        }
+        let by = |c: Class| &zoo[ALL_CLASSES.iter().position(|x| *x == c).unwrap()].truth;
+        // The classes built not to be identifiable are not, and name their confounded effect.
+        assert!(!by(Class::FrictionOneWay).verdict.identifiable);
+        assert_eq!(
+            by(Class::FrictionOneWay).verdict.confounded_effects,
+            ["coulomb_friction"]
+        );
+        assert!(!by(Class::StaticMapTwoLevel).verdict.identifiable);
+        assert!(
+            by(Class::Pmsm).verdict.identifiable
+                && by(Class::Pmsm).verdict.expected_effects.is_empty()
+        );
+        assert_eq!(by(Class::Delay).plant.delay_s > 0.0, true);
+        let motion = by(Class::InMotion);
+        assert!(motion.lead_in_samples > 0);
+        assert!(by(Class::Quantisation).quantisation_step.is_some());
+    }
+
+    #[test]
+    fn a_record_in_motion_does_not_start_at_rest() {
+        let index = ALL_CLASSES
+            .iter()
+            .position(|c| *c == Class::InMotion)
+            .unwrap();
+        let case = generate(11, index, SMALL).unwrap();
+        // From rest the first noise-free output would be 0 (no offset in this class).
+        assert!(
+            case.y_clean[0].abs() > 1e-3 * case.truth.swing,
+            "{}",
+            case.y_clean[0]
+        );
+    }
 }

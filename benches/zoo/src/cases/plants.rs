@@ -152,7 +152,9 @@ fn pmsm(rng: &mut StdRng) -> Drawn {
         fast_s: tau2,
         slow_s: tau1,
         dc_gain: Some(k),
-        about: format!("pmsm: order {total:.3} (zeta {zeta:.3}), corners {tau1:.3e} s and {tau2:.3e} s"),
+        about: format!(
+            "pmsm: order {total:.3} (zeta {zeta:.3}), corners {tau1:.3e} s and {tau2:.3e} s"
+        ),
     }
 }
 
@@ -349,7 +351,10 @@ mod tests {
         let p = poly_mul(&first(1.0), &first(1.0));
         assert_eq!(p, vec![term(1.0, 2.0), term(2.0, 1.0), term(1.0, 0.0)]);
         // (s^0.5 + 1) + (-1) = s^0.5
-        assert_eq!(poly_add(&[term(1.0, 0.5), term(1.0, 0.0)], &[term(-1.0, 0.0)]), vec![term(1.0, 0.5)]);
+        assert_eq!(
+            poly_add(&[term(1.0, 0.5), term(1.0, 0.0)], &[term(-1.0, 0.0)]),
+            vec![term(1.0, 0.5)]
+        );
     }
 
     #[test]
@@ -359,7 +364,10 @@ mod tests {
             for _ in 0..20 {
                 let d = draw(kind, &mut rng);
                 let top = |p: &[Term]| p.iter().map(|t| t.order).fold(f64::MIN, f64::max);
-                assert!(top(&d.plant.num) <= top(&d.plant.den) + 1e-12, "{kind:?} improper");
+                assert!(
+                    top(&d.plant.num) <= top(&d.plant.den) + 1e-12,
+                    "{kind:?} improper"
+                );
                 assert!(d.fast_s > 0.0 && d.fast_s <= d.slow_s, "{kind:?} {d:?}");
                 if kind == PlantKind::Pmsm {
                     let total = top(&d.plant.den);

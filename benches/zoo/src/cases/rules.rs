@@ -109,67 +109,127 @@ pub fn judge(f: &Facts<'_>) -> Verdict {
         ));
     }
     if f.delay_s >= f.dt {
-        expect(&mut v, "delay", format!("a delay of {:.2} samples", f.delay_s / f.dt));
+        expect(
+            &mut v,
+            "delay",
+            format!("a delay of {:.2} samples", f.delay_s / f.dt),
+        );
     } else if f.delay_s > 0.0 {
-        tolerate(&mut v, "delay", format!("a delay of {:.2} samples (below one: not told from the phase)", f.delay_s / f.dt));
+        tolerate(
+            &mut v,
+            "delay",
+            format!(
+                "a delay of {:.2} samples (below one: not told from the phase)",
+                f.delay_s / f.dt
+            ),
+        );
     }
     if e.coulomb.is_some() {
         if speed_reverses {
-            expect(&mut v, "coulomb_friction", "Coulomb friction with speed reversals".into());
+            expect(
+                &mut v,
+                "coulomb_friction",
+                "Coulomb friction with speed reversals".into(),
+            );
         } else {
-            confound(&mut v, "coulomb_friction", "Coulomb friction without a speed reversal is a constant input offset".into());
+            confound(
+                &mut v,
+                "coulomb_friction",
+                "Coulomb friction without a speed reversal is a constant input offset".into(),
+            );
             tolerate(&mut v, "input_offset", String::new());
         }
     }
     let two_levels = "the input has two levels: a static map is then a gain and an offset";
     if e.deadband.is_some() {
         if input_levels >= 3 {
-            expect(&mut v, "deadzone", "a dead band under a multi-level input".into());
+            expect(
+                &mut v,
+                "deadzone",
+                "a dead band under a multi-level input".into(),
+            );
         } else {
             confound(&mut v, "deadzone", format!("a dead band: {two_levels}"));
         }
     }
     if let Some(level) = e.saturation {
-        let beyond = f.u.iter().filter(|x| (*x + e.input_offset).abs() > level).count();
+        let beyond =
+            f.u.iter()
+                .filter(|x| (*x + e.input_offset).abs() > level)
+                .count();
         if (beyond as f64) < 0.02 * f.u.len() as f64 {
-            v.reasons.push("a saturation the input never reaches: inert".into());
+            v.reasons
+                .push("a saturation the input never reaches: inert".into());
         } else if input_levels >= 3 {
-            expect(&mut v, "saturation", "a saturation reached by a multi-level input".into());
+            expect(
+                &mut v,
+                "saturation",
+                "a saturation reached by a multi-level input".into(),
+            );
         } else {
             confound(&mut v, "saturation", format!("a saturation: {two_levels}"));
         }
     }
     if e.power_law.is_some() {
         if input_levels >= 3 {
-            expect(&mut v, "power_law", "a static power map under a multi-level input".into());
+            expect(
+                &mut v,
+                "power_law",
+                "a static power map under a multi-level input".into(),
+            );
         } else {
-            confound(&mut v, "power_law", format!("a static power map: {two_levels}"));
+            confound(
+                &mut v,
+                "power_law",
+                format!("a static power map: {two_levels}"),
+            );
         }
     }
     if e.input_offset != 0.0 {
         if f.dc_gain.is_none() {
-            expect(&mut v, "input_offset", "an input offset through an integrator (a drift)".into());
+            expect(
+                &mut v,
+                "input_offset",
+                "an input offset through an integrator (a drift)".into(),
+            );
         } else {
-            tolerate(&mut v, "input_offset", "an input offset through a finite static gain is an output offset".into());
+            tolerate(
+                &mut v,
+                "input_offset",
+                "an input offset through a finite static gain is an output offset".into(),
+            );
         }
     }
     if e.abs_sensor {
         if speed_reverses {
-            expect(&mut v, "abs_sensor", "a sign-blind sensor on an output that reverses".into());
+            expect(
+                &mut v,
+                "abs_sensor",
+                "a sign-blind sensor on an output that reverses".into(),
+            );
         } else {
-            v.reasons.push("a sign-blind sensor on an output that keeps one sign: inert".into());
+            v.reasons
+                .push("a sign-blind sensor on an output that keeps one sign: inert".into());
         }
     }
     if let Some((amplitude, freq_hz)) = e.periodic {
         let periods = freq_hz * f.u.len() as f64 * f.dt;
         if periods >= 3.0 && freq_hz < 0.4 / f.dt && amplitude >= 2.0 * f.noise_rms {
-            expect(&mut v, "periodic", format!("a periodic disturbance at {freq_hz:.3e} Hz, {periods:.0} periods"));
+            expect(
+                &mut v,
+                "periodic",
+                format!("a periodic disturbance at {freq_hz:.3e} Hz, {periods:.0} periods"),
+            );
         } else {
             tolerate(&mut v, "periodic", format!("a periodic disturbance at {freq_hz:.3e} Hz too weak or too few periods to require"));
         }
     }
     if e.drift_per_s != 0.0 {
-        tolerate(&mut v, "input_offset", "a slow drift: no effect name, scored by the held-out error".into());
+        tolerate(
+            &mut v,
+            "input_offset",
+            "a slow drift: no effect name, scored by the held-out error".into(),
+        );
     }
     v
 }
@@ -191,7 +251,9 @@ fn tolerate(v: &mut Verdict, name: &str, why: String) {
 fn confound(v: &mut Verdict, name: &str, why: String) {
     v.identifiable = false;
     v.confounded_effects.push(name.into());
-    v.reasons.push(format!("{why}: {name} cannot be identified from this record"));
+    v.reasons.push(format!(
+        "{why}: {name} cannot be identified from this record"
+    ));
 }
 
 #[cfg(test)]
@@ -218,7 +280,9 @@ mod tests {
             coulomb: Some(0.1),
             ..Effects::default()
         };
-        let u: Vec<f64> = (0..100).map(|k| if k % 20 < 10 { 1.0 } else { -1.0 }).collect();
+        let u: Vec<f64> = (0..100)
+            .map(|k| if k % 20 < 10 { 1.0 } else { -1.0 })
+            .collect();
         let both: Vec<f64> = u.iter().map(|x| 3.0 * x).collect();
         let v = judge(&facts(&friction, &u, &both, &band));
         assert!(v.identifiable);

@@ -62,7 +62,10 @@ pub fn read_column(path: &Path, col: usize) -> Result<Vec<f64>, Error> {
     let bad = |line: usize| {
         Error::Io(
             path.display().to_string(),
-            std::io::Error::new(std::io::ErrorKind::InvalidData, format!("line {line}: no number in column {col}")),
+            std::io::Error::new(
+                std::io::ErrorKind::InvalidData,
+                format!("line {line}: no number in column {col}"),
+            ),
         )
     };
     text.lines()

@@ -65,7 +65,10 @@ fn poly_at(p: &[Term], omega: f64) -> Complex64 {
     p.iter()
         .map(|t| {
             // (j w)^q = w^q e^(j q pi/2)
-            Complex64::from_polar(t.coef * omega.powf(t.order), t.order * std::f64::consts::FRAC_PI_2)
+            Complex64::from_polar(
+                t.coef * omega.powf(t.order),
+                t.order * std::f64::consts::FRAC_PI_2,
+            )
         })
         .sum()
 }
@@ -103,7 +106,12 @@ impl Fitted {
 
 /// The FRF error of `fitted` against `truth` over `band` [rad/s] (None for an empty band or a
 /// response that is not finite); `sign_blind`: the better of `+-G_fit`.
-pub fn frf_error(truth: &crate::truth::Plant, fitted: &Fitted, band: &[f64], sign_blind: bool) -> Option<f64> {
+pub fn frf_error(
+    truth: &crate::truth::Plant,
+    fitted: &Fitted,
+    band: &[f64],
+    sign_blind: bool,
+) -> Option<f64> {
     if band.is_empty() {
         return None;
     }
@@ -117,7 +125,11 @@ pub fn frf_error(truth: &crate::truth::Plant, fitted: &Fitted, band: &[f64], sig
             .sum();
         (sum / band.len() as f64).sqrt()
     };
-    let e = if sign_blind { rms(1.0).min(rms(-1.0)) } else { rms(1.0) };
+    let e = if sign_blind {
+        rms(1.0).min(rms(-1.0))
+    } else {
+        rms(1.0)
+    };
     e.is_finite().then_some(e)
 }
 
@@ -196,7 +208,12 @@ fn names(v: Option<&Value>) -> Vec<String> {
 pub fn kept_effects(report: &Value) -> Vec<String> {
     let mut kept = names(report.pointer("/diagnosis/effects"));
     kept.extend(names(report.pointer("/model/effects")));
-    if report.pointer("/model/delay").and_then(Value::as_f64).unwrap_or(0.0) > 0.0 {
+    if report
+        .pointer("/model/delay")
+        .and_then(Value::as_f64)
+        .unwrap_or(0.0)
+        > 0.0
+    {
         kept.push("delay".into());
     }
     kept.retain(|k| k != "output_offset");
@@ -251,7 +268,9 @@ pub fn score(
     let frf = fitted
         .as_ref()
         .and_then(|f| frf_error(&truth.plant, f, &truth.band_omega, truth.effects.abs_sensor));
-    let heldout_rmse = report.and_then(|r| r.pointer("/fit/validation/rmse")).and_then(Value::as_f64);
+    let heldout_rmse = report
+        .and_then(|r| r.pointer("/fit/validation/rmse"))
+        .and_then(Value::as_f64);
     let first = report
         .and_then(|r| r.pointer("/validated_by/first"))
         .and_then(Value::as_u64);
@@ -266,8 +285,8 @@ pub fn score(
     let right = if v.identifiable {
         exit_code == Some(0) && frf.is_some_and(|e| e <= FRF_OK)
     } else {
-        let named = !named_ambiguous.is_empty()
-            && !v.confounded_effects.iter().any(|c| kept.contains(c));
+        let named =
+            !named_ambiguous.is_empty() && !v.confounded_effects.iter().any(|c| kept.contains(c));
         exit_code.is_some_and(|c| c != 0) || (exit_code == Some(0) && named)
     };
     Outcome {
@@ -289,5 +308,161 @@ pub fn score(
             .and_then(Value::as_str)
             .map(str::to_string),
         right,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cases::{generate, Sizing, ALL_CLASSES};
+    use serde_json::json;
+
+    fn report_of(f: &Fitted, effects: &[&str], ambiguous: &[&str]) -> Value {
+        let terms = |p: &[Term]| {
+            p.iter()
+                .map(|t| json!({"coef": t.coef, "order": t.order}))
+                .collect::<Vec<_>>()
+        };
+        json!({
+            "model": {"num": terms(&f.num), "den": terms(&f.den), "delay": f.delay, "effects": ["output_offset"], "text": "m"},
+            "diagnosis": {
+                "effects": effects.iter().map(|e| json!({"name": e})).collect::<Vec<_>>(),
+                "ambiguous": ambiguous.iter().map(|e| json!({"name": e, "confused_with": "x"})).collect::<Vec<_>>()
+            },
+            "fit": {"validation": {"rmse": 0.5}},
+            "validated_by": {"first": 10},
+            "split": {"validation_samples": 20}
+        })
+    }
+
+    fn case_of(class: crate::cases::Class) -> crate::cases::Case {
+        let i = ALL_CLASSES.iter().position(|c| *c == class).unwrap();
+        generate(21, i, Sizing::CI).unwrap()
+    }
+
+    fn as_fitted(p: &crate::truth::Plant) -> Fitted {
+        Fitted {
+            num: p.num.clone(),
+            den: p.den.clone(),
+            delay: p.delay_s,
+        }
+    }
+
+    #[test]
+    fn the_true_model_scores_zero_and_a_wrong_one_does_not() {
+        for class in [
+            crate::cases::Class::Pmsm,
+            crate::cases::Class::TwoMassMotor,
+            crate::cases::Class::Cell,
+        ] {
+            let case = case_of(class);
+            let t = &case.truth;
+            assert!(t.band_omega.len() >= 3, "{}", t.name);
+            let exact = as_fitted(&t.plant);
+            // The truth's response and this module's are written apart: they agree.
+            let e = frf_error(&t.plant, &exact, &t.band_omega, false).unwrap();
+            assert!(e < 1e-9, "{}: {e}", t.name);
+            let mut gain = exact.clone();
+            gain.num.iter_mut().for_each(|x| x.coef *= 1.3);
+            let e = frf_error(&t.plant, &gain, &t.band_omega, false).unwrap();
+            assert!((e - 0.3).abs() < 1e-9, "{}: {e}", t.name);
+            let mut late = exact.clone();
+            late.delay += 0.1 / t.band_omega.last().unwrap();
+            let e = frf_error(&t.plant, &late, &t.band_omega, false).unwrap();
+            assert!(e > 0.01 && e < 0.1, "{}: {e}", t.name);
+            // A sign-blind sensor cannot tell G from -G; otherwise -G is 200% wrong.
+            let mut neg = exact.clone();
+            neg.num.iter_mut().for_each(|x| x.coef = -x.coef);
+            assert!(frf_error(&t.plant, &neg, &t.band_omega, true).unwrap() < 1e-9);
+            assert!((frf_error(&t.plant, &neg, &t.band_omega, false).unwrap() - 2.0).abs() < 1e-9);
+        }
+    }
+
+    #[test]
+    fn effects_and_right_answers_are_scored() {
+        let case = case_of(crate::cases::Class::Delay);
+        let t = &case.truth;
+        assert_eq!(t.verdict.expected_effects, ["delay"]);
+        let fitted = as_fitted(&t.plant);
+        let ok = Row {
+            exit_code: 0,
+            seconds: Some(0.1),
+            error: None,
+        };
+        let r = report_of(&fitted, &["delay"], &[]);
+        let o = score(
+            t,
+            &case.y,
+            &case.y_clean,
+            Path::Diagnose,
+            Some(&ok),
+            Some(&r),
+        );
+        assert!(o.right && o.effects_exact(), "{o:?}");
+        assert_eq!(o.kept, ["delay"]);
+        let expect_oracle = (10..30)
+            .map(|k| (case.y[k] - case.y_clean[k]).powi(2))
+            .sum::<f64>()
+            / 20.0;
+        assert!((o.oracle_rmse.unwrap() - expect_oracle.sqrt()).abs() < 1e-12);
+        // No delay in the model: missed; friction kept: spurious.
+        let mut slow = fitted.clone();
+        slow.delay = 0.0;
+        let r = report_of(&slow, &["coulomb_friction"], &[]);
+        let o = score(
+            t,
+            &case.y,
+            &case.y_clean,
+            Path::Diagnose,
+            Some(&ok),
+            Some(&r),
+        );
+        assert_eq!(
+            (o.missed.as_slice(), o.spurious.as_slice()),
+            (
+                &["delay".to_string()][..],
+                &["coulomb_friction".to_string()][..]
+            )
+        );
+        // Exit 1 on an identifiable case is wrong, whatever the model.
+        let failed = Row {
+            exit_code: 1,
+            seconds: None,
+            error: Some("x".into()),
+        };
+        let r = report_of(&fitted, &["delay"], &[]);
+        assert!(
+            !score(
+                t,
+                &case.y,
+                &case.y_clean,
+                Path::Diagnose,
+                Some(&failed),
+                Some(&r)
+            )
+            .right
+        );
+
+        // Not identifiable: exit 1 is right, the ambiguity named is right, a guess kept is wrong.
+        let case = case_of(crate::cases::Class::FrictionOneWay);
+        let t = &case.truth;
+        assert!(!t.verdict.identifiable);
+        let fitted = as_fitted(&t.plant);
+        let s = |row: &Row, effects: &[&str], amb: &[&str]| {
+            let r = report_of(&fitted, effects, amb);
+            score(
+                t,
+                &case.y,
+                &case.y_clean,
+                Path::Diagnose,
+                Some(row),
+                Some(&r),
+            )
+            .right
+        };
+        assert!(s(&failed, &[], &[]));
+        assert!(s(&ok, &[], &["coulomb_friction"]));
+        assert!(!s(&ok, &[], &[]));
+        assert!(!s(&ok, &["coulomb_friction"], &["coulomb_friction"]));
     }
 }

@@ -17,9 +17,9 @@ pub struct PathStats {
     pub exit0: usize,
     /// Right answers (`score` module).
     pub right: usize,
-    /// Identifiable cases with an FRF error <= FRF_OK.
+    /// Identifiable cases that exit 0 with an FRF error <= FRF_OK.
     pub frf_ok: usize,
-    /// The median FRF error over the identifiable cases that have one.
+    /// The median FRF error over the identifiable cases that exit 0.
     pub frf_median: Option<f64>,
     /// Kept effects exactly the expected ones.
     pub effects_exact: usize,
@@ -77,13 +77,18 @@ pub fn median(mut v: Vec<f64>) -> Option<f64> {
     }
     v.sort_by(f64::total_cmp);
     let m = v.len() / 2;
-    Some(if v.len() % 2 == 1 { v[m] } else { 0.5 * (v[m - 1] + v[m]) })
+    Some(if v.len() % 2 == 1 {
+        v[m]
+    } else {
+        0.5 * (v[m - 1] + v[m])
+    })
 }
 
 fn stats(outcomes: &[&Outcome]) -> PathStats {
+    // The model a user gets: identifiable cases that exit 0.
     let frf: Vec<f64> = outcomes
         .iter()
-        .filter(|o| o.identifiable)
+        .filter(|o| o.identifiable && o.exit_code == Some(0))
         .filter_map(|o| o.frf_error)
         .collect();
     PathStats {
@@ -102,14 +107,19 @@ fn stats(outcomes: &[&Outcome]) -> PathStats {
 }
 
 fn row(label: &str, outcomes: &[Outcome], keep: impl Fn(&Outcome) -> bool) -> Option<ClassRow> {
-    let of = |p: Path| -> Vec<&Outcome> { outcomes.iter().filter(|o| o.path == p && keep(o)).collect() };
+    let of =
+        |p: Path| -> Vec<&Outcome> { outcomes.iter().filter(|o| o.path == p && keep(o)).collect() };
     let plain = of(Path::Plain);
     let diagnose = of(Path::Diagnose);
     let cases = plain.len().max(diagnose.len());
     if cases == 0 {
         return None;
     }
-    let base = if plain.len() >= diagnose.len() { &plain } else { &diagnose };
+    let base = if plain.len() >= diagnose.len() {
+        &plain
+    } else {
+        &diagnose
+    };
     Some(ClassRow {
         class: label.into(),
         cases,
