@@ -5,7 +5,7 @@
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
-use std::time::Instant;
+use std::time::{Instant, SystemTime};
 
 use zoo::run::{self, Options};
 
@@ -18,40 +18,74 @@ fn profile_dir() -> PathBuf {
         .to_path_buf()
 }
 
+/// The newest modification time of the sources the fracid binary is built from.
+fn newest_source(root: &Path) -> Option<SystemTime> {
+    fn walk(dir: &Path, newest: &mut Option<SystemTime>) {
+        let Ok(entries) = std::fs::read_dir(dir) else {
+            return;
+        };
+        for e in entries.flatten() {
+            let path = e.path();
+            if path.is_dir() {
+                walk(&path, newest);
+            } else if let Ok(m) = e.metadata().and_then(|m| m.modified()) {
+                *newest = (*newest).max(Some(m));
+            }
+        }
+    }
+    let mut newest = None;
+    for krate in ["fracid", "ident", "fracsim", "drive", "tune"] {
+        walk(&root.join("crates").join(krate).join("src"), &mut newest);
+        walk(
+            &root.join("crates").join(krate).join("Cargo.toml"),
+            &mut newest,
+        );
+    }
+    newest
+}
+
+/// `ZOO_FRACID`, else target/<profile>/fracid: a workspace `cargo test` has built it (the fracid
+/// crate's own integration tests need it); when it is missing or older than its sources (`cargo
+/// test -p zoo` alone), it is built here with the cargo that runs this test.
 fn fracid_bin() -> PathBuf {
     if let Some(p) = std::env::var_os("ZOO_FRACID") {
         return PathBuf::from(p);
     }
     let dir = profile_dir();
     let bin = dir.join(format!("fracid{}", std::env::consts::EXE_SUFFIX));
-    let profile = dir
-        .file_name()
-        .and_then(|s| s.to_str())
-        .unwrap_or("debug")
-        .to_string();
-    let target = dir.parent().expect("target dir").to_path_buf();
-    // Build it (or confirm it is fresh) with the cargo that runs this test.
-    let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
-    let mut cmd = Command::new(cargo);
-    cmd.args(["build", "--quiet", "-p", "fracid", "--bin", "fracid"])
-        .env("CARGO_TARGET_DIR", &target)
-        .current_dir(env!("CARGO_MANIFEST_DIR"));
-    if profile != "debug" {
-        cmd.args([
-            "--profile",
-            if profile == "release" {
-                "release"
-            } else {
-                &profile
-            },
-        ]);
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let built_at = std::fs::metadata(&bin).and_then(|m| m.modified()).ok();
+    let fresh = match (built_at, newest_source(&root)) {
+        (Some(b), Some(s)) => b >= s,
+        (Some(_), None) => true,
+        _ => false,
+    };
+    if !fresh {
+        let profile = dir
+            .file_name()
+            .and_then(|s| s.to_str())
+            .unwrap_or("debug")
+            .to_string();
+        let target = dir.parent().expect("target dir").to_path_buf();
+        let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
+        let mut cmd = Command::new(cargo);
+        cmd.args(["build", "-p", "fracid", "--bin", "fracid"])
+            .env("CARGO_TARGET_DIR", &target)
+            .current_dir(&root);
+        if profile != "debug" {
+            cmd.args(["--profile", &profile]);
+        }
+        eprintln!(
+            "building {} (missing or older than its sources)",
+            bin.display()
+        );
+        let ok = cmd.status().map(|s| s.success()).unwrap_or(false);
+        assert!(
+            ok && bin.exists(),
+            "{} could not be built: run `cargo build -p fracid` or set ZOO_FRACID",
+            bin.display()
+        );
     }
-    let built = cmd.status().map(|s| s.success()).unwrap_or(false);
-    assert!(
-        bin.exists(),
-        "{} not built (cargo build ok: {built}): run `cargo build -p fracid` or set ZOO_FRACID",
-        bin.display()
-    );
     bin
 }
 

@@ -85,3 +85,61 @@ pub fn excited(plant: &Plant, u: &[f64], noise: &[f64], dt: f64) -> Vec<f64> {
         .map(|b| std::f64::consts::TAU * b.log_f.exp())
         .collect()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::truth::Term;
+    use rand::rngs::StdRng;
+    use rand::{Rng, SeedableRng};
+
+    fn first_order() -> Plant {
+        Plant {
+            num: vec![Term {
+                coef: 5.0,
+                order: 0.0,
+            }],
+            den: vec![
+                Term {
+                    coef: 0.01,
+                    order: 1.0,
+                },
+                Term {
+                    coef: 1.0,
+                    order: 0.0,
+                },
+            ],
+            delay_s: 0.0,
+        }
+    }
+
+    #[test]
+    fn a_prbs_excites_around_the_corner_and_heavy_noise_hides_it() {
+        let mut rng = StdRng::seed_from_u64(1);
+        let n = 4000;
+        let mut u = Vec::with_capacity(n);
+        let mut level = 1.0;
+        while u.len() < n {
+            if rng.gen_bool(0.5) {
+                level = -level;
+            }
+            u.extend([level; 5]);
+        }
+        u.truncate(n);
+        let noise = |sigma: f64, rng: &mut StdRng| -> Vec<f64> {
+            (0..n)
+                .map(|_| sigma * rng.gen_range(-1.0_f64..1.0) * 3f64.sqrt())
+                .collect()
+        };
+        let dt = 1e-3;
+        let quiet = noise(0.05, &mut rng);
+        let band = excited(&first_order(), &u, &quiet, dt);
+        // The corner (100 rad/s) is inside, the band spans more than a decade.
+        assert!(band.len() >= 6, "{band:?}");
+        assert!(band[0] < 100.0 && *band.last().unwrap() > 100.0, "{band:?}");
+        assert!(band.iter().all(|w| *w <= std::f64::consts::TAU * 0.45 / dt));
+        // Noise far above the response everywhere: no band.
+        let loud = noise(1e3, &mut rng);
+        assert!(excited(&first_order(), &u, &loud, dt).is_empty());
+    }
+}

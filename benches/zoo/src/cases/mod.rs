@@ -466,11 +466,14 @@ fn draw(
     };
     // The plant's own output first (the output effects sized on its swing), then the record.
     let plant_only = truth::simulate(&plant, &effects, &drive, dt)?;
-    if let Err(why) = usable(
+    let checked = usable(
         &plant_only.y[lead_in..],
-        drawn.dc_gain,
-        high.abs().max(low.abs()),
-    ) {
+        &plant,
+        &plant_only.u,
+        effects.power_law,
+        dt,
+    );
+    if let Err(why) = checked {
         return Ok(Err(why));
     }
     let y_plant = plant_only.y[lead_in..].to_vec();
@@ -593,9 +596,10 @@ fn swing(y: &[f64]) -> f64 {
     hi - lo
 }
 
-/// A record is usable when finite, not flat and (with a static gain) not blown up (a closed loop
-/// that went unstable).
-fn usable(y: &[f64], dc_gain: Option<f64>, amplitude: f64) -> Result<(), String> {
+/// A record is usable when finite, not flat and not blown up: its swing at most 20 times the
+/// largest input times the largest |G(jw)| from 1/T to the Nyquist frequency (a closed loop that
+/// went unstable, or a simulation that diverged).
+fn usable(y: &[f64], plant: &Plant, u: &[f64], power: Option<f64>, dt: f64) -> Result<(), String> {
     if y.iter().any(|v| !v.is_finite()) {
         return Err("not finite".into());
     }
@@ -603,10 +607,22 @@ fn usable(y: &[f64], dc_gain: Option<f64>, amplitude: f64) -> Result<(), String>
     if !(s > 0.0) {
         return Err("flat output".into());
     }
-    if let Some(k) = dc_gain {
-        if s > 50.0 * k * amplitude {
-            return Err(format!("output swing {s:.3e} beyond 50 K A: unstable"));
-        }
+    let u_max = u.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+    let u_max = u_max.max(power.map_or(0.0, |p| u_max.powf(p)));
+    let (lo, hi) = (1.0 / (y.len() as f64 * dt), std::f64::consts::PI / dt);
+    let points = (10.0 * (hi / lo).log10()).ceil().max(1.0) as usize;
+    let g_max = (0..=points)
+        .map(|i| {
+            plant
+                .response(lo * (hi / lo).powf(i as f64 / points as f64))
+                .norm()
+        })
+        .fold(0.0_f64, f64::max);
+    if !(s <= 20.0 * g_max * u_max) {
+        return Err(format!(
+            "output swing {s:.3e} beyond 20 max|G| max|u| = {:.3e}: diverged",
+            20.0 * g_max * u_max
+        ));
     }
     Ok(())
 }
