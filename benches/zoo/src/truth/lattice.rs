@@ -2,19 +2,26 @@
 //! plants, Grunwald-Letnikov with Richardson extrapolation for fractional ones. Every simulation
 //! is built from these lattices, since a held input is a sum of steps at known instants.
 //!
-//! Fractional: the extrapolated response on the fine grid `h = dt / FINE_PER_SAMPLE`; a lattice
-//! time off that grid (a delay of fractional samples puts the whole lattice off it) is
+//! Fractional: the response extrapolated from three GL grids (`gl::extrapolated_grid`) on the
+//! fine grid `h`, the largest step with `h <= dt / 10` and, at every corner of the plant (where two
+//! consecutive terms `c_i s^o_i`, `c_j s^o_j` balance, `omega_c = |c_i / c_j|^{1/(o_j - o_i)}`),
+//! `h omega_c <= k(o_j - o_i)`: `k = 0.1` for an order step up to 1, falling to 0.0075 at 1.9
+//! (`0.1 * 10^{-1.25 (step - 1)}`, floor 0.005), from the measured error of `1 / (s^alpha + 1)`
+//! against Mittag-Leffler (third order in `h omega_c`, the constant largest as alpha nears 2).
+//! A lattice time off the grid (a delay of fractional samples puts the whole lattice off it) is
 //! interpolated by an 8-point Lagrange polynomial, which needs `t >= dt` (the response is smooth
 //! there: its 8th derivative is of order `t^-8` times its size, `(h / t)^8 <= 1e-8`); the one
 //! lattice time below `dt` gets its own aligned grid of `EARLY_STEPS` steps.
 
 use super::exact::{self, StateSpace};
 use super::gl;
-use super::plant::{feedthrough, is_integer};
-use super::Plant;
+use super::plant::{feedthrough, is_integer, nonzero, ORDER_EPS};
+use super::{Error, Plant, Term};
 
-/// The fine GL steps per sample (the coarser of the two Richardson grids).
-pub(crate) const FINE_PER_SAMPLE: usize = 10;
+/// The fine GL steps per sample at least (the coarsest of the three grids).
+pub(crate) const MIN_FINE_PER_SAMPLE: usize = 10;
+/// The finest grid's length at most (memory: a few vectors of this many f64).
+pub(crate) const MAX_FINEST_POINTS: usize = 1 << 24;
 /// The steps of the aligned grid for a lattice time below one sample.
 const EARLY_STEPS: usize = 256;
 
@@ -29,9 +36,28 @@ pub(crate) enum StepResponse {
         plant: Plant,
         /// `G(infinity)`, the response at `0+`.
         feedthrough: f64,
-        /// Fine steps per sample.
-        fine_per_sample: usize,
+        /// The largest fine step the plant's corners allow [s].
+        plant_step_s: f64,
     },
+}
+
+/// `k(step)`: the fine step times the corner frequency allowed for a corner of order `step`.
+fn corner_factor(step: f64) -> f64 {
+    (0.1 * 10f64.powf(-1.25 * (step - 1.0).max(0.0))).max(0.005)
+}
+
+/// The largest fine step the corners of `terms` allow [s] (infinite without a corner).
+fn corner_step(terms: &[Term]) -> f64 {
+    let mut t: Vec<Term> = nonzero(terms);
+    t.sort_by(|p, q| p.order.total_cmp(&q.order));
+    t.windows(2)
+        .filter(|w| w[1].order - w[0].order > ORDER_EPS)
+        .map(|w| {
+            let step = w[1].order - w[0].order;
+            let omega = (w[0].coef / w[1].coef).abs().powf(1.0 / step);
+            corner_factor(step) / omega
+        })
+        .fold(f64::INFINITY, f64::min)
 }
 
 impl StepResponse {
@@ -46,21 +72,37 @@ impl StepResponse {
                     ..plant.clone()
                 },
                 feedthrough: feedthrough(plant),
-                fine_per_sample: FINE_PER_SAMPLE,
+                plant_step_s: corner_step(&plant.den).min(corner_step(&plant.num)),
+            }
+        }
+    }
+
+    /// The fine GL steps per sample at `dt` (None for an exact solution).
+    pub(crate) fn fine_per_sample(&self, dt: f64) -> Option<usize> {
+        match self {
+            StepResponse::Exact(_) => None,
+            StepResponse::Gl { plant_step_s, .. } => {
+                let wanted = (dt / plant_step_s).ceil();
+                Some(if wanted.is_finite() {
+                    (wanted as usize).max(MIN_FINE_PER_SAMPLE)
+                } else {
+                    MIN_FINE_PER_SAMPLE
+                })
             }
         }
     }
 
     /// `S(t0 + j dt)` for `j = 0..count`, `t0 >= 0`, with `S(0) = G(infinity)` (just after the
-    /// step).
-    pub(crate) fn lattice(&self, t0: f64, dt: f64, count: usize) -> Vec<f64> {
+    /// step). Errors when the fractional plant's finest grid would exceed `MAX_FINEST_POINTS`.
+    pub(crate) fn lattice(&self, t0: f64, dt: f64, count: usize) -> Result<Vec<f64>, Error> {
         match self {
-            StepResponse::Exact(ss) => ss.step_lattice(t0, dt, count),
+            StepResponse::Exact(ss) => Ok(ss.step_lattice(t0, dt, count)),
             StepResponse::Gl {
-                plant,
-                feedthrough,
-                fine_per_sample,
-            } => gl_lattice(plant, *feedthrough, *fine_per_sample, t0, dt, count),
+                plant, feedthrough, ..
+            } => {
+                let per_sample = self.fine_per_sample(dt).unwrap_or(MIN_FINE_PER_SAMPLE);
+                gl_lattice(plant, *feedthrough, per_sample, t0, dt, count)
+            }
         }
     }
 }
@@ -72,15 +114,23 @@ fn gl_lattice(
     t0: f64,
     dt: f64,
     count: usize,
-) -> Vec<f64> {
+) -> Result<Vec<f64>, Error> {
     if count == 0 {
-        return vec![];
+        return Ok(vec![]);
     }
     let h = dt / per_sample as f64;
     let t_last = t0 + (count - 1) as f64 * dt;
     let len = (t_last / h).ceil() as usize + 8;
-    let grid = gl::richardson_grid(plant, h, len);
-    (0..count)
+    if 4 * len > MAX_FINEST_POINTS {
+        return Err(Error::Plant(format!(
+            "the fractional plant needs {per_sample} fine steps per sample over {count} samples \
+             ({} points on the finest grid, at most {MAX_FINEST_POINTS}): a shorter record, a \
+             shorter sample time or slower corners",
+            4 * len
+        )));
+    }
+    let grid = gl::extrapolated_grid(plant, h, len);
+    Ok((0..count)
         .map(|j| {
             let t = t0 + j as f64 * dt;
             let u = t / h;
@@ -95,12 +145,12 @@ fn gl_lattice(
                 lagrange8(&grid, u)
             }
         })
-        .collect()
+        .collect())
 }
 
 /// `S(t)` for `0 < t < dt` on its own grid ending at `t`.
 fn early(plant: &Plant, t: f64) -> f64 {
-    gl::richardson_grid(plant, t / EARLY_STEPS as f64, EARLY_STEPS + 1)[EARLY_STEPS]
+    gl::extrapolated_grid(plant, t / EARLY_STEPS as f64, EARLY_STEPS + 1)[EARLY_STEPS]
 }
 
 /// The 8-point Lagrange interpolant of `grid` (unit spacing) at `u >= 3`.
@@ -116,4 +166,67 @@ fn lagrange8(grid: &[f64], u: f64) -> f64 {
             w * grid[first + i]
         })
         .sum()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::truth::mittag_leffler::mittag_leffler;
+
+    fn relaxation(alpha: f64, a: f64) -> Plant {
+        Plant {
+            num: vec![Term {
+                coef: 1.0,
+                order: 0.0,
+            }],
+            den: vec![
+                Term {
+                    coef: 1.0,
+                    order: 0.0,
+                },
+                Term {
+                    coef: a,
+                    order: alpha,
+                },
+            ],
+            delay_s: 0.0,
+        }
+    }
+
+    #[test]
+    #[ignore]
+    fn explore_errors() {
+        for alpha in [0.3, 0.9, 1.1, 1.5, 1.9] {
+            let plant = relaxation(alpha, 1.0);
+            for dt in [0.02, 0.1, 0.3, 1.0] {
+                let count = ((20.0 / dt) as usize).clamp(50, 1000);
+                let truth: Vec<f64> = (0..count)
+                    .map(|j| 1.0 - mittag_leffler(alpha, -f64::powf(j as f64 * dt, alpha)))
+                    .collect();
+                let mut line = format!("alpha {alpha} dt {dt}:");
+                for per in [10usize, 20, 40] {
+                    let h = dt / per as f64;
+                    let len = (count - 1) * per + 1;
+                    let g1 = gl::step_grid(&plant, h, len);
+                    let g2 = gl::step_grid(&plant, h / 2.0, 2 * len);
+                    let g4 = gl::step_grid(&plant, h / 4.0, 4 * len);
+                    let r1: Vec<f64> = (0..len).map(|j| 2.0 * g2[2 * j] - g1[j]).collect();
+                    let r2: Vec<f64> = (0..len).map(|j| 2.0 * g4[4 * j] - g2[2 * j]).collect();
+                    let rr: Vec<f64> = (0..len).map(|j| (4.0 * r2[j] - r1[j]) / 3.0).collect();
+                    let e = |v: &[f64]| {
+                        (1..count)
+                            .map(|j| (v[j * per] - truth[j]).abs())
+                            .fold(0.0, f64::max)
+                    };
+                    line += &format!(
+                        "  L{per}: raw {:.1e} r1 {:.1e} r2 {:.1e}",
+                        e(&g1),
+                        e(&r1),
+                        e(&rr)
+                    );
+                }
+                println!("{line}");
+            }
+        }
+    }
 }

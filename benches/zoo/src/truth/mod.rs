@@ -4,10 +4,13 @@
 //! INTERFACE AGREED BETWEEN THE ZOO'S BRANCHES (zoo-truth implements it, zoo-cases uses it):
 //! the names and signatures below stay; bodies are zoo-truth's.
 
+#[cfg(test)]
+mod accuracy;
 mod effects;
 mod exact;
 mod gl;
 mod lattice;
+pub mod mittag_leffler;
 mod plant;
 mod run;
 mod series;

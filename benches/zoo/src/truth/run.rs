@@ -26,7 +26,13 @@ struct Lags {
 }
 
 impl Lags {
-    fn new(step: &StepResponse, delay_s: f64, dt: f64, n: usize, with_friction: bool) -> Lags {
+    fn new(
+        step: &StepResponse,
+        delay_s: f64,
+        dt: f64,
+        n: usize,
+        with_friction: bool,
+    ) -> Result<Lags, Error> {
         let ratio = delay_s / dt;
         let whole = (ratio + 1e-9).floor();
         let frac = if ratio - whole < 1e-9 {
@@ -37,7 +43,7 @@ impl Lags {
         let whole = whole as usize;
         let mut command = vec![0.0; n];
         let at_samples = if frac == 0.0 || with_friction {
-            step.lattice(0.0, dt, n)
+            step.lattice(0.0, dt, n)?
         } else {
             vec![]
         };
@@ -48,17 +54,17 @@ impl Lags {
             Some(whole)
         } else {
             let first = whole + 1;
-            let shifted = step.lattice((1.0 - frac) * dt, dt, n.saturating_sub(first));
+            let shifted = step.lattice((1.0 - frac) * dt, dt, n.saturating_sub(first))?;
             if first < n {
                 command[first..].copy_from_slice(&shifted[..n - first]);
             }
             None
         };
-        Lags {
+        Ok(Lags {
             command,
             command_on_sample,
             friction: if with_friction { at_samples } else { vec![] },
-        }
+        })
     }
 }
 
@@ -102,7 +108,7 @@ pub(crate) fn simulate(
     let n = check_drive(drive, dt)?;
     let step = StepResponse::new(plant);
     let feedback = effects.coulomb.is_some() || matches!(drive, Drive::SpeedLoop { .. });
-    let lags = Lags::new(&step, plant.delay_s, dt, n, feedback);
+    let lags = Lags::new(&step, plant.delay_s, dt, n, feedback)?;
     match drive {
         Drive::Open(u) if !feedback => Ok(open_loop(&lags, effects, u, dt)),
         _ => Ok(stepwise(&lags, feedthrough(plant), effects, drive, dt, n)),
