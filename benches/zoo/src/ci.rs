@@ -56,7 +56,7 @@ pub const FLOORS: &[Floor] = &[
     f(Class::Integrator, 0, 2, 2),
     f(Class::Diffusion, 1, 1, 1),
     f(Class::Lead, 0, 1, 2),
-    f(Class::Cell, 1, 1, 1),
+    f(Class::Cell, 0, 0, 1),
     f(Class::Delay, 2, 2, 2),
     f(Class::FrictionReversal, 1, 2, 2),
     f(Class::FrictionOneWay, 1, 2, 2),

@@ -796,7 +796,7 @@ mod tests {
             by(Class::Pmsm).verdict.identifiable
                 && by(Class::Pmsm).verdict.expected_effects.is_empty()
         );
-        assert_eq!(by(Class::Delay).plant.delay_s > 0.0, true);
+        assert!(by(Class::Delay).plant.delay_s > 0.0);
         let motion = by(Class::InMotion);
         assert!(motion.lead_in_samples > 0);
         assert!(by(Class::Quantisation).quantisation_step.is_some());
