@@ -247,12 +247,41 @@ pub fn score_all(
     Ok(outcomes)
 }
 
+/// The file that marks a directory as a zoo run's (its cases, truth and reports may be replaced).
+const MARKER: &str = ".zoo-run";
+
+/// Makes `out` ready for a run: created if missing; an earlier run's cases, truth and reports
+/// removed (a stale file would be fitted or scored with the new ones); a directory that holds
+/// other files and no marker is refused (it is not ours to empty).
+pub fn prepare(out: &Path) -> Result<(), Error> {
+    let ours = out.join(MARKER).exists();
+    let empty = std::fs::read_dir(out).map_or(true, |mut d| d.next().is_none());
+    if !ours && !empty {
+        return Err(Error::Io(
+            out.display().to_string(),
+            std::io::Error::new(
+                std::io::ErrorKind::AlreadyExists,
+                "not empty and not a zoo run's directory: give a new or empty --out",
+            ),
+        ));
+    }
+    for sub in ["cases", "truth", "reports"] {
+        let dir = out.join(sub);
+        if dir.exists() {
+            std::fs::remove_dir_all(&dir).map_err(io(&dir))?;
+        }
+    }
+    std::fs::create_dir_all(out).map_err(io(out))?;
+    std::fs::write(
+        out.join(MARKER),
+        "a zoo run: cases/, truth/ and reports/ are replaced by the next run\n",
+    )
+    .map_err(io(out))
+}
+
 /// Generates, fits, scores and writes the table.
 pub fn run(o: &Options) -> Result<Results, Error> {
-    if o.out.join("cases").exists() {
-        // A stale case from an earlier run would be fitted with these.
-        std::fs::remove_dir_all(o.out.join("cases")).map_err(io(&o.out))?;
-    }
+    prepare(&o.out)?;
     let start = Instant::now();
     let truths = generate(o)?;
     let generate_s = start.elapsed().as_secs_f64();
@@ -361,4 +390,36 @@ pub fn default_fracid() -> Option<PathBuf> {
         .filter_map(|p| Some((std::fs::metadata(&p).ok()?.modified().ok()?, p)))
         .max_by_key(|(m, _)| *m)
         .map(|(_, p)| p)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn summary_rows_by_stem_and_a_foreign_directory_refused() {
+        let v: Value = serde_json::from_str(
+            r#"{"rows": [{"file": "z/cases/0001_integer.csv", "exit_code": 1, "seconds": 0.5, "error": "bad"},
+                          {"file": "z/cases/0002_lead.csv", "exit_code": 0, "seconds": null, "error": null}]}"#,
+        )
+        .unwrap();
+        let rows = summary_rows(&v);
+        assert_eq!(rows["0001_integer"].exit_code, 1);
+        assert_eq!(rows["0001_integer"].error.as_deref(), Some("bad"));
+        assert_eq!(
+            (rows["0002_lead"].exit_code, rows["0002_lead"].seconds),
+            (0, None)
+        );
+
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(dir.path().join("mine.csv"), "t,u,y\n").unwrap();
+        assert!(prepare(dir.path()).is_err());
+        assert!(dir.path().join("mine.csv").exists());
+        let fresh = dir.path().join("run");
+        prepare(&fresh).unwrap();
+        std::fs::create_dir_all(fresh.join("cases")).unwrap();
+        std::fs::write(fresh.join("cases/old.csv"), "").unwrap();
+        prepare(&fresh).unwrap();
+        assert!(!fresh.join("cases").exists());
+    }
 }

@@ -124,6 +124,7 @@ fn main() -> ExitCode {
             // The fracid binary is not needed to generate.
             let o = options(common, Some(PathBuf::from("fracid")));
             o.and_then(|o| {
+                run::prepare(&o.out).map_err(|e| e.to_string())?;
                 let t = run::generate(&o).map_err(|e| e.to_string())?;
                 eprintln!("{} cases in {}", t.len(), o.out.display());
                 Ok(())
