@@ -96,6 +96,9 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match &cli.command {
         Cmd::Run { common, fracid } => options(common, fracid.clone()).and_then(|o| {
+            if !o.fracid.is_file() {
+                return Err(format!("{}: no such fracid binary", o.fracid.display()));
+            }
             let r = run::run(&o).map_err(|e| e.to_string())?;
             print!("{}", zoo::score::table::markdown(&r.table));
             eprintln!(
