@@ -92,45 +92,52 @@ impl StepResponse {
         }
     }
 
-    /// `S(t0 + j dt)` for `j = 0..count`, `t0 >= 0`, with `S(0) = G(infinity)` (just after the
-    /// step). Errors when the fractional plant's finest grid would exceed `MAX_FINEST_POINTS`.
-    pub(crate) fn lattice(&self, t0: f64, dt: f64, count: usize) -> Result<Vec<f64>, Error> {
+    /// `S(t0 + j dt)` for `j = 0..count`, per `(t0, count)` wanted, `t0 >= 0`, with `S(0) =
+    /// G(infinity)` (just after the step); a fractional plant's fine grid computed once for all.
+    /// Errors when the fractional plant's finest grid would exceed `MAX_FINEST_POINTS`.
+    pub(crate) fn lattices(
+        &self,
+        wanted: &[(f64, usize)],
+        dt: f64,
+    ) -> Result<Vec<Vec<f64>>, Error> {
         match self {
-            StepResponse::Exact(ss) => Ok(ss.step_lattice(t0, dt, count)),
+            StepResponse::Exact(ss) => Ok(wanted
+                .iter()
+                .map(|&(t0, count)| ss.step_lattice(t0, dt, count))
+                .collect()),
             StepResponse::Gl {
                 plant, feedthrough, ..
             } => {
                 let per_sample = self.fine_per_sample(dt).unwrap_or(MIN_FINE_PER_SAMPLE);
-                gl_lattice(plant, *feedthrough, per_sample, t0, dt, count)
+                let h = dt / per_sample as f64;
+                let t_last = wanted
+                    .iter()
+                    .filter(|w| w.1 > 0)
+                    .map(|&(t0, count)| t0 + (count - 1) as f64 * dt)
+                    .fold(0.0, f64::max);
+                let len = (t_last / h).ceil() as usize + 8;
+                if 4 * len > MAX_FINEST_POINTS {
+                    return Err(Error::Plant(format!(
+                        "the fractional plant needs {per_sample} fine steps per sample over {:.0} \
+                         samples ({} points on the finest grid, at most {MAX_FINEST_POINTS}): a \
+                         shorter record, a longer sample time or slower corners",
+                        t_last / dt,
+                        4 * len
+                    )));
+                }
+                let grid = gl::extrapolated_grid(plant, h, len);
+                Ok(wanted
+                    .iter()
+                    .map(|&(t0, count)| sample(&grid, plant, *feedthrough, h, t0, dt, count))
+                    .collect())
             }
         }
     }
 }
 
-fn gl_lattice(
-    plant: &Plant,
-    d: f64,
-    per_sample: usize,
-    t0: f64,
-    dt: f64,
-    count: usize,
-) -> Result<Vec<f64>, Error> {
-    if count == 0 {
-        return Ok(vec![]);
-    }
-    let h = dt / per_sample as f64;
-    let t_last = t0 + (count - 1) as f64 * dt;
-    let len = (t_last / h).ceil() as usize + 8;
-    if 4 * len > MAX_FINEST_POINTS {
-        return Err(Error::Plant(format!(
-            "the fractional plant needs {per_sample} fine steps per sample over {count} samples \
-             ({} points on the finest grid, at most {MAX_FINEST_POINTS}): a shorter record, a \
-             shorter sample time or slower corners",
-            4 * len
-        )));
-    }
-    let grid = gl::extrapolated_grid(plant, h, len);
-    Ok((0..count)
+/// The lattice `t0 + j dt` read from the extrapolated fine grid of step `h`.
+fn sample(grid: &[f64], plant: &Plant, d: f64, h: f64, t0: f64, dt: f64, count: usize) -> Vec<f64> {
+    (0..count)
         .map(|j| {
             let t = t0 + j as f64 * dt;
             let u = t / h;
@@ -142,10 +149,10 @@ fn gl_lattice(
             } else if t < dt {
                 early(plant, t)
             } else {
-                lagrange8(&grid, u)
+                lagrange8(grid, u)
             }
         })
-        .collect())
+        .collect()
 }
 
 /// `S(t)` for `0 < t < dt` on its own grid ending at `t`.

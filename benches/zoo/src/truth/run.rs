@@ -5,14 +5,15 @@
 //!
 //! Open loop without friction: the static input effects applied to `u`, one convolution (FFT),
 //! the output effects after. With an output that feeds back (Coulomb friction, the speed loop):
-//! step by step, each sample's output just before the new input (`y(t_k^-)`) deciding the
-//! friction's sign and the controller's output, then the recorded `y(t_k^+)` (which differs only
-//! by a feed-through's jump).
+//! step by step (`series::online`, the past's effect gathered by FFT in blocks), each sample's
+//! output just before the new input (`y(t_k^-)`) deciding the friction's sign and the
+//! controller's output, then the recorded `y(t_k^+)` (which differs only by a feed-through's
+//! jump). The friction is decided at the sample instants and held, like the input.
 
 use super::effects;
 use super::lattice::StepResponse;
 use super::plant::{self, feedthrough};
-use super::series::convolve;
+use super::series::{self, convolve};
 use super::{Drive, Effects, Error, Plant, Record};
 
 /// The step responses per lag `l` (samples since the step's sample instant).
@@ -42,24 +43,23 @@ impl Lags {
         };
         let whole = whole as usize;
         let mut command = vec![0.0; n];
-        let at_samples = if frac == 0.0 || with_friction {
-            step.lattice(0.0, dt, n)?
-        } else {
-            vec![]
-        };
-        let command_on_sample = if frac == 0.0 {
-            if whole < n {
-                command[whole..].copy_from_slice(&at_samples[..n - whole]);
-            }
-            Some(whole)
-        } else {
-            let first = whole + 1;
-            let shifted = step.lattice((1.0 - frac) * dt, dt, n.saturating_sub(first))?;
-            if first < n {
-                command[first..].copy_from_slice(&shifted[..n - first]);
-            }
-            None
-        };
+        // The lattices: at the sample instants (a whole-sample delay, and the friction), and
+        // (1 - frac) dt after them (a fractional delay's command steps).
+        let first = if frac == 0.0 { whole } else { whole + 1 };
+        let mut wanted = vec![(
+            if frac == 0.0 { 0.0 } else { (1.0 - frac) * dt },
+            n.saturating_sub(first),
+        )];
+        if with_friction {
+            wanted.push((0.0, n));
+        }
+        let mut lattices = step.lattices(&wanted, dt)?.into_iter();
+        let shifted = lattices.next().unwrap_or_default();
+        if first < n {
+            command[first..].copy_from_slice(&shifted[..n - first]);
+        }
+        let command_on_sample = (frac == 0.0).then_some(whole);
+        let at_samples = lattices.next().unwrap_or_default();
         Ok(Lags {
             command,
             command_on_sample,
@@ -185,20 +185,21 @@ fn stepwise(
         }),
         Drive::Open(_) => None,
     };
-    let (mut command_steps, mut friction_steps) = (vec![0.0; n], vec![0.0; n]);
+    let with_friction = !lags.friction.is_empty();
+    let mut command_steps = vec![0.0; n];
     let (mut last_held, mut last_friction) = (0.0, 0.0);
     let mut record = Record {
         u: Vec::with_capacity(n),
         y: Vec::with_capacity(n),
     };
-    for k in 0..n {
+    let kernels: Vec<&[f64]> = if with_friction {
+        vec![&lags.command, &lags.friction]
+    } else {
+        vec![&lags.command]
+    };
+    // `before`: the output at t_k from every step before sample k.
+    series::online(kernels, n, |k, before, decided| {
         let t = k as f64 * dt;
-        let mut before: f64 = (0..k).map(|m| command_steps[m] * lags.command[k - m]).sum();
-        if !lags.friction.is_empty() {
-            before += (0..k)
-                .map(|m| friction_steps[m] * lags.friction[k - m])
-                .sum::<f64>();
-        }
         let arriving = match lags.command_on_sample {
             Some(l) if l >= 1 && k >= l => d * command_steps[k - l],
             _ => 0.0,
@@ -214,16 +215,17 @@ fn stepwise(
         let held = effects::input(effects, u);
         command_steps[k] = held - last_held;
         last_held = held;
-        let friction = effects.coulomb.map_or(0.0, |c| -c * sign(y_minus));
-        friction_steps[k] = friction - last_friction;
-        last_friction = friction;
+        decided[0] = command_steps[k];
         let mut y_plus = before + lags.command[0] * command_steps[k];
-        if !lags.friction.is_empty() {
-            y_plus += lags.friction[0] * friction_steps[k];
+        if with_friction {
+            let friction = effects.coulomb.map_or(0.0, |c| -c * sign(y_minus));
+            decided[1] = friction - last_friction;
+            last_friction = friction;
+            y_plus += lags.friction[0] * decided[1];
         }
         record.u.push(u);
         record.y.push(effects::output(effects, y_plus, t));
-    }
+    });
     record
 }
 
