@@ -234,44 +234,89 @@ mod tests {
     use super::*;
     use crate::truth::Term;
 
-    fn first_order(delay_s: f64) -> Plant {
+    fn gain(k: f64) -> Plant {
         Plant {
             num: vec![Term {
-                coef: 2.0,
+                coef: k,
                 order: 0.0,
             }],
-            den: vec![
-                Term {
-                    coef: 1.0,
-                    order: 0.0,
-                },
-                Term {
-                    coef: 0.1,
-                    order: 1.0,
-                },
-            ],
-            delay_s,
+            den: vec![Term {
+                coef: 1.0,
+                order: 0.0,
+            }],
+            delay_s: 0.0,
         }
     }
 
     #[test]
-    fn smoke_first_order_and_half_order() {
-        let u = vec![1.0; 50];
-        let r = simulate(
-            &first_order(0.0),
-            &Effects::default(),
-            &Drive::Open(&u),
-            0.01,
-        )
-        .unwrap();
-        for (k, y) in r.y.iter().enumerate() {
-            let t = k as f64 * 0.01;
-            assert!(
-                (y - 2.0 * (1.0 - (-t / 0.1).exp())).abs() < 1e-12,
-                "{k} {y}"
-            );
+    fn a_feedthrough_in_the_loop_sees_the_previous_input() {
+        // A gain of 2 under the PI: the controller reads y(t_k^-) = 2 u_{k-1} (the new input not
+        // yet applied), the record holds y(t_k^+) = 2 u_k.
+        let (kp, ki, dt) = (0.2, 5.0, 0.01);
+        let reference = vec![1.0; 200];
+        let drive = Drive::SpeedLoop {
+            reference: &reference,
+            kp,
+            ki,
+            u_limit: 10.0,
+        };
+        let rec = simulate(&gain(2.0), &Effects::default(), &drive, dt).unwrap();
+        let (mut last_u, mut sum) = (0.0, 0.0);
+        for k in 0..200 {
+            let e = 1.0 - 2.0 * last_u;
+            sum += ki * dt * e;
+            let u = kp * e + sum;
+            assert!((rec.u[k] - u).abs() < 1e-12, "u at {k}");
+            assert!((rec.y[k] - 2.0 * u).abs() < 1e-12, "y at {k}");
+            last_u = u;
         }
-        let half = Plant {
+        assert!((rec.y[199] - 1.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn bad_input_is_an_error() {
+        let p = gain(1.0);
+        let none = Effects::default();
+        assert!(matches!(
+            simulate(&p, &none, &Drive::Open(&[1.0, f64::NAN]), 0.1),
+            Err(Error::Drive(_))
+        ));
+        assert!(matches!(
+            simulate(&p, &none, &Drive::Open(&[1.0]), 0.0),
+            Err(Error::Drive(_))
+        ));
+        let bad_fx = Effects {
+            saturation: Some(-1.0),
+            ..Effects::default()
+        };
+        assert!(matches!(
+            simulate(&p, &bad_fx, &Drive::Open(&[1.0]), 0.1),
+            Err(Error::Drive(_))
+        ));
+        let improper = Plant {
+            num: vec![Term {
+                coef: 1.0,
+                order: 1.0,
+            }],
+            ..gain(1.0)
+        };
+        assert!(matches!(
+            simulate(&improper, &none, &Drive::Open(&[1.0]), 0.1),
+            Err(Error::Plant(_))
+        ));
+        let drive = Drive::SpeedLoop {
+            reference: &[1.0],
+            kp: 1.0,
+            ki: f64::INFINITY,
+            u_limit: 1.0,
+        };
+        assert!(matches!(
+            simulate(&p, &none, &drive, 0.1),
+            Err(Error::Drive(_))
+        ));
+        // A corner far faster than the sample time over a long record: the fine grid would be
+        // too long, an error before anything is allocated.
+        let fast = Plant {
             num: vec![Term {
                 coef: 1.0,
                 order: 0.0,
@@ -282,15 +327,37 @@ mod tests {
                     order: 0.0,
                 },
                 Term {
-                    coef: 1.0,
-                    order: 0.5,
+                    coef: 1e-8,
+                    order: 1.9,
                 },
             ],
             delay_s: 0.0,
         };
-        let r = simulate(&half, &Effects::default(), &Drive::Open(&u), 0.1).unwrap();
-        // 1 - E_{1/2}(-sqrt t) = 1 - exp(t) erfc(sqrt t): at t = 1, erfc(1) = 0.157299207050285.
-        let want = 1.0 - std::f64::consts::E * 0.157_299_207_050_285;
-        assert!((r.y[10] - want).abs() < 1e-3, "{} {want}", r.y[10]);
+        let u = vec![1.0; 1000];
+        assert!(matches!(
+            simulate(&fast, &none, &Drive::Open(&u), 1.0),
+            Err(Error::Plant(_))
+        ));
+        // Empty records are records.
+        assert!(simulate(&p, &none, &Drive::Open(&[]), 0.1)
+            .unwrap()
+            .y
+            .is_empty());
+    }
+
+    #[test]
+    fn a_delay_longer_than_the_record_gives_silence() {
+        let p = Plant {
+            delay_s: 5.0,
+            ..gain(3.0)
+        };
+        let rec = simulate(&p, &Effects::default(), &Drive::Open(&[1.0; 20]), 0.1).unwrap();
+        assert!(rec.y.iter().all(|v| *v == 0.0));
+        let fx = Effects {
+            coulomb: Some(0.1),
+            ..Effects::default()
+        };
+        let rec = simulate(&p, &fx, &Drive::Open(&[1.0; 20]), 0.1).unwrap();
+        assert!(rec.y.iter().all(|v| *v == 0.0));
     }
 }
