@@ -30,7 +30,10 @@
 //!   `u_k` included); the friction and the PI read it just before (`y(t_k^-)`, without `u_k`'s
 //!   jump), so a feed-through makes no algebraic loop. The PI stops integrating while its output
 //!   is clamped and the error pushes further into the clamp.
-//! - A fractional plant whose finest grid would exceed 2^24 points is an `Error::Plant`.
+//! - A fractional plant whose finest grid would exceed 2^24 points is an `Error::Plant`. The fine
+//!   grid's rounding is amplified by the recursion's poles near `z = 1`, about as `steps^(order -
+//!   1)`: negligible for the zoo's fractional orders (<= 2; 1e-8 measured), 5e-6 of the swing at
+//!   order 3 over 4e4 steps.
 //!
 //! # The truth's own tests and their tolerances
 //! - Mittag-Leffler `E_alpha` (`mittag_leffler`): `E_1(z) = e^z`, `E_2(-z^2) = cos z`,
@@ -40,6 +43,11 @@
 //!   0.3, 0.5, ..., 1.9 at dt a fifth of and twice the time constant: 1e-4 of the swing.
 //! - The extrapolation's orders: doubling the fine steps divides the error by 1.8-2.2 (raw GL),
 //!   3.4-4.6 (one Richardson stage), 6.5-9.5 (two).
+//! - The fine-step rule: halving the step it picks moves the step-response lattices by < 1e-5 of
+//!   the swing (measured <= 1e-8) on a fractional PMSM, a thermal diffusion, a cell, a
+//!   near-resonant order 1.8.
+//! - GL against the exact solution on integer plants (a motor-side two-mass drive with its
+//!   integrator, a third order with a zero): 1e-4 of the swing (measured 5e-6).
 //! - Integer steps (exact path) against closed forms written in the test: first order,
 //!   underdamped second order, third order, an integrator, a lead with a zero, a feed-through
 //!   with an integrator, a pure gain: 1e-4 of the swing (1e-14 for the gain).
