@@ -1,5 +1,6 @@
 //! Times the truth simulation on the zoo's largest shapes: `cargo run --release -p zoo --example
-//! truth_timing`. Prints one line per case: the samples, the method, the wall time.
+//! truth_timing`. Prints one line per case: the samples, the wall time and this process's CPU
+//! time (from /proc/self/stat on Linux; the wall time alone misleads on a loaded machine).
 
 use std::time::Instant;
 use zoo::truth::{simulate, Drive, Effects, Plant, Term};
@@ -61,14 +62,25 @@ fn prbs(n: usize, clock: usize) -> Vec<f64> {
         .collect()
 }
 
+/// This process's user + system CPU seconds (None off Linux).
+fn cpu_s() -> Option<f64> {
+    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
+    // The fields after the command's closing parenthesis; utime and stime are the 12th and 13th.
+    let rest = &stat[stat.rfind(')')? + 2..];
+    let fields: Vec<&str> = rest.split_whitespace().collect();
+    let ticks: f64 = fields.get(11)?.parse::<f64>().ok()? + fields.get(12)?.parse::<f64>().ok()?;
+    Some(ticks / 100.0)
+}
+
 fn time(label: &str, n: usize, run: impl FnOnce() -> usize) {
-    let start = Instant::now();
+    let (start, cpu0) = (Instant::now(), cpu_s());
     let got = run();
     assert_eq!(got, n);
-    println!(
-        "{label:<58} {n:>7} samples  {:>7.2} s",
-        start.elapsed().as_secs_f64()
-    );
+    let wall = start.elapsed().as_secs_f64();
+    let cpu = cpu_s()
+        .zip(cpu0)
+        .map_or("?".to_string(), |(b, a)| format!("{:.2}", b - a));
+    println!("{label:<58} {n:>7} samples  wall {wall:>6.2} s  cpu {cpu:>6} s");
 }
 
 fn main() {

@@ -50,6 +50,64 @@ fn fractional_steps_match_mittag_leffler() {
 }
 
 #[test]
+fn fractional_integrators_match_closed_forms() {
+    use crate::truth::mittag_leffler::ln_gamma;
+    // 1 / s^0.7: t^0.7 / Gamma(1.7); a cell R + 1 / (C s^0.6) = (R C s^0.6 + 1) / (C s^0.6),
+    // R = 0.05, C = 3: 0.05 + t^0.6 / (3 Gamma(1.6)); 500 samples at 10 ms, 1e-4 of the swing.
+    let dt = 0.01;
+    let n = 500;
+    let t_end = n as f64 * dt;
+    let y = step_response(&plant(&[(1.0, 0.0)], &[(1.0, 0.7)], 0.0), dt, n, 1.0);
+    let want = |t: f64| f64::powf(t, 0.7) / ln_gamma(1.7).exp();
+    assert!(worst(&y, want, dt, want(t_end)) < 1e-4);
+    let y = step_response(
+        &plant(&[(1.0, 0.0), (0.15, 0.6)], &[(3.0, 0.6)], 0.0),
+        dt,
+        n,
+        1.0,
+    );
+    let want = |t: f64| 0.05 + f64::powf(t, 0.6) / (3.0 * ln_gamma(1.6).exp());
+    assert!(worst(&y, want, dt, want(t_end)) < 1e-4);
+}
+
+#[test]
+fn stiff_integer_plants_stay_exact() {
+    // Corners far faster than the sample time: 5 / (3e-4 s + 1) at 2 s, settled from the first
+    // sample; a 150 Hz resonance behind a 0.3 ms lag at 10 ms and 0.1 s, against residues.
+    let y = step_response(
+        &plant(&[(5.0, 0.0)], &[(1.0, 0.0), (3e-4, 1.0)], 0.0),
+        2.0,
+        50,
+        1.0,
+    );
+    assert!(
+        y[0] == 0.0 && y[1..].iter().all(|v| (v - 5.0).abs() < 1e-12),
+        "{y:?}"
+    );
+    // w^2 / ((s^2 + 2 z w s + w^2)(tau s + 1)), 150 Hz, z = 0.02, tau = 0.3 ms, multiplied out;
+    // its step response by residues: 1 + r e^{-t/tau} + 2 Re(q e^{p t}), p = -z w + j w_d,
+    // r = -w^2 / P(-1/tau), q = w^2 / (p (p - conj p) (tau p + 1)).
+    use num_complex::Complex64;
+    let (w, z, tau) = (std::f64::consts::TAU * 150.0, 0.02, 3e-4);
+    let den = [
+        (w * w, 0.0),
+        (2.0 * z * w + tau * w * w, 1.0),
+        (1.0 + tau * 2.0 * z * w, 2.0),
+        (tau, 3.0),
+    ];
+    let p = Complex64::new(-z * w, w * (1.0f64 - z * z).sqrt());
+    let lag = -1.0 / tau;
+    let r = -w * w / (lag * lag + 2.0 * z * w * lag + w * w);
+    let q = w * w / (p * (p - p.conj()) * (tau * p + 1.0));
+    let want = |t: f64| 1.0 + r * (-t / tau).exp() + 2.0 * (q * (p * t).exp()).re;
+    for dt in [0.01, 0.1] {
+        let y = step_response(&plant(&[(w * w, 0.0)], &den, 0.0), dt, 100, 1.0);
+        let e = worst(&y, want, dt, 1.0);
+        assert!(e < 1e-9, "dt {dt}: {e:e}");
+    }
+}
+
+#[test]
 fn integer_steps_match_closed_forms() {
     let dt = 0.01;
     let n = 600;

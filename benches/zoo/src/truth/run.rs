@@ -5,14 +5,15 @@
 //!
 //! Open loop without friction: the static input effects applied to `u`, one convolution (FFT),
 //! the output effects after. With an output that feeds back (Coulomb friction, the speed loop):
-//! step by step, each sample's output just before the new input (`y(t_k^-)`) deciding the
-//! friction's sign and the controller's output, then the recorded `y(t_k^+)` (which differs only
-//! by a feed-through's jump).
+//! step by step (`series::online`, the past's effect gathered by FFT in blocks), each sample's
+//! output just before the new input (`y(t_k^-)`) deciding the friction's sign and the
+//! controller's output, then the recorded `y(t_k^+)` (which differs only by a feed-through's
+//! jump). The friction is decided at the sample instants and held, like the input.
 
 use super::effects;
 use super::lattice::StepResponse;
 use super::plant::{self, feedthrough};
-use super::series::convolve;
+use super::series::{self, convolve};
 use super::{Drive, Effects, Error, Plant, Record};
 
 /// The step responses per lag `l` (samples since the step's sample instant).
@@ -42,24 +43,23 @@ impl Lags {
         };
         let whole = whole as usize;
         let mut command = vec![0.0; n];
-        let at_samples = if frac == 0.0 || with_friction {
-            step.lattice(0.0, dt, n)?
-        } else {
-            vec![]
-        };
-        let command_on_sample = if frac == 0.0 {
-            if whole < n {
-                command[whole..].copy_from_slice(&at_samples[..n - whole]);
-            }
-            Some(whole)
-        } else {
-            let first = whole + 1;
-            let shifted = step.lattice((1.0 - frac) * dt, dt, n.saturating_sub(first))?;
-            if first < n {
-                command[first..].copy_from_slice(&shifted[..n - first]);
-            }
-            None
-        };
+        // The lattices: at the sample instants (a whole-sample delay, and the friction), and
+        // (1 - frac) dt after them (a fractional delay's command steps).
+        let first = if frac == 0.0 { whole } else { whole + 1 };
+        let mut wanted = vec![(
+            if frac == 0.0 { 0.0 } else { (1.0 - frac) * dt },
+            n.saturating_sub(first),
+        )];
+        if with_friction {
+            wanted.push((0.0, n));
+        }
+        let mut lattices = step.lattices(&wanted, dt)?.into_iter();
+        let shifted = lattices.next().unwrap_or_default();
+        if first < n {
+            command[first..].copy_from_slice(&shifted[..n - first]);
+        }
+        let command_on_sample = (frac == 0.0).then_some(whole);
+        let at_samples = lattices.next().unwrap_or_default();
         Ok(Lags {
             command,
             command_on_sample,
@@ -185,20 +185,21 @@ fn stepwise(
         }),
         Drive::Open(_) => None,
     };
-    let (mut command_steps, mut friction_steps) = (vec![0.0; n], vec![0.0; n]);
+    let with_friction = !lags.friction.is_empty();
+    let mut command_steps = vec![0.0; n];
     let (mut last_held, mut last_friction) = (0.0, 0.0);
     let mut record = Record {
         u: Vec::with_capacity(n),
         y: Vec::with_capacity(n),
     };
-    for k in 0..n {
+    let kernels: Vec<&[f64]> = if with_friction {
+        vec![&lags.command, &lags.friction]
+    } else {
+        vec![&lags.command]
+    };
+    // `before`: the output at t_k from every step before sample k.
+    series::online(kernels, n, |k, before, decided| {
         let t = k as f64 * dt;
-        let mut before: f64 = (0..k).map(|m| command_steps[m] * lags.command[k - m]).sum();
-        if !lags.friction.is_empty() {
-            before += (0..k)
-                .map(|m| friction_steps[m] * lags.friction[k - m])
-                .sum::<f64>();
-        }
         let arriving = match lags.command_on_sample {
             Some(l) if l >= 1 && k >= l => d * command_steps[k - l],
             _ => 0.0,
@@ -214,16 +215,17 @@ fn stepwise(
         let held = effects::input(effects, u);
         command_steps[k] = held - last_held;
         last_held = held;
-        let friction = effects.coulomb.map_or(0.0, |c| -c * sign(y_minus));
-        friction_steps[k] = friction - last_friction;
-        last_friction = friction;
+        decided[0] = command_steps[k];
         let mut y_plus = before + lags.command[0] * command_steps[k];
-        if !lags.friction.is_empty() {
-            y_plus += lags.friction[0] * friction_steps[k];
+        if with_friction {
+            let friction = effects.coulomb.map_or(0.0, |c| -c * sign(y_minus));
+            decided[1] = friction - last_friction;
+            last_friction = friction;
+            y_plus += lags.friction[0] * decided[1];
         }
         record.u.push(u);
         record.y.push(effects::output(effects, y_plus, t));
-    }
+    });
     record
 }
 
@@ -232,44 +234,89 @@ mod tests {
     use super::*;
     use crate::truth::Term;
 
-    fn first_order(delay_s: f64) -> Plant {
+    fn gain(k: f64) -> Plant {
         Plant {
             num: vec![Term {
-                coef: 2.0,
+                coef: k,
                 order: 0.0,
             }],
-            den: vec![
-                Term {
-                    coef: 1.0,
-                    order: 0.0,
-                },
-                Term {
-                    coef: 0.1,
-                    order: 1.0,
-                },
-            ],
-            delay_s,
+            den: vec![Term {
+                coef: 1.0,
+                order: 0.0,
+            }],
+            delay_s: 0.0,
         }
     }
 
     #[test]
-    fn smoke_first_order_and_half_order() {
-        let u = vec![1.0; 50];
-        let r = simulate(
-            &first_order(0.0),
-            &Effects::default(),
-            &Drive::Open(&u),
-            0.01,
-        )
-        .unwrap();
-        for (k, y) in r.y.iter().enumerate() {
-            let t = k as f64 * 0.01;
-            assert!(
-                (y - 2.0 * (1.0 - (-t / 0.1).exp())).abs() < 1e-12,
-                "{k} {y}"
-            );
+    fn a_feedthrough_in_the_loop_sees_the_previous_input() {
+        // A gain of 2 under the PI: the controller reads y(t_k^-) = 2 u_{k-1} (the new input not
+        // yet applied), the record holds y(t_k^+) = 2 u_k.
+        let (kp, ki, dt) = (0.2, 5.0, 0.01);
+        let reference = vec![1.0; 200];
+        let drive = Drive::SpeedLoop {
+            reference: &reference,
+            kp,
+            ki,
+            u_limit: 10.0,
+        };
+        let rec = simulate(&gain(2.0), &Effects::default(), &drive, dt).unwrap();
+        let (mut last_u, mut sum) = (0.0, 0.0);
+        for k in 0..200 {
+            let e = 1.0 - 2.0 * last_u;
+            sum += ki * dt * e;
+            let u = kp * e + sum;
+            assert!((rec.u[k] - u).abs() < 1e-12, "u at {k}");
+            assert!((rec.y[k] - 2.0 * u).abs() < 1e-12, "y at {k}");
+            last_u = u;
         }
-        let half = Plant {
+        assert!((rec.y[199] - 1.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn bad_input_is_an_error() {
+        let p = gain(1.0);
+        let none = Effects::default();
+        assert!(matches!(
+            simulate(&p, &none, &Drive::Open(&[1.0, f64::NAN]), 0.1),
+            Err(Error::Drive(_))
+        ));
+        assert!(matches!(
+            simulate(&p, &none, &Drive::Open(&[1.0]), 0.0),
+            Err(Error::Drive(_))
+        ));
+        let bad_fx = Effects {
+            saturation: Some(-1.0),
+            ..Effects::default()
+        };
+        assert!(matches!(
+            simulate(&p, &bad_fx, &Drive::Open(&[1.0]), 0.1),
+            Err(Error::Drive(_))
+        ));
+        let improper = Plant {
+            num: vec![Term {
+                coef: 1.0,
+                order: 1.0,
+            }],
+            ..gain(1.0)
+        };
+        assert!(matches!(
+            simulate(&improper, &none, &Drive::Open(&[1.0]), 0.1),
+            Err(Error::Plant(_))
+        ));
+        let drive = Drive::SpeedLoop {
+            reference: &[1.0],
+            kp: 1.0,
+            ki: f64::INFINITY,
+            u_limit: 1.0,
+        };
+        assert!(matches!(
+            simulate(&p, &none, &drive, 0.1),
+            Err(Error::Drive(_))
+        ));
+        // A corner far faster than the sample time over a long record: the fine grid would be
+        // too long, an error before anything is allocated.
+        let fast = Plant {
             num: vec![Term {
                 coef: 1.0,
                 order: 0.0,
@@ -280,15 +327,37 @@ mod tests {
                     order: 0.0,
                 },
                 Term {
-                    coef: 1.0,
-                    order: 0.5,
+                    coef: 1e-8,
+                    order: 1.9,
                 },
             ],
             delay_s: 0.0,
         };
-        let r = simulate(&half, &Effects::default(), &Drive::Open(&u), 0.1).unwrap();
-        // 1 - E_{1/2}(-sqrt t) = 1 - exp(t) erfc(sqrt t): at t = 1, erfc(1) = 0.157299207050285.
-        let want = 1.0 - std::f64::consts::E * 0.157_299_207_050_285;
-        assert!((r.y[10] - want).abs() < 1e-3, "{} {want}", r.y[10]);
+        let u = vec![1.0; 1000];
+        assert!(matches!(
+            simulate(&fast, &none, &Drive::Open(&u), 1.0),
+            Err(Error::Plant(_))
+        ));
+        // Empty records are records.
+        assert!(simulate(&p, &none, &Drive::Open(&[]), 0.1)
+            .unwrap()
+            .y
+            .is_empty());
+    }
+
+    #[test]
+    fn a_delay_longer_than_the_record_gives_silence() {
+        let p = Plant {
+            delay_s: 5.0,
+            ..gain(3.0)
+        };
+        let rec = simulate(&p, &Effects::default(), &Drive::Open(&[1.0; 20]), 0.1).unwrap();
+        assert!(rec.y.iter().all(|v| *v == 0.0));
+        let fx = Effects {
+            coulomb: Some(0.1),
+            ..Effects::default()
+        };
+        let rec = simulate(&p, &fx, &Drive::Open(&[1.0; 20]), 0.1).unwrap();
+        assert!(rec.y.iter().all(|v| *v == 0.0));
     }
 }

@@ -1,8 +1,9 @@
-//! Sequences by FFT: truncated products (convolutions), and the solution of the recursion
-//! `x_k = w_k - sum_{i=1..k} d_i x_{k-i}` (the series `w / d`, `d_0 = 1`) by divide and conquer:
-//! the first half of a range solved, its effect on the second half added by one FFT product,
-//! the second half solved. That is the step-by-step recursion's arithmetic regrouped, O(n log^2 n)
-//! and as stable as the recursion itself (Newton's iteration for `1 / d`, the usual fast
+//! Sequences by FFT: truncated products (convolutions), and causal convolutions whose inputs are
+//! decided sample by sample from the past output (`online`: the GL recursion `x_k = w_k -
+//! sum_{i=1..k} d_i x_{k-i}`, the series `w / d`, and the loops with feedback), by divide and
+//! conquer: the first half of a range solved, its effect on the second half added by one FFT
+//! product, the second half solved. That is the step-by-step recursion's arithmetic regrouped,
+//! O(n log^2 n) and as stable as the recursion itself (Newton's iteration for `1 / d`, the usual fast
 //! division, amplifies rounding by the truncated tail at every doubling and diverges on the
 //! lightly damped symbols of orders near 2).
 
@@ -63,17 +64,32 @@ pub(crate) fn convolve(a: &[f64], b: &[f64], len: usize) -> Vec<f64> {
 /// The blocks solved directly.
 const BLOCK: usize = 256;
 
-struct Solver<'a> {
-    d: &'a [f64],
-    w: &'a [f64],
-    x: Vec<f64>,
+/// A causal convolution computed as its inputs are decided: `streams` sequences `x_s`, each
+/// with its kernel `k_s`; at sample `k` the step is handed `past_k = sum_s sum_{m<k} x_s[m]
+/// k_s[k-m]` and writes `x_s[k]`. Divide and conquer: the first half of a range solved, its
+/// effect on the second half added by one FFT product per stream, the second half solved.
+struct Online<'a, F: FnMut(usize, f64, &mut [f64])> {
+    kernels: Vec<&'a [f64]>,
+    x: Vec<Vec<f64>>,
     acc: Vec<f64>,
+    step: F,
     planner: RealFftPlanner<f64>,
-    /// The spectrum of `d[..b]` at FFT size `p`, per `(b, p)`.
-    kernels: HashMap<(usize, usize), Arc<Vec<Complex64>>>,
+    /// The spectrum of `kernels[s][..b]` at FFT size `p`, per `(s, b, p)`.
+    spectra: HashMap<(usize, usize, usize), Arc<Vec<Complex64>>>,
+    decided: Vec<f64>,
+    /// Work buffers per FFT size (a size's merge ends before another of that size starts).
+    scratch: HashMap<usize, Scratch>,
 }
 
-impl Solver<'_> {
+/// The buffers of one merge at FFT size `p`.
+struct Scratch {
+    signal: Vec<f64>,
+    spectrum: Vec<Complex64>,
+    total: Vec<Complex64>,
+    work: Vec<Complex64>,
+}
+
+impl<F: FnMut(usize, f64, &mut [f64])> Online<'_, F> {
     fn plans(&mut self, p: usize) -> (Arc<dyn RealToComplex<f64>>, Arc<dyn ComplexToReal<f64>>) {
         (
             self.planner.plan_fft_forward(p),
@@ -81,60 +97,108 @@ impl Solver<'_> {
         )
     }
 
-    fn kernel(&mut self, b: usize, p: usize) -> Arc<Vec<Complex64>> {
-        if let Some(k) = self.kernels.get(&(b, p)) {
+    fn spectrum(&mut self, s: usize, b: usize, p: usize) -> Arc<Vec<Complex64>> {
+        if let Some(k) = self.spectra.get(&(s, b, p)) {
             return k.clone();
         }
         let (forward, _) = self.plans(p);
         let mut buf = vec![0.0; p];
-        buf[..b].copy_from_slice(&self.d[..b]);
+        buf[..b].copy_from_slice(&self.kernels[s][..b]);
         let mut out = forward.make_output_vec();
         forward
             .process(&mut buf, &mut out)
             .expect("sizes from the plan");
         let k = Arc::new(out);
-        self.kernels.insert((b, p), k.clone());
+        self.spectra.insert((s, b, p), k.clone());
         k
+    }
+
+    fn leaf(&mut self, lo: usize, hi: usize) {
+        for k in lo..hi {
+            let mut past = self.acc[k];
+            for (x, kernel) in self.x.iter().zip(&self.kernels) {
+                past += dot_reversed(&x[lo..k], &kernel[1..=k - lo]);
+            }
+            (self.step)(k, past, &mut self.decided);
+            for (x, v) in self.x.iter_mut().zip(&self.decided) {
+                x[k] = *v;
+            }
+        }
     }
 
     fn solve(&mut self, lo: usize, hi: usize) {
         if hi - lo <= BLOCK {
-            for k in lo..hi {
-                let inner = dot_reversed(&self.x[lo..k], &self.d[1..=k - lo]);
-                self.x[k] = self.w[k] - self.acc[k] - inner;
-            }
+            self.leaf(lo, hi);
             return;
         }
         let mid = lo + (hi - lo) / 2;
         self.solve(lo, mid);
-        // acc[k] += sum_{j in lo..mid} d_{k-j} x_j for k in mid..hi: a circular product of size
-        // p >= hi - lo is exact at the indices >= mid - lo that are wanted.
+        // acc[k] += sum_s sum_{j in lo..mid} k_s[k-j] x_s[j] for k in mid..hi: a circular product
+        // of size p >= hi - lo is exact at the indices >= mid - lo that are wanted.
         let b = hi - lo;
         let p = b.next_power_of_two();
-        let kernel = self.kernel(b, p);
         let (forward, inverse) = self.plans(p);
-        let mut buf = vec![0.0; p];
-        buf[..mid - lo].copy_from_slice(&self.x[lo..mid]);
-        let mut spec = forward.make_output_vec();
-        forward
-            .process(&mut buf, &mut spec)
-            .expect("sizes from the plan");
-        spec.iter_mut()
-            .zip(kernel.iter())
-            .for_each(|(s, k)| *s *= k);
-        spec[0].im = 0.0;
-        if let Some(last) = spec.last_mut() {
+        let mut w = self.scratch.remove(&p).unwrap_or_else(|| Scratch {
+            signal: vec![0.0; p],
+            spectrum: forward.make_output_vec(),
+            total: forward.make_output_vec(),
+            work: vec![
+                Complex64::new(0.0, 0.0);
+                forward.get_scratch_len().max(inverse.get_scratch_len())
+            ],
+        });
+        w.total
+            .iter_mut()
+            .for_each(|v| *v = Complex64::new(0.0, 0.0));
+        for s in 0..self.kernels.len() {
+            let kernel = self.spectrum(s, b, p);
+            w.signal[..mid - lo].copy_from_slice(&self.x[s][lo..mid]);
+            w.signal[mid - lo..].iter_mut().for_each(|v| *v = 0.0);
+            forward
+                .process_with_scratch(&mut w.signal, &mut w.spectrum, &mut w.work)
+                .expect("sizes from the plan");
+            w.total
+                .iter_mut()
+                .zip(w.spectrum.iter().zip(kernel.iter()))
+                .for_each(|(t, (x, k))| *t += x * k);
+        }
+        w.total[0].im = 0.0;
+        if let Some(last) = w.total.last_mut() {
             last.im = 0.0;
         }
         inverse
-            .process(&mut spec, &mut buf)
+            .process_with_scratch(&mut w.total, &mut w.signal, &mut w.work)
             .expect("sizes from the plan");
         let norm = 1.0 / p as f64;
         for k in mid..hi {
-            self.acc[k] += buf[k - lo] * norm;
+            self.acc[k] += w.signal[k - lo] * norm;
         }
+        self.scratch.insert(p, w);
         self.solve(mid, hi);
     }
+}
+
+/// Runs the online convolution over `n` samples: `kernels` (each at least `n` long; index 0 is
+/// not used, the step adds the current sample's own terms itself), `step(k, past, decided)`
+/// writes each stream's value at `k` into `decided`. Returns the streams.
+pub(crate) fn online(
+    kernels: Vec<&[f64]>,
+    n: usize,
+    step: impl FnMut(usize, f64, &mut [f64]),
+) -> Vec<Vec<f64>> {
+    let streams = kernels.len();
+    let mut engine = Online {
+        kernels,
+        x: vec![vec![0.0; n]; streams],
+        acc: vec![0.0; n],
+        step,
+        planner: RealFftPlanner::new(),
+        spectra: HashMap::new(),
+        decided: vec![0.0; streams],
+        scratch: HashMap::new(),
+    };
+    engine.solve(0, n);
+    engine.x
 }
 
 /// `sum_i x[i] d[len - 1 - i]` with four running sums.
@@ -159,17 +223,8 @@ fn dot_reversed(x: &[f64], d: &[f64]) -> f64 {
 /// `x` with `x_k = w_k - sum_{i=1..k} d_i x_{k-i}` (`d[0]` taken as 1; `d` at least as long as
 /// `w`).
 pub(crate) fn recursion(d: &[f64], w: &[f64]) -> Vec<f64> {
-    let n = w.len();
-    let mut solver = Solver {
-        d,
-        w,
-        x: vec![0.0; n],
-        acc: vec![0.0; n],
-        planner: RealFftPlanner::new(),
-        kernels: HashMap::new(),
-    };
-    solver.solve(0, n);
-    solver.x
+    let mut out = online(vec![d], w.len(), |k, past, x| x[0] = w[k] - past);
+    out.pop().unwrap_or_default()
 }
 
 #[cfg(test)]
