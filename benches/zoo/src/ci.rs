@@ -46,6 +46,12 @@ const fn f(
 /// The floors, one per class: the counts measured on main e364c0a's binary (2026-12-05, `zoo run
 /// --ci`; the run is deterministic: two runs gave the same scores case by case). Raised as work
 /// lands, never lowered silently (see the module's note).
+///
+/// Measured again on the truth's third version, whose records differ from the second's by 4e-12 to
+/// 4e-8 of the swing: fracid's diagnosis flipped on two cases (saturation 14: power_law -> the
+/// right saturation, floors raised to 2 / 2; cell 34: no effect -> a spurious delay, its exact
+/// effects floor 1 -> 0). Its decisions move with changes that small: a floor of a class with two
+/// cases moves by one on such a flip.
 pub const FLOORS: &[Floor] = &[
     f(Class::Pmsm, 2, 2, 2),
     f(Class::Integer, 2, 2, 2),
@@ -56,12 +62,12 @@ pub const FLOORS: &[Floor] = &[
     f(Class::Integrator, 0, 2, 2),
     f(Class::Diffusion, 1, 1, 1),
     f(Class::Lead, 0, 1, 2),
-    f(Class::Cell, 0, 0, 1),
+    f(Class::Cell, 0, 0, 0),
     f(Class::Delay, 2, 2, 2),
     f(Class::FrictionReversal, 1, 2, 2),
     f(Class::FrictionOneWay, 1, 2, 2),
     f(Class::Deadband, 1, 2, 1),
-    f(Class::Saturation, 0, 1, 1),
+    f(Class::Saturation, 0, 2, 2),
     f(Class::StaticMapTwoLevel, 1, 2, 2),
     f(Class::Offsets, 2, 2, 2),
     f(Class::Periodic, 0, 1, 1),
