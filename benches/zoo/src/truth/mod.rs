@@ -63,7 +63,8 @@
 //!   open-loop convolution against the step-by-step loop (1e-10 relative).
 //! - Effects by hand on a first order (hand ZOH recursion, 1e-12): dead band (below it: exactly
 //!   0), saturation, input offset, power law, sign-blind sensor, output offset + drift +
-//!   periodic, Coulomb friction above and below the breakaway, the PI loop with its clamp, a
+//!   periodic, Coulomb friction above and below the breakaway and behind half a sample of input
+//!   delay (1e-9), the PI loop with its clamp, a
 //!   feed-through inside the loop; `Plant::response` against hand values (1e-14); bad input is
 //!   an `Error`, never a panic.
 
@@ -121,7 +122,8 @@ pub struct Effects {
     pub deadband: Option<f64>,
     /// Symmetric input saturation level.
     pub saturation: Option<f64>,
-    /// Coulomb friction, in input units: the plant's input is u - coulomb * sign(y) (y = speed).
+    /// Coulomb friction, in input units: the plant's input is u - coulomb * sign(y) (y = speed;
+    /// the friction acts without the input delay, decided at each sample instant and held).
     pub coulomb: Option<f64>,
     /// A static map on the input: u -> sign(u) |u|^p (a heater's power goes as V^2: p = 2).
     pub power_law: Option<f64>,
