@@ -47,6 +47,17 @@ fn relaxation() -> Plant {
     }
 }
 
+fn two_mass() -> Plant {
+    // A motor-side two-mass drive: anti-resonance 80 Hz, resonance 120 Hz, an integrator.
+    let (wa, wr) = (std::f64::consts::TAU * 80.0, std::f64::consts::TAU * 120.0);
+    let t = |coef: f64, order: f64| Term { coef, order };
+    Plant {
+        num: vec![t(wa * wa, 0.0), t(0.1 * wa, 1.0), t(1.0, 2.0)],
+        den: vec![t(0.01 * wr * wr, 1.0), t(0.0006 * wr, 2.0), t(0.01, 3.0)],
+        delay_s: 0.0,
+    }
+}
+
 fn prbs(n: usize, clock: usize) -> Vec<f64> {
     let mut state: u32 = 0xACE1;
     let mut level = 1.0;
@@ -122,6 +133,16 @@ fn main() {
             n,
             || {
                 simulate(&relaxation(), &friction, &Drive::Open(&u), dt)
+                    .expect("simulable")
+                    .y
+                    .len()
+            },
+        );
+        time(
+            "open loop with Coulomb friction, integer two-mass (exact)",
+            n,
+            || {
+                simulate(&two_mass(), &friction, &Drive::Open(&u), 2e-4)
                     .expect("simulable")
                     .y
                     .len()

@@ -470,6 +470,41 @@ fn coulomb_friction_by_hand() {
 }
 
 #[test]
+fn friction_acts_without_the_input_delay() {
+    // First order K / (T s + 1), a = e^{-dt/T}, an input delay of half a sample: over sample k
+    // the command is v_{k-1} for the first half and v_k for the second, the friction -c sign(y_k)
+    // throughout: y_{k+1} = a y_k + K ((sqrt a - a) v_{k-1} + (1 - sqrt a) v_k) + K (1 - a) f_k.
+    let (k, t, dt, c) = (2.0, 0.05, 0.01, 0.3);
+    let p = Plant {
+        delay_s: 0.5 * dt,
+        ..first_order_plant()
+    };
+    let u: Vec<f64> = (0..300)
+        .map(|i| if (i / 60) % 2 == 0 { 1.0 } else { -0.8 })
+        .collect();
+    let fx = Effects {
+        coulomb: Some(c),
+        ..Effects::default()
+    };
+    let y = simulate(&p, &fx, &Drive::Open(&u), dt).unwrap().y;
+    let a = f64::exp(-dt / t);
+    let (mut want, mut last_v) = (0.0, 0.0);
+    for (i, got) in y.iter().enumerate() {
+        assert!((got - want).abs() < 1e-9, "sample {i}: {got} {want}");
+        let sign = if want > 0.0 {
+            1.0
+        } else if want < 0.0 {
+            -1.0
+        } else {
+            0.0
+        };
+        want = a * want + k * ((a.sqrt() - a) * last_v + (1.0 - a.sqrt()) * u[i])
+            - k * (1.0 - a) * c * sign;
+        last_v = u[i];
+    }
+}
+
+#[test]
 fn speed_loop_by_hand() {
     // A PI on the first order: u_k = clamp(kp e_k + I_k), I_k = I_{k-1} + ki dt e_k unless the
     // output is clamped and e_k pushes further; the plant input held over the sample.

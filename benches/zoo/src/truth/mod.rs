@@ -10,8 +10,9 @@
 //! superposition of the plant's step response on lattices of times (`lattice`):
 //! - integer orders: exact, from a controllable-canonical realisation in a frequency-scaled
 //!   variable and the matrix exponential of `[[A, B], [0, 0]]` (`exact`);
-//! - fractional orders: Grunwald-Letnikov on the pseudo-state (`sum a_j D^alpha_j x = w`, one
-//!   implicit step per point, `y = sum b_i D^beta_i x`) on three fine grids `h`, `h/2`, `h/4`,
+//! - fractional orders: Grunwald-Letnikov for the general fractional transfer function (the
+//!   pseudo-state scheme `sum a_j D^alpha_j x = w`, `y = sum b_i D^beta_i x`, solved for `y`
+//!   directly, one implicit step per point) on three fine grids `h`, `h/2`, `h/4`,
 //!   `h <= dt / 10` and finer where the plant's corners ask, extrapolated by two Richardson
 //!   stages: the scheme's error is `c1 h + c2 h^2 + c3 h^3 + ...` (its symbol `(1 - e^{-sh})/h`
 //!   expands in whole powers of `h`), so the result is third order (`gl`); the recursion solved
@@ -57,15 +58,18 @@
 //!   residues): 1e-9.
 //! - Delays of 2.3 and 3 samples (first order) and 1.37, 0.93, 2 samples (order 0.7) against the
 //!   shifted exact / Mittag-Leffler response: 1e-4 of the swing.
-//! - The fast paths against the recursions: the divide-and-conquer GL against the direct O(n^2)
-//!   recursion (1e-9 of the largest impulse-response value, orders up to 1.9); the lattice-and-convolution output of an
-//!   irregular held input against GL run on the fine grids with that input (1e-10 relative); the
-//!   open-loop convolution against the step-by-step loop (1e-10 relative).
+//! - The fast paths against the recursions: the divide-and-conquer GL step response against the
+//!   direct O(n^2) pseudo-state recursion (1e-9 of the largest value, orders up to 1.9, 8192
+//!   steps); the lattice-and-convolution output of an irregular held input against GL run on the
+//!   fine grids with that input (1e-10 relative); the open-loop convolution against the
+//!   step-by-step loop (1e-10 relative).
 //! - Effects by hand on a first order (hand ZOH recursion, 1e-12): dead band (below it: exactly
 //!   0), saturation, input offset, power law, sign-blind sensor, output offset + drift +
-//!   periodic, Coulomb friction above and below the breakaway, the PI loop with its clamp, a
-//!   feed-through inside the loop; `Plant::response` against hand values (1e-14); bad input is
-//!   an `Error`, never a panic.
+//!   periodic, Coulomb friction above and below the breakaway and behind half a sample of input
+//!   delay (1e-9), the PI loop with its clamp, a feed-through inside the loop; `Plant::response`
+//!   against hand values (1e-14); bad input is an `Error`, never a panic.
+//!
+//! Timings: `cargo run --release -p zoo --example truth_timing`.
 
 #[cfg(test)]
 mod accuracy;
@@ -121,7 +125,8 @@ pub struct Effects {
     pub deadband: Option<f64>,
     /// Symmetric input saturation level.
     pub saturation: Option<f64>,
-    /// Coulomb friction, in input units: the plant's input is u - coulomb * sign(y) (y = speed).
+    /// Coulomb friction, in input units: the plant's input is u - coulomb * sign(y) (y = speed;
+    /// the friction acts without the input delay, decided at each sample instant and held).
     pub coulomb: Option<f64>,
     /// A static map on the input: u -> sign(u) |u|^p (a heater's power goes as V^2: p = 2).
     pub power_law: Option<f64>,
