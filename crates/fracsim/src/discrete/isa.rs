@@ -87,6 +87,7 @@ pub(crate) trait Simd: Copy {
 
 /// The sizes the value kernel keeps in registers, one instance (compiled for the set) each:
 /// `$vr` vectors of real modes, 0 to 2 of complex modes, with or without `beta1`.
+#[cfg_attr(not(target_arch = "x86_64"), allow(unused_macros))]
 macro_rules! value_in_registers {
     ($($vr:literal)*) => {
         #[inline(always)]

@@ -146,7 +146,9 @@ fn st<S: Simd>(s: S, a: &mut [f64], i: usize, v: S::V) {
     unsafe { s.store(c.as_mut_ptr(), v) }
 }
 
-/// [`value_regs`] for one size, compiled for a set by [`Simd::vectorize`].
+/// [`value_regs`] for one size, compiled for a set by [`Simd::vectorize`] (the x86-64 sets have
+/// such instances, [`super::isa::Portable`] none).
+#[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
 pub(crate) struct ValueRegs<'a, 'b, const VR: usize, const VC: usize, const B1: bool> {
     pub p: &'a mut Packed,
     pub d: &'a Drive<'b>,
@@ -164,6 +166,7 @@ impl<const VR: usize, const VC: usize, const B1: bool> WithSimd for ValueRegs<'_
 
 /// The value kernel with the whole state in registers: `VR` real and `VC` complex vectors, `B1`
 /// whether any `beta1` is nonzero. Writes `y[k]` for `k` in `range`.
+#[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
 #[inline(always)]
 fn value_regs<S: Simd, const VR: usize, const VC: usize, const B1: bool>(
     s: S,
