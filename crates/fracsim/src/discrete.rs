@@ -20,11 +20,11 @@ use crate::approx::ApproxSpec;
 use crate::cx::Cx;
 use crate::error::{finite, invalid, Error, Result};
 use crate::modal::{pole_residue, PoleResidue};
-use crate::scalar::{Dual, Real};
+use crate::scalar::Real;
 use crate::tf::FracTf;
 
 mod free;
-#[cfg(target_arch = "x86_64")]
+pub(crate) mod isa;
 mod kernel;
 
 /// One factor of a series connection ([`Simulator::from_factors`]): numerator and denominator
@@ -361,10 +361,43 @@ impl<T: Real> Simulator<T> {
     }
 
     /// Run on the input `u` from the current state, writing the outputs into `y` (as many as
-    /// the shorter of the two). In `f64` on x86-64 with AVX2 and FMA the loop runs in a kernel
-    /// compiled for them (chosen at run time).
+    /// the shorter of the two). The loop runs in a kernel compiled for the widest vector
+    /// instructions the CPU has (chosen at run time: AVX-512 or AVX2 and FMA on x86-64, else
+    /// plain Rust), a row of plain numbers per part of `T` (the value, and each derivative of a
+    /// [`crate::Dual`]).
     pub fn run_into(&mut self, u: &[f64], y: &mut [T]) {
-        T::run_simulator(self, u, y);
+        self.run_into_with(isa::Isa::detect(), u, y);
+    }
+
+    /// [`Simulator::run_into`] in the kernels of the instruction set `isa`: the first `m + 1`
+    /// samples (which read the delay line, whose inputs may carry derivatives) by
+    /// [`Simulator::step`], the rest by the kernel, reading the input slice itself.
+    pub(crate) fn run_into_with(&mut self, isa: isa::Isa, u: &[f64], y: &mut [T]) {
+        let n = u.len().min(y.len());
+        let head = (self.delay_whole + 1).min(n);
+        self.run_generic(&u[..head], &mut y[..head]);
+        if head == n {
+            return;
+        }
+        let direct: Vec<f64> = (0..=T::derivs_of(()).as_ref().len())
+            .map(|r| kernel::part(self.direct, r))
+            .collect();
+        let drive = kernel::Drive {
+            u,
+            m: self.delay_whole,
+            direct: &direct,
+            direct_prev: self.direct_prev,
+        };
+        let b1 = self.has_b1;
+        isa::with_isa!(isa, s => {
+            let mut p = kernel::Packed::of(self, lanes_of(s));
+            match T::as_plain(y) {
+                Some(y) => kernel::run_value(s, &mut p, &drive, b1, head..n, y),
+                None => kernel::run_rows(s, &mut p, &drive, b1, head..n, y),
+            }
+            p.state_back(self);
+        });
+        refill_delay_line(self, u, n);
     }
 
     /// [`Simulator::run_into`] for any scalar: one [`Simulator::step`] per sample.
@@ -589,10 +622,9 @@ impl Simulator<f64> {
     }
 }
 
-/// The samples `0..head` that read the delay line (`head = m + 1`, at most `n`); the kernels run
-/// the rest reading the input slice itself.
-fn head_of<T: Real>(sim: &Simulator<T>, n: usize) -> usize {
-    (sim.delay_whole + 1).min(n)
+/// The lanes of a vector of the set `s`.
+fn lanes_of<S: isa::Simd>(_: S) -> usize {
+    S::LANES
 }
 
 /// After a kernel ran samples `head..n` of `u`, the delay line as if every sample had been pushed.
@@ -603,230 +635,6 @@ fn refill_delay_line<T: Real>(sim: &mut Simulator<T>, u: &[f64], n: usize) {
         sim.hist[len - 1 - i] = T::from(u[n - 1 - i]);
     }
     sim.pos = len - 1;
-}
-
-/// [`Simulator::run_into`] in `f64`: the first `m + 1` samples by [`Simulator::step`], the rest
-/// by the AVX2 and FMA value kernel ([`kernel::run_value`]) where the CPU has them.
-pub(crate) fn run_f64(sim: &mut Simulator<f64>, u: &[f64], y: &mut [f64]) {
-    let n = u.len().min(y.len());
-    let head = head_of(sim, n);
-    #[cfg(target_arch = "x86_64")]
-    if head < n && kernel::available() {
-        sim.run_generic(&u[..head], &mut y[..head]);
-        let wide = kernel::use_wide();
-        let mut p = kernel::Packed::of(sim, 1, if wide { 8 } else { 4 }, |v, _| v);
-        let drive = kernel::Drive {
-            u,
-            m: sim.delay_whole,
-            direct: &[sim.direct],
-            direct_prev: sim.direct_prev,
-        };
-        // SAFETY: the CPU has AVX2 and FMA (checked above), and AVX-512F when `wide`.
-        unsafe {
-            if wide {
-                kernel::wide::run_value(&mut p, &drive, sim.has_b1, head..n, y);
-            } else {
-                kernel::run_value(&mut p, &drive, sim.has_b1, head..n, y);
-            }
-        }
-        p.state_back(sim, |v| v[0]);
-        refill_delay_line(sim, u, n);
-        return;
-    }
-    sim.run_generic(u, y);
-}
-
-/// [`Simulator::run_into`] in [`Dual`] numbers: the first `m + 1` samples (which read the delay
-/// line, whose inputs may carry derivatives) by [`Simulator::step`], the rest by the AVX-512 or
-/// AVX2 row kernel ([`kernel::run_rows`]) where the CPU has them, else by [`run_dual_soa`].
-pub(crate) fn run_dual<const N: usize>(sim: &mut Simulator<Dual<N>>, u: &[f64], y: &mut [Dual<N>]) {
-    let n = u.len().min(y.len());
-    let head = head_of(sim, n);
-    sim.run_generic(&u[..head], &mut y[..head]);
-    if head == n {
-        return;
-    }
-    let part = |v: Dual<N>, r: usize| if r < N { v.d[r] } else { v.v };
-    #[cfg(target_arch = "x86_64")]
-    if kernel::available() {
-        let wide = kernel::use_wide();
-        let mut p = kernel::Packed::of(sim, N + 1, if wide { 8 } else { 4 }, part);
-        let direct: Vec<f64> = (0..=N).map(|r| part(sim.direct, r)).collect();
-        let drive = kernel::Drive {
-            u,
-            m: sim.delay_whole,
-            direct: &direct,
-            direct_prev: sim.direct_prev,
-        };
-        let mut out = |k: usize, v: f64, d: &[f64; N]| y[k] = Dual { v, d: *d };
-        // SAFETY: the CPU has AVX2 and FMA (checked above), and AVX-512F when `wide`.
-        unsafe {
-            if wide {
-                kernel::wide::run_rows::<N>(&mut p, &drive, sim.has_b1, head..n, &mut out);
-            } else {
-                kernel::run_rows::<N>(&mut p, &drive, sim.has_b1, head..n, &mut out);
-            }
-        }
-        p.state_back(sim, |v| Dual {
-            v: v[N],
-            d: std::array::from_fn(|r| v[r]),
-        });
-        refill_delay_line(sim, u, n);
-        return;
-    }
-    run_dual_soa(sim, &u[head..n], &mut y[head..n]);
-}
-
-/// The dual simulation with plain `f64` inputs, its states stored as structure of arrays (row `i`
-/// of `N + 1`: derivative `i`, the last the value; modes contiguous in each row), so that every
-/// row's update is the same vectorisable loop over modes:
-/// `dx' = phi dx + dphi x + dbeta0 a + dbeta1 b`, then `x' = phi x + beta0 a + beta1 b`. The
-/// input has no derivative, which saves the products a generic `Dual * Dual` would spend on it.
-/// Same arithmetic as [`Simulator::step`] up to rounding (the sums are grouped differently).
-#[inline(always)]
-fn run_dual_soa<const N: usize>(sim: &mut Simulator<Dual<N>>, u: &[f64], y: &mut [Dual<N>]) {
-    let nr = sim.re_phi.len();
-    let nc = sim.cx_phi.len();
-    let rows = N + 1;
-    // Row i < N is derivative i, row N the value.
-    let part = |d: &Dual<N>, i: usize| if i < N { d.d[i] } else { d.v };
-    let soa = |v: &[Dual<N>]| -> Vec<f64> {
-        (0..rows)
-            .flat_map(|i| v.iter().map(move |d| part(d, i)))
-            .collect()
-    };
-    let mut x = soa(&sim.re_x);
-    let phi = soa(&sim.re_phi);
-    let b0 = soa(&sim.re_b0);
-    let b1 = soa(&sim.re_b1);
-    let cre = |v: &[Cx<Dual<N>>]| -> (Vec<f64>, Vec<f64>) {
-        let re: Vec<Dual<N>> = v.iter().map(|c| c.re).collect();
-        let im: Vec<Dual<N>> = v.iter().map(|c| c.im).collect();
-        (soa(&re), soa(&im))
-    };
-    let (mut cxr, mut cxi) = cre(&sim.cx_x);
-    let (cpr, cpi) = cre(&sim.cx_phi);
-    let (c0r, c0i) = cre(&sim.cx_b0);
-    let (c1r, c1i) = cre(&sim.cx_b1);
-    let mut hist: Vec<f64> = sim.hist.iter().map(|h| h.v).collect();
-    let n = hist.len();
-    let mut pos = sim.pos;
-    let (m_whole, direct, direct_prev) = (sim.delay_whole, sim.direct, sim.direct_prev);
-    let back = |pos: usize, j: usize| if pos >= j { pos - j } else { pos + n - j };
-    let (xv_off, cv_off) = (N * nr, N * nc);
-    for (yk, &uk) in y.iter_mut().zip(u) {
-        pos = if pos + 1 == n { 0 } else { pos + 1 };
-        hist[pos] = uk;
-        let a = hist[back(pos, m_whole)];
-        let b = hist[back(pos, m_whole + 1)];
-        let din = if direct_prev { b } else { a };
-        let mut out = Dual::<N>::cst(direct.v * din);
-        for i in 0..N {
-            out.d[i] = direct.d[i] * din;
-        }
-        // Real modes: the derivative rows first (they need the old values), the value row last.
-        let (xd, xv) = x.split_at_mut(xv_off);
-        real_rows(xd, xv, &phi, &b0, &b1, nr, a, b, &mut out);
-        // Complex modes (each the real part of a doubled pair): the same, in complex arithmetic.
-        let (dr, vr) = cxr.split_at_mut(cv_off);
-        let (di, vi) = cxi.split_at_mut(cv_off);
-        for i in 0..N {
-            let r = i * nc;
-            let mut sum = 0.0;
-            for m in 0..nc {
-                let (xr, xi) = (dr[r + m], di[r + m]);
-                sum += xr;
-                let (pr, pi) = (cpr[cv_off + m], cpi[cv_off + m]);
-                let (qr, qi) = (cpr[r + m], cpi[r + m]);
-                let (or, oi) = (vr[m], vi[m]);
-                dr[r + m] =
-                    pr * xr - pi * xi + (qr * or - qi * oi) + c0r[r + m] * a + c1r[r + m] * b;
-                di[r + m] =
-                    pr * xi + pi * xr + (qr * oi + qi * or) + c0i[r + m] * a + c1i[r + m] * b;
-            }
-            out.d[i] += sum;
-        }
-        for m in 0..nc {
-            let (xr, xi) = (vr[m], vi[m]);
-            out.v += xr;
-            let (pr, pi) = (cpr[cv_off + m], cpi[cv_off + m]);
-            vr[m] = pr * xr - pi * xi + c0r[cv_off + m] * a + c1r[cv_off + m] * b;
-            vi[m] = pr * xi + pi * xr + c0i[cv_off + m] * a + c1i[cv_off + m] * b;
-        }
-        *yk = out;
-    }
-    // The state back into the simulator, which may run on.
-    let aos = |v: &[f64], len: usize, k: usize| -> Dual<N> {
-        let mut d = Dual::<N>::cst(v[N * len + k]);
-        for i in 0..N {
-            d.d[i] = v[i * len + k];
-        }
-        d
-    };
-    for k in 0..nr {
-        sim.re_x[k] = aos(&x, nr, k);
-    }
-    for k in 0..nc {
-        sim.cx_x[k] = Cx::new(aos(&cxr, nc, k), aos(&cxi, nc, k));
-    }
-    for (h, &v) in sim.hist.iter_mut().zip(&hist) {
-        *h = Dual::cst(v);
-    }
-    sim.pos = pos;
-}
-
-/// The real modes' rows of [`run_dual_soa`] in plain Rust (no AVX2).
-#[allow(clippy::too_many_arguments)]
-#[inline(always)]
-fn real_rows<const N: usize>(
-    xd: &mut [f64],
-    xv: &mut [f64],
-    phi: &[f64],
-    b0: &[f64],
-    b1: &[f64],
-    nr: usize,
-    a: f64,
-    b: f64,
-    out: &mut Dual<N>,
-) {
-    let xv_off = N * nr;
-    for i in 0..N {
-        let r = i * nr;
-        let mut acc = [0.0f64; 4];
-        for ((((xr, xo), ph), (p0, p1)), pv) in xd[r..r + nr]
-            .chunks_exact_mut(4)
-            .zip(xv.chunks_exact(4))
-            .zip(phi[r..r + nr].chunks_exact(4))
-            .zip(
-                b0[r..r + nr]
-                    .chunks_exact(4)
-                    .zip(b1[r..r + nr].chunks_exact(4)),
-            )
-            .zip(phi[xv_off..].chunks_exact(4))
-        {
-            for l in 0..4 {
-                acc[l] += xr[l];
-                xr[l] = pv[l] * xr[l] + ph[l] * xo[l] + p0[l] * a + p1[l] * b;
-            }
-        }
-        out.d[i] += (acc[0] + acc[1]) + (acc[2] + acc[3]);
-    }
-    let mut acc = [0.0f64; 4];
-    for ((xo, pv), (p0, p1)) in xv
-        .chunks_exact_mut(4)
-        .zip(phi[xv_off..].chunks_exact(4))
-        .zip(
-            b0[xv_off..]
-                .chunks_exact(4)
-                .zip(b1[xv_off..].chunks_exact(4)),
-        )
-    {
-        for l in 0..4 {
-            acc[l] += xo[l];
-            xo[l] = pv[l] * xo[l] + p0[l] * a + p1[l] * b;
-        }
-    }
-    out.v += (acc[0] + acc[1]) + (acc[2] + acc[3]);
 }
 
 /// Simulate `tf` on input `u` sampled every `dt` seconds and held between samples, from rest.
@@ -866,7 +674,9 @@ pub(crate) struct PastWeights<T> {
 
 #[cfg(test)]
 mod tests {
+    use super::isa::Isa;
     use super::*;
+    use crate::scalar::Dual;
 
     /// A first-order lag with a fractional-sample delay against its closed form.
     #[test]
@@ -946,26 +756,14 @@ mod tests {
         assert!(sim.set_past_input(&[1.0, 2.0, 3.0], &[0.2, 0.1]).is_err());
     }
 
-    /// The structure-of-arrays dual kernel against the generic per-sample step (the same
-    /// recursion in `Dual` arithmetic): real and complex modes, a fractional-sample delay with
-    /// dual coefficients, a past input of constant levels, and a run split in two blocks (the
-    /// state carries over).
-    /// The value kernel (its state in registers, the output summed four samples at a time, the
-    /// delayed input read from the slice) against one generic step per sample: whole and
-    /// fractional-sample delays, a feed-through, complex modes, a past input, runs split at odd
-    /// places (the state and delay line carried across).
-    /// `f` once with each kernel the CPU has: the AVX2 kernels, and the AVX-512 ones where
-    /// the CPU has AVX-512F (the widest is what `run_into` picks).
-    fn each_kernel(f: impl Fn(&str)) {
-        #[cfg(target_arch = "x86_64")]
-        {
-            kernel::with_narrow(true, || f("avx2"));
-            if kernel::wide::available() {
-                f("avx512");
-            }
+    /// `f` once with each instruction set the CPU runs, the portable one first (so every CPU
+    /// runs it) and the widest (what `run_into` picks) last.
+    fn each_kernel(f: impl Fn(Isa)) {
+        let sets = Isa::available();
+        assert!(matches!(sets[0], Isa::Portable));
+        for isa in sets {
+            f(isa);
         }
-        #[cfg(not(target_arch = "x86_64"))]
-        f("portable");
     }
 
     #[test]
@@ -973,7 +771,12 @@ mod tests {
         each_kernel(value_kernel_case);
     }
 
-    fn value_kernel_case(kernel: &str) {
+    /// The value kernel (its state in registers, or in memory for the most modes; the output
+    /// summed a few samples at a time; the delayed input read from the slice) against one
+    /// generic step per sample: whole and fractional-sample delays, a feed-through, complex
+    /// modes, a past input, runs split at odd places (the state and delay line carried across).
+    fn value_kernel_case(isa: Isa) {
+        let kernel = isa.name();
         let dt = 5e-4;
         let u: Vec<f64> = (0..2000)
             .map(|k| if (k / 7) % 3 == 1 { 1.3 } else { -0.4 } + 1e-3 * k as f64)
@@ -997,7 +800,7 @@ mod tests {
                 let mut got = vec![0.0; u.len()];
                 let cuts = [0, 3, 317, 318, 1290, u.len()];
                 for w in cuts.windows(2) {
-                    sim.run_into(&u[w[0]..w[1]], &mut got[w[0]..w[1]]);
+                    sim.run_into_with(isa, &u[w[0]..w[1]], &mut got[w[0]..w[1]]);
                 }
                 let scale = want.iter().map(|w| w.abs()).fold(1.0, f64::max);
                 for (k, (g2, w)) in got.iter().zip(&want).enumerate() {
@@ -1015,7 +818,12 @@ mod tests {
         each_kernel(dual_kernel_case);
     }
 
-    fn dual_kernel_case(kernel: &str) {
+    /// The row kernel in dual numbers against the generic per-sample step (the same recursion
+    /// in `Dual` arithmetic): real and complex modes, a fractional-sample delay with dual
+    /// coefficients, a past input of constant levels, and a run split in two blocks (the state
+    /// carries over).
+    fn dual_kernel_case(isa: Isa) {
+        let kernel = isa.name();
         let dt = 5e-4;
         let u: Vec<f64> = (0..900)
             .map(|k| if (k / 9) % 3 == 1 { 1.3 } else { -0.4 })
@@ -1046,8 +854,8 @@ mod tests {
             generic.run_generic(&u, &mut want);
             let mut got = vec![Dual::cst(0.0); u.len()];
             let (g1, g2) = got.split_at_mut(317);
-            sim.run_into(&u[..317], g1);
-            sim.run_into(&u[317..], g2);
+            sim.run_into_with(isa, &u[..317], g1);
+            sim.run_into_with(isa, &u[317..], g2);
             let scale = want.iter().map(|w| w.v.abs()).fold(1.0, f64::max);
             for (k, (g, w)) in got.iter().zip(&want).enumerate() {
                 assert!(

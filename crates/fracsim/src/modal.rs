@@ -14,7 +14,7 @@
 //!   polished by Newton's method on `H` evaluated in factored form, plus the poles of `N_H` that
 //!   `H` does not cancel (a free integrator, numerator cells).
 //! - The residues are `r_i = N_H(lambda_i)/H'(lambda_i)`, with `H'` from the logarithmic
-//!   derivative of the factored form. For a root within [`NEAR_CELL_POLE`] (relative) of a
+//!   derivative of the factored form. For a root within `NEAR_CELL_POLE` (relative) of a
 //!   denominator cell pole `-p` (the slow modes, and near-cancelling pole-zero pairs) both the
 //!   last Newton step and the residue go through `F(s) = H(s)(s + p)`, which has no pole there:
 //!   `lambda = s0 - F/F'`, `r = N_H(lambda)(lambda + p)/F'(lambda)`. On `H` itself the value and

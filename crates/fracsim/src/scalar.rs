@@ -48,11 +48,20 @@ pub trait Real:
     }
     /// `self^e` for a constant exponent.
     fn powf(self, e: f64) -> Self;
-    /// Run a simulator over a block of samples ([`crate::Simulator::run_into`]); `f64` uses a
-    /// kernel compiled for the CPU's vector instructions.
-    #[doc(hidden)]
-    fn run_simulator(sim: &mut crate::Simulator<Self>, u: &[f64], y: &mut [Self]) {
-        sim.run_generic(u, y);
+    /// One entry per derivative: `[V; 0]` for `f64`, `[V; N]` for `Dual<N>`. Lets code written
+    /// over `Real` hold the parts of a scalar apart (the simulation kernels run a row of plain
+    /// numbers per part).
+    type Derivs<V: Copy>: Copy + AsRef<[V]> + AsMut<[V]>;
+    /// Every derivative entry `v`.
+    fn derivs_of<V: Copy>(v: V) -> Self::Derivs<V>;
+    /// The derivatives (none for `f64`).
+    fn derivs(self) -> Self::Derivs<f64>;
+    /// The scalar of value `v` and derivatives `d`.
+    fn from_parts(v: f64, d: Self::Derivs<f64>) -> Self;
+    /// `y` as plain numbers, when the scalar is `f64`.
+    fn as_plain(y: &mut [Self]) -> Option<&mut [f64]> {
+        let _ = y;
+        None
     }
     /// Absolute value.
     fn abs(self) -> Self {
@@ -89,8 +98,22 @@ impl Real for f64 {
     fn sin_cos(self) -> (Self, Self) {
         f64::sin_cos(self)
     }
-    fn run_simulator(sim: &mut crate::Simulator<Self>, u: &[f64], y: &mut [Self]) {
-        crate::discrete::run_f64(sim, u, y);
+    type Derivs<V: Copy> = [V; 0];
+    #[inline(always)]
+    fn derivs_of<V: Copy>(_: V) -> [V; 0] {
+        []
+    }
+    #[inline(always)]
+    fn derivs(self) -> [f64; 0] {
+        []
+    }
+    #[inline(always)]
+    fn from_parts(v: f64, _: [f64; 0]) -> Self {
+        v
+    }
+    #[inline(always)]
+    fn as_plain(y: &mut [Self]) -> Option<&mut [f64]> {
+        Some(y)
     }
     #[inline]
     fn powr(self, e: Self) -> Self {
@@ -257,8 +280,18 @@ impl<const N: usize> Real for Dual<N> {
     fn re(self) -> f64 {
         self.v
     }
-    fn run_simulator(sim: &mut crate::Simulator<Self>, u: &[f64], y: &mut [Self]) {
-        crate::discrete::run_dual(sim, u, y);
+    type Derivs<V: Copy> = [V; N];
+    #[inline(always)]
+    fn derivs_of<V: Copy>(v: V) -> [V; N] {
+        [v; N]
+    }
+    #[inline(always)]
+    fn derivs(self) -> [f64; N] {
+        self.d
+    }
+    #[inline(always)]
+    fn from_parts(v: f64, d: [f64; N]) -> Self {
+        Self { v, d }
     }
     fn exp(self) -> Self {
         let e = self.v.exp();

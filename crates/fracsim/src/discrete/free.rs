@@ -10,6 +10,7 @@
 //! simulations on zeros, the paper's PMSM at 0.5 ms, 35 real modes and 2 complex pairs, 700 000
 //! samples, AVX-512): 5.3 ms against 8.4 ms.
 
+use super::isa::{with_isa, Isa, Simd, WithSimd};
 use super::Simulator;
 use crate::cx::Cx;
 use crate::error::{invalid, Result};
@@ -51,21 +52,28 @@ impl Simulator<f64> {
         skip: usize,
         outs: &mut [&mut [f64]],
     ) -> Result<()> {
+        self.free_responses_with(Isa::detect(), levels, edges, skip, outs)
+    }
+
+    /// [`Simulator::free_responses`] compiled for the instruction set `isa`.
+    pub(crate) fn free_responses_with(
+        &mut self,
+        isa: Isa,
+        levels: &[Vec<f64>],
+        edges: &[f64],
+        skip: usize,
+        outs: &mut [&mut [f64]],
+    ) -> Result<()> {
         let (head, modes, mut states) = self.free_start(levels, edges, skip, outs)?;
         let n = skip + outs.first().map_or(0, |o| o.len());
-        #[cfg(target_arch = "x86_64")]
-        if super::kernel::available() {
-            // SAFETY: the CPU has AVX2 and FMA (checked), and AVX-512F when `use_wide`.
-            unsafe {
-                if super::kernel::use_wide() {
-                    tail_avx512(&modes, &mut states, head..n, skip, outs);
-                } else {
-                    tail_avx2(&modes, &mut states, head..n, skip, outs);
-                }
-            }
-            return Ok(());
-        }
-        tail::<false>(&modes, &mut states, head..n, skip, outs);
+        let tail = Tail {
+            modes: &modes,
+            states: &mut states,
+            range: head..n,
+            skip,
+            outs,
+        };
+        with_isa!(isa, s => s.vectorize(tail));
         Ok(())
     }
 
@@ -189,99 +197,80 @@ struct States {
 }
 
 /// Samples `range` of each response into `outs` (`outs[j][k - skip]`, for `k >= skip`), from the
-/// states at `range.start`. With `FMA` the products are fused (for the builds with FMA).
-#[inline(always)]
-fn tail<const FMA: bool>(
-    modes: &Modes,
-    states: &mut States,
+/// states at `range.start`, compiled for a set by [`Simd::vectorize`]: plain Rust that the
+/// compiler vectorises for the set's width, its products fused where the set fuses them.
+struct Tail<'a, 'b> {
+    modes: &'a Modes,
+    states: &'a mut States,
     range: std::ops::Range<usize>,
     skip: usize,
-    outs: &mut [&mut [f64]],
-) {
-    let fma = |a: f64, b: f64, c: f64| if FMA { a.mul_add(b, c) } else { a * b + c };
-    let mut k = range.start;
-    while k < range.end {
-        let w = (range.end - k).min(W);
-        if k + w > skip {
-            for (j, out) in outs.iter_mut().enumerate() {
-                // Four sums, a mode to each in turn (the real modes come in whole lanes of
-                // four): the additions of one do not wait for the others'.
-                let (mut s0, mut s1, mut s2, mut s3) = ([0.0; W], [0.0; W], [0.0; W], [0.0; W]);
-                for (p, x) in modes.real.chunks_exact(4).zip(states.xr[j].chunks_exact(4)) {
-                    for i in 0..W {
-                        s0[i] = fma(x[0], p[0][i], s0[i]);
-                        s1[i] = fma(x[1], p[1][i], s1[i]);
-                        s2[i] = fma(x[2], p[2][i], s2[i]);
-                        s3[i] = fma(x[3], p[3][i], s3[i]);
+    outs: &'a mut [&'b mut [f64]],
+}
+
+impl WithSimd for Tail<'_, '_> {
+    type Output = ();
+    #[inline(always)]
+    fn with_simd<S: Simd>(self, _: S) {
+        let Self {
+            modes,
+            states,
+            range,
+            skip,
+            outs,
+        } = self;
+        let fma = |a: f64, b: f64, c: f64| if S::FUSED { a.mul_add(b, c) } else { a * b + c };
+        let mut k = range.start;
+        while k < range.end {
+            let w = (range.end - k).min(W);
+            if k + w > skip {
+                for (j, out) in outs.iter_mut().enumerate() {
+                    // Four sums, a mode to each in turn (the real modes come in whole lanes of
+                    // four): the additions of one do not wait for the others'.
+                    let (mut s0, mut s1, mut s2, mut s3) = ([0.0; W], [0.0; W], [0.0; W], [0.0; W]);
+                    for (p, x) in modes.real.chunks_exact(4).zip(states.xr[j].chunks_exact(4)) {
+                        for i in 0..W {
+                            s0[i] = fma(x[0], p[0][i], s0[i]);
+                            s1[i] = fma(x[1], p[1][i], s1[i]);
+                            s2[i] = fma(x[2], p[2][i], s2[i]);
+                            s3[i] = fma(x[3], p[3][i], s3[i]);
+                        }
                     }
-                }
-                for ((pr, pi), x) in modes.cx_re.iter().zip(&modes.cx_im).zip(&states.xc[j]) {
-                    for i in 0..W {
-                        s0[i] = fma(x.re, pr[i], s0[i]);
-                        s1[i] = fma(-x.im, pi[i], s1[i]);
+                    for ((pr, pi), x) in modes.cx_re.iter().zip(&modes.cx_im).zip(&states.xc[j]) {
+                        for i in 0..W {
+                            s0[i] = fma(x.re, pr[i], s0[i]);
+                            s1[i] = fma(-x.im, pi[i], s1[i]);
+                        }
                     }
-                }
-                let mut acc = [0.0; W];
-                for i in 0..W {
-                    acc[i] = (s0[i] + s1[i]) + (s2[i] + s3[i]);
-                }
-                if k >= skip && w == W {
-                    out[k - skip..k - skip + W].copy_from_slice(&acc);
-                } else {
-                    for (i, &v) in acc.iter().enumerate().take(w) {
-                        if k + i >= skip {
-                            out[k + i - skip] = v;
+                    let mut acc = [0.0; W];
+                    for i in 0..W {
+                        acc[i] = (s0[i] + s1[i]) + (s2[i] + s3[i]);
+                    }
+                    if k >= skip && w == W {
+                        out[k - skip..k - skip + W].copy_from_slice(&acc);
+                    } else {
+                        for (i, &v) in acc.iter().enumerate().take(w) {
+                            if k + i >= skip {
+                                out[k + i - skip] = v;
+                            }
                         }
                     }
                 }
             }
-        }
-        for (xr, xc) in states.xr.iter_mut().zip(&mut states.xc) {
-            for (x, s) in xr.iter_mut().zip(&modes.real_step) {
-                *x = flushed(*x * s);
+            for (xr, xc) in states.xr.iter_mut().zip(&mut states.xc) {
+                for (x, s) in xr.iter_mut().zip(&modes.real_step) {
+                    *x = flushed(*x * s);
+                }
+                for (x, &s) in xc.iter_mut().zip(&modes.cx_step) {
+                    let v = *x * s;
+                    *x = Cx {
+                        re: flushed(v.re),
+                        im: flushed(v.im),
+                    };
+                }
             }
-            for (x, &s) in xc.iter_mut().zip(&modes.cx_step) {
-                let v = *x * s;
-                *x = Cx {
-                    re: flushed(v.re),
-                    im: flushed(v.im),
-                };
-            }
+            k += W;
         }
-        k += W;
     }
-}
-
-/// [`tail`] compiled for AVX2 and FMA.
-///
-/// # Safety
-/// The CPU must support AVX2 and FMA.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-unsafe fn tail_avx2(
-    modes: &Modes,
-    states: &mut States,
-    range: std::ops::Range<usize>,
-    skip: usize,
-    outs: &mut [&mut [f64]],
-) {
-    tail::<true>(modes, states, range, skip, outs);
-}
-
-/// [`tail`] compiled for AVX-512F (a row of the table in one vector).
-///
-/// # Safety
-/// The CPU must support AVX-512F, AVX2 and FMA.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f,avx2,fma")]
-unsafe fn tail_avx512(
-    modes: &Modes,
-    states: &mut States,
-    range: std::ops::Range<usize>,
-    skip: usize,
-    outs: &mut [&mut [f64]],
-) {
-    tail::<true>(modes, states, range, skip, outs);
 }
 
 #[cfg(test)]
@@ -289,15 +278,15 @@ mod tests {
     use super::*;
     use crate::{ApproxSpec, FracTf};
 
-    /// Each response against its own simulation (`set_past_input`, then `run_into` on zeros):
-    /// models with real and complex modes, with a whole and a fractional delay, with a
-    /// feed-through; `skip` before, inside and after the delayed head; lengths that are not a
-    /// multiple of the block, and shorter than the head. In every kernel the machine has, and the
-    /// portable one. 1e-12 of the largest output: the two round differently (a power table
-    /// against one step at a time), both to a few ulps per thousand samples.
     /// A way to fill the outputs.
     type Run<'a> = dyn Fn(&mut Simulator<f64>, &mut [&mut [f64]]) + 'a;
 
+    /// Each response against its own simulation (`set_past_input`, then `run_into` on zeros):
+    /// models with real and complex modes, with a whole and a fractional delay, with a
+    /// feed-through; `skip` before, inside and after the delayed head; lengths that are not a
+    /// multiple of the block, and shorter than the head. In every instruction set the CPU runs,
+    /// the portable one included. 1e-12 of the largest output: the two round differently (a
+    /// power table against one step at a time), both to a few ulps per thousand samples.
     #[test]
     fn free_responses_equal_their_simulations() {
         let models = [
@@ -353,17 +342,11 @@ mod tests {
                     check("kernel", &|s, o| {
                         s.free_responses(&sets, &edges, skip, o).unwrap()
                     });
-                    #[cfg(target_arch = "x86_64")]
-                    check("narrow", &|s, o| {
-                        super::super::kernel::with_narrow(true, || {
-                            s.free_responses(&sets, &edges, skip, o).unwrap()
-                        })
-                    });
-                    check("portable", &|s, o| {
-                        let (head, modes, mut states) =
-                            s.free_start(&sets, &edges, skip, o).unwrap();
-                        tail::<false>(&modes, &mut states, head..n, skip, o);
-                    });
+                    for isa in Isa::available() {
+                        check(isa.name(), &|s, o| {
+                            s.free_responses_with(isa, &sets, &edges, skip, o).unwrap()
+                        });
+                    }
                 }
             }
         }

@@ -1,59 +1,35 @@
-//! The AVX2 + FMA kernels of [`Simulator::run_into`]: the modes packed four to a 256-bit vector,
-//! complex modes two to a vector, and the delayed input read straight from the input slice.
+//! The kernels of [`Simulator::run_into`], written once over the instruction set
+//! ([`super::isa::Simd`]): the modes packed `L` to a vector (`L = S::LANES`: 4 for AVX2 and the
+//! portable set, 8 for AVX-512), complex modes `L / 2` to a vector, and the delayed input read
+//! straight from the input slice.
 //!
 //! Layout ([`Packed`]): `rows` rows (row `rows - 1` the values, rows `0..rows - 1` the derivative
 //! parts of a [`crate::Dual`] simulation), each of `vr` real vectors (real mode `i` in vector
-//! `i / 4`, lane `i % 4`) then `vc` complex vectors (complex modes `2c`, `2c + 1` of vector `c` as
-//! `[re_0, re_1, im_0, im_1]`). A complex product `phi x` is then
-//! `phi1 * x + phi2 * swap(x)` with `phi1 = [re_0, re_1, re_0, re_1]`,
-//! `phi2 = [-im_0, -im_1, im_0, im_1]` and `swap` the exchange of the two 128-bit halves: the
+//! `i / L`, lane `i % L`) then `vc` complex vectors (complex modes `hc .. hc + L/2` of vector `c`
+//! as `[re.., im..]`). A complex product `phi x` is then `phi1 * x + phi2 * swap(x)` with
+//! `phi1 = [re.., re..]`, `phi2 = [-im.., im..]` and `swap` the exchange of the two halves: the
 //! same lane-wise multiply-adds as the real modes plus one permutation. Padding lanes are inert
 //! (zero coefficients, zero state).
 //!
-//! The per-sample work is then, per vector and row, two or three fused multiply-adds (three more
-//! for a complex vector) and one addition into the output: the value kernel keeps the whole state
-//! in registers for up to 12 real and 2 complex vectors (48 real modes and 4 complex pairs); the
-//! row kernel (dual numbers, or more modes) keeps it in memory, one pass over the vectors per
+//! The per-sample work is then, per vector and row, two or three multiply-adds (three more for a
+//! complex vector) and one addition into the output: the value kernel ([`value_regs`]) keeps the
+//! whole state in registers when the set has an instance of its size
+//! ([`Simd::value_in_registers`]: up to 48 real modes and 2 complex vectors); the row kernel
+//! ([`rows_mem`]: dual numbers, or more modes) keeps it in memory, one pass over the vectors per
 //! sample with the value of each mode loaded once for all its derivative rows.
 
+use super::isa::{Simd, WithSimd};
 use super::Simulator;
 use crate::scalar::Real;
-use std::arch::x86_64::*;
 use std::ops::Range;
 
-pub(super) mod wide;
-
-#[cfg(test)]
-thread_local! {
-    /// Tests run the AVX2 kernels on a machine with AVX-512 too.
-    static NARROW: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
-}
-
-/// `f` with the AVX2 kernels (`narrow`) or the widest the CPU has (tests).
-#[cfg(test)]
-pub(super) fn with_narrow<R>(narrow: bool, f: impl FnOnce() -> R) -> R {
-    NARROW.with(|n| n.set(narrow));
-    let r = f();
-    NARROW.with(|n| n.set(false));
-    r
-}
-
-/// Whether the AVX-512 kernels ([`wide`]) run: the CPU has AVX-512F.
-pub(super) fn use_wide() -> bool {
-    #[cfg(test)]
-    if NARROW.with(|n| n.get()) {
-        return false;
-    }
-    wide::available()
-}
-
 /// The modes of a [`Simulator`] packed for the kernels (see the module documentation).
-pub(super) struct Packed {
-    rows: usize,
-    /// Lanes of a vector: 4 (AVX2) or 8 (AVX-512).
-    lanes: usize,
-    vr: usize,
-    vc: usize,
+pub(crate) struct Packed {
+    pub(super) rows: usize,
+    /// Lanes of a vector: 4 or 8.
+    pub(super) lanes: usize,
+    pub(super) vr: usize,
+    pub(super) vc: usize,
     phi1: Vec<f64>,
     phi2: Vec<f64>,
     b0: Vec<f64>,
@@ -61,15 +37,17 @@ pub(super) struct Packed {
     x: Vec<f64>,
 }
 
+/// Part `r` of `v`: derivative `r`, or the value for `r` = the number of derivatives.
+#[inline(always)]
+pub(super) fn part<T: Real>(v: T, r: usize) -> f64 {
+    v.derivs().as_ref().get(r).copied().unwrap_or(v.re())
+}
+
 impl Packed {
-    /// Pack `sim`'s coefficients and state in vectors of `lanes` (4 or 8); `part(v, r)` is part
-    /// `r` of `v` (`r = rows - 1` the value).
-    pub(super) fn of<T: Real>(
-        sim: &Simulator<T>,
-        rows: usize,
-        lanes: usize,
-        part: impl Fn(T, usize) -> f64,
-    ) -> Self {
+    /// Pack `sim`'s coefficients and state (every part of its scalars, [`part`]) in vectors of
+    /// `lanes` (4 or 8).
+    pub(super) fn of<T: Real>(sim: &Simulator<T>, lanes: usize) -> Self {
+        let rows = T::derivs_of(()).as_ref().len() + 1;
         let nr = sim.re_phi.len();
         let half = lanes / 2;
         let (vr, nc) = (nr.div_ceil(lanes), sim.cx_phi.len());
@@ -113,176 +91,140 @@ impl Packed {
         p
     }
 
-    /// The state back into `sim`: `make(parts)` builds a scalar from its `rows` parts.
-    pub(super) fn state_back<T: Real>(&self, sim: &mut Simulator<T>, make: impl Fn(&[f64]) -> T) {
+    /// The state back into `sim`.
+    pub(super) fn state_back<T: Real>(&self, sim: &mut Simulator<T>) {
         let (v, l, half) = (self.vr + self.vc, self.lanes, self.lanes / 2);
-        let mut parts = vec![0.0; self.rows];
+        let make = |at: usize| {
+            let mut d = T::derivs_of(0.0);
+            for (r, q) in d.as_mut().iter_mut().enumerate() {
+                *q = self.x[r * v * l + at];
+            }
+            T::from_parts(self.x[(self.rows - 1) * v * l + at], d)
+        };
         for i in 0..sim.re_x.len() {
-            for (r, q) in parts.iter_mut().enumerate() {
-                *q = self.x[r * v * l + i];
-            }
-            sim.re_x[i] = make(&parts);
+            sim.re_x[i] = make(i);
         }
-        let mut im = vec![0.0; self.rows];
         for m in 0..sim.cx_x.len() {
-            for r in 0..self.rows {
-                let at = r * v * l + (self.vr + m / half) * l + m % half;
-                parts[r] = self.x[at];
-                im[r] = self.x[at + half];
-            }
-            sim.cx_x[m] = crate::cx::Cx::new(make(&parts), make(&im));
+            let at = (self.vr + m / half) * l + m % half;
+            sim.cx_x[m] = crate::cx::Cx::new(make(at), make(at + half));
         }
+    }
+
+    /// The arrays' length, checked.
+    fn checked_len(&self) -> usize {
+        let len = self.rows * (self.vr + self.vc) * self.lanes;
+        assert!([&self.phi1, &self.phi2, &self.b0, &self.b1, &self.x]
+            .iter()
+            .all(|a| a.len() == len));
+        len
     }
 }
 
 /// What a kernel reads besides the packed modes: the input, the whole-sample delay `m`
 /// (`a_k = u[k - m]`, `b_k = u[k - m - 1]`, so `k >= m + 1`), the feed-through's parts (one per
 /// row) and whether it sees `b_k` (a fractional-sample delay) instead of `a_k`.
-pub(super) struct Drive<'a> {
+pub(crate) struct Drive<'a> {
     pub u: &'a [f64],
     pub m: usize,
     pub direct: &'a [f64],
     pub direct_prev: bool,
 }
 
-/// Horizontal sum of four lanes, `(l0 + l1) + (l2 + l3)`.
-#[target_feature(enable = "avx2,fma")]
-#[inline]
-pub(super) fn hsum(v: __m256d) -> f64 {
-    // (l0 + l1) + (l2 + l3), as `sum_parts` groups them: a sample's output does not depend on
-    // where it falls in a block.
-    let mut l = [0.0f64; 4];
-    // SAFETY: `l` holds four f64.
-    unsafe { _mm256_storeu_pd(l.as_mut_ptr(), v) };
-    (l[0] + l[1]) + (l[2] + l[3])
+/// Vector `i` of `a` (bounds checked).
+#[inline(always)]
+fn ld<S: Simd>(s: S, a: &[f64], i: usize) -> S::V {
+    let c = &a[S::LANES * i..S::LANES * (i + 1)];
+    // SAFETY: `c` is `LANES` f64.
+    unsafe { s.load(c.as_ptr()) }
 }
 
-/// `y[k] = ` the sum of the four lanes of `parts[k]`, four samples at a time.
-#[target_feature(enable = "avx2,fma")]
-#[inline]
-pub(super) fn sum_parts(parts: &[__m256d], y: &mut [f64]) {
-    let mut quads = parts.chunks_exact(4);
-    let mut outs = y.chunks_exact_mut(4);
-    for (q, o) in (&mut quads).zip(&mut outs) {
-        // [p0_0 + p0_1, p1_0 + p1_1, p0_2 + p0_3, p1_2 + p1_3], the same for p2, p3
-        let s01 = _mm256_hadd_pd(q[0], q[1]);
-        let s23 = _mm256_hadd_pd(q[2], q[3]);
-        let lo = _mm256_permute2f128_pd::<0x20>(s01, s23);
-        let hi = _mm256_permute2f128_pd::<0x31>(s01, s23);
-        let o: &mut [f64; 4] = o.try_into().expect("four samples");
-        // SAFETY: `o` is four f64.
-        unsafe { _mm256_storeu_pd(o.as_mut_ptr(), _mm256_add_pd(lo, hi)) };
+/// Store `v` as vector `i` of `a` (bounds checked).
+#[inline(always)]
+fn st<S: Simd>(s: S, a: &mut [f64], i: usize, v: S::V) {
+    let c = &mut a[S::LANES * i..S::LANES * (i + 1)];
+    // SAFETY: `c` is `LANES` f64.
+    unsafe { s.store(c.as_mut_ptr(), v) }
+}
+
+/// [`value_regs`] for one size, compiled for a set by [`Simd::vectorize`] (the x86-64 sets have
+/// such instances, [`super::isa::Portable`] none).
+#[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
+pub(crate) struct ValueRegs<'a, 'b, const VR: usize, const VC: usize, const B1: bool> {
+    pub p: &'a mut Packed,
+    pub d: &'a Drive<'b>,
+    pub range: Range<usize>,
+    pub y: &'a mut [f64],
+}
+
+impl<const VR: usize, const VC: usize, const B1: bool> WithSimd for ValueRegs<'_, '_, VR, VC, B1> {
+    type Output = ();
+    #[inline(always)]
+    fn with_simd<S: Simd>(self, s: S) {
+        value_regs::<S, VR, VC, B1>(s, self.p, self.d, self.range, self.y);
     }
-    for (q, o) in quads.remainder().iter().zip(outs.into_remainder()) {
-        *o = hsum(*q);
-    }
-}
-
-/// The two 128-bit halves exchanged: `[re_0, re_1, im_0, im_1]` -> `[im_0, im_1, re_0, re_1]`.
-#[target_feature(enable = "avx2,fma")]
-#[inline]
-fn swap(v: __m256d) -> __m256d {
-    _mm256_permute2f128_pd::<0x01>(v, v)
-}
-
-/// The real parts of a complex vector (the lanes the output sums).
-#[target_feature(enable = "avx2,fma")]
-#[inline]
-fn re_part(v: __m256d) -> __m256d {
-    _mm256_blend_pd::<0b0011>(_mm256_setzero_pd(), v)
-}
-
-/// `beta0 a + beta1 b` of vector `o`: the input's part of a mode's update.
-#[target_feature(enable = "avx2,fma")]
-#[inline]
-fn input<const B1: bool>(b0: &[f64], b1: &[f64], o: usize, va: __m256d, vb: __m256d) -> __m256d {
-    let t = _mm256_mul_pd(ld(b0, o), va);
-    if B1 {
-        _mm256_fmadd_pd(ld(b1, o), vb, t)
-    } else {
-        t
-    }
-}
-
-/// Load vector `i` of `s`.
-#[target_feature(enable = "avx2,fma")]
-#[inline]
-fn ld(s: &[f64], i: usize) -> __m256d {
-    let c: &[f64; 4] = s[4 * i..4 * i + 4].try_into().expect("four lanes");
-    // SAFETY: `c` is four f64.
-    unsafe { _mm256_loadu_pd(c.as_ptr()) }
-}
-
-/// Store vector `i` of `s`.
-#[target_feature(enable = "avx2,fma")]
-#[inline]
-fn st(s: &mut [f64], i: usize, v: __m256d) {
-    let c: &mut [f64; 4] = (&mut s[4 * i..4 * i + 4]).try_into().expect("four lanes");
-    // SAFETY: `c` is four f64.
-    unsafe { _mm256_storeu_pd(c.as_mut_ptr(), v) }
 }
 
 /// The value kernel with the whole state in registers: `VR` real and `VC` complex vectors, `B1`
 /// whether any `beta1` is nonzero. Writes `y[k]` for `k` in `range`.
-///
-/// # Safety
-/// The CPU must support AVX2 and FMA; `p` has one row of `VR` real and `VC` complex vectors.
-#[target_feature(enable = "avx2,fma")]
-unsafe fn value_regs<const VR: usize, const VC: usize, const B1: bool>(
+#[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
+#[inline(always)]
+fn value_regs<S: Simd, const VR: usize, const VC: usize, const B1: bool>(
+    s: S,
     p: &mut Packed,
     d: &Drive<'_>,
     range: Range<usize>,
     y: &mut [f64],
 ) {
-    assert!(p.lanes == 4 && p.rows == 1 && p.vr == VR && p.vc == VC && range.start > d.m);
-    let z = _mm256_setzero_pd();
+    assert!(p.lanes == S::LANES && p.rows == 1 && p.vr == VR && p.vc == VC && range.start > d.m);
+    let z = s.splat(0.0);
     let (mut xr, mut phr, mut b0r, mut b1r) = ([z; VR], [z; VR], [z; VR], [z; VR]);
     for j in 0..VR {
-        (xr[j], phr[j], b0r[j], b1r[j]) = (ld(&p.x, j), ld(&p.phi1, j), ld(&p.b0, j), ld(&p.b1, j));
+        (xr[j], phr[j]) = (ld(s, &p.x, j), ld(s, &p.phi1, j));
+        (b0r[j], b1r[j]) = (ld(s, &p.b0, j), ld(s, &p.b1, j));
     }
     let (mut xc, mut p1c, mut p2c, mut b0c, mut b1c) =
         ([z; VC], [z; VC], [z; VC], [z; VC], [z; VC]);
     for c in 0..VC {
         let j = VR + c;
-        (xc[c], p1c[c], p2c[c]) = (ld(&p.x, j), ld(&p.phi1, j), ld(&p.phi2, j));
-        (b0c[c], b1c[c]) = (ld(&p.b0, j), ld(&p.b1, j));
+        (xc[c], p1c[c], p2c[c]) = (ld(s, &p.x, j), ld(s, &p.phi1, j), ld(s, &p.phi2, j));
+        (b0c[c], b1c[c]) = (ld(s, &p.b0, j), ld(s, &p.b1, j));
     }
     let m = d.m;
-    // The output's four partial sums of each sample are kept for a block and summed four samples
-    // at a time (a transpose by `hadd`), off the loop-carried path.
+    // The output's partial sums of each sample are kept for a block and summed a few samples at
+    // a time ([`Simd::sum_parts`]), off the loop-carried path.
     const BLOCK: usize = 256;
-    let mut parts = [z; BLOCK];
+    let mut parts = [s.part_zero(); BLOCK];
     let mut k0 = range.start;
     while k0 < range.end {
         let k1 = (k0 + BLOCK).min(range.end);
         let u = &d.u[k0 - m - 1..k1 - m];
         for (acc, w) in parts.iter_mut().zip(u.windows(2)) {
-            let (va, vb) = (_mm256_set1_pd(w[1]), _mm256_set1_pd(w[0]));
+            let (va, vb) = (s.splat(w[1]), s.splat(w[0]));
             let (mut acc0, mut acc1) = (z, z);
             for j in 0..VR {
                 if j % 2 == 0 {
-                    acc0 = _mm256_add_pd(acc0, xr[j]);
+                    acc0 = s.add(acc0, xr[j]);
                 } else {
-                    acc1 = _mm256_add_pd(acc1, xr[j]);
+                    acc1 = s.add(acc1, xr[j]);
                 }
-                let mut t = _mm256_mul_pd(b0r[j], va);
+                let mut t = s.mul(b0r[j], va);
                 if B1 {
-                    t = _mm256_fmadd_pd(b1r[j], vb, t);
+                    t = s.fma(b1r[j], vb, t);
                 }
-                xr[j] = _mm256_fmadd_pd(phr[j], xr[j], t);
+                xr[j] = s.fma(phr[j], xr[j], t);
             }
             for c in 0..VC {
-                acc1 = _mm256_add_pd(acc1, re_part(xc[c]));
-                let mut t = _mm256_mul_pd(b0c[c], va);
+                acc1 = s.add(acc1, s.re_part(xc[c]));
+                let mut t = s.mul(b0c[c], va);
                 if B1 {
-                    t = _mm256_fmadd_pd(b1c[c], vb, t);
+                    t = s.fma(b1c[c], vb, t);
                 }
-                let t2 = _mm256_mul_pd(p2c[c], swap(xc[c]));
-                xc[c] = _mm256_add_pd(_mm256_fmadd_pd(p1c[c], xc[c], t), t2);
+                let t2 = s.mul(p2c[c], s.swap(xc[c]));
+                xc[c] = s.add(s.fma(p1c[c], xc[c], t), t2);
             }
-            *acc = _mm256_add_pd(acc0, acc1);
+            *acc = s.fold(s.add(acc0, acc1));
         }
-        sum_parts(&parts[..k1 - k0], &mut y[k0..k1]);
+        s.sum_parts(&parts[..k1 - k0], &mut y[k0..k1]);
         if d.direct[0] != 0.0 {
             let back = m + usize::from(d.direct_prev);
             for k in k0..k1 {
@@ -292,180 +234,146 @@ unsafe fn value_regs<const VR: usize, const VC: usize, const B1: bool>(
         k0 = k1;
     }
     for j in 0..VR {
-        st(&mut p.x, j, xr[j]);
+        st(s, &mut p.x, j, xr[j]);
     }
     for c in 0..VC {
-        st(&mut p.x, VR + c, xc[c]);
+        st(s, &mut p.x, VR + c, xc[c]);
     }
 }
 
-/// The row kernel: `N` derivative rows and the value row, the state in memory; calls
-/// `out(k, value, derivatives)` for `k` in `range`. Per vector, each derivative row is
+/// [`rows_mem`], compiled for a set by [`Simd::vectorize`].
+struct RowsMem<'a, 'b, T: Real, const B1: bool> {
+    p: &'a mut Packed,
+    d: &'a Drive<'b>,
+    range: Range<usize>,
+    y: &'a mut [T],
+}
+
+impl<T: Real, const B1: bool> WithSimd for RowsMem<'_, '_, T, B1> {
+    type Output = ();
+    #[inline(always)]
+    fn with_simd<S: Simd>(self, s: S) {
+        rows_mem::<S, T, B1>(s, self.p, self.d, self.range, self.y);
+    }
+}
+
+/// The row kernel: the derivative rows of `T` (none for `f64`) and the value row, the state in
+/// memory; writes `y[k]` for `k` in `range`. Per vector, each derivative row is
 /// `dx' = phi dx + dphi x + dbeta0 a + dbeta1 b` with the value `x` before its own update.
-///
-/// # Safety
-/// The CPU must support AVX2 and FMA; `p` has `N + 1` rows.
-#[target_feature(enable = "avx2,fma")]
-unsafe fn rows_mem<const N: usize, const B1: bool>(
+#[inline(always)]
+fn rows_mem<S: Simd, T: Real, const B1: bool>(
+    s: S,
     p: &mut Packed,
     d: &Drive<'_>,
     range: Range<usize>,
-    out: &mut impl FnMut(usize, f64, &[f64; N]),
+    y: &mut [T],
 ) {
-    assert!(p.lanes == 4 && p.rows == N + 1 && range.start > d.m && d.direct.len() == N + 1);
-    let z = _mm256_setzero_pd();
+    let z = s.splat(0.0);
+    let n = T::derivs_of(()).as_ref().len();
+    assert!(p.lanes == S::LANES && p.rows == n + 1 && d.direct.len() == n + 1);
+    assert!(range.start > d.m && range.end <= d.u.len().min(y.len()));
     let (vr, v) = (p.vr, p.vr + p.vc);
-    let val = N * v;
-    let (phi1, phi2, b0, b1) = (&p.phi1[..], &p.phi2[..], &p.b0[..], &p.b1[..]);
-    let x = &mut p.x[..];
+    let val = n * v;
+    // Every vector index below is `< (n + 1) v`: the loads and stores go through raw pointers
+    // (no bounds check per access, the hot loop's main overhead) once the lengths are checked.
+    p.checked_len();
+    let (phi1, phi2, b0, b1) = (
+        p.phi1.as_ptr(),
+        p.phi2.as_ptr(),
+        p.b0.as_ptr(),
+        p.b1.as_ptr(),
+    );
+    let x = p.x.as_mut_ptr();
+    let l = S::LANES;
+    // SAFETY (for `ld` and `st` below): `i < (n + 1) v`, so lanes `L i .. L i + L` are inside
+    // the arrays of `(n + 1) v L` f64 checked above; `x` is not aliased while this runs.
+    let ld = |a: *const f64, i: usize| unsafe { s.load(a.add(l * i)) };
+    let st = |a: *mut f64, i: usize, w: S::V| unsafe { s.store(a.add(l * i), w) };
+    let input = |o: usize, va: S::V, vb: S::V| {
+        let t = s.mul(ld(b0, o), va);
+        if B1 {
+            s.fma(ld(b1, o), vb, t)
+        } else {
+            t
+        }
+    };
     for k in range {
         let (a, b) = (d.u[k - d.m], d.u[k - d.m - 1]);
-        let (va, vb) = (_mm256_set1_pd(a), _mm256_set1_pd(b));
-        let mut acc = [z; N];
+        let (va, vb) = (s.splat(a), s.splat(b));
+        let mut acc = T::derivs_of(z);
         let mut accv = z;
         for j in 0..vr {
             let xv = ld(x, val + j);
             let ph = ld(phi1, val + j);
-            for (r, ar) in acc.iter_mut().enumerate() {
+            for (r, ar) in acc.as_mut().iter_mut().enumerate() {
                 let o = r * v + j;
                 let dx = ld(x, o);
-                *ar = _mm256_add_pd(*ar, dx);
-                let t = _mm256_fmadd_pd(ld(phi1, o), xv, input::<B1>(b0, b1, o, va, vb));
-                st(x, o, _mm256_fmadd_pd(ph, dx, t));
+                *ar = s.add(*ar, dx);
+                let t = s.fma(ld(phi1, o), xv, input(o, va, vb));
+                st(x, o, s.fma(ph, dx, t));
             }
-            accv = _mm256_add_pd(accv, xv);
-            let t = input::<B1>(b0, b1, val + j, va, vb);
-            st(x, val + j, _mm256_fmadd_pd(ph, xv, t));
+            accv = s.add(accv, xv);
+            let t = input(val + j, va, vb);
+            st(x, val + j, s.fma(ph, xv, t));
         }
         for j in vr..v {
             let xv = ld(x, val + j);
-            let xs = swap(xv);
+            let xs = s.swap(xv);
             let (p1, p2) = (ld(phi1, val + j), ld(phi2, val + j));
-            for (r, ar) in acc.iter_mut().enumerate() {
+            for (r, ar) in acc.as_mut().iter_mut().enumerate() {
                 let o = r * v + j;
                 let dx = ld(x, o);
-                *ar = _mm256_add_pd(*ar, re_part(dx));
-                let mut t = input::<B1>(b0, b1, o, va, vb);
-                t = _mm256_fmadd_pd(ld(phi1, o), xv, t);
-                t = _mm256_fmadd_pd(ld(phi2, o), xs, t);
-                t = _mm256_fmadd_pd(p2, swap(dx), t);
-                st(x, o, _mm256_fmadd_pd(p1, dx, t));
+                *ar = s.add(*ar, s.re_part(dx));
+                let mut t = input(o, va, vb);
+                t = s.fma(ld(phi1, o), xv, t);
+                t = s.fma(ld(phi2, o), xs, t);
+                t = s.fma(p2, s.swap(dx), t);
+                st(x, o, s.fma(p1, dx, t));
             }
-            accv = _mm256_add_pd(accv, re_part(xv));
-            let mut t = input::<B1>(b0, b1, val + j, va, vb);
-            t = _mm256_fmadd_pd(p2, xs, t);
-            st(x, val + j, _mm256_fmadd_pd(p1, xv, t));
+            accv = s.add(accv, s.re_part(xv));
+            let mut t = input(val + j, va, vb);
+            t = s.fma(p2, xs, t);
+            st(x, val + j, s.fma(p1, xv, t));
         }
         let din = if d.direct_prev { b } else { a };
-        let mut dd = [0.0; N];
-        for r in 0..N {
-            dd[r] = hsum(acc[r]) + d.direct[r] * din;
+        let mut dd = T::derivs_of(0.0);
+        for (r, q) in dd.as_mut().iter_mut().enumerate() {
+            *q = s.hsum(acc.as_ref()[r]) + d.direct[r] * din;
         }
-        out(k, hsum(accv) + d.direct[N] * din, &dd);
+        y[k] = T::from_parts(s.hsum(accv) + d.direct[n] * din, dd);
     }
 }
 
-/// Whether the CPU has AVX2 and FMA (the kernels here need both).
-pub(super) fn available() -> bool {
-    std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
-}
-
-/// Subnormal numbers flushed to zero (MXCSR's FTZ and DAZ bits) while it lives, the caller's
-/// MXCSR restored when it drops.
-///
-/// A free response (an initial-state level's sensitivity, a simulation of a quiet input) decays
-/// through the subnormal range, where every add and multiply takes a microcode assist about a
-/// hundred times slower than a normal one: a level column of 1e6 samples took most of a
-/// Jacobian's time. Values below `2.2e-308` are far under the rounding of any output, so the
-/// results do not change visibly (the kernel tests compare against the scalar step to 1e-12).
-pub(super) struct FlushSubnormals(u32);
-
-impl FlushSubnormals {
-    /// Flush-to-zero (bit 15) and denormals-are-zero (bit 6).
-    const BITS: u32 = (1 << 15) | (1 << 6);
-
-    #[inline]
-    pub(super) fn new() -> Self {
-        let mut old: u32 = 0;
-        // SAFETY: `stmxcsr` writes the 4-byte register to the given address; `ldmxcsr` loads a
-        // value that differs from the current one only in the FTZ and DAZ bits, which SSE2
-        // (baseline on x86-64) defines.
-        unsafe {
-            std::arch::asm!("stmxcsr [{}]", in(reg) &mut old, options(nostack, preserves_flags));
-            let new = old | Self::BITS;
-            std::arch::asm!("ldmxcsr [{}]", in(reg) &new, options(nostack, preserves_flags));
-        }
-        Self(old)
-    }
-}
-
-impl Drop for FlushSubnormals {
-    #[inline]
-    fn drop(&mut self) {
-        // SAFETY: restores the value read in `new`.
-        unsafe {
-            std::arch::asm!("ldmxcsr [{}]", in(reg) &self.0, options(nostack, preserves_flags));
-        }
-    }
-}
-
-/// The value kernel for `p` (one row): in registers when the vectors fit, else [`rows_mem`].
-///
-/// # Safety
-/// The CPU must support AVX2 and FMA ([`available`]).
-pub(super) unsafe fn run_value(
+/// The value kernel for `p` (one row): in registers when the set has an instance of its size,
+/// else [`rows_mem`].
+pub(super) fn run_value<S: Simd>(
+    s: S,
     p: &mut Packed,
     d: &Drive<'_>,
     b1: bool,
     range: Range<usize>,
     y: &mut [f64],
 ) {
-    let _ftz = FlushSubnormals::new();
-    macro_rules! regs {
-        ($($vr:literal)*) => {
-            match (p.vr, p.vc, b1) {
-                $(
-                    ($vr, 0, false) => return unsafe { value_regs::<$vr, 0, false>(p, d, range, y) },
-                    ($vr, 0, true) => return unsafe { value_regs::<$vr, 0, true>(p, d, range, y) },
-                    ($vr, 1, false) => return unsafe { value_regs::<$vr, 1, false>(p, d, range, y) },
-                    ($vr, 1, true) => return unsafe { value_regs::<$vr, 1, true>(p, d, range, y) },
-                    ($vr, 2, false) => return unsafe { value_regs::<$vr, 2, false>(p, d, range, y) },
-                    ($vr, 2, true) => return unsafe { value_regs::<$vr, 2, true>(p, d, range, y) },
-                )*
-                _ => {}
-            }
-        };
+    let _ftz = s.flush_subnormals();
+    if s.value_in_registers(p, d, b1, range.clone(), y) {
+        return;
     }
-    regs!(0 1 2 3 4 5 6 7 8 9 10 11 12);
-    let mut out = |k: usize, v: f64, _: &[f64; 0]| y[k] = v;
-    // SAFETY: as this function's.
-    unsafe {
-        if b1 {
-            rows_mem::<0, true>(p, d, range, &mut out);
-        } else {
-            rows_mem::<0, false>(p, d, range, &mut out);
-        }
-    }
+    run_rows(s, p, d, b1, range, y);
 }
 
-/// The row kernel for `p` (`N + 1` rows).
-///
-/// # Safety
-/// The CPU must support AVX2 and FMA ([`available`]).
-pub(super) unsafe fn run_rows<const N: usize>(
+/// The row kernel for `p` (a row per part of `T`).
+pub(super) fn run_rows<S: Simd, T: Real>(
+    s: S,
     p: &mut Packed,
     d: &Drive<'_>,
     b1: bool,
     range: Range<usize>,
-    out: &mut impl FnMut(usize, f64, &[f64; N]),
+    y: &mut [T],
 ) {
-    let _ftz = FlushSubnormals::new();
-    // SAFETY: as this function's.
-    unsafe {
-        if b1 {
-            rows_mem::<N, true>(p, d, range, out);
-        } else {
-            rows_mem::<N, false>(p, d, range, out);
-        }
+    let _ftz = s.flush_subnormals();
+    if b1 {
+        s.vectorize(RowsMem::<T, true> { p, d, range, y });
+    } else {
+        s.vectorize(RowsMem::<T, false> { p, d, range, y });
     }
 }

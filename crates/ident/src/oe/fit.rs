@@ -909,6 +909,9 @@ pub fn identify(rec: &Record, model: &FracModel, opts: &IdentOptions) -> Result<
 
 /// [`identify`] with a progress callback as in [`fit_with_progress`].
 ///
+/// Starts from an empty pole cache on the calling thread (`fracsim::modal::RootsCache`): the
+/// result does not depend on what ran before on it; the cache the fit ends with stays.
+///
 /// Scale invariant: a record whose input or output magnitude is outside `[2^-30, 2^30]` (data in
 /// another unit, 1e-20 or 1e+20) is fitted scaled by powers of two to magnitude 1, with the
 /// model's parameters scaled by their units ([`FracModel::unit_scale`]), and the result is
@@ -923,6 +926,9 @@ pub fn identify_with_progress(
     opts: &IdentOptions,
     progress: &mut dyn FnMut(usize, f64),
 ) -> Result<Identification> {
+    // From an empty pole cache: its hints move the last bits of a fit, so a record fitted after
+    // others on the same thread gives the fit it gives alone.
+    fracsim::modal::RootsCache::default().install();
     let Some(sc) = Scaling::of(rec, model) else {
         return identify_at_scale(rec, model, opts, progress);
     };

@@ -3,6 +3,7 @@
 mod bad_input;
 mod feedthrough;
 mod held;
+mod history;
 mod readers;
 mod records;
 mod roundtrip;
