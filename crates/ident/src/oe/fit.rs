@@ -577,7 +577,10 @@ pub(super) fn fit_in<S: Structure>(
     let mut start = theta0.clone();
     let mut lm = opts.lm.clone();
     let mut lead_work = (0, 0);
-    let lead = if LEAD.with(|l| l.get()) {
+    // A budget of no iteration evaluates the start (its covariance, [`LmOptions::covariance`]):
+    // neither the lead part nor the projection moves it.
+    let evaluate_only = opts.lm.max_iterations == 0;
+    let lead = if LEAD.with(|l| l.get()) && !evaluate_only {
         lead_part(u, y, opts.skip)
     } else {
         None
@@ -642,8 +645,7 @@ pub(super) fn fit_in<S: Structure>(
             }
         }
         None => {
-            let projected = PROJECT
-                .with(|p| p.get())
+            let projected = (PROJECT.with(|p| p.get()) && !evaluate_only)
                 .then(|| varpro::plan(s, &free))
                 .flatten()
                 .and_then(|plan| varpro::fit(&mut prob, &plan, &start, &lm, opts.shared_budget));
@@ -1072,10 +1074,22 @@ fn identify_at_scale(
     }
     match initial {
         InitialState::Estimate => {
+            // A model evaluated at its values (no iteration: its covariance and checks there)
+            // keeps its initial state's levels; a fit starts them from rest.
+            let kept: Option<Vec<f64>> = m
+                .past
+                .as_ref()
+                .filter(|_| opts.fit.lm.max_iterations == 0)
+                .map(|p| p.levels.iter().map(|&i| m.params[i].value).collect());
             m.with_past_input(
                 past_edges(split as f64 * rec.dt),
                 super::past_range(&rec.u, offsets.u0),
             );
+            if let (Some(v), Some(p)) = (kept, &m.past) {
+                for (&i, &x) in p.levels.iter().zip(&v) {
+                    m.params[i].value = x;
+                }
+            }
         }
         InitialState::Rest | InitialState::Auto => m.past = None,
     }
@@ -1158,7 +1172,11 @@ fn refine_buffers(
     initial: InitialState,
 ) -> Option<Buffers> {
     let rows = split.checked_sub(opts.fit.skip)?;
-    if rows < 4 * LEAD_SAMPLES || !LEAD.with(|l| l.get()) || !crate::lm::two_cores() {
+    if rows < 4 * LEAD_SAMPLES
+        || !LEAD.with(|l| l.get())
+        || !crate::lm::two_cores()
+        || opts.fit.lm.max_iterations == 0
+    {
         return None;
     }
     let offset = usize::from(opts.fit_offset && m.index_of("y_offset").is_none());
