@@ -13,6 +13,7 @@ use fracsim::{Dual, FracTf};
 use std::time::{Duration, Instant};
 
 mod held;
+mod timescale;
 mod varpro;
 
 /// Options of [`fit`].
@@ -920,6 +921,46 @@ pub fn identify(rec: &Record, model: &FracModel, opts: &IdentOptions) -> Result<
 /// # Errors
 /// As [`identify`].
 pub fn identify_with_progress(
+    rec: &Record,
+    model: &FracModel,
+    opts: &IdentOptions,
+    progress: &mut dyn FnMut(usize, f64),
+) -> Result<Identification> {
+    let ts = timescale::TimeScale::of(rec, model).filter(|_| opts.fit.lm.max_iterations > 0);
+    let Some(ts) = ts else {
+        return identify_in_units(rec, model, opts, progress);
+    };
+    // In a time unit the fit does not depend on ([`timescale`]), then in the record's own unit
+    // from that optimum: the figures and the covariance in the record's units.
+    let there = identify_in_units(&ts.record(rec), &ts.model(model, 1.0), opts, progress)?;
+    let back = ts.model(&there.model, -1.0);
+    let from_there = IdentOptions {
+        start: StartMode::Given,
+        ..opts.clone()
+    };
+    let Ok(mut id) = identify_in_units(rec, &back, &from_there, progress) else {
+        // That optimum cannot be simulated in the record's unit (a time column in 1e-6 s: the
+        // approximation's cells at 1e8 rad/s and more): the fit in the record's unit as it was.
+        return identify_in_units(rec, model, opts, progress);
+    };
+    // The start is the one made in the other unit, converted.
+    let mut start = there.model.clone();
+    for (p, v) in start.params.iter_mut().zip(&there.start) {
+        p.value = *v;
+    }
+    let start = ts.model(&start, -1.0).values();
+    if start.len() == id.start.len() {
+        id.start = start;
+    }
+    id.start_report = there.start_report;
+    id.report.iterations += there.report.iterations;
+    id.report.evaluations += there.report.evaluations;
+    Ok(id)
+}
+
+/// [`identify_with_progress`] in the record's time unit, its input and output scaled to
+/// magnitude 1 when they are far from it ([`Scaling`]).
+fn identify_in_units(
     rec: &Record,
     model: &FracModel,
     opts: &IdentOptions,
