@@ -43,11 +43,24 @@ impl TimeScale {
         }
         let single = |e: &super::super::Expr| {
             e.factors.is_empty()
-                && ((e.terms.is_empty())
-                    || (e.constant == 0.0 && e.terms.len() == 1 && e.terms[0].1 == 1.0))
+                && (e.terms.is_empty()
+                    || e.constant == 0.0 && e.terms.len() == 1 && e.terms[0].1 == 1.0)
         };
-        if !m.num.iter().chain(&m.den).all(|(c, _)| single(c)) {
+        let terms = || m.num.iter().chain(&m.den);
+        if !terms().all(|(c, _)| single(c)) {
             return None;
+        }
+        // Each coefficient its own parameter, and a held one only on a term of a held order
+        // (held in one unit, it would not be held in the other while the order moves).
+        let order_free = |o: &super::super::Expr| o.terms.iter().any(|&(i, _)| m.params[i].free);
+        for (c, o) in terms() {
+            if let Some(&(i, _)) = c.terms.first() {
+                if terms().filter(|(d, _)| d.has(i)).count() > 1
+                    || (!m.params[i].free && order_free(o))
+                {
+                    return None;
+                }
+            }
         }
         // The denominator term whose coefficient and order are fixed: the transfer function is
         // divided by `c^q_ref` so that it keeps its value.
