@@ -486,7 +486,7 @@ pub fn run(req: &FreqRequest, data: &FreqData, obs: &mut dyn Observe) -> Result<
         sk_curve: fit.sk.as_ref().map(|_| curve(&fit.sk_curve)),
         refined,
         best_model: ModelReport::from(fit.best_model()),
-        best_j: error_index(omega, &h, fit.best_model()),
+        best_j: fit.best_j(),
         hold_s: hold,
         diagnosis: diagnosis.as_ref().map(|d| BodeDiagnosisReport {
             diagnosis: d.clone(),
