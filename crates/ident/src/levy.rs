@@ -936,7 +936,10 @@ impl FreqFit {
     /// The error index `J` of [`FreqFit::best_model`].
     pub fn best_j(&self) -> f64 {
         let mut j = self.levy.j;
-        for other in [self.sk.as_ref().map(|s| s.j), self.refined.as_ref().map(|r| r.j)] {
+        for other in [
+            self.sk.as_ref().map(|s| s.j),
+            self.refined.as_ref().map(|r| r.j),
+        ] {
             if let Some(o) = other.filter(|&o| o < j) {
                 j = o;
             }
