@@ -29,7 +29,7 @@ const UNDETERMINED: f64 = 10.0;
 
 /// A fit with a singular covariance and an NRMSE below this (percent: it explains less than a
 /// fifth of the output's variance, `1 - 0.9^2`) is not usable.
-const NO_BETTER_THAN_A_CONSTANT: f64 = 10.0;
+pub(super) const NO_BETTER_THAN_A_CONSTANT: f64 = 10.0;
 
 /// Orders closer than this (relative, at least absolute) are the same order.
 const SAME_ORDER: f64 = 1e-6;

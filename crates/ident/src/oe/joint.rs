@@ -164,7 +164,22 @@ pub fn identify_joint(
         converged: (report.converged, stop, report.iterations),
         evaluated: false,
     };
-    let (problems, _) = super::checks::assess_evidence(&ev, first);
+    let (mut problems, _) = super::checks::assess_evidence(&ev, first);
+    // Each record is used whole: no held-out part shows that the model describes the data, so
+    // one that fits a record it was fitted to hardly better than a constant (two records of
+    // noise: 0.2% and -0.2%) does not.
+    let floor = super::checks::NO_BETTER_THAN_A_CONSTANT;
+    problems.extend(records.iter().enumerate().filter_map(|(r, (_, f, _))| {
+        (!(f.nrmse_percent >= floor)).then(|| {
+            format!(
+                "the model fits record {} of the joint fit only {:.1}% (below {floor}%: hardly \
+                 better than a constant, and no part of it is held out): it does not describe \
+                 these data",
+                r + 1,
+                f.nrmse_percent
+            )
+        })
+    }));
     Ok(JointIdentification {
         model,
         tf,
