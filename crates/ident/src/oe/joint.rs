@@ -169,16 +169,18 @@ pub fn identify_joint(
     // one that fits a record it was fitted to hardly better than a constant (two records of
     // noise: 0.2% and -0.2%) does not.
     let floor = super::checks::NO_BETTER_THAN_A_CONSTANT;
-    problems.extend(records.iter().enumerate().filter_map(|(r, (_, f, _))| {
-        (!(f.nrmse_percent >= floor)).then(|| {
-            format!(
-                "the model fits record {} of the joint fit only {:.1}% (below {floor}%: hardly \
-                 better than a constant, and no part of it is held out): it does not describe \
-                 these data",
-                r + 1,
-                f.nrmse_percent
-            )
-        })
+    let poorly = records
+        .iter()
+        .enumerate()
+        .filter(|(_, (_, f, _))| !(f.nrmse_percent >= floor));
+    problems.extend(poorly.map(|(r, (_, f, _))| {
+        format!(
+            "the model fits record {} of the joint fit only {:.1}% (below {floor}%: hardly \
+             better than a constant, and no part of it is held out): it does not describe these \
+             data",
+            r + 1,
+            f.nrmse_percent
+        )
     }));
     Ok(JointIdentification {
         model,
