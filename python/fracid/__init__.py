@@ -441,7 +441,9 @@ def fit_time_joint(
     Takes the options of :func:`fit_time` (not ``diagnose`` nor ``structure="auto"``) and
     returns the report as ``fracid time --joint --json`` prints it (``model``, ``params``,
     ``records`` named ``record``, ``joint[0]``, ..., ``converged``, ``warnings``, ``fit``,
-    ``request``).
+    ``usable``, ``problems``, ``request``): ``usable`` is the verdict ``fracid time --joint``
+    exits on (the rules of a single record's fit on the record it fits worst, and the score on
+    ``validate``: predicted worse than its own mean, not usable).
 
     Raises
     ------

@@ -9,7 +9,9 @@ from typing import Any, Dict, List, NamedTuple, Optional, Tuple
 
 import numpy as np
 
-from ._fracid import FracTf
+import json
+
+from ._fracid import FracTf, _answer_pointer
 
 __all__ = [
     "LevyFit",
@@ -155,8 +157,12 @@ class FreqFit(_ToDict):
         The PMSM refit, with ``refine=True``.
     best_model : FracTf
         The best model by ``J`` among the above.
+    answer : FracTf
+        The model the report leads with, by the library's one rule (the diagnosed model, else
+        ``best_model``): the one ``fracid tune``, ``compare``, ``export`` and the fleet take, and
+        :func:`fracid.tune` takes from this result.
     problems : list of str
-        Why the best model cannot be used (empty when it can): unstable (poles in the closed
+        Why the answer cannot be used (empty when it can): unstable (poles in the closed
         right half-plane), non-finite, refit parameters the data do not determine.
     warnings : list of str
         What to know without making the model unusable (a negative static gain, no convergence).
@@ -181,10 +187,11 @@ class FreqFit(_ToDict):
     diagnosis: Optional[Dict[str, Any]] = None
     hold_s: Optional[float] = None
     report: Dict[str, Any] = field(default_factory=dict, repr=False)
+    answer: Optional[FracTf] = None
 
     @property
     def usable(self) -> bool:
-        """Whether the best model can be used (no ``problems``)."""
+        """Whether the answer can be used (no ``problems``)."""
         return not self.problems
 
     @property
@@ -231,6 +238,7 @@ class FreqFit(_ToDict):
             diagnosis=r.get("diagnosis"),
             hold_s=r.get("hold_s"),
             report=r,
+            answer=_answer_of(r),
         )
 
 
@@ -572,6 +580,14 @@ class TimeFit(_ToDict):
             base=r.get("base"),
             report=r,
         )
+
+
+def _answer_of(r: Dict[str, Any]) -> FracTf:
+    """The model a report leads with, found by the library's one rule (``_answer_pointer``)."""
+    node: Any = r
+    for key in [k for k in _answer_pointer(json.dumps(r)).split("/") if k]:
+        node = node[key]
+    return _tf_of(node)
 
 
 def _tf_of(m: Dict[str, Any]) -> FracTf:

@@ -54,10 +54,11 @@ def tune(
 
     Parameters
     ----------
-    model : FracTf, str or Diagnosis
+    model : FracTf, str, Diagnosis or FreqFit
         The plant (its delay included). A :class:`Diagnosis` gives its final model and its kept
         input effects (saturation, dead band, power law, Coulomb friction, input offset),
-        simulated in the loop.
+        simulated in the loop; a :class:`FreqFit` its ``answer`` (the model the report leads
+        with: its diagnosed or best model, as ``fracid tune`` takes it from a report).
     wc : float
         Gain crossover, rad/s.
     pm : float
@@ -103,6 +104,9 @@ def tune(
     (60.0, 1.577)
     """
     fx = effects
+    if not isinstance(model, (FracTf, str)) and getattr(model, "answer", None) is not None:
+        # a frequency-domain result: the model it leads with (its diagnosed or best model)
+        model = model.answer
     if not isinstance(model, (FracTf, str)) and hasattr(model, "model"):
         fx = model.effects if effects is None else effects
         model = model.model

@@ -14,6 +14,17 @@ pub(crate) fn _freq_request_defaults(py: Python<'_>) -> PyResult<Bound<'_, PyAny
     crate::time::to_py(py, &FreqRequest::default())
 }
 
+/// The JSON pointer of a report's answer, the model it leads with, by the library's one rule
+/// (`ident::app::answer::of_report`: `diagnosis.model`, else `best_model`, else `model`; `""`
+/// for a bare model), so that Python's results take the model `fracid tune`, `compare`,
+/// `export` and the fleet take.
+#[pyfunction]
+pub(crate) fn _answer_pointer(report: &str) -> PyResult<String> {
+    let v: serde_json::Value =
+        serde_json::from_str(report).map_err(|e| errors::data(format!("report: {e}")))?;
+    Ok(ident::app::answer::of_report(&v).pointer.to_string())
+}
+
 /// The frequency-domain use case (`ident::app::freq::run`, as `fracid freq`): `request` is the
 /// JSON of a `FreqRequest`; `weights` per-point weights (`weights = "given"`), `point_std` a
 /// measured spread. Returns the report as `fracid freq --json` prints it.

@@ -26,6 +26,7 @@ fn _fracid(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(tf::prbs, m)?)?;
     m.add_function(wrap_pyfunction!(freq::_fit_bode, m)?)?;
     m.add_function(wrap_pyfunction!(freq::error_index, m)?)?;
+    m.add_function(wrap_pyfunction!(freq::_answer_pointer, m)?)?;
     m.add_function(wrap_pyfunction!(time::_fit_time, m)?)?;
     m.add_function(wrap_pyfunction!(time::_fit_time_joint, m)?)?;
     m.add_function(wrap_pyfunction!(time::_time_request_defaults, m)?)?;

@@ -91,7 +91,8 @@ def test_an_unstable_fit_is_flagged_and_sk_stops_when_converged(table1):
     a1, a2 = fit.levy.a
     roots = np.roots([a2, a1, 1.0])  # Matignon: unstable when |arg| < q pi/2
     n_unstable = int(np.sum(np.abs(np.angle(roots)) < fit.levy.q * np.pi / 2))
-    assert fit.usable == (n_unstable == 0)
+    # a table of noise is never usable: unstable, or fitting too little of the response
+    assert not fit.usable
     if n_unstable:
         assert f"unstable: {n_unstable} pole(s)" in fit.problems[0]
     # the paper's table: usable; SK stops before the 200 allowed and says so
@@ -100,3 +101,14 @@ def test_an_unstable_fit_is_flagged_and_sk_stops_when_converged(table1):
     assert fit.usable and fit.problems == []
     assert fit.sk.sk_converged and 1 <= fit.sk.sk_iterations < 200
     json.dumps(fit.to_dict())
+
+
+def test_the_answer_is_the_best_model_by_the_librarys_rule(table1):
+    # Table 1 without weights: the Sanathanan-Koerner fit beats Levy's, and the result's answer
+    # (what fracid.tune takes from it, as `fracid tune` from the report) is it, not Levy's
+    omega, h = fracid.load_bode(table1)
+    fit = fracid.fit_bode(omega, h, weights="none", sk_iterations=10)
+    assert fit.sk.J < fit.levy.J
+    assert str(fit.answer) == str(fit.best_model) == str(fit.sk.model) != str(fit.levy.model)
+    r = fracid.tune(fit, wc=300, pm=60)
+    assert r["model"]["text"] == fit.report["sk"]["model"]["text"]

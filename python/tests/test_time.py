@@ -156,3 +156,13 @@ def test_ctrl_c_stops_a_diagnosis_between_stages():
     fracid.fit_time(u, y, DT, diagnose=True)
     whole = time.perf_counter() - t0
     assert stopped < 0.5 * whole, (stopped, whole)
+
+
+def test_a_joint_fit_of_noise_is_not_usable():
+    # two records of pure noise fitted jointly: the report says so (as `fracid time --joint`
+    # exits 1), where it had neither `usable` nor `problems`
+    rng = np.random.default_rng(7)
+    u = np.repeat(rng.choice([-1.0, 1.0], 100), 20)
+    y1, y2 = rng.normal(0, 0.3, u.size), rng.normal(0, 0.3, u.size)
+    r = fracid.fit_time_joint(u, y1, 1e-3, joint=[(u, y2)])
+    assert r["usable"] is False and r["problems"], r["problems"]

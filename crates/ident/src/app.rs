@@ -3,9 +3,11 @@
 //! option parsing and the model's report type, so that the same words give the same model
 //! everywhere.
 
+pub mod answer;
 pub mod freq;
 pub mod observe;
 pub mod time;
+pub mod verdict;
 
 use crate::data::OffsetMode;
 use crate::oe::FracModel;

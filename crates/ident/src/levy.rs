@@ -933,6 +933,20 @@ impl FreqFit {
         best_of(&self.levy, self.sk.as_ref(), self.refined.as_ref()).0
     }
 
+    /// The error index `J` of [`FreqFit::best_model`].
+    pub fn best_j(&self) -> f64 {
+        let mut j = self.levy.j;
+        for other in [
+            self.sk.as_ref().map(|s| s.j),
+            self.refined.as_ref().map(|r| r.j),
+        ] {
+            if let Some(o) = other.filter(|&o| o < j) {
+                j = o;
+            }
+        }
+        j
+    }
+
     /// True when the best model can be used: no [`FreqFit::problems`].
     pub fn usable(&self) -> bool {
         self.problems.is_empty()

@@ -160,13 +160,14 @@ impl Row {
 
     /// The summary fields of a report (`fracid time --json` or `fracid freq --json`).
     fn fill_from(&mut self, v: &Value) {
-        // `freq`: the PMSM refit when asked (--refine), else the Levy fit.
-        let model = v.pointer("/refined/model").or_else(|| v.get("model"));
-        self.model = model.and_then(model_text);
+        // The report's answer, by the library's one rule (`ident::app::answer`): a `time`
+        // report's leading model, a `freq` report's diagnosed or best model.
+        let answer = ident::app::answer::of_report(v);
+        self.model = model_text(answer.model);
         let f = |p: &str| v.pointer(p).and_then(Value::as_f64);
         self.fit_estimation_percent = f("/fit/estimation/nrmse_percent");
         self.fit_validation_percent = f("/fit/validation/nrmse_percent");
-        self.j = f("/refined/J").or_else(|| f("/J"));
+        self.j = f("/best_J").or_else(|| f("/J"));
         // With the diagnosis the report leads with the final model: its fit is the one above.
         if let Some(d) = v.get("diagnosis") {
             self.effects = d

@@ -1,9 +1,9 @@
 //! A model named on the command line, read one way for every command that takes one
 //! (`compare`, `export`, `tune`, the demo): a transfer function's text (`exp(-tau s)` and products
 //! `F1 * F2` allowed), a file holding that text, or the JSON report of `fracid time` /
-//! `fracid freq`, whose **final model** is taken: `diagnosis.model` (the refit with what the
-//! diagnosis found), else `refined.model` (`freq --refine`), else `model` (docs/design.md §7). A
-//! bare `{"num", "den", "delay"}` object is a model too.
+//! `fracid freq`, whose answer is taken: the model the report leads with, by the library's one
+//! rule (`ident::app::answer`: `diagnosis.model`, else `best_model`, else `model`; docs/design.md
+//! §7). A bare `{"num", "den", "delay"}` object is a model too.
 
 use crate::bad_input;
 use anyhow::{Context, Result};
@@ -11,9 +11,6 @@ use fracsim::{FracTf, Term};
 use ident::app::ModelReport;
 use serde_json::Value;
 use std::path::Path;
-
-/// Where a report keeps its final model, first found first.
-const FINAL_MODEL: [&str; 3] = ["/diagnosis/model", "/refined/model", "/model"];
 
 /// A model argument read: the transfer function, and the report it came from (a JSON file).
 #[derive(Debug)]
@@ -94,14 +91,11 @@ fn refuse_unusable(v: &Value, path: &Path) -> Result<()> {
     )
 }
 
-/// The report's final model object (see the module's documentation), or `v` itself when it is
-/// a bare model.
+/// The report's answer (see the module's documentation), or `v` itself when it is a bare
+/// model.
 #[must_use]
 pub fn final_model(v: &Value) -> &Value {
-    FINAL_MODEL
-        .iter()
-        .find_map(|p| v.pointer(p).filter(|m| m.get("den").is_some()))
-        .unwrap_or(v)
+    ident::app::answer::of_report(v).model
 }
 
 /// A model object `{"num": [{"coef", "order"}], "den": [...], "delay", "text"}` as a
@@ -148,10 +142,11 @@ mod tests {
         let dc = |v: &Value| from_json(final_model(v)).unwrap().num[0].coef;
         let levy = json!({"model": m(1.0)});
         assert_eq!(dc(&levy), 1.0);
-        let refined = json!({"model": m(1.0), "refined": {"model": m(2.0)}});
-        assert_eq!(dc(&refined), 2.0);
-        let diagnosed =
-            json!({"model": m(1.0), "refined": {"model": m(2.0)}, "diagnosis": {"model": m(3.0)}});
+        // the best by J, not the refit because it is one (a refit worse than Levy's is not it)
+        let refined = json!({"model": m(1.0), "refined": {"model": m(2.0)}, "best_model": m(1.0)});
+        assert_eq!(dc(&refined), 1.0);
+        let diagnosed = json!({"model": m(1.0), "refined": {"model": m(2.0)},
+            "best_model": m(2.0), "diagnosis": {"model": m(3.0)}});
         assert_eq!(dc(&diagnosed), 3.0);
         assert_eq!(dc(&m(4.0)), 4.0);
     }

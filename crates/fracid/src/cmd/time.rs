@@ -433,6 +433,9 @@ fn run_joint(a: &TimeArgs, req: &TimeRequest, data: TimeData) -> Result<()> {
     {
         eprintln!("warning: {w}");
     }
+    if !j.usable {
+        anyhow::bail!("the fitted model is not usable: {}", j.problems.join("; "));
+    }
     Ok(())
 }
 

@@ -500,3 +500,31 @@ fn weights_spread_recovers_the_truth_within_its_standard_errors() {
         }
     }
 }
+
+/// A Bode table of pure noise (gain +-10 dB, phase anywhere, seeded) fitted with `--refine`:
+/// stable, with standard errors, yet the model explains under a tenth of the measured
+/// response's variation about its mean (7.7%): not usable, exit 1 with the reason (on main:
+/// `usable: true`, exit 0; seeds 10, 21, 22 and 35 of the first 40 were so).
+#[test]
+fn a_table_of_noise_with_refine_is_not_usable() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut rng = Rng(10);
+    let mut text = String::from("freq_hz,gain_db,phase_deg\n");
+    for i in 0..40 {
+        let f = 0.1 * 10f64.powf(f64::from(i) / 10.0);
+        let (g, p) = (20.0 * (rng.uniform() - 0.5), 360.0 * (rng.uniform() - 0.5));
+        text += &format!("{f:.6},{g:.4},{p:.4}\n");
+    }
+    let p = file_with(&dir, "noise.csv", &text);
+    let o = fracid(&["freq", p.to_str().unwrap(), "--refine", "--json"]);
+    let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    assert_eq!(v["usable"], false, "{}", v["problems"]);
+    assert!(
+        v["problems"]
+            .to_string()
+            .contains("does not describe these data"),
+        "{}",
+        v["problems"]
+    );
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+}

@@ -4,6 +4,7 @@
 
 pub(crate) mod round2;
 pub(crate) mod round3_drive;
+mod round3_fits;
 
 use super::fracid;
 use std::fmt::Write as _;

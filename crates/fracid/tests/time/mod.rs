@@ -4,6 +4,8 @@ use super::fracid;
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
+mod verdict;
+
 fn stdout(o: &std::process::Output) -> String {
     String::from_utf8_lossy(&o.stdout).into_owned()
 }

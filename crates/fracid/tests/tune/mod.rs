@@ -368,3 +368,50 @@ fn a_given_controller_is_analysed() {
     assert!((lw.0.hypot(lw.1) - 1.0).abs() < 1e-6);
     assert!((180.0 + lw.1.atan2(lw.0).to_degrees() - 60.0).abs() < 1e-6);
 }
+
+/// A `freq --sk N --json` report whose Sanathanan-Koerner fit beats Levy's (`J` lower; the
+/// paper's Table 1 without weights): `tune` designs on the report's answer, its best model
+/// (`best_model`, the library's one rule `ident::app::answer`), not on Levy's top-level `model`
+/// (on main it took Levy's).
+#[test]
+fn a_freq_report_is_tuned_on_its_best_model_not_levys() {
+    let dir = tempfile::tempdir().unwrap();
+    let table = dir.path().join("t1.csv");
+    std::fs::copy(
+        concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../data/paper_table1_bode.csv"
+        ),
+        &table,
+    )
+    .unwrap();
+    let out = fracid(&[
+        "freq",
+        table.to_str().unwrap(),
+        "--sk",
+        "10",
+        "--weights",
+        "none",
+        "--json",
+    ]);
+    let report = json_of(&out);
+    let (levy, sk) = (
+        report["J"].as_f64().unwrap(),
+        report["sk"]["J"].as_f64().unwrap(),
+    );
+    assert!(sk < levy, "SK {sk} should beat Levy {levy} here");
+    assert_eq!(report["best_model"], report["sk"]["model"]);
+    let p = dir.path().join("freq.json");
+    std::fs::write(&p, report.to_string()).unwrap();
+    let v = json_of(&fracid(&[
+        "tune",
+        p.to_str().unwrap(),
+        "--wc",
+        "300",
+        "--pm",
+        "60",
+        "--json",
+    ]));
+    assert_eq!(v["model"]["text"], report["sk"]["model"]["text"]);
+    assert_ne!(v["model"]["text"], report["model"]["text"]);
+}

@@ -236,6 +236,9 @@ pub struct FreqReport {
     pub refined: Option<RefinedReport>,
     /// The best model by `J` among Levy's, SK's and the refit.
     pub best_model: ModelReport,
+    /// Its error index.
+    #[serde(rename = "best_J")]
+    pub best_j: f64,
     /// The sample period whose hold was divided out.
     pub hold_s: Option<f64>,
     /// The diagnosis.
@@ -438,7 +441,10 @@ pub fn run(req: &FreqRequest, data: &FreqData, obs: &mut dyn Observe) -> Result<
     } else {
         None
     };
-    let (problems, warnings) = assessment(&fit, diagnosis.as_ref());
+    let (mut problems, warnings) = assessment(&fit, diagnosis.as_ref());
+    let answer = diagnosis.as_ref().map_or(fit.best_model(), |d| &d.model);
+    problems.extend(hardly_better_than_a_constant(omega, &h, answer));
+    let verdict = super::verdict::verdict(problems, None);
     let refined = fit.refined.as_ref().map(|r| RefinedReport {
         model: ModelReport::from(&r.model),
         j: r.j,
@@ -480,13 +486,14 @@ pub fn run(req: &FreqRequest, data: &FreqData, obs: &mut dyn Observe) -> Result<
         sk_curve: fit.sk.as_ref().map(|_| curve(&fit.sk_curve)),
         refined,
         best_model: ModelReport::from(fit.best_model()),
+        best_j: fit.best_j(),
         hold_s: hold,
         diagnosis: diagnosis.as_ref().map(|d| BodeDiagnosisReport {
             diagnosis: d.clone(),
             model: ModelReport::from(&d.model),
         }),
-        usable: problems.is_empty(),
-        problems,
+        usable: verdict.usable,
+        problems: verdict.problems,
         warnings,
         request: req.clone(),
         fitted: FreqFitted {
@@ -513,6 +520,30 @@ fn assessment(fit: &FreqFit, diagnosis: Option<&BodeDiagnosis>) -> (Vec<String>,
         }
     }
     (problems, warnings)
+}
+
+/// The fit (%) below which a frequency-domain model does not describe the response it was fitted
+/// to ([`hardly_better_than_a_constant`]): half the response's variation about its mean left
+/// unexplained. A fit of the paper's Table 1 reaches 98%; five parameters fitted to a table of
+/// noise (gain +-10 dB, phase anywhere) 13%.
+const FREQ_FIT_FLOOR: f64 = 50.0;
+
+/// A model whose fit of the response, `100 (1 - sqrt(J / J_c))` % with `J_c` the error index of
+/// the best constant (the response's complex mean), is below [`FREQ_FIT_FLOOR`]: it explains
+/// too little of what was measured to be a model of it (a table of noise; a response with no
+/// dynamics, which a constant describes).
+fn hardly_better_than_a_constant(omega: &[f64], h: &[Complex64], g: &FracTf) -> Option<String> {
+    let n = h.len().max(1) as f64;
+    let mean = h.iter().sum::<Complex64>() / n;
+    let j_const = h.iter().map(|v| (v - mean).norm_sqr()).sum::<f64>() / n;
+    let fit = 100.0 * (1.0 - (error_index(omega, h, g) / j_const).sqrt());
+    (!(fit >= FREQ_FIT_FLOOR)).then(|| {
+        format!(
+            "the model fits the measured response only {fit:.1}% (below {FREQ_FIT_FLOOR}%: \
+             100 (1 - sqrt(J / J_c)), J_c the error of the best constant): it does not describe \
+             these data (a table of noise, or a response without dynamics)"
+        )
+    })
 }
 
 /// The measured spread of a Bode table (standard errors of gain dB and phase deg per point) as

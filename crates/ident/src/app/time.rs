@@ -303,6 +303,11 @@ pub struct JointReport {
     pub warnings: Vec<String>,
     /// The score on a separate validation record.
     pub fit: Option<FitFigures>,
+    /// Whether the model can be used ([`super::verdict`]: the rules of a single record's fit on
+    /// the record it fits worst, and its score on the validation record).
+    pub usable: bool,
+    /// Why not.
+    pub problems: Vec<String>,
     /// The request as run.
     pub request: TimeRequest,
 }
@@ -350,6 +355,10 @@ pub fn run_joint(
         None => None,
     };
     let names = std::iter::once(first).chain(data.joint.iter().map(|n| n.name.as_str()));
+    let v = super::verdict::verdict(
+        j.problems.clone(),
+        fit.as_ref().and_then(|f| f.validation_file.as_ref()),
+    );
     Ok(JointReport {
         model: ModelReport::from(&j.tf),
         params: j.report.params.clone(),
@@ -365,6 +374,8 @@ pub fn run_joint(
         converged: j.report.converged,
         warnings: j.report.warnings.clone(),
         fit,
+        usable: v.usable,
+        problems: v.problems,
         request: req.clone(),
     })
 }
@@ -646,6 +657,7 @@ fn alpha_eta(v: &[(f64, f64, f64)]) -> Vec<AlphaEta> {
 
 /// The base fit as a [`ModelFit`].
 fn base_fit(id: &Identification, file: Option<ScoreReport>) -> ModelFit {
+    let v = super::verdict::verdict(id.problems.clone(), file.as_ref());
     ModelFit {
         model: ModelReport::from(&id.tf),
         params: id.report.params.clone(),
@@ -656,8 +668,8 @@ fn base_fit(id: &Identification, file: Option<ScoreReport>) -> ModelFit {
         },
         alpha_eta: alpha_eta(&id.alpha_eta),
         warnings: id.report.warnings.clone(),
-        usable: id.usable(),
-        problems: id.problems.clone(),
+        usable: v.usable,
+        problems: v.problems,
         spec: id.model.clone(),
         yhat: id.yhat.clone(),
     }
@@ -706,13 +718,14 @@ fn final_model(
 ) -> (ModelFit, String, DiagnosisReport) {
     let rec = &data.record;
     let mut fin = final_fit(&d, base, rec.dt, final_file);
-    match skew_samples(&d, rec.dt) {
-        Some(lead) => {
-            polish(&mut fin, req, &input_advanced(data, lead));
-            fin.warnings.push(skew_warning(lead, rec.dt));
-        }
-        None => polish(&mut fin, req, data),
+    let skew = skew_samples(&d, rec.dt);
+    let advanced = skew.map(|lead| input_advanced(data, lead));
+    let fitted_on = advanced.as_ref().unwrap_or(data);
+    polish(&mut fin, req, fitted_on);
+    if let Some(lead) = skew {
+        fin.warnings.push(skew_warning(lead, rec.dt));
     }
+    judge_final(&mut fin, req, fitted_on);
     let caveats = at_bound(&fin);
     fin.warnings.extend(caveats);
     let is = format!(
@@ -792,6 +805,46 @@ fn at_bound(fin: &ModelFit) -> Vec<String> {
         .collect()
 }
 
+/// The final model's own verdict ([`super::verdict`]): the rules every fitted model is judged by
+/// (`oe::checks`: stable, a finite static gain, parameters the data determine, the held-out part
+/// predicted better than its mean, ...) applied to it, with its standard errors at its values
+/// (the covariance of the diagnosis's free parameters there, the record's offset and initial
+/// state as polished; one Jacobian, no step), and its score on a separate validation record. The
+/// base fit's verdict stays with the base fit (`base`). A final model whose covariance cannot be
+/// evaluated keeps the problems it had and says why.
+fn judge_final(fin: &mut ModelFit, req: &TimeRequest, data: &TimeData) {
+    let mut problems = std::mem::take(&mut fin.problems);
+    match own_id(req, &fin.spec, data) {
+        Ok(id) => {
+            for (p, e) in fin.params.iter_mut().zip(&id.report.params) {
+                p.std_error = e.std_error;
+            }
+            problems.extend(id.problems);
+        }
+        Err(e) => problems.push(format!(
+            "the final model cannot be evaluated at its values on this record ({e})"
+        )),
+    }
+    let v = super::verdict::verdict(problems, fin.fit.validation_file.as_ref());
+    fin.usable = v.usable;
+    fin.problems = v.problems;
+}
+
+/// The identification of a report's model `spec` at its values, with the parameters it was
+/// fitted with free and no iteration: its covariance (standard errors) and its checks at those
+/// values, with the request's operating point, split and initial state.
+fn own_id(req: &TimeRequest, spec: &FracModel, data: &TimeData) -> Result<Identification> {
+    let rec = &data.record;
+    let duration = rec.t.last().copied().unwrap_or(0.0) - rec.t.first().copied().unwrap_or(0.0);
+    let (_, mut opts) = model_and_options(req, duration, rec.dt, data.validation.is_some())?;
+    opts.start = StartMode::Given;
+    opts.fit.lm.max_iterations = 0;
+    if spec.past.is_some() && opts.initial == crate::oe::InitialState::Auto {
+        opts.initial = crate::oe::InitialState::Estimate;
+    }
+    crate::oe::identify(rec, spec, &opts)
+}
+
 /// The diagnosis's final model as a [`ModelFit`]: the base fit's caveats, then its own
 /// (parameters at a bound of their range).
 fn final_fit(d: &Diagnosis, base: &ModelFit, dt: f64, file: Option<ScoreReport>) -> ModelFit {
@@ -809,7 +862,8 @@ fn final_fit(d: &Diagnosis, base: &ModelFit, dt: f64, file: Option<ScoreReport>)
         })
         .collect();
     let warnings = base.warnings.clone();
-    let mut problems = base.problems.clone();
+    // Its own verdict comes from its own figures ([`judge_final`]), not the base fit's.
+    let mut problems = vec![];
     let model = match d.model.tf(&values) {
         Ok(tf) => {
             let mut m = ModelReport::from(&tf);

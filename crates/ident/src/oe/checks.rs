@@ -29,7 +29,7 @@ const UNDETERMINED: f64 = 10.0;
 
 /// A fit with a singular covariance and an NRMSE below this (percent: it explains less than a
 /// fifth of the output's variance, `1 - 0.9^2`) is not usable.
-const NO_BETTER_THAN_A_CONSTANT: f64 = 10.0;
+pub(super) const NO_BETTER_THAN_A_CONSTANT: f64 = 10.0;
 
 /// Orders closer than this (relative, at least absolute) are the same order.
 const SAME_ORDER: f64 = 1e-6;
@@ -271,18 +271,10 @@ fn same_order_terms(m: &FracModel, p: &[f64]) -> Vec<String> {
 /// collinear has one: the UNAL record's FOPDT, 96.5%); with a fit that explains almost nothing,
 /// nothing in it is determined. Seen: `--integrator` on an output that does not integrate (0.6%),
 /// a written model left at its start (-101%).
-fn singular_and_no_better_than_a_constant(id: &Identification) -> Option<String> {
-    let m = &id.model;
-    let plant: Vec<&super::ParamEstimate> = id
-        .report
-        .params
-        .iter()
-        .enumerate()
-        .filter(|(i, e)| e.free && !e.at_bound && !m.is_initial_state(*i) && e.name != "y_offset")
-        .map(|(_, e)| e)
-        .collect();
-    let singular = !plant.is_empty() && plant.iter().all(|e| e.std_error.is_none());
-    let fit = id.validation.unwrap_or(id.estimation).nrmse_percent;
+fn singular_and_no_better_than_a_constant(ev: &Evidence<'_>) -> Option<String> {
+    let plant: Vec<usize> = plant_indices(ev).collect();
+    let singular = !plant.is_empty() && plant.iter().all(|&i| ev.params[i].std_error.is_none());
+    let fit = ev.validation.unwrap_or(ev.estimation).nrmse_percent;
     (singular && !(fit >= NO_BETTER_THAN_A_CONSTANT)).then(|| {
         format!(
             "the covariance is singular and the model fits only {fit:.1}% (below \
@@ -295,10 +287,10 @@ fn singular_and_no_better_than_a_constant(id: &Identification) -> Option<String>
 /// The free plant parameters (not the initial state's levels nor the output offset) whose
 /// standard error is [`UNDETERMINED`] times their value or more, and those whose standard error
 /// exceeds their value, each as `name = value +- se`.
-fn weak_parameters(id: &Identification) -> (Vec<String>, Vec<String>) {
+fn weak_parameters(ev: &Evidence<'_>) -> (Vec<String>, Vec<String>) {
     let (mut undetermined, mut poor) = (Vec::new(), Vec::new());
-    for (i, e) in id.report.params.iter().enumerate() {
-        if !e.free || id.model.is_initial_state(i) || e.name == "y_offset" {
+    for (i, e) in ev.params.iter().enumerate() {
+        if !e.free || ev.model.is_initial_state(i) || e.name == "y_offset" {
             continue;
         }
         let said = |se: f64| format!("{} = {:.4e} +- {se:.2e}", e.name, e.value);
@@ -324,9 +316,9 @@ fn are(n: usize) -> String {
 /// ([`ValidationKind::HeldOut`]) worse than that part's own mean (NRMSE below 0): it does not
 /// describe the dynamics these data show, whatever its estimation fit. (A step test's settled
 /// tail, [`ValidationKind::ResponseTail`], is exempt: there `||y - mean(y)||` is only noise.)
-fn worse_than_the_mean_held_out(id: &Identification) -> Option<String> {
-    let v = id.validation?;
-    (id.validated_by.kind == ValidationKind::HeldOut && v.nrmse_percent < 0.0).then(|| {
+fn worse_than_the_mean_held_out(ev: &Evidence<'_>) -> Option<String> {
+    let v = ev.validation?;
+    (ev.kind == ValidationKind::HeldOut && v.nrmse_percent < 0.0).then(|| {
         format!(
             "the model predicts the held-out part worse than its mean (NRMSE {:.1}%, RMSE \
              {:.4e}): it does not describe these data (another structure, a delay: try --diagnose)",
@@ -357,10 +349,8 @@ pub(super) fn std_dev(x: &[f64]) -> f64 {
 /// when it follows a drift of the output (an output that integrates the input, a position, with
 /// an input offset or a mean input) with a mode slower than the record: it fits the record
 /// tolerably, and that mode, not the plant, sets its static gain.
-fn unsettled_gain(sim: &Simulator<f64>, dc: f64, rec: &Record) -> Option<String> {
+fn unsettled_gain(reached: f64, dc: f64, rec: &Record) -> Option<String> {
     let n = rec.len();
-    // The step response at the record's last sample, in closed form (not a simulation of it).
-    let reached = sim.step_response_at(n.checked_sub(1)?) / dc;
     (reached.is_finite() && reached < SETTLED_FRACTION).then(|| {
         format!(
             "the model's step response reaches only {:.0}% of its static gain G(0) = {dc:.4e} \
@@ -373,14 +363,167 @@ fn unsettled_gain(sim: &Simulator<f64>, dc: f64, rec: &Record) -> Option<String>
     })
 }
 
+/// The fraction of its static gain `dc` the model's unit step response (its own, from rest,
+/// delay included) reaches at the record's last sample, in closed form (not a simulation);
+/// `None` for an empty record or a fraction that is not finite.
+fn settled_fraction(sim: &Simulator<f64>, dc: f64, rec: &Record) -> Option<f64> {
+    let reached = sim.step_response_at(rec.len().checked_sub(1)?) / dc;
+    reached.is_finite().then_some(reached)
+}
+
+/// What the verdict on a time-domain model is made of: the model with its fitted values, its
+/// parameters as estimated (standard errors where the covariance gave them), the values it
+/// started from, and its own figures. [`Identification`] gives one ([`Evidence::of`]); a joint
+/// fit gives another ([`super::joint`]).
+pub(crate) struct Evidence<'a> {
+    /// The model (its structure, effects and operating point).
+    pub model: &'a FracModel,
+    /// Its fitted values.
+    pub values: &'a [f64],
+    /// Its parameters as estimated.
+    pub params: &'a [super::ParamEstimate],
+    /// The values the fit started from.
+    pub start: &'a [f64],
+    /// Its linear part.
+    pub tf: &'a fracsim::FracTf,
+    /// Its fit on the estimation part.
+    pub estimation: crate::metrics::Fit,
+    /// Its fit on the held-out part, if any.
+    pub validation: Option<crate::metrics::Fit>,
+    /// How it was validated on the record.
+    pub kind: ValidationKind,
+    /// Whether its output is finite everywhere.
+    pub output_finite: bool,
+    /// Whether its fit converged, why it stopped, after how many iterations.
+    pub converged: (bool, &'a str, usize),
+    /// Whether it was evaluated at given values rather than fitted (no iteration allowed: a
+    /// report's model judged at its values), so that its start says nothing of the data.
+    pub evaluated: bool,
+}
+
+impl<'a> Evidence<'a> {
+    /// The evidence of an identification.
+    pub(crate) fn of(id: &'a Identification) -> Self {
+        Self {
+            model: &id.model,
+            values: &id.report.values,
+            params: &id.report.params,
+            start: &id.start,
+            tf: &id.tf,
+            estimation: id.estimation,
+            validation: id.validation,
+            kind: id.validated_by.kind,
+            output_finite: crate::lm::all_finite(&id.yhat),
+            converged: (
+                id.report.converged,
+                id.report.stop_reason(),
+                id.report.iterations,
+            ),
+            evaluated: id.report.iterations == 0
+                && id.report.termination == crate::lm::Termination::MaxIterations,
+        }
+    }
+}
+
 /// The reasons the identified model cannot be used (empty when it can), and warnings.
 pub(crate) fn assess(id: &Identification, rec: &Record) -> (Vec<String>, Vec<String>) {
+    assess_evidence(&Evidence::of(id), rec)
+}
+
+/// The dynamics' largest departure from the static gain over the record's band, relative to it:
+/// `max |G(j w) - G(0)| / |G(0)|` for `w` from `2 pi / T` to the Nyquist frequency `pi / dt`
+/// (64 frequencies spaced logarithmically; `T` the record's duration). `None` when `G(0)` is not
+/// finite and nonzero.
+fn dynamics_over_the_band(tf: &fracsim::FracTf, rec: &Record) -> Option<f64> {
+    let g0 = tf.dc_gain();
+    if !(g0.is_finite() && g0 != 0.0) || rec.len() < 2 {
+        return None;
+    }
+    let (lo, hi) = (
+        2.0 * std::f64::consts::PI / (rec.len() as f64 * rec.dt),
+        std::f64::consts::PI / rec.dt,
+    );
+    let n = 64;
+    let worst = (0..n)
+        .map(|i| lo * (hi / lo).powf(i as f64 / (n - 1) as f64))
+        .map(|w| (tf.freq_response(w) - g0).norm() / g0.abs())
+        .fold(0.0f64, f64::max);
+    Some(worst)
+}
+
+/// A fitted model whose response departs from its static gain by less than this fraction over
+/// the whole band the record covers has no dynamics there ([`static_gain_only`]).
+const STATIC_ONLY: f64 = 1e-3;
+
+/// A model with free dynamics (orders or coefficients fitted) whose response over the record's
+/// band is its static gain to within [`STATIC_ONLY`]: the record shows no dynamics (an output
+/// that is the input times a constant, a plant far faster than the sampling), so the orders and
+/// coefficients fitted mean nothing (they are not determined: the fit ran them where they do not
+/// matter). A drive engineer asking for the plant's dynamics is told that the record shows a
+/// static gain, and its value, instead of being given dynamics that are not there.
+fn static_gain_only(ev: &Evidence<'_>, rec: &Record) -> Option<String> {
+    // A free parameter in a term of nonzero order (its coefficient or its order), or the delay.
+    let (m, p) = (ev.model, ev.values);
+    let shapes = |i: usize| {
+        m.num
+            .iter()
+            .chain(&m.den)
+            .any(|(c, o)| o.eval(p) != 0.0 && (c.has(i) || o.has(i)))
+    };
+    let dynamics_free =
+        (0..m.params.len()).any(|i| m.params[i].free && (shapes(i) || m.delay == Some(i)));
+    let dev = dynamics_over_the_band(ev.tf, rec)?;
+    (dynamics_free && dev < STATIC_ONLY).then(|| {
+        format!(
+            "the record shows no dynamics: the fitted model is a static gain G(0) = {:.4e} over \
+             the whole band the record covers ({:.3e} to {:.3e} rad/s; its response departs from \
+             G(0) by at most {:.1e} of it), so its orders and coefficients are not determined by \
+             these data (the output is the input times {:.4e}: sample faster, or check that the \
+             output is the plant's)",
+            ev.tf.dc_gain(),
+            2.0 * std::f64::consts::PI / (rec.len() as f64 * rec.dt),
+            std::f64::consts::PI / rec.dt,
+            dev,
+            ev.tf.dc_gain(),
+        )
+    })
+}
+
+/// A fit whose free plant parameters all ended where they started (relative change under
+/// `1e-9`) with a singular covariance: the data moved nothing and determine nothing, so its
+/// figures are those of the values given, not a result of these data.
+fn never_moved(ev: &Evidence<'_>) -> Option<String> {
+    let plant: Vec<usize> = plant_indices(ev).collect();
+    let singular = !plant.is_empty() && plant.iter().all(|&i| ev.params[i].std_error.is_none());
+    let unmoved = plant.iter().all(|&i| {
+        let (v, s) = (ev.values[i], ev.start.get(i).copied().unwrap_or(f64::NAN));
+        (v - s).abs() <= 1e-9 * v.abs().max(s.abs())
+    });
+    (singular && unmoved && !ev.evaluated).then(|| {
+        "the fit never moved its parameters from their start and the covariance is singular: \
+         these data determine none of them (the figures are those of the values given; another \
+         structure, other start values or a record with more excitation)"
+            .to_string()
+    })
+}
+
+/// The free plant parameters' indices (not the initial state's levels nor the output offset),
+/// those held at a bound of their range left out.
+fn plant_indices<'b>(ev: &'b Evidence<'_>) -> impl Iterator<Item = usize> + 'b {
+    ev.params.iter().enumerate().filter_map(move |(i, e)| {
+        (e.free && !e.at_bound && !ev.model.is_initial_state(i) && e.name != "y_offset")
+            .then_some(i)
+    })
+}
+
+/// [`assess`] of any [`Evidence`]: the one set of rules every time-domain model is judged by.
+pub(crate) fn assess_evidence(ev: &Evidence<'_>, rec: &Record) -> (Vec<String>, Vec<String>) {
     let (mut problems, mut warnings) = (vec![], vec![]);
-    let m = &id.model;
-    let p = &id.report.values;
-    if !id.estimation.rmse.is_finite()
-        || id.validation.is_some_and(|v| !v.rmse.is_finite())
-        || !crate::lm::all_finite(&id.yhat)
+    let m = ev.model;
+    let p = ev.values;
+    if !ev.estimation.rmse.is_finite()
+        || ev.validation.is_some_and(|v| !v.rmse.is_finite())
+        || !ev.output_finite
     {
         problems.push("the model output or its error is not finite".into());
     }
@@ -413,7 +556,7 @@ pub(crate) fn assess(id: &Identification, rec: &Record) -> (Vec<String>, Vec<Str
         }
         Err(e) => problems.push(format!("the model cannot be simulated: {e}")),
     }
-    let dc = id.tf.dc_gain();
+    let dc = ev.tf.dc_gain();
     let by_design = integrates(m, p);
     if !dc.is_finite() && !by_design {
         problems.push("the model has no finite static gain".into());
@@ -422,24 +565,34 @@ pub(crate) fn assess(id: &Identification, rec: &Record) -> (Vec<String>, Vec<Str
             "the static gain G(0) = {dc:.4e} is negative: the output falls when the input rises"
         ));
     }
+    let settles = simulator
+        .as_ref()
+        .filter(|_| dc.is_finite() && dc != 0.0 && !by_design)
+        .map(|sim| settled_fraction(sim, dc, rec));
     let (su, sy) = (std_dev(&rec.u), std_dev(&rec.y));
     if dc.is_finite() && !by_design && dc.abs() * su > ABSURD_GAIN_RATIO * sy.max(f64::MIN_POSITIVE)
     {
-        problems.push(format!(
+        let said = format!(
             "the static gain G(0) = {dc:.4e} is absurd for these data (the output's spread is \
              {sy:.3e} for the input's {su:.3e}): the output may integrate the input, try the \
              structure with an integrator (--integrator)"
-        ));
+        );
+        // A gain the record never reaches (the model's dynamics slower than the record) is an
+        // extrapolation, not a claim of the data: a plant whose physics has a large or infinite
+        // static gain (an integrator, a feed-through with an integrator) is fitted so. Only a
+        // model that settles within the record, and so shows that gain on these data, is ruled
+        // out by it.
+        match settles {
+            Some(Some(reached)) if reached < SETTLED_FRACTION => warnings.push(said),
+            _ => problems.push(said),
+        }
     }
-    if let Some(sim) = simulator
-        .as_ref()
-        .filter(|_| dc.is_finite() && dc != 0.0 && !by_design)
-    {
-        if let Some(w) = unsettled_gain(sim, dc, rec) {
+    if let Some(Some(reached)) = settles {
+        if let Some(w) = unsettled_gain(reached, dc, rec) {
             warnings.push(w);
         }
     }
-    let (undetermined, poor) = weak_parameters(id);
+    let (undetermined, poor) = weak_parameters(ev);
     if !undetermined.is_empty() {
         problems.push(format!(
             "{} not determined by these data (standard error {UNDETERMINED} times the value or \
@@ -456,14 +609,17 @@ pub(crate) fn assess(id: &Identification, rec: &Record) -> (Vec<String>, Vec<Str
         ));
     }
     problems.extend(same_order_terms(m, p));
-    problems.extend(singular_and_no_better_than_a_constant(id));
-    problems.extend(worse_than_the_mean_held_out(id));
-    if !id.report.converged {
+    match singular_and_no_better_than_a_constant(ev) {
+        Some(p) => problems.push(p),
+        None => problems.extend(never_moved(ev)),
+    }
+    problems.extend(static_gain_only(ev, rec));
+    problems.extend(worse_than_the_mean_held_out(ev));
+    let (converged, why, iterations) = ev.converged;
+    if !converged && !ev.evaluated {
         warnings.push(format!(
-            "the fit did not converge ({}, {} iterations): the parameters may not be at the \
-             optimum (raise --max-iter)",
-            id.report.stop_reason(),
-            id.report.iterations
+            "the fit did not converge ({why}, {iterations} iterations): the parameters may not be \
+             at the optimum (raise --max-iter)"
         ));
     }
     (problems, warnings)

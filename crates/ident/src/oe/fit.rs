@@ -13,6 +13,7 @@ use fracsim::{Dual, FracTf};
 use std::time::{Duration, Instant};
 
 mod held;
+mod timescale;
 mod varpro;
 
 /// Options of [`fit`].
@@ -577,7 +578,10 @@ pub(super) fn fit_in<S: Structure>(
     let mut start = theta0.clone();
     let mut lm = opts.lm.clone();
     let mut lead_work = (0, 0);
-    let lead = if LEAD.with(|l| l.get()) {
+    // A budget of no iteration evaluates the start (its covariance, [`LmOptions::covariance`]):
+    // neither the lead part nor the projection moves it.
+    let evaluate_only = opts.lm.max_iterations == 0;
+    let lead = if LEAD.with(|l| l.get()) && !evaluate_only {
         lead_part(u, y, opts.skip)
     } else {
         None
@@ -642,8 +646,7 @@ pub(super) fn fit_in<S: Structure>(
             }
         }
         None => {
-            let projected = PROJECT
-                .with(|p| p.get())
+            let projected = (PROJECT.with(|p| p.get()) && !evaluate_only)
                 .then(|| varpro::plan(s, &free))
                 .flatten()
                 .and_then(|plan| varpro::fit(&mut prob, &plan, &start, &lm, opts.shared_budget));
@@ -929,6 +932,46 @@ pub fn identify_with_progress(
     // From an empty pole cache: its hints move the last bits of a fit, so a record fitted after
     // others on the same thread gives the fit it gives alone.
     fracsim::modal::RootsCache::default().install();
+    let ts = timescale::TimeScale::of(rec, model).filter(|_| opts.fit.lm.max_iterations > 0);
+    let Some(ts) = ts else {
+        return identify_in_units(rec, model, opts, progress);
+    };
+    // In a time unit the fit does not depend on ([`timescale`]), then in the record's own unit
+    // from that optimum: the figures and the covariance in the record's units.
+    let there = identify_in_units(&ts.record(rec), &ts.model(model, 1.0), opts, progress)?;
+    let back = ts.model(&there.model, -1.0);
+    let from_there = IdentOptions {
+        start: StartMode::Given,
+        ..opts.clone()
+    };
+    let Ok(mut id) = identify_in_units(rec, &back, &from_there, progress) else {
+        // That optimum cannot be simulated in the record's unit (a time column in 1e-6 s: the
+        // approximation's cells at 1e8 rad/s and more): the fit in the record's unit as it was.
+        return identify_in_units(rec, model, opts, progress);
+    };
+    // The start is the one made in the other unit, converted.
+    let mut start = there.model.clone();
+    for (p, v) in start.params.iter_mut().zip(&there.start) {
+        p.value = *v;
+    }
+    let start = ts.model(&start, -1.0).values();
+    if start.len() == id.start.len() {
+        id.start = start;
+    }
+    id.start_report = there.start_report;
+    id.report.iterations += there.report.iterations;
+    id.report.evaluations += there.report.evaluations;
+    Ok(id)
+}
+
+/// [`identify_with_progress`] in the record's time unit, its input and output scaled to
+/// magnitude 1 when they are far from it ([`Scaling`]).
+fn identify_in_units(
+    rec: &Record,
+    model: &FracModel,
+    opts: &IdentOptions,
+    progress: &mut dyn FnMut(usize, f64),
+) -> Result<Identification> {
     let Some(sc) = Scaling::of(rec, model) else {
         return identify_at_scale(rec, model, opts, progress);
     };
@@ -1078,10 +1121,22 @@ fn identify_at_scale(
     }
     match initial {
         InitialState::Estimate => {
+            // A model evaluated at its values (no iteration: its covariance and checks there)
+            // keeps its initial state's levels; a fit starts them from rest.
+            let kept: Option<Vec<f64>> = m
+                .past
+                .as_ref()
+                .filter(|_| opts.fit.lm.max_iterations == 0)
+                .map(|p| p.levels.iter().map(|&i| m.params[i].value).collect());
             m.with_past_input(
                 past_edges(split as f64 * rec.dt),
                 super::past_range(&rec.u, offsets.u0),
             );
+            if let (Some(v), Some(p)) = (kept, &m.past) {
+                for (&i, &x) in p.levels.iter().zip(&v) {
+                    m.params[i].value = x;
+                }
+            }
         }
         InitialState::Rest | InitialState::Auto => m.past = None,
     }
@@ -1164,7 +1219,11 @@ fn refine_buffers(
     initial: InitialState,
 ) -> Option<Buffers> {
     let rows = split.checked_sub(opts.fit.skip)?;
-    if rows < 4 * LEAD_SAMPLES || !LEAD.with(|l| l.get()) || !crate::lm::two_cores() {
+    if rows < 4 * LEAD_SAMPLES
+        || !LEAD.with(|l| l.get())
+        || !crate::lm::two_cores()
+        || opts.fit.lm.max_iterations == 0
+    {
         return None;
     }
     let offset = usize::from(opts.fit_offset && m.index_of("y_offset").is_none());

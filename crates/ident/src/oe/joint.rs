@@ -43,6 +43,10 @@ pub struct JointIdentification {
     pub report: super::FitReport,
     /// Per record: its operating point, its fit, its model output (absolute scale).
     pub records: Vec<(Offsets, Fit, Vec<f64>)>,
+    /// Why the model cannot be used (empty when it can): the rules of a single record's fit
+    /// ([`super::Identification::problems`]) on the model and the plant's parameters, judged by
+    /// the record it fits worst.
+    pub problems: Vec<String>,
 }
 
 /// Fit one model to several records of the same plant (same sampling step): the start is the
@@ -138,10 +142,51 @@ pub fn identify_joint(
         p.value = report.values[j];
     }
     let tf = model.tf(&model.values())?;
+    let n = model.params.len();
+    let worst = records
+        .iter()
+        .map(|(_, f, _)| *f)
+        .min_by(|a, b| a.nrmse_percent.total_cmp(&b.nrmse_percent))
+        .unwrap_or(records[0].1);
+    let stop = report.stop_reason();
+    let ev = super::checks::Evidence {
+        model: &model,
+        values: &report.values[..n],
+        params: &report.params[..n],
+        start: &report.start[..n],
+        tf: &tf,
+        estimation: worst,
+        validation: None,
+        kind: super::ValidationKind::None,
+        output_finite: records
+            .iter()
+            .all(|(_, _, yhat)| crate::lm::all_finite(yhat)),
+        converged: (report.converged, stop, report.iterations),
+        evaluated: false,
+    };
+    let (mut problems, _) = super::checks::assess_evidence(&ev, first);
+    // Each record is used whole: no held-out part shows that the model describes the data, so
+    // one that fits a record it was fitted to hardly better than a constant (two records of
+    // noise: 0.2% and -0.2%) does not.
+    let floor = super::checks::NO_BETTER_THAN_A_CONSTANT;
+    let poorly = records
+        .iter()
+        .enumerate()
+        .filter(|(_, (_, f, _))| !(f.nrmse_percent >= floor));
+    problems.extend(poorly.map(|(r, (_, f, _))| {
+        format!(
+            "the model fits record {} of the joint fit only {:.1}% (below {floor}%: hardly \
+             better than a constant, and no part of it is held out): it does not describe these \
+             data",
+            r + 1,
+            f.nrmse_percent
+        )
+    }));
     Ok(JointIdentification {
         model,
         tf,
         report,
         records,
+        problems,
     })
 }

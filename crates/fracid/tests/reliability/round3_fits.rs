@@ -1,0 +1,109 @@
+//! Issue 46, round 3, the fits' items: one test per item (`item_N_...`), each failing on the
+//! behaviour the issue found (main, e364c0a).
+
+use super::{fracid, stderr};
+use std::fmt::Write as _;
+
+fn json(o: &std::process::Output) -> serde_json::Value {
+    serde_json::from_slice(&o.stdout)
+        .unwrap_or_else(|e| panic!("{e}: {}", String::from_utf8_lossy(&o.stderr)))
+}
+
+/// The repository's UNAL PRBS record with its time column multiplied by `c`.
+fn unal_in_units(dir: &tempfile::TempDir, c: f64) -> std::path::PathBuf {
+    let text = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../data/unal_dcmotor/DCmotor_prbs_open_exp.csv"
+    ))
+    .unwrap();
+    let mut out = String::new();
+    for (i, l) in text.lines().enumerate() {
+        if i == 0 {
+            writeln!(out, "{l}").unwrap();
+            continue;
+        }
+        let (t, rest) = l.split_once(',').unwrap();
+        writeln!(out, "{:.12e},{rest}", t.parse::<f64>().unwrap() * c).unwrap();
+    }
+    let p = dir.path().join(format!("unal_{c:e}.csv"));
+    std::fs::write(&p, out).unwrap();
+    p
+}
+
+/// Item 13: the fit does not depend on the time unit. The UNAL PRBS record with its time in
+/// units of 1e4 s (every time value times 1e-4) stopped early at 94.00% ("parameter step below
+/// tolerance", the highest order run to 2) where seconds give 95.31%; now every unit from 1e-5
+/// to 1e6 gives the seconds' fit, and its parameters converted back to seconds.
+#[test]
+fn item_13_the_fit_does_not_depend_on_the_time_unit() {
+    let dir = tempfile::tempdir().unwrap();
+    let fit = |c: f64| {
+        let p = unal_in_units(&dir, c);
+        let o = fracid(&["time", p.to_str().unwrap(), "--json", "--quiet"]);
+        assert_eq!(o.status.code(), Some(0), "{c:e}: {}", stderr(&o));
+        json(&o)
+    };
+    let seconds = fit(1.0);
+    let pct = |v: &serde_json::Value| v["fit"]["estimation"]["nrmse_percent"].as_f64().unwrap();
+    let param = |v: &serde_json::Value, n: &str| {
+        v["params"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|p| p["name"] == n)
+            .unwrap()["value"]
+            .as_f64()
+            .unwrap()
+    };
+    assert!((pct(&seconds) - 95.31).abs() < 0.01, "{}", pct(&seconds));
+    for c in [1e-4, 1e4] {
+        let v = fit(c);
+        assert!(
+            (pct(&v) - pct(&seconds)).abs() < 1e-3,
+            "time x {c:e}: {} against {} in seconds",
+            pct(&v),
+            pct(&seconds)
+        );
+        // a1 s^zeta: a1 in seconds is a1' / c^zeta
+        let (zeta, a1) = (
+            param(&v, "zeta"),
+            param(&v, "a1") / c.powf(param(&v, "zeta")),
+        );
+        assert!((zeta - param(&seconds, "zeta")).abs() < 1e-3, "zeta {zeta}");
+        assert!(
+            (a1 / param(&seconds, "a1") - 1.0).abs() < 1e-2,
+            "a1 {a1} against {}",
+            param(&seconds, "a1")
+        );
+    }
+}
+/// Item 14: an output exactly 3 times the input. The fit is a static gain with orders
+/// the data do not determine; a drive engineer asking for the plant's dynamics is told that the
+/// record shows none, and the gain (exit 1; on main: `usable: true`, orders 0.004 and 0.039
+/// without a standard error).
+#[test]
+fn item_14_a_static_gain_says_so_and_exits_1() {
+    let dir = tempfile::tempdir().unwrap();
+    let dt = 1e-3;
+    let u = fracsim::prbs::Prbs {
+        clock: 3.0 * dt,
+        periods: 3,
+        ..fracsim::prbs::Prbs::paper()
+    }
+    .signal(dt)
+    .unwrap();
+    let mut text = String::from("t,u,y\n");
+    for (k, u) in u.iter().take(1000).enumerate() {
+        writeln!(text, "{:.6},{u},{}", k as f64 * dt, 3.0 * u).unwrap();
+    }
+    let p = dir.path().join("gain.csv");
+    std::fs::write(&p, text).unwrap();
+    let o = fracid(&["time", p.to_str().unwrap(), "--json", "--quiet"]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    let v = json(&o);
+    let problems = v["problems"].to_string();
+    assert!(
+        problems.contains("no dynamics") && problems.contains("static gain G(0) = 3.0000e0"),
+        "{problems}"
+    );
+}

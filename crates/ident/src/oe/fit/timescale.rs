@@ -1,0 +1,153 @@
+//! The fit does not depend on the time unit (issue 46, item 13): a record whose sampling step is
+//! outside `[MIN_DT, MAX_DT]` (a time column in units of 1e-4 s, or of 1e4 s) is fitted with its
+//! time in another unit, a power of ten bringing its step into `[1e-3, 1e-2)` times ten, and the
+//! model's parameters converted to that unit and back.
+//!
+//! In log coordinates (the solver's `theta = ln a` for a positive coefficient `a` of `s^q`) a
+//! change of the time unit by `c` is a shear, `ln a' = ln a + q ln c`, that couples every
+//! coefficient with the orders; Levenberg-Marquardt's scaling is diagonal, so its path depends on
+//! the unit: the UNAL PRBS record with its time multiplied by 1e-4 stopped at 94.00% ("parameter
+//! step below tolerance", the highest order run to 2), 95.31% in seconds. Converted to the unit
+//! whose step is 0.02 (the record's own in seconds), every power-of-ten unit of that record gives
+//! the seconds' fit; a final fit in the record's own unit, started at the converted optimum,
+//! gives the covariance and the figures in the record's units.
+
+use super::super::{Bounds, FracModel};
+use crate::data::Record;
+
+/// The smallest sampling step (in the record's unit) fitted as it is.
+const MIN_DT: f64 = 1e-5;
+
+/// The largest sampling step (in the record's unit) fitted as it is.
+const MAX_DT: f64 = 1e2;
+
+/// A change of the time unit: time values multiplied by `c` (a power of ten).
+pub(super) struct TimeScale {
+    c: f64,
+    /// The order of the denominator's fixed term (its coefficient stays as it is).
+    q_ref: f64,
+}
+
+impl TimeScale {
+    /// The change of unit for `rec` and `m`, or `None` when the record's step is within
+    /// `[MIN_DT, MAX_DT]` (fitted as it always was), or the model cannot be converted: effects,
+    /// an initial state already in the model, a coefficient that is not one parameter (a product
+    /// multiplied out), or no denominator term of fixed coefficient and order to normalise by.
+    pub(super) fn of(rec: &Record, m: &FracModel) -> Option<Self> {
+        let dt = rec.dt;
+        if (MIN_DT..=MAX_DT).contains(&dt) || !(dt.is_finite() && dt > 0.0) {
+            return None;
+        }
+        if !m.effects.is_empty() || m.past.is_some() {
+            return None;
+        }
+        let single = |e: &super::super::Expr| {
+            e.factors.is_empty()
+                && (e.terms.is_empty()
+                    || e.constant == 0.0 && e.terms.len() == 1 && e.terms[0].1 == 1.0)
+        };
+        let terms = || m.num.iter().chain(&m.den);
+        if !terms().all(|(c, _)| single(c)) {
+            return None;
+        }
+        // Each coefficient its own parameter, and a held one only on a term of a held order
+        // (held in one unit, it would not be held in the other while the order moves).
+        let order_free = |o: &super::super::Expr| o.terms.iter().any(|&(i, _)| m.params[i].free);
+        for (c, o) in terms() {
+            if let Some(&(i, _)) = c.terms.first() {
+                if terms().filter(|(d, _)| d.has(i)).count() > 1
+                    || (!m.params[i].free && order_free(o))
+                {
+                    return None;
+                }
+            }
+        }
+        // The denominator term whose coefficient and order are fixed: the transfer function is
+        // divided by `c^q_ref` so that it keeps its value.
+        let fixed = |e: &super::super::Expr| e.terms.iter().all(|&(i, _)| !m.params[i].free);
+        let q_ref = m
+            .den
+            .iter()
+            .find(|(c, o)| fixed(c) && o.terms.is_empty())
+            .map(|(_, o)| o.constant)?;
+        // c brings dt into [0.01, 0.1): a step of 2e-6 times 1e4 is 0.02
+        let c = 10f64.powi(-(dt.log10().floor() as i32) - 2);
+        let c = if dt * c >= 0.1 {
+            c / 10.0
+        } else if dt * c < 0.01 {
+            c * 10.0
+        } else {
+            c
+        };
+        Some(Self { c, q_ref })
+    }
+
+    /// The record in the new unit.
+    pub(super) fn record(&self, rec: &Record) -> Record {
+        let mut r = rec.clone();
+        r.t.iter_mut().for_each(|t| *t *= self.c);
+        r.dt *= self.c;
+        r
+    }
+
+    /// `m` in the new unit (`dir = 1`) or back (`dir = -1`): each coefficient of `s^q` times
+    /// `c^(q - q_ref)` at the model's values, the delay times `c`, the approximation band
+    /// divided by `c`.
+    pub(super) fn model(&self, m: &FracModel, dir: f64) -> FracModel {
+        let mut out = m.clone();
+        let p = m.values();
+        let f = |q: f64| self.c.powf(dir * (q - self.q_ref));
+        for (c, o) in m.num.iter().chain(&m.den) {
+            if let Some(&(i, _)) = c.terms.first() {
+                let k = f(o.eval(&p));
+                out.params[i].value *= k;
+                if let Bounds::Interval(lo, hi) = out.params[i].bounds {
+                    out.params[i].bounds = Bounds::Interval(lo * k, hi * k);
+                }
+            }
+        }
+        if let Some(i) = m.delay {
+            let k = self.c.powf(dir);
+            out.params[i].value *= k;
+            if let Bounds::Interval(lo, hi) = out.params[i].bounds {
+                out.params[i].bounds = Bounds::Interval(lo * k, hi * k);
+            }
+        }
+        if let Some((lo, hi)) = m.approx.band {
+            let k = self.c.powf(-dir);
+            out.approx.band = Some((lo * k, hi * k));
+        }
+        out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_model_converted_and_back_is_the_same_and_keeps_its_response() {
+        let m = FracModel::pmsm(6.8, 0.006, 2.7e-5, 0.92, 0.82);
+        let rec = Record::from_samples(&[0.0; 64], &[0.0; 64], 2e-6).unwrap();
+        let ts = TimeScale::of(&rec, &m).unwrap();
+        assert_eq!(ts.c, 1e4);
+        assert!((ts.record(&rec).dt - 0.02).abs() < 1e-15);
+        let there = ts.model(&m, 1.0);
+        // G(j w) in seconds equals G'(j w / c) in the new unit
+        let (g, g2) = (
+            m.tf(&m.values()).unwrap(),
+            there.tf(&there.values()).unwrap(),
+        );
+        for w in [1.0, 30.0, 1e3] {
+            let (a, b) = (g.freq_response(w), g2.freq_response(w / ts.c));
+            assert!((a - b).norm() <= 1e-12 * a.norm(), "{a} {b}");
+        }
+        let back = ts.model(&there, -1.0);
+        for (p, q) in back.params.iter().zip(&m.params) {
+            assert!((p.value - q.value).abs() <= 1e-12 * q.value.abs(), "{p:?}");
+        }
+        // a step within the range is fitted as it is
+        let ok = Record::from_samples(&[0.0; 64], &[0.0; 64], 1e-3).unwrap();
+        assert!(TimeScale::of(&ok, &m).is_none());
+    }
+}
