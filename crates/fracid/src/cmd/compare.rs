@@ -41,6 +41,12 @@ pub struct CompareArgs {
 
 /// Run `fracid compare`.
 pub fn run(a: CompareArgs) -> Result<()> {
+    let models: Vec<_> = [("model A", &a.model_a), ("model B", &a.model_b)]
+        .into_iter()
+        .filter_map(|(what, m)| Some((what, super::paths::file_arg(m)?)))
+        .collect();
+    let plot: Vec<_> = a.plot.iter().map(|p| ("--plot", p.as_path())).collect();
+    super::paths::check(&models, &plot)?;
     if a.band.len() != 2 {
         crate::bad_input!("--band wants LOW,HIGH in Hz, got {} values", a.band.len());
     }

@@ -501,16 +501,22 @@ fn same_file(a: &std::path::Path, b: &std::path::Path) -> bool {
     planned(a).is_some_and(|x| Some(x) == planned(b))
 }
 
-/// The outputs of a drive command, checked before the drive is asked anything (exit 2): no two
-/// of them the same file (both would be written into one), none the serial port (the CSV would
-/// go down the line) nor any character device other than standard output and `/dev/null`.
-pub(crate) fn check_outputs(port: &str, outputs: &[(&str, &std::path::Path)]) -> Result<()> {
+/// The outputs of a drive command, checked before the drive is asked anything (exit 2): none of
+/// them an input nor two of them the same file ([`super::paths::check`]), none the serial port
+/// (the CSV would go down the line) nor any character device other than standard output and
+/// `/dev/null`.
+pub(crate) fn check_outputs(
+    port: &str,
+    inputs: &[super::paths::Named<'_>],
+    outputs: &[super::paths::Named<'_>],
+) -> Result<()> {
+    super::paths::check(inputs, outputs)?;
     let port = std::path::Path::new(port);
     let allowed = [
         char_device(std::path::Path::new("/dev/stdout")),
         char_device(std::path::Path::new("/dev/null")),
     ];
-    for (k, (name, p)) in outputs.iter().enumerate() {
+    for (name, p) in outputs {
         let dev = char_device(p);
         if same_file(p, port) || dev.is_some_and(|d| Some(d) == char_device(port)) {
             crate::bad_input!(
@@ -524,13 +530,6 @@ pub(crate) fn check_outputs(port: &str, outputs: &[(&str, &std::path::Path)]) ->
                 "{name} {} is a device (a serial port or a terminal?), not a file: write to a \
                  file, or to standard output with -",
                 p.display()
-            );
-        }
-        if let Some((other, q)) = outputs[..k].iter().find(|(_, q)| same_file(p, q)) {
-            crate::bad_input!(
-                "{name} {} and {other} {} are one file: both would be written into it",
-                p.display(),
-                q.display()
             );
         }
     }
@@ -747,7 +746,7 @@ fn prbs(a: PrbsArgs) -> Result<()> {
         &conf,
     )?;
     let output = output_path(&a.output);
-    check_outputs(&a.port.port, &[("--output", &output)])?;
+    check_outputs(&a.port.port, &[], &[("--output", &output)])?;
     let mut sink = CsvSink::new(output_file(&output)?);
     // The first SIGINT/SIGTERM/SIGHUP stops the drive; the record keeps what arrived and its
     // footer says what is missing.
@@ -1039,7 +1038,7 @@ fn sine(a: SineArgs) -> Result<()> {
     if let Some(r) = &reps_path {
         outs.push(("the repeats file (--repeats-out)", r));
     }
-    check_outputs(&a.port.port, &outs)?;
+    check_outputs(&a.port.port, &[], &outs)?;
     let mut file = BodeFile::new(&output, header, sweep.repeats > 1)?;
     let mut reps_file = open_repeats_file(&a, &conf, reps_path)?;
     // The first SIGINT/SIGTERM/SIGHUP stops the drive; the points measured so far are in the

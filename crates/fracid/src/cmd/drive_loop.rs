@@ -298,6 +298,12 @@ pub fn measured_step(acq: &Acquisition, cmd: &StartLoop, y_lsb: f64) -> Option<M
 pub fn run(a: LoopArgs) -> Result<()> {
     let _pipe = crate::interrupt::PipeErrors::arm();
     let conf = port_conf(&a.port)?;
+    let output = output_path(&a.output);
+    check_outputs(
+        &a.port.port,
+        &[("--controller", &a.controller)],
+        &[("--output", &output)],
+    )?;
     if !(a.step.is_finite() && a.duration.is_finite() && a.pre.is_finite()) {
         crate::bad_input!("--step, --duration and --pre must be finite numbers");
     }
@@ -342,8 +348,6 @@ pub fn run(a: LoopArgs) -> Result<()> {
              conditioning would run away"
         );
     }
-    let output = output_path(&a.output);
-    check_outputs(&a.port.port, &[("--output", &output)])?;
     let mut sink = LoopCsvSink::new(output_file(&output)?, cmd, conf.y_lsb());
     let (acq, signal) = run_on_drive(&a.port, &conf, "samples", |c| {
         run_on(c, &k, &cmd, &mut sink)

@@ -170,6 +170,12 @@ fn samples_until(t_end: f64, dt: f64) -> Result<usize> {
 
 /// Run `fracid sim`.
 pub fn run(a: SimArgs) -> Result<()> {
+    let inputs: Vec<_> = a.input.iter().map(|p| ("--input", p.as_path())).collect();
+    let outputs: Vec<_> = [("-o", &a.output), ("--plot", &a.plot)]
+        .into_iter()
+        .filter_map(|(what, p)| Some((what, p.as_deref()?)))
+        .collect();
+    super::paths::check(&inputs, &outputs)?;
     let tf: FracTf = a.model.parse().context("bad --model")?;
     tf.check_proper().context("--model cannot be simulated")?;
     // Every output checked before any is written: a bad plot path must not cost the CSV that

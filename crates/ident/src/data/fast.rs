@@ -166,9 +166,9 @@ enum Row {
 /// by the simple reader's rules (`#` cut, trimmed, split, unquoted, parsed).
 fn simple_row<const N: usize>(
     text: &str,
-    a: usize,
-    b: usize,
+    (a, b): (usize, usize),
     delim: char,
+    width: usize,
     idx: &[usize; N],
     out: &mut [f64; N],
 ) -> Row {
@@ -177,6 +177,9 @@ fn simple_row<const N: usize>(
         return Row::Blank;
     }
     let f = split_line(line, delim);
+    if f.len() != width {
+        return Row::Fail;
+    }
     for (o, &i) in out.iter_mut().zip(idx) {
         match f.get(i).map(|s| unquote(s).parse::<f64>()) {
             Some(Ok(v)) => *o = v,
@@ -234,10 +237,12 @@ fn row<const N: usize>(
                 k += 1;
             }
         }
-        // The field must end here: at a delimiter, or at the line's end for the last one read.
-        if k < b0 && bytes[k] == delim {
+        // The field must end here: at a delimiter, or at the line's end for the last one (the
+        // row has exactly the header's fields).
+        let last = field + 1 == slot.len();
+        if !last && k < b0 && bytes[k] == delim {
             k += 1;
-        } else if !(k == b0 && field + 1 == slot.len()) {
+        } else if !(last && k == b0) {
             done = false;
             break;
         }
@@ -274,11 +279,12 @@ fn row<const N: usize>(
             }
             start = k + 1;
         } else if CLASS[bytes[k] as usize] == ODD {
-            return simple_row(text, a, b, delim as char, idx, out);
+            return simple_row(text, (a, b), delim as char, slot.len(), idx, out);
         }
         k += 1;
     }
-    if filled == N {
+    // as many fields as the header: the last one ends the line
+    if filled == N && field == slot.len() && k == b0 {
         Row::Values
     } else {
         Row::Fail
@@ -370,8 +376,9 @@ pub(super) fn read<const N: usize>(
         index_names.iter().map(String::as_str).collect()
     };
     let idx: [usize; N] = column_indices(&names, wants).ok()?.try_into().ok()?;
-    // Field number -> position among the wanted columns (u8::MAX: not wanted).
-    let mut slot = vec![u8::MAX; idx.iter().max().map_or(0, |m| m + 1)];
+    // Field number -> position among the wanted columns (u8::MAX: not wanted), one slot per
+    // field of the header: a row must have exactly as many.
+    let mut slot = vec![u8::MAX; names.len()];
     for (k, &i) in idx.iter().enumerate() {
         slot[i] = u8::try_from(k).ok()?;
     }
