@@ -25,7 +25,7 @@ pub struct CompareArgs {
     /// Band, Hz: `LOW,HIGH`.
     #[arg(long, value_delimiter = ',', default_values_t = [0.1, 100.0])]
     pub band: Vec<f64>,
-    /// Log-spaced frequencies evaluated over the band.
+    /// Log-spaced frequencies evaluated over the band (2 to 100000).
     #[arg(long, default_value_t = 2000)]
     pub points: usize,
     /// Names of the two models in the text and the plot.

@@ -836,6 +836,9 @@ impl RepeatsFile {
     }
 }
 
+/// The most frequencies of one sweep (`--points`, `--freqs`).
+pub const MAX_SWEEP_FREQUENCIES: usize = 1000;
+
 /// The sweep from the options, checked (exit 2).
 fn sine_sweep(a: &SineArgs, conf: &Configure) -> Result<SineSweep> {
     if a.freqs.is_none() && (a.f_min > a.f_max || a.f_min == a.f_max && a.points > 1) {
@@ -848,6 +851,14 @@ fn sine_sweep(a: &SineArgs, conf: &Configure) -> Result<SineSweep> {
     }
     if a.freqs.is_none() && a.points == 0 {
         crate::bad_input!("--points must be at least 1");
+    }
+    // Each frequency is seconds of the drive's time: a sweep of more is a typing error, refused
+    // before the table is even made (1e8 of them took 2.3 GB).
+    let asked = a.freqs.as_ref().map_or(a.points, Vec::len);
+    if asked > MAX_SWEEP_FREQUENCIES {
+        crate::bad_input!(
+            "{asked} frequencies (--points or --freqs): at most {MAX_SWEEP_FREQUENCIES} in one sweep"
+        );
     }
     let mut sweep = SineSweep::log(a.f_min, a.f_max, a.points);
     if let Some(f) = &a.freqs {

@@ -410,12 +410,8 @@ where
 /// 2: a FIFO would hold the fleet until something writes to it). Said in the summary, never
 /// skipped.
 fn not_a_record(file: &Path) -> Option<anyhow::Error> {
-    let io = |reason: String| {
-        Some(anyhow::Error::new(std::io::Error::other(format!(
-            "{}: {reason}",
-            file.display()
-        ))))
-    };
+    // the summary's row names the file: the reason only
+    let io = |reason: String| Some(anyhow::Error::new(std::io::Error::other(reason)));
     let m = match std::fs::metadata(file) {
         Ok(m) => m,
         Err(e) if std::fs::symlink_metadata(file).is_ok_and(|l| l.is_symlink()) => {
@@ -427,9 +423,13 @@ fn not_a_record(file: &Path) -> Option<anyhow::Error> {
                 ))
             } else {
                 io(format!(
-                    "a symbolic link that cannot be followed (to {}: a link loop?): {}",
+                    "a symbolic link that cannot be followed (to {}): {} (a link loop?)",
                     target.display(),
-                    e.to_string().split(" (os error").next().unwrap_or_default()
+                    e.to_string()
+                        .split(" (os error")
+                        .next()
+                        .unwrap_or_default()
+                        .to_lowercase()
                 ))
             };
         }
@@ -459,8 +459,7 @@ fn not_a_record(file: &Path) -> Option<anyhow::Error> {
         }
     };
     Some(anyhow::Error::new(BadInput(format!(
-        "{}: {kind}, not a regular file: a fleet reads files only (give it alone to read it)",
-        file.display()
+        "{kind}, not a regular file: a fleet reads files only (give it alone to read it)"
     ))))
 }
 

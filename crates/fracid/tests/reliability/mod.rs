@@ -3,6 +3,7 @@
 //! footers, the formats of real labs (quoted headers, no time column, headerless, `.mat`).
 
 pub(crate) mod round2;
+mod round3;
 
 use super::fracid;
 use std::fmt::Write as _;
