@@ -1092,7 +1092,10 @@ mod tests {
             ("freq_hz,gain_db,phase_deg\n0,2,1\n", "> 0"),
             ("freq_hz,gain_db,phase_deg\n2,2,1\n1,2,1\n", "increase"),
             ("freq_hz,gain_db,phase_deg\n2,2,1\n2,2,1\n", "repeated"),
-            ("freq_hz,gain_db,phase_deg\n2,2\n", "line 2: 2 fields where the header has 3"),
+            (
+                "freq_hz,gain_db,phase_deg\n2,2\n",
+                "line 2: 2 fields where the header has 3",
+            ),
         ];
         for (t, want) in cases {
             let err = parse_bode(t, None, u, None).unwrap_err();
