@@ -613,10 +613,10 @@ pub(crate) fn read_bytes(path: &std::path::Path, lines: bool) -> Result<Vec<u8>>
     read_scanned(path, lines).map(|(bytes, _)| bytes)
 }
 
-/// [`read_bytes`]; with `lines` (a text), the bytes read one read after another (a small file, a
-/// device, a pipe) are also checked as they arrive ([`TextScan`]: refused at the first NUL byte or
-/// invalid UTF-8) and `Some(holds a '#')` returned; `None` when the text is still to be checked
-/// (a large regular file read in two halves, or not `lines`).
+/// [`read_bytes`]; with `lines` (a text), a stream (a device, a pipe, a FIFO) is also checked as
+/// it arrives ([`TextScan`]: refused at the first NUL byte or invalid UTF-8) and `Some(holds a
+/// '#')` returned; `None` when the text is still to be checked (a regular file, bounded by its
+/// size, or not `lines`).
 fn read_scanned(path: &std::path::Path, lines: bool) -> Result<(Vec<u8>, Option<bool>)> {
     use std::io::Read;
     let io = |e: std::io::Error| Error::Io {
@@ -650,6 +650,9 @@ fn read_scanned(path: &std::path::Path, lines: bool) -> Result<(Vec<u8>, Option<
             return Ok((out, None));
         }
     }
+    // A stream (a device, a pipe, a FIFO: no size known) is checked as it is read; a regular
+    // file, bounded by its size, after (on two threads when large).
+    let stream = !file.metadata().is_ok_and(|m| m.is_file());
     let mut scan = TextScan::default();
     let mut r = file.take(MAX_FILE_BYTES + 1);
     // Read straight into the result, sized for the file (a device or a pipe grows it).
@@ -682,13 +685,15 @@ fn read_scanned(path: &std::path::Path, lines: bool) -> Result<(Vec<u8>, Option<
             if let Some(last) = chunk.iter().rposition(is_end) {
                 run = n - 1 - last;
             }
-            scan.scan(path, &out)?;
+            if stream {
+                scan.scan(path, &out)?;
+            }
         }
         if out.len() as u64 > MAX_FILE_BYTES {
             return Err(too_large(path));
         }
     }
-    let hash = if lines {
+    let hash = if lines && stream {
         Some(scan.finish(path, &out)?)
     } else {
         None
