@@ -178,7 +178,7 @@ pub const MAX_SAMPLES: usize = 10_000_000;
 fn at_most_max(what: &str, n: f64) -> Result<usize> {
     if n > MAX_SAMPLES as f64 {
         bad_input!(
-            "{what} asks for {n:.4e} samples: at most {MAX_SAMPLES:.0e} (a longer --dt or a \
+            "{what} asks for {n:.4e} samples: too many (at most {MAX_SAMPLES:.0e}; a longer --dt or a \
              shorter --t-end)"
         );
     }
