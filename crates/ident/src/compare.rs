@@ -115,7 +115,7 @@ fn coefficient_rows(a: &FracTf, b: &FracTf) -> Option<Vec<CoefRow>> {
     Some(rows)
 }
 
-/// The most frequencies [`compare`] evaluates: 12 MB of curves (1e8 took 11.7 GB).
+/// The most frequencies [`compare`] evaluates: 12 MB of curves (1e8 needed more than 3 GB).
 pub const MAX_POINTS: usize = 100_000;
 
 /// Compare `a` and `b` at `points` log-spaced frequencies over `band_hz` (both ends included).

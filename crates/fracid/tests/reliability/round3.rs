@@ -332,7 +332,7 @@ fn items_1_to_3_no_command_writes_an_output_over_an_input() {
 }
 
 /// Sizes asked on the command line are bounded with words (exit 2), at once and in little
-/// memory: `compare --points 1e8` took 11.7 GB (1e9 aborted), `sim` made up to 1e8 samples
+/// memory: `compare --points 1e8` aborted under a 3 GB limit, `sim` made up to 1e8 samples
 /// (2.3 GB) and a whole PRBS period before cutting it to --t-end, `drive sine --points 1e8`
 /// 2.3 GB before any check.
 #[cfg(unix)]
