@@ -259,8 +259,9 @@ def _count(name: str, v: int) -> int:
 
 
 def _complex_response(h: ArrayLike) -> np.ndarray:
-    """``h`` as a complex array; a real one (a magnitude ``|H|``) is refused."""
-    a = np.asarray(h)
+    """``h`` as a complex array; a real one (a magnitude ``|H|``) is refused. A masked array stays
+    one (``asanyarray``): the bindings refuse its masked values rather than fit them."""
+    a = np.asanyarray(h)
     if a.ndim != 1:
         raise DataError(f"h must be a 1-D array, got an array of shape {a.shape}")
     if a.size and not np.iscomplexobj(a):
@@ -346,8 +347,9 @@ def fit_bode(
             request["weights"] = weights
         else:
             request["weights"] = "given"
-            per_point = np.asarray(weights, dtype=float)
-    std = None if point_std is None else np.asarray(point_std, dtype=float)
+            # as given: the bindings convert it, refusing complex or masked values
+            per_point = weights
+    std = point_std
     report = _fit_bode(omega, _complex_response(h), json.dumps(request), per_point, std)
     return FreqFit._from_report(report)
 

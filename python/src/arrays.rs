@@ -30,11 +30,47 @@ where
     Vec<T>: FromPyObject<'py>,
 {
     fn extract_bound(ob: &Bound<'py, PyAny>) -> PyResult<Self> {
+        refuse_lossy::<T>(ob)?;
         match ob.extract::<PyArrayLike1<'py, T, AllowTypeChange>>() {
             Ok(a) => Ok(Self(a)),
             Err(e) => Err(explain(ob).unwrap_or(e)),
         }
     }
+}
+
+/// Refuse (a `TypeError`, named by pyo3 after the argument) an array whose conversion would
+/// lose something without a word: complex values where real ones are wanted (numpy would drop
+/// their imaginary parts with only a `ComplexWarning`), and a masked array with masked values
+/// (numpy's conversion ignores the mask: the masked samples would be fitted). The mask is refused
+/// rather than honoured: dropping samples leaves a time record unevenly sampled, a different
+/// record than the one given; the caller fills or cuts it knowingly. A list needs no check (numpy
+/// refuses to turn complex numbers into floats), so only objects with a `dtype` are looked at.
+fn refuse_lossy<T: Element>(ob: &Bound<'_, PyAny>) -> PyResult<()> {
+    let py = ob.py();
+    let Ok(dtype) = ob.getattr("dtype") else {
+        return Ok(());
+    };
+    let kind = |d: &Bound<'_, PyAny>| -> PyResult<String> { d.getattr("kind")?.extract() };
+    let wanted = T::get_dtype(py);
+    if kind(&dtype)? == "c" && kind(wanted.as_any())? != "c" {
+        return Err(PyTypeError::new_err(format!(
+            "expected a 1-D array of real numbers, got complex values (dtype {}): their imaginary \
+             part would be dropped; pass the real part (x.real) if it is only rounding noise",
+            dtype.str()?
+        )));
+    }
+    let ma = py.import("numpy")?.getattr("ma")?;
+    if ma.call_method1("isMaskedArray", (ob,))?.is_truthy()? {
+        let masked: usize = ma.call_method1("count_masked", (ob,))?.extract()?;
+        if masked > 0 {
+            return Err(PyTypeError::new_err(format!(
+                "expected a plain array, got a masked array with {masked} masked value(s): the \
+                 mask would be ignored and the masked samples used; fill them (x.filled(v)) or \
+                 cut the record where the data are valid"
+            )));
+        }
+    }
+    Ok(())
 }
 
 /// Why `ob` is not a 1-D numeric array, in words: its shape or its type.

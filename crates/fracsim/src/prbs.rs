@@ -6,6 +6,9 @@
 
 use crate::error::{finite, invalid, Result};
 
+/// The most samples a PRBS signal is made of ([`Prbs::signal`], [`Prbs::samples`]).
+pub const MAX_SAMPLES: usize = 100_000_000;
+
 /// Feedback taps (bit positions, 1-based, the highest equal to the order) of a maximum-length
 /// register of order `n` in 2..=16.
 ///
@@ -143,7 +146,8 @@ impl Prbs {
         Ok(n as usize)
     }
 
-    /// The sampled signal: `periods * (2^order - 1) * clock/dt` samples.
+    /// The sampled signal: `periods * (2^order - 1) * clock/dt` samples (at most
+    /// [`MAX_SAMPLES`]).
     ///
     /// ```
     /// let p = fracsim::prbs::Prbs { periods: 2, ..fracsim::prbs::Prbs::paper() };
@@ -154,35 +158,72 @@ impl Prbs {
     /// # Errors
     /// As [`Prbs::bits`] and [`Prbs::samples_per_bit`]; non-finite levels; more than 1e8 samples.
     pub fn signal(&self, dt: f64) -> Result<Vec<f64>> {
-        finite("PRBS amplitude", self.amplitude)?;
-        finite("PRBS offset", self.offset)?;
         let spb = self.samples_per_bit(dt)?;
-        let bits = self.bits()?;
-        const MAX: usize = 100_000_000;
-        let total = match bits
-            .len()
+        let period = Lfsr::new(self.order, self.seed)?.period();
+        let total = match period
             .checked_mul(spb)
             .and_then(|n| n.checked_mul(self.periods))
         {
-            Some(total) if total <= MAX => total,
-            _ => {
-                let total = bits.len() as f64 * spb as f64 * self.periods as f64;
-                return invalid(
-                    "PRBS",
-                    format!("{total:.3e} samples is too many (at most {MAX:.0e})"),
-                );
-            }
+            Some(total) => total,
+            None => usize::MAX,
         };
-        let mut u = Vec::with_capacity(total);
-        for _ in 0..self.periods {
-            for &b in &bits {
-                let v = if b {
-                    self.offset + self.amplitude
-                } else {
-                    self.offset - self.amplitude
-                };
-                u.extend(std::iter::repeat_n(v, spb));
-            }
+        if total > MAX_SAMPLES {
+            let total = period as f64 * spb as f64 * self.periods as f64;
+            return invalid(
+                "PRBS",
+                format!("{total:.3e} samples is too many (at most {MAX_SAMPLES:.0e})"),
+            );
+        }
+        self.samples(dt, total)
+    }
+
+    /// The first `n` samples of the signal repeated without end, `n` more or fewer than
+    /// [`Prbs::signal`]'s periods hold (`periods` is not used): a record of any length with no
+    /// whole period made first (a period of order 16 at a fine step is 1e8 samples).
+    ///
+    /// ```
+    /// let p = fracsim::prbs::Prbs::paper();
+    /// let u = p.samples(1e-3, 1000).unwrap();
+    /// assert_eq!(&u[..381], &p.signal(1e-3).unwrap()[..]);
+    /// assert_eq!(&u[381..762], &u[..381]);
+    /// ```
+    ///
+    /// # Errors
+    /// As [`Prbs::signal`].
+    pub fn samples(&self, dt: f64, n: usize) -> Result<Vec<f64>> {
+        finite("PRBS amplitude", self.amplitude)?;
+        finite("PRBS offset", self.offset)?;
+        let spb = self.samples_per_bit(dt)?;
+        if n > MAX_SAMPLES {
+            return invalid(
+                "PRBS",
+                format!(
+                    "{:.3e} samples is too many (at most {MAX_SAMPLES:.0e})",
+                    n as f64
+                ),
+            );
+        }
+        let mut r = Lfsr::new(self.order, self.seed)?;
+        let period = r.period();
+        let mut bits = Vec::with_capacity(period.min(n / spb + 1));
+        let mut u = Vec::with_capacity(n);
+        while u.len() < n {
+            // the bits of one period, made once (at most those the n samples need)
+            let k = u.len() / spb;
+            let b = if k < period {
+                let b = r.next_bit();
+                bits.push(b);
+                b
+            } else {
+                bits[k % period]
+            };
+            let v = if b {
+                self.offset + self.amplitude
+            } else {
+                self.offset - self.amplitude
+            };
+            let m = spb.min(n - u.len());
+            u.extend(std::iter::repeat_n(v, m));
         }
         Ok(u)
     }

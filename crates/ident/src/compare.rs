@@ -115,6 +115,9 @@ fn coefficient_rows(a: &FracTf, b: &FracTf) -> Option<Vec<CoefRow>> {
     Some(rows)
 }
 
+/// The most frequencies [`compare`] evaluates: 12 MB of curves (1e8 needed more than 3 GB).
+pub const MAX_POINTS: usize = 100_000;
+
 /// Compare `a` and `b` at `points` log-spaced frequencies over `band_hz` (both ends included).
 /// Differences are `B - A`; the phase difference is `arg(B/A)`, free of unwrapping.
 ///
@@ -127,7 +130,8 @@ fn coefficient_rows(a: &FracTf, b: &FracTf) -> Option<Vec<CoefRow>> {
 /// ```
 ///
 /// # Errors
-/// [`Error::Options`] for a band that is not `0 < lo < hi` (finite) or fewer than 2 points.
+/// [`Error::Options`] for a band that is not `0 < lo < hi` (finite), fewer than 2 points or more
+/// than [`MAX_POINTS`].
 pub fn compare(a: &FracTf, b: &FracTf, band_hz: (f64, f64), points: usize) -> Result<Comparison> {
     let (lo, hi) = band_hz;
     if !(lo.is_finite() && hi.is_finite() && lo > 0.0 && hi > lo) {
@@ -135,9 +139,10 @@ pub fn compare(a: &FracTf, b: &FracTf, band_hz: (f64, f64), points: usize) -> Re
             "band {lo}..{hi} Hz: needs 0 < low < high"
         )));
     }
-    if points < 2 {
+    if !(2..=MAX_POINTS).contains(&points) {
         return Err(Error::Options(format!(
-            "{points} points: at least 2 are needed"
+            "{points} points: at least 2 and at most {MAX_POINTS} (a Bode comparison is drawn on far \
+             fewer; each point costs about 120 bytes)"
         )));
     }
     let freq_hz: Vec<f64> = (0..points)

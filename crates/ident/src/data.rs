@@ -446,17 +446,25 @@ fn read_columns_simple<const N: usize>(text: &str, wants: [&str; N]) -> Result<C
     };
     let idx = column_indices(&names, &wants)?;
     let mut cols: [Vec<f64>; N] = std::array::from_fn(|_| Vec::new());
+    let width = names.len();
     for (lineno, line) in &tab.rows {
         let f = split_line(line, tab.delim);
+        if f.len() != width {
+            // a field too many or too few shifts every column after it: never read silently
+            return Err(Error::Data(format!(
+                "line {lineno}: {} fields where {} has {width} ({}): a field too many or too few \
+                 would shift the columns",
+                f.len(),
+                if tab.has_header {
+                    "the header"
+                } else {
+                    "the first line"
+                },
+                list_names(&names)
+            )));
+        }
         for (col, &i) in cols.iter_mut().zip(&idx) {
-            let s = f.get(i).ok_or_else(|| {
-                Error::Data(format!(
-                    "line {lineno}: {} fields, column {} missing",
-                    f.len(),
-                    shorten(names[i])
-                ))
-            })?;
-            let s = unquote(s);
+            let s = unquote(f[i]);
             col.push(s.parse::<f64>().map_err(|_| {
                 Error::Data(format!(
                     "line {lineno}: '{}' in column {} is not a number",
@@ -492,34 +500,86 @@ pub fn read_text(path: &std::path::Path) -> Result<String> {
 /// acquisition header or footer to look for). A large text is checked (NUL bytes, UTF-8, `#`) in
 /// two halves on two threads.
 fn read_text_scanned(path: &std::path::Path) -> Result<(String, bool)> {
-    let bytes = read_bytes(path, true)?;
+    let (bytes, scanned) = read_scanned(path, true)?;
+    if let Some(hash) = scanned {
+        // SAFETY: `TextScan` found every byte read valid UTF-8 as it was read (and no character
+        // cut at the end).
+        return Ok((unsafe { String::from_utf8_unchecked(bytes) }, hash));
+    }
     if let Some(hash) = checked_in_halves(&bytes) {
         // SAFETY: `checked_in_halves` found both halves valid UTF-8, and they meet at a line
         // feed (an ASCII byte, so at a character boundary): the whole is valid UTF-8.
         return Ok((unsafe { String::from_utf8_unchecked(bytes) }, hash));
     }
-    let where_ = |bytes: &[u8], pos: usize| {
-        let line = 1 + memchr::memchr_iter(b'\n', &bytes[..pos]).count();
-        format!("line {line}, byte {pos}")
-    };
     if let Some(pos) = memchr::memchr(0, &bytes) {
-        return Err(Error::Data(format!(
-            "{} is not a text table: a NUL byte at {} (a binary file? MATLAB files must end in \
-             .mat; UTF-16 text must be saved as UTF-8)",
-            path.display(),
-            where_(&bytes, pos)
-        )));
+        return Err(nul_byte(path, &bytes, pos));
     }
     let hash = memchr::memchr(b'#', &bytes).is_some();
-    let text = String::from_utf8(bytes).map_err(|e| {
-        Error::Data(format!(
-            "{} is not UTF-8 text: invalid byte at {} (save it as UTF-8, or is it a binary \
-             file?)",
-            path.display(),
-            where_(e.as_bytes(), e.utf8_error().valid_up_to())
-        ))
-    })?;
+    let text = String::from_utf8(bytes)
+        .map_err(|e| not_utf8(path, e.as_bytes(), e.utf8_error().valid_up_to()))?;
     Ok((text, hash))
+}
+
+/// Where byte `pos` of `bytes` is, for a message: its line and byte.
+fn position(bytes: &[u8], pos: usize) -> String {
+    let line = 1 + memchr::memchr_iter(b'\n', &bytes[..pos]).count();
+    format!("line {line}, byte {pos}")
+}
+
+/// The error for a NUL byte at `pos` of the bytes read so far.
+fn nul_byte(path: &std::path::Path, bytes: &[u8], pos: usize) -> Error {
+    Error::Data(format!(
+        "{} is not a text table: a NUL byte at {} (a binary file? MATLAB files must end in \
+         .mat; UTF-16 text must be saved as UTF-8)",
+        path.display(),
+        position(bytes, pos)
+    ))
+}
+
+/// The error for a byte at `pos` that is not UTF-8.
+fn not_utf8(path: &std::path::Path, bytes: &[u8], pos: usize) -> Error {
+    Error::Data(format!(
+        "{} is not UTF-8 text: invalid byte at {} (save it as UTF-8, or is it a binary file?)",
+        path.display(),
+        position(bytes, pos)
+    ))
+}
+
+/// The text checks made as the bytes are read, one read after another, so that a binary stream
+/// (`/dev/urandom`, a pipe, a FIFO) is refused at the read that brings its first NUL byte or
+/// invalid UTF-8, not after [`MAX_FILE_BYTES`] of it: no NUL byte, UTF-8 (a character cut by
+/// the end of a read is checked with the next), and whether a `#` was seen.
+#[derive(Default)]
+struct TextScan {
+    /// The bytes checked (the rest: the start of a character the next read completes).
+    checked: usize,
+    hash: bool,
+}
+
+impl TextScan {
+    /// Check the bytes of `out` read since the last call.
+    fn scan(&mut self, path: &std::path::Path, out: &[u8]) -> Result<()> {
+        let new = &out[self.checked..];
+        if let Some(i) = memchr::memchr(0, new) {
+            return Err(nul_byte(path, out, self.checked + i));
+        }
+        self.hash = self.hash || memchr::memchr(b'#', new).is_some();
+        match std::str::from_utf8(new) {
+            Ok(_) => self.checked = out.len(),
+            // a character cut by the read's end: checked with the next read
+            Err(e) if e.error_len().is_none() => self.checked += e.valid_up_to(),
+            Err(e) => return Err(not_utf8(path, out, self.checked + e.valid_up_to())),
+        }
+        Ok(())
+    }
+
+    /// At the end of the bytes: whether they hold a `#`, or the error of a character cut short.
+    fn finish(self, path: &std::path::Path, out: &[u8]) -> Result<bool> {
+        if self.checked < out.len() {
+            return Err(not_utf8(path, out, self.checked));
+        }
+        Ok(self.hash)
+    }
 }
 
 /// Texts of at least this many bytes are checked in two halves on two threads.
@@ -550,6 +610,14 @@ fn checked_in_halves(b: &[u8]) -> Option<bool> {
 /// # Errors
 /// As [`read_text`].
 pub(crate) fn read_bytes(path: &std::path::Path, lines: bool) -> Result<Vec<u8>> {
+    read_scanned(path, lines).map(|(bytes, _)| bytes)
+}
+
+/// [`read_bytes`]; with `lines` (a text), a stream (a device, a pipe, a FIFO) is also checked as
+/// it arrives ([`TextScan`]: refused at the first NUL byte or invalid UTF-8) and `Some(holds a
+/// '#')` returned; `None` when the text is still to be checked (a regular file, bounded by its
+/// size, or not `lines`).
+fn read_scanned(path: &std::path::Path, lines: bool) -> Result<(Vec<u8>, Option<bool>)> {
     use std::io::Read;
     let io = |e: std::io::Error| Error::Io {
         path: path.display().to_string(),
@@ -579,9 +647,13 @@ pub(crate) fn read_bytes(path: &std::path::Path, lines: bool) -> Result<Vec<u8>>
                     return Err(long_line(path, &out[..p / CHUNK * CHUNK]));
                 }
             }
-            return Ok(out);
+            return Ok((out, None));
         }
     }
+    // A stream (a device, a pipe, a FIFO: no size known) is checked as it is read; a regular
+    // file, bounded by its size, after (on two threads when large).
+    let stream = !file.metadata().is_ok_and(|m| m.is_file());
+    let mut scan = TextScan::default();
     let mut r = file.take(MAX_FILE_BYTES + 1);
     // Read straight into the result, sized for the file (a device or a pipe grows it).
     let mut out: Vec<u8> = Vec::with_capacity(size + CHUNK);
@@ -613,12 +685,20 @@ pub(crate) fn read_bytes(path: &std::path::Path, lines: bool) -> Result<Vec<u8>>
             if let Some(last) = chunk.iter().rposition(is_end) {
                 run = n - 1 - last;
             }
+            if stream {
+                scan.scan(path, &out)?;
+            }
         }
         if out.len() as u64 > MAX_FILE_BYTES {
             return Err(too_large(path));
         }
     }
-    Ok(out)
+    let hash = if lines && stream {
+        Some(scan.finish(path, &out)?)
+    } else {
+        None
+    };
+    Ok((out, hash))
 }
 
 /// Regular files of at least this many bytes are read in two halves on two threads.

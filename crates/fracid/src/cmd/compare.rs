@@ -25,7 +25,7 @@ pub struct CompareArgs {
     /// Band, Hz: `LOW,HIGH`.
     #[arg(long, value_delimiter = ',', default_values_t = [0.1, 100.0])]
     pub band: Vec<f64>,
-    /// Log-spaced frequencies evaluated over the band.
+    /// Log-spaced frequencies evaluated over the band (2 to 100000).
     #[arg(long, default_value_t = 2000)]
     pub points: usize,
     /// Names of the two models in the text and the plot.
@@ -41,6 +41,12 @@ pub struct CompareArgs {
 
 /// Run `fracid compare`.
 pub fn run(a: CompareArgs) -> Result<()> {
+    let models: Vec<_> = [("model A", &a.model_a), ("model B", &a.model_b)]
+        .into_iter()
+        .filter_map(|(what, m)| Some((what, super::paths::file_arg(m)?)))
+        .collect();
+    let plot: Vec<_> = a.plot.iter().map(|p| ("--plot", p.as_path())).collect();
+    super::paths::check(&models, &plot)?;
     if a.band.len() != 2 {
         crate::bad_input!("--band wants LOW,HIGH in Hz, got {} values", a.band.len());
     }

@@ -501,16 +501,22 @@ fn same_file(a: &std::path::Path, b: &std::path::Path) -> bool {
     planned(a).is_some_and(|x| Some(x) == planned(b))
 }
 
-/// The outputs of a drive command, checked before the drive is asked anything (exit 2): no two
-/// of them the same file (both would be written into one), none the serial port (the CSV would
-/// go down the line) nor any character device other than standard output and `/dev/null`.
-pub(crate) fn check_outputs(port: &str, outputs: &[(&str, &std::path::Path)]) -> Result<()> {
+/// The outputs of a drive command, checked before the drive is asked anything (exit 2): none of
+/// them an input nor two of them the same file ([`super::paths::check`]), none the serial port
+/// (the CSV would go down the line) nor any character device other than standard output and
+/// `/dev/null`.
+pub(crate) fn check_outputs(
+    port: &str,
+    inputs: &[super::paths::Named<'_>],
+    outputs: &[super::paths::Named<'_>],
+) -> Result<()> {
+    super::paths::check(inputs, outputs)?;
     let port = std::path::Path::new(port);
     let allowed = [
         char_device(std::path::Path::new("/dev/stdout")),
         char_device(std::path::Path::new("/dev/null")),
     ];
-    for (k, (name, p)) in outputs.iter().enumerate() {
+    for (name, p) in outputs {
         let dev = char_device(p);
         if same_file(p, port) || dev.is_some_and(|d| Some(d) == char_device(port)) {
             crate::bad_input!(
@@ -524,13 +530,6 @@ pub(crate) fn check_outputs(port: &str, outputs: &[(&str, &std::path::Path)]) ->
                 "{name} {} is a device (a serial port or a terminal?), not a file: write to a \
                  file, or to standard output with -",
                 p.display()
-            );
-        }
-        if let Some((other, q)) = outputs[..k].iter().find(|(_, q)| same_file(p, q)) {
-            crate::bad_input!(
-                "{name} {} and {other} {} are one file: both would be written into it",
-                p.display(),
-                q.display()
             );
         }
     }
@@ -748,7 +747,7 @@ fn prbs(a: PrbsArgs) -> Result<()> {
         &conf,
     )?;
     let output = output_path(&a.output);
-    check_outputs(&a.port.port, &[("--output", &output)])?;
+    check_outputs(&a.port.port, &[], &[("--output", &output)])?;
     let mut sink = CsvSink::new(output_file(&output)?);
     // The first SIGINT/SIGTERM/SIGHUP/SIGQUIT/... stops the drive; the record keeps what arrived and its
     // footer says what is missing.
@@ -838,6 +837,9 @@ impl RepeatsFile {
     }
 }
 
+/// The most frequencies of one sweep (`--points`, `--freqs`).
+pub const MAX_SWEEP_FREQUENCIES: usize = 1000;
+
 /// The sweep from the options, checked (exit 2).
 fn sine_sweep(a: &SineArgs, conf: &Configure) -> Result<SineSweep> {
     if a.freqs.is_none() && (a.f_min > a.f_max || a.f_min == a.f_max && a.points > 1) {
@@ -850,6 +852,14 @@ fn sine_sweep(a: &SineArgs, conf: &Configure) -> Result<SineSweep> {
     }
     if a.freqs.is_none() && a.points == 0 {
         crate::bad_input!("--points must be at least 1");
+    }
+    // Each frequency is seconds of the drive's time: a sweep of more is a typing error, refused
+    // before the table is even made (1e8 of them took 2.3 GB).
+    let asked = a.freqs.as_ref().map_or(a.points, Vec::len);
+    if asked > MAX_SWEEP_FREQUENCIES {
+        crate::bad_input!(
+            "{asked} frequencies (--points or --freqs): at most {MAX_SWEEP_FREQUENCIES} in one sweep"
+        );
     }
     let mut sweep = SineSweep::log(a.f_min, a.f_max, a.points);
     if let Some(f) = &a.freqs {
@@ -1040,7 +1050,7 @@ fn sine(a: SineArgs) -> Result<()> {
     if let Some(r) = &reps_path {
         outs.push(("the repeats file (--repeats-out)", r));
     }
-    check_outputs(&a.port.port, &outs)?;
+    check_outputs(&a.port.port, &[], &outs)?;
     let mut file = BodeFile::new(&output, header, sweep.repeats > 1)?;
     let mut reps_file = open_repeats_file(&a, &conf, reps_path)?;
     // The first SIGINT/SIGTERM/SIGHUP/SIGQUIT/... stops the drive; the points measured so far are in the

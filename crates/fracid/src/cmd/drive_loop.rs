@@ -425,6 +425,12 @@ impl<W: std::io::Write> SampleSink for StepSink<W> {
 pub fn run(a: LoopArgs) -> Result<()> {
     let _pipe = crate::interrupt::PipeErrors::arm();
     let conf = port_conf(&a.port)?;
+    let output = output_path(&a.output);
+    check_outputs(
+        &a.port.port,
+        &[("--controller", &a.controller)],
+        &[("--output", &output)],
+    )?;
     if !(a.step.is_finite() && a.duration.is_finite() && a.pre.is_finite()) {
         crate::bad_input!("--step, --duration and --pre must be finite numbers");
     }
@@ -469,8 +475,6 @@ pub fn run(a: LoopArgs) -> Result<()> {
              conditioning would run away"
         );
     }
-    let output = output_path(&a.output);
-    check_outputs(&a.port.port, &[("--output", &output)])?;
     // the samples go to the file and the step's figures as they arrive: none is kept in memory
     let mut sink = StepSink::new(
         output_file(&output)?,

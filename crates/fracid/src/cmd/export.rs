@@ -122,6 +122,12 @@ pub fn json_of(ss: &StateSpace, g: &FracTf) -> Value {
 
 /// Run `fracid export`.
 pub fn run(a: ExportArgs) -> Result<()> {
+    let model: Vec<_> = super::paths::file_arg(&a.model)
+        .map(|p| ("the model", p))
+        .into_iter()
+        .collect();
+    let outputs: Vec<_> = a.output.iter().map(|p| ("-o", p.as_path())).collect();
+    super::paths::check(&model, &outputs)?;
     let format = match (&a.format, &a.output) {
         (Some(f), _) => f.to_ascii_lowercase(),
         (None, Some(p)) if p.extension().is_some_and(|e| e == "m") => "m".into(),

@@ -92,7 +92,9 @@ pub fn expand(paths: &[PathBuf]) -> Result<Vec<PathBuf>> {
         let mut found: Vec<PathBuf> = std::fs::read_dir(&dir)
             .with_context(|| format!("cannot read directory {}", dir.display()))?
             .filter_map(|e| e.ok().map(|e| e.path()))
-            .filter(|f| f.is_file())
+            // every entry but a folder: a dangling link, a link loop or a FIFO fails in the
+            // summary with its reason ([`not_a_record`]), not silently left out
+            .filter(|f| !f.is_dir())
             .filter(|f| {
                 let n: Vec<char> = f
                     .file_name()
@@ -216,13 +218,9 @@ fn model_text(m: &Value) -> Option<String> {
         .map(|g| g.to_string())
 }
 
-/// Where the report of `file` goes: beside it, or into `out` (a name made unique by a suffix).
-fn report_path(
-    file: &Path,
-    out: Option<&Path>,
-    kind: &str,
-    taken: &Mutex<Vec<PathBuf>>,
-) -> PathBuf {
+/// Where the report of `file` goes: beside it, or into `out` (a name made unique by a suffix
+/// among those `taken` before it).
+fn report_path(file: &Path, out: Option<&Path>, kind: &str, taken: &mut Vec<PathBuf>) -> PathBuf {
     let stem = file
         .file_stem()
         .map_or_else(|| "record".into(), |s| s.to_string_lossy().into_owned());
@@ -230,7 +228,6 @@ fn report_path(
         Some(d) => d.to_path_buf(),
         None => file.parent().map(Path::to_path_buf).unwrap_or_default(),
     };
-    let mut taken = taken.lock().unwrap_or_else(|e| e.into_inner());
     let mut p = dir.join(format!("{stem}.{kind}.json"));
     let mut i = 2;
     while taken.contains(&p) {
@@ -276,6 +273,20 @@ where
             csv_path.display()
         );
     }
+    // Every report's name decided before any fit (in the files' order), and no report nor
+    // summary written over a record.
+    let mut taken = Vec::new();
+    let reports: Vec<PathBuf> = files
+        .iter()
+        .map(|f| report_path(f, fa.out.as_deref(), kind, &mut taken))
+        .collect();
+    let inputs: Vec<_> = files.iter().map(|f| ("the record", f.as_path())).collect();
+    let mut outputs = vec![
+        ("the summary", csv_path.as_path()),
+        ("the summary", json_path.as_path()),
+    ];
+    outputs.extend(reports.iter().map(|r| ("the report", r.as_path())));
+    super::paths::check(&inputs, &outputs)?;
     let jobs = match fa.jobs {
         Some(0) => crate::bad_input!("--jobs must be at least 1"),
         Some(j) => j,
@@ -286,9 +297,8 @@ where
     // A standard output that cannot be written (a full disk, /dev/full) must not stop the fits
     // nor the summary files: the first error is kept and reported at the end (exit 3).
     let stdout_error: Mutex<Option<std::io::Error>> = Mutex::new(None);
-    let taken = Mutex::new(Vec::new());
     let rows = on_pool(files.len(), jobs, |i| {
-        let row = fit_one(&files[i], fa.out.as_deref(), kind, &taken, &fit);
+        let row = fit_one(&files[i], &reports[i], &fit);
         if !json_out {
             print_row(&row, &stdout_error);
         }
@@ -356,25 +366,22 @@ fn on_pool<T: Send>(n: usize, jobs: usize, one: impl Fn(usize) -> T + Sync) -> V
     done.into_iter().map(|(_, r)| r).collect()
 }
 
-/// One file fitted by `fit` (a panic caught as an internal error), its report written beside it
-/// (or in `out`), and its summary row: failed with the exit code `fracid` would give when the fit
-/// fails or reports problems.
-fn fit_one<F>(
-    file: &Path,
-    out: Option<&Path>,
-    kind: &str,
-    taken: &Mutex<Vec<PathBuf>>,
-    fit: &F,
-) -> Row
+/// One file fitted by `fit` (a panic caught as an internal error), its report written to
+/// `report`, and its summary row: failed with the exit code `fracid` would give when the file is
+/// not a record ([`not_a_record`]), the fit fails or reports problems.
+fn fit_one<F>(file: &Path, report: &Path, fit: &F) -> Row
 where
     F: Fn(&Path) -> Result<(Value, Vec<String>)>,
 {
     let mut row = Row::new(file);
     let t = Instant::now();
-    let res = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| fit(file)))
-        .unwrap_or_else(|e| Err(anyhow::anyhow!("internal error: {}", panic_text(&*e))));
+    let res = match not_a_record(file) {
+        Some(e) => Err(e),
+        None => std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| fit(file)))
+            .unwrap_or_else(|e| Err(anyhow::anyhow!("internal error: {}", panic_text(&*e)))),
+    };
     let res = res.and_then(|(v, problems)| {
-        let p = report_path(file, out, kind, taken);
+        let p = report.to_path_buf();
         std::fs::write(&p, serde_json::to_string_pretty(&v)? + "\n")
             .with_context(|| format!("cannot write {}", p.display()))?;
         Ok((v, p, problems))
@@ -397,6 +404,64 @@ where
         }
     }
     row
+}
+
+/// Why `file` is no record a fleet reads, if it is not one: a dangling symbolic link or a link
+/// loop (I/O, exit 3, as reading it alone fails), a FIFO, a socket or a device (bad input, exit
+/// 2: a FIFO would hold the fleet until something writes to it). Said in the summary, never
+/// skipped.
+fn not_a_record(file: &Path) -> Option<anyhow::Error> {
+    // the summary's row names the file: the reason only
+    let io = |reason: String| Some(anyhow::Error::new(std::io::Error::other(reason)));
+    let m = match std::fs::metadata(file) {
+        Ok(m) => m,
+        Err(e) if std::fs::symlink_metadata(file).is_ok_and(|l| l.is_symlink()) => {
+            let target = std::fs::read_link(file).unwrap_or_default();
+            return if e.kind() == std::io::ErrorKind::NotFound {
+                io(format!(
+                    "a dangling symbolic link (its target {} does not exist)",
+                    target.display()
+                ))
+            } else {
+                io(format!(
+                    "a symbolic link that cannot be followed (to {}): {} (a link loop?)",
+                    target.display(),
+                    e.to_string()
+                        .split(" (os error")
+                        .next()
+                        .unwrap_or_default()
+                        .to_lowercase()
+                ))
+            };
+        }
+        Err(_) => return None, // a missing file fails on its own, as the reader says it
+    };
+    if m.is_file() {
+        return None;
+    }
+    let kind = {
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::FileTypeExt;
+            let t = m.file_type();
+            if t.is_fifo() {
+                "a FIFO (named pipe)"
+            } else if t.is_socket() {
+                "a socket"
+            } else if t.is_char_device() || t.is_block_device() {
+                "a device"
+            } else {
+                "not a regular file"
+            }
+        }
+        #[cfg(not(unix))]
+        {
+            "not a regular file"
+        }
+    };
+    Some(anyhow::Error::new(BadInput(format!(
+        "{kind}, not a regular file: a fleet reads files only (give it alone to read it)"
+    ))))
 }
 
 /// The failed files on standard error, and the fleet's error: bad input (exit 2) or I/O (exit 3)

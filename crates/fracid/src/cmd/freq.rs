@@ -261,6 +261,7 @@ pub fn run(a: FreqArgs) -> Result<()> {
     if a.fleet.active(&a.file) {
         return super::fleet::run_freq(&a);
     }
+    check_paths(&a)?;
     if let Some(path) = &a.plot {
         plot::format_of(path)?; // a bad extension fails before the work
     }
@@ -297,6 +298,21 @@ pub fn run(a: FreqArgs) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// No plot overwrites an input ([`super::paths::check`]): the table and a `--weights` file
+/// against `--plot` and, with `--diagnose`, the residual plot beside it.
+fn check_paths(a: &FreqArgs) -> Result<()> {
+    let mut inputs = vec![("the table", a.file.as_path())];
+    inputs.extend(super::paths::file_arg(a.weights.trim()).map(|p| ("--weights", p)));
+    let residual = a
+        .plot
+        .as_deref()
+        .filter(|_| a.diagnose)
+        .map(super::diagnose::residual_plot_path);
+    let mut outputs: Vec<_> = a.plot.iter().map(|p| ("--plot", p.as_path())).collect();
+    outputs.extend(residual.iter().map(|p| ("the residual plot", p.as_path())));
+    super::paths::check(&inputs, &outputs)
 }
 
 static RUNS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
@@ -1076,7 +1092,10 @@ mod tests {
             ("freq_hz,gain_db,phase_deg\n0,2,1\n", "> 0"),
             ("freq_hz,gain_db,phase_deg\n2,2,1\n1,2,1\n", "increase"),
             ("freq_hz,gain_db,phase_deg\n2,2,1\n2,2,1\n", "repeated"),
-            ("freq_hz,gain_db,phase_deg\n2,2\n", "phase_deg missing"),
+            (
+                "freq_hz,gain_db,phase_deg\n2,2\n",
+                "line 2: 2 fields where the header has 3",
+            ),
         ];
         for (t, want) in cases {
             let err = parse_bode(t, None, u, None).unwrap_err();

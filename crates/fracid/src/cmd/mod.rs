@@ -10,6 +10,7 @@ pub mod export;
 pub mod fleet;
 pub mod freq;
 pub mod model_in;
+pub mod paths;
 pub mod score;
 pub mod sim;
 pub mod time;

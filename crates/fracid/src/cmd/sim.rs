@@ -3,7 +3,7 @@
 use crate::bad_input;
 use crate::plot::{self, Figure};
 use anyhow::{Context, Result};
-use fracsim::prbs::Prbs;
+use fracsim::prbs::{Lfsr, Prbs};
 use fracsim::{gl, lsim, ApproxSpec, FracTf, Method};
 use plotters::coord::Shift;
 use plotters::prelude::*;
@@ -49,7 +49,8 @@ pub struct SimArgs {
     /// column (otherwise its time column sets it).
     #[arg(long)]
     pub dt: Option<f64>,
-    /// End time in seconds (default: 0.05 for a step, one period for a PRBS).
+    /// End time in seconds (default: 0.05 for a step, one period for a PRBS); at most 1e7
+    /// samples of --dt.
     #[arg(long)]
     pub t_end: Option<f64>,
     /// Method. refined (default; Xue's refined Oustaloup), oustaloup or trigeassou
@@ -104,12 +105,17 @@ fn build_input(a: &SimArgs) -> Result<(Vec<f64>, f64)> {
             amplitude: a.prbs_amplitude,
             ..Prbs::paper()
         };
-        let period = prbs.signal(dt)?;
         let n = match a.t_end {
             Some(t) => samples_until(t, dt)?,
-            None => period.len(),
+            None => {
+                let period = Lfsr::new(prbs.order, prbs.seed)?.period();
+                at_most_max(
+                    "one PRBS period",
+                    period as f64 * prbs.samples_per_bit(dt)? as f64,
+                )?
+            }
         };
-        return Ok((period.iter().copied().cycle().take(n).collect(), dt));
+        return Ok((prbs.samples(dt, n)?, dt));
     }
     let amp = a.step.unwrap_or(1.0);
     if !amp.is_finite() {
@@ -161,15 +167,32 @@ fn samples_until(t_end: f64, dt: f64) -> Result<usize> {
     if !(t_end.is_finite() && t_end > 0.0) {
         bad_input!("--t-end must be a positive number of seconds, got {t_end}");
     }
-    let n = (t_end / dt).round() + 1.0;
-    if n > 1e8 {
-        bad_input!("--t-end/--dt asks for {n} samples (at most 1e8)");
+    at_most_max("--t-end/--dt", (t_end / dt).round() + 1.0)
+}
+
+/// The most samples `fracid sim` makes: 240 MB of memory and a CSV of about 300 MB, which
+/// `fracid time` still reads ([`ident::data::MAX_FILE_BYTES`]); 1e8 took 2.3 GB and 25 s.
+pub const MAX_SAMPLES: usize = 10_000_000;
+
+/// `n` samples, refused (exit 2, naming `what` asks for them) above [`MAX_SAMPLES`].
+fn at_most_max(what: &str, n: f64) -> Result<usize> {
+    if n > MAX_SAMPLES as f64 {
+        bad_input!(
+            "{what} asks for {n:.4e} samples: too many (at most {MAX_SAMPLES:.0e}; a longer --dt or a \
+             shorter --t-end)"
+        );
     }
     Ok(n as usize)
 }
 
 /// Run `fracid sim`.
 pub fn run(a: SimArgs) -> Result<()> {
+    let inputs: Vec<_> = a.input.iter().map(|p| ("--input", p.as_path())).collect();
+    let outputs: Vec<_> = [("-o", &a.output), ("--plot", &a.plot)]
+        .into_iter()
+        .filter_map(|(what, p)| Some((what, p.as_deref()?)))
+        .collect();
+    super::paths::check(&inputs, &outputs)?;
     let tf: FracTf = a.model.parse().context("bad --model")?;
     tf.check_proper().context("--model cannot be simulated")?;
     // Every output checked before any is written: a bad plot path must not cost the CSV that

@@ -273,6 +273,7 @@ pub fn run(a: TimeArgs) -> Result<()> {
     if a.fleet.active(&a.file) {
         return super::fleet::run_time(a);
     }
+    check_paths(&a)?;
     if let Some(p) = &a.plot {
         plot::format_of(p)?;
     }
@@ -325,6 +326,22 @@ pub fn run(a: TimeArgs) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// No plot overwrites a record ([`super::paths::check`]): the record, `--validate` and `--joint`
+/// against `--plot` and, with `--diagnose`, the residual plot beside it.
+fn check_paths(a: &TimeArgs) -> Result<()> {
+    let mut inputs = vec![("the record", a.file.as_path())];
+    inputs.extend(a.validate.iter().map(|p| ("--validate", p.as_path())));
+    inputs.extend(a.joint.iter().map(|p| ("--joint", p.as_path())));
+    let residual = a
+        .plot
+        .as_deref()
+        .filter(|_| a.diagnose)
+        .map(super::diagnose::residual_plot_path);
+    let mut outputs: Vec<_> = a.plot.iter().map(|p| ("--plot", p.as_path())).collect();
+    outputs.extend(residual.iter().map(|p| ("the residual plot", p.as_path())));
+    super::paths::check(&inputs, &outputs)
 }
 
 /// The report as text (what `fracid time` prints): the base fit, the scores on a validation

@@ -177,6 +177,12 @@ pub fn spec_of(a: &TuneArgs) -> Result<Spec> {
 
 /// Run `fracid tune`.
 pub fn run(a: TuneArgs) -> Result<()> {
+    let model: Vec<_> = super::paths::file_arg(&a.model)
+        .map(|p| ("the model", p))
+        .into_iter()
+        .collect();
+    let plot: Vec<_> = a.plot.iter().map(|p| ("--plot", p.as_path())).collect();
+    super::paths::check(&model, &plot)?;
     if let Some(p) = &a.plot {
         plot::format_of(p)?;
     }

@@ -258,9 +258,11 @@ fn item_3_every_file_is_read_bounded() {
     ];
     for args in &runs {
         assert_eq!(exit_within_1_gib(args), Some(2), "{args:?}");
+        // a stream is refused at its first NUL byte (issue 46 item 8), the sparse regular file
+        // for its line's length
         let o = fracid(args);
         assert!(
-            stderr(&o).contains("longer than"),
+            stderr(&o).contains("longer than") || stderr(&o).contains("NUL byte at line 1"),
             "{args:?}: {}",
             stderr(&o)
         );

@@ -166,9 +166,9 @@ enum Row {
 /// by the simple reader's rules (`#` cut, trimmed, split, unquoted, parsed).
 fn simple_row<const N: usize>(
     text: &str,
-    a: usize,
-    b: usize,
+    (a, b): (usize, usize),
     delim: char,
+    width: usize,
     idx: &[usize; N],
     out: &mut [f64; N],
 ) -> Row {
@@ -177,6 +177,9 @@ fn simple_row<const N: usize>(
         return Row::Blank;
     }
     let f = split_line(line, delim);
+    if f.len() != width {
+        return Row::Fail;
+    }
     for (o, &i) in out.iter_mut().zip(idx) {
         match f.get(i).map(|s| unquote(s).parse::<f64>()) {
             Some(Ok(v)) => *o = v,
@@ -190,10 +193,10 @@ fn simple_row<const N: usize>(
 /// fields, else [`simple_row`].
 fn row<const N: usize>(
     text: &str,
-    a: usize,
-    b: usize,
+    (a, b): (usize, usize),
     delim: u8,
     slot: &[u8],
+    wanted_end: usize,
     idx: &[usize; N],
     out: &mut [f64; N],
 ) -> Row {
@@ -215,7 +218,7 @@ fn row<const N: usize>(
     // The common row: wanted fields that are plain decimals, read as they are scanned.
     let mut k = a0;
     let mut done = true;
-    for (field, &s) in slot.iter().enumerate() {
+    for (field, &s) in slot[..wanted_end].iter().enumerate() {
         while k < b0 && space(bytes[k]) {
             k += 1;
         }
@@ -234,13 +237,31 @@ fn row<const N: usize>(
                 k += 1;
             }
         }
-        // The field must end here: at a delimiter, or at the line's end for the last one read.
-        if k < b0 && bytes[k] == delim {
+        // The field must end here: at a delimiter, or at the line's end for the last one (the
+        // row has exactly the header's fields).
+        let last = field + 1 == slot.len();
+        if !last && k < b0 && bytes[k] == delim {
             k += 1;
-        } else if !(k == b0 && field + 1 == slot.len()) {
+        } else if !(last && k == b0) {
             done = false;
             break;
         }
+    }
+    if done && wanted_end < slot.len() {
+        // The fields after the last wanted one are counted, not read: as many as the header
+        // has left (a `#` would cut the line: the simple rules then count).
+        // Byte counters the compiler vectorises 16 or 32 at a time (a row's tail is short: no
+        // per-call set-up as in memchr).
+        let (mut delims, mut hash) = (0usize, 0u8);
+        for chunk in bytes[k..b0].chunks(255) {
+            let mut n = 0u8;
+            for &c in chunk {
+                n = n.wrapping_add(u8::from(c == delim)); // at most 255: no overflow
+                hash |= u8::from(c == b'#');
+            }
+            delims += usize::from(n);
+        }
+        done = hash == 0 && delims + 1 == slot.len() - wanted_end;
     }
     if done {
         return Row::Values;
@@ -274,14 +295,18 @@ fn row<const N: usize>(
             }
             start = k + 1;
         } else if CLASS[bytes[k] as usize] == ODD {
-            return simple_row(text, a, b, delim as char, idx, out);
+            return simple_row(text, (a, b), delim as char, slot.len(), idx, out);
         }
         k += 1;
     }
-    if filled == N {
+    // as many fields as the header: the last one ends the line; what follows it else (another
+    // field, or a comment and white space the simple rules cut) is counted by the simple rules
+    if filled < N {
+        Row::Fail
+    } else if field == slot.len() && k == b0 {
         Row::Values
     } else {
-        Row::Fail
+        simple_row(text, (a, b), delim as char, slot.len(), idx, out)
     }
 }
 
@@ -307,11 +332,16 @@ fn part<const N: usize>(
         physical: 0,
     };
     let mut vals = [0.0; N];
+    // one past the last wanted field
+    let wanted_end = slot
+        .iter()
+        .rposition(|&s| s != u8::MAX)
+        .map_or(0, |i| i + 1);
     let mut pos = a;
     while pos < b {
         let end = memchr(b'\n', &bytes[pos..]).map_or(b, |i| pos + i);
         out.physical += 1;
-        match row(text, pos, end, delim, slot, idx, &mut vals) {
+        match row(text, (pos, end), delim, slot, wanted_end, idx, &mut vals) {
             Row::Values => {
                 for (c, v) in out.cols.iter_mut().zip(vals) {
                     c.push(v);
@@ -370,8 +400,9 @@ pub(super) fn read<const N: usize>(
         index_names.iter().map(String::as_str).collect()
     };
     let idx: [usize; N] = column_indices(&names, wants).ok()?.try_into().ok()?;
-    // Field number -> position among the wanted columns (u8::MAX: not wanted).
-    let mut slot = vec![u8::MAX; idx.iter().max().map_or(0, |m| m + 1)];
+    // Field number -> position among the wanted columns (u8::MAX: not wanted), one slot per
+    // field of the header: a row must have exactly as many.
+    let mut slot = vec![u8::MAX; names.len()];
     for (k, &i) in idx.iter().enumerate() {
         slot[i] = u8::try_from(k).ok()?;
     }
