@@ -102,7 +102,7 @@ fn item_1_drive_loop_never_writes_its_record_over_the_controller() {
         "tune",
         "6.82/(2.655e-5 s^1.7452 + 0.0059 s^0.92 + 1)",
         "--wc",
-        "300",
+        "100",
         "--pm",
         "60",
         "--dt",
