@@ -3,9 +3,9 @@
 //! footers, the formats of real labs (quoted headers, no time column, headerless, `.mat`).
 
 pub(crate) mod round2;
+mod round3;
 pub(crate) mod round3_drive;
 mod round3_fits;
-mod round3;
 
 use super::fracid;
 use std::fmt::Write as _;
