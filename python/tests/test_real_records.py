@@ -385,14 +385,11 @@ XFAIL: dict[str, str] = {
 
 # Where fracid's --diagnose loses or exits 1 (strict, as above). Measured 2026-12-05 on main
 # e364c0a with `fracid time FILE --json --diagnose` (its recommended model, `fit`).
+# battery_random_current passes since the diagnosed model is judged on its own figures
+# (ident::app::verdict): feed-through + initial_state, held-out RMSE 0.07575 V (NRMSE 42.13%)
+# against the baseline's 0.1305 V, exit 0 (main 6231ea7; before, exit 1 on the base fit's
+# undetermined a1, a2, zeta, theta).
 XFAIL_DIAGNOSE: dict[str, str] = {
-    # The feed-through structure is chosen (with initial_state): held-out RMSE 0.07575 V (NRMSE
-    # 42.13%), better than the baseline's 0.1305 V, but exit 1: four of its parameters are not
-    # determined (a1, a2, zeta, theta with standard errors of 1e6-1e7).
-    "battery_random_current": (
-        "fracid --diagnose exits 1 (a1, a2, zeta, theta not determined) although its held-out "
-        "RMSE 0.0757 V beats the integer baseline's 0.1305 V"
-    ),
     # Feed-through chosen, no effect kept: held-out RMSE 0.04792 V (21.44%) against the
     # baseline's first order 0.03850 V, and exit 1 (a1, a2, zeta not determined).
     "battery_pulse_relaxation": (
