@@ -52,17 +52,21 @@ const fn f(
 /// right saturation, floors raised to 2 / 2; cell 34: no effect -> a spurious delay, its exact
 /// effects floor 1 -> 0). Its decisions move with changes that small: a floor of a class with two
 /// cases moves by one on such a flip.
+///
+/// Raised on main 6231ea7 (the final model's own verdict, `ident::app::verdict`; the subset
+/// measured with `zoo run --ci`): feed-through 0/0/1 -> 1/1/1, integrator 0/2/2 -> 2/2/2, cell
+/// 0/0/0 -> 1/1/1, sign-blind sensor 0/0/0 -> 0/2/0, two effects 1/1/1 -> 1/2/1.
 pub const FLOORS: &[Floor] = &[
     f(Class::Pmsm, 2, 2, 2),
     f(Class::Integer, 2, 2, 2),
     f(Class::TwoMassMotor, 0, 0, 1),
     f(Class::TwoMassLoad, 2, 2, 2),
     f(Class::MultiMode, 1, 1, 1),
-    f(Class::Feedthrough, 0, 0, 1),
-    f(Class::Integrator, 0, 2, 2),
+    f(Class::Feedthrough, 1, 1, 1),
+    f(Class::Integrator, 2, 2, 2),
     f(Class::Diffusion, 1, 1, 1),
     f(Class::Lead, 0, 1, 2),
-    f(Class::Cell, 0, 0, 0),
+    f(Class::Cell, 1, 1, 1),
     f(Class::Delay, 2, 2, 2),
     f(Class::FrictionReversal, 1, 2, 2),
     f(Class::FrictionOneWay, 1, 2, 2),
@@ -71,11 +75,11 @@ pub const FLOORS: &[Floor] = &[
     f(Class::StaticMapTwoLevel, 1, 2, 2),
     f(Class::Offsets, 2, 2, 2),
     f(Class::Periodic, 0, 1, 1),
-    f(Class::AbsSensor, 0, 0, 0),
+    f(Class::AbsSensor, 0, 2, 0),
     f(Class::PowerLaw, 1, 1, 1),
     f(Class::Quantisation, 1, 2, 2),
     f(Class::Drift, 1, 2, 2),
-    f(Class::TwoEffects, 1, 1, 1),
+    f(Class::TwoEffects, 1, 2, 1),
     f(Class::ClosedLoop, 2, 2, 2),
     f(Class::InMotion, 1, 1, 1),
 ];

@@ -305,14 +305,7 @@ pub fn run(a: FreqArgs) -> Result<()> {
 fn check_paths(a: &FreqArgs) -> Result<()> {
     let mut inputs = vec![("the table", a.file.as_path())];
     inputs.extend(super::paths::file_arg(a.weights.trim()).map(|p| ("--weights", p)));
-    let residual = a
-        .plot
-        .as_deref()
-        .filter(|_| a.diagnose)
-        .map(super::diagnose::residual_plot_path);
-    let mut outputs: Vec<_> = a.plot.iter().map(|p| ("--plot", p.as_path())).collect();
-    outputs.extend(residual.iter().map(|p| ("the residual plot", p.as_path())));
-    super::paths::check(&inputs, &outputs)
+    super::paths::check_plots(&inputs, a.plot.as_deref(), a.diagnose)
 }
 
 static RUNS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);

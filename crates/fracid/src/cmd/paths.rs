@@ -93,6 +93,24 @@ pub fn check(inputs: &[Named<'_>], outputs: &[Named<'_>]) -> anyhow::Result<()> 
     Ok(())
 }
 
+/// [`check`] for a fit's files: the `inputs` against `--plot` and, with `--diagnose`, the
+/// residual plot written beside it (`fracid time`, `fracid freq`).
+///
+/// # Errors
+/// As [`check`].
+pub fn check_plots(
+    inputs: &[Named<'_>],
+    plot: Option<&Path>,
+    diagnose: bool,
+) -> anyhow::Result<()> {
+    let residual = plot
+        .filter(|_| diagnose)
+        .map(super::diagnose::residual_plot_path);
+    let mut outputs: Vec<Named<'_>> = plot.map(|p| ("--plot", p)).into_iter().collect();
+    outputs.extend(residual.as_deref().map(|p| ("the residual plot", p)));
+    check(inputs, &outputs)
+}
+
 /// The file an argument that is a file or a text names (a model: `fracid export fit.json`, or
 /// `--weights`), else none (a transfer function's text, a word).
 pub fn file_arg(arg: &str) -> Option<&Path> {

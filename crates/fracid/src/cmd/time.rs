@@ -334,14 +334,7 @@ fn check_paths(a: &TimeArgs) -> Result<()> {
     let mut inputs = vec![("the record", a.file.as_path())];
     inputs.extend(a.validate.iter().map(|p| ("--validate", p.as_path())));
     inputs.extend(a.joint.iter().map(|p| ("--joint", p.as_path())));
-    let residual = a
-        .plot
-        .as_deref()
-        .filter(|_| a.diagnose)
-        .map(super::diagnose::residual_plot_path);
-    let mut outputs: Vec<_> = a.plot.iter().map(|p| ("--plot", p.as_path())).collect();
-    outputs.extend(residual.iter().map(|p| ("the residual plot", p.as_path())));
-    super::paths::check(&inputs, &outputs)
+    super::paths::check_plots(&inputs, a.plot.as_deref(), a.diagnose)
 }
 
 /// The report as text (what `fracid time` prints): the base fit, the scores on a validation
