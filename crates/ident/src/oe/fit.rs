@@ -30,6 +30,13 @@ pub struct FitOptions {
     /// Default `false`: each of the two fits has the whole budget (the fits of every record were
     /// tuned with it).
     pub shared_budget: bool,
+    /// Whether a long record is first fitted on its leading part (see [`fit`]). Default `true`;
+    /// `false` fits the whole record from the start (the two paths end at the same optimum).
+    pub lead_first: bool,
+    /// Whether the fit runs by variable projection first where it applies (see [`fit`]).
+    /// Default `true`; `false` fits every free parameter jointly from the start (the two paths
+    /// end at the same optimum).
+    pub projection: bool,
 }
 
 impl Default for FitOptions {
@@ -46,6 +53,8 @@ impl Default for FitOptions {
             },
             skip: 0,
             shared_budget: false,
+            lead_first: true,
+            projection: true,
         }
     }
 }
@@ -463,18 +472,6 @@ const LEAD_SAMPLES: usize = 1 << 14;
 /// nothing.
 const LEAD_STEP_SE: f64 = 0.3;
 
-thread_local! {
-    /// Whether [`fit`] fits a long record's leading part first (always, but for the test that
-    /// compares the two paths).
-    static LEAD: std::cell::Cell<bool> = const { std::cell::Cell::new(true) };
-}
-
-thread_local! {
-    /// Whether [`fit`] fits by variable projection first when it applies (always, but for the
-    /// test that compares the two paths).
-    static PROJECT: std::cell::Cell<bool> = const { std::cell::Cell::new(true) };
-}
-
 /// The end of the leading part of `u`, `y` (after `skip`) that a fit of the whole record starts
 /// from, when the record has at least four times [`LEAD_SAMPLES`] fitted samples and that part
 /// is excited like the whole (input and output standard deviations at least half the whole
@@ -598,7 +595,7 @@ pub(super) fn fit_in<S: Structure>(
     // A budget of no iteration evaluates the start (its covariance, [`LmOptions::covariance`]):
     // neither the lead part nor the projection moves it.
     let evaluate_only = opts.lm.max_iterations == 0;
-    let lead = if LEAD.with(|l| l.get()) && !evaluate_only {
+    let lead = if opts.lead_first && !evaluate_only {
         lead_part(u, y, opts.skip)
     } else {
         None
@@ -644,7 +641,7 @@ pub(super) fn fit_in<S: Structure>(
             }
         }
         None => {
-            let projected = (PROJECT.with(|p| p.get()) && !evaluate_only)
+            let projected = (opts.projection && !evaluate_only)
                 .then(|| varpro::plan(s, &free))
                 .flatten()
                 .and_then(|plan| varpro::fit(&mut prob, &plan, &start, &lm, opts.shared_budget));
@@ -1339,7 +1336,7 @@ fn refine_buffers(
 ) -> Option<Buffers> {
     let rows = split.checked_sub(opts.fit.skip)?;
     if rows < 4 * LEAD_SAMPLES
-        || !LEAD.with(|l| l.get())
+        || !opts.fit.lead_first
         || !crate::lm::two_cores()
         || opts.fit.lm.max_iterations == 0
     {
@@ -1626,9 +1623,11 @@ mod tests {
         let start = FracModel::pmsm(6.0, 0.005, 3e-5, 0.85, 0.9);
         let opts = FitOptions::default();
         let with = fit(&start, &u, &y, dt, &opts).unwrap();
-        LEAD.with(|l| l.set(false));
-        let without = fit(&start, &u, &y, dt, &opts).unwrap();
-        LEAD.with(|l| l.set(true));
+        let whole = FitOptions {
+            lead_first: false,
+            ..opts.clone()
+        };
+        let without = fit(&start, &u, &y, dt, &whole).unwrap();
         assert!(with.converged && without.converged);
         let rel = (with.rmse - without.rmse).abs() / without.rmse;
         assert!(rel < 1e-9, "RMSE {} vs {}", with.rmse, without.rmse);
@@ -1689,9 +1688,11 @@ mod tests {
         assert!(varpro::plan(&start, &free).is_some());
         let opts = FitOptions::default();
         let projected = fit(&start, &u, &y, dt, &opts).unwrap();
-        PROJECT.with(|p| p.set(false));
-        let joint = fit(&start, &u, &y, dt, &opts).unwrap();
-        PROJECT.with(|p| p.set(true));
+        let jointly = FitOptions {
+            projection: false,
+            ..opts.clone()
+        };
+        let joint = fit(&start, &u, &y, dt, &jointly).unwrap();
         assert!(projected.converged && joint.converged);
         let rel = (projected.rmse - joint.rmse).abs() / joint.rmse;
         assert!(rel < 1e-9, "RMSE {} vs {}", projected.rmse, joint.rmse);
@@ -1769,9 +1770,11 @@ mod tests {
         };
         assert!(sse(&lead.values) > 2.0 * sse(&rest.values()));
         let with = fit(&rest, &u, &y, dt, &opts).unwrap();
-        LEAD.with(|l| l.set(false));
-        let without = fit(&rest, &u, &y, dt, &opts).unwrap();
-        LEAD.with(|l| l.set(true));
+        let whole = FitOptions {
+            lead_first: false,
+            ..opts.clone()
+        };
+        let without = fit(&rest, &u, &y, dt, &whole).unwrap();
         // The same fit from the start (to rounding: the poles are solved from another thread's
         // last solution) ...
         for (a, b) in with.values.iter().zip(&without.values) {
