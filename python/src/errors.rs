@@ -56,29 +56,35 @@ pub(crate) fn data(msg: impl Into<String>) -> PyErr {
 
 /// Map a simulation-layer error.
 pub(crate) fn sim(e: fracsim::Error) -> PyErr {
-    let kind = match &e {
+    error(sim_kind(&e), e.to_string())
+}
+
+/// The Python error class of a simulation-layer error.
+fn sim_kind(e: &fracsim::Error) -> Kind {
+    match e {
         fracsim::Error::Parse { .. } => Kind::Parse,
         fracsim::Error::Numerical(_) => Kind::Numerical,
         _ => Kind::Data,
-    };
-    error(kind, e.to_string())
+    }
 }
 
-/// Map an identification-layer error.
+/// Map an identification-layer error (its kind from the error in a file's content, its message
+/// with the file and every source, [`ident::Error::report`]).
 pub(crate) fn ident(e: ident::Error) -> PyErr {
-    match e {
+    let msg = e.report();
+    match e.innermost() {
         // a file that cannot be read: Python's OSError (FileNotFoundError for a missing one)
-        ident::Error::Io { ref reason, .. } => {
-            if reason.contains("No such file") {
-                pyo3::exceptions::PyFileNotFoundError::new_err(e.to_string())
+        ident::Error::Io { source, .. } => {
+            if source.kind() == std::io::ErrorKind::NotFound {
+                pyo3::exceptions::PyFileNotFoundError::new_err(msg)
             } else {
-                pyo3::exceptions::PyOSError::new_err(e.to_string())
+                pyo3::exceptions::PyOSError::new_err(msg)
             }
         }
-        ident::Error::Sim(s) => sim(s),
-        ident::Error::Cancelled(_) => pyo3::exceptions::PyKeyboardInterrupt::new_err(e.to_string()),
-        ident::Error::Numerical(_) => error(Kind::Numerical, e.to_string()),
-        _ => error(Kind::Data, e.to_string()),
+        ident::Error::Cancelled(_) => pyo3::exceptions::PyKeyboardInterrupt::new_err(msg),
+        ident::Error::Numerical(_) => error(Kind::Numerical, msg),
+        ident::Error::Sim(s) => error(sim_kind(s), msg),
+        _ => error(Kind::Data, msg),
     }
 }
 

@@ -52,7 +52,7 @@ pub(crate) fn _load_csv<'py>(
     };
     let l = py
         .allow_threads(|| Record::load(&path, &opts))
-        .map_err(|e| errors::ident(in_file(e, &path)))?;
+        .map_err(errors::ident)?;
     let d = PyDict::new(py);
     let acq = match &l.acquisition {
         ident::data::Acquisition::Unknown => "unknown".to_string(),
@@ -69,16 +69,6 @@ pub(crate) fn _load_csv<'py>(
     d.set_item("rows_kept", (l.rows_kept.start, l.rows_kept.end))?;
     d.set_item("rows_read", l.rows_read)?;
     Ok(d)
-}
-
-/// A data error put in the context of its file (an I/O error already names it).
-fn in_file(e: ident::Error, path: &std::path::Path) -> ident::Error {
-    match e {
-        ident::Error::Data(m) if !m.contains(&path.display().to_string()) => {
-            ident::Error::Data(format!("{}: {m}", path.display()))
-        }
-        e => e,
-    }
 }
 
 /// Read a Bode table; `(omega_rad_s, h, weights or None)`.

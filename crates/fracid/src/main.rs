@@ -66,7 +66,8 @@ fn exit_code(err: &anyhow::Error) -> u8 {
             };
         }
         if let Some(e) = cause.downcast_ref::<ident::Error>() {
-            return match e {
+            // An error in a file's content: its kind decides.
+            return match e.innermost() {
                 ident::Error::Io { .. } => 3,
                 ident::Error::Numerical(_) => 1,
                 ident::Error::Cancelled(_) => 130,

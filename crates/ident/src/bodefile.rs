@@ -292,8 +292,8 @@ fn build(
 /// [`read_text`]).
 ///
 /// # Errors
-/// [`Error::Io`] when the file cannot be read; those of [`read_text`], [`parse`] and
-/// [`crate::matfile::read`].
+/// [`Error::Io`] when the file cannot be read; those of [`read_text`] and
+/// [`crate::matfile::read`]; those of [`parse`] (or of the variables) in an [`Error::File`].
 pub fn load(
     path: &Path,
     columns: Option<[&str; 3]>,
@@ -302,36 +302,43 @@ pub fn load(
 ) -> Result<BodeTable> {
     if crate::matfile::is_mat(path) {
         let vars = crate::matfile::read(path)?;
-        let names: Vec<&str> = vars.iter().map(|v| v.name.as_str()).collect();
-        let cols = wanted(&names, columns, units)?;
-        let (f, g, ph, w) = match weight_column {
-            Some(wc) => {
-                let [f, g, p, w] = crate::matfile::columns(&vars, [cols[0], cols[1], cols[2], wc])?;
-                (f, g, p, Some(w))
-            }
-            None => {
-                let [f, g, p] = crate::matfile::columns(&vars, cols)?;
-                (f, g, p, None)
-            }
-        };
-        let row = |k: usize| format!("{}: point {k}", path.display());
-        let mut t = build(&f, &g, &ph, w, units, row)?;
-        let has = |n: &str| names.contains(&n);
-        if has(SPREAD_COLUMNS[0]) && has(SPREAD_COLUMNS[1]) {
-            let [gs, ps] = crate::matfile::columns(&vars, [SPREAD_COLUMNS[0], SPREAD_COLUMNS[1]])?;
-            let n = if has(SPREAD_COLUMNS[2]) {
-                let [n] = crate::matfile::columns(&vars, [SPREAD_COLUMNS[2]])?;
-                Some(n)
-            } else {
-                None
-            };
-            t.spread_se = Some(spread_se(&gs, &ps, n.as_deref(), row)?);
-        }
-        return Ok(t);
+        return from_variables(&vars, columns, units, weight_column).map_err(|e| e.in_file(path));
     }
     let text = read_text(path)?;
-    parse(&text, columns, units, weight_column).map_err(|e| match e {
-        Error::Data(m) => Error::Data(format!("{}: {m}", path.display())),
-        e => e,
-    })
+    parse(&text, columns, units, weight_column).map_err(|e| e.in_file(path))
+}
+
+/// A Bode table from the variables of a `.mat` file (the same names as the columns).
+fn from_variables(
+    vars: &[crate::matfile::Variable],
+    columns: Option<[&str; 3]>,
+    units: BodeUnits,
+    weight_column: Option<&str>,
+) -> Result<BodeTable> {
+    let names: Vec<&str> = vars.iter().map(|v| v.name.as_str()).collect();
+    let cols = wanted(&names, columns, units)?;
+    let (f, g, ph, w) = match weight_column {
+        Some(wc) => {
+            let [f, g, p, w] = crate::matfile::columns(vars, [cols[0], cols[1], cols[2], wc])?;
+            (f, g, p, Some(w))
+        }
+        None => {
+            let [f, g, p] = crate::matfile::columns(vars, cols)?;
+            (f, g, p, None)
+        }
+    };
+    let row = |k: usize| format!("point {k}");
+    let mut t = build(&f, &g, &ph, w, units, row)?;
+    let has = |n: &str| names.contains(&n);
+    if has(SPREAD_COLUMNS[0]) && has(SPREAD_COLUMNS[1]) {
+        let [gs, ps] = crate::matfile::columns(vars, [SPREAD_COLUMNS[0], SPREAD_COLUMNS[1]])?;
+        let n = if has(SPREAD_COLUMNS[2]) {
+            let [n] = crate::matfile::columns(vars, [SPREAD_COLUMNS[2]])?;
+            Some(n)
+        } else {
+            None
+        };
+        t.spread_se = Some(spread_se(&gs, &ps, n.as_deref(), row)?);
+    }
+    Ok(t)
 }

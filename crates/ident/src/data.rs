@@ -858,32 +858,37 @@ impl Record {
     /// bounds of [`crate::files::read_text`].
     ///
     /// # Errors
-    /// Those of [`crate::files::read_text`] (I/O: [`Error::Io`]), [`Record::parse_with`] and
-    /// [`crate::matfile::read`].
+    /// Those of [`crate::files::read_text`] (I/O: [`Error::Io`]) and [`crate::matfile::read`];
+    /// those of [`Record::parse_with`] (or of the variables) in an [`Error::File`] naming it.
     pub fn load(path: &std::path::Path, opts: &ReadOptions) -> Result<Loaded> {
         if crate::matfile::is_mat(path) {
             let vars = crate::matfile::read(path)?;
-            let cols = &opts.columns;
-            let (t, u, y) = match opts.dt {
-                Some(dt) => {
-                    if !(dt > 0.0 && dt.is_finite()) {
-                        return Err(Error::Options(format!(
-                            "dt = {dt}: the sampling step must be a positive number of seconds"
-                        )));
-                    }
-                    let [u, y] = crate::matfile::columns(&vars, [&cols.u, &cols.y])?;
-                    let t = (0..u.len()).map(|k| k as f64 * dt).collect();
-                    (t, u, y)
-                }
-                None => {
-                    let [t, u, y] = crate::matfile::columns(&vars, [&cols.t, &cols.u, &cols.y])?;
-                    (t, u, y)
-                }
-            };
-            return Self::checked_part(t, u, y, Acquisition::Unknown, opts.dt.is_some());
+            return Self::from_variables(&vars, opts).map_err(|e| e.in_file(path));
         }
         let (text, hash) = read_text_scanned(path)?;
-        Self::parse_text(&text, opts, hash)
+        Self::parse_text(&text, opts, hash).map_err(|e| e.in_file(path))
+    }
+
+    /// A record from the variables of a `.mat` file ([`Record::load`]).
+    fn from_variables(vars: &[crate::matfile::Variable], opts: &ReadOptions) -> Result<Loaded> {
+        let cols = &opts.columns;
+        let (t, u, y) = match opts.dt {
+            Some(dt) => {
+                if !(dt > 0.0 && dt.is_finite()) {
+                    return Err(Error::Options(format!(
+                        "dt = {dt}: the sampling step must be a positive number of seconds"
+                    )));
+                }
+                let [u, y] = crate::matfile::columns(vars, [&cols.u, &cols.y])?;
+                let t = (0..u.len()).map(|k| k as f64 * dt).collect();
+                (t, u, y)
+            }
+            None => {
+                let [t, u, y] = crate::matfile::columns(vars, [&cols.t, &cols.u, &cols.y])?;
+                (t, u, y)
+            }
+        };
+        Self::checked_part(t, u, y, Acquisition::Unknown, opts.dt.is_some())
     }
 
     /// Number of samples.

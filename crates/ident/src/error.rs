@@ -1,9 +1,15 @@
 //! The error type of `ident`.
 
+use std::path::PathBuf;
+
 /// Errors from identification: bad data, bad options, numerical breakdown.
 ///
 /// A fit that runs but does not converge is *not* an error: its report says so.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+///
+/// An error about a file says which file by its variant ([`Error::Io`], [`Error::File`]) and
+/// keeps what went wrong as its [`source`](std::error::Error::source): the operating system's
+/// error, or the error in the file's content. [`Error::report`] says it all in one line.
+#[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum Error {
     /// The data are unusable (NaN, unsorted or repeated frequencies, non-uniform time, ...).
@@ -24,13 +30,24 @@ pub enum Error {
     /// A linear solve or a simulation broke down.
     #[error("numerical breakdown: {0}")]
     Numerical(String),
-    /// A file that cannot be opened or read (the operating system's reason in words).
-    #[error("cannot read {path}: {reason}")]
+    /// A file that cannot be opened or read.
+    #[error("cannot read {}", path.display())]
     Io {
         /// The file.
-        path: String,
+        path: PathBuf,
         /// Why, as the operating system says it.
-        reason: String,
+        #[source]
+        source: std::io::Error,
+    },
+    /// What is wrong in a file's content (or in what it holds, for a reader that knows the
+    /// file): the file, and the error as the content's reader said it.
+    #[error("in {}", path.display())]
+    File {
+        /// The file.
+        path: PathBuf,
+        /// The error in it.
+        #[source]
+        source: Box<Error>,
     },
     /// The observer asked to stop ([`crate::app::observe::Observe::cancelled`]); where.
     #[error("cancelled {0}")]
@@ -41,9 +58,57 @@ pub enum Error {
 }
 
 impl Error {
+    /// `self` in the context of the file `path`: an error that already names a file (an
+    /// [`Error::Io`], an [`Error::File`]) as it is, any other wrapped in an [`Error::File`].
+    #[must_use]
+    pub fn in_file(self, path: &std::path::Path) -> Self {
+        match self {
+            e @ (Self::Io { .. } | Self::File { .. }) => e,
+            e => Self::File {
+                path: path.to_path_buf(),
+                source: Box::new(e),
+            },
+        }
+    }
+
+    /// The error that decides what kind of failure this is: the error in a file's content for
+    /// an [`Error::File`], else `self`.
+    ///
+    /// ```
+    /// let e = ident::Error::Data("no column 'y'".into()).in_file("r.csv".as_ref());
+    /// assert!(matches!(e.innermost(), ident::Error::Data(_)));
+    /// ```
+    #[must_use]
+    pub fn innermost(&self) -> &Self {
+        match self {
+            Self::File { source, .. } => source.innermost(),
+            e => e,
+        }
+    }
+
+    /// The error and its sources in one line, each after the one it explains (as `anyhow`
+    /// prints a chain with `{:#}`).
+    ///
+    /// ```
+    /// let e = ident::Error::Data("no column 'y'".into()).in_file("r.csv".as_ref());
+    /// assert_eq!(e.to_string(), "in r.csv");
+    /// assert_eq!(e.report(), "in r.csv: invalid data: no column 'y'");
+    /// ```
+    #[must_use]
+    pub fn report(&self) -> String {
+        let mut out = self.to_string();
+        let mut cause = std::error::Error::source(self);
+        while let Some(c) = cause {
+            out.push_str(": ");
+            out.push_str(&c.to_string());
+            cause = c.source();
+        }
+        out
+    }
+
     /// What went wrong without the variant's leading words (`"invalid data: "`, ...): for a
-    /// message that wraps another error's reason. An I/O error keeps its path, a simulation
-    /// error its own words.
+    /// message that wraps another error's reason. An error about a file keeps the file and its
+    /// sources ([`Error::report`]), a simulation error its own words.
     ///
     /// ```
     /// let e = ident::Error::NotEnoughData("no resonance".into());
@@ -59,7 +124,7 @@ impl Error {
             | Self::Options(m)
             | Self::Numerical(m)
             | Self::Cancelled(m) => m.clone(),
-            Self::Io { .. } | Self::Sim(_) => self.to_string(),
+            Self::Io { .. } | Self::File { .. } | Self::Sim(_) => self.report(),
         }
     }
 }

@@ -32,8 +32,9 @@ pub const MAX_LINE_BYTES: usize = 1 << 20;
 /// at most one limit's worth of reading.
 ///
 /// # Errors
-/// [`Error::Io`] when the file cannot be opened or read; [`Error::Data`] for a file too large, a
-/// line too long, a NUL byte or invalid UTF-8 (with the line and byte where it is).
+/// [`Error::Io`] when the file cannot be opened or read; an [`Error::File`] of an
+/// [`Error::Data`] for a file too large, a line too long, a NUL byte or invalid UTF-8 (with the
+/// line and byte where it is).
 pub fn read_text(path: &std::path::Path) -> Result<String> {
     read_text_scanned(path).map(|(text, _)| text)
 }
@@ -71,20 +72,20 @@ fn position(bytes: &[u8], pos: usize) -> String {
 /// The error for a NUL byte at `pos` of the bytes read so far.
 fn nul_byte(path: &std::path::Path, bytes: &[u8], pos: usize) -> Error {
     Error::Data(format!(
-        "{} is not a text table: a NUL byte at {} (a binary file? MATLAB files must end in \
-         .mat; UTF-16 text must be saved as UTF-8)",
-        path.display(),
+        "not a text table: a NUL byte at {} (a binary file? MATLAB files must end in .mat; \
+         UTF-16 text must be saved as UTF-8)",
         position(bytes, pos)
     ))
+    .in_file(path)
 }
 
 /// The error for a byte at `pos` that is not UTF-8.
 fn not_utf8(path: &std::path::Path, bytes: &[u8], pos: usize) -> Error {
     Error::Data(format!(
-        "{} is not UTF-8 text: invalid byte at {} (save it as UTF-8, or is it a binary file?)",
-        path.display(),
+        "not UTF-8 text: invalid byte at {} (save it as UTF-8, or is it a binary file?)",
         position(bytes, pos)
     ))
+    .in_file(path)
 }
 
 /// The text checks made as the bytes are read, one read after another, so that a binary stream
@@ -161,18 +162,18 @@ pub(crate) fn read_bytes(path: &std::path::Path, lines: bool) -> Result<Vec<u8>>
 /// size, or not `lines`).
 fn read_scanned(path: &std::path::Path, lines: bool) -> Result<(Vec<u8>, Option<bool>)> {
     use std::io::Read;
-    let io = |e: std::io::Error| Error::Io {
-        path: path.display().to_string(),
-        reason: io_reason(&e),
+    let io = |source: std::io::Error| Error::Io {
+        path: path.to_path_buf(),
+        source,
     };
     let file = std::fs::File::open(path).map_err(io)?;
     let mut size = 0;
     if let Ok(m) = file.metadata() {
         if m.is_dir() {
-            return Err(Error::Io {
-                path: path.display().to_string(),
-                reason: "it is a directory".into(),
-            });
+            return Err(io(std::io::Error::new(
+                std::io::ErrorKind::IsADirectory,
+                "it is a directory",
+            )));
         }
         if m.len() > MAX_FILE_BYTES {
             return Err(too_large(path));
@@ -294,28 +295,19 @@ fn first_long_run(b: &[u8]) -> Option<usize> {
 /// The error for a line longer than [`MAX_LINE_BYTES`] that starts after the bytes `before`.
 fn long_line(path: &std::path::Path, before: &[u8]) -> Error {
     Error::Data(format!(
-        "{}: line {} is longer than {} bytes: not a text table (a binary file or a device?)",
-        path.display(),
+        "line {} is longer than {} bytes: not a text table (a binary file or a device?)",
         1 + memchr::memchr_iter(b'\n', before).count(),
         MAX_LINE_BYTES
     ))
+    .in_file(path)
 }
 
 fn too_large(path: &std::path::Path) -> Error {
     Error::Data(format!(
-        "{} is larger than {} MiB: refused (split or decimate the record)",
-        path.display(),
+        "larger than {} MiB: refused (split or decimate the record)",
         MAX_FILE_BYTES >> 20
     ))
-}
-
-/// The operating system's reason, without Rust's "(os error N)".
-fn io_reason(e: &std::io::Error) -> String {
-    let s = e.to_string();
-    match s.find(" (os error") {
-        Some(i) => s[..i].to_string(),
-        None => s,
-    }
+    .in_file(path)
 }
 
 #[cfg(test)]
@@ -377,7 +369,7 @@ mod tests {
         let at = long.len() - MAX_LINE_BYTES - 100;
         long.splice(at..at, vec![b'x'; MAX_LINE_BYTES + 1]);
         std::fs::write(&path, &long).unwrap();
-        let e = read_text(&path).unwrap_err().to_string();
+        let e = read_text(&path).unwrap_err().report();
         assert!(e.contains("is longer than"), "{e}");
         std::fs::remove_dir_all(&dir).ok();
     }
@@ -408,7 +400,7 @@ mod tests {
             let mut b = text.clone().into_bytes();
             b[at] = bad;
             std::fs::write(&path, &b).unwrap();
-            let e = read_text(&path).unwrap_err().to_string();
+            let e = read_text(&path).unwrap_err().report();
             let line = 1 + b[..at].iter().filter(|&&c| c == b'\n').count();
             assert!(
                 e.contains(what) && e.contains(&format!("line {line}, byte {at}")),

@@ -63,13 +63,10 @@ pub fn is_mat(path: &Path) -> bool {
 /// Read the numeric variables of a `.mat` file (at most [`crate::files::MAX_FILE_BYTES`]).
 ///
 /// # Errors
-/// [`Error::Io`] when it cannot be read; those of [`parse`] (with the file's name).
+/// [`Error::Io`] when it cannot be read; those of [`parse`] in an [`Error::File`].
 pub fn read(path: &Path) -> Result<Vec<Variable>> {
     let bytes = read_bytes(path, false)?;
-    parse(&bytes).map_err(|e| match e {
-        Error::Data(m) => Error::Data(format!("{}: {m}", path.display())),
-        e => e,
-    })
+    parse(&bytes).map_err(|e| e.in_file(path))
 }
 
 fn bad<T>(msg: impl Into<String>) -> Result<T> {

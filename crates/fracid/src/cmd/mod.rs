@@ -29,8 +29,8 @@ macro_rules! bad_input {
     };
 }
 
-/// Read a time record with the library's reader ([`ident::data::Record::load`]): a data error is
-/// put in the context of the file; an I/O error already names it.
+/// Read a time record with the library's reader ([`ident::data::Record::load`], whose errors
+/// name the file).
 ///
 /// # Errors
 /// Those of [`ident::data::Record::load`].
@@ -38,11 +38,7 @@ pub fn load_record(
     path: &std::path::Path,
     opts: &ident::data::ReadOptions,
 ) -> anyhow::Result<ident::data::Loaded> {
-    ident::data::Record::load(path, opts).map_err(|e| match e {
-        ident::Error::Io { .. } => anyhow::Error::new(e),
-        e if e.to_string().contains(&path.display().to_string()) => anyhow::Error::new(e),
-        e => anyhow::Error::new(e).context(format!("in {}", path.display())),
-    })
+    Ok(ident::data::Record::load(path, opts)?)
 }
 
 /// Read a text file (a model, a JSON report, weights, a table) with the library's bounded reader
@@ -55,11 +51,7 @@ pub fn load_record(
 /// An I/O error naming the file (exit 3); a file too large, a line too long, a binary or non-UTF-8
 /// file (exit 2, in the context of the file).
 pub fn read_text(path: &std::path::Path) -> anyhow::Result<String> {
-    ident::files::read_text(path).map_err(|e| match e {
-        ident::Error::Io { .. } => anyhow::Error::new(e),
-        e if e.to_string().contains(&path.display().to_string()) => anyhow::Error::new(e),
-        e => anyhow::Error::new(e).context(format!("in {}", path.display())),
-    })
+    Ok(ident::files::read_text(path)?)
 }
 
 /// `--order N` (approximation order) parsed and checked against the one range shared with

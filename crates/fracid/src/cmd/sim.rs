@@ -157,10 +157,7 @@ fn input_of(path: &std::path::Path, a: &SimArgs) -> Result<(Vec<f64>, f64)> {
             }
         }
     };
-    read().map_err(|e| match e {
-        ident::Error::Io { .. } => anyhow::Error::new(e),
-        e => anyhow::Error::new(e).context(format!("in {}", path.display())),
-    })
+    Ok(read().map_err(|e| e.in_file(path))?)
 }
 
 fn samples_until(t_end: f64, dt: f64) -> Result<usize> {

@@ -170,9 +170,14 @@ fn bad_files_are_data_errors_bounded_and_short() {
     // invalid UTF-8: a data error (exit 2), not I/O
     let p = scratch("latin1.csv", b"t,u,y\n0,1,\xe9\n");
     let e = Record::load(&p, &Default::default()).unwrap_err();
-    assert!(matches!(e, Error::Data(_)), "{e:?}");
-    assert!(e.to_string().contains("not UTF-8"), "{e}");
-    assert!(e.to_string().contains("line 2"), "{e}");
+    assert!(matches!(e.innermost(), Error::Data(_)), "{e:?}");
+    // the file named by the error's variant, what is wrong in its source
+    assert!(
+        matches!(&e, Error::File { path, .. } if path == &p),
+        "{e:?}"
+    );
+    let e = e.report();
+    assert!(e.contains("not UTF-8") && e.contains("line 2"), "{e}");
     // a CR-only file is read as lines, and a bad value is not the whole file in the message
     let mut cr = String::from("t,u,y\r");
     for k in 0..5000 {
@@ -187,19 +192,27 @@ fn bad_files_are_data_errors_bounded_and_short() {
     // one line of 1 MiB + 1 byte: refused while reading
     let p = scratch("long.csv", &vec![b'1'; ident::files::MAX_LINE_BYTES + 1]);
     let e = Record::load(&p, &Default::default()).unwrap_err();
-    assert!(e.to_string().contains("longer than"), "{e}");
+    assert!(e.report().contains("longer than"), "{e}");
     // a missing file: I/O, in words
     let e = Record::load(
         std::path::Path::new("/nonexistent/x.csv"),
         &Default::default(),
     )
     .unwrap_err();
-    assert!(matches!(e, Error::Io { .. }), "{e:?}");
-    assert!(!e.to_string().contains("os error"), "{e}");
+    // the operating system's error kept as the source
+    assert!(
+        matches!(&e, Error::Io { source, .. } if source.kind() == std::io::ErrorKind::NotFound),
+        "{e:?}"
+    );
+    assert!(
+        e.report().starts_with("cannot read /nonexistent/x.csv: "),
+        "{}",
+        e.report()
+    );
     // binary
     let p = scratch("bin.csv", b"t,u,y\n\0\0\0");
     let e = Record::load(&p, &Default::default()).unwrap_err();
-    assert!(e.to_string().contains("NUL byte"), "{e}");
+    assert!(e.report().contains("NUL byte"), "{e}");
     // a 300-character name is quoted short
     let long = "9".repeat(300);
     let e = Record::parse_with(&format!("t,u,y\n0,1,{long}x\n"), &Default::default()).unwrap_err();
@@ -212,7 +225,7 @@ fn dev_zero_is_refused_after_a_bounded_read() {
     let t0 = std::time::Instant::now();
     let e = Record::load(std::path::Path::new("/dev/zero"), &Default::default()).unwrap_err();
     // refused at the first read, by its first byte (a stream is checked as it is read)
-    assert!(e.to_string().contains("NUL byte at line 1, byte 0"), "{e}");
+    assert!(e.report().contains("NUL byte at line 1, byte 0"), "{e}");
     // one read, not unbounded: seconds at most even on a loaded machine
     assert!(t0.elapsed().as_secs() < 20);
 }
@@ -312,8 +325,8 @@ fn mat_files_time_records_and_bode_tables() {
     let l = Record::load(&p, &cols("0", "1", "2")).unwrap();
     assert_eq!(l.record.y, y);
     let e = Record::load(&p, &Default::default()).unwrap_err();
-    assert!(e.to_string().contains("no variable 't'"), "{e}");
-    assert!(e.to_string().contains("found: data"), "{e}");
+    assert!(e.report().contains("no variable 't'"), "{e}");
+    assert!(e.report().contains("found: data"), "{e}");
     // a Bode table
     let f = vec![1.0, 10.0, 100.0];
     let g = vec![0.0, -3.0, -20.0];
@@ -338,10 +351,10 @@ fn mat_files_time_records_and_bode_tables() {
     v73.extend(b"\x89HDF\r\n\x1a\n");
     let p = scratch("v73.mat", &v73);
     let e = Record::load(&p, &Default::default()).unwrap_err();
-    assert!(e.to_string().contains("v7.3 (HDF5)"), "{e}");
+    assert!(e.report().contains("v7.3 (HDF5)"), "{e}");
     let p = scratch("v4.mat", &[0u8; 64]);
     let e = Record::load(&p, &Default::default()).unwrap_err();
-    assert!(e.to_string().contains("level 4"), "{e}");
+    assert!(e.report().contains("level 4"), "{e}");
 }
 
 /// Files written by scipy 1.17.1 (`scipy.io.savemat`, committed in `tests/data`, made with
