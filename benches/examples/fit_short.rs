@@ -4,11 +4,10 @@
 //! of the in-process time, then the fitted parameters with their standard errors, the RMSE, the
 //! LM iterations and evaluations (to compare fits before and after a change).
 //!
-//! `cargo run --release -p fracid-benches --example fit_short -- [samples] [repeats] [dt] [cold]`
+//! `cargo run --release -p fracid-benches --example fit_short -- [samples] [repeats] [dt]`
 //!
-//! With `cold`, each repeat starts from an empty pole cache (`fracsim::modal::RootsCache`), as
-//! each request of `ident::app::time::run` (the CLI, Python, a fleet) does; without it each
-//! repeat's model builds are hinted by the previous identical fit's solved poles.
+//! Each repeat starts from an empty pole cache (`fracsim::modal::RootsCache`), as every
+//! `identify` does.
 
 use fracid_benches::{noise, prbs_input};
 use fracsim::{lsim, ApproxSpec};
@@ -24,7 +23,6 @@ fn main() {
         .get(3)
         .and_then(|s| s.parse().ok())
         .unwrap_or(fracid_benches::DT);
-    let cold = args.get(4).is_some_and(|s| s == "cold");
     let u = prbs_input(n, dt);
     let mut y = lsim(&fracid_benches::pmsm(), &u, dt, &ApproxSpec::default()).expect("simulation");
     for (y, e) in y.iter_mut().zip(noise(n, 0.05, 1)) {
@@ -37,9 +35,6 @@ fn main() {
     let mut ms = vec![];
     let mut last = None;
     for _ in 0..repeats.max(1) {
-        if cold {
-            fracsim::modal::RootsCache::default().install();
-        }
         let t0 = Instant::now();
         let id = identify(&rec, &model, &opts).expect("identify");
         ms.push(t0.elapsed().as_secs_f64() * 1e3);
@@ -48,9 +43,8 @@ fn main() {
     ms.sort_by(f64::total_cmp);
     let id = last.expect("one run");
     println!(
-        "samples {n} dt {dt:e}{}: min {:.2} ms, median {:.2} ms ({} runs); rmse {:.8}, \
+        "samples {n} dt {dt:e}: min {:.2} ms, median {:.2} ms ({} runs); rmse {:.8}, \
          iterations {}, evaluations {}",
-        if cold { " (cold pole cache)" } else { "" },
         ms[0],
         ms[ms.len() / 2],
         ms.len(),

@@ -151,17 +151,22 @@ fn main() -> ExitCode {
     keep_freed_memory();
     stdout_failure_exits_3();
     let cli = Cli::parse();
-    let run = std::panic::AssertUnwindSafe(|| match cli.command {
-        Commands::Sim(a) => cmd::sim::run(a),
-        Commands::Demo(a) => cmd::demo::run(a),
-        // -- more dispatch arms are added below, one line each --
-        Commands::Drive(a) => cmd::drive::run(a),
-        Commands::Freq(a) => cmd::freq::run(a),
-        Commands::Time(a) => cmd::time::run(*a),
-        Commands::Compare(a) => cmd::compare::run(a),
-        Commands::Score(a) => cmd::score::run(a),
-        Commands::Export(a) => cmd::export::run(a),
-        Commands::Tune(a) => cmd::tune::run(*a),
+    // The command's models share one cache of solved poles (`fracsim::modal::RootsCache`), its
+    // own: what it computes depends on nothing that ran before it.
+    let mut poles = fracsim::modal::RootsCache::new();
+    let run = std::panic::AssertUnwindSafe(|| {
+        poles.enter(|| match cli.command {
+            Commands::Sim(a) => cmd::sim::run(a),
+            Commands::Demo(a) => cmd::demo::run(a),
+            // -- more dispatch arms are added below, one line each --
+            Commands::Drive(a) => cmd::drive::run(a),
+            Commands::Freq(a) => cmd::freq::run(a),
+            Commands::Time(a) => cmd::time::run(*a),
+            Commands::Compare(a) => cmd::compare::run(a),
+            Commands::Score(a) => cmd::score::run(a),
+            Commands::Export(a) => cmd::export::run(a),
+            Commands::Tune(a) => cmd::tune::run(*a),
+        })
     });
     let result = match std::panic::catch_unwind(run) {
         Ok(r) => r,

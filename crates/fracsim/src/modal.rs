@@ -719,15 +719,37 @@ fn roots_of_h(groups: &[Group<f64>], d: f64, hint: &[Complex64]) -> Result<(Vec<
     Ok((roots, false))
 }
 
+/// The root sets of the last few `H` one computation solved, each with the values it solved
+/// (`d`, then each group's cells and coefficients; the group sizes alongside). A fit builds the
+/// model at nearby parameters again and again (each trial, then each part of its Jacobian in
+/// dual numbers), and the eigenvalue problem of [`roots_of_h`] is most of the cost of a build:
+/// the roots of the nearest `H` solved before start Newton's method instead, and the same `H`
+/// again is answered at once.
+///
+/// A cache is a value its computation owns (a request, a fit) and enters on its thread
+/// ([`RootsCache::enter`]): the models built inside use it and leave their roots in it; outside
+/// of any, a model is built cold and nothing is kept, so that what a computation gives never
+/// depends on what ran before it on the same thread. Its hints move the last bits of a result,
+/// so a helper thread that shares a computation's work starts from a copy of its cache
+/// ([`RootsCache::entered`]) and computes what the calling thread would.
+///
+/// ```
+/// use fracsim::{modal::{pole_residue, RootsCache}, ApproxSpec};
+/// let build = || pole_residue::<f64>(&[(1.0, 0.0)], &[(0.1, 0.9), (1.0, 0.0)], (1e-3, 1e4),
+///                                    &ApproxSpec::default()).unwrap();
+/// let mut cache = RootsCache::new();
+/// assert!(cache.is_empty());
+/// let (a, b) = cache.enter(|| (build(), build()));
+/// assert!(!cache.is_empty());
+/// assert_eq!(format!("{:?}", a.real), format!("{:?}", b.real));
+/// ```
+#[derive(Debug, Clone, Default)]
+pub struct RootsCache(Vec<Solved>);
+
 thread_local! {
-    /// The root sets of the last few `H` solved on this thread, each with the values it solved
-    /// (`d`, then each group's cells and coefficients; the group sizes alongside). A fit builds the
-    /// model at nearby parameters again and again (each trial, then each part of its Jacobian in
-    /// dual numbers), and the eigenvalue problem of [`roots_of_h`] is most of the cost of a build:
-    /// the roots of the nearest `H` solved before start Newton's method instead, and the same `H`
-    /// again is answered at once. Per thread, so that what a thread computes depends only on what it
-    /// computed before (threads that work for one fit start from a copy, see [`RootsCache`]).
-    static ROOTS: std::cell::RefCell<Vec<Solved>> = const { std::cell::RefCell::new(Vec::new()) };
+    /// The cache entered on this thread ([`RootsCache::enter`]), `None` outside of one.
+    static ENTERED: std::cell::RefCell<Option<Vec<Solved>>> =
+        const { std::cell::RefCell::new(None) };
 }
 
 #[cfg(test)]
@@ -736,28 +758,70 @@ thread_local! {
     static HINTED: std::cell::Cell<usize> = const { std::cell::Cell::new(0) };
 }
 
-/// A copy of this thread's cache of solved poles ([`RootsCache::of_this_thread`]), to give to the
-/// threads that share its work ([`RootsCache::install`]): each then finds the poles of the models
-/// it builds from the same starts as this thread would, and computes the same values.
-#[derive(Debug, Clone, Default)]
-pub struct RootsCache(Vec<Solved>);
-
 impl RootsCache {
-    /// A copy of the calling thread's cache.
-    pub fn of_this_thread() -> Self {
-        Self(ROOTS.with(|r| r.borrow().clone()))
+    /// An empty cache.
+    pub fn new() -> Self {
+        Self::default()
     }
 
-    /// Replace the calling thread's cache with this copy.
-    pub fn install(self) {
-        ROOTS.with(|r| *r.borrow_mut() = self.0);
+    /// Whether it holds no root set.
+    pub fn is_empty(&self) -> bool {
+        self.0.is_empty()
+    }
+
+    /// Run `f` with this cache answering the pole solves of the models `f` builds on the calling
+    /// thread (and keeping theirs), then hold what it ended with, whether `f` returns or
+    /// unwinds. Entered inside another cache's `enter`, it stands for that one during `f`, which
+    /// is restored after.
+    pub fn enter<R>(&mut self, f: impl FnOnce() -> R) -> R {
+        /// Takes the entered cache back into `cache` and restores the one it stood for.
+        struct Leave<'a> {
+            cache: &'a mut RootsCache,
+            outer: Option<Vec<Solved>>,
+        }
+        impl Drop for Leave<'_> {
+            fn drop(&mut self) {
+                let mine = ENTERED.with(|e| e.replace(self.outer.take()));
+                self.cache.0 = mine.unwrap_or_default();
+            }
+        }
+        let outer = ENTERED.with(|e| e.replace(Some(std::mem::take(&mut self.0))));
+        let _leave = Leave { cache: self, outer };
+        f()
+    }
+
+    /// A copy of the cache entered on the calling thread (empty outside of one), for a helper
+    /// thread that shares its computation's work to enter: it then builds each model from the
+    /// same poles as the calling thread would, and what is computed does not depend on which
+    /// thread computes it.
+    pub fn entered() -> Self {
+        Self(ENTERED.with(|e| e.borrow().clone().unwrap_or_default()))
+    }
+
+    /// Run `f` from an empty cache: the cache entered on the calling thread, emptied (what `f`
+    /// leaves in it stays for the rest of its computation), or outside of one a new cache
+    /// entered for `f` alone. A computation that starts so (an identification) gives the same
+    /// result wherever it runs.
+    pub fn afresh<R>(f: impl FnOnce() -> R) -> R {
+        let inside = ENTERED.with(|e| match e.borrow_mut().as_mut() {
+            Some(c) => {
+                c.clear();
+                true
+            }
+            None => false,
+        });
+        if inside {
+            f()
+        } else {
+            Self::new().enter(f)
+        }
     }
 }
 
-/// One entry of [`ROOTS`]: the sizes, the values and the roots.
+/// One entry of a [`RootsCache`]: the sizes, the values and the roots.
 type Solved = (Vec<usize>, Vec<f64>, Vec<Complex64>);
 
-/// How many root sets [`ROOTS`] keeps.
+/// How many root sets a [`RootsCache`] keeps.
 const ROOTS_KEPT: usize = 8;
 
 /// The largest relative change of any value for which a solved `H`'s roots start Newton's
@@ -786,7 +850,7 @@ enum Lookup {
     Cold,
 }
 
-/// [`roots_of_h`] with the roots of the nearest `H` in [`ROOTS`] as its hint. Returns the roots
+/// [`roots_of_h`] with the roots of the nearest `H` in the entered [`RootsCache`] as its hint. Returns the roots
 /// and whether they came from a nearby `H`'s (not the same `H` again, not cold).
 fn roots_of_h_cached(
     groups: &[Group<f64>],
@@ -817,12 +881,14 @@ fn roots_of_h_cached(
     };
     let nearest = match lookup {
         Lookup::Cold => None,
-        Lookup::Cached => ROOTS.with(|c| {
-            c.borrow()
-                .iter()
-                .filter(|(s, _, _)| *s == sizes)
-                .map(|(_, v, r)| (distance(v), r.clone()))
-                .min_by(|a, b| a.0.total_cmp(&b.0))
+        Lookup::Cached => ENTERED.with(|c| {
+            c.borrow().as_ref().and_then(|cache| {
+                cache
+                    .iter()
+                    .filter(|(s, _, _)| *s == sizes)
+                    .map(|(_, v, r)| (distance(v), r.clone()))
+                    .min_by(|a, b| a.0.total_cmp(&b.0))
+            })
         }),
     };
     let (roots, hinted) = match nearest {
@@ -836,13 +902,14 @@ fn roots_of_h_cached(
         Some((dist, r)) if dist <= HINT_DISTANCE => roots_of_h(groups, d, &r)?,
         _ => roots_of_h(groups, d, &[])?,
     };
-    ROOTS.with(|c| {
-        let mut cache = c.borrow_mut();
-        cache.retain(|(s, v, _)| !(*s == sizes && *v == values));
-        if cache.len() >= ROOTS_KEPT {
-            cache.remove(0);
+    ENTERED.with(|c| {
+        if let Some(cache) = c.borrow_mut().as_mut() {
+            cache.retain(|(s, v, _)| !(*s == sizes && *v == values));
+            if cache.len() >= ROOTS_KEPT {
+                cache.remove(0);
+            }
+            cache.push((sizes, values, roots.clone()));
         }
-        cache.push((sizes, values, roots.clone()));
     });
     Ok((roots, hinted))
 }
@@ -1192,20 +1259,21 @@ mod tests {
             )
             .unwrap()
         };
-        RootsCache::default().install();
+        // Outside of a cache: cold.
         let cold = model(0.93, 0.006);
-        RootsCache::default().install();
-        // Within the hint's reach: every value of H within 5% (the order moves each term's gain
-        // by (2e5)^0.001, 1.2%).
-        let _ = model(0.929, 0.00599);
-        let hinted = HINTED.with(|h| h.get());
-        let warm = model(0.93, 0.006);
-        assert_eq!(
-            HINTED.with(|h| h.get()),
-            hinted + 1,
-            "the hint was not used"
-        );
-        let again = model(0.93, 0.006);
+        let (warm, again) = RootsCache::new().enter(|| {
+            // Within the hint's reach: every value of H within 5% (the order moves each term's
+            // gain by (2e5)^0.001, 1.2%).
+            let _ = model(0.929, 0.00599);
+            let hinted = HINTED.with(|h| h.get());
+            let warm = model(0.93, 0.006);
+            assert_eq!(
+                HINTED.with(|h| h.get()),
+                hinted + 1,
+                "the hint was not used"
+            );
+            (warm, model(0.93, 0.006))
+        });
         assert_eq!(cold.real.len(), warm.real.len());
         assert_eq!(cold.complex.len(), warm.complex.len());
         let mut a: Vec<f64> = cold.real.iter().map(|p| p.0).collect();
@@ -1226,6 +1294,53 @@ mod tests {
         assert_eq!(format!("{:?}", warm.real), format!("{:?}", again.real));
     }
 
+    /// Outside of a cache a build keeps nothing: after a nearby model's build it is the cold
+    /// build to the bit, with no hint used. A cache entered inside another stands for it and is
+    /// handed back with what was built in it, the outer one restored as it was; a helper's copy
+    /// ([`RootsCache::entered`]) is the entered cache's content; [`RootsCache::afresh`] inside a
+    /// cache empties it and leaves its own result in it.
+    #[test]
+    fn a_cache_is_a_value_entered_for_a_computation() {
+        let model = |a1: f64| {
+            pole_residue::<f64>(
+                &[(6.82, 0.0)],
+                &[(2.655e-5, 1.75), (a1, 0.93), (1.0, 0.0)],
+                (1e-3, 2e5),
+                &ApproxSpec::default(),
+            )
+            .unwrap()
+        };
+        let key = |p: &PoleResidue<f64>| format!("{:?} {:?}", p.real, p.complex);
+        let cold = key(&model(0.006));
+        let hinted = HINTED.with(|h| h.get());
+        let _ = model(0.00599);
+        assert_eq!(key(&model(0.006)), cold);
+        assert_eq!(HINTED.with(|h| h.get()), hinted, "a hint outside of a cache");
+        assert!(RootsCache::entered().is_empty());
+        let mut outer = RootsCache::new();
+        let mut inner = RootsCache::new();
+        outer.enter(|| {
+            let _ = model(0.00599);
+            let seen = RootsCache::entered().0.len();
+            assert_eq!(seen, 1);
+            inner.enter(|| {
+                assert!(RootsCache::entered().is_empty());
+                let _ = model(0.007);
+                let _ = model(0.008);
+            });
+            assert_eq!(RootsCache::entered().0.len(), seen, "the outer cache changed");
+            RootsCache::afresh(|| {
+                assert!(RootsCache::entered().is_empty());
+                let _ = model(0.006);
+            });
+        });
+        assert_eq!((outer.0.len(), inner.0.len()), (1, 2));
+        assert!(RootsCache::entered().is_empty());
+        // outside of any: `afresh` enters a cache of its own for its computation alone
+        RootsCache::afresh(|| assert!(RootsCache::entered().is_empty()));
+        assert!(RootsCache::entered().is_empty());
+    }
+
     /// An LM step's change (a denominator coefficient 10% and an order 0.001 away, within
     /// [`HINT_DISTANCE`] but beyond the former 0.05) is found from the hint, and the poles and
     /// residues equal the cold build's to 1e-12 relative (Newton polishes each root to rounding
@@ -1241,17 +1356,18 @@ mod tests {
             )
             .unwrap()
         };
-        RootsCache::default().install();
         let cold = model(0.9186, 2.69e-5);
-        RootsCache::default().install();
-        let _ = model(0.9176, 2.69e-5 / 1.1);
-        let hinted = HINTED.with(|h| h.get());
-        let warm = model(0.9186, 2.69e-5);
-        assert_eq!(
-            HINTED.with(|h| h.get()),
-            hinted + 1,
-            "the hint was not used"
-        );
+        let warm = RootsCache::new().enter(|| {
+            let _ = model(0.9176, 2.69e-5 / 1.1);
+            let hinted = HINTED.with(|h| h.get());
+            let warm = model(0.9186, 2.69e-5);
+            assert_eq!(
+                HINTED.with(|h| h.get()),
+                hinted + 1,
+                "the hint was not used"
+            );
+            warm
+        });
         assert_eq!(cold.real.len(), warm.real.len());
         assert_eq!(cold.complex.len(), warm.complex.len());
         let key = |pr: &PoleResidue<f64>| {
@@ -1314,8 +1430,8 @@ mod tests {
         use crate::scalar::Dual;
         let dt = 2e-4;
         let band = (1e-3, 30.0 * std::f64::consts::PI / dt);
+        // (Each build cold: outside of a cache.)
         let build = |zeta: Dual<1>| {
-            RootsCache::default().install();
             let c = |v: f64| Dual::<1>::cst(v);
             pole_residue::<Dual<1>>(
                 &[(c(6.8), c(0.0))],
@@ -1404,13 +1520,14 @@ mod tests {
                 )
                 .unwrap()
             };
-            RootsCache::default().install();
             let cold = modes_of(&build(Dual::var(zeta, 0)));
-            RootsCache::default().install();
-            let _ = build(Dual::var(near, 0));
-            let hinted = HINTED.with(|h| h.get());
-            let warm = modes_of(&build(Dual::var(zeta, 0)));
-            assert_eq!(HINTED.with(|h| h.get()), hinted + served, "{zeta}");
+            let warm = RootsCache::new().enter(|| {
+                let _ = build(Dual::var(near, 0));
+                let hinted = HINTED.with(|h| h.get());
+                let warm = modes_of(&build(Dual::var(zeta, 0)));
+                assert_eq!(HINTED.with(|h| h.get()), hinted + served, "{zeta}");
+                warm
+            });
             assert_eq!(cold.len(), warm.len(), "{zeta}");
             let w_max = cold.iter().map(|m| m.2.norm()).fold(0.0, f64::max);
             for (c, w) in cold.iter().zip(&warm) {

@@ -296,7 +296,16 @@ pub fn run_joint(
     first: &str,
     obs: &mut dyn Observe,
 ) -> Result<JointReport> {
-    fresh_pole_cache();
+    with_own_poles(|| run_joint_request(req, data, first, obs))
+}
+
+/// [`run_joint`] in the request's pole cache.
+fn run_joint_request(
+    req: &TimeRequest,
+    data: &TimeData,
+    first: &str,
+    obs: &mut dyn Observe,
+) -> Result<JointReport> {
     if req.diagnose || super::auto_label(&req.structure).0 {
         return Err(Error::Options(
             "a joint fit takes a named structure, without the diagnosis".into(),
@@ -465,11 +474,12 @@ pub fn runs() -> usize {
     RUNS.load(std::sync::atomic::Ordering::Relaxed)
 }
 
-/// Empties this thread's cache of solved poles (`fracsim::modal::RootsCache`) at the start of a
-/// request: its hints move the last bits of a fit, so without this a record fitted after others
-/// on the same thread (a fleet's loop, a Dask worker) would not give the fit it gives alone.
-fn fresh_pole_cache() {
-    fracsim::modal::RootsCache::default().install();
+/// `f` with a cache of solved poles of its own (`fracsim::modal::RootsCache`), entered for the
+/// request: the models the request builds on this thread find their poles from it, and nothing
+/// of it outlives the request (its hints move the last bits of a fit), so that a record fitted
+/// after others on the same thread (a fleet's loop, a Dask worker) gives the fit it gives alone.
+fn with_own_poles<R>(f: impl FnOnce() -> R) -> R {
+    fracsim::modal::RootsCache::new().enter(f)
 }
 
 /// The diagnosis options of a request.
@@ -512,7 +522,11 @@ pub fn diagnose_options(req: &TimeRequest) -> DiagnoseOptions {
 /// ([`Error::NotEnoughData`], [`Error::Data`]), numerical breakdown, [`Error::Cancelled`].
 pub fn run(req: &TimeRequest, data: &TimeData, obs: &mut dyn Observe) -> Result<TimeReport> {
     RUNS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-    fresh_pole_cache();
+    with_own_poles(|| run_request(req, data, obs))
+}
+
+/// [`run`] in the request's pole cache.
+fn run_request(req: &TimeRequest, data: &TimeData, obs: &mut dyn Observe) -> Result<TimeReport> {
     let t0 = std::time::Instant::now();
     let rec = &data.record;
     let duration = rec.t.last().copied().unwrap_or(0.0) - rec.t.first().copied().unwrap_or(0.0);
@@ -877,8 +891,7 @@ fn final_fit(d: &Diagnosis, base: &ModelFit, dt: f64, file: Option<ScoreReport>)
 /// # Errors
 /// As [`run`].
 pub fn rescore(req: &TimeRequest, spec: &FracModel, data: &TimeData) -> Result<FitFigures> {
-    fresh_pole_cache();
-    let id = rescore_id(req, spec, data)?;
+    let id = with_own_poles(|| rescore_id(req, spec, data))?;
     Ok(FitFigures {
         estimation: id.estimation,
         validation: id.validation,

@@ -204,8 +204,8 @@ pub const PRE_SCREEN_ITERATIONS: usize = 10;
 /// sooner is the full fit; one still more than `FAR^2` times the user's usable base fit's held-out
 /// RMSE `user_rmse`, or behind it and not usable ([`pre_screened_out`]), is kept as it is and
 /// screened out (the best usable base fit is at most the user's, so it trails that by twice the
-/// margin at which a screening fit is left out, [`FAR`]); the others go on to [`screen_candidate`] on a fresh thread (its pole cache then the
-/// screening fit's own, as without the pre-screen).
+/// margin at which a screening fit is left out, [`FAR`]); the others go on to [`screen_candidate`]
+/// (from a pole cache of its own, as without the pre-screen).
 fn pre_screen(
     rec: &Record,
     model: &FracModel,
@@ -221,12 +221,7 @@ fn pre_screen(
     if full || hopeless {
         return (fitted, full);
     }
-    std::thread::scope(|scope| {
-        scope
-            .spawn(|| screen_candidate(rec, model, opts))
-            .join()
-            .unwrap_or_else(|_| ((panicked(), None), true))
-    })
+    screen_candidate(rec, model, opts)
 }
 
 /// Whether the pre-screened fit of the user's structure with a free integrator (held-out RMSE
@@ -265,15 +260,15 @@ fn screen_with(
     }
 }
 
-/// A base fit and the pole cache its thread ended with ([`RootsCache`]): the diagnosis of that
-/// structure starts from it, as it did when it ran on the fit's thread (the base model is then
-/// simulated from the same poles, bit for bit).
+/// A base fit and the pole cache it ended with ([`RootsCache`]): the diagnosis of that
+/// structure starts from it (the base model is then simulated from the same poles, bit for bit).
 type Fitted = (Result<Identification>, Option<RootsCache>);
 
-/// [`identify`] on this thread, and this thread's pole cache after it.
+/// [`identify`] in a pole cache of its own, and that cache after it.
 fn identified(rec: &Record, model: &FracModel, opts: &IdentOptions) -> Fitted {
-    let id = identify(rec, model, opts);
-    (id, Some(RootsCache::of_this_thread()))
+    let mut roots = RootsCache::new();
+    let id = roots.enter(|| identify(rec, model, opts));
+    (id, Some(roots))
 }
 
 /// One candidate structure's base fit, whether it was screened out (kept as screened, not
@@ -369,7 +364,7 @@ impl Shared {
     /// first, and their base fits, when final, are diagnosed at once ([`Shared::diagnose_early`])
     /// beside the user's; with every screening fit started together the cores were shared
     /// evenly among all of them and such a diagnosis started last, alone on one core at the end.
-    /// Each fit runs on its own fresh thread as before (its pole cache its own): what it
+    /// Each fit runs on its own thread as before (its pole cache its own): what it
     /// computes does not depend on when it runs.
     /// `None` when the user's fit failed (nothing more is fitted).
     fn turn(&self, rank: usize) -> Option<Turn<'_>> {
@@ -436,7 +431,7 @@ impl Shared {
     /// The diagnosis of a final base fit, started at once (while other candidates are still
     /// being fitted) when it is usable and within [`FAR`] of the best usable final base fit so
     /// far, and given up as soon as a better one puts it beyond `FAR` (it is then not diagnosed,
-    /// [`diagnosis_order`]). On a fresh thread from the fit's pole cache, as
+    /// [`diagnosis_order`]). On a thread of its own from the fit's pole cache, as
     /// [`diagnose_these`]: the same diagnosis, bit for bit.
     fn diagnose_early(
         &self,
@@ -464,15 +459,10 @@ impl Shared {
             r > FAR * p.best || p.user == UserFit::Failed
         };
         let halt = |round, rmse| board.halt(i, round, rmse);
-        let cache = cache.clone();
+        let mut cache = cache.clone().unwrap_or_default();
         let d = std::thread::scope(|scope| {
             scope
-                .spawn(|| {
-                    if let Some(c) = cache {
-                        c.install();
-                    }
-                    super::diagnose_until(rec, id, dopts, &stop, &halt)
-                })
+                .spawn(|| cache.enter(|| super::diagnose_until(rec, id, dopts, &stop, &halt)))
                 .join()
                 .unwrap_or_else(|_| {
                     Err(Error::Numerical("a structure's diagnosis panicked".into()))
@@ -488,8 +478,7 @@ impl Shared {
 /// The base fits of the candidate structures (`user` fits the first, on the calling thread,
 /// while the others' screening fits run beside it: it holds a core as a screening fit does),
 /// screened ([`screen_candidate`]): a candidate whose screening fit used its budget is fitted in
-/// full, from the start, on a fresh thread (so that the per-thread pole cache is the full fit's
-/// own, as without the screening), unless it is still more than [`FAR`] times behind the best
+/// full, from the start (from a pole cache of its own, as without the screening), unless it is still more than [`FAR`] times behind the best
 /// usable full base fit among the screening fits (held-out RMSE), or not usable when a usable
 /// full base fit exists (a fit that after the refits' budget still has problems, a singular
 /// covariance, orders at a bound, is not expected to end usable and overtake a usable one): then
@@ -652,13 +641,9 @@ fn no_start(fitted: &Fitted) -> bool {
     matches!(fitted.0, Err(Error::NoStart(_)))
 }
 
-/// [`identified`] on a fresh thread (its pole cache empty).
+/// [`identified`] (its pole cache its own).
 fn fresh_fit(rec: &Record, m: &FracModel, opts: &IdentOptions) -> Fitted {
-    std::thread::scope(|sc| {
-        sc.spawn(|| identified(rec, m, opts))
-            .join()
-            .unwrap_or_else(|_| (panicked(), None))
-    })
+    identified(rec, m, opts)
 }
 
 /// The error of a fit whose thread panicked.
@@ -718,11 +703,10 @@ pub(super) fn diagnose_these(
             .filter_map(|&i| ids[i].as_ref().ok().map(|id| (i, id, caches[i].clone())))
             .map(|(i, id, cache)| {
                 let h = scope.spawn(move || {
-                    if let Some(c) = cache {
-                        c.install();
-                    }
                     let halt = |round, rmse| board.is_some_and(|b| b.halt(i, round, rmse));
-                    super::diagnose_until(rec, id, dopts, &|| false, &halt)
+                    cache
+                        .unwrap_or_default()
+                        .enter(|| super::diagnose_until(rec, id, dopts, &|| false, &halt))
                 });
                 (i, h)
             })
@@ -1208,8 +1192,7 @@ type AutoFit = (Result<Identification>, Option<(FracModel, String)>);
 /// fit that is the full fit is kept; one that failed in its start ([`no_start`]) is that error; a
 /// degenerate one is refitted at once as the smallest reduced structure ([`reduce_screened`])
 /// instead of running its full budget along the directions it cannot determine; otherwise the
-/// structure is fitted in full on a fresh thread (its pole cache empty, as without the
-/// screening). Other structures are fitted in full.
+/// structure is fitted in full (from an empty pole cache, as without the screening). Other structures are fitted in full.
 fn auto_fit(rec: &Record, m: &FracModel, opts: &IdentOptions) -> AutoFit {
     if m.kind != crate::oe::Kind::TwoMass {
         return (identify(rec, m, opts), None);
@@ -1307,7 +1290,7 @@ fn reduce_one(
 /// A degenerate two-mass screening fit `screened` (it used its budget, and [`reduced_two_mass`]
 /// finds a collapse) refitted at once as the smallest reduced structure, every collapse made
 /// (`g s/(a2 s^nu + 1) * s/(c s^lambda + 1)`, [`reduced_model`]) from the screening fit's values,
-/// instead of being fitted in full first: the refit (on a fresh thread, with its pole cache)
+/// instead of being fitted in full first: the refit (with its own pole cache)
 /// and the reduced structure with the words when the refit passes [`reduce_one`]'s test with
 /// the screening fit's held-out RMSE as the bound (no [`TIE`]: it must fit at least as well as
 /// the degenerate fit so far). The full fit of a degenerate two-mass structure moves along the

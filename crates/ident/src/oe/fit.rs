@@ -9,6 +9,7 @@ use crate::lm::{
 };
 use crate::metrics::Fit;
 use crate::{Error, Result};
+use fracsim::modal::RootsCache;
 use fracsim::{Dual, FracTf};
 use std::time::{Duration, Instant};
 
@@ -254,14 +255,15 @@ fn jacobian<S: Structure>(
         rest(yhat, &mut cols_second, out_b)?;
     } else {
         let mut y_first = vec![0.0; u.len()];
-        // The helper thread starts from this thread's solved poles, so that the Jacobian does
-        // not depend on which thread computes which part.
-        let roots = fracsim::modal::RootsCache::of_this_thread();
+        // The helper thread starts from a copy of this thread's pole cache, so that the
+        // Jacobian does not depend on which thread computes which part.
+        let mut roots = RootsCache::entered();
         let (a, b) = std::thread::scope(|sc| {
             let h = sc.spawn(|| {
-                roots.install();
-                at.duals(&first, &mut y_first, &mut cols_first)?;
-                at.linear(lin_a, &y_first, out_a)
+                roots.enter(|| {
+                    at.duals(&first, &mut y_first, &mut cols_first)?;
+                    at.linear(lin_a, &y_first, out_a)
+                })
             });
             let b = rest(yhat, &mut cols_second, out_b);
             (h.join(), b)
@@ -722,12 +724,12 @@ impl<S: Structure> FitProblem<'_, S> {
         let (s, u, y, dt, opts) = (self.s, self.u, self.y, self.dt, self.opts);
         let (free, base) = (self.free, self.base);
         std::thread::scope(|sc| {
-            let roots = fracsim::modal::RootsCache::of_this_thread();
-            let at_start = sc.spawn(|| {
-                // (From this thread's solved poles, as the Jacobian's helper.)
-                roots.install();
+            // (From a copy of this thread's pole cache, as the Jacobian's helper.)
+            let mut roots = RootsCache::entered();
+            let at_start = sc.spawn(move || {
                 let p = physical(s, free, base, theta0);
-                super::init::sse_of(s, &p, u, y, dt, opts.skip, &mut vec![0.0; u.len()])
+                let mut buf = vec![0.0; u.len()];
+                roots.enter(|| super::init::sse_of(s, &p, u, y, dt, opts.skip, &mut buf))
             });
             let (u, y) = (&u[..lead], &y[..lead]);
             let mut prob = OeProblem::new(s, u, y, dt, opts.skip, free, base, progress);
@@ -1007,8 +1009,9 @@ pub fn identify(rec: &Record, model: &FracModel, opts: &IdentOptions) -> Result<
 
 /// [`identify`] with a progress callback as in [`fit_with_progress`].
 ///
-/// Starts from an empty pole cache on the calling thread (`fracsim::modal::RootsCache`): the
-/// result does not depend on what ran before on it; the cache the fit ends with stays.
+/// Starts from an empty pole cache ([`RootsCache::afresh`]): the result does not depend on what
+/// ran before on the calling thread. Inside a cache entered by the caller (a request,
+/// [`RootsCache::enter`]) that cache is emptied and holds what the fit ends with.
 ///
 /// Scale invariant: a record whose input or output magnitude is outside `[2^-30, 2^30]` (data in
 /// another unit, 1e-20 or 1e+20) is fitted scaled by powers of two to magnitude 1, with the
@@ -1026,7 +1029,16 @@ pub fn identify_with_progress(
 ) -> Result<Identification> {
     // From an empty pole cache: its hints move the last bits of a fit, so a record fitted after
     // others on the same thread gives the fit it gives alone.
-    fracsim::modal::RootsCache::default().install();
+    RootsCache::afresh(|| identify_afresh(rec, model, opts, progress))
+}
+
+/// [`identify_with_progress`] in the pole cache it starts.
+fn identify_afresh(
+    rec: &Record,
+    model: &FracModel,
+    opts: &IdentOptions,
+    progress: &mut dyn FnMut(usize, f64),
+) -> Result<Identification> {
     let ts = timescale::TimeScale::of(rec, model).filter(|_| opts.fit.lm.max_iterations > 0);
     let Some(ts) = ts else {
         return identify_in_units(rec, model, opts, progress);

@@ -556,12 +556,12 @@ fn candidate_sses(
             })
             .collect();
     }
-    // The helper starts from this thread's solved poles (as the Jacobian's helper does).
-    let roots = fracsim::modal::RootsCache::of_this_thread();
+    // The helper starts from a copy of this thread's pole cache (as the Jacobian's helper does).
+    let mut roots = fracsim::modal::RootsCache::entered();
     let (a, b) = std::thread::scope(|sc| {
         let h = sc.spawn(|| {
-            roots.install();
-            sse_of(lin, &cands[1].0, u, y, dt, 0, &mut vec![0.0; u.len()])
+            let mut buf = vec![0.0; u.len()];
+            roots.enter(|| sse_of(lin, &cands[1].0, u, y, dt, 0, &mut buf))
         });
         let a = sse_of(lin, &cands[0].0, u, y, dt, 0, buf);
         // Were the thread lost, its candidate is simulated here.

@@ -63,6 +63,17 @@ pub fn identify_joint(
     model: &FracModel,
     opts: &IdentOptions,
 ) -> Result<JointIdentification> {
+    // From an empty pole cache, as [`super::identify`]: the joint fit goes on from the first
+    // record's.
+    fracsim::modal::RootsCache::afresh(|| identify_joint_afresh(recs, model, opts))
+}
+
+/// [`identify_joint`] in the pole cache it starts.
+fn identify_joint_afresh(
+    recs: &[Record],
+    model: &FracModel,
+    opts: &IdentOptions,
+) -> Result<JointIdentification> {
     let Some(first) = recs.first() else {
         return Err(Error::Data("no record to fit".into()));
     };
