@@ -213,3 +213,63 @@ impl Firmware {
         out
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::super::pty::open_pty;
+    use super::super::{SimConfig, SimStats};
+    use super::*;
+    use std::sync::{Arc, Mutex};
+    use std::time::Duration;
+
+    fn firmware(baud: u32) -> (Firmware, Arc<Mutex<SimStats>>) {
+        let (master, _slave) = open_pty().expect("pty");
+        let stats = Arc::new(Mutex::new(SimStats::default()));
+        let cfg = SimConfig {
+            baud,
+            ..SimConfig::default()
+        };
+        let fw = Firmware::new(cfg, master, stats.clone()).expect("firmware");
+        (fw, stats)
+    }
+
+    #[test]
+    fn transmit_sends_at_the_baud_rate_and_bursts_at_most_10_ms_plus_64_bytes() {
+        // 9600 baud, 8N1: 960 bytes/s
+        let (mut fw, stats) = firmware(9600);
+        fw.tx_prio.push_back(vec![0x55; 400]);
+        let now = Instant::now();
+        fw.transmit(0.010, now);
+        assert_eq!(stats.lock().unwrap().bytes_sent, 9); // 9.6 bytes due
+        fw.transmit(0.100, now);
+        // 0.6 + 96 due, but the budget holds at most 10 ms of line time plus 64 bytes: 73.6
+        assert_eq!(stats.lock().unwrap().bytes_sent, 9 + 73);
+        assert_eq!(stats.lock().unwrap().frames_sent, 1);
+    }
+
+    #[test]
+    fn a_stalled_drive_overruns_its_receive_fifo_at_the_line_rate() {
+        let (mut fw, stats) = firmware(9600);
+        let now = Instant::now();
+        fw.stall_until = Some(now + Duration::from_secs(1));
+        fw.rx_pending.extend([0x11; 100]);
+        // 50 ms at 960 bytes/s: 48 bytes arrive, the 16-byte FIFO keeps 16
+        fw.receive(0.050, now);
+        assert_eq!(fw.rx_fifo.len(), 16);
+        assert_eq!(stats.lock().unwrap().rx_overruns, 48 - 16);
+        assert_eq!(fw.rx_pending.len(), 100 - 48);
+    }
+
+    #[test]
+    fn bit_flips_change_one_bit_per_damaged_byte_at_the_rate_asked() {
+        let (mut fw, _) = firmware(9600);
+        fw.cfg.faults.bit_error_rate = 0.01;
+        let n = 20_000;
+        let flipped: Vec<u32> = (0..n).map(|_| fw.flip_bits(0).count_ones()).collect();
+        assert!(flipped.iter().all(|&c| c <= 1));
+        let hits = flipped.iter().filter(|&&c| c == 1).count() as f64;
+        // P(byte damaged) = 1 - 0.99^8 = 0.0773; sd of the count sqrt(n p (1-p)) = 38
+        let want = n as f64 * (1.0 - 0.99f64.powi(8));
+        assert!((hits - want).abs() < 5.0 * 38.0, "{hits} vs {want}");
+    }
+}
