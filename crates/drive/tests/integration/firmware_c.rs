@@ -25,6 +25,7 @@ fn spawn(firmware: FirmwareKind) -> DriveSim {
             noise_std: 0.05,
             speed_quant: 0.01,
             r_ohm: 1.0,
+            offset_v: 0.1,
         },
         faults: Faults {
             seed: 7,
