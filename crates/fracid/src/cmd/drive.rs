@@ -140,7 +140,7 @@ pub struct SimArgs {
     #[arg(long, short)]
     pub verbose: bool,
     /// Firmware behind the pty: `rust` (the simulator's own) or `c` (the C firmware of
-    /// `firmware/`, as flashed on the F2812). Default: rust, or `c` if FRACID_SIM_FIRMWARE=c.
+    /// `firmware/`, as flashed on the F2812). Default: rust.
     #[arg(long, value_enum)]
     pub firmware: Option<SimFirmware>,
     /// Run the drive in virtual time: its clock runs as fast as the host allows instead of the
@@ -326,9 +326,8 @@ fn sim(a: SimArgs) -> Result<()> {
         link: a.link,
         verbose: a.verbose,
         firmware: match a.firmware {
-            Some(SimFirmware::Rust) => FirmwareKind::Rust,
+            Some(SimFirmware::Rust) | None => FirmwareKind::Rust,
             Some(SimFirmware::C) => FirmwareKind::C,
-            None => FirmwareKind::from_env(),
         },
         clock: if a.virtual_time {
             SimClock::Virtual
