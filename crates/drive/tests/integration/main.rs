@@ -30,6 +30,7 @@ mod e2e;
 mod e2e_control;
 mod firmware_c;
 mod loss;
+mod models;
 mod props;
 mod sine;
 mod vectors;
