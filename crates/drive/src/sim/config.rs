@@ -16,17 +16,6 @@ pub enum FirmwareKind {
     C,
 }
 
-impl FirmwareKind {
-    /// `FRACID_SIM_FIRMWARE`: `c` (or `C`) selects [`FirmwareKind::C`]; anything else, or unset,
-    /// [`FirmwareKind::Rust`].
-    pub fn from_env() -> Self {
-        match std::env::var("FRACID_SIM_FIRMWARE") {
-            Ok(v) if v.eq_ignore_ascii_case("c") => FirmwareKind::C,
-            _ => FirmwareKind::Rust,
-        }
-    }
-}
-
 /// How the simulator's clock runs.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum SimClock {
@@ -98,13 +87,12 @@ pub struct SimConfig {
 }
 
 impl Default for SimConfig {
-    /// The paper's motor, 115200 baud, no effects, no faults. The firmware is the Rust one unless
-    /// the environment variable `FRACID_SIM_FIRMWARE` is `c` ([`FirmwareKind::from_env`]), which
-    /// runs every simulator built from defaults (tests, `fracid drive sim`, the demo, the
-    /// Python package's) on the C firmware.
+    /// The paper's motor, 115200 baud, no effects, no faults, the Rust firmware, real time. Nothing
+    /// here depends on the environment: a caller that wants the C firmware sets
+    /// [`SimConfig::firmware`].
     fn default() -> Self {
         Self {
-            firmware: FirmwareKind::from_env(),
+            firmware: FirmwareKind::Rust,
             model: fracsim::FracTf::pmsm(6.82, 0.0059, 2.655e-5, 0.92, 0.8252)
                 .expect("the paper's model is valid"),
             approx: fracsim::ApproxSpec::default(),

@@ -21,20 +21,14 @@
 //! it (the host reading what was sent, the keepalive; a host in the same process keeps its
 //! keepalive on the drive's clock, [`crate::vclock`]).
 
-mod cfirmware;
 mod config;
-mod control;
-mod dispatch;
 mod effects;
 mod faults;
 mod firmware;
 mod handle;
-mod line;
 mod plant;
 mod pty;
-mod run;
 mod stats;
-mod vtime;
 
 pub use config::{
     FirmwareKind, SimClock, SimConfig, VIRTUAL_HOST_GRACE, VIRTUAL_MAX_UNREAD, VIRTUAL_STEP,

@@ -1,9 +1,9 @@
 //! The serial line: baud-rate pacing both ways, the receive FIFO, line faults, the link state.
 
-use super::firmware::Firmware;
-use super::pty::{open_pty, retarget_link, watch_pty};
 use super::vtime::VIRTUAL_QUIET_READ;
-use super::SimClock;
+use super::Firmware;
+use crate::sim::pty::{open_pty, retarget_link, watch_pty};
+use crate::sim::SimClock;
 use rand::Rng;
 use std::io::{Read, Write};
 use std::os::fd::AsRawFd;
@@ -216,9 +216,9 @@ impl Firmware {
 
 #[cfg(test)]
 mod tests {
-    use super::super::pty::open_pty;
-    use super::super::{SimConfig, SimStats};
     use super::*;
+    use crate::sim::pty::open_pty;
+    use crate::sim::{SimConfig, SimStats};
     use std::sync::{Arc, Mutex};
     use std::time::Duration;
 

@@ -1,12 +1,12 @@
 //! The Rust firmware's command dispatch: frames decoded from the FIFO, answers, the replay
 //! cache, each command's checks.
 
-use super::firmware::{Firmware, FW_MAJOR, FW_MINOR};
-use super::plant::Plant;
 use super::run::Excitation;
+use super::{Firmware, FW_MAJOR, FW_MINOR};
 use crate::codec;
 use crate::prbs::Lfsr;
 use crate::protocol::*;
+use crate::sim::plant::Plant;
 use std::sync::atomic::Ordering;
 use std::time::Instant;
 

@@ -1,8 +1,8 @@
 //! The Rust firmware's sample loop: the command of each sample (excitation, speed loop or
 //! ramp-down), the motor, the channels, the trips.
 
-use super::firmware::Firmware;
 use super::run::{Excitation, Run};
+use super::Firmware;
 use crate::prbs::Lfsr;
 use crate::protocol::*;
 use std::time::{Duration, Instant};

@@ -1,15 +1,24 @@
-//! The firmware thread's state and main loop, scheduled faults and the drive reset.
+//! The firmware thread: its state and main loop, scheduled faults and the drive reset; the line
+//! and virtual time around the firmware, the Rust firmware's dispatch and sample loop, and the C
+//! firmware behind the same line.
 
-use super::cfirmware::CState;
+mod cfirmware;
+mod control;
+mod dispatch;
+mod line;
+mod run;
+mod vtime;
+
 use super::plant::Plant;
-use super::run::Run;
 use super::{FirmwareKind, SimClock, SimConfig, SimStats};
 use crate::codec::StreamDecoder;
 use crate::error::Result;
 use crate::protocol::*;
 use crate::vclock::VirtualClock;
+use cfirmware::CState;
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
+use run::Run;
 use serialport::TTYPort;
 use std::collections::VecDeque;
 use std::sync::atomic::{AtomicBool, AtomicU16, Ordering};
@@ -17,73 +26,73 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 pub(super) struct Firmware {
-    pub(super) cfg: SimConfig,
-    pub(super) master: Option<TTYPort>,
-    pub(super) stats: Arc<Mutex<SimStats>>,
+    cfg: SimConfig,
+    master: Option<TTYPort>,
+    stats: Arc<Mutex<SimStats>>,
     /// 0, or 0x100 | the command type whose next answer is lost.
     pub(super) lose_answer: Arc<AtomicU16>,
     /// The answer being produced now is to be lost.
-    pub(super) losing: bool,
-    pub(super) rng: StdRng,
-    pub(super) boot_id: u16,
-    pub(super) conf: Option<Configure>,
-    pub(super) plant: Option<Plant>,
-    pub(super) run: Option<Run>,
-    pub(super) last_run: Option<(u16, u32, u16, u16)>, // id, done, dropped, clamped
-    pub(super) last_end: Option<StreamEnd>,
+    losing: bool,
+    rng: StdRng,
+    boot_id: u16,
+    conf: Option<Configure>,
+    plant: Option<Plant>,
+    run: Option<Run>,
+    last_run: Option<(u16, u32, u16, u16)>, // id, done, dropped, clamped
+    last_end: Option<StreamEnd>,
     /// The controller being downloaded: LOAD_CTRL and the sections loaded so far.
-    pub(super) ctrl_load: Option<(LoadCtrl, Vec<LoadSection>)>,
-    pub(super) fault: u8,
-    pub(super) next_run_id: u16,
-    pub(super) tx_seq: u16,
-    pub(super) cache: Option<(u16, u8, Vec<u8>)>,
-    pub(super) dec: StreamDecoder,
+    ctrl_load: Option<(LoadCtrl, Vec<LoadSection>)>,
+    fault: u8,
+    next_run_id: u16,
+    tx_seq: u16,
+    cache: Option<(u16, u8, Vec<u8>)>,
+    dec: StreamDecoder,
     // line model
-    pub(super) rx_pending: VecDeque<u8>,
-    pub(super) rx_fifo: VecDeque<u8>,
-    pub(super) rx_budget: f64,
-    pub(super) tx_prio: VecDeque<Vec<u8>>,
-    pub(super) tx_data: VecDeque<Vec<u8>>,
-    pub(super) tx_bytes: VecDeque<u8>,
-    pub(super) tx_budget: f64,
-    pub(super) burst_left: usize,
-    pub(super) last_tick: Instant,
+    rx_pending: VecDeque<u8>,
+    rx_fifo: VecDeque<u8>,
+    rx_budget: f64,
+    tx_prio: VecDeque<Vec<u8>>,
+    tx_data: VecDeque<Vec<u8>>,
+    tx_bytes: VecDeque<u8>,
+    tx_budget: f64,
+    burst_left: usize,
+    last_tick: Instant,
     /// When the run's keepalive timer was last reset: its START, or a KEEPALIVE of its run id.
-    pub(super) last_keepalive: Instant,
-    pub(super) rx_errors: u16,
+    last_keepalive: Instant,
+    rx_errors: u16,
     // faults
-    pub(super) run_samples_total: u64,
-    pub(super) stall_until: Option<Instant>,
-    pub(super) dead_until: Option<Instant>,
-    pub(super) reopen_at: Option<Instant>,
-    pub(super) boot_until: Option<Instant>,
-    pub(super) fired: [bool; 3],
+    run_samples_total: u64,
+    stall_until: Option<Instant>,
+    dead_until: Option<Instant>,
+    reopen_at: Option<Instant>,
+    boot_until: Option<Instant>,
+    fired: [bool; 3],
     /// The C firmware, when [`FirmwareKind::C`].
-    pub(super) c: Option<CState>,
+    c: Option<CState>,
     // virtual time (SimClock::Virtual)
     /// The drive's clock.
-    pub(super) vnow: Instant,
+    vnow: Instant,
     /// Wall time of the loop's last pass (idle, the clock follows the wall clock).
-    pub(super) wall_last: Instant,
+    wall_last: Instant,
     /// Wall time of `last_keepalive`.
-    pub(super) last_keepalive_wall: Instant,
+    last_keepalive_wall: Instant,
     /// Bytes sent that the pty could not take yet.
-    pub(super) out_backlog: VecDeque<u8>,
+    out_backlog: VecDeque<u8>,
     /// The pty slave, held open to see what the host has not read.
     pub(super) slave: Option<std::fs::File>,
     /// Since when (wall) the clock waits for the host to read.
-    pub(super) wait_since: Option<Instant>,
+    wait_since: Option<Instant>,
     /// The host has read nothing for [`VIRTUAL_HOST_GRACE`]: the clock no longer waits for it.
-    pub(super) host_absent: bool,
+    host_absent: bool,
     /// The drive's clock shared with an in-process host ([`DriveSim::virtual_clock`]).
     pub(super) vclock: Option<VirtualClock>,
     /// Wall time of the last write to the pty.
-    pub(super) last_write: Option<Instant>,
+    last_write: Option<Instant>,
     /// The pty was counted within [`VIRTUAL_MAX_UNREAD`] at least [`VIRTUAL_PTY_LAG`] after the
     /// last write: until the next write it need not be counted again.
-    pub(super) unread_settled: bool,
+    unread_settled: bool,
     /// Steps since the master was last read (virtual time, quiet line).
-    pub(super) quiet_steps: u32,
+    quiet_steps: u32,
 }
 
 pub(super) const FW_MAJOR: u8 = 1;

@@ -1,6 +1,6 @@
 //! A run of the Rust firmware: its excitation, start, DATA blocks and end.
 
-use super::firmware::Firmware;
+use super::Firmware;
 use crate::codec;
 use crate::prbs::Lfsr;
 use crate::protocol::*;

@@ -1,7 +1,7 @@
-//! The C firmware of `firmware/` behind the line model ([`super::FirmwareKind::C`]).
+//! The C firmware of `firmware/` behind the line model ([`crate::sim::FirmwareKind::C`]).
 
-use super::firmware::Firmware;
-use super::plant::Plant;
+use super::Firmware;
+use crate::sim::plant::Plant;
 use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 

@@ -1,9 +1,9 @@
 //! Virtual time: the drive's clock advanced in steps, waiting for the host only where the
-//! protocol needs it ([`super::SimClock::Virtual`]).
+//! protocol needs it ([`crate::sim::SimClock::Virtual`]).
 
-use super::firmware::Firmware;
-use super::pty::unread;
-use super::{VIRTUAL_HOST_GRACE, VIRTUAL_MAX_UNREAD, VIRTUAL_STEP};
+use super::Firmware;
+use crate::sim::pty::unread;
+use crate::sim::{VIRTUAL_HOST_GRACE, VIRTUAL_MAX_UNREAD, VIRTUAL_STEP};
 use crate::vclock::VirtualClock;
 use std::os::fd::AsRawFd;
 use std::time::{Duration, Instant};
