@@ -10,6 +10,7 @@
 //! - [`data`]: records `t, u, y` from delimited text, sampling checks, operating point, split.
 //! - [`diagnose`]: residual diagnosis, the effect library, error before and after.
 //! - [`metrics`]: fit measures (NRMSE, RMSE), residual correlations with their bounds.
+//! - [`numeric`]: vectorised sums, dot products, ranges and finiteness checks over slices.
 
 pub mod app;
 pub mod bodefile;
@@ -22,7 +23,9 @@ pub mod levy;
 pub mod lm;
 pub mod matfile;
 pub mod metrics;
+pub mod numeric;
 pub mod oe;
+mod par;
 #[cfg(test)]
 mod testdata;
 
