@@ -8,6 +8,7 @@
 //! - [`oe`]: output-error identification in the time domain with exact sensitivities.
 //! - [`compare`]: two models side by side over a band (largest gain and phase differences, coefficients).
 //! - [`data`]: records `t, u, y` from delimited text, sampling checks, operating point, split.
+//! - [`files`]: bounded reading of input files (size, line length, text checks).
 //! - [`diagnose`]: residual diagnosis, the effect library, error before and after.
 //! - [`metrics`]: fit measures (NRMSE, RMSE), residual correlations with their bounds.
 //! - [`numeric`]: vectorised sums, dot products, ranges and finiteness checks over slices.
@@ -18,6 +19,7 @@ pub mod compare;
 pub mod data;
 pub mod diagnose;
 mod error;
+pub mod files;
 pub mod hold;
 pub mod levy;
 pub mod lm;
