@@ -247,7 +247,7 @@ pub fn column_indices(names: &[&str], wants: &[&str]) -> Result<Vec<usize>> {
 /// [`Error::Data`] naming the first NaN or infinite sample.
 pub fn check_finite(name: &str, col: &[f64]) -> Result<()> {
     // One vectorised pass; the sample is searched only when one is not finite.
-    if crate::lm::all_finite(col) {
+    if crate::numeric::all_finite(col) {
         return Ok(());
     }
     match col.iter().position(|v| !v.is_finite()) {
@@ -907,8 +907,8 @@ impl Record {
         match mode {
             OffsetMode::None => Offsets::default(),
             OffsetMode::Mean => Offsets {
-                u0: crate::lm::sum_of(&self.u[..n_est], |v| v) / n_est as f64,
-                y0: crate::lm::sum_of(&self.y[..n_est], |v| v) / n_est as f64,
+                u0: crate::numeric::sum_of(&self.u[..n_est], |v| v) / n_est as f64,
+                y0: crate::numeric::sum_of(&self.y[..n_est], |v| v) / n_est as f64,
             },
             OffsetMode::Initial if self.starts_with_step() => Offsets {
                 u0: 0.0,
@@ -969,13 +969,13 @@ impl Record {
     /// assert!(!flat.starts_with_step());
     /// ```
     pub fn starts_with_step(&self) -> bool {
-        let (lo, hi) = crate::lm::range_of(&self.u);
+        let (lo, hi) = crate::numeric::range_of(&self.u);
         let constant = hi - lo <= 1e-9 * hi.abs().max(lo.abs()).max(1e-300);
         if !constant || self.u[0] == 0.0 || !self.u[0].is_finite() || self.len() < 3 {
             return false;
         }
         let noise = diff_noise(&self.y);
-        let (ylo, yhi) = crate::lm::range_of(&self.y);
+        let (ylo, yhi) = crate::numeric::range_of(&self.y);
         yhi - ylo > STEP_NOISE_LEVELS * noise && yhi > ylo
     }
 
@@ -1007,13 +1007,13 @@ impl Record {
     /// ```
     pub fn rests_until(&self) -> Option<usize> {
         let n = self.len();
-        let (ulo, uhi) = crate::lm::range_of(&self.u);
+        let (ulo, uhi) = crate::numeric::range_of(&self.u);
         let tol = 1e-9 * uhi.abs().max(ulo.abs()).max(1e-300);
         let k1 = (1..n).find(|&k| (self.u[k] - self.u[0]).abs() > tol)?;
         if k1 < MIN_REST_SAMPLES || (k1 as f64) < MIN_REST_FRACTION * n as f64 {
             return None;
         }
-        let (ylo, yhi) = crate::lm::range_of(&self.y);
+        let (ylo, yhi) = crate::numeric::range_of(&self.y);
         let half = k1 / 2;
         let (a, b) = (&self.y[..half], &self.y[half..k1]);
         let mean = |w: &[f64]| w.iter().sum::<f64>() / w.len() as f64;
@@ -1038,7 +1038,7 @@ impl Record {
     /// [`Error::NotEnoughData`] when the input is constant.
     pub fn check_excitation(&self, n: usize) -> Result<()> {
         let u = &self.u[..n.clamp(1, self.len())];
-        let (lo, hi) = crate::lm::range_of(u);
+        let (lo, hi) = crate::numeric::range_of(u);
         if hi - lo <= 1e-9 * hi.abs().max(lo.abs()).max(1e-300) {
             return Err(Error::NotEnoughData(format!(
                 "the input is constant ({lo}) over the estimation part: no excitation"

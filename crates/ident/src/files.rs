@@ -132,7 +132,7 @@ const PARALLEL_CHECK_BYTES: usize = 1 << 20;
 /// a line feed) hold no NUL byte and are valid UTF-8; `None` when a half is not (the caller then
 /// finds and reports the fault) or the text is small.
 fn checked_in_halves(b: &[u8]) -> Option<bool> {
-    if b.len() < PARALLEL_CHECK_BYTES || !crate::lm::two_cores() {
+    if b.len() < PARALLEL_CHECK_BYTES || !crate::par::two_cores() {
         return None;
     }
     let cut = b.len() / 2 + memchr::memchr(b'\n', &b[b.len() / 2..])? + 1;

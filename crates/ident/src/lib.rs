@@ -11,6 +11,7 @@
 //! - [`files`]: bounded reading of input files (size, line length, text checks).
 //! - [`diagnose`]: residual diagnosis, the effect library, error before and after.
 //! - [`metrics`]: fit measures (NRMSE, RMSE), residual correlations with their bounds.
+//! - [`numeric`]: vectorised sums, dot products, ranges and finiteness checks over slices.
 
 pub mod app;
 pub mod bodefile;
@@ -24,7 +25,9 @@ pub mod levy;
 pub mod lm;
 pub mod matfile;
 pub mod metrics;
+pub mod numeric;
 pub mod oe;
+mod par;
 #[cfg(test)]
 mod testdata;
 
