@@ -67,8 +67,11 @@ pub struct TimeRequest {
     pub skip: usize,
     /// Lags of the residual whiteness and cross-correlation test.
     pub max_lag: usize,
-    /// Diagnose the residual and add the effects that pay on held-out data.
-    pub diagnose: bool,
+    /// Fit the named structure alone, once: no structures compared, no diagnosis (the fast path,
+    /// for fleets of records already understood). By default (`false`) the loop is closed: the
+    /// candidate structures are compared, the best is diagnosed and its effects kept when they
+    /// pay on held-out data, and the report leads with that model ([`run`]).
+    pub plain: bool,
     /// The diagnosis's margin: the held-out improvement an effect must bring.
     pub margin: f64,
     /// The diagnosis's evidence `R^2` a candidate effect needs to be refitted.
@@ -99,7 +102,7 @@ impl Default for TimeRequest {
             max_iterations: 500,
             skip: 0,
             max_lag: 25,
-            diagnose: false,
+            plain: false,
             margin: d.margin,
             min_r2: d.min_r2,
             max_rounds: d.max_rounds,
@@ -327,9 +330,9 @@ pub fn run_joint(
     obs: &mut dyn Observe,
 ) -> Result<JointReport> {
     fresh_pole_cache();
-    if req.diagnose || super::auto_label(&req.structure).0 {
+    if super::auto_label(&req.structure).0 {
         return Err(Error::Options(
-            "a joint fit takes a named structure, without the diagnosis".into(),
+            "a joint fit takes a named structure (not auto)".into(),
         ));
     }
     let rec = &data.record;
@@ -555,7 +558,7 @@ pub fn run(req: &TimeRequest, data: &TimeData, obs: &mut dyn Observe) -> Result<
         )));
     }
     let (auto, label) = super::auto_label(&req.structure);
-    let (id, auto_choice, diagnosis) = if req.diagnose {
+    let (id, auto_choice, diagnosis) = if !req.plain {
         // The user's structure is fitted here while the other candidates' fits start on the
         // other cores ([`diagnose_best_fitting`]); the stages are entered as before.
         enter(obs, Stage::Fit)?;
@@ -814,7 +817,7 @@ fn at_bound(fin: &ModelFit) -> Vec<String> {
 /// evaluated keeps the problems it had and says why.
 fn judge_final(fin: &mut ModelFit, req: &TimeRequest, data: &TimeData) {
     let mut problems = std::mem::take(&mut fin.problems);
-    match own_id(req, &fin.spec, data) {
+    match own_id(req, &fin.spec, data).map(|id| held_undetermined(fin, req, data, id)) {
         Ok(id) => {
             for (p, e) in fin.params.iter_mut().zip(&id.report.params) {
                 p.std_error = e.std_error;
@@ -828,6 +831,74 @@ fn judge_final(fin: &mut ModelFit, req: &TimeRequest, data: &TimeData) {
     let v = super::verdict::verdict(problems, fin.fit.validation_file.as_ref());
     fin.usable = v.usable;
     fin.problems = v.problems;
+}
+
+/// A standard error this many times a parameter's value says the data do not determine it at
+/// all (`oe::checks`' rule for a usable model).
+const UNDETERMINED: f64 = 10.0;
+
+/// The final model with the plant parameters its record does not determine held at their fitted
+/// values, when that is all that stands between it and a usable model: a term whose standard
+/// error is [`UNDETERMINED`] times its value or more (`a2 = 1.5e-8 +- 5.4e-6`) changes nothing the
+/// data can see, so the model does without it, and the parameters left free are judged on their
+/// own covariance. `id` is the final model's own identification at its values ([`own_id`]); it is
+/// returned as it is when nothing is undetermined, when something else is wrong with the model,
+/// or when the parameters left free are not determined either (the model is then refused as it
+/// was). The figures do not move (the same model); the held parameters are `free: false` in the
+/// report with a warning that says so.
+fn held_undetermined(
+    fin: &mut ModelFit,
+    req: &TimeRequest,
+    data: &TimeData,
+    id: Identification,
+) -> Identification {
+    let weak: Vec<usize> = id
+        .report
+        .params
+        .iter()
+        .enumerate()
+        .filter(|(i, e)| e.free && !fin.spec.is_initial_state(*i) && e.name != "y_offset")
+        .filter(|(_, e)| {
+            e.std_error
+                .is_some_and(|se| se > UNDETERMINED * e.value.abs())
+        })
+        .map(|(i, _)| i)
+        .collect();
+    let only_weak = id.problems.len() == 1 && id.problems[0].contains("not determined");
+    if weak.is_empty() || !only_weak {
+        return id;
+    }
+    let mut spec = fin.spec.clone();
+    for &i in &weak {
+        spec.params[i].free = false;
+    }
+    match own_id(req, &spec, data) {
+        Ok(held) if held.problems.is_empty() => {
+            let names: Vec<String> = weak
+                .iter()
+                .map(|&i| format!("{} = {:.4e}", spec.params[i].name, spec.params[i].value))
+                .collect();
+            fin.warnings.push(format!(
+                "final model: {} not determined by these data (standard error {UNDETERMINED} \
+                 times the value or more) and held at the fitted value(s): {}; the model does \
+                 not depend on them within what the record shows, and the parameters left free \
+                 are determined",
+                if weak.len() == 1 {
+                    "1 parameter is"
+                } else {
+                    "parameters are"
+                },
+                names.join(", ")
+            ));
+            for &i in &weak {
+                fin.params[i].free = false;
+                fin.params[i].at_bound = false;
+            }
+            fin.spec = spec;
+            held
+        }
+        _ => id,
+    }
 }
 
 /// The identification of a report's model `spec` at its values, with the parameters it was
@@ -997,7 +1068,6 @@ mod tests {
     fn the_observer_sees_each_stage_and_can_cancel() {
         let req = TimeRequest {
             structure: "2/(0.2 s + 1)".into(),
-            diagnose: true,
             ..Default::default()
         };
         let mut log = Log::default();
@@ -1023,7 +1093,6 @@ mod tests {
     fn each_models_output_gives_its_stated_figures() {
         let req = TimeRequest {
             structure: "2/(0.2 s + 1)".into(),
-            diagnose: true,
             ..Default::default()
         };
         let d = data();
@@ -1060,7 +1129,6 @@ mod tests {
         d.record = Record::from_samples(&late, &y, d.record.dt).unwrap();
         let req = TimeRequest {
             structure: "2/(0.2 s + 1)".into(),
-            diagnose: true,
             ..Default::default()
         };
         let r = run(&req, &d, &mut crate::app::observe::Quiet).unwrap();
