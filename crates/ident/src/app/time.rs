@@ -443,9 +443,14 @@ pub fn model_and_options(
     }
     let mut opts = IdentOptions {
         offsets: super::offsets(&req.offsets)?,
-        holdout: req
-            .holdout
-            .unwrap_or(if has_validation { 0.0 } else { 0.3 }),
+        // With a validation record the closed loop still holds out part of the estimation
+        // record: its structures and effects are chosen there, never on the estimation error
+        // alone, and the validation record stays an independent test of that choice.
+        holdout: req.holdout.unwrap_or(if has_validation && req.plain {
+            0.0
+        } else {
+            0.3
+        }),
         fit_offset: req.fit_offset,
         start: if req.auto_start && req.start.is_empty() {
             StartMode::Auto
@@ -556,15 +561,28 @@ pub fn run(req: &TimeRequest, data: &TimeData, obs: &mut dyn Observe) -> Result<
     let (base_file, final_file) = match &data.validation {
         Some(v) => {
             enter(obs, Stage::Validate)?;
+            let goes_on = continues(rec, &v.record);
+            let how = if goes_on {
+                "it continues the estimation record (its time stamps follow on): scored from the \
+                 state the estimation record ended in, with its operating point and output offset"
+            } else {
+                "its own initial state and output offset"
+            };
+            let chosen_on = if req.plain || id.validation.is_none() {
+                ""
+            } else {
+                "; the structures and effects were chosen on the held-out part of the estimation \
+                 record, so this record is an independent test of that choice"
+            };
             id.validated_by = Validation {
                 kind: ValidationKind::File,
                 first: id.validated_by.first,
-                note: format!(
-                    "a separate record, {} (its own initial state and output offset)",
-                    v.name
-                ),
+                note: format!("a separate record, {} ({how}){chosen_on}", v.name),
             };
             let scored = |m: &FracModel| {
+                if goes_on {
+                    return continued(m, rec, &v.record).map(|s| ScoreReport::new(&v.name, &s));
+                }
                 score(m, &v.record, opts.offsets, opts.initial)
                     .map(|s| ScoreReport::new(&v.name, &s))
             };
@@ -619,6 +637,38 @@ pub fn run(req: &TimeRequest, data: &TimeData, obs: &mut dyn Observe) -> Result<
         structures: auto_choice,
         request: req.clone(),
         fitted: Fitted { id },
+    })
+}
+
+/// Whether `v` continues `rec` (the tail of the same experiment): the same sample time, and its
+/// first time stamp one sample after `rec`'s last (within half a sample).
+fn continues(rec: &Record, v: &Record) -> bool {
+    let (Some(&last), Some(&first)) = (rec.t.last(), v.t.first()) else {
+        return false;
+    };
+    (v.dt - rec.dt).abs() <= 1e-6 * rec.dt && (first - last - rec.dt).abs() <= 0.5 * rec.dt
+}
+
+/// Score `m` (fitted on `rec`, with its operating point, output offset and initial state) on
+/// `v`, the record that continues `rec` ([`continues`]): the model simulated over `rec` and `v`
+/// in turn, so that `v` starts from the state `rec` ended in (not from rest, not from a state
+/// fitted to `v`), and its fit over `v`'s samples.
+///
+/// # Errors
+/// A model that cannot be simulated over the two records.
+fn continued(m: &FracModel, rec: &Record, v: &Record) -> Result<crate::oe::Scored> {
+    use crate::oe::Structure;
+    let (u0, y0) = (m.operating_point.u0, m.operating_point.y0);
+    let u: Vec<f64> = rec.u.iter().chain(&v.u).map(|x| x - u0).collect();
+    let mut yhat = vec![0.0; u.len()];
+    m.simulate(&m.values(), &u, rec.dt, &mut yhat)?;
+    let tail: Vec<f64> = yhat[rec.len()..].iter().map(|x| x + y0).collect();
+    Ok(crate::oe::Scored {
+        fit: Fit::of(&v.y, &tail),
+        yhat: tail,
+        offsets: m.operating_point,
+        record_params: vec![],
+        warnings: vec![],
     })
 }
 
