@@ -76,7 +76,8 @@ pub fn identification(
 
 /// The experiment that separates Coulomb friction from an input offset: a zero-mean PRBS whose
 /// bits last two settling times (the speed reverses with each change of sign and reaches its
-/// level), at 60% of the envelope's voltage for the speed, over about `span_s` seconds.
+/// level), at 30% of the envelope's voltage for the speed (friction is then a larger share of
+/// the input: its estimate firmer), over about `span_s` seconds.
 pub fn reversals(p: &ProbeReading, env: &Envelope, fs: f64, span_s: f64, seed: u32) -> PrbsRequest {
     let clock_n = (2.0 * p.settling_s() * fs).ceil().clamp(1.0, 65535.0);
     let clock = clock_n / fs;
@@ -84,7 +85,7 @@ pub fn reversals(p: &ProbeReading, env: &Envelope, fs: f64, span_s: f64, seed: u
         order: order_for(span_s, clock).min(8),
         seed,
         clock_s: clock,
-        amplitude_v: 0.6 * env.u_for_speed(p.gain),
+        amplitude_v: 0.3 * env.u_for_speed(p.gain),
         offset_v: 0.0,
         periods: 1,
         settle_s: 0.0,

@@ -49,6 +49,8 @@ pub struct Round {
     pub model: String,
     /// The effects the diagnosis of the new record kept, with their values there.
     pub kept: Vec<EffectValues>,
+    /// The effects it tried and rejected on the new record, why.
+    pub rejected: Vec<EffectValues>,
     /// What the new record could not separate.
     pub ambiguous: Vec<Ambiguity>,
     /// The round's caveats.
@@ -233,6 +235,9 @@ impl AutotuneReport {
             line(format!("  model: {}", r.model));
             for k in &r.kept {
                 line(format!("  kept on {}: {} {:?}", r.experiment, k.name, k.params));
+            }
+            for k in &r.rejected {
+                line(format!("  rejected on {}: {}", r.experiment, k.name));
             }
             for a in &r.ambiguous {
                 line(format!(

@@ -78,6 +78,8 @@ pub struct Outcome {
     pub ambiguous: Vec<Ambiguity>,
     /// The effects its diagnosis kept on the new record, with their values there.
     pub kept: Vec<EffectValues>,
+    /// The effects its diagnosis tried and rejected, with the reason.
+    pub rejected: Vec<EffectValues>,
     /// Each record's error under the model.
     pub errors: Vec<RecordError>,
     /// Caveats (a joint fit that failed and the new record's model kept instead, ...).
@@ -93,6 +95,23 @@ pub fn request() -> TimeRequest {
         diagnose: true,
         ..TimeRequest::default()
     }
+}
+
+fn rejected(report: &time::TimeReport) -> Vec<EffectValues> {
+    report
+        .diagnosis
+        .as_ref()
+        .map(|d| {
+            d.diagnosis
+                .rejected
+                .iter()
+                .map(|e| EffectValues {
+                    name: format!("{}: {}", e.name, e.reason),
+                    params: e.params.clone(),
+                })
+                .collect()
+        })
+        .unwrap_or_default()
 }
 
 fn kept(report: &time::TimeReport) -> Vec<EffectValues> {
@@ -143,6 +162,7 @@ pub fn first(rec: &Named) -> Result<Outcome> {
         },
         ambiguous,
         kept: kept(&r),
+        rejected: rejected(&r),
         errors: vec![RecordError {
             record: rec.name.clone(),
             rmse: val.rmse,
@@ -178,13 +198,36 @@ pub fn errors(model: &FracModel, recs: &[Named]) -> Result<Vec<RecordError>> {
         .collect()
 }
 
+/// `m` with Coulomb friction added (`Vc` from `vc`), unless it has it: the effect a reversal
+/// experiment is run for, fitted jointly whether or not the new record alone kept it.
+fn with_friction(m: &FracModel, vc: f64) -> FracModel {
+    if m.index_of("Vc").is_some() {
+        return m.clone();
+    }
+    let mut m = m.clone();
+    let i = m.add_param(ident::oe::Param::positive("Vc", vc.max(1e-3)));
+    m.effects.insert(0, ident::oe::Effect::Coulomb { vc: i });
+    m
+}
+
+/// The effect a later round is run for: it joins the joint fit's start even when the new
+/// record's diagnosis alone did not keep it (on one record its held-out margin may not pay; the
+/// joint fit over every record decides its value).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Target {
+    /// Whatever the new record's diagnosis keeps.
+    Diagnosed,
+    /// Coulomb friction, started at this `Vc` (V) unless the diagnosis gave one.
+    Friction(f64),
+}
+
 /// A later round: the last of `recs` diagnosed alone (the effects it can separate), then the
-/// model of that diagnosis fitted jointly to every record, the new one first (the joint fit
-/// starts from a fit to it).
+/// model of that diagnosis (with the `target` effect) fitted jointly to every record, the new
+/// one first (the joint fit starts from a fit to it).
 ///
 /// # Errors
 /// The diagnosis's; a joint fit that fails leaves the new record's model, with a warning.
-pub fn later(recs: &[Named]) -> Result<Outcome> {
+pub fn later(recs: &[Named], target: Target) -> Result<Outcome> {
     let new = recs.last().expect("a later round has a record");
     let r = diagnose(new)?;
     let ambiguous = r
@@ -192,7 +235,20 @@ pub fn later(recs: &[Named]) -> Result<Outcome> {
         .as_ref()
         .map(|d| d.diagnosis.ambiguous.clone())
         .unwrap_or_default();
-    let start = r.lead.spec.clone();
+    let start = match target {
+        Target::Diagnosed => r.lead.spec.clone(),
+        Target::Friction(vc) => {
+            // the value the new record's refit found, if it tried friction
+            let tried = r.diagnosis.as_ref().and_then(|d| {
+                d.diagnosis
+                    .rejected
+                    .iter()
+                    .find(|e| e.name == "coulomb_friction")
+                    .and_then(|e| e.params.get("Vc").copied())
+            });
+            with_friction(&r.lead.spec, tried.unwrap_or(vc))
+        }
+    };
     let mut ordered: Vec<Record> = vec![new.record.clone()];
     ordered.extend(recs[..recs.len() - 1].iter().map(|n| n.record.clone()));
     let dur = new.record.len() as f64 * new.record.dt;
@@ -233,6 +289,7 @@ pub fn later(recs: &[Named]) -> Result<Outcome> {
         model: Model { spec, text },
         ambiguous,
         kept: kept(&r),
+        rejected: rejected(&r),
         errors,
         warnings,
         usable,

@@ -278,6 +278,7 @@ impl<'a> Run<'a> {
             after: out.errors.clone(),
             model: out.model.text.clone(),
             kept: out.kept.clone(),
+            rejected: out.rejected.clone(),
             ambiguous: out.ambiguous.clone(),
             warnings: out.warnings.clone(),
         });
@@ -362,7 +363,11 @@ impl<'a> Run<'a> {
             self.records.push(named);
             obs.stage("the records fitted jointly");
             let before = rounds::errors(&prev.spec, &self.records)?;
-            let out = rounds::later(&self.records)?;
+            let target = match purpose {
+                Purpose::Reversals => rounds::Target::Friction(0.05 * self.env.u_max_v),
+                _ => rounds::Target::Diagnosed,
+            };
+            let out = rounds::later(&self.records, target)?;
             self.round(reason, before, &out);
             self.outcome = Some(out);
             self.check_cancel(obs)?;
