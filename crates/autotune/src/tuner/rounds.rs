@@ -222,12 +222,13 @@ pub enum Target {
 }
 
 /// A later round: the last of `recs` diagnosed alone (the effects it can separate), then the
-/// model of that diagnosis (with the `target` effect) fitted jointly to every record, the new
-/// one first (the joint fit starts from a fit to it).
+/// model of that diagnosis fitted jointly to every record, the new one first (the joint fit
+/// starts from a fit to it); for friction, the previous model `prev` with friction added (the
+/// linear part the earlier records pinned, the friction the new record shows).
 ///
 /// # Errors
 /// The diagnosis's; a joint fit that fails leaves the new record's model, with a warning.
-pub fn later(recs: &[Named], target: Target) -> Result<Outcome> {
+pub fn later(recs: &[Named], prev: &FracModel, target: Target) -> Result<Outcome> {
     let new = recs.last().expect("a later round has a record");
     let r = diagnose(new)?;
     let ambiguous = r
@@ -246,7 +247,7 @@ pub fn later(recs: &[Named], target: Target) -> Result<Outcome> {
                     .find(|e| e.name == "coulomb_friction")
                     .and_then(|e| e.params.get("Vc").copied())
             });
-            with_friction(&r.lead.spec, tried.unwrap_or(vc))
+            with_friction(prev, tried.unwrap_or(vc))
         }
     };
     let mut ordered: Vec<Record> = vec![new.record.clone()];

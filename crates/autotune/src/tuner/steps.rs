@@ -367,7 +367,7 @@ impl<'a> Run<'a> {
                 Purpose::Reversals => rounds::Target::Friction(0.05 * self.env.u_max_v),
                 _ => rounds::Target::Diagnosed,
             };
-            let out = rounds::later(&self.records, target)?;
+            let out = rounds::later(&self.records, &prev.spec, target)?;
             self.round(reason, before, &out);
             self.outcome = Some(out);
             self.check_cancel(obs)?;
