@@ -4,6 +4,7 @@
 //! [`exit_code`].
 
 mod alloc;
+mod bad_input;
 mod cmd;
 mod interrupt;
 mod plot;

@@ -18,18 +18,7 @@ pub mod sim;
 pub mod time;
 pub mod tune;
 
-/// Bad user input found by the CLI itself (as opposed to the library crates): exit code 2.
-#[derive(Debug, thiserror::Error)]
-#[error("{0}")]
-pub struct BadInput(pub String);
-
-/// Return early with a [`BadInput`] error.
-#[macro_export]
-macro_rules! bad_input {
-    ($($arg:tt)*) => {
-        return Err(anyhow::Error::new($crate::cmd::BadInput(format!($($arg)*))))
-    };
-}
+pub use crate::bad_input::BadInput;
 
 /// Read a time record with the library's reader ([`ident::data::Record::load`]): a data error is
 /// put in the context of the file; an I/O error already names it.

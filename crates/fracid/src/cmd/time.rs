@@ -1,7 +1,7 @@
 //! `fracid time FILE`: time-domain identification by output error (docs/design.md §5, `ident::oe`).
 
 use crate::plot::{self, Figure};
-use anyhow::Result;
+use anyhow::{Context, Result};
 use ident::app::observe::{Observe, Stage};
 use ident::app::time::{Named, ScoreReport, TimeData, TimeReport, TimeRequest};
 use ident::data::{Columns, ReadOptions, Record};
@@ -271,7 +271,7 @@ impl Observe for Spinner {
 /// Unreadable file (exit 3), bad data or options (exit 2), numerical breakdown (exit 1).
 pub fn run(a: TimeArgs) -> Result<()> {
     if a.fleet.active(&a.file) {
-        return super::fleet::run_time(a);
+        return run_fleet(a);
     }
     check_paths(&a)?;
     if let Some(p) = &a.plot {
@@ -394,6 +394,38 @@ pub(crate) fn plot_report(
         }
         None => Ok(None),
     }
+}
+
+/// `fracid time` on many files: each fitted in this process exactly as `fracid time FILE --json`
+/// would (the same options), on a pool of threads.
+///
+/// # Errors
+/// As [`super::fleet::run`].
+fn run_fleet(a: TimeArgs) -> Result<()> {
+    if a.plot.is_some() {
+        crate::bad_input!("--plot draws one record: not with many files");
+    }
+    let mut paths = vec![a.file.clone()];
+    paths.extend(a.fleet.more.iter().cloned());
+    let files = super::fleet::expand(&paths)?;
+    super::fleet::run("time", &files, &a.fleet, a.json, |f| fleet_report(&a, f))
+}
+
+/// One file's `fracid time --json` report, with the options of `a`: the same request and
+/// `ident::app::time::run` as `fracid time FILE`, in this process.
+fn fleet_report(a: &TimeArgs, file: &std::path::Path) -> Result<(serde_json::Value, Vec<String>)> {
+    let req = request(a)?;
+    let data = time_data(file, a)?;
+    let r = ident::app::time::run(&req, &data, &mut ident::app::observe::Quiet)
+        .with_context(|| format!("identifying {}", file.display()))?;
+    let mut v = serde_json::to_value(&r)?;
+    v["file"] = serde_json::json!(file.display().to_string());
+    let problems = if r.lead.usable {
+        Vec::new()
+    } else {
+        r.lead.problems.clone()
+    };
+    Ok((v, problems))
 }
 
 /// `--joint`: one model fitted on several records (`ident::app::time::run_joint`).
