@@ -107,7 +107,6 @@ pub fn parse_realisation(text: &str) -> Result<Realisation> {
     })
 }
 
-
 impl Realisation {
     /// The realisation of a tuner's report (`discrete`), the controller's text for messages.
     pub fn of_discrete(d: &DiscreteJson, text: &str) -> Self {

@@ -69,10 +69,8 @@ impl PrbsRequest {
         }
         let cmd = self.test().to_command(conf)?;
         let (off, amp) = (i32::from(cmd.offset), i32::from(cmd.amplitude));
-        let warnings = super::check_levels(
-            &[("high level", off + amp), ("low level", off - amp)],
-            conf,
-        )?;
+        let warnings =
+            super::check_levels(&[("high level", off + amp), ("low level", off - amp)], conf)?;
         Ok((cmd, warnings))
     }
 }
@@ -110,4 +108,3 @@ pub fn run(
         warnings,
     })
 }
-

@@ -100,7 +100,11 @@ impl SineRequest {
                 } else {
                     ""
                 },
-                freqs.iter().map(f64::to_string).collect::<Vec<_>>().join(",")
+                freqs
+                    .iter()
+                    .map(f64::to_string)
+                    .collect::<Vec<_>>()
+                    .join(",")
             ));
         }
         let nyq = conf.sample_rate_hz as f64 / 2.0;

@@ -36,8 +36,7 @@ impl LoopRequest {
     /// # Errors
     /// Non-finite numbers; a step beyond the speed trip; times the drive cannot take.
     pub fn command(&self, conf: &Configure) -> Result<StartLoop> {
-        if !(self.step_rad_s.is_finite() && self.duration_s.is_finite() && self.pre_s.is_finite())
-        {
+        if !(self.step_rad_s.is_finite() && self.duration_s.is_finite() && self.pre_s.is_finite()) {
             return crate::error::invalid("--step, --duration and --pre must be finite numbers");
         }
         Ok(LoopTest {

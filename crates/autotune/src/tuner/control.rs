@@ -122,7 +122,10 @@ pub fn crossover(
             reasons.push(why);
         }
     };
-    cap(fs / 10.0, format!("a tenth of the sample rate, {:.1} rad/s", fs / 10.0));
+    cap(
+        fs / 10.0,
+        format!("a tenth of the sample rate, {:.1} rad/s", fs / 10.0),
+    );
     let delay = g.delay + 1.0 / fs;
     cap(
         0.35 / delay,
@@ -199,7 +202,11 @@ pub fn design(
             }
             Err(e) => return Err(e.into()),
         }
-        if xo.reasons.first().is_some_and(|r| r.starts_with("as asked")) {
+        if xo
+            .reasons
+            .first()
+            .is_some_and(|r| r.starts_with("as asked"))
+        {
             break;
         }
         wc *= 0.7;

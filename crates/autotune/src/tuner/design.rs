@@ -62,7 +62,9 @@ pub fn identification(
     let span = (20.0 * p.settling_s()).max(0.3).min(span_cap_s.max(0.05));
     let u_top = env.u_for_speed(p.gain);
     let offset = op_v.unwrap_or(0.5 * u_top).clamp(-u_top, u_top);
-    let amplitude = (0.5 * offset.abs()).max(0.1 * u_top).min(u_top - offset.abs());
+    let amplitude = (0.5 * offset.abs())
+        .max(0.1 * u_top)
+        .min(u_top - offset.abs());
     PrbsRequest {
         order: order_for(span, clock),
         seed,
@@ -104,10 +106,10 @@ pub fn longer(base: &PrbsRequest, fs: f64, span_s: f64) -> PrbsRequest {
     }
 }
 
-/// The frequencies of a sine dwell around a suspected resonance at `f_hz`: seven from 0.7 to 1.3
-/// times it, below a quarter of the sample rate.
+/// The frequencies of a sine dwell around a suspected resonance at `f_hz`: 0.8, 0.93, 1, 1.07
+/// and 1.25 times it, below a quarter of the sample rate.
 pub fn dwell_frequencies(f_hz: f64, fs: f64) -> Vec<f64> {
-    [0.7, 0.85, 0.93, 1.0, 1.07, 1.15, 1.3]
+    [0.8, 0.93, 1.0, 1.07, 1.25]
         .iter()
         .map(|k| k * f_hz)
         .filter(|f| *f < fs / 4.0)
@@ -164,7 +166,10 @@ mod tests {
         let period = ((1u32 << r.order) - 1) as f64 * r.clock_s;
         assert!(period >= 0.3 && period < 0.7, "{period}");
         let top = (r.offset_v + r.amplitude_v) * 6.8;
-        assert!(top <= 100.0 + 1e-9 && r.offset_v - r.amplitude_v >= 0.0, "{r:?}");
+        assert!(
+            top <= 100.0 + 1e-9 && r.offset_v - r.amplitude_v >= 0.0,
+            "{r:?}"
+        );
         let rev = reversals(&reading(), &env, 1000.0, 1.0, 1);
         assert_eq!((rev.offset_v, rev.clock_s), (0.0, 0.032));
         assert!(rev.amplitude_v * 6.8 <= 100.0);

@@ -80,7 +80,11 @@ pub fn read(t: &[f64], y: &[f64], level_v: f64) -> Option<ProbeReading> {
             return Some(0.0);
         }
         let (ya, yb) = (y[k - 1], y[k]);
-        let w = if yb != ya { (lvl - ya) / (yb - ya) } else { 1.0 };
+        let w = if yb != ya {
+            (lvl - ya) / (yb - ya)
+        } else {
+            1.0
+        };
         Some(t[k - 1] - t0 + w * (t[k] - t[k - 1]))
     };
     let dt = (t[n - 1] - t0) / (n - 1) as f64;

@@ -47,6 +47,11 @@ pub struct Round {
     pub after: Vec<RecordError>,
     /// The round's model in words.
     pub model: String,
+    /// For a dwell round: the largest relative error of the model's frequency response at the
+    /// points the dwells measured, before (the previous model) and after the round.
+    pub frf_before: Option<f64>,
+    /// After the round.
+    pub frf_after: Option<f64>,
     /// The effects the diagnosis of the new record kept, with their values there.
     pub kept: Vec<EffectValues>,
     /// The effects it tried and rejected on the new record, why.
@@ -221,7 +226,10 @@ impl AutotuneReport {
             ));
         }
         for r in &self.rounds {
-            line(format!("round {} ({}, {}):", r.round, r.experiment, r.reason));
+            line(format!(
+                "round {} ({}, {}):",
+                r.round, r.experiment, r.reason
+            ));
             let fmt = |v: &[RecordError]| {
                 v.iter()
                     .map(|e| format!("{} {:.4} rad/s ({:.2}%)", e.record, e.rmse, e.nrmse_percent))
@@ -233,8 +241,18 @@ impl AutotuneReport {
             }
             line(format!("  error after:  {}", fmt(&r.after)));
             line(format!("  model: {}", r.model));
+            if let (Some(b), Some(a)) = (r.frf_before, r.frf_after) {
+                line(format!(
+                    "  frequency response at the dwells' points: largest error {:.2}% before, {:.2}% after",
+                    100.0 * b,
+                    100.0 * a
+                ));
+            }
             for k in &r.kept {
-                line(format!("  kept on {}: {} {:?}", r.experiment, k.name, k.params));
+                line(format!(
+                    "  kept on {}: {} {:?}",
+                    r.experiment, k.name, k.params
+                ));
             }
             for k in &r.rejected {
                 line(format!("  rejected on {}: {}", r.experiment, k.name));

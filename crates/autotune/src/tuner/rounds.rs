@@ -55,9 +55,7 @@ pub struct Model {
 impl Model {
     /// The value of the parameter `name`, if the model has it.
     pub fn param(&self, name: &str) -> Option<f64> {
-        self.spec
-            .index_of(name)
-            .map(|i| self.spec.params[i].value)
+        self.spec.index_of(name).map(|i| self.spec.params[i].value)
     }
 
     /// The linear part with its delay.
@@ -213,12 +211,60 @@ fn with_friction(m: &FracModel, vc: f64) -> FracModel {
 /// The effect a later round is run for: it joins the joint fit's start even when the new
 /// record's diagnosis alone did not keep it (on one record its held-out margin may not pay; the
 /// joint fit over every record decides its value).
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub enum Target {
     /// Whatever the new record's diagnosis keeps.
     Diagnosed,
     /// Coulomb friction, started at this `Vc` (V) unless the diagnosis gave one.
     Friction(f64),
+    /// This structure, as fitted to an earlier record (a resonant pair the dwell is for).
+    Start(Box<FracModel>),
+}
+
+/// The start of a joint fit: `m` with its initial-state levels back at 0 (the joint fit gives
+/// each record its own range for them; a level left at the edge of one record's range is out of
+/// another's).
+fn fresh_past(mut m: FracModel) -> FracModel {
+    if let Some(p) = m.past.clone() {
+        for i in p.levels {
+            m.params[i].value = 0.0;
+        }
+    }
+    m
+}
+
+/// The structure `spec` (a name of [`ident::app::structure`]) fitted to one record with its
+/// delay, without the diagnosis, from `start` (by parameter name; empty: the automatic start).
+///
+/// # Errors
+/// The identification's.
+pub fn fit_structure(
+    rec: &Named,
+    spec: &str,
+    start: BTreeMap<String, f64>,
+) -> Result<(Model, f64)> {
+    let data = TimeData {
+        record: rec.record.clone(),
+        validation: None,
+        joint: vec![],
+        reader_warnings: vec![],
+    };
+    let req = TimeRequest {
+        structure: spec.into(),
+        delay: true,
+        auto_start: start.is_empty(),
+        start,
+        ..TimeRequest::default()
+    };
+    let r = time::run(&req, &data, &mut Quiet)?;
+    let val = r.lead.fit.validation.unwrap_or(r.lead.fit.estimation);
+    Ok((
+        Model {
+            text: r.lead.model.text.clone(),
+            spec: r.lead.spec.clone(),
+        },
+        val.rmse,
+    ))
 }
 
 /// A later round: the last of `recs` diagnosed alone (the effects it can separate), then the
@@ -249,7 +295,9 @@ pub fn later(recs: &[Named], prev: &FracModel, target: Target) -> Result<Outcome
             });
             with_friction(prev, tried.unwrap_or(vc))
         }
+        Target::Start(m) => *m,
     };
+    let start = fresh_past(start);
     let mut ordered: Vec<Record> = vec![new.record.clone()];
     ordered.extend(recs[..recs.len() - 1].iter().map(|n| n.record.clone()));
     let dur = new.record.len() as f64 * new.record.dt;
@@ -268,20 +316,18 @@ pub fn later(recs: &[Named], prev: &FracModel, target: Target) -> Result<Outcome
         Ok(j) if j.problems.is_empty() => (j.model, true),
         Ok(j) => {
             warnings.push(format!(
-                "the joint fit of {} records is not usable ({}); the model of {} alone is kept",
+                "the joint fit of {} records is not usable ({}); the previous model is kept",
                 recs.len(),
                 j.problems.join("; "),
-                new.name
             ));
-            (start, r.lead.usable)
+            (prev.clone(), true)
         }
         Err(e) => {
             warnings.push(format!(
-                "the joint fit of {} records failed ({e}); the model of {} alone is kept",
+                "the joint fit of {} records failed ({e}); the previous model is kept",
                 recs.len(),
-                new.name
             ));
-            (start, r.lead.usable)
+            (prev.clone(), true)
         }
     };
     let errors = errors(&spec, recs)?;

@@ -24,6 +24,26 @@ pub(super) struct Run<'a> {
     report: AutotuneReport,
     records: Vec<Named>,
     outcome: Option<Outcome>,
+    /// A resonance the first record suggests, with the structure fitted that shows it.
+    suspect: Option<(Resonance, Option<rounds::Model>)>,
+    /// The frequency response points the dwells measured.
+    points: Vec<drive::bode::BodePoint>,
+}
+
+/// The largest relative error of `m`'s frequency response at the measured `points`.
+fn frf_error(m: &rounds::Model, points: &[drive::bode::BodePoint]) -> Option<f64> {
+    let tf = m.tf().ok()?;
+    points
+        .iter()
+        .map(|p| {
+            let w = 2.0 * std::f64::consts::PI * p.freq_hz;
+            let meas = num_complex::Complex64::from_polar(
+                10f64.powf(p.gain_db / 20.0),
+                p.phase_deg.to_radians(),
+            );
+            (tf.freq_response(w) - meas).norm() / meas.norm()
+        })
+        .reduce(f64::max)
 }
 
 /// The drive time the loop's step is kept for, s.
@@ -71,6 +91,8 @@ impl<'a> Run<'a> {
             },
             records: vec![],
             outcome: None,
+            suspect: None,
+            points: vec![],
         })
     }
 
@@ -258,10 +280,51 @@ impl<'a> Run<'a> {
         let named = self.prbs(obs, "prbs", Purpose::Identification, &req, true)?;
         obs.stage("identification and diagnosis of the PRBS record");
         let out = rounds::first(&named)?;
+        self.outcome = Some(out.clone());
+        self.suspect = match self.resonance() {
+            Some(r) => Some((r, self.two_mass(&named, &r, &out, obs))),
+            None => None,
+        };
         self.records.push(named);
         self.round("identification".into(), vec![], &out);
-        self.outcome = Some(out);
         Ok(req)
+    }
+
+    /// The load-side two-mass structure fitted to the identification record, started from the
+    /// PMSM fitted to it and the resonance `r` the first model shows (the anti-resonance ten
+    /// times above it: a load-side measurement has none), when it fits at least as well as the
+    /// first round's model (within 5%): the structure the dwell's joint fit starts from.
+    fn two_mass(
+        &mut self,
+        named: &Named,
+        r: &Resonance,
+        out: &Outcome,
+        obs: &mut dyn Observe,
+    ) -> Option<rounds::Model> {
+        obs.stage("the two-mass structure on the PRBS record");
+        let (pmsm, _) = rounds::fit_structure(named, "pmsm", Default::default()).ok()?;
+        let wr = 2.0 * std::f64::consts::PI * r.freq_hz;
+        let mut start: std::collections::BTreeMap<String, f64> = ["K", "a1", "a2", "zeta", "theta"]
+            .iter()
+            .filter_map(|n| Some((n.to_string(), pmsm.param(n)?)))
+            .collect();
+        start.insert("c2".into(), wr.powi(-2));
+        start.insert("b2".into(), (10.0 * wr).powi(-2));
+        start.insert("d".into(), 2.0 * r.damping / wr);
+        start.insert("mu".into(), 1.0);
+        let (m, rmse) = match rounds::fit_structure(named, "two-mass", start) {
+            Ok(x) => x,
+            Err(e) => {
+                obs.stage(&format!("the two-mass fit failed: {e}"));
+                return None;
+            }
+        };
+        let base = out.errors.first()?.rmse;
+        obs.stage(&format!(
+            "two-mass: {} ({rmse:.4} rad/s against {base:.4})",
+            m.text
+        ));
+        (rmse <= 1.05 * base).then_some(m)
     }
 
     fn round(&mut self, reason: String, before: Vec<rounds::RecordError>, out: &Outcome) {
@@ -277,6 +340,8 @@ impl<'a> Run<'a> {
             before,
             after: out.errors.clone(),
             model: out.model.text.clone(),
+            frf_before: None,
+            frf_after: None,
             kept: out.kept.clone(),
             rejected: out.rejected.clone(),
             ambiguous: out.ambiguous.clone(),
@@ -293,6 +358,17 @@ impl<'a> Run<'a> {
         done: &[Purpose],
     ) -> Option<(Purpose, String)> {
         let out = self.outcome.as_ref()?;
+        if !done.contains(&Purpose::Dwell) {
+            if let Some((r, _)) = &self.suspect {
+                return Some((
+                    Purpose::Dwell,
+                    format!(
+                        "a resonance near {:.1} Hz (damping {:.3})",
+                        r.freq_hz, r.damping
+                    ),
+                ));
+            }
+        }
         for a in &out.ambiguous {
             let purpose = match a.name.as_str() {
                 "coulomb_friction" => Purpose::Reversals,
@@ -303,20 +379,12 @@ impl<'a> Run<'a> {
                 return Some((purpose, format!("{} against {}", a.name, a.confused_with)));
             }
         }
-        if !done.contains(&Purpose::Dwell) {
-            if let Some(r) = self.resonance() {
-                return Some((
-                    Purpose::Dwell,
-                    format!(
-                        "a resonance near {:.1} Hz (damping {:.3})",
-                        r.freq_hz, r.damping
-                    ),
-                ));
-            }
-        }
         if !p.settled && !done.contains(&Purpose::Longer) {
             let _ = base;
-            return Some((Purpose::Longer, "a slow mode: the probe did not settle".into()));
+            return Some((
+                Purpose::Longer,
+                "a slow mode: the probe did not settle".into(),
+            ));
         }
         None
     }
@@ -326,7 +394,12 @@ impl<'a> Run<'a> {
         control::resonance(&tf, 0.9 * std::f64::consts::PI * self.fs)
     }
 
-    fn separate(&mut self, p: &ProbeReading, base: &PrbsRequest, obs: &mut dyn Observe) -> Result<()> {
+    fn separate(
+        &mut self,
+        p: &ProbeReading,
+        base: &PrbsRequest,
+        obs: &mut dyn Observe,
+    ) -> Result<()> {
         let mut done = vec![];
         for _ in 0..self.req.max_rounds {
             let Some((purpose, reason)) = self.next(p, base, &done) else {
@@ -353,8 +426,8 @@ impl<'a> Run<'a> {
                     self.prbs(obs, "longer", purpose, &r, true)?
                 }
                 Purpose::MultiLevel => self.multi_level(p, obs)?,
-                Purpose::Dwell => match self.resonance() {
-                    Some(r) => self.dwell(&r, base, obs)?,
+                Purpose::Dwell => match self.suspect.clone() {
+                    Some((r, _)) => self.dwell(&r, base, obs)?,
                     None => continue,
                 },
                 _ => continue,
@@ -363,12 +436,21 @@ impl<'a> Run<'a> {
             self.records.push(named);
             obs.stage("the records fitted jointly");
             let before = rounds::errors(&prev.spec, &self.records)?;
-            let target = match purpose {
-                Purpose::Reversals => rounds::Target::Friction(0.05 * self.env.u_max_v),
+            let target = match (purpose, &self.suspect) {
+                (Purpose::Reversals, _) => rounds::Target::Friction(0.05 * self.env.u_max_v),
+                (Purpose::Dwell, Some((_, Some(m)))) => {
+                    rounds::Target::Start(Box::new(m.spec.clone()))
+                }
+                (Purpose::Dwell, _) => rounds::Target::Start(Box::new(prev.spec.clone())),
                 _ => rounds::Target::Diagnosed,
             };
             let out = rounds::later(&self.records, &prev.spec, target)?;
             self.round(reason, before, &out);
+            if purpose == Purpose::Dwell {
+                let last = self.report.rounds.last_mut().expect("a round");
+                last.frf_before = frf_error(&prev, &self.points);
+                last.frf_after = frf_error(&out.model, &self.points);
+            }
             self.outcome = Some(out);
             self.check_cancel(obs)?;
         }
@@ -391,7 +473,9 @@ impl<'a> Run<'a> {
     }
 
     /// Dwells around a resonance: the frequencies of [`design::dwell_frequencies`] at the
-    /// operating point of the identification PRBS, each a record.
+    /// operating point of the identification PRBS, each a frequency response point; the one at
+    /// the resonance, the longest, is the record the joint fit gets (each record brings its own
+    /// initial state: the fit's parameters allow one).
     fn dwell(&mut self, r: &Resonance, base: &PrbsRequest, obs: &dyn Observe) -> Result<Named> {
         let freqs = design::dwell_frequencies(r.freq_hz, self.fs);
         // the amplitude that keeps the peak speed within the envelope at the resonance's gain
@@ -399,27 +483,32 @@ impl<'a> Run<'a> {
             .outcome
             .as_ref()
             .and_then(|o| o.model.tf().ok())
-            .map(|tf| tf.freq_response(2.0 * std::f64::consts::PI * r.freq_hz).norm())
+            .map(|tf| {
+                tf.freq_response(2.0 * std::f64::consts::PI * r.freq_hz)
+                    .norm()
+            })
             .unwrap_or(1.0);
-        let room = self.env.speed_max - (base.offset_v * self.report.probe.map_or(0.0, |p| p.gain)).abs();
+        let level = (base.offset_v * self.report.probe.map_or(0.0, |p| p.gain)).abs();
+        let room = self.env.speed_max - level;
         let amp = (0.5 * room / g.max(1e-9)).min(base.amplitude_v).max(0.05);
-        let mut last = None;
+        let mut at_peak = None;
         for (k, f) in freqs.iter().enumerate() {
+            let peak = (f / r.freq_hz - 1.0).abs() < 1e-9;
             let req = DwellRequest {
                 freq_hz: *f,
                 amplitude_v: amp,
                 offset_v: base.offset_v,
                 settle_cycles: 8,
-                cycles: 8,
+                cycles: if peak { 24 } else { 8 },
             };
             let named = self.dwell_run(obs, &format!("dwell{}", k + 1), Purpose::Dwell, &req)?;
-            if k + 1 < freqs.len() {
-                self.records.push(named);
-            } else {
-                last = Some(named);
+            if peak {
+                at_peak = Some(named);
             }
         }
-        last.ok_or_else(|| Error::Experiment("no dwell frequency below a quarter of the rate".into()))
+        at_peak.ok_or_else(|| {
+            Error::Experiment("no dwell frequency below a quarter of the rate".into())
+        })
     }
 
     fn dwell_run(
@@ -430,6 +519,7 @@ impl<'a> Run<'a> {
         req: &DwellRequest,
     ) -> Result<Named> {
         let rec = acquire::sine::dwell(self.client, &self.conf, req, &mut NullSink)?;
+        self.points.extend(rec.point.clone());
         self.log(
             obs,
             name,
@@ -453,11 +543,19 @@ impl<'a> Run<'a> {
         let model = out.model.clone();
         let tf = model.tf()?;
         let resonance = control::resonance(&tf, 0.9 * std::f64::consts::PI * self.fs);
-        let addressed: Vec<&str> = self.report.rounds.iter().skip(1).map(|r| r.reason.as_str()).collect();
+        let addressed: Vec<&str> = self
+            .report
+            .rounds
+            .iter()
+            .skip(1)
+            .map(|r| r.reason.as_str())
+            .collect();
         let unresolved: Vec<Ambiguity> = out
             .ambiguous
             .iter()
-            .filter(|a| !addressed.iter().any(|r| r.starts_with(&a.name)) || self.report.rounds.len() == 1)
+            .filter(|a| {
+                !addressed.iter().any(|r| r.starts_with(&a.name)) || self.report.rounds.len() == 1
+            })
             .cloned()
             .collect();
         self.report.model = Some(FinalModel {
@@ -535,7 +633,8 @@ impl<'a> Run<'a> {
             settling_time_s: s,
         };
         let measured = rec.figures.map(fig);
-        let predicted = predicted_m.map(|m| fig((m.overshoot_percent, m.rise_time, m.settling_time)));
+        let predicted =
+            predicted_m.map(|m| fig((m.overshoot_percent, m.rise_time, m.settling_time)));
         let m = realise::measured_step(&rec.acquisition, &rec.command, self.conf.y_lsb());
         let residual = m.as_ref().map_or(f64::NAN, |m| {
             let tail = &m.y[2 * m.y.len() / 3..];
@@ -578,9 +677,10 @@ impl<'a> Run<'a> {
                 .report
                 .problems
                 .push("the loop's step was not measured".into()),
-            Some(m) if m.rise_time_s.is_none() => self.report.problems.push(
-                "the measured step never reached 90% of the reference".into(),
-            ),
+            Some(m) if m.rise_time_s.is_none() => self
+                .report
+                .problems
+                .push("the measured step never reached 90% of the reference".into()),
             Some(_) => {}
         }
         if !(residual <= 0.02 * step.abs() + 3.0 * noise) {

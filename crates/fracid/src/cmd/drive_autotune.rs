@@ -194,7 +194,11 @@ fn write_folder(dir: &Path, r: &AutotuneReport, text: &str) -> Result<()> {
     md += text;
     md += "```\n\n";
     if !r.series.records.is_empty() {
-        plot::save(&dir.join("records.png"), (1000, 300 * r.series.records.len().min(6) as u32), &Records(r))?;
+        plot::save(
+            &dir.join("records.png"),
+            (1000, 300 * r.series.records.len().min(6) as u32),
+            &Records(r),
+        )?;
         md += "## The records and the final model\n\n![records](records.png)\n\n";
     }
     if let Some((t, p, m)) = &r.series.step {

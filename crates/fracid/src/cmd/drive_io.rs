@@ -373,4 +373,3 @@ pub(crate) fn record_outcome(
         Err(anyhow::anyhow!(summary))
     }
 }
-

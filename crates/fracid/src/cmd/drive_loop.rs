@@ -104,7 +104,6 @@ pub fn run(a: LoopArgs) -> Result<()> {
     record_outcome(&acq, signal, summary, None, a.allow_incomplete)
 }
 
-
 /// What the drive runs of the controller, on standard error.
 fn describe_controller(text: &str, k: &drive::ctrl::FixedCtrl, dropped: usize, qerr: f64) {
     crate::eprintln_safe!(
