@@ -164,7 +164,7 @@ mod tests {
         // 3 x 250 rad/s = 119 Hz: 0.44 * 1000 / 119 = 3.7 -> 3 samples
         assert_eq!(r.clock_s, 0.003);
         let period = ((1u32 << r.order) - 1) as f64 * r.clock_s;
-        assert!(period >= 0.3 && period < 0.7, "{period}");
+        assert!((0.3..0.7).contains(&period), "{period}");
         let top = (r.offset_v + r.amplitude_v) * 6.8;
         assert!(
             top <= 100.0 + 1e-9 && r.offset_v - r.amplitude_v >= 0.0,

@@ -165,11 +165,26 @@ pub struct AutotuneReport {
     pub series: Series,
 }
 
+/// A record beside the final model, for plots.
+#[derive(Debug, Clone, Default)]
+pub struct RecordSeries {
+    /// The record's name.
+    pub name: String,
+    /// Time, s.
+    pub t: Vec<f64>,
+    /// Input, V.
+    pub u: Vec<f64>,
+    /// Speed, rad/s.
+    pub y: Vec<f64>,
+    /// The final model's output, rad/s.
+    pub yhat: Vec<f64>,
+}
+
 /// The signals of a run, for plots.
 #[derive(Debug, Clone, Default)]
 pub struct Series {
-    /// Per record: name, time (s), input (V), speed (rad/s), the final model's output.
-    pub records: Vec<(String, Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>)>,
+    /// Per record, beside the final model.
+    pub records: Vec<RecordSeries>,
     /// The step: time from it (s), predicted and measured speed (rad/s).
     pub step: Option<(Vec<f64>, Vec<f64>, Vec<f64>)>,
 }

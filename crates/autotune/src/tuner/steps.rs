@@ -281,10 +281,9 @@ impl<'a> Run<'a> {
         obs.stage("identification and diagnosis of the PRBS record");
         let out = rounds::first(&named)?;
         self.outcome = Some(out.clone());
-        self.suspect = match self.resonance() {
-            Some(r) => Some((r, self.two_mass(&named, &r, &out, obs))),
-            None => None,
-        };
+        self.suspect = self
+            .resonance()
+            .map(|r| (r, self.two_mass(&named, &r, &out, obs)));
         self.records.push(named);
         self.round("identification".into(), vec![], &out);
         Ok(req)
@@ -519,7 +518,7 @@ impl<'a> Run<'a> {
         req: &DwellRequest,
     ) -> Result<Named> {
         let rec = acquire::sine::dwell(self.client, &self.conf, req, &mut NullSink)?;
-        self.points.extend(rec.point.clone());
+        self.points.extend(rec.point);
         self.log(
             obs,
             name,
@@ -579,13 +578,16 @@ impl<'a> Run<'a> {
                 ident::data::OffsetMode::Initial,
                 ident::oe::InitialState::Auto,
             ) {
-                self.report.series.records.push((
-                    r.name.clone(),
-                    r.record.t.clone(),
-                    r.record.u.clone(),
-                    r.record.y.clone(),
-                    s.yhat,
-                ));
+                self.report
+                    .series
+                    .records
+                    .push(super::report::RecordSeries {
+                        name: r.name.clone(),
+                        t: r.record.t.clone(),
+                        u: r.record.u.clone(),
+                        y: r.record.y.clone(),
+                        yhat: s.yhat,
+                    });
             }
         }
         Ok(model)

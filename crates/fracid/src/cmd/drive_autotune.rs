@@ -227,24 +227,24 @@ impl Figure for Records<'_> {
     {
         let recs = &self.0.series.records[..self.0.series.records.len().min(6)];
         let areas = root.split_evenly((recs.len(), 1));
-        for ((name, t, _, y, yhat), area) in recs.iter().zip(&areas) {
-            let title = format!("{name}: measured and the final model");
+        for (rec, area) in recs.iter().zip(&areas) {
+            let title = format!("{}: measured and the final model", rec.name);
             plot::time_series_chart(
                 area,
                 &TimeChart {
                     title: Some(&title),
                     x_desc: "time (s)",
                     y_desc: Some("speed (rad/s)"),
-                    t,
+                    t: &rec.t,
                     lines: &[
                         Line {
                             label: Some("measured"),
-                            values: y,
+                            values: &rec.y,
                             style: RED.stroke_width(1),
                         },
                         Line {
                             label: Some("final model"),
-                            values: yhat,
+                            values: &rec.yhat,
                             style: BLUE.stroke_width(2),
                         },
                     ],
