@@ -241,46 +241,7 @@ impl AutotuneReport {
             ));
         }
         for r in &self.rounds {
-            line(format!(
-                "round {} ({}, {}):",
-                r.round, r.experiment, r.reason
-            ));
-            let fmt = |v: &[RecordError]| {
-                v.iter()
-                    .map(|e| format!("{} {:.4} rad/s ({:.2}%)", e.record, e.rmse, e.nrmse_percent))
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            };
-            if !r.before.is_empty() {
-                line(format!("  error before: {}", fmt(&r.before)));
-            }
-            line(format!("  error after:  {}", fmt(&r.after)));
-            line(format!("  model: {}", r.model));
-            if let (Some(b), Some(a)) = (r.frf_before, r.frf_after) {
-                line(format!(
-                    "  frequency response at the dwells' points: largest error {:.2}% before, {:.2}% after",
-                    100.0 * b,
-                    100.0 * a
-                ));
-            }
-            for k in &r.kept {
-                line(format!(
-                    "  kept on {}: {} {:?}",
-                    r.experiment, k.name, k.params
-                ));
-            }
-            for k in &r.rejected {
-                line(format!("  rejected on {}: {}", r.experiment, k.name));
-            }
-            for a in &r.ambiguous {
-                line(format!(
-                    "  ambiguous: {} with {}: {}",
-                    a.name, a.confused_with, a.reason
-                ));
-            }
-            for w in &r.warnings {
-                line(format!("  warning: {w}"));
-            }
+            round_lines(r, &mut line);
         }
         if let Some(m) = &self.model {
             line(format!("final model: {}", m.text));
@@ -298,31 +259,7 @@ impl AutotuneReport {
             }
         }
         if let Some(c) = &self.control {
-            line(format!(
-                "controller: C(s) = {} at wc {:.2} rad/s, pm {:.1} deg (Ms {:.2}, gm {:.1} dB); \
-                 {} sections, within {:.1e} of the realisation",
-                c.text, c.wc_used, c.pm_deg, c.ms, c.gm_db, c.sections, c.quantisation_error
-            ));
-            line(format!("  crossover: {}", c.crossover.reasons.join("; ")));
-            for r in &c.refusals {
-                line(format!("  refused: {r}"));
-            }
-            let show = |name: &str, f: &Option<StepFigures>| match f {
-                Some(f) => format!(
-                    "  {name}: overshoot {:.2}%, rise {}, settling {}",
-                    f.overshoot_percent,
-                    opt_s(f.rise_time_s),
-                    opt_s(f.settling_time_s)
-                ),
-                None => format!("  {name}: -"),
-            };
-            line(format!("step of {:.2} rad/s:", c.step_rad_s));
-            line(show("predicted", &c.predicted));
-            line(show("measured ", &c.measured));
-            line(format!(
-                "  residual oscillation (last third): {:.4} rad/s RMS",
-                c.residual_oscillation
-            ));
+            control_lines(c, &mut line);
         }
         for w in &self.warnings {
             line(format!("warning: {w}"));
@@ -341,4 +278,78 @@ impl AutotuneReport {
         ));
         s
     }
+}
+
+/// A round in lines: the errors before and after, the model, what was kept, rejected and left
+/// ambiguous.
+fn round_lines(r: &Round, line: &mut impl FnMut(String)) {
+    line(format!(
+        "round {} ({}, {}):",
+        r.round, r.experiment, r.reason
+    ));
+    let fmt = |v: &[RecordError]| {
+        v.iter()
+            .map(|e| format!("{} {:.4} rad/s ({:.2}%)", e.record, e.rmse, e.nrmse_percent))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    if !r.before.is_empty() {
+        line(format!("  error before: {}", fmt(&r.before)));
+    }
+    line(format!("  error after:  {}", fmt(&r.after)));
+    line(format!("  model: {}", r.model));
+    if let (Some(b), Some(a)) = (r.frf_before, r.frf_after) {
+        line(format!(
+            "  frequency response at the dwells' points: largest error {:.2}% before, {:.2}% after",
+            100.0 * b,
+            100.0 * a
+        ));
+    }
+    for k in &r.kept {
+        line(format!(
+            "  kept on {}: {} {:?}",
+            r.experiment, k.name, k.params
+        ));
+    }
+    for k in &r.rejected {
+        line(format!("  rejected on {}: {}", r.experiment, k.name));
+    }
+    for a in &r.ambiguous {
+        line(format!(
+            "  ambiguous: {} with {}: {}",
+            a.name, a.confused_with, a.reason
+        ));
+    }
+    for w in &r.warnings {
+        line(format!("  warning: {w}"));
+    }
+}
+
+/// The controller and its step, predicted beside measured, in lines.
+fn control_lines(c: &Control, line: &mut impl FnMut(String)) {
+    line(format!(
+        "controller: C(s) = {} at wc {:.2} rad/s, pm {:.1} deg (Ms {:.2}, gm {:.1} dB); \
+             {} sections, within {:.1e} of the realisation",
+        c.text, c.wc_used, c.pm_deg, c.ms, c.gm_db, c.sections, c.quantisation_error
+    ));
+    line(format!("  crossover: {}", c.crossover.reasons.join("; ")));
+    for r in &c.refusals {
+        line(format!("  refused: {r}"));
+    }
+    let show = |name: &str, f: &Option<StepFigures>| match f {
+        Some(f) => format!(
+            "  {name}: overshoot {:.2}%, rise {}, settling {}",
+            f.overshoot_percent,
+            opt_s(f.rise_time_s),
+            opt_s(f.settling_time_s)
+        ),
+        None => format!("  {name}: -"),
+    };
+    line(format!("step of {:.2} rad/s:", c.step_rad_s));
+    line(show("predicted", &c.predicted));
+    line(show("measured ", &c.measured));
+    line(format!(
+        "  residual oscillation (last third): {:.4} rad/s RMS",
+        c.residual_oscillation
+    ));
 }

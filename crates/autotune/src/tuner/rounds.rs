@@ -225,10 +225,11 @@ pub enum Target {
 /// each record its own range for them; a level left at the edge of one record's range is out of
 /// another's).
 fn fresh_past(mut m: FracModel) -> FracModel {
-    if let Some(p) = m.past.clone() {
-        for i in p.levels {
-            m.params[i].value = 0.0;
-        }
+    let levels: Vec<usize> = (0..m.params.len())
+        .filter(|&i| m.params[i].name.starts_with("u_past"))
+        .collect();
+    for i in levels {
+        m.params[i].value = 0.0;
     }
     m
 }
