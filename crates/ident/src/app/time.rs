@@ -598,7 +598,20 @@ pub fn run(req: &TimeRequest, data: &TimeData, obs: &mut dyn Observe) -> Result<
     let (lead, base, model_is, diagnosis) = match diagnosis {
         Some((d, c)) => {
             let (fin, is, report) = final_model(d, c, &base, req, data, final_file);
-            (fin, Some(base), is, Some(report))
+            // With no effect kept the final model is the chosen structure's base fit: when its
+            // own evaluation fails where the base fit's did not, the report leads with the base
+            // fit (the same model, judged on the figures it was fitted with).
+            if !fin.usable && report.diagnosis.effects.is_empty() && base.usable {
+                let is = format!(
+                    "base: the chosen structure's fit ({}; the diagnosis kept no effect, and \
+                     the final model could not be judged again: {})",
+                    report.structures.scores[report.structures.chosen].name,
+                    fin.problems.join("; ")
+                );
+                (base.clone(), Some(base), is, Some(report))
+            } else {
+                (fin, Some(base), is, Some(report))
+            }
         }
         None => (
             base,
@@ -1098,10 +1111,19 @@ mod tests {
             reader_warnings: vec![],
         };
         let r = run(&req, &d, &mut crate::app::observe::Quiet).unwrap();
-        assert!(r.validated_by.note.contains("continues"), "{}", r.validated_by.note);
+        assert!(
+            r.validated_by.note.contains("continues"),
+            "{}",
+            r.validated_by.note
+        );
         // The model over both parts in turn, its output on the tail's samples.
         let m = &r.lead.spec;
-        let u: Vec<f64> = head.u.iter().chain(&tail.u).map(|x| x - m.operating_point.u0).collect();
+        let u: Vec<f64> = head
+            .u
+            .iter()
+            .chain(&tail.u)
+            .map(|x| x - m.operating_point.u0)
+            .collect();
         let mut y = vec![0.0; u.len()];
         crate::oe::Structure::simulate(m, &m.values(), &u, head.dt, &mut y).unwrap();
         let yt: Vec<f64> = y[cut..].iter().map(|v| v + m.operating_point.y0).collect();
