@@ -259,7 +259,6 @@ fn a_model_worse_than_the_mean_on_held_out_steps_is_not_usable() {
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     let o = fracid(&[
         "time",
-        "--plain",
         p.to_str().unwrap(),
         "--json",
         "--quiet",
@@ -578,6 +577,7 @@ fn structure_auto_keeps_the_structure_the_data_support() {
     assert!((val - rows[chosen]["rmse"].as_f64().unwrap()).abs() < 1e-12 * val);
     let o = fracid(&[
         "time",
+        "--plain",
         p.to_str().unwrap(),
         "--structure",
         "auto",
