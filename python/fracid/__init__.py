@@ -403,9 +403,11 @@ def fit_time(
         ``fix`` ("NAME" or "NAME=VALUE", comma-separated), ``free``, ``start`` (dict of start
         values by parameter name), ``auto_start``, ``holdout`` (fraction held out; default 0.3),
         ``offsets`` ("initial", "mean", "none"), ``fit_offset``, ``initial`` ("auto", "estimate",
-        "rest"), ``max_iterations`` (500), ``skip``, ``max_lag`` (25), ``diagnose`` (the residual
-        diagnosis, docs/design.md §6: the result is in ``TimeFit.diagnosis`` and the model that
-        leads is the final one), ``margin``, ``min_r2``, ``max_rounds``.
+        "rest"), ``max_iterations`` (500), ``skip``, ``max_lag`` (25), ``plain`` (False: the loop is
+        closed, the candidate structures compared and the best diagnosed, docs/design.md §6, the
+        result in ``TimeFit.diagnosis`` and the final model leading; True: the named structure
+        fitted once; ``diagnose=True`` of earlier versions is the default), ``margin``,
+        ``min_r2``, ``max_rounds``.
 
     Returns
     -------
@@ -440,7 +442,8 @@ def fit_time_joint(
     --joint``): the plant's parameters shared, each record with its own operating point, output
     offset and initial state, each used whole; scored on ``validate`` when given.
 
-    Takes the options of :func:`fit_time` (not ``diagnose`` nor ``structure="auto"``) and
+    Takes the options of :func:`fit_time` (the named structure fitted once; not
+    ``structure="auto"``) and
     returns the report as ``fracid time --joint --json`` prints it (``model``, ``params``,
     ``records`` named ``record``, ``joint[0]``, ..., ``converged``, ``warnings``, ``fit``,
     ``usable``, ``problems``, ``request``): ``usable`` is the verdict ``fracid time --joint``
@@ -474,6 +477,13 @@ def time_request(structure: Union[str, FracTf, None] = None, **options: object) 
     """
     known = _time_request_defaults()
     request: Dict[str, object] = {}
+    options = dict(options)
+    if "diagnose" in options and "plain" not in options:
+        # Earlier versions' option: the loop is closed by default now, ``plain=True`` is the
+        # single fit.
+        diagnosed = options.pop("diagnose")
+        if diagnosed is not None and not diagnosed:
+            options["plain"] = True
     if structure is not None:
         request["structure"] = str(structure)
     for name, value in options.items():
@@ -500,7 +510,8 @@ def diagnose(
 ) -> Diagnosis:
     """Fit ``structure`` by output error and diagnose what the fit cannot explain.
 
-    The same as ``fit_time(u, y, dt, structure, diagnose=True, **kwargs).diagnosis``; see
+    The same as ``fit_time(u, y, dt, structure, **kwargs).diagnosis`` (the default closes the
+    loop); see
     :func:`fit_time` for the parameters.
 
     Returns
@@ -509,7 +520,7 @@ def diagnose(
         The error before and after, the effects kept with their parameters and evidence, the
         candidates rejected and why, ambiguities, and whether structure remains unexplained.
     """
-    kwargs["diagnose"] = True
+    kwargs["plain"] = False
     fit = fit_time(u, y, dt, structure, **kwargs)  # type: ignore[arg-type]
     assert fit.diagnosis is not None
     return fit.diagnosis

@@ -241,7 +241,7 @@ fn unal_step_record_fits_with_defaults() {
 fn a_model_worse_than_the_mean_on_held_out_steps_is_not_usable() {
     let p = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
         .join("../../data/sysidentpy_motor_generator/motor_generator_steps.csv");
-    let args = ["time", p.to_str().unwrap(), "--json", "--quiet"];
+    let args = ["time", "--plain", p.to_str().unwrap(), "--json", "--quiet"];
     let o = fracid(&[&args[..], &["--band", "1e-3,0.9425"]].concat());
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
     let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
@@ -320,6 +320,7 @@ fn score_and_validate_on_a_second_record() {
 
     let o = fracid(&[
         "time",
+        "--plain",
         a.to_str().unwrap(),
         "--json",
         "--quiet",
@@ -454,7 +455,13 @@ fn degenerate_fits_exit_1() {
         &["--structure", "(0.002 s + 0.000004)/s"][..],
         &["--integrator"][..],
     ] {
-        let mut args = vec!["time", csv.to_str().unwrap(), "--json", "--quiet"];
+        let mut args = vec![
+            "time",
+            "--plain",
+            csv.to_str().unwrap(),
+            "--json",
+            "--quiet",
+        ];
         args.extend(extra);
         let o = fracid(&args);
         assert_eq!(o.status.code(), Some(1), "{extra:?}: {}", stderr(&o));
@@ -519,6 +526,7 @@ fn structure_auto_keeps_the_structure_the_data_support() {
         .join("../../data/unal_dcmotor/DCmotor_prbs_open_exp.csv");
     let o = fracid(&[
         "time",
+        "--plain",
         p.to_str().unwrap(),
         "--structure",
         "auto",
@@ -569,6 +577,7 @@ fn structure_auto_keeps_the_structure_the_data_support() {
     assert!((val - rows[chosen]["rmse"].as_f64().unwrap()).abs() < 1e-12 * val);
     let o = fracid(&[
         "time",
+        "--plain",
         p.to_str().unwrap(),
         "--structure",
         "auto",

@@ -202,6 +202,7 @@ fn a_written_structure_that_never_moved_from_its_start_exits_1() {
     );
     let o = fracid(&[
         "time",
+        "--plain",
         a.to_str().unwrap(),
         "--structure",
         "2/(0.01 s^0.9 + 1e-300 s^0.5 + 1)",

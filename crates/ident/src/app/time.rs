@@ -612,7 +612,20 @@ fn run_request(req: &TimeRequest, data: &TimeData, obs: &mut dyn Observe) -> Res
     let (lead, base, model_is, diagnosis) = match diagnosis {
         Some((d, c)) => {
             let (fin, is, report) = final_model(d, c, &base, req, data, final_file);
-            (fin, Some(base), is, Some(report))
+            // With no effect kept the final model is the chosen structure's base fit: when its
+            // own evaluation fails where the base fit's did not, the report leads with the base
+            // fit (the same model, judged on the figures it was fitted with).
+            if !fin.usable && report.diagnosis.effects.is_empty() && base.usable {
+                let is = format!(
+                    "base: the chosen structure's fit ({}; the diagnosis kept no effect, and \
+                     the final model could not be judged again: {})",
+                    report.structures.scores[report.structures.chosen].name,
+                    fin.problems.join("; ")
+                );
+                (base.clone(), Some(base), is, Some(report))
+            } else {
+                (fin, Some(base), is, Some(report))
+            }
         }
         None => (
             base,
@@ -1076,6 +1089,63 @@ mod tests {
             joint: vec![],
             reader_warnings: vec!["file.csv: a reader caveat".into()],
         }
+    }
+
+    /// A record cut in two whose second part continues the first (its time stamps follow on) is
+    /// scored from the state the first part ended in: the fitted model simulated over both parts
+    /// in turn, its error on the second part's samples alone; the same part with its time stamps
+    /// restarted is a record of its own (not continued).
+    #[test]
+    fn a_validation_record_that_continues_the_estimation_record_carries_the_state_over() {
+        let whole = data().record;
+        let cut = 260;
+        let part = |a: usize, b: usize, t0: f64| {
+            let mut r = Record::from_samples(&whole.u[a..b], &whole.y[a..b], whole.dt).unwrap();
+            for (k, t) in r.t.iter_mut().enumerate() {
+                *t = t0 + k as f64 * whole.dt;
+            }
+            r
+        };
+        let (head, tail) = (part(0, cut, 0.0), part(cut, 600, whole.t[cut]));
+        assert!(continues(&head, &tail));
+        assert!(!continues(&head, &part(cut, 600, 0.0)));
+        let req = TimeRequest {
+            structure: "2/(0.2 s + 1)".into(),
+            plain: true,
+            ..Default::default()
+        };
+        let d = TimeData {
+            record: head.clone(),
+            validation: Some(Named {
+                name: "tail".into(),
+                record: tail.clone(),
+            }),
+            joint: vec![],
+            reader_warnings: vec![],
+        };
+        let r = run(&req, &d, &mut crate::app::observe::Quiet).unwrap();
+        assert!(
+            r.validated_by.note.contains("continues"),
+            "{}",
+            r.validated_by.note
+        );
+        // The model over both parts in turn, its output on the tail's samples.
+        let m = &r.lead.spec;
+        let u: Vec<f64> = head
+            .u
+            .iter()
+            .chain(&tail.u)
+            .map(|x| x - m.operating_point.u0)
+            .collect();
+        let mut y = vec![0.0; u.len()];
+        crate::oe::Structure::simulate(m, &m.values(), &u, head.dt, &mut y).unwrap();
+        let yt: Vec<f64> = y[cut..].iter().map(|v| v + m.operating_point.y0).collect();
+        let file = r.lead.fit.validation_file.unwrap();
+        let direct = Fit::of(&tail.y, &yt);
+        assert!((file.rmse - direct.rmse).abs() <= 1e-12 * (1.0 + direct.rmse));
+        // The plant is first order and the record exact: the state carried over predicts the
+        // tail to the fit's own precision.
+        assert!(file.nrmse_percent > 99.0, "{}", file.nrmse_percent);
     }
 
     #[derive(Default)]

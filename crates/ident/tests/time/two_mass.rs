@@ -312,6 +312,7 @@ fn auto_reduces_the_arms_degenerate_two_mass_screening_fit_at_once() {
     };
     let auto = TimeRequest {
         structure: "auto".into(),
+        plain: true,
         ..Default::default()
     };
     let r = run(&auto, &data, &mut Quiet).unwrap();
@@ -320,7 +321,15 @@ fn auto_reduces_the_arms_degenerate_two_mass_screening_fit_at_once() {
     assert_eq!(chosen.name, "two-mass (reduced)", "{}", c.reason);
     assert!(c.reason.contains("refitted at once"), "{}", c.reason);
     let held = r.lead.fit.validation.expect("a held-out part").rmse;
-    let diagnosed = run(&TimeRequest { ..auto.clone() }, &data, &mut Quiet).unwrap();
+    let diagnosed = run(
+        &TimeRequest {
+            plain: false,
+            ..auto.clone()
+        },
+        &data,
+        &mut Quiet,
+    )
+    .unwrap();
     let d = diagnosed.diagnosis.as_ref().expect("a diagnosis");
     let base = d.structures.scores[d.structures.chosen]
         .rmse
