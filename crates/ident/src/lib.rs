@@ -22,13 +22,12 @@ mod error;
 pub mod files;
 pub mod hold;
 pub mod levy;
-mod linalg;
 pub mod lm;
 pub mod matfile;
 pub mod metrics;
 pub mod numeric;
 pub mod oe;
-pub mod par;
+mod par;
 #[cfg(test)]
 mod testdata;
 
