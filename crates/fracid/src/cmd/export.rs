@@ -7,7 +7,7 @@ use crate::cmd::sim::parse_band;
 use anyhow::{Context, Result};
 use fracsim::export::{self, StateSpace};
 use fracsim::{ApproxSpec, FracTf};
-use serde_json::{json, Value};
+use serde_json::Value;
 use std::path::PathBuf;
 
 /// Options of `fracid export`.
@@ -98,28 +98,6 @@ fn controller_state_space(c: &tune::Controller, dt: f64, a: &ExportArgs) -> Resu
     Ok(tune::realise::discrete(c, dt, &spec)?)
 }
 
-/// The JSON document of an exported state space.
-pub fn json_of(ss: &StateSpace, g: &FracTf) -> Value {
-    json!({
-        "model": g.to_string(),
-        "time": if ss.dt.is_some() { "discrete" } else { "continuous" },
-        "dt": ss.dt,
-        "hold": ss.dt.map(|_| "zoh"),
-        "input_delay": ss.input_delay,
-        "delay_states": ss.delay_states,
-        "approximation": {
-            "method": export::method_name(ss.spec.method),
-            "order": ss.spec.order,
-            "band": [ss.band.0, ss.band.1],
-        },
-        "states": ss.order(),
-        "a": ss.a_rows(),
-        "b": ss.b_col().iter().map(|v| vec![*v]).collect::<Vec<_>>(),
-        "c": [ss.c_row()],
-        "d": [[ss.d]],
-    })
-}
-
 /// Run `fracid export`.
 pub fn run(a: ExportArgs) -> Result<()> {
     let model: Vec<_> = super::paths::file_arg(&a.model)
@@ -148,7 +126,7 @@ pub fn run(a: ExportArgs) -> Result<()> {
     let text = if format == "m" {
         ss.to_matlab(&g.to_string())
     } else {
-        serde_json::to_string_pretty(&json_of(&ss, &g))? + "\n"
+        serde_json::to_string_pretty(&ss.to_json(&g.to_string()))? + "\n"
     };
     match &a.output {
         Some(p) => std::fs::write(p, text).with_context(|| format!("cannot write {}", p.display())),
