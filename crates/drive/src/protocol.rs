@@ -1,8 +1,6 @@
 //! Messages and their payload layouts (see the crate docs, section 3). No I/O, no framing: the
 //! [`codec`](crate::codec) wraps a [`Frame`] into bytes.
 
-use crate::error::FrameError;
-
 /// Protocol version carried in the low nibble of the first body byte. Version 2: SINE_RESULT
 /// carries the window's level and ramp moments (38 bytes; 22 in version 1), so that the host
 /// removes the operating point and its drift (PROTOCOL.md, section 3). Version 3: KEEPALIVE
@@ -1116,4 +1114,39 @@ pub fn type_name(t: u8) -> &'static str {
         ty::SINE_RESULT => "SINE_RESULT",
         _ => "?",
     }
+}
+
+/// Why a received frame was discarded.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+#[non_exhaustive]
+pub enum FrameError {
+    /// The bytes between two delimiters are not valid (canonical) COBS.
+    #[error("invalid COBS encoding")]
+    Cobs,
+    /// The frame exceeded the maximum body length.
+    #[error("frame too long")]
+    TooLong,
+    /// The body is shorter than header plus CRC.
+    #[error("frame too short")]
+    TooShort,
+    /// CRC mismatch.
+    #[error("CRC mismatch")]
+    Crc,
+    /// Unsupported version or reserved bits set.
+    #[error("unsupported version/flags byte {0:#04x}")]
+    Version(u8),
+    /// Unknown message type.
+    #[error("unknown message type {0:#04x}")]
+    UnknownType(u8),
+    /// The payload length does not match the message type.
+    #[error("bad payload length {len} for type {ty:#04x}")]
+    Length {
+        /// Message type.
+        ty: u8,
+        /// Payload length received.
+        len: usize,
+    },
+    /// A field has an impossible value (reserved bits set, n out of range).
+    #[error("bad field in type {0:#04x}")]
+    Field(u8),
 }

@@ -56,7 +56,7 @@ pub struct DemoArgs {
     #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..=100))]
     pub repeats: u32,
     /// Run the C drive firmware (`firmware/`, as flashed on the F2812) in the simulated drive
-    /// instead of the simulator's Rust firmware (also: FRACID_SIM_FIRMWARE=c).
+    /// instead of the simulator's Rust firmware.
     #[arg(long)]
     pub firmware: bool,
 }

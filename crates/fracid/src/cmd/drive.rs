@@ -79,7 +79,9 @@ pub struct SimArgs {
     /// Also create a symlink to the pty here (stable across a simulated disconnect).
     #[arg(long)]
     pub link: Option<PathBuf>,
-    /// Motor model, voltage to speed (default: the paper's time-domain PMSM model).
+    /// Motor model, voltage to speed (default: the paper's time-domain PMSM model): any model the
+    /// identification returns, products of factors as written included, e.g. a resonance at the
+    /// load `3/((0.005 s + 1)(1.2509e-5 s^2 + 3.5368e-4 s + 1))`.
     #[arg(long, default_value = "6.82/(2.655e-5 s^1.7452 + 0.0059 s^0.92 + 1)")]
     pub model: String,
     /// Hidden effect: Coulomb friction, voltage equivalent, V.
@@ -100,6 +102,9 @@ pub struct SimArgs {
     /// Hidden effect: speed quantisation step, rad/s.
     #[arg(long, default_value_t = 0.0)]
     pub speed_quant: f64,
+    /// Hidden effect: a constant offset added to the command at the input, V.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub offset: f64,
     /// Fault: bit error rate (per bit, both directions).
     #[arg(long, default_value_t = 0.0)]
     pub ber: f64,
@@ -140,7 +145,7 @@ pub struct SimArgs {
     #[arg(long, short)]
     pub verbose: bool,
     /// Firmware behind the pty: `rust` (the simulator's own) or `c` (the C firmware of
-    /// `firmware/`, as flashed on the F2812). Default: rust, or `c` if FRACID_SIM_FIRMWARE=c.
+    /// `firmware/`, as flashed on the F2812). Default: rust.
     #[arg(long, value_enum)]
     pub firmware: Option<SimFirmware>,
     /// Run the drive in virtual time: its clock runs as fast as the host allows instead of the
@@ -310,6 +315,7 @@ fn sim(a: SimArgs) -> Result<()> {
             ripple_hz: a.ripple_hz,
             noise_std: a.noise,
             speed_quant: a.speed_quant,
+            offset_v: a.offset,
             ..Effects::default()
         },
         faults: Faults {
@@ -326,9 +332,8 @@ fn sim(a: SimArgs) -> Result<()> {
         link: a.link,
         verbose: a.verbose,
         firmware: match a.firmware {
-            Some(SimFirmware::Rust) => FirmwareKind::Rust,
+            Some(SimFirmware::Rust) | None => FirmwareKind::Rust,
             Some(SimFirmware::C) => FirmwareKind::C,
-            None => FirmwareKind::from_env(),
         },
         clock: if a.virtual_time {
             SimClock::Virtual

@@ -3,7 +3,8 @@
 use crate::plot::{self, Figure};
 use anyhow::{Context, Result};
 use ident::app::observe::{Observe, Stage};
-use ident::app::time::{Named, ScoreReport, TimeData, TimeReport, TimeRequest};
+use ident::app::score::ScoreReport;
+use ident::app::time::{Named, TimeData, TimeReport, TimeRequest};
 use ident::data::{Columns, ReadOptions, Record};
 use ident::metrics;
 use ident::oe::Identification;

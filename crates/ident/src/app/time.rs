@@ -5,13 +5,14 @@
 //! [`run`] and present the report (text, JSON, a dict): the same request gives the same report.
 
 use super::observe::{enter, Observe, Stage};
+use super::score::ScoreReport;
 use super::ModelReport;
 use crate::data::Record;
 use crate::diagnose::structures::{diagnose_best_fitting, fit_best, StructureChoice};
 use crate::diagnose::{DiagnoseOptions, Diagnosis};
 use crate::metrics::{residual_test, Fit, ResidualTest};
 use crate::oe::{
-    identify_with_progress, score, FracModel, IdentOptions, Identification, ParamEstimate, Scored,
+    identify_with_progress, score, FracModel, IdentOptions, Identification, ParamEstimate,
     StartMode, Validation, ValidationKind,
 };
 use crate::{Error, Result};
@@ -129,37 +130,6 @@ pub struct TimeData {
     pub joint: Vec<Named>,
     /// The readers' caveats (an incomplete acquisition, the part kept).
     pub reader_warnings: Vec<String>,
-}
-
-/// A model scored on a separate record (`fit.validation_file`).
-#[derive(Debug, Clone, Serialize)]
-pub struct ScoreReport {
-    /// The record's name.
-    pub file: String,
-    /// RMSE over the whole record.
-    pub rmse: f64,
-    /// NRMSE fit (%) over the whole record.
-    pub nrmse_percent: f64,
-    /// The record's operating point.
-    pub offsets: crate::data::Offsets,
-    /// The record's own output offset and initial-state levels.
-    pub record_params: Vec<ParamEstimate>,
-    /// Caveats of the score.
-    pub warnings: Vec<String>,
-}
-
-impl ScoreReport {
-    /// The report of `sc` on the record named `file`.
-    pub fn new(file: &str, sc: &Scored) -> Self {
-        Self {
-            file: file.to_string(),
-            rmse: sc.fit.rmse,
-            nrmse_percent: sc.fit.nrmse_percent,
-            offsets: sc.offsets,
-            record_params: sc.record_params.clone(),
-            warnings: sc.warnings.clone(),
-        }
-    }
 }
 
 /// The fit figures of one model (docs/design.md §7 `fit`).
