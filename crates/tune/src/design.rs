@@ -143,7 +143,9 @@ fn retune(model: &FracTf, spec: &Spec, first: String) -> Result<Design> {
         match check_sampled(spec, &d.controller, &sm) {
             Ok(()) => {
                 let moved = format!(
-                    "the continuous design (with the hold's half-sample delay) solved for wc =                      {:.4} rad/s, pm = {:.3} deg so that the sampled loop meets wc = {} rad/s,                      pm = {} deg",
+                    "the continuous design (with the hold's half-sample delay) solved for wc = \
+                     {:.4} rad/s, pm = {:.3} deg so that the sampled loop meets wc = {} rad/s, \
+                     pm = {} deg",
                     target.wc, target.pm_deg, spec.wc, spec.pm_deg
                 );
                 let note = match &d.sampled_note {
