@@ -89,6 +89,13 @@ fn exit_code(err: &anyhow::Error) -> u8 {
                 _ => 2,
             };
         }
+        if let Some(e) = cause.downcast_ref::<autotune::Error>() {
+            return match e {
+                autotune::Error::InvalidParam(_) => 2,
+                autotune::Error::Interrupted(_) => 130,
+                _ => 1,
+            };
+        }
         if cause.downcast_ref::<cmd::BadInput>().is_some() {
             return 2;
         }

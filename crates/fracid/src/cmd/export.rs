@@ -158,7 +158,7 @@ fn write_out(a: &ExportArgs, text: String) -> Result<()> {
 /// # Errors
 /// Not a controller, no sample period, a realisation the drive cannot run (bad input, exit 2).
 fn c_header(a: &ExportArgs, report: Option<&Value>, g: &FracTf) -> Result<String> {
-    use super::drive_loop::{fixed_controller, parse_realisation, prune, Realisation};
+    use autotune::realise::{fixed_controller, parse_realisation, prune, Realisation};
     let realised = report.is_some_and(|v| v.get("discrete").is_some_and(|d| !d.is_null()));
     let real = match (report, a.dt) {
         (Some(v), None) if realised => parse_realisation(&v.to_string())?,

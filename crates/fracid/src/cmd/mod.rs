@@ -5,6 +5,8 @@ pub mod demo;
 pub mod demo_loop;
 pub mod diagnose;
 pub mod drive;
+pub mod drive_autotune;
+pub mod drive_io;
 pub mod drive_loop;
 pub mod export;
 pub mod fleet;
