@@ -7,7 +7,9 @@ it, :meth:`StateSpace.to_scipy` and :meth:`StateSpace.to_control` hand it to tho
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import copy
+import json
+from dataclasses import dataclass, field
 from typing import Any, Dict, Iterator, Optional, Tuple
 
 import numpy as np
@@ -53,6 +55,28 @@ class StateSpace:
     method: str
     band: Tuple[float, float]
     order: int
+    _doc: Dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
+
+    @classmethod
+    def _from_json(cls, text: str) -> "StateSpace":
+        """The state space from its JSON document (``fracid export --format json``'s, which
+        :meth:`to_dict` gives back)."""
+        doc = json.loads(text)
+        ap = doc["approximation"]
+        return cls(
+            a=np.array(doc["a"], dtype=float).reshape(doc["states"], doc["states"]),
+            b=np.array(doc["b"], dtype=float).reshape(doc["states"], 1),
+            c=np.array(doc["c"], dtype=float).reshape(1, doc["states"]),
+            d=np.array(doc["d"], dtype=float).reshape(1, 1),
+            dt=doc["dt"],
+            input_delay=float(doc["input_delay"]),
+            delay_states=int(doc["delay_states"]),
+            model=doc["model"],
+            method=ap["method"],
+            band=(float(ap["band"][0]), float(ap["band"][1])),
+            order=int(ap["order"]),
+            _doc=doc,
+        )
 
     def __iter__(self) -> Iterator[np.ndarray]:
         """``A, B, C, D = ss``."""
@@ -115,18 +139,13 @@ class StateSpace:
         return control.ss(self.a, self.b, self.c, self.d, 0 if self.dt is None else self.dt)
 
     def to_dict(self) -> Dict[str, Any]:
-        """Plain Python types, the same keys as ``fracid export --format json``."""
-        return {
-            "model": self.model,
-            "time": "discrete" if self.discrete else "continuous",
-            "dt": self.dt,
-            "hold": "zoh" if self.discrete else None,
-            "input_delay": self.input_delay,
-            "delay_states": self.delay_states,
-            "approximation": {"method": self.method, "order": self.order, "band": list(self.band)},
-            "states": self.n_states,
-            "a": self.a.tolist(),
-            "b": self.b.tolist(),
-            "c": self.c.tolist(),
-            "d": self.d.tolist(),
-        }
+        """Plain Python types: the document ``fracid export --format json`` writes.
+
+        Raises
+        ------
+        DataError
+            For a state space not made by fracid (``FracTf.to_state_space``).
+        """
+        if not self._doc:
+            raise DataError("to_dict: this StateSpace was not made by FracTf.to_state_space")
+        return copy.deepcopy(self._doc)

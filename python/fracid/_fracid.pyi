@@ -188,16 +188,7 @@ def _fit_time_joint(
 
 def _tune(
     model: Union[FracTf, str],
-    wc: float,
-    pm: float,
-    form: str = ...,
-    flat: bool = ...,
-    dt: Optional[float] = ...,
-    t_high: Optional[Tuple[float, float]] = ...,
-    s_low: Optional[Tuple[float, float]] = ...,
-    lambda_: Optional[float] = ...,
-    step: float = ...,
-    load: Optional[float] = ...,
+    request: str,
     effects: List[Tuple[str, Dict[str, float]]] = ...,
 ) -> str: ...
 

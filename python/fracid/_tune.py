@@ -27,21 +27,22 @@ def tune(
     *,
     wc: float,
     pm: float,
-    form: str = "fopi",
-    flat: bool = False,
+    form: Optional[str] = None,
+    flat: Optional[bool] = None,
     dt: Optional[float] = None,
     t_high: Optional[Tuple[float, float]] = None,
     s_low: Optional[Tuple[float, float]] = None,
     lambda_: Optional[float] = None,
-    step: float = 1.0,
+    step: Optional[float] = None,
     load: Optional[float] = None,
     effects: Optional[Iterable[Any]] = None,
     mu: Optional[float] = None,
     max_lambda: Optional[float] = None,
     max_mu: Optional[float] = None,
-    max_ms: float = 2.0,
-    min_gm: float = 6.0,
-    min_lambda: float = 0.5,
+    max_ms: Optional[float] = None,
+    min_gm: Optional[float] = None,
+    min_lambda: Optional[float] = None,
+    u_limit: Optional[float] = None,
 ) -> Dict[str, Any]:
     """Design ``C(s) = kp + ki / s^lambda (+ kd s^mu)`` on ``model``, as ``fracid tune --json``.
 
@@ -63,9 +64,13 @@ def tune(
         Gain crossover, rad/s.
     pm : float
         Phase margin, degrees.
-    form : {"fopi", "fopid", "fopd", "pi", "pid"}
+    form : {"fopi", "fopid", "fopd", "pi", "pid"}, optional
         The controller structure (``fopd``: ``kp + kd s^mu``); ``fopid`` needs ``flat``.
-    flat : bool
+
+    Every option left at ``None`` takes the library's default (``tune::TuneRequest``, the same
+    defaults as ``fracid tune``'s flags): ``form="fopi"``, no flat phase, ``max_ms=2``,
+    ``min_gm=6``, ``min_lambda=0.5``, ``step=1``.
+    flat : bool, optional
         Flat phase at ``wc``.
     dt : float, optional
         Sample period, s: the hold's half-sample delay joins the design and the report gives the
@@ -77,12 +82,15 @@ def tune(
         differentiator's (``fopid``, ``fopd`` without ``flat``).
     max_lambda, max_mu : float, optional
         Caps on the orders searched.
-    max_ms, min_gm, min_lambda : float
+    max_ms, min_gm, min_lambda : float, optional
         The robustness floors (``Ms <= 2``, a gain margin of 6 dB, integral action with
         ``lambda >= 0.5`` by default): a design that misses one is refused.
     step, load : float, optional
         The simulated reference step (output units) and load step at the plant's input (default:
         the input that holds the reference step, ``step / G(0)``).
+    u_limit : float, optional
+        The voltage limit on the controller's output in the simulated loops, input units: the
+        output is clamped there with anti-windup, as the drive does.
     effects : iterable, optional
         Input effects to simulate in the loop: :class:`Effect` objects or mappings
         ``{"name": ..., "params": {...}}`` as a diagnosis reports them.
@@ -110,25 +118,31 @@ def tune(
     if not isinstance(model, (FracTf, str)) and hasattr(model, "model"):
         fx = model.effects if effects is None else effects
         model = model.model
-    text = _tune(
-        model,
-        float(wc),
-        float(pm),
-        form=form,
-        flat=bool(flat),
-        dt=dt,
-        t_high=t_high,
-        s_low=s_low,
-        lambda_=lambda_,
-        step=float(step),
-        load=load,
-        effects=_effects(fx),
-        mu=mu,
-        max_lambda=max_lambda,
-        max_mu=max_mu,
-        max_ms=float(max_ms),
-        min_gm=float(min_gm),
-        min_lambda=float(min_lambda),
-    )
+    given = {
+        "wc": wc,
+        "pm": pm,
+        "form": None if form is None else str(form).lower(),
+        "flat": None if flat is None else bool(flat),
+        "dt": dt,
+        "t_high": None if t_high is None else {"omega": float(t_high[0]), "db": float(t_high[1])},
+        "s_low": None if s_low is None else {"omega": float(s_low[0]), "db": float(s_low[1])},
+        "lambda": lambda_,
+        "mu": mu,
+        "max_lambda": max_lambda,
+        "max_mu": max_mu,
+        "max_ms": max_ms,
+        "min_gm": min_gm,
+        "min_lambda": min_lambda,
+        "step": step,
+        "load": load,
+        "u_limit": u_limit,
+    }
+    # the options given; the others take the library's defaults
+    request = {
+        k: v if isinstance(v, (bool, str, dict)) else float(v)
+        for k, v in given.items()
+        if v is not None
+    }
+    text = _tune(model, json.dumps(request), _effects(fx))
     report: Dict[str, Any] = json.loads(text)
     return report

@@ -227,27 +227,12 @@ impl PyFracTf {
             },
         }
         .map_err(errors::sim)?;
-        let n = ss.order();
-        let arr = |rows: usize, cols: usize, flat: Vec<f64>| -> PyResult<Bound<'py, PyAny>> {
-            let a = numpy::ndarray::Array2::from_shape_vec((rows, cols), flat)
-                .map_err(|e| errors::data(e.to_string()))?;
-            Ok(a.into_pyarray(py).into_any())
-        };
-        let kw = PyDict::new(py);
-        kw.set_item("a", arr(n, n, ss.a_rows().concat())?)?;
-        kw.set_item("b", arr(n, 1, ss.b_col())?)?;
-        kw.set_item("c", arr(1, n, ss.c_row())?)?;
-        kw.set_item("d", arr(1, 1, vec![ss.d])?)?;
-        kw.set_item("dt", ss.dt)?;
-        kw.set_item("input_delay", ss.input_delay)?;
-        kw.set_item("delay_states", ss.delay_states)?;
-        kw.set_item("model", g.to_string())?;
-        kw.set_item("method", fracsim::export::method_name(ss.spec.method))?;
-        kw.set_item("band", ss.band)?;
-        kw.set_item("order", ss.spec.order)?;
+        // the one JSON form of a state space (`fracsim::json`), as `fracid export` writes it
+        let doc = serde_json::to_string(&ss.to_json(&g.to_string()))
+            .map_err(|e| errors::data(e.to_string()))?;
         py.import("fracid._export")?
             .getattr("StateSpace")?
-            .call((), Some(&kw))
+            .call_method1("_from_json", (doc,))
     }
 
     /// The model as a dict: `num`, `den` (lists of `{coef, order}`), `delay`, `text`.

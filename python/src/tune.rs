@@ -7,8 +7,7 @@ use fracsim::FracTf;
 use pyo3::prelude::*;
 use std::collections::HashMap;
 use tune::closed::InputEffect;
-use tune::report::SimOptions;
-use tune::{GainBound, Spec};
+use tune::TuneRequest;
 
 /// Map a design error: an impossible specification is `InfeasibleError`, a bad request
 /// `DataError`, the simulator's errors as usual.
@@ -32,53 +31,20 @@ fn model_of(model: &Bound<'_, PyAny>) -> PyResult<FracTf> {
     ))
 }
 
-/// Design, realise and simulate; the report as JSON text.
+/// Design, realise and simulate as `request` (a `tune::TuneRequest` as JSON: the fields left out
+/// take the library's defaults, an unknown one is refused) asks, the model's input `effects`
+/// simulated in the loop; the report as JSON text.
 #[pyfunction]
-#[allow(clippy::too_many_arguments)]
-#[pyo3(signature = (model, wc, pm, form = "fopi", flat = false, dt = None, t_high = None, s_low = None, lambda_ = None, step = 1.0, load = None, effects = Vec::new(), mu = None, max_lambda = None, max_mu = None, max_ms = 2.0, min_gm = 6.0, min_lambda = 0.5))]
+#[pyo3(signature = (model, request, effects = Vec::new()))]
 pub(crate) fn _tune(
     py: Python<'_>,
     model: Bound<'_, PyAny>,
-    wc: f64,
-    pm: f64,
-    form: &str,
-    flat: bool,
-    dt: Option<f64>,
-    t_high: Option<(f64, f64)>,
-    s_low: Option<(f64, f64)>,
-    lambda_: Option<f64>,
-    step: f64,
-    load: Option<f64>,
+    request: &str,
     effects: Vec<(String, HashMap<String, f64>)>,
-    mu: Option<f64>,
-    max_lambda: Option<f64>,
-    max_mu: Option<f64>,
-    max_ms: f64,
-    min_gm: f64,
-    min_lambda: f64,
 ) -> PyResult<String> {
     let g = model_of(&model)?;
-    let bound = |b: Option<(f64, f64)>| b.map(|(omega, db)| GainBound { omega, db });
-    let spec = Spec {
-        form: form.parse().map_err(tune_err)?,
-        wc,
-        pm_deg: pm,
-        flat,
-        t_high: bound(t_high),
-        s_low: bound(s_low),
-        dt,
-        lambda: lambda_,
-        floors: tune::Floors {
-            ms_max: max_ms,
-            gm_min_db: min_gm,
-            lambda_min: min_lambda,
-        },
-        orders: tune::Orders {
-            mu,
-            lambda_max: max_lambda,
-            mu_max: max_mu,
-        },
-    };
+    let req: TuneRequest =
+        serde_json::from_str(request).map_err(|e| errors::data(format!("tune request: {e}")))?;
     let mut fx = Vec::new();
     for (name, params) in &effects {
         if let Some(e) =
@@ -87,14 +53,8 @@ pub(crate) fn _tune(
             fx.push(e);
         }
     }
-    let opts = SimOptions {
-        step: Some(step),
-        load,
-        effects: fx,
-        u_limit: None,
-    };
     let report = py
-        .allow_threads(|| tune::report::tune(&g, &spec, &opts).map(|(r, _)| r))
+        .allow_threads(|| tune::request::run(&g, &req, fx).map(|(r, _)| r))
         .map_err(tune_err)?;
     serde_json::to_string(&report).map_err(|e| errors::data(e.to_string()))
 }

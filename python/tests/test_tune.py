@@ -50,11 +50,34 @@ def close(a, b, path=""):
             dict(wc=50, pm=60, flat=True, dt=0.001),
             ["--wc", 50, "--pm", 60, "--flat", "--dt", 0.001],
         ),
+        # the voltage limit: the simulated loops clamp there, in Python as in the CLI
+        (
+            dict(wc=300, pm=60, step=50, u_limit=2.0),
+            ["--wc", 300, "--pm", 60, "--step", 50, "--u-limit", 2.0],
+        ),
     ],
 )
 def test_report_agrees_with_cli(fracid_bin, kwargs, args):
     py = fracid.tune(PMSM, **kwargs)
     close(py, cli(fracid_bin, PMSM, *args))
+
+
+def test_options_left_out_take_the_librarys_defaults(fracid_bin):
+    """No option given: the request's defaults (the CLI's flags derive from the same ones)."""
+    py = fracid.tune(PMSM, wc=300, pm=60)
+    assert py["spec"]["form"] == "fopi" and py["spec"]["flat"] is False
+    assert py["spec"]["floors"] == {"ms_max": 2.0, "gm_min_db": 6.0, "lambda_min": 0.5}
+    assert py["step"]["setup"]["step"] == 1.0 and py["step"]["setup"]["u_limit"] is None
+    close(py, cli(fracid_bin, PMSM, "--wc", 300, "--pm", 60))
+
+
+def test_u_limit_clamps_the_simulated_command():
+    free = fracid.tune(PMSM, wc=300, pm=60, step=50)
+    held = fracid.tune(PMSM, wc=300, pm=60, step=50, u_limit=2.0)
+    assert held["step"]["setup"]["u_limit"] == 2.0
+    assert held["step"]["metrics"] != free["step"]["metrics"]
+    with pytest.raises(fracid.DataError):
+        fracid.tune(PMSM, wc=300, pm=60, u_limit=-1.0)
 
 
 def loop(report, w):

@@ -111,11 +111,16 @@ impl Realisation {
     /// The realisation of a tuner's report (`discrete`), the controller's text for messages.
     pub fn of_discrete(d: &DiscreteJson, text: &str) -> Self {
         Self {
-            dt: d.dt,
-            a: d.a.clone(),
-            b: d.b.iter().flatten().copied().collect(),
-            c: d.c.iter().flatten().copied().collect(),
-            d: d.d.first().and_then(|r| r.first()).copied().unwrap_or(0.0),
+            dt: d.dt(),
+            a: d.ss.a.clone(),
+            b: d.ss.b.iter().flatten().copied().collect(),
+            c: d.ss.c.iter().flatten().copied().collect(),
+            d: d.ss
+                .d
+                .first()
+                .and_then(|r| r.first())
+                .copied()
+                .unwrap_or(0.0),
             text: text.to_string(),
         }
     }

@@ -5,6 +5,7 @@ pub mod cfw;
 pub mod client;
 pub mod codec;
 pub mod ctrl;
+pub mod ctrl_header;
 mod error;
 pub mod prbs;
 pub mod protocol;

@@ -31,6 +31,7 @@ pub mod eig;
 pub mod export;
 pub mod fft;
 pub mod gl;
+pub mod json;
 pub mod lanes;
 pub mod modal;
 pub mod prbs;

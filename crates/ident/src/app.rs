@@ -13,7 +13,7 @@ pub mod verdict;
 use crate::data::OffsetMode;
 use crate::oe::FracModel;
 use crate::{Error, Result};
-use fracsim::{FracTf, Term};
+use fracsim::FracTf;
 
 /// The largest input delay searched when none is given: a fifth of the record, at most 1000
 /// samples of `dt_s` (1 s at 1 ms; once 1 s whatever the step, one sample of a record logged every
@@ -125,64 +125,8 @@ pub fn band(s: &str) -> Result<(f64, f64)> {
     Ok((nums[0], nums[1]))
 }
 
-/// One `(coefficient, order)` term of a reported model.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct TermReport {
-    /// The coefficient.
-    pub coef: f64,
-    /// The order of `s`.
-    pub order: f64,
-}
-
-/// A model as reports give it (DESIGN section 7): `num`, `den`, `delay` (s) and its `text`.
-#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct ModelReport {
-    /// Numerator terms.
-    pub num: Vec<TermReport>,
-    /// Denominator terms.
-    pub den: Vec<TermReport>,
-    /// Input delay in seconds.
-    #[serde(default)]
-    pub delay: f64,
-    /// The model as text (read back by the parser).
-    #[serde(default)]
-    pub text: String,
-    /// The names of the effects around the linear model (a final model after the diagnosis;
-    /// empty for a linear one).
-    #[serde(default)]
-    pub effects: Vec<String>,
-}
-
-impl From<&FracTf> for ModelReport {
-    fn from(g: &FracTf) -> Self {
-        let terms = |t: &[Term]| {
-            t.iter()
-                .map(|t| TermReport {
-                    coef: t.coef,
-                    order: t.order,
-                })
-                .collect()
-        };
-        Self {
-            num: terms(&g.num),
-            den: terms(&g.den),
-            delay: g.delay,
-            text: g.to_string(),
-            effects: Vec::new(),
-        }
-    }
-}
-
-impl ModelReport {
-    /// The transfer function back.
-    ///
-    /// # Errors
-    /// As [`FracTf::new`].
-    pub fn tf(&self) -> Result<FracTf> {
-        let terms = |t: &[TermReport]| t.iter().map(|t| Term::new(t.coef, t.order)).collect();
-        Ok(FracTf::new(terms(&self.num), terms(&self.den), self.delay)?)
-    }
-}
+/// The model JSON's form, shared with the tuner and Python ([`fracsim::json`]).
+pub use fracsim::json::{ModelReport, TermReport};
 
 /// Fix and free parameters by name: `fix` is a comma-separated list of `NAME` or `NAME=VALUE`
 /// (held, at that value when given), `free` a list of names (fitted).

@@ -48,6 +48,44 @@ pub struct LoopMetrics {
     pub stability_note: Option<String>,
 }
 
+impl LoopMetrics {
+    /// The metrics of a loop `l` (its frequency response at omega rad/s) from its sweep: the
+    /// first crossover, the margins there and over every crossover, the gain margins and the
+    /// sensitivity peak, with the phase slope at the crossover (`phase_slope(wc)`), the closed
+    /// loop's count of unstable poles (or why not counted) and the model's. Both analyses, the
+    /// continuous ([`analyse`]) and the sampled ([`crate::sampled`]), build their metrics here.
+    pub(crate) fn of_sweep(
+        sw: Sweep,
+        l: impl Fn(f64) -> Complex64,
+        phase_slope: impl FnOnce(f64) -> f64,
+        (unstable_poles, stability_note): (i64, Option<String>),
+        plant_unstable_poles: i64,
+    ) -> Self {
+        let pm = |w: f64| wrap_deg(180.0 + l(w).arg().to_degrees());
+        let wc = sw.cross.first().copied().unwrap_or(f64::NAN);
+        let pm_min_deg = sw
+            .cross
+            .iter()
+            .map(|&w| pm(w))
+            .fold(f64::INFINITY, f64::min);
+        Self {
+            wc,
+            pm_deg: pm(wc),
+            crossovers: sw.cross.len(),
+            crossover_omegas: sw.cross,
+            pm_min_deg,
+            gm_db: sw.gm,
+            gm_low_db: sw.gm_low,
+            ms: sw.ms,
+            ms_omega: sw.ms_omega,
+            phase_slope: phase_slope(wc),
+            unstable_poles,
+            plant_unstable_poles,
+            stability_note,
+        }
+    }
+}
+
 /// `L(j omega)`.
 pub fn loop_response(p: &Plant, c: &Controller, omega: f64) -> Complex64 {
     c.freq_response(omega) * p.freq_response(omega)
@@ -257,32 +295,17 @@ pub fn analyse(p: &Plant, c: &Controller, wc_design: f64) -> LoopMetrics {
     let extra = resonances(p, c, wc_design);
     let omega = loop_grid(p, c, wc_design);
     let sw = sweep(&omega, |w| loop_response(p, c, w));
-    let pm = |w: f64| wrap_deg(180.0 + loop_response(p, c, w).arg().to_degrees());
-    let wc = sw.cross.first().copied().unwrap_or(f64::NAN);
-    let pm_min = sw
-        .cross
-        .iter()
-        .map(|&w| pm(w))
-        .fold(f64::INFINITY, f64::min);
-    let (unstable_poles, stability_note) = match closed_loop_unstable(p, c, wc_design, &extra) {
+    let stability = match closed_loop_unstable(p, c, wc_design, &extra) {
         Ok(n) => (i64::from(n), None),
         Err(e) => (-1, Some(e.to_string())),
     };
-    LoopMetrics {
-        wc,
-        pm_deg: pm(wc),
-        crossovers: sw.cross.len(),
-        crossover_omegas: sw.cross,
-        pm_min_deg: pm_min,
-        gm_db: sw.gm,
-        gm_low_db: sw.gm_low,
-        ms: sw.ms,
-        ms_omega: sw.ms_omega,
-        phase_slope: phase_slope(p, c, wc),
-        unstable_poles,
-        plant_unstable_poles: plant_unstable(p, wc_design).map_or(-1, i64::from),
-        stability_note,
-    }
+    LoopMetrics::of_sweep(
+        sw,
+        |w| loop_response(p, c, w),
+        |wc| phase_slope(p, c, wc),
+        stability,
+        plant_unstable(p, wc_design).map_or(-1, i64::from),
+    )
 }
 
 pub(crate) fn golden_max(mut a: f64, mut b: f64, f: impl Fn(f64) -> f64) -> (f64, f64) {
@@ -320,4 +343,35 @@ pub fn t_db(p: &Plant, c: &Controller, omega: f64) -> f64 {
 pub fn s_db(p: &Plant, c: &Controller, omega: f64) -> f64 {
     let l = loop_response(p, c, omega);
     -20.0 * (Complex64::new(1.0, 0.0) + l).norm().log10()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn metrics_of_a_sweep_take_the_first_crossover_and_the_worst_margin() {
+        // |L| = 1 everywhere, arg L = -(90 + 10 w) deg: pm = 80 deg at w = 1, 60 deg at w = 3
+        let l = |w: f64| Complex64::from_polar(1.0, -(90.0 + 10.0 * w).to_radians());
+        let sw = Sweep {
+            cross: vec![1.0, 3.0],
+            gm: Some(6.0),
+            gm_low: None,
+            ms: 1.5,
+            ms_omega: 2.0,
+        };
+        let m = LoopMetrics::of_sweep(sw, l, |wc| 2.0 * wc, (0, None), 1);
+        assert_eq!(
+            (m.wc, m.crossovers, m.crossover_omegas.clone()),
+            (1.0, 2, vec![1.0, 3.0])
+        );
+        assert!((m.pm_deg - 80.0).abs() < 1e-12, "{m:?}");
+        assert!((m.pm_min_deg - 60.0).abs() < 1e-12, "{m:?}");
+        assert_eq!(
+            (m.phase_slope, m.gm_db, m.gm_low_db),
+            (2.0, Some(6.0), None)
+        );
+        assert_eq!((m.ms, m.ms_omega), (1.5, 2.0));
+        assert_eq!((m.unstable_poles, m.plant_unstable_poles), (0, 1));
+    }
 }

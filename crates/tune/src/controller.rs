@@ -3,10 +3,10 @@
 use crate::error::{invalid, Result};
 use fracsim::{jw_pow, FracTf, Term};
 use num_complex::Complex64;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// The controller structures `fracid tune` designs.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Form {
     /// `kp + ki / s^lambda` (fractional PI, Podlubny's `PI^lambda`).
@@ -41,6 +41,12 @@ impl Form {
     /// Whether the form has an integral term.
     pub fn has_integrator(self) -> bool {
         !matches!(self, Form::Fopd)
+    }
+}
+
+impl std::fmt::Display for Form {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
     }
 }
 

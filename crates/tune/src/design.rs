@@ -97,6 +97,89 @@ impl Refusals {
 /// when no controller of the form meets the specification.
 pub fn design(model: &FracTf, spec: &Spec) -> Result<Design> {
     spec.validate()?;
+    match design_for(model, spec, Some(spec)) {
+        Err(crate::Error::Infeasible(first)) if spec.dt.is_some() => retune(model, spec, first),
+        r => r,
+    }
+}
+
+/// How many times a sampled design is solved again ([`retune`]).
+const RETUNES: usize = 6;
+
+/// A sampled design ([`Spec::dt`]) whose sampled loop misses the specification (the
+/// realisation's own lags and the hold's aliasing, beyond the half-sample delay the design
+/// includes, move its crossover and margin): the design solved again at a crossover and a margin
+/// moved by what the sampled loop missed, `wc' <- wc' wc / wc_s`, `pm' <- pm' + pm - pm_s`,
+/// until the sampled loop meets `spec` (within the tolerances of [`check_sampled`]) and every
+/// floor (on the sampled loop, which the drive runs); refused naming the binding constraint when no retune does (`first`: why the design at
+/// `spec` itself was refused).
+fn retune(model: &FracTf, spec: &Spec, first: String) -> Result<Design> {
+    // the floors are the sampled loop's to meet (the loop the drive runs): the continuous
+    // design at the moved target keeps only the integral action's
+    let mut target = Spec {
+        floors: crate::spec::Floors {
+            ms_max: f64::MAX,
+            gm_min_db: 0.0,
+            ..spec.floors
+        },
+        ..spec.clone()
+    };
+    let mut why = String::new();
+    for _ in 0..RETUNES {
+        let d = match design_for(model, &target, None) {
+            Ok(d) => d,
+            Err(crate::Error::Infeasible(e)) => {
+                why = format!(
+                    "the design for wc = {:.4} rad/s, pm = {:.3} deg: {e}",
+                    target.wc, target.pm_deg
+                );
+                break;
+            }
+            Err(e) => return Err(e),
+        };
+        let Some(sm) = d.sampled.clone() else {
+            break;
+        };
+        match check_sampled(spec, &d.controller, &sm) {
+            Ok(()) => {
+                let moved = format!(
+                    "the continuous design (with the hold's half-sample delay) solved for wc = \
+                     {:.4} rad/s, pm = {:.3} deg so that the sampled loop meets wc = {} rad/s, \
+                     pm = {} deg",
+                    target.wc, target.pm_deg, spec.wc, spec.pm_deg
+                );
+                let note = match &d.sampled_note {
+                    Some(n) => format!("{moved}; {n}"),
+                    None => moved,
+                };
+                return Ok(Design {
+                    sampled_note: Some(note),
+                    ..d
+                });
+            }
+            Err(e) => why = e,
+        }
+        // only a loop that crosses once, stable, is moved towards the specification
+        if !(sm.unstable_poles == 0 && sm.crossovers == 1 && sm.wc.is_finite()) {
+            break;
+        }
+        target.wc *= spec.wc / sm.wc;
+        target.pm_deg += spec.pm_deg - sm.pm_deg;
+        if let Err(e) = target.validate() {
+            why = format!("{why}; the retuned target is out of range ({e})");
+            break;
+        }
+    }
+    infeasible(format!(
+        "{first}; solved again for the sampled loop ({RETUNES} retunes at most): {why}"
+    ))
+}
+
+/// The design of `target`'s form at its crossover and margin, every candidate checked on the
+/// continuous loop against `target` and, when `sampled` is given, on the sampled loop against
+/// `sampled` (without it the sampled loop is evaluated, not checked).
+fn design_for(model: &FracTf, target: &Spec, sampled: Option<&Spec>) -> Result<Design> {
+    let spec = target;
     let plant = Plant::new(model.clone(), spec.dt);
     let p = plant.freq_response(spec.wc);
     if !(p.norm() > 0.0 && p.norm().is_finite()) {
@@ -160,7 +243,7 @@ pub fn design(model: &FracTf, spec: &Spec) -> Result<Design> {
         ));
     }
     let candidates: Vec<Controller> = candidates.into_iter().filter(within).collect();
-    choose(&t, spec, candidates, why)
+    choose(&t, spec, sampled, candidates, why)
 }
 
 /// The FOPI meeting magnitude and phase at `wc` for an integrator order `lambda`.
@@ -320,6 +403,7 @@ fn fopid_candidates(t: &Target, spec: &Spec) -> Vec<Controller> {
 fn choose(
     t: &Target,
     spec: &Spec,
+    sampled: Option<&Spec>,
     candidates: Vec<Controller>,
     mut why: Refusals,
 ) -> Result<Design> {
@@ -332,7 +416,7 @@ fn choose(
     let mut checked = Refusals::default();
     let mut best: Option<Design> = None;
     for (_, c) in ranked {
-        match judge(t, spec, c)? {
+        match judge(t, spec, sampled, c)? {
             Ok(d) => {
                 best = Some(d);
                 break;
@@ -461,7 +545,12 @@ fn no_flat_order(t: &Target, spec: &Spec) -> Result<Design> {
 ///
 /// # Errors
 /// The realisation's errors.
-fn judge(t: &Target, spec: &Spec, c: Controller) -> Result<Result<Design, String>> {
+fn judge(
+    t: &Target,
+    spec: &Spec,
+    sampled_spec: Option<&Spec>,
+    c: Controller,
+) -> Result<Result<Design, String>> {
     let m = analyse(&t.plant, &c, t.wc);
     if let Err(e) = check(&t.plant, t.wc, spec, &c, &m) {
         return Ok(Err(e));
@@ -471,7 +560,7 @@ fn judge(t: &Target, spec: &Spec, c: Controller) -> Result<Result<Design, String
             let approx = fracsim::ApproxSpec::default();
             let l = crate::sampled::SampledLoop::new(&t.plant.tf, &c, dt, &approx)?;
             let sm = l.analyse(t.wc);
-            if let Err(e) = check_sampled(spec, &c, &sm) {
+            if let Some(Err(e)) = sampled_spec.map(|s| check_sampled(s, &c, &sm)) {
                 return Ok(Err(e));
             }
             (Some(sm), l.note)

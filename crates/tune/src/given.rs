@@ -11,8 +11,8 @@ use crate::plant::Plant;
 use crate::report::{discrete_json, setup_of, simulate_loop, DiscreteJson, SimOptions, StepJson};
 use crate::sampled::SampledLoop;
 use crate::spec::Floors;
+use fracsim::json::ModelReport;
 use fracsim::{ApproxSpec, FracTf};
-use ident::app::ModelReport;
 use serde::Serialize;
 
 /// The analysis of a given controller.
@@ -104,7 +104,7 @@ pub fn analyse_given(
             Some(DiscreteJson {
                 sampled_loop: Some(sm),
                 sampled_note: l.note,
-                ..discrete_json(&crate::realise::discrete(c, dt, &approx)?)
+                ..discrete_json(&crate::realise::discrete(c, dt, &approx)?, c)?
             })
         }
         None => None,

@@ -22,6 +22,7 @@ pub mod given;
 pub mod plant;
 pub mod realise;
 pub mod report;
+pub mod request;
 pub mod sampled;
 pub mod spec;
 
@@ -30,4 +31,5 @@ pub use controller::{Controller, Form};
 pub use design::{design, Design};
 pub use error::{Error, Result};
 pub use plant::Plant;
+pub use request::TuneRequest;
 pub use spec::{Floors, GainBound, Orders, Spec};

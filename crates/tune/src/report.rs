@@ -8,45 +8,31 @@ use crate::error::Result;
 use crate::realise;
 use crate::spec::Spec;
 use crate::{Form, LoopMetrics};
-use fracsim::export::{method_name, StateSpace};
+use fracsim::export::StateSpace;
+use fracsim::json::{ModelReport, StateSpaceJson};
 use fracsim::{ApproxSpec, FracTf};
-use ident::app::ModelReport;
 use serde::Serialize;
 
-/// The approximation a realisation used.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct ApproxJson {
-    /// `refined`, `oustaloup` or `trigeassou`.
-    pub method: &'static str,
-    /// The order `N` (2N+1 cells per operator).
-    pub order: usize,
-    /// The band `[w_b, w_h]`, rad/s.
-    pub band: [f64; 2],
-}
-
-/// The discrete realisation `x_(k+1) = A x_k + B e_k`, `u_k = C x_k + D e_k`.
+/// The discrete realisation `x_(k+1) = A x_k + B e_k`, `u_k = C x_k + D e_k`: the state space
+/// as `fracid export` writes it ([`StateSpaceJson`]), and the sampled loop it makes.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct DiscreteJson {
-    /// Sample period, seconds.
-    pub dt: f64,
-    /// The approximation of the fractional operators.
-    pub approximation: ApproxJson,
-    /// The number of states.
-    pub states: usize,
-    /// `A`, by rows.
-    pub a: Vec<Vec<f64>>,
-    /// `B`, a column.
-    pub b: Vec<Vec<f64>>,
-    /// `C`, a row.
-    pub c: Vec<Vec<f64>>,
-    /// `D`.
-    pub d: Vec<Vec<f64>>,
+    /// The realisation (its `model` is the controller's text).
+    #[serde(flatten)]
+    pub ss: StateSpaceJson,
     /// The sampled loop the drive runs: this realisation with the model discretised for the
     /// held input ([`crate::sampled`]), judged like the continuous one (stability, crossovers,
     /// margins, Ms); the design is refused when it misses the specification or a floor.
     pub sampled_loop: Option<LoopMetrics>,
     /// Caveats of the sampled loop's evaluation.
     pub sampled_note: Option<String>,
+}
+
+impl DiscreteJson {
+    /// The sample period, s.
+    pub fn dt(&self) -> f64 {
+        self.ss.dt.unwrap_or(f64::NAN)
+    }
 }
 
 /// The closed loop's simulated responses, summarised.
@@ -78,7 +64,7 @@ pub struct Comparison {
 /// The report of `fracid tune`.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Report {
-    /// The model designed on, in the model JSON's format (`ident::app::ModelReport`).
+    /// The model designed on, in the model JSON's format (`fracsim::json::ModelReport`).
     pub model: ModelReport,
     /// The request.
     pub spec: Spec,
@@ -145,7 +131,7 @@ pub fn tune(model: &FracTf, spec: &Spec, opts: &SimOptions) -> Result<(Report, R
         Some(dt) => Some(DiscreteJson {
             sampled_loop: sampled,
             sampled_note,
-            ..discrete_json(&realise::discrete(&c, dt, &approx)?)
+            ..discrete_json(&realise::discrete(&c, dt, &approx)?, &c)?
         }),
         None => None,
     };
@@ -269,25 +255,10 @@ fn tolerate(r: Result<LoopRun>) -> Result<(Option<LoopRun>, Option<String>)> {
     }
 }
 
-pub(crate) fn discrete_json(ss: &StateSpace) -> DiscreteJson {
-    let rows = |m: &nalgebra::DMatrix<f64>| -> Vec<Vec<f64>> {
-        (0..m.nrows())
-            .map(|i| m.row(i).iter().copied().collect())
-            .collect()
-    };
-    DiscreteJson {
-        dt: ss.dt.unwrap_or(f64::NAN),
-        approximation: ApproxJson {
-            method: method_name(ss.spec.method),
-            order: ss.spec.order,
-            band: [ss.band.0, ss.band.1],
-        },
-        states: ss.order(),
-        a: rows(&ss.a),
-        b: rows(&ss.b),
-        c: rows(&ss.c),
-        d: vec![vec![ss.d]],
+pub(crate) fn discrete_json(ss: &StateSpace, c: &Controller) -> Result<DiscreteJson> {
+    Ok(DiscreteJson {
+        ss: ss.to_json(&c.tf()?.to_string()),
         sampled_loop: None,
         sampled_note: None,
-    }
+    })
 }

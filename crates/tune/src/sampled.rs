@@ -202,17 +202,11 @@ impl SampledLoop {
     pub fn analyse(&self, wc_design: f64) -> LoopMetrics {
         let omega = self.grid(wc_design);
         let sw = analysis::sweep(&omega, |w| self.at(w));
-        let pm = |w: f64| analysis::wrap_deg(180.0 + self.at(w).arg().to_degrees());
-        let wc = sw.cross.first().copied().unwrap_or(f64::NAN);
-        let pm_min = sw
-            .cross
-            .iter()
-            .map(|&w| pm(w))
-            .fold(f64::INFINITY, f64::min);
         let h = 1e-4;
-        let slope = (self.at(wc * f64::exp(h)) / self.at(wc * f64::exp(-h))).arg() / (2.0 * h);
+        let slope =
+            |wc: f64| (self.at(wc * f64::exp(h)) / self.at(wc * f64::exp(-h))).arg() / (2.0 * h);
         let plant_unstable = analysis::plant_unstable(&self.plant, wc_design);
-        let (unstable_poles, stability_note) = match &plant_unstable {
+        let stability = match &plant_unstable {
             Ok(p) => match self.nyquist(&omega) {
                 Ok(n) if n + i64::from(*p) >= 0 => (n + i64::from(*p), None),
                 Ok(n) => (
@@ -229,21 +223,13 @@ impl SampledLoop {
                 Some(format!("the model's poles could not be counted: {e}")),
             ),
         };
-        LoopMetrics {
-            wc,
-            pm_deg: pm(wc),
-            crossovers: sw.cross.len(),
-            crossover_omegas: sw.cross,
-            pm_min_deg: pm_min,
-            gm_db: sw.gm,
-            gm_low_db: sw.gm_low,
-            ms: sw.ms,
-            ms_omega: sw.ms_omega,
-            phase_slope: slope,
-            unstable_poles,
-            plant_unstable_poles: plant_unstable.map_or(-1, i64::from),
-            stability_note,
-        }
+        LoopMetrics::of_sweep(
+            sw,
+            |w| self.at(w),
+            slope,
+            stability,
+            plant_unstable.map_or(-1, i64::from),
+        )
     }
 
     /// `(n pi - 2 Delta) / (2 pi)` (module documentation): the encirclements, to which the

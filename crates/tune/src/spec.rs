@@ -4,12 +4,12 @@
 
 use crate::controller::Form;
 use crate::error::{invalid, Result};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
 
 /// A bound on a closed-loop gain over a band: `|T(j w)| <= db` for every `w >= omega` (noise),
 /// or `|S(j w)| <= db` for every `w <= omega` (disturbances).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct GainBound {
     /// The band's edge in rad/s.
     pub omega: f64,

@@ -10,7 +10,8 @@ use fracsim::FracTf;
 use ident::compare::Comparison;
 use plotters::coord::Shift;
 use plotters::prelude::*;
-use serde_json::{json, Value};
+use serde::Serialize;
+use serde_json::Value;
 use std::path::PathBuf;
 
 /// Options of `fracid compare`.
@@ -61,7 +62,7 @@ pub fn run(a: CompareArgs) -> Result<()> {
         plot::format_of(p)?;
     }
     let out = if a.json {
-        serde_json::to_string_pretty(&to_json(&ga, &gb, &c, names))? + "\n"
+        serde_json::to_string_pretty(&to_json(&ga, &gb, &c, names)?)? + "\n"
     } else {
         text(&ga, &gb, &c, names)
     };
@@ -116,20 +117,80 @@ pub fn text(ga: &FracTf, gb: &FracTf, c: &Comparison, names: (&str, &str)) -> St
     s
 }
 
-fn to_json(ga: &FracTf, gb: &FracTf, c: &Comparison, names: (&str, &str)) -> Value {
-    json!({
-        "a": {"name": names.0, "model": ga.to_string()},
-        "b": {"name": names.1, "model": gb.to_string()},
-        "band_hz": [c.band_hz.0, c.band_hz.1],
-        "points": c.freq_hz.len(),
-        "difference": "B - A",
-        "largest_gain_diff_db": {"value": c.gain.value, "freq_hz": c.gain.freq_hz},
-        "largest_phase_diff_deg": {"value": c.phase.value, "freq_hz": c.phase.freq_hz},
-        "largest_complex_rel_diff": {"value": c.complex_rel.value, "freq_hz": c.complex_rel.freq_hz},
-        "coefficients": c.coefficients.as_ref().map(|rows| rows.iter().map(|r| json!({
-            "name": r.name, "a": r.a, "b": r.b, "rel_diff": r.rel_diff
-        })).collect::<Vec<_>>()),
-    })
+/// One model of the comparison: its name and its text.
+#[derive(Serialize)]
+struct NamedJson<'a> {
+    name: &'a str,
+    model: String,
+}
+
+/// A largest difference and where.
+#[derive(Serialize)]
+struct LargestJson {
+    value: f64,
+    freq_hz: f64,
+}
+
+impl From<&ident::compare::Largest> for LargestJson {
+    fn from(l: &ident::compare::Largest) -> Self {
+        Self {
+            value: l.value,
+            freq_hz: l.freq_hz,
+        }
+    }
+}
+
+/// One coefficient of both models.
+#[derive(Serialize)]
+struct CoefJson<'a> {
+    name: &'a str,
+    a: f64,
+    b: f64,
+    rel_diff: Option<f64>,
+}
+
+/// `fracid compare --json`'s document.
+#[derive(Serialize)]
+struct CompareJson<'a> {
+    a: NamedJson<'a>,
+    b: NamedJson<'a>,
+    band_hz: [f64; 2],
+    points: usize,
+    difference: &'static str,
+    largest_gain_diff_db: LargestJson,
+    largest_phase_diff_deg: LargestJson,
+    largest_complex_rel_diff: LargestJson,
+    coefficients: Option<Vec<CoefJson<'a>>>,
+}
+
+/// The comparison as JSON, its keys in the order a JSON object map sorts them (as always).
+fn to_json(ga: &FracTf, gb: &FracTf, c: &Comparison, names: (&str, &str)) -> Result<Value> {
+    Ok(serde_json::to_value(CompareJson {
+        a: NamedJson {
+            name: names.0,
+            model: ga.to_string(),
+        },
+        b: NamedJson {
+            name: names.1,
+            model: gb.to_string(),
+        },
+        band_hz: [c.band_hz.0, c.band_hz.1],
+        points: c.freq_hz.len(),
+        difference: "B - A",
+        largest_gain_diff_db: (&c.gain).into(),
+        largest_phase_diff_deg: (&c.phase).into(),
+        largest_complex_rel_diff: (&c.complex_rel).into(),
+        coefficients: c.coefficients.as_ref().map(|rows| {
+            rows.iter()
+                .map(|r| CoefJson {
+                    name: &r.name,
+                    a: r.a,
+                    b: r.b,
+                    rel_diff: r.rel_diff,
+                })
+                .collect()
+        }),
+    })?)
 }
 
 /// Both models' Bode magnitude and phase over the band, and their differences.

@@ -70,11 +70,6 @@ fn write_file(path: &Path, text: &str) -> Result<()> {
     std::fs::write(path, text).with_context(|| format!("cannot write {}", path.display()))
 }
 
-fn path_str(p: &Path) -> Result<&str> {
-    p.to_str()
-        .with_context(|| format!("path {} is not valid UTF-8", p.display()))
-}
-
 /// Run `fracid demo`.
 pub fn run(a: DemoArgs) -> Result<()> {
     if !(a.hidden_delay.is_finite() && a.hidden_delay >= 0.0) {
@@ -358,7 +353,7 @@ struct Models {
     time_cmd: String,
     time_txt: String,
     time_json: Value,
-    freq_argv: Vec<String>,
+    freq_cmd: String,
     freq_txt: String,
     freq_json: Value,
     time_runs: usize,
@@ -397,16 +392,14 @@ fn identify(a: &DemoArgs, steady_path: &Path, bode_path: &Path) -> Result<Models
 
     step("frequency domain: weighted Levy, refit and diagnosis");
     let weights = if a.repeats >= 5 { "spread" } else { "vinagre" };
-    let freq_argv = [
-        "freq",
-        path_str(bode_path)?,
-        "--weights",
-        weights,
-        "--refine",
-        "--diagnose",
-    ];
-    let freq_args = super::freq::args_from(&freq_argv)?;
-    let freq = super::freq::compute(&freq_args, bode_path).context("identifying the Bode table")?;
+    let freq_req = ident::app::freq::FreqRequest {
+        weights: weights.to_string(),
+        refine: true,
+        diagnose: true,
+        ..ident::app::freq::FreqRequest::default()
+    };
+    let freq =
+        super::freq::compute_request(&freq_req, bode_path).context("identifying the Bode table")?;
     let freq_txt = freq.text();
     let freq_json = freq.json()?;
     write_file(&dir.join("freq.txt"), &freq_txt)?;
@@ -419,7 +412,10 @@ fn identify(a: &DemoArgs, steady_path: &Path, bode_path: &Path) -> Result<Models
         time_cmd,
         time_txt,
         time_json,
-        freq_argv: freq_argv.iter().map(|s| s.to_string()).collect(),
+        freq_cmd: format!(
+            "freq {} --weights {weights} --refine --diagnose",
+            bode_path.display()
+        ),
         freq_txt,
         freq_json,
         time_runs: ident::app::time::runs() - time_runs,
@@ -480,11 +476,7 @@ fn report_md(a: &DemoArgs, o: &Outcome) -> Result<String> {
     writeln!(r, "## Time domain (`fracid {}`)\n", m.time_cmd)?;
     writeln!(r, "![time-domain fit](time.png)\n")?;
     writeln!(r, "```\n{}```\n", m.time_txt)?;
-    writeln!(
-        r,
-        "## Frequency domain (`fracid {}`)\n",
-        m.freq_argv.join(" ")
-    )?;
+    writeln!(r, "## Frequency domain (`fracid {}`)\n", m.freq_cmd)?;
     writeln!(r, "![Bode plot](bode.png)\n")?;
     writeln!(r, "```\n{}```\n", m.freq_txt)?;
     writeln!(

@@ -7,7 +7,7 @@ use crate::cmd::sim::parse_band;
 use anyhow::{Context, Result};
 use fracsim::export::{self, StateSpace};
 use fracsim::{ApproxSpec, FracTf};
-use serde_json::{json, Value};
+use serde_json::Value;
 use std::path::PathBuf;
 
 /// Options of `fracid export`.
@@ -38,8 +38,11 @@ pub struct ExportArgs {
     /// Approximation order N (2N+1 cells per operator).
     #[arg(long, default_value_t = 8, value_parser = crate::cmd::parse_order)]
     pub order: usize,
-    /// Output format: json, or m (a MATLAB script that builds `sys = ss(...)` and `G = tf(sys)`).
-    /// Default: from the extension of -o, else json.
+    /// Output format: json, m (a MATLAB script that builds `sys = ss(...)` and `G = tf(sys)`), or
+    /// c (a C header for the C firmware of the fixed-point sections `fracid drive loop`
+    /// downloads: the realisation of a `fracid tune --dt DT --json` report, or a controller with
+    /// --dt, for the drive's default channel scales). Default: from the extension of -o (.m,
+    /// .h), else json.
     #[arg(long)]
     pub format: Option<String>,
     /// Write here instead of stdout.
@@ -98,28 +101,6 @@ fn controller_state_space(c: &tune::Controller, dt: f64, a: &ExportArgs) -> Resu
     Ok(tune::realise::discrete(c, dt, &spec)?)
 }
 
-/// The JSON document of an exported state space.
-pub fn json_of(ss: &StateSpace, g: &FracTf) -> Value {
-    json!({
-        "model": g.to_string(),
-        "time": if ss.dt.is_some() { "discrete" } else { "continuous" },
-        "dt": ss.dt,
-        "hold": ss.dt.map(|_| "zoh"),
-        "input_delay": ss.input_delay,
-        "delay_states": ss.delay_states,
-        "approximation": {
-            "method": export::method_name(ss.spec.method),
-            "order": ss.spec.order,
-            "band": [ss.band.0, ss.band.1],
-        },
-        "states": ss.order(),
-        "a": ss.a_rows(),
-        "b": ss.b_col().iter().map(|v| vec![*v]).collect::<Vec<_>>(),
-        "c": [ss.c_row()],
-        "d": [[ss.d]],
-    })
-}
-
 /// Run `fracid export`.
 pub fn run(a: ExportArgs) -> Result<()> {
     let model: Vec<_> = super::paths::file_arg(&a.model)
@@ -131,16 +112,20 @@ pub fn run(a: ExportArgs) -> Result<()> {
     let format = match (&a.format, &a.output) {
         (Some(f), _) => f.to_ascii_lowercase(),
         (None, Some(p)) if p.extension().is_some_and(|e| e == "m") => "m".into(),
+        (None, Some(p)) if p.extension().is_some_and(|e| e == "h") => "c".into(),
         _ => "json".into(),
     };
-    if format != "json" && format != "m" {
-        bad_input!("--format must be json or m, got '{format}'");
+    if !["json", "m", "c"].contains(&format.as_str()) {
+        bad_input!("--format must be json, m or c, got '{format}'");
     }
     let loaded = crate::cmd::model_in::load(&a.model)?;
     let g = match loaded.report.as_ref().and_then(tuned_controller) {
         Some(c) => c.tf()?,
         None => loaded.tf,
     };
+    if format == "c" {
+        return write_out(&a, c_header(&a, loaded.report.as_ref(), &g)?);
+    }
     let ss = match (tune::Controller::from_tf(&g), a.dt, a.continuous) {
         (Some(c), Some(dt), false) => controller_state_space(&c, dt, &a)?,
         _ => state_space(&g, &a)?,
@@ -148,8 +133,13 @@ pub fn run(a: ExportArgs) -> Result<()> {
     let text = if format == "m" {
         ss.to_matlab(&g.to_string())
     } else {
-        serde_json::to_string_pretty(&json_of(&ss, &g))? + "\n"
+        serde_json::to_string_pretty(&ss.to_json(&g.to_string()))? + "\n"
     };
+    write_out(&a, text)
+}
+
+/// The text to `-o`, or to standard output.
+fn write_out(a: &ExportArgs, text: String) -> Result<()> {
     match &a.output {
         Some(p) => std::fs::write(p, text).with_context(|| format!("cannot write {}", p.display())),
         None => {
@@ -157,4 +147,50 @@ pub fn run(a: ExportArgs) -> Result<()> {
             Ok(())
         }
     }
+}
+
+/// The fixed-point controller the drive runs, as a C header
+/// (`drive::ctrl::FixedCtrl::c_header`): a `fracid tune --json` report's discrete realisation
+/// (or, with --dt, the controller realised anew with the options' approximation), pruned and
+/// converted as `fracid drive loop` converts it, for the drive's default channel scales at the
+/// rate `1/dt`.
+///
+/// # Errors
+/// Not a controller, no sample period, a realisation the drive cannot run (bad input, exit 2).
+fn c_header(a: &ExportArgs, report: Option<&Value>, g: &FracTf) -> Result<String> {
+    use autotune::realise::{fixed_controller, parse_realisation, prune, Realisation};
+    let realised = report.is_some_and(|v| v.get("discrete").is_some_and(|d| !d.is_null()));
+    let real = match (report, a.dt) {
+        (Some(v), None) if realised => parse_realisation(&v.to_string())?,
+        _ => {
+            let Some(c) = tune::Controller::from_tf(g) else {
+                bad_input!(
+                    "--format c exports a controller: a `fracid tune --dt DT --json` report, or a \
+                     controller kp + ki/s^lambda (+ kd s^mu) with --dt; {g} is none"
+                );
+            };
+            let Some(dt) = a.dt else {
+                bad_input!(
+                    "--format c needs the sample period: --dt, or a report of `fracid tune --dt \
+                     DT --json`"
+                );
+            };
+            let ss = controller_state_space(&c, dt, a)?;
+            Realisation {
+                dt,
+                a: ss.a_rows(),
+                b: ss.b_col(),
+                c: ss.c_row(),
+                d: ss.d,
+                text: g.to_string(),
+            }
+        }
+    };
+    let (pruned, _) = prune(&real);
+    let conf = drive::protocol::Configure {
+        sample_rate_hz: (1.0 / real.dt).round().min(f64::from(u32::MAX)) as u32,
+        ..Default::default()
+    };
+    let k = fixed_controller(&pruned, &conf)?;
+    Ok(k.c_header(&real.text, real.dt, &conf))
 }

@@ -18,7 +18,7 @@
 use crate::cmd::BadInput;
 use anyhow::{Context, Result};
 use serde::Serialize;
-use serde_json::{json, Value};
+use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Mutex;
@@ -160,62 +160,61 @@ impl Row {
         }
     }
 
-    /// The summary fields of a report (`fracid time --json` or `fracid freq --json`).
-    fn fill_from(&mut self, v: &Value) {
-        // The report's answer, by the library's one rule (`ident::app::answer`): a `time`
-        // report's leading model, a `freq` report's diagnosed or best model.
-        let answer = ident::app::answer::of_report(v);
-        self.model = model_text(answer.model);
-        let f = |p: &str| v.pointer(p).and_then(Value::as_f64);
-        self.fit_estimation_percent = f("/fit/estimation/nrmse_percent");
-        self.fit_validation_percent = f("/fit/validation/nrmse_percent");
-        self.j = f("/best_J").or_else(|| f("/J"));
-        // With the diagnosis the report leads with the final model: its fit is the one above.
-        if let Some(d) = v.get("diagnosis") {
-            self.effects = d
-                .get("effects")
-                .and_then(Value::as_array)
-                .map(|a| {
-                    a.iter()
-                        .filter_map(|e| e.get("name").and_then(Value::as_str))
-                        .map(String::from)
-                        .collect()
-                })
-                .unwrap_or_default();
-        }
-        self.warnings = v
-            .get("warnings")
-            .and_then(Value::as_array)
-            .map(|a| {
-                a.iter()
-                    .map(|w| w.as_str().map_or_else(|| w.to_string(), String::from))
-                    .collect()
-            })
-            .unwrap_or_default();
+    /// The summary fields of a fitted file.
+    fn fill_from(&mut self, s: Summary) {
+        self.model = s.model;
+        self.fit_estimation_percent = s.fit_estimation_percent;
+        self.fit_validation_percent = s.fit_validation_percent;
+        self.j = s.j;
+        self.effects = s.effects;
+        self.warnings = s.warnings;
     }
 }
 
-/// The text of a model object `{"num", "den", "delay"}` (or its "text").
-fn model_text(m: &Value) -> Option<String> {
-    if let Some(t) = m.get("text").and_then(Value::as_str) {
-        return Some(t.to_string());
-    }
-    let terms = |k: &str| -> Option<Vec<fracsim::Term>> {
-        m.get(k)?
-            .as_array()?
-            .iter()
-            .map(|t| {
-                Some(fracsim::Term {
-                    coef: t.get("coef")?.as_f64()?,
-                    order: t.get("order")?.as_f64()?,
-                })
-            })
-            .collect()
-    };
-    let delay = m.get("delay").and_then(Value::as_f64).unwrap_or(0.0);
-    fracsim::FracTf::new(terms("num")?, terms("den")?, delay)
-        .ok()
-        .map(|g| g.to_string())
+/// What one file's fit gives the fleet: its report as JSON (written beside the file), the
+/// summary row's fields, taken from the typed report, and the problems that make its model
+/// unusable (the file then fails, as the single-file command does).
+pub struct Fitted {
+    /// The report, written as it is.
+    pub report: Value,
+    /// The summary's fields.
+    pub summary: Summary,
+    /// Why the model is not usable (empty: usable).
+    pub problems: Vec<String>,
+}
+
+/// The summary fields of one report.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Summary {
+    /// The model the report leads with (`ident::app::answer`'s rule), as text.
+    pub model: Option<String>,
+    /// `time`: NRMSE fit in percent on the estimation part.
+    pub fit_estimation_percent: Option<f64>,
+    /// `time`: NRMSE fit in percent on the validation part.
+    pub fit_validation_percent: Option<f64>,
+    /// `freq`: the error index J of the best model.
+    pub j: Option<f64>,
+    /// Effects the diagnosis kept.
+    pub effects: Vec<String>,
+    /// Warnings of the fit.
+    pub warnings: Vec<String>,
+}
+
+/// The fleet's summary document (`time-summary.json`, `--json`).
+#[derive(Serialize)]
+struct FleetSummary<'a> {
+    /// `time` or `freq`.
+    command: &'a str,
+    /// The files fitted.
+    files: usize,
+    /// How many failed.
+    failed: usize,
+    /// Fits at once.
+    jobs: usize,
+    /// Wall time, s.
+    seconds: f64,
+    /// One row per file.
+    rows: &'a [Row],
 }
 
 /// Where the report of `file` goes: beside it, or into `out` (a name made unique by a suffix
@@ -255,7 +254,7 @@ fn panic_text(e: &(dyn std::any::Any + Send)) -> String {
 /// when all failures share one, else 1).
 pub fn run<F>(kind: &str, files: &[PathBuf], fa: &FleetArgs, json_out: bool, fit: F) -> Result<()>
 where
-    F: Fn(&Path) -> Result<(Value, Vec<String>)> + Sync,
+    F: Fn(&Path) -> Result<Fitted> + Sync,
 {
     if let Some(d) = &fa.out {
         std::fs::create_dir_all(d)
@@ -306,14 +305,15 @@ where
     });
     let wall = t0.elapsed().as_secs_f64();
     let failed: Vec<&Row> = rows.iter().filter(|r| r.status != "ok").collect();
-    let summary = json!({
-        "command": kind,
-        "files": rows.len(),
-        "failed": failed.len(),
-        "jobs": jobs,
-        "seconds": wall,
-        "rows": rows,
-    });
+    // through a JSON value: the keys in the order a JSON object map sorts them, as always
+    let summary = serde_json::to_value(FleetSummary {
+        command: kind,
+        files: rows.len(),
+        failed: failed.len(),
+        jobs,
+        seconds: wall,
+        rows: &rows,
+    })?;
     write_csv(&csv_path, &rows)?;
     std::fs::write(&json_path, serde_json::to_string_pretty(&summary)? + "\n")
         .with_context(|| format!("cannot write {}", json_path.display()))?;
@@ -371,7 +371,7 @@ fn on_pool<T: Send>(n: usize, jobs: usize, one: impl Fn(usize) -> T + Sync) -> V
 /// not a record ([`not_a_record`]), the fit fails or reports problems.
 fn fit_one<F>(file: &Path, report: &Path, fit: &F) -> Row
 where
-    F: Fn(&Path) -> Result<(Value, Vec<String>)>,
+    F: Fn(&Path) -> Result<Fitted>,
 {
     let mut row = Row::new(file);
     let t = Instant::now();
@@ -380,16 +380,16 @@ where
         None => std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| fit(file)))
             .unwrap_or_else(|e| Err(anyhow::anyhow!("internal error: {}", panic_text(&*e)))),
     };
-    let res = res.and_then(|(v, problems)| {
+    let res = res.and_then(|f| {
         let p = report.to_path_buf();
-        std::fs::write(&p, serde_json::to_string_pretty(&v)? + "\n")
+        std::fs::write(&p, serde_json::to_string_pretty(&f.report)? + "\n")
             .with_context(|| format!("cannot write {}", p.display()))?;
-        Ok((v, p, problems))
+        Ok((f.summary, p, f.problems))
     });
     row.seconds = t.elapsed().as_secs_f64();
     match res {
-        Ok((v, p, problems)) => {
-            row.fill_from(&v);
+        Ok((summary, p, problems)) => {
+            row.fill_from(summary);
             row.report = Some(p.display().to_string());
             if !problems.is_empty() {
                 row.status = "failed";
@@ -628,25 +628,5 @@ mod tests {
         assert!(!m("rec_??.csv", "rec_1.csv"));
         assert!(!m("*.csv", "a.csv.json"));
         assert!(m("*", ""));
-    }
-
-    #[test]
-    fn summary_fields_come_from_a_time_report() {
-        let v = json!({
-            "model": {"num": [{"coef": 2.0, "order": 0.0}], "den": [{"coef": 0.1, "order": 0.9}, {"coef": 1.0, "order": 0.0}], "delay": 0.0},
-            "fit": {"estimation": {"nrmse_percent": 97.0}, "validation": {"nrmse_percent": 98.5}},
-            "warnings": ["w1"],
-            "base": {"fit": {"validation": {"nrmse_percent": 96.0}}},
-            "diagnosis": {"after": {"nrmse_percent": 98.4}, "effects": [{"name": "delay"}, {"name": "offset"}]}
-        });
-        let mut r = Row::new(Path::new("x.csv"));
-        r.fill_from(&v);
-        assert_eq!(r.model.as_deref(), Some("2/(0.1 s^0.9 + 1)"));
-        assert_eq!(r.fit_estimation_percent, Some(97.0));
-        // the report leads with the final model: its fit (not the base's, nor the diagnosis's
-        // own refit figure before the record's parameters are polished)
-        assert_eq!(r.fit_validation_percent, Some(98.5));
-        assert_eq!(r.effects, ["delay", "offset"]);
-        assert_eq!(r.warnings, ["w1"]);
     }
 }

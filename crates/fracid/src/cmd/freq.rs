@@ -39,19 +39,19 @@ pub struct FreqArgs {
     #[arg(long, value_name = "FREQ,GAIN,PHASE")]
     pub columns: Option<String>,
     /// Denominator degree n (in powers of s^q).
-    #[arg(long, default_value_t = 2)]
+    #[arg(long, default_value_t = FreqRequest::default().n)]
     pub n: usize,
     /// Numerator degree m (in powers of s^q).
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = FreqRequest::default().m)]
     pub m: usize,
     /// Fix the commensurate order q instead of searching it.
     #[arg(long, conflicts_with_all = ["q_step", "q_max"])]
     pub q: Option<f64>,
     /// Step of the q grid over (0, q-max] (the paper: 0.01).
-    #[arg(long, default_value_t = 0.01)]
+    #[arg(long, default_value_t = FreqRequest::default().q_step)]
     pub q_step: f64,
     /// Largest q of the grid.
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = FreqRequest::default().q_max)]
     pub q_max: f64,
     /// Keep the best grid q (the paper's procedure) instead of refining it by golden section.
     #[arg(long)]
@@ -61,7 +61,7 @@ pub struct FreqArgs {
     /// weights by inverse variance, so its standard errors reflect the spread), `vinagre` (the
     /// paper's eq. 29), `none` (uniform), a column name of FILE, or a file with one weight per
     /// line. `auto` (default): `spread` if the table has the spread columns, else `vinagre`.
-    #[arg(long, default_value = "auto")]
+    #[arg(long, default_value_t = FreqRequest::default().weights)]
     pub weights: String,
     /// Refit the PMSM structure K/(a2 s^(zeta+theta) + a1 s^zeta + 1) with two free orders by
     /// Levenberg-Marquardt (needs n = 2, m = 0).
@@ -70,7 +70,7 @@ pub struct FreqArgs {
     /// Sanathanan-Koerner iterations after Levy, at most (0: none); they stop once no
     /// coefficient changes by more than 1e-8 of its value or J by more than 1e-10 of its value,
     /// and the number used is reported.
-    #[arg(long, default_value_t = 0, value_name = "N")]
+    #[arg(long, default_value_t = FreqRequest::default().sk_iterations, value_name = "N")]
     pub sk: usize,
     /// Also evaluate J for this model (e.g. a published one); repeatable.
     #[arg(long, value_name = "MODEL")]
@@ -84,7 +84,7 @@ pub struct FreqArgs {
     /// divided out before the fit, so a fitted delay is the plant's. `auto` (default): the period
     /// stated by a `# hold: zero-order, sample period T s` comment (as `fracid drive sine` writes),
     /// else none; `none`: the table is the plant's continuous response.
-    #[arg(long, default_value = "auto", value_name = "SECONDS|auto|none")]
+    #[arg(long, default_value_t = FreqRequest::default().hold, value_name = "SECONDS|auto|none")]
     pub hold: String,
     /// Print JSON (docs/design.md §7) instead of the table.
     #[arg(long)]
@@ -216,6 +216,28 @@ impl FreqOutcome {
         Ok(serde_json::to_value(&self.report)?)
     }
 
+    /// The fleet's summary of the report: the model it leads with (the diagnosed model, else
+    /// the best), the best J, the effects kept, the warnings.
+    pub(crate) fn fleet_summary(&self) -> super::fleet::Summary {
+        let r = &self.report;
+        super::fleet::Summary {
+            model: Some(
+                r.diagnosis
+                    .as_ref()
+                    .map_or(&r.best_model, |d| &d.model)
+                    .text
+                    .clone(),
+            ),
+            fit_estimation_percent: None,
+            fit_validation_percent: None,
+            j: Some(r.best_j),
+            effects: r.diagnosis.as_ref().map_or_else(Vec::new, |d| {
+                d.diagnosis.effects.iter().map(|e| e.name.clone()).collect()
+            }),
+            warnings: r.warnings.clone(),
+        }
+    }
+
     /// The report as `fracid freq` prints it.
     pub(crate) fn text(&self) -> String {
         let (r, f) = (&self.report, &self.report.fitted);
@@ -315,14 +337,17 @@ fn run_fleet(a: &FreqArgs) -> Result<()> {
     let files = super::fleet::expand(&paths)?;
     super::fleet::run("freq", &files, &a.fleet, a.json, |f| {
         let o = compute(a, f)?;
-        let mut v = o.json()?;
-        v["file"] = serde_json::json!(f.display().to_string());
-        let problems = if a.allow_unusable {
-            Vec::new()
-        } else {
-            o.report.problems.clone()
-        };
-        Ok((v, problems))
+        let mut report = o.json()?;
+        report["file"] = serde_json::json!(f.display().to_string());
+        Ok(super::fleet::Fitted {
+            report,
+            summary: o.fleet_summary(),
+            problems: if a.allow_unusable {
+                Vec::new()
+            } else {
+                o.report.problems.clone()
+            },
+        })
     })
 }
 
@@ -342,21 +367,30 @@ pub(crate) fn runs() -> usize {
     RUNS.load(std::sync::atomic::Ordering::Relaxed)
 }
 
-/// The options of `fracid freq` from its words (`["freq", FILE, "--refine", ...]`), with the
-/// command's own defaults: for the demo, which runs the command's use case in process.
-///
-/// # Errors
-/// Words the command does not take (exit 2).
-pub(crate) fn args_from(argv: &[&str]) -> Result<FreqArgs> {
-    #[derive(clap::Parser)]
-    struct Words {
-        #[command(flatten)]
-        args: FreqArgs,
+/// How a Bode table is laid out and weighted: the units of its columns, their names, and the
+/// weights (a word of [`FreqRequest::weights`], a column of the table, or a file of weights).
+pub(crate) struct Table<'a> {
+    /// Units of the three columns.
+    pub units: Units,
+    /// Column names or indices `FREQ,GAIN,PHASE` (`None`: the defaults of the units).
+    pub columns: Option<&'a str>,
+    /// `--weights`.
+    pub weights: &'a str,
+}
+
+impl<'a> Table<'a> {
+    /// The table the options of `a` describe.
+    fn of(a: &'a FreqArgs) -> Self {
+        Self {
+            units: Units {
+                rad_s: a.rad_s,
+                linear_gain: a.linear_gain,
+                radians: a.radians,
+            },
+            columns: a.columns.as_deref(),
+            weights: &a.weights,
+        }
     }
-    use clap::Parser as _;
-    Words::try_parse_from(argv)
-        .map(|w| w.args)
-        .map_err(|e| super::BadInput(e.to_string()).into())
 }
 
 /// `fracid freq`'s work on `file` with the options of `a` (its `file` is not read).
@@ -364,21 +398,38 @@ pub(crate) fn args_from(argv: &[&str]) -> Result<FreqArgs> {
 /// # Errors
 /// As [`run`].
 pub(crate) fn compute(a: &FreqArgs, file: &Path) -> Result<FreqOutcome> {
-    RUNS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let (data, fd) = read_table(file, &Table::of(a))?;
+    let req = request(a, fd.weights.is_some());
+    fit(&req, fd, data, file)
+}
+
+/// The use case on a table in the default layout (`freq_hz,gain_db,phase_deg`), as `req` asks
+/// (its weights a word: `auto`, `vinagre`, `none`, `spread`): the demo's route.
+///
+/// # Errors
+/// As [`run`].
+pub(crate) fn compute_request(req: &FreqRequest, file: &Path) -> Result<FreqOutcome> {
+    let table = Table {
+        units: Units::default(),
+        columns: None,
+        weights: &req.weights,
+    };
+    let (data, fd) = read_table(file, &table)?;
+    fit(req, fd, data, file)
+}
+
+/// The table of `file` read as `table` says, and the use case's data (its per-point weights
+/// when `table.weights` names a column or a file).
+fn read_table(file: &Path, table: &Table<'_>) -> Result<(BodeData, FreqData)> {
     let is_mat = ident::matfile::is_mat(file);
     let text = if is_mat {
         String::new() // read below by variables
     } else {
         super::read_text(file)?
     };
-    let units = Units {
-        rad_s: a.rad_s,
-        linear_gain: a.linear_gain,
-        radians: a.radians,
-    };
-    let cols: Option<Vec<String>> = a
+    let units = table.units;
+    let cols: Option<Vec<String>> = table
         .columns
-        .as_ref()
         .map(|c| c.split(',').map(|s| s.trim().to_string()).collect());
     let cols3 = match &cols {
         Some(c) if c.len() == 3 && c.iter().all(|s| !s.is_empty()) => {
@@ -391,7 +442,7 @@ pub(crate) fn compute(a: &FreqArgs, file: &Path) -> Result<FreqOutcome> {
         None => None,
     };
     // per-point weights from a column of the table or a file of weights: the request's "given"
-    let wkey = a.weights.trim().to_string();
+    let wkey = table.weights.trim().to_string();
     let word = ["auto", "vinagre", "none", "uniform", "1", "spread"]
         .iter()
         .any(|w| wkey.eq_ignore_ascii_case(w));
@@ -431,7 +482,6 @@ pub(crate) fn compute(a: &FreqArgs, file: &Path) -> Result<FreqOutcome> {
         (_, Some(w), _) => Some((w, format!("file {wkey}"))),
         _ => None,
     };
-    let req = request(a, given.is_some());
     let fd = FreqData {
         omega_rad_s: data.omega_rad_s.clone(),
         h: data.h.clone(),
@@ -440,13 +490,19 @@ pub(crate) fn compute(a: &FreqArgs, file: &Path) -> Result<FreqOutcome> {
         spread_se: data.spread_se.clone(),
         hold_hint,
     };
+    Ok((data, fd))
+}
+
+/// The use case run on the table's data, and the table with the hold divided out as fitted.
+fn fit(req: &FreqRequest, fd: FreqData, data: BodeData, file: &Path) -> Result<FreqOutcome> {
+    RUNS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
     if req.weights == "spread" && fd.spread_se.is_none() {
         bad_input!(
             "--weights spread: {} has no gain_db_std and phase_deg_std columns",
             file.display()
         );
     }
-    let report = ident::app::freq::run(&req, &fd, &mut ident::app::observe::Quiet)
+    let report = ident::app::freq::run(req, &fd, &mut ident::app::observe::Quiet)
         .with_context(|| format!("identifying {}", file.display()))?;
     let data = BodeData {
         h: report.fitted.h.clone(),
@@ -1072,6 +1128,35 @@ impl Figure for BodeFigure<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// `fracid freq FILE ...` parsed as the command line would be.
+    fn args_from(argv: &[&str]) -> FreqArgs {
+        #[derive(clap::Parser)]
+        struct Words {
+            #[command(flatten)]
+            args: FreqArgs,
+        }
+        use clap::Parser as _;
+        Words::try_parse_from(argv).unwrap().args
+    }
+
+    #[test]
+    fn the_flags_defaults_are_the_requests() {
+        let a = args_from(&["freq", "table.csv"]);
+        assert_eq!(request(&a, false), FreqRequest::default());
+        let a = args_from(&[
+            "freq",
+            "table.csv",
+            "--n",
+            "3",
+            "--sk",
+            "4",
+            "--hold",
+            "none",
+        ]);
+        let r = request(&a, false);
+        assert_eq!((r.n, r.sk_iterations, r.hold.as_str()), (3, 4, "none"));
+    }
 
     #[test]
     fn parses_semicolon_with_comments() {

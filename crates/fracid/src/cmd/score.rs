@@ -99,13 +99,17 @@ fn rescore_report(a: &ScoreArgs, v: &serde_json::Value, rec: ident::data::Record
         None => None,
     };
     if a.json {
-        let out = serde_json::json!({
-            "file": a.file.display().to_string(),
-            "model_is": v["model_is"],
-            "fit": lead,
-            "base": base.as_ref().map(|b| serde_json::json!({ "fit": b })),
-        });
-        println!("{}", serde_json::to_string_pretty(&out)?);
+        let out = RescoredJson {
+            file: a.file.display().to_string(),
+            model_is: &v["model_is"],
+            fit: &lead,
+            base: base.as_ref().map(|fit| BaseJson { fit }),
+        };
+        // through a JSON value: the keys sorted as always
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&serde_json::to_value(&out)?)?
+        );
         return Ok(());
     }
     let line = |name: &str, f: &ident::app::time::FitFigures| {
@@ -184,13 +188,38 @@ pub fn run(a: ScoreArgs) -> Result<()> {
     print_scored(&a, &sc, &tf.to_string())
 }
 
+/// `fracid score --json` of a model: the library's report with the model scored, in words.
+#[derive(serde::Serialize)]
+struct ScoredJson<'a> {
+    #[serde(flatten)]
+    report: &'a ScoreReport,
+    model: &'a str,
+}
+
+/// `fracid score REPORT.json FILE --json`: the report's models rescored.
+#[derive(serde::Serialize)]
+struct RescoredJson<'a> {
+    file: String,
+    model_is: &'a serde_json::Value,
+    fit: &'a ident::app::time::FitFigures,
+    base: Option<BaseJson<'a>>,
+}
+
+/// The base fit rescored.
+#[derive(serde::Serialize)]
+struct BaseJson<'a> {
+    fit: &'a ident::app::time::FitFigures,
+}
+
 /// A model (`model` in words) scored on FILE, as text or JSON.
 fn print_scored(a: &ScoreArgs, sc: &ident::oe::Scored, model: &str) -> Result<()> {
     let r = ScoreReport::new(&a.file.display().to_string(), sc);
     if a.json {
-        let mut v = serde_json::to_value(&r)?;
-        v["model"] = serde_json::Value::String(model.to_string());
-        println!("{}", serde_json::to_string_pretty(&v)?);
+        let out = ScoredJson { report: &r, model };
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&serde_json::to_value(&out)?)?
+        );
     } else {
         println!("model: {model}");
         print!("{}", score_text(&r));

@@ -418,20 +418,40 @@ fn run_fleet(a: TimeArgs) -> Result<()> {
 }
 
 /// One file's `fracid time --json` report, with the options of `a`: the same request and
-/// `ident::app::time::run` as `fracid time FILE`, in this process.
-fn fleet_report(a: &TimeArgs, file: &std::path::Path) -> Result<(serde_json::Value, Vec<String>)> {
+/// `ident::app::time::run` as `fracid time FILE`, in this process; the summary from the typed
+/// report.
+fn fleet_report(a: &TimeArgs, file: &std::path::Path) -> Result<super::fleet::Fitted> {
     let req = request(a)?;
     let data = time_data(file, a)?;
     let r = ident::app::time::run(&req, &data, &mut ident::app::observe::Quiet)
         .with_context(|| format!("identifying {}", file.display()))?;
-    let mut v = serde_json::to_value(&r)?;
-    v["file"] = serde_json::json!(file.display().to_string());
-    let problems = if r.lead.usable {
-        Vec::new()
-    } else {
-        r.lead.problems.clone()
-    };
-    Ok((v, problems))
+    let mut report = serde_json::to_value(&r)?;
+    report["file"] = serde_json::json!(file.display().to_string());
+    Ok(super::fleet::Fitted {
+        report,
+        summary: fleet_summary(&r),
+        problems: if r.lead.usable {
+            Vec::new()
+        } else {
+            r.lead.problems.clone()
+        },
+    })
+}
+
+/// The fleet's summary of a report: the model it leads with (the diagnosis's final model, else
+/// the fit's), its fits, the effects kept, the warnings.
+fn fleet_summary(r: &TimeReport) -> super::fleet::Summary {
+    let diagnosis = r.diagnosis.as_ref();
+    super::fleet::Summary {
+        model: Some(diagnosis.map_or(&r.lead.model, |d| &d.model).text.clone()),
+        fit_estimation_percent: Some(r.lead.fit.estimation.nrmse_percent),
+        fit_validation_percent: r.lead.fit.validation.map(|f| f.nrmse_percent),
+        j: None,
+        effects: diagnosis.map_or_else(Vec::new, |d| {
+            d.diagnosis.effects.iter().map(|e| e.name.clone()).collect()
+        }),
+        warnings: r.lead.warnings.clone(),
+    }
 }
 
 /// `--joint`: one model fitted on several records (`ident::app::time::run_joint`).

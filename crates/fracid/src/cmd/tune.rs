@@ -13,7 +13,7 @@ use std::fmt::Write as _;
 use std::path::PathBuf;
 use tune::closed::InputEffect;
 use tune::report::{Report, Runs, SimOptions};
-use tune::{Controller, GainBound, Plant, Spec};
+use tune::{Controller, Form, GainBound, Plant, TuneRequest};
 
 /// Options of `fracid tune`.
 #[derive(Debug, clap::Args)]
@@ -25,8 +25,8 @@ pub struct TuneArgs {
     pub model: String,
     /// The controller: fopi (kp + ki/s^lambda), fopid (+ kd s^mu), fopd (kp + kd s^mu), pi or
     /// pid.
-    #[arg(long, default_value = "fopi")]
-    pub form: String,
+    #[arg(long, default_value_t = TuneRequest::default().form)]
+    pub form: Form,
     /// Gain crossover in rad/s (with --analyse: where to centre the analysis, optional).
     #[arg(long)]
     pub wc: Option<f64>,
@@ -43,21 +43,21 @@ pub struct TuneArgs {
     #[arg(long)]
     pub flat: bool,
     /// |T(j w)| <= DB for every w >= W rad/s (noise rejection over the band above W).
-    #[arg(long, value_name = "W,DB")]
-    pub t_high: Option<String>,
+    #[arg(long, value_name = "W,DB", value_parser = parse_bound)]
+    pub t_high: Option<GainBound>,
     /// |S(j w)| <= DB for every w <= W rad/s (disturbance rejection over the band below W).
-    #[arg(long, value_name = "W,DB")]
-    pub s_low: Option<String>,
+    #[arg(long, value_name = "W,DB", value_parser = parse_bound)]
+    pub s_low: Option<GainBound>,
     /// Robustness floor: the largest sensitivity peak Ms accepted (a design above it is refused).
-    #[arg(long, default_value_t = 2.0)]
+    #[arg(long, default_value_t = TuneRequest::default().max_ms)]
     pub max_ms: f64,
     /// Robustness floor: the smallest gain margin accepted, dB (up, and down for a
     /// conditionally stable loop).
-    #[arg(long, default_value_t = 6.0)]
+    #[arg(long, default_value_t = TuneRequest::default().min_gm)]
     pub min_gm: f64,
     /// Robustness floor: the smallest integrator order accepted (integral action); 0 accepts a
     /// fractional integrator of any order.
-    #[arg(long, default_value_t = 0.5)]
+    #[arg(long, default_value_t = TuneRequest::default().min_lambda)]
     pub min_lambda: f64,
     /// A fixed integrator order: a fopi's without --flat, a fopid's (otherwise searched for the
     /// smallest Ms).
@@ -77,7 +77,7 @@ pub struct TuneArgs {
     #[arg(long)]
     pub dt: Option<f64>,
     /// The reference step of the simulated loop, output units.
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = TuneRequest::default().step)]
     pub step: f64,
     /// The load step at the plant's input, input units (default: the input that holds the
     /// reference step, step / G(0)).
@@ -129,50 +129,39 @@ pub(crate) fn load_model(text: &str) -> Result<(FracTf, Vec<InputEffect>, Vec<St
     Ok((g, effects, left))
 }
 
-fn parse_bound(name: &str, s: &str) -> Result<GainBound> {
+/// `W,DB` (rad/s and dB) as a bound, parsed by clap (exit 2 with the reason).
+fn parse_bound(s: &str) -> std::result::Result<GainBound, String> {
     let parts: Vec<&str> = s.split(',').map(str::trim).collect();
     match parts.as_slice() {
         [w, db] => match (w.parse::<f64>(), db.parse::<f64>()) {
             (Ok(omega), Ok(db)) => Ok(GainBound { omega, db }),
-            _ => bad_input!("--{name} must be W,DB (two numbers), got '{s}'"),
+            _ => Err(format!("must be W,DB (two numbers), got '{s}'")),
         },
-        _ => bad_input!("--{name} must be W,DB (rad/s and dB), got '{s}'"),
+        _ => Err(format!("must be W,DB (rad/s and dB), got '{s}'")),
     }
 }
 
-/// The specification the options ask for.
-pub fn spec_of(a: &TuneArgs) -> Result<Spec> {
-    let (Some(wc), Some(pm_deg)) = (a.wc, a.pm) else {
-        bad_input!("a design needs --wc and --pm (or --analyse C to analyse a given controller)");
-    };
-    Ok(Spec {
-        form: a.form.parse()?,
-        wc,
-        pm_deg,
+/// The request the options ask for (the library checks it).
+pub fn request(a: &TuneArgs) -> TuneRequest {
+    TuneRequest {
+        form: a.form,
+        wc: a.wc,
+        pm: a.pm,
         flat: a.flat,
-        t_high: a
-            .t_high
-            .as_deref()
-            .map(|s| parse_bound("t-high", s))
-            .transpose()?,
-        s_low: a
-            .s_low
-            .as_deref()
-            .map(|s| parse_bound("s-low", s))
-            .transpose()?,
-        dt: a.dt,
+        t_high: a.t_high,
+        s_low: a.s_low,
+        max_ms: a.max_ms,
+        min_gm: a.min_gm,
+        min_lambda: a.min_lambda,
         lambda: a.lambda,
-        floors: tune::Floors {
-            ms_max: a.max_ms,
-            gm_min_db: a.min_gm,
-            lambda_min: a.min_lambda,
-        },
-        orders: tune::Orders {
-            mu: a.mu,
-            lambda_max: a.max_lambda,
-            mu_max: a.max_mu,
-        },
-    })
+        mu: a.mu,
+        max_lambda: a.max_lambda,
+        max_mu: a.max_mu,
+        dt: a.dt,
+        step: a.step,
+        load: a.load,
+        u_limit: a.u_limit,
+    }
 }
 
 /// Run `fracid tune`.
@@ -192,20 +181,15 @@ pub fn run(a: TuneArgs) -> Result<()> {
             "note: the model's effect '{name}' acts on the output, not in the loop: not simulated"
         );
     }
-    let opts = SimOptions {
-        step: Some(a.step),
-        load: a.load,
-        effects,
-        u_limit: a.u_limit,
-    };
-    if a.u_limit.is_some_and(|v| !(v.is_finite() && v > 0.0)) {
-        crate::bad_input!("--u-limit must be a positive number, got {:?}", a.u_limit);
-    }
+    let req = request(&a);
     if let Some(c) = &a.analyse {
+        let opts = req.sim_options(effects)?;
         return run_analysis(&a, &g, &given_controller(c)?, &opts);
     }
-    let spec = spec_of(&a)?;
-    let (report, runs) = tune::report::tune(&g, &spec, &opts)?;
+    if a.wc.is_none() || a.pm.is_none() {
+        bad_input!("a design needs --wc and --pm (or --analyse C to analyse a given controller)");
+    }
+    let (report, runs) = tune::request::run(&g, &req, effects)?;
     if a.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
     } else {
@@ -256,11 +240,7 @@ fn run_analysis(a: &TuneArgs, g: &FracTf, c: &Controller, opts: &SimOptions) -> 
     {
         bad_input!("--analyse takes --wc, --dt, the floors and the simulation's options only");
     }
-    let floors = tune::Floors {
-        ms_max: a.max_ms,
-        gm_min_db: a.min_gm,
-        lambda_min: a.min_lambda,
-    };
+    let floors = request(a).floors();
     let (r, _) = tune::given::analyse_given(g, c, a.wc, a.dt, floors, opts)?;
     if a.json {
         println!("{}", serde_json::to_string_pretty(&r)?);
@@ -362,12 +342,12 @@ fn discrete_line(d: &tune::report::DiscreteJson) -> String {
         o,
         "discrete:   {} states at dt = {} s ({} N = {}, band [{:.3e}, {:.3e}] rad/s); \
          sampled loop: {}",
-        d.states,
-        d.dt,
-        d.approximation.method,
-        d.approximation.order,
-        d.approximation.band[0],
-        d.approximation.band[1],
+        d.ss.states,
+        d.dt(),
+        d.ss.approximation.method,
+        d.ss.approximation.order,
+        d.ss.approximation.band[0],
+        d.ss.approximation.band[1],
         d.sampled_loop
             .as_ref()
             .map_or("not evaluated".into(), |m| format!(
@@ -717,5 +697,62 @@ impl Figure for TuneFigure<'_> {
         Self::bode_panel(&panels[1], false, &omega, &curves)?;
         Self::nichols_panel(&panels[2], &curves)?;
         self.step_panel(&panels[3])
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn args_from(argv: &[&str]) -> std::result::Result<TuneArgs, clap::Error> {
+        #[derive(clap::Parser)]
+        struct Words {
+            #[command(flatten)]
+            args: TuneArgs,
+        }
+        use clap::Parser as _;
+        Words::try_parse_from(argv).map(|w| w.args)
+    }
+
+    #[test]
+    fn the_flags_defaults_are_the_requests() {
+        let a = args_from(&["tune", "1/(s + 1)", "--wc", "3", "--pm", "60"]).unwrap();
+        assert_eq!(
+            request(&a),
+            TuneRequest {
+                wc: Some(3.0),
+                pm: Some(60.0),
+                ..TuneRequest::default()
+            }
+        );
+    }
+
+    #[test]
+    fn bounds_and_forms_are_parsed_at_the_edge() {
+        let a = args_from(&[
+            "tune",
+            "M",
+            "--form",
+            "FOPID",
+            "--t-high",
+            "3000, -10",
+            "--u-limit",
+            "24",
+        ])
+        .unwrap();
+        let r = request(&a);
+        assert_eq!(r.form, Form::Fopid);
+        assert_eq!(
+            r.t_high,
+            Some(GainBound {
+                omega: 3000.0,
+                db: -10.0
+            })
+        );
+        assert_eq!(r.u_limit, Some(24.0));
+        for bad in [["--t-high", "3000"], ["--s-low", "a,b"], ["--form", "pd"]] {
+            let e = args_from(&["tune", "M", bad[0], bad[1]]).unwrap_err();
+            assert_eq!(e.exit_code(), 2, "{bad:?}: {e}");
+        }
     }
 }

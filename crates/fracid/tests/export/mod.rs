@@ -172,3 +172,110 @@ fn a_tuned_controller_exports() {
         }
     }
 }
+
+/// `fracid export C.json --format c`: the header of the fixed-point sections the drive runs,
+/// compiled with the C firmware's section code (`firmware/src/fw_ctrl.c`) and run on an error
+/// step, agrees with the step of the floating-point realisation in the report to the output's
+/// rounding and the quantisation (1 LSB + 0.2 %).
+#[test]
+fn the_c_header_steps_like_the_realisation() {
+    let dir = tempfile::tempdir().unwrap();
+    let pmsm = "6.77/(0.000028 s^1.78 + 0.0064 s^0.89 + 1) exp(-0.001 s)";
+    let tuned = fracid(&[
+        "tune", pmsm, "--wc", "100", "--pm", "60", "--dt", "1e-3", "--json",
+    ]);
+    assert!(
+        tuned.status.success(),
+        "{}",
+        String::from_utf8_lossy(&tuned.stderr)
+    );
+    let c_json = dir.path().join("C.json");
+    std::fs::write(&c_json, &tuned.stdout).unwrap();
+    let header = dir.path().join("ctrl.h");
+    let o = fracid(&[
+        "export",
+        c_json.to_str().unwrap(),
+        "--format",
+        "c",
+        "-o",
+        header.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = std::fs::read_to_string(&header).unwrap();
+    assert!(text.contains("fracid_ctrl_load"), "{text}");
+    // the error step, raw speed LSB (10 mrad/s each: 0.5 rad/s), and the samples run
+    let (e_raw, n) = (50, 400);
+    let main = dir.path().join("step.c");
+    std::fs::write(
+        &main,
+        format!(
+            "#include <stdio.h>\n#include \"fracfw.h\"\n#include \"ctrl.h\"\n\
+             int main(void) {{\n    fw_ctrl c; uint16_t cl; int k;\n    fracid_ctrl_load(&c);\n\
+             for (k = 0; k < {n}; k++) {{ printf(\"%d\\n\", fw_ctrl_step(&c, {e_raw}, 32767, &cl)); }}\n\
+             return 0;\n}}\n"
+        ),
+    )
+    .unwrap();
+    let fw = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../firmware");
+    let exe = dir.path().join("step");
+    let cc = std::env::var("CC").unwrap_or_else(|_| "cc".into());
+    let built = std::process::Command::new(&cc)
+        .args([
+            "-std=c99",
+            "-Wall",
+            "-Wextra",
+            "-Werror",
+            "-pedantic",
+            "-O1",
+        ])
+        .arg("-I")
+        .arg(fw.join("include"))
+        .arg("-I")
+        .arg(dir.path())
+        .arg(fw.join("src/fw_ctrl.c"))
+        .arg(&main)
+        .arg("-o")
+        .arg(&exe)
+        .output()
+        .unwrap_or_else(|e| panic!("cannot run the C compiler {cc}: {e}"));
+    assert!(
+        built.status.success(),
+        "{}",
+        String::from_utf8_lossy(&built.stderr)
+    );
+    let run = std::process::Command::new(&exe).output().unwrap();
+    assert!(run.status.success());
+    let u_c: Vec<f64> = String::from_utf8(run.stdout)
+        .unwrap()
+        .lines()
+        .map(|l| l.trim().parse().unwrap())
+        .collect();
+    assert_eq!(u_c.len(), n);
+    // the realisation's step in floating point: e = 0.5 rad/s, u in V, raw at 1 mV per LSB
+    let v: serde_json::Value = serde_json::from_slice(&tuned.stdout).unwrap();
+    let unit = step(&v["discrete"], n);
+    let e = e_raw as f64 * 0.01;
+    for (k, (&uc, &s)) in u_c.iter().zip(&unit).enumerate() {
+        let want = e * s / 1e-3;
+        let tol = 1.0 + 2e-3 * want.abs();
+        assert!(
+            (uc - want).abs() <= tol,
+            "sample {k}: the C firmware gives {uc}, the realisation {want:.3} (raw LSB)"
+        );
+    }
+    // the step moves: the controller integrates the error
+    assert!(u_c[n - 1] > u_c[0] + 10.0, "{} -> {}", u_c[0], u_c[n - 1]);
+    // a plant is no controller, and a controller needs its sample period: bad input
+    for args in [
+        vec!["export", pmsm, "--format", "c"],
+        vec!["export", "0.1 + 20/s^0.9", "--format", "c"],
+    ] {
+        let o = fracid(&args);
+        assert_eq!(
+            o.status.code(),
+            Some(2),
+            "{args:?}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+    }
+}
