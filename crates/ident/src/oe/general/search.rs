@@ -132,8 +132,9 @@ pub fn fit(
         p.value = *v;
     }
     let reason = format!(
-        "general structure: {} sizes ranked by a frequency-domain BIC on {how}; the first {} \
-         fitted by output error; {} chosen by {} RMSE (ties within {:.0}%: lowest BIC)",
+        "general structure: {} sizes ranked by a frequency-domain BIC on {how}; {} fitted by \
+         output error (the best by it and the smallest nearly as good); {} chosen by {} RMSE \
+         (ties within {:.0}%: lowest BIC)",
         ranked_count,
         short.len(),
         s.name(),
