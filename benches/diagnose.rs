@@ -3,7 +3,7 @@
 //! `diagnose_best`: the candidate structures fitted, screened and diagnosed) on each real time
 //! record in `data/` and on a 1e5-sample PMSM PRBS record; and a 3k-sample fit at dt 0.1 ms
 //! and 0.5 ms.
-//! The whole-process ratio (what the user waits for, the table in `README.md`) is
+//! The whole-process ratio (what the user waits for, the table in `docs/performance.md`) is
 //! `examples/diag_ratio.rs`.
 //!
 //! `cargo bench -p fracid-benches --bench diagnose`

@@ -9,12 +9,7 @@ bash firmware/test.sh
 
 echo "== cargo test (workspace)"
 cargo test --no-fail-fast   # the default members: every crate but the pyo3 extension
-
-echo "== drive end-to-end tests again, against the C firmware (firmware/) behind the pty"
-# From the workspace root, not `-p drive`: the same package selection as `cargo test` above, so
-# the same features and the test binary already built (`-p drive` resolved features for drive
-# alone and compiled it, fracsim and nalgebra again).
-FRACID_SIM_FIRMWARE=c cargo test --test integration e2e
+# (the drive's end-to-end tests run there on both firmwares behind the pty: NAME::rust, NAME::c)
 
 if [ -f python/pyproject.toml ] && [ -x python/ci.sh ]; then
     echo "== python: build the wheel, install it in a fresh venv, pytest"

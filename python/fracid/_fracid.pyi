@@ -228,13 +228,19 @@ class DriveSimulator:
         Hidden periodic disturbance at the input: amplitude (V) and frequency (Hz).
     seed : int
         Seed of the noise.
+    offset_v : float
+        Hidden constant offset added to the command at the input, V.
+    firmware : str
+        The firmware behind the pty: ``"rust"`` (the simulator's own) or ``"c"`` (the C
+        firmware of ``firmware/``, as flashed on the F2812).
 
     Raises
     ------
     ParseError
         If ``model`` is a string that does not parse.
     DataError
-        For a negative or non-finite effect, a bad ``baud``, a model that cannot be simulated.
+        For a negative or non-finite effect, a bad ``baud`` or ``firmware``, a model that cannot
+        be simulated.
     DriveError
         If the pseudo-terminal cannot be opened.
 
@@ -258,6 +264,8 @@ class DriveSimulator:
         ripple_v: float = 0.0,
         ripple_hz: float = 0.0,
         seed: int = 1,
+        offset_v: float = 0.0,
+        firmware: str = "rust",
     ) -> None: ...
     @property
     def port(self) -> str:

@@ -13,7 +13,7 @@ use drive::client::{
     Acquisition, Client, ClientConfig, CsvSink, LazyFile, NullSink, PrbsTest, SineSweep, StopHandle,
 };
 use drive::protocol::{fault, Configure, DriveState, HelloReply, MAX_BLOCK_SAMPLES};
-use drive::sim::{DriveSim, Effects, Faults, SimConfig};
+use drive::sim::{DriveSim, Effects, Faults, FirmwareKind, SimConfig};
 use numpy::IntoPyArray;
 use pyo3::exceptions::PyOSError;
 use pyo3::prelude::*;
@@ -78,7 +78,7 @@ fn int_in<T: TryFrom<i64>>(name: &str, v: impl Into<Int>, lo: i64, hi: i64) -> P
         Err(text) => {
             return Err(errors::data(format!(
                 "{name} = {} must be in {lo}..={hi} (it does not even fit a 64-bit integer)",
-                ident::data::shorten(&text)
+                ident::files::shorten(&text)
             )))
         }
     };
@@ -108,11 +108,15 @@ fn baud_of(baud: Int) -> PyResult<u32> {
 ///     `6.82 / (2.655e-5 s^1.7452 + 0.0059 s^0.92 + 1)`.
 /// baud : int
 ///     Line rate the simulator paces to.
-/// delay_s, coulomb_v, noise_std, speed_quant, ripple_v, ripple_hz : float
+/// delay_s, coulomb_v, noise_std, speed_quant, ripple_v, ripple_hz, offset_v : float
 ///     Hidden effects: input delay (s), Coulomb friction (V), speed noise (rad/s, standard
-///     deviation), speed quantisation step (rad/s), periodic input disturbance (V, Hz).
+///     deviation), speed quantisation step (rad/s), periodic input disturbance (V, Hz), input
+///     offset (V).
 /// seed : int
 ///     Seed of the noise.
+/// firmware : str
+///     The firmware behind the pty: "rust" (the simulator's own) or "c" (the C firmware of
+///     `firmware/`, as flashed on the F2812).
 #[pyclass(name = "DriveSimulator", module = "fracid", frozen)]
 pub struct PyDriveSimulator {
     sim: Mutex<Option<DriveSim>>,
@@ -124,9 +128,9 @@ pub struct PyDriveSimulator {
 #[pymethods]
 impl PyDriveSimulator {
     #[new]
-    #[pyo3(signature = (model = None, baud = Int::from(115_200), delay_s = 0.0, coulomb_v = 0.0, noise_std = 0.0, speed_quant = 0.0, ripple_v = 0.0, ripple_hz = 0.0, seed = Int::from(1)))]
+    #[pyo3(signature = (model = None, baud = Int::from(115_200), delay_s = 0.0, coulomb_v = 0.0, noise_std = 0.0, speed_quant = 0.0, ripple_v = 0.0, ripple_hz = 0.0, seed = Int::from(1), offset_v = 0.0, firmware = "rust"))]
     #[pyo3(
-        text_signature = "(model=None, baud=115200, delay_s=0.0, coulomb_v=0.0, noise_std=0.0, speed_quant=0.0, ripple_v=0.0, ripple_hz=0.0, seed=1)"
+        text_signature = "(model=None, baud=115200, delay_s=0.0, coulomb_v=0.0, noise_std=0.0, speed_quant=0.0, ripple_v=0.0, ripple_hz=0.0, seed=1, offset_v=0.0, firmware='rust')"
     )]
     #[allow(clippy::too_many_arguments)]
     fn new(
@@ -140,8 +144,19 @@ impl PyDriveSimulator {
         ripple_v: f64,
         ripple_hz: f64,
         seed: Int,
+        offset_v: f64,
+        firmware: &str,
     ) -> PyResult<Self> {
         let mut cfg = SimConfig::default();
+        cfg.firmware = match firmware.to_ascii_lowercase().as_str() {
+            "rust" => FirmwareKind::Rust,
+            "c" => FirmwareKind::C,
+            other => {
+                return Err(errors::data(format!(
+                    "firmware must be \"rust\" or \"c\", got {other:?}"
+                )))
+            }
+        };
         if let Some(m) = model.filter(|m| !m.is_none()) {
             cfg.model = if let Ok(tf) = m.downcast::<PyFracTf>() {
                 tf.get().inner.clone()
@@ -167,6 +182,7 @@ impl PyDriveSimulator {
             speed_quant: non_negative("speed_quant", speed_quant)?,
             ripple_v: finite("ripple_v", ripple_v)?,
             ripple_hz: non_negative("ripple_hz", ripple_hz)?,
+            offset_v: finite("offset_v", offset_v)?,
             ..Effects::default()
         };
         // the ranges the simulator accepts (a delay of at most drive.sim.MAX_DELAY_S, ...)

@@ -1,5 +1,5 @@
 """The Python ``DriveClient`` against the C drive firmware (``firmware/``, fracfw, linked into the
-simulator; selected with ``FRACID_SIM_FIRMWARE=c``) on a pty: a PRBS record equal to the Rust
+simulator; selected with ``firmware="c"``) on a pty: a PRBS record equal to the Rust
 firmware's sample for sample, and a sine sweep equal to it within the DFT's Q8 rounding. The same
 motor, hidden effects and seed on both. About two seconds."""
 
@@ -26,10 +26,7 @@ PRBS = dict(order=7, clock_s=0.003, amplitude_v=1.0, offset_v=6.0, periods=1, se
 
 
 def _run(firmware: str):
-    with pytest.MonkeyPatch.context() as mp:
-        # read when the simulator is created
-        mp.setenv("FRACID_SIM_FIRMWARE", firmware)
-        sim = fracid.DriveSimulator(baud=BAUD, **EFFECTS)
+    sim = fracid.DriveSimulator(baud=BAUD, firmware=firmware, **EFFECTS)
     with sim:
         with fracid.DriveClient(sim.port, baud=BAUD) as c:
             c.configure(sample_rate_hz=FS)

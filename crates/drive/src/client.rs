@@ -1406,30 +1406,21 @@ impl Client {
         keep: bool,
     ) -> Result<(), RunFail> {
         let fs = conf.sample_rate_hz;
-        let (ul, yl, il) = (conf.u_lsb(), conf.y_lsb(), conf.i_lsb());
-        let mut next: u64 = 0; // next expected index
-        let mut last_data = Instant::now();
+        let lsb = [conf.u_lsb(), conf.y_lsb(), conf.i_lsb()];
+        let mut st = StreamState {
+            next: 0,
+            last_data: Instant::now(),
+            stalled_polls: 0,
+            last_done: 0,
+        };
         let stream_timeout = self.stream_timeout();
         let expected = Duration::from_secs_f64(acq.planned_samples as f64 / fs.max(1) as f64);
         let hard_deadline = Instant::now() + expected * 3 + Duration::from_secs(10);
         let mut last_progress = 0u64;
-        let mut stalled_polls = 0u32;
-        let mut last_done = 0u32;
         // STREAM_END fetched by END_QUERY: one more pass over the inbox, then done.
         let mut end_fetched = false;
         loop {
-            let req = self.stop_req.take();
-            if req != STOP_NONE {
-                let (msg, name) = if req == STOP_ESTOP {
-                    (Message::Estop, "ESTOP")
-                } else {
-                    (Message::Stop, "STOP")
-                };
-                if let Err(e) = self.request(msg) {
-                    // The stream recovery below finds out what the drive did.
-                    acq.problems.push(format!("{name} not acknowledged: {e}"));
-                }
-            }
+            self.send_stop_request(acq);
             self.keepalive_if_due().map_err(RunFail::Drive)?;
             // Wait for the line no longer than until the next KEEPALIVE is due (a short keepalive
             // interval is kept even while nothing arrives, as in a sine run without streaming;
@@ -1440,55 +1431,12 @@ impl Client {
                 .saturating_sub(self.since_last_keepalive());
             self.pump(keepalive_due.min(Duration::from_millis(20)))
                 .map_err(RunFail::Drive)?;
-            let mut ended = false;
-            while let Some(f) = self.inbox.pop_front() {
-                match f.msg {
-                    Message::Data(d) if d.run_id == acq.run_id => {
-                        last_data = Instant::now();
-                        let first = d.first_index as u64;
-                        if d.flags & 1 != 0 {
-                            acq.clamped_blocks += 1;
-                        }
-                        for (k, s) in d.samples.iter().enumerate() {
-                            let idx = first + k as u64;
-                            if idx < next || idx >= acq.total_samples.max(next + 1) + 1_000_000 {
-                                continue; // duplicate or absurd
-                            }
-                            if idx > next {
-                                acq.missing.push(next..idx); // clipped in `finish`
-                            }
-                            next = idx + 1;
-                            let t = idx as f64 / fs as f64;
-                            let (u, y, i) = (s[0] as f64 * ul, s[1] as f64 * yl, s[2] as f64 * il);
-                            acq.received += 1;
-                            acq.last_index = Some(idx);
-                            if idx >= acq.settle_samples {
-                                acq.after_settle.push(s[0], u);
-                            }
-                            if keep {
-                                acq.index.push(idx);
-                                acq.t.push(t);
-                                acq.u.push(u);
-                                acq.y.push(y);
-                                acq.i.push(i);
-                                acq.raw.push(*s);
-                            }
-                            sink.sample(idx, t, u, y, i).map_err(RunFail::Sink)?;
-                        }
-                    }
-                    Message::StreamEnd(e) if e.run_id == acq.run_id => {
-                        acq.end = Some(e);
-                        ended = true;
-                    }
-                    Message::SineResult(s) if s.run_id == acq.run_id => acq.sine = Some(s),
-                    _ => {} // stale answers, other runs
-                }
-            }
+            let ended = self.read_inbox(acq, sink, &mut st, fs, lsb, keep)?;
             if let Some(p) = self.progress.as_mut() {
-                if next >= last_progress + 256 || ended {
-                    last_progress = next;
+                if st.next >= last_progress + 256 || ended {
+                    last_progress = st.next;
                     p(Progress {
-                        done: next.min(acq.total_samples),
+                        done: st.next.min(acq.total_samples),
                         total: acq.total_samples,
                     });
                 }
@@ -1500,68 +1448,130 @@ impl Client {
                 acq.problems.push("run took too long; gave up".into());
                 break;
             }
-            if last_data.elapsed() < stream_timeout {
+            if st.last_data.elapsed() < stream_timeout {
                 continue;
             }
-            // Silence: ask the drive what is going on.
-            self.stats.recoveries += 1;
-            let st = match self.status() {
-                Ok(s) => s,
-                Err(Error::Timeout { .. }) => {
-                    acq.problems.push("drive stopped answering".into());
-                    break;
-                }
-                Err(e) => return Err(RunFail::Drive(e)),
-            };
-            if boot.is_some_and(|b| b != st.boot_id) {
-                acq.problems.push(format!(
-                    "drive reset during the run (boot id {:#06x} -> {:#06x})",
-                    boot.unwrap_or(0),
-                    st.boot_id
-                ));
-                self.conf = None;
-                if let Some(h) = self.hello.as_mut() {
-                    h.boot_id = st.boot_id;
-                }
-                break;
-            }
-            if st.run_id != acq.run_id {
-                acq.problems.push(format!(
-                    "drive is on run {} instead of {}",
-                    st.run_id, acq.run_id
-                ));
-                break;
-            }
-            if st.state == DriveState::Running {
-                if st.samples_done == last_done {
-                    stalled_polls += 1;
-                    if stalled_polls > 5 {
-                        acq.problems
-                            .push("drive reports a run that makes no progress".into());
-                        break;
-                    }
-                }
-                last_done = st.samples_done;
-                last_data = Instant::now();
-                continue;
-            }
-            // The run is over and we missed STREAM_END: fetch it.
-            match self.request(Message::EndQuery(acq.run_id)) {
-                Ok(Message::StreamEnd(e)) => {
-                    acq.end = Some(e);
-                    // What came while STATUS was awaited (the run's last DATA, its SINE_RESULT,
-                    // which precedes STREAM_END) waits in the inbox: one more pass reads it.
-                    // (Breaking here lost the SINE_RESULT of a sine run as long as the stream
-                    // timeout: the STATUS poll was in flight when the run ended.)
-                    end_fetched = true;
-                }
-                Ok(_) | Err(_) => {
-                    acq.problems.push("end-of-run summary unavailable".into());
-                    break;
-                }
+            match self.recover(acq, &mut st, boot)? {
+                Recovery::Wait => {}
+                Recovery::EndFetched => end_fetched = true,
+                Recovery::GiveUp => break,
             }
         }
         Ok(())
+    }
+
+    /// A STOP or ESTOP asked from another thread ([`Client::stop_handle`]), sent now.
+    fn send_stop_request(&mut self, acq: &mut Acquisition) {
+        let req = self.stop_req.take();
+        if req == STOP_NONE {
+            return;
+        }
+        let (msg, name) = if req == STOP_ESTOP {
+            (Message::Estop, "ESTOP")
+        } else {
+            (Message::Stop, "STOP")
+        };
+        if let Err(e) = self.request(msg) {
+            // The stream recovery finds out what the drive did.
+            acq.problems.push(format!("{name} not acknowledged: {e}"));
+        }
+    }
+
+    /// Take the run's frames from the inbox: DATA into the record and the sink, the SINE_RESULT,
+    /// the STREAM_END (returns whether it came).
+    fn read_inbox(
+        &mut self,
+        acq: &mut Acquisition,
+        sink: &mut dyn SampleSink,
+        st: &mut StreamState,
+        fs: u32,
+        lsb: [f64; 3],
+        keep: bool,
+    ) -> Result<bool, RunFail> {
+        let mut ended = false;
+        while let Some(f) = self.inbox.pop_front() {
+            match f.msg {
+                Message::Data(d) if d.run_id == acq.run_id => {
+                    st.last_data = Instant::now();
+                    if d.flags & 1 != 0 {
+                        acq.clamped_blocks += 1;
+                    }
+                    accept_block(acq, sink, &d, &mut st.next, fs, lsb, keep)?;
+                }
+                Message::StreamEnd(e) if e.run_id == acq.run_id => {
+                    acq.end = Some(e);
+                    ended = true;
+                }
+                Message::SineResult(s) if s.run_id == acq.run_id => acq.sine = Some(s),
+                _ => {} // stale answers, other runs
+            }
+        }
+        Ok(ended)
+    }
+
+    /// Silence on the line: ask the drive what is going on.
+    fn recover(
+        &mut self,
+        acq: &mut Acquisition,
+        st: &mut StreamState,
+        boot: Option<u16>,
+    ) -> Result<Recovery, RunFail> {
+        self.stats.recoveries += 1;
+        let status = match self.status() {
+            Ok(s) => s,
+            Err(Error::Timeout { .. }) => {
+                acq.problems.push("drive stopped answering".into());
+                return Ok(Recovery::GiveUp);
+            }
+            Err(e) => return Err(RunFail::Drive(e)),
+        };
+        if boot.is_some_and(|b| b != status.boot_id) {
+            acq.problems.push(format!(
+                "drive reset during the run (boot id {:#06x} -> {:#06x})",
+                boot.unwrap_or(0),
+                status.boot_id
+            ));
+            self.conf = None;
+            if let Some(h) = self.hello.as_mut() {
+                h.boot_id = status.boot_id;
+            }
+            return Ok(Recovery::GiveUp);
+        }
+        if status.run_id != acq.run_id {
+            acq.problems.push(format!(
+                "drive is on run {} instead of {}",
+                status.run_id, acq.run_id
+            ));
+            return Ok(Recovery::GiveUp);
+        }
+        if status.state == DriveState::Running {
+            if status.samples_done == st.last_done {
+                st.stalled_polls += 1;
+                if st.stalled_polls > 5 {
+                    acq.problems
+                        .push("drive reports a run that makes no progress".into());
+                    return Ok(Recovery::GiveUp);
+                }
+            }
+            st.last_done = status.samples_done;
+            st.last_data = Instant::now();
+            return Ok(Recovery::Wait);
+        }
+        // The run is over and we missed STREAM_END: fetch it.
+        match self.request(Message::EndQuery(acq.run_id)) {
+            Ok(Message::StreamEnd(e)) => {
+                acq.end = Some(e);
+                // What came while STATUS was awaited (the run's last DATA, its SINE_RESULT,
+                // which precedes STREAM_END) waits in the inbox: one more pass reads it.
+                // (Breaking here lost the SINE_RESULT of a sine run as long as the stream
+                // timeout: the STATUS poll was in flight when the run ended.)
+                Ok(Recovery::EndFetched)
+            }
+            Ok(_) | Err(_) => {
+                acq.problems.push("end-of-run summary unavailable".into());
+                Ok(Recovery::GiveUp)
+            }
+        }
     }
 
     /// Run a sine sweep and return the frequency response. Points whose measurement was
@@ -1770,6 +1780,73 @@ fn unwrap_against(p: &mut BodePoint, prev: &BodePoint) {
 enum RunFail {
     Sink(io::Error),
     Drive(Error),
+}
+
+/// Where [`Client::stream`] is in the run.
+struct StreamState {
+    /// The next sample index expected.
+    next: u64,
+    /// When the run's last DATA arrived (or the drive last said it was running).
+    last_data: Instant,
+    /// STATUS polls in a row that found the run making no progress.
+    stalled_polls: u32,
+    /// Samples done at the last STATUS poll.
+    last_done: u32,
+}
+
+/// What [`Client::recover`] found out.
+enum Recovery {
+    /// The run goes on: wait for its DATA.
+    Wait,
+    /// The run's STREAM_END was fetched: one more pass over the inbox, then done.
+    EndFetched,
+    /// The run is lost to this host (the reason is in the record's problems).
+    GiveUp,
+}
+
+/// One DATA block's samples into the record and the sink: duplicates and absurd indices dropped,
+/// gaps before them recorded as missing.
+fn accept_block(
+    acq: &mut Acquisition,
+    sink: &mut dyn SampleSink,
+    d: &DataBlock,
+    next: &mut u64,
+    fs: u32,
+    lsb: [f64; 3],
+    keep: bool,
+) -> Result<(), RunFail> {
+    let first = d.first_index as u64;
+    for (k, s) in d.samples.iter().enumerate() {
+        let idx = first + k as u64;
+        if idx < *next || idx >= acq.total_samples.max(*next + 1) + 1_000_000 {
+            continue; // duplicate or absurd
+        }
+        if idx > *next {
+            acq.missing.push(*next..idx); // clipped in `finish`
+        }
+        *next = idx + 1;
+        let t = idx as f64 / fs as f64;
+        let (u, y, i) = (
+            s[0] as f64 * lsb[0],
+            s[1] as f64 * lsb[1],
+            s[2] as f64 * lsb[2],
+        );
+        acq.received += 1;
+        acq.last_index = Some(idx);
+        if idx >= acq.settle_samples {
+            acq.after_settle.push(s[0], u);
+        }
+        if keep {
+            acq.index.push(idx);
+            acq.t.push(t);
+            acq.u.push(u);
+            acq.y.push(y);
+            acq.i.push(i);
+            acq.raw.push(*s);
+        }
+        sink.sample(idx, t, u, y, i).map_err(RunFail::Sink)?;
+    }
+    Ok(())
 }
 
 /// Judge a run at its end: the summary, the missing ranges, completeness.

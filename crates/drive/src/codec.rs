@@ -1,7 +1,7 @@
 //! Framing: `0x00 | COBS(body) | 0x00`, body = `ver | type | seq | payload | crc16`.
 //! Pure functions and a streaming decoder; no I/O.
 
-use crate::error::FrameError;
+use crate::protocol::FrameError;
 use crate::protocol::{Frame, Message, PROTO_VERSION};
 use crc::{Crc, CRC_16_MCRF4XX};
 

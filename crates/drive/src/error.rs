@@ -1,5 +1,6 @@
 //! The crate's error type.
 
+use crate::protocol::FrameError;
 use std::ops::Range;
 
 /// Everything that can go wrong in the drive crate.
@@ -74,41 +75,6 @@ pub enum Error {
         /// Missing sample ranges.
         missing: Vec<Range<u64>>,
     },
-}
-
-/// Why a received frame was discarded.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
-#[non_exhaustive]
-pub enum FrameError {
-    /// The bytes between two delimiters are not valid (canonical) COBS.
-    #[error("invalid COBS encoding")]
-    Cobs,
-    /// The frame exceeded the maximum body length.
-    #[error("frame too long")]
-    TooLong,
-    /// The body is shorter than header plus CRC.
-    #[error("frame too short")]
-    TooShort,
-    /// CRC mismatch.
-    #[error("CRC mismatch")]
-    Crc,
-    /// Unsupported version or reserved bits set.
-    #[error("unsupported version/flags byte {0:#04x}")]
-    Version(u8),
-    /// Unknown message type.
-    #[error("unknown message type {0:#04x}")]
-    UnknownType(u8),
-    /// The payload length does not match the message type.
-    #[error("bad payload length {len} for type {ty:#04x}")]
-    Length {
-        /// Message type.
-        ty: u8,
-        /// Payload length received.
-        len: usize,
-    },
-    /// A field has an impossible value (reserved bits set, n out of range).
-    #[error("bad field in type {0:#04x}")]
-    Field(u8),
 }
 
 /// The crate's result type.

@@ -4,6 +4,7 @@
 //! [`exit_code`].
 
 mod alloc;
+mod bad_input;
 mod cmd;
 mod interrupt;
 mod plot;
@@ -86,6 +87,13 @@ fn exit_code(err: &anyhow::Error) -> u8 {
                 tune::Error::Infeasible(_) | tune::Error::Unsafe(_) => 1,
                 tune::Error::Sim(fracsim::Error::Numerical(_)) => 1,
                 _ => 2,
+            };
+        }
+        if let Some(e) = cause.downcast_ref::<autotune::Error>() {
+            return match e {
+                autotune::Error::InvalidParam(_) => 2,
+                autotune::Error::Interrupted(_) => 130,
+                _ => 1,
             };
         }
         if cause.downcast_ref::<cmd::BadInput>().is_some() {

@@ -43,7 +43,7 @@ pub fn format_of(path: &Path) -> Result<Format> {
     {
         Some("png") => check_dir(path).map(|()| Format::Png),
         Some("svg") => check_dir(path).map(|()| Format::Svg),
-        _ => Err(anyhow::Error::new(crate::cmd::BadInput(format!(
+        _ => Err(anyhow::Error::new(crate::bad_input::BadInput(format!(
             "plot file {} must end in .png or .svg",
             path.display()
         )))),

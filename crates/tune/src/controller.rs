@@ -155,3 +155,14 @@ impl Controller {
         )?)
     }
 }
+
+/// The orders of a candidate, for the messages.
+pub(crate) fn label(c: &Controller) -> String {
+    if c.ki == 0.0 {
+        format!("mu = {:.3}", c.mu)
+    } else if c.kd > 0.0 {
+        format!("lambda = {:.3}, mu = {:.3}", c.lambda, c.mu)
+    } else {
+        format!("lambda = {:.3}", c.lambda)
+    }
+}

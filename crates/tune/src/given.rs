@@ -6,11 +6,11 @@
 use crate::analysis::{analyse, loop_response, LoopMetrics};
 use crate::closed::LoopRun;
 use crate::controller::Controller;
-use crate::design::Floors;
 use crate::error::{invalid, Result};
 use crate::plant::Plant;
 use crate::report::{discrete_json, setup_of, simulate_loop, DiscreteJson, SimOptions, StepJson};
 use crate::sampled::SampledLoop;
+use crate::spec::Floors;
 use fracsim::{ApproxSpec, FracTf};
 use ident::app::ModelReport;
 use serde::Serialize;

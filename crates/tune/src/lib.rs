@@ -23,9 +23,11 @@ pub mod plant;
 pub mod realise;
 pub mod report;
 pub mod sampled;
+pub mod spec;
 
 pub use analysis::LoopMetrics;
 pub use controller::{Controller, Form};
-pub use design::{design, Design, Floors, GainBound, Orders, Spec};
+pub use design::{design, Design};
 pub use error::{Error, Result};
 pub use plant::Plant;
+pub use spec::{Floors, GainBound, Orders, Spec};

@@ -3,9 +3,10 @@
 
 use crate::closed::{self, InputEffect, LoopRun, LoopSetup, StepMetrics};
 use crate::controller::Controller;
-use crate::design::{design, Design, Spec};
+use crate::design::{design, Design};
 use crate::error::Result;
 use crate::realise;
+use crate::spec::Spec;
 use crate::{Form, LoopMetrics};
 use fracsim::export::{method_name, StateSpace};
 use fracsim::{ApproxSpec, FracTf};

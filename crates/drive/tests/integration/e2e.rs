@@ -5,7 +5,7 @@
 
 use drive::client::{Acquisition, Client, ClientConfig, CsvSink, NullSink, PrbsTest, SineSweep};
 use drive::protocol::Configure;
-use drive::sim::{DriveSim, FaultAt, Faults, SimClock, SimConfig};
+use drive::sim::{DriveSim, FaultAt, Faults, FirmwareKind, SimClock, SimConfig};
 use std::sync::Mutex;
 use std::time::Duration;
 
@@ -28,8 +28,14 @@ pub(crate) fn short_prbs() -> PrbsTest {
     }
 }
 
-pub(crate) fn sim(faults: Faults, baud: u32, link: Option<std::path::PathBuf>) -> DriveSim {
+pub(crate) fn sim(
+    firmware: FirmwareKind,
+    faults: Faults,
+    baud: u32,
+    link: Option<std::path::PathBuf>,
+) -> DriveSim {
     DriveSim::spawn(SimConfig {
+        firmware,
         baud,
         faults,
         link,
@@ -52,8 +58,9 @@ pub(crate) fn client(path: &str, baud: u32) -> Client {
 }
 
 /// A fault-free simulator in virtual time (the default model and effects).
-pub(crate) fn vsim(baud: u32) -> DriveSim {
+pub(crate) fn vsim(firmware: FirmwareKind, baud: u32) -> DriveSim {
     vspawn(SimConfig {
+        firmware,
         baud,
         ..SimConfig::default()
     })
@@ -118,10 +125,10 @@ pub(crate) fn check_consistent(acq: &Acquisition) {
     }
 }
 
-#[test]
-fn clean_run_is_complete() {
+on_both_firmwares! {
+fn clean_run_is_complete(fw) {
     let _g = lock();
-    let s = vsim(115_200);
+    let s = vsim(fw, 115_200);
     let mut c = vclient(&s, 115_200);
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("prbs.csv");
@@ -155,11 +162,12 @@ fn clean_run_is_complete() {
     let st = c.status().unwrap();
     assert_eq!(st.samples_done as u64, acq.total_samples);
 }
+}
 
-fn faulty_run(faults: Faults, link: bool) -> (Acquisition, DriveSim, Client) {
+fn faulty_run(fw: FirmwareKind, faults: Faults, link: bool) -> (Acquisition, DriveSim, Client) {
     let dir = tempfile::tempdir().unwrap();
     let link = link.then(|| dir.path().join("drive-tty"));
-    let s = sim(faults, 115_200, link);
+    let s = sim(fw, faults, 115_200, link);
     let mut c = client(s.port_path(), 115_200);
     let acq = c.run_prbs(&short_prbs(), &mut NullSink).unwrap();
     check_consistent(&acq);
@@ -169,10 +177,11 @@ fn faulty_run(faults: Faults, link: bool) -> (Acquisition, DriveSim, Client) {
     (acq, s, c)
 }
 
-#[test]
-fn bit_errors_1e4() {
+on_both_firmwares! {
+fn bit_errors_1e4(fw) {
     let _g = lock();
     let (acq, s, c) = faulty_run(
+        fw,
         Faults {
             bit_error_rate: 1e-4,
             seed: 11,
@@ -194,11 +203,13 @@ fn bit_errors_1e4() {
         assert!(acq.complete);
     }
 }
+}
 
-#[test]
-fn dropped_bytes() {
+on_both_firmwares! {
+fn dropped_bytes(fw) {
     let _g = lock();
     let (acq, s, _c) = faulty_run(
+        fw,
         Faults {
             drop_rate: 2e-4,
             seed: 3,
@@ -213,11 +224,13 @@ fn dropped_bytes() {
         acq.complete, acq.missing, acq.problems
     );
 }
+}
 
-#[test]
-fn stall_longer_than_timeout() {
+on_both_firmwares! {
+fn stall_longer_than_timeout(fw) {
     let _g = lock();
     let (acq, s, c) = faulty_run(
+        fw,
         Faults {
             stall: Some(FaultAt {
                 at_sample: 300,
@@ -243,11 +256,13 @@ fn stall_longer_than_timeout() {
         c.stats()
     );
 }
+}
 
-#[test]
-fn disconnect_and_reconnect() {
+on_both_firmwares! {
+fn disconnect_and_reconnect(fw) {
     let _g = lock();
     let (acq, s, c) = faulty_run(
+        fw,
         Faults {
             disconnect: Some(FaultAt {
                 at_sample: 300,
@@ -268,11 +283,13 @@ fn disconnect_and_reconnect() {
         s.stats().events
     );
 }
+}
 
-#[test]
-fn drive_reset_mid_run() {
+on_both_firmwares! {
+fn drive_reset_mid_run(fw) {
     let _g = lock();
     let (acq, s, mut c) = faulty_run(
+        fw,
         Faults {
             reset: Some(FaultAt {
                 at_sample: 300,
@@ -301,11 +318,12 @@ fn drive_reset_mid_run() {
     assert!(acq2.complete, "{:?}", acq2.problems);
     check_truth(&acq2, &s);
 }
+}
 
-#[test]
-fn sine_sweep_matches_the_model() {
+on_both_firmwares! {
+fn sine_sweep_matches_the_model(fw) {
     let _g = lock();
-    let s = vsim(115_200);
+    let s = vsim(fw, 115_200);
     let mut c = vclient(&s, 115_200);
     let mut sweep = SineSweep::log(5.0, 40.0, 3);
     sweep.min_settle_s = 0.1;
@@ -323,6 +341,7 @@ fn sine_sweep_matches_the_model() {
         assert!((p.gain_db - gain_db).abs() < 0.5, "{p:?} vs {gain_db}");
         assert!((p.phase_deg - phase).abs() < 1.5, "{p:?} vs {phase}");
     }
+}
 }
 
 /// A sink that keeps the indices it received and writes the CSV of [`CsvSink`] to memory.
@@ -344,16 +363,17 @@ impl drive::client::SampleSink for TeeSink {
     }
 }
 
+on_both_firmwares! {
 /// Issue 46, item 9: with [`Retention::CountOnly`] (what `fracid drive loop` uses, so a long run
 /// needs no memory for its samples) the acquisition keeps none of them, and still says what a
 /// kept one says: the count, the missing ranges (the complement of the indices the sink
 /// received, on a line that drops bytes), the footer, completeness. Bytes are dropped both ways,
 /// so the record has gaps.
-#[test]
-fn count_only_retention_keeps_no_sample_and_the_same_account() {
+fn count_only_retention_keeps_no_sample_and_the_same_account(fw) {
     use drive::client::Retention;
     let _g = lock();
     let s = sim(
+        fw,
         Faults {
             drop_rate: 3e-4,
             seed: 5,
@@ -407,4 +427,5 @@ fn count_only_retention_keeps_no_sample_and_the_same_account() {
     assert!(acq.footer().starts_with("# incomplete: missing samples "));
     // the excitation, judged as the samples arrived: a PRBS that varies
     assert!(acq.after_settle.samples > 100 && !acq.excitation_missing());
+}
 }

@@ -3,7 +3,7 @@
 //! computed on the host from streamed samples against the drive's. Serialised with the lock of
 //! [`super::e2e`]; 921600 baud and short runs keep each test to about a second.
 
-use super::e2e::{check_consistent, check_truth, lock, short_prbs};
+use crate::e2e::{check_consistent, check_truth, lock, short_prbs};
 use drive::client::{
     drive_dft, host_dft, Acquisition, Client, ClientConfig, CsvSink, NullSink, PrbsTest, RunInfo,
     SampleSink,
@@ -12,7 +12,7 @@ use drive::protocol::{
     fault, ty, Configure, DriveState, EndReason, NakCode, StartSine, StreamEnd, SINE_DFT,
     SINE_STREAM,
 };
-use drive::sim::{DriveSim, SimClock, SimConfig};
+use drive::sim::{DriveSim, FirmwareKind, SimClock, SimConfig};
 use drive::Error;
 use std::io;
 use std::time::{Duration, Instant};
@@ -21,8 +21,9 @@ const BAUD: u32 = 921_600;
 
 /// The simulator at 921600 baud, in real time (the tests that time commands against the samples:
 /// STOP, ESTOP, the keepalive) or in virtual time ([`fast_client`] then keeps it going).
-fn fast_sim(clock: SimClock) -> DriveSim {
+fn fast_sim(firmware: FirmwareKind, clock: SimClock) -> DriveSim {
     DriveSim::spawn(SimConfig {
+        firmware,
         baud: BAUD,
         clock,
         ..SimConfig::default()
@@ -31,9 +32,9 @@ fn fast_sim(clock: SimClock) -> DriveSim {
 }
 
 /// The client settings for a simulator in virtual time: the keepalive on the drive's clock
-/// ([`super::e2e::vclient_config`]).
+/// ([`crate::e2e::vclient_config`]).
 fn vcfg(s: &DriveSim) -> ClientConfig {
-    super::e2e::vclient_config(s, BAUD)
+    crate::e2e::vclient_config(s, BAUD)
 }
 
 /// A client of [`fast_sim`] (at its baud rate).
@@ -82,11 +83,11 @@ fn assert_nak_fault(r: drive::Result<Acquisition>, code: u8) {
     }
 }
 
-#[test]
-fn stop_mid_run_keeps_what_arrived() {
+on_both_firmwares! {
+fn stop_mid_run_keeps_what_arrived(fw) {
     let _g = lock();
     let t0 = Instant::now();
-    let s = fast_sim(SimClock::RealTime);
+    let s = fast_sim(fw, SimClock::RealTime);
     let mut c = fast_client(&s, ClientConfig::default(), &Configure::default());
     stop_at(&mut c, 250, false);
     let dir = tempfile::tempdir().unwrap();
@@ -142,12 +143,13 @@ fn stop_mid_run_keeps_what_arrived() {
     check_truth(&acq2, &s);
     eprintln!("stop test: {:?}", t0.elapsed());
 }
+}
 
-#[test]
-fn estop_latches_until_configure() {
+on_both_firmwares! {
+fn estop_latches_until_configure(fw) {
     let _g = lock();
     let t0 = Instant::now();
-    let s = fast_sim(SimClock::RealTime);
+    let s = fast_sim(fw, SimClock::RealTime);
     let mut c = fast_client(&s, ClientConfig::default(), &Configure::default());
     stop_at(&mut c, 250, true);
     let acq = c.run_prbs(&short_prbs(), &mut NullSink).unwrap();
@@ -193,6 +195,7 @@ fn estop_latches_until_configure() {
     check_truth(&acq2, &s);
     eprintln!("estop test: {:?}", t0.elapsed());
 }
+}
 
 /// Records when each sample arrived.
 #[derive(Default)]
@@ -211,11 +214,11 @@ impl SampleSink for ArrivalSink {
     }
 }
 
-#[test]
-fn keepalive_expiry_ramps_down() {
+on_both_firmwares! {
+fn keepalive_expiry_ramps_down(fw) {
     let _g = lock();
     let t0 = Instant::now();
-    let s = fast_sim(SimClock::RealTime);
+    let s = fast_sim(fw, SimClock::RealTime);
     // The host goes silent during the run: no KEEPALIVE, and DATA keep flowing so it never polls.
     let conf = Configure {
         block_samples: 10,
@@ -294,10 +297,18 @@ fn keepalive_expiry_ramps_down() {
     assert_eq!(c.status().unwrap().state, DriveState::Idle);
     eprintln!("keepalive test: {:?}", t0.elapsed());
 }
+}
 
 /// A run that trips: ends with LIMIT at the first sample beyond the limit, which is kept.
-fn trip(conf: Configure, test: PrbsTest, channel: usize, limit: i16, code: u8) -> u64 {
-    let s = fast_sim(SimClock::Virtual);
+fn trip(
+    fw: FirmwareKind,
+    conf: Configure,
+    test: PrbsTest,
+    channel: usize,
+    limit: i16,
+    code: u8,
+) -> u64 {
+    let s = fast_sim(fw, SimClock::Virtual);
     let mut c = fast_client(&s, vcfg(&s), &conf);
     let acq = c.run_prbs(&test, &mut NullSink).unwrap();
     let end = end_of(&acq);
@@ -331,8 +342,8 @@ fn trip(conf: Configure, test: PrbsTest, channel: usize, limit: i16, code: u8) -
     n
 }
 
-#[test]
-fn speed_limit_trips() {
+on_both_firmwares! {
+fn speed_limit_trips(fw) {
     let _g = lock();
     let t0 = Instant::now();
     // 3 V drives the motor towards 20 rad/s; the trip is at 10 rad/s, during the settle
@@ -340,13 +351,14 @@ fn speed_limit_trips() {
         y_limit: 1000,
         ..Configure::default()
     };
-    let n = trip(conf, short_prbs(), 1, 1000, fault::SPEED_LIMIT);
+    let n = trip(fw, conf, short_prbs(), 1, 1000, fault::SPEED_LIMIT);
     assert!(n < 100, "{n}");
     eprintln!("speed trip test: {:?}", t0.elapsed());
 }
+}
 
-#[test]
-fn current_limit_trips() {
+on_both_firmwares! {
+fn current_limit_trips(fw) {
     let _g = lock();
     let t0 = Instant::now();
     // 50 samples at 0 V (no current), then the PRBS's first bit (a 0, seed 1) steps to -3 V:
@@ -361,16 +373,17 @@ fn current_limit_trips() {
         settle_s: 0.05,
         ..short_prbs()
     };
-    let n = trip(conf, test, 2, 2000, fault::CURRENT_LIMIT);
+    let n = trip(fw, conf, test, 2, 2000, fault::CURRENT_LIMIT);
     assert_eq!(n, 51);
     eprintln!("current trip test: {:?}", t0.elapsed());
 }
+}
 
-#[test]
-fn streamed_sine_dft_matches_the_drive() {
+on_both_firmwares! {
+fn streamed_sine_dft_matches_the_drive(fw) {
     let _g = lock();
     let t0 = Instant::now();
-    let s = fast_sim(SimClock::Virtual);
+    let s = fast_sim(fw, SimClock::Virtual);
     let conf = Configure::default();
     let mut c = fast_client(&s, vcfg(&s), &conf);
     let fs = conf.sample_rate_hz;
@@ -440,12 +453,13 @@ fn streamed_sine_dft_matches_the_drive() {
     assert!(worst_deg < 1e-2, "{worst_deg}");
     eprintln!("sine stream test: {:?}", t0.elapsed());
 }
+}
 
-#[test]
-fn retried_start_runs_once() {
+on_both_firmwares! {
+fn retried_start_runs_once(fw) {
     let _g = lock();
     let t0 = Instant::now();
-    let s = fast_sim(SimClock::Virtual);
+    let s = fast_sim(fw, SimClock::Virtual);
     let mut c = fast_client(&s, vcfg(&s), &Configure::default());
     // the drive starts the run but its ACK is lost: the client resends START with the same seq
     s.lose_next_answer(ty::START_PRBS);
@@ -472,6 +486,7 @@ fn retried_start_runs_once() {
     assert_eq!(status.run_id, acq.run_id);
     assert_eq!(status.samples_done as u64, acq.total_samples);
     eprintln!("retried START test: {:?}", t0.elapsed());
+}
 }
 
 /// A drive of an earlier protocol version (2: an empty KEEPALIVE that any frame stood in for)
@@ -590,16 +605,16 @@ impl SampleSink for PausingSink<'_> {
     }
 }
 
+on_both_firmwares! {
 /// Virtual time waits for a host that reads late: the host stops reading (and sending) for
 /// 300 ms of wall time at sample 200 of 2132. With a keepalive of 5 s nothing but the flow control
 /// holds the drive's clock: it must stop within what the host's read buffer (2048 bytes), the pty
 /// (512 bytes unread), one step of the line and the drive's 4 DATA blocks hold, under 4500 bytes
 /// or 700 samples, not run the record to its end; then the run completes with nothing lost or
 /// expired, in far less than its 2.13 s of drive time besides the pause.
-#[test]
-fn virtual_time_waits_for_a_host_that_reads_late() {
+fn virtual_time_waits_for_a_host_that_reads_late(fw) {
     let _g = lock();
-    let s = fast_sim(SimClock::Virtual);
+    let s = fast_sim(fw, SimClock::Virtual);
     let conf = Configure {
         keepalive_ms: 5000,
         ..Configure::default()
@@ -636,7 +651,9 @@ fn virtual_time_waits_for_a_host_that_reads_late() {
     check_truth(&acq, &s);
     assert!(took < Duration::from_millis(1200), "{took:?}");
 }
+}
 
+on_both_firmwares! {
 /// Virtual time with the host's keepalive on the drive's clock is paced by the protocol alone: a
 /// 1 Hz sine run without streaming (6 s of drive time, nothing on the line but the answers)
 /// takes one KEEPALIVE per keepalive interval (150 ms) of drive time, and the drive's clock
@@ -644,10 +661,9 @@ fn virtual_time_waits_for_a_host_that_reads_late() {
 /// never per step. A drive clock bounded by a wall-clock keepalive timer (the host's every
 /// 150 ms of wall time, the drive at most 250 ms past it) or a simulator that sleeps between
 /// steps would wait on the wall clock tens to thousands of times. Counters, not timings.
-#[test]
-fn virtual_time_with_the_host_on_its_clock_waits_only_for_the_keepalive() {
+fn virtual_time_with_the_host_on_its_clock_waits_only_for_the_keepalive(fw) {
     let _g = lock();
-    let s = fast_sim(SimClock::Virtual);
+    let s = fast_sim(fw, SimClock::Virtual);
     let clock = s
         .virtual_clock()
         .expect("a simulator in virtual time has a clock");
@@ -686,16 +702,17 @@ fn virtual_time_with_the_host_on_its_clock_waits_only_for_the_keepalive() {
     // each wait ends when the host's frame arrives
     assert!(waits <= 2 * wakes + 4, "{waits} waits for {wakes} wake-ups");
 }
+}
 
+on_both_firmwares! {
 /// Virtual time does not hide a silent host: with no KEEPALIVE and no STATUS poll (the stream
 /// timeout longer than the test: in virtual time the drive's clock waiting for the host stops the
 /// DATA, which a polling host would answer with a STATUS, a frame that keeps the drive alive), the
 /// drive's keepalive still expires, after the host has been silent for the keepalive interval of
 /// wall time (the drive's clock waits that long for it), at the same sample as in real time.
-#[test]
-fn virtual_time_still_expires_a_silent_host() {
+fn virtual_time_still_expires_a_silent_host(fw) {
     let _g = lock();
-    let s = fast_sim(SimClock::Virtual);
+    let s = fast_sim(fw, SimClock::Virtual);
     let conf = Configure {
         block_samples: 10,
         ..Configure::default()
@@ -722,6 +739,7 @@ fn virtual_time_still_expires_a_silent_host() {
     assert!(took >= Duration::from_millis(500), "{took:?}");
     check_consistent(&acq);
     check_truth(&acq, &s);
+}
 }
 
 /// A drive of firmware 1.1 runs controller format 1 only: it answers LOAD_CTRL of format 2 with

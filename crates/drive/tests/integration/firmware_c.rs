@@ -1,9 +1,9 @@
 //! The C firmware (`firmware/`, linked through `drive::cfw`) behind the simulator's pty, against
 //! the Rust firmware: the same motor, effects and seed must give the same records, sample for
 //! sample. (The fault scenarios of `e2e` and `e2e_control` run against the C firmware with
-//! `FRACID_SIM_FIRMWARE=c`, as scripts/test.sh does.)
+//! `on_both_firmwares`.)
 
-use super::e2e::{check_consistent, check_truth, client, lock, short_prbs, vclient};
+use crate::e2e::{check_consistent, check_truth, client, lock, short_prbs, vclient};
 use drive::client::{Acquisition, NullSink};
 use drive::protocol::{StartSine, SINE_DFT, SINE_STREAM};
 use drive::sim::{DriveSim, Effects, Faults, FirmwareKind, SimClock, SimConfig};
@@ -25,6 +25,7 @@ fn spawn(firmware: FirmwareKind) -> DriveSim {
             noise_std: 0.05,
             speed_quant: 0.01,
             r_ohm: 1.0,
+            offset_v: 0.1,
         },
         faults: Faults {
             seed: 7,
@@ -106,33 +107,25 @@ fn c_firmware_records_equal_the_rust_firmware() {
     );
 }
 
-/// The simulators of the `e2e` and `e2e_control` tests (built with `SimConfig::default()`) run the
-/// firmware `FRACID_SIM_FIRMWARE` names: the C engine when it is `c`, as scripts/test.sh runs them
-/// (its filter `e2e` also selects this test), the Rust firmware otherwise. Without this, a rerun
-/// "against the C firmware" could silently test the Rust one again.
-#[test]
-fn e2e_simulators_run_the_firmware_of_the_environment() {
+on_both_firmwares! {
+/// The simulators of the `e2e` and `e2e_control` tests ([`on_both_firmwares`]) run the firmware
+/// they are given: the C engine for `NAME::c`, the Rust firmware for `NAME::rust`. Without this,
+/// the C variants could silently test the Rust firmware again. A simulator built from defaults
+/// runs the Rust firmware, whatever the environment.
+fn e2e_simulators_run_the_firmware_they_are_given(fw) {
     let _g = lock();
-    let want_c = std::env::var("FRACID_SIM_FIRMWARE").is_ok_and(|v| v.eq_ignore_ascii_case("c"));
-    let s = super::e2e::sim(Faults::default(), BAUD, None);
-    assert_eq!(
-        SimConfig::default().firmware,
-        if want_c {
-            FirmwareKind::C
-        } else {
-            FirmwareKind::Rust
-        }
-    );
+    assert_eq!(SimConfig::default().firmware, FirmwareKind::Rust);
+    let s = crate::e2e::sim(fw, Faults::default(), BAUD, None);
     let mut c = client(s.port_path(), BAUD);
     let acq = c.run_prbs(&short_prbs(), &mut NullSink).unwrap();
     assert!(acq.complete, "{:?}", acq.problems);
     let events = s.stats().events;
     assert_eq!(
         events.iter().any(|e| e.contains("(C firmware)")),
-        want_c,
-        "FRACID_SIM_FIRMWARE={:?}: {events:?}",
-        std::env::var("FRACID_SIM_FIRMWARE").ok()
+        fw == FirmwareKind::C,
+        "{fw:?}: {events:?}"
     );
+}
 }
 
 /// The controller download's checks (PROTOCOL.md "Speed loop", LOAD_CTRL and LOAD_SECTION) on

@@ -5,7 +5,7 @@
 use crate::e2e::{lock, short_prbs, sim};
 use drive::client::{Client, ClientConfig, CsvSink, LazyFile, PrbsTest, SineSweep};
 use drive::protocol::Configure;
-use drive::sim::{DriveSim, Effects, Faults, SimConfig};
+use drive::sim::{DriveSim, Effects, Faults, FirmwareKind, SimConfig};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
@@ -46,7 +46,7 @@ fn data_rows(text: &str) -> usize {
 #[test]
 fn a_port_lost_mid_run_still_finishes_the_record() {
     let _g = lock();
-    let s = sim(Faults::default(), BAUD, None);
+    let s = sim(FirmwareKind::Rust, Faults::default(), BAUD, None);
     let mut c = client(s.port_path());
     let s = shared(s);
     let s2 = s.clone();
@@ -99,7 +99,7 @@ fn a_port_lost_mid_run_still_finishes_the_record() {
 #[test]
 fn a_sweep_stops_at_once_when_the_port_vanishes_and_keeps_its_points() {
     let _g = lock();
-    let s = sim(Faults::default(), BAUD, None);
+    let s = sim(FirmwareKind::Rust, Faults::default(), BAUD, None);
     let mut c = client(s.port_path());
     let s = shared(s);
     let mut sweep = SineSweep::log(20.0, 100.0, 9);
@@ -131,7 +131,7 @@ fn a_sweep_stops_at_once_when_the_port_vanishes_and_keeps_its_points() {
 #[test]
 fn a_refused_start_leaves_an_existing_record_untouched() {
     let _g = lock();
-    let s = sim(Faults::default(), BAUD, None);
+    let s = sim(FirmwareKind::Rust, Faults::default(), BAUD, None);
     let mut c = client(s.port_path());
     // An emergency stop is latched until the next CONFIGURE: the drive refuses the START.
     c.estop().unwrap();
@@ -153,7 +153,7 @@ fn a_refused_start_leaves_an_existing_record_untouched() {
 fn a_command_clamped_away_is_flagged_in_the_record() {
     let _g = lock();
     // virtual time: nothing here depends on the wall clock
-    let s = crate::e2e::vsim(BAUD);
+    let s = crate::e2e::vsim(FirmwareKind::Rust, BAUD);
     let mut c = crate::e2e::vclient(&s, BAUD);
     let dir = tempfile::tempdir().unwrap();
     // 30 V +- 1 V against the default 24 V clamp: every sample at 24 V.

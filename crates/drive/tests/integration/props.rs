@@ -4,7 +4,19 @@ use drive::codec::{self, StreamDecoder};
 use drive::protocol::*;
 use proptest::prelude::*;
 
-fn arb_msg() -> impl Strategy<Value = Message> {
+/// Any message, each type about as likely (the weights are the families' sizes).
+pub(crate) fn arb_msg() -> impl Strategy<Value = Message> {
+    prop_oneof![
+        6 => arb_short(),
+        3 => arb_loop_command(),
+        3 => arb_run_command(),
+        3 => arb_reply(),
+        3 => arb_stream(),
+    ]
+}
+
+/// The messages of at most one field: HELLO, STOP, ESTOP, STATUS, KEEPALIVE, END_QUERY.
+fn arb_short() -> impl Strategy<Value = Message> {
     prop_oneof![
         Just(Message::Hello),
         Just(Message::Stop),
@@ -12,6 +24,12 @@ fn arb_msg() -> impl Strategy<Value = Message> {
         Just(Message::Status),
         any::<u16>().prop_map(Message::Keepalive),
         any::<u16>().prop_map(Message::EndQuery),
+    ]
+}
+
+/// LOAD_CTRL, LOAD_SECTION, START_LOOP.
+fn arb_loop_command() -> impl Strategy<Value = Message> {
+    prop_oneof![
         (
             any::<u8>(),
             any::<u8>(),
@@ -43,6 +61,12 @@ fn arb_msg() -> impl Strategy<Value = Message> {
                 total_samples: t,
             })
         }),
+    ]
+}
+
+/// CONFIGURE, START_PRBS, START_SINE.
+fn arb_run_command() -> impl Strategy<Value = Message> {
+    prop_oneof![
         (
             any::<u32>(),
             1u8..=66,
@@ -105,6 +129,12 @@ fn arb_msg() -> impl Strategy<Value = Message> {
                     flags: fl,
                 })
             }),
+    ]
+}
+
+/// ACK, NAK, HELLO_REPLY.
+fn arb_reply() -> impl Strategy<Value = Message> {
+    prop_oneof![
         (any::<u8>(), any::<u16>(), any::<u32>()).prop_map(|(t, r, n)| Message::Ack(Ack {
             acked_type: t,
             run_id: r,
@@ -115,6 +145,23 @@ fn arb_msg() -> impl Strategy<Value = Message> {
             code: NakCode::from_code(c),
             detail: d
         })),
+        (any::<u16>(), any::<u32>(), any::<u8>()).prop_map(|(b, f, m)| Message::HelloReply(
+            HelloReply {
+                proto_version: drive::protocol::PROTO_VERSION,
+                fw_major: m,
+                fw_minor: 0,
+                n_channels: 3,
+                max_block_samples: 66,
+                boot_id: b,
+                max_sample_rate_hz: f
+            }
+        )),
+    ]
+}
+
+/// STREAM_END, DATA, SINE_RESULT.
+fn arb_stream() -> impl Strategy<Value = Message> {
+    prop_oneof![
         (any::<u16>(), any::<u32>(), any::<u32>(), any::<u16>()).prop_map(|(r, t, s, d)| {
             Message::StreamEnd(StreamEnd {
                 run_id: r,
@@ -150,17 +197,6 @@ fn arb_msg() -> impl Strategy<Value = Message> {
                 u_ramp: v[5],
                 y_mean: v[6],
                 y_ramp: v[7],
-            }
-        )),
-        (any::<u16>(), any::<u32>(), any::<u8>()).prop_map(|(b, f, m)| Message::HelloReply(
-            HelloReply {
-                proto_version: drive::protocol::PROTO_VERSION,
-                fw_major: m,
-                fw_minor: 0,
-                n_channels: 3,
-                max_block_samples: 66,
-                boot_id: b,
-                max_sample_rate_hz: f
             }
         )),
     ]

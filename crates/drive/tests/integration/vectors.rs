@@ -24,7 +24,12 @@ fn unhex(s: &str) -> Vec<u8> {
 }
 
 /// The named frames of `frames.txt`, one or more per message type.
-fn named_frames() -> Vec<(&'static str, Frame)> {
+pub(crate) fn named_frames() -> Vec<(&'static str, Frame)> {
+    [run_commands(), loop_commands(), replies(), stream_frames()].concat()
+}
+
+/// The host's commands of the open-loop runs and their control.
+fn run_commands() -> Vec<(&'static str, Frame)> {
     let c = Configure::default();
     vec![
         (
@@ -106,6 +111,12 @@ fn named_frames() -> Vec<(&'static str, Frame)> {
                 msg: Message::EndQuery(1),
             },
         ),
+    ]
+}
+
+/// The host's commands of the speed loop: the controller download and the loop's start.
+fn loop_commands() -> Vec<(&'static str, Frame)> {
+    vec![
         (
             "LOAD_CTRL",
             Frame {
@@ -155,6 +166,12 @@ fn named_frames() -> Vec<(&'static str, Frame)> {
                 }),
             },
         ),
+    ]
+}
+
+/// The drive's answers to commands.
+fn replies() -> Vec<(&'static str, Frame)> {
+    vec![
         (
             "ACK",
             Frame {
@@ -208,6 +225,12 @@ fn named_frames() -> Vec<(&'static str, Frame)> {
                 }),
             },
         ),
+    ]
+}
+
+/// The drive's frames of a run: DATA, its end, the sine's result.
+fn stream_frames() -> Vec<(&'static str, Frame)> {
+    vec![
         (
             "DATA",
             Frame {

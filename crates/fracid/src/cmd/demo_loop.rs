@@ -5,16 +5,19 @@
 //! Kept apart from `demo.rs`: [`run`] takes the drive's port, the model and the output folder and
 //! returns the report's lines and the figure's path.
 
-use crate::cmd::drive_loop::{self, MeasuredStep, Realisation};
+use crate::cmd::drive_io::autotune_err;
 use crate::plot::{self, Figure, Line, Look, TimeChart};
 use anyhow::{Context, Result};
-use drive::client::{Client, ClientConfig, LazyFile, LoopCsvSink, LoopTest};
+use autotune::acquire::speed_loop::{self, LoopRequest};
+use autotune::realise::{self, MeasuredStep, Realisation};
+use drive::client::{Client, ClientConfig, LazyFile, LoopCsvSink};
 use drive::protocol::Configure;
 use fracsim::FracTf;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use std::path::{Path, PathBuf};
-use tune::report::{DiscreteJson, SimOptions};
+use tune::closed::StepMetrics;
+use tune::report::{Report, Runs, SimOptions};
 use tune::{Form, Spec};
 
 /// The demo's loop: crossover (rad/s), phase margin (deg), the reference step (rad/s), time at
@@ -64,6 +67,30 @@ pub fn run(
     run_with(&mut client, &conf, model, dir)
 }
 
+/// The demo's FOPI on `model` at the drive's rate: the tuner's report and runs, or why it was
+/// refused.
+fn design(model: &FracTf, conf: &Configure) -> std::result::Result<(Report, Runs), String> {
+    let dt = 1.0 / conf.sample_rate_hz as f64;
+    let spec = Spec {
+        form: Form::Fopi,
+        wc: WC,
+        pm_deg: PM_DEG,
+        flat: false,
+        t_high: None,
+        s_low: None,
+        dt: Some(dt),
+        lambda: None,
+        floors: tune::Floors::default(),
+        orders: tune::Orders::default(),
+    };
+    let opts = SimOptions {
+        step: Some(STEP),
+        u_limit: Some(conf.u_limit as f64 * conf.u_lsb()),
+        ..SimOptions::default()
+    };
+    tune::report::tune(model, &spec, &opts).map_err(|e| e.to_string())
+}
+
 /// Tune a FOPI on `model` for the drive's rate, run it on the drive behind `client` (configured
 /// with `conf`), write `loop.csv` and `loop.png` into `dir`. A design the tuner refuses is
 /// reported in the lines, not an error.
@@ -86,24 +113,7 @@ pub fn run_with(
              then a step of {STEP} rad/s.\n"
         ),
     ];
-    let spec = Spec {
-        form: Form::Fopi,
-        wc: WC,
-        pm_deg: PM_DEG,
-        flat: false,
-        t_high: None,
-        s_low: None,
-        dt: Some(dt),
-        lambda: None,
-        floors: tune::Floors::default(),
-        orders: tune::Orders::default(),
-    };
-    let opts = SimOptions {
-        step: Some(STEP),
-        u_limit: Some(conf.u_limit as f64 * conf.u_lsb()),
-        ..SimOptions::default()
-    };
-    let (report, runs) = match tune::report::tune(model, &spec, &opts) {
+    let (report, runs) = match design(model, conf) {
         Ok(r) => r,
         Err(e) => {
             lines.push(format!("The design was refused: {e}.\n"));
@@ -117,23 +127,25 @@ pub fn run_with(
     let Some(disc) = &report.discrete else {
         anyhow::bail!("the tuner gave no discrete realisation for --dt {dt}");
     };
-    let real = realisation(disc, &report.controller.text);
-    let (pruned, dropped) = drive_loop::prune(&real);
-    let k = drive_loop::fixed_controller(&pruned, conf)?;
-    let qerr = drive_loop::quantisation_error(&real, &k, conf);
-    let cmd = LoopTest {
-        step: STEP,
+    let real = Realisation::of_discrete(disc, &report.controller.text);
+    let (pruned, dropped) = realise::prune(&real);
+    let k = realise::fixed_controller(&pruned, conf).map_err(autotune_err)?;
+    let qerr = realise::quantisation_error(&real, &k, conf);
+    let req = LoopRequest {
+        step_rad_s: STEP,
         pre_s: PRE_S,
         duration_s: DURATION_S,
-    }
-    .to_command(conf)?;
+    };
+    let cmd = req.command(conf).map_err(autotune_err)?;
     let record = dir.join("loop.csv");
     let mut sink = LoopCsvSink::new(
         LazyFile::new(&record).with_context(|| record.display().to_string())?,
         cmd,
         conf.y_lsb(),
     );
-    let acq = drive_loop::run_on(client, &k, &cmd, &mut sink)?;
+    let acq = speed_loop::run(client, conf, &k, &req, &mut sink)
+        .map_err(autotune_err)?
+        .acquisition;
     sink.into_inner()
         .and_then(|mut f| std::io::Write::flush(&mut f))
         .with_context(|| format!("writing {}", record.display()))?;
@@ -152,28 +164,8 @@ pub fn run_with(
         },
         qerr
     ));
-    let measured = drive_loop::measured_step(&acq, &cmd, conf.y_lsb());
-    let predicted = report.step.metrics;
-    let fmt = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.4} s"));
-    lines.push("| step | overshoot | rise 10-90% | settling 2% |".into());
-    lines.push("|---|---:|---:|---:|".into());
-    if let Some(m) = predicted {
-        lines.push(format!(
-            "| predicted (tune's simulation of the sampled loop on the identified model) | {:.2}% | {} | {} |",
-            m.overshoot_percent,
-            fmt(m.rise_time),
-            fmt(m.settling_time)
-        ));
-    }
-    if let Some(m) = &measured {
-        lines.push(format!(
-            "| measured on the drive | {:.2}% | {} | {} |",
-            m.overshoot_percent,
-            fmt(m.rise_time),
-            fmt(m.settling_time)
-        ));
-    }
-    lines.push(String::new());
+    let measured = realise::measured_step(&acq, &cmd, conf.y_lsb());
+    lines.extend(step_table(report.step.metrics, measured.as_ref()));
     lines.push(format!(
         "Record `{}`: {}{}.\n",
         record.file_name().unwrap_or_default().to_string_lossy(),
@@ -184,38 +176,76 @@ pub fn run_with(
             ""
         }
     ));
-    let figure = match (&runs.design, &measured) {
-        (Some(run), Some(MeasuredStep { t, y, .. })) => {
-            let path = dir.join("loop.png");
-            // the prediction at the drive's sample instants (its fine step divides dt)
-            let m = (dt / report.step.setup.h).round().max(1.0) as usize;
-            let pred: Vec<f64> = t
-                .iter()
-                .enumerate()
-                .map(|(i, _)| run.y.get(i * m).copied().unwrap_or(f64::NAN))
-                .collect();
-            plot::save(
-                &path,
-                (1000, 600),
-                &LoopFigure {
-                    t,
-                    predicted: &pred,
-                    measured: y,
-                },
-            )?;
-            lines.push(format!(
-                "![predicted and measured step]({})\n",
-                path.file_name().unwrap_or_default().to_string_lossy()
-            ));
-            Some(path)
-        }
-        _ => None,
-    };
+    let figure = figure(dir, dt, &report, &runs, measured.as_ref(), &mut lines)?;
     Ok(DemoLoop {
         lines,
         figure,
         record: Some(record),
     })
+}
+
+/// The table of the step predicted and measured.
+fn step_table(predicted: Option<StepMetrics>, measured: Option<&MeasuredStep>) -> Vec<String> {
+    let fmt = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.4} s"));
+    let mut lines = vec![
+        "| step | overshoot | rise 10-90% | settling 2% |".to_string(),
+        "|---|---:|---:|---:|".into(),
+    ];
+    if let Some(m) = predicted {
+        lines.push(format!(
+            "| predicted (tune's simulation of the sampled loop on the identified model) | {:.2}% | {} | {} |",
+            m.overshoot_percent,
+            fmt(m.rise_time),
+            fmt(m.settling_time)
+        ));
+    }
+    if let Some(m) = measured {
+        lines.push(format!(
+            "| measured on the drive | {:.2}% | {} | {} |",
+            m.overshoot_percent,
+            fmt(m.rise_time),
+            fmt(m.settling_time)
+        ));
+    }
+    lines.push(String::new());
+    lines
+}
+
+/// `loop.png`: the step predicted (at the drive's sample instants) and measured, its line added
+/// to the report's.
+fn figure(
+    dir: &Path,
+    dt: f64,
+    report: &Report,
+    runs: &Runs,
+    measured: Option<&MeasuredStep>,
+    lines: &mut Vec<String>,
+) -> Result<Option<PathBuf>> {
+    let (Some(run), Some(MeasuredStep { t, y, .. })) = (&runs.design, measured) else {
+        return Ok(None);
+    };
+    let path = dir.join("loop.png");
+    // the prediction at the drive's sample instants (its fine step divides dt)
+    let m = (dt / report.step.setup.h).round().max(1.0) as usize;
+    let pred: Vec<f64> = t
+        .iter()
+        .enumerate()
+        .map(|(i, _)| run.y.get(i * m).copied().unwrap_or(f64::NAN))
+        .collect();
+    plot::save(
+        &path,
+        (1000, 600),
+        &LoopFigure {
+            t,
+            predicted: &pred,
+            measured: y,
+        },
+    )?;
+    lines.push(format!(
+        "![predicted and measured step]({})\n",
+        path.file_name().unwrap_or_default().to_string_lossy()
+    ));
+    Ok(Some(path))
 }
 
 /// The final model of a `fracid time --json` / `fracid freq --json` report ("diagnosis.model",
@@ -228,17 +258,6 @@ pub fn model_of(json: &Path) -> Result<FracTf> {
         .to_str()
         .with_context(|| format!("{} is not a UTF-8 path", json.display()))?;
     Ok(crate::cmd::tune::load_model(text)?.0)
-}
-
-fn realisation(d: &DiscreteJson, text: &str) -> Realisation {
-    Realisation {
-        dt: d.dt,
-        a: d.a.clone(),
-        b: d.b.iter().flatten().copied().collect(),
-        c: d.c.iter().flatten().copied().collect(),
-        d: d.d.first().and_then(|r| r.first()).copied().unwrap_or(0.0),
-        text: text.to_string(),
-    }
 }
 
 struct LoopFigure<'a> {

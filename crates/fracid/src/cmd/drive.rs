@@ -1,15 +1,21 @@
-//! `fracid drive ...`: the drive simulator and acquisition from a drive over a serial port.
+//! `fracid drive ...`: the drive simulator and acquisition from a drive over a serial port. The
+//! acquisitions are the library's requests ([`autotune::acquire`]); this module parses the
+//! flags into them and writes their records.
 
-use crate::cmd::BadInput;
-use crate::interrupt::{Interrupted, StopOnInterrupt};
-use anyhow::{Context, Result};
-use drive::bode::BodePoint;
-use drive::client::{
-    Client, ClientConfig, CsvSink, LazyFile, PrbsTest, Progress, SineSweep, SweepEvent,
+pub use crate::cmd::drive_io::PortArgs;
+use crate::cmd::drive_io::{
+    autotune_err, check_outputs, close_record, kept_summary, lib_err, lost_output, output_file,
+    output_path, port_conf, record_outcome, run_on_drive,
 };
-use drive::protocol::{Configure, MAX_BLOCK_SAMPLES};
+use crate::interrupt::Interrupted;
+use anyhow::{Context, Result};
+use autotune::acquire::prbs::PrbsRequest;
+use autotune::acquire::sine::SineRequest;
+use drive::bode::BodePoint;
+use drive::client::{Client, ClientConfig, CsvSink, LazyFile, SweepEvent};
+use drive::protocol::Configure;
 use drive::sim::{DriveSim, Effects, FaultAt, Faults, FirmwareKind, SimClock, SimConfig};
-use std::io::{IsTerminal, Write};
+use std::io::Write;
 use std::path::PathBuf;
 use std::time::Duration;
 
@@ -33,41 +39,12 @@ pub enum DriveCmd {
     /// Run a speed loop with a controller of `fracid tune --dt ... --json` (its discrete
     /// realisation, downloaded to the drive) and a reference step; write t,r,u,y as CSV.
     Loop(crate::cmd::drive_loop::LoopArgs),
+    /// Probe the drive, design and run the identification experiment and those that separate
+    /// what its diagnosis cannot tell apart, tune a FOPI on the final model and measure its step
+    /// on the drive; the report round by round (text, --json, --out DIR with report.md and plots).
+    Autotune(crate::cmd::drive_autotune::AutotuneArgs),
     /// Show the drive's identity and state.
     Status(StatusArgs),
-}
-
-/// Connection options shared by the client subcommands.
-#[derive(Debug, clap::Args)]
-pub struct PortArgs {
-    /// Serial port (e.g. /dev/ttyUSB0, or the path printed by `fracid drive sim`).
-    #[arg(long)]
-    pub port: String,
-    /// Baud rate (115200 is reachable on the F2812; 921600 is not, 937500 is).
-    #[arg(long, default_value_t = 115_200)]
-    pub baud: u32,
-    /// Command timeout in ms (default: 100 ms + 3 frame times).
-    #[arg(long)]
-    pub timeout_ms: Option<u64>,
-    /// Resends of an unanswered command.
-    #[arg(long, default_value_t = 5)]
-    pub retries: u32,
-    /// Interval between the host's KEEPALIVE frames during a run, ms (a few ms lets a drive
-    /// simulator in virtual time, `fracid drive sim --virtual-time`, run far faster than real time).
-    #[arg(long, default_value_t = 150, value_parser = clap::value_parser!(u64).range(1..=10_000))]
-    pub keepalive_ms: u64,
-    /// Sample rate in Hz.
-    #[arg(long, default_value_t = 1000)]
-    pub sample_rate: u32,
-    /// Samples per DATA block (1..=66).
-    #[arg(long, default_value_t = 32)]
-    pub block: u8,
-    /// Voltage clamp on the drive, V.
-    #[arg(long, default_value_t = 24.0)]
-    pub u_limit: f64,
-    /// No progress bar.
-    #[arg(long, short)]
-    pub quiet: bool,
 }
 
 /// Options of `fracid drive sim`.
@@ -79,7 +56,9 @@ pub struct SimArgs {
     /// Also create a symlink to the pty here (stable across a simulated disconnect).
     #[arg(long)]
     pub link: Option<PathBuf>,
-    /// Motor model, voltage to speed (default: the paper's time-domain PMSM model).
+    /// Motor model, voltage to speed (default: the paper's time-domain PMSM model): any model the
+    /// identification returns, products of factors as written included, e.g. a resonance at the
+    /// load `3/((0.005 s + 1)(1.2509e-5 s^2 + 3.5368e-4 s + 1))`.
     #[arg(long, default_value = "6.82/(2.655e-5 s^1.7452 + 0.0059 s^0.92 + 1)")]
     pub model: String,
     /// Hidden effect: Coulomb friction, voltage equivalent, V.
@@ -100,6 +79,9 @@ pub struct SimArgs {
     /// Hidden effect: speed quantisation step, rad/s.
     #[arg(long, default_value_t = 0.0)]
     pub speed_quant: f64,
+    /// Hidden effect: a constant offset added to the command at the input, V.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub offset: f64,
     /// Fault: bit error rate (per bit, both directions).
     #[arg(long, default_value_t = 0.0)]
     pub ber: f64,
@@ -140,7 +122,7 @@ pub struct SimArgs {
     #[arg(long, short)]
     pub verbose: bool,
     /// Firmware behind the pty: `rust` (the simulator's own) or `c` (the C firmware of
-    /// `firmware/`, as flashed on the F2812). Default: rust, or `c` if FRACID_SIM_FIRMWARE=c.
+    /// `firmware/`, as flashed on the F2812). Default: rust.
     #[arg(long, value_enum)]
     pub firmware: Option<SimFirmware>,
     /// Run the drive in virtual time: its clock runs as fast as the host allows instead of the
@@ -261,20 +243,8 @@ pub fn run(args: DriveArgs) -> Result<()> {
         DriveCmd::Prbs(a) => prbs(a),
         DriveCmd::Sine(a) => sine(a),
         DriveCmd::Loop(a) => crate::cmd::drive_loop::run(a),
+        DriveCmd::Autotune(a) => crate::cmd::drive_autotune::run(a),
         DriveCmd::Status(a) => status(a),
-    }
-}
-
-/// Library errors to CLI errors: bad parameters exit 2, port/I-O problems exit 3.
-pub(crate) fn lib_err(e: drive::Error) -> anyhow::Error {
-    match e {
-        drive::Error::InvalidParam(m) => anyhow::Error::new(BadInput(m)),
-        drive::Error::Io(io) => anyhow::Error::new(io),
-        e @ drive::Error::Port { .. } => {
-            let msg = e.to_string();
-            anyhow::Error::new(std::io::Error::other(msg))
-        }
-        e => anyhow::Error::new(e),
     }
 }
 
@@ -310,6 +280,7 @@ fn sim(a: SimArgs) -> Result<()> {
             ripple_hz: a.ripple_hz,
             noise_std: a.noise,
             speed_quant: a.speed_quant,
+            offset_v: a.offset,
             ..Effects::default()
         },
         faults: Faults {
@@ -326,9 +297,8 @@ fn sim(a: SimArgs) -> Result<()> {
         link: a.link,
         verbose: a.verbose,
         firmware: match a.firmware {
-            Some(SimFirmware::Rust) => FirmwareKind::Rust,
+            Some(SimFirmware::Rust) | None => FirmwareKind::Rust,
             Some(SimFirmware::C) => FirmwareKind::C,
-            None => FirmwareKind::from_env(),
         },
         clock: if a.virtual_time {
             SimClock::Virtual
@@ -387,337 +357,18 @@ fn check_link_path(link: &std::path::Path) -> Result<()> {
     }
 }
 
-/// The drive configuration from the options, checked before anything is opened (exit 2).
-pub(crate) fn port_conf(p: &PortArgs) -> Result<Configure> {
-    if p.baud == 0 {
-        crate::bad_input!("--baud must be positive");
-    }
-    if p.timeout_ms.is_some_and(|t| !(1..=60_000).contains(&t)) {
-        crate::bad_input!("--timeout-ms must be in 1..=60000");
-    }
-    if p.retries > 100 {
-        crate::bad_input!("--retries must be at most 100, got {}", p.retries);
-    }
-    if p.sample_rate == 0 {
-        crate::bad_input!("--sample-rate must be positive");
-    }
-    if !(1..=MAX_BLOCK_SAMPLES).contains(&p.block) {
-        crate::bad_input!(
-            "--block must be in 1..={MAX_BLOCK_SAMPLES}, got {}",
-            p.block
-        );
-    }
-    if !(p.u_limit > 0.0 && p.u_limit <= 32.767) {
-        crate::bad_input!("--u-limit must be in (0, 32.767] V, got {}", p.u_limit);
-    }
-    Ok(Configure {
-        sample_rate_hz: p.sample_rate,
-        block_samples: p.block,
-        u_limit: (p.u_limit * 1000.0).round() as i16,
-        ..Configure::default()
-    })
-}
-
-/// Open the port, check the sample rate against the drive's, configure.
-pub(crate) fn connect(p: &PortArgs, conf: &Configure) -> Result<Client> {
-    let cfg = ClientConfig {
-        baud: p.baud,
-        timeout: p.timeout_ms.map(Duration::from_millis),
-        retries: p.retries,
-        keepalive: Duration::from_millis(p.keepalive_ms),
-        ..ClientConfig::default()
-    };
-    let mut c = Client::open(&p.port, cfg)
-        .map_err(lib_err)
-        .with_context(|| format!("connecting to the drive at {}", p.port))?;
-    if let Some(h) = c.drive_info() {
-        if conf.sample_rate_hz > h.max_sample_rate_hz {
-            crate::bad_input!(
-                "--sample-rate {} Hz is above the drive's maximum, {} Hz",
-                conf.sample_rate_hz,
-                h.max_sample_rate_hz
-            );
+impl PrbsArgs {
+    /// The request of the options.
+    fn request(&self) -> PrbsRequest {
+        PrbsRequest {
+            order: self.order,
+            seed: self.seed,
+            clock_s: self.clock,
+            amplitude_v: self.amplitude,
+            offset_v: self.offset,
+            periods: self.periods,
+            settle_s: self.settle,
         }
-    }
-    c.configure(conf)
-        .map_err(lib_err)
-        .context("configuring the drive")?;
-    Ok(c)
-}
-
-/// `-` as an output path: standard output (`/dev/stdout`), not a file named `-`.
-pub(crate) fn output_path(p: &std::path::Path) -> PathBuf {
-    if p.as_os_str() == "-" {
-        PathBuf::from("/dev/stdout")
-    } else {
-        p.to_path_buf()
-    }
-}
-
-/// Device and inode of an existing file.
-fn inode(p: &std::path::Path) -> Option<(u64, u64)> {
-    #[cfg(unix)]
-    {
-        use std::os::unix::fs::MetadataExt;
-        std::fs::metadata(p).ok().map(|m| (m.dev(), m.ino()))
-    }
-    #[cfg(not(unix))]
-    {
-        let _ = p;
-        None
-    }
-}
-
-/// The device number of a character device (a serial port, a terminal, `/dev/null`).
-fn char_device(p: &std::path::Path) -> Option<u64> {
-    #[cfg(unix)]
-    {
-        use std::os::unix::fs::{FileTypeExt, MetadataExt};
-        std::fs::metadata(p)
-            .ok()
-            .filter(|m| m.file_type().is_char_device())
-            .map(|m| m.rdev())
-    }
-    #[cfg(not(unix))]
-    {
-        let _ = p;
-        None
-    }
-}
-
-/// Whether two output paths name one file: the same inode when both exist, else the same
-/// canonical folder and name.
-fn same_file(a: &std::path::Path, b: &std::path::Path) -> bool {
-    if let (Some(x), Some(y)) = (inode(a), inode(b)) {
-        return x == y;
-    }
-    let planned = |p: &std::path::Path| {
-        let parent = match p.parent() {
-            Some(d) if !d.as_os_str().is_empty() => d,
-            _ => std::path::Path::new("."),
-        };
-        Some(std::fs::canonicalize(parent).ok()?.join(p.file_name()?))
-    };
-    planned(a).is_some_and(|x| Some(x) == planned(b))
-}
-
-/// The outputs of a drive command, checked before the drive is asked anything (exit 2): none of
-/// them an input nor two of them the same file ([`super::paths::check`]), none the serial port
-/// (the CSV would go down the line) nor any character device other than standard output and
-/// `/dev/null`.
-pub(crate) fn check_outputs(
-    port: &str,
-    inputs: &[super::paths::Named<'_>],
-    outputs: &[super::paths::Named<'_>],
-) -> Result<()> {
-    super::paths::check(inputs, outputs)?;
-    let port = std::path::Path::new(port);
-    let allowed = [
-        char_device(std::path::Path::new("/dev/stdout")),
-        char_device(std::path::Path::new("/dev/null")),
-    ];
-    for (name, p) in outputs {
-        let dev = char_device(p);
-        if same_file(p, port) || dev.is_some_and(|d| Some(d) == char_device(port)) {
-            crate::bad_input!(
-                "{name} {} is the serial port {}: the record would be written down the line",
-                p.display(),
-                port.display()
-            );
-        }
-        if dev.is_some() && !allowed.contains(&dev) {
-            crate::bad_input!(
-                "{name} {} is a device (a serial port or a terminal?), not a file: write to a \
-                 file, or to standard output with -",
-                p.display()
-            );
-        }
-    }
-    Ok(())
-}
-
-/// The output file, created only when the run's first data arrive ([`LazyFile`]); a path that
-/// cannot be written fails here, before the drive is asked anything (exit 3).
-pub(crate) fn output_file(path: &std::path::Path) -> Result<LazyFile> {
-    LazyFile::new(path).context("cannot write the output file")
-}
-
-/// The voltage levels a command holds (raw units), against the drive's clamp: exit 2 when every
-/// level is beyond it (the drive would clamp the whole excitation away), a warning when some are.
-fn check_levels(levels: &[(&str, i32)], conf: &Configure) -> Result<()> {
-    let lim = i32::from(conf.u_limit);
-    let v = |raw: i32| raw as f64 * conf.u_lsb();
-    let beyond: Vec<String> = levels
-        .iter()
-        .filter(|(_, raw)| raw.abs() > lim)
-        .map(|(name, raw)| format!("{name} {} V", v(*raw)))
-        .collect();
-    if beyond.len() == levels.len() {
-        crate::bad_input!(
-            "every level of the excitation ({}) is beyond the drive's voltage clamp of +-{} V (--u-limit): the drive would hold the clamp and nothing would be excited",
-            beyond.join(", "),
-            v(lim)
-        );
-    }
-    if !beyond.is_empty() {
-        crate::eprintln_safe!(
-            "warning: {} beyond the drive's voltage clamp of +-{} V: those samples will be clamped",
-            beyond.join(", "),
-            v(lim)
-        );
-    }
-    Ok(())
-}
-
-pub(crate) fn progress_bar(quiet: bool, unit: &str) -> Option<indicatif::ProgressBar> {
-    if quiet || !std::io::stderr().is_terminal() {
-        return None;
-    }
-    let pb = indicatif::ProgressBar::new(0);
-    pb.set_draw_target(indicatif::ProgressDrawTarget::stderr());
-    if let Ok(st) = indicatif::ProgressStyle::with_template(&format!(
-        "{{bar:40}} {{pos}}/{{len}} {unit} {{elapsed}}"
-    )) {
-        pb.set_style(st);
-    }
-    Some(pb)
-}
-
-pub(crate) fn attach(c: &mut Client, pb: &Option<indicatif::ProgressBar>) {
-    if let Some(pb) = pb.clone() {
-        c.set_progress(move |p: Progress| {
-            pb.set_length(p.total);
-            pb.set_position(p.done);
-        });
-    }
-}
-
-/// What an acquisition kept, in a line: `FILE: N samples kept`, and for an incomplete run its
-/// problems and the missing samples (`a..b`).
-pub(crate) fn kept_summary(output: &std::path::Path, acq: &drive::client::Acquisition) -> String {
-    let missing: Vec<String> = acq
-        .missing
-        .iter()
-        .map(|r| format!("{}..{}", r.start, r.end))
-        .collect();
-    format!(
-        "{}: {} samples kept{}",
-        output.display(),
-        acq.received,
-        if acq.complete {
-            String::new()
-        } else {
-            format!(
-                ", run incomplete ({}), missing samples {}",
-                acq.problems.join("; "),
-                if missing.is_empty() {
-                    "none".to_string()
-                } else {
-                    missing.join(", ")
-                }
-            )
-        }
-    )
-}
-
-/// The error of an acquisition whose output was closed under it (a broken pipe): the drive was
-/// stopped (by the client, on the sink's error), what was lost said; exit 3 (I/O).
-pub(crate) fn lost_output(e: anyhow::Error, output: &std::path::Path, what: &str) -> anyhow::Error {
-    let broken = e.chain().any(|c| {
-        c.downcast_ref::<std::io::Error>()
-            .is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe)
-            || c.downcast_ref::<drive::Error>().is_some_and(
-                |d| matches!(d, drive::Error::Io(io) if io.kind() == std::io::ErrorKind::BrokenPipe),
-            )
-    });
-    if broken {
-        e.context(format!(
-            "the output {} was closed during the run (broken pipe): the drive was stopped and \
-             the rest of the {what} is lost (what was written before has no footer)",
-            output.display()
-        ))
-    } else {
-        e
-    }
-}
-
-/// Connect to the drive, show the progress in `unit` (unless quiet or not a terminal), and run
-/// `body` on the client with the first signal of [`crate::interrupt::handled_signals`] (SIGINT,
-/// SIGTERM, SIGHUP, SIGQUIT, ...) stopping the drive (what arrived is
-/// kept, the output says what is missing): the body's result and the signal that came during
-/// it, if one did. The acquisition runs of `prbs`, `sine` and `loop` go through it.
-///
-/// # Errors
-/// Connecting to the drive (see [`connect`]).
-pub(crate) fn run_on_drive<T>(
-    port: &PortArgs,
-    conf: &Configure,
-    unit: &str,
-    body: impl FnOnce(&mut Client) -> T,
-) -> Result<(T, Option<i32>)> {
-    let mut c = connect(port, conf)?;
-    let pb = progress_bar(port.quiet, unit);
-    attach(&mut c, &pb);
-    let signals = StopOnInterrupt::arm(c.stop_handle());
-    let out = body(&mut c);
-    let signal = signals.signal();
-    drop(signals);
-    if let Some(pb) = pb {
-        pb.finish_and_clear();
-    }
-    Ok((out, signal))
-}
-
-/// The record of a run (`prbs`, `loop`) closed: its file (the sink's writer) flushed, then the
-/// run's result; a run or a flush that failed because the output was closed says what was lost
-/// ([`lost_output`]).
-///
-/// # Errors
-/// The run's error, then the file's (exit 3 for a closed output).
-pub(crate) fn close_record(
-    acq: Result<drive::client::Acquisition>,
-    file: std::io::Result<LazyFile>,
-    output: &std::path::Path,
-) -> Result<drive::client::Acquisition> {
-    let written = file
-        .and_then(|mut f| f.flush().map(|_| f.is_created()))
-        .with_context(|| format!("writing {}", output.display()));
-    let acq = acq.map_err(|e| lost_output(e, output, "record"))?;
-    written.map_err(|e| lost_output(e, output, "record"))?;
-    Ok(acq)
-}
-
-/// How a recorded run (`prbs`, `loop`) ends, `summary` saying what was kept: a signal (exit by
-/// it: [`Interrupted`]), else `failure` if any, else complete (`summary, complete` on stderr),
-/// else incomplete: a warning with `allow_incomplete`, an error (exit 1) without.
-///
-/// # Errors
-/// As said.
-pub(crate) fn record_outcome(
-    acq: &drive::client::Acquisition,
-    signal: Option<i32>,
-    summary: String,
-    failure: Option<anyhow::Error>,
-    allow_incomplete: bool,
-) -> Result<()> {
-    if let Some(signal) = signal {
-        return Err(Interrupted {
-            signal,
-            message: format!("drive stopped; {summary}"),
-        }
-        .into());
-    }
-    if let Some(e) = failure {
-        return Err(e);
-    }
-    if acq.complete {
-        crate::eprintln_safe!("{summary}, complete");
-        Ok(())
-    } else if allow_incomplete {
-        crate::eprintln_safe!("warning: {summary}");
-        Ok(())
-    } else {
-        Err(anyhow::anyhow!(summary))
     }
 }
 
@@ -725,36 +376,24 @@ fn prbs(a: PrbsArgs) -> Result<()> {
     let _pipe = crate::interrupt::PipeErrors::arm();
     // Everything is checked before the output is touched or the drive asked anything.
     let conf = port_conf(&a.port)?;
-    let test = PrbsTest {
-        order: a.order,
-        seed: a.seed,
-        clock_s: a.clock,
-        amplitude_v: a.amplitude,
-        offset_v: a.offset,
-        periods: a.periods,
-        settle_s: a.settle,
-    };
-    if !(a.settle.is_finite() && a.settle >= 0.0) {
-        crate::bad_input!("--settle must be a finite number of seconds >= 0");
+    let req = a.request();
+    let (_, warnings) = req.check(&conf).map_err(autotune_err)?;
+    for w in warnings {
+        crate::eprintln_safe!("warning: {w}");
     }
-    if a.periods == 0 {
-        crate::bad_input!("--periods must be at least 1");
-    }
-    let cmd = test.to_command(&conf).map_err(lib_err)?;
-    let (off, amp) = (i32::from(cmd.offset), i32::from(cmd.amplitude));
-    check_levels(
-        &[("high level", off + amp), ("low level", off - amp)],
-        &conf,
-    )?;
     let output = output_path(&a.output);
     check_outputs(&a.port.port, &[], &[("--output", &output)])?;
     let mut sink = CsvSink::new(output_file(&output)?);
     // The first SIGINT/SIGTERM/SIGHUP/SIGQUIT/... stops the drive; the record keeps what arrived and its
     // footer says what is missing.
-    let (acq, signal) = run_on_drive(&a.port, &conf, "samples", |c| {
-        c.run_prbs(&test, &mut sink).map_err(lib_err)
+    let (rec, signal) = run_on_drive(&a.port, &conf, "samples", |c| {
+        autotune::acquire::prbs::run(c, &conf, &req, &mut sink).map_err(autotune_err)
     })?;
-    let acq = close_record(acq.context("the PRBS run"), sink.into_inner(), &output)?;
+    let acq = close_record(
+        rec.map(|r| r.acquisition).context("the PRBS run"),
+        sink.into_inner(),
+        &output,
+    )?;
     let summary = kept_summary(&a.output, &acq);
     for w in acq.warnings() {
         crate::eprintln_safe!("warning: {w}");
@@ -837,96 +476,6 @@ impl RepeatsFile {
     }
 }
 
-/// The most frequencies of one sweep (`--points`, `--freqs`).
-pub const MAX_SWEEP_FREQUENCIES: usize = 1000;
-
-/// The sweep from the options, checked (exit 2).
-fn sine_sweep(a: &SineArgs, conf: &Configure) -> Result<SineSweep> {
-    if a.freqs.is_none() && (a.f_min > a.f_max || a.f_min == a.f_max && a.points > 1) {
-        crate::bad_input!(
-            "--f-min {} Hz must be below --f-max {} Hz (a table of {} frequencies)",
-            a.f_min,
-            a.f_max,
-            a.points
-        );
-    }
-    if a.freqs.is_none() && a.points == 0 {
-        crate::bad_input!("--points must be at least 1");
-    }
-    // Each frequency is seconds of the drive's time: a sweep of more is a typing error, refused
-    // before the table is even made (1e8 of them took 2.3 GB).
-    let asked = a.freqs.as_ref().map_or(a.points, Vec::len);
-    if asked > MAX_SWEEP_FREQUENCIES {
-        crate::bad_input!(
-            "{asked} frequencies (--points or --freqs): at most {MAX_SWEEP_FREQUENCIES} in one sweep"
-        );
-    }
-    let mut sweep = SineSweep::log(a.f_min, a.f_max, a.points);
-    if let Some(f) = &a.freqs {
-        sweep.freqs_hz = f.clone();
-    }
-    if sweep.freqs_hz.is_empty() || sweep.freqs_hz.iter().any(|f| !(f.is_finite() && *f > 0.0)) {
-        crate::bad_input!("frequencies must be positive");
-    }
-    // A Bode table is read in increasing frequency, each once: --freqs in another order is
-    // sorted and a repeated frequency measured once, said.
-    let asked = sweep.freqs_hz.clone();
-    sweep.freqs_hz.sort_by(f64::total_cmp);
-    sweep.freqs_hz.dedup();
-    if sweep.freqs_hz != asked {
-        crate::eprintln_safe!(
-            "warning: --freqs sorted into increasing order{}: {}",
-            if sweep.freqs_hz.len() < asked.len() {
-                ", repeated frequencies measured once"
-            } else {
-                ""
-            },
-            sweep
-                .freqs_hz
-                .iter()
-                .map(f64::to_string)
-                .collect::<Vec<_>>()
-                .join(",")
-        );
-    }
-    let nyq = conf.sample_rate_hz as f64 / 2.0;
-    if let Some(f) = sweep.freqs_hz.iter().find(|&&f| f >= nyq) {
-        crate::bad_input!(
-            "{f} Hz is at or above Nyquist ({nyq} Hz at --sample-rate {})",
-            conf.sample_rate_hz
-        );
-    }
-    let raw = |v: f64, name: &str| -> Result<i32> {
-        let r = (v / conf.u_lsb()).round();
-        if !(r.is_finite() && r.abs() <= 32767.0) {
-            crate::bad_input!("{name} {v} V is out of the command range");
-        }
-        Ok(r as i32)
-    };
-    let (amp, off) = (raw(a.amplitude, "--amplitude")?, raw(a.offset, "--offset")?);
-    if amp <= 0 {
-        crate::bad_input!("--amplitude must be > 0 V");
-    }
-    if !(a.min_settle.is_finite() && a.min_settle >= 0.0) {
-        crate::bad_input!("--min-settle must be a finite number of seconds >= 0");
-    }
-    if a.cycles == 0 {
-        crate::bad_input!("--cycles must be at least 1");
-    }
-    check_levels(&[("crest", off + amp), ("trough", off - amp)], conf)?;
-    sweep.amplitude_v = a.amplitude;
-    sweep.offset_v = a.offset;
-    sweep.cycles = a.cycles;
-    sweep.settle_cycles = a.settle_cycles;
-    sweep.min_settle_s = a.min_settle;
-    sweep.stream = a.stream;
-    if a.repeats == 0 {
-        crate::bad_input!("--repeats must be at least 1");
-    }
-    sweep.repeats = a.repeats;
-    Ok(sweep)
-}
-
 /// The Bode table of a sweep, written point by point as they are measured (each frequency's point
 /// once its repeats are done): the header with the first point (a sweep that measures nothing
 /// leaves the file untouched), a footer `# complete: N frequencies` or
@@ -994,34 +543,27 @@ impl BodeFile {
     }
 }
 
-fn sine(a: SineArgs) -> Result<()> {
-    let _pipe = crate::interrupt::PipeErrors::arm();
-    let conf = port_conf(&a.port)?;
-    let sweep = sine_sweep(&a, &conf)?;
-    // The drive measures at the whole-cycle frequency nearest each request.
-    let applied = sweep.applied_freqs_hz(conf.sample_rate_hz);
-    // Two requests that become one applied frequency would make two rows of one frequency.
-    for (k, w) in applied.windows(2).enumerate() {
-        if let [Some(x), Some(y)] = w {
-            if (x - y).abs() <= 1e-9 * x.abs() {
-                crate::bad_input!(
-                    "{} Hz and {} Hz are both measured at {x} Hz (the nearest frequency with whole \
-                     cycles in the window): drop one",
-                    sweep.freqs_hz[k],
-                    sweep.freqs_hz[k + 1]
-                );
-            }
+impl SineArgs {
+    /// The request of the options.
+    fn request(&self) -> SineRequest {
+        SineRequest {
+            f_min_hz: self.f_min,
+            f_max_hz: self.f_max,
+            points: self.points,
+            freqs_hz: self.freqs.clone(),
+            amplitude_v: self.amplitude,
+            offset_v: self.offset,
+            cycles: self.cycles,
+            settle_cycles: self.settle_cycles,
+            min_settle_s: self.min_settle,
+            stream: self.stream,
+            repeats: self.repeats,
         }
     }
-    let moved: Vec<String> = sweep
-        .freqs_hz
-        .iter()
-        .zip(&applied)
-        .filter_map(|(f, fa)| {
-            fa.filter(|fa| (fa - f).abs() > 1e-6)
-                .map(|fa| format!("{f} -> {fa}"))
-        })
-        .collect();
+}
+
+/// The Bode table's header: the sweep, the hold, the frequencies the drive moved, the repeats.
+fn sine_header(a: &SineArgs, conf: &Configure, moved: &[(f64, f64)]) -> String {
     let mut header = format!(
         "fracid drive sine sweep: {} V around {} V, {} cycles, {} Hz sampling; gain (rad/s)/V\n{}",
         a.amplitude,
@@ -1035,6 +577,7 @@ fn sine(a: SineArgs) -> Result<()> {
     header += &if moved.is_empty() {
         " all as requested".to_string()
     } else {
+        let moved: Vec<String> = moved.iter().map(|(f, fa)| format!("{f} -> {fa}")).collect();
         format!(" {}", moved.join(", "))
     };
     if a.repeats > 1 {
@@ -1044,6 +587,18 @@ fn sine(a: SineArgs) -> Result<()> {
             a.repeats
         );
     }
+    header
+}
+
+fn sine(a: SineArgs) -> Result<()> {
+    let _pipe = crate::interrupt::PipeErrors::arm();
+    let conf = port_conf(&a.port)?;
+    let (sweep, warnings) = a.request().sweep(&conf).map_err(autotune_err)?;
+    for w in warnings {
+        crate::eprintln_safe!("warning: {w}");
+    }
+    let moved = autotune::acquire::sine::applied(&sweep, &conf).map_err(autotune_err)?;
+    let header = sine_header(&a, &conf, &moved);
     let output = output_path(&a.output);
     let reps_path = repeats_path(&a);
     let mut outs: Vec<(&str, &std::path::Path)> = vec![("--output", &output)];
@@ -1056,16 +611,16 @@ fn sine(a: SineArgs) -> Result<()> {
     // The first SIGINT/SIGTERM/SIGHUP/SIGQUIT/... stops the drive; the points measured so far are in the
     // file, the rest listed in its footer.
     let (swept, signal) = run_on_drive(&a.port, &conf, "frequencies", |c| {
-        c.run_sine_sweep_with(&sweep, &mut |ev| match ev {
+        autotune::acquire::sine::run(c, &sweep, &mut |ev| match ev {
             SweepEvent::Repeat(p, rep) => match reps_file.as_mut() {
                 Some(r) => r.repeat(p, rep),
                 None => Ok(()),
             },
             SweepEvent::Point(p) => file.point(p),
         })
-        .map_err(lib_err)
+        .map_err(autotune_err)
     })?;
-    let (points, mut problems) = match swept {
+    let mut rec = match swept {
         Ok(r) => r,
         Err(e) => {
             // Keep what was measured before the failure, with a footer.
@@ -1075,32 +630,41 @@ fn sine(a: SineArgs) -> Result<()> {
         }
     };
     if let Some(s) = signal {
-        problems.push(format!(
+        rec.problems.push(format!(
             "interrupted by {}: sweep stopped",
             crate::interrupt::signal_name(s)
         ));
     }
-    let unmeasured: Vec<String> = sweep
-        .freqs_hz
+    let unmeasured: Vec<String> = rec
+        .unmeasured(&sweep, &conf)
         .iter()
-        .zip(&applied)
-        .filter(|(_, fa)| {
-            !fa.is_some_and(|fa| points.iter().any(|p| (p.freq_hz - fa).abs() <= 1e-9 * fa))
-        })
-        .map(|(f, _)| f.to_string())
+        .map(f64::to_string)
         .collect();
     let written = file
-        .finish(&problems, &unmeasured)
+        .finish(&rec.problems, &unmeasured)
         .with_context(|| format!("writing {}", output.display()))
         .map_err(|e| lost_output(e, &output, "table"))?;
-    for p in &problems {
+    sine_outcome(&a, &rec, sweep.freqs_hz.len(), &unmeasured, written, signal)
+}
+
+/// How a sweep ends: its problems as warnings, then a signal (exit by it), frequencies not
+/// measured (exit 1), or the summary.
+fn sine_outcome(
+    a: &SineArgs,
+    rec: &autotune::acquire::sine::SineRecord,
+    asked: usize,
+    unmeasured: &[String],
+    written: bool,
+    signal: Option<i32>,
+) -> Result<()> {
+    for p in &rec.problems {
         crate::eprintln_safe!("warning: {p}");
     }
     let summary = format!(
         "{}: {} of {} frequencies{}",
         a.output.display(),
-        points.len(),
-        sweep.freqs_hz.len(),
+        rec.points.len(),
+        asked,
         if written {
             ""
         } else {

@@ -611,64 +611,6 @@ fn write_csv(path: &Path, rows: &[Row]) -> Result<()> {
     Ok(())
 }
 
-/// `fracid time` on many files: each fitted in this process exactly as `fracid time FILE --json`
-/// would (the same options), on a pool of threads.
-///
-/// # Errors
-/// As [`run`].
-pub fn run_time(a: super::time::TimeArgs) -> Result<()> {
-    if a.plot.is_some() {
-        crate::bad_input!("--plot draws one record: not with many files");
-    }
-    let mut paths = vec![a.file.clone()];
-    paths.extend(a.fleet.more.iter().cloned());
-    let files = expand(&paths)?;
-    run("time", &files, &a.fleet, a.json, |f| time_report(&a, f))
-}
-
-/// One file's `fracid time --json` report, with the options of `a`: the same request and
-/// `ident::app::time::run` as `fracid time FILE`, in this process.
-fn time_report(a: &super::time::TimeArgs, file: &Path) -> Result<(Value, Vec<String>)> {
-    let req = super::time::request(a)?;
-    let data = super::time::time_data(file, a)?;
-    let r = ident::app::time::run(&req, &data, &mut ident::app::observe::Quiet)
-        .with_context(|| format!("identifying {}", file.display()))?;
-    let mut v = serde_json::to_value(&r)?;
-    v["file"] = json!(file.display().to_string());
-    let problems = if r.lead.usable {
-        Vec::new()
-    } else {
-        r.lead.problems.clone()
-    };
-    Ok((v, problems))
-}
-
-/// `fracid freq` on many files: each fitted in this process exactly as `fracid freq FILE --json`
-/// would (the same options, `freq::compute`), on a pool of threads. A model that is not usable
-/// is a failed file unless `--allow-unusable` keeps it.
-///
-/// # Errors
-/// As [`run`].
-pub fn run_freq(a: &super::freq::FreqArgs) -> Result<()> {
-    if a.plot.is_some() {
-        crate::bad_input!("--plot draws one record: not with many files");
-    }
-    let mut paths = vec![a.file.clone()];
-    paths.extend(a.fleet.more.iter().cloned());
-    let files = expand(&paths)?;
-    run("freq", &files, &a.fleet, a.json, |f| {
-        let o = super::freq::compute(a, f)?;
-        let mut v = o.json()?;
-        v["file"] = json!(f.display().to_string());
-        let problems = if a.allow_unusable {
-            Vec::new()
-        } else {
-            o.report.problems.clone()
-        };
-        Ok((v, problems))
-    })
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

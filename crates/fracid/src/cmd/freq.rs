@@ -259,7 +259,7 @@ impl FreqOutcome {
 /// Unreadable files (exit 3), bad data or options (exit 2), a numerical breakdown (exit 1).
 pub fn run(a: FreqArgs) -> Result<()> {
     if a.fleet.active(&a.file) {
-        return super::fleet::run_freq(&a);
+        return run_fleet(&a);
     }
     check_paths(&a)?;
     if let Some(path) = &a.plot {
@@ -298,6 +298,32 @@ pub fn run(a: FreqArgs) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// `fracid freq` on many files: each fitted in this process exactly as `fracid freq FILE --json`
+/// would (the same options, `freq::compute`), on a pool of threads. A model that is not usable
+/// is a failed file unless `--allow-unusable` keeps it.
+///
+/// # Errors
+/// As [`super::fleet::run`].
+fn run_fleet(a: &FreqArgs) -> Result<()> {
+    if a.plot.is_some() {
+        crate::bad_input!("--plot draws one record: not with many files");
+    }
+    let mut paths = vec![a.file.clone()];
+    paths.extend(a.fleet.more.iter().cloned());
+    let files = super::fleet::expand(&paths)?;
+    super::fleet::run("freq", &files, &a.fleet, a.json, |f| {
+        let o = compute(a, f)?;
+        let mut v = o.json()?;
+        v["file"] = serde_json::json!(f.display().to_string());
+        let problems = if a.allow_unusable {
+            Vec::new()
+        } else {
+            o.report.problems.clone()
+        };
+        Ok((v, problems))
+    })
 }
 
 /// No plot overwrites an input ([`super::paths::check`]): the table and a `--weights` file

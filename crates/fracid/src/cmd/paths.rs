@@ -1,5 +1,5 @@
 //! No output overwrites an input: the one check every command that reads and writes files makes
-//! before any work (README, RELIABILITY). Two paths are one file when they name the same regular
+//! before any work (docs/reliability.md). Two paths are one file when they name the same regular
 //! file (the same device and inode: a symbolic link, a hard link, `./x` and `x`, `/dev/stdout`
 //! redirected to it), or, for a file not yet created, the same name in the same folder (the
 //! folder's canonical path). Devices, pipes and folders are no file an output could overwrite

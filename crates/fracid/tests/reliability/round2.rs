@@ -154,7 +154,7 @@ fn exit_within_1_gib(args: &[&str]) -> Option<i32> {
     cmd.status().unwrap().code()
 }
 
-/// The memory bound of the README: no input file under 1 MB makes a command use more than 1 GB.
+/// The memory bound of docs/reliability.md: no input file under 1 MB makes a command use more than 1 GB.
 /// `.mat` files that inflate to gigabytes (one `uint8` variable of 500 million zeros, 0.5 MB;
 /// four of 200 million, 0.8 MB; before the fix 4.4 GB and 6.7 GB resident, and under a 1 GiB
 /// limit an abort, exit 134), and the largest record a small `.mat` may hold (a periodic `u`,

@@ -153,6 +153,7 @@ fn a_general_model_fits_simulates_exports_and_tunes() {
         csv.to_str().unwrap(),
         "--structure",
         "general",
+        "--plain",
         "--json",
         "--quiet",
     ]);

@@ -1,0 +1,361 @@
+//! The identification rounds: the first record identified and diagnosed; each later record
+//! diagnosed alone (what it separates), then one model fitted jointly to every record so far,
+//! each record's error before (the previous model) and after (the joint model).
+
+use super::design::Purpose;
+use crate::Result;
+use ident::app::observe::Quiet;
+use ident::app::time::{self, TimeData, TimeRequest};
+use ident::data::{OffsetMode, Record};
+use ident::diagnose::Ambiguity;
+use ident::oe::{FracModel, InitialState, StartMode};
+use serde::Serialize;
+use std::collections::BTreeMap;
+
+/// A record of the autotune with its name and why it was taken.
+#[derive(Debug, Clone)]
+pub struct Named {
+    /// Its name in the report (`prbs`, `reversals`, ...).
+    pub name: String,
+    /// Why it was taken.
+    pub purpose: Purpose,
+    /// The samples.
+    pub record: Record,
+}
+
+/// One record's error under a model.
+#[derive(Debug, Clone, Serialize)]
+pub struct RecordError {
+    /// The record's name.
+    pub record: String,
+    /// RMSE, rad/s.
+    pub rmse: f64,
+    /// NRMSE fit, percent.
+    pub nrmse_percent: f64,
+}
+
+/// An effect of a model with its parameters.
+#[derive(Debug, Clone, Serialize)]
+pub struct EffectValues {
+    /// The effect's report name.
+    pub name: String,
+    /// Its parameters by name.
+    pub params: BTreeMap<String, f64>,
+}
+
+/// A model of a round.
+#[derive(Debug, Clone)]
+pub struct Model {
+    /// The whole model (structure, values, effects, delay).
+    pub spec: FracModel,
+    /// The model in words (its linear part, delay and effects).
+    pub text: String,
+}
+
+impl Model {
+    /// The value of the parameter `name`, if the model has it.
+    pub fn param(&self, name: &str) -> Option<f64> {
+        self.spec.index_of(name).map(|i| self.spec.params[i].value)
+    }
+
+    /// The linear part with its delay.
+    ///
+    /// # Errors
+    /// A model whose transfer function cannot be formed.
+    pub fn tf(&self) -> Result<fracsim::FracTf> {
+        Ok(self.spec.tf(&self.spec.values())?)
+    }
+}
+
+/// What one identification round found.
+#[derive(Debug, Clone)]
+pub struct Outcome {
+    /// The model.
+    pub model: Model,
+    /// What the new record could not separate (its diagnosis's ambiguities).
+    pub ambiguous: Vec<Ambiguity>,
+    /// The effects its diagnosis kept on the new record, with their values there.
+    pub kept: Vec<EffectValues>,
+    /// The effects its diagnosis tried and rejected, with the reason.
+    pub rejected: Vec<EffectValues>,
+    /// Each record's error under the model.
+    pub errors: Vec<RecordError>,
+    /// Caveats (a joint fit that failed and the new record's model kept instead, ...).
+    pub warnings: Vec<String>,
+    /// Whether the identification called the model usable.
+    pub usable: bool,
+}
+
+/// The time-domain request of every diagnosis: the structures compared, the effects tried.
+pub fn request() -> TimeRequest {
+    TimeRequest {
+        structure: "auto".into(),
+        diagnose: true,
+        ..TimeRequest::default()
+    }
+}
+
+fn rejected(report: &time::TimeReport) -> Vec<EffectValues> {
+    report
+        .diagnosis
+        .as_ref()
+        .map(|d| {
+            d.diagnosis
+                .rejected
+                .iter()
+                .map(|e| EffectValues {
+                    name: format!("{}: {}", e.name, e.reason),
+                    params: e.params.clone(),
+                })
+                .collect()
+        })
+        .unwrap_or_default()
+}
+
+fn kept(report: &time::TimeReport) -> Vec<EffectValues> {
+    report
+        .diagnosis
+        .as_ref()
+        .map(|d| {
+            d.diagnosis
+                .effects
+                .iter()
+                .map(|e| EffectValues {
+                    name: e.name.clone(),
+                    params: e.params.clone(),
+                })
+                .collect()
+        })
+        .unwrap_or_default()
+}
+
+/// Identify and diagnose one record alone.
+fn diagnose(rec: &Named) -> Result<time::TimeReport> {
+    let data = TimeData {
+        record: rec.record.clone(),
+        validation: None,
+        joint: vec![],
+        reader_warnings: vec![],
+    };
+    Ok(time::run(&request(), &data, &mut Quiet)?)
+}
+
+/// The first round: the record identified and diagnosed.
+///
+/// # Errors
+/// The identification's.
+pub fn first(rec: &Named) -> Result<Outcome> {
+    let r = diagnose(rec)?;
+    let ambiguous = r
+        .diagnosis
+        .as_ref()
+        .map(|d| d.diagnosis.ambiguous.clone())
+        .unwrap_or_default();
+    let est = r.lead.fit.estimation;
+    let val = r.lead.fit.validation.unwrap_or(est);
+    Ok(Outcome {
+        model: Model {
+            spec: r.lead.spec.clone(),
+            text: final_text(&r),
+        },
+        ambiguous,
+        kept: kept(&r),
+        rejected: rejected(&r),
+        errors: vec![RecordError {
+            record: rec.name.clone(),
+            rmse: val.rmse,
+            nrmse_percent: val.nrmse_percent,
+        }],
+        warnings: r.lead.warnings.clone(),
+        usable: r.lead.usable,
+    })
+}
+
+fn final_text(r: &time::TimeReport) -> String {
+    r.diagnosis
+        .as_ref()
+        .map(|d| d.diagnosis.final_model.clone())
+        .unwrap_or_else(|| r.lead.model.text.clone())
+}
+
+/// Each record's error under `model` (its own operating point, output offset and initial
+/// state), in the order given.
+///
+/// # Errors
+/// A record too short to score.
+pub fn errors(model: &FracModel, recs: &[Named]) -> Result<Vec<RecordError>> {
+    recs.iter()
+        .map(|r| {
+            let s = ident::oe::score(model, &r.record, OffsetMode::Initial, InitialState::Auto)?;
+            Ok(RecordError {
+                record: r.name.clone(),
+                rmse: s.fit.rmse,
+                nrmse_percent: s.fit.nrmse_percent,
+            })
+        })
+        .collect()
+}
+
+/// `m` with Coulomb friction added (`Vc` from `vc`), unless it has it: the effect a reversal
+/// experiment is run for, fitted jointly whether or not the new record alone kept it.
+fn with_friction(m: &FracModel, vc: f64) -> FracModel {
+    if m.index_of("Vc").is_some() {
+        return m.clone();
+    }
+    let mut m = m.clone();
+    let i = m.add_param(ident::oe::Param::positive("Vc", vc.max(1e-3)));
+    m.effects.insert(0, ident::oe::Effect::Coulomb { vc: i });
+    m
+}
+
+/// The effect a later round is run for: it joins the joint fit's start even when the new
+/// record's diagnosis alone did not keep it (on one record its held-out margin may not pay; the
+/// joint fit over every record decides its value).
+#[derive(Debug, Clone, PartialEq)]
+pub enum Target {
+    /// Whatever the new record's diagnosis keeps.
+    Diagnosed,
+    /// Coulomb friction, started at this `Vc` (V) unless the diagnosis gave one.
+    Friction(f64),
+    /// This structure, as fitted to an earlier record (a resonant pair the dwell is for).
+    Start(Box<FracModel>),
+}
+
+/// The start of a joint fit: `m` with its initial-state levels back at 0 (the joint fit gives
+/// each record its own range for them; a level left at the edge of one record's range is out of
+/// another's).
+fn fresh_past(mut m: FracModel) -> FracModel {
+    let levels: Vec<usize> = (0..m.params.len())
+        .filter(|&i| m.params[i].name.starts_with("u_past"))
+        .collect();
+    for i in levels {
+        m.params[i].value = 0.0;
+    }
+    m
+}
+
+/// The structure `spec` (a name of [`ident::app::structure`]) fitted to one record with its
+/// delay, without the diagnosis, from `start` (by parameter name; empty: the automatic start).
+///
+/// # Errors
+/// The identification's.
+pub fn fit_structure(
+    rec: &Named,
+    spec: &str,
+    start: BTreeMap<String, f64>,
+) -> Result<(Model, f64)> {
+    let data = TimeData {
+        record: rec.record.clone(),
+        validation: None,
+        joint: vec![],
+        reader_warnings: vec![],
+    };
+    let req = TimeRequest {
+        structure: spec.into(),
+        delay: true,
+        auto_start: start.is_empty(),
+        start,
+        ..TimeRequest::default()
+    };
+    let r = time::run(&req, &data, &mut Quiet)?;
+    let val = r.lead.fit.validation.unwrap_or(r.lead.fit.estimation);
+    Ok((
+        Model {
+            text: r.lead.model.text.clone(),
+            spec: r.lead.spec.clone(),
+        },
+        val.rmse,
+    ))
+}
+
+/// A later round: the last of `recs` diagnosed alone (the effects it can separate), then the
+/// model of that diagnosis fitted jointly to every record, the new one first (the joint fit
+/// starts from a fit to it); for friction, the previous model `prev` with friction added (the
+/// linear part the earlier records pinned, the friction the new record shows).
+///
+/// # Errors
+/// The diagnosis's; a joint fit that fails leaves the new record's model, with a warning.
+pub fn later(recs: &[Named], prev: &FracModel, target: Target) -> Result<Outcome> {
+    let new = recs.last().expect("a later round has a record");
+    let r = diagnose(new)?;
+    let ambiguous = r
+        .diagnosis
+        .as_ref()
+        .map(|d| d.diagnosis.ambiguous.clone())
+        .unwrap_or_default();
+    let start = match target {
+        Target::Diagnosed => r.lead.spec.clone(),
+        Target::Friction(vc) => {
+            // the value the new record's refit found, if it tried friction
+            let tried = r.diagnosis.as_ref().and_then(|d| {
+                d.diagnosis
+                    .rejected
+                    .iter()
+                    .find(|e| e.name == "coulomb_friction")
+                    .and_then(|e| e.params.get("Vc").copied())
+            });
+            with_friction(prev, tried.unwrap_or(vc))
+        }
+        Target::Start(m) => *m,
+    };
+    let start = fresh_past(start);
+    let mut ordered: Vec<Record> = vec![new.record.clone()];
+    ordered.extend(recs[..recs.len() - 1].iter().map(|n| n.record.clone()));
+    let dur = new.record.len() as f64 * new.record.dt;
+    let (_, mut opts) = time::model_and_options(
+        &TimeRequest {
+            holdout: Some(0.0),
+            ..TimeRequest::default()
+        },
+        dur,
+        new.record.dt,
+        false,
+    )?;
+    opts.start = StartMode::Given;
+    let mut warnings = vec![];
+    let (spec, usable) = match ident::oe::identify_joint(&ordered, &start, &opts) {
+        Ok(j) if j.problems.is_empty() => (j.model, true),
+        Ok(j) => {
+            warnings.push(format!(
+                "the joint fit of {} records is not usable ({}); the previous model is kept",
+                recs.len(),
+                j.problems.join("; "),
+            ));
+            (prev.clone(), true)
+        }
+        Err(e) => {
+            warnings.push(format!(
+                "the joint fit of {} records failed ({e}); the previous model is kept",
+                recs.len(),
+            ));
+            (prev.clone(), true)
+        }
+    };
+    let errors = errors(&spec, recs)?;
+    let text = model_text(&spec).unwrap_or_else(|| final_text(&r));
+    Ok(Outcome {
+        model: Model { spec, text },
+        ambiguous,
+        kept: kept(&r),
+        rejected: rejected(&r),
+        errors,
+        warnings,
+        usable,
+    })
+}
+
+/// A model in words: its linear part and its effects' parameters.
+pub fn model_text(m: &FracModel) -> Option<String> {
+    let tf = m.tf(&m.values()).ok()?;
+    let effects: Vec<String> = m
+        .params
+        .iter()
+        .filter(|p| ["Vc", "u_offset", "L", "w"].contains(&p.name.as_str()))
+        .map(|p| format!("{} = {:.4}", p.name, p.value))
+        .collect();
+    Some(if effects.is_empty() {
+        tf.to_string()
+    } else {
+        format!("{tf}; {}", effects.join(", "))
+    })
+}
