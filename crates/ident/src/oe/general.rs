@@ -198,6 +198,7 @@ impl GeneralStart {
             let i = m.add_param(Param::new(&format!("b{k}"), c / scale(k), Bounds::Free));
             m.num.push((Expr::sum(&[(i, scale(k))]), order(k)));
         }
+        m.den.push((Expr::cst(1.0), Expr::cst(0.0)));
         for (k, &c) in self.a.iter().enumerate() {
             let k = k + 1;
             let bounds = if c > 0.0 {
@@ -208,7 +209,6 @@ impl GeneralStart {
             let i = m.add_param(Param::new(&format!("a{k}"), c / scale(k), bounds));
             m.den.push((Expr::sum(&[(i, scale(k))]), order(k)));
         }
-        m.den.push((Expr::cst(1.0), Expr::cst(0.0)));
         // Highest order first, as reports write a polynomial.
         m.num.reverse();
         m.den.reverse();
@@ -249,7 +249,8 @@ mod tests {
         // a free order is one parameter of every order
         let f = s.model(true);
         let p = f.values();
-        assert!(f.params[0].free && f.den[0].1.eval(&p) == 3.0);
+        assert!(f.params[0].free, "{:?}", f.params[0]);
+        assert!((f.den[0].1.eval(&p) - 3.0).abs() < 1e-12, "{:?}", f.den);
     }
 
     #[test]

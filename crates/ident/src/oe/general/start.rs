@@ -40,8 +40,107 @@ pub fn frf(u: &[f64], y: &[f64], dt: f64) -> Result<(Frf, String)> {
             );
             Ok((f, how))
         }
-        Err(_) => crate::oe::init::welch::h1(u, y, dt),
+        Err(_) => crate::oe::init::welch::h1(u, y, dt).or_else(|e| arx_frf(u, y, dt, &e)),
     }
+}
+
+/// ARX orders of the fallback response ([`arx_frf`]).
+const ARX_ORDER: usize = 6;
+
+/// The response of an ARX model `A(q) y = B(q) u + c` (orders [`ARX_ORDER`], `B` from lag 0: a
+/// feed-through) fitted by least squares, at 100 log-spaced frequencies from one period over the
+/// record to a quarter of the Nyquist frequency, the hold divided out, weights 1: the start of a
+/// record Welch's estimate cannot be made from (a step test, a short record), `why` its reason.
+///
+/// # Errors
+/// [`Error::NotEnoughData`] for fewer than `20 (2 n + 2)` samples or a singular regression.
+pub fn arx_frf(u: &[f64], y: &[f64], dt: f64, why: &Error) -> Result<(Frf, String)> {
+    let n = u.len().min(y.len());
+    let na = ARX_ORDER.min(n / 60).max(1);
+    let cols = 2 * na + 2;
+    if n < 20 * cols {
+        return Err(Error::NotEnoughData(format!(
+            "{n} samples: too few for a response ({})",
+            why.detail()
+        )));
+    }
+    let rows = n - na;
+    let mut x = DMatrix::<f64>::zeros(rows, cols);
+    let mut rhs = DVector::<f64>::zeros(rows);
+    for (r, k) in (na..n).enumerate() {
+        for i in 1..=na {
+            x[(r, i - 1)] = -y[k - i];
+        }
+        for j in 0..=na {
+            x[(r, na + j)] = u[k - j];
+        }
+        x[(r, cols - 1)] = 1.0;
+        rhs[r] = y[k];
+    }
+    let mut scale = vec![1.0; cols];
+    for (c, sc) in scale.iter_mut().enumerate() {
+        let nrm = x.column(c).norm();
+        if nrm > 0.0 && nrm.is_finite() {
+            *sc = nrm;
+            x.column_mut(c).scale_mut(1.0 / nrm);
+        }
+    }
+    let bad = || Error::NotEnoughData(format!("no ARX response ({})", why.detail()));
+    if x.iter().chain(rhs.iter()).any(|v| !v.is_finite()) {
+        return Err(bad());
+    }
+    let theta = x
+        .try_svd(true, true, 1e-15, 500)
+        .ok_or_else(bad)?
+        .solve(&rhs, 1e-12)
+        .map_err(|_| bad())?;
+    let th: Vec<f64> = theta.iter().zip(&scale).map(|(v, s)| v / s).collect();
+    let (w_lo, w_hi) = (
+        2.0 * std::f64::consts::PI / (n as f64 * dt),
+        0.25 * std::f64::consts::PI / dt,
+    );
+    let omega: Vec<f64> = (0..100)
+        .map(|i| w_lo * (w_hi / w_lo).powf(i as f64 / 99.0))
+        .collect();
+    let h: Vec<Complex64> = omega
+        .iter()
+        .map(|&w| {
+            // B(z^-1) = sum_j b_j z^-j, A(z^-1) = 1 + sum_i a_i z^-i
+            let zi = Complex64::from_polar(1.0, -w * dt);
+            let (mut a, mut b, mut p) = (
+                Complex64::new(1.0, 0.0),
+                Complex64::new(0.0, 0.0),
+                Complex64::new(1.0, 0.0),
+            );
+            for j in 0..=na {
+                if j > 0 {
+                    a += th[j - 1] * p;
+                }
+                b += th[na + j] * p;
+                p *= zi;
+            }
+            b / a / crate::hold::zoh(w, dt)
+        })
+        .collect();
+    if h.iter().any(|v| !(v.re.is_finite() && v.im.is_finite())) {
+        return Err(bad());
+    }
+    let how = format!(
+        "the response of an ARX({na},{}) model fitted by least squares ({})",
+        na + 1,
+        why.detail()
+    );
+    Ok((
+        Frf {
+            weight: vec![1.0; omega.len()],
+            omega,
+            h,
+            period: None,
+            periods_averaged: 0,
+            periods_available: 0,
+        },
+        how,
+    ))
 }
 
 /// The information criterion a start is ranked by: `2F ln(e) + k ln(2F)` for a weighted relative
@@ -367,8 +466,10 @@ pub fn ranked(frf: &Frf, fixed: Option<Size>, integrators: &[bool]) -> Result<Ve
 mod tests {
     use super::*;
 
-    fn frf_of(tf: &fracsim::FracTf) -> Frf {
-        let omega: Vec<f64> = (0..80).map(|i| 10f64.powf(i as f64 / 79.0 * 3.0)).collect();
+    fn frf_of(tf: &fracsim::FracTf, lo_decade: f64) -> Frf {
+        let omega: Vec<f64> = (0..80)
+            .map(|i| 10f64.powf(lo_decade + i as f64 / 79.0 * 3.0))
+            .collect();
         Frf {
             h: tf.bode(&omega),
             weight: vec![1.0; omega.len()],
@@ -376,6 +477,26 @@ mod tests {
             period: None,
             periods_averaged: 0,
             periods_available: 0,
+        }
+    }
+
+    /// A step test (four levels) of `y_k = 0.9 y_(k-1) + 0.1 u_(k-1)`: the ARX response (the
+    /// hold multiplied back) is the system's own at every frequency.
+    #[test]
+    fn the_arx_response_of_a_step_test_is_the_systems() {
+        let u: Vec<f64> = (0..600).map(|k| [0.0, 1.0, 0.2, 0.8][k / 150]).collect();
+        let mut y = vec![0.0; u.len()];
+        for k in 1..u.len() {
+            y[k] = 0.9 * y[k - 1] + 0.1 * u[k - 1];
+        }
+        let dt = 0.1;
+        let (frf, how) = arx_frf(&u, &y, dt, &Error::NotEnoughData("steps".into())).unwrap();
+        assert!(how.contains("ARX"), "{how}");
+        for (&w, &h) in frf.omega.iter().zip(&frf.h) {
+            let z1 = Complex64::from_polar(1.0, -w * dt);
+            let g = 0.1 * z1 / (1.0 - 0.9 * z1);
+            let e = (h * crate::hold::zoh(w, dt) - g).norm() / g.norm();
+            assert!(e < 1e-6, "{w}: {e}");
         }
     }
 
@@ -401,18 +522,23 @@ mod tests {
         let g: fracsim::FracTf = "2/((0.01 s + 1) (0.0001 s^2 + 0.001 s + 1))"
             .parse()
             .unwrap();
-        let frf = frf_of(&g);
+        let frf = frf_of(&g, 0.0);
         let r = ranked(&frf, None, &[false]).unwrap();
+        // exact data: the sizes that hold the plant tie to rounding; each has its three poles
         let best = &r[0];
-        assert_eq!((best.size, best.q), (Size { num: 0, den: 3 }, 1.0), "{r:?}");
+        assert_eq!((best.size.den, best.q), (3, 1.0), "{r:?}");
         assert!(best.frf_error < 1e-12, "{}", best.frf_error);
+        for (a, want) in best.a.iter().zip([0.011, 1.1e-4, 1e-6]) {
+            assert!((a - want).abs() < 1e-9 * want, "{:?}", best.a);
+        }
+        assert!(best.b[1..].iter().all(|b| b.abs() < 1e-12), "{:?}", best.b);
         assert!(!calls_for_integrator(&frf));
     }
 
     #[test]
     fn an_integrator_beside_a_feedthrough_is_found() {
         let g: fracsim::FracTf = "(0.5 s + 2)/s".parse().unwrap();
-        let frf = frf_of(&g);
+        let frf = frf_of(&g, -1.0);
         assert!(calls_for_integrator(&frf));
         let s = fit_size(&frf, Size { num: 1, den: 0 }, true).unwrap();
         assert!(s.frf_error < 1e-20, "{s:?}");
