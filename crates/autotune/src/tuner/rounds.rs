@@ -90,7 +90,7 @@ pub struct Outcome {
 pub fn request() -> TimeRequest {
     TimeRequest {
         structure: "auto".into(),
-        diagnose: true,
+        plain: false,
         ..TimeRequest::default()
     }
 }
