@@ -28,8 +28,9 @@ pub fn default_max_delay(duration_s: f64, dt_s: f64) -> f64 {
 /// resonant pair, `K (b2 s^2 + b1 s^mu + 1) / ((a2 s^(zeta+theta) + a1 s^zeta + 1)
 /// (c2 s^2 + c1 s^mu + 1))`, [`FracModel::two_mass`]), `feedthrough` (the PMSM with a direct
 /// feed-through, `D + K/(a2 s^(zeta+theta) + a1 s^zeta + 1)`, [`FracModel::feedthrough`]),
-/// `fopdt` (`K e^(-tau s)/(T s + 1)`, `tau` up to `max_delay_s`),
-/// or a transfer function whose every coefficient and order is fitted from its values (then
+/// `fopdt` (`K e^(-tau s)/(T s + 1)`, `tau` up to `max_delay_s`), `general` or `general:N/D`
+/// (the general structure sized by the data or of that size, [`crate::oe::general`]: here its
+/// template, a first order), or a transfer function whose every coefficient and order is fitted from its values (then
 /// `general` is true: it starts from them). Returns `(model, general)`.
 ///
 /// ```
@@ -60,11 +61,17 @@ pub fn structure(spec: &str, max_delay_s: f64) -> Result<(FracModel, bool)> {
             FracModel::fopdt(1.0, 0.1, 0.05 * max_delay_s, max_delay_s),
             false,
         ),
+        // `general` or `general:N/D`: sized by the data ([`crate::oe::general`]); this is the
+        // template whose options (approximation, delay, integrator) its sizes take.
+        s if s.starts_with("general") && crate::oe::general::requested(s).is_some() => {
+            crate::oe::general::requested(s).transpose()?;
+            (crate::oe::general::template(), false)
+        }
         s => {
             let tf: FracTf = s.parse().map_err(|e| {
                 Error::Options(format!(
                     "structure '{spec}' is not pmsm, commensurate, second-order, third-order, \
-                     two-mass, feedthrough, fopdt, auto or a model: {e}"
+                     two-mass, feedthrough, fopdt, auto, general, general:N/D or a model: {e}"
                 ))
             })?;
             (FracModel::from_tf(&tf, true, true), true)

@@ -35,6 +35,7 @@
 mod checks;
 pub(crate) mod effects;
 mod fit;
+pub mod general;
 pub mod init;
 mod joint;
 mod score;

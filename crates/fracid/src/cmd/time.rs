@@ -57,7 +57,10 @@ pub struct TimeArgs {
     /// response), fopdt, auto (pmsm, commensurate, the integer first, second and third order,
     /// two-mass, and feedthrough when the record shows an instant response, each fitted, the one
     /// the data support kept: held-out RMSE,
-    /// then BIC among ties within 2%; the table is printed), or a
+    /// then BIC among ties within 2%; the table is printed), general (a general transfer
+    /// function (b0 + .. + bN s^(N q))/(1 + .. + aD s^(D q)), with an integrator when the data
+    /// call for it, its size chosen by held-out error and BIC from a frequency-response start),
+    /// general:N/D (that size), or a
     /// transfer function such as "6.8/(3e-5 s^1.75 + 0.006 s^0.9 + 1)" used as the start.
     #[arg(long, default_value_t = ident::app::time::TimeRequest::default().structure)]
     pub structure: String,

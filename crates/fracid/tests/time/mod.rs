@@ -4,6 +4,7 @@ use super::fracid;
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
+mod general;
 mod verdict;
 
 fn stdout(o: &std::process::Output) -> String {

@@ -474,6 +474,22 @@ pub fn model_and_options(
     Ok((m, opts))
 }
 
+/// The general structure's request when `req` names it (`general`, `general:N/D`), with the
+/// request's integrator.
+///
+/// # Errors
+/// [`Error::Options`] for a size not understood.
+fn general_request(req: &TimeRequest) -> Result<Option<crate::oe::general::GeneralRequest>> {
+    Ok(crate::oe::general::requested(&req.structure)
+        .transpose()?
+        .map(|mut g| {
+            if req.integrator {
+                g.integrator = Some(true);
+            }
+            g
+        }))
+}
+
 static RUNS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
 
 /// How many times [`run`] was called in this process (the demo reports that each record was
@@ -547,7 +563,29 @@ fn run_request(req: &TimeRequest, data: &TimeData, obs: &mut dyn Observe) -> Res
         )));
     }
     let (auto, label) = super::auto_label(&req.structure);
-    let (id, auto_choice, diagnosis) = if !req.plain {
+    // The general structure sized by the data (crate::oe::general): fitted here, and with the
+    // diagnosis (the default; `plain` fits the sizes alone) its chosen size is the user's structure.
+    let general = general_request(req)?;
+    let sized = match &general {
+        Some(g) => {
+            enter(
+                obs,
+                Stage::Structures {
+                    n: crate::oe::general::search::SHORTLIST,
+                },
+            )?;
+            Some(crate::oe::general::fit(rec, &model, &opts, g)?)
+        }
+        None => None,
+    };
+    let (model, label) = match &sized {
+        Some(f) if !req.plain => (f.model.clone(), f.name.clone()),
+        _ => (model, label.to_string()),
+    };
+    let label = label.as_str();
+    let (id, auto_choice, diagnosis) = if let Some(f) = sized.filter(|_| req.plain) {
+        (f.id, Some(f.choice), None)
+    } else if !req.plain {
         // The user's structure is fitted here while the other candidates' fits start on the
         // other cores ([`diagnose_best_fitting`]); the stages are entered as before.
         enter(obs, Stage::Fit)?;

@@ -23,7 +23,7 @@
 mod coarse;
 pub mod feedthrough;
 mod two_mass;
-mod welch;
+pub(crate) mod welch;
 
 use super::{FracModel, Kind, Structure};
 use crate::levy::{self, LevyFit};

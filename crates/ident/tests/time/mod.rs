@@ -2,6 +2,7 @@
 
 mod bad_input;
 mod feedthrough;
+mod general;
 mod held;
 mod history;
 mod readers;

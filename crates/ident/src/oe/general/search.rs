@@ -1,0 +1,294 @@
+//! The general structure's size chosen by the data: the starts the frequency-domain criterion
+//! ranks first and the smallest ones nearly as good ([`shortlist`], at most [`SHORTLIST`]) are each fitted by output
+//! error ([`crate::oe::identify`], from their start), and the one chosen by the structure
+//! comparison's rule: among the usable fits (all of them when none is), those whose held-out RMSE
+//! (estimation RMSE without a held-out part) is within [`TIE`] of the best are ties, and the tie
+//! with the lowest BIC on the estimation part wins.
+//!
+//! The response is estimated on the estimation part only (the part [`crate::oe::identify`] fits:
+//! the same split), so the held-out part stays unseen by the start as by the fit.
+
+use super::start::{self, calls_for_integrator};
+use super::{GeneralRequest, GeneralStart};
+use crate::data::Record;
+use crate::diagnose::structures::{StructureChoice, StructureScore, TIE};
+use crate::oe::{identify, FracModel, IdentOptions, Identification, StartMode};
+use crate::{Error, Result};
+
+/// The most sizes fitted by output error.
+pub const SHORTLIST: usize = 4;
+
+/// The general structure's fit: the chosen identification, the comparison of the sizes fitted
+/// (in the structure comparison's form), and the chosen structure with its fitted values (no
+/// output offset or initial state: the linear part, as a structure to fit again).
+#[derive(Debug, Clone)]
+pub struct GeneralFit {
+    /// The chosen size's identification.
+    pub id: Identification,
+    /// The sizes fitted and the decision.
+    pub choice: StructureChoice,
+    /// The chosen structure, its parameters at their fitted values.
+    pub model: FracModel,
+    /// The chosen size's name (`general N/D`, ...).
+    pub name: String,
+}
+
+/// The estimation part's deviations of `rec` as [`identify`] splits and centres them for `opts`.
+///
+/// # Errors
+/// A holdout out of range.
+fn estimation_part(rec: &Record, opts: &IdentOptions) -> Result<(Vec<f64>, Vec<f64>)> {
+    let (split, _, _) =
+        crate::oe::checks::validation_split(rec, rec.split_index(opts.holdout)?, opts.holdout);
+    let off = rec.offsets(opts.offsets, split);
+    let u = rec.u[..split].iter().map(|v| v - off.u0).collect();
+    let y = rec.y[..split].iter().map(|v| v - off.y0).collect();
+    Ok((u, y))
+}
+
+/// The ranked starts of the general structure on `rec` for `req`, `template` giving the
+/// integrator when the user asked for one.
+fn starts(
+    rec: &Record,
+    template: &FracModel,
+    opts: &IdentOptions,
+    req: &GeneralRequest,
+) -> Result<(Vec<GeneralStart>, String)> {
+    let (u, y) = estimation_part(rec, opts)?;
+    let (frf, how) = start::frf(&u, &y, rec.dt)?;
+    let integrators: Vec<bool> = match req.integrator {
+        Some(i) => vec![i],
+        None if template.integrator => vec![true],
+        None if calls_for_integrator(&frf) => vec![false, true],
+        None => vec![false],
+    };
+    Ok((start::ranked(&frf, req.size, &integrators)?, how))
+}
+
+/// The start's structure with the template's approximation and delay.
+fn structure(s: &GeneralStart, template: &FracModel, req: &GeneralRequest) -> FracModel {
+    let mut m = s.model(req.free_q);
+    m.approx = template.approx;
+    if let Some(i) = template.delay {
+        let p = &template.params[i];
+        if let crate::oe::Bounds::Interval(_, hi) = p.bounds {
+            m.with_delay(p.value, hi);
+        }
+        if let Some(j) = m.delay {
+            m.params[j].free = p.free;
+        }
+    }
+    m
+}
+
+/// The general structure fitted on `rec` (see the module documentation): `template` is the
+/// structure the request's options made (its approximation, delay and integrator are kept),
+/// `opts` the fit's options (its start is the general structure's own).
+///
+/// # Errors
+/// [`Error::NotEnoughData`] when no frequency response can be estimated or no size gives a
+/// stable start; the first size's fit error when none could be fitted.
+pub fn fit(
+    rec: &Record,
+    template: &FracModel,
+    opts: &IdentOptions,
+    req: &GeneralRequest,
+) -> Result<GeneralFit> {
+    let (ranked, how) = starts(rec, template, opts, req)?;
+    let given = IdentOptions {
+        start: StartMode::Given,
+        ..opts.clone()
+    };
+    let ranked_count = ranked.len();
+    let short: Vec<(GeneralStart, FracModel)> = shortlist(ranked)
+        .into_iter()
+        .map(|s| {
+            let m = structure(&s, template, req);
+            (s, m)
+        })
+        .collect();
+    let fits: Vec<Result<Identification>> = short
+        .iter()
+        .map(|(_, m)| identify(rec, m, &given))
+        .collect();
+    let scores: Vec<StructureScore> = short
+        .iter()
+        .zip(&fits)
+        .map(|((s, _), f)| score(&s.name(), f))
+        .collect();
+    let Some(chosen) = decide(&scores) else {
+        let mut fits = fits;
+        return Err(match fits.swap_remove(0) {
+            Err(e) => e,
+            Ok(_) => Error::Numerical("no size of the general structure could be fitted".into()),
+        });
+    };
+    let mut fits = fits;
+    let id = fits.swap_remove(chosen)?;
+    let held_out = id.validation.is_some();
+    let (s, m) = &short[chosen];
+    let mut model = m.clone();
+    for (p, v) in model.params.iter_mut().zip(&id.report.values) {
+        p.value = *v;
+    }
+    let reason = format!(
+        "general structure: {} sizes ranked by a frequency-domain BIC on {how}; {} fitted by \
+         output error (the best by it and the smallest nearly as good); {} chosen by {} RMSE \
+         (ties within {:.0}%: lowest BIC)",
+        ranked_count,
+        short.len(),
+        s.name(),
+        if held_out { "held-out" } else { "estimation" },
+        100.0 * TIE
+    );
+    let choice = StructureChoice {
+        scores,
+        chosen,
+        held_out,
+        reason,
+        integer_reference: None,
+    };
+    Ok(GeneralFit {
+        id,
+        choice,
+        model,
+        name: s.name(),
+    })
+}
+
+/// The starts fitted by output error, from the `ranked` ones (best criterion first): the
+/// [`SHORTLIST`]` / 2` best by the criterion, then the smallest ones (fewest coefficients, the
+/// better criterion first among equals) whose error on the response is within
+/// [`SMALL_ENOUGH`] times the best one's, up to [`SHORTLIST`] in all. The criterion's weights
+/// are estimated, so it may favour a size larger than the plant's; the smaller sizes then
+/// compete on held-out data.
+fn shortlist(ranked: Vec<GeneralStart>) -> Vec<GeneralStart> {
+    let best_err = ranked
+        .iter()
+        .take(SHORTLIST / 2)
+        .map(|s| s.frf_error)
+        .fold(f64::INFINITY, f64::min);
+    let coefs = |s: &GeneralStart| s.b.len() + s.a.len() + usize::from(s.q != 1.0);
+    let mut small: Vec<&GeneralStart> = ranked
+        .iter()
+        .skip(SHORTLIST / 2)
+        .filter(|s| s.frf_error <= SMALL_ENOUGH * best_err)
+        .collect();
+    small.sort_by(|a, b| {
+        coefs(a)
+            .cmp(&coefs(b))
+            .then(a.criterion.total_cmp(&b.criterion))
+    });
+    let picks: Vec<GeneralStart> = small
+        .into_iter()
+        .take(SHORTLIST - SHORTLIST / 2)
+        .cloned()
+        .collect();
+    let mut out: Vec<GeneralStart> = ranked.into_iter().take(SHORTLIST / 2).collect();
+    out.extend(picks);
+    out
+}
+
+/// How much larger than the best one's the response error of a smaller start may be for it to
+/// be fitted too ([`shortlist`]).
+pub const SMALL_ENOUGH: f64 = 3.0;
+
+/// The general structure as a candidate of the structure comparison or the diagnosis: the start
+/// the frequency-domain criterion ranks first on `rec` (no output-error fit here: the caller
+/// fits it, [`crate::oe::Kind::General`] starting from its values), with its name
+/// (`general N/D`, ...). `None` when no frequency response can be estimated or no size gives a
+/// stable start.
+pub fn candidate(
+    rec: &Record,
+    template: &FracModel,
+    opts: &IdentOptions,
+) -> Option<(String, FracModel)> {
+    let req = GeneralRequest::default();
+    let (ranked, _) = starts(rec, template, opts, &req).ok()?;
+    let s = ranked.first()?;
+    let mut m = structure(s, template, &req);
+    m.approx = template.approx;
+    Some((s.name(), m))
+}
+
+/// One size's row in the comparison.
+fn score(name: &str, f: &Result<Identification>) -> StructureScore {
+    let mut s = StructureScore {
+        name: name.into(),
+        model: String::new(),
+        failed: None,
+        rmse: None,
+        problems: vec![],
+        effects: vec![],
+        free_params: 0,
+        rmse_after: None,
+        bic_after: None,
+    };
+    match f {
+        Ok(id) => {
+            let k = id.model.params.iter().filter(|p| p.free).count();
+            let ssr = id.estimation.rmse.powi(2) * id.split as f64;
+            s.model = id.tf.to_string();
+            s.rmse = Some(id.validation.unwrap_or(id.estimation).rmse);
+            s.rmse_after = s.rmse;
+            s.problems = id.problems.clone();
+            s.free_params = k;
+            s.bic_after = Some(crate::diagnose::bic(ssr, id.split, k));
+        }
+        Err(e) => s.failed = Some(e.to_string()),
+    }
+    s
+}
+
+/// The chosen row: among the usable rows (all when none is) with a finite RMSE, the ties within
+/// [`TIE`] of the best, the lowest BIC of them.
+fn decide(scores: &[StructureScore]) -> Option<usize> {
+    let ok = |s: &StructureScore| s.rmse.is_some_and(f64::is_finite);
+    let any_usable = scores.iter().any(|s| ok(s) && s.problems.is_empty());
+    let pool: Vec<usize> = (0..scores.len())
+        .filter(|&i| ok(&scores[i]) && (!any_usable || scores[i].problems.is_empty()))
+        .collect();
+    let best = pool
+        .iter()
+        .filter_map(|&i| scores[i].rmse)
+        .fold(f64::INFINITY, f64::min);
+    pool.into_iter()
+        .filter(|&i| scores[i].rmse.is_some_and(|r| r <= best * (1.0 + TIE)))
+        .min_by(|&a, &b| {
+            let bic = |i: usize| scores[i].bic_after.unwrap_or(f64::INFINITY);
+            bic(a).total_cmp(&bic(b))
+        })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn row(rmse: f64, bic: f64, usable: bool) -> StructureScore {
+        StructureScore {
+            name: "r".into(),
+            model: String::new(),
+            failed: None,
+            rmse: Some(rmse),
+            problems: if usable { vec![] } else { vec!["x".into()] },
+            effects: vec![],
+            free_params: 1,
+            rmse_after: Some(rmse),
+            bic_after: Some(bic),
+        }
+    }
+
+    #[test]
+    fn the_rule_prefers_usable_then_ties_by_bic() {
+        // the unusable best is passed over; of the two within 2%, the lower BIC
+        let rows = [
+            row(0.5, 0.0, false),
+            row(1.0, 10.0, true),
+            row(1.015, 5.0, true),
+            row(1.1, -100.0, true),
+        ];
+        assert_eq!(decide(&rows), Some(2));
+        assert_eq!(decide(&rows[..1]), Some(0));
+        assert_eq!(decide(&[]), None);
+    }
+}
