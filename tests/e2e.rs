@@ -612,24 +612,8 @@ fn the_diagnosis_holds_a_two_mass_drive_trains_resonance() {
     .signal(dt)
     .unwrap();
     let clean = fracsim::gl::simulate_held_twice(&truth, &u, dt, 10).unwrap();
-    // Seeded Gaussian noise (Box-Muller on a 64-bit LCG).
-    let mut seed = 2929u64;
-    let mut uniform = || {
-        seed = seed
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        ((seed >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-    };
     let dir = tempfile::tempdir().unwrap();
-    let path = dir.path().join("two_mass.csv");
-    let mut text = String::from("t,u,y\n");
-    for k in 0..u.len() {
-        let (a, b) = (uniform(), uniform());
-        let e = 0.13 * (-2.0 * a.ln()).sqrt() * (2.0 * std::f64::consts::PI * b).cos();
-        let y = clean[k] + e;
-        text.push_str(&format!("{},{},{}\n", k as f64 * dt, u[k], y));
-    }
-    std::fs::write(&path, text).unwrap();
+    let path = noisy_record(&dir.path().join("two_mass.csv"), &u, &clean, dt, 2929);
     let j = fracid_json(&[
         "time",
         path.to_str().unwrap(),
@@ -694,17 +678,7 @@ fn the_diagnosis_holds_a_two_mass_drive_trains_resonance() {
     // swing (about 64).
     let text = j["model"]["text"].as_str().unwrap();
     assert!(text.contains(" * "), "{text}");
-    let out = fracid(&["sim", "--model", text, "--input", path.to_str().unwrap()]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let sim: Vec<f64> = String::from_utf8_lossy(&out.stdout)
-        .lines()
-        .filter(|l| !l.starts_with('#') && !l.starts_with('t'))
-        .map(|l| l.rsplit(',').next().unwrap().parse().unwrap())
-        .collect();
+    let sim = sim_on_input(text, path.to_str().unwrap());
     assert_eq!(sim.len(), u.len());
     let err = (sim
         .iter()
@@ -715,14 +689,7 @@ fn the_diagnosis_holds_a_two_mass_drive_trains_resonance() {
         .sqrt();
     eprintln!("fracid sim of the reported model against the truth: RMSE {err:.4}");
     assert!(err < 0.5, "{err}");
-    let json = dir.path().join("report.json");
-    std::fs::write(&json, j.to_string()).unwrap();
-    let out = fracid(&["export", json.to_str().unwrap(), "--dt", "1e-3"]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    exports(&j, dir.path());
 }
 
 /// A plant with a direct feed-through (issue 29): the paper's PMSM plus an instant response
@@ -749,23 +716,8 @@ fn the_diagnosis_finds_a_direct_feedthrough() {
     .unwrap();
     let g_out = fracsim::gl::simulate_held_twice(&g, &u, dt, 10).unwrap();
     let clean: Vec<f64> = (0..u.len()).map(|k| g_out[k] + d_true * u[k]).collect();
-    // Seeded Gaussian noise (Box-Muller on a 64-bit LCG).
-    let mut seed = 2930u64;
-    let mut uniform = || {
-        seed = seed
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        ((seed >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-    };
     let dir = tempfile::tempdir().unwrap();
-    let path = dir.path().join("feedthrough.csv");
-    let mut text = String::from("t,u,y\n");
-    for k in 0..u.len() {
-        let (a, b) = (uniform(), uniform());
-        let e = 0.13 * (-2.0 * a.ln()).sqrt() * (2.0 * std::f64::consts::PI * b).cos();
-        text.push_str(&format!("{},{},{}\n", k as f64 * dt, u[k], clean[k] + e));
-    }
-    std::fs::write(&path, text).unwrap();
+    let path = noisy_record(&dir.path().join("feedthrough.csv"), &u, &clean, dt, 2930);
     let file = path.to_str().unwrap();
     let param = |j: &serde_json::Value, name: &str| -> f64 {
         j["params"]
@@ -825,17 +777,7 @@ fn the_diagnosis_finds_a_direct_feedthrough() {
     // from rest and follows the noiseless truth (swing about 20) to a small part of the noise.
     let text = j["model"]["text"].as_str().unwrap();
     assert!(text.starts_with(&format!("{dhat} + ")), "{text}");
-    let out = fracid(&["sim", "--model", text, "--input", file]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let sim: Vec<f64> = String::from_utf8_lossy(&out.stdout)
-        .lines()
-        .filter(|l| !l.starts_with('#') && !l.starts_with('t'))
-        .map(|l| l.rsplit(',').next().unwrap().parse().unwrap())
-        .collect();
+    let sim = sim_on_input(text, file);
     assert_eq!(sim.len(), u.len());
     // The fitted model carries an output offset and an initial state the sim does not: compare
     // after removing the mean difference.
@@ -850,7 +792,47 @@ fn the_diagnosis_finds_a_direct_feedthrough() {
         .sqrt();
     eprintln!("fracid sim of the reported model against the truth: RMSE {err:.4}");
     assert!(err < 0.05, "{err}");
-    let json = dir.path().join("report.json");
+    exports(&j, dir.path());
+}
+
+/// `u` and `clean` plus seeded Gaussian noise of standard deviation 0.13 (Box-Muller on a 64-bit
+/// LCG), written to `path` as `t,u,y` at `dt`.
+fn noisy_record(path: &std::path::Path, u: &[f64], clean: &[f64], dt: f64, seed: u64) -> PathBuf {
+    let mut seed = seed;
+    let mut uniform = || {
+        seed = seed
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((seed >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+    };
+    let mut text = String::from("t,u,y\n");
+    for k in 0..u.len() {
+        let (a, b) = (uniform(), uniform());
+        let e = 0.13 * (-2.0 * a.ln()).sqrt() * (2.0 * std::f64::consts::PI * b).cos();
+        text.push_str(&format!("{},{},{}\n", k as f64 * dt, u[k], clean[k] + e));
+    }
+    std::fs::write(path, text).unwrap();
+    path.to_path_buf()
+}
+
+/// `fracid sim --model MODEL --input FILE`'s output column (the command must succeed).
+fn sim_on_input(model: &str, file: &str) -> Vec<f64> {
+    let out = fracid(&["sim", "--model", model, "--input", file]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .filter(|l| !l.starts_with('#') && !l.starts_with('t'))
+        .map(|l| l.rsplit(',').next().unwrap().parse().unwrap())
+        .collect()
+}
+
+/// `fracid export REPORT --dt 1e-3` of the report `j` (written into `dir`) succeeds.
+fn exports(j: &serde_json::Value, dir: &std::path::Path) {
+    let json = dir.join("report.json");
     std::fs::write(&json, j.to_string()).unwrap();
     let out = fracid(&["export", json.to_str().unwrap(), "--dt", "1e-3"]);
     assert!(

@@ -31,27 +31,22 @@ typedef uint16_t fw_octet;
 typedef unsigned char fw_octet;
 #endif
 
-#define FW_PROTO_VERSION 3u /* 3: KEEPALIVE carries the run id; only the run's keeps it alive */
-#define FW_MAJOR 1u
-#define FW_MINOR 3u /* 1.1: the speed loop (LOAD_CTRL, LOAD_SECTION, START_LOOP); 1.2: controller
-                       * format 2 (48 sections, 8 delay taps); 1.3: protocol 3 (the keepalive
-                       * of the run's own host only) */
-#define FW_N_CHANNELS 3u
-/** Samples per DATA block at most (PROTOCOL.md: 66). */
-#define FW_MAX_BLOCK 66u
+/* The protocol's constants, type codes, payload lengths and field offsets: generated from the
+ * Rust description of the frames (crates/drive/src/protocol/spec.rs). */
+#include <fw_protocol.h> /* <>: the generated copy ahead on the include path wins (crates/drive/build.rs) */
+
 /** Largest frame body: ver, type, seq (4) + DATA payload 8 + 6*66 + crc (2). */
-#define FW_MAX_BODY 410u
+#define FW_MAX_BODY (4u + FW_LEN_DATA + FW_LEN_DATA_SAMPLE * FW_MAX_BLOCK + 2u)
 /** Largest COBS-encoded body (without delimiters). */
 #define FW_MAX_ENCODED (FW_MAX_BODY + FW_MAX_BODY / 254u + 1u)
 /** Longest host-to-drive frame body with its CRC: CONFIGURE, 4 + 26 + 2. */
-#define FW_MAX_CMD_BODY 32u
+#define FW_MAX_CMD_BODY (4u + FW_LEN_CONFIGURE + 2u)
 /** Receive buffer: the longest host frame, COBS-encoded. Longer frames cannot be commands: the
  * receiver stops storing them and counts them as errors at their delimiter, so the work done on
  * a received octet stays bounded by one command frame (decode and CRC of at most 33 octets). */
 #define FW_RX_MAX_ENCODED (FW_MAX_CMD_BODY + 1u)
-/** Longest sine measurement window the fixed-point DFT accepts, samples (2^22): the ramp moment
- * sum (2k - (n-1)) y_k stays below 2^59 in 64 bits. */
-#define FW_MAX_DFT_SAMPLES 4194304ul
+/* FW_MAX_DFT_SAMPLES (fw_protocol.h), 2^22: the ramp moment sum (2k - (n-1)) y_k of the
+ * fixed-point DFT stays below 2^59 in 64 bits. */
 
 #ifndef FW_TX_BLOCKS
 /** DATA blocks the transmit buffer holds (PROTOCOL.md: at least 2). */
@@ -64,58 +59,9 @@ typedef unsigned char fw_octet;
 /** Longest answer body (6 + 22; STATUS_REPLY needs 6 + 16; SINE_RESULT goes through the data ring). */
 #define FW_ANSWER_BODY 28u
 
-/* message types */
-#define FW_T_HELLO 0x01u
-#define FW_T_CONFIGURE 0x02u
-#define FW_T_START_PRBS 0x03u
-#define FW_T_START_SINE 0x04u
-#define FW_T_STOP 0x05u
-#define FW_T_ESTOP 0x06u
-#define FW_T_STATUS 0x07u
-#define FW_T_KEEPALIVE 0x08u
-#define FW_T_END_QUERY 0x09u
-#define FW_T_LOAD_CTRL 0x0Au
-#define FW_T_LOAD_SECTION 0x0Bu
-#define FW_T_START_LOOP 0x0Cu
-#define FW_T_ACK 0x80u
-#define FW_T_HELLO_REPLY 0x81u
-#define FW_T_STATUS_REPLY 0x87u
-#define FW_T_NAK 0x8Fu
-#define FW_T_DATA 0x90u
-#define FW_T_STREAM_END 0x91u
-#define FW_T_SINE_RESULT 0x92u
-
-/* NAK codes, faults, end reasons, states (PROTOCOL.md section 3) */
-#define FW_NAK_UNKNOWN_TYPE 1u
-#define FW_NAK_BAD_LENGTH 2u
-#define FW_NAK_BAD_VALUE 3u
-#define FW_NAK_BUSY 4u
-#define FW_NAK_NOT_CONFIGURED 5u
-#define FW_NAK_FAULT 6u
-#define FW_NAK_NO_CONTROLLER 8u
-#define FW_FAULT_NONE 0u
-#define FW_FAULT_ESTOP 1u
-#define FW_FAULT_KEEPALIVE 2u
-#define FW_FAULT_SPEED 3u
-#define FW_FAULT_CURRENT 4u
-#define FW_END_COMPLETE 0u
-#define FW_END_STOPPED 1u
-#define FW_END_ESTOP 2u
-#define FW_END_KEEPALIVE 3u
-#define FW_END_LIMIT 4u
-
-/** Controller format 1 of LOAD_CTRL (parallel first-order sections: poles Q30, gains Q24,
- * 64-bit states Q32), at most FW_MAX_SECTIONS_V1 sections. */
-#define FW_CTRL_FORMAT 1u
-/** Controller format 2 (firmware 1.2): format 1's sections, at most FW_MAX_SECTIONS, and at most
- * FW_MAX_TAPS delay taps on the past conditioned errors. */
-#define FW_CTRL_FORMAT_TAPS 2u
-/** Sections of a format-1 controller at most. */
-#define FW_MAX_SECTIONS_V1 24u
-/** Sections of the speed controller at most (format 2). */
-#define FW_MAX_SECTIONS 48u
-/** Delay taps of the speed controller at most (format 2). */
-#define FW_MAX_TAPS 8u
+/* Controller formats (fw_protocol.h): FW_CTRL_FORMAT, parallel first-order sections (poles Q30,
+ * gains Q24, 64-bit states Q32), at most FW_MAX_SECTIONS_V1; FW_CTRL_FORMAT_TAPS (firmware 1.2),
+ * at most FW_MAX_SECTIONS sections and FW_MAX_TAPS delay taps on the past conditioned errors. */
 
 /**
  * The speed controller (PROTOCOL.md section 3, "Speed loop"): with s = sum z_i + 2^8 sum h_j w_j,
@@ -254,7 +200,7 @@ typedef struct {
     uint32_t last_done;
     uint16_t last_dropped, last_clamped;
     uint16_t end_valid;
-    fw_octet end_payload[14];
+    fw_octet end_payload[FW_LEN_STREAM_END];
 } fw_t;
 
 /** Reset everything (power-up): no configuration, no run, empty buffers, the given boot id. */

@@ -72,6 +72,9 @@ static uint16_t next_tx_seq(fw_t *fw)
     return fw->tx_seq;
 }
 
+/* A frame body: ver, type, seq (HDR octets), then the payload (offsets FW_OFF_*, fw_protocol.h). */
+#define HDR 4u
+
 static void header(fw_octet *b, uint16_t type, uint16_t seq)
 {
     put8(b, FW_PROTO_VERSION);
@@ -96,25 +99,25 @@ static fw_answer *answer(fw_t *fw, uint16_t type, uint16_t seq, uint16_t payload
     }
     a = &fw->ans[idx];
     header(a->b, type, seq);
-    a->len = (uint16_t)(4u + payload_len);
+    a->len = (uint16_t)(HDR + payload_len);
     return a;
 }
 
 static void ack(fw_t *fw, uint16_t type, uint16_t seq, uint16_t run_id, uint32_t total)
 {
-    fw_answer *a = answer(fw, FW_T_ACK, seq, 8u);
-    put8(a->b + 4, type);
-    put8(a->b + 5, 0u);
-    put16(a->b + 6, run_id);
-    put32(a->b + 8, total);
+    fw_answer *a = answer(fw, FW_T_ACK, seq, FW_LEN_ACK);
+    put8(a->b + HDR + FW_OFF_ACK_ACKED_TYPE, type);
+    put8(a->b + HDR + FW_OFF_ACK_RESERVED, 0u);
+    put16(a->b + HDR + FW_OFF_ACK_RUN_ID, run_id);
+    put32(a->b + HDR + FW_OFF_ACK_TOTAL_SAMPLES, total);
 }
 
 static void nak(fw_t *fw, uint16_t type, uint16_t seq, uint16_t code, uint16_t detail)
 {
-    fw_answer *a = answer(fw, FW_T_NAK, seq, 4u);
-    put8(a->b + 4, type);
-    put8(a->b + 5, code);
-    put16(a->b + 6, detail);
+    fw_answer *a = answer(fw, FW_T_NAK, seq, FW_LEN_NAK);
+    put8(a->b + HDR + FW_OFF_NAK_NAK_TYPE, type);
+    put8(a->b + HDR + FW_OFF_NAK_CODE, code);
+    put16(a->b + HDR + FW_OFF_NAK_DETAIL, detail);
 }
 
 int fw_drop_last_answer(fw_t *fw)
@@ -143,7 +146,7 @@ static fw_slot *end_frame(fw_t *fw, uint16_t type, uint16_t payload_len)
     }
     s = build_slot(fw);
     header(s->b, type, next_tx_seq(fw));
-    s->len = (uint16_t)(4u + payload_len);
+    s->len = (uint16_t)(HDR + payload_len);
     fw->data_count++;
     return s;
 }
@@ -165,11 +168,11 @@ static void flush_block(fw_t *fw)
     } else {
         s = build_slot(fw);
         header(s->b, FW_T_DATA, next_tx_seq(fw));
-        put16(s->b + 4, fw->run_id);
-        put32(s->b + 6, fw->block_first);
-        put8(s->b + 10, fw->block_n);
-        put8(s->b + 11, fw->block_flags);
-        s->len = (uint16_t)(12u + 6u * fw->block_n);
+        put16(s->b + HDR + FW_OFF_DATA_RUN_ID, fw->run_id);
+        put32(s->b + HDR + FW_OFF_DATA_FIRST_INDEX, fw->block_first);
+        put8(s->b + HDR + FW_OFF_DATA_N, fw->block_n);
+        put8(s->b + HDR + FW_OFF_DATA_FLAGS, fw->block_flags);
+        s->len = (uint16_t)(HDR + FW_LEN_DATA + FW_LEN_DATA_SAMPLE * fw->block_n);
         fw->data_count++;
         fw->sent += fw->block_n;
     }
@@ -221,33 +224,34 @@ static void end_run(fw_t *fw, uint16_t reason)
         return;
     }
     flush_block(fw);
-    if (fw->kind == 2u && (fw->sine_flags & 2u) && reason == FW_END_COMPLETE) {
-        s = end_frame(fw, FW_T_SINE_RESULT, 38u);
+    if (fw->kind == 2u && (fw->sine_flags & FW_SINE_DFT) && reason == FW_END_COMPLETE) {
+        s = end_frame(fw, FW_T_SINE_RESULT, FW_LEN_SINE_RESULT);
         if (s) {
-            put16(s->b + 4, fw->run_id);
-            put32(s->b + 6, fw->sine_measure);
-            put32(s->b + 10, (uint32_t)q8_result(fw->acc[0], fw->sine_measure));
-            put32(s->b + 14, (uint32_t)q8_result(fw->acc[1], fw->sine_measure));
-            put32(s->b + 18, (uint32_t)q8_result(fw->acc[2], fw->sine_measure));
-            put32(s->b + 22, (uint32_t)q8_result(fw->acc[3], fw->sine_measure));
-            put32(s->b + 26, (uint32_t)q8_mean(fw->lvl[0], fw->sine_measure));
-            put32(s->b + 30, (uint32_t)q8_ramp(fw->rmp[0], fw->sine_measure));
-            put32(s->b + 34, (uint32_t)q8_mean(fw->lvl[1], fw->sine_measure));
-            put32(s->b + 38, (uint32_t)q8_ramp(fw->rmp[1], fw->sine_measure));
+            fw_octet *q = s->b + HDR;
+            put16(q + FW_OFF_SINE_RESULT_RUN_ID, fw->run_id);
+            put32(q + FW_OFF_SINE_RESULT_N, fw->sine_measure);
+            put32(q + FW_OFF_SINE_RESULT_U_RE, (uint32_t)q8_result(fw->acc[0], fw->sine_measure));
+            put32(q + FW_OFF_SINE_RESULT_U_IM, (uint32_t)q8_result(fw->acc[1], fw->sine_measure));
+            put32(q + FW_OFF_SINE_RESULT_Y_RE, (uint32_t)q8_result(fw->acc[2], fw->sine_measure));
+            put32(q + FW_OFF_SINE_RESULT_Y_IM, (uint32_t)q8_result(fw->acc[3], fw->sine_measure));
+            put32(q + FW_OFF_SINE_RESULT_U_MEAN, (uint32_t)q8_mean(fw->lvl[0], fw->sine_measure));
+            put32(q + FW_OFF_SINE_RESULT_U_RAMP, (uint32_t)q8_ramp(fw->rmp[0], fw->sine_measure));
+            put32(q + FW_OFF_SINE_RESULT_Y_MEAN, (uint32_t)q8_mean(fw->lvl[1], fw->sine_measure));
+            put32(q + FW_OFF_SINE_RESULT_Y_RAMP, (uint32_t)q8_ramp(fw->rmp[1], fw->sine_measure));
         }
     }
-    put16(fw->end_payload, fw->run_id);
-    put8(fw->end_payload + 2, reason);
-    put8(fw->end_payload + 3, 0u);
-    put32(fw->end_payload + 4, fw->done);
-    put32(fw->end_payload + 8, fw->sent);
-    put16(fw->end_payload + 12, fw->dropped);
+    put16(fw->end_payload + FW_OFF_STREAM_END_RUN_ID, fw->run_id);
+    put8(fw->end_payload + FW_OFF_STREAM_END_REASON, reason);
+    put8(fw->end_payload + FW_OFF_STREAM_END_RESERVED, 0u);
+    put32(fw->end_payload + FW_OFF_STREAM_END_TOTAL_SAMPLES, fw->done);
+    put32(fw->end_payload + FW_OFF_STREAM_END_SAMPLES_SENT, fw->sent);
+    put16(fw->end_payload + FW_OFF_STREAM_END_BLOCKS_DROPPED, fw->dropped);
     fw->end_valid = 1;
-    s = end_frame(fw, FW_T_STREAM_END, 14u);
+    s = end_frame(fw, FW_T_STREAM_END, FW_LEN_STREAM_END);
     if (s) {
         uint16_t k;
-        for (k = 0; k < 14u; k++) {
-            s->b[4u + k] = fw->end_payload[k];
+        for (k = 0; k < FW_LEN_STREAM_END; k++) {
+            s->b[HDR + k] = fw->end_payload[k];
         }
     }
     fw->last_valid = 1;
@@ -395,10 +399,10 @@ void fw_sample_end(fw_t *fw, int16_t y_raw, int16_t i_raw)
             fw->block_n = 0;
             fw->block_first = fw->done;
         }
-        p = s->b + 12u + 6u * fw->block_n;
-        put16(p, (uint16_t)fw->cur_u);
-        put16(p + 2, (uint16_t)y_raw);
-        put16(p + 4, (uint16_t)i_raw);
+        p = s->b + HDR + FW_LEN_DATA + FW_LEN_DATA_SAMPLE * fw->block_n;
+        put16(p + FW_OFF_DATA_SAMPLE_U, (uint16_t)fw->cur_u);
+        put16(p + FW_OFF_DATA_SAMPLE_Y, (uint16_t)y_raw);
+        put16(p + FW_OFF_DATA_SAMPLE_I, (uint16_t)i_raw);
         fw->block_n++;
         fw->block_flags |= fw->cur_flags;
     }
@@ -441,37 +445,37 @@ static void cmd_configure(fw_t *fw, uint16_t seq, const fw_octet *p)
 {
     fw_config c;
     uint16_t bad = 0xFFFFu;
-    c.sample_rate_hz = get32(p);
-    c.block_samples = get8(p + 4);
-    c.keepalive_ms = get16(p + 6);
-    c.scale_u_uv = get32(p + 8);
-    c.scale_y_urad_s = get32(p + 12);
-    c.scale_i_ua = get32(p + 16);
-    c.u_limit = geti16(p + 20);
-    c.y_limit = geti16(p + 22);
-    c.i_limit = geti16(p + 24);
+    c.sample_rate_hz = get32(p + FW_OFF_CONFIGURE_SAMPLE_RATE_HZ);
+    c.block_samples = get8(p + FW_OFF_CONFIGURE_BLOCK_SAMPLES);
+    c.keepalive_ms = get16(p + FW_OFF_CONFIGURE_KEEPALIVE_MS);
+    c.scale_u_uv = get32(p + FW_OFF_CONFIGURE_SCALE_U_UV);
+    c.scale_y_urad_s = get32(p + FW_OFF_CONFIGURE_SCALE_Y_URAD_S);
+    c.scale_i_ua = get32(p + FW_OFF_CONFIGURE_SCALE_I_UA);
+    c.u_limit = geti16(p + FW_OFF_CONFIGURE_U_LIMIT);
+    c.y_limit = geti16(p + FW_OFF_CONFIGURE_Y_LIMIT);
+    c.i_limit = geti16(p + FW_OFF_CONFIGURE_I_LIMIT);
     if (fw->running) {
         nak(fw, FW_T_CONFIGURE, seq, FW_NAK_BUSY, 0);
         return;
     }
     if (c.sample_rate_hz == 0ul || c.sample_rate_hz > fw->max_sample_rate_hz) {
-        bad = 0;
+        bad = FW_OFF_CONFIGURE_SAMPLE_RATE_HZ;
     } else if (c.block_samples == 0u || c.block_samples > FW_MAX_BLOCK) {
-        bad = 4;
+        bad = FW_OFF_CONFIGURE_BLOCK_SAMPLES;
     } else if (c.keepalive_ms < 50u || c.keepalive_ms > 5000u) {
-        bad = 6;
+        bad = FW_OFF_CONFIGURE_KEEPALIVE_MS;
     } else if (c.scale_u_uv == 0ul) {
-        bad = 8;
+        bad = FW_OFF_CONFIGURE_SCALE_U_UV;
     } else if (c.scale_y_urad_s == 0ul) {
-        bad = 12;
+        bad = FW_OFF_CONFIGURE_SCALE_Y_URAD_S;
     } else if (c.scale_i_ua == 0ul) {
-        bad = 16;
+        bad = FW_OFF_CONFIGURE_SCALE_I_UA;
     } else if (c.u_limit <= 0) {
-        bad = 20;
+        bad = FW_OFF_CONFIGURE_U_LIMIT;
     } else if (c.y_limit <= 0) {
-        bad = 22;
+        bad = FW_OFF_CONFIGURE_Y_LIMIT;
     } else if (c.i_limit <= 0) {
-        bad = 24;
+        bad = FW_OFF_CONFIGURE_I_LIMIT;
     }
     if (bad != 0xFFFFu) {
         nak(fw, FW_T_CONFIGURE, seq, FW_NAK_BAD_VALUE, bad);
@@ -491,34 +495,35 @@ static void cmd_configure(fw_t *fw, uint16_t seq, const fw_octet *p)
 
 static void cmd_prbs(fw_t *fw, uint16_t seq, const fw_octet *p)
 {
-    uint16_t order = get8(p);
-    uint32_t taps = get32(p + 2), seed = get32(p + 6);
-    uint16_t clock = get16(p + 10);
-    int16_t amp = geti16(p + 12), off = geti16(p + 14);
-    uint16_t periods = get16(p + 16);
-    uint32_t settle = get32(p + 18);
+    uint16_t order = get8(p + FW_OFF_START_PRBS_ORDER);
+    uint32_t taps = get32(p + FW_OFF_START_PRBS_TAPS), seed = get32(p + FW_OFF_START_PRBS_SEED);
+    uint16_t clock = get16(p + FW_OFF_START_PRBS_CLOCK_SAMPLES);
+    int16_t amp = geti16(p + FW_OFF_START_PRBS_AMPLITUDE);
+    int16_t off = geti16(p + FW_OFF_START_PRBS_OFFSET);
+    uint16_t periods = get16(p + FW_OFF_START_PRBS_PERIODS);
+    uint32_t settle = get32(p + FW_OFF_START_PRBS_SETTLE_SAMPLES);
     uint32_t mask;
     uint64_t total;
     if (!start_check(fw, FW_T_START_PRBS, seq)) {
         return;
     }
     if (order < 2u || order > 31u) {
-        nak(fw, FW_T_START_PRBS, seq, FW_NAK_BAD_VALUE, 0);
+        nak(fw, FW_T_START_PRBS, seq, FW_NAK_BAD_VALUE, FW_OFF_START_PRBS_ORDER);
         return;
     }
     mask = (1ul << order) - 1ul;
     total = (uint64_t)settle + (uint64_t)periods * mask * clock;
     if (total > 0xFFFFFFFFull) {
-        nak(fw, FW_T_START_PRBS, seq, FW_NAK_BAD_VALUE, 0);
+        nak(fw, FW_T_START_PRBS, seq, FW_NAK_BAD_VALUE, FW_OFF_START_PRBS_ORDER);
         return;
     }
     if (seed == 0ul || (seed & ~mask) != 0ul || (taps & (1ul << (order - 1u))) == 0ul ||
         (taps & ~mask) != 0ul) {
-        nak(fw, FW_T_START_PRBS, seq, FW_NAK_BAD_VALUE, 2);
+        nak(fw, FW_T_START_PRBS, seq, FW_NAK_BAD_VALUE, FW_OFF_START_PRBS_TAPS);
         return;
     }
     if (clock == 0u || periods == 0u || amp < 0 || total == 0u) {
-        nak(fw, FW_T_START_PRBS, seq, FW_NAK_BAD_VALUE, 10);
+        nak(fw, FW_T_START_PRBS, seq, FW_NAK_BAD_VALUE, FW_OFF_START_PRBS_CLOCK_SAMPLES);
         return;
     }
     begin_run(fw, 1u, (uint32_t)total, 1u);
@@ -540,29 +545,32 @@ static void cmd_prbs(fw_t *fw, uint16_t seq, const fw_octet *p)
 
 static void cmd_sine(fw_t *fw, uint16_t seq, const fw_octet *p)
 {
-    uint32_t f = get32(p);
-    int16_t amp = geti16(p + 4), off = geti16(p + 6);
-    uint16_t settle_c = get16(p + 8), cycles = get16(p + 10), flags = get8(p + 12);
+    uint32_t f = get32(p + FW_OFF_START_SINE_FREQ_MHZ);
+    int16_t amp = geti16(p + FW_OFF_START_SINE_AMPLITUDE);
+    int16_t off = geti16(p + FW_OFF_START_SINE_OFFSET);
+    uint16_t settle_c = get16(p + FW_OFF_START_SINE_SETTLE_CYCLES);
+    uint16_t cycles = get16(p + FW_OFF_START_SINE_CYCLES);
+    uint16_t flags = get8(p + FW_OFF_START_SINE_FLAGS);
     uint64_t fs, settle, measure;
     if (!start_check(fw, FW_T_START_SINE, seq)) {
         return;
     }
     fs = fw->conf.sample_rate_hz;
-    if (f == 0ul || (uint64_t)f > fs * 500u || amp < 0 || cycles == 0u || (flags & 3u) == 0u) {
-        nak(fw, FW_T_START_SINE, seq, FW_NAK_BAD_VALUE, 0);
+    if (f == 0ul || (uint64_t)f > fs * 500u || amp < 0 || cycles == 0u || (flags & (FW_SINE_STREAM | FW_SINE_DFT)) == 0u) {
+        nak(fw, FW_T_START_SINE, seq, FW_NAK_BAD_VALUE, FW_OFF_START_SINE_FREQ_MHZ);
         return;
     }
     settle = ((uint64_t)settle_c * fs * 1000u + f / 2u) / f;
     measure = ((uint64_t)cycles * fs * 1000u + f / 2u) / f;
     if (settle + measure > 0xFFFFFFFFull || measure == 0u) {
-        nak(fw, FW_T_START_SINE, seq, FW_NAK_BAD_VALUE, 0);
+        nak(fw, FW_T_START_SINE, seq, FW_NAK_BAD_VALUE, FW_OFF_START_SINE_FREQ_MHZ);
         return;
     }
-    if ((flags & 2u) && measure > FW_MAX_DFT_SAMPLES) {
-        nak(fw, FW_T_START_SINE, seq, FW_NAK_BAD_VALUE, 10);
+    if ((flags & FW_SINE_DFT) && measure > FW_MAX_DFT_SAMPLES) {
+        nak(fw, FW_T_START_SINE, seq, FW_NAK_BAD_VALUE, FW_OFF_START_SINE_CYCLES);
         return;
     }
-    begin_run(fw, 2u, (uint32_t)(settle + measure), (uint16_t)(flags & 1u));
+    begin_run(fw, 2u, (uint32_t)(settle + measure), (uint16_t)(flags & FW_SINE_STREAM));
     fw->phase = 0;
     fw->inc = (uint32_t)((((uint64_t)f << 32) + 500u * fs) / (1000u * fs));
     fw->sine_settle = (uint32_t)settle;
@@ -577,7 +585,8 @@ static void cmd_sine(fw_t *fw, uint16_t seq, const fw_octet *p)
 
 static void cmd_load_ctrl(fw_t *fw, uint16_t seq, const fw_octet *p)
 {
-    uint16_t format = get8(p), n = get8(p + 1), taps = get8(p + 2);
+    uint16_t format = get8(p + FW_OFF_LOAD_CTRL_FORMAT), n = get8(p + FW_OFF_LOAD_CTRL_N_SECTIONS);
+    uint16_t taps = get8(p + FW_OFF_LOAD_CTRL_N_TAPS);
     if (fw->running) {
         nak(fw, FW_T_LOAD_CTRL, seq, FW_NAK_BUSY, 0);
         return;
@@ -587,30 +596,30 @@ static void cmd_load_ctrl(fw_t *fw, uint16_t seq, const fw_octet *p)
         return;
     }
     if (format != FW_CTRL_FORMAT && format != FW_CTRL_FORMAT_TAPS) {
-        nak(fw, FW_T_LOAD_CTRL, seq, FW_NAK_BAD_VALUE, 0);
+        nak(fw, FW_T_LOAD_CTRL, seq, FW_NAK_BAD_VALUE, FW_OFF_LOAD_CTRL_FORMAT);
         return;
     }
     if (n > (format == FW_CTRL_FORMAT ? FW_MAX_SECTIONS_V1 : FW_MAX_SECTIONS)) {
-        nak(fw, FW_T_LOAD_CTRL, seq, FW_NAK_BAD_VALUE, 1);
+        nak(fw, FW_T_LOAD_CTRL, seq, FW_NAK_BAD_VALUE, FW_OFF_LOAD_CTRL_N_SECTIONS);
         return;
     }
     if (taps > (format == FW_CTRL_FORMAT ? 0u : FW_MAX_TAPS)) {
-        nak(fw, FW_T_LOAD_CTRL, seq, FW_NAK_BAD_VALUE, 2);
+        nak(fw, FW_T_LOAD_CTRL, seq, FW_NAK_BAD_VALUE, FW_OFF_LOAD_CTRL_N_TAPS);
         return;
     }
     fw->ctrl.n = n;
     fw->ctrl.n_taps = taps;
     fw->ctrl.loaded = 0;
-    fw->ctrl.d_q24 = (int32_t)get32(p + 4);
-    fw->ctrl.dinv_q16 = (int32_t)get32(p + 8);
+    fw->ctrl.d_q24 = (int32_t)get32(p + FW_OFF_LOAD_CTRL_D_Q24);
+    fw->ctrl.dinv_q16 = (int32_t)get32(p + FW_OFF_LOAD_CTRL_DINV_Q16);
     fw->ctrl_ready = (uint16_t)(n + taps == 0u);
     ack(fw, FW_T_LOAD_CTRL, seq, 0, 0);
 }
 
 static void cmd_load_section(fw_t *fw, uint16_t seq, const fw_octet *p)
 {
-    uint16_t i = get8(p);
-    int32_t a = (int32_t)get32(p + 2);
+    uint16_t i = get8(p + FW_OFF_LOAD_SECTION_INDEX);
+    int32_t a = (int32_t)get32(p + FW_OFF_LOAD_SECTION_A_Q30);
     if (fw->running) {
         nak(fw, FW_T_LOAD_SECTION, seq, FW_NAK_BUSY, 0);
         return;
@@ -620,19 +629,19 @@ static void cmd_load_section(fw_t *fw, uint16_t seq, const fw_octet *p)
         return;
     }
     if (i != fw->ctrl.loaded || i >= fw->ctrl.n + fw->ctrl.n_taps) {
-        nak(fw, FW_T_LOAD_SECTION, seq, FW_NAK_BAD_VALUE, 0);
+        nak(fw, FW_T_LOAD_SECTION, seq, FW_NAK_BAD_VALUE, FW_OFF_LOAD_SECTION_INDEX);
         return;
     }
     /* a pole within the unit circle; a tap's pole field 0 */
     if (a > 1073741824l || a < -1073741824l || (i >= fw->ctrl.n && a != 0)) {
-        nak(fw, FW_T_LOAD_SECTION, seq, FW_NAK_BAD_VALUE, 2);
+        nak(fw, FW_T_LOAD_SECTION, seq, FW_NAK_BAD_VALUE, FW_OFF_LOAD_SECTION_A_Q30);
         return;
     }
     if (i < fw->ctrl.n) {
         fw->ctrl.a_q30[i] = a;
-        fw->ctrl.g_q24[i] = (int32_t)get32(p + 6);
+        fw->ctrl.g_q24[i] = (int32_t)get32(p + FW_OFF_LOAD_SECTION_G_Q24);
     } else {
-        fw->ctrl.h_q24[i - fw->ctrl.n] = (int32_t)get32(p + 6);
+        fw->ctrl.h_q24[i - fw->ctrl.n] = (int32_t)get32(p + FW_OFF_LOAD_SECTION_G_Q24);
     }
     fw->ctrl.loaded++;
     fw->ctrl_ready = (uint16_t)(fw->ctrl.loaded == fw->ctrl.n + fw->ctrl.n_taps);
@@ -641,7 +650,8 @@ static void cmd_load_section(fw_t *fw, uint16_t seq, const fw_octet *p)
 
 static void cmd_loop(fw_t *fw, uint16_t seq, const fw_octet *p)
 {
-    uint32_t pre = get32(p + 4), total = get32(p + 8);
+    uint32_t pre = get32(p + FW_OFF_START_LOOP_PRE_SAMPLES);
+    uint32_t total = get32(p + FW_OFF_START_LOOP_TOTAL_SAMPLES);
     if (!start_check(fw, FW_T_START_LOOP, seq)) {
         return;
     }
@@ -650,16 +660,16 @@ static void cmd_loop(fw_t *fw, uint16_t seq, const fw_octet *p)
         return;
     }
     if (pre > total) {
-        nak(fw, FW_T_START_LOOP, seq, FW_NAK_BAD_VALUE, 4);
+        nak(fw, FW_T_START_LOOP, seq, FW_NAK_BAD_VALUE, FW_OFF_START_LOOP_PRE_SAMPLES);
         return;
     }
     if (total == 0ul) {
-        nak(fw, FW_T_START_LOOP, seq, FW_NAK_BAD_VALUE, 8);
+        nak(fw, FW_T_START_LOOP, seq, FW_NAK_BAD_VALUE, FW_OFF_START_LOOP_TOTAL_SAMPLES);
         return;
     }
     begin_run(fw, 3u, total, 1u);
-    fw->loop_r0 = geti16(p);
-    fw->loop_r1 = geti16(p + 2);
+    fw->loop_r0 = geti16(p + FW_OFF_START_LOOP_R0);
+    fw->loop_r1 = geti16(p + FW_OFF_START_LOOP_R1);
     fw->loop_pre = pre;
     fw->loop_y = 0;
     fw_ctrl_reset(&fw->ctrl);
@@ -668,17 +678,18 @@ static void cmd_loop(fw_t *fw, uint16_t seq, const fw_octet *p)
 
 static void cmd_status(fw_t *fw, uint16_t seq)
 {
-    fw_answer *a = answer(fw, FW_T_STATUS_REPLY, seq, 16u);
+    fw_answer *a = answer(fw, FW_T_STATUS_REPLY, seq, FW_LEN_STATUS_REPLY);
     uint16_t state, id = 0, dropped = 0, clamped = 0;
     uint32_t done = 0;
     if (fw->running) {
-        state = 2;
+        state = FW_STATE_RUNNING;
         id = fw->run_id;
         done = fw->done;
         dropped = fw->dropped;
         clamped = fw->clamped;
     } else {
-        state = fw->fault != FW_FAULT_NONE ? 3u : (fw->configured ? 1u : 0u);
+        state = fw->fault != FW_FAULT_NONE ? FW_STATE_FAULT
+                                           : (fw->configured ? FW_STATE_IDLE : FW_STATE_UNCONFIGURED);
         if (fw->last_valid) {
             id = fw->last_id;
             done = fw->last_done;
@@ -686,14 +697,14 @@ static void cmd_status(fw_t *fw, uint16_t seq)
             clamped = fw->last_clamped;
         }
     }
-    put8(a->b + 4, state);
-    put8(a->b + 5, fw->fault);
-    put16(a->b + 6, id);
-    put32(a->b + 8, done);
-    put16(a->b + 12, dropped);
-    put16(a->b + 14, fw->boot_id);
-    put16(a->b + 16, fw->rx_errors);
-    put16(a->b + 18, clamped);
+    put8(a->b + HDR + FW_OFF_STATUS_REPLY_STATE, state);
+    put8(a->b + HDR + FW_OFF_STATUS_REPLY_FAULT, fw->fault);
+    put16(a->b + HDR + FW_OFF_STATUS_REPLY_RUN_ID, id);
+    put32(a->b + HDR + FW_OFF_STATUS_REPLY_SAMPLES_DONE, done);
+    put16(a->b + HDR + FW_OFF_STATUS_REPLY_BLOCKS_DROPPED, dropped);
+    put16(a->b + HDR + FW_OFF_STATUS_REPLY_BOOT_ID, fw->boot_id);
+    put16(a->b + HDR + FW_OFF_STATUS_REPLY_RX_ERRORS, fw->rx_errors);
+    put16(a->b + HDR + FW_OFF_STATUS_REPLY_CLAMPED, clamped);
 }
 
 static void execute(fw_t *fw, uint16_t type, uint16_t seq, const fw_octet *p)
@@ -735,12 +746,13 @@ static void execute(fw_t *fw, uint16_t type, uint16_t seq, const fw_octet *p)
         ack(fw, type, seq, 0, 0);
         break;
     case FW_T_END_QUERY: {
-        uint16_t id = get16(p);
-        if (fw->end_valid && get16(fw->end_payload) == id && !(fw->running && fw->run_id == id)) {
-            fw_answer *a = answer(fw, FW_T_STREAM_END, seq, 14u);
+        uint16_t id = get16(p + FW_OFF_END_QUERY_RUN_ID);
+        if (fw->end_valid && get16(fw->end_payload + FW_OFF_STREAM_END_RUN_ID) == id &&
+            !(fw->running && fw->run_id == id)) {
+            fw_answer *a = answer(fw, FW_T_STREAM_END, seq, FW_LEN_STREAM_END);
             uint16_t k;
-            for (k = 0; k < 14u; k++) {
-                a->b[4u + k] = fw->end_payload[k];
+            for (k = 0; k < FW_LEN_STREAM_END; k++) {
+                a->b[HDR + k] = fw->end_payload[k];
             }
         } else {
             nak(fw, type, seq, FW_NAK_BAD_VALUE, 0);
@@ -758,37 +770,41 @@ static int32_t payload_len(uint16_t type)
 {
     switch (type) {
     case FW_T_HELLO:
+        return FW_LEN_HELLO;
     case FW_T_STOP:
+        return FW_LEN_STOP;
     case FW_T_ESTOP:
+        return FW_LEN_ESTOP;
     case FW_T_STATUS:
-        return 0;
+        return FW_LEN_STATUS;
     case FW_T_KEEPALIVE:
-        return 2; /* run_id (protocol 3) */
+        return FW_LEN_KEEPALIVE;
     case FW_T_CONFIGURE:
-        return 26;
+        return FW_LEN_CONFIGURE;
     case FW_T_START_PRBS:
-        return 22;
+        return FW_LEN_START_PRBS;
     case FW_T_START_SINE:
-        return 14;
+        return FW_LEN_START_SINE;
     case FW_T_END_QUERY:
-        return 2;
+        return FW_LEN_END_QUERY;
     case FW_T_LOAD_CTRL:
+        return FW_LEN_LOAD_CTRL;
     case FW_T_START_LOOP:
-        return 12;
+        return FW_LEN_START_LOOP;
     case FW_T_LOAD_SECTION:
-        return 10;
+        return FW_LEN_LOAD_SECTION;
     case FW_T_ACK:
-        return 8;
+        return FW_LEN_ACK;
     case FW_T_HELLO_REPLY:
-        return 12;
+        return FW_LEN_HELLO_REPLY;
     case FW_T_STATUS_REPLY:
-        return 16;
+        return FW_LEN_STATUS_REPLY;
     case FW_T_NAK:
-        return 4;
+        return FW_LEN_NAK;
     case FW_T_STREAM_END:
-        return 14;
+        return FW_LEN_STREAM_END;
     case FW_T_SINE_RESULT:
-        return 22;
+        return FW_LEN_SINE_RESULT;
     default:
         return -1;
     }
@@ -816,8 +832,8 @@ static uint16_t handle_body(fw_t *fw, const fw_octet *b, uint16_t len)
     plen = (uint16_t)(len - 6u);
     want = payload_len(type);
     if (type == FW_T_DATA) {
-        uint16_t n = plen >= 8u ? get8(p + 6) : 0u;
-        want = (n >= 1u && n <= FW_MAX_BLOCK) ? (int32_t)(8u + 6u * n) : -2;
+        uint16_t n = plen >= FW_LEN_DATA ? get8(p + FW_OFF_DATA_N) : 0u;
+        want = (n >= 1u && n <= FW_MAX_BLOCK) ? (int32_t)(FW_LEN_DATA + FW_LEN_DATA_SAMPLE * n) : -2;
     }
     if (want == -1 && type >= 0x80u) {
         rx_error(fw); /* unknown drive-to-host type */
@@ -832,11 +848,13 @@ static uint16_t handle_body(fw_t *fw, const fw_octet *b, uint16_t len)
         return 0;
     }
     /* reserved fields must be zero */
-    if ((type == FW_T_CONFIGURE && get8(p + 5) != 0u) ||
-        (type == FW_T_START_PRBS && get8(p + 1) != 0u) ||
-        (type == FW_T_START_SINE && (get8(p + 13) != 0u || (get8(p + 12) & ~3u) != 0u)) ||
-        (type == FW_T_LOAD_CTRL && get8(p + 3) != 0u) ||
-        (type == FW_T_LOAD_SECTION && get8(p + 1) != 0u)) {
+    if ((type == FW_T_CONFIGURE && get8(p + FW_OFF_CONFIGURE_RESERVED) != 0u) ||
+        (type == FW_T_START_PRBS && get8(p + FW_OFF_START_PRBS_RESERVED) != 0u) ||
+        (type == FW_T_START_SINE &&
+         (get8(p + FW_OFF_START_SINE_RESERVED) != 0u ||
+          (get8(p + FW_OFF_START_SINE_FLAGS) & ~(FW_SINE_STREAM | FW_SINE_DFT)) != 0u)) ||
+        (type == FW_T_LOAD_CTRL && get8(p + FW_OFF_LOAD_CTRL_RESERVED) != 0u) ||
+        (type == FW_T_LOAD_SECTION && get8(p + FW_OFF_LOAD_SECTION_RESERVED) != 0u)) {
         rx_error(fw);
         return 0;
     }
@@ -846,7 +864,7 @@ static uint16_t handle_body(fw_t *fw, const fw_octet *b, uint16_t len)
         /* Only a KEEPALIVE of the running run resets its keepalive timer (PROTOCOL.md,
          * section 7): any other frame (another program's HELLO and STATUS, a KEEPALIVE of
          * another run) leaves it running, so a run whose host is gone ends. */
-        if (fw->running && get16(p) == fw->run_id) {
+        if (fw->running && get16(p + FW_OFF_KEEPALIVE_RUN_ID) == fw->run_id) {
             fw->quiet_samples = 0;
             fw->cnt.keepalives++;
         }
@@ -858,15 +876,15 @@ static uint16_t handle_body(fw_t *fw, const fw_octet *b, uint16_t len)
     if (type == FW_T_HELLO) {
         fw_answer *a;
         fw->cache_valid = 0;
-        a = answer(fw, FW_T_HELLO_REPLY, seq, 12u);
-        put8(a->b + 4, FW_PROTO_VERSION);
-        put8(a->b + 5, FW_MAJOR);
-        put8(a->b + 6, FW_MINOR);
-        put8(a->b + 7, FW_N_CHANNELS);
-        put8(a->b + 8, FW_MAX_BLOCK);
-        put8(a->b + 9, 0u);
-        put16(a->b + 10, fw->boot_id);
-        put32(a->b + 12, fw->max_sample_rate_hz);
+        a = answer(fw, FW_T_HELLO_REPLY, seq, FW_LEN_HELLO_REPLY);
+        put8(a->b + HDR + FW_OFF_HELLO_REPLY_PROTO_VERSION, FW_PROTO_VERSION);
+        put8(a->b + HDR + FW_OFF_HELLO_REPLY_FW_MAJOR, FW_MAJOR);
+        put8(a->b + HDR + FW_OFF_HELLO_REPLY_FW_MINOR, FW_MINOR);
+        put8(a->b + HDR + FW_OFF_HELLO_REPLY_N_CHANNELS, FW_N_CHANNELS);
+        put8(a->b + HDR + FW_OFF_HELLO_REPLY_MAX_BLOCK_SAMPLES, FW_MAX_BLOCK);
+        put8(a->b + HDR + FW_OFF_HELLO_REPLY_RESERVED, 0u);
+        put16(a->b + HDR + FW_OFF_HELLO_REPLY_BOOT_ID, fw->boot_id);
+        put32(a->b + HDR + FW_OFF_HELLO_REPLY_MAX_SAMPLE_RATE_HZ, fw->max_sample_rate_hz);
         return (uint16_t)(0x100u | type);
     }
     if (fw->cache_valid && fw->cache_seq == seq && fw->cache_type == type) {

@@ -78,7 +78,7 @@ fn int_in<T: TryFrom<i64>>(name: &str, v: impl Into<Int>, lo: i64, hi: i64) -> P
         Err(text) => {
             return Err(errors::data(format!(
                 "{name} = {} must be in {lo}..={hi} (it does not even fit a 64-bit integer)",
-                ident::data::shorten(&text)
+                ident::files::shorten(&text)
             )))
         }
     };

@@ -6,6 +6,7 @@
 pub mod answer;
 pub mod freq;
 pub mod observe;
+pub mod score;
 pub mod time;
 pub mod verdict;
 
@@ -207,7 +208,7 @@ pub fn fix_free(m: &mut FracModel, fix: &str, free: &str) -> Result<()> {
     if let Some(both) = names(fix).into_iter().find(|n| freed.contains(n)) {
         return Err(Error::Options(format!(
             "'{}' is both held (fix) and fitted (free): name it once",
-            crate::data::shorten(&both)
+            crate::files::shorten(&both)
         )));
     }
     for item in fix.split(',').map(str::trim).filter(|s| !s.is_empty()) {

@@ -19,7 +19,8 @@
 //! assert!(parse("1,0,0\n2,-6,-90\n", Some(["0", "1", "2"]), BodeUnits::default(), None).is_ok());
 //! ```
 
-use crate::data::{column_indices, header, read_columns_at, read_text, shorten};
+use crate::data::{column_indices, header, read_columns_at};
+use crate::files::{read_text, shorten};
 use crate::{Error, Result};
 use num_complex::Complex64;
 use std::f64::consts::PI;

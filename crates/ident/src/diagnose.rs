@@ -452,17 +452,43 @@ fn try_candidate(
 ) -> std::result::Result<(State, KeptEffect, Option<usize>), RejectedEffect> {
     let lead_ctx = c.lead.map(|l| ctx.with_lead(l));
     let rctx = lead_ctx.as_ref().unwrap_or(ctx);
-    let rejection = |reason: String, params: BTreeMap<String, f64>| RejectedEffect {
-        name: c.name.into(),
-        reason,
-        params,
-    };
     let params_of = |ns: &State, lead: Option<usize>| {
         let mut params = probe.map_or_else(BTreeMap::new, |p| p.params(&ns.model, &ns.values));
         if let Some(l) = lead {
             params.insert("tau".into(), -(l as f64) * ctx.dt);
         }
         params
+    };
+    let mut ns = refit_candidate(ctx, rctx, st, c, &params_of)?;
+    let lead = c.lead.map(|l| longer_lead(ctx, l, &mut ns));
+    let longer_ctx = lead
+        .filter(|&l| Some(l) != c.lead)
+        .map(|l| ctx.with_lead(l));
+    let rctx = longer_ctx.as_ref().unwrap_or(rctx);
+    let verdict = fresh_if_bent(ctx, rctx, st, &mut ns);
+    let params = params_of(&ns, lead);
+    let k = judge(ctx, st, &ns, c, &verdict, params)?;
+    Ok((ns, k, lead))
+}
+
+/// A candidate's parameters in its report, from its refit and its input advance.
+type ParamsOf<'a> = dyn Fn(&State, Option<usize>) -> BTreeMap<String, f64> + 'a;
+
+/// Candidate `c` refitted on `rctx` (its input advanced when it has a lead) from the current
+/// model `st`: on a long record screened on its leading part first ([`lead_screen`]) and
+/// rejected there when it removes too little; else from each of its starts ([`best_refit`]),
+/// with the give-up test when its refit is judged where it ends ([`with_give_up`]).
+fn refit_candidate(
+    ctx: &Ctx<'_>,
+    rctx: &Ctx<'_>,
+    st: &State,
+    c: &Candidate,
+    params_of: &ParamsOf<'_>,
+) -> std::result::Result<State, RejectedEffect> {
+    let rejection = |reason: String, params: BTreeMap<String, f64>| RejectedEffect {
+        name: c.name.into(),
+        reason,
+        params,
     };
     let screened = lead_screen(rctx, st, &c.starts);
     if let Some((lead, removed)) = &screened {
@@ -501,36 +527,54 @@ fn try_candidate(
         }
         None => best_refit(rctx, &c.starts),
     };
-    let mut ns =
-        refitted.map_err(|e| rejection(format!("the refit failed: {e}"), BTreeMap::new()))?;
-    let lead = c.lead.map(|l| longer_lead(ctx, l, &mut ns));
-    let longer_ctx = lead
-        .filter(|&l| Some(l) != c.lead)
-        .map(|l| ctx.with_lead(l));
-    let rctx = longer_ctx.as_ref().unwrap_or(rctx);
-    let mut verdict = Verdict::of(ctx, st, &ns);
-    // A base parameter at a bound says the missing effect (or the structure) bent the base fit,
-    // not that the effect is spurious: refit once from a fresh start of the base parameters.
-    if verdict.pays(ctx) && !verdict.base_at_bound.is_empty() {
-        let mut fresh = ns.model.clone();
-        for (i, p) in fresh
-            .params
-            .iter_mut()
-            .enumerate()
-            .take(st.model.params.len())
-        {
-            if let Some(&v) = ctx.start.get(i) {
-                p.value = v;
-            }
-        }
-        if let Ok(f) = rctx.refit(fresh) {
-            let fv = Verdict::of(ctx, st, &f);
-            if fv.pays(ctx) && fv.base_at_bound.len() <= verdict.base_at_bound.len() {
-                (ns, verdict) = (f, fv);
-            }
+    refitted.map_err(|e| rejection(format!("the refit failed: {e}"), BTreeMap::new()))
+}
+
+/// What the refit `ns` gains over `st`. A base parameter at a bound says the missing effect (or
+/// the structure) bent the base fit, not that the effect is spurious: `ns` is then refitted once
+/// from a fresh start of the base parameters, and replaced when that pays with no more base
+/// parameters at a bound.
+fn fresh_if_bent(ctx: &Ctx<'_>, rctx: &Ctx<'_>, st: &State, ns: &mut State) -> Verdict {
+    let verdict = Verdict::of(ctx, st, ns);
+    if !verdict.pays(ctx) || verdict.base_at_bound.is_empty() {
+        return verdict;
+    }
+    let mut fresh = ns.model.clone();
+    for (i, p) in fresh
+        .params
+        .iter_mut()
+        .enumerate()
+        .take(st.model.params.len())
+    {
+        if let Some(&v) = ctx.start.get(i) {
+            p.value = v;
         }
     }
-    let params = params_of(&ns, lead);
+    if let Ok(f) = rctx.refit(fresh) {
+        let fv = Verdict::of(ctx, st, &f);
+        if fv.pays(ctx) && fv.base_at_bound.len() <= verdict.base_at_bound.len() {
+            *ns = f;
+            return fv;
+        }
+    }
+    verdict
+}
+
+/// The decision on candidate `c` refitted as `ns` (module documentation, Decision): the kept
+/// effect, or the rejection with the reason.
+fn judge(
+    ctx: &Ctx<'_>,
+    st: &State,
+    ns: &State,
+    c: &Candidate,
+    verdict: &Verdict,
+    params: BTreeMap<String, f64>,
+) -> std::result::Result<KeptEffect, RejectedEffect> {
+    let rejection = |reason: String, params: BTreeMap<String, f64>| RejectedEffect {
+        name: c.name.into(),
+        reason,
+        params,
+    };
     let part = if ns.val.is_some() {
         "validation"
     } else {
@@ -540,7 +584,7 @@ fn try_candidate(
         "{part} RMSE {:.4e} -> {:.4e} ({:+.1}%), BIC {:+.1}; the refit removes {:.1}% of the \
          estimation residual's sum of squares",
         ctx.score(st),
-        ctx.score(&ns),
+        ctx.score(ns),
         100.0 * verdict.change,
         verdict.dbic,
         100.0 * verdict.removed
@@ -586,19 +630,18 @@ fn try_candidate(
         .map(|(k, v)| format!("{k} = {v:.4e}"))
         .collect::<Vec<_>>()
         .join(", ");
-    let k = KeptEffect {
+    Ok(KeptEffect {
         name: c.name.into(),
-        params,
         evidence: format!(
             "{} (screening); refitted: {refitted}; {gain}{note}",
             c.evidence
         ),
+        params,
         r2: c.r2,
         ssr_removed_percent: 100.0 * verdict.removed,
         rmse_change_percent: 100.0 * verdict.change,
         bic_change: verdict.dbic,
-    };
-    Ok((ns, k, lead))
+    })
 }
 
 /// Accepted LM iterations over which a refit's fall is measured by its give-up test
@@ -891,179 +934,258 @@ pub(crate) fn diagnose_until(
     stop: &dyn Fn() -> bool,
     halt: &dyn Fn(usize, f64) -> bool,
 ) -> Result<Diagnosis> {
-    let cancelled = || Error::Cancelled("the diagnosis of a structure not needed".into());
-    if rec.len() != id.yhat.len() || id.split == 0 || id.split > rec.len() {
-        return Err(Error::Data(format!(
-            "the record has {} samples but the identification {} (split {})",
-            rec.len(),
-            id.yhat.len(),
-            id.split
-        )));
-    }
-    if !(opts.margin >= 0.0 && opts.margin < 1.0 && opts.min_r2 >= 0.0) {
-        return Err(Error::Options(format!(
-            "margin {} must be in [0, 1) and min_r2 {} non-negative",
-            opts.margin, opts.min_r2
-        )));
-    }
-    let (u0, y0) = (id.offsets.u0, id.offsets.y0);
-    let mut ctx = Ctx {
-        rec,
-        u: rec.u.iter().map(|v| v - u0).collect(),
-        y: rec.y.iter().map(|v| v - y0).collect(),
-        lead: 0,
-        split: id.split,
-        dt: rec.dt,
-        u0,
-        y0,
-        start: id.start.clone(),
-        opts,
-    };
+    let ctx = Ctx::of(rec, id, opts)?;
     let base = ctx.state(id.model.clone(), id.report.values.clone())?;
-    // The residual tests of the base model are round 0's; those of the final model the last
-    // round's when it kept nothing (each made once, by the round's `Look`).
-    let mut residual_before: Option<ResidualAnalysis> = None;
-    let mut residual_now: Option<ResidualAnalysis> = None;
-    let quantization = find_quantization(&rec.y);
+    let mut run = Rounds {
+        st: base.clone(),
+        path: vec![ctx.step(&base)],
+        ctx,
+        kept: vec![],
+        rejected: BTreeMap::new(),
+        refuted: vec![],
+        ambiguous: vec![],
+        halted: None,
+        residual_before: None,
+        residual_now: None,
+    };
     let library = probes::library();
-    let mut st = base.clone();
-    let mut kept: Vec<KeptEffect> = vec![];
-    let mut rejected: BTreeMap<String, RejectedEffect> = BTreeMap::new();
-    // Candidates proposed without a signature that a refit rejected ([`DiagnoseOptions::min_r2`]).
-    let mut refuted: Vec<String> = vec![];
-    let mut ambiguous: Vec<Ambiguity> = vec![];
-    let mut path = vec![ctx.step(&st)];
-    let mut halted = None;
-    'rounds: for round in 0..opts.max_rounds {
+    for round in 0..opts.max_rounds {
+        if !run.round(round, &library, stop, halt)? {
+            break;
+        }
+    }
+    Ok(run.finish(&base, find_quantization(&rec.y)))
+}
+
+impl<'a> Ctx<'a> {
+    /// The context of a diagnosis of `id` on `rec`, its record and options checked.
+    fn of(rec: &'a Record, id: &Identification, opts: &'a DiagnoseOptions) -> Result<Self> {
+        if rec.len() != id.yhat.len() || id.split == 0 || id.split > rec.len() {
+            return Err(Error::Data(format!(
+                "the record has {} samples but the identification {} (split {})",
+                rec.len(),
+                id.yhat.len(),
+                id.split
+            )));
+        }
+        if !(opts.margin >= 0.0 && opts.margin < 1.0 && opts.min_r2 >= 0.0) {
+            return Err(Error::Options(format!(
+                "margin {} must be in [0, 1) and min_r2 {} non-negative",
+                opts.margin, opts.min_r2
+            )));
+        }
+        let (u0, y0) = (id.offsets.u0, id.offsets.y0);
+        Ok(Ctx {
+            rec,
+            u: rec.u.iter().map(|v| v - u0).collect(),
+            y: rec.y.iter().map(|v| v - y0).collect(),
+            lead: 0,
+            split: id.split,
+            dt: rec.dt,
+            u0,
+            y0,
+            start: id.start.clone(),
+            opts,
+        })
+    }
+}
+
+/// The diagnosis loop's state between rounds ([`diagnose_until`]).
+struct Rounds<'a> {
+    ctx: Ctx<'a>,
+    /// The current model.
+    st: State,
+    kept: Vec<KeptEffect>,
+    rejected: BTreeMap<String, RejectedEffect>,
+    /// Candidates proposed without a signature that a refit rejected ([`DiagnoseOptions::min_r2`]).
+    refuted: Vec<String>,
+    ambiguous: Vec<Ambiguity>,
+    path: Vec<Step>,
+    halted: Option<usize>,
+    /// The residual tests of the base model are round 0's; those of the final model the last
+    /// round's when it kept nothing (each made once, by the round's `Look`).
+    residual_before: Option<ResidualAnalysis>,
+    residual_now: Option<ResidualAnalysis>,
+}
+
+/// The best kept candidate of a round: its refit, the kept effect, its key and its input advance.
+type Best = (State, KeptEffect, String, Option<usize>);
+
+impl Rounds<'_> {
+    /// One round: the probes look at the residual, the strong candidates are refitted and the
+    /// best kept one is added. Whether the loop goes on (`false`: nothing kept, or halted).
+    fn round(
+        &mut self,
+        round: usize,
+        library: &[Box<dyn Probe>],
+        stop: &dyn Fn() -> bool,
+        halt: &dyn Fn(usize, f64) -> bool,
+    ) -> Result<bool> {
+        let cancelled = || Error::Cancelled("the diagnosis of a structure not needed".into());
         if stop() {
             return Err(cancelled());
         }
-        if halt(round, ctx.score(&st)) {
-            halted = Some(round);
-            break;
+        if halt(round, self.ctx.score(&self.st)) {
+            self.halted = Some(round);
+            return Ok(false);
         }
-        let mut found = Findings::default();
-        {
-            let look = Look::new(&ctx, &st, &kept)?;
-            if round == 0 {
-                residual_before = Some(look.analysis.clone());
-            }
-            residual_now = Some(look.analysis.clone());
-            for p in &library {
-                p.probe(&look, &mut found)?;
-            }
-        }
+        let mut found = self.look(round, library)?;
         if round == 0 {
-            ambiguous = std::mem::take(&mut found.ambiguous);
+            self.ambiguous = std::mem::take(&mut found.ambiguous);
         }
-        rejected.extend(found.rejected);
+        self.rejected.extend(found.rejected);
         let mut cands = found.candidates;
         cands.sort_by(|a, b| b.r2.total_cmp(&a.r2));
-        let mut best: Option<(State, KeptEffect, String, Option<usize>)> = None;
+        let mut best: Option<Best> = None;
         for (i, c) in cands.into_iter().enumerate() {
+            let opts = self.ctx.opts;
             if c.r2 < opts.min_r2 || i >= opts.max_refits {
-                rejected.entry(c.key.clone()).or_insert(RejectedEffect {
-                    name: c.name.into(),
-                    reason: format!(
-                        "weak evidence: {} (below the {:.1}% needed to refit)",
-                        c.evidence,
-                        100.0 * opts.min_r2
-                    ),
-                    params: BTreeMap::new(),
-                });
+                self.rejected
+                    .entry(c.key.clone())
+                    .or_insert(RejectedEffect {
+                        name: c.name.into(),
+                        reason: format!(
+                            "weak evidence: {} (below the {:.1}% needed to refit)",
+                            c.evidence,
+                            100.0 * opts.min_r2
+                        ),
+                        params: BTreeMap::new(),
+                    });
                 continue;
             }
             // A candidate proposed without a signature (its evidence at the floor: the delay a
             // base fit's free orders mimic) is refitted in the first round that proposes it; once
             // a refit has rejected it, a later round (the model with one more effect) does not
             // refit it again, and its rejection stands.
-            if c.r2 <= opts.min_r2 && refuted.contains(&c.key) {
+            if c.r2 <= opts.min_r2 && self.refuted.contains(&c.key) {
                 continue;
             }
             if stop() {
                 return Err(cancelled());
             }
-            if halt(round, ctx.score(&st)) {
-                halted = Some(round);
-                break 'rounds;
+            if halt(round, self.ctx.score(&self.st)) {
+                self.halted = Some(round);
+                return Ok(false);
             }
-            let probe = library.iter().find(|p| p.name() == c.name);
-            match try_candidate(&ctx, &st, &c, probe.map(|p| p.as_ref())) {
-                Ok((ns, k, lead)) => {
-                    if best
-                        .as_ref()
-                        .is_none_or(|(b, _, _, _)| ctx.score(&ns) < ctx.score(b))
-                    {
-                        best = Some((ns, k, c.key.clone(), lead));
-                    }
+            self.refit(&c, library, &mut best);
+        }
+        Ok(self.keep(best))
+    }
+
+    /// The probes' findings on the current model's residual (its tests kept for the report).
+    fn look(&mut self, round: usize, library: &[Box<dyn Probe>]) -> Result<Findings> {
+        let mut found = Findings::default();
+        let look = Look::new(&self.ctx, &self.st, &self.kept)?;
+        if round == 0 {
+            self.residual_before = Some(look.analysis.clone());
+        }
+        self.residual_now = Some(look.analysis.clone());
+        for p in library {
+            p.probe(&look, &mut found)?;
+        }
+        Ok(found)
+    }
+
+    /// Refit candidate `c` ([`try_candidate`]): kept as the round's `best` when it is better,
+    /// else its rejection recorded.
+    fn refit(&mut self, c: &Candidate, library: &[Box<dyn Probe>], best: &mut Option<Best>) {
+        let ctx = &self.ctx;
+        let probe = library.iter().find(|p| p.name() == c.name);
+        match try_candidate(ctx, &self.st, c, probe.map(|p| p.as_ref())) {
+            Ok((ns, k, lead)) => {
+                if best
+                    .as_ref()
+                    .is_none_or(|(b, _, _, _)| ctx.score(&ns) < ctx.score(b))
+                {
+                    *best = Some((ns, k, c.key.clone(), lead));
                 }
-                Err(r) => {
-                    if c.r2 <= opts.min_r2 {
-                        refuted.push(c.key.clone());
-                    }
-                    rejected.insert(c.key.clone(), r);
+            }
+            Err(r) => {
+                if c.r2 <= ctx.opts.min_r2 {
+                    self.refuted.push(c.key.clone());
                 }
+                self.rejected.insert(c.key.clone(), r);
             }
         }
-        match best {
-            Some((ns, k, key, lead)) => {
-                if let Some(l) = lead {
-                    ctx = ctx.with_lead(l);
-                }
-                rejected.remove(&key);
-                rejected.remove(&k.name);
-                kept.push(k);
-                st = ns;
-                path.push(ctx.step(&st));
-                residual_now = None;
-            }
-            None => break,
+    }
+
+    /// Add the round's best kept candidate; whether there was one.
+    fn keep(&mut self, best: Option<Best>) -> bool {
+        let Some((ns, k, key, lead)) = best else {
+            return false;
+        };
+        if let Some(l) = lead {
+            self.ctx = self.ctx.with_lead(l);
+        }
+        self.rejected.remove(&key);
+        self.rejected.remove(&k.name);
+        self.kept.push(k);
+        self.st = ns;
+        self.path.push(self.ctx.step(&self.st));
+        self.residual_now = None;
+        true
+    }
+
+    /// The diagnosis from the base model `base` to the current one.
+    fn finish(self, base: &State, quantization: Option<Quantization>) -> Diagnosis {
+        let Rounds {
+            ctx,
+            st,
+            kept,
+            rejected,
+            ambiguous,
+            path,
+            halted,
+            residual_before,
+            residual_now,
+            ..
+        } = self;
+        // Candidates kept in a later round are not rejected.
+        let rejected: Vec<RejectedEffect> = rejected
+            .into_values()
+            .filter(|r| r.name == "periodic" || !kept.iter().any(|k| k.name == r.name))
+            .collect();
+        let analysis_of = |st: &State| {
+            let e: Vec<f64> = (0..ctx.split).map(|k| ctx.y[k] - st.yhat[k]).collect();
+            analyse(&e, &ctx.u[..ctx.split], ctx.dt)
+        };
+        let residual_before = residual_before.unwrap_or_else(|| analysis_of(base));
+        let residual_after = residual_now.unwrap_or_else(|| analysis_of(&st));
+        let remaining = remaining_structure(&residual_after, quantization);
+        let y0 = ctx.y0;
+        let ya = |s: &State| s.yhat.iter().map(|v| v + y0).collect::<Vec<f64>>();
+        let mut model = st.model.clone();
+        for (p, v) in model.params.iter_mut().zip(&st.values) {
+            p.value = *v;
+        }
+        Diagnosis {
+            before: base.val.unwrap_or(base.est),
+            after: st.val.unwrap_or(st.est),
+            estimation: BeforeAfter {
+                before: base.est,
+                after: st.est,
+            },
+            validation: base.val.zip(st.val).map(|(b, a)| BeforeAfter {
+                before: b,
+                after: a,
+            }),
+            effects: kept,
+            rejected,
+            ambiguous,
+            quantization,
+            unexplained: !remaining.is_empty(),
+            remaining,
+            residual_before,
+            residual_after,
+            final_model: describe(&model),
+            model,
+            yhat_before: ya(base),
+            yhat_after: ya(&st),
+            split: ctx.split,
+            path,
+            halted,
         }
     }
-    // Candidates kept in a later round are not rejected.
-    let rejected: Vec<RejectedEffect> = rejected
-        .into_values()
-        .filter(|r| r.name == "periodic" || !kept.iter().any(|k| k.name == r.name))
-        .collect();
-    let analysis_of = |st: &State| {
-        let e: Vec<f64> = (0..ctx.split).map(|k| ctx.y[k] - st.yhat[k]).collect();
-        analyse(&e, &ctx.u[..ctx.split], ctx.dt)
-    };
-    let residual_before = residual_before.unwrap_or_else(|| analysis_of(&base));
-    let residual_after = residual_now.unwrap_or_else(|| analysis_of(&st));
-    let remaining = remaining_structure(&residual_after, quantization);
-    let ya = |s: &State| s.yhat.iter().map(|v| v + y0).collect::<Vec<f64>>();
-    let mut model = st.model.clone();
-    for (p, v) in model.params.iter_mut().zip(&st.values) {
-        p.value = *v;
-    }
-    Ok(Diagnosis {
-        before: base.val.unwrap_or(base.est),
-        after: st.val.unwrap_or(st.est),
-        estimation: BeforeAfter {
-            before: base.est,
-            after: st.est,
-        },
-        validation: base.val.zip(st.val).map(|(b, a)| BeforeAfter {
-            before: b,
-            after: a,
-        }),
-        effects: kept,
-        rejected,
-        ambiguous,
-        quantization,
-        unexplained: !remaining.is_empty(),
-        remaining,
-        residual_before,
-        residual_after,
-        final_model: describe(&model),
-        model,
-        yhat_before: ya(&base),
-        yhat_after: ya(&st),
-        split: ctx.split,
-        path,
-        halted,
-    })
 }
 
 #[cfg(test)]

@@ -46,7 +46,7 @@ pub fn sample_period_from_comments(text: &str) -> Result<Option<f64>> {
             _ => Err(Error::Data(format!(
                 "'{}': the hold's sample period must be a positive number of seconds (or give \
                  --hold none / --hold T)",
-                crate::data::shorten(l.trim())
+                crate::files::shorten(l.trim())
             ))),
         };
     }

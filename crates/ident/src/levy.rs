@@ -40,7 +40,7 @@
 pub mod checks;
 pub mod refine;
 
-use crate::lm::dot;
+use crate::numeric::dot;
 use crate::{Error, Result};
 use fracsim::{FracTf, Term};
 use num_complex::Complex64;

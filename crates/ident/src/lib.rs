@@ -8,8 +8,10 @@
 //! - [`oe`]: output-error identification in the time domain with exact sensitivities.
 //! - [`compare`]: two models side by side over a band (largest gain and phase differences, coefficients).
 //! - [`data`]: records `t, u, y` from delimited text, sampling checks, operating point, split.
+//! - [`files`]: bounded reading of input files (size, line length, text checks).
 //! - [`diagnose`]: residual diagnosis, the effect library, error before and after.
 //! - [`metrics`]: fit measures (NRMSE, RMSE), residual correlations with their bounds.
+//! - [`numeric`]: vectorised sums, dot products, ranges and finiteness checks over slices.
 
 pub mod app;
 pub mod bodefile;
@@ -17,12 +19,15 @@ pub mod compare;
 pub mod data;
 pub mod diagnose;
 mod error;
+pub mod files;
 pub mod hold;
 pub mod levy;
 pub mod lm;
 pub mod matfile;
 pub mod metrics;
+pub mod numeric;
 pub mod oe;
+mod par;
 #[cfg(test)]
 mod testdata;
 

@@ -36,7 +36,7 @@
 //! assert_eq!(vars[0].data, vec![1.0, 2.0, 3.0]);
 //! ```
 
-use crate::data::{read_bytes, shorten};
+use crate::files::{read_bytes, shorten};
 use crate::{Error, Result};
 use std::path::Path;
 
@@ -60,7 +60,7 @@ pub fn is_mat(path: &Path) -> bool {
         .is_some_and(|e| e.eq_ignore_ascii_case("mat"))
 }
 
-/// Read the numeric variables of a `.mat` file (at most [`crate::data::MAX_FILE_BYTES`]).
+/// Read the numeric variables of a `.mat` file (at most [`crate::files::MAX_FILE_BYTES`]).
 ///
 /// # Errors
 /// [`Error::Io`] when it cannot be read; those of [`parse`] (with the file's name).

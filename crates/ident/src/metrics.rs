@@ -44,7 +44,7 @@ pub fn rmse(y: &[f64], yhat: &[f64]) -> f64 {
     if n == 0 {
         return f64::NAN;
     }
-    let s = crate::lm::sum_of2(y, yhat, |a, b| (a - b) * (a - b));
+    let s = crate::numeric::sum_of2(y, yhat, |a, b| (a - b) * (a - b));
     (s / n as f64).sqrt()
 }
 
@@ -59,9 +59,9 @@ pub fn nrmse_percent(y: &[f64], yhat: &[f64]) -> f64 {
     }
     let y = &y[..n];
     // (Sums in eight lanes: one vectorised pass each.)
-    let mean = crate::lm::sum_of(y, |a| a) / n as f64;
-    let num = crate::lm::sum_of2(y, yhat, |a, b| (a - b) * (a - b)).sqrt();
-    let den = crate::lm::sum_of(y, |a| (a - mean) * (a - mean)).sqrt();
+    let mean = crate::numeric::sum_of(y, |a| a) / n as f64;
+    let num = crate::numeric::sum_of2(y, yhat, |a, b| (a - b) * (a - b)).sqrt();
+    let den = crate::numeric::sum_of(y, |a| (a - mean) * (a - mean)).sqrt();
     if den == 0.0 {
         return if num == 0.0 { 100.0 } else { f64::NEG_INFINITY };
     }

@@ -98,7 +98,6 @@ pub fn judge(f: &Facts<'_>) -> Verdict {
         tolerated_effects: vec!["initial_state".into(), "output_offset".into()],
         ..Verdict::default()
     };
-    let e = f.effects;
     let input_levels = levels(f.u.iter().map(|x| x.abs()), 3);
     let speed_reverses = reverses(f.y_plant);
     if f.band.len() < 3 {
@@ -124,32 +123,41 @@ pub fn judge(f: &Facts<'_>) -> Verdict {
             ),
         );
     }
+    input_maps(f, &mut v, input_levels, speed_reverses);
+    output_effects(f, &mut v, speed_reverses);
+    v
+}
+
+/// The rules of the effects at the input: friction and the static maps (dead band, saturation,
+/// power law), which a two-level input or a speed that never reverses cannot tell apart.
+fn input_maps(f: &Facts<'_>, v: &mut Verdict, input_levels: usize, speed_reverses: bool) {
+    let e = f.effects;
     if e.coulomb.is_some() {
         if speed_reverses {
             expect(
-                &mut v,
+                v,
                 "coulomb_friction",
                 "Coulomb friction with speed reversals".into(),
             );
         } else {
             confound(
-                &mut v,
+                v,
                 "coulomb_friction",
                 "Coulomb friction without a speed reversal is a constant input offset".into(),
             );
-            tolerate(&mut v, "input_offset", String::new());
+            tolerate(v, "input_offset", String::new());
         }
     }
     let two_levels = "the input has two levels: a static map is then a gain and an offset";
     if e.deadband.is_some() {
         if input_levels >= 3 {
             expect(
-                &mut v,
+                v,
                 "deadzone",
                 "a dead band under a multi-level input".into(),
             );
         } else {
-            confound(&mut v, "deadzone", format!("a dead band: {two_levels}"));
+            confound(v, "deadzone", format!("a dead band: {two_levels}"));
         }
     }
     if let Some(level) = e.saturation {
@@ -162,39 +170,40 @@ pub fn judge(f: &Facts<'_>) -> Verdict {
                 .push("a saturation the input never reaches: inert".into());
         } else if input_levels >= 3 {
             expect(
-                &mut v,
+                v,
                 "saturation",
                 "a saturation reached by a multi-level input".into(),
             );
         } else {
-            confound(&mut v, "saturation", format!("a saturation: {two_levels}"));
+            confound(v, "saturation", format!("a saturation: {two_levels}"));
         }
     }
     if e.power_law.is_some() {
         if input_levels >= 3 {
             expect(
-                &mut v,
+                v,
                 "power_law",
                 "a static power map under a multi-level input".into(),
             );
         } else {
-            confound(
-                &mut v,
-                "power_law",
-                format!("a static power map: {two_levels}"),
-            );
+            confound(v, "power_law", format!("a static power map: {two_levels}"));
         }
     }
+}
+
+/// The rules of the offsets, the sensor, a periodic disturbance and a drift.
+fn output_effects(f: &Facts<'_>, v: &mut Verdict, speed_reverses: bool) {
+    let e = f.effects;
     if e.input_offset != 0.0 {
         if f.dc_gain.is_none() {
             expect(
-                &mut v,
+                v,
                 "input_offset",
                 "an input offset through an integrator (a drift)".into(),
             );
         } else {
             tolerate(
-                &mut v,
+                v,
                 "input_offset",
                 "an input offset through a finite static gain is an output offset".into(),
             );
@@ -203,7 +212,7 @@ pub fn judge(f: &Facts<'_>) -> Verdict {
     if e.abs_sensor {
         if speed_reverses {
             expect(
-                &mut v,
+                v,
                 "abs_sensor",
                 "a sign-blind sensor on an output that reverses".into(),
             );
@@ -216,22 +225,21 @@ pub fn judge(f: &Facts<'_>) -> Verdict {
         let periods = freq_hz * f.u.len() as f64 * f.dt;
         if periods >= 3.0 && freq_hz < 0.4 / f.dt && amplitude >= 2.0 * f.noise_rms {
             expect(
-                &mut v,
+                v,
                 "periodic",
                 format!("a periodic disturbance at {freq_hz:.3e} Hz, {periods:.0} periods"),
             );
         } else {
-            tolerate(&mut v, "periodic", format!("a periodic disturbance at {freq_hz:.3e} Hz too weak or too few periods to require"));
+            tolerate(v, "periodic", format!("a periodic disturbance at {freq_hz:.3e} Hz too weak or too few periods to require"));
         }
     }
     if e.drift_per_s != 0.0 {
         tolerate(
-            &mut v,
+            v,
             "input_offset",
             "a slow drift: no effect name, scored by the held-out error".into(),
         );
     }
-    v
 }
 
 fn expect(v: &mut Verdict, name: &str, why: String) {

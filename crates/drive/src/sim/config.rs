@@ -32,7 +32,7 @@ pub enum SimClock {
     ///   [`VIRTUAL_MAX_UNREAD`] bytes sent are unread in the pty, and bytes the pty cannot take
     ///   yet are kept, not lost (a host that merely reads late loses no DATA block);
     /// - the keepalive. A host in this process that shares the drive's clock
-    ///   ([`DriveSim::virtual_clock`], [`crate::client::ClientConfig::clock`]) keeps its keepalive
+    ///   ([`DriveSim::virtual_clock`](super::DriveSim::virtual_clock), [`crate::client::ClientConfig::clock`]) keeps its keepalive
     ///   on it: the clock runs up to the instant the host's next KEEPALIVE is due and waits
     ///   there for a frame, waking the host ([`crate::vclock`]). Any other host keeps it on the
     ///   wall clock: during a run the clock runs at most half the keepalive interval past the

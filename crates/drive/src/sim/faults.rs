@@ -31,7 +31,7 @@ pub struct Faults {
     pub frame_corrupt_rate: f64,
     /// The communication task stalls: no transmission, receive FIFO overflows; control continues.
     pub stall: Option<FaultAt>,
-    /// Disconnect: with [`SimConfig::link`] the pty is closed and a new one appears behind the
+    /// Disconnect: with [`SimConfig::link`](super::SimConfig::link) the pty is closed and a new one appears behind the
     /// link after `duration` (like a USB adapter unplugged and plugged in); without a link the line
     /// goes dead (bytes lost both ways) for `duration`.
     pub disconnect: Option<FaultAt>,

@@ -25,7 +25,7 @@ impl DriveSim {
     /// Open a pty pair and start the firmware thread.
     ///
     /// # Errors
-    /// Out-of-range effects or faults ([`Effects::validate`], [`Faults::validate`]), a baud rate
+    /// Out-of-range effects or faults ([`Effects::validate`](super::Effects::validate), [`Faults::validate`](super::Faults::validate)), a baud rate
     /// of 0 (all [`Error::InvalidParam`]); the pty or the link cannot be made.
     pub fn spawn(cfg: SimConfig) -> Result<Self> {
         cfg.effects.validate()?;
@@ -68,7 +68,7 @@ impl DriveSim {
         })
     }
 
-    /// Fault injection: the drive's next answer to a command of type `ty` (a [`ty`] code) is
+    /// Fault injection: the drive's next answer to a command of type `ty` (a [`ty`](crate::protocol::ty) code) is
     /// lost on the line, once: the command is executed (and its answer cached for a replay) but
     /// the answer never reaches the host, as if the line ate it.
     pub fn lose_next_answer(&self, ty: u8) {

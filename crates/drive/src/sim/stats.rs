@@ -26,7 +26,7 @@ pub struct SimStats {
     /// The voltage command applied to the inverter now, raw (0 when no run is active: idle,
     /// stopped, tripped, emergency-stopped).
     pub output: i16,
-    /// Answers deliberately lost by [`DriveSim::lose_next_answer`].
+    /// Answers deliberately lost by [`DriveSim::lose_next_answer`](super::DriveSim::lose_next_answer).
     pub answers_lost: u64,
     /// Run id of `truth`.
     pub truth_run_id: u16,

@@ -33,4 +33,5 @@ mod loss;
 mod models;
 mod props;
 mod sine;
+mod spec;
 mod vectors;

@@ -5,7 +5,7 @@ use drive::protocol::*;
 use proptest::prelude::*;
 
 /// Any message, each type about as likely (the weights are the families' sizes).
-fn arb_msg() -> impl Strategy<Value = Message> {
+pub(crate) fn arb_msg() -> impl Strategy<Value = Message> {
     prop_oneof![
         6 => arb_short(),
         3 => arb_loop_command(),

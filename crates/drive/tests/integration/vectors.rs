@@ -24,7 +24,7 @@ fn unhex(s: &str) -> Vec<u8> {
 }
 
 /// The named frames of `frames.txt`, one or more per message type.
-fn named_frames() -> Vec<(&'static str, Frame)> {
+pub(crate) fn named_frames() -> Vec<(&'static str, Frame)> {
     [run_commands(), loop_commands(), replies(), stream_frames()].concat()
 }
 

@@ -365,7 +365,7 @@ struct Models {
     freq_runs: usize,
 }
 
-/// `fracid time STEADY --diagnose` and `fracid freq BODE --weights W --refine --diagnose` in this
+/// `fracid time STEADY` and `fracid freq BODE --weights W --refine --diagnose` in this
 /// process (`time.*` and `freq.*`, text, JSON and plot, in the output folder).
 ///
 /// # Errors
@@ -374,11 +374,8 @@ fn identify(a: &DemoArgs, steady_path: &Path, bode_path: &Path) -> Result<Models
     let dir = &a.out;
     let (time_runs, freq_runs) = (ident::app::time::runs(), super::freq::runs());
     step("time domain: output-error fit and diagnosis");
-    let time_req = ident::app::time::TimeRequest {
-        diagnose: true,
-        ..Default::default()
-    };
-    let time_cmd = format!("time {} --diagnose", steady_path.display());
+    let time_req = ident::app::time::TimeRequest::default();
+    let time_cmd = format!("time {}", steady_path.display());
     let (rec, reader_warnings) =
         super::time::read_record_noting(steady_path, &ident::data::ReadOptions::default())?;
     let time_data = ident::app::time::TimeData {

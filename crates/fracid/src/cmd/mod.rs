@@ -37,8 +37,8 @@ pub fn load_record(
 }
 
 /// Read a text file (a model, a JSON report, weights, a table) with the library's bounded reader
-/// ([`ident::data::read_text`]: at most [`ident::data::MAX_FILE_BYTES`], no line longer than
-/// [`ident::data::MAX_LINE_BYTES`], UTF-8), so that `/dev/zero` or a huge file is refused after
+/// ([`ident::files::read_text`]: at most [`ident::files::MAX_FILE_BYTES`], no line longer than
+/// [`ident::files::MAX_LINE_BYTES`], UTF-8), so that `/dev/zero` or a huge file is refused after
 /// one limit's worth of reading instead of filling memory. Every file the CLI reads as text goes
 /// through here or [`load_record`].
 ///
@@ -46,7 +46,7 @@ pub fn load_record(
 /// An I/O error naming the file (exit 3); a file too large, a line too long, a binary or non-UTF-8
 /// file (exit 2, in the context of the file).
 pub fn read_text(path: &std::path::Path) -> anyhow::Result<String> {
-    ident::data::read_text(path).map_err(|e| match e {
+    ident::files::read_text(path).map_err(|e| match e {
         ident::Error::Io { .. } => anyhow::Error::new(e),
         e if e.to_string().contains(&path.display().to_string()) => anyhow::Error::new(e),
         e => anyhow::Error::new(e).context(format!("in {}", path.display())),

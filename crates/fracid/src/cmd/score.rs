@@ -3,7 +3,7 @@
 
 use super::time::{read_record, score_text, ColumnArgs};
 use anyhow::Result;
-use ident::app::time::ScoreReport;
+use ident::app::score::ScoreReport;
 use ident::data::ReadOptions;
 use ident::oe::{score, FracModel, InitialState};
 use std::path::PathBuf;

@@ -143,7 +143,7 @@ fn input_of(path: &std::path::Path, a: &SimArgs) -> Result<(Vec<f64>, f64)> {
                 }
             };
         }
-        let text = ident::data::read_text(path)?;
+        let text = ident::files::read_text(path)?;
         match a.dt {
             Some(dt) => {
                 let (_, [u]) = ident::data::read_columns(&text, [&a.u_col])?;
@@ -171,7 +171,7 @@ fn samples_until(t_end: f64, dt: f64) -> Result<usize> {
 }
 
 /// The most samples `fracid sim` makes: 240 MB of memory and a CSV of about 300 MB, which
-/// `fracid time` still reads ([`ident::data::MAX_FILE_BYTES`]); 1e8 took 2.3 GB and 25 s.
+/// `fracid time` still reads ([`ident::files::MAX_FILE_BYTES`]); 1e8 took 2.3 GB and 25 s.
 pub const MAX_SAMPLES: usize = 10_000_000;
 
 /// `n` samples, refused (exit 2, naming `what` asks for them) above [`MAX_SAMPLES`].

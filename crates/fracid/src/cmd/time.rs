@@ -3,7 +3,8 @@
 use crate::plot::{self, Figure};
 use anyhow::{Context, Result};
 use ident::app::observe::{Observe, Stage};
-use ident::app::time::{Named, ScoreReport, TimeData, TimeReport, TimeRequest};
+use ident::app::score::ScoreReport;
+use ident::app::time::{Named, TimeData, TimeReport, TimeRequest};
 use ident::data::{Columns, ReadOptions, Record};
 use ident::metrics;
 use ident::oe::Identification;
@@ -132,13 +133,13 @@ pub struct TimeArgs {
     /// Lags of the residual whiteness and cross-correlation test (JSON `residual_test`).
     #[arg(long, default_value_t = ident::app::time::TimeRequest::default().max_lag)]
     pub max_lag: usize,
-    /// With --diagnose: the held-out improvement an effect must bring (fraction of the RMSE).
+    /// The diagnosis's margin (not with --plain): the held-out improvement an effect must bring (fraction of the RMSE).
     #[arg(long, default_value_t = ident::app::time::TimeRequest::default().margin)]
     pub margin: f64,
-    /// With --diagnose: the evidence R^2 a candidate effect needs to be refitted.
+    /// The diagnosis's evidence (not with --plain): the R^2 a candidate effect needs to be refitted.
     #[arg(long, default_value_t = ident::app::time::TimeRequest::default().min_r2)]
     pub min_r2: f64,
-    /// With --diagnose: rounds of effects.
+    /// The diagnosis's rounds of effects (not with --plain).
     #[arg(long, default_value_t = ident::app::time::TimeRequest::default().max_rounds)]
     pub max_rounds: usize,
     /// Print JSON (docs/design.md §7) instead of text.
@@ -150,10 +151,15 @@ pub struct TimeArgs {
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
-    /// Diagnose the residual, add the physical effects that pay on held-out data, report the
-    /// error before and after (docs/design.md §6); with --plot also draws the residual before and after
-    /// to PLOT_diagnosis.EXT.
+    /// Fit the named structure alone, once (no structures compared, no diagnosis): the fast
+    /// path for fleets of records already understood. Without it (the default) the candidate
+    /// structures are compared, the best is diagnosed (the effects that pay on held-out data
+    /// kept, docs/design.md §6) and the report leads with that model; with --plot the residual
+    /// before and after is drawn to PLOT_diagnosis.EXT.
     #[arg(long)]
+    pub plain: bool,
+    /// The default (the loop closed); kept so that scripts written for earlier versions run.
+    #[arg(long, hide = true, conflicts_with = "plain")]
     pub diagnose: bool,
     /// Fleet mode (many files at once): see `fracid::cmd::fleet`.
     #[command(flatten)]
@@ -198,7 +204,7 @@ pub(crate) fn request(a: &TimeArgs) -> Result<TimeRequest> {
         max_iterations: a.max_iter,
         skip: a.skip,
         max_lag: a.max_lag,
-        diagnose: a.diagnose,
+        plain: a.plain,
         margin: a.margin,
         min_r2: a.min_r2,
         max_rounds: a.max_rounds,
@@ -329,12 +335,12 @@ pub fn run(a: TimeArgs) -> Result<()> {
 }
 
 /// No plot overwrites a record ([`super::paths::check`]): the record, `--validate` and `--joint`
-/// against `--plot` and, with `--diagnose`, the residual plot beside it.
+/// against `--plot` and, unless `--plain` (or `--joint`), the residual plot beside it.
 fn check_paths(a: &TimeArgs) -> Result<()> {
     let mut inputs = vec![("the record", a.file.as_path())];
     inputs.extend(a.validate.iter().map(|p| ("--validate", p.as_path())));
     inputs.extend(a.joint.iter().map(|p| ("--joint", p.as_path())));
-    super::paths::check_plots(&inputs, a.plot.as_deref(), a.diagnose)
+    super::paths::check_plots(&inputs, a.plot.as_deref(), !a.plain && a.joint.is_empty())
 }
 
 /// The report as text (what `fracid time` prints): the base fit, the scores on a validation
@@ -434,7 +440,7 @@ fn run_joint(a: &TimeArgs, req: &TimeRequest, data: TimeData) -> Result<()> {
         crate::bad_input!("--joint does not go with --plot");
     }
     if a.diagnose {
-        crate::bad_input!("--joint does not go with --diagnose");
+        crate::bad_input!("--joint fits the named structure once: it does not go with --diagnose");
     }
     let read = read_options(a);
     let mut data = data;

@@ -72,17 +72,18 @@ pub(crate) trait Simd: Copy {
     fn flush_subnormals(self) -> Self::Flush;
     /// `op` compiled for this set.
     fn vectorize<Op: WithSimd>(self, op: Op) -> Op::Output;
-    /// The value kernel with its state in registers for `p`'s size, if this set has one for
-    /// it (AVX2: up to 12 real vectors, AVX-512: 6, that is 48 real modes; at most two complex
+    /// `k`'s instance for `vr` real and `vc` complex vectors, run, if this set has one of that
+    /// size (AVX2: up to 12 real vectors, AVX-512: 6, that is 48 real modes; at most two complex
     /// vectors; none for [`Portable`]): `false` if not.
-    fn value_in_registers(
-        self,
-        p: &mut crate::discrete::kernel::Packed,
-        d: &crate::discrete::kernel::Drive<'_>,
-        b1: bool,
-        range: std::ops::Range<usize>,
-        y: &mut [f64],
-    ) -> bool;
+    fn value_in_registers<K: RegKernel>(self, vr: usize, vc: usize, b1: bool, k: K) -> bool;
+}
+
+/// A kernel with its state in registers, instantiated by [`Simd::value_in_registers`] for the
+/// sizes a set has an instance of: `VR` vectors of real modes, `VC` of complex modes, `B1` with or
+/// without `beta1`.
+pub(crate) trait RegKernel {
+    /// Run the instance of this size with the set `s`.
+    fn run<const VR: usize, const VC: usize, const B1: bool, S: Simd>(self, s: S);
 }
 
 /// The sizes the value kernel keeps in registers, one instance (compiled for the set) each:
@@ -91,23 +92,15 @@ pub(crate) trait Simd: Copy {
 macro_rules! value_in_registers {
     ($($vr:literal)*) => {
         #[inline(always)]
-        fn value_in_registers(
-            self,
-            p: &mut crate::discrete::kernel::Packed,
-            d: &crate::discrete::kernel::Drive<'_>,
-            b1: bool,
-            range: std::ops::Range<usize>,
-            y: &mut [f64],
-        ) -> bool {
-            use crate::discrete::kernel::ValueRegs;
-            match (p.vr, p.vc, b1) {
+        fn value_in_registers<K: RegKernel>(self, vr: usize, vc: usize, b1: bool, k: K) -> bool {
+            match (vr, vc, b1) {
                 $(
-                    ($vr, 0, false) => self.vectorize(ValueRegs::<$vr, 0, false> { p, d, range, y }),
-                    ($vr, 0, true) => self.vectorize(ValueRegs::<$vr, 0, true> { p, d, range, y }),
-                    ($vr, 1, false) => self.vectorize(ValueRegs::<$vr, 1, false> { p, d, range, y }),
-                    ($vr, 1, true) => self.vectorize(ValueRegs::<$vr, 1, true> { p, d, range, y }),
-                    ($vr, 2, false) => self.vectorize(ValueRegs::<$vr, 2, false> { p, d, range, y }),
-                    ($vr, 2, true) => self.vectorize(ValueRegs::<$vr, 2, true> { p, d, range, y }),
+                    ($vr, 0, false) => k.run::<$vr, 0, false, Self>(self),
+                    ($vr, 0, true) => k.run::<$vr, 0, true, Self>(self),
+                    ($vr, 1, false) => k.run::<$vr, 1, false, Self>(self),
+                    ($vr, 1, true) => k.run::<$vr, 1, true, Self>(self),
+                    ($vr, 2, false) => k.run::<$vr, 2, false, Self>(self),
+                    ($vr, 2, true) => k.run::<$vr, 2, true, Self>(self),
                 )*
                 _ => return false,
             }
@@ -186,14 +179,7 @@ impl Simd for Portable {
         op.with_simd(self)
     }
     #[inline(always)]
-    fn value_in_registers(
-        self,
-        _: &mut crate::discrete::kernel::Packed,
-        _: &crate::discrete::kernel::Drive<'_>,
-        _: bool,
-        _: std::ops::Range<usize>,
-        _: &mut [f64],
-    ) -> bool {
+    fn value_in_registers<K: RegKernel>(self, _: usize, _: usize, _: bool, _: K) -> bool {
         false
     }
 }
@@ -203,7 +189,7 @@ pub(crate) use x86::{Avx2, Avx512};
 
 #[cfg(target_arch = "x86_64")]
 mod x86 {
-    use super::{Simd, WithSimd};
+    use super::{RegKernel, Simd, WithSimd};
     use std::arch::x86_64::*;
 
     /// AVX2 and FMA: four lanes. Only [`Avx2::new`] makes one, on a CPU that has both.

@@ -18,7 +18,7 @@
 //! ([`rows_mem`]: dual numbers, or more modes) keeps it in memory, one pass over the vectors per
 //! sample with the value of each mode loaded once for all its derivative rows.
 
-use super::isa::{Simd, WithSimd};
+use super::isa::{RegKernel, Simd, WithSimd};
 use super::Simulator;
 use crate::scalar::Real;
 use std::ops::Range;
@@ -146,21 +146,33 @@ fn st<S: Simd>(s: S, a: &mut [f64], i: usize, v: S::V) {
     unsafe { s.store(c.as_mut_ptr(), v) }
 }
 
-/// [`value_regs`] for one size, compiled for a set by [`Simd::vectorize`] (the x86-64 sets have
-/// such instances, [`super::isa::Portable`] none).
-#[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
-pub(crate) struct ValueRegs<'a, 'b, const VR: usize, const VC: usize, const B1: bool> {
+/// [`value_regs`]' arguments; [`Simd::value_in_registers`] picks the instance of their size (the
+/// x86-64 sets have such instances, [`super::isa::Portable`] none).
+pub(crate) struct ValueRegs<'a, 'b> {
     pub p: &'a mut Packed,
     pub d: &'a Drive<'b>,
     pub range: Range<usize>,
     pub y: &'a mut [f64],
 }
 
-impl<const VR: usize, const VC: usize, const B1: bool> WithSimd for ValueRegs<'_, '_, VR, VC, B1> {
+impl<const VR: usize, const VC: usize, const B1: bool> WithSimd
+    for ValueRegsOf<'_, '_, VR, VC, B1>
+{
     type Output = ();
     #[inline(always)]
     fn with_simd<S: Simd>(self, s: S) {
-        value_regs::<S, VR, VC, B1>(s, self.p, self.d, self.range, self.y);
+        let r = self.0;
+        value_regs::<S, VR, VC, B1>(s, r.p, r.d, r.range, r.y);
+    }
+}
+
+/// [`ValueRegs`] at one size: what [`Simd::vectorize`] compiles.
+struct ValueRegsOf<'a, 'b, const VR: usize, const VC: usize, const B1: bool>(ValueRegs<'a, 'b>);
+
+impl RegKernel for ValueRegs<'_, '_> {
+    #[inline(always)]
+    fn run<const VR: usize, const VC: usize, const B1: bool, S: Simd>(self, s: S) {
+        s.vectorize(ValueRegsOf::<VR, VC, B1>(self));
     }
 }
 
@@ -355,7 +367,14 @@ pub(super) fn run_value<S: Simd>(
     y: &mut [f64],
 ) {
     let _ftz = s.flush_subnormals();
-    if s.value_in_registers(p, d, b1, range.clone(), y) {
+    let (vr, vc) = (p.vr, p.vc);
+    let regs = ValueRegs {
+        p: &mut *p,
+        d,
+        range: range.clone(),
+        y: &mut *y,
+    };
+    if s.value_in_registers(vr, vc, b1, regs) {
         return;
     }
     run_rows(s, p, d, b1, range, y);

@@ -5,13 +5,14 @@
 //! [`run`] and present the report (text, JSON, a dict): the same request gives the same report.
 
 use super::observe::{enter, Observe, Stage};
+use super::score::ScoreReport;
 use super::ModelReport;
 use crate::data::Record;
 use crate::diagnose::structures::{diagnose_best_fitting, fit_best, StructureChoice};
 use crate::diagnose::{DiagnoseOptions, Diagnosis};
 use crate::metrics::{residual_test, Fit, ResidualTest};
 use crate::oe::{
-    identify_with_progress, score, FracModel, IdentOptions, Identification, ParamEstimate, Scored,
+    identify_with_progress, score, FracModel, IdentOptions, Identification, ParamEstimate,
     StartMode, Validation, ValidationKind,
 };
 use crate::{Error, Result};
@@ -67,8 +68,11 @@ pub struct TimeRequest {
     pub skip: usize,
     /// Lags of the residual whiteness and cross-correlation test.
     pub max_lag: usize,
-    /// Diagnose the residual and add the effects that pay on held-out data.
-    pub diagnose: bool,
+    /// Fit the named structure alone, once: no structures compared, no diagnosis (the fast path,
+    /// for fleets of records already understood). By default (`false`) the loop is closed: the
+    /// candidate structures are compared, the best is diagnosed and its effects kept when they
+    /// pay on held-out data, and the report leads with that model ([`run`]).
+    pub plain: bool,
     /// The diagnosis's margin: the held-out improvement an effect must bring.
     pub margin: f64,
     /// The diagnosis's evidence `R^2` a candidate effect needs to be refitted.
@@ -99,7 +103,7 @@ impl Default for TimeRequest {
             max_iterations: 500,
             skip: 0,
             max_lag: 25,
-            diagnose: false,
+            plain: false,
             margin: d.margin,
             min_r2: d.min_r2,
             max_rounds: d.max_rounds,
@@ -129,37 +133,6 @@ pub struct TimeData {
     pub joint: Vec<Named>,
     /// The readers' caveats (an incomplete acquisition, the part kept).
     pub reader_warnings: Vec<String>,
-}
-
-/// A model scored on a separate record (`fit.validation_file`).
-#[derive(Debug, Clone, Serialize)]
-pub struct ScoreReport {
-    /// The record's name.
-    pub file: String,
-    /// RMSE over the whole record.
-    pub rmse: f64,
-    /// NRMSE fit (%) over the whole record.
-    pub nrmse_percent: f64,
-    /// The record's operating point.
-    pub offsets: crate::data::Offsets,
-    /// The record's own output offset and initial-state levels.
-    pub record_params: Vec<ParamEstimate>,
-    /// Caveats of the score.
-    pub warnings: Vec<String>,
-}
-
-impl ScoreReport {
-    /// The report of `sc` on the record named `file`.
-    pub fn new(file: &str, sc: &Scored) -> Self {
-        Self {
-            file: file.to_string(),
-            rmse: sc.fit.rmse,
-            nrmse_percent: sc.fit.nrmse_percent,
-            offsets: sc.offsets,
-            record_params: sc.record_params.clone(),
-            warnings: sc.warnings.clone(),
-        }
-    }
 }
 
 /// The fit figures of one model (docs/design.md §7 `fit`).
@@ -327,9 +300,9 @@ pub fn run_joint(
     obs: &mut dyn Observe,
 ) -> Result<JointReport> {
     fresh_pole_cache();
-    if req.diagnose || super::auto_label(&req.structure).0 {
+    if super::auto_label(&req.structure).0 {
         return Err(Error::Options(
-            "a joint fit takes a named structure, without the diagnosis".into(),
+            "a joint fit takes a named structure (not auto)".into(),
         ));
     }
     let rec = &data.record;
@@ -470,9 +443,14 @@ pub fn model_and_options(
     }
     let mut opts = IdentOptions {
         offsets: super::offsets(&req.offsets)?,
-        holdout: req
-            .holdout
-            .unwrap_or(if has_validation { 0.0 } else { 0.3 }),
+        // With a validation record the closed loop still holds out part of the estimation
+        // record: its structures and effects are chosen there, never on the estimation error
+        // alone, and the validation record stays an independent test of that choice.
+        holdout: req.holdout.unwrap_or(if has_validation && req.plain {
+            0.0
+        } else {
+            0.3
+        }),
         fit_offset: req.fit_offset,
         start: if req.auto_start && req.start.is_empty() {
             StartMode::Auto
@@ -555,7 +533,7 @@ pub fn run(req: &TimeRequest, data: &TimeData, obs: &mut dyn Observe) -> Result<
         )));
     }
     let (auto, label) = super::auto_label(&req.structure);
-    let (id, auto_choice, diagnosis) = if req.diagnose {
+    let (id, auto_choice, diagnosis) = if !req.plain {
         // The user's structure is fitted here while the other candidates' fits start on the
         // other cores ([`diagnose_best_fitting`]); the stages are entered as before.
         enter(obs, Stage::Fit)?;
@@ -583,15 +561,28 @@ pub fn run(req: &TimeRequest, data: &TimeData, obs: &mut dyn Observe) -> Result<
     let (base_file, final_file) = match &data.validation {
         Some(v) => {
             enter(obs, Stage::Validate)?;
+            let goes_on = continues(rec, &v.record);
+            let how = if goes_on {
+                "it continues the estimation record (its time stamps follow on): scored from the \
+                 state the estimation record ended in, with its operating point and output offset"
+            } else {
+                "its own initial state and output offset"
+            };
+            let chosen_on = if req.plain || id.validation.is_none() {
+                ""
+            } else {
+                "; the structures and effects were chosen on the held-out part of the estimation \
+                 record, so this record is an independent test of that choice"
+            };
             id.validated_by = Validation {
                 kind: ValidationKind::File,
                 first: id.validated_by.first,
-                note: format!(
-                    "a separate record, {} (its own initial state and output offset)",
-                    v.name
-                ),
+                note: format!("a separate record, {} ({how}){chosen_on}", v.name),
             };
             let scored = |m: &FracModel| {
+                if goes_on {
+                    return continued(m, rec, &v.record).map(|s| ScoreReport::new(&v.name, &s));
+                }
                 score(m, &v.record, opts.offsets, opts.initial)
                     .map(|s| ScoreReport::new(&v.name, &s))
             };
@@ -646,6 +637,38 @@ pub fn run(req: &TimeRequest, data: &TimeData, obs: &mut dyn Observe) -> Result<
         structures: auto_choice,
         request: req.clone(),
         fitted: Fitted { id },
+    })
+}
+
+/// Whether `v` continues `rec` (the tail of the same experiment): the same sample time, and its
+/// first time stamp one sample after `rec`'s last (within half a sample).
+fn continues(rec: &Record, v: &Record) -> bool {
+    let (Some(&last), Some(&first)) = (rec.t.last(), v.t.first()) else {
+        return false;
+    };
+    (v.dt - rec.dt).abs() <= 1e-6 * rec.dt && (first - last - rec.dt).abs() <= 0.5 * rec.dt
+}
+
+/// Score `m` (fitted on `rec`, with its operating point, output offset and initial state) on
+/// `v`, the record that continues `rec` ([`continues`]): the model simulated over `rec` and `v`
+/// in turn, so that `v` starts from the state `rec` ended in (not from rest, not from a state
+/// fitted to `v`), and its fit over `v`'s samples.
+///
+/// # Errors
+/// A model that cannot be simulated over the two records.
+fn continued(m: &FracModel, rec: &Record, v: &Record) -> Result<crate::oe::Scored> {
+    use crate::oe::Structure;
+    let (u0, y0) = (m.operating_point.u0, m.operating_point.y0);
+    let u: Vec<f64> = rec.u.iter().chain(&v.u).map(|x| x - u0).collect();
+    let mut yhat = vec![0.0; u.len()];
+    m.simulate(&m.values(), &u, rec.dt, &mut yhat)?;
+    let tail: Vec<f64> = yhat[rec.len()..].iter().map(|x| x + y0).collect();
+    Ok(crate::oe::Scored {
+        fit: Fit::of(&v.y, &tail),
+        yhat: tail,
+        offsets: m.operating_point,
+        record_params: vec![],
+        warnings: vec![],
     })
 }
 
@@ -814,7 +837,7 @@ fn at_bound(fin: &ModelFit) -> Vec<String> {
 /// evaluated keeps the problems it had and says why.
 fn judge_final(fin: &mut ModelFit, req: &TimeRequest, data: &TimeData) {
     let mut problems = std::mem::take(&mut fin.problems);
-    match own_id(req, &fin.spec, data) {
+    match own_id(req, &fin.spec, data).map(|id| held_undetermined(fin, req, data, id)) {
         Ok(id) => {
             for (p, e) in fin.params.iter_mut().zip(&id.report.params) {
                 p.std_error = e.std_error;
@@ -828,6 +851,74 @@ fn judge_final(fin: &mut ModelFit, req: &TimeRequest, data: &TimeData) {
     let v = super::verdict::verdict(problems, fin.fit.validation_file.as_ref());
     fin.usable = v.usable;
     fin.problems = v.problems;
+}
+
+/// A standard error this many times a parameter's value says the data do not determine it at
+/// all (`oe::checks`' rule for a usable model).
+const UNDETERMINED: f64 = 10.0;
+
+/// The final model with the plant parameters its record does not determine held at their fitted
+/// values, when that is all that stands between it and a usable model: a term whose standard
+/// error is [`UNDETERMINED`] times its value or more (`a2 = 1.5e-8 +- 5.4e-6`) changes nothing the
+/// data can see, so the model does without it, and the parameters left free are judged on their
+/// own covariance. `id` is the final model's own identification at its values ([`own_id`]); it is
+/// returned as it is when nothing is undetermined, when something else is wrong with the model,
+/// or when the parameters left free are not determined either (the model is then refused as it
+/// was). The figures do not move (the same model); the held parameters are `free: false` in the
+/// report with a warning that says so.
+fn held_undetermined(
+    fin: &mut ModelFit,
+    req: &TimeRequest,
+    data: &TimeData,
+    id: Identification,
+) -> Identification {
+    let weak: Vec<usize> = id
+        .report
+        .params
+        .iter()
+        .enumerate()
+        .filter(|(i, e)| e.free && !fin.spec.is_initial_state(*i) && e.name != "y_offset")
+        .filter(|(_, e)| {
+            e.std_error
+                .is_some_and(|se| se > UNDETERMINED * e.value.abs())
+        })
+        .map(|(i, _)| i)
+        .collect();
+    let only_weak = id.problems.len() == 1 && id.problems[0].contains("not determined");
+    if weak.is_empty() || !only_weak {
+        return id;
+    }
+    let mut spec = fin.spec.clone();
+    for &i in &weak {
+        spec.params[i].free = false;
+    }
+    match own_id(req, &spec, data) {
+        Ok(held) if held.problems.is_empty() => {
+            let names: Vec<String> = weak
+                .iter()
+                .map(|&i| format!("{} = {:.4e}", spec.params[i].name, spec.params[i].value))
+                .collect();
+            fin.warnings.push(format!(
+                "final model: {} not determined by these data (standard error {UNDETERMINED} \
+                 times the value or more) and held at the fitted value(s): {}; the model does \
+                 not depend on them within what the record shows, and the parameters left free \
+                 are determined",
+                if weak.len() == 1 {
+                    "1 parameter is"
+                } else {
+                    "parameters are"
+                },
+                names.join(", ")
+            ));
+            for &i in &weak {
+                fin.params[i].free = false;
+                fin.params[i].at_bound = false;
+            }
+            fin.spec = spec;
+            held
+        }
+        _ => id,
+    }
 }
 
 /// The identification of a report's model `spec` at its values, with the parameters it was
@@ -997,7 +1088,6 @@ mod tests {
     fn the_observer_sees_each_stage_and_can_cancel() {
         let req = TimeRequest {
             structure: "2/(0.2 s + 1)".into(),
-            diagnose: true,
             ..Default::default()
         };
         let mut log = Log::default();
@@ -1023,7 +1113,6 @@ mod tests {
     fn each_models_output_gives_its_stated_figures() {
         let req = TimeRequest {
             structure: "2/(0.2 s + 1)".into(),
-            diagnose: true,
             ..Default::default()
         };
         let d = data();
@@ -1060,7 +1149,6 @@ mod tests {
         d.record = Record::from_samples(&late, &y, d.record.dt).unwrap();
         let req = TimeRequest {
             structure: "2/(0.2 s + 1)".into(),
-            diagnose: true,
             ..Default::default()
         };
         let r = run(&req, &d, &mut crate::app::observe::Quiet).unwrap();

@@ -10,7 +10,7 @@
 //! all state the verdict [`verdict`] gives, and the CLI's exit code, the fleet's rows and
 //! Python's results read it from the report ([`super::answer`]).
 
-use super::time::ScoreReport;
+use super::score::ScoreReport;
 use serde::Serialize;
 
 /// Whether a model can be used, and why not.

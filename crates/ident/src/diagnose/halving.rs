@@ -3,14 +3,15 @@
 //! publishes its held-out RMSE after each kept effect on a [`Board`], and is halted before its
 //! next round when it is more than [`BEHIND`] behind another after as many effects; once all are
 //! finished, [`confirm_halving`] applies the rule on the finished paths ([`halving`]), makes again
-//! any diagnosis halted on a value the rule does not confirm, and [`halve_rows`] shows each cut
-//! structure's model at its cut.
+//! any diagnosis halted on a value the rule does not confirm; the comparison then shows each cut
+//! structure's model at its cut. This module knows the diagnoses and their paths only: the
+//! comparison ([`super::structures`]) makes the diagnoses again through the closure it passes.
 
-use super::structures::{diagnose_these, Outcome, StructureScore};
-use crate::data::Record;
 use crate::oe::Identification;
 use crate::Result;
-use fracsim::modal::RootsCache;
+
+/// A structure's index among the candidates and its diagnosis.
+pub(super) type Diagnosed = (usize, Result<super::Diagnosis>);
 
 /// A path's value after `r` kept effects, or its last when it ended sooner (`None`: empty).
 fn at_or_last(path: &[f64], r: usize) -> Option<f64> {
@@ -113,14 +114,12 @@ fn halving(paths: &[Option<&[f64]>]) -> Vec<Option<usize>> {
 /// [`BEHIND`]'s rule applied to the finished `diagnoses` ([`halving`]; among the usable base fits
 /// when one is, as [`super::structures::diagnose_best`]'s decision): where each structure's path is
 /// cut. A diagnosis halted at run time on a value the rule does not confirm (a structure given up
-/// since, or outside the comparison) is made again in full, without halting, until every halt is
-/// confirmed.
+/// since, or outside the comparison) is made again in full by `redo` (the structures given, their
+/// diagnoses without halting), until every halt is confirmed.
 pub(super) fn confirm_halving(
-    rec: &Record,
     ids: &[Result<Identification>],
-    caches: &[Option<RootsCache>],
-    diagnoses: &mut [(usize, Result<super::Diagnosis>)],
-    dopts: &super::DiagnoseOptions,
+    diagnoses: &mut [Diagnosed],
+    redo: &dyn Fn(&[usize]) -> Vec<Diagnosed>,
 ) -> Vec<Option<usize>> {
     loop {
         let usable = |i: usize| ids[i].as_ref().is_ok_and(|id| id.problems.is_empty());
@@ -135,7 +134,7 @@ pub(super) fn confirm_halving(
         }
         let refs: Vec<Option<&[f64]>> = paths.iter().map(|p| p.as_deref()).collect();
         let cuts = halving(&refs);
-        let redo: Vec<usize> = diagnoses
+        let again: Vec<usize> = diagnoses
             .iter()
             .filter(|(i, d)| {
                 d.as_ref()
@@ -143,46 +142,15 @@ pub(super) fn confirm_halving(
             })
             .map(|(i, _)| *i)
             .collect();
-        if redo.is_empty() {
+        if again.is_empty() {
             return cuts;
         }
-        for (i, d) in diagnose_these(rec, ids, caches, &redo, (dopts, None)) {
+        for (i, d) in redo(&again) {
             if let Some(slot) = diagnoses.iter_mut().find(|(j, _)| *j == i) {
                 slot.1 = d;
             }
         }
     }
-}
-
-/// The rows of the structures whose paths are cut ([`halving`], `cuts`) before `max_rounds`
-/// effects show their models at the cut: the effects kept up to there, their held-out RMSE, BIC
-/// and free parameters (a path that ended there shows what it showed). Returns those structures
-/// with the effects kept: every cut, whether its diagnosis was halted there at run time or ran
-/// its next round and kept nothing (which depends on the threads' timing), so that the reason
-/// does not.
-pub(super) fn halve_rows(
-    scores: &mut [StructureScore],
-    outcomes: &[Outcome],
-    cuts: &[Option<usize>],
-    max_rounds: usize,
-) -> Vec<(usize, usize)> {
-    let mut halved = vec![];
-    for (i, o) in outcomes.iter().enumerate() {
-        let (Some(r), Some(Ok(d))) = (cuts[i], &o.diagnosis) else {
-            continue;
-        };
-        if r >= max_rounds {
-            continue;
-        }
-        let step = d.path[r];
-        let s = &mut scores[i];
-        s.effects.truncate(r);
-        s.rmse_after = Some(step.rmse);
-        s.bic_after = Some(step.bic);
-        s.free_params = step.free_params;
-        halved.push((i, r));
-    }
-    halved
 }
 
 #[cfg(test)]

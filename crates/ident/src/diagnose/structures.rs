@@ -39,7 +39,7 @@
 //! more rounds (its row shows its model at that point, and the reason names it).
 
 pub use super::halving::BEHIND;
-use super::halving::{confirm_halving, halve_rows, Board};
+use super::halving::{confirm_halving, Board};
 use crate::data::Record;
 use crate::oe::{identify, FracModel, IdentOptions, Identification};
 use crate::{Error, Result};
@@ -288,16 +288,14 @@ struct Based {
     reduced: Option<(FracModel, String)>,
 }
 
-/// What the candidates' threads share ([`fit_candidates`]).
+/// What the candidates' threads share ([`fit_candidates`]): their progress behind one lock, and
+/// one condition variable signalled at every change of it (each wait re-tests its own
+/// condition).
 struct Shared {
     progress: std::sync::Mutex<Progress>,
-    screened: std::sync::Condvar,
-    /// Signalled when a screening fit starts or ends ([`Shared::turn`]).
-    turn: std::sync::Condvar,
+    changed: std::sync::Condvar,
     /// Screening fits run at once at most: the cores.
     at_once: usize,
-    /// Signalled when the user's fit ends ([`Shared::user_rmse`]).
-    user_done: std::sync::Condvar,
 }
 
 /// Where the user's fit is ([`fit_candidates`]: it runs on the calling thread beside the
@@ -319,7 +317,33 @@ struct Turn<'a>(&'a Shared);
 impl Drop for Turn<'_> {
     fn drop(&mut self) {
         self.0.lock().running -= 1;
-        self.0.turn.notify_all();
+        self.0.changed.notify_all();
+    }
+}
+
+/// A screening fit's count among those running ([`Progress::screening`]): when its thread panics
+/// before the fit is counted as ended ([`Shared::screened`]), dropping it counts it (a failed fit
+/// moves no reference), so that no other thread waits for it.
+struct Screening<'a>(Option<&'a Shared>);
+
+impl Drop for Screening<'_> {
+    fn drop(&mut self) {
+        if let Some(s) = self.0 {
+            s.lock().screening -= 1;
+            s.changed.notify_all();
+        }
+    }
+}
+
+/// The user's fit while it runs ([`fit_candidates`]): when it panics, dropping it says the fit
+/// failed, so that the candidates' threads stop waiting for it.
+struct UserRunning<'a>(Option<&'a Shared>);
+
+impl Drop for UserRunning<'_> {
+    fn drop(&mut self) {
+        if let Some(s) = self.0 {
+            s.user_ended(None);
+        }
     }
 }
 
@@ -358,9 +382,20 @@ impl Shared {
             }
         }
         p.screening -= 1;
-        if p.screening == 0 {
-            self.screened.notify_all();
+        drop(p);
+        self.changed.notify_all();
+    }
+
+    /// Wait until `ready` holds of the progress, and return the lock.
+    fn wait_until(&self, ready: impl Fn(&Progress) -> bool) -> std::sync::MutexGuard<'_, Progress> {
+        let mut p = self.lock();
+        while !ready(&p) {
+            p = self
+                .changed
+                .wait(p)
+                .unwrap_or_else(std::sync::PoisonError::into_inner);
         }
+        p
     }
 
     /// Wait for the turn of the screening fit ranked `rank` (0 the first screened candidate):
@@ -373,19 +408,16 @@ impl Shared {
     /// computes does not depend on when it runs.
     /// `None` when the user's fit failed (nothing more is fitted).
     fn turn(&self, rank: usize) -> Option<Turn<'_>> {
-        let mut p = self.lock();
-        while p.user != UserFit::Failed && (p.started != rank || p.running >= self.at_once) {
-            p = self
-                .turn
-                .wait(p)
-                .unwrap_or_else(std::sync::PoisonError::into_inner);
-        }
+        let mut p = self.wait_until(|p| {
+            p.user == UserFit::Failed || (p.started == rank && p.running < self.at_once)
+        });
         if p.user == UserFit::Failed {
             return None;
         }
         p.started += 1;
         p.running += 1;
-        self.turn.notify_all();
+        drop(p);
+        self.changed.notify_all();
         Some(Turn(self))
     }
 
@@ -395,20 +427,13 @@ impl Shared {
         let mut p = self.lock();
         p.user = rmse.map_or(UserFit::Failed, UserFit::Done);
         p.running -= 1;
-        self.turn.notify_all();
-        self.user_done.notify_all();
-        self.screened.notify_all();
+        drop(p);
+        self.changed.notify_all();
     }
 
     /// The user's usable base fit's held-out RMSE, once its fit has ended (`Err`: it failed).
     fn user_rmse(&self) -> std::result::Result<Option<f64>, ()> {
-        let mut p = self.lock();
-        while p.user == UserFit::Running {
-            p = self
-                .user_done
-                .wait(p)
-                .unwrap_or_else(std::sync::PoisonError::into_inner);
-        }
+        let p = self.wait_until(|p| p.user != UserFit::Running);
         match p.user {
             UserFit::Done(r) => Ok(r),
             _ => Err(()),
@@ -423,14 +448,8 @@ impl Shared {
     /// The screening's reference, once every screening fit has ended (at once when the user's
     /// fit failed: nothing more is used).
     fn reference(&self) -> f64 {
-        let mut p = self.lock();
-        while p.screening > 0 && p.user != UserFit::Failed {
-            p = self
-                .screened
-                .wait(p)
-                .unwrap_or_else(std::sync::PoisonError::into_inner);
-        }
-        p.reference
+        self.wait_until(|p| p.screening == 0 || p.user == UserFit::Failed)
+            .reference
     }
 
     /// The diagnosis of a final base fit, started at once (while other candidates are still
@@ -520,68 +539,56 @@ fn fit_candidates(
             running: 1,
             user: UserFit::Running,
         }),
-        screened: std::sync::Condvar::new(),
-        turn: std::sync::Condvar::new(),
+        changed: std::sync::Condvar::new(),
         at_once: std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get),
-        user_done: std::sync::Condvar::new(),
     };
     let shared = &shared;
-    let (send_user, take_user) = std::sync::mpsc::channel::<Identification>();
-    let mut take_user = Some(take_user);
+    let ctx = (shared, dopts, board);
     std::thread::scope(|scope| {
         let handles: Vec<_> = cands
             .iter()
             .enumerate()
+            .skip(1)
             .map(|(i, (_, m))| {
-                let given = if i == 0 { take_user.take() } else { None };
                 let pre_screened = m.integrator && !user_integrates;
                 scope.spawn(move || {
-                    // A screening fit that panics is a failed full fit (as the join of its thread
-                    // made it), and is counted as ended: the others may be waiting for it.
-                    let screened = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-                        let Some(given) = given else {
-                            let _turn = shared.turn(i - 1)?;
-                            if !pre_screened {
-                                return Some(screen_candidate(rec, m, opts));
-                            }
-                            return Some(match shared.user_rmse().ok()? {
-                                Some(r) => pre_screen(rec, m, opts, r),
-                                None => screen_candidate(rec, m, opts),
-                            });
-                        };
-                        Some(((Ok(given.recv().ok()?), None), true))
-                    }));
-                    let Some((fitted, full)) =
-                        screened.unwrap_or_else(|_| Some(((panicked(), None), true)))
-                    else {
-                        // The user's fit failed: nothing is fitted or diagnosed.
-                        return None;
+                    let mut counted = Screening(Some(shared));
+                    let turn = shared.turn(i - 1)?;
+                    let (fitted, full) = if pre_screened {
+                        match shared.user_rmse().ok()? {
+                            Some(r) => pre_screen(rec, m, opts, r),
+                            None => screen_candidate(rec, m, opts),
+                        }
+                    } else {
+                        screen_candidate(rec, m, opts)
                     };
+                    drop(turn);
+                    counted.0 = None;
                     shared.screened(&fitted, full);
                     if shared.failed() {
+                        // The user's fit failed: nothing is fitted or diagnosed.
                         return None;
                     }
-                    Some(settle(
-                        rec,
-                        m,
-                        opts,
-                        (i, fitted, full),
-                        (shared, dopts, board),
-                    ))
+                    Some(settle(rec, m, opts, (i, fitted, full), ctx))
                 })
             })
             .collect();
-        let fitted = std::panic::catch_unwind(std::panic::AssertUnwindSafe(user));
+        // The user's fit, on this thread; its base fit then settles here, as the others' do on
+        // their threads.
+        let mut running = UserRunning(Some(shared));
+        let fitted = user();
+        running.0 = None;
         let rmse = match &fitted {
-            Ok(Ok(u)) => Some(Some(base_rmse(u)).filter(|r| u.usable() && r.is_finite())),
-            _ => None,
+            Ok(u) => Some(Some(base_rmse(u)).filter(|r| u.usable() && r.is_finite())),
+            Err(_) => None,
         };
         shared.user_ended(rmse);
-        // (A send fails only when the first candidate's thread panicked: joined below.) The
-        // sender is dropped here, so that the first candidate's thread ends when nothing is sent.
-        let fitted = fitted.map(|f| f.map(|u| send_user.send(u).is_ok()));
-        drop(send_user);
-        let based: Vec<Based> = handles
+        let first = fitted.map(|u| {
+            let fitted = (Ok(u), None);
+            shared.screened(&fitted, true);
+            settle(rec, &cands[0].1, opts, (0, fitted, true), ctx)
+        });
+        let others: Vec<Based> = handles
             .into_iter()
             .map(|h| {
                 h.join().ok().flatten().unwrap_or_else(|| Based {
@@ -592,10 +599,7 @@ fn fit_candidates(
                 })
             })
             .collect();
-        match fitted {
-            Ok(f) => f.map(|_| based),
-            Err(panic) => std::panic::resume_unwind(panic),
-        }
+        first.map(|f| std::iter::once(f).chain(others).collect())
     })
 }
 
@@ -705,7 +709,7 @@ fn diagnosis_order(ids: &[Result<Identification>], out: &[usize]) -> (Vec<usize>
 
 /// Diagnose the identified structures `which` on all cores, each from its fit's pole cache, on
 /// the successive halving's `board` when given ([`Board`]).
-pub(super) fn diagnose_these(
+fn diagnose_these(
     rec: &Record,
     ids: &[Result<Identification>],
     caches: &[Option<RootsCache>],
@@ -740,9 +744,9 @@ pub(super) fn diagnose_these(
 }
 
 /// One structure's identification (when it succeeded) and diagnosis (`None`: not diagnosed).
-pub(super) struct Outcome {
-    pub(super) id: Option<Identification>,
-    pub(super) diagnosis: Option<Result<super::Diagnosis>>,
+struct Outcome {
+    id: Option<Identification>,
+    diagnosis: Option<Result<super::Diagnosis>>,
 }
 
 impl StructureScore {
@@ -980,63 +984,19 @@ pub fn diagnose_best_fitting(
 ) -> Result<Diagnosed> {
     let mut cands = with_feedthrough(rec, candidates(label, model), model);
     let board = Board::default();
+    let opts = &candidate_options(opts);
     let based = fit_candidates(rec, &cands, user, opts, (dopts, &board))?;
-    let screened_out: Vec<usize> = (0..based.len()).filter(|&i| based[i].out).collect();
-    let mut early = vec![];
-    // A degenerate two-mass fit made well posed on its thread ([`reduce_one`]): renamed
-    // `two-mass (reduced)`, its fit the reduced refit.
-    let mut reduced = vec![];
-    let (mut ids, mut caches): (Vec<Result<Identification>>, Vec<Option<RootsCache>>) = based
-        .into_iter()
-        .enumerate()
-        .map(|(i, b)| {
-            // A diagnosis given up is made again if it is needed after all.
-            early.push(b.early.filter(|d| !matches!(d, Err(Error::Cancelled(_)))));
-            if let Some((model, what)) = b.reduced {
-                cands[i] = (format!("{} (reduced)", cands[i].0), model);
-                reduced.push((i, what));
-            }
-            b.fitted
-        })
-        .unzip();
-    // The base fits prune the comparison (see [`diagnosis_order`]); the rest is diagnosed only
-    // when none of the first ends with a final model (those screened out fitted in full first).
-    // A diagnosis started early is used when it is needed (the same diagnosis), dropped when not.
-    let (first, mut later) = diagnosis_order(&ids, &screened_out);
-    let mut diagnose =
-        |ids: &[Result<Identification>], caches: &[Option<RootsCache>], which: &[usize]| {
-            let missing: Vec<usize> = which
-                .iter()
-                .copied()
-                .filter(|&i| early[i].is_none())
-                .collect();
-            let mut done: Vec<(usize, Result<super::Diagnosis>)> = which
-                .iter()
-                .filter_map(|&i| early[i].take().map(|d| (i, d)))
-                .collect();
-            done.extend(diagnose_these(
-                rec,
-                ids,
-                caches,
-                &missing,
-                (dopts, Some(&board)),
-            ));
-            done
-        };
-    let mut diagnoses = diagnose(&ids, &caches, &first);
-    let skipped = if diagnoses.iter().any(|(_, d)| d.is_ok()) {
-        later.extend(&screened_out);
-        later.sort_unstable();
-        later
-    } else {
-        for &i in &screened_out {
-            (ids[i], caches[i]) = fresh_fit(rec, &cands[i].1, opts);
-            later.push(i);
-        }
-        diagnoses.extend(diagnose(&ids, &caches, &later));
-        vec![]
-    };
-    let cuts = confirm_halving(rec, &ids, &caches, &mut diagnoses, dopts);
+    let mut g = gathered(based, &mut cands);
+    let (diagnoses, skipped) = diagnose_pruned(rec, &cands, &mut g, opts, (dopts, &board));
+    let Gathered {
+        ids,
+        caches,
+        reduced,
+        ..
+    } = g;
+    let mut diagnoses = diagnoses;
+    let redo = |which: &[usize]| diagnose_these(rec, &ids, &caches, which, (dopts, None));
+    let cuts = confirm_halving(&ids, &mut diagnoses, &redo);
     let mut outcomes: Vec<Outcome> = ids
         .into_iter()
         .map(|id| match id {
@@ -1071,27 +1031,7 @@ pub fn diagnose_best_fitting(
         .is_some_and(|id| id.validation.is_some());
     let (mut reason, integer_reference) =
         reason(&cands, &scores, chosen, best, held_out, true, &reduced);
-    if !skipped.is_empty() {
-        let names: Vec<&str> = skipped.iter().map(|&i| cands[i].0.as_str()).collect();
-        reason.push_str(&format!(
-            "; not diagnosed: {} (base fit not usable while a usable one is, or more than {FAR}x \
-             the best usable base RMSE)",
-            names.join(", ")
-        ));
-    }
-    if !halved.is_empty() {
-        let names: Vec<String> = halved
-            .iter()
-            .map(|&(i, r)| {
-                let plural = if r == 1 { "" } else { "s" };
-                format!("{} (after {r} effect{plural})", cands[i].0)
-            })
-            .collect();
-        reason.push_str(&format!(
-            "; given no more rounds: {} (more than {BEHIND}x the best RMSE after as many effects)",
-            names.join(", ")
-        ));
-    }
+    reason.push_str(&left_out(&cands, &skipped, &halved));
     let o = outcomes.swap_remove(chosen);
     let diagnosis = o
         .diagnosis
@@ -1109,6 +1049,173 @@ pub fn diagnose_best_fitting(
         },
         diagnosis,
     })
+}
+
+/// The fit options of the candidate structures other than the user's: `opts` with the refits'
+/// stall test ([`super::REFIT_STALL`]): a candidate's fit stops when its cost fell by less than
+/// 1e-4 (relative) over its last 5 accepted iterations. At that rate the rest of a 500-iteration
+/// budget removes at most about 1% of the sum of squares, a quarter of what separates two
+/// structures (the [`TIE`] of 2% on the RMSE is 4% of the sum of squares), so the comparison's
+/// decision does not wait for a fit that creeps on along directions the data do not determine
+/// (on the battery records in `data/` the feed-through and the PMSM with an integrator crept
+/// 400-500 iterations, most of the diagnosis's cost).
+fn candidate_options(opts: &IdentOptions) -> IdentOptions {
+    let mut o = opts.clone();
+    if o.fit.lm.stall.is_none() {
+        o.fit.lm.stall = Some(super::REFIT_STALL);
+    }
+    o
+}
+
+/// The candidates' base fits as [`diagnose_best_fitting`] goes on with them ([`gathered`]).
+struct Gathered {
+    /// Each candidate's base fit.
+    ids: Vec<Result<Identification>>,
+    /// The pole cache each base fit's thread ended with.
+    caches: Vec<Option<RootsCache>>,
+    /// A diagnosis started as soon as the base fit was final, when it was not given up.
+    early: Vec<Option<Result<super::Diagnosis>>>,
+    /// The candidates screened out (kept as screened, not diagnosed first).
+    screened_out: Vec<usize>,
+    /// The degenerate two-mass fits made well posed, with the words.
+    reduced: Vec<(usize, String)>,
+}
+
+/// The candidates' base fits `based` taken apart ([`Gathered`]): a degenerate two-mass fit made
+/// well posed on its thread ([`reduce_one`]) is renamed `two-mass (reduced)` in `cands`, its fit
+/// the reduced refit.
+fn gathered(based: Vec<Based>, cands: &mut [(String, FracModel)]) -> Gathered {
+    let screened_out: Vec<usize> = (0..based.len()).filter(|&i| based[i].out).collect();
+    let mut early = vec![];
+    let mut reduced = vec![];
+    let (ids, caches): (Vec<Result<Identification>>, Vec<Option<RootsCache>>) = based
+        .into_iter()
+        .enumerate()
+        .map(|(i, b)| {
+            // A diagnosis given up is made again if it is needed after all.
+            early.push(b.early.filter(|d| !matches!(d, Err(Error::Cancelled(_)))));
+            if let Some((model, what)) = b.reduced {
+                cands[i] = (format!("{} (reduced)", cands[i].0), model);
+                reduced.push((i, what));
+            }
+            b.fitted
+        })
+        .unzip();
+    Gathered {
+        ids,
+        caches,
+        early,
+        screened_out,
+        reduced,
+    }
+}
+
+/// The diagnoses of the structures the base fits do not prune (see [`diagnosis_order`]); the
+/// rest is diagnosed only when none of the first ends with a final model (those screened out
+/// fitted in full first). A diagnosis started early is used when it is needed (the same
+/// diagnosis), dropped when not. Returns the diagnoses and the structures not diagnosed.
+fn diagnose_pruned(
+    rec: &Record,
+    cands: &[(String, FracModel)],
+    g: &mut Gathered,
+    opts: &IdentOptions,
+    (dopts, board): (&super::DiagnoseOptions, &Board),
+) -> (Vec<(usize, Result<super::Diagnosis>)>, Vec<usize>) {
+    let (first, mut later) = diagnosis_order(&g.ids, &g.screened_out);
+    let early = &mut g.early;
+    let mut diagnose =
+        |ids: &[Result<Identification>], caches: &[Option<RootsCache>], which: &[usize]| {
+            let missing: Vec<usize> = which
+                .iter()
+                .copied()
+                .filter(|&i| early[i].is_none())
+                .collect();
+            let mut done: Vec<(usize, Result<super::Diagnosis>)> = which
+                .iter()
+                .filter_map(|&i| early[i].take().map(|d| (i, d)))
+                .collect();
+            done.extend(diagnose_these(
+                rec,
+                ids,
+                caches,
+                &missing,
+                (dopts, Some(board)),
+            ));
+            done
+        };
+    let mut diagnoses = diagnose(&g.ids, &g.caches, &first);
+    let skipped = if diagnoses.iter().any(|(_, d)| d.is_ok()) {
+        later.extend(&g.screened_out);
+        later.sort_unstable();
+        later
+    } else {
+        for &i in &g.screened_out {
+            (g.ids[i], g.caches[i]) = fresh_fit(rec, &cands[i].1, opts);
+            later.push(i);
+        }
+        diagnoses.extend(diagnose(&g.ids, &g.caches, &later));
+        vec![]
+    };
+    (diagnoses, skipped)
+}
+
+/// The reason's words for the structures left out: not diagnosed (`skipped`), or given no more
+/// rounds by the successive halving (`halved`, with the effects kept).
+fn left_out(cands: &[(String, FracModel)], skipped: &[usize], halved: &[(usize, usize)]) -> String {
+    let mut o = String::new();
+    if !skipped.is_empty() {
+        let names: Vec<&str> = skipped.iter().map(|&i| cands[i].0.as_str()).collect();
+        o.push_str(&format!(
+            "; not diagnosed: {} (base fit not usable while a usable one is, or more than {FAR}x \
+             the best usable base RMSE)",
+            names.join(", ")
+        ));
+    }
+    if !halved.is_empty() {
+        let names: Vec<String> = halved
+            .iter()
+            .map(|&(i, r)| {
+                let plural = if r == 1 { "" } else { "s" };
+                format!("{} (after {r} effect{plural})", cands[i].0)
+            })
+            .collect();
+        o.push_str(&format!(
+            "; given no more rounds: {} (more than {BEHIND}x the best RMSE after as many effects)",
+            names.join(", ")
+        ));
+    }
+    o
+}
+
+/// The rows of the structures whose paths are cut ([`confirm_halving`]'s `cuts`) before `max_rounds`
+/// effects show their models at the cut: the effects kept up to there, their held-out RMSE, BIC
+/// and free parameters (a path that ended there shows what it showed). Returns those structures
+/// with the effects kept: every cut, whether its diagnosis was halted there at run time or ran
+/// its next round and kept nothing (which depends on the threads' timing), so that the reason
+/// does not.
+fn halve_rows(
+    scores: &mut [StructureScore],
+    outcomes: &[Outcome],
+    cuts: &[Option<usize>],
+    max_rounds: usize,
+) -> Vec<(usize, usize)> {
+    let mut halved = vec![];
+    for (i, o) in outcomes.iter().enumerate() {
+        let (Some(r), Some(Ok(d))) = (cuts[i], &o.diagnosis) else {
+            continue;
+        };
+        if r >= max_rounds {
+            continue;
+        }
+        let step = d.path[r];
+        let s = &mut scores[i];
+        s.effects.truncate(r);
+        s.rmse_after = Some(step.rmse);
+        s.bic_after = Some(step.bic);
+        s.free_params = step.free_params;
+        halved.push((i, r));
+    }
+    halved
 }
 
 /// The structures a plain fit chooses among with `--structure auto`: the PMSM, the commensurate,

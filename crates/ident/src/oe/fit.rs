@@ -198,23 +198,7 @@ fn jacobian<S: Structure>(
             th
         };
     }
-    let (lin, nonlin): (Vec<usize>, Vec<usize>) =
-        (0..free.len()).partition(|&i| s.is_linear(free[i]));
-    // The linear columns alternate between the two threads' shares (the even ones first): the
-    // costly ones (initial-state levels, a simulation each) come in a run, and a run cut in the
-    // middle would load one thread with most of them.
-    let lin: Vec<usize> = lin
-        .iter()
-        .step_by(2)
-        .chain(lin.iter().skip(1).step_by(2))
-        .copied()
-        .collect();
-    let half = if nonlin.len() >= 2 && u.len() >= PARALLEL_MIN_SAMPLES && crate::lm::two_cores() {
-        nonlin.len().div_ceil(2)
-    } else {
-        0
-    };
-    let (first, second) = nonlin.split_at(half);
+    let (lin, first, second) = column_groups(s, free, u.len());
     // The dual halves write straight into their columns of the Jacobian.
     let (m, n) = (jac.nrows(), jac.ncols());
     let mut slots: Vec<Option<&mut [f64]>> = if m == 0 {
@@ -225,31 +209,23 @@ fn jacobian<S: Structure>(
     let mut take = |group: &[usize]| -> Vec<&mut [f64]> {
         group.iter().filter_map(|&i| slots[i].take()).collect()
     };
-    let mut cols_first = take(first);
-    let mut cols_second = take(second);
+    let mut cols_first = take(&first);
+    let mut cols_second = take(&second);
     let mut lin_cols = take(&lin);
     if cols_first.len() + cols_second.len() + lin_cols.len() != free.len() {
         return Err(Error::Numerical(
             "the Jacobian is not stored column by column".into(),
         ));
     }
-    let pv = &pv;
-    // The linear columns of `group` (indices into `free`) from the output `y`, scaled to
-    // `theta`, into `out` (each thread writes its own share).
-    let linear = |group: &[usize], y: &[f64], out: &mut [&mut [f64]]| -> Result<()> {
-        let which: Vec<usize> = group.iter().map(|&i| free[i]).collect();
-        s.linear_sensitivities(pv, &which, u, dt, y, skip, out)?;
-        for (&i, out) in group.iter().zip(out.iter_mut()) {
-            let dp = if transform {
-                params[free[i]].bounds.dparam(pv[free[i]])
-            } else {
-                1.0
-            };
-            if dp != 1.0 {
-                out.iter_mut().for_each(|j| *j *= dp);
-            }
-        }
-        Ok(())
+    let at = JacobianAt {
+        s,
+        pv: &pv,
+        free,
+        theta,
+        transform,
+        u,
+        dt,
+        skip,
     };
     // The linear columns are shared between the two threads, after their dual halves (each
     // costs about one f64 simulation; the gain's needs the output, which both halves compute).
@@ -262,15 +238,8 @@ fn jacobian<S: Structure>(
     let (out_a, out_b) = lin_cols.split_at_mut(lin_split);
     // The second half (all of them on one thread) and its share of the linear columns.
     let rest = |yhat: &mut [f64], cols: &mut [&mut [f64]], out: &mut [&mut [f64]]| {
-        if second.is_empty() {
-            s.simulate(pv, u, dt, yhat)?;
-        } else {
-            with_dual!(
-                second.len(),
-                eval_dual(s, pv, free, theta, transform, second, u, dt, yhat, cols)
-            )?;
-        }
-        linear(lin_b, yhat, out)
+        at.duals(&second, yhat, cols)?;
+        at.linear(lin_b, yhat, out)
     };
     if first.is_empty() {
         rest(yhat, &mut cols_second, out_b)?;
@@ -282,22 +251,8 @@ fn jacobian<S: Structure>(
         let (a, b) = std::thread::scope(|sc| {
             let h = sc.spawn(|| {
                 roots.install();
-                with_dual!(
-                    first.len(),
-                    eval_dual(
-                        s,
-                        pv,
-                        free,
-                        theta,
-                        transform,
-                        first,
-                        u,
-                        dt,
-                        &mut y_first,
-                        &mut cols_first
-                    )
-                )?;
-                linear(lin_a, &y_first, out_a)
+                at.duals(&first, &mut y_first, &mut cols_first)?;
+                at.linear(lin_a, &y_first, out_a)
             });
             let b = rest(yhat, &mut cols_second, out_b);
             (h.join(), b)
@@ -306,6 +261,92 @@ fn jacobian<S: Structure>(
         a.map_err(|_| Error::Numerical("a Jacobian thread panicked".into()))??;
     }
     Ok(())
+}
+
+/// The Jacobian's columns (indices into `free`) by how they are computed: the linear ones
+/// ([`Structure::is_linear`]), then the others in two halves for two threads (`u_len` samples:
+/// all in the second, on one thread, below [`PARALLEL_MIN_SAMPLES`], for fewer than two, or on
+/// one core).
+fn column_groups<S: Structure>(
+    s: &S,
+    free: &[usize],
+    u_len: usize,
+) -> (Vec<usize>, Vec<usize>, Vec<usize>) {
+    let (lin, nonlin): (Vec<usize>, Vec<usize>) =
+        (0..free.len()).partition(|&i| s.is_linear(free[i]));
+    // The linear columns alternate between the two threads' shares (the even ones first): the
+    // costly ones (initial-state levels, a simulation each) come in a run, and a run cut in the
+    // middle would load one thread with most of them.
+    let lin: Vec<usize> = lin
+        .iter()
+        .step_by(2)
+        .chain(lin.iter().skip(1).step_by(2))
+        .copied()
+        .collect();
+    let half = if nonlin.len() >= 2 && u_len >= PARALLEL_MIN_SAMPLES && crate::lm::two_cores() {
+        nonlin.len().div_ceil(2)
+    } else {
+        0
+    };
+    let (first, second) = nonlin.split_at(half);
+    (lin, first.to_vec(), second.to_vec())
+}
+
+/// What a part of a [`jacobian`] is computed at: the physical values `pv`, the free parameters
+/// `free` at `theta` (reparametrised by their [`Bounds`] with `transform`), the record.
+struct JacobianAt<'a, S: Structure> {
+    s: &'a S,
+    pv: &'a [f64],
+    free: &'a [usize],
+    theta: &'a [f64],
+    transform: bool,
+    u: &'a [f64],
+    dt: f64,
+    skip: usize,
+}
+
+impl<S: Structure> JacobianAt<'_, S> {
+    /// The output into `yhat` and the dual columns of `group` (indices into `free`) into
+    /// `cols` (the output alone for no column).
+    fn duals(&self, group: &[usize], yhat: &mut [f64], cols: &mut [&mut [f64]]) -> Result<()> {
+        let (s, pv, free, theta, transform, u, dt) = (
+            self.s,
+            self.pv,
+            self.free,
+            self.theta,
+            self.transform,
+            self.u,
+            self.dt,
+        );
+        if group.is_empty() {
+            s.simulate(pv, u, dt, yhat)
+        } else {
+            with_dual!(
+                group.len(),
+                eval_dual(s, pv, free, theta, transform, group, u, dt, yhat, cols)
+            )
+        }
+    }
+
+    /// The linear columns of `group` (indices into `free`) from the output `y`, scaled to
+    /// `theta`, into `out` (each thread writes its own share).
+    fn linear(&self, group: &[usize], y: &[f64], out: &mut [&mut [f64]]) -> Result<()> {
+        let (s, pv, free) = (self.s, self.pv, self.free);
+        let params = s.params();
+        let which: Vec<usize> = group.iter().map(|&i| free[i]).collect();
+        s.linear_sensitivities(pv, &which, self.u, self.dt, y, self.skip, out)?;
+        for (&i, out) in group.iter().zip(out.iter_mut()) {
+            let dp = if self.transform {
+                params[free[i]].bounds.dparam(pv[free[i]])
+            } else {
+                1.0
+            };
+            if dp != 1.0 {
+                out.iter_mut().for_each(|j| *j *= dp);
+            }
+        }
+        Ok(())
+    }
 }
 
 struct OeProblem<'a, S: Structure> {
@@ -543,33 +584,9 @@ pub(super) fn fit_in<S: Structure>(
     buffers: Option<Buffers>,
 ) -> Result<FitReport> {
     let t0 = Instant::now();
-    if u.len() != y.len() {
-        return Err(Error::Data(format!(
-            "u has {} samples, y {}",
-            u.len(),
-            y.len()
-        )));
-    }
-    if !crate::lm::all_finite(u) || !crate::lm::all_finite(y) {
-        return Err(Error::Data(
-            "the data contain NaN or infinite values".into(),
-        ));
-    }
-    if !(dt > 0.0 && dt.is_finite()) {
-        return Err(Error::Data(format!("sampling step {dt} must be positive")));
-    }
+    let free = check_fit(s, u, y, dt, opts.skip)?;
     let params = s.params();
-    let free: Vec<usize> = (0..params.len()).filter(|&j| params[j].free).collect();
-    if free.is_empty() {
-        return Err(Error::Options("no free parameter to fit".into()));
-    }
-    let m = y.len().saturating_sub(opts.skip);
-    if m <= free.len() {
-        return Err(Error::NotEnoughData(format!(
-            "{m} samples for {} free parameters",
-            free.len()
-        )));
-    }
+    let m = y.len() - opts.skip;
     let base: Vec<f64> = params.iter().map(|p| p.value).collect();
     let theta0 = free
         .iter()
@@ -586,38 +603,19 @@ pub(super) fn fit_in<S: Structure>(
     } else {
         None
     };
-    // The whole record's cost at the start is computed on another thread while the lead is
-    // fitted (the fit from the lead's optimum is kept only if that optimum does not fit the
-    // whole record worse than the start did).
-    let lead_fit = lead.map(|lead| {
-        std::thread::scope(|sc| {
-            let roots = fracsim::modal::RootsCache::of_this_thread();
-            let at_start = sc.spawn(|| {
-                // (From this thread's solved poles, as the Jacobian's helper.)
-                roots.install();
-                let p = physical(s, &free, &base, &theta0);
-                super::init::sse_of(s, &p, u, y, dt, opts.skip, &mut vec![0.0; u.len()])
-            });
-            let (u, y) = (&u[..lead], &y[..lead]);
-            let mut prob = OeProblem::new(s, u, y, dt, opts.skip, &free, &base, &mut *progress);
-            // The lead is only the whole record's start: it stops once a step lowers its cost
-            // by less than a step of LEAD_STEP_SE standard errors would (that is, by a relative
-            // LEAD_STEP_SE^2 / m of its cost, m its residuals).
-            let lead_lm = LmOptions {
-                ftol: opts
-                    .lm
-                    .ftol
-                    .max(LEAD_STEP_SE * LEAD_STEP_SE / (lead - opts.skip) as f64),
-                ..opts.lm.clone()
-            };
-            let r = minimize(&mut prob, &theta0, &lead_lm).ok();
-            let at_start = at_start.join().ok().flatten();
-            r.map(|r| (r, prob.jac_evals, at_start))
-        })
-    });
+    let problem = FitProblem {
+        s,
+        u,
+        y,
+        dt,
+        opts,
+        free: &free,
+        base: &base,
+    };
+    let lead_fit = lead.and_then(|lead| problem.fit_lead(lead, &theta0, &mut *progress));
     let mut prob = OeProblem::new(s, u, y, dt, opts.skip, &free, &base, &mut *progress);
     let mut from_lead = None;
-    if let Some((r, jac_evals, at_start)) = lead_fit.flatten() {
+    if let Some((r, jac_evals, at_start)) = lead_fit {
         prob.jac_evals = jac_evals;
         lead_work = (r.iterations, r.evaluations + 1);
         start = r.params;
@@ -658,58 +656,158 @@ pub(super) fn fit_in<S: Structure>(
     };
     rep.iterations += lead_work.0;
     rep.evaluations += lead_work.1;
-    let mut values = base.clone();
-    let mut ests: Vec<ParamEstimate> = params
-        .iter()
-        .map(|p| ParamEstimate {
-            name: p.name.clone(),
-            value: p.value,
-            std_error: None,
-            free: p.free,
-            at_bound: false,
+    Ok(problem.report(&rep, t0))
+}
+
+/// The free parameters of `s` (indices into its parameters) after the checks of [`fit`]'s
+/// input: `u` and `y` of one length and finite, a positive step `dt`, a free parameter, more
+/// samples after `skip` than free parameters.
+fn check_fit<S: Structure>(
+    s: &S,
+    u: &[f64],
+    y: &[f64],
+    dt: f64,
+    skip: usize,
+) -> Result<Vec<usize>> {
+    if u.len() != y.len() {
+        return Err(Error::Data(format!(
+            "u has {} samples, y {}",
+            u.len(),
+            y.len()
+        )));
+    }
+    if !crate::lm::all_finite(u) || !crate::lm::all_finite(y) {
+        return Err(Error::Data(
+            "the data contain NaN or infinite values".into(),
+        ));
+    }
+    if !(dt > 0.0 && dt.is_finite()) {
+        return Err(Error::Data(format!("sampling step {dt} must be positive")));
+    }
+    let params = s.params();
+    let free: Vec<usize> = (0..params.len()).filter(|&j| params[j].free).collect();
+    if free.is_empty() {
+        return Err(Error::Options("no free parameter to fit".into()));
+    }
+    let m = y.len().saturating_sub(skip);
+    if m <= free.len() {
+        return Err(Error::NotEnoughData(format!(
+            "{m} samples for {} free parameters",
+            free.len()
+        )));
+    }
+    Ok(free)
+}
+
+/// A fit's problem as [`fit_in`] sets it: the structure, the record, the options, the free
+/// parameters and every parameter's starting value.
+struct FitProblem<'a, S: Structure> {
+    s: &'a S,
+    u: &'a [f64],
+    y: &'a [f64],
+    dt: f64,
+    opts: &'a FitOptions,
+    free: &'a [usize],
+    base: &'a [f64],
+}
+
+impl<S: Structure> FitProblem<'_, S> {
+    /// The fit of the leading `lead` samples from `theta0`, its Jacobian evaluations and the
+    /// whole record's cost at the start (computed on another thread meanwhile: the fit from the
+    /// lead's optimum is kept only if that optimum does not fit the whole record worse than the
+    /// start did); `None` when the lead's fit fails.
+    fn fit_lead(
+        &self,
+        lead: usize,
+        theta0: &[f64],
+        progress: &mut dyn FnMut(usize, f64),
+    ) -> Option<(crate::lm::LmReport, usize, Option<f64>)> {
+        let (s, u, y, dt, opts) = (self.s, self.u, self.y, self.dt, self.opts);
+        let (free, base) = (self.free, self.base);
+        std::thread::scope(|sc| {
+            let roots = fracsim::modal::RootsCache::of_this_thread();
+            let at_start = sc.spawn(|| {
+                // (From this thread's solved poles, as the Jacobian's helper.)
+                roots.install();
+                let p = physical(s, free, base, theta0);
+                super::init::sse_of(s, &p, u, y, dt, opts.skip, &mut vec![0.0; u.len()])
+            });
+            let (u, y) = (&u[..lead], &y[..lead]);
+            let mut prob = OeProblem::new(s, u, y, dt, opts.skip, free, base, progress);
+            // The lead is only the whole record's start: it stops once a step lowers its cost
+            // by less than a step of LEAD_STEP_SE standard errors would (that is, by a relative
+            // LEAD_STEP_SE^2 / m of its cost, m its residuals).
+            let lead_lm = LmOptions {
+                ftol: opts
+                    .lm
+                    .ftol
+                    .max(LEAD_STEP_SE * LEAD_STEP_SE / (lead - opts.skip) as f64),
+                ..opts.lm.clone()
+            };
+            let r = minimize(&mut prob, theta0, &lead_lm).ok();
+            let at_start = at_start.join().ok().flatten();
+            r.map(|r| (r, prob.jac_evals, at_start))
         })
-        .collect();
-    let mut warnings = vec![];
-    for (i, &j) in free.iter().enumerate() {
-        let b = params[j].bounds;
-        let th = rep.params[i];
-        let v = b.to_param(th);
-        values[j] = v;
-        let dp = b.dparam(v);
-        ests[j].value = v;
-        // (NaN for a parameter held at a bound: no standard error.)
-        ests[j].std_error = rep
-            .std_errors
-            .as_ref()
-            .map(|se| se[i] * dp.abs())
-            .filter(|se| se.is_finite());
-        ests[j].at_bound = b.at_edge(v);
-        if ests[j].at_bound {
-            warnings.push(format!(
-                "{} = {v:.4} ran to a bound of its range {b:?}: the data do not support this structure \
-                 (try fixing it, another structure or another band)",
-                params[j].name
-            ));
+    }
+
+    /// The report of the fit that ended with `rep` (started at `t0`): every parameter's value
+    /// and standard error (delta method), the warnings.
+    fn report(&self, rep: &crate::lm::LmReport, t0: Instant) -> FitReport {
+        let (params, free, base) = (self.s.params(), self.free, self.base);
+        let m = self.y.len() - self.opts.skip;
+        let mut values = base.to_vec();
+        let mut ests: Vec<ParamEstimate> = params
+            .iter()
+            .map(|p| ParamEstimate {
+                name: p.name.clone(),
+                value: p.value,
+                std_error: None,
+                free: p.free,
+                at_bound: false,
+            })
+            .collect();
+        let mut warnings = vec![];
+        for (i, &j) in free.iter().enumerate() {
+            let b = params[j].bounds;
+            let th = rep.params[i];
+            let v = b.to_param(th);
+            values[j] = v;
+            let dp = b.dparam(v);
+            ests[j].value = v;
+            // (NaN for a parameter held at a bound: no standard error.)
+            ests[j].std_error = rep
+                .std_errors
+                .as_ref()
+                .map(|se| se[i] * dp.abs())
+                .filter(|se| se.is_finite());
+            ests[j].at_bound = b.at_edge(v);
+            if ests[j].at_bound {
+                warnings.push(format!(
+                    "{} = {v:.4} ran to a bound of its range {b:?}: the data do not support this \
+                     structure (try fixing it, another structure or another band)",
+                    params[j].name
+                ));
+            }
+        }
+        if rep.std_errors.is_none() {
+            warnings.push(
+                "the covariance is singular: some parameters are not identifiable from these data"
+                    .into(),
+            );
+        }
+        FitReport {
+            params: ests,
+            values,
+            start: base.to_vec(),
+            rmse: (rep.ssr() / m as f64).sqrt(),
+            iterations: rep.iterations,
+            evaluations: rep.evaluations,
+            termination: rep.termination,
+            converged: rep.converged,
+            elapsed: t0.elapsed(),
+            warnings,
         }
     }
-    if rep.std_errors.is_none() {
-        warnings.push(
-            "the covariance is singular: some parameters are not identifiable from these data"
-                .into(),
-        );
-    }
-    Ok(FitReport {
-        params: ests,
-        values,
-        start: base,
-        rmse: (rep.ssr() / m as f64).sqrt(),
-        iterations: rep.iterations,
-        evaluations: rep.evaluations,
-        termination: rep.termination,
-        converged: rep.converged,
-        elapsed: t0.elapsed(),
-        warnings,
-    })
 }
 
 /// How [`identify`] starts.
@@ -1119,27 +1217,7 @@ fn identify_at_scale(
     if opts.fit_offset && m.index_of("y_offset").is_none() {
         m.with_output_offset(0.0);
     }
-    match initial {
-        InitialState::Estimate => {
-            // A model evaluated at its values (no iteration: its covariance and checks there)
-            // keeps its initial state's levels; a fit starts them from rest.
-            let kept: Option<Vec<f64>> = m
-                .past
-                .as_ref()
-                .filter(|_| opts.fit.lm.max_iterations == 0)
-                .map(|p| p.levels.iter().map(|&i| m.params[i].value).collect());
-            m.with_past_input(
-                past_edges(split as f64 * rec.dt),
-                super::past_range(&rec.u, offsets.u0),
-            );
-            if let (Some(v), Some(p)) = (kept, &m.past) {
-                for (&i, &x) in p.levels.iter().zip(&v) {
-                    m.params[i].value = x;
-                }
-            }
-        }
-        InitialState::Rest | InitialState::Auto => m.past = None,
-    }
+    set_initial_state(&mut m, initial, opts, split as f64 * rec.dt, &rec.u);
     for p in &mut m.params {
         p.value = p.bounds.clamp_inside(p.value);
     }
@@ -1178,8 +1256,50 @@ fn identify_at_scale(
             reason: initial_why,
         },
     };
-    // A level of the initial state at the edge of its range is not a structure problem: one
-    // warning of its own instead of the parameter's.
+    judge(&mut id, rec, step_from_rest, split_warning);
+    Ok(id)
+}
+
+/// The initial state of `m` for a fit from `initial` (resolved): for
+/// [`InitialState::Estimate`] a past input over an estimation part of `duration` seconds in the
+/// range of the input `u` (a model evaluated at its values, with no iteration, keeps its levels:
+/// its covariance and checks there; a fit starts them from rest), else none.
+fn set_initial_state(
+    m: &mut FracModel,
+    initial: InitialState,
+    opts: &IdentOptions,
+    duration: f64,
+    u: &[f64],
+) {
+    match initial {
+        InitialState::Estimate => {
+            let kept: Option<Vec<f64>> = m
+                .past
+                .as_ref()
+                .filter(|_| opts.fit.lm.max_iterations == 0)
+                .map(|p| p.levels.iter().map(|&i| m.params[i].value).collect());
+            let u0 = m.operating_point.u0;
+            m.with_past_input(past_edges(duration), super::past_range(u, u0));
+            if let (Some(v), Some(p)) = (kept, &m.past) {
+                for (&i, &x) in p.levels.iter().zip(&v) {
+                    m.params[i].value = x;
+                }
+            }
+        }
+        InitialState::Rest | InitialState::Auto => m.past = None,
+    }
+}
+
+/// The problems and warnings of an identification on `rec` ([`super::checks::assess`]): a
+/// level of the initial state at the edge of its range is not a structure problem, one warning
+/// of its own instead of the parameter's; a record taken as a step from rest says so, and so
+/// does a held-out part `split_warning` warns of.
+fn judge(
+    id: &mut Identification,
+    rec: &Record,
+    step_from_rest: bool,
+    split_warning: impl IntoIterator<Item = String>,
+) {
     let state: Vec<&str> = (0..id.model.params.len())
         .filter(|&i| id.model.is_initial_state(i))
         .map(|i| id.model.params[i].name.as_str())
@@ -1192,7 +1312,7 @@ fn identify_at_scale(
     id.report
         .warnings
         .extend(super::checks::levels_at_bound(&id.model, &id.report.params));
-    let (problems, warnings) = super::checks::assess(&id, rec);
+    let (problems, warnings) = super::checks::assess(id, rec);
     id.problems = problems;
     if step_from_rest {
         id.report.warnings.push(format!(
@@ -1204,7 +1324,6 @@ fn identify_at_scale(
     }
     id.report.warnings.extend(split_warning);
     id.report.warnings.extend(warnings);
-    Ok(id)
 }
 
 /// For an estimation part long enough to be fitted by its lead first (and so to end in

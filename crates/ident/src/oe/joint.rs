@@ -90,49 +90,7 @@ pub fn identify_joint(
         ..opts.clone()
     };
     let base = super::identify(first, model, &one)?.model;
-    let own = |m: &FracModel, i: usize| m.is_initial_state(i) || m.params[i].name == "y_offset";
-    let mut params = base.params.clone();
-    // the first record's initial-state levels start afresh like the others' (the start's own fit
-    // may leave one at the very edge of its range, which the joint fit refuses as a start)
-    for (i, p) in params.iter_mut().enumerate() {
-        if base.is_initial_state(i) {
-            p.value = 0.0;
-        }
-    }
-    let (mut parts, mut ranges, mut u, mut y) = (vec![], vec![], vec![], vec![]);
-    for (r, rec) in recs.iter().enumerate() {
-        let op = rec.offsets(opts.offsets, rec.len());
-        let mut m = base.clone();
-        m.operating_point = op;
-        if opts.initial == InitialState::Estimate {
-            m.with_past_input(
-                past_edges(rec.len() as f64 * rec.dt),
-                super::past_range(&rec.u, op.u0),
-            );
-        }
-        let map: Vec<usize> = (0..m.params.len())
-            .map(|i| {
-                if r > 0 && own(&m, i) {
-                    let mut p = m.params[i].clone();
-                    p.name = format!("{}@{}", p.name, r + 1);
-                    p.value = 0.0;
-                    params.push(p);
-                    params.len() - 1
-                } else {
-                    i
-                }
-            })
-            .collect();
-        ranges.push((u.len(), u.len() + rec.len()));
-        u.extend(rec.u.iter().map(|v| v - op.u0));
-        y.extend(rec.y.iter().map(|v| v - op.y0));
-        parts.push((m, map));
-    }
-    let joint = Joint {
-        parts,
-        ranges,
-        params,
-    };
+    let (joint, u, y) = Joint::of(recs, &base, opts);
     let report = fit_in(&joint, &u, &y, first.dt, &opts.fit, &mut |_, _| {}, None)?;
     let mut records = vec![];
     for ((m, map), &(a, b)) in joint.parts.iter().zip(&joint.ranges) {
@@ -149,6 +107,78 @@ pub fn identify_joint(
         p.value = report.values[j];
     }
     let tf = model.tf(&model.values())?;
+    let problems = problems(&model, &tf, &report, &records, first);
+    Ok(JointIdentification {
+        model,
+        tf,
+        report,
+        records,
+        problems,
+    })
+}
+
+impl Joint {
+    /// The records `recs` end to end with the model `base` (fitted to the first), each with its
+    /// operating point and, for [`InitialState::Estimate`], its past input: the structure and
+    /// the deviations `u`, `y` end to end.
+    fn of(recs: &[Record], base: &FracModel, opts: &IdentOptions) -> (Self, Vec<f64>, Vec<f64>) {
+        let own = |m: &FracModel, i: usize| m.is_initial_state(i) || m.params[i].name == "y_offset";
+        let mut params = base.params.clone();
+        // the first record's initial-state levels start afresh like the others' (the start's own
+        // fit may leave one at the very edge of its range, which the joint fit refuses as a start)
+        for (i, p) in params.iter_mut().enumerate() {
+            if base.is_initial_state(i) {
+                p.value = 0.0;
+            }
+        }
+        let (mut parts, mut ranges, mut u, mut y) = (vec![], vec![], vec![], vec![]);
+        for (r, rec) in recs.iter().enumerate() {
+            let op = rec.offsets(opts.offsets, rec.len());
+            let mut m = base.clone();
+            m.operating_point = op;
+            if opts.initial == InitialState::Estimate {
+                m.with_past_input(
+                    past_edges(rec.len() as f64 * rec.dt),
+                    super::past_range(&rec.u, op.u0),
+                );
+            }
+            let map: Vec<usize> = (0..m.params.len())
+                .map(|i| {
+                    if r > 0 && own(&m, i) {
+                        let mut p = m.params[i].clone();
+                        p.name = format!("{}@{}", p.name, r + 1);
+                        p.value = 0.0;
+                        params.push(p);
+                        params.len() - 1
+                    } else {
+                        i
+                    }
+                })
+                .collect();
+            ranges.push((u.len(), u.len() + rec.len()));
+            u.extend(rec.u.iter().map(|v| v - op.u0));
+            y.extend(rec.y.iter().map(|v| v - op.y0));
+            parts.push((m, map));
+        }
+        let joint = Joint {
+            parts,
+            ranges,
+            params,
+        };
+        (joint, u, y)
+    }
+}
+
+/// Why the jointly fitted `model` cannot be used: the rules of a single record's fit on the
+/// model and the plant's parameters, judged by the record it fits worst, and any record it fits
+/// hardly better than a constant.
+fn problems(
+    model: &FracModel,
+    tf: &FracTf,
+    report: &super::FitReport,
+    records: &[(Offsets, Fit, Vec<f64>)],
+    first: &Record,
+) -> Vec<String> {
     let n = model.params.len();
     let worst = records
         .iter()
@@ -157,11 +187,11 @@ pub fn identify_joint(
         .unwrap_or(records[0].1);
     let stop = report.stop_reason();
     let ev = super::checks::Evidence {
-        model: &model,
+        model,
         values: &report.values[..n],
         params: &report.params[..n],
         start: &report.start[..n],
-        tf: &tf,
+        tf,
         estimation: worst,
         validation: None,
         kind: super::ValidationKind::None,
@@ -189,11 +219,5 @@ pub fn identify_joint(
             f.nrmse_percent
         )
     }));
-    Ok(JointIdentification {
-        model,
-        tf,
-        report,
-        records,
-        problems,
-    })
+    problems
 }

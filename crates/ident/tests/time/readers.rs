@@ -185,7 +185,7 @@ fn bad_files_are_data_errors_bounded_and_short() {
     assert!(e.contains("line 5002"), "{e}");
     assert!(e.len() < 200, "{} characters", e.len());
     // one line of 1 MiB + 1 byte: refused while reading
-    let p = scratch("long.csv", &vec![b'1'; data::MAX_LINE_BYTES + 1]);
+    let p = scratch("long.csv", &vec![b'1'; ident::files::MAX_LINE_BYTES + 1]);
     let e = Record::load(&p, &Default::default()).unwrap_err();
     assert!(e.to_string().contains("longer than"), "{e}");
     // a missing file: I/O, in words

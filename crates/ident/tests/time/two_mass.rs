@@ -253,7 +253,6 @@ fn the_flexible_robot_arm_is_diagnosed_as_a_resonant_drive_train() {
         reader_warnings: vec![],
     };
     let req = TimeRequest {
-        diagnose: true,
         ..Default::default()
     };
     let r = run(&req, &data, &mut Quiet).unwrap();
@@ -321,15 +320,7 @@ fn auto_reduces_the_arms_degenerate_two_mass_screening_fit_at_once() {
     assert_eq!(chosen.name, "two-mass (reduced)", "{}", c.reason);
     assert!(c.reason.contains("refitted at once"), "{}", c.reason);
     let held = r.lead.fit.validation.expect("a held-out part").rmse;
-    let diagnosed = run(
-        &TimeRequest {
-            diagnose: true,
-            ..auto.clone()
-        },
-        &data,
-        &mut Quiet,
-    )
-    .unwrap();
+    let diagnosed = run(&TimeRequest { ..auto.clone() }, &data, &mut Quiet).unwrap();
     let d = diagnosed.diagnosis.as_ref().expect("a diagnosis");
     let base = d.structures.scores[d.structures.chosen]
         .rmse

@@ -2,9 +2,10 @@
 //! cache, each command's checks.
 
 use super::run::Excitation;
-use super::{Firmware, FW_MAJOR, FW_MINOR};
+use super::Firmware;
 use crate::codec;
 use crate::prbs::Lfsr;
+use crate::protocol::spec::{FW_MAJOR, FW_MINOR};
 use crate::protocol::*;
 use crate::sim::plant::Plant;
 use std::sync::atomic::Ordering;
@@ -189,10 +190,10 @@ impl Firmware {
                     _ => return self.nak(f, NakCode::NoController, 0),
                 };
                 if l.pre_samples > l.total_samples {
-                    return self.nak(f, NakCode::BadValue, 4);
+                    return self.nak(f, NakCode::BadValue, off(ty::START_LOOP, "pre_samples"));
                 }
                 if l.total_samples == 0 {
-                    return self.nak(f, NakCode::BadValue, 8);
+                    return self.nak(f, NakCode::BadValue, off(ty::START_LOOP, "total_samples"));
                 }
                 let z = vec![0; ctrl.n_states()];
                 let exc = Excitation::Loop { p: *l, ctrl, z };
@@ -203,13 +204,13 @@ impl Firmware {
                     return a;
                 }
                 let Some(total) = p.total_samples() else {
-                    return self.nak(f, NakCode::BadValue, 0);
+                    return self.nak(f, NakCode::BadValue, off(ty::START_PRBS, "order"));
                 };
                 let Some(lfsr) = Lfsr::new(p.order, p.taps, p.seed) else {
-                    return self.nak(f, NakCode::BadValue, 2);
+                    return self.nak(f, NakCode::BadValue, off(ty::START_PRBS, "taps"));
                 };
                 if p.clock_samples == 0 || p.periods == 0 || p.amplitude < 0 || total == 0 {
-                    return self.nak(f, NakCode::BadValue, 10);
+                    return self.nak(f, NakCode::BadValue, off(ty::START_PRBS, "clock_samples"));
                 }
                 let exc = Excitation::Prbs {
                     lfsr,
@@ -230,10 +231,10 @@ impl Firmware {
                     || s.cycles == 0
                     || s.flags & (SINE_STREAM | SINE_DFT) == 0;
                 let Some((settle, measure)) = counts.filter(|c| !bad && c.1 > 0) else {
-                    return self.nak(f, NakCode::BadValue, 0);
+                    return self.nak(f, NakCode::BadValue, off(ty::START_SINE, "freq_mhz"));
                 };
                 if s.flags & SINE_DFT != 0 && measure > MAX_DFT_SAMPLES {
-                    return self.nak(f, NakCode::BadValue, 10);
+                    return self.nak(f, NakCode::BadValue, off(ty::START_SINE, "cycles"));
                 }
                 let inc = (((s.freq_mhz as u128) << 32) + 500 * fs as u128) / (1000 * fs as u128);
                 let exc = Excitation::Sine {
@@ -283,13 +284,13 @@ impl Firmware {
         let (max_sections, max_taps) = match c.format {
             CTRL_FORMAT => (MAX_SECTIONS, 0),
             CTRL_FORMAT_TAPS => (MAX_SECTIONS_TAPS, MAX_TAPS),
-            _ => return self.nak(f, NakCode::BadValue, 0),
+            _ => return self.nak(f, NakCode::BadValue, off(ty::LOAD_CTRL, "format")),
         };
         if c.n_sections > max_sections {
-            return self.nak(f, NakCode::BadValue, 1);
+            return self.nak(f, NakCode::BadValue, off(ty::LOAD_CTRL, "n_sections"));
         }
         if c.n_taps > max_taps {
-            return self.nak(f, NakCode::BadValue, 2);
+            return self.nak(f, NakCode::BadValue, off(ty::LOAD_CTRL, "n_taps"));
         }
         self.ctrl_load = Some((*c, Vec::new()));
         self.ack(f, 0, 0)
@@ -309,11 +310,11 @@ impl Firmware {
             _ => return self.nak(f, NakCode::BadValue, 0),
         };
         if c.index != next.0 {
-            return self.nak(f, NakCode::BadValue, 0);
+            return self.nak(f, NakCode::BadValue, off(ty::LOAD_SECTION, "index"));
         }
         // a pole within the unit circle; a tap's pole field 0
         if c.a_q30.unsigned_abs() > 1 << 30 || (next.1 && c.a_q30 != 0) {
-            return self.nak(f, NakCode::BadValue, 2);
+            return self.nak(f, NakCode::BadValue, off(ty::LOAD_SECTION, "a_q30"));
         }
         if let Some((_, s)) = self.ctrl_load.as_mut() {
             s.push(*c);
@@ -336,34 +337,42 @@ impl Firmware {
     }
 }
 
+/// The payload offset of a field (the detail of a BAD_VALUE NAK), from the description of the
+/// frames.
+fn off(ty: u8, field: &str) -> u16 {
+    crate::protocol::spec::message(ty)
+        .and_then(|m| m.offset(field))
+        .expect("a field of the table") as u16
+}
+
 /// Offset of the first invalid CONFIGURE field, if any.
 pub(super) fn check_configure(c: &Configure, max_fs: u32) -> Option<u16> {
     if c.sample_rate_hz == 0 || c.sample_rate_hz > max_fs {
-        return Some(0);
+        return Some(off(ty::CONFIGURE, "sample_rate_hz"));
     }
     if c.block_samples == 0 || c.block_samples > MAX_BLOCK_SAMPLES {
-        return Some(4);
+        return Some(off(ty::CONFIGURE, "block_samples"));
     }
     if !(50..=5000).contains(&c.keepalive_ms) {
-        return Some(6);
+        return Some(off(ty::CONFIGURE, "keepalive_ms"));
     }
     if c.scale_u_uv == 0 {
-        return Some(8);
+        return Some(off(ty::CONFIGURE, "scale_u_uv"));
     }
     if c.scale_y_urad_s == 0 {
-        return Some(12);
+        return Some(off(ty::CONFIGURE, "scale_y_urad_s"));
     }
     if c.scale_i_ua == 0 {
-        return Some(16);
+        return Some(off(ty::CONFIGURE, "scale_i_ua"));
     }
     if c.u_limit <= 0 {
-        return Some(20);
+        return Some(off(ty::CONFIGURE, "u_limit"));
     }
     if c.y_limit <= 0 {
-        return Some(22);
+        return Some(off(ty::CONFIGURE, "y_limit"));
     }
     if c.i_limit <= 0 {
-        return Some(24);
+        return Some(off(ty::CONFIGURE, "i_limit"));
     }
     None
 }

@@ -95,11 +95,6 @@ pub(super) struct Firmware {
     quiet_steps: u32,
 }
 
-pub(super) const FW_MAJOR: u8 = 1;
-/// 1.1: the speed loop (LOAD_CTRL, LOAD_SECTION, START_LOOP); 1.2: controller format 2 (up to 48
-/// sections and 8 delay taps); 1.3: protocol 3 (only a KEEPALIVE of the run keeps it alive).
-pub(super) const FW_MINOR: u8 = 3;
-
 impl Firmware {
     pub(super) fn new(
         cfg: SimConfig,

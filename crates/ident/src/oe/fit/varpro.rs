@@ -316,31 +316,24 @@ impl<'a, S: Structure> Reduced<'a, S> {
         }
     }
 
-    /// Solve the linear parameters at the reduced parameters `theta_n`: one simulation, the
-    /// levels' free responses, a least-squares fit in the basis `G0 u, F_i, 1`. A level outside
-    /// its range is held just inside it and the others solved again.
-    fn solve(&mut self, theta_n: &[f64]) -> Result<()> {
-        if self.at.as_deref() == Some(theta_n) {
-            return Ok(());
+    /// A column of `m` samples from [`Reduced::spare`] (any values), or a new one.
+    fn spare_column(&mut self, m: usize) -> Vec<f64> {
+        match self.spare.pop() {
+            Some(c) if c.len() == m => c,
+            _ => vec![0.0; m],
         }
+    }
+
+    /// The raw columns of the linear basis at the physical values `p` (`which`: the linear
+    /// parameters' indices): `G0 u`, the levels' free responses `F_i` and, with an output
+    /// offset, 1, from one simulation (into `yhat`; the first one's sum of squares kept).
+    fn raw_columns(&mut self, p: &[f64], which: &[usize]) -> Result<Vec<Vec<f64>>> {
         let (s, plan, skip) = (self.s, self.plan, self.skip);
-        let params = s.params();
-        let mut th = self.theta.clone();
-        for (&i, &t) in plan.nonlin.iter().zip(theta_n) {
-            th[i] = t;
-        }
-        let p = physical(s, self.free, self.base, &th);
-        let which: Vec<usize> = plan.lin.iter().map(|&i| self.free[i]).collect();
         let m = self.y.len() - skip;
-        let mut cols: Vec<Vec<f64>> = (0..which.len())
-            .map(|_| match self.spare.pop() {
-                Some(c) if c.len() == m => c,
-                _ => vec![0.0; m],
-            })
-            .collect();
+        let mut cols: Vec<Vec<f64>> = (0..which.len()).map(|_| self.spare_column(m)).collect();
         {
             let mut out: Vec<&mut [f64]> = cols.iter_mut().map(|c| c.as_mut_slice()).collect();
-            s.simulate_with_linear(&p, &which, self.u, self.dt, &mut self.yhat, skip, &mut out)?;
+            s.simulate_with_linear(p, which, self.u, self.dt, &mut self.yhat, skip, &mut out)?;
         }
         let y = &self.y[skip..];
         if self.start_ssr.is_none() {
@@ -351,8 +344,7 @@ impl<'a, S: Structure> Reduced<'a, S> {
                 .collect();
             self.start_ssr = Some(dot(&r, &r));
         }
-        let gain_j = which[plan.gain];
-        let k = p[gain_j];
+        let k = p[which[plan.gain]];
         if !(k.is_finite() && k != 0.0) {
             return Err(Error::Numerical("variable projection: a zero gain".into()));
         }
@@ -372,9 +364,8 @@ impl<'a, S: Structure> Reduced<'a, S> {
             let w = p[which[l]];
             g.iter_mut().zip(fi).for_each(|(a, b)| *a -= w * b);
         }
-        // The columns the bases are made of: G0 u, the levels' responses, 1; their Gram
-        // matrix and their products with y, once (a held level's response joins the gain's
-        // column, a combination of these).
+        // The columns the bases are made of: G0 u, the levels' responses, 1 (a held level's
+        // response joins the gain's column, a combination of these).
         let mut raw: Vec<Vec<f64>> = Vec::with_capacity(f.len() + 2);
         raw.push(g);
         raw.extend(f);
@@ -384,72 +375,44 @@ impl<'a, S: Structure> Reduced<'a, S> {
             ones.iter_mut().for_each(|v| *v = 1.0);
             raw.push(ones);
         }
+        Ok(raw)
+    }
+
+    /// Solve the linear parameters at the reduced parameters `theta_n`: one simulation, the
+    /// levels' free responses, a least-squares fit in the basis `G0 u, F_i, 1`. A level outside
+    /// its range is held just inside it and the others solved again.
+    fn solve(&mut self, theta_n: &[f64]) -> Result<()> {
+        if self.at.as_deref() == Some(theta_n) {
+            return Ok(());
+        }
+        let (s, plan, skip) = (self.s, self.plan, self.skip);
+        let params = s.params();
+        let mut th = self.theta.clone();
+        for (&i, &t) in plan.nonlin.iter().zip(theta_n) {
+            th[i] = t;
+        }
+        let p = physical(s, self.free, self.base, &th);
+        let which: Vec<usize> = plan.lin.iter().map(|&i| self.free[i]).collect();
+        let m = self.y.len() - skip;
+        let mut raw = self.raw_columns(&p, &which)?;
+        let y_all = self.y;
+        let y = &y_all[skip..];
+        let gain_j = which[plan.gain];
+        // The raw columns' Gram matrix and their products with y, once.
         let nr = raw.len();
         let gram = gram(&raw);
         let raw_y: Vec<f64> = raw.iter().map(|a| dot(a, y)).collect();
         let nf = nr - 1 - usize::from(plan.offset.is_some());
         let mut held: Vec<Option<f64>> = vec![None; nf];
         for _ in 0..=nf {
-            // Columns: the gain's (G0 u and the held levels' responses), the free levels', 1,
-            // as combinations `t` (row-major `c x nr`) of the raw columns.
             let free_levels: Vec<usize> = (0..nf).filter(|&i| held[i].is_none()).collect();
-            let mut comb: Vec<Vec<f64>> = vec![];
-            let mut first = vec![0.0; nr];
-            first[0] = 1.0;
-            for (i, h) in held.iter().enumerate() {
-                if let Some(v) = h {
-                    first[1 + i] = *v;
-                }
-            }
-            comb.push(first);
-            for &i in &free_levels {
-                let mut t = vec![0.0; nr];
-                t[1 + i] = 1.0;
-                comb.push(t);
-            }
-            if plan.offset.is_some() {
-                let mut t = vec![0.0; nr];
-                t[nr - 1] = 1.0;
-                comb.push(t);
-            }
+            let comb = combinations(&held, &free_levels, nr, plan.offset.is_some());
             let c = comb.len();
-            let mut ga = vec![0.0; c * c];
-            for a in 0..c {
-                for b in 0..c {
-                    let mut v = 0.0;
-                    for i in 0..nr {
-                        if comb[a][i] == 0.0 {
-                            continue;
-                        }
-                        for j in 0..nr {
-                            v += comb[a][i] * gram[i * nr + j] * comb[b][j];
-                        }
-                    }
-                    ga[a * c + b] = v;
-                }
-            }
+            let ga = combined_gram(&comb, &gram, nr);
             let aty: Vec<f64> = comb
                 .iter()
                 .map(|t| t.iter().zip(&raw_y).map(|(a, b)| a * b).sum())
                 .collect();
-            let cols = || -> Vec<Vec<f64>> {
-                comb.iter()
-                    .map(|t| {
-                        let nz: Vec<usize> = (0..nr).filter(|&i| t[i] != 0.0).collect();
-                        if let [i] = nz[..] {
-                            if t[i] == 1.0 {
-                                return raw[i].clone();
-                            }
-                        }
-                        let mut v = vec![0.0; m];
-                        for &i in &nz {
-                            let w = t[i];
-                            v.iter_mut().zip(&raw[i]).for_each(|(a, b)| *a += w * b);
-                        }
-                        v
-                    })
-                    .collect()
-            };
             // With no level held the columns are the raw ones: moved into the basis (and back
             // should a level be held after all), not copied.
             let unit = held.iter().all(Option::is_none);
@@ -457,16 +420,17 @@ impl<'a, S: Structure> Reduced<'a, S> {
                 Some((scale, chol)) if unit => {
                     LinearBasis::with_factor(std::mem::take(&mut raw), scale, chol)
                 }
-                Some((scale, chol)) => LinearBasis::with_factor(cols(), scale, chol),
-                None => LinearBasis::orthonormal(cols()).ok_or_else(|| {
-                    Error::Numerical("variable projection: the linear basis is singular".into())
-                })?,
+                Some((scale, chol)) => {
+                    LinearBasis::with_factor(combined_columns(&comb, &raw, m), scale, chol)
+                }
+                None => {
+                    LinearBasis::orthonormal(combined_columns(&comb, &raw, m)).ok_or_else(|| {
+                        Error::Numerical("variable projection: the linear basis is singular".into())
+                    })?
+                }
             };
             let aty = if basis.r.is_some() { basis.at(y) } else { aty };
-            let mut fitted = match self.spare.pop() {
-                Some(v) if v.len() == m => v,
-                _ => vec![0.0; m],
-            };
+            let mut fitted = self.spare_column(m);
             let x = basis.least_squares(&aty, y, &mut fitted);
             let a = x[0];
             if !(a.is_finite() && a != 0.0)
@@ -476,18 +440,7 @@ impl<'a, S: Structure> Reduced<'a, S> {
                     "variable projection: the gain left its range".into(),
                 ));
             }
-            let mut again = false;
-            let mut w = vec![0.0; nf];
-            for (slot, &i) in free_levels.iter().enumerate() {
-                w[i] = x[1 + slot] / a;
-                let b = params[which[plan.levels[i]]].bounds;
-                if let Bounds::Interval(lo, hi) = b {
-                    if !(w[i] > lo && w[i] < hi) {
-                        held[i] = Some(b.clamp_inside(w[i]));
-                        again = true;
-                    }
-                }
-            }
+            let (w, again) = self.hold_levels(&which, &x, &free_levels, &mut held);
             if again {
                 if raw.is_empty() {
                     raw = basis.cols;
@@ -495,35 +448,171 @@ impl<'a, S: Structure> Reduced<'a, S> {
                 self.spare.push(fitted);
                 continue;
             }
-            let to = |k: usize, v: f64| {
-                let j = which[k];
-                let b = params[j].bounds;
-                b.to_theta(b.clamp_inside(v), &params[j].name)
+            let solution = Solution {
+                x: &x,
+                w: &w,
+                held: &held,
             };
-            th[plan.lin[plan.gain]] = to(plan.gain, a)?;
-            for (i, &l) in plan.levels.iter().enumerate() {
-                th[plan.lin[l]] = to(l, held[i].unwrap_or(w[i]))?;
-            }
-            if let Some(o) = plan.offset {
-                th[plan.lin[o]] = to(o, x[c - 1])?;
-            }
-            self.theta = th;
-            self.at = Some(theta_n.to_vec());
-            let old = std::mem::replace(&mut self.basis, basis);
-            self.spare.extend(old.cols);
-            self.spare.push(std::mem::replace(&mut self.fitted, fitted));
-            self.spare.extend(raw.into_iter().filter(|c| c.len() == m));
-            self.spare.truncate(which.len() + 2);
-            self.held = (0..nf)
-                .filter(|&i| held[i].is_some())
-                .map(|i| plan.lin[plan.levels[i]])
-                .collect();
+            self.accept(th, theta_n, &which, &solution, basis, fitted, raw)?;
             return Ok(());
         }
         Err(Error::Numerical(
             "variable projection: the levels do not settle in their ranges".into(),
         ))
     }
+
+    /// The levels `w` of a solution `x` (the free levels' `K w_i` after the gain `x[0]`); a free
+    /// level outside its range is held just inside it (into `held`), and then `true`: solve
+    /// again.
+    fn hold_levels(
+        &self,
+        which: &[usize],
+        x: &[f64],
+        free_levels: &[usize],
+        held: &mut [Option<f64>],
+    ) -> (Vec<f64>, bool) {
+        let params = self.s.params();
+        let a = x[0];
+        let mut again = false;
+        let mut w = vec![0.0; held.len()];
+        for (slot, &i) in free_levels.iter().enumerate() {
+            w[i] = x[1 + slot] / a;
+            let b = params[which[self.plan.levels[i]]].bounds;
+            if let Bounds::Interval(lo, hi) = b {
+                if !(w[i] > lo && w[i] < hi) {
+                    held[i] = Some(b.clamp_inside(w[i]));
+                    again = true;
+                }
+            }
+        }
+        (w, again)
+    }
+
+    /// Keep the solution at `theta_n` (every free parameter's `th`, the linear ones set from
+    /// `sol`), its basis and fitted output; the buffers it no longer needs are kept as spares.
+    #[allow(clippy::too_many_arguments)]
+    fn accept(
+        &mut self,
+        mut th: Vec<f64>,
+        theta_n: &[f64],
+        which: &[usize],
+        sol: &Solution<'_>,
+        basis: LinearBasis,
+        fitted: Vec<f64>,
+        raw: Vec<Vec<f64>>,
+    ) -> Result<()> {
+        let (plan, params) = (self.plan, self.s.params());
+        let m = self.y.len() - self.skip;
+        let c = sol.x.len();
+        let to = |k: usize, v: f64| {
+            let j = which[k];
+            let b = params[j].bounds;
+            b.to_theta(b.clamp_inside(v), &params[j].name)
+        };
+        th[plan.lin[plan.gain]] = to(plan.gain, sol.x[0])?;
+        for (i, &l) in plan.levels.iter().enumerate() {
+            th[plan.lin[l]] = to(l, sol.held[i].unwrap_or(sol.w[i]))?;
+        }
+        if let Some(o) = plan.offset {
+            th[plan.lin[o]] = to(o, sol.x[c - 1])?;
+        }
+        self.theta = th;
+        self.at = Some(theta_n.to_vec());
+        let old = std::mem::replace(&mut self.basis, basis);
+        self.spare.extend(old.cols);
+        self.spare.push(std::mem::replace(&mut self.fitted, fitted));
+        self.spare.extend(raw.into_iter().filter(|c| c.len() == m));
+        self.spare.truncate(which.len() + 2);
+        let nf = sol.held.len();
+        self.held = (0..nf)
+            .filter(|&i| sol.held[i].is_some())
+            .map(|i| plan.lin[plan.levels[i]])
+            .collect();
+        Ok(())
+    }
+}
+
+/// A linear solution of [`Reduced::solve`]: `x` in its basis's columns (the gain's, the free
+/// levels', the offset's), the levels `w` and those held at an edge of their range.
+struct Solution<'s> {
+    x: &'s [f64],
+    w: &'s [f64],
+    held: &'s [Option<f64>],
+}
+
+/// The columns of a basis as combinations `t` (row-major `c x nr`) of the `nr` raw columns: the
+/// gain's (`G0 u` and the held levels' responses), the free levels' (`free_levels`), and 1 for
+/// an output offset.
+fn combinations(
+    held: &[Option<f64>],
+    free_levels: &[usize],
+    nr: usize,
+    offset: bool,
+) -> Vec<Vec<f64>> {
+    let mut comb: Vec<Vec<f64>> = vec![];
+    let mut first = vec![0.0; nr];
+    first[0] = 1.0;
+    for (i, h) in held.iter().enumerate() {
+        if let Some(v) = h {
+            first[1 + i] = *v;
+        }
+    }
+    comb.push(first);
+    for &i in free_levels {
+        let mut t = vec![0.0; nr];
+        t[1 + i] = 1.0;
+        comb.push(t);
+    }
+    if offset {
+        let mut t = vec![0.0; nr];
+        t[nr - 1] = 1.0;
+        comb.push(t);
+    }
+    comb
+}
+
+/// The Gram matrix (row-major `c x c`) of the combinations `comb` of raw columns whose Gram
+/// matrix is `gram` (row-major `nr x nr`).
+fn combined_gram(comb: &[Vec<f64>], gram: &[f64], nr: usize) -> Vec<f64> {
+    let c = comb.len();
+    let mut ga = vec![0.0; c * c];
+    for a in 0..c {
+        for b in 0..c {
+            let mut v = 0.0;
+            for i in 0..nr {
+                if comb[a][i] == 0.0 {
+                    continue;
+                }
+                for j in 0..nr {
+                    v += comb[a][i] * gram[i * nr + j] * comb[b][j];
+                }
+            }
+            ga[a * c + b] = v;
+        }
+    }
+    ga
+}
+
+/// The combinations `comb` of the raw columns `raw` as columns of `m` samples (a raw column
+/// itself copied).
+fn combined_columns(comb: &[Vec<f64>], raw: &[Vec<f64>], m: usize) -> Vec<Vec<f64>> {
+    let nr = raw.len();
+    comb.iter()
+        .map(|t| {
+            let nz: Vec<usize> = (0..nr).filter(|&i| t[i] != 0.0).collect();
+            if let [i] = nz[..] {
+                if t[i] == 1.0 {
+                    return raw[i].clone();
+                }
+            }
+            let mut v = vec![0.0; m];
+            for &i in &nz {
+                let w = t[i];
+                v.iter_mut().zip(&raw[i]).for_each(|(a, b)| *a += w * b);
+            }
+            v
+        })
+        .collect()
 }
 
 impl<S: Structure> Problem for Reduced<'_, S> {

@@ -1,63 +1,19 @@
 //! Messages and their payload layouts (see the crate docs, section 3). No I/O, no framing: the
-//! [`codec`](crate::codec) wraps a [`Frame`] into bytes.
+//! [`codec`](crate::codec) wraps a [`Frame`] into bytes. The layouts are described once, in
+//! [`spec`], which this codec is checked against and the C firmware's header is generated from.
 
-/// Protocol version carried in the low nibble of the first body byte. Version 2: SINE_RESULT
-/// carries the window's level and ramp moments (38 bytes; 22 in version 1), so that the host
-/// removes the operating point and its drift (PROTOCOL.md, section 3). Version 3: KEEPALIVE
-/// carries the run id (2 bytes; empty before), and only a KEEPALIVE of the running run keeps it
-/// alive: not any valid frame, such as another program's STATUS (PROTOCOL.md, section 7).
-pub const PROTO_VERSION: u8 = 3;
+pub mod spec;
+
+use spec::{end, nak, state};
+
+pub use spec::{
+    fault, ty, CTRL_FORMAT, CTRL_FORMAT_TAPS, MAX_BLOCK_SAMPLES, MAX_DFT_SAMPLES, MAX_SECTIONS,
+    MAX_SECTIONS_TAPS, MAX_TAPS, N_CHANNELS, PROTO_VERSION, SINE_DFT, SINE_STREAM,
+};
 
 /// The earlier protocol versions a host probes with when a drive does not answer HELLO, to tell
 /// a drive of another version ([`crate::Error::Version`]) from a silent one.
 pub const OLDER_VERSIONS: [u8; 2] = [2, 1];
-/// Number of channels per sample (u, y, i).
-pub const N_CHANNELS: usize = 3;
-/// Largest number of samples in one DATA block.
-pub const MAX_BLOCK_SAMPLES: u8 = 66;
-
-/// Message type codes.
-pub mod ty {
-    /// HELLO.
-    pub const HELLO: u8 = 0x01;
-    /// CONFIGURE.
-    pub const CONFIGURE: u8 = 0x02;
-    /// START_PRBS.
-    pub const START_PRBS: u8 = 0x03;
-    /// START_SINE.
-    pub const START_SINE: u8 = 0x04;
-    /// STOP.
-    pub const STOP: u8 = 0x05;
-    /// ESTOP.
-    pub const ESTOP: u8 = 0x06;
-    /// STATUS.
-    pub const STATUS: u8 = 0x07;
-    /// KEEPALIVE.
-    pub const KEEPALIVE: u8 = 0x08;
-    /// END_QUERY.
-    pub const END_QUERY: u8 = 0x09;
-    /// LOAD_CTRL (firmware 1.1): the controller's header; clears its sections.
-    pub const LOAD_CTRL: u8 = 0x0A;
-    /// LOAD_SECTION (firmware 1.1): one first-order section of the controller (or, format 2, one
-    /// delay tap).
-    pub const LOAD_SECTION: u8 = 0x0B;
-    /// START_LOOP (firmware 1.1): a speed loop with a reference step.
-    pub const START_LOOP: u8 = 0x0C;
-    /// ACK.
-    pub const ACK: u8 = 0x80;
-    /// HELLO_REPLY.
-    pub const HELLO_REPLY: u8 = 0x81;
-    /// STATUS_REPLY.
-    pub const STATUS_REPLY: u8 = 0x87;
-    /// NAK.
-    pub const NAK: u8 = 0x8F;
-    /// DATA.
-    pub const DATA: u8 = 0x90;
-    /// STREAM_END.
-    pub const STREAM_END: u8 = 0x91;
-    /// SINE_RESULT.
-    pub const SINE_RESULT: u8 = 0x92;
-}
 
 /// HELLO_REPLY payload.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -168,14 +124,6 @@ impl StartPrbs {
     }
 }
 
-/// START_SINE flag: stream DATA blocks.
-pub const SINE_STREAM: u8 = 0x01;
-/// START_SINE flag: compute the single-bin DFT on the drive.
-pub const SINE_DFT: u8 = 0x02;
-/// Longest sine measurement window with the DFT (START_SINE flag bit 1), samples (2^22): the
-/// drive's 64-bit ramp sum `sum (2k - (n-1)) y_k` cannot overflow below it.
-pub const MAX_DFT_SAMPLES: u32 = 1 << 22;
-
 /// START_SINE payload.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct StartSine {
@@ -221,22 +169,6 @@ impl StartSine {
         self.phase_increment(sample_rate_hz) as f64 * sample_rate_hz as f64 / 4294967296.0
     }
 }
-
-/// The controller format LOAD_CTRL carries: 1, parallel first-order sections in Q-format
-/// (poles Q30, gains Q24, 64-bit states Q32), at most [`MAX_SECTIONS`] (firmware 1.1)
-/// (PROTOCOL.md section 3, "Speed loop").
-pub const CTRL_FORMAT: u8 = 1;
-/// The most sections a controller of format [`CTRL_FORMAT`] has.
-pub const MAX_SECTIONS: u8 = 24;
-/// Controller format 2 (firmware 1.2): the sections of format 1, at most [`MAX_SECTIONS_TAPS`],
-/// and a short delay chain, at most [`MAX_TAPS`] taps `h_j` on the past conditioned errors
-/// `e'_(k-j)`, `j = 1..=n_taps` (the fast modes of a derivative's realisation: backward
-/// differences after poles that round to 0).
-pub const CTRL_FORMAT_TAPS: u8 = 2;
-/// The most sections a controller of format [`CTRL_FORMAT_TAPS`] has.
-pub const MAX_SECTIONS_TAPS: u8 = 48;
-/// The most delay taps a controller of format [`CTRL_FORMAT_TAPS`] has.
-pub const MAX_TAPS: u8 = 8;
 
 /// LOAD_CTRL payload: the controller `u = d e + sum_i z_i + sum_j h_j e_(k-j)`, `z_i <- a_i z_i +
 /// g_i e` (PROTOCOL.md section 3): its format, number of sections and of delay taps, and
@@ -335,28 +267,28 @@ impl NakCode {
     /// Wire value.
     pub fn code(self) -> u8 {
         match self {
-            NakCode::UnknownType => 1,
-            NakCode::BadLength => 2,
-            NakCode::BadValue => 3,
-            NakCode::Busy => 4,
-            NakCode::NotConfigured => 5,
-            NakCode::Fault => 6,
-            NakCode::Version => 7,
-            NakCode::NoController => 8,
+            NakCode::UnknownType => nak::UNKNOWN_TYPE,
+            NakCode::BadLength => nak::BAD_LENGTH,
+            NakCode::BadValue => nak::BAD_VALUE,
+            NakCode::Busy => nak::BUSY,
+            NakCode::NotConfigured => nak::NOT_CONFIGURED,
+            NakCode::Fault => nak::FAULT,
+            NakCode::Version => nak::VERSION,
+            NakCode::NoController => nak::NO_CONTROLLER,
             NakCode::Other(c) => c,
         }
     }
     /// From the wire value.
     pub fn from_code(c: u8) -> Self {
         match c {
-            1 => NakCode::UnknownType,
-            2 => NakCode::BadLength,
-            3 => NakCode::BadValue,
-            4 => NakCode::Busy,
-            5 => NakCode::NotConfigured,
-            6 => NakCode::Fault,
-            7 => NakCode::Version,
-            8 => NakCode::NoController,
+            nak::UNKNOWN_TYPE => NakCode::UnknownType,
+            nak::BAD_LENGTH => NakCode::BadLength,
+            nak::BAD_VALUE => NakCode::BadValue,
+            nak::BUSY => NakCode::Busy,
+            nak::NOT_CONFIGURED => NakCode::NotConfigured,
+            nak::FAULT => NakCode::Fault,
+            nak::VERSION => NakCode::Version,
+            nak::NO_CONTROLLER => NakCode::NoController,
             c => NakCode::Other(c),
         }
     }
@@ -377,42 +309,30 @@ pub struct Nak {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum DriveState {
     /// 0: no configuration since boot.
-    Unconfigured,
+    Unconfigured = state::UNCONFIGURED as isize,
     /// 1: configured, idle.
-    Idle,
+    Idle = state::IDLE as isize,
     /// 2: a run is active.
-    Running,
+    Running = state::RUNNING as isize,
     /// 3: a fault is latched.
-    Fault,
+    Fault = state::FAULT as isize,
 }
 
 impl DriveState {
-    fn code(self) -> u8 {
+    /// Wire value.
+    pub fn code(self) -> u8 {
         self as u8
     }
-    fn from_code(c: u8) -> Option<Self> {
+    /// From the wire value; None for a value no state has.
+    pub fn from_code(c: u8) -> Option<Self> {
         Some(match c {
-            0 => DriveState::Unconfigured,
-            1 => DriveState::Idle,
-            2 => DriveState::Running,
-            3 => DriveState::Fault,
+            state::UNCONFIGURED => DriveState::Unconfigured,
+            state::IDLE => DriveState::Idle,
+            state::RUNNING => DriveState::Running,
+            state::FAULT => DriveState::Fault,
             _ => return None,
         })
     }
-}
-
-/// Fault codes in STATUS_REPLY.
-pub mod fault {
-    /// No fault.
-    pub const NONE: u8 = 0;
-    /// Emergency stop.
-    pub const ESTOP: u8 = 1;
-    /// Keepalive expired.
-    pub const KEEPALIVE: u8 = 2;
-    /// Speed trip.
-    pub const SPEED_LIMIT: u8 = 3;
-    /// Current trip.
-    pub const CURRENT_LIMIT: u8 = 4;
 }
 
 /// STATUS_REPLY payload.
@@ -471,22 +391,22 @@ impl EndReason {
     /// Wire value.
     pub fn code(self) -> u8 {
         match self {
-            EndReason::Complete => 0,
-            EndReason::Stopped => 1,
-            EndReason::Estop => 2,
-            EndReason::Keepalive => 3,
-            EndReason::Limit => 4,
+            EndReason::Complete => end::COMPLETE,
+            EndReason::Stopped => end::STOPPED,
+            EndReason::Estop => end::ESTOP,
+            EndReason::Keepalive => end::KEEPALIVE,
+            EndReason::Limit => end::LIMIT,
             EndReason::Other(c) => c,
         }
     }
     /// From the wire value.
     pub fn from_code(c: u8) -> Self {
         match c {
-            0 => EndReason::Complete,
-            1 => EndReason::Stopped,
-            2 => EndReason::Estop,
-            3 => EndReason::Keepalive,
-            4 => EndReason::Limit,
+            end::COMPLETE => EndReason::Complete,
+            end::STOPPED => EndReason::Stopped,
+            end::ESTOP => EndReason::Estop,
+            end::KEEPALIVE => EndReason::Keepalive,
+            end::LIMIT => EndReason::Limit,
             c => EndReason::Other(c),
         }
     }
@@ -665,25 +585,7 @@ impl Message {
     /// The exact payload length for a type, given the first payload bytes where it depends on
     /// them (DATA: n at offset 6). None for unknown types.
     pub fn payload_len(ty: u8, payload: &[u8]) -> Option<usize> {
-        Some(match ty {
-            ty::HELLO | ty::STOP | ty::ESTOP | ty::STATUS => 0,
-            ty::KEEPALIVE => 2,
-            ty::CONFIGURE => 26,
-            ty::START_PRBS => 22,
-            ty::START_SINE => 14,
-            ty::END_QUERY => 2,
-            ty::LOAD_CTRL => 12,
-            ty::LOAD_SECTION => 10,
-            ty::START_LOOP => 12,
-            ty::ACK => 8,
-            ty::HELLO_REPLY => 12,
-            ty::STATUS_REPLY => 16,
-            ty::NAK => 4,
-            ty::DATA => 8 + 6 * *payload.get(6)? as usize,
-            ty::STREAM_END => 14,
-            ty::SINE_RESULT => 38,
-            _ => return None,
-        })
+        spec::message(ty)?.payload_len(payload)
     }
 
     /// Append the payload bytes.
@@ -1092,28 +994,7 @@ fn parse_stream(ty: u8, r: &mut R<'_>) -> Result<Message, FrameError> {
 
 /// The specification's name of a type code ("?" if unknown).
 pub fn type_name(t: u8) -> &'static str {
-    match t {
-        ty::HELLO => "HELLO",
-        ty::CONFIGURE => "CONFIGURE",
-        ty::START_PRBS => "START_PRBS",
-        ty::START_SINE => "START_SINE",
-        ty::STOP => "STOP",
-        ty::ESTOP => "ESTOP",
-        ty::STATUS => "STATUS",
-        ty::KEEPALIVE => "KEEPALIVE",
-        ty::END_QUERY => "END_QUERY",
-        ty::LOAD_CTRL => "LOAD_CTRL",
-        ty::LOAD_SECTION => "LOAD_SECTION",
-        ty::START_LOOP => "START_LOOP",
-        ty::ACK => "ACK",
-        ty::HELLO_REPLY => "HELLO_REPLY",
-        ty::STATUS_REPLY => "STATUS_REPLY",
-        ty::NAK => "NAK",
-        ty::DATA => "DATA",
-        ty::STREAM_END => "STREAM_END",
-        ty::SINE_RESULT => "SINE_RESULT",
-        _ => "?",
-    }
+    spec::message(t).map_or("?", |m| m.name)
 }
 
 /// Why a received frame was discarded.

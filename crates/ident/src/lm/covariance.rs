@@ -1,0 +1,92 @@
+//! The parameters' covariance and standard errors from the `R` of the Jacobian.
+
+use super::problem::Mat;
+#[allow(unused_imports)] // (doc links)
+use super::Problem;
+
+/// The covariance and standard errors from the `R` of `J`, with the parameters `held` at a
+/// bound ([`Problem::at_bound`]) fixed there: the covariance of the others is that of the
+/// columns of `J` without theirs (the `R` of `R[:, kept]`, which is `Q^T J[:, kept]`), and a
+/// held parameter's rows and columns and standard error are NaN (it has no spread: it sits on
+/// its bound). A held parameter's column is about zero (the bound's map is flat there), which
+/// would otherwise make the whole covariance singular.
+pub(super) fn covariance_and_errors(
+    rmat: &Mat<f64>,
+    sigma2: f64,
+    held: &[bool],
+) -> (Option<Vec<f64>>, Option<Vec<f64>>) {
+    let n = rmat.ncols();
+    let kept: Vec<usize> = (0..n)
+        .filter(|&j| !held.get(j).copied().unwrap_or(false))
+        .collect();
+    let nk = kept.len();
+    let cov = if nk == n {
+        covariance(rmat, sigma2)
+    } else if nk == 0 {
+        None
+    } else {
+        let sub = Mat::<f64>::from_fn(rmat.nrows(), nk, |i, j| rmat[(i, kept[j])]);
+        let r_sub = if sub.nrows() >= nk { sub.qr().r() } else { sub };
+        covariance(&r_sub, sigma2).map(|c| {
+            let mut full = vec![f64::NAN; n * n];
+            for (a, &i) in kept.iter().enumerate() {
+                for (b, &j) in kept.iter().enumerate() {
+                    full[i * n + j] = c[a * nk + b];
+                }
+            }
+            full
+        })
+    };
+    match cov {
+        Some(c) => {
+            // (`f64::max` would turn a held parameter's NaN into 0.)
+            let se = (0..n)
+                .map(|i| match c[i * n + i] {
+                    v if v.is_nan() => v,
+                    v => v.max(0.0).sqrt(),
+                })
+                .collect();
+            (Some(c), Some(se))
+        }
+        None => (None, None),
+    }
+}
+
+/// `sigma2 (J^T J)^-1 = sigma2 R^-1 R^-T` from the `R` of `J` (`J^T J = R^T R`), row-major;
+/// `None` if `R` is numerically singular (a diagonal entry below `1e-13` times the largest).
+fn covariance(r: &Mat<f64>, sigma2: f64) -> Option<Vec<f64>> {
+    let n = r.ncols();
+    if r.nrows() < n {
+        return None;
+    }
+    let rmax = (0..n).map(|i| r[(i, i)].abs()).fold(0.0, f64::max);
+    // 1e-13: about 500 ulp relative; below this the inverse is dominated by rounding.
+    if rmax == 0.0 || (0..n).any(|i| r[(i, i)].abs() <= 1e-13 * rmax) {
+        return None;
+    }
+    // Rinv, upper triangular, by back substitution column by column.
+    let mut rinv = vec![0.0; n * n]; // row-major
+    for c in 0..n {
+        for i in (0..=c).rev() {
+            let mut s = if i == c { 1.0 } else { 0.0 };
+            for k in i + 1..=c {
+                s -= r[(i, k)] * rinv[k * n + c];
+            }
+            rinv[i * n + c] = s / r[(i, i)];
+        }
+    }
+    let mut cov = vec![0.0; n * n];
+    for i in 0..n {
+        for j in 0..n {
+            let s: f64 = (i.max(j)..n)
+                .map(|k| rinv[i * n + k] * rinv[j * n + k])
+                .sum();
+            cov[i * n + j] = sigma2 * s;
+        }
+    }
+    if cov.iter().all(|v| v.is_finite()) {
+        Some(cov)
+    } else {
+        None
+    }
+}
