@@ -68,6 +68,7 @@ from ._fracid import (
 )
 from ._export import StateSpace
 from ._tune import tune
+from ._autotune import autotune, autotune_request_defaults
 from ._results import (
     Acquisition,
     BodeSweep,
@@ -110,6 +111,8 @@ __all__ = [
     "Effect",
     "diagnose",
     "tune",
+    "autotune",
+    "autotune_request_defaults",
     "DriveClient",
     "DriveSimulator",
     "Acquisition",

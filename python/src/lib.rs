@@ -8,6 +8,7 @@
 //! every exchange with a drive.
 
 mod arrays;
+mod autotune;
 mod drive_client;
 mod errors;
 mod freq;
@@ -32,6 +33,8 @@ fn _fracid(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(time::_time_request_defaults, m)?)?;
     m.add_function(wrap_pyfunction!(freq::_freq_request_defaults, m)?)?;
     m.add_function(wrap_pyfunction!(tune::_tune, m)?)?;
+    m.add_function(wrap_pyfunction!(autotune::_autotune, m)?)?;
+    m.add_function(wrap_pyfunction!(autotune::_autotune_request_defaults, m)?)?;
     m.add_function(wrap_pyfunction!(readers::_load_csv, m)?)?;
     m.add_function(wrap_pyfunction!(readers::_load_bode, m)?)?;
     m.add_class::<drive_client::PyDriveSimulator>()?;

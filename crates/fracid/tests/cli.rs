@@ -1,6 +1,7 @@
 //! End-to-end tests of the `fracid` binary, one module per subcommand.
 
 mod compare;
+mod drive_autotune;
 mod export;
 mod fleet;
 mod freq;

@@ -86,13 +86,10 @@ pub struct Outcome {
     pub usable: bool,
 }
 
-/// The time-domain request of every diagnosis: the structures compared, the effects tried.
+/// The time-domain request of every diagnosis: the default, the loop closed (the structures
+/// compared, the best diagnosed, its effects kept when they pay).
 pub fn request() -> TimeRequest {
-    TimeRequest {
-        structure: "auto".into(),
-        plain: false,
-        ..TimeRequest::default()
-    }
+    TimeRequest::default()
 }
 
 fn rejected(report: &time::TimeReport) -> Vec<EffectValues> {
@@ -252,6 +249,7 @@ pub fn fit_structure(
     };
     let req = TimeRequest {
         structure: spec.into(),
+        plain: true,
         delay: true,
         auto_start: start.is_empty(),
         start,

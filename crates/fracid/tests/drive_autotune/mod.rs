@@ -1,0 +1,68 @@
+//! `fracid drive autotune` end to end: the CLI against the drive simulator in virtual time (in
+//! this process; the CLI keeps its keepalive on the wall clock every 5 ms).
+
+use super::fracid;
+
+fn stdout(o: &std::process::Output) -> String {
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+fn stderr(o: &std::process::Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+#[cfg(unix)]
+fn sim(coulomb_v: f64) -> drive::sim::DriveSim {
+    drive::sim::DriveSim::spawn(drive::sim::SimConfig {
+        model: "6.1/(2.4e-5 s^1.77 + 0.0063 s^0.91 + 1)".parse().unwrap(),
+        effects: drive::sim::Effects {
+            coulomb_v,
+            noise_std: 0.015,
+            ..Default::default()
+        },
+        clock: drive::sim::SimClock::Virtual,
+        ..Default::default()
+    })
+    .unwrap()
+}
+
+/// The report as JSON on stdout, its text on stderr, `report.md` with its plots and
+/// `report.json` in the folder; exit 0 for a usable controller.
+#[cfg(unix)]
+#[test]
+fn autotune_reports_round_by_round_and_exits_0_for_a_usable_controller() {
+    let s = sim(0.28);
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("at");
+    let o = fracid(&[
+        "drive",
+        "autotune",
+        "--port",
+        s.port_path(),
+        "--keepalive-ms",
+        "5",
+        "--json",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    assert_eq!(v["usable"], true);
+    assert!(v["rounds"].as_array().unwrap().len() >= 2, "{v}");
+    assert!(v["control"]["measured"]["rise_time_s"].as_f64().is_some());
+    assert!(stderr(&o).contains("round 2 (reversals"), "{}", stderr(&o));
+    for f in ["report.md", "report.json", "records.png", "step.png"] {
+        assert!(out.join(f).is_file(), "{f}");
+    }
+    let md = std::fs::read_to_string(out.join("report.md")).unwrap();
+    assert!(md.contains("![step](step.png)") && md.contains("round 1"));
+}
+
+/// A limit out of range is bad input (exit 2) before the drive is asked anything.
+#[cfg(unix)]
+#[test]
+fn autotune_refuses_a_limit_out_of_range() {
+    let o = fracid(&["drive", "autotune", "--port", "/dev/null", "--u-limit", "0"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("--u-limit"), "{}", stderr(&o));
+}
