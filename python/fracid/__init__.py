@@ -406,10 +406,10 @@ def fit_time(
         ``fix`` ("NAME" or "NAME=VALUE", comma-separated), ``free``, ``start`` (dict of start
         values by parameter name), ``auto_start``, ``holdout`` (fraction held out; default 0.3),
         ``offsets`` ("initial", "mean", "none"), ``fit_offset``, ``initial`` ("auto", "estimate",
-        "rest"), ``max_iterations`` (500), ``skip``, ``max_lag`` (25), ``plain`` (False: the loop is
-        closed, the candidate structures compared and the best diagnosed, docs/design.md §6, the
-        result in ``TimeFit.diagnosis`` and the final model leading; True: the named structure
-        fitted once; ``diagnose=True`` of earlier versions is the default), ``margin``,
+        "rest"), ``max_iterations`` (500), ``skip``, ``max_lag`` (25), ``plain`` (True: the named
+        structure fitted once; False, or ``diagnose=True``: the loop closed, the candidate
+        structures compared and the best diagnosed, docs/design.md §6, the
+        result in ``TimeFit.diagnosis`` and the final model leading), ``margin``,
         ``min_r2``, ``max_rounds``.
 
     Returns
@@ -482,11 +482,10 @@ def time_request(structure: Union[str, FracTf, None] = None, **options: object) 
     request: Dict[str, object] = {}
     options = dict(options)
     if "diagnose" in options and "plain" not in options:
-        # Earlier versions' option: the loop is closed by default now, ``plain=True`` is the
-        # single fit.
+        # ``diagnose=True`` closes the loop (``plain=False``); the default is the single fit.
         diagnosed = options.pop("diagnose")
-        if diagnosed is not None and not diagnosed:
-            options["plain"] = True
+        if diagnosed is not None:
+            options["plain"] = not diagnosed
     if structure is not None:
         request["structure"] = str(structure)
     for name, value in options.items():

@@ -430,7 +430,7 @@ def test_fracid_beats_integer_baseline(fracid_bin, name, request):
         pytest.fail(f"{path} is missing: the real records ship with the repository in data/")
     if name in XFAIL:
         request.node.add_marker(pytest.mark.xfail(reason=XFAIL[name], strict=True))
-    out, code = run_fracid(fracid_bin, path)
+    out, code = run_fracid(fracid_bin, path, "--diagnose")
     assert out["model_is"].startswith("final"), out["model_is"]
     n_est, first, fr_nrmse, fr_rmse, kind = held_out(out)
     best, rows = baseline_on_split(name, n_est, first)

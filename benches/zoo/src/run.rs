@@ -1,6 +1,6 @@
 //! One run of the zoo: generate the cases into `OUT/cases` (what fracid reads) and `OUT/truth`
 //! (kept out of it), fit them through fracid's fleet path twice (`fracid time OUT/cases --json --plain
-//! --out OUT/reports/plain --jobs N`, and again with the defaults (the loop closed) into `OUT/reports/diagnose`),
+//! --out OUT/reports/plain --jobs N`, and again with `--diagnose` (the loop closed) into `OUT/reports/diagnose`),
 //! score every case and write the table (`OUT/table.md`, `table.csv`, `table.json`) and the
 //! per-case scores (`OUT/cases.csv`, `cases.json`).
 
@@ -69,7 +69,7 @@ pub struct Results {
     pub plain: FleetCost,
     /// The diagnosed fleet's cost.
     pub diagnose: FleetCost,
-    /// The command line of the plain fleet (`--plain`; the diagnosed one is the defaults).
+    /// The command line of the plain fleet (`--plain`; the diagnosed one `--diagnose`).
     pub fracid_command: String,
 }
 
@@ -146,10 +146,8 @@ pub fn fleet_args(cases_dir: &Path, reports: &Path, jobs: usize, diagnose: bool)
         "--jobs".into(),
         jobs.to_string(),
     ];
-    if !diagnose {
-        // The single fit of the named structure; fracid's default closes the loop.
-        args.push("--plain".into());
-    }
+    // The single fit of the named structure (fracid's default), or the loop closed.
+    args.push(if diagnose { "--diagnose" } else { "--plain" }.into());
     args
 }
 

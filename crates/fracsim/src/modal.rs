@@ -1315,7 +1315,11 @@ mod tests {
         let hinted = HINTED.with(|h| h.get());
         let _ = model(0.00599);
         assert_eq!(key(&model(0.006)), cold);
-        assert_eq!(HINTED.with(|h| h.get()), hinted, "a hint outside of a cache");
+        assert_eq!(
+            HINTED.with(|h| h.get()),
+            hinted,
+            "a hint outside of a cache"
+        );
         assert!(RootsCache::entered().is_empty());
         let mut outer = RootsCache::new();
         let mut inner = RootsCache::new();
@@ -1328,7 +1332,11 @@ mod tests {
                 let _ = model(0.007);
                 let _ = model(0.008);
             });
-            assert_eq!(RootsCache::entered().0.len(), seen, "the outer cache changed");
+            assert_eq!(
+                RootsCache::entered().0.len(),
+                seen,
+                "the outer cache changed"
+            );
             RootsCache::afresh(|| {
                 assert!(RootsCache::entered().is_empty());
                 let _ = model(0.006);

@@ -89,7 +89,10 @@ pub struct Outcome {
 /// The time-domain request of every diagnosis: the default, the loop closed (the structures
 /// compared, the best diagnosed, its effects kept when they pay).
 pub fn request() -> TimeRequest {
-    TimeRequest::default()
+    TimeRequest {
+        plain: false,
+        ..TimeRequest::default()
+    }
 }
 
 fn rejected(report: &time::TimeReport) -> Vec<EffectValues> {

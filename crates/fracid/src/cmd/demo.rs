@@ -369,7 +369,10 @@ fn identify(a: &DemoArgs, steady_path: &Path, bode_path: &Path) -> Result<Models
     let dir = &a.out;
     let (time_runs, freq_runs) = (ident::app::time::runs(), super::freq::runs());
     step("time domain: output-error fit and diagnosis");
-    let time_req = ident::app::time::TimeRequest::default();
+    let time_req = ident::app::time::TimeRequest {
+        plain: false,
+        ..Default::default()
+    };
     let time_cmd = format!("time {}", steady_path.display());
     let (rec, reader_warnings) =
         super::time::read_record_noting(steady_path, &ident::data::ReadOptions::default())?;

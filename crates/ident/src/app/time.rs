@@ -103,7 +103,7 @@ impl Default for TimeRequest {
             max_iterations: 500,
             skip: 0,
             max_lag: 25,
-            plain: false,
+            plain: true,
             margin: d.margin,
             min_r2: d.min_r2,
             max_rounds: d.max_rounds,
@@ -1209,6 +1209,7 @@ mod tests {
     fn the_observer_sees_each_stage_and_can_cancel() {
         let req = TimeRequest {
             structure: "2/(0.2 s + 1)".into(),
+            plain: false,
             ..Default::default()
         };
         let mut log = Log::default();
@@ -1234,6 +1235,7 @@ mod tests {
     fn each_models_output_gives_its_stated_figures() {
         let req = TimeRequest {
             structure: "2/(0.2 s + 1)".into(),
+            plain: false,
             ..Default::default()
         };
         let d = data();
@@ -1270,6 +1272,7 @@ mod tests {
         d.record = Record::from_samples(&late, &y, d.record.dt).unwrap();
         let req = TimeRequest {
             structure: "2/(0.2 s + 1)".into(),
+            plain: false,
             ..Default::default()
         };
         let r = run(&req, &d, &mut crate::app::observe::Quiet).unwrap();

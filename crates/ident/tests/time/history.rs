@@ -59,6 +59,12 @@ fn fits_keep_nothing_outside_of_a_cache_and_identify_starts_the_callers_afresh()
     let mut cache = RootsCache::new();
     let (other, again) = cache.enter(|| (report(&b), report(&a)));
     assert_ne!(alone, other);
-    assert!(again == alone, "A's report changed inside a cache B's fit used");
-    assert!(!cache.is_empty(), "identify left nothing in the caller's cache");
+    assert!(
+        again == alone,
+        "A's report changed inside a cache B's fit used"
+    );
+    assert!(
+        !cache.is_empty(),
+        "identify left nothing in the caller's cache"
+    );
 }

@@ -336,7 +336,8 @@ fn auto_reduces_the_arms_degenerate_two_mass_screening_fit_at_once() {
         .expect("the chosen base fit's RMSE");
     assert_eq!(d.structures.scores[d.structures.chosen].name, chosen.name);
     assert!(
-        (held - base).abs() <= 1e-9 * base,
+        // the candidates' fits stop on the refits' stall test: the same minimum to 1e-5
+        (held - base).abs() <= 1e-5 * base,
         "auto {held} against the diagnosis's base fit {base}"
     );
 }
