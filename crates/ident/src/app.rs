@@ -29,7 +29,7 @@ pub fn default_max_delay(duration_s: f64, dt_s: f64) -> f64 {
 /// (c2 s^2 + c1 s^mu + 1))`, [`FracModel::two_mass`]), `feedthrough` (the PMSM with a direct
 /// feed-through, `D + K/(a2 s^(zeta+theta) + a1 s^zeta + 1)`, [`FracModel::feedthrough`]),
 /// `fopdt` (`K e^(-tau s)/(T s + 1)`, `tau` up to `max_delay_s`), `general` or `general:N/D`
-/// (the general structure sized by the data or of that size, [`crate::oe::general`]: here its
+/// (the general structure sized by the data or of that size, [`crate::diagnose::general`]: here its
 /// template, a first order), or a transfer function whose every coefficient and order is fitted from its values (then
 /// `general` is true: it starts from them). Returns `(model, general)`.
 ///
@@ -61,11 +61,11 @@ pub fn structure(spec: &str, max_delay_s: f64) -> Result<(FracModel, bool)> {
             FracModel::fopdt(1.0, 0.1, 0.05 * max_delay_s, max_delay_s),
             false,
         ),
-        // `general` or `general:N/D`: sized by the data ([`crate::oe::general`]); this is the
+        // `general` or `general:N/D`: sized by the data ([`crate::diagnose::general`]); this is the
         // template whose options (approximation, delay, integrator) its sizes take.
-        s if s.starts_with("general") && crate::oe::general::requested(s).is_some() => {
-            crate::oe::general::requested(s).transpose()?;
-            (crate::oe::general::template(), false)
+        s if s.starts_with("general") && crate::diagnose::general::requested(s).is_some() => {
+            crate::diagnose::general::requested(s).transpose()?;
+            (crate::diagnose::general::template(), false)
         }
         s => {
             let tf: FracTf = s.parse().map_err(|e| {

@@ -72,6 +72,7 @@
 //! is not found only because the named structure could not bend like the plant.
 
 pub mod freq;
+pub mod general;
 mod halving;
 mod probes;
 pub mod residual;

@@ -32,10 +32,9 @@
 //! println!("{} fit {:.1}%", id.tf, id.validation.unwrap().nrmse_percent);
 //! ```
 
-mod checks;
+pub(crate) mod checks;
 pub(crate) mod effects;
 mod fit;
-pub mod general;
 pub mod init;
 mod joint;
 mod score;

@@ -479,8 +479,8 @@ pub fn model_and_options(
 ///
 /// # Errors
 /// [`Error::Options`] for a size not understood.
-fn general_request(req: &TimeRequest) -> Result<Option<crate::oe::general::GeneralRequest>> {
-    Ok(crate::oe::general::requested(&req.structure)
+fn general_request(req: &TimeRequest) -> Result<Option<crate::diagnose::general::GeneralRequest>> {
+    Ok(crate::diagnose::general::requested(&req.structure)
         .transpose()?
         .map(|mut g| {
             if req.integrator {
@@ -563,21 +563,7 @@ fn run_request(req: &TimeRequest, data: &TimeData, obs: &mut dyn Observe) -> Res
         )));
     }
     let (auto, label) = super::auto_label(&req.structure);
-    // The general structure sized by the data (crate::oe::general): fitted here, and with the
-    // diagnosis (the default; `plain` fits the sizes alone) its chosen size is the user's structure.
-    let general = general_request(req)?;
-    let sized = match &general {
-        Some(g) => {
-            enter(
-                obs,
-                Stage::Structures {
-                    n: crate::oe::general::search::SHORTLIST,
-                },
-            )?;
-            Some(crate::oe::general::fit(rec, &model, &opts, g)?)
-        }
-        None => None,
-    };
+    let sized = sized_general(req, rec, &model, &opts, obs)?;
     let (model, label) = match &sized {
         Some(f) if !req.plain => (f.model.clone(), f.name.clone()),
         _ => (model, label.to_string()),
@@ -610,39 +596,8 @@ fn run_request(req: &TimeRequest, data: &TimeData, obs: &mut dyn Observe) -> Res
         (id, None, None)
     };
     let mut id = id;
-    let (base_file, final_file) = match &data.validation {
-        Some(v) => {
-            enter(obs, Stage::Validate)?;
-            let goes_on = continues(rec, &v.record);
-            let how = if goes_on {
-                "it continues the estimation record (its time stamps follow on): scored from the \
-                 state the estimation record ended in, with its operating point and output offset"
-            } else {
-                "its own initial state and output offset"
-            };
-            let chosen_on = if req.plain || id.validation.is_none() {
-                ""
-            } else {
-                "; the structures and effects were chosen on the held-out part of the estimation \
-                 record, so this record is an independent test of that choice"
-            };
-            id.validated_by = Validation {
-                kind: ValidationKind::File,
-                first: id.validated_by.first,
-                note: format!("a separate record, {} ({how}){chosen_on}", v.name),
-            };
-            let scored = |m: &FracModel| {
-                if goes_on {
-                    return continued(m, rec, &v.record).map(|s| ScoreReport::new(&v.name, &s));
-                }
-                score(m, &v.record, opts.offsets, opts.initial)
-                    .map(|s| ScoreReport::new(&v.name, &s))
-            };
-            let fin = diagnosis.as_ref().map(|(d, _)| scored(&d.model));
-            (Some(scored(&id.model)?), fin.transpose()?)
-        }
-        None => (None, None),
-    };
+    let (base_file, final_file) =
+        score_validation(req, data, &mut id, &opts, diagnosis.as_ref(), obs)?;
     let mut base = base_fit(&id, base_file);
     base.warnings
         .splice(0..0, data.reader_warnings.iter().cloned());
@@ -702,6 +657,70 @@ fn run_request(req: &TimeRequest, data: &TimeData, obs: &mut dyn Observe) -> Res
         structures: auto_choice,
         request: req.clone(),
         fitted: Fitted { id },
+    })
+}
+
+/// The general structure sized by the data ([`crate::diagnose::general`]), when the request names
+/// it: fitted here; with the diagnosis (`--diagnose`) its chosen size is the user's structure,
+/// else (`plain`) the sizes' fit is the report.
+fn sized_general(
+    req: &TimeRequest,
+    rec: &Record,
+    model: &FracModel,
+    opts: &IdentOptions,
+    obs: &mut dyn Observe,
+) -> Result<Option<crate::diagnose::general::GeneralFit>> {
+    let Some(g) = general_request(req)? else {
+        return Ok(None);
+    };
+    let n = crate::diagnose::general::search::SHORTLIST;
+    enter(obs, Stage::Structures { n })?;
+    crate::diagnose::general::fit(rec, model, opts, &g).map(Some)
+}
+
+/// The base fit's and the final model's scores on the separate validation record, if one was
+/// given (`id.validated_by` then says how it was scored).
+fn score_validation(
+    req: &TimeRequest,
+    data: &TimeData,
+    id: &mut Identification,
+    opts: &IdentOptions,
+    diagnosis: Option<&(Diagnosis, StructureChoice)>,
+    obs: &mut dyn Observe,
+) -> Result<(Option<ScoreReport>, Option<ScoreReport>)> {
+    let rec = &data.record;
+    Ok(match &data.validation {
+        Some(v) => {
+            enter(obs, Stage::Validate)?;
+            let goes_on = continues(rec, &v.record);
+            let how = if goes_on {
+                "it continues the estimation record (its time stamps follow on): scored from the \
+                 state the estimation record ended in, with its operating point and output offset"
+            } else {
+                "its own initial state and output offset"
+            };
+            let chosen_on = if req.plain || id.validation.is_none() {
+                ""
+            } else {
+                "; the structures and effects were chosen on the held-out part of the estimation \
+                 record, so this record is an independent test of that choice"
+            };
+            id.validated_by = Validation {
+                kind: ValidationKind::File,
+                first: id.validated_by.first,
+                note: format!("a separate record, {} ({how}){chosen_on}", v.name),
+            };
+            let scored = |m: &FracModel| {
+                if goes_on {
+                    return continued(m, rec, &v.record).map(|s| ScoreReport::new(&v.name, &s));
+                }
+                score(m, &v.record, opts.offsets, opts.initial)
+                    .map(|s| ScoreReport::new(&v.name, &s))
+            };
+            let fin = diagnosis.map(|(d, _)| scored(&d.model));
+            (Some(scored(&id.model)?), fin.transpose()?)
+        }
+        None => (None, None),
     })
 }
 

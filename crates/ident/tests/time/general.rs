@@ -1,10 +1,10 @@
-//! The general structure sized by the data (`ident::oe::general`) against independent truth:
+//! The general structure sized by the data (`ident::diagnose::general`) against independent truth:
 //! records of integer-order plants simulated exactly here (a state-space realisation discretised
 //! for the held input by its own matrix exponential, no code shared with fracsim), each
 //! recovered with a frequency-response error of at most 5% over the excited band.
 
 use ident::data::Record;
-use ident::oe::general::{self, GeneralRequest};
+use ident::diagnose::general::{self, GeneralRequest};
 use ident::oe::IdentOptions;
 use num_complex::Complex64;
 

@@ -253,6 +253,7 @@ fn the_flexible_robot_arm_is_diagnosed_as_a_resonant_drive_train() {
         reader_warnings: vec![],
     };
     let req = TimeRequest {
+        plain: false,
         ..Default::default()
     };
     let r = run(&req, &data, &mut Quiet).unwrap();

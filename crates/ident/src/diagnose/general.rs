@@ -15,7 +15,7 @@
 //!   and Sanathanan-Koerner iterations ([`crate::levy`]); an unstable start is made stable (the
 //!   poles reflected into the left half-plane, the numerator refitted).
 //! - [`search`]: the sizes the frequency-domain information criterion ranks first are each
-//!   fitted by output error ([`super::identify`]), and the size chosen by held-out RMSE, then
+//!   fitted by output error ([`crate::oe::identify`]), and the size chosen by held-out RMSE, then
 //!   BIC among ties ([`crate::diagnose::structures::TIE`]).
 //!
 //! Each coefficient is written `p_k w0^(-k q)` with `w0` the start's characteristic frequency,
@@ -26,7 +26,7 @@ pub mod start;
 
 pub use search::{candidate, fit, GeneralFit};
 
-use super::{Bounds, Expr, FracModel, Kind, Param};
+use crate::oe::{Bounds, Expr, FracModel, Kind, Param};
 use crate::{Error, Result};
 
 /// The largest denominator degree (in powers of `q`) of an integer-order general structure: six
@@ -67,7 +67,7 @@ pub struct GeneralRequest {
 /// `general:N/D` (numerator degree `N`, denominator degree `D`); `None` for another spec.
 ///
 /// ```
-/// use ident::oe::general::{requested, Size};
+/// use ident::diagnose::general::{requested, Size};
 /// assert_eq!(requested("General").unwrap().unwrap().size, None);
 /// let g = requested("general:1/4").unwrap().unwrap();
 /// assert_eq!(g.size, Some(Size { num: 1, den: 4 }));
@@ -136,7 +136,7 @@ pub struct GeneralStart {
     /// `a_1 .. a_den`.
     pub a: Vec<f64>,
     /// Weighted relative error of the start on the frequency response
-    /// ([`super::init::frf_error`]).
+    /// (`oe::init::frf_error`).
     pub frf_error: f64,
     /// The frequency-domain information criterion it was ranked by ([`start::criterion`]).
     pub criterion: f64,
