@@ -147,8 +147,7 @@ impl PyDriveSimulator {
         offset_v: f64,
         firmware: &str,
     ) -> PyResult<Self> {
-        let mut cfg = SimConfig::default();
-        cfg.firmware = match firmware.to_ascii_lowercase().as_str() {
+        let firmware = match firmware.to_ascii_lowercase().as_str() {
             "rust" => FirmwareKind::Rust,
             "c" => FirmwareKind::C,
             other => {
@@ -156,6 +155,10 @@ impl PyDriveSimulator {
                     "firmware must be \"rust\" or \"c\", got {other:?}"
                 )))
             }
+        };
+        let mut cfg = SimConfig {
+            firmware,
+            ..SimConfig::default()
         };
         if let Some(m) = model.filter(|m| !m.is_none()) {
             cfg.model = if let Ok(tf) = m.downcast::<PyFracTf>() {
