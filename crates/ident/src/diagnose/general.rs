@@ -71,7 +71,7 @@ pub struct GeneralRequest {
 /// assert_eq!(requested("General").unwrap().unwrap().size, None);
 /// let g = requested("general:1/4").unwrap().unwrap();
 /// assert_eq!(g.size, Some(Size { num: 1, den: 4 }));
-/// assert!(requested("general:5/4").unwrap().is_err());
+/// assert!(requested("general:6/4").unwrap().is_err());
 /// assert!(requested("pmsm").is_none());
 /// ```
 ///
