@@ -239,6 +239,14 @@ fn figure(
             t,
             predicted: &pred,
             measured: y,
+            labels: ["predicted (fracid tune)", "measured (fracid drive loop)"],
+            look: Look {
+                caption: 22,
+                labels: Some(16),
+                margin: 10,
+                x_area: 45,
+                y_area: 60,
+            },
         },
     )?;
     lines.push(format!(
@@ -260,10 +268,15 @@ pub fn model_of(json: &Path) -> Result<FracTf> {
     Ok(crate::cmd::tune::load_model(text)?.0)
 }
 
-struct LoopFigure<'a> {
-    t: &'a [f64],
-    predicted: &'a [f64],
-    measured: &'a [f64],
+/// A speed step of a tuned loop, predicted beside measured on the drive (the demo's and
+/// `fracid drive autotune`'s), with each line's legend and the chart's look.
+pub(crate) struct LoopFigure<'a> {
+    pub t: &'a [f64],
+    pub predicted: &'a [f64],
+    pub measured: &'a [f64],
+    /// Legends of the predicted and the measured line.
+    pub labels: [&'a str; 2],
+    pub look: Look,
 }
 
 impl Figure for LoopFigure<'_> {
@@ -280,24 +293,18 @@ impl Figure for LoopFigure<'_> {
                 t: self.t,
                 lines: &[
                     Line {
-                        label: Some("predicted (fracid tune)"),
+                        label: Some(self.labels[0]),
                         values: self.predicted,
                         style: BLUE.stroke_width(2),
                     },
                     Line {
-                        label: Some("measured (fracid drive loop)"),
+                        label: Some(self.labels[1]),
                         values: self.measured,
                         style: RED.stroke_width(1),
                     },
                 ],
                 marker: None,
-                look: Look {
-                    caption: 22,
-                    labels: Some(16),
-                    margin: 10,
-                    x_area: 45,
-                    y_area: 60,
-                },
+                look: self.look,
             },
         )
     }

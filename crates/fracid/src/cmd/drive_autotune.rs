@@ -202,7 +202,14 @@ fn write_folder(dir: &Path, r: &AutotuneReport, text: &str) -> Result<()> {
         md += "## The records and the final model\n\n![records](records.png)\n\n";
     }
     if let Some((t, p, m)) = &r.series.step {
-        plot::save(&dir.join("step.png"), (1000, 600), &Step { t, p, m })?;
+        let step = super::demo_loop::LoopFigure {
+            t,
+            predicted: p,
+            measured: m,
+            labels: ["predicted (fracid tune, final model)", "measured (drive)"],
+            look: LOOK,
+        };
+        plot::save(&dir.join("step.png"), (1000, 600), &step)?;
         md += "## The step: predicted and measured on the drive\n\n![step](step.png)\n";
     }
     let mp = dir.join("report.md");
@@ -254,42 +261,5 @@ impl Figure for Records<'_> {
             )?;
         }
         Ok(())
-    }
-}
-
-struct Step<'a> {
-    t: &'a [f64],
-    p: &'a [f64],
-    m: &'a [f64],
-}
-
-impl Figure for Step<'_> {
-    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<()>
-    where
-        DB::ErrorType: 'static,
-    {
-        plot::time_series_chart(
-            root,
-            &TimeChart {
-                title: Some("speed step of the tuned FOPI: predicted and measured on the drive"),
-                x_desc: "time after the step (s)",
-                y_desc: Some("speed (rad/s)"),
-                t: self.t,
-                lines: &[
-                    Line {
-                        label: Some("predicted (fracid tune, final model)"),
-                        values: self.p,
-                        style: BLUE.stroke_width(2),
-                    },
-                    Line {
-                        label: Some("measured (drive)"),
-                        values: self.m,
-                        style: RED.stroke_width(1),
-                    },
-                ],
-                marker: None,
-                look: LOOK,
-            },
-        )
     }
 }
