@@ -735,7 +735,7 @@ struct Outcome {
 
 impl StructureScore {
     /// A row with nothing measured yet.
-    fn named(name: &str) -> Self {
+    pub(crate) fn named(name: &str) -> Self {
         Self {
             name: name.to_string(),
             model: String::new(),

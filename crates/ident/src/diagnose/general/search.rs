@@ -213,17 +213,7 @@ pub fn candidate(
 
 /// One size's row in the comparison.
 fn score(name: &str, f: &Result<Identification>) -> StructureScore {
-    let mut s = StructureScore {
-        name: name.into(),
-        model: String::new(),
-        failed: None,
-        rmse: None,
-        problems: vec![],
-        effects: vec![],
-        free_params: 0,
-        rmse_after: None,
-        bic_after: None,
-    };
+    let mut s = StructureScore::named(name);
     match f {
         Ok(id) => {
             let k = id.model.params.iter().filter(|p| p.free).count();
