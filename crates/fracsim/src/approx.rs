@@ -44,6 +44,13 @@ impl std::str::FromStr for Method {
     }
 }
 
+impl std::fmt::Display for Method {
+    /// Its name as the CLI and Python take it (`refined`).
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(crate::export::method_name(*self))
+    }
+}
+
 /// How to approximate fractional operators (the simulation is then exact for a held input).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ApproxSpec {

@@ -104,6 +104,34 @@ pub enum OffsetMode {
     None,
 }
 
+impl OffsetMode {
+    /// Its name, as the options take it.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            OffsetMode::Initial => "initial",
+            OffsetMode::Mean => "mean",
+            OffsetMode::None => "none",
+        }
+    }
+}
+
+impl std::fmt::Display for OffsetMode {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+impl std::str::FromStr for OffsetMode {
+    type Err = Error;
+    /// `initial`, `mean` or `none`, any case.
+    fn from_str(s: &str) -> Result<Self> {
+        [OffsetMode::Initial, OffsetMode::Mean, OffsetMode::None]
+            .into_iter()
+            .find(|m| s.trim().eq_ignore_ascii_case(m.as_str()))
+            .ok_or_else(|| Error::Options(format!("offsets '{s}' must be initial, mean or none")))
+    }
+}
+
 /// The operating point removed from a record.
 #[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize, serde::Deserialize)]
 pub struct Offsets {

@@ -234,14 +234,14 @@ fn fresh_past(mut m: FracModel) -> FracModel {
     m
 }
 
-/// The structure `spec` (a name of [`ident::app::structure`]) fitted to one record with its
-/// delay, without the diagnosis, from `start` (by parameter name; empty: the automatic start).
+/// The named structure `preset` fitted to one record with its delay, without the diagnosis, from
+/// `start` (by parameter name; empty: the automatic start).
 ///
 /// # Errors
 /// The identification's.
 pub fn fit_structure(
     rec: &Named,
-    spec: &str,
+    preset: ident::app::Preset,
     start: BTreeMap<String, f64>,
 ) -> Result<(Model, f64)> {
     let data = TimeData {
@@ -251,7 +251,7 @@ pub fn fit_structure(
         reader_warnings: vec![],
     };
     let req = TimeRequest {
-        structure: spec.into(),
+        structure: ident::app::Structure::Named(preset),
         plain: true,
         delay: true,
         auto_start: start.is_empty(),

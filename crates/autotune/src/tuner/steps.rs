@@ -10,6 +10,7 @@ use crate::acquire::{self, prbs::PrbsRequest, sine::DwellRequest, speed_loop, st
 use crate::{Error, Result};
 use drive::client::{Acquisition, Client, NullSink};
 use drive::protocol::Configure;
+use ident::app::Preset;
 use ident::diagnose::Ambiguity;
 use std::time::Instant;
 
@@ -301,7 +302,7 @@ impl<'a> Run<'a> {
         obs: &mut dyn Observe,
     ) -> Option<rounds::Model> {
         obs.stage("the two-mass structure on the PRBS record");
-        let (pmsm, _) = rounds::fit_structure(named, "pmsm", Default::default()).ok()?;
+        let (pmsm, _) = rounds::fit_structure(named, Preset::Pmsm, Default::default()).ok()?;
         let wr = 2.0 * std::f64::consts::PI * r.freq_hz;
         let mut start: std::collections::BTreeMap<String, f64> = ["K", "a1", "a2", "zeta", "theta"]
             .iter()
@@ -311,7 +312,7 @@ impl<'a> Run<'a> {
         start.insert("b2".into(), (10.0 * wr).powi(-2));
         start.insert("d".into(), 2.0 * r.damping / wr);
         start.insert("mu".into(), 1.0);
-        let (m, rmse) = match rounds::fit_structure(named, "two-mass", start) {
+        let (m, rmse) = match rounds::fit_structure(named, Preset::TwoMass, start) {
             Ok(x) => x,
             Err(e) => {
                 obs.stage(&format!("the two-mass fit failed: {e}"));

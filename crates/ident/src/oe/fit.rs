@@ -912,6 +912,12 @@ pub struct InitialReport {
     pub reason: String,
 }
 
+impl std::fmt::Display for InitialState {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
 impl std::str::FromStr for InitialState {
     type Err = Error;
     fn from_str(s: &str) -> Result<Self> {
