@@ -1080,6 +1080,22 @@ impl Record {
 mod tests {
     use super::*;
 
+    #[test]
+    fn offset_modes_round_trip_through_their_words() {
+        for m in [OffsetMode::Initial, OffsetMode::Mean, OffsetMode::None] {
+            assert_eq!(m.to_string().parse::<OffsetMode>().unwrap(), m);
+            assert_eq!(
+                m.to_string().to_uppercase().parse::<OffsetMode>().unwrap(),
+                m
+            );
+        }
+        let e = "median".parse::<OffsetMode>().unwrap_err().to_string();
+        assert!(
+            e.contains("offsets 'median' must be initial, mean or none"),
+            "{e}"
+        );
+    }
+
     /// The footer's sample count is checked against the rows read (issue 31): a mismatch is a
     /// warning, the rows read are kept; a matching count says nothing.
     #[test]

@@ -166,9 +166,10 @@ pub struct TimeArgs {
 /// The help of `--structure`: the catalogue's structures ([`Preset`]), `auto`, the general
 /// structure and a transfer function.
 fn structure_help() -> String {
-    let compared = ident::diagnose::structures::COMPARED
+    let compared: Vec<&str> = ident::diagnose::structures::compared()
         .map(Preset::name)
-        .join(", ");
+        .collect();
+    let compared = compared.join(", ");
     format!(
         "Model structure: {}, auto ({compared}, and feedthrough when the record shows an instant \
          response, each fitted, the one the data support kept: held-out RMSE, then BIC among \

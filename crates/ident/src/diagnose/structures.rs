@@ -102,21 +102,19 @@ pub struct StructureChoice {
     pub integer_reference: Option<IntegerReference>,
 }
 
-/// The structures of the catalogue every comparison fits beside the user's (the feed-through
-/// only when the record shows it, [`with_feedthrough`]).
-pub const COMPARED: [Preset; 6] = [
-    Preset::Pmsm,
-    Preset::Commensurate,
-    Preset::FirstOrder,
-    Preset::SecondOrder,
-    Preset::ThirdOrder,
-    Preset::TwoMass,
-];
+/// The structures of the catalogue every comparison fits beside the user's, in its order: all but
+/// the feed-through (fitted only when the record shows an instant response, [`with_feedthrough`])
+/// and `fopdt` (the first order is fitted, and a delay is an effect the diagnosis finds).
+pub fn compared() -> impl Iterator<Item = Preset> {
+    Preset::ALL
+        .into_iter()
+        .filter(|p| !matches!(p, Preset::Feedthrough | Preset::Fopdt))
+}
 
 /// The candidate structures for a user's `model` named `label` (see the module documentation).
 pub fn candidates(label: &str, model: &FracModel) -> Vec<(String, FracModel)> {
     let mut out = vec![(label.to_string(), model.clone())];
-    for p in COMPARED {
+    for p in compared() {
         if out.iter().any(|(n, _)| n.eq_ignore_ascii_case(p.name())) {
             continue;
         }
