@@ -11,6 +11,9 @@ import fracid
 
 DT = 1e-4  # the model's corners (~150 and 650 rad/s) far below the sampling frequency
 
+# The structures every comparison fits (`structure="auto"`), in the catalogue's order and words.
+COMPARED = ["pmsm", "commensurate", "first-order", "second-order", "third-order", "two-mass"]
+
 
 def record(model: fracid.FracTf, noise: float, seed: int):
     """4 periods of the paper's PRBS (order 7, 3 ms clock); noise as a fraction of std(y)."""
@@ -115,14 +118,7 @@ def test_structure_auto_matches_the_cli(fracid_bin):
     assert fit.structures is not None
     assert fit.structures["chosen"] == cli["structures"]["chosen"]
     names = [r["name"] for r in fit.structures["scores"]]
-    assert names == [
-        "pmsm",
-        "commensurate",
-        "first-order",
-        "second-order",
-        "third-order",
-        "two-mass",
-    ]
+    assert names == COMPARED
     assert fit.validation.rmse == pytest.approx(cli["fit"]["validation"]["rmse"], rel=1e-9)
 
 
@@ -174,16 +170,7 @@ def test_structures_are_one_catalogue_with_its_spellings():
     spelling of a name is sent as the name, and a word that is no structure is a DataError with
     the library's words (no position in a JSON the user never wrote)."""
     names = list(fracid.structures())
-    assert names == [
-        "pmsm",
-        "commensurate",
-        "first-order",
-        "second-order",
-        "third-order",
-        "two-mass",
-        "feedthrough",
-        "fopdt",
-    ]
+    assert names == COMPARED + ["feedthrough", "fopdt"]
     assert all(f'"{n}"' in (fracid.fit_time.__doc__ or "") for n in names)
     truth = fracid.FracTf.parse("2/(0.0001 s^2 + 0.01 s + 1)")
     u, y = record(truth, 0.01, seed=5)

@@ -4,7 +4,7 @@
 //! flags into an [`AutotuneRequest`], runs it under a signal handler that stops the drive, and
 //! presents the report (text, `--json`, `report.md` with plots).
 
-use crate::cmd::drive_io::{autotune_err, check_outputs, connect, PortArgs};
+use crate::cmd::drive_io::{autotune_err, check_outputs, connect, LinkArgs, PortArgs};
 use crate::interrupt::{Interrupted, StopOnInterrupt};
 use crate::plot::{self, Figure, Line, Look, TimeChart};
 use anyhow::{Context, Result};
@@ -17,24 +17,9 @@ use std::path::{Path, PathBuf};
 /// Options of `fracid drive autotune`.
 #[derive(Debug, clap::Args)]
 pub struct AutotuneArgs {
-    /// Serial port (e.g. /dev/ttyUSB0, or the path printed by `fracid drive sim`).
-    #[arg(long)]
-    pub port: String,
-    /// Baud rate.
-    #[arg(long, default_value_t = 115_200)]
-    pub baud: u32,
-    /// Command timeout in ms (default: 100 ms + 3 frame times).
-    #[arg(long)]
-    pub timeout_ms: Option<u64>,
-    /// Resends of an unanswered command.
-    #[arg(long, default_value_t = 5)]
-    pub retries: u32,
-    /// Interval between the host's KEEPALIVE frames during a run, ms.
-    #[arg(long, default_value_t = 150, value_parser = clap::value_parser!(u64).range(1..=10_000))]
-    pub keepalive_ms: u64,
-    /// Sample rate in Hz.
-    #[arg(long, default_value_t = 1000)]
-    pub sample_rate: u32,
+    /// The serial link.
+    #[command(flatten)]
+    pub link: LinkArgs,
     /// Voltage limit, V: the drive's clamp (the experiments stay within 80% of it).
     /// Default 12.
     #[arg(long)]
@@ -89,12 +74,7 @@ impl AutotuneArgs {
 
     fn port_args(&self, req: &AutotuneRequest) -> PortArgs {
         PortArgs {
-            port: self.port.clone(),
-            baud: self.baud,
-            timeout_ms: self.timeout_ms,
-            retries: self.retries,
-            keepalive_ms: self.keepalive_ms,
-            sample_rate: self.sample_rate,
+            link: self.link.clone(),
             block: 32,
             u_limit: req.u_limit_v,
             quiet: self.quiet,
@@ -134,7 +114,7 @@ pub fn run(a: AutotuneArgs) -> Result<()> {
         std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
         let outs = ["report.md", "report.json", "step.png", "records.png"].map(|f| dir.join(f));
         let named: Vec<(&str, &Path)> = outs.iter().map(|p| ("--out", p.as_path())).collect();
-        check_outputs(&a.port, &[], &named)?;
+        check_outputs(&a.link.port, &[], &named)?;
     }
     let mut client = connect(&port, &conf)?;
     let signals = StopOnInterrupt::arm(client.stop_handle());
@@ -142,7 +122,7 @@ pub fn run(a: AutotuneArgs) -> Result<()> {
         quiet: a.quiet,
         signals: &signals,
     };
-    let out = tuner::run(&mut client, a.sample_rate, &req, &mut obs);
+    let out = tuner::run(&mut client, a.link.sample_rate, &req, &mut obs);
     let signal = signals.signal();
     drop(signals);
     drop(client);
