@@ -48,7 +48,8 @@ pub struct Round {
     /// The round's model in words.
     pub model: String,
     /// For a dwell round: the largest relative error of the model's frequency response at the
-    /// points the dwells measured, before (the previous model) and after the round.
+    /// points the dwells measured (the drive's zero-order hold on the model), before (the
+    /// previous model) and after the round.
     pub frf_before: Option<f64>,
     /// After the round.
     pub frf_after: Option<f64>,

@@ -284,6 +284,7 @@ pub fn later(recs: &[Named], prev: &FracModel, target: Target) -> Result<Outcome
         .as_ref()
         .map(|d| d.diagnosis.ambiguous.clone())
         .unwrap_or_default();
+    let given = matches!(target, Target::Start(_));
     let start = match target {
         Target::Diagnosed => r.lead.spec.clone(),
         Target::Friction(vc) => {
@@ -299,7 +300,11 @@ pub fn later(recs: &[Named], prev: &FracModel, target: Target) -> Result<Outcome
         }
         Target::Start(m) => *m,
     };
+    // a structure fitted to an earlier record is the model kept when the joint fit fails
+    let fallback = if given { start.clone() } else { prev.clone() };
     let start = fresh_past(start);
+    let mut warnings = vec![];
+    let start = within_joint_limit(start, recs.len(), &mut warnings);
     let mut ordered: Vec<Record> = vec![new.record.clone()];
     ordered.extend(recs[..recs.len() - 1].iter().map(|n| n.record.clone()));
     let dur = new.record.len() as f64 * new.record.dt;
@@ -313,23 +318,22 @@ pub fn later(recs: &[Named], prev: &FracModel, target: Target) -> Result<Outcome
         false,
     )?;
     opts.start = StartMode::Given;
-    let mut warnings = vec![];
     let (spec, usable) = match ident::oe::identify_joint(&ordered, &start, &opts) {
         Ok(j) if j.problems.is_empty() => (j.model, true),
         Ok(j) => {
             warnings.push(format!(
-                "the joint fit of {} records is not usable ({}); the previous model is kept",
+                "the joint fit of {} records is not usable ({}); the model before it is kept",
                 recs.len(),
                 j.problems.join("; "),
             ));
-            (prev.clone(), true)
+            (fallback, true)
         }
         Err(e) => {
             warnings.push(format!(
-                "the joint fit of {} records failed ({e}); the previous model is kept",
+                "the joint fit of {} records failed ({e}); the model before it is kept",
                 recs.len(),
             ));
-            (prev.clone(), true)
+            (fallback, true)
         }
     };
     let errors = errors(&spec, recs)?;
@@ -343,6 +347,42 @@ pub fn later(recs: &[Named], prev: &FracModel, target: Target) -> Result<Outcome
         warnings,
         usable,
     })
+}
+
+/// The most free parameters a fit takes ([`ident::oe::fit`]).
+pub const MAX_FREE: usize = 16;
+
+/// `m` with its fractional orders held at their values (the records before fitted them; the new
+/// record, a dwell about one frequency, cannot tell them) when its free parameters and each of
+/// `n_records` records' own (an output offset and the initial state's levels,
+/// [`ident::oe::past_edges`]) exceed [`MAX_FREE`]; the orders held are named in `warnings`.
+fn within_joint_limit(mut m: FracModel, n_records: usize, warnings: &mut Vec<String>) -> FracModel {
+    let own = |m: &FracModel, i: usize| m.is_initial_state(i) || m.params[i].name == "y_offset";
+    let per_record = 2 + ident::oe::past_edges(1.0).len();
+    let count = |m: &FracModel| {
+        (0..m.params.len())
+            .filter(|&i| m.params[i].free && !own(m, i))
+            .count()
+            + n_records * per_record
+    };
+    let mut held = vec![];
+    for name in ["q", "mu", "theta", "zeta"] {
+        if count(&m) <= MAX_FREE {
+            break;
+        }
+        if let Some(i) = m.index_of(name).filter(|&i| m.params[i].free) {
+            m.params[i].free = false;
+            held.push(format!("{name} = {:.4}", m.params[i].value));
+        }
+    }
+    if !held.is_empty() {
+        warnings.push(format!(
+            "the joint fit holds {} as the earlier records fitted (at most {MAX_FREE} free \
+             parameters with each record's offset and initial state)",
+            held.join(", ")
+        ));
+    }
+    m
 }
 
 /// A model in words: its linear part and its effects' parameters.
@@ -359,4 +399,76 @@ pub fn model_text(m: &FracModel) -> Option<String> {
     } else {
         format!("{tf}; {}", effects.join(", "))
     })
+}
+
+/// A motor measured at the load behind a resonance: the PMSM's fitted linear part `motor`
+/// (`K, a1, a2, zeta, theta`, its delay and approximation) times a resonant pair with no
+/// anti-resonance, `1/(c2 s^2 + d s + 1)`, started at `freq_hz` and `damping`
+/// (`c2 = 1/wr^2`, `d = 2 damping/wr`): the structure of a speed measured on the load side of a
+/// compliant coupling, simulated factor by factor ([`FracModel::series`]); `None` when `motor`
+/// is not a PMSM.
+pub fn load_resonance(motor: &FracModel, freq_hz: f64, damping: f64) -> Option<FracModel> {
+    use ident::oe::{Expr, Kind, Param};
+    let v = |n: &str| motor.index_of(n).map(|i| motor.params[i].value);
+    let mut m = FracModel::pmsm(v("K")?, v("a1")?, v("a2")?, v("zeta")?, v("theta")?);
+    m.approx = motor.approx;
+    let wr = 2.0 * std::f64::consts::PI * freq_hz;
+    let ic2 = m.add_param(Param::positive("c2", wr.powi(-2)));
+    let id = m.add_param(Param::positive("d", 2.0 * damping.max(1e-3) / wr));
+    let pair = vec![
+        (Expr::p(ic2), Expr::cst(2.0)),
+        (Expr::p(id), Expr::cst(1.0)),
+        (Expr::cst(1.0), Expr::cst(0.0)),
+    ];
+    let motor_den = m.den.clone();
+    m.series = vec![
+        (vec![(Expr::p(0), Expr::cst(0.0))], motor_den.clone()),
+        (vec![(Expr::cst(1.0), Expr::cst(0.0))], pair.clone()),
+    ];
+    // the product multiplied out, term by term (the reports' transfer function)
+    m.den = motor_den
+        .iter()
+        .flat_map(|(mc, mo)| {
+            pair.iter().map(move |(pc, po)| {
+                let coef = match (mc.terms.first(), pc.terms.first()) {
+                    (Some(&(a, _)), Some(&(c, _))) => Expr::p(a).times(&[c]),
+                    (Some(_), None) => mc.clone(),
+                    (None, Some(_)) => pc.clone(),
+                    (None, None) => Expr::cst(1.0),
+                };
+                let mut o = mo.clone();
+                o.constant += po.constant;
+                (coef, o)
+            })
+        })
+        .collect();
+    m.kind = Kind::General;
+    if let Some(i) = motor.delay {
+        if let ident::oe::Bounds::Interval(_, hi) = motor.params[i].bounds {
+            m.with_delay(motor.params[i].value, hi);
+        }
+    }
+    Some(m)
+}
+
+/// `m` fitted to one record from its values (no automatic start, no diagnosis), scored as
+/// [`fit_structure`] scores (the validation RMSE on the held-out 30%).
+///
+/// # Errors
+/// The identification's.
+pub fn fit_given(rec: &Named, m: &FracModel) -> Result<(Model, f64)> {
+    let dur = rec.record.len() as f64 * rec.record.dt;
+    let (_, mut opts) =
+        time::model_and_options(&TimeRequest::default(), dur, rec.record.dt, false)?;
+    opts.start = StartMode::Given;
+    let id = ident::oe::identify(&rec.record, m, &opts)?;
+    let val = id.validation.unwrap_or(id.estimation);
+    let text = model_text(&id.model).unwrap_or_else(|| id.tf.to_string());
+    Ok((
+        Model {
+            spec: id.model,
+            text,
+        },
+        val.rmse,
+    ))
 }

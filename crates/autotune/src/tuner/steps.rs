@@ -30,8 +30,10 @@ pub(super) struct Run<'a> {
     points: Vec<drive::bode::BodePoint>,
 }
 
-/// The largest relative error of `m`'s frequency response at the measured `points`.
-fn frf_error(m: &rounds::Model, points: &[drive::bode::BodePoint]) -> Option<f64> {
+/// The largest relative error of `m`'s frequency response at the measured `points`, the
+/// drive's zero-order hold at `dt` (half a sample of delay, a sinc droop) put on the model as
+/// the measurement has it.
+fn frf_error(m: &rounds::Model, points: &[drive::bode::BodePoint], dt: f64) -> Option<f64> {
     let tf = m.tf().ok()?;
     points
         .iter()
@@ -41,7 +43,8 @@ fn frf_error(m: &rounds::Model, points: &[drive::bode::BodePoint]) -> Option<f64
                 10f64.powf(p.gain_db / 20.0),
                 p.phase_deg.to_radians(),
             );
-            (tf.freq_response(w) - meas).norm() / meas.norm()
+            let model = tf.freq_response(w) * ident::hold::zoh(w, dt);
+            (model - meas).norm() / meas.norm()
         })
         .reduce(f64::max)
 }
@@ -283,47 +286,66 @@ impl<'a> Run<'a> {
         self.outcome = Some(out.clone());
         self.suspect = self
             .resonance()
-            .map(|r| (r, self.two_mass(&named, &r, &out, obs)));
+            .map(|r| (r, self.resonant(&named, &r, &out, obs)));
         self.records.push(named);
         self.round("identification".into(), vec![], &out);
         Ok(req)
     }
 
-    /// The load-side two-mass structure fitted to the identification record, started from the
-    /// PMSM fitted to it and the resonance `r` the first model shows (the anti-resonance ten
-    /// times above it: a load-side measurement has none), when it fits at least as well as the
-    /// first round's model (within 5%): the structure the dwell's joint fit starts from.
-    fn two_mass(
+    /// The structures that hold a resonance, fitted to the identification record with its
+    /// delay: the PMSM times a resonant pair at the load ([`rounds::load_resonance`], started
+    /// from the PMSM fitted to the record and the resonance `r` the first model shows), the
+    /// two-mass drive train (the same start, the anti-resonance ten times above the resonance)
+    /// and the general structure sized by the data ([`ident::diagnose::general`], started from
+    /// the record's frequency response). The one of lowest held-out RMSE, when it fits at least
+    /// as well as the first round's model (within 5%): the structure the dwell's joint fit
+    /// starts from.
+    fn resonant(
         &mut self,
         named: &Named,
         r: &Resonance,
         out: &Outcome,
         obs: &mut dyn Observe,
     ) -> Option<rounds::Model> {
-        obs.stage("the two-mass structure on the PRBS record");
-        let (pmsm, _) = rounds::fit_structure(named, "pmsm", Default::default()).ok()?;
-        let wr = 2.0 * std::f64::consts::PI * r.freq_hz;
-        let mut start: std::collections::BTreeMap<String, f64> = ["K", "a1", "a2", "zeta", "theta"]
-            .iter()
-            .filter_map(|n| Some((n.to_string(), pmsm.param(n)?)))
-            .collect();
-        start.insert("c2".into(), wr.powi(-2));
-        start.insert("b2".into(), (10.0 * wr).powi(-2));
-        start.insert("d".into(), 2.0 * r.damping / wr);
-        start.insert("mu".into(), 1.0);
-        let (m, rmse) = match rounds::fit_structure(named, "two-mass", start) {
-            Ok(x) => x,
-            Err(e) => {
-                obs.stage(&format!("the two-mass fit failed: {e}"));
-                return None;
-            }
-        };
+        obs.stage("the structures of a resonance on the PRBS record");
         let base = out.errors.first()?.rmse;
-        obs.stage(&format!(
-            "two-mass: {} ({rmse:.4} rad/s against {base:.4})",
-            m.text
+        let mut fits: Vec<(&str, Result<(rounds::Model, f64)>)> = vec![];
+        if let Ok((pmsm, _)) = rounds::fit_structure(named, "pmsm", Default::default()) {
+            if let Some(m) = rounds::load_resonance(&pmsm.spec, r.freq_hz, r.damping) {
+                fits.push(("load-side resonance", rounds::fit_given(named, &m)));
+            }
+            let wr = 2.0 * std::f64::consts::PI * r.freq_hz;
+            let mut start: std::collections::BTreeMap<String, f64> =
+                ["K", "a1", "a2", "zeta", "theta"]
+                    .iter()
+                    .filter_map(|n| Some((n.to_string(), pmsm.param(n)?)))
+                    .collect();
+            start.insert("c2".into(), wr.powi(-2));
+            start.insert("b2".into(), (10.0 * wr).powi(-2));
+            start.insert("d".into(), 2.0 * r.damping / wr);
+            start.insert("mu".into(), 1.0);
+            fits.push(("two-mass", rounds::fit_structure(named, "two-mass", start)));
+        }
+        fits.push((
+            "general",
+            rounds::fit_structure(named, "general", Default::default()),
         ));
-        (rmse <= 1.05 * base).then_some(m)
+        let mut best: Option<(rounds::Model, f64)> = None;
+        for (name, fit) in fits {
+            match fit {
+                Ok((m, rmse)) => {
+                    obs.stage(&format!(
+                        "{name}: {} ({rmse:.4} rad/s against {base:.4})",
+                        m.text
+                    ));
+                    if rmse <= 1.05 * base && best.as_ref().is_none_or(|b| rmse < b.1) {
+                        best = Some((m, rmse));
+                    }
+                }
+                Err(e) => obs.stage(&format!("the {name} fit failed: {e}")),
+            }
+        }
+        best.map(|b| b.0)
     }
 
     fn round(&mut self, reason: String, before: Vec<rounds::RecordError>, out: &Outcome) {
@@ -447,8 +469,8 @@ impl<'a> Run<'a> {
             self.round(reason, before, &out);
             if purpose == Purpose::Dwell {
                 let last = self.report.rounds.last_mut().expect("a round");
-                last.frf_before = frf_error(&prev, &self.points);
-                last.frf_after = frf_error(&out.model, &self.points);
+                last.frf_before = frf_error(&prev, &self.points, 1.0 / self.fs);
+                last.frf_after = frf_error(&out.model, &self.points, 1.0 / self.fs);
             }
             self.outcome = Some(out);
             self.check_cancel(obs)?;
