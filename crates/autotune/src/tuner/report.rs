@@ -99,6 +99,10 @@ pub struct StepFigures {
 pub struct Control {
     /// `C(s)`.
     pub text: String,
+    /// The filter in series with it for a resonance (the drive runs the filter, then `C`).
+    pub filter: Option<tune::filter::Filter>,
+    /// The filter in words.
+    pub filter_text: Option<String>,
     /// Proportional gain.
     pub kp: f64,
     /// Integral gain.
@@ -333,6 +337,9 @@ fn control_lines(c: &Control, line: &mut impl FnMut(String)) {
              {} sections, within {:.1e} of the realisation",
         c.text, c.wc_used, c.pm_deg, c.ms, c.gm_db, c.sections, c.quantisation_error
     ));
+    if let Some(f) = &c.filter_text {
+        line(format!("  in series: {f}, on the drive before C(s)"));
+    }
     line(format!("  crossover: {}", c.crossover.reasons.join("; ")));
     for r in &c.refusals {
         line(format!("  refused: {r}"));

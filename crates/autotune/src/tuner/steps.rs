@@ -619,13 +619,18 @@ impl<'a> Run<'a> {
         let model = self.final_model()?;
         let tf = model.tf()?;
         let res = self.report.model.as_ref().and_then(|m| m.resonance);
-        let xo = control::crossover(&tf, res.as_ref(), self.fs, self.req.wc, self.req.pm_deg);
         let g0 = tf.freq_response(1e-3).norm();
         let step = (0.3 * self.env.speed_max).min(0.4 * self.env.u_max_v * g0);
         let dt = 1.0 / self.fs;
-        let (rep, runs, wc_used, refusals) =
-            control::design(&model, &tf, &xo, dt, step, self.req.u_limit_v)?;
-        let (k, qerr, _) = control::fixed(&rep, &self.conf)?;
+        let control::Chosen {
+            report: rep,
+            runs,
+            crossover: xo,
+            wc_used,
+            refusals,
+            filter,
+        } = control::choose(&model, &tf, res.as_ref(), &self.req, self.fs, step)?;
+        let (k, qerr, _) = control::fixed(&rep, filter.as_ref(), &self.conf)?;
         let predicted_m = if rep.effects.is_empty() {
             rep.step.metrics
         } else {
@@ -674,6 +679,8 @@ impl<'a> Run<'a> {
         }
         self.report.control = Some(Control {
             text: rep.controller.text.clone(),
+            filter,
+            filter_text: filter.as_ref().map(control::filter_text),
             kp: rep.params.kp,
             ki: rep.params.ki,
             lambda: rep.params.lambda,
