@@ -94,9 +94,24 @@ fn resonant_run() -> autotune::tuner::report::AutotuneReport {
         11,
     );
     let mut c = client(&s);
-    let r = tuner::run(&mut c, 1000, &AutotuneRequest::default(), &mut Quiet).unwrap();
+    let r = tuner::run(
+        &mut c,
+        1000,
+        &AutotuneRequest::default(),
+        &mut Stages(Instant::now()),
+    )
+    .unwrap();
     println!("{}", r.text());
     r
+}
+
+/// The stages with their wall time since the start, on standard output.
+struct Stages(Instant);
+
+impl tuner::Observe for Stages {
+    fn stage(&mut self, what: &str) {
+        println!("stage at {:.2} s: {what}", self.0.elapsed().as_secs_f64());
+    }
 }
 
 /// `sum c (j w)^nu` over `terms`, with complex arithmetic of its own.

@@ -297,9 +297,10 @@ pub struct Chosen {
 
 /// The controller for the final model `g` (with its resonance `res`): with no resonance or
 /// [`super::FilterChoice::None`], the design at [`crossover`]'s choice; for a resonance with a
-/// filter asked, the design with it; with [`super::FilterChoice::Auto`] both the notch's design
-/// and the lower crossover's, the notch kept when its loop is faster (a higher crossover), the
-/// reason in the crossover's.
+/// filter asked, the design with it; with [`super::FilterChoice::Auto`] the notch's design,
+/// kept when its loop is faster (a higher crossover) than the lower crossover's (designed only
+/// when the notch's crossover is not above the one it would start from), the reason in the
+/// crossover's.
 ///
 /// # Errors
 /// The tuner refuses every crossover (with the filter asked, or both ways for `Auto`).
@@ -331,31 +332,35 @@ pub fn choose(
     if req.filter != super::FilterChoice::Auto {
         return run(Some(f));
     }
-    match (run(Some(f)), run(None)) {
-        (Ok(with), Ok(mut without)) if with.wc_used <= without.wc_used => {
-            without.crossover.reasons.push(format!(
-                "with {} the loop is no faster (wc {:.1} rad/s): no filter",
-                filter_text(&f),
-                with.wc_used
-            ));
-            Ok(without)
-        }
-        (Ok(mut with), Ok(without)) => {
+    // the lower crossover's design reaches its chosen crossover at best: a notch's loop faster
+    // than that needs no comparison
+    let cap = crossover(g, res, None, fs, req.wc, req.pm_deg).wc;
+    match run(Some(f)) {
+        Ok(mut with) if with.wc_used > cap => {
             with.crossover.reasons.push(format!(
-                "the notch's loop is faster than the lower crossover's ({:.1} rad/s without it)",
-                without.wc_used
+                "the notch's loop is faster than the lower crossover's ({cap:.1} rad/s at most \
+                 without it)"
             ));
             Ok(with)
         }
-        (Ok(with), Err(_)) => Ok(with),
-        (Err(e), Ok(mut without)) => {
+        Ok(with) => match run(None) {
+            Ok(mut without) if with.wc_used <= without.wc_used => {
+                without.crossover.reasons.push(format!(
+                    "with {} the loop is no faster (wc {:.1} rad/s): no filter",
+                    filter_text(&f),
+                    with.wc_used
+                ));
+                Ok(without)
+            }
+            _ => Ok(with),
+        },
+        Err(e) => run(None).map(|mut without| {
             without
                 .crossover
                 .reasons
                 .push(format!("with {}: {e}", filter_text(&f)));
-            Ok(without)
-        }
-        (Err(e), Err(_)) => Err(e),
+            without
+        }),
     }
 }
 
