@@ -66,3 +66,41 @@ fn autotune_refuses_a_limit_out_of_range() {
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert!(stderr(&o).contains("--u-limit"), "{}", stderr(&o));
 }
+
+/// `fracid demo` shows the autotune: on its simulated drive, after the tuned loop, the autotune
+/// with its defaults, told nothing; its section in `report.md` (each round, the final model, the
+/// controller, the step predicted beside measured, the verdict), `autotune.txt` and a usable
+/// `autotune.json`.
+#[cfg(unix)]
+#[test]
+fn the_demo_shows_the_autotune() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("demo");
+    let t0 = std::time::Instant::now();
+    let o = fracid(&["demo", "--out", out.to_str().unwrap()]);
+    let wall = t0.elapsed().as_secs_f64();
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    println!("demo {wall:.2} s wall\n{}", stderr(&o));
+    let md = std::fs::read_to_string(out.join("report.md")).unwrap();
+    let section = md
+        .split("## One-button tuning")
+        .nth(1)
+        .expect("the autotune's section");
+    for want in [
+        "- Round 1 (prbs)",
+        "- Final model:",
+        "- Controller:",
+        "predicted overshoot",
+        "measured on the drive overshoot",
+        "- Verdict: a usable controller.",
+    ] {
+        assert!(section.contains(want), "{want}: {section}");
+    }
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("autotune.json")).unwrap()).unwrap();
+    assert_eq!(v["usable"], true);
+    assert!(v["control"]["measured"]["overshoot_percent"].is_number());
+    assert!(std::fs::read_to_string(out.join("autotune.txt"))
+        .unwrap()
+        .contains("round 1 (prbs, identification)"));
+}
