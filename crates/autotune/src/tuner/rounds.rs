@@ -460,6 +460,40 @@ pub fn load_resonance(motor: &FracModel, freq_hz: f64, damping: f64) -> Option<F
     Some(m)
 }
 
+/// The record `rec` with its input passed through the resonant pair `1/(c2 s^2 + d s + 1)` at
+/// `freq_hz` and `damping` (deviations from its first sample, so that a record that starts
+/// settled starts the pair at rest): what a motor measured behind that resonance sees, for a
+/// start of the motor alone ([`load_resonance`]) that the resonance does not bend.
+///
+/// # Errors
+/// The simulator's.
+pub fn behind_pair(rec: &Named, freq_hz: f64, damping: f64) -> Result<Named> {
+    let wr = 2.0 * std::f64::consts::PI * freq_hz;
+    let pair = fracsim::FracTf::new(
+        vec![fracsim::Term::new(1.0, 0.0)],
+        vec![
+            fracsim::Term::new(wr.powi(-2), 2.0),
+            fracsim::Term::new(2.0 * damping / wr, 1.0),
+            fracsim::Term::new(1.0, 0.0),
+        ],
+        0.0,
+    )
+    .map_err(tune::Error::Sim)?;
+    let u = &rec.record.u;
+    let u0 = u.first().copied().unwrap_or(0.0);
+    let du: Vec<f64> = u.iter().map(|v| v - u0).collect();
+    let uf: Vec<f64> = fracsim::lsim(&pair, &du, rec.record.dt, &Default::default())
+        .map_err(tune::Error::Sim)?
+        .into_iter()
+        .map(|v| v + u0)
+        .collect();
+    Ok(Named {
+        name: rec.name.clone(),
+        purpose: rec.purpose,
+        record: Record::from_samples(&uf, &rec.record.y, rec.record.dt)?,
+    })
+}
+
 /// `m` fitted to one record from its values (no automatic start, no diagnosis), scored as
 /// [`fit_structure`] scores (the validation RMSE on the held-out 30%).
 ///
@@ -480,4 +514,49 @@ pub fn fit_given(rec: &Named, m: &FracModel) -> Result<(Model, f64)> {
         },
         val.rmse,
     ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use num_complex::Complex64 as C;
+
+    #[test]
+    fn load_resonance_is_the_motor_times_the_pair() {
+        let mut motor = FracModel::pmsm(2.0, 0.01, 1e-5, 0.9, 0.85);
+        motor.with_delay(0.001, 0.01);
+        let m = load_resonance(&motor, 40.0, 0.05).unwrap();
+        let tf = m.tf(&m.values()).unwrap();
+        assert_eq!(tf.factors().len(), 2);
+        let alone = motor.tf(&motor.values()).unwrap();
+        let wr = 2.0 * std::f64::consts::PI * 40.0;
+        for w in [1.0, 100.0, wr, 1000.0] {
+            let x = w / wr;
+            let pair = C::new(1.0, 0.0) / C::new(1.0 - x * x, 2.0 * 0.05 * x);
+            let want = alone.freq_response(w) * pair;
+            assert!(
+                (tf.freq_response(w) - want).norm() < 1e-9 * want.norm(),
+                "{w}"
+            );
+        }
+        // a model without the PMSM's parameters has no such start
+        assert!(load_resonance(&FracModel::second_order(1.0, 0.1, 0.01), 40.0, 0.05).is_none());
+    }
+
+    #[test]
+    fn behind_pair_rings_as_the_pair_from_the_first_sample() {
+        // a step from 1 to 2 after 10 samples through 20 Hz, damping 0.05: the first level held
+        // (the pair at rest on it), the step's peak 1 + e^(-pi z / sqrt(1 - z^2)) above it
+        let u: Vec<f64> = (0..2000).map(|k| if k < 10 { 1.0 } else { 2.0 }).collect();
+        let rec = Named {
+            name: "r".into(),
+            purpose: super::super::design::Purpose::Identification,
+            record: Record::from_samples(&u, &vec![0.0; u.len()], 1e-3).unwrap(),
+        };
+        let f = behind_pair(&rec, 20.0, 0.05).unwrap().record.u;
+        assert!(f[..10].iter().all(|v| (v - 1.0).abs() < 1e-12));
+        let peak = f.iter().copied().fold(f64::MIN, f64::max);
+        let want = 2.0 + (-std::f64::consts::PI * 0.05 / (1.0f64 - 0.0025).sqrt()).exp();
+        assert!((peak - want).abs() < 0.01, "{peak} {want}");
+    }
 }

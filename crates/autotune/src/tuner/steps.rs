@@ -294,8 +294,10 @@ impl<'a> Run<'a> {
 
     /// The structures that hold a resonance, fitted to the identification record with its
     /// delay: the PMSM times a resonant pair at the load ([`rounds::load_resonance`], started
-    /// from the PMSM fitted to the record and the resonance `r` the first model shows), the
-    /// two-mass drive train (the same start, the anti-resonance ten times above the resonance)
+    /// from the resonance `r` the first model shows and the PMSM fitted to the record with its
+    /// input through that resonance, [`rounds::behind_pair`]: a PMSM fitted to the record as it
+    /// is bends to mimic the resonance, a start the fit may not leave), the two-mass drive train
+    /// (the same start, the anti-resonance ten times above the resonance)
     /// and the general structure sized by the data ([`ident::diagnose::general`], started from
     /// the record's frequency response). The one of lowest held-out RMSE, when it fits at least
     /// as well as the first round's model (within 5%): the structure the dwell's joint fit
@@ -310,7 +312,12 @@ impl<'a> Run<'a> {
         obs.stage("the structures of a resonance on the PRBS record");
         let base = out.errors.first()?.rmse;
         let mut fits: Vec<(&str, Result<(rounds::Model, f64)>)> = vec![];
-        if let Ok((pmsm, _)) = rounds::fit_structure(named, "pmsm", Default::default()) {
+        // the motor's start fitted behind the resonance (the record's input through it), or to
+        // the record as it is
+        let motor = rounds::behind_pair(named, r.freq_hz, r.damping)
+            .and_then(|b| rounds::fit_structure(&b, "pmsm", Default::default()))
+            .or_else(|_| rounds::fit_structure(named, "pmsm", Default::default()));
+        if let Ok((pmsm, _)) = motor {
             if let Some(m) = rounds::load_resonance(&pmsm.spec, r.freq_hz, r.damping) {
                 fits.push(("load-side resonance", rounds::fit_given(named, &m)));
             }
