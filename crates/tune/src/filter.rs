@@ -45,7 +45,7 @@ impl Filter {
     /// Check the filter's numbers.
     ///
     /// # Errors
-    /// [`crate::Error::InvalidParam`] for a frequency that is not positive, a zeros' damping
+    /// [`crate::Error::Invalid`] for a frequency that is not positive, a zeros' damping
     /// outside `[0, zeta_p)` or a poles' damping not above 1.
     pub fn validate(&self) -> Result<()> {
         match *self {

@@ -6,7 +6,7 @@
 //! fractional order controllers for industry applications", *Control Engineering Practice* 16
 //! (2008) 798-812.
 //!
-//! - [`design`]: the design equations and their solution, the candidates checked on the loop;
+//! - [`design`](mod@design): the design equations and their solution, the candidates checked on the loop;
 //! - [`analysis`]: crossover, margins, sensitivity peak, Nyquist stability of `L = C P`;
 //! - [`controller`] and [`plant`]: the two frequency responses with their logarithmic derivatives;
 //! - [`filter`]: a notch or low-pass in series with the controller for a resonant plant.
