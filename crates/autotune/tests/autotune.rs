@@ -160,6 +160,18 @@ fn resonance_found_modelled_and_the_loop_measured() {
     assert!((res.freq_hz - 45.0).abs() < 0.05 * 45.0, "{res:?}");
     assert!((res.damping - 0.05).abs() < 0.3 * 0.05, "{res:?}");
     assert!(r.rounds.iter().any(|x| x.reason.contains("resonance")));
+    let chosen: Vec<&str> = r.rounds[0]
+        .structures
+        .iter()
+        .filter(|s| s.chosen)
+        .map(|s| s.name.as_str())
+        .collect();
+    assert_eq!(
+        chosen,
+        ["load-side resonance"],
+        "{:?}",
+        r.rounds[0].structures
+    );
     let tf: fracsim::FracTf = m.tf.parse().unwrap();
     let (e, f) = worst_frf_error(&tf, 90.0);
     println!(

@@ -61,6 +61,23 @@ pub struct Round {
     pub ambiguous: Vec<Ambiguity>,
     /// The round's caveats.
     pub warnings: Vec<String>,
+    /// For a resonance of the first model: the structures that hold one, fitted to the record
+    /// (the one chosen starts the dwell's joint fit).
+    pub structures: Vec<StructureTried>,
+}
+
+/// A structure fitted to the identification record for a resonance.
+#[derive(Debug, Clone, Serialize)]
+pub struct StructureTried {
+    /// Its name.
+    pub name: String,
+    /// The fitted model in words, or why the fit failed.
+    pub model: String,
+    /// Its held-out RMSE, rad/s (`None`: the fit failed).
+    pub rmse: Option<f64>,
+    /// Whether it was chosen (within 5% of the first model's RMSE or below; the lowest, or the
+    /// fewest free parameters within 2% of it).
+    pub chosen: bool,
 }
 
 /// The final model's figures a user tunes by.
@@ -323,6 +340,15 @@ fn round_lines(r: &Round, line: &mut impl FnMut(String)) {
         line(format!(
             "  ambiguous: {} with {}: {}",
             a.name, a.confused_with, a.reason
+        ));
+    }
+    for t in &r.structures {
+        line(format!(
+            "  structure for the resonance: {}{}: {}{}",
+            t.name,
+            t.rmse.map_or(String::new(), |e| format!(" ({e:.4} rad/s)")),
+            t.model,
+            if t.chosen { " [chosen]" } else { "" }
         ));
     }
     for w in &r.warnings {

@@ -3,7 +3,9 @@
 use super::control::{self, Resonance};
 use super::design::{self, Envelope, Purpose, LIMIT_SHARE};
 use super::probe::{self, ProbeReading};
-use super::report::{AutotuneReport, Control, Experiment, FinalModel, Round, Series, StepFigures};
+use super::report::{
+    AutotuneReport, Control, Experiment, FinalModel, Round, Series, StepFigures, StructureTried,
+};
 use super::rounds::{self, Named, Outcome};
 use super::{AutotuneRequest, Observe};
 use crate::acquire::{self, prbs::PrbsRequest, sine::DwellRequest, speed_loop, step::StepRequest};
@@ -284,11 +286,17 @@ impl<'a> Run<'a> {
         obs.stage("identification and diagnosis of the PRBS record");
         let out = rounds::first(&named)?;
         self.outcome = Some(out.clone());
-        self.suspect = self
-            .resonance()
-            .map(|r| (r, self.resonant(&named, &r, &out, obs)));
+        let mut tried = vec![];
+        self.suspect = self.resonance().map(|r| {
+            let (m, t) = self.resonant(&named, &r, &out, obs);
+            tried = t;
+            (r, m)
+        });
         self.records.push(named);
         self.round("identification".into(), vec![], &out);
+        if let Some(last) = self.report.rounds.last_mut() {
+            last.structures = tried;
+        }
         Ok(req)
     }
 
@@ -299,18 +307,19 @@ impl<'a> Run<'a> {
     /// is bends to mimic the resonance, a start the fit may not leave), the two-mass drive train
     /// (the same start, the anti-resonance ten times above the resonance)
     /// and the general structure sized by the data ([`ident::diagnose::general`], started from
-    /// the record's frequency response). The one of lowest held-out RMSE, when it fits at least
-    /// as well as the first round's model (within 5%): the structure the dwell's joint fit
-    /// starts from.
+    /// the record's frequency response). Among those that fit at least as well as the first
+    /// round's model (within 5%), the one of lowest held-out RMSE, or of fewest free parameters
+    /// among those within [`ident::diagnose::structures::TIE`] of it: the structure the dwell's
+    /// joint fit starts from.
     fn resonant(
         &mut self,
         named: &Named,
         r: &Resonance,
         out: &Outcome,
         obs: &mut dyn Observe,
-    ) -> Option<rounds::Model> {
+    ) -> (Option<rounds::Model>, Vec<StructureTried>) {
         obs.stage("the structures of a resonance on the PRBS record");
-        let base = out.errors.first()?.rmse;
+        let base = out.errors.first().map_or(f64::INFINITY, |e| e.rmse);
         let mut fits: Vec<(&str, Result<(rounds::Model, f64)>)> = vec![];
         // the motor's start fitted behind the resonance (the record's input through it), or to
         // the record as it is
@@ -337,22 +346,44 @@ impl<'a> Run<'a> {
             "general",
             rounds::fit_structure(named, "general", Default::default()),
         ));
-        let mut best: Option<(rounds::Model, f64)> = None;
-        for (name, fit) in fits {
-            match fit {
+        let mut ok: Vec<(usize, rounds::Model, f64)> = vec![];
+        let mut tried = vec![];
+        for (k, (name, fit)) in fits.into_iter().enumerate() {
+            let (model, rmse) = match fit {
                 Ok((m, rmse)) => {
                     obs.stage(&format!(
                         "{name}: {} ({rmse:.4} rad/s against {base:.4})",
                         m.text
                     ));
-                    if rmse <= 1.05 * base && best.as_ref().is_none_or(|b| rmse < b.1) {
-                        best = Some((m, rmse));
+                    let text = m.text.clone();
+                    if rmse <= 1.05 * base {
+                        ok.push((k, m, rmse));
                     }
+                    (text, Some(rmse))
                 }
-                Err(e) => obs.stage(&format!("the {name} fit failed: {e}")),
-            }
+                Err(e) => {
+                    obs.stage(&format!("the {name} fit failed: {e}"));
+                    (format!("the fit failed: {e}"), None)
+                }
+            };
+            tried.push(StructureTried {
+                name: name.into(),
+                model,
+                rmse,
+                chosen: false,
+            });
         }
-        best.map(|b| b.0)
+        // the structure comparison's rule: within TIE of the lowest RMSE, the fewest parameters
+        let low = ok.iter().map(|c| c.2).fold(f64::INFINITY, f64::min);
+        let free = |m: &rounds::Model| m.spec.params.iter().filter(|p| p.free).count();
+        let best = ok
+            .into_iter()
+            .filter(|c| c.2 <= (1.0 + ident::diagnose::structures::TIE) * low)
+            .min_by(|a, b| free(&a.1).cmp(&free(&b.1)).then(a.2.total_cmp(&b.2)));
+        if let Some((k, _, _)) = &best {
+            tried[*k].chosen = true;
+        }
+        (best.map(|b| b.1), tried)
     }
 
     fn round(&mut self, reason: String, before: Vec<rounds::RecordError>, out: &Outcome) {
@@ -374,6 +405,7 @@ impl<'a> Run<'a> {
             rejected: out.rejected.clone(),
             ambiguous: out.ambiguous.clone(),
             warnings: out.warnings.clone(),
+            structures: vec![],
         });
     }
 
