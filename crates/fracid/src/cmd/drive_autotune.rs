@@ -8,7 +8,7 @@ use crate::cmd::drive_io::{autotune_err, check_outputs, connect, LinkArgs, PortA
 use crate::interrupt::{Interrupted, StopOnInterrupt};
 use crate::plot::{self, Figure, Line, Look, TimeChart};
 use anyhow::{Context, Result};
-use autotune::tuner::{self, report::AutotuneReport, AutotuneRequest};
+use autotune::tuner::{self, report::AutotuneReport, AutotuneRequest, FilterChoice};
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use std::io::Write;
@@ -45,6 +45,12 @@ pub struct AutotuneArgs {
     /// Rounds of experiments after the first. Default 3.
     #[arg(long)]
     pub max_rounds: Option<usize>,
+    /// For a resonance of the final model: a notch at it in the controller (`notch`), a
+    /// first-order low-pass at half its frequency (`low-pass`), no filter and the crossover a
+    /// fifth of it (`none`), or the notch when its loop is faster than the lower crossover's
+    /// (`auto`).
+    #[arg(long, value_enum, default_value_t = FilterArg::Auto)]
+    pub filter: FilterArg,
     /// Write the report as JSON to standard output (the text goes to standard error).
     #[arg(long)]
     pub json: bool,
@@ -54,6 +60,30 @@ pub struct AutotuneArgs {
     /// No progress lines.
     #[arg(long, short)]
     pub quiet: bool,
+}
+
+/// `--filter`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum FilterArg {
+    /// The notch when its loop is faster.
+    Auto,
+    /// A notch at the resonance.
+    Notch,
+    /// A low-pass at half the resonance.
+    LowPass,
+    /// No filter: a lower crossover.
+    None,
+}
+
+impl From<FilterArg> for FilterChoice {
+    fn from(f: FilterArg) -> Self {
+        match f {
+            FilterArg::Auto => FilterChoice::Auto,
+            FilterArg::Notch => FilterChoice::Notch,
+            FilterArg::LowPass => FilterChoice::LowPass,
+            FilterArg::None => FilterChoice::None,
+        }
+    }
 }
 
 impl AutotuneArgs {
@@ -68,6 +98,7 @@ impl AutotuneArgs {
             pm_deg: self.pm,
             operating_point_v: self.operating_point,
             max_rounds: self.max_rounds.unwrap_or(d.max_rounds),
+            filter: self.filter.into(),
             ..d
         }
     }

@@ -2,6 +2,7 @@
 
 pub mod compare;
 pub mod demo;
+pub mod demo_autotune;
 pub mod demo_loop;
 pub mod diagnose;
 pub mod drive;
