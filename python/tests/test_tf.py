@@ -29,7 +29,7 @@ def test_parse_and_construct_agree():
     # the reports' model object (`fracid time --json`'s `model`), field for field
     assert d == {
         "num": [{"coef": 6.77, "order": 0.0}],
-        "den": [{"coef": 1.0, "order": 0.0}, {"coef": 0.0064, "order": 0.89}, {"coef": 2.8e-5, "order": 1.78}],
+        "den": [{"coef": 2.8e-5, "order": 1.78}, {"coef": 0.0064, "order": 0.89}, {"coef": 1.0, "order": 0.0}],
         "delay": 0.0,
         "text": PAPER,
         "effects": [],
