@@ -37,10 +37,10 @@ mod solver;
 mod testproblems;
 mod trust_region;
 
+pub(crate) use crate::linalg::lstsq;
 pub use options::{LmOptions, RefineOptions};
 pub(crate) use problem::ColSlices;
 pub use problem::{FiniteDiff, Mat, Problem};
-pub(crate) use qr::lstsq;
 pub use refine::{refine, refine_with, RefineBuffers};
 pub use report::{LmReport, Termination};
 pub use solver::minimize;
