@@ -387,7 +387,7 @@ impl<'a> LevyKernel<'a> {
             sw: vec![0.0; f],
             a: vec![0.0; 2 * f * k],
             rhs: vec![0.0; 2 * f],
-            qr: LstsqWork::new(2 * f, k),
+            qr: LstsqWork::new(),
             r_diag: vec![0.0; k],
             scale: vec![1.0; k],
             x: vec![0.0; k],
@@ -1094,7 +1094,7 @@ mod tests {
         // The reference: nalgebra's SVD least squares (a different factorisation).
         let want = am.svd(true, true).solve(&bm, 0.0).unwrap();
         let mut x = vec![0.0; k];
-        let (mut work, mut diag) = (LstsqWork::new(rows, k), vec![0.0; k]);
+        let (mut work, mut diag) = (LstsqWork::new(), vec![0.0; k]);
         lstsq_checked(&mut work, &mut a.clone(), &mut b.clone(), &mut diag, &mut x).unwrap();
         for i in 0..k {
             // Both are backward stable on a system of condition about 10: 1e-12 is rounding.

@@ -29,7 +29,7 @@ pub(super) fn covariance_and_errors(
         let sub = Mat::<f64>::from_fn(rmat.nrows(), nk, |i, j| rmat[(i, kept[j])]);
         let r_sub = if sub.nrows() >= nk {
             let (rows, mut a) = (sub.nrows(), sub.as_slice().to_vec());
-            linalg::qr_r_in_place(&mut a, rows, nk, &mut LstsqWork::new(rows, nk))
+            linalg::qr_r_in_place(&mut a, rows, nk, &mut LstsqWork::new())
         } else {
             sub
         };

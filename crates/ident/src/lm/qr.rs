@@ -123,11 +123,11 @@ fn tsqr<'a>(col: impl Fn(usize) -> &'a [f64], m: usize, w: usize) -> Mat<f64> {
             a.extend_from_slice(col(j));
             a.extend_from_slice(col(w + j));
         }
-        return linalg::qr_r_in_place(&mut a, ha + hb, w, &mut LstsqWork::new(ha + hb, w));
+        return linalg::qr_r_in_place(&mut a, ha + hb, w, &mut LstsqWork::new());
     }
     let mut top = Mat::<f64>::zeros(0, w);
     let mut a = Vec::with_capacity((QR_BLOCK + w) * w);
-    let mut work = LstsqWork::new(QR_BLOCK + w, w);
+    let mut work = LstsqWork::new();
     let mut start = 0;
     while start < m {
         let end = (start + QR_BLOCK).min(m);
@@ -172,6 +172,7 @@ mod tests {
     use super::super::passes::jt_r;
     use super::super::testproblems::uniform;
     use super::*;
+    use crate::numeric::sumsq;
     use crate::par::PARALLEL_ENTRIES;
 
     /// The blocked QR of `[J r]` (three blocks and a part; then, large enough for two halves of
