@@ -65,9 +65,9 @@ impl Par {
 
     /// `(a(pa), b(pb))` with `(pa, pb)` = [`Self::split`]: `b` on a second thread when the width is
     /// two or more, else both on this one (`a` first). A panic in either is resumed here.
-    pub fn join<A: Send, B: Send>(
+    pub fn join<A, B: Send>(
         self,
-        a: impl FnOnce(Self) -> A + Send,
+        a: impl FnOnce(Self) -> A,
         b: impl FnOnce(Self) -> B + Send,
     ) -> (A, B) {
         let (pa, pb) = self.split();
@@ -82,6 +82,50 @@ impl Par {
                 Err(panic) => std::panic::resume_unwind(panic),
             }
         })
+    }
+}
+
+impl Par {
+    /// `f` of each item, in order, on at most [`Par::width`] new threads at once (scoped; each
+    /// takes the next item when it is done with one), each item's panic caught as its `Err`.
+    /// New threads, also for [`Par::Seq`] (one): a computation that starts on a thread of its own
+    /// (a candidate structure's fit, from no pole cache) starts the same wherever it runs.
+    pub fn each_on_new_threads<T: Sync, R: Send>(
+        self,
+        items: &[T],
+        f: impl Fn(&T) -> R + Sync,
+    ) -> Vec<std::thread::Result<R>> {
+        let next = std::sync::atomic::AtomicUsize::new(0);
+        let workers = self.width().min(items.len());
+        let done: Vec<Vec<(usize, std::thread::Result<R>)>> = std::thread::scope(|sc| {
+            let handles: Vec<_> = (0..workers)
+                .map(|_| {
+                    sc.spawn(|| {
+                        let mut mine = vec![];
+                        loop {
+                            let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                            let Some(item) = items.get(i) else {
+                                return mine;
+                            };
+                            let r =
+                                std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| f(item)));
+                            mine.push((i, r));
+                        }
+                    })
+                })
+                .collect();
+            handles
+                .into_iter()
+                .map(|h| h.join().unwrap_or_default())
+                .collect()
+        });
+        let mut out: Vec<Option<std::thread::Result<R>>> = (0..items.len()).map(|_| None).collect();
+        for (i, r) in done.into_iter().flatten() {
+            out[i] = Some(r);
+        }
+        out.into_iter()
+            .map(|r| r.unwrap_or_else(|| Err(Box::new("a worker thread was lost"))))
+            .collect()
     }
 }
 
@@ -105,12 +149,6 @@ pub(crate) fn on_row_halves<T: Send>(
     let half = m / 2;
     let (first, second) = par.join(|_| f(0..half), |_| f(half..m));
     vec![first, second]
-}
-
-/// Whether the machine has at least two cores ([`Par::available`] is wider than one): the
-/// two-thread paths of the fit that do not take a [`Par`] yet.
-pub(crate) fn two_cores() -> bool {
-    Par::available().width() >= 2
 }
 
 #[cfg(test)]
@@ -139,6 +177,28 @@ mod tests {
             let (running, most) = (AtomicUsize::new(0), AtomicUsize::new(0));
             tree(Par::threads(width), 4, &running, &most);
             assert_eq!(most.load(Ordering::SeqCst), width, "width {width}");
+        }
+    }
+
+    /// Every item once, in order, whatever the width; never more threads at once than the width;
+    /// a panicking item is its own `Err`.
+    #[test]
+    fn each_on_new_threads_keeps_the_order_and_the_width() {
+        let (running, most) = (AtomicUsize::new(0), AtomicUsize::new(0));
+        let items: Vec<usize> = (0..7).collect();
+        for width in [1, 2, 3] {
+            let got = Par::threads(width).each_on_new_threads(&items, |&i| {
+                let now = running.fetch_add(1, Ordering::SeqCst) + 1;
+                most.fetch_max(now, Ordering::SeqCst);
+                std::thread::sleep(std::time::Duration::from_millis(10));
+                running.fetch_sub(1, Ordering::SeqCst);
+                assert!(i != 5, "item 5 panics");
+                i * 10
+            });
+            assert!(got[5].is_err());
+            let ok: Vec<usize> = got.into_iter().filter_map(Result::ok).collect();
+            assert_eq!(ok, vec![0, 10, 20, 30, 40, 60]);
+            assert_eq!(most.swap(0, Ordering::SeqCst), width, "width {width}");
         }
     }
 

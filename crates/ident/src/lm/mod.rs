@@ -49,4 +49,3 @@ pub use solver::minimize;
 // and the two-core test belong to `crate::numeric` and `crate::par`.
 pub(crate) use crate::numeric::{all_finite, range_of, sum_of, sum_of2};
 pub use crate::numeric::{dot, sumsq};
-pub(crate) use crate::par::two_cores;
