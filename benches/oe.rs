@@ -41,5 +41,7 @@ fn sensitivities_10k(b: Bencher<'_, '_>) {
         .iter()
         .map(|p| p.value)
         .collect::<Vec<_>>();
-    b.bench(|| ident::oe::sensitivities(&m, &p, black_box(&u), DT).unwrap());
+    b.bench(|| {
+        ident::oe::sensitivities(&m, &p, black_box(&u), DT, ident::par::Par::available()).unwrap()
+    });
 }

@@ -10,14 +10,14 @@ listed here is compiled a second time for the wheel.
 Usage (from the repository root):
     python3 scripts/feature_drift.py                     # the wheel against `cargo test`
     python3 scripts/feature_drift.py -p fracid           # any other selection (cargo tree args)
-Exit status 1 when a crate of the numeric stack (nalgebra, fracsim, ident, drive) would be
+Exit status 1 when a crate of the numeric stack (nalgebra, faer, fracsim, ident, drive) would be
 built twice.
 """
 import re
 import subprocess
 import sys
 
-STACK = ("nalgebra", "matrixmultiply", "fracsim", "ident", "drive")
+STACK = ("nalgebra", "matrixmultiply", "faer", "gemm", "fracsim", "ident", "drive")
 
 
 def tree(args):

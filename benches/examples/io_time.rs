@@ -41,7 +41,7 @@ fn main() {
     let base = FracModel::pmsm(5.0, 0.008, 2e-5, 0.8, 0.7);
     let (start_ms, report) = best_ms(repeats, || {
         let mut m = base.clone();
-        auto_start(&mut m, &u, &y, rec.dt).expect("auto start")
+        auto_start(&mut m, &u, &y, rec.dt, ident::par::Par::available()).expect("auto start")
     });
     let (ident_ms, id) = best_ms(1, || {
         ident::oe::identify(&rec, &base, &IdentOptions::default()).expect("identify")

@@ -38,7 +38,7 @@ fn main() {
     let mut y = vec![0.0; n];
     let t_sim = best(|| m.simulate(&p, &u, DT, &mut y).unwrap());
     let t_jac = best(|| {
-        sensitivities(&m, &p, &u, DT).unwrap();
+        sensitivities(&m, &p, &u, DT, ident::par::Par::available()).unwrap();
     });
     let pd: Vec<fracsim::Dual<2>> = p
         .iter()
@@ -58,7 +58,7 @@ fn main() {
     all.effects.insert(0, Effect::InputOffset { c });
     let pa = all.values();
     let t_all = best(|| {
-        sensitivities(&all, &pa, &u, DT).unwrap();
+        sensitivities(&all, &pa, &u, DT, ident::par::Par::available()).unwrap();
     });
     println!(
         "{n} samples, {} free parameters: simulation {:.2} ms, Jacobian {:.2} ms, Jacobian with every parameter dual {:.2} ms",

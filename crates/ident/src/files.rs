@@ -5,6 +5,7 @@
 //! into a message. The record readers ([`crate::data`], [`crate::matfile`], [`crate::bodefile`])
 //! read through it.
 
+use crate::par::Par;
 use crate::{Error, Result};
 
 /// `s` as it may be quoted in a message: at most 40 characters, a longer text cut with its length
@@ -128,11 +129,13 @@ impl TextScan {
 /// Texts of at least this many bytes are checked in two halves on two threads.
 const PARALLEL_CHECK_BYTES: usize = 1 << 20;
 
-/// For a large text on a machine with two cores: `Some(holds a '#')` when both halves (split at
-/// a line feed) hold no NUL byte and are valid UTF-8; `None` when a half is not (the caller then
+/// For a large text on a machine with two cores (reading runs before any fit, so on the
+/// process's whole width, [`Par::available`]): `Some(holds a '#')` when both halves (split at a
+/// line feed) hold no NUL byte and are valid UTF-8; `None` when a half is not (the caller then
 /// finds and reports the fault) or the text is small.
 fn checked_in_halves(b: &[u8]) -> Option<bool> {
-    if b.len() < PARALLEL_CHECK_BYTES || !crate::par::two_cores() {
+    let par = Par::available();
+    if b.len() < PARALLEL_CHECK_BYTES || par.width() < 2 {
         return None;
     }
     let cut = b.len() / 2 + memchr::memchr(b'\n', &b[b.len() / 2..])? + 1;
@@ -140,10 +143,7 @@ fn checked_in_halves(b: &[u8]) -> Option<bool> {
         (memchr::memchr(0, h).is_none() && std::str::from_utf8(h).is_ok())
             .then(|| memchr::memchr(b'#', h).is_some())
     };
-    let (first, second) = std::thread::scope(|sc| {
-        let h = sc.spawn(|| check(&b[cut..]));
-        (check(&b[..cut]), h.join().ok().flatten())
-    });
+    let (first, second) = par.join(|_| check(&b[..cut]), |_| check(&b[cut..]));
     Some(first? || second?)
 }
 
@@ -247,9 +247,11 @@ fn read_scanned(path: &std::path::Path, lines: bool) -> Result<(Vec<u8>, Option<
 /// Regular files of at least this many bytes are read in two halves on two threads.
 const PARALLEL_READ_BYTES: usize = 8 << 20;
 
-/// The `size` bytes of a regular file, read in two halves on two threads (positioned reads: the
-/// file's cursor is not moved), or `None` when that fails or the file is not `size` bytes long
-/// (it changed): the caller then reads it from the start, one read after another.
+/// The `size` bytes of a regular file, read in two halves (positioned reads: the file's cursor
+/// is not moved) on two threads of the process's width ([`Par::available`]: reading runs before
+/// any fit; two reads in flight copy from the page cache on two cores), or `None` when that
+/// fails or the file is not `size` bytes long (it changed): the caller then reads it from the
+/// start, one read after another.
 #[cfg(unix)]
 fn read_halves(file: &std::fs::File, size: usize) -> Option<Vec<u8>> {
     use std::os::unix::fs::FileExt;
@@ -259,11 +261,11 @@ fn read_halves(file: &std::fs::File, size: usize) -> Option<Vec<u8>> {
     let mut out = vec![0u8; size];
     let half = size / 2;
     let (a, b) = out.split_at_mut(half);
-    let ok = std::thread::scope(|s| {
-        let h = s.spawn(|| file.read_exact_at(b, half as u64).is_ok());
-        let first = file.read_exact_at(a, 0).is_ok();
-        h.join().unwrap_or(false) && first
-    });
+    let (first, second) = Par::available().join(
+        |_| file.read_exact_at(a, 0).is_ok(),
+        |_| file.read_exact_at(b, half as u64).is_ok(),
+    );
+    let ok = first && second;
     let mut probe = [0u8; 1];
     (ok && matches!(file.read_at(&mut probe, size as u64), Ok(0))).then_some(out)
 }

@@ -40,6 +40,7 @@
 pub mod checks;
 pub mod refine;
 
+use crate::linalg::LstsqWork;
 use crate::numeric::dot;
 use crate::{Error, Result};
 use fracsim::{FracTf, Term};
@@ -358,7 +359,10 @@ struct LevyKernel<'a> {
     a: Vec<f64>,
     /// Its right-hand side (`2f`), reused.
     rhs: Vec<f64>,
-    /// The QR's per-column work.
+    /// The QR's memory (faer's block reflectors and scratch), reused.
+    qr: LstsqWork,
+    /// The diagonal of the last solve's `R`.
+    r_diag: Vec<f64>,
     /// The column scales.
     scale: Vec<f64>,
     /// The solution `(b_0..b_m, a_1..a_n)` of the last solve.
@@ -383,6 +387,8 @@ impl<'a> LevyKernel<'a> {
             sw: vec![0.0; f],
             a: vec![0.0; 2 * f * k],
             rhs: vec![0.0; 2 * f],
+            qr: LstsqWork::new(),
+            r_diag: vec![0.0; k],
             scale: vec![1.0; k],
             x: vec![0.0; k],
         }
@@ -491,7 +497,13 @@ impl<'a> LevyKernel<'a> {
         }
         // Householder QR of the scaled, weighted system: an orthogonal factorisation, never the
         // normal equations.
-        householder_lstsq(&mut self.a, &mut self.rhs, &mut self.x)?;
+        lstsq_checked(
+            &mut self.qr,
+            &mut self.a,
+            &mut self.rhs,
+            &mut self.r_diag,
+            &mut self.x,
+        )?;
         for (x, s) in self.x.iter_mut().zip(&self.scale) {
             *x /= s;
         }
@@ -555,49 +567,31 @@ impl<'a> LevyKernel<'a> {
     }
 }
 
-/// The least-squares solution `x` of `A x = b` by Householder reflections (Golub & Van Loan,
-/// Algorithm 5.3.2), `A` column-major `rows x k` with `k = x.len()` (columns scaled to unit
-/// norm by the caller), `A` and `b` overwritten. For the few columns of a Levy system this is
-/// a few microseconds, where a general (pivoted, blocked) QR's set-up costs ten times that.
+/// The least-squares solution `x` of `A x = b` by faer's Householder QR in the reused memory
+/// `work`, `A` column-major `rows x k` with `k = x.len()` (columns scaled to unit norm by the
+/// caller), `A` and `b` overwritten, the diagonal of `R` into `r_diag` (length `k`).
 ///
 /// # Errors
 /// [`Error::Numerical`] when a column is (to rounding) a combination of the ones before it: a
 /// diagonal of `R` under `1e-13` (of a unit column), or a non-finite value.
-fn householder_lstsq(a: &mut [f64], b: &mut [f64], x: &mut [f64]) -> Result<()> {
+fn lstsq_checked(
+    work: &mut LstsqWork,
+    a: &mut [f64],
+    b: &mut [f64],
+    r_diag: &mut [f64],
+    x: &mut [f64],
+) -> Result<()> {
     let k = x.len();
     let rows = b.len();
     let deficient = || Error::Numerical("the Levy least-squares system is rank deficient".into());
-    if rows < k || a.len() != rows * k {
+    if rows < k || a.len() != rows * k || r_diag.len() != k {
         return Err(deficient());
     }
-    let mut diag = vec![0.0; k];
-    for j in 0..k {
-        let (done, rest) = a.split_at_mut((j + 1) * rows);
-        let v = &mut done[j * rows + j..];
-        let norm = dot(v, v).sqrt();
-        if !(norm > 1e-13 && norm.is_finite()) {
-            return Err(deficient());
-        }
-        // H = I - v v^T / (v_0 (-alpha)) with v = x - alpha e_0, alpha = -sign(x_0) |x|
-        let alpha = if v[0] > 0.0 { -norm } else { norm };
-        v[0] -= alpha;
-        let beta = -v[0] * alpha;
-        let v = &*v;
-        let reflect = |c: &mut [f64]| {
-            let t = dot(v, c) / beta;
-            c.iter_mut().zip(v).for_each(|(ci, vi)| *ci -= t * vi);
-        };
-        for col in rest.chunks_exact_mut(rows) {
-            reflect(&mut col[j..]);
-        }
-        reflect(&mut b[j..]);
-        diag[j] = alpha;
+    work.solve(a, b, r_diag);
+    if r_diag.iter().any(|d| !(d.abs() > 1e-13 && d.is_finite())) {
+        return Err(deficient());
     }
-    // Back substitution R x = (Q^T b)_(0..k).
-    for i in (0..k).rev() {
-        let s: f64 = (i + 1..k).map(|c| a[c * rows + i] * x[c]).sum();
-        x[i] = (b[i] - s) / diag[i];
-    }
+    x.copy_from_slice(&b[..k]);
     if x.iter().all(|v| v.is_finite()) {
         Ok(())
     } else {
@@ -1082,7 +1076,7 @@ mod tests {
     use super::*;
 
     #[test]
-    fn householder_lstsq_is_the_least_squares_solution_and_finds_dependent_columns() {
+    fn lstsq_is_the_least_squares_solution_and_finds_dependent_columns() {
         // A deterministic 40 x 4 system, columns scaled to unit norm as `solve` does.
         let (rows, k) = (40, 4);
         let mut a: Vec<f64> = (0..rows * k)
@@ -1100,7 +1094,8 @@ mod tests {
         // The reference: nalgebra's SVD least squares (a different factorisation).
         let want = am.svd(true, true).solve(&bm, 0.0).unwrap();
         let mut x = vec![0.0; k];
-        householder_lstsq(&mut a.clone(), &mut b.clone(), &mut x).unwrap();
+        let (mut work, mut diag) = (LstsqWork::new(), vec![0.0; k]);
+        lstsq_checked(&mut work, &mut a.clone(), &mut b.clone(), &mut diag, &mut x).unwrap();
         for i in 0..k {
             // Both are backward stable on a system of condition about 10: 1e-12 is rounding.
             assert!(
@@ -1120,7 +1115,8 @@ mod tests {
         // A column that repeats another is reported, not solved into huge values.
         let mut dep = a.clone();
         dep.copy_within(0..rows, 2 * rows);
-        let err = householder_lstsq(&mut dep, &mut b.clone(), &mut x).unwrap_err();
+        let err =
+            lstsq_checked(&mut work, &mut dep, &mut b.clone(), &mut diag, &mut x).unwrap_err();
         assert!(err.to_string().contains("rank deficient"), "{err}");
     }
 

@@ -24,12 +24,13 @@ mod error;
 pub mod files;
 pub mod hold;
 pub mod levy;
+mod linalg;
 pub mod lm;
 pub mod matfile;
 pub mod metrics;
 pub mod numeric;
 pub mod oe;
-mod par;
+pub mod par;
 #[cfg(test)]
 mod testdata;
 

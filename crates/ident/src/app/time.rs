@@ -583,7 +583,9 @@ fn run_request(req: &TimeRequest, data: &TimeData, obs: &mut dyn Observe) -> Res
         // other cores ([`diagnose_best_fitting`]); the stages are entered as before.
         enter(obs, Stage::Fit)?;
         let n = crate::diagnose::structures::candidates(label, &model).len();
-        let user = || {
+        let user = |par| {
+            let mut opts = opts.clone();
+            opts.fit.lm.par = par;
             let id =
                 identify_with_progress(rec, &model, &opts, &mut |k, rmse| obs.simulation(k, rmse))?;
             enter(obs, Stage::Diagnose { n })?;

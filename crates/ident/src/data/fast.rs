@@ -424,12 +424,12 @@ pub(super) fn read<const N: usize>(
     };
     let mut whole = match cut {
         Some(cut) if cut < end => {
-            let (a, b) = std::thread::scope(|s| {
-                let h = s.spawn(|| go((start, cut), end - start, start_line));
-                // The second half's line numbers are fixed once the first half's count is known.
-                let b = go((cut, end), end - cut, 0);
-                (h.join().ok().flatten(), b)
-            });
+            // On two threads of the process's width (parsing runs before any fit). The second
+            // half's line numbers are fixed once the first half's count is known.
+            let (a, b) = crate::par::Par::available().join(
+                |_| go((start, cut), end - start, start_line),
+                |_| go((cut, end), end - cut, 0),
+            );
             let (mut a, b) = (a?, b?);
             for (x, y) in a.cols.iter_mut().zip(&b.cols) {
                 x.extend_from_slice(y);

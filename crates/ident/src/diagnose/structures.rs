@@ -43,6 +43,7 @@ use super::halving::{confirm_halving, Board};
 use crate::catalogue::Preset;
 use crate::data::Record;
 use crate::oe::{identify, FracModel, IdentOptions, Identification};
+use crate::par::Par;
 use crate::{Error, Result};
 use fracsim::modal::RootsCache;
 use serde::Serialize;
@@ -505,10 +506,14 @@ impl Shared {
 fn fit_candidates(
     rec: &Record,
     cands: &[(String, FracModel)],
-    user: impl FnOnce() -> Result<Identification>,
+    (user, width): (impl FnOnce(Par) -> Result<Identification>, usize),
     opts: &IdentOptions,
     (dopts, board): (&super::DiagnoseOptions, &Board),
 ) -> Result<Vec<Based>> {
+    // Each fit and diagnosis on one thread: at most `width` of them run at once.
+    let mut one = dopts.clone();
+    one.fit.lm.par = Par::Seq;
+    let dopts = &one;
     let user_integrates = cands.first().is_some_and(|(_, m)| m.integrator);
     let shared = Shared {
         progress: std::sync::Mutex::new(Progress {
@@ -520,7 +525,7 @@ fn fit_candidates(
             user: UserFit::Running,
         }),
         changed: std::sync::Condvar::new(),
-        at_once: std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get),
+        at_once: width,
     };
     let shared = &shared;
     let ctx = (shared, dopts, board);
@@ -556,7 +561,7 @@ fn fit_candidates(
         // The user's fit, on this thread; its base fit then settles here, as the others' do on
         // their threads.
         let mut running = UserRunning(Some(shared));
-        let fitted = user();
+        let fitted = user(Par::Seq);
         running.0 = None;
         let rmse = match &fitted {
             Ok(u) => Some(Some(base_rmse(u)).filter(|r| u.usable() && r.is_finite())),
@@ -692,30 +697,29 @@ fn diagnose_these(
     which: &[usize],
     (dopts, board): (&super::DiagnoseOptions, Option<&Board>),
 ) -> Vec<(usize, Result<super::Diagnosis>)> {
-    std::thread::scope(|scope| {
-        let handles: Vec<_> = which
-            .iter()
-            .filter_map(|&i| ids[i].as_ref().ok().map(|id| (i, id, caches[i].clone())))
-            .map(|(i, id, cache)| {
-                let h = scope.spawn(move || {
-                    let halt = |round, rmse| board.is_some_and(|b| b.halt(i, round, rmse));
-                    cache
-                        .unwrap_or_default()
-                        .enter(|| super::diagnose_until(rec, id, dopts, &|| false, &halt))
-                });
-                (i, h)
-            })
-            .collect();
-        handles
-            .into_iter()
-            .map(|(i, h)| {
-                let d = h.join().unwrap_or_else(|_| {
-                    Err(Error::Numerical("a structure's diagnosis panicked".into()))
-                });
-                (i, d)
-            })
-            .collect()
-    })
+    let todo: Vec<(usize, &Identification)> = which
+        .iter()
+        .filter_map(|&i| ids[i].as_ref().ok().map(|id| (i, id)))
+        .collect();
+    // Side by side on the width, each diagnosis on one thread of it.
+    let mut one = dopts.clone();
+    one.fit.lm.par = Par::Seq;
+    let done = dopts.fit.lm.par.each_on_new_threads(&todo, |&(i, id)| {
+        let halt = |round, rmse| board.is_some_and(|b| b.halt(i, round, rmse));
+        caches[i]
+            .clone()
+            .unwrap_or_default()
+            .enter(|| super::diagnose_until(rec, id, &one, &|| false, &halt))
+    });
+    todo.iter()
+        .zip(done)
+        .map(|(&(i, _), d)| {
+            let d = d.unwrap_or_else(|_| {
+                Err(Error::Numerical("a structure's diagnosis panicked".into()))
+            });
+            (i, d)
+        })
+        .collect()
 }
 
 /// One structure's identification (when it succeeded) and diagnosis (`None`: not diagnosed).
@@ -939,13 +943,14 @@ pub fn diagnose_best(
     opts: &IdentOptions,
     dopts: &super::DiagnoseOptions,
 ) -> Result<Diagnosed> {
-    diagnose_best_fitting(rec, label, model, || Ok(user), opts, dopts)
+    diagnose_best_fitting(rec, label, model, |_| Ok(user), opts, dopts)
 }
 
 /// [`diagnose_best`] with the user's structure fitted by `user` on the calling thread, while the
 /// other candidates' fits run beside it on the other cores (the user's fit alone held one core
 /// and left the others idle): the same fits and diagnoses, the same result. `user` runs once,
-/// on this thread (it may hold what cannot be sent to another thread, a progress observer).
+/// on this thread (it may hold what cannot be sent to another thread, a progress observer), on
+/// the [`Par`] it is given (its share of `opts`' width).
 ///
 /// # Errors
 /// `user`'s error; as [`diagnose_best`].
@@ -953,14 +958,15 @@ pub fn diagnose_best_fitting(
     rec: &Record,
     label: &str,
     model: &FracModel,
-    user: impl FnOnce() -> Result<Identification>,
+    user: impl FnOnce(Par) -> Result<Identification>,
     opts: &IdentOptions,
     dopts: &super::DiagnoseOptions,
 ) -> Result<Diagnosed> {
     let mut cands = with_feedthrough(rec, candidates(label, model), model);
     let board = Board::default();
+    let width = opts.fit.lm.par.width();
     let opts = &candidate_options(opts);
-    let based = fit_candidates(rec, &cands, user, opts, (dopts, &board))?;
+    let based = fit_candidates(rec, &cands, (user, width), opts, (dopts, &board))?;
     let mut g = gathered(based, &mut cands);
     let (diagnoses, skipped) = diagnose_pruned(rec, &cands, &mut g, opts, (dopts, &board));
     let Gathered {
@@ -1026,6 +1032,14 @@ pub fn diagnose_best_fitting(
     })
 }
 
+/// `opts` with each fit on one thread ([`Par::Seq`]): the candidates share the width side by
+/// side ([`fit_candidates`], [`fit_best`]); a fit's result does not depend on its width.
+fn on_one_thread(opts: &IdentOptions) -> IdentOptions {
+    let mut o = opts.clone();
+    o.fit.lm.par = Par::Seq;
+    o
+}
+
 /// The fit options of the candidate structures other than the user's: `opts` with the refits'
 /// stall test ([`super::REFIT_STALL`]): a candidate's fit stops when its cost fell by less than
 /// 1e-4 (relative) over its last 5 accepted iterations. At that rate the rest of a 500-iteration
@@ -1035,7 +1049,7 @@ pub fn diagnose_best_fitting(
 /// (on the battery records in `data/` the feed-through and the PMSM with an integrator crept
 /// 400-500 iterations, most of the diagnosis's cost).
 fn candidate_options(opts: &IdentOptions) -> IdentOptions {
-    let mut o = opts.clone();
+    let mut o = on_one_thread(opts);
     if o.fit.lm.stall.is_none() {
         o.fit.lm.stall = Some(super::REFIT_STALL);
     }
@@ -1225,16 +1239,16 @@ pub fn fit_best(
     opts: &IdentOptions,
 ) -> Result<(Identification, StructureChoice)> {
     let mut cands = with_feedthrough(rec, auto_candidates(model), model);
-    let fitted: Vec<AutoFit> = std::thread::scope(|scope| {
-        let handles: Vec<_> = cands
-            .iter()
-            .map(|(_, m)| scope.spawn(move || auto_fit(rec, m, opts)))
-            .collect();
-        handles
-            .into_iter()
-            .map(|h| h.join().unwrap_or_else(|_| (panicked(), None)))
-            .collect()
-    });
+    // The candidates side by side on the width, each fit on one thread of it.
+    let one = on_one_thread(opts);
+    let fitted: Vec<AutoFit> = opts
+        .fit
+        .lm
+        .par
+        .each_on_new_threads(&cands, |(_, m)| auto_fit(rec, m, &one))
+        .into_iter()
+        .map(|r| r.unwrap_or_else(|_| (panicked(), None)))
+        .collect();
     let mut at_once = vec![];
     let mut fits: Vec<Result<Identification>> = fitted
         .into_iter()
@@ -1880,8 +1894,9 @@ mod tests {
         let model = FracModel::pmsm(1.0, 0.1, 0.01, 0.9, 0.5);
         let opts = IdentOptions::default();
         let dopts = super::super::DiagnoseOptions::default();
-        let user = || identify(&rec, &model, &opts);
-        let given = diagnose_best(&rec, "pmsm", &model, user().unwrap(), &opts, &dopts).unwrap();
+        let user = |_| identify(&rec, &model, &opts);
+        let given =
+            diagnose_best(&rec, "pmsm", &model, user(Par::Seq).unwrap(), &opts, &dopts).unwrap();
         let beside = diagnose_best_fitting(&rec, "pmsm", &model, user, &opts, &dopts).unwrap();
         let rows = |d: &Diagnosed| {
             d.choice
@@ -1905,7 +1920,7 @@ mod tests {
             &rec,
             "pmsm",
             &model,
-            || Err(Error::Cancelled("the user's fit".into())),
+            |_| Err(Error::Cancelled("the user's fit".into())),
             &opts,
             &dopts,
         );

@@ -3,6 +3,7 @@
 use super::problem::Mat;
 #[allow(unused_imports)] // (doc links)
 use super::Problem;
+use crate::linalg::{self, LstsqWork};
 
 /// The covariance and standard errors from the `R` of `J`, with the parameters `held` at a
 /// bound ([`Problem::at_bound`]) fixed there: the covariance of the others is that of the
@@ -26,7 +27,12 @@ pub(super) fn covariance_and_errors(
         None
     } else {
         let sub = Mat::<f64>::from_fn(rmat.nrows(), nk, |i, j| rmat[(i, kept[j])]);
-        let r_sub = if sub.nrows() >= nk { sub.qr().r() } else { sub };
+        let r_sub = if sub.nrows() >= nk {
+            let (rows, mut a) = (sub.nrows(), sub.as_slice().to_vec());
+            linalg::qr_r_in_place(&mut a, rows, nk, &mut LstsqWork::new())
+        } else {
+            sub
+        };
         covariance(&r_sub, sigma2).map(|c| {
             let mut full = vec![f64::NAN; n * n];
             for (a, &i) in kept.iter().enumerate() {
@@ -64,17 +70,8 @@ fn covariance(r: &Mat<f64>, sigma2: f64) -> Option<Vec<f64>> {
     if rmax == 0.0 || (0..n).any(|i| r[(i, i)].abs() <= 1e-13 * rmax) {
         return None;
     }
-    // Rinv, upper triangular, by back substitution column by column.
-    let mut rinv = vec![0.0; n * n]; // row-major
-    for c in 0..n {
-        for i in (0..=c).rev() {
-            let mut s = if i == c { 1.0 } else { 0.0 };
-            for k in i + 1..=c {
-                s -= r[(i, k)] * rinv[k * n + c];
-            }
-            rinv[i * n + c] = s / r[(i, i)];
-        }
-    }
+    // Rinv, upper triangular, row-major.
+    let rinv = linalg::upper_inverse(r);
     let mut cov = vec![0.0; n * n];
     for i in 0..n {
         for j in 0..n {

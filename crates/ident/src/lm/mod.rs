@@ -37,10 +37,10 @@ mod solver;
 mod testproblems;
 mod trust_region;
 
+pub(crate) use crate::linalg::lstsq;
 pub use options::{LmOptions, RefineOptions};
 pub(crate) use problem::ColSlices;
 pub use problem::{FiniteDiff, Mat, Problem};
-pub(crate) use qr::lstsq;
 pub use refine::{refine, refine_with, RefineBuffers};
 pub use report::{LmReport, Termination};
 pub use solver::minimize;
@@ -49,4 +49,3 @@ pub use solver::minimize;
 // and the two-core test belong to `crate::numeric` and `crate::par`.
 pub(crate) use crate::numeric::{all_finite, range_of, sum_of, sum_of2};
 pub use crate::numeric::{dot, sumsq};
-pub(crate) use crate::par::two_cores;

@@ -3,6 +3,7 @@
 
 #[allow(unused_imports)] // (doc links)
 use super::{minimize, refine, Termination};
+use crate::par::Par;
 
 /// Options of [`minimize`]. `LmOptions::default()` suits most problems.
 #[derive(Debug, Clone, PartialEq)]
@@ -44,6 +45,10 @@ pub struct LmOptions {
     /// the Jacobian of the point before that step, with the residual variance of the final point,
     /// instead of evaluating a Jacobian at the final point for it. Default false.
     pub covariance_before_last_step: bool,
+    /// On how many threads the passes over a tall Jacobian (its QR, `J^T r`, its finiteness
+    /// check) may run. The results do not depend on it (the rows are cut by the size alone).
+    /// Default [`Par::available`]: the machine's cores.
+    pub par: Par,
 }
 
 impl Default for LmOptions {
@@ -60,6 +65,7 @@ impl Default for LmOptions {
             stall: None,
             give_up: None,
             covariance_before_last_step: false,
+            par: Par::available(),
         }
     }
 }

@@ -1,11 +1,11 @@
-//! The QR factorisations: of `[J r]` once per iteration ([`qr_of_jr`]: Cholesky QR for a
-//! well-conditioned `J`, else a blocked Householder QR), the small dense least squares
-//! ([`lstsq`]), and what `R` and `Q^T r` give without another pass over `J`.
+//! The QR of `[J r]` once per iteration ([`qr_of_jr`]: Cholesky QR for a well-conditioned `J`,
+//! else a blocked Householder QR, both by faer through [`crate::linalg`]), and what `R` and
+//! `Q^T r` give without another pass over `J`.
 
-use super::passes::{gram_add, jt_r_rows, JT_R_BLOCK};
+use super::passes::JT_R_BLOCK;
 use super::problem::{ColSlices, Mat};
-use crate::numeric::{dot, sum_of, sumsq};
-use crate::par::on_row_halves;
+use crate::linalg::{self, LstsqWork};
+use crate::par::{on_row_halves, Par};
 
 /// Rows of `[J r]` factored at a time by [`qr_of_jr`].
 const QR_BLOCK: usize = 8192;
@@ -17,8 +17,8 @@ const QR_BLOCK: usize = 8192;
 /// reflections ([`householder_qr_of_jr`]). `R` is unique up to the signs of its rows, which
 /// `Q^T r` shares, so every use below (the damped steps, the covariance, `J^T r = R^T Q^T r`) is
 /// the same.
-pub(super) fn qr_of_jr(jac: &Mat<f64>, r: &[f64]) -> (Mat<f64>, Vec<f64>) {
-    cholesky_qr_of_jr(jac, r).unwrap_or_else(|| householder_qr_of_jr(jac, r))
+pub(super) fn qr_of_jr(par: Par, jac: &Mat<f64>, r: &[f64]) -> (Mat<f64>, Vec<f64>) {
+    cholesky_qr_of_jr(par, jac, r).unwrap_or_else(|| householder_qr_of_jr(par, jac, r))
 }
 
 /// The smallest pivot of the column-scaled Cholesky factor [`cholesky_qr_of_jr`] accepts: `J`'s
@@ -31,23 +31,24 @@ const MIN_PIVOT: f64 = 1e-5;
 /// of the Gram matrix (columns scaled to unit norm first), and `Q^T r = R^-T (J^T r)`. `None`
 /// when `m < n`, a column is zero, or a scaled pivot is under [`MIN_PIVOT`] (nearly dependent
 /// columns): the Householder QR then does it.
-pub(super) fn cholesky_qr_of_jr(jac: &Mat<f64>, r: &[f64]) -> Option<(Mat<f64>, Vec<f64>)> {
+pub(super) fn cholesky_qr_of_jr(
+    par: Par,
+    jac: &Mat<f64>,
+    r: &[f64],
+) -> Option<(Mat<f64>, Vec<f64>)> {
     let (m, n) = (jac.nrows(), jac.ncols());
     if m < n || n == 0 {
         return None;
     }
     // The Gram matrix and J^T r of each block of rows together: the block is read from memory
     // once, and from the cache by the second.
-    let parts = on_row_halves(m, n, |rows| {
+    let parts = on_row_halves(par, m, n, |rows| {
         let mut gram = Mat::<f64>::zeros(n, n);
         let mut g = vec![0.0; n];
         let mut a = rows.start;
         while a < rows.end {
             let b = (a + JT_R_BLOCK).min(rows.end);
-            gram_add(&mut gram, jac, a..b);
-            g.iter_mut()
-                .zip(jt_r_rows(jac, r, a..b))
-                .for_each(|(x, y)| *x += y);
+            linalg::gram_add(&mut gram, &mut g, jac, r, a..b);
             a = b;
         }
         (gram, g)
@@ -63,28 +64,15 @@ pub(super) fn cholesky_qr_of_jr(jac: &Mat<f64>, r: &[f64]) -> Option<(Mat<f64>, 
         return None;
     }
     // L L^T = D^-1 G D^-1 (unit diagonal), lower triangular, row-major.
-    let mut l = vec![0.0; n * n];
-    for j in 0..n {
-        let s = 1.0 - (0..j).map(|k| l[j * n + k] * l[j * n + k]).sum::<f64>();
-        if !(s > MIN_PIVOT * MIN_PIVOT) {
-            return None;
-        }
-        let ljj = s.sqrt();
-        l[j * n + j] = ljj;
-        for i in j + 1..n {
-            let sij = gram[(i, j)] / (d[i] * d[j]);
-            let dot: f64 = (0..j).map(|k| l[i * n + k] * l[j * n + k]).sum();
-            l[i * n + j] = (sij - dot) / ljj;
-        }
+    let scaled = Mat::<f64>::from_fn(n, n, |i, j| gram[(i, j)] / (d[i] * d[j]));
+    let l = linalg::cholesky_lower(&scaled)?;
+    if (0..n).any(|j| !(l[j * n + j] > MIN_PIVOT)) {
+        return None;
     }
     // R = L^T D.
     let rmat = Mat::<f64>::from_fn(n, n, |i, j| if j >= i { l[j * n + i] * d[j] } else { 0.0 });
-    // R^T q = g by forward substitution.
-    let mut q = vec![0.0; n];
-    for i in 0..n {
-        let s: f64 = (0..i).map(|k| rmat[(k, i)] * q[k]).sum();
-        q[i] = (g[i] - s) / rmat[(i, i)];
-    }
+    // R^T q = g.
+    let q = linalg::solve_upper_transposed(&rmat, &g);
     q.iter().all(|v| v.is_finite()).then_some((rmat, q))
 }
 
@@ -93,12 +81,14 @@ pub(super) fn cholesky_qr_of_jr(jac: &Mat<f64>, r: &[f64]) -> Option<(Mat<f64>, 
 /// Factored by blocks of rows (the tall-skinny QR): the `R` of the rows so far stacked on the
 /// next [`QR_BLOCK`] rows is factored again, so memory stays one block whatever the record's
 /// length and `[J r]` is never copied whole.
-pub(super) fn householder_qr_of_jr(jac: &Mat<f64>, r: &[f64]) -> (Mat<f64>, Vec<f64>) {
+pub(super) fn householder_qr_of_jr(par: Par, jac: &Mat<f64>, r: &[f64]) -> (Mat<f64>, Vec<f64>) {
     let (m, n) = (jac.nrows(), jac.ncols());
     let w = n + 1;
     let col = |j: usize| if j < n { jac.col_as_slice(j) } else { r };
     // Each half of the rows (on two threads for a large J) to its R, then the two stacked.
-    let tops = on_row_halves(m, w, |rows| tsqr(|j| &col(j)[rows.clone()], rows.len(), w));
+    let tops = on_row_halves(par, m, w, |rows| {
+        tsqr(|j| &col(j)[rows.clone()], rows.len(), w)
+    });
     let top = if let [a, b] = &tops[..] {
         tsqr(
             |j| {
@@ -123,7 +113,7 @@ pub(super) fn householder_qr_of_jr(jac: &Mat<f64>, r: &[f64]) -> (Mat<f64>, Vec<
 
 /// The `R` (at most `w x w`) of the `m x w` matrix whose column `j` is `col(j)`, by blocks of
 /// [`QR_BLOCK`] rows: the `R` of the rows so far stacked on the next block is factored again
-/// ([`householder_r`]). With `m = 0`, the `R` of two stacked `R`s: column `j` of the upper one is
+/// (faer's Householder QR, [`linalg::qr_r_in_place`]). With `m = 0`, the `R` of two stacked `R`s: column `j` of the upper one is
 /// `col(j)`, of the lower one `col(w + j)` (each as long as the `R` has rows).
 fn tsqr<'a>(col: impl Fn(usize) -> &'a [f64], m: usize, w: usize) -> Mat<f64> {
     if m == 0 {
@@ -133,10 +123,11 @@ fn tsqr<'a>(col: impl Fn(usize) -> &'a [f64], m: usize, w: usize) -> Mat<f64> {
             a.extend_from_slice(col(j));
             a.extend_from_slice(col(w + j));
         }
-        return householder_r(&mut a, ha + hb, w);
+        return linalg::qr_r_in_place(&mut a, ha + hb, w, &mut LstsqWork::new());
     }
     let mut top = Mat::<f64>::zeros(0, w);
     let mut a = Vec::with_capacity((QR_BLOCK + w) * w);
+    let mut work = LstsqWork::new();
     let mut start = 0;
     while start < m {
         let end = (start + QR_BLOCK).min(m);
@@ -146,77 +137,10 @@ fn tsqr<'a>(col: impl Fn(usize) -> &'a [f64], m: usize, w: usize) -> Mat<f64> {
             a.extend_from_slice(top.col_as_slice(j));
             a.extend_from_slice(&col(j)[start..end]);
         }
-        top = householder_r(&mut a, rows, w);
+        top = linalg::qr_r_in_place(&mut a, rows, w, &mut work);
         start = end;
     }
     top
-}
-
-/// The `R` (`min(rows, w) x w`, upper trapezoidal) of the `rows x w` column-major matrix `a`
-/// (overwritten) by Householder reflections (Golub & Van Loan 2013, algorithm 5.2.1, with
-/// LAPACK's `dlarfg` reflector: `H = I - tau v v^T`, `v_0 = 1`, `H x = beta e_0`,
-/// `beta = -sign(x_0) |x|`).
-///
-/// Unblocked: for the few columns of a Jacobian the reflections are dot products and updates of
-/// whole columns, which stay in the cache for a block of [`QR_BLOCK`] rows. A column norm whose
-/// square would over- or underflow is computed scaled by the column's largest entry.
-fn householder_r(a: &mut [f64], rows: usize, w: usize) -> Mat<f64> {
-    debug_assert_eq!(a.len(), rows * w);
-    let k = rows.min(w);
-    for j in 0..k {
-        let (left, right) = a.split_at_mut((j + 1) * rows);
-        let x = &mut left[j * rows + j..];
-        let alpha = x[0];
-        let sq = alpha * alpha + sumsq(&x[1..]);
-        let norm = if sq > 1e-280 && sq < 1e280 {
-            sq.sqrt()
-        } else {
-            let big = x.iter().fold(0.0, |m: f64, v| m.max(v.abs()));
-            if big > 0.0 && big.is_finite() {
-                big * sum_of(x, |v| (v / big) * (v / big)).sqrt()
-            } else {
-                big
-            }
-        };
-        if norm == 0.0 {
-            // A zero column: H = I.
-            continue;
-        }
-        let beta = if alpha > 0.0 { -norm } else { norm };
-        let tau = (beta - alpha) / beta;
-        let scale = 1.0 / (alpha - beta);
-        x[0] = beta;
-        let v = &mut x[1..];
-        v.iter_mut().for_each(|e| *e *= scale);
-        let v = &*v;
-        for c in right.chunks_exact_mut(rows) {
-            let c = &mut c[j..];
-            let s = tau * (c[0] + dot(v, &c[1..]));
-            c[0] -= s;
-            c[1..].iter_mut().zip(v).for_each(|(e, vi)| *e -= s * vi);
-        }
-    }
-    Mat::<f64>::from_fn(k, w, |i, j| if j >= i { a[j * rows + i] } else { 0.0 })
-}
-
-/// The least-squares solution `X` of `min ||A X - B||` (`A` is `m x n`, `m >= n`) by Householder
-/// QR (nalgebra's): `R X = (Q^T B)[..n]` by back substitution. A zero pivot (dependent columns)
-/// gives infinite or NaN entries, not an error: callers check them.
-pub(crate) fn lstsq(a: &Mat<f64>, b: &Mat<f64>) -> Mat<f64> {
-    let n = a.ncols();
-    let qr = a.clone().qr();
-    let mut qtb = b.clone();
-    qr.q_tr_mul(&mut qtb);
-    let r = qr.r();
-    let k = r.nrows().min(n);
-    let mut x = Mat::<f64>::zeros(n, b.ncols());
-    for c in 0..b.ncols() {
-        for i in (0..k).rev() {
-            let s: f64 = (i + 1..n).map(|j| r[(i, j)] * x[(j, c)]).sum();
-            x[(i, c)] = (qtb[(i, c)] - s) / r[(i, i)];
-        }
-    }
-    x
 }
 
 /// `J^T r = R^T (Q^T r)` from the QR of `[J r]` ([`qr_of_jr`]), without a pass over `J`.
@@ -248,6 +172,7 @@ mod tests {
     use super::super::passes::jt_r;
     use super::super::testproblems::uniform;
     use super::*;
+    use crate::numeric::sumsq;
     use crate::par::PARALLEL_ENTRIES;
 
     /// The blocked QR of `[J r]` (three blocks and a part; then, large enough for two halves of
@@ -269,12 +194,16 @@ mod tests {
         });
         let r: Vec<f64> = (0..m).map(|_| rnd()).collect();
         let whole = Mat::<f64>::from_fn(m, n + 1, |i, j| if j < n { jac[(i, j)] } else { r[i] });
-        assert_same_r(&whole, householder_qr_of_jr(&jac, &r), 1e-11);
+        assert_same_r(
+            &whole,
+            householder_qr_of_jr(Par::threads(2), &jac, &r),
+            1e-11,
+        );
         // Well-conditioned: the Gram matrix path serves, to 1e-11 too (its error is machine
         // epsilon times the square of a small condition number).
-        let chol = cholesky_qr_of_jr(&jac, &r).expect("a well-conditioned J");
+        let chol = cholesky_qr_of_jr(Par::threads(2), &jac, &r).expect("a well-conditioned J");
         assert_same_r(&whole, chol.clone(), 1e-11);
-        assert_eq!(qr_of_jr(&jac, &r), chol);
+        assert_eq!(qr_of_jr(Par::threads(2), &jac, &r), chol);
         // J^T r by halves of the rows, and from R and Q^T r, against the plain sums.
         let want: Vec<f64> = (0..n)
             .map(|j| (0..m).map(|i| jac[(i, j)] * r[i]).sum())
@@ -284,7 +213,10 @@ mod tests {
             .collect();
         for (j, w) in want.iter().enumerate() {
             let tol = 1e-12 * norms[j] * sumsq(&r).sqrt();
-            assert!((jt_r(&jac, &r)[j] - w).abs() < tol, "J^T r [{j}]");
+            assert!(
+                (jt_r(Par::threads(2), &jac, &r)[j] - w).abs() < tol,
+                "J^T r [{j}]"
+            );
             assert!(
                 (jt_r_of(&chol.0, &chol.1)[j] - w).abs() < 1e3 * tol,
                 "R^T Q^T r [{j}]"
@@ -319,63 +251,6 @@ mod tests {
         }
     }
 
-    /// The unblocked Householder `R` against nalgebra's QR, up to the signs of its rows: a tall
-    /// random matrix, a wide one (fewer rows than columns), one with columns of `1e200` and
-    /// `1e-200` (whose squares over- and underflow: `R(A D) = R(A) D` for a positive diagonal
-    /// `D`, nalgebra's `R` of `A` times `D` is the reference). Then a rank-deficient one (a column
-    /// already zero below the diagonal, a zero column), whose `R` is not unique: `R^T R = A^T A`.
-    #[test]
-    fn householder_r_equals_nalgebras_qr() {
-        let mut rnd = uniform(5);
-        let cases: Vec<(Mat<f64>, Vec<f64>)> = vec![
-            (Mat::from_fn(300, 7, |_, _| rnd()), vec![1.0; 7]),
-            (Mat::from_fn(5, 9, |_, _| rnd()), vec![1.0; 9]),
-            (
-                Mat::from_fn(60, 4, |_, _| rnd()),
-                vec![1.0, 1e200, 1e-200, 1.0],
-            ),
-        ];
-        let r_of = |a: &Mat<f64>| {
-            let (rows, w) = (a.nrows(), a.ncols());
-            let mut buf: Vec<f64> = (0..w).flat_map(|j| a.col_as_slice(j).to_vec()).collect();
-            let r = householder_r(&mut buf, rows, w);
-            assert_eq!((r.nrows(), r.ncols()), (rows.min(w), w));
-            for i in 0..r.nrows() {
-                assert!((0..i).all(|j| r[(i, j)] == 0.0));
-            }
-            r
-        };
-        for (case, (b, d)) in cases.iter().enumerate() {
-            let a = Mat::<f64>::from_fn(b.nrows(), b.ncols(), |i, j| b[(i, j)] * d[j]);
-            let got = r_of(&a);
-            let want = b.clone().qr().r();
-            for i in 0..got.nrows() {
-                let sign = if want[(i, i)] * got[(i, i)] < 0.0 {
-                    -1.0
-                } else {
-                    1.0
-                };
-                for j in i..b.ncols() {
-                    let err = (sign * got[(i, j)] / d[j] - want[(i, j)]).abs();
-                    assert!(err <= 1e-13 * b.column(j).norm(), "case {case}: R[{i},{j}]");
-                }
-            }
-        }
-        let a = Mat::<f64>::from_fn(40, 4, |i, j| match j {
-            0 => f64::from(u8::from(i == 0)) * 3.0,
-            2 => 0.0,
-            _ => (i * j) as f64 % 7.0 - 3.0,
-        });
-        let got = r_of(&a);
-        for i in 0..4 {
-            for j in 0..4 {
-                let rtr: f64 = (0..=i.min(j)).map(|k| got[(k, i)] * got[(k, j)]).sum();
-                let ata: f64 = (0..40).map(|k| a[(k, i)] * a[(k, j)]).sum();
-                assert!((rtr - ata).abs() <= 1e-12 * (1.0 + ata.abs()), "G[{i},{j}]");
-            }
-        }
-    }
-
     #[test]
     fn nearly_dependent_columns_go_to_householder() {
         // Column 2 is column 0 plus 1e-7 of noise: a scaled pivot of about 1e-7, under
@@ -388,11 +263,11 @@ mod tests {
             _ => base[i][j],
         });
         let r: Vec<f64> = (0..m).map(|_| rnd()).collect();
-        assert!(cholesky_qr_of_jr(&jac, &r).is_none());
+        assert!(cholesky_qr_of_jr(Par::threads(2), &jac, &r).is_none());
         let whole = Mat::<f64>::from_fn(m, 4, |i, j| if j < 3 { jac[(i, j)] } else { r[i] });
-        assert_same_r(&whole, qr_of_jr(&jac, &r), 1e-9);
+        assert_same_r(&whole, qr_of_jr(Par::threads(2), &jac, &r), 1e-9);
         // A zero column (a parameter without influence) also goes to Householder.
         let jz = Mat::<f64>::from_fn(m, 2, |i, j| if j == 0 { base[i][0] } else { 0.0 });
-        assert!(cholesky_qr_of_jr(&jz, &r).is_none());
+        assert!(cholesky_qr_of_jr(Par::threads(2), &jz, &r).is_none());
     }
 }

@@ -9,6 +9,7 @@ use super::solver::gradient_cosine;
 use super::trust_region::gauss_newton_step;
 use super::{minimize, LmOptions, LmReport, RefineOptions, Termination};
 use crate::numeric::{all_finite, norm, sumsq};
+use crate::par::Par;
 use crate::Result;
 
 /// Gauss-Newton from a point near the least-squares optimum (the optimum of part of the data,
@@ -139,7 +140,7 @@ pub fn refine_with(
         if problem.eval(&p, &mut r, Some(&mut jac)).is_err() {
             return handover(problem, &p, opts, evaluations, round);
         }
-        let Some(mut chord) = Chord::start(problem, &p, &jac, &r, lambda, ropts) else {
+        let Some(mut chord) = Chord::start(problem, &p, &jac, &r, lambda, opts.par, ropts) else {
             return handover(problem, &p, opts, evaluations, round);
         };
         let mut at = Point {
@@ -198,6 +199,8 @@ struct Chord {
     /// The round's own Gauss-Newton step is under the tolerance: the last round.
     last: bool,
     lambda: f64,
+    /// The width of the passes over `J`.
+    par: Par,
 }
 
 impl Chord {
@@ -209,6 +212,7 @@ impl Chord {
         jac: &Mat<f64>,
         r: &[f64],
         lambda: f64,
+        par: Par,
         ropts: &RefineOptions,
     ) -> Option<Self> {
         let (n, m) = (p.len(), r.len());
@@ -220,10 +224,10 @@ impl Chord {
         let qr = ssr
             .is_finite()
             .then(|| {
-                cholesky_qr_of_jr(jac, r).or_else(|| {
-                    check_finite(r, jac, "")
+                cholesky_qr_of_jr(par, jac, r).or_else(|| {
+                    check_finite(par, r, jac, "")
                         .is_ok()
-                        .then(|| householder_qr_of_jr(jac, r))
+                        .then(|| householder_qr_of_jr(par, jac, r))
                 })
             })
             .flatten();
@@ -246,6 +250,7 @@ impl Chord {
             d,
             pred,
             lambda,
+            par,
         })
     }
 
@@ -284,7 +289,7 @@ impl Chord {
             if self.last || self.pred <= chord_tol2 {
                 return true;
             }
-            let g = scaled(jt_r(jac, at.r), &self.scale);
+            let g = scaled(jt_r(self.par, jac, at.r), &self.scale);
             match gauss_newton_step(&self.rmat, &g, self.lambda, &self.held) {
                 Some(dp) => (self.d, self.pred) = dp,
                 None => return false,
@@ -330,7 +335,7 @@ impl Chord {
             (None, None)
         };
         // The gradient at the final point (the step was taken), with the round's Jacobian.
-        let g_end = scaled(jt_r(jac, &r), &self.scale);
+        let g_end = scaled(jt_r(self.par, jac, &r), &self.scale);
         LmReport {
             params: p,
             cost: 0.5 * self.ssr,

@@ -8,6 +8,7 @@ use crate::lm::{
     minimize, refine_with, LmOptions, Problem, RefineBuffers, RefineOptions, Termination,
 };
 use crate::metrics::Fit;
+use crate::par::Par;
 use crate::{Error, Result};
 use fracsim::modal::RootsCache;
 use fracsim::{Dual, FracTf};
@@ -183,9 +184,10 @@ const PARALLEL_MIN_SAMPLES: usize = 4096;
 /// The parameters the output is linear in ([`Structure::is_linear`]: output offset, gain,
 /// initial-state levels) get their columns in plain `f64` ([`Structure::linear_sensitivities`]);
 /// only the others are carried as dual parts through the simulation, which costs about
-/// `(2 N + 1)` multiply-adds per mode and sample for `N` dual parts. Those are split in two
-/// halves simulated on two threads (for records of at least 4096 samples, when the machine has
-/// two cores), the linear columns shared between them.
+/// `(2 N + 1)` multiply-adds per mode and sample for `N` dual parts. For records of at least
+/// [`PARALLEL_MIN_SAMPLES`] samples those are split in two halves (by the size alone, so the
+/// Jacobian is the same for every `par`), simulated on two threads when `par` allows, else one
+/// after the other; the linear columns shared between them.
 #[allow(clippy::too_many_arguments)]
 fn jacobian<S: Structure>(
     s: &S,
@@ -196,8 +198,8 @@ fn jacobian<S: Structure>(
     u: &[f64],
     dt: f64,
     skip: usize,
-    yhat: &mut [f64],
-    jac: &mut Mat<f64>,
+    (yhat, jac): (&mut [f64], &mut Mat<f64>),
+    par: Par,
 ) -> Result<()> {
     let params = s.params();
     let mut pv = base.to_vec();
@@ -258,26 +260,24 @@ fn jacobian<S: Structure>(
         // The helper thread starts from a copy of this thread's pole cache, so that the
         // Jacobian does not depend on which thread computes which part.
         let mut roots = RootsCache::entered();
-        let (a, b) = std::thread::scope(|sc| {
-            let h = sc.spawn(|| {
+        let (b, a) = par.join(
+            |_| rest(yhat, &mut cols_second, out_b),
+            |_| {
                 roots.enter(|| {
                     at.duals(&first, &mut y_first, &mut cols_first)?;
                     at.linear(lin_a, &y_first, out_a)
                 })
-            });
-            let b = rest(yhat, &mut cols_second, out_b);
-            (h.join(), b)
-        });
+            },
+        );
         b?;
-        a.map_err(|_| Error::Numerical("a Jacobian thread panicked".into()))??;
+        a?;
     }
     Ok(())
 }
 
 /// The Jacobian's columns (indices into `free`) by how they are computed: the linear ones
-/// ([`Structure::is_linear`]), then the others in two halves for two threads (`u_len` samples:
-/// all in the second, on one thread, below [`PARALLEL_MIN_SAMPLES`], for fewer than two, or on
-/// one core).
+/// ([`Structure::is_linear`]), then the others in two halves (`u_len` samples: all in the
+/// second below [`PARALLEL_MIN_SAMPLES`] or for fewer than two).
 fn column_groups<S: Structure>(
     s: &S,
     free: &[usize],
@@ -294,7 +294,7 @@ fn column_groups<S: Structure>(
         .chain(lin.iter().skip(1).step_by(2))
         .copied()
         .collect();
-    let half = if nonlin.len() >= 2 && u_len >= PARALLEL_MIN_SAMPLES && crate::lm::two_cores() {
+    let half = if nonlin.len() >= 2 && u_len >= PARALLEL_MIN_SAMPLES {
         nonlin.len().div_ceil(2)
     } else {
         0
@@ -373,6 +373,8 @@ struct OeProblem<'a, S: Structure> {
     jac_evals: usize,
     /// The sum of squared residuals at the first point evaluated.
     first_ssr: Option<f64>,
+    /// On how many threads its Jacobian is computed.
+    par: Par,
 }
 
 impl<'a, S: Structure> OeProblem<'a, S> {
@@ -386,6 +388,7 @@ impl<'a, S: Structure> OeProblem<'a, S> {
         free: &[usize],
         base: &[f64],
         progress: &'a mut dyn FnMut(usize, f64),
+        par: Par,
     ) -> Self {
         Self {
             s,
@@ -399,6 +402,7 @@ impl<'a, S: Structure> OeProblem<'a, S> {
             progress,
             jac_evals: 0,
             first_ssr: None,
+            par,
         }
     }
 
@@ -448,7 +452,8 @@ impl<S: Structure> Problem for OeProblem<'_, S> {
             Some(jac) => {
                 let (s, base, free, u, dt, skip) =
                     (self.s, &self.base, &self.free, self.u, self.dt, self.skip);
-                jacobian(s, base, free, theta, true, u, dt, skip, &mut self.yhat, jac)?;
+                let out = (&mut self.yhat[..], jac);
+                jacobian(s, base, free, theta, true, u, dt, skip, out, self.par)?;
             }
         }
         for ((rk, e), y) in r
@@ -497,14 +502,31 @@ fn lead_part(u: &[f64], y: &[f64], skip: usize) -> Option<usize> {
 ///
 /// # Errors
 /// As [`Structure::simulate`]; more than 16 free parameters.
-pub fn sensitivities(s: &FracModel, p: &[f64], u: &[f64], dt: f64) -> Result<(Vec<f64>, Mat<f64>)> {
+pub fn sensitivities(
+    s: &FracModel,
+    p: &[f64],
+    u: &[f64],
+    dt: f64,
+    par: Par,
+) -> Result<(Vec<f64>, Mat<f64>)> {
     let free: Vec<usize> = (0..s.params().len())
         .filter(|&j| s.params()[j].free)
         .collect();
     let theta: Vec<f64> = free.iter().map(|&j| p[j]).collect();
     let mut yhat = vec![0.0; u.len()];
     let mut jac = Mat::<f64>::zeros(u.len(), free.len());
-    jacobian(s, p, &free, &theta, false, u, dt, 0, &mut yhat, &mut jac)?;
+    jacobian(
+        s,
+        p,
+        &free,
+        &theta,
+        false,
+        u,
+        dt,
+        0,
+        (&mut yhat, &mut jac),
+        par,
+    )?;
     Ok((yhat, jac))
 }
 
@@ -563,16 +585,10 @@ pub fn fit_with_progress(
     opts: &FitOptions,
     progress: &mut dyn FnMut(usize, f64),
 ) -> Result<FitReport> {
-    fit_in(s, u, y, dt, opts, progress, None)
+    fit_in(s, u, y, dt, opts, progress)
 }
 
-/// The buffers of a whole-record [`refine_with`], made on another thread.
-type Buffers = std::thread::JoinHandle<RefineBuffers>;
-
-/// [`fit_with_progress`]; a long record fitted by its lead first takes the whole record's
-/// buffers from `buffers` (made on the other core while the caller made the start) when their
-/// sizes match.
-#[allow(clippy::too_many_arguments)]
+/// [`fit_with_progress`] of any [`Structure`].
 pub(super) fn fit_in<S: Structure>(
     s: &S,
     u: &[f64],
@@ -580,7 +596,6 @@ pub(super) fn fit_in<S: Structure>(
     dt: f64,
     opts: &FitOptions,
     progress: &mut dyn FnMut(usize, f64),
-    buffers: Option<Buffers>,
 ) -> Result<FitReport> {
     let t0 = Instant::now();
     let free = check_fit(s, u, y, dt, opts.skip)?;
@@ -612,7 +627,17 @@ pub(super) fn fit_in<S: Structure>(
         base: &base,
     };
     let lead_fit = lead.and_then(|lead| problem.fit_lead(lead, &theta0, &mut *progress));
-    let mut prob = OeProblem::new(s, u, y, dt, opts.skip, &free, &base, &mut *progress);
+    let mut prob = OeProblem::new(
+        s,
+        u,
+        y,
+        dt,
+        opts.skip,
+        &free,
+        &base,
+        &mut *progress,
+        opts.lm.par,
+    );
     let mut from_lead = None;
     if let Some((r, jac_evals, at_start)) = lead_fit {
         prob.jac_evals = jac_evals;
@@ -627,9 +652,7 @@ pub(super) fn fit_in<S: Structure>(
         Some(at_start) => {
             // Gauss-Newton rounds with chord steps: two whole-record Jacobians where LM takes
             // four or five (LM takes over if a step fails).
-            let bufs = buffers
-                .and_then(|h| h.join().ok())
-                .unwrap_or_else(|| RefineBuffers::new(m, free.len()));
+            let bufs = RefineBuffers::new(m, free.len());
             let rep = refine_with(&mut prob, &start, &lm, &RefineOptions::default(), bufs)?;
             // Its first evaluation is the whole record's cost at the lead's optimum: a lead that
             // misleads (worse than the start) is not used, the fit starts again from the start.
@@ -723,16 +746,17 @@ impl<S: Structure> FitProblem<'_, S> {
     ) -> Option<(crate::lm::LmReport, usize, Option<f64>)> {
         let (s, u, y, dt, opts) = (self.s, self.u, self.y, self.dt, self.opts);
         let (free, base) = (self.free, self.base);
-        std::thread::scope(|sc| {
-            // (From a copy of this thread's pole cache, as the Jacobian's helper.)
-            let mut roots = RootsCache::entered();
-            let at_start = sc.spawn(move || {
-                let p = physical(s, free, base, theta0);
-                let mut buf = vec![0.0; u.len()];
-                roots.enter(|| super::init::sse_of(s, &p, u, y, dt, opts.skip, &mut buf))
-            });
+        // The whole record's cost at the start beside the lead's fit (from a copy of this
+        // thread's pole cache, as the Jacobian's helper): each on its share of the width.
+        let mut roots = RootsCache::entered();
+        let at_start = |_: Par| {
+            let p = physical(s, free, base, theta0);
+            let mut buf = vec![0.0; u.len()];
+            roots.enter(|| super::init::sse_of(s, &p, u, y, dt, opts.skip, &mut buf))
+        };
+        let lead_fit = |par: Par| {
             let (u, y) = (&u[..lead], &y[..lead]);
-            let mut prob = OeProblem::new(s, u, y, dt, opts.skip, free, base, progress);
+            let mut prob = OeProblem::new(s, u, y, dt, opts.skip, free, base, progress, par);
             // The lead is only the whole record's start: it stops once a step lowers its cost
             // by less than a step of LEAD_STEP_SE standard errors would (that is, by a relative
             // LEAD_STEP_SE^2 / m of its cost, m its residuals).
@@ -741,12 +765,14 @@ impl<S: Structure> FitProblem<'_, S> {
                     .lm
                     .ftol
                     .max(LEAD_STEP_SE * LEAD_STEP_SE / (lead - opts.skip) as f64),
+                par,
                 ..opts.lm.clone()
             };
             let r = minimize(&mut prob, theta0, &lead_lm).ok();
-            let at_start = at_start.join().ok().flatten();
-            r.map(|r| (r, prob.jac_evals, at_start))
-        })
+            r.map(|r| (r, prob.jac_evals))
+        };
+        let (r, at_start) = opts.lm.par.join(lead_fit, at_start);
+        r.map(|(r, jac_evals)| (r, jac_evals, at_start))
     }
 
     /// The report of the fit that ended with `rep` (started at `t0`): every parameter's value
@@ -1223,9 +1249,8 @@ fn identify_at_scale(
         let c = m.add_param(Param::new("u_offset", 0.0, Bounds::Free));
         m.effects.push(super::Effect::InputOffset { c });
     }
-    let buffers = refine_buffers(&m, split, opts, initial);
     let start_report = if opts.start == StartMode::Auto {
-        auto_start(&mut m, &u[..split], &y[..split], rec.dt)?
+        auto_start(&mut m, &u[..split], &y[..split], rec.dt, opts.fit.lm.par)?
     } else {
         init::StartReport::given("the given values")
     };
@@ -1240,7 +1265,7 @@ fn identify_at_scale(
     // Only record parameters free (the plant held): their exact estimate as the start.
     held::exact_start(&mut m, u_est, y_est, rec.dt, opts.fit.skip.min(split));
     let start = m.values();
-    let report = fit_in(&m, u_est, y_est, rec.dt, &opts.fit, progress, buffers)?;
+    let report = fit_in(&m, u_est, y_est, rec.dt, &opts.fit, progress)?;
     for (p, v) in m.params.iter_mut().zip(&report.values) {
         p.value = *v;
     }
@@ -1341,39 +1366,17 @@ fn judge(
     id.report.warnings.extend(warnings);
 }
 
-/// For an estimation part long enough to be fitted by its lead first (and so to end in
-/// [`refine_with`] on the whole part), its buffers, made on another thread (when the machine
-/// has two cores): mapping them costs about a simulation of the record, and the start is made
-/// on one core meanwhile. The columns counted are the free parameters of `m` and those
-/// [`identify_at_scale`] adds (the output offset, the initial state's levels).
-fn refine_buffers(
-    m: &FracModel,
-    split: usize,
-    opts: &IdentOptions,
-    initial: InitialState,
-) -> Option<Buffers> {
-    let rows = split.checked_sub(opts.fit.skip)?;
-    if rows < 4 * LEAD_SAMPLES
-        || !opts.fit.lead_first
-        || !crate::lm::two_cores()
-        || opts.fit.lm.max_iterations == 0
-    {
-        return None;
-    }
-    let offset = usize::from(opts.fit_offset && m.index_of("y_offset").is_none());
-    let levels = match (initial, &m.past) {
-        (InitialState::Estimate, None) => past_edges(1.0).len() + 1,
-        _ => 0,
-    };
-    let cols = m.params.iter().filter(|p| p.free).count() + offset + levels;
-    Some(std::thread::spawn(move || RefineBuffers::new(rows, cols)))
-}
-
 /// [`init::auto_start`], and for a model with a free integrator the same for the model without
 /// it on the output's increments `(y_(k+1) - y_k)/dt`.
-fn auto_start(m: &mut FracModel, u: &[f64], y: &[f64], dt: f64) -> Result<init::StartReport> {
+fn auto_start(
+    m: &mut FracModel,
+    u: &[f64],
+    y: &[f64],
+    dt: f64,
+    par: Par,
+) -> Result<init::StartReport> {
     if !m.integrator || y.len() < 3 {
-        return init::auto_start(m, u, y, dt);
+        return init::auto_start(m, u, y, dt, par);
     }
     let mut inner = m.clone();
     for (_, o) in &mut inner.den {
@@ -1388,7 +1391,7 @@ fn auto_start(m: &mut FracModel, u: &[f64], y: &[f64], dt: f64) -> Result<init::
     let (mu, mdy) = (mean(&u[..dy.len()]), mean(&dy));
     let uc: Vec<f64> = u[..dy.len()].iter().map(|v| v - mu).collect();
     let dyc: Vec<f64> = dy.iter().map(|v| v - mdy).collect();
-    let mut rep = init::auto_start(&mut inner, &uc, &dyc, dt)?;
+    let mut rep = init::auto_start(&mut inner, &uc, &dyc, dt, par)?;
     for (p, q) in m.params.iter_mut().zip(&inner.params) {
         p.value = q.value;
         p.bounds = q.bounds; // a negative gain's free sign
@@ -1514,10 +1517,8 @@ mod tests {
             let theta: Vec<f64> = free.iter().map(|&j| p[j]).collect();
             let mut yhat = vec![0.0; n];
             let mut jac = Mat::<f64>::zeros(n - skip, free.len());
-            jacobian(
-                &m, &p, &free, &theta, false, &u, dt, skip, &mut yhat, &mut jac,
-            )
-            .unwrap();
+            let out = (&mut yhat[..], &mut jac);
+            jacobian(&m, &p, &free, &theta, false, &u, dt, skip, out, Par::Seq).unwrap();
             let mut y = vec![0.0; n];
             m.simulate(&p, &u, dt, &mut y).unwrap();
             let scale = y.iter().fold(0.0f64, |a, v| a.max(v.abs()));
@@ -1677,6 +1678,40 @@ mod tests {
         }
         // lead iterations are cheap; the whole record's are not: fewer than the cold fit's
         assert!(without.iterations > 6, "{}", without.iterations);
+    }
+
+    /// The same fit on one thread (`Par::Seq`) and on two (the lead's fit beside the whole
+    /// record's cost at the start, the Jacobian's dual columns in two halves, the passes over `J`
+    /// by halves of its rows): the same report, bit for bit, each from an empty pole cache.
+    #[test]
+    fn a_fits_report_is_the_same_on_one_thread_and_on_two() {
+        let n = 4 * LEAD_SAMPLES + 1000;
+        let dt = 5e-4;
+        let mut rnd = xorshift(0x9e37_79b9_7f4a_7c15);
+        let u = prbs_like(n, &mut rnd);
+        let truth = FracModel::pmsm(6.82, 0.0059, 2.655e-5, 0.92, 0.8252);
+        let mut y = vec![0.0; n];
+        truth.simulate(&truth.values(), &u, dt, &mut y).unwrap();
+        for v in &mut y {
+            *v += 0.1 * 3f64.sqrt() * (2.0 * rnd() - 1.0);
+        }
+        let start = FracModel::pmsm(6.0, 0.005, 3e-5, 0.85, 0.9);
+        let on = |par: Par| {
+            let mut opts = FitOptions::default();
+            opts.lm.par = par;
+            RootsCache::new().enter(|| fit(&start, &u, &y, dt, &opts).unwrap())
+        };
+        let (one, two) = (on(Par::Seq), on(Par::threads(2)));
+        assert!(one.converged && one.iterations > 0);
+        assert_eq!(one.rmse.to_bits(), two.rmse.to_bits());
+        assert_eq!(
+            (one.iterations, one.evaluations),
+            (two.iterations, two.evaluations)
+        );
+        for (a, b) in one.params.iter().zip(&two.params) {
+            assert_eq!(a.value.to_bits(), b.value.to_bits(), "{}", a.name);
+            assert_eq!(a.std_error.map(f64::to_bits), b.std_error.map(f64::to_bits));
+        }
     }
 
     /// A 3000-sample PRBS-like record (dt 0.1 ms) of the paper's PMSM with a past input and an

@@ -27,6 +27,7 @@ pub(crate) mod welch;
 
 use super::{FracModel, Kind, Structure};
 use crate::levy::{self, LevyFit};
+use crate::par::Par;
 use crate::{Error, Result};
 use coarse::coarse_start;
 use num_complex::Complex64;
@@ -418,7 +419,7 @@ pub fn frf_error(frf: &Frf, model: &fracsim::FracTf) -> f64 {
 /// # Errors
 /// [`Error::Numerical`] when no order gives a model with positive coefficients; the errors of
 /// [`levy::levy_fixed_q`] for unusable data.
-pub fn levy_start(frf: &Frf, two_poles: bool) -> Result<(LevyFit, f64)> {
+pub fn levy_start(frf: &Frf, two_poles: bool, par: Par) -> Result<(LevyFit, f64)> {
     let n = if two_poles { 2 } else { 1 };
     // (q, error) of the best of the orders `qs` (the first of equals), all on one Levy kernel.
     let search = |qs: &[f64]| -> Result<Option<(f64, f64)>> {
@@ -446,19 +447,10 @@ pub fn levy_start(frf: &Frf, two_poles: bool) -> Result<(LevyFit, f64)> {
         (None, b) => b,
         (a, _) => a,
     };
-    // The coarse grid in two halves on two threads.
+    // The coarse grid in two halves (on two threads when `par` allows).
     let coarse: Vec<f64> = (5..=100).map(|i| i as f64 * 0.01).collect();
     let (low, high) = coarse.split_at(coarse.len() / 2);
-    let (a, b) = if crate::lm::two_cores() {
-        std::thread::scope(|sc| {
-            let h = sc.spawn(|| search(high));
-            let a = search(low);
-            // Were the thread lost, its half is searched here.
-            (a, h.join().unwrap_or_else(|_| search(high)))
-        })
-    } else {
-        (search(low), search(high))
-    };
+    let (a, b) = par.join(|_| search(low), |_| search(high));
     let best = better(a?, b?);
     let q0 = best
         .ok_or_else(|| {
@@ -546,8 +538,9 @@ fn candidate_sses(
     y: &[f64],
     dt: f64,
     buf: &mut [f64],
+    par: Par,
 ) -> Vec<(Candidate, Option<f64>)> {
-    if cands.len() != 2 || u.len() < PARALLEL_CANDIDATE_SAMPLES || !crate::lm::two_cores() {
+    if cands.len() != 2 || u.len() < PARALLEL_CANDIDATE_SAMPLES || par.width() < 2 {
         return cands
             .into_iter()
             .map(|c| {
@@ -558,18 +551,13 @@ fn candidate_sses(
     }
     // The helper starts from a copy of this thread's pole cache (as the Jacobian's helper does).
     let mut roots = fracsim::modal::RootsCache::entered();
-    let (a, b) = std::thread::scope(|sc| {
-        let h = sc.spawn(|| {
+    let (a, b) = par.join(
+        |_| sse_of(lin, &cands[0].0, u, y, dt, 0, buf),
+        |_| {
             let mut buf = vec![0.0; u.len()];
             roots.enter(|| sse_of(lin, &cands[1].0, u, y, dt, 0, &mut buf))
-        });
-        let a = sse_of(lin, &cands[0].0, u, y, dt, 0, buf);
-        // Were the thread lost, its candidate is simulated here.
-        let b = h
-            .join()
-            .unwrap_or_else(|_| sse_of(lin, &cands[1].0, u, y, dt, 0, buf));
-        (a, b)
-    });
+        },
+    );
     cands.into_iter().zip([a, b]).collect()
 }
 
@@ -607,11 +595,11 @@ type Candidate = (Vec<f64>, String);
 /// Levy-start candidates for the PMSM or commensurate model: the commensurate fit, and for the
 /// PMSM its refit with two free orders ([`levy::refine_pmsm`]). Returns the candidates and the
 /// commensurate order.
-fn levy_candidates(lin: &FracModel, frf: &Frf, dt: f64) -> Result<(Vec<Candidate>, f64)> {
+fn levy_candidates(lin: &FracModel, frf: &Frf, dt: f64, par: Par) -> Result<(Vec<Candidate>, f64)> {
     if lin.kind == Kind::TwoMass {
-        return two_mass::candidates(lin, frf, dt);
+        return two_mass::candidates(lin, frf, dt, par);
     }
-    let (fit, err) = levy_start(frf, true)?;
+    let (fit, err) = levy_start(frf, true, par)?;
     let (k, a1, a2, q) = (fit.b[0], fit.a[0], fit.a[1], fit.q);
     let mut out = vec![(
         with_values(
@@ -687,7 +675,13 @@ fn levy_candidates(lin: &FracModel, frf: &Frf, dt: f64) -> Result<(Vec<Candidate
 /// [`Error::NoStart`] for the two-mass structure when neither the Levy fits nor Welch's estimate
 /// give a resonant pair (it has no other start). Otherwise none: a model that fails to simulate
 /// at every trial keeps its values and the report says so.
-pub fn auto_start(model: &mut FracModel, u: &[f64], y: &[f64], dt: f64) -> Result<StartReport> {
+pub fn auto_start(
+    model: &mut FracModel,
+    u: &[f64],
+    y: &[f64],
+    dt: f64,
+    par: Par,
+) -> Result<StartReport> {
     let n = u.len().min(y.len());
     let (u, y) = (&u[..n], &y[..n]);
     if model.kind == Kind::General {
@@ -699,7 +693,7 @@ pub fn auto_start(model: &mut FracModel, u: &[f64], y: &[f64], dt: f64) -> Resul
         return Ok(StartReport::given("too few samples for an automatic start"));
     }
     if model.kind == Kind::Feedthrough {
-        return feedthrough::start(model, u, y, dt);
+        return feedthrough::start(model, u, y, dt, par);
     }
     let mut lin = model.clone();
     lin.effects.clear();
@@ -719,7 +713,7 @@ pub fn auto_start(model: &mut FracModel, u: &[f64], y: &[f64], dt: f64) -> Resul
     } else if model.kind == Kind::Integer {
         "an integer-order model starts from the coarse search".to_string()
     } else {
-        let attempt = levy_attempt(&lin, (u, y), (us, ys), dt, &fit_percent);
+        let attempt = levy_attempt(&lin, (u, y), (us, ys), dt, (&fit_percent, par));
         levy_error = attempt.error;
         if let Some((r, c)) = attempt.start {
             report = r;
@@ -805,20 +799,20 @@ fn levy_attempt(
     (u, y): (&[f64], &[f64]),
     scored: (&[f64], &[f64]),
     dt: f64,
-    fit_percent: &dyn Fn(f64) -> f64,
+    (fit_percent, par): (&dyn Fn(f64) -> f64, Par),
 ) -> LevyAttempt {
     let frf = periodic_frf(u, y, dt)
         .map(|f| (f, None))
         .or_else(|e| two_mass::aperiodic(lin, u, y, dt, e).map(|(f, how)| (f, Some(how))));
     let started = frf.and_then(|(frf, how)| {
-        let (c, q) = levy_candidates(lin, &frf, dt)?;
+        let (c, q) = levy_candidates(lin, &frf, dt, par)?;
         Ok((frf, c, q, how))
     });
     // The two-mass structure's fallback: a negative gain, resonance peaks up to half the
     // Nyquist frequency (two_mass::fallback).
     let started = match started {
         Err(e) if lin.kind == Kind::TwoMass => {
-            two_mass::fallback(lin, u, y, dt, e).map(|(frf, c, q, how)| (frf, c, q, Some(how)))
+            two_mass::fallback(lin, u, y, dt, e, par).map(|(frf, c, q, how)| (frf, c, q, Some(how)))
         }
         other => other,
     };
@@ -834,7 +828,7 @@ fn levy_attempt(
     };
     let mut best: Option<(f64, Vec<f64>, String)> = None;
     let mut buf = vec![0.0; scored.0.len()];
-    for ((v, label), sse) in candidate_sses(lin, cands, scored.0, scored.1, dt, &mut buf) {
+    for ((v, label), sse) in candidate_sses(lin, cands, scored.0, scored.1, dt, &mut buf, par) {
         if let Some(s) = sse {
             if best.as_ref().is_none_or(|b| s < b.0) {
                 best = Some((s, v, label));
@@ -976,7 +970,7 @@ mod tests {
     fn levy_start_recovers_an_exact_commensurate_response() {
         let g = FracTf::pmsm(6.8, 0.006, 2.7e-5, 0.9, 0.9).unwrap();
         let omega: Vec<f64> = (0..40).map(|i| 10f64.powf(0.5 + i as f64 * 0.08)).collect();
-        let (f, e) = levy_start(&frf_of(&g, omega), true).unwrap();
+        let (f, e) = levy_start(&frf_of(&g, omega), true, Par::Seq).unwrap();
         // Exact data: the grid point q = 0.9 reproduces the response to rounding.
         assert!((f.q - 0.9).abs() < 1e-9, "{f:?}");
         assert!(e < 1e-20, "{e}");
@@ -1046,7 +1040,7 @@ mod tests {
                     .filter(|&q| q > 0.0 && q <= 1.0)
                     .collect(),
             );
-            let (fit, _) = levy_start(&frf, true).unwrap();
+            let (fit, _) = levy_start(&frf, true, Par::threads(2)).unwrap();
             assert_eq!(fit.q, best.get().unwrap().0, "bump {bump}");
         }
     }
@@ -1203,7 +1197,7 @@ mod tests {
             *v += noise.sample(&mut rng) + if k >= START_SCORE_SAMPLES { 0.5 } else { 0.0 };
         }
         let mut m = FracModel::pmsm(1.0, 1.0, 1.0, 1.0, 1.0);
-        let r = auto_start(&mut m, &u, &y, dt).unwrap();
+        let r = auto_start(&mut m, &u, &y, dt, Par::Seq).unwrap();
         assert_eq!(r.method, StartMethod::Levy, "{r:?}");
         assert!(
             r.note

@@ -102,7 +102,7 @@ fn identify_joint_afresh(
     };
     let base = super::identify(first, model, &one)?.model;
     let (joint, u, y) = Joint::of(recs, &base, opts);
-    let report = fit_in(&joint, &u, &y, first.dt, &opts.fit, &mut |_, _| {}, None)?;
+    let report = fit_in(&joint, &u, &y, first.dt, &opts.fit, &mut |_, _| {})?;
     let mut records = vec![];
     for ((m, map), &(a, b)) in joint.parts.iter().zip(&joint.ranges) {
         let ps: Vec<f64> = map.iter().map(|&j| report.values[j]).collect();

@@ -168,7 +168,7 @@ fn feedthrough_sensitivities_match_central_differences() {
     let u: Vec<f64> = (0..300)
         .map(|k| if (k / 7) % 3 == 0 { 1.0 } else { -0.5 })
         .collect();
-    let (_, s) = sensitivities(&m, &p, &u, DT).unwrap();
+    let (_, s) = sensitivities(&m, &p, &u, DT, ident::par::Par::available()).unwrap();
     assert_eq!(s.ncols(), 7);
     for j in 0..p.len() {
         let h = 1e-6 * p[j].abs().max(1e-3);

@@ -123,7 +123,14 @@ fn levy_start_lands_close() {
         ("whole record", rec.len()),
     ] {
         let mut m = FracModel::pmsm(1.0, 1.0, 1.0, 1.0, 1.0);
-        let r = auto_start(&mut m, &rec.u[..n], &rec.y[..n], rec.dt).unwrap();
+        let r = auto_start(
+            &mut m,
+            &rec.u[..n],
+            &rec.y[..n],
+            rec.dt,
+            ident::par::Par::available(),
+        )
+        .unwrap();
         let v = m.values();
         eprintln!("{label}: {v:?} {r:?}");
         assert_eq!(r.method, StartMethod::Levy, "{label}: {r:?}");

@@ -14,7 +14,7 @@ fn dual_sensitivities_match_central_differences() {
     let u: Vec<f64> = (0..300)
         .map(|k| if (k / 7) % 3 == 0 { 1.0 } else { -0.5 })
         .collect();
-    let (y, s) = sensitivities(&m, &p, &u, dt).unwrap();
+    let (y, s) = sensitivities(&m, &p, &u, dt, ident::par::Par::available()).unwrap();
     assert_eq!(s.ncols(), 7);
     for j in 0..p.len() {
         // Step 1e-6 relative: central differences then carry ~1e-12 truncation and ~1e-10
@@ -76,7 +76,7 @@ fn linear_and_threaded_sensitivities_match_central_differences() {
     let u: Vec<f64> = (0..n)
         .map(|k| if (k / 13) % 3 == 0 { 1.0 } else { -0.5 })
         .collect();
-    let (y, s) = sensitivities(&m, &p, &u, dt).unwrap();
+    let (y, s) = sensitivities(&m, &p, &u, dt, ident::par::Par::available()).unwrap();
     assert_eq!(s.ncols(), p.len());
     let mut ysim = vec![0.0; n];
     m.simulate(&p, &u, dt, &mut ysim).unwrap();

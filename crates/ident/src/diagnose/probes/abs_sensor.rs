@@ -151,7 +151,7 @@ fn sign_restored_starts(look: &Look<'_>, m: &FracModel) -> Vec<FracModel> {
             })
             .collect();
         let mut c = m.clone();
-        if crate::oe::init::auto_start(&mut c, ua, &ys, dt).is_err() {
+        if crate::oe::init::auto_start(&mut c, ua, &ys, dt, ctx.opts.fit.lm.par).is_err() {
             continue;
         }
         if let Some(i) = c.index_of("y_offset") {

@@ -175,7 +175,13 @@ impl<'a> Look<'a> {
         let e: Vec<f64> = (0..s).map(|k| ctx.y[k] - st.yhat[k]).collect();
         let ee = e.iter().map(|v| v * v).sum();
         let analysis = analyse(&e, &ctx.u[..s], ctx.dt);
-        let (_, sens) = sensitivities(&st.model, &st.values, &ctx.u[..s], ctx.dt)?;
+        let (_, sens) = sensitivities(
+            &st.model,
+            &st.values,
+            &ctx.u[..s],
+            ctx.dt,
+            ctx.opts.fit.lm.par,
+        )?;
         let ya: Vec<f64> = st.yhat.iter().map(|v| v + ctx.y0).collect();
         let ua: Vec<f64> = ctx.u.iter().map(|v| v + ctx.u0).collect();
         let noise = noise_level(&ctx.rec.y);

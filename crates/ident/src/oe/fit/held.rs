@@ -114,19 +114,20 @@ fn box_least_squares(cols: &[Vec<f64>], r: &[f64], bounds: &[Bounds]) -> Option<
         let fr: Vec<usize> = (0..c).filter(|&j| !held[j]).collect();
         if !fr.is_empty() {
             let f = fr.len();
-            let a = nalgebra::DMatrix::from_fn(f, f, |i, k| g[fr[i] * c + fr[k]]);
-            let rhs = nalgebra::DVector::from_fn(f, |i, _| {
-                b[fr[i]]
-                    - (0..c)
-                        .filter(|&k| held[k])
-                        .map(|k| g[fr[i] * c + k] * x[k])
-                        .sum::<f64>()
-            });
-            let Some(ch) = a.cholesky() else {
+            let a = crate::lm::Mat::<f64>::from_fn(f, f, |i, k| g[fr[i] * c + fr[k]]);
+            let rhs: Vec<f64> = (0..f)
+                .map(|i| {
+                    b[fr[i]]
+                        - (0..c)
+                            .filter(|&k| held[k])
+                            .map(|k| g[fr[i] * c + k] * x[k])
+                            .sum::<f64>()
+                })
+                .collect();
+            let Some(sol) = crate::linalg::cholesky_solve(&a, &rhs) else {
                 continue;
             };
             factored = true;
-            let sol = ch.solve(&rhs);
             for (i, &j) in fr.iter().enumerate() {
                 x[j] = sol[i];
             }

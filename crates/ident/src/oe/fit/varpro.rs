@@ -13,9 +13,11 @@
 //! the standard errors.
 
 use super::{jacobian, physical, OeProblem};
+use crate::linalg;
 use crate::lm::Mat;
 use crate::lm::{dot, minimize, ColSlices, LmOptions, LmReport, Problem};
 use crate::oe::{Bounds, LinearRole, Structure};
+use crate::par::Par;
 use crate::{Error, Result};
 
 /// Which free parameters (indices into the fit's `free`) are solved linearly.
@@ -65,32 +67,12 @@ pub(super) fn plan<S: Structure>(s: &S, free: &[usize]) -> Option<Plan> {
     })
 }
 
-/// Orthonormalise `cols` in place (modified Gram-Schmidt, twice: as accurate as Householder for
-/// a handful of columns); returns `R` (row-major, `c x c`) with `cols_in = Q R`, or `None` when
-/// a column is (numerically) in the span of those before it. The fallback of [`LinearBasis`]
-/// when the Gram matrix is too ill-conditioned for its Cholesky factor.
+/// Orthonormalise `cols` in place (Householder, [`linalg::thin_qr`]); returns `R` (row-major,
+/// `c x c`) with `cols_in = Q R`, or `None` when a column is (numerically) in the span of those
+/// before it. The fallback of [`LinearBasis`] when the Gram matrix is too ill-conditioned for
+/// its Cholesky factor.
 fn orthonormalise(cols: &mut [Vec<f64>]) -> Option<Vec<f64>> {
-    let c = cols.len();
-    let mut r = vec![0.0; c * c];
-    for k in 0..c {
-        let (done, rest) = cols.split_at_mut(k);
-        let v = &mut rest[0];
-        let n0 = dot(v, v).sqrt();
-        for _ in 0..2 {
-            for (i, q) in done.iter().enumerate() {
-                let h = dot(q, v);
-                r[i * c + k] += h;
-                v.iter_mut().zip(q).for_each(|(a, b)| *a -= h * b);
-            }
-        }
-        let nk = dot(v, v).sqrt();
-        if !(nk > 1e-12 * n0) || !nk.is_finite() {
-            return None;
-        }
-        r[k * c + k] = nk;
-        v.iter_mut().for_each(|a| *a /= nk);
-    }
-    Some(r)
+    linalg::thin_qr(cols)
 }
 
 /// The smallest pivot of the equilibrated Gram matrix's Cholesky factor (the sine of the angle
@@ -99,18 +81,9 @@ fn orthonormalise(cols: &mut [Vec<f64>]) -> Option<Vec<f64>> {
 /// columns are orthonormalised instead.
 const GRAM_MIN_PIVOT: f64 = 1e-5;
 
-/// The Gram matrix `A^T A` of the columns `cols` (row-major `c x c`; each product once).
+/// The Gram matrix `A^T A` of the columns `cols` (row-major `c x c`).
 fn gram(cols: &[Vec<f64>]) -> Vec<f64> {
-    let c = cols.len();
-    let mut g = vec![0.0; c * c];
-    for i in 0..c {
-        for j in 0..=i {
-            let v = dot(&cols[i], &cols[j]);
-            g[i * c + j] = v;
-            g[j * c + i] = v;
-        }
-    }
-    g
+    linalg::gram_of_columns(cols)
 }
 
 /// `D` and `L` of the equilibrated Gram matrix `D A^T A D = L L^T` ([`LinearBasis`]) of `c`
@@ -123,22 +96,10 @@ fn equilibrated_cholesky(gram: &[f64], c: usize) -> Option<(Vec<f64>, Vec<f64>)>
     if !scale.iter().all(|d| d.is_finite() && *d > 0.0) {
         return None;
     }
-    let mut l = vec![0.0; c * c];
-    for i in 0..c {
-        for j in 0..=i {
-            let mut v = gram[i * c + j] * scale[i] * scale[j];
-            for k in 0..j {
-                v -= l[i * c + k] * l[j * c + k];
-            }
-            if i == j {
-                if !(v > GRAM_MIN_PIVOT * GRAM_MIN_PIVOT) {
-                    return None;
-                }
-                l[i * c + i] = v.sqrt();
-            } else {
-                l[i * c + j] = v / l[j * c + j];
-            }
-        }
+    let scaled = Mat::<f64>::from_fn(c, c, |i, j| gram[i * c + j] * scale[i] * scale[j]);
+    let l = linalg::cholesky_lower(&scaled)?;
+    if (0..c).any(|j| !(l[j * c + j] > GRAM_MIN_PIVOT)) {
+        return None;
     }
     Some((scale, l))
 }
@@ -197,16 +158,9 @@ impl LinearBasis {
 
     /// `x = (A^T A)^-1 h` for `h = A^T v`.
     fn solve_normal(&self, h: &[f64]) -> Vec<f64> {
-        let (c, l, d) = (self.cols.len(), &self.chol, &self.scale);
+        let (l, d) = (&self.chol, &self.scale);
         let mut x: Vec<f64> = h.iter().zip(d).map(|(a, b)| a * b).collect();
-        for i in 0..c {
-            let t: f64 = (0..i).map(|k| l[i * c + k] * x[k]).sum();
-            x[i] = (x[i] - t) / l[i * c + i];
-        }
-        for i in (0..c).rev() {
-            let t: f64 = (i + 1..c).map(|k| l[k * c + i] * x[k]).sum();
-            x[i] = (x[i] - t) / l[i * c + i];
-        }
+        linalg::solve_llt_row_major(l, &mut x);
         x.iter_mut().zip(d).for_each(|(a, b)| *a *= b);
         x
     }
@@ -238,12 +192,7 @@ impl LinearBasis {
             x.iter_mut().zip(&dx).for_each(|(a, b)| *a += b);
             return x;
         };
-        let c = x.len();
-        let qty = x.clone();
-        for i in (0..c).rev() {
-            let t: f64 = (i + 1..c).map(|j| r[i * c + j] * x[j]).sum();
-            x[i] = (qty[i] - t) / r[i * c + i];
-        }
+        linalg::solve_upper_row_major(r, &mut x);
         x
     }
 
@@ -280,6 +229,8 @@ pub(super) struct Reduced<'a, S: Structure> {
     /// Column buffers of `m` samples a former basis left, for the next solution's columns
     /// (each solution would otherwise allocate and fault in its own).
     spare: Vec<Vec<f64>>,
+    /// On how many threads its Jacobian is computed.
+    par: Par,
 }
 
 impl<'a, S: Structure> Reduced<'a, S> {
@@ -293,7 +244,7 @@ impl<'a, S: Structure> Reduced<'a, S> {
         free: &'a [usize],
         base: &'a [f64],
         plan: &'a Plan,
-        theta: &[f64],
+        (theta, par): (&[f64], Par),
     ) -> Self {
         let m = u.len() - skip;
         Self {
@@ -313,6 +264,7 @@ impl<'a, S: Structure> Reduced<'a, S> {
             start_ssr: None,
             held: vec![],
             spare: vec![],
+            par,
         }
     }
 
@@ -643,7 +595,19 @@ impl<S: Structure> Problem for Reduced<'_, S> {
         let pv = physical(s, self.free, self.base, &self.theta);
         let which: Vec<usize> = self.plan.nonlin.iter().map(|&i| self.free[i]).collect();
         let th: Vec<f64> = self.plan.nonlin.iter().map(|&i| self.theta[i]).collect();
-        jacobian(s, &pv, &which, &th, true, u, dt, skip, &mut self.yhat, out)?;
+        let par = self.par;
+        jacobian(
+            s,
+            &pv,
+            &which,
+            &th,
+            true,
+            u,
+            dt,
+            skip,
+            (&mut self.yhat, out),
+            par,
+        )?;
         r.iter_mut()
             .zip(&self.yhat[skip..])
             .zip(y)
@@ -675,7 +639,7 @@ pub(super) fn fit<S: Structure>(
 ) -> Option<Result<LmReport>> {
     let (free, base) = (prob.free.clone(), prob.base.clone());
     let (s, u, y, dt, skip) = (prob.s, prob.u, prob.y, prob.dt, prob.skip);
-    let mut red = Reduced::new(s, u, y, dt, skip, &free, &base, plan, theta0);
+    let mut red = Reduced::new(s, u, y, dt, skip, &free, &base, plan, (theta0, prob.par));
     let tn0: Vec<f64> = plan.nonlin.iter().map(|&i| theta0[i]).collect();
     let red_lm = LmOptions {
         covariance: false,

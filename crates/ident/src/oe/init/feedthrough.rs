@@ -111,7 +111,7 @@ pub fn instant_response(u: &[f64], y: &[f64]) -> Option<InstantResponse> {
     for i in 0..LAGS {
         g[(i, i)] += 1e-12 * scale;
     }
-    let c = g.cholesky()?.solve(&rhs);
+    let c = crate::linalg::cholesky_solve_cols(&g, &rhs)?;
     // The lag-0 column and the output with the other lags regressed out.
     let mut r0 = x0.to_vec();
     let mut ry = yv.to_vec();
@@ -153,7 +153,13 @@ pub fn instant_response(u: &[f64], y: &[f64]) -> Option<InstantResponse> {
 ///
 /// # Errors
 /// As [`super::auto_start`].
-pub(super) fn start(model: &mut FracModel, u: &[f64], y: &[f64], dt: f64) -> Result<StartReport> {
+pub(super) fn start(
+    model: &mut FracModel,
+    u: &[f64],
+    y: &[f64],
+    dt: f64,
+    par: crate::par::Par,
+) -> Result<StartReport> {
     let id = model.index_of("D");
     let given = id.filter(|&i| !model.params[i].free);
     let found = instant_response(u, y);
@@ -183,7 +189,7 @@ pub(super) fn start(model: &mut FracModel, u: &[f64], y: &[f64], dt: f64) -> Res
             p.free = q.free;
         }
         let rest: Vec<f64> = y.iter().zip(u).map(|(a, b)| sign * (a - d0 * b)).collect();
-        let report = auto_start(&mut inner, u, &rest, dt)?;
+        let report = auto_start(&mut inner, u, &rest, dt, par)?;
         let fit = report.fit_percent.unwrap_or(f64::NEG_INFINITY);
         if best.as_ref().is_none_or(|b| fit > b.2) {
             best = Some((inner, report, sign));

@@ -35,6 +35,7 @@
 use super::{frf_error, levy_start, with_values, Candidate, Frf, SK_ITERATIONS};
 use crate::levy;
 use crate::oe::FracModel;
+use crate::par::Par;
 use crate::{Error, Result};
 use fracsim::FracTf;
 use num_complex::Complex64;
@@ -242,8 +243,8 @@ fn from_quartic(frf: &Frf) -> Result<([f64; 4], [f64; 4], f64)> {
 /// # Errors
 /// [`Error::NotEnoughData`] ("no resonance in the frequency response") when no round gives a
 /// resonant pair inside the band; the errors of the first motor fit.
-pub fn candidates(lin: &FracModel, frf: &Frf, dt: f64) -> Result<(Vec<Candidate>, f64)> {
-    let (out, q) = levy_candidates(lin, frf, dt)?;
+pub fn candidates(lin: &FracModel, frf: &Frf, dt: f64, par: Par) -> Result<(Vec<Candidate>, f64)> {
+    let (out, q) = levy_candidates(lin, frf, dt, par)?;
     if frf.period.is_none() {
         evidence(lin, frf, &out)?;
     }
@@ -251,7 +252,7 @@ pub fn candidates(lin: &FracModel, frf: &Frf, dt: f64) -> Result<(Vec<Candidate>
 }
 
 /// Steps 1 and 2 of the module documentation, without the evidence rule.
-fn levy_candidates(lin: &FracModel, frf: &Frf, dt: f64) -> Result<(Vec<Candidate>, f64)> {
+fn levy_candidates(lin: &FracModel, frf: &Frf, dt: f64, par: Par) -> Result<(Vec<Candidate>, f64)> {
     let w_lo = frf.omega.first().copied().unwrap_or(0.0);
     let w_hi = frf.omega.last().copied().unwrap_or(0.0);
     let hz = |c: f64| c.powf(-0.5) / (2.0 * std::f64::consts::PI);
@@ -301,7 +302,7 @@ fn levy_candidates(lin: &FracModel, frf: &Frf, dt: f64) -> Result<(Vec<Candidate
     let mut motor = match motor {
         Some(m) => m,
         None => {
-            let (f, _) = levy_start(frf, true)?;
+            let (f, _) = levy_start(frf, true, par)?;
             [f.b[0], f.a[0], f.a[1], f.q]
         }
     };
@@ -332,7 +333,7 @@ fn levy_candidates(lin: &FracModel, frf: &Frf, dt: f64) -> Result<(Vec<Candidate
             &mut out,
         );
         let rest = divided(frf, &pair_tf(&pair)?);
-        motor = match levy_start(&rest, true) {
+        motor = match levy_start(&rest, true, par) {
             Ok((f, _)) => [f.b[0], f.a[0], f.a[1], f.q],
             Err(_) => break,
         };
@@ -428,6 +429,7 @@ pub fn fallback(
     y: &[f64],
     dt: f64,
     why: Error,
+    par: Par,
 ) -> Result<(Frf, Vec<Candidate>, f64, String)> {
     let plain = |e: &Error| match e {
         Error::NotEnoughData(s) => s.clone(),
@@ -455,12 +457,12 @@ pub fn fallback(
     let mut out = vec![];
     let mut q = 1.0;
     if negative {
-        if let Ok((c, qm)) = levy_candidates(lin, &pos, dt) {
+        if let Ok((c, qm)) = levy_candidates(lin, &pos, dt, par) {
             out.extend(c);
             q = qm;
         }
     }
-    out.extend(peak_candidates(lin, &pos, dt));
+    out.extend(peak_candidates(lin, &pos, dt, par));
     // The Levy start failed already (`why`): the fallback's own reason is the one to give.
     if out.is_empty() {
         return Err(Error::NotEnoughData(
@@ -525,7 +527,7 @@ fn gain_on(frf: &Frf, g: &FracTf) -> Option<f64> {
 /// band's first frequency) and `d = 2 PEAK_DAMPING / w_r`; the motor either the other peak's
 /// resonance (`zeta = theta = 1`, `a2 = w^-2`, `a1 = 2 PEAK_DAMPING / w`) or the commensurate
 /// Levy fit of `H / R`; `K` by least squares on the response ([`gain_on`]).
-fn peak_candidates(lin: &FracModel, frf: &Frf, dt: f64) -> Vec<Candidate> {
+fn peak_candidates(lin: &FracModel, frf: &Frf, dt: f64, par: Par) -> Vec<Candidate> {
     let mag: Vec<f64> = frf.h.iter().map(|h| h.norm()).collect();
     let found = peaks(&mag);
     let hz = |w: f64| w / (2.0 * std::f64::consts::PI);
@@ -549,7 +551,7 @@ fn peak_candidates(lin: &FracModel, frf: &Frf, dt: f64) -> Vec<Candidate> {
                 format!("motor resonance {:.4} Hz", hz(w)),
             ));
         }
-        if let Ok((f, _)) = levy_start(&divided(frf, &pair), true) {
+        if let Ok((f, _)) = levy_start(&divided(frf, &pair), true, par) {
             motors.push(([1.0, f.a[0], f.a[1], f.q], format!("motor q = {:.3}", f.q)));
         }
         for ([_, a1, a2, q], what) in motors {
@@ -767,7 +769,7 @@ mod tests {
             periods_available: 0,
         };
         let lin = crate::diagnose::structures::two_mass();
-        let (cands, _) = candidates(&lin, &frf(&g), 1e-3).unwrap();
+        let (cands, _) = candidates(&lin, &frf(&g), 1e-3, Par::Seq).unwrap();
         let best = cands
             .iter()
             .map(|(v, _)| {
@@ -797,7 +799,7 @@ mod tests {
         // truth, which the time-domain fit then refines.
         assert!(err < 1e-2, "{err}");
         let pmsm = FracTf::pmsm(6.77, 0.0064, 2.8e-5, 0.89, 0.89).unwrap();
-        let e = candidates(&lin, &frf(&pmsm), 1e-3).unwrap_err();
+        let e = candidates(&lin, &frf(&pmsm), 1e-3, Par::Seq).unwrap_err();
         assert!(e.to_string().contains("no resonance"), "{e}");
     }
 
@@ -890,7 +892,7 @@ mod tests {
         let (u, y) = aperiodic_record(&truth);
         assert_eq!(super::super::periodic_part(&u), None);
         let mut m = crate::diagnose::structures::two_mass();
-        let r = super::super::auto_start(&mut m, &u, &y, 1e-3).unwrap();
+        let r = super::super::auto_start(&mut m, &u, &y, 1e-3, Par::Seq).unwrap();
         assert!(r.note.contains("Welch's estimate"), "{}", r.note);
         let c2 = m.params[m.index_of("c2").unwrap()].value;
         let f_r = c2.powf(-0.5) / (2.0 * std::f64::consts::PI);
@@ -902,12 +904,12 @@ mod tests {
         let (u, y) = aperiodic_record(&pmsm);
         let mut m = crate::diagnose::structures::two_mass();
         let t0 = std::time::Instant::now();
-        let e = super::super::auto_start(&mut m, &u, &y, 1e-3).unwrap_err();
+        let e = super::super::auto_start(&mut m, &u, &y, 1e-3, Par::Seq).unwrap_err();
         eprintln!("{:.1} ms: {e}", 1e3 * t0.elapsed().as_secs_f64());
         assert!(e.to_string().contains("no resonance"), "{e}");
         // Other structures: the coarse search, as before.
         let mut m = FracModel::pmsm(1.0, 1.0, 1.0, 1.0, 1.0);
-        let r = super::super::auto_start(&mut m, &u, &y, 1e-3).unwrap();
+        let r = super::super::auto_start(&mut m, &u, &y, 1e-3, Par::Seq).unwrap();
         assert_eq!(r.method, super::super::StartMethod::Coarse, "{r:?}");
         assert!(r.note.contains("not periodic"), "{}", r.note);
     }
@@ -928,7 +930,7 @@ mod tests {
         let (u, y) = aperiodic_record(&truth);
         let y: Vec<f64> = y.iter().map(|v| -v).collect();
         let mut m = crate::diagnose::structures::two_mass();
-        let r = super::super::auto_start(&mut m, &u, &y, 1e-3).unwrap();
+        let r = super::super::auto_start(&mut m, &u, &y, 1e-3, Par::Seq).unwrap();
         let at = |n: &str| m.params[m.index_of(n).unwrap()].value;
         let f_r = at("c2").powf(-0.5) / (2.0 * std::f64::consts::PI);
         let f_m = (at("a2").powf(-0.5 / at("zeta"))) / (2.0 * std::f64::consts::PI);
@@ -945,7 +947,7 @@ mod tests {
         let (u, y) = aperiodic_record(&pmsm);
         let y: Vec<f64> = y.iter().map(|v| -v).collect();
         let mut m = crate::diagnose::structures::two_mass();
-        let e = super::super::auto_start(&mut m, &u, &y, 1e-3).unwrap_err();
+        let e = super::super::auto_start(&mut m, &u, &y, 1e-3, Par::Seq).unwrap_err();
         assert!(e.to_string().contains("no resonance"), "{e}");
     }
 

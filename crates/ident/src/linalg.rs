@@ -1,0 +1,470 @@
+//! ident's dense linear algebra, on faer: the Householder QR of a column-major block
+//! ([`qr_r_in_place`]), least squares in reused memory ([`LstsqWork`]) or at once ([`lstsq`]),
+//! Cholesky solves ([`cholesky_solve`]), Gram products ([`gram_add`]) and the inverse of a
+//! triangular factor ([`upper_inverse`]).
+//!
+//! Every call here is sequential (`Par::Seq`): the matrices are a few columns wide, and the
+//! parallelism over a tall matrix's rows is the caller's ([`crate::par`]). Matrices cross the
+//! boundary as nalgebra's column-major `DMatrix` (the [`crate::lm::Problem`] Jacobian's type) or
+//! as column-major slices, viewed by faer without a copy.
+
+use crate::lm::Mat;
+use faer::linalg::householder::make_householder_in_place;
+use faer::linalg::matmul::matmul;
+use faer::linalg::triangular_solve::solve_upper_triangular_in_place;
+use faer::reborrow::{Reborrow, ReborrowMut};
+use faer::{Accum, ColRef, MatMut, MatRef, Par};
+
+/// faer's view of a column-major `rows x cols` slice.
+fn view(a: &[f64], rows: usize, cols: usize) -> MatRef<'_, f64> {
+    MatRef::from_column_major_slice(a, rows, cols)
+}
+
+/// faer's view of nalgebra's column-major matrix.
+pub(crate) fn as_faer(a: &Mat<f64>) -> MatRef<'_, f64> {
+    view(a.as_slice(), a.nrows(), a.ncols())
+}
+
+/// The Householder QR of the column-major `a` in place (`R` in its upper triangle, the
+/// reflectors' tails below), each reflector applied to the columns of `extra` too (which become
+/// `Q^T extra`): faer's reflector ([`make_householder_in_place`], LAPACK's `dlarfg`) applied by
+/// faer's matrix products; `tmp` holds a row.
+///
+/// Not faer's `qr_in_place`: that takes a column whose part below the diagonal is under
+/// `16 (m - k) eps` of its norm (`3e-11` for a block of 8192 rows) for dependent and leaves a
+/// staircase `R` with zeros on its diagonal from there on (its rank estimate). A fit needs the
+/// plain `R` of its `J`: two nearly dependent columns have a pivot of `1e-11` to `1e-13` of
+/// their norm, and their huge standard errors say "not determined" (the fit refused), where a
+/// zero pivot would say "singular covariance" (a warning only).
+/// Returns each reflector's `1 / tau` (0 where there was none).
+fn householder_in_place(
+    mut a: MatMut<'_, f64>,
+    mut extra: MatMut<'_, f64>,
+    tmp: &mut Vec<f64>,
+) -> Vec<f64> {
+    let (m, w) = a.shape();
+    let mut invs = vec![0.0; m.min(w)];
+    for k in 0..m.min(w) {
+        let info = {
+            let (top, tail) = a.rb_mut().col_mut(k).split_at_row_mut(k + 1);
+            make_householder_in_place(top.get_mut(k), tail)
+        };
+        // A zero tail: no reflection (faer's `tau` is then infinite).
+        if !info.tau.is_finite() {
+            continue;
+        }
+        let inv = info.tau.recip();
+        invs[k] = inv;
+        let (left, right) = a.rb_mut().split_at_col_mut(k + 1);
+        let v = left.rb().col(k).subrows(k + 1, m - k - 1);
+        reflect(v, inv, right.subrows_mut(k, m - k), tmp);
+        if extra.ncols() > 0 {
+            reflect(v, inv, extra.rb_mut().subrows_mut(k, m - k), tmp);
+        }
+    }
+    invs
+}
+
+/// `B := (I - [1; v] [1; v]^T / tau) B` with `inv = 1 / tau` (`B` has `1 + v.len()` rows).
+fn reflect(v: ColRef<'_, f64>, inv: f64, b: MatMut<'_, f64>, tmp: &mut Vec<f64>) {
+    let c = b.ncols();
+    if c == 0 {
+        return;
+    }
+    let (mut head, mut lower) = b.split_at_row_mut(1);
+    tmp.clear();
+    tmp.extend((0..c).map(|j| head[(0, j)]));
+    let mut t = MatMut::from_column_major_slice_mut(&mut tmp[..], 1, c);
+    // t = B_0 + v^T B_1, then B_0 -= t / tau, B_1 -= v t / tau.
+    matmul(
+        t.rb_mut(),
+        Accum::Add,
+        v.as_mat().transpose(),
+        lower.rb(),
+        1.0,
+        Par::Seq,
+    );
+    for j in 0..c {
+        t[(0, j)] *= -inv;
+        head[(0, j)] += t[(0, j)];
+    }
+    matmul(
+        lower.rb_mut(),
+        Accum::Add,
+        v.as_mat(),
+        t.rb(),
+        1.0,
+        Par::Seq,
+    );
+}
+
+/// The scratch of [`householder_in_place`], kept across the many small solves of one search (a
+/// Levy search solves thousands of systems of one size).
+#[derive(Debug, Default)]
+pub(crate) struct LstsqWork {
+    tmp: Vec<f64>,
+}
+
+impl LstsqWork {
+    /// The scratch (it grows to the widest system it is given).
+    pub(crate) fn new() -> Self {
+        Self::default()
+    }
+
+    /// The least-squares solution of `min |A x - b|` into `b[..cols]` (`A` column-major
+    /// `b.len() x cols`, `A` and `b` overwritten), and the diagonal of `R` (of either sign)
+    /// into `diag` (length `cols`), by which the caller judges the rank. `rows >= cols`.
+    pub(crate) fn solve(&mut self, a: &mut [f64], b: &mut [f64], diag: &mut [f64]) {
+        let (rows, cols) = (b.len(), diag.len());
+        debug_assert!(rows >= cols && a.len() == rows * cols);
+        let mut am = MatMut::from_column_major_slice_mut(a, rows, cols);
+        let mut bm = MatMut::from_column_major_slice_mut(b, rows, 1);
+        householder_in_place(am.rb_mut(), bm.rb_mut(), &mut self.tmp);
+        for (j, d) in diag.iter_mut().enumerate() {
+            *d = am[(j, j)];
+        }
+        solve_upper_triangular_in_place(
+            am.rb().subrows(0, cols),
+            bm.subrows_mut(0, cols),
+            Par::Seq,
+        );
+    }
+}
+
+/// The `R` (`min(rows, w) x w`, upper trapezoidal) of the column-major `rows x w` matrix `a`
+/// (overwritten) by Householder reflections ([`householder_in_place`]). `R` is unique up to the
+/// signs of its rows.
+pub(crate) fn qr_r_in_place(
+    a: &mut [f64],
+    rows: usize,
+    w: usize,
+    work: &mut LstsqWork,
+) -> Mat<f64> {
+    debug_assert_eq!(a.len(), rows * w);
+    let k = rows.min(w);
+    if k == 0 {
+        return Mat::zeros(0, w);
+    }
+    let am = MatMut::from_column_major_slice_mut(a, rows, w);
+    let none = MatMut::from_column_major_slice_mut(&mut [], rows, 0);
+    householder_in_place(am, none, &mut work.tmp);
+    Mat::<f64>::from_fn(k, w, |i, j| if j >= i { a[j * rows + i] } else { 0.0 })
+}
+
+/// The least-squares solution `X` of `min ||A X - B||` (`A` is `m x n`, `m >= n`) by
+/// Householder QR ([`householder_in_place`]). A zero pivot (dependent columns) gives infinite or
+/// NaN entries, not an error: callers check them.
+pub(crate) fn lstsq(a: &Mat<f64>, b: &Mat<f64>) -> Mat<f64> {
+    let (m, n) = (a.nrows(), a.ncols());
+    let mut x = Mat::<f64>::zeros(n, b.ncols());
+    if n == 0 {
+        return x;
+    }
+    let mut qr = a.as_slice().to_vec();
+    let mut rhs = b.as_slice().to_vec();
+    let mut am = MatMut::from_column_major_slice_mut(&mut qr, m, n);
+    let mut bm = MatMut::from_column_major_slice_mut(&mut rhs, m, b.ncols());
+    householder_in_place(am.rb_mut(), bm.rb_mut(), &mut Vec::new());
+    solve_upper_triangular_in_place(
+        am.rb().subrows(0, n),
+        bm.rb_mut().subrows_mut(0, n),
+        Par::Seq,
+    );
+    for c in 0..b.ncols() {
+        for i in 0..n {
+            x[(i, c)] = bm[(i, c)];
+        }
+    }
+    x
+}
+
+/// The thin QR of the columns `cols` (each of one length `m >= cols.len()`): `cols` become the
+/// orthonormal `Q`, the returned `R` (row-major `c x c`, upper triangular) has `cols_in = Q R`.
+/// `None` when a column's part outside the span of the ones before it is `1e-12` of its norm
+/// or less (or not finite). Householder reflections ([`householder_in_place`]), `Q` formed by
+/// applying them to the leading columns of the identity.
+pub(crate) fn thin_qr(cols: &mut [Vec<f64>]) -> Option<Vec<f64>> {
+    let c = cols.len();
+    let m = cols.first().map_or(0, Vec::len);
+    if c == 0 || m < c {
+        return (c == 0).then(Vec::new);
+    }
+    let norms: Vec<f64> = cols
+        .iter()
+        .map(|v| v.iter().map(|x| x * x).sum::<f64>().sqrt())
+        .collect();
+    let mut a: Vec<f64> = cols.iter().flat_map(|v| v.iter().copied()).collect();
+    let mut tmp = Vec::new();
+    let mut am = MatMut::from_column_major_slice_mut(&mut a, m, c);
+    let none = MatMut::from_column_major_slice_mut(&mut [], m, 0);
+    let invs = householder_in_place(am.rb_mut(), none, &mut tmp);
+    let mut r = vec![0.0; c * c];
+    for k in 0..c {
+        let d = am[(k, k)];
+        if !(d.abs() > 1e-12 * norms[k]) || !d.is_finite() {
+            return None;
+        }
+        for j in k..c {
+            r[k * c + j] = am[(k, j)];
+        }
+    }
+    // Q = H_0 ... H_(c-1) [I; 0], the reflectors applied last to first.
+    let mut q = vec![0.0; m * c];
+    let mut qm = MatMut::from_column_major_slice_mut(&mut q, m, c);
+    for k in 0..c {
+        qm[(k, k)] = 1.0;
+    }
+    for k in (0..c).rev() {
+        let v = am.rb().col(k).subrows(k + 1, m - k - 1);
+        reflect(v, invs[k], qm.rb_mut().subrows_mut(k, m - k), &mut tmp);
+    }
+    for (j, col) in cols.iter_mut().enumerate() {
+        col.copy_from_slice(&q[j * m..(j + 1) * m]);
+    }
+    Some(r)
+}
+
+/// The Gram matrix `A^T A` (row-major `c x c`, symmetric) of the columns `cols` (each of one
+/// length), by faer's product.
+pub(crate) fn gram_of_columns(cols: &[Vec<f64>]) -> Vec<f64> {
+    let c = cols.len();
+    let m = cols.first().map_or(0, Vec::len);
+    let a: Vec<f64> = cols.iter().flat_map(|v| v.iter().copied()).collect();
+    let mut g = Mat::<f64>::zeros(c, c);
+    if c > 0 {
+        let av = view(&a, m, c);
+        let dst = MatMut::from_column_major_slice_mut(g.as_mut_slice(), c, c);
+        matmul(dst, Accum::Replace, av.transpose(), av, 1.0, Par::Seq);
+    }
+    let mut out = vec![0.0; c * c];
+    for i in 0..c {
+        for j in 0..=i {
+            out[i * c + j] = g[(i, j)];
+            out[j * c + i] = g[(i, j)];
+        }
+    }
+    out
+}
+
+/// `x := (L L^T)^-1 x` for the lower triangular `L` (row-major `c x c`, `c = x.len()`), by
+/// faer's triangular solves.
+pub(crate) fn solve_llt_row_major(l: &[f64], x: &mut [f64]) {
+    let c = x.len();
+    let lm = MatRef::from_row_major_slice(l, c, c);
+    let mut xm = MatMut::from_column_major_slice_mut(x, c, 1);
+    faer::linalg::triangular_solve::solve_lower_triangular_in_place(lm, xm.rb_mut(), Par::Seq);
+    solve_upper_triangular_in_place(lm.transpose(), xm, Par::Seq);
+}
+
+/// `x := R^-1 x` for the upper triangular `R` (row-major `c x c`, `c = x.len()`), by faer's
+/// triangular solve.
+pub(crate) fn solve_upper_row_major(r: &[f64], x: &mut [f64]) {
+    let c = x.len();
+    let rm = MatRef::from_row_major_slice(r, c, c);
+    solve_upper_triangular_in_place(rm, MatMut::from_column_major_slice_mut(x, c, 1), Par::Seq);
+}
+
+/// The solution of `A x = b` for a symmetric positive definite `A` (`n x n`, its lower
+/// triangle read) by faer's Cholesky factorisation; `None` when `A` is not positive definite.
+pub(crate) fn cholesky_solve(a: &Mat<f64>, b: &[f64]) -> Option<Vec<f64>> {
+    let llt = as_faer(a).llt(faer::Side::Lower).ok()?;
+    let mut x = faer::Mat::<f64>::from_fn(b.len(), 1, |i, _| b[i]);
+    faer::linalg::solvers::SolveCore::solve_in_place_with_conj(&llt, faer::Conj::No, x.as_mut());
+    Some((0..b.len()).map(|i| x[(i, 0)]).collect())
+}
+
+/// The solution `X` of `A X = B` for a symmetric positive definite `A` (`n x n`, its lower
+/// triangle read) by faer's Cholesky factorisation; `None` when `A` is not positive definite.
+pub(crate) fn cholesky_solve_cols(a: &Mat<f64>, b: &Mat<f64>) -> Option<Mat<f64>> {
+    let llt = as_faer(a).llt(faer::Side::Lower).ok()?;
+    let mut x = b.clone();
+    let xm = MatMut::from_column_major_slice_mut(x.as_mut_slice(), b.nrows(), b.ncols());
+    faer::linalg::solvers::SolveCore::solve_in_place_with_conj(&llt, faer::Conj::No, xm);
+    Some(x)
+}
+
+/// The lower Cholesky factor `L` (`L L^T = A`) of the symmetric `A` (`n x n`, its lower
+/// triangle read), row-major; `None` when `A` is not positive definite.
+pub(crate) fn cholesky_lower(a: &Mat<f64>) -> Option<Vec<f64>> {
+    let n = a.nrows();
+    let llt = as_faer(a).llt(faer::Side::Lower).ok()?;
+    let l = llt.L();
+    let mut out = vec![0.0; n * n];
+    for i in 0..n {
+        for j in 0..=i {
+            out[i * n + j] = l[(i, j)];
+        }
+    }
+    Some(out)
+}
+
+/// `G += A^T A` and `g += A^T b` for the rows `rows` of the column-major `m x n` matrix `a`
+/// and of `b` (one block: the second product reads it from the cache).
+pub(crate) fn gram_add(
+    gram: &mut Mat<f64>,
+    g: &mut [f64],
+    a: &Mat<f64>,
+    b: &[f64],
+    rows: std::ops::Range<usize>,
+) {
+    let n = a.ncols();
+    let block = as_faer(a).subrows(rows.start, rows.len());
+    let gram_mut = MatMut::from_column_major_slice_mut(gram.as_mut_slice(), n, n);
+    matmul(
+        gram_mut,
+        Accum::Add,
+        block.transpose(),
+        block,
+        1.0,
+        Par::Seq,
+    );
+    jt_b_add(g, a, b, rows);
+}
+
+/// `g += A^T b` for the rows `rows` of the column-major `m x n` matrix `a` and of `b`.
+pub(crate) fn jt_b_add(g: &mut [f64], a: &Mat<f64>, b: &[f64], rows: std::ops::Range<usize>) {
+    let n = a.ncols();
+    let block = as_faer(a).subrows(rows.start, rows.len());
+    let rb = view(&b[rows.clone()], rows.len(), 1);
+    let g_mut = MatMut::from_column_major_slice_mut(g, n, 1);
+    matmul(g_mut, Accum::Add, block.transpose(), rb, 1.0, Par::Seq);
+}
+
+/// `R^-1` (`n x n`, upper triangular, row-major) of the upper triangular `n x n` leading block of
+/// `r`, by faer.
+pub(crate) fn upper_inverse(r: &Mat<f64>) -> Vec<f64> {
+    let n = r.ncols();
+    let src = as_faer(r).subrows(0, n);
+    let mut inv = faer::Mat::<f64>::zeros(n, n);
+    faer::linalg::triangular_inverse::invert_upper_triangular(inv.as_mut(), src, Par::Seq);
+    let mut out = vec![0.0; n * n];
+    for i in 0..n {
+        for j in i..n {
+            out[i * n + j] = inv[(i, j)];
+        }
+    }
+    out
+}
+
+/// The solution `q` of `R^T q = g` for the upper triangular `n x n` leading block of `r`, by
+/// faer's triangular solve.
+pub(crate) fn solve_upper_transposed(r: &Mat<f64>, g: &[f64]) -> Vec<f64> {
+    let n = g.len();
+    let mut q = g.to_vec();
+    faer::linalg::triangular_solve::solve_lower_triangular_in_place(
+        as_faer(r).subrows(0, n).transpose(),
+        MatMut::from_column_major_slice_mut(&mut q, n, 1),
+        Par::Seq,
+    );
+    q
+}
+
+/// `A^T A` (`n x n`) of the column-major `m x n` matrix `a`, by faer's product.
+pub(crate) fn gram(a: &Mat<f64>) -> Mat<f64> {
+    let n = a.ncols();
+    let mut out = Mat::<f64>::zeros(n, n);
+    let dst = MatMut::from_column_major_slice_mut(out.as_mut_slice(), n, n);
+    let a = as_faer(a);
+    matmul(dst, Accum::Replace, a.transpose(), a, 1.0, Par::Seq);
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::lm::ColSlices;
+
+    /// A seeded generator of uniform numbers in [-0.5, 0.5) (a 64-bit LCG).
+    fn uniform(seed: u64) -> impl FnMut() -> f64 {
+        let mut state = seed;
+        move || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        }
+    }
+
+    /// A nearly dependent column (its part outside the span of the ones before it `1e-12` of its
+    /// norm, as two of a fit's terms can be) in a block of 8192 rows: its pivot is that part,
+    /// and the columns after it keep theirs (nalgebra's `R` the reference). faer's
+    /// `qr_in_place` would take the column for dependent and put zeros on the diagonal from
+    /// there on.
+    #[test]
+    fn a_nearly_dependent_column_keeps_its_pivot_and_the_later_ones() {
+        let mut rnd = uniform(11);
+        let (m, w) = (8192, 6);
+        let mut a = Mat::<f64>::from_fn(m, w, |_, _| rnd());
+        for i in 0..m {
+            a[(i, 3)] = a[(i, 2)] + 1e-12 * a[(i, 3)];
+        }
+        let mut buf = a.as_slice().to_vec();
+        let got = qr_r_in_place(&mut buf, m, w, &mut LstsqWork::new());
+        let want = a.clone().qr().r();
+        for j in 0..w {
+            let (g, x) = (got[(j, j)].abs(), want[(j, j)].abs());
+            // (The later pivots depend on the direction of column 3's remainder, which
+            // rounding sets to about eps / 1e-12 = 2e-4.)
+            let tol = if j < 3 { 1e-12 * x } else { 1e-3 * x };
+            assert!((g - x).abs() <= tol, "R[{j},{j}] = {g:e}, nalgebra {x:e}");
+        }
+        assert!(got[(3, 3)].abs() > 1e-13 * a.column(3).norm());
+    }
+
+    /// faer's Householder `R` ([`qr_r_in_place`]) against nalgebra's QR, up to the signs of its rows: a tall
+    /// random matrix, a wide one (fewer rows than columns), one with columns of `1e200` and
+    /// `1e-200` (whose squares over- and underflow: `R(A D) = R(A) D` for a positive diagonal
+    /// `D`, nalgebra's `R` of `A` times `D` is the reference). Then a rank-deficient one (a column
+    /// already zero below the diagonal, a zero column), whose `R` is not unique: `R^T R = A^T A`.
+    #[test]
+    fn qr_r_equals_nalgebras_qr() {
+        let mut rnd = uniform(5);
+        let cases: Vec<(Mat<f64>, Vec<f64>)> = vec![
+            (Mat::from_fn(300, 7, |_, _| rnd()), vec![1.0; 7]),
+            (Mat::from_fn(5, 9, |_, _| rnd()), vec![1.0; 9]),
+            (
+                Mat::from_fn(60, 4, |_, _| rnd()),
+                vec![1.0, 1e200, 1e-200, 1.0],
+            ),
+        ];
+        let r_of = |a: &Mat<f64>| {
+            let (rows, w) = (a.nrows(), a.ncols());
+            let mut buf: Vec<f64> = (0..w).flat_map(|j| a.col_as_slice(j).to_vec()).collect();
+            let r = qr_r_in_place(&mut buf, rows, w, &mut LstsqWork::new());
+            assert_eq!((r.nrows(), r.ncols()), (rows.min(w), w));
+            for i in 0..r.nrows() {
+                assert!((0..i).all(|j| r[(i, j)] == 0.0));
+            }
+            r
+        };
+        for (case, (b, d)) in cases.iter().enumerate() {
+            let a = Mat::<f64>::from_fn(b.nrows(), b.ncols(), |i, j| b[(i, j)] * d[j]);
+            let got = r_of(&a);
+            let want = b.clone().qr().r();
+            for i in 0..got.nrows() {
+                let sign = if want[(i, i)] * got[(i, i)] < 0.0 {
+                    -1.0
+                } else {
+                    1.0
+                };
+                for j in i..b.ncols() {
+                    let err = (sign * got[(i, j)] / d[j] - want[(i, j)]).abs();
+                    assert!(err <= 1e-13 * b.column(j).norm(), "case {case}: R[{i},{j}]");
+                }
+            }
+        }
+        let a = Mat::<f64>::from_fn(40, 4, |i, j| match j {
+            0 => f64::from(u8::from(i == 0)) * 3.0,
+            2 => 0.0,
+            _ => (i * j) as f64 % 7.0 - 3.0,
+        });
+        let got = r_of(&a);
+        for i in 0..4 {
+            for j in 0..4 {
+                let rtr: f64 = (0..=i.min(j)).map(|k| got[(k, i)] * got[(k, j)]).sum();
+                let ata: f64 = (0..40).map(|k| a[(k, i)] * a[(k, j)]).sum();
+                assert!((rtr - ata).abs() <= 1e-12 * (1.0 + ata.abs()), "G[{i},{j}]");
+            }
+        }
+    }
+}
