@@ -217,6 +217,17 @@ fn item_2_no_small_mat_file_takes_more_than_1_gb() {
         vec!["freq", "--columns", "t,u,y", four],
         vec!["sim", "--input", four, "--dt", "1e-3", "--u-col", "t"],
         vec!["time", "--quiet", "--dt", "1e-3", "--max-iter", "2", fit],
+        // the loop closed: every candidate structure and its diagnosis within the same bound
+        vec![
+            "time",
+            "--quiet",
+            "--diagnose",
+            "--dt",
+            "1e-3",
+            "--max-iter",
+            "2",
+            fit,
+        ],
     ];
     for args in &runs {
         let code = exit_within_1_gib(args);
