@@ -74,6 +74,25 @@ pub const REAL_RECORDS: [&str; 6] = [
     "slicot_robot_arm/robot_arm.csv",
 ];
 
+/// Every time-domain record in `data/` (`python/tests/test_real_records.py`'s): the six of
+/// [`REAL_RECORDS`] and the seven added after them (a low-speed PRBS, a closed speed profile,
+/// TCLab's PWM steps, the CD-player arm, two battery records and an HPPC block).
+pub const TIME_RECORDS: [&str; 13] = [
+    REAL_RECORDS[0],
+    REAL_RECORDS[1],
+    REAL_RECORDS[2],
+    REAL_RECORDS[3],
+    REAL_RECORDS[4],
+    REAL_RECORDS[5],
+    "unal_undcmotor/DCmotor_prbs_open_low.csv",
+    "unal_undcmotor/DCmotor_profile_closed_exp.csv",
+    "apm_tclab/tclab_pwm_steps.csv",
+    "slicot_cd_player_arm/cd_player_arm.csv",
+    "dmegc_battery/random_current_cycle26.csv",
+    "dmegc_battery/pulse_discharge.csv",
+    "ornl_nissan_leaf_cell/hppc_25c_pulse4.csv",
+];
+
 /// The path of a file under the repository's `data/`.
 pub fn data_path(rel: &str) -> std::path::PathBuf {
     std::path::Path::new(env!("CARGO_MANIFEST_DIR"))

@@ -410,10 +410,10 @@ def fit_time(
         ``fix`` ("NAME" or "NAME=VALUE", comma-separated), ``free``, ``start`` (dict of start
         values by parameter name), ``auto_start``, ``holdout`` (fraction held out; default 0.3),
         ``offsets`` ("initial", "mean", "none"), ``fit_offset``, ``initial`` ("auto", "estimate",
-        "rest"), ``max_iterations`` (500), ``skip``, ``max_lag`` (25), ``plain`` (True: the named
-        structure fitted once; False, or ``diagnose=True``: the loop closed, the candidate
-        structures compared and the best diagnosed, docs/design.md §6, the
-        result in ``TimeFit.diagnosis`` and the final model leading), ``margin``,
+        "rest"), ``max_iterations`` (500), ``skip``, ``max_lag`` (25), ``plain`` (False, the
+        default, or ``diagnose=True``: the loop closed, the candidate structures compared and the
+        best diagnosed, docs/design.md §6, the result in ``TimeFit.diagnosis`` and the final
+        model leading; True: the named structure fitted once, the fast path), ``margin``,
         ``min_r2``, ``max_rounds``.
 
     Returns
@@ -492,7 +492,8 @@ def time_request(structure: Union[str, FracTf, None] = None, **options: object) 
     request: Dict[str, object] = {}
     options = dict(options)
     if "diagnose" in options and "plain" not in options:
-        # ``diagnose=True`` closes the loop (``plain=False``); the default is the single fit.
+        # ``diagnose=True`` names the default, the loop closed (``plain=False``);
+        # ``diagnose=False`` the single fit.
         diagnosed = options.pop("diagnose")
         if diagnosed is not None:
             options["plain"] = not diagnosed

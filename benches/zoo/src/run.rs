@@ -146,7 +146,7 @@ pub fn fleet_args(cases_dir: &Path, reports: &Path, jobs: usize, diagnose: bool)
         "--jobs".into(),
         jobs.to_string(),
     ];
-    // The single fit of the named structure (fracid's default), or the loop closed.
+    // The single fit of the named structure, or the loop closed (fracid's default), each asked for.
     args.push(if diagnose { "--diagnose" } else { "--plain" }.into());
     args
 }

@@ -135,12 +135,22 @@ fn stdout_failure_exits_3() {
 /// sensitivities). glibc's default maps each one fresh from the kernel and returns it on free, so
 /// every iteration pays a page fault per 4 KiB written (a fifth of a 1e6-sample fit's time):
 /// blocks up to 32 MiB come from the heap instead, and freed memory stays there to be reused.
+/// Each heap (arena) keeps what it freed, and glibc gives each new thread one of up to 8 per core:
+/// the closed loop's threads (a candidate structure's fit, a diagnosis, each on its own) held as
+/// many heaps of freed buffers, 1.27 GB resident on a 1e6-sample record and past a 1 GiB address
+/// space (reliability round 2, item 2). One heap per core: the threads running at once (the
+/// structure comparison runs one task per core) each have their own, and the freed memory is
+/// reused across tasks instead of kept per thread.
 fn keep_freed_memory() {
     #[cfg(all(target_os = "linux", target_env = "gnu"))]
-    // SAFETY: mallopt only sets allocator parameters; called at start-up before any thread.
-    unsafe {
-        libc::mallopt(libc::M_MMAP_THRESHOLD, 32 << 20);
-        libc::mallopt(libc::M_TRIM_THRESHOLD, 1 << 30);
+    {
+        let cores = std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get);
+        // SAFETY: mallopt only sets allocator parameters; called at start-up before any thread.
+        unsafe {
+            libc::mallopt(libc::M_MMAP_THRESHOLD, 32 << 20);
+            libc::mallopt(libc::M_TRIM_THRESHOLD, 1 << 30);
+            libc::mallopt(libc::M_ARENA_MAX, cores.clamp(1, 64) as libc::c_int);
+        }
     }
 }
 

@@ -80,7 +80,8 @@ pub mod structures;
 
 use crate::data::Record;
 use crate::metrics::Fit;
-use crate::oe::{fit, Bounds, FitOptions, FracModel, Identification, Structure};
+use crate::oe::fit_in_unit;
+use crate::oe::{Bounds, FitOptions, FracModel, Identification, Structure};
 use crate::{Error, Result};
 use probes::{Candidate, Findings, Look, Probe};
 use residual::{analyse, ResidualAnalysis};
@@ -393,11 +394,12 @@ impl Ctx<'_> {
     /// Fit `model` from its values as they are on the estimation part with `opts`.
     fn fit_from(&self, mut model: FracModel, opts: &FitOptions) -> Result<State> {
         let s = self.split;
-        let rep = fit(&model, &self.u[..s], &self.y[..s], self.dt, opts)?;
-        for (p, v) in model.params.iter_mut().zip(&rep.values) {
+        // in a time unit the refit does not depend on, as the base fit ([`crate::oe::identify`])
+        let values = fit_in_unit(&model, &self.u[..s], &self.y[..s], self.dt, opts)?;
+        for (p, v) in model.params.iter_mut().zip(&values) {
             p.value = *v;
         }
-        self.state(model, rep.values)
+        self.state(model, values)
     }
 }
 

@@ -42,6 +42,7 @@ mod score;
 pub(crate) use checks::levels_at_bound;
 pub use checks::{Validation, ValidationKind};
 pub use effects::Effect;
+pub(crate) use fit::fit_in_unit;
 pub use fit::{
     check_params, fit, fit_with_progress, identify, identify_with_progress, past_edges,
     sensitivities, FitOptions, FitReport, IdentOptions, Identification, InitialReport,

@@ -150,12 +150,14 @@ pub struct TimeArgs {
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
-    /// Fit the named structure alone, once (no structures compared, no diagnosis): the default.
+    /// Fit the named structure alone, once (no structures compared, no diagnosis): the fast
+    /// path for fleets of records already understood. Without it (the default) the candidate
+    /// structures are compared, the best is diagnosed (the effects that pay on held-out data
+    /// kept, docs/design.md §6) and the report leads with that model; with --plot the residual
+    /// before and after is drawn to PLOT_diagnosis.EXT.
     #[arg(long)]
     pub plain: bool,
-    /// Close the loop: the candidate structures are compared, the best is diagnosed (the
-    /// effects that pay on held-out data kept, docs/design.md §6) and the report leads with that
-    /// model; with --plot the residual before and after is drawn to PLOT_diagnosis.EXT.
+    /// The default (the loop closed), named: kept so that scripts that ask for it run.
     #[arg(long, conflicts_with = "plain")]
     pub diagnose: bool,
     /// Fleet mode (many files at once): see `fracid::cmd::fleet`.
@@ -222,7 +224,7 @@ pub(crate) fn request(a: &TimeArgs) -> Result<TimeRequest> {
         max_iterations: a.max_iter,
         skip: a.skip,
         max_lag: a.max_lag,
-        plain: !a.diagnose,
+        plain: a.plain,
         margin: a.margin,
         min_r2: a.min_r2,
         max_rounds: a.max_rounds,
@@ -358,7 +360,7 @@ fn check_paths(a: &TimeArgs) -> Result<()> {
     let mut inputs = vec![("the record", a.file.as_path())];
     inputs.extend(a.validate.iter().map(|p| ("--validate", p.as_path())));
     inputs.extend(a.joint.iter().map(|p| ("--joint", p.as_path())));
-    super::paths::check_plots(&inputs, a.plot.as_deref(), a.diagnose && a.joint.is_empty())
+    super::paths::check_plots(&inputs, a.plot.as_deref(), !a.plain && a.joint.is_empty())
 }
 
 /// The report as text (what `fracid time` prints): the base fit, the scores on a validation

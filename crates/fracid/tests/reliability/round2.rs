@@ -26,19 +26,34 @@ fn constant_output(dir: &tempfile::TempDir, a: &Path) -> std::path::PathBuf {
     write(dir, "const.csv", &out)
 }
 
+/// With the single fit and with the loop closed (`--diagnose`: a candidate structure fitted the
+/// constant output exactly, RMSE 0, and was usable by every other rule, so the loop exited 0;
+/// now no model of an output that does not vary is usable, `oe::checks`).
 #[test]
 fn item_1_the_fleet_fails_an_unusable_fit_as_the_single_file_run_does() {
+    for path in ["--plain", "--diagnose"] {
+        fleet_fails_an_unusable_fit(path);
+    }
+}
+
+fn fleet_fails_an_unusable_fit(path: &str) {
     let dir = tempfile::tempdir().unwrap();
     let recs = tempfile::tempdir().unwrap();
     let a = a_csv(&recs);
     let c = constant_output(&recs, &a);
-    let single = fracid(&["time", "--quiet", c.to_str().unwrap()]);
-    assert_eq!(single.status.code(), Some(1), "{}", stderr(&single));
-    assert!(stderr(&single).contains("not usable"));
+    let single = fracid(&["time", "--quiet", path, c.to_str().unwrap()]);
+    assert_eq!(single.status.code(), Some(1), "{path}: {}", stderr(&single));
+    assert!(stderr(&single).contains("not usable"), "{path}");
+    assert!(
+        stderr(&single).contains("the output does not vary"),
+        "{path}: {}",
+        stderr(&single)
+    );
     let out = dir.path().join("out");
     let o = fracid(&[
         "time",
         "--quiet",
+        path,
         recs.path().to_str().unwrap(),
         "--out",
         out.to_str().unwrap(),
@@ -190,6 +205,17 @@ fn item_2_no_small_mat_file_takes_more_than_1_gb() {
         vec!["freq", "--columns", "t,u,y", four],
         vec!["sim", "--input", four, "--dt", "1e-3", "--u-col", "t"],
         vec!["time", "--quiet", "--dt", "1e-3", "--max-iter", "2", fit],
+        // the loop closed: every candidate structure and its diagnosis within the same bound
+        vec![
+            "time",
+            "--quiet",
+            "--diagnose",
+            "--dt",
+            "1e-3",
+            "--max-iter",
+            "2",
+            fit,
+        ],
     ];
     for args in &runs {
         let code = exit_within_1_gib(args);

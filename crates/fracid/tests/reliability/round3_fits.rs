@@ -39,7 +39,7 @@ fn item_13_the_fit_does_not_depend_on_the_time_unit() {
     let dir = tempfile::tempdir().unwrap();
     let fit = |c: f64| {
         let p = unal_in_units(&dir, c);
-        let o = fracid(&["time", p.to_str().unwrap(), "--json", "--quiet"]);
+        let o = fracid(&["time", p.to_str().unwrap(), "--json", "--quiet", "--plain"]);
         assert_eq!(o.status.code(), Some(0), "{c:e}: {}", stderr(&o));
         json(&o)
     };
@@ -77,6 +77,87 @@ fn item_13_the_fit_does_not_depend_on_the_time_unit() {
         );
     }
 }
+/// The recommended model of a report, `(coefficient, order)` of each numerator and denominator
+/// term and the delay (seconds of the record's unit).
+type Terms = (Vec<(f64, f64)>, Vec<(f64, f64)>, f64);
+
+fn terms(v: &serde_json::Value) -> Terms {
+    let side = |k: &str| {
+        v["model"][k]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|t| (t["coef"].as_f64().unwrap(), t["order"].as_f64().unwrap()))
+            .collect()
+    };
+    (
+        side("num"),
+        side("den"),
+        v["model"]["delay"].as_f64().unwrap_or(0.0),
+    )
+}
+
+/// `G(j w)` of [`Terms`] without its delay.
+fn response(t: &Terms, w: f64) -> num_complex::Complex64 {
+    let sum = |side: &[(f64, f64)]| {
+        side.iter()
+            .map(|&(a, q)| a * num_complex::Complex64::new(0.0, w).powf(q))
+            .sum::<num_complex::Complex64>()
+    };
+    sum(&t.0) / sum(&t.1)
+}
+
+/// Item 13 with the loop closed (`--diagnose`): the structure comparison and the diagnosis's
+/// refits are in a time unit they do not depend on as the base fits are, so the UNAL PRBS
+/// record in units of 1e-4 s and of 1e4 s ends on the seconds' choice (the same structure and
+/// effects), with the seconds' figures, and its model is the seconds' model in that unit
+/// (`G_c(j w / c) = G(j w)`, the delay times `c`). Before, the refits ran in the record's unit.
+#[test]
+fn item_13_the_closed_loop_does_not_depend_on_the_time_unit() {
+    let dir = tempfile::tempdir().unwrap();
+    let fit = |c: f64| {
+        let p = unal_in_units(&dir, c);
+        let o = fracid(&[
+            "time",
+            p.to_str().unwrap(),
+            "--json",
+            "--quiet",
+            "--diagnose",
+        ]);
+        assert_eq!(o.status.code(), Some(0), "{c:e}: {}", stderr(&o));
+        json(&o)
+    };
+    let pct = |v: &serde_json::Value, part: &str| v["fit"][part]["nrmse_percent"].as_f64().unwrap();
+    let seconds = fit(1.0);
+    let st = terms(&seconds);
+    for c in [1e-4, 1e4] {
+        let v = fit(c);
+        assert_eq!(v["model_is"], seconds["model_is"], "time x {c:e}");
+        for part in ["estimation", "validation"] {
+            assert!(
+                (pct(&v, part) - pct(&seconds, part)).abs() < 1e-2,
+                "time x {c:e}, {part}: {} against {} in seconds",
+                pct(&v, part),
+                pct(&seconds, part)
+            );
+        }
+        let t = terms(&v);
+        assert!(
+            (t.2 / c - st.2).abs() <= 1e-3 * st.2.max(1e-12 * c),
+            "delay {} vs {}",
+            t.2,
+            st.2
+        );
+        for w in [0.3, 3.0, 30.0] {
+            let (a, b) = (response(&st, w), response(&t, w / c));
+            assert!(
+                (a - b).norm() <= 1e-2 * a.norm(),
+                "time x {c:e}, w {w}: {a} against {b}"
+            );
+        }
+    }
+}
+
 /// Item 14: an output exactly 3 times the input. The fit is a static gain with orders
 /// the data do not determine; a drive engineer asking for the plant's dynamics is told that the
 /// record shows none, and the gain (exit 1; on main: `usable: true`, orders 0.004 and 0.039
@@ -98,12 +179,17 @@ fn item_14_a_static_gain_says_so_and_exits_1() {
     }
     let p = dir.path().join("gain.csv");
     std::fs::write(&p, text).unwrap();
-    let o = fracid(&["time", p.to_str().unwrap(), "--json", "--quiet"]);
-    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
-    let v = json(&o);
-    let problems = v["problems"].to_string();
-    assert!(
-        problems.contains("no dynamics") && problems.contains("static gain G(0) = 3.0000e0"),
-        "{problems}"
-    );
+    // the loop closed too: a first order whose fit stalled 1e15 times above the static gain's
+    // kept friction and ran its time constant to 0 (an improper final model); the structures
+    // far better than every usable one are now compared (structures::far_better)
+    for path in ["--plain", "--diagnose"] {
+        let o = fracid(&["time", p.to_str().unwrap(), "--json", "--quiet", path]);
+        assert_eq!(o.status.code(), Some(1), "{path}: {}", stderr(&o));
+        let v = json(&o);
+        let problems = v["problems"].to_string();
+        assert!(
+            problems.contains("no dynamics") && problems.contains("static gain G(0) = 3.0000e0"),
+            "{path}: {problems}"
+        );
+    }
 }

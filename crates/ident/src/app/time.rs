@@ -116,7 +116,7 @@ impl Default for TimeRequest {
             max_iterations: 500,
             skip: 0,
             max_lag: 25,
-            plain: true,
+            plain: false,
             margin: d.margin,
             min_r2: d.min_r2,
             max_rounds: d.max_rounds,

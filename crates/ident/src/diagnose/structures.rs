@@ -16,7 +16,8 @@
 //! ([`FracModel::feedthrough`]). Each is
 //! identified with the same options ([`crate::oe::identify`]: automatic start, initial state,
 //! offsets) and diagnosed ([`super::diagnose`]); the candidates run on all cores. Rule: among the
-//! final models whose base fit is usable ([`Identification::usable`]; all of them when none is),
+//! final models whose base fit is usable ([`Identification::usable`]; all of them when none is;
+//! and those not usable but more than [`FAR`] times better than every usable one, [`far_better`]),
 //! those whose held-out RMSE (estimation RMSE without a held-out part) is within [`TIE`] of the
 //! best are ties, and the tie with the lowest BIC `N ln(SSR/N) + k ln N` on the estimation part
 //! wins (`k` free parameters, the effects' included): the simpler model unless the richer one
@@ -408,6 +409,16 @@ impl Shared {
         Some(Turn(self))
     }
 
+    /// A place among the [`Shared::at_once`] tasks running at a time (screening fits, the user's
+    /// fit, early diagnoses), waited for; given back when dropped.
+    fn place(&self) -> Turn<'_> {
+        let mut p = self.wait_until(|p| p.running < self.at_once);
+        p.running += 1;
+        drop(p);
+        self.changed.notify_all();
+        Turn(self)
+    }
+
     /// The user's fit ended (`rmse`: its held-out RMSE when usable, `None` when it failed): its
     /// core is given back.
     fn user_ended(&self, rmse: Option<Option<f64>>) {
@@ -471,6 +482,11 @@ impl Shared {
         };
         let halt = |round, rmse| board.halt(i, round, rmse);
         let mut cache = cache.clone().unwrap_or_default();
+        // One of the cores' places, as a screening fit: a diagnosis of a long record holds its
+        // residual's sensitivities and its refits' Jacobians (about a plain fit's memory each),
+        // so that all of them at once went past 1 GB on a 1e6-sample record (reliability round
+        // 2, item 2); at most one per core, their results the same whenever they run.
+        let _place = self.place();
         let d = std::thread::scope(|scope| {
             scope
                 .spawn(|| cache.enter(|| super::diagnose_until(rec, id, dopts, &stop, &halt)))
@@ -607,7 +623,8 @@ fn settle(
         let reference = shared.reference();
         match fitted {
             (Ok(id), cache)
-                if base_rmse(&id) > FAR * reference || reference.is_finite() && !id.usable() =>
+                if base_rmse(&id) > FAR * reference
+                    || !far_better(id.usable(), base_rmse(&id), reference) =>
             {
                 ((Ok(id), cache), true, None)
             }
@@ -669,8 +686,12 @@ fn diagnosis_order(ids: &[Result<Identification>], out: &[usize]) -> (Vec<usize>
             .filter(|(i, _)| !out.contains(i))
             .filter_map(|(_, id)| id.as_ref().ok())
     };
-    let any_usable = fits().any(|id| id.problems.is_empty());
-    let in_pool = |id: &Identification| !any_usable || id.problems.is_empty();
+    let best_usable = fits()
+        .filter(|id| id.problems.is_empty())
+        .map(base)
+        .filter(|r| r.is_finite())
+        .fold(f64::INFINITY, f64::min);
+    let in_pool = |id: &Identification| far_better(id.problems.is_empty(), base(id), best_usable);
     let best = fits()
         .filter(|id| in_pool(id))
         .map(base)
@@ -899,18 +920,35 @@ fn integer_gain(
     )
 }
 
+/// Whether a structure with held-out RMSE `rmse` (its base fit `usable` or not) is among those the
+/// comparison chooses from, `best_usable` the best usable one's RMSE (infinite when none is): a
+/// usable one, or one whose base fit is not usable but more than [`FAR`] times better than every
+/// usable one. Such a fit says that the usable structures do not describe these data (a static
+/// gain that fits the record to its last digit, while a first order's fit stalls 1e15 times
+/// higher): the comparison then ends on it, and its final model's verdict says what is wrong
+/// with it (no dynamics, terms not determined), rather than on a usable model the data refute.
+fn far_better(usable: bool, rmse: f64, best_usable: f64) -> bool {
+    usable || !best_usable.is_finite() || FAR * rmse < best_usable
+}
+
 /// The index chosen by the rule of the module documentation, or `None` when no candidate has a
 /// final model.
 fn decide(scores: &[StructureScore]) -> Option<(usize, f64)> {
     let finals: Vec<usize> = (0..scores.len())
         .filter(|&i| scores[i].rmse_after.is_some_and(f64::is_finite))
         .collect();
-    let usable: Vec<usize> = finals
+    let best_usable = finals
         .iter()
-        .copied()
-        .filter(|&i| scores[i].problems.is_empty())
+        .filter(|&&i| scores[i].problems.is_empty())
+        .filter_map(|&i| scores[i].rmse_after)
+        .fold(f64::INFINITY, f64::min);
+    let pool: Vec<usize> = finals
+        .into_iter()
+        .filter(|&i| {
+            let r = scores[i].rmse_after.unwrap_or(f64::INFINITY);
+            far_better(scores[i].problems.is_empty(), r, best_usable)
+        })
         .collect();
-    let pool = if usable.is_empty() { finals } else { usable };
     let best = pool
         .iter()
         .filter_map(|&i| scores[i].rmse_after)

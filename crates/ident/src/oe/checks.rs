@@ -327,6 +327,21 @@ fn worse_than_the_mean_held_out(ev: &Evidence<'_>) -> Option<String> {
     })
 }
 
+/// An output that does not vary at all over the record (its spread zero, so the NRMSE
+/// `100 (1 - ||y - yhat|| / ||y - mean(y)||)` says nothing: 100% for an exact fit, `-inf`
+/// otherwise): the record holds no response to identify, and any model, whatever its RMSE, says
+/// nothing about the plant (a sensor not connected, the wrong column). Every model is judged by
+/// this rule, the plain fit, each candidate structure and a diagnosis's final model alike (a
+/// candidate that fitted a constant output exactly, RMSE 0, was usable by every other rule).
+fn no_output_spread(sy: f64) -> Option<String> {
+    (sy == 0.0).then(|| {
+        "the output does not vary over the record (its spread is 0): there is no response to \
+         identify, and no model's fit of it says anything about the plant (check that the \
+         output column is the plant's measured output)"
+            .to_string()
+    })
+}
+
 /// Whether the model integrates by design (a denominator with no order-zero term).
 fn integrates(m: &FracModel, p: &[f64]) -> bool {
     !m.den
@@ -614,6 +629,7 @@ pub(crate) fn assess_evidence(ev: &Evidence<'_>, rec: &Record) -> (Vec<String>, 
         None => problems.extend(never_moved(ev)),
     }
     problems.extend(static_gain_only(ev, rec));
+    problems.extend(no_output_spread(sy));
     problems.extend(worse_than_the_mean_held_out(ev));
     let (converged, why, iterations) = ev.converged;
     if !converged && !ev.evaluated {

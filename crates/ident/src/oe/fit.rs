@@ -16,6 +16,7 @@ use std::time::{Duration, Instant};
 
 mod held;
 mod timescale;
+pub(crate) use timescale::fit_in_unit;
 mod varpro;
 
 /// Options of [`fit`].

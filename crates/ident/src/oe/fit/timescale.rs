@@ -34,11 +34,17 @@ impl TimeScale {
     /// an initial state already in the model, a coefficient that is not one parameter (a product
     /// multiplied out), or no denominator term of fixed coefficient and order to normalise by.
     pub(super) fn of(rec: &Record, m: &FracModel) -> Option<Self> {
-        let dt = rec.dt;
-        if (MIN_DT..=MAX_DT).contains(&dt) || !(dt.is_finite() && dt > 0.0) {
+        if !m.effects.is_empty() || m.past.is_some() {
             return None;
         }
-        if !m.effects.is_empty() || m.past.is_some() {
+        Self::with_effects(rec.dt, m)
+    }
+
+    /// [`TimeScale::of`] for a model that may carry effects and an initial state (a diagnosis's
+    /// refit, [`fit_in_unit`]): a sinusoid's frequency and the past input's window edges are
+    /// converted with the rest ([`TimeScale::model`]); the other effects are amplitudes.
+    fn with_effects(dt: f64, m: &FracModel) -> Option<Self> {
+        if (MIN_DT..=MAX_DT).contains(&dt) || !(dt.is_finite() && dt > 0.0) {
             return None;
         }
         let single = |e: &super::super::Expr| {
@@ -117,8 +123,53 @@ impl TimeScale {
             let k = self.c.powf(-dir);
             out.approx.band = Some((lo * k, hi * k));
         }
+        for e in &mut out.effects {
+            if let super::super::Effect::Sinusoid { freq_hz, .. } = e {
+                *freq_hz *= self.c.powf(-dir);
+            }
+        }
+        if let Some(past) = &mut out.past {
+            past.edges.iter_mut().for_each(|t| *t *= self.c.powf(dir));
+        }
         out
     }
+}
+
+/// The output-error fit ([`super::fit`]) of `m` on `u`, `y` sampled every `dt` in a time unit
+/// the fit does not depend on: when `dt` is outside `[MIN_DT, MAX_DT]` the model (its effects
+/// and initial state too) is converted to the unit [`TimeScale::of`] would choose, fitted there,
+/// and its values converted back (each within its range); else the fit as it is. The fitted
+/// values, in the record's unit. The diagnosis's refits go through it, so that a record's time
+/// unit changes none of its decisions (issue 46, item 13, for the loop closed as for the plain fit).
+///
+/// # Errors
+/// As [`super::fit`].
+pub(crate) fn fit_in_unit(
+    m: &FracModel,
+    u: &[f64],
+    y: &[f64],
+    dt: f64,
+    opts: &super::FitOptions,
+) -> crate::Result<Vec<f64>> {
+    let Some(ts) = TimeScale::with_effects(dt, m) else {
+        return Ok(super::fit(m, u, y, dt, opts)?.values);
+    };
+    let mut there = ts.model(m, 1.0);
+    let rep = super::fit(&there, u, y, dt * ts.c, opts)?;
+    for (p, v) in there.params.iter_mut().zip(&rep.values) {
+        p.value = *v;
+    }
+    let back = ts.model(&there, -1.0);
+    Ok(back
+        .params
+        .iter()
+        .zip(&m.params)
+        .map(|(b, p)| match p.bounds {
+            // the factor of a coefficient moves with the fitted orders: keep its range
+            Bounds::Interval(lo, hi) => b.value.clamp(lo, hi),
+            _ => b.value,
+        })
+        .collect())
 }
 
 #[cfg(test)]
