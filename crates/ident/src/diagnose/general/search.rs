@@ -9,10 +9,10 @@
 //! the same split), so the held-out part stays unseen by the start as by the fit.
 
 use super::start::{self, calls_for_integrator};
-use super::{GeneralRequest, GeneralStart};
+use super::{Budget, GeneralRequest, GeneralStart};
 use crate::data::Record;
 use crate::diagnose::structures::{StructureChoice, StructureScore, TIE};
-use crate::oe::{identify, FracModel, IdentOptions, Identification, StartMode};
+use crate::oe::{identify, FracModel, IdentOptions, Identification, InitialState, StartMode};
 use crate::{Error, Result};
 
 /// The most sizes fitted by output error.
@@ -46,8 +46,32 @@ fn estimation_part(rec: &Record, opts: &IdentOptions) -> Result<(Vec<f64>, Vec<f
     Ok((u, y))
 }
 
+/// The parameter budget of the general structure on `rec` ([`Budget`]): the free parameters the
+/// fit adds beside the structure are the output offset (`opts.fit_offset`), with an integrator
+/// an input offset as well, the initial state's levels when it is estimated
+/// ([`crate::oe::past_edges`]), a free order, and the template's own free delay.
+fn budget(
+    rec: &Record,
+    template: &FracModel,
+    opts: &IdentOptions,
+    req: &GeneralRequest,
+    samples: usize,
+) -> Budget {
+    let levels = match opts.initial.resolve(rec, opts.offsets) {
+        InitialState::Estimate => crate::oe::past_edges(samples as f64 * rec.dt).len() + 1,
+        _ => 0,
+    };
+    let delay = template
+        .delay
+        .is_some_and(|i| template.params[i].free);
+    let extras = usize::from(opts.fit_offset) + levels + usize::from(req.free_q) + usize::from(delay);
+    Budget::new(samples, extras, extras + usize::from(opts.fit_offset))
+}
+
 /// The ranked starts of the general structure on `rec` for `req`, `template` giving the
-/// integrator when the user asked for one.
+/// integrator when the user asked for one and the delay when it has one (else the delay is
+/// searched on the response, [`start::ranked_delayed`]); sizes within the record's
+/// [`budget`].
 fn starts(
     rec: &Record,
     template: &FracModel,
@@ -62,11 +86,21 @@ fn starts(
         None if calls_for_integrator(&frf) => vec![false, true],
         None => vec![false],
     };
-    Ok((start::ranked(&frf, req.size, &integrators)?, how))
+    let budget = budget(rec, template, opts, req, u.len());
+    let search = template.delay.is_none();
+    let ranked =
+        start::ranked_delayed(&frf, rec.dt, req.size, &integrators, budget, search)?;
+    Ok((ranked, how))
 }
 
-/// The start's structure with the template's approximation and delay.
-fn structure(s: &GeneralStart, template: &FracModel, req: &GeneralRequest) -> FracModel {
+/// The start's structure with the template's approximation and delay, or the delay found on
+/// the response (free, from its whole-sample value, within `(0, (2 d + 1) dt)`).
+fn structure(
+    s: &GeneralStart,
+    template: &FracModel,
+    req: &GeneralRequest,
+    dt: f64,
+) -> FracModel {
     let mut m = s.model(req.free_q);
     m.approx = template.approx;
     if let Some(i) = template.delay {
@@ -77,6 +111,9 @@ fn structure(s: &GeneralStart, template: &FracModel, req: &GeneralRequest) -> Fr
         if let Some(j) = m.delay {
             m.params[j].free = p.free;
         }
+    } else if s.delay_samples > 0 {
+        let d = s.delay_samples as f64;
+        m.with_delay(d * dt, (2.0 * d + 1.0) * dt);
     }
     m
 }
@@ -103,7 +140,7 @@ pub fn fit(
     let short: Vec<(GeneralStart, FracModel)> = shortlist(ranked)
         .into_iter()
         .map(|s| {
-            let m = structure(&s, template, req);
+            let m = structure(&s, template, req, rec.dt);
             (s, m)
         })
         .collect();
@@ -206,7 +243,7 @@ pub fn candidate(
     let req = GeneralRequest::default();
     let (ranked, _) = starts(rec, template, opts, &req).ok()?;
     let s = ranked.first()?;
-    let mut m = structure(s, template, &req);
+    let mut m = structure(s, template, &req, rec.dt);
     m.approx = template.approx;
     Some((s.name(), m))
 }
