@@ -49,11 +49,13 @@ pub const MAX_FREE: usize = 16;
 /// fewer than 10 per parameter, [`crate::oe::identify`]).
 pub const SAMPLES_PER_PARAM: usize = 10;
 
-/// How many coefficients (plus a searched delay) a size may have: the free parameters
-/// `min(`[`MAX_FREE`]`, estimation samples / `[`SAMPLES_PER_PARAM`]`)` less those the fit adds
-/// beside the structure (the output offset, an integrator's input offset, the initial state's
-/// levels, a free order `q`, the template's own delay), so that no size is proposed that the
-/// record cannot determine and the search never ends in a refusal where a smaller size fits.
+/// How many coefficients (plus a searched delay) a size may have: at most [`MAX_FREE`] free
+/// parameters in all, those the fit adds beside the structure included (the output offset, an
+/// integrator's input offset, the initial state's levels, a free order `q`, the template's own
+/// delay), and at least [`SAMPLES_PER_PARAM`] estimation samples for each parameter the fit
+/// counts when it checks the record's length ([`crate::oe::identify`]: the structure's, the
+/// output offset), so that no size is proposed that the fit would refuse or the record cannot
+/// determine, and the search never ends in a refusal where a smaller size fits.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Budget {
     /// Free parameters of a size without an integrator: `b_0 .. b_num`, `a_1 .. a_den`, a
@@ -70,13 +72,14 @@ impl Budget {
         integrator: usize::MAX,
     };
 
-    /// The budget of an estimation part of `samples` samples with `extras` free parameters
-    /// beside the structure (`integrator_extras` with a free integrator).
-    pub fn new(samples: usize, extras: usize, integrator_extras: usize) -> Budget {
-        let free = MAX_FREE.min(samples / SAMPLES_PER_PARAM);
+    /// The budget of an estimation part of `samples` samples with `beside` free parameters
+    /// beside the structure (`beside_integrator` with a free integrator), `counted` of them
+    /// counted by the fit's length check.
+    pub fn new(samples: usize, beside: usize, beside_integrator: usize, counted: usize) -> Budget {
+        let by_samples = (samples / SAMPLES_PER_PARAM).saturating_sub(counted);
         Budget {
-            plain: free.saturating_sub(extras),
-            integrator: free.saturating_sub(integrator_extras),
+            plain: MAX_FREE.saturating_sub(beside).min(by_samples),
+            integrator: MAX_FREE.saturating_sub(beside_integrator).min(by_samples),
         }
     }
 
@@ -210,7 +213,11 @@ impl GeneralStart {
             format!(" q={:.3}", self.q)
         };
         let i = if self.integrator { " + integrator" } else { "" };
-        let d = if self.delay_samples > 0 { " + delay" } else { "" };
+        let d = if self.delay_samples > 0 {
+            " + delay"
+        } else {
+            ""
+        };
         format!("general {}{q}{i}{d}", self.size)
     }
 

@@ -1033,7 +1033,9 @@ pub fn diagnose_best_fitting(
         },
         diagnosis,
     };
-    Ok(super::general::hook::consider(rec, model, opts, dopts, named))
+    Ok(super::general::hook::consider(
+        rec, model, opts, dopts, named,
+    ))
 }
 
 /// The fit options of the candidate structures other than the user's: `opts` with the refits'

@@ -17,9 +17,7 @@
 
 use super::{fit, GeneralRequest};
 use crate::data::Record;
-use crate::diagnose::structures::{
-    decide, score_of, Diagnosed, Outcome, StructureScore, BEHIND,
-};
+use crate::diagnose::structures::{decide, score_of, Diagnosed, Outcome, StructureScore, BEHIND};
 use crate::diagnose::{diagnose, DiagnoseOptions};
 use crate::oe::{FracModel, IdentOptions, Kind};
 use fracsim::modal::RootsCache;

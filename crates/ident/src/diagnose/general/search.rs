@@ -61,11 +61,15 @@ fn budget(
         InitialState::Estimate => crate::oe::past_edges(samples as f64 * rec.dt).len() + 1,
         _ => 0,
     };
-    let delay = template
-        .delay
-        .is_some_and(|i| template.params[i].free);
-    let extras = usize::from(opts.fit_offset) + levels + usize::from(req.free_q) + usize::from(delay);
-    Budget::new(samples, extras, extras + usize::from(opts.fit_offset))
+    let delay = template.delay.is_some_and(|i| template.params[i].free);
+    let counted = usize::from(opts.fit_offset) + usize::from(req.free_q) + usize::from(delay);
+    let beside = counted + levels;
+    Budget::new(
+        samples,
+        beside,
+        beside + usize::from(opts.fit_offset),
+        counted,
+    )
 }
 
 /// The ranked starts of the general structure on `rec` for `req`, `template` giving the
@@ -88,19 +92,13 @@ fn starts(
     };
     let budget = budget(rec, template, opts, req, u.len());
     let search = template.delay.is_none();
-    let ranked =
-        start::ranked_delayed(&frf, rec.dt, req.size, &integrators, budget, search)?;
+    let ranked = start::ranked_delayed(&frf, rec.dt, req.size, &integrators, budget, search)?;
     Ok((ranked, how))
 }
 
 /// The start's structure with the template's approximation and delay, or the delay found on
 /// the response (free, from its whole-sample value, within `(0, (2 d + 1) dt)`).
-fn structure(
-    s: &GeneralStart,
-    template: &FracModel,
-    req: &GeneralRequest,
-    dt: f64,
-) -> FracModel {
+fn structure(s: &GeneralStart, template: &FracModel, req: &GeneralRequest, dt: f64) -> FracModel {
     let mut m = s.model(req.free_q);
     m.approx = template.approx;
     if let Some(i) = template.delay {
@@ -194,11 +192,12 @@ pub fn fit(
 }
 
 /// The starts fitted by output error, from the `ranked` ones (best criterion first): the
-/// [`SHORTLIST`]` / 2` best by the criterion, then the smallest ones (fewest coefficients, the
-/// better criterion first among equals) whose error on the response is within
-/// [`SMALL_ENOUGH`] times the best one's, up to [`SHORTLIST`] in all. The criterion's weights
-/// are estimated, so it may favour a size larger than the plant's; the smaller sizes then
-/// compete on held-out data.
+/// [`SHORTLIST`]` / 2` best by the criterion, then the small ones: for each bound of
+/// [`SMALL_COEFFICIENTS`] in turn, the best by the criterion with at most that many
+/// coefficients, not yet picked, whose error on the response is within [`SMALL_ENOUGH`] times
+/// the best one's (or [`SMALL_FLOOR`]'s), up to [`SHORTLIST`] in all. The criterion's weights
+/// are estimated (or, on an ARX model's response, absent), so it may favour a size larger than
+/// the plant's; the smaller sizes then compete on held-out data.
 fn shortlist(ranked: Vec<GeneralStart>) -> Vec<GeneralStart> {
     let best_err = ranked
         .iter()
@@ -206,29 +205,34 @@ fn shortlist(ranked: Vec<GeneralStart>) -> Vec<GeneralStart> {
         .map(|s| s.frf_error)
         .fold(f64::INFINITY, f64::min);
     let coefs = |s: &GeneralStart| s.b.len() + s.a.len() + usize::from(s.q != 1.0);
-    let mut small: Vec<&GeneralStart> = ranked
-        .iter()
-        .skip(SHORTLIST / 2)
-        .filter(|s| s.frf_error <= SMALL_ENOUGH * best_err)
-        .collect();
-    small.sort_by(|a, b| {
-        coefs(a)
-            .cmp(&coefs(b))
-            .then(a.criterion.total_cmp(&b.criterion))
-    });
-    let picks: Vec<GeneralStart> = small
-        .into_iter()
-        .take(SHORTLIST - SHORTLIST / 2)
-        .cloned()
-        .collect();
-    let mut out: Vec<GeneralStart> = ranked.into_iter().take(SHORTLIST / 2).collect();
-    out.extend(picks);
-    out
+    let near = |s: &GeneralStart| s.frf_error <= SMALL_ENOUGH * best_err.max(SMALL_FLOOR);
+    let mut picked: Vec<usize> = (0..ranked.len().min(SHORTLIST / 2)).collect();
+    for bound in SMALL_COEFFICIENTS {
+        if picked.len() >= SHORTLIST {
+            break;
+        }
+        // `ranked` is in the criterion's order: the first that qualifies is the best
+        if let Some(i) = (0..ranked.len())
+            .find(|&i| !picked.contains(&i) && coefs(&ranked[i]) <= bound && near(&ranked[i]))
+        {
+            picked.push(i);
+        }
+    }
+    picked.into_iter().map(|i| ranked[i].clone()).collect()
 }
+
+/// The bounds on the coefficients of the small starts [`shortlist`] adds: a first order (or a
+/// lag with a zero), a second order with a zero, a third order with zeros.
+pub const SMALL_COEFFICIENTS: [usize; 3] = [3, 5, 8];
 
 /// How much larger than the best one's the response error of a smaller start may be for it to
 /// be fitted too ([`shortlist`]).
 pub const SMALL_ENOUGH: f64 = 3.0;
+
+/// The best response error [`SMALL_ENOUGH`] is taken of at least: on a response with no
+/// variance of its own (an ARX model's, [`start::arx_frf`]) the largest sizes reproduce it to
+/// rounding, and the smaller sizes within 15% of it still compete on held-out data.
+pub const SMALL_FLOOR: f64 = 0.05;
 
 /// The general structure as a candidate of the structure comparison or the diagnosis: the start
 /// the frequency-domain criterion ranks first on `rec` (no output-error fit here: the caller

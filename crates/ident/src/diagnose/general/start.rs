@@ -5,6 +5,8 @@
 //! - The response ([`frf`]): periodic averages when the input is periodic
 //!   ([`crate::oe::init::periodic_frf`], inverse-variance weights), Welch's H1 estimate otherwise
 //!   (coherence-chosen frequencies, inverse-variance weights); both with the hold divided out.
+//!   When Welch's has fewer than [`MIN_WELCH_POINTS`] frequencies, or none, an ARX model's
+//!   response ([`arx_frf`]).
 //! - A free integrator is fitted as `G(s) = H(s) s` on the response times `j w` (weights divided
 //!   by `w^2`, the same error), its start then `N/(s D)`.
 //! - Orders: `q = 1` (integer), and for denominators up to [`super::MAX_DEN_FRACTIONAL`] the
@@ -46,9 +48,24 @@ pub fn frf(u: &[f64], y: &[f64], dt: f64) -> Result<(Frf, String)> {
             );
             Ok((f, how))
         }
-        Err(_) => crate::oe::init::welch::h1(u, y, dt).or_else(|e| arx_frf(u, y, dt, &e)),
+        Err(_) => match crate::oe::init::welch::h1(u, y, dt) {
+            Ok((f, how)) if f.omega.len() < MIN_WELCH_POINTS => {
+                let few = Error::NotEnoughData(format!(
+                    "{} frequencies only in Welch's estimate, {how}",
+                    f.omega.len()
+                ));
+                arx_frf(u, y, dt, &few).or(Ok((f, how)))
+            }
+            Ok(w) => Ok(w),
+            Err(e) => arx_frf(u, y, dt, &e),
+        },
     }
 }
+
+/// The fewest frequencies of Welch's estimate the sizes are ranked on; with fewer (a record of
+/// a few steps, a short one) the ARX model's response ([`arx_frf`]) is used, when it can be
+/// made.
+pub const MIN_WELCH_POINTS: usize = 16;
 
 /// ARX orders of the fallback response ([`arx_frf`]).
 const ARX_ORDER: usize = 6;
@@ -59,12 +76,13 @@ const ARX_ORDER: usize = 6;
 /// record Welch's estimate cannot be made from (a step test, a short record), `why` its reason.
 ///
 /// # Errors
-/// [`Error::NotEnoughData`] for fewer than `20 (2 n + 2)` samples or a singular regression.
+/// [`Error::NotEnoughData`] for fewer than `10 (2 n + 2)` samples
+/// ([`super::SAMPLES_PER_PARAM`] a coefficient) or a singular regression.
 pub fn arx_frf(u: &[f64], y: &[f64], dt: f64, why: &Error) -> Result<(Frf, String)> {
     let n = u.len().min(y.len());
     let na = ARX_ORDER.min(n / 60).max(1);
     let cols = 2 * na + 2;
-    if n < 20 * cols {
+    if n < super::SAMPLES_PER_PARAM * cols {
         return Err(Error::NotEnoughData(format!(
             "{n} samples: too few for a response ({})",
             why.detail()
@@ -703,7 +721,10 @@ mod tests {
         assert_eq!(best.delay_samples, 3, "{best:?}");
         assert!(best.frf_error < 1e-9, "{best:?}");
         assert!((best.a[0] - 0.1).abs() < 1e-9 && (best.b[0] - 2.0).abs() < 1e-9);
-        let first = r.iter().find(|s| s.size == Size { num: 0, den: 1 }).unwrap();
+        let first = r
+            .iter()
+            .find(|s| s.size == Size { num: 0, den: 1 })
+            .unwrap();
         assert!(first.frf_error < 1e-9, "{first:?}");
         assert!(r
             .iter()
@@ -719,13 +740,13 @@ mod tests {
 
     #[test]
     fn the_budget_counts_the_parameters_beside_the_structure() {
-        // 60 estimation samples: 6 parameters, 5 of them the offset and the four levels
-        let b = Budget::new(60, 5, 6);
-        assert_eq!((b.plain, b.integrator), (1, 0));
-        assert!(b.allows(Size { num: 0, den: 0 }, false, false));
-        assert!(!b.allows(Size { num: 0, den: 1 }, false, false));
-        // a long record: at most 16 in all
-        let b = Budget::new(100_000, 5, 6);
+        // 60 estimation samples: 6 parameters counted by the fit's check, the output offset one
+        let b = Budget::new(60, 5, 6, 1);
+        assert_eq!((b.plain, b.integrator), (5, 5));
+        assert!(b.allows(Size { num: 1, den: 3 }, false, false));
+        assert!(!b.allows(Size { num: 1, den: 3 }, false, true));
+        // a long record: at most 16 in all, the offset and four levels beside
+        let b = Budget::new(100_000, 5, 6, 1);
         assert_eq!((b.plain, b.integrator), (11, 10));
         assert!(b.allows(Size { num: 4, den: 6 }, false, false));
         assert!(!b.allows(Size { num: 4, den: 6 }, false, true));
