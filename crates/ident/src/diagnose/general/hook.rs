@@ -2,10 +2,12 @@
 //! ([`crate::diagnose::structures::diagnose_best`]), when the named structures fit poorly.
 //!
 //! Once the comparison has chosen among the named structures, the chosen final model is judged
-//! ([`fits_poorly`]): its estimation residual depends on the input (the residual-input
-//! cross-correlation test of the diagnosis, [`crate::diagnose::residual::analyse`]: dynamics the
-//! model misses, whatever the noise level), or its base fit is not usable (no named structure
-//! could be fitted well posed). Only then is the general structure sized by the data
+//! ([`fits_poorly`]) by the diagnosis's residual tests on the estimation part
+//! ([`crate::diagnose::residual::analyse`], whatever the noise level): its residual depends on
+//! the input (the residual-input cross-correlation: dynamics the model misses), or it is not
+//! white (Ljung-Box at 1%: with white measurement noise, structure the model misses; a short
+//! record's cross-correlation has wide bounds), or its base fit is not usable (no named
+//! structure could be fitted well posed). Only then is the general structure sized by the data
 //! ([`super::fit`], its own pole cache); its chosen size is diagnosed when its base fit is usable
 //! and predicts the held-out part within [`BEHIND`] of the chosen final model (the successive
 //! halving's margin: a structure further behind after fewer effects is given no more rounds).
@@ -22,10 +24,19 @@ use crate::diagnose::{diagnose, DiagnoseOptions};
 use crate::oe::{FracModel, IdentOptions, Kind};
 use fracsim::modal::RootsCache;
 
-/// Whether the chosen final model of `d` fits poorly (see the module documentation): its
-/// estimation residual depends on the input, or its base fit is not usable.
-pub fn fits_poorly(d: &Diagnosed) -> bool {
-    !d.diagnosis.residual_after.independent || !d.choice.scores[d.choice.chosen].problems.is_empty()
+/// Why the chosen final model of `d` fits poorly (see the module documentation), or `None`:
+/// its estimation residual depends on the input or is not white, or its base fit is not usable.
+pub fn fits_poorly(d: &Diagnosed) -> Option<&'static str> {
+    let r = &d.diagnosis.residual_after;
+    if !r.independent {
+        Some("its residual depends on the input")
+    } else if !r.white {
+        Some("its residual is not white")
+    } else if !d.choice.scores[d.choice.chosen].problems.is_empty() {
+        Some("its base fit is not usable")
+    } else {
+        None
+    }
 }
 
 /// The diagnosis `d` of the named structures, with the general structure compared when they fit
@@ -39,15 +50,10 @@ pub fn consider(
     dopts: &DiagnoseOptions,
     mut d: Diagnosed,
 ) -> Diagnosed {
-    if template.kind == Kind::General || !fits_poorly(&d) {
+    let Some(why) = fits_poorly(&d).filter(|_| template.kind != Kind::General) else {
         return d;
-    }
-    let chosen = d.choice.chosen;
-    let why = if d.diagnosis.residual_after.independent {
-        "its base fit is not usable"
-    } else {
-        "its residual depends on the input"
     };
+    let chosen = d.choice.chosen;
     let mut roots = RootsCache::new();
     let g = roots.enter(|| fit(rec, template, opts, &GeneralRequest::default()));
     let g = match g {

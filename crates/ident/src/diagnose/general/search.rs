@@ -16,7 +16,7 @@ use crate::oe::{identify, FracModel, IdentOptions, Identification, InitialState,
 use crate::{Error, Result};
 
 /// The most sizes fitted by output error.
-pub const SHORTLIST: usize = 4;
+pub const SHORTLIST: usize = 5;
 
 /// The general structure's fit: the chosen identification, the comparison of the sizes fitted
 /// (in the structure comparison's form), and the chosen structure with its fitted values (no
@@ -222,8 +222,9 @@ fn shortlist(ranked: Vec<GeneralStart>) -> Vec<GeneralStart> {
 }
 
 /// The bounds on the coefficients of the small starts [`shortlist`] adds: a first order (or a
-/// lag with a zero), a second order with a zero, a third order with zeros.
-pub const SMALL_COEFFICIENTS: [usize; 3] = [3, 5, 8];
+/// lag with a zero); up to a third order with two zeros (a resonance and an anti-resonance
+/// beside a lag); up to a fifth order with three zeros (two modes).
+pub const SMALL_COEFFICIENTS: [usize; 3] = [3, 6, 9];
 
 /// How much larger than the best one's the response error of a smaller start may be for it to
 /// be fitted too ([`shortlist`]).
