@@ -501,7 +501,7 @@ fn diagnosis_of_the_real_dc_motor_finds_its_transport_delay() {
         .map(|c| c["name"].as_str().unwrap())
         .collect();
     assert!(
-        chosen < names.len() && names.contains(&"first order"),
+        chosen < names.len() && names.contains(&"first-order"),
         "{s}"
     );
 }
@@ -747,7 +747,7 @@ fn the_diagnosis_finds_a_direct_feedthrough() {
     let d = &j["diagnosis"];
     let s = &d["structures"];
     let chosen = s["chosen"].as_u64().unwrap() as usize;
-    assert_eq!(s["scores"][chosen]["name"], "feed-through", "{s}");
+    assert_eq!(s["scores"][chosen]["name"], "feedthrough", "{s}");
     assert_eq!(d["effects"].as_array().map(Vec::len), Some(0), "{d}");
     let dhat = param(&j, "D");
     eprintln!("--diagnose: {} D = {dhat}", j["model"]["text"]);

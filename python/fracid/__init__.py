@@ -64,6 +64,7 @@ from ._fracid import (
     _freq_request_defaults,
     _load_bode,
     _load_csv,
+    _structures,
     _time_request_defaults,
 )
 from ._export import StateSpace
@@ -95,6 +96,7 @@ __all__ = [
     "freq_request_defaults",
     "time_request",
     "time_request_defaults",
+    "structures",
     "error_index",
     "load_bode",
     "load_csv",
@@ -386,7 +388,9 @@ def fit_time(
         Input and output samples, same length, finite.
     dt : float
         Sampling step in seconds.
-    structure : {"pmsm", "commensurate", "second-order", "third-order", "two-mass", "feedthrough", "fopdt", "auto"} or str or FracTf
+    structure : {"pmsm", "commensurate", "first-order", "second-order", "third-order", "two-mass", "feedthrough", "fopdt", "auto", "general"} or str or FracTf
+        A name of :func:`structures` (the catalogue ``fracid time --structure`` takes and the
+        reports print; ``_`` or a space for ``-`` is taken too).
         ``"pmsm"`` (the default): ``K / (a2 s^(zeta+theta) + a1 s^zeta + 1)``;
         ``"commensurate"``: ``K / (a2 s^(2q) + a1 s^q + 1)``; ``"second-order"``: the integer
         ``K / (a2 s^2 + a1 s + 1)``; ``"feedthrough"``: the pmsm with a direct feed-through,
@@ -461,6 +465,12 @@ def fit_time_joint(
     request = time_request(structure, **options)
     v = None if validate is None else tuple(validate)
     return dict(_fit_time_joint(u, y, dt, json.dumps(request), [tuple(r) for r in joint], v))
+
+
+def structures() -> Dict[str, str]:
+    """The named structures ``structure=`` takes (and ``fracid time --structure``), each with
+    what it is, in the catalogue's order: the names the structure comparison's rows print."""
+    return dict(_structures())
 
 
 def time_request_defaults() -> Dict[str, object]:

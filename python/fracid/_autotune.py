@@ -39,7 +39,8 @@ def autotune(
         The request's options by the same names and with the same defaults as
         :func:`autotune_request_defaults`: ``u_limit_v`` (V), ``speed_limit_rad_s``,
         ``budget_s`` (drive time), ``wc`` (rad/s), ``pm_deg``, ``operating_point_v``,
-        ``max_rounds``, ``seed``.
+        ``max_rounds``, ``seed``, ``filter`` (for a resonance: ``"auto"``, ``"notch"``,
+        ``"low-pass"`` or ``"none"``).
 
     Returns
     -------

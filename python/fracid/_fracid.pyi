@@ -126,7 +126,8 @@ class FracTf:
             Bad band, order or dt, a continuous export without a band, an improper model.
         """
     def to_dict(self) -> Dict[str, Any]:
-        """``{"num": [{"coef", "order"}], "den": [...], "delay", "text"}`` (docs/design.md §7)."""
+        """``{"num": [{"coef", "order"}], "den": [...], "delay", "text", "effects": []}``: the
+        reports' model object (docs/design.md §7)."""
     def __eq__(self, other: object) -> bool: ...
     def __reduce__(self) -> Any: ...
 
@@ -177,6 +178,7 @@ def _fit_time(
     validation: Optional[Tuple[npt.ArrayLike, npt.ArrayLike]] = None,
 ) -> Tuple[Dict[str, Any], Dict[str, Any]]: ...
 def _time_request_defaults() -> Dict[str, Any]: ...
+def _structures() -> List[Tuple[str, str]]: ...
 def _fit_time_joint(
     u: npt.ArrayLike,
     y: npt.ArrayLike,

@@ -31,6 +31,7 @@ fn _fracid(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(time::_fit_time, m)?)?;
     m.add_function(wrap_pyfunction!(time::_fit_time_joint, m)?)?;
     m.add_function(wrap_pyfunction!(time::_time_request_defaults, m)?)?;
+    m.add_function(wrap_pyfunction!(time::_structures, m)?)?;
     m.add_function(wrap_pyfunction!(freq::_freq_request_defaults, m)?)?;
     m.add_function(wrap_pyfunction!(tune::_tune, m)?)?;
     m.add_function(wrap_pyfunction!(autotune::_autotune, m)?)?;

@@ -8,7 +8,7 @@ use fracsim::{gl, lsim, ApproxSpec, FracTf, Method, Term};
 use num_complex::Complex64;
 use numpy::{IntoPyArray, PyArray1};
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyList};
+use pyo3::types::PyDict;
 
 /// A fractional transfer function
 /// `G(s) = sum_i b_i s^beta_i / sum_j a_j s^alpha_j * exp(-delay s)` (a Python `FracTf`).
@@ -56,24 +56,11 @@ pub(crate) fn approx_spec(
     })
 }
 
-/// The model as the docs/design.md §7 JSON object: `num`, `den` (lists of `{coef, order}`), `delay`, `text`.
+/// The model as the docs/design.md §7 JSON object, the reports' own
+/// ([`fracsim::json::ModelReport`]: `num`, `den` (lists of `{coef, order}`), `delay`, `text`,
+/// `effects`, empty for a transfer function).
 pub(crate) fn model_dict<'py>(py: Python<'py>, g: &FracTf) -> PyResult<Bound<'py, PyDict>> {
-    let d = PyDict::new(py);
-    let list = |t: &[Term]| -> PyResult<Bound<'py, PyList>> {
-        let l = PyList::empty(py);
-        for t in t {
-            let e = PyDict::new(py);
-            e.set_item("coef", t.coef)?;
-            e.set_item("order", t.order)?;
-            l.append(e)?;
-        }
-        Ok(l)
-    };
-    d.set_item("num", list(&g.num)?)?;
-    d.set_item("den", list(&g.den)?)?;
-    d.set_item("delay", g.delay)?;
-    d.set_item("text", g.to_string())?;
-    Ok(d)
+    Ok(crate::time::to_py(py, &fracsim::json::ModelReport::from(g))?.downcast_into::<PyDict>()?)
 }
 
 /// Magnitude (dB) and unwrapped phase (degrees) of a frequency response.
@@ -235,7 +222,8 @@ impl PyFracTf {
             .call_method1("_from_json", (doc,))
     }
 
-    /// The model as a dict: `num`, `den` (lists of `{coef, order}`), `delay`, `text`.
+    /// The model as a dict, the reports' model object: `num`, `den` (lists of `{coef, order}`),
+    /// `delay`, `text`, `effects` (empty).
     fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         model_dict(py, &self.inner)
     }

@@ -29,6 +29,16 @@ pub(crate) fn _time_request_defaults(py: Python<'_>) -> PyResult<Bound<'_, PyAny
     to_py(py, &TimeRequest::default())
 }
 
+/// The catalogue of named structures (`ident::catalogue::Preset`): `(name, formula)` in its
+/// order, as `structure=` takes the names and the reports print them.
+#[pyfunction]
+pub(crate) fn _structures() -> Vec<(&'static str, &'static str)> {
+    ident::catalogue::Preset::ALL
+        .iter()
+        .map(|p| (p.name(), p.formula()))
+        .collect()
+}
+
 /// The observer of a fit run from Python: between stages it runs Python's signal handlers (the
 /// GIL taken for that moment), so Ctrl-C stops a long diagnosis at the next stage.
 pub(crate) struct Interruptible;
@@ -86,8 +96,18 @@ pub(crate) fn _fit_time_joint<'py>(
     to_py(py, &r)
 }
 
+/// The request `fracid.time_request` wrote: its words read into the library's types here, once (a
+/// word a type does not take is a `DataError` with the library's message; the position in the
+/// JSON, which the user never wrote, left out).
 fn request_of(text: &str) -> PyResult<TimeRequest> {
-    serde_json::from_str(text).map_err(|e| errors::data(format!("options: {e}")))
+    serde_json::from_str(text).map_err(|e| {
+        let msg = e.to_string();
+        let at = format!(" at line {} column {}", e.line(), e.column());
+        errors::data(format!(
+            "options: {}",
+            msg.strip_suffix(&at).unwrap_or(&msg)
+        ))
+    })
 }
 
 /// The error of a use case: Ctrl-C's KeyboardInterrupt as Python's handler raised it.

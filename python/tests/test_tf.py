@@ -24,7 +24,16 @@ def test_parse_and_construct_agree():
     assert fracid.FracTf.parse(str(g)) == g
     assert eval(repr(g), {"FracTf": fracid.FracTf}) == g
     assert pickle.loads(pickle.dumps(g)) == g
-    assert g.to_dict()["den"][1] == {"coef": 0.0064, "order": 0.89}
+    d = g.to_dict()
+    assert d["den"][1] == {"coef": 0.0064, "order": 0.89}
+    # the reports' model object (`fracid time --json`'s `model`), field for field
+    assert d == {
+        "num": [{"coef": 6.77, "order": 0.0}],
+        "den": [{"coef": 1.0, "order": 0.0}, {"coef": 0.0064, "order": 0.89}, {"coef": 2.8e-5, "order": 1.78}],
+        "delay": 0.0,
+        "text": PAPER,
+        "effects": [],
+    }
 
 
 def test_pmsm_and_delay():

@@ -11,6 +11,9 @@ import fracid
 
 DT = 1e-4  # the model's corners (~150 and 650 rad/s) far below the sampling frequency
 
+# The structures every comparison fits (`structure="auto"`), in the catalogue's order and words.
+COMPARED = ["pmsm", "commensurate", "first-order", "second-order", "third-order", "two-mass"]
+
 
 def record(model: fracid.FracTf, noise: float, seed: int):
     """4 periods of the paper's PRBS (order 7, 3 ms clock); noise as a fraction of std(y)."""
@@ -115,14 +118,7 @@ def test_structure_auto_matches_the_cli(fracid_bin):
     assert fit.structures is not None
     assert fit.structures["chosen"] == cli["structures"]["chosen"]
     names = [r["name"] for r in fit.structures["scores"]]
-    assert names == [
-        "pmsm",
-        "commensurate",
-        "first order",
-        "second order",
-        "third order",
-        "two-mass",
-    ]
+    assert names == COMPARED
     assert fit.validation.rmse == pytest.approx(cli["fit"]["validation"]["rmse"], rel=1e-9)
 
 
@@ -166,3 +162,29 @@ def test_a_joint_fit_of_noise_is_not_usable():
     y1, y2 = rng.normal(0, 0.3, u.size), rng.normal(0, 0.3, u.size)
     r = fracid.fit_time_joint(u, y1, 1e-3, joint=[(u, y2)])
     assert r["usable"] is False and r["problems"], r["problems"]
+
+
+def test_structures_are_one_catalogue_with_its_spellings():
+    """`fracid.structures()` is the library's catalogue (the names `fracid time --structure` takes
+    and the comparison's rows print): the docstring of `fit_time` names every one, another
+    spelling of a name is sent as the name, and a word that is no structure is a DataError with
+    the library's words (no position in a JSON the user never wrote)."""
+    names = list(fracid.structures())
+    assert names == COMPARED + ["feedthrough", "fopdt"]
+    assert all(f'"{n}"' in (fracid.fit_time.__doc__ or "") for n in names)
+    truth = fracid.FracTf.parse("2/(0.0001 s^2 + 0.01 s + 1)")
+    u, y = record(truth, 0.01, seed=5)
+    fit = fracid.fit_time(u, y, DT, "Second order", offsets="none", fit_offset=False)
+    assert fit.report["request"]["structure"] == "second-order"
+    assert fit.values["K"] == pytest.approx(2.0, rel=0.01)
+    with pytest.raises(fracid.DataError, match="structure 'arx' is not pmsm, commensurate, first-order") as e:
+        fracid.fit_time(u, y, DT, "arx")
+    assert "line 1" not in str(e.value)
+    for name, word, says in [
+        ("offsets", "median", "offsets 'median' must be initial, mean or none"),
+        ("initial", "past", "initial state 'past' must be auto, estimate or rest"),
+        ("approx", "pade", "'pade' (expected oustaloup, refined or trigeassou)"),
+        ("fix", "K=abc", "fix 'K=abc': 'abc' is not a number"),
+    ]:
+        with pytest.raises(fracid.DataError, match=says):
+            fracid.fit_time(u, y, DT, **{name: word})

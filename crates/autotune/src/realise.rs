@@ -157,7 +157,7 @@ fn loop_band(dt: f64) -> Vec<f64> {
 pub const PRUNE_TOL: f64 = 1e-4;
 
 /// Leave out the states that feed no other state and whose share of the output, `|c_i X_i|`, is
-/// below [`PRUNE_TOL`] of `|C|` at every frequency of [`loop_band`] (1 rad/s to half Nyquist):
+/// below [`PRUNE_TOL`] of `|C|` at every frequency of `loop_band` (1 rad/s to half Nyquist):
 /// the approximation's double integrator below its band (`1/s^lambda` with `lambda > 1`
 /// approximated with a zero at the origin gives `c1/s + c2/s^2`, `c2/c1` about 4e-6 rad/s for the
 /// FOPI of wc = 50 rad/s, a share of 5e-5 at 1 rad/s), which the drive's first-order sections cannot hold (a repeated pole)
@@ -220,7 +220,7 @@ pub fn fixed_controller(r: &Realisation, conf: &Configure) -> Result<FixedCtrl> 
 }
 
 /// The largest relative deviation of the fixed-point controller's frequency response from the
-/// realisation's (`r`, before [`prune`]) over [`loop_band`]: what pruning and quantisation do.
+/// realisation's (`r`, before [`prune`]) over `loop_band`: what pruning and quantisation do.
 pub fn quantisation_error(r: &Realisation, k: &FixedCtrl, conf: &Configure) -> f64 {
     let gain_raw = conf.y_lsb() / conf.u_lsb();
     loop_band(r.dt)

@@ -11,8 +11,9 @@
 //!    record: acquired, diagnosed alone, and one model fitted jointly to all records
 //!    ([`rounds::later`]), each record's error before and after.
 //! 4. A FOPI tuned on the final model ([`control`]: the crossover from its bandwidth, delay, the
-//!    sample rate and a resonance; lower when the tuner refuses), run on the drive, its step
-//!    measured beside the tuner's prediction.
+//!    sample rate; for a resonance a notch in the controller, or a crossover a fifth of it;
+//!    lower when the tuner refuses), run on the drive, its step measured beside the tuner's
+//!    prediction.
 //!
 //! The drive's voltage clamp and speed trip are set to the request's limits, and every design
 //! stays within [`design::LIMIT_SHARE`] of them; the drive is stopped on every way out.
@@ -48,6 +49,25 @@ pub struct AutotuneRequest {
     pub max_rounds: usize,
     /// The PRBS seed.
     pub seed: u32,
+    /// What the controller does about a resonance of the final model.
+    pub filter: FilterChoice,
+}
+
+/// What the controller does about a resonance of the final model (none found: nothing).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum FilterChoice {
+    /// A notch at the resonance, the crossover then set by the delay, the sample rate and the
+    /// bandwidth; the lower crossover with no filter when the tuner refuses every crossover
+    /// with the notch, or when the notch's loop is not faster.
+    #[default]
+    Auto,
+    /// A notch at the resonance ([`tune::filter::Filter::Notch`]).
+    Notch,
+    /// A first-order low-pass at half the resonance.
+    LowPass,
+    /// No filter: the crossover a fifth of the resonance.
+    None,
 }
 
 impl Default for AutotuneRequest {
@@ -61,6 +81,7 @@ impl Default for AutotuneRequest {
             operating_point_v: None,
             max_rounds: 3,
             seed: 1,
+            filter: FilterChoice::Auto,
         }
     }
 }

@@ -2,6 +2,8 @@
 
 mod compare;
 mod drive_autotune;
+#[path = "../../ident/tests/exact/mod.rs"]
+mod exact;
 mod export;
 mod fleet;
 mod freq;

@@ -44,6 +44,23 @@ impl std::str::FromStr for Method {
     }
 }
 
+impl Method {
+    /// Its name as the CLI and Python take it (`refined`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::Oustaloup => "oustaloup",
+            Method::Refined => "refined",
+            Method::Trigeassou => "trigeassou",
+        }
+    }
+}
+
+impl std::fmt::Display for Method {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
 /// How to approximate fractional operators (the simulation is then exact for a held input).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ApproxSpec {
@@ -442,6 +459,18 @@ pub fn approximate<T: Real>(nu: T, band: (f64, f64), spec: &ApproxSpec) -> Resul
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn methods_round_trip_through_their_names() {
+        for m in [Method::Oustaloup, Method::Refined, Method::Trigeassou] {
+            assert_eq!(m.to_string().parse::<Method>().unwrap(), m);
+        }
+        let e = "pade".parse::<Method>().unwrap_err().to_string();
+        assert!(
+            e.contains("'pade' (expected oustaloup, refined or trigeassou)"),
+            "{e}"
+        );
+    }
     use crate::jw_pow;
 
     /// Worst relative error of the approximation against `(j w)^nu` over the inner band

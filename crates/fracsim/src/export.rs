@@ -277,11 +277,7 @@ pub fn discrete(tf: &FracTf, dt: f64, spec: &ApproxSpec) -> Result<StateSpace> {
 
 /// The approximation's name as the CLI and Python spell it.
 pub fn method_name(m: Method) -> &'static str {
-    match m {
-        Method::Oustaloup => "oustaloup",
-        Method::Refined => "refined",
-        Method::Trigeassou => "trigeassou",
-    }
+    m.name()
 }
 
 impl StateSpace {

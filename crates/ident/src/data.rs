@@ -104,6 +104,34 @@ pub enum OffsetMode {
     None,
 }
 
+impl OffsetMode {
+    /// Its name, as the options take it.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            OffsetMode::Initial => "initial",
+            OffsetMode::Mean => "mean",
+            OffsetMode::None => "none",
+        }
+    }
+}
+
+impl std::fmt::Display for OffsetMode {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+impl std::str::FromStr for OffsetMode {
+    type Err = Error;
+    /// `initial`, `mean` or `none`, any case.
+    fn from_str(s: &str) -> Result<Self> {
+        [OffsetMode::Initial, OffsetMode::Mean, OffsetMode::None]
+            .into_iter()
+            .find(|m| s.trim().eq_ignore_ascii_case(m.as_str()))
+            .ok_or_else(|| Error::Options(format!("offsets '{s}' must be initial, mean or none")))
+    }
+}
+
 /// The operating point removed from a record.
 #[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize, serde::Deserialize)]
 pub struct Offsets {
@@ -1051,6 +1079,22 @@ impl Record {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn offset_modes_round_trip_through_their_words() {
+        for m in [OffsetMode::Initial, OffsetMode::Mean, OffsetMode::None] {
+            assert_eq!(m.to_string().parse::<OffsetMode>().unwrap(), m);
+            assert_eq!(
+                m.to_string().to_uppercase().parse::<OffsetMode>().unwrap(),
+                m
+            );
+        }
+        let e = "median".parse::<OffsetMode>().unwrap_err().to_string();
+        assert!(
+            e.contains("offsets 'median' must be initial, mean or none"),
+            "{e}"
+        );
+    }
 
     /// The footer's sample count is checked against the rows read (issue 31): a mismatch is a
     /// warning, the rows read are kept; a matching count says nothing.

@@ -1,6 +1,7 @@
 //! # ident: fractional-order system identification
 //!
-//! - [`app`]: the application layer the CLI and Python share (presets, option parsing, reports).
+//! - [`app`]: the application layer the CLI and Python share (typed requests, use cases, reports).
+//! - [`catalogue`]: the named structures (`pmsm`, `second-order`, ...): names, formulas, models.
 //! - [`levy`]: weighted Levy least squares (Levy 1959) with Vinagre weights (Vinagre 2001) and a
 //!   commensurate-order search; Sanathanan-Koerner iterations; a nonlinear refit of the PMSM
 //!   structure in the frequency domain.
@@ -15,6 +16,7 @@
 
 pub mod app;
 pub mod bodefile;
+pub mod catalogue;
 pub mod compare;
 pub mod data;
 pub mod diagnose;

@@ -1566,10 +1566,9 @@ impl Structure for FracModel {
     }
 }
 
-/// [`ApproxSpec`] (fracsim has no serde) as `{"method": "refined", "band": [lo, hi] | null,
+/// [`ApproxSpec`] (fracsim's types have no serde) as `{"method": "refined", "band": [lo, hi] | null,
 /// "order": 8}`, so that a [`FracModel`] round-trips through a report's JSON.
 mod approx_serde {
-    use fracsim::approx::Method;
     use fracsim::ApproxSpec;
     use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
@@ -1581,13 +1580,8 @@ mod approx_serde {
     }
 
     pub(super) fn serialize<S: Serializer>(a: &ApproxSpec, s: S) -> Result<S::Ok, S::Error> {
-        let method = match a.method {
-            Method::Oustaloup => "oustaloup",
-            Method::Refined => "refined",
-            Method::Trigeassou => "trigeassou",
-        };
         Spec {
-            method: method.into(),
+            method: a.method.to_string(),
             band: a.band,
             order: a.order,
         }

@@ -1,5 +1,6 @@
 //! Integration tests of `ident`.
 
 mod diagnose;
+mod exact;
 mod freq;
 mod time;

@@ -6,9 +6,10 @@
 //! fractional order controllers for industry applications", *Control Engineering Practice* 16
 //! (2008) 798-812.
 //!
-//! - [`design`]: the design equations and their solution, the candidates checked on the loop;
+//! - [`design`](mod@design): the design equations and their solution, the candidates checked on the loop;
 //! - [`analysis`]: crossover, margins, sensitivity peak, Nyquist stability of `L = C P`;
-//! - [`controller`] and [`plant`]: the two frequency responses with their logarithmic derivatives.
+//! - [`controller`] and [`plant`]: the two frequency responses with their logarithmic derivatives;
+//! - [`filter`]: a notch or low-pass in series with the controller for a resonant plant.
 
 mod error;
 
@@ -18,6 +19,7 @@ mod check;
 pub mod closed;
 pub mod controller;
 pub mod design;
+pub mod filter;
 pub mod given;
 pub mod plant;
 pub mod realise;

@@ -223,7 +223,7 @@ pub fn setup_of(model: &FracTf, wc: f64, dt: Option<f64>, opts: &SimOptions) -> 
 /// The loop of `c` simulated alone and with the options' effects: the summary and the runs.
 ///
 /// # Errors
-/// Those of the simulation but the simulator's limits on the model (see [`tolerate`]).
+/// Those of the simulation but the simulator's limits on the model (see `tolerate`).
 pub fn simulate_loop(
     model: &FracTf,
     c: &Controller,

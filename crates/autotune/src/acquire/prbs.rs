@@ -58,7 +58,7 @@ impl PrbsRequest {
     /// The START_PRBS for `conf`, and the warnings of its levels (some beyond the clamp).
     ///
     /// # Errors
-    /// [`Error::InvalidParam`]: a settling time or periods out of range, a command the drive
+    /// [`crate::Error::InvalidParam`]: a settling time or periods out of range, a command the drive
     /// cannot take, every level beyond the clamp.
     pub fn check(&self, conf: &Configure) -> Result<(StartPrbs, Vec<String>)> {
         if !(self.settle_s.is_finite() && self.settle_s >= 0.0) {

@@ -9,8 +9,48 @@ use fracsim::FracTf;
 use num_complex::Complex64;
 use serde::Serialize;
 use tune::closed::InputEffect;
+use tune::filter::Filter;
 use tune::report::{Report, Runs, SimOptions};
 use tune::{Form, Spec};
+
+/// The poles' damping of the notch (real poles at half and twice its frequency): the narrowest
+/// notch of real poles whose two sections stay apart.
+pub const NOTCH_POLE_DAMPING: f64 = 1.25;
+
+/// The filter `choice` puts in the controller for the resonance `r`: a notch at it whose zeros
+/// have its damping (they cancel its poles), or a low-pass at half its frequency.
+pub fn filter_for(r: &Resonance, choice: super::FilterChoice) -> Option<Filter> {
+    let w = 2.0 * std::f64::consts::PI * r.freq_hz;
+    match choice {
+        super::FilterChoice::Auto | super::FilterChoice::Notch => Some(Filter::Notch {
+            omega: w,
+            zeta_z: r.damping.clamp(0.0, 0.5),
+            zeta_p: NOTCH_POLE_DAMPING,
+        }),
+        super::FilterChoice::LowPass => Some(Filter::LowPass { omega: 0.5 * w }),
+        super::FilterChoice::None => None,
+    }
+}
+
+/// A filter in words.
+pub fn filter_text(f: &Filter) -> String {
+    match *f {
+        Filter::Notch {
+            omega,
+            zeta_z,
+            zeta_p,
+        } => format!(
+            "a notch at {:.1} Hz (zeros' damping {zeta_z:.3}, real poles' {zeta_p:.2}: depth \
+             {:.1} dB)",
+            omega / (2.0 * std::f64::consts::PI),
+            20.0 * (zeta_z / zeta_p).log10()
+        ),
+        Filter::LowPass { omega } => format!(
+            "a first-order low-pass at {:.1} Hz",
+            omega / (2.0 * std::f64::consts::PI)
+        ),
+    }
+}
 
 /// A lightly damped resonance of a model: the peak of `|G(j omega)|` over its surroundings.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -94,12 +134,14 @@ pub struct Crossover {
 }
 
 /// The crossover from the model: its bandwidth, at most a third of `0.35 rad` over the delay
-/// (the delay's lag at the crossover at most 20 deg), a tenth of the sample rate in rad/s, and a
-/// fifth of a resonance's frequency (a lower crossover rather than a notch: the loop then stays
-/// below the resonance, whose peak the tuner's floors check).
+/// (the delay's lag at the crossover at most 20 deg), a tenth of the sample rate in rad/s, and,
+/// for a resonance with no `filter` in the controller, a fifth of its frequency (the loop then
+/// stays below the resonance, whose peak the tuner's floors check). With a filter the resonance
+/// sets no cap: the filter is in the plant the tuner designs on.
 pub fn crossover(
     g: &FracTf,
     res: Option<&Resonance>,
+    filter: Option<&Filter>,
     fs: f64,
     wc: Option<f64>,
     pm: Option<f64>,
@@ -135,7 +177,7 @@ pub fn crossover(
             0.35 / delay
         ),
     );
-    if let Some(r) = res {
+    if let (Some(r), None) = (res, filter) {
         let w = 2.0 * std::f64::consts::PI * r.freq_hz / 5.0;
         cap(
             w,
@@ -146,6 +188,14 @@ pub fn crossover(
             ),
         );
     }
+    if let (Some(r), Some(f)) = (res, filter) {
+        reasons.push(format!(
+            "the resonance at {:.1} Hz (damping {:.3}): {} in the controller",
+            r.freq_hz,
+            r.damping,
+            filter_text(f)
+        ));
+    }
     Crossover {
         wc,
         pm_deg,
@@ -154,18 +204,29 @@ pub fn crossover(
 }
 
 /// The tuner's design at the crossover, or at 0.7 times it each time the tuner refuses (at most
-/// six times): the report, the runs, the crossover used and the refusals.
+/// six times): the report, the runs, the crossover used and the refusals. With a `filter` the
+/// design is on the model times the filter (the loop `C F G` the drive runs, the filter then
+/// the controller: [`fixed`]).
 ///
 /// # Errors
 /// None of the crossovers gives a design (the last refusal's message is in [`crate::Error`]).
 pub fn design(
     model: &Model,
     g: &FracTf,
+    filter: Option<&Filter>,
     xo: &Crossover,
     dt: f64,
     step: f64,
     u_limit: f64,
 ) -> Result<(Report, Runs, f64, Vec<String>)> {
+    let filtered;
+    let g = match filter {
+        Some(f) => {
+            filtered = tune::filter::series_tf(g, f)?;
+            &filtered
+        }
+        None => g,
+    };
     let mut effects = vec![];
     if let Some(vc) = model.param("Vc") {
         effects.push(InputEffect::CoulombFriction { vc });
@@ -217,20 +278,122 @@ pub fn design(
     )))
 }
 
-/// The drive's controller of a design: pruned, in fixed point, with its deviation from the
+/// A design and how it was reached.
+#[derive(Debug, Clone)]
+pub struct Chosen {
+    /// The tuner's report (on the model times the filter, with one).
+    pub report: Report,
+    /// Its simulated runs.
+    pub runs: Runs,
+    /// The crossover chosen, with its reasons and the choice of filter.
+    pub crossover: Crossover,
+    /// The crossover the design was made at.
+    pub wc_used: f64,
+    /// The tuner's refusals on the way.
+    pub refusals: Vec<String>,
+    /// The filter in the controller.
+    pub filter: Option<Filter>,
+}
+
+/// The controller for the final model `g` (with its resonance `res`): with no resonance or
+/// [`super::FilterChoice::None`], the design at [`crossover`]'s choice; for a resonance with a
+/// filter asked, the design with it; with [`super::FilterChoice::Auto`] the notch's design,
+/// kept when its loop is faster (a higher crossover) than the lower crossover's (designed only
+/// when the notch's crossover is not above the one it would start from), the reason in the
+/// crossover's.
+///
+/// # Errors
+/// The tuner refuses every crossover (with the filter asked, or both ways for `Auto`).
+pub fn choose(
+    model: &Model,
+    g: &FracTf,
+    res: Option<&Resonance>,
+    req: &super::AutotuneRequest,
+    fs: f64,
+    step: f64,
+) -> Result<Chosen> {
+    let dt = 1.0 / fs;
+    let run = |filter: Option<Filter>| -> Result<Chosen> {
+        let xo = crossover(g, res, filter.as_ref(), fs, req.wc, req.pm_deg);
+        let (report, runs, wc_used, refusals) =
+            design(model, g, filter.as_ref(), &xo, dt, step, req.u_limit_v)?;
+        Ok(Chosen {
+            report,
+            runs,
+            crossover: xo,
+            wc_used,
+            refusals,
+            filter,
+        })
+    };
+    let Some(f) = res.and_then(|r| filter_for(r, req.filter)) else {
+        return run(None);
+    };
+    if req.filter != super::FilterChoice::Auto {
+        return run(Some(f));
+    }
+    // the lower crossover's design reaches its chosen crossover at best: a notch's loop faster
+    // than that needs no comparison
+    let cap = crossover(g, res, None, fs, req.wc, req.pm_deg).wc;
+    match run(Some(f)) {
+        Ok(mut with) if with.wc_used > cap => {
+            with.crossover.reasons.push(format!(
+                "the notch's loop is faster than the lower crossover's ({cap:.1} rad/s at most \
+                 without it)"
+            ));
+            Ok(with)
+        }
+        Ok(with) => match run(None) {
+            Ok(mut without) if with.wc_used <= without.wc_used => {
+                without.crossover.reasons.push(format!(
+                    "with {} the loop is no faster (wc {:.1} rad/s): no filter",
+                    filter_text(&f),
+                    with.wc_used
+                ));
+                Ok(without)
+            }
+            _ => Ok(with),
+        },
+        Err(e) => run(None).map(|mut without| {
+            without
+                .crossover
+                .reasons
+                .push(format!("with {}: {e}", filter_text(&f)));
+            without
+        }),
+    }
+}
+
+/// The drive's controller of a design (with a `filter`: the filter's sections then the
+/// controller's, [`tune::filter::then`]): pruned, in fixed point, with its deviation from the
 /// realisation.
 ///
 /// # Errors
 /// A realisation the drive cannot run.
 pub fn fixed(
     report: &Report,
+    filter: Option<&Filter>,
     conf: &drive::protocol::Configure,
 ) -> Result<(drive::ctrl::FixedCtrl, f64, usize)> {
     let disc = report
         .discrete
         .as_ref()
         .ok_or_else(|| crate::Error::Experiment("no discrete realisation".into()))?;
-    let real = Realisation::of_discrete(disc, &report.controller.text);
+    let real = match filter {
+        None => Realisation::of_discrete(disc, &report.controller.text),
+        Some(f) => {
+            let dt = disc.dt();
+            let c = tune::realise::discrete(&report.params, dt, &fracsim::ApproxSpec::default())?;
+            let both = tune::filter::then(&f.discrete(dt, &c)?, &c);
+            let text = format!("{} after {}", report.controller.text, filter_text(f));
+            let json = tune::report::DiscreteJson {
+                ss: both.to_json(&text),
+                sampled_loop: None,
+                sampled_note: None,
+            };
+            Realisation::of_discrete(&json, &text)
+        }
+    };
     let (pruned, dropped) = realise::prune(&real);
     let k = realise::fixed_controller(&pruned, conf)?;
     let qerr = realise::quantisation_error(&real, &k, conf);

@@ -48,7 +48,8 @@ pub struct Round {
     /// The round's model in words.
     pub model: String,
     /// For a dwell round: the largest relative error of the model's frequency response at the
-    /// points the dwells measured, before (the previous model) and after the round.
+    /// points the dwells measured (the drive's zero-order hold on the model), before (the
+    /// previous model) and after the round.
     pub frf_before: Option<f64>,
     /// After the round.
     pub frf_after: Option<f64>,
@@ -60,6 +61,23 @@ pub struct Round {
     pub ambiguous: Vec<Ambiguity>,
     /// The round's caveats.
     pub warnings: Vec<String>,
+    /// For a resonance of the first model: the structures that hold one, fitted to the record
+    /// (the one chosen starts the dwell's joint fit).
+    pub structures: Vec<StructureTried>,
+}
+
+/// A structure fitted to the identification record for a resonance.
+#[derive(Debug, Clone, Serialize)]
+pub struct StructureTried {
+    /// Its name.
+    pub name: String,
+    /// The fitted model in words, or why the fit failed.
+    pub model: String,
+    /// Its held-out RMSE, rad/s (`None`: the fit failed).
+    pub rmse: Option<f64>,
+    /// Whether it was chosen (within 5% of the first model's RMSE or below; the lowest, or the
+    /// fewest free parameters within 2% of it).
+    pub chosen: bool,
 }
 
 /// The final model's figures a user tunes by.
@@ -98,6 +116,10 @@ pub struct StepFigures {
 pub struct Control {
     /// `C(s)`.
     pub text: String,
+    /// The filter in series with it for a resonance (the drive runs the filter, then `C`).
+    pub filter: Option<tune::filter::Filter>,
+    /// The filter in words.
+    pub filter_text: Option<String>,
     /// Proportional gain.
     pub kp: f64,
     /// Integral gain.
@@ -320,6 +342,15 @@ fn round_lines(r: &Round, line: &mut impl FnMut(String)) {
             a.name, a.confused_with, a.reason
         ));
     }
+    for t in &r.structures {
+        line(format!(
+            "  structure for the resonance: {}{}: {}{}",
+            t.name,
+            t.rmse.map_or(String::new(), |e| format!(" ({e:.4} rad/s)")),
+            t.model,
+            if t.chosen { " [chosen]" } else { "" }
+        ));
+    }
     for w in &r.warnings {
         line(format!("  warning: {w}"));
     }
@@ -332,6 +363,9 @@ fn control_lines(c: &Control, line: &mut impl FnMut(String)) {
              {} sections, within {:.1e} of the realisation",
         c.text, c.wc_used, c.pm_deg, c.ms, c.gm_db, c.sections, c.quantisation_error
     ));
+    if let Some(f) = &c.filter_text {
+        line(format!("  in series: {f}, on the drive before C(s)"));
+    }
     line(format!("  crossover: {}", c.crossover.reasons.join("; ")));
     for r in &c.refusals {
         line(format!("  refused: {r}"));

@@ -3,13 +3,16 @@
 use super::control::{self, Resonance};
 use super::design::{self, Envelope, Purpose, LIMIT_SHARE};
 use super::probe::{self, ProbeReading};
-use super::report::{AutotuneReport, Control, Experiment, FinalModel, Round, Series, StepFigures};
+use super::report::{
+    AutotuneReport, Control, Experiment, FinalModel, Round, Series, StepFigures, StructureTried,
+};
 use super::rounds::{self, Named, Outcome};
 use super::{AutotuneRequest, Observe};
 use crate::acquire::{self, prbs::PrbsRequest, sine::DwellRequest, speed_loop, step::StepRequest};
 use crate::{Error, Result};
 use drive::client::{Acquisition, Client, NullSink};
 use drive::protocol::Configure;
+use ident::app::{Preset, Structure};
 use ident::diagnose::Ambiguity;
 use std::time::Instant;
 
@@ -30,8 +33,10 @@ pub(super) struct Run<'a> {
     points: Vec<drive::bode::BodePoint>,
 }
 
-/// The largest relative error of `m`'s frequency response at the measured `points`.
-fn frf_error(m: &rounds::Model, points: &[drive::bode::BodePoint]) -> Option<f64> {
+/// The largest relative error of `m`'s frequency response at the measured `points`, the
+/// drive's zero-order hold at `dt` (half a sample of delay, a sinc droop) put on the model as
+/// the measurement has it.
+fn frf_error(m: &rounds::Model, points: &[drive::bode::BodePoint], dt: f64) -> Option<f64> {
     let tf = m.tf().ok()?;
     points
         .iter()
@@ -41,7 +46,8 @@ fn frf_error(m: &rounds::Model, points: &[drive::bode::BodePoint]) -> Option<f64
                 10f64.powf(p.gain_db / 20.0),
                 p.phase_deg.to_radians(),
             );
-            (tf.freq_response(w) - meas).norm() / meas.norm()
+            let model = tf.freq_response(w) * ident::hold::zoh(w, dt);
+            (model - meas).norm() / meas.norm()
         })
         .reduce(f64::max)
 }
@@ -281,49 +287,111 @@ impl<'a> Run<'a> {
         obs.stage("identification and diagnosis of the PRBS record");
         let out = rounds::first(&named)?;
         self.outcome = Some(out.clone());
-        self.suspect = self
-            .resonance()
-            .map(|r| (r, self.two_mass(&named, &r, &out, obs)));
+        let mut tried = vec![];
+        self.suspect = self.resonance().map(|r| {
+            let (m, t) = self.resonant(&named, &r, &out, obs);
+            tried = t;
+            (r, m)
+        });
         self.records.push(named);
         self.round("identification".into(), vec![], &out);
+        if let Some(last) = self.report.rounds.last_mut() {
+            last.structures = tried;
+        }
         Ok(req)
     }
 
-    /// The load-side two-mass structure fitted to the identification record, started from the
-    /// PMSM fitted to it and the resonance `r` the first model shows (the anti-resonance ten
-    /// times above it: a load-side measurement has none), when it fits at least as well as the
-    /// first round's model (within 5%): the structure the dwell's joint fit starts from.
-    fn two_mass(
+    /// The structures that hold a resonance, fitted to the identification record with its
+    /// delay: the PMSM times a resonant pair at the load ([`rounds::load_resonance`], started
+    /// from the resonance `r` the first model shows and the PMSM fitted to the record with its
+    /// input through that resonance, [`rounds::behind_pair`]: a PMSM fitted to the record as it
+    /// is bends to mimic the resonance, a start the fit may not leave), the two-mass drive train
+    /// (the same start, the anti-resonance ten times above the resonance)
+    /// and the general structure sized by the data ([`ident::diagnose::general`], started from
+    /// the record's frequency response). Among those that fit at least as well as the first
+    /// round's model (within 5%), the one of lowest held-out RMSE, or of fewest free parameters
+    /// among those within [`ident::diagnose::structures::TIE`] of it: the structure the dwell's
+    /// joint fit starts from.
+    fn resonant(
         &mut self,
         named: &Named,
         r: &Resonance,
         out: &Outcome,
         obs: &mut dyn Observe,
-    ) -> Option<rounds::Model> {
-        obs.stage("the two-mass structure on the PRBS record");
-        let (pmsm, _) = rounds::fit_structure(named, "pmsm", Default::default()).ok()?;
-        let wr = 2.0 * std::f64::consts::PI * r.freq_hz;
-        let mut start: std::collections::BTreeMap<String, f64> = ["K", "a1", "a2", "zeta", "theta"]
-            .iter()
-            .filter_map(|n| Some((n.to_string(), pmsm.param(n)?)))
-            .collect();
-        start.insert("c2".into(), wr.powi(-2));
-        start.insert("b2".into(), (10.0 * wr).powi(-2));
-        start.insert("d".into(), 2.0 * r.damping / wr);
-        start.insert("mu".into(), 1.0);
-        let (m, rmse) = match rounds::fit_structure(named, "two-mass", start) {
-            Ok(x) => x,
-            Err(e) => {
-                obs.stage(&format!("the two-mass fit failed: {e}"));
-                return None;
+    ) -> (Option<rounds::Model>, Vec<StructureTried>) {
+        obs.stage("the structures of a resonance on the PRBS record");
+        let base = out.errors.first().map_or(f64::INFINITY, |e| e.rmse);
+        let mut fits: Vec<(&str, Result<(rounds::Model, f64)>)> = vec![];
+        // the motor's start fitted behind the resonance (the record's input through it), or to
+        // the record as it is
+        let motor = rounds::behind_pair(named, r.freq_hz, r.damping)
+            .and_then(|b| {
+                rounds::fit_structure(&b, Structure::Named(Preset::Pmsm), Default::default())
+            })
+            .or_else(|_| {
+                rounds::fit_structure(named, Structure::Named(Preset::Pmsm), Default::default())
+            });
+        if let Ok((pmsm, _)) = motor {
+            if let Some(m) = rounds::load_resonance(&pmsm.spec, r.freq_hz, r.damping) {
+                fits.push(("load-side resonance", rounds::fit_given(named, &m)));
             }
-        };
-        let base = out.errors.first()?.rmse;
-        obs.stage(&format!(
-            "two-mass: {} ({rmse:.4} rad/s against {base:.4})",
-            m.text
+            let wr = 2.0 * std::f64::consts::PI * r.freq_hz;
+            let mut start: std::collections::BTreeMap<String, f64> =
+                ["K", "a1", "a2", "zeta", "theta"]
+                    .iter()
+                    .filter_map(|n| Some((n.to_string(), pmsm.param(n)?)))
+                    .collect();
+            start.insert("c2".into(), wr.powi(-2));
+            start.insert("b2".into(), (10.0 * wr).powi(-2));
+            start.insert("d".into(), 2.0 * r.damping / wr);
+            start.insert("mu".into(), 1.0);
+            fits.push((
+                "two-mass",
+                rounds::fit_structure(named, Structure::Named(Preset::TwoMass), start),
+            ));
+        }
+        fits.push((
+            "general",
+            rounds::fit_structure(named, Structure::General(None), Default::default()),
         ));
-        (rmse <= 1.05 * base).then_some(m)
+        let mut ok: Vec<(usize, rounds::Model, f64)> = vec![];
+        let mut tried = vec![];
+        for (k, (name, fit)) in fits.into_iter().enumerate() {
+            let (model, rmse) = match fit {
+                Ok((m, rmse)) => {
+                    obs.stage(&format!(
+                        "{name}: {} ({rmse:.4} rad/s against {base:.4})",
+                        m.text
+                    ));
+                    let text = m.text.clone();
+                    if rmse <= 1.05 * base {
+                        ok.push((k, m, rmse));
+                    }
+                    (text, Some(rmse))
+                }
+                Err(e) => {
+                    obs.stage(&format!("the {name} fit failed: {e}"));
+                    (format!("the fit failed: {e}"), None)
+                }
+            };
+            tried.push(StructureTried {
+                name: name.into(),
+                model,
+                rmse,
+                chosen: false,
+            });
+        }
+        // the structure comparison's rule: within TIE of the lowest RMSE, the fewest parameters
+        let low = ok.iter().map(|c| c.2).fold(f64::INFINITY, f64::min);
+        let free = |m: &rounds::Model| m.spec.params.iter().filter(|p| p.free).count();
+        let best = ok
+            .into_iter()
+            .filter(|c| c.2 <= (1.0 + ident::diagnose::structures::TIE) * low)
+            .min_by(|a, b| free(&a.1).cmp(&free(&b.1)).then(a.2.total_cmp(&b.2)));
+        if let Some((k, _, _)) = &best {
+            tried[*k].chosen = true;
+        }
+        (best.map(|b| b.1), tried)
     }
 
     fn round(&mut self, reason: String, before: Vec<rounds::RecordError>, out: &Outcome) {
@@ -345,6 +413,7 @@ impl<'a> Run<'a> {
             rejected: out.rejected.clone(),
             ambiguous: out.ambiguous.clone(),
             warnings: out.warnings.clone(),
+            structures: vec![],
         });
     }
 
@@ -447,8 +516,8 @@ impl<'a> Run<'a> {
             self.round(reason, before, &out);
             if purpose == Purpose::Dwell {
                 let last = self.report.rounds.last_mut().expect("a round");
-                last.frf_before = frf_error(&prev, &self.points);
-                last.frf_after = frf_error(&out.model, &self.points);
+                last.frf_before = frf_error(&prev, &self.points, 1.0 / self.fs);
+                last.frf_after = frf_error(&out.model, &self.points, 1.0 / self.fs);
             }
             self.outcome = Some(out);
             self.check_cancel(obs)?;
@@ -597,13 +666,18 @@ impl<'a> Run<'a> {
         let model = self.final_model()?;
         let tf = model.tf()?;
         let res = self.report.model.as_ref().and_then(|m| m.resonance);
-        let xo = control::crossover(&tf, res.as_ref(), self.fs, self.req.wc, self.req.pm_deg);
         let g0 = tf.freq_response(1e-3).norm();
         let step = (0.3 * self.env.speed_max).min(0.4 * self.env.u_max_v * g0);
         let dt = 1.0 / self.fs;
-        let (rep, runs, wc_used, refusals) =
-            control::design(&model, &tf, &xo, dt, step, self.req.u_limit_v)?;
-        let (k, qerr, _) = control::fixed(&rep, &self.conf)?;
+        let control::Chosen {
+            report: rep,
+            runs,
+            crossover: xo,
+            wc_used,
+            refusals,
+            filter,
+        } = control::choose(&model, &tf, res.as_ref(), &self.req, self.fs, step)?;
+        let (k, qerr, _) = control::fixed(&rep, filter.as_ref(), &self.conf)?;
         let predicted_m = if rep.effects.is_empty() {
             rep.step.metrics
         } else {
@@ -652,6 +726,8 @@ impl<'a> Run<'a> {
         }
         self.report.control = Some(Control {
             text: rep.controller.text.clone(),
+            filter,
+            filter_text: filter.as_ref().map(control::filter_text),
             kp: rep.params.kp,
             ki: rep.params.ki,
             lambda: rep.params.lambda,

@@ -7,7 +7,11 @@
 //! 3. Identify in both domains and diagnose the residuals in this process, with the use cases
 //!    `fracid time` and `fracid freq` run (`ident::app::time::run`, `freq::compute`): each model
 //!    fitted and diagnosed once, its text, JSON and plots made from that one result.
-//! 4. Write `report.md` with the models, fits, the diagnosis against the hidden truth, and plots.
+//! 4. A FOPI tuned on the time-domain model run in a speed loop on the drive
+//!    (`demo_loop.rs`), then `fracid drive autotune` with its defaults on the same drive, told
+//!    nothing (`demo_autotune.rs`).
+//! 5. Write `report.md` with the models, fits, the diagnosis against the hidden truth, the loops,
+//!    and plots.
 
 use crate::bad_input;
 use anyhow::{Context, Result};
@@ -128,7 +132,6 @@ pub fn run(a: DemoArgs) -> Result<()> {
         &model,
         dir,
     )?;
-    sim.stop();
     if let (Some(rec), Some(fig)) = (&tuned.record, &tuned.figure) {
         step(&format!(
             "tuned loop: {} and {}",
@@ -136,6 +139,26 @@ pub fn run(a: DemoArgs) -> Result<()> {
             fig.display()
         ));
     }
+
+    // 3c. One-button tuning on the same drive (cmd/demo_autotune.rs), told nothing.
+    step("autotune on the drive (fracid drive autotune, defaults)");
+    let t_auto = Instant::now();
+    let autotune_lines = crate::cmd::demo_autotune::run(
+        sim.port_path(),
+        ClientConfig {
+            baud: a.baud,
+            clock: sim.virtual_clock(),
+            ..ClientConfig::default()
+        },
+        a.sample_rate_hz,
+        dir,
+    )?;
+    sim.stop();
+    step(&format!(
+        "autotune: {} in {:.1} s",
+        dir.join("autotune.txt").display(),
+        t_auto.elapsed().as_secs_f64()
+    ));
 
     // 4. The report.
     let outcome = Outcome {
@@ -148,6 +171,7 @@ pub fn run(a: DemoArgs) -> Result<()> {
         cmp_txt,
         true_model,
         loop_lines: tuned.lines,
+        autotune_lines,
     };
     let mut r = report_md(&a, &outcome)?;
     writeln!(r, "Total time: {:.1} s.", started.elapsed().as_secs_f64())?;
@@ -457,6 +481,7 @@ struct Outcome {
     cmp_txt: String,
     true_model: String,
     loop_lines: Vec<String>,
+    autotune_lines: Vec<String>,
 }
 
 /// The report (`report.md`) but its total time: the drive, the acquisition, each model with
@@ -494,7 +519,7 @@ fn report_md(a: &DemoArgs, o: &Outcome) -> Result<String> {
     writeln!(r, "![the two models](compare.png)\n")?;
     writeln!(r, "```\n{}```\n", o.cmp_txt)?;
     truth_md(&mut r, a, o)?;
-    for l in &o.loop_lines {
+    for l in o.loop_lines.iter().chain(&o.autotune_lines) {
         writeln!(r, "{l}")?;
     }
     Ok(r)

@@ -382,7 +382,7 @@ fn prbs(a: PrbsArgs) -> Result<()> {
         crate::eprintln_safe!("warning: {w}");
     }
     let output = output_path(&a.output);
-    check_outputs(&a.port.port, &[], &[("--output", &output)])?;
+    check_outputs(&a.port.link.port, &[], &[("--output", &output)])?;
     let mut sink = CsvSink::new(output_file(&output)?);
     // The first SIGINT/SIGTERM/SIGHUP/SIGQUIT/... stops the drive; the record keeps what arrived and its
     // footer says what is missing.
@@ -605,7 +605,7 @@ fn sine(a: SineArgs) -> Result<()> {
     if let Some(r) = &reps_path {
         outs.push(("the repeats file (--repeats-out)", r));
     }
-    check_outputs(&a.port.port, &[], &outs)?;
+    check_outputs(&a.port.link.port, &[], &outs)?;
     let mut file = BodeFile::new(&output, header, sweep.repeats > 1)?;
     let mut reps_file = open_repeats_file(&a, &conf, reps_path)?;
     // The first SIGINT/SIGTERM/SIGHUP/SIGQUIT/... stops the drive; the points measured so far are in the

@@ -4,11 +4,11 @@
 //! flags into an [`AutotuneRequest`], runs it under a signal handler that stops the drive, and
 //! presents the report (text, `--json`, `report.md` with plots).
 
-use crate::cmd::drive_io::{autotune_err, check_outputs, connect, PortArgs};
+use crate::cmd::drive_io::{autotune_err, check_outputs, connect, LinkArgs, PortArgs};
 use crate::interrupt::{Interrupted, StopOnInterrupt};
 use crate::plot::{self, Figure, Line, Look, TimeChart};
 use anyhow::{Context, Result};
-use autotune::tuner::{self, report::AutotuneReport, AutotuneRequest};
+use autotune::tuner::{self, report::AutotuneReport, AutotuneRequest, FilterChoice};
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use std::io::Write;
@@ -17,24 +17,9 @@ use std::path::{Path, PathBuf};
 /// Options of `fracid drive autotune`.
 #[derive(Debug, clap::Args)]
 pub struct AutotuneArgs {
-    /// Serial port (e.g. /dev/ttyUSB0, or the path printed by `fracid drive sim`).
-    #[arg(long)]
-    pub port: String,
-    /// Baud rate.
-    #[arg(long, default_value_t = 115_200)]
-    pub baud: u32,
-    /// Command timeout in ms (default: 100 ms + 3 frame times).
-    #[arg(long)]
-    pub timeout_ms: Option<u64>,
-    /// Resends of an unanswered command.
-    #[arg(long, default_value_t = 5)]
-    pub retries: u32,
-    /// Interval between the host's KEEPALIVE frames during a run, ms.
-    #[arg(long, default_value_t = 150, value_parser = clap::value_parser!(u64).range(1..=10_000))]
-    pub keepalive_ms: u64,
-    /// Sample rate in Hz.
-    #[arg(long, default_value_t = 1000)]
-    pub sample_rate: u32,
+    /// The serial link.
+    #[command(flatten)]
+    pub link: LinkArgs,
     /// Voltage limit, V: the drive's clamp (the experiments stay within 80% of it).
     /// Default 12.
     #[arg(long)]
@@ -60,6 +45,12 @@ pub struct AutotuneArgs {
     /// Rounds of experiments after the first. Default 3.
     #[arg(long)]
     pub max_rounds: Option<usize>,
+    /// For a resonance of the final model: a notch at it in the controller (`notch`), a
+    /// first-order low-pass at half its frequency (`low-pass`), no filter and the crossover a
+    /// fifth of it (`none`), or the notch when its loop is faster than the lower crossover's
+    /// (`auto`).
+    #[arg(long, value_enum, default_value_t = FilterArg::Auto)]
+    pub filter: FilterArg,
     /// Write the report as JSON to standard output (the text goes to standard error).
     #[arg(long)]
     pub json: bool,
@@ -69,6 +60,30 @@ pub struct AutotuneArgs {
     /// No progress lines.
     #[arg(long, short)]
     pub quiet: bool,
+}
+
+/// `--filter`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum FilterArg {
+    /// The notch when its loop is faster.
+    Auto,
+    /// A notch at the resonance.
+    Notch,
+    /// A low-pass at half the resonance.
+    LowPass,
+    /// No filter: a lower crossover.
+    None,
+}
+
+impl From<FilterArg> for FilterChoice {
+    fn from(f: FilterArg) -> Self {
+        match f {
+            FilterArg::Auto => FilterChoice::Auto,
+            FilterArg::Notch => FilterChoice::Notch,
+            FilterArg::LowPass => FilterChoice::LowPass,
+            FilterArg::None => FilterChoice::None,
+        }
+    }
 }
 
 impl AutotuneArgs {
@@ -83,18 +98,14 @@ impl AutotuneArgs {
             pm_deg: self.pm,
             operating_point_v: self.operating_point,
             max_rounds: self.max_rounds.unwrap_or(d.max_rounds),
+            filter: self.filter.into(),
             ..d
         }
     }
 
     fn port_args(&self, req: &AutotuneRequest) -> PortArgs {
         PortArgs {
-            port: self.port.clone(),
-            baud: self.baud,
-            timeout_ms: self.timeout_ms,
-            retries: self.retries,
-            keepalive_ms: self.keepalive_ms,
-            sample_rate: self.sample_rate,
+            link: self.link.clone(),
             block: 32,
             u_limit: req.u_limit_v,
             quiet: self.quiet,
@@ -134,7 +145,7 @@ pub fn run(a: AutotuneArgs) -> Result<()> {
         std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
         let outs = ["report.md", "report.json", "step.png", "records.png"].map(|f| dir.join(f));
         let named: Vec<(&str, &Path)> = outs.iter().map(|p| ("--out", p.as_path())).collect();
-        check_outputs(&a.port, &[], &named)?;
+        check_outputs(&a.link.port, &[], &named)?;
     }
     let mut client = connect(&port, &conf)?;
     let signals = StopOnInterrupt::arm(client.stop_handle());
@@ -142,7 +153,7 @@ pub fn run(a: AutotuneArgs) -> Result<()> {
         quiet: a.quiet,
         signals: &signals,
     };
-    let out = tuner::run(&mut client, a.sample_rate, &req, &mut obs);
+    let out = tuner::run(&mut client, a.link.sample_rate, &req, &mut obs);
     let signal = signals.signal();
     drop(signals);
     drop(client);

@@ -21,9 +21,10 @@ pub(crate) fn autotune_err(e: autotune::Error) -> anyhow::Error {
     }
 }
 
-/// Connection options shared by the client subcommands.
-#[derive(Debug, clap::Args)]
-pub struct PortArgs {
+/// The serial link's options, shared by every command that talks to a drive (flattened into
+/// [`PortArgs`] and `fracid drive autotune`'s options).
+#[derive(Debug, Clone, clap::Args)]
+pub struct LinkArgs {
     /// Serial port (e.g. /dev/ttyUSB0, or the path printed by `fracid drive sim`).
     #[arg(long)]
     pub port: String,
@@ -43,6 +44,14 @@ pub struct PortArgs {
     /// Sample rate in Hz.
     #[arg(long, default_value_t = 1000)]
     pub sample_rate: u32,
+}
+
+/// Connection options shared by the client subcommands: the link, the block size, the clamp.
+#[derive(Debug, clap::Args)]
+pub struct PortArgs {
+    /// The serial link.
+    #[command(flatten)]
+    pub link: LinkArgs,
     /// Samples per DATA block (1..=66).
     #[arg(long, default_value_t = 32)]
     pub block: u8,
@@ -69,16 +78,19 @@ pub(crate) fn lib_err(e: drive::Error) -> anyhow::Error {
 
 /// The drive configuration from the options, checked before anything is opened (exit 2).
 pub(crate) fn port_conf(p: &PortArgs) -> Result<Configure> {
-    if p.baud == 0 {
+    if p.link.baud == 0 {
         crate::bad_input!("--baud must be positive");
     }
-    if p.timeout_ms.is_some_and(|t| !(1..=60_000).contains(&t)) {
+    if p.link
+        .timeout_ms
+        .is_some_and(|t| !(1..=60_000).contains(&t))
+    {
         crate::bad_input!("--timeout-ms must be in 1..=60000");
     }
-    if p.retries > 100 {
-        crate::bad_input!("--retries must be at most 100, got {}", p.retries);
+    if p.link.retries > 100 {
+        crate::bad_input!("--retries must be at most 100, got {}", p.link.retries);
     }
-    if p.sample_rate == 0 {
+    if p.link.sample_rate == 0 {
         crate::bad_input!("--sample-rate must be positive");
     }
     if !(1..=MAX_BLOCK_SAMPLES).contains(&p.block) {
@@ -91,7 +103,7 @@ pub(crate) fn port_conf(p: &PortArgs) -> Result<Configure> {
         crate::bad_input!("--u-limit must be in (0, 32.767] V, got {}", p.u_limit);
     }
     Ok(Configure {
-        sample_rate_hz: p.sample_rate,
+        sample_rate_hz: p.link.sample_rate,
         block_samples: p.block,
         u_limit: (p.u_limit * 1000.0).round() as i16,
         ..Configure::default()
@@ -101,15 +113,15 @@ pub(crate) fn port_conf(p: &PortArgs) -> Result<Configure> {
 /// Open the port, check the sample rate against the drive's, configure.
 pub(crate) fn connect(p: &PortArgs, conf: &Configure) -> Result<Client> {
     let cfg = ClientConfig {
-        baud: p.baud,
-        timeout: p.timeout_ms.map(Duration::from_millis),
-        retries: p.retries,
-        keepalive: Duration::from_millis(p.keepalive_ms),
+        baud: p.link.baud,
+        timeout: p.link.timeout_ms.map(Duration::from_millis),
+        retries: p.link.retries,
+        keepalive: Duration::from_millis(p.link.keepalive_ms),
         ..ClientConfig::default()
     };
-    let mut c = Client::open(&p.port, cfg)
+    let mut c = Client::open(&p.link.port, cfg)
         .map_err(lib_err)
-        .with_context(|| format!("connecting to the drive at {}", p.port))?;
+        .with_context(|| format!("connecting to the drive at {}", p.link.port))?;
     if let Some(h) = c.drive_info() {
         if conf.sample_rate_hz > h.max_sample_rate_hz {
             crate::bad_input!(

@@ -55,7 +55,7 @@ pub fn run(a: LoopArgs) -> Result<()> {
     let conf = port_conf(&a.port)?;
     let output = output_path(&a.output);
     check_outputs(
-        &a.port.port,
+        &a.port.link.port,
         &[("--controller", &a.controller)],
         &[("--output", &output)],
     )?;

@@ -2,6 +2,7 @@
 
 pub mod compare;
 pub mod demo;
+pub mod demo_autotune;
 pub mod demo_loop;
 pub mod diagnose;
 pub mod drive;
@@ -43,6 +44,22 @@ pub fn load_record(
 /// file (exit 2, in the context of the file).
 pub fn read_text(path: &std::path::Path) -> anyhow::Result<String> {
     Ok(ident::files::read_text(path)?)
+}
+
+/// A flag's words parsed into the library's type (`--structure`, `--offsets`, `--approx`, ...):
+/// clap reports a word the type does not take (exit 2) with the library's own message.
+///
+/// # Errors
+/// The type's parse error, in words.
+pub fn parse_word<T>(s: &str) -> Result<T, String>
+where
+    T: std::str::FromStr,
+    T::Err: Into<ident::Error>,
+{
+    s.parse().map_err(|e: T::Err| match e.into() {
+        ident::Error::Options(m) => m,
+        e => e.to_string(),
+    })
 }
 
 /// `--order N` (approximation order) parsed and checked against the one range shared with

@@ -3,8 +3,9 @@
 
 use super::time::{read_record, score_text, ColumnArgs};
 use anyhow::Result;
+use fracsim::approx::Method;
 use ident::app::score::ScoreReport;
-use ident::data::ReadOptions;
+use ident::data::{OffsetMode, ReadOptions};
 use ident::oe::{score, FracModel, InitialState};
 use std::path::PathBuf;
 
@@ -24,14 +25,16 @@ pub struct ScoreArgs {
     #[command(flatten)]
     pub columns: ColumnArgs,
     /// Approximation of the fractional operators: refined (default), oustaloup or trigeassou.
-    #[arg(long, default_value = "refined")]
-    pub approx: String,
+    #[arg(long, value_parser = crate::cmd::parse_word::<Method>, default_value_t = Method::default())]
+    pub approx: Method,
     /// Operating point removal: initial (u[0], median y before the first input change), mean, none.
-    #[arg(long, default_value = "initial")]
-    pub offsets: String,
+    #[arg(long, value_parser = crate::cmd::parse_word::<OffsetMode>,
+          default_value_t = OffsetMode::default())]
+    pub offsets: OffsetMode,
     /// Initial state: estimate (the record's own, as a past held input) or rest.
-    #[arg(long, default_value = "estimate")]
-    pub initial: String,
+    #[arg(long, value_parser = crate::cmd::parse_word::<InitialState>,
+          default_value_t = InitialState::Estimate)]
+    pub initial: InitialState,
     /// With a `fracid time --json` report: which of its models to score, `lead` (the one it
     /// recommends: after a diagnosis the final model, effects included) or `base` (the base fit
     /// of a diagnosis).
@@ -154,8 +157,7 @@ pub fn run(a: ScoreArgs) -> Result<()> {
         };
         return rescore_report(&a, v, read_record(&a.file, &read)?);
     }
-    let offsets = ident::app::offsets(&a.offsets)?;
-    let initial: InitialState = a.initial.parse()?;
+    let (offsets, initial) = (a.offsets, a.initial);
     if let Some(v) = &report {
         // the report's whole model (effects included), with its own approximation
         let key = match a.which.trim() {
@@ -182,7 +184,7 @@ pub fn run(a: ScoreArgs) -> Result<()> {
     let tf = model_tf(&a.model)?;
     let rec = read_record(&a.file, &read)?;
     let mut m = FracModel::from_tf(&tf, false, false);
-    m.approx.method = a.approx.parse()?;
+    m.approx.method = a.approx;
     m.with_output_offset(0.0);
     let sc = score(&m, &rec, offsets, initial)?;
     print_scored(&a, &sc, &tf.to_string())

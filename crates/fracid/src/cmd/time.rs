@@ -2,12 +2,15 @@
 
 use crate::plot::{self, Figure};
 use anyhow::{Context, Result};
+use fracsim::approx::Method;
 use ident::app::observe::{Observe, Stage};
 use ident::app::score::ScoreReport;
 use ident::app::time::{Named, TimeData, TimeReport, TimeRequest};
-use ident::data::{Columns, ReadOptions, Record};
+use ident::app::{Held, Names, Preset, Structure};
+use ident::data::{Columns, OffsetMode, ReadOptions, Record};
 use ident::metrics;
 use ident::oe::Identification;
+use ident::oe::InitialState;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use std::fmt::Write as _;
@@ -50,25 +53,16 @@ pub struct TimeArgs {
     /// Sampling step in seconds, for a file with no time column (t = k dt; --t-col is not read).
     #[arg(long)]
     pub dt: Option<f64>,
-    /// Model structure: pmsm (K/(a2 s^(zeta+theta) + a1 s^zeta + 1)), commensurate,
-    /// second-order, third-order (the integer K/(a2 s^2 + a1 s + 1), K/(a3 s^3 + ... + 1)),
-    /// two-mass (pmsm times (b2 s^2 + d s^mu + 1)/(c2 s^2 + d s^mu + 1): a compliant coupling),
-    /// feedthrough (D + pmsm: an output that responds at once to the input, D its instant
-    /// response), fopdt, auto (pmsm, commensurate, the integer first, second and third order,
-    /// two-mass, and feedthrough when the record shows an instant response, each fitted, the one
-    /// the data support kept: held-out RMSE,
-    /// then BIC among ties within 2%; the table is printed), general (a general transfer
-    /// function (b0 + .. + bN s^(N q))/(1 + .. + aD s^(D q)), with an integrator when the data
-    /// call for it, its size chosen by held-out error and BIC from a frequency-response start),
-    /// general:N/D (that size), or a
-    /// transfer function such as "6.8/(3e-5 s^1.75 + 0.006 s^0.9 + 1)" used as the start.
-    #[arg(long, default_value_t = ident::app::time::TimeRequest::default().structure)]
-    pub structure: String,
+    // Model structure: its help is the catalogue's ([`structure_help`]).
+    #[arg(long, help = structure_help(), value_parser = crate::cmd::parse_word::<Structure>,
+          default_value_t = TimeRequest::default().structure)]
+    pub structure: Structure,
     /// Approximation of the fractional operators: refined (Xue's refined Oustaloup, the default),
     /// oustaloup or trigeassou (Poinot-Trigeassou); the model is then simulated exactly for the
     /// held input (see `fracid sim --help`).
-    #[arg(long, default_value_t = ident::app::time::TimeRequest::default().approx)]
-    pub approx: String,
+    #[arg(long, value_parser = crate::cmd::parse_word::<Method>,
+          default_value_t = TimeRequest::default().approx)]
+    pub approx: Method,
     /// Approximation band "w_b,w_h" in rad/s (default fracsim's [1e-6/dt, 30 pi/dt]).
     #[arg(long)]
     pub band: Option<String>,
@@ -81,11 +75,11 @@ pub struct TimeArgs {
     pub integrator: bool,
     /// Hold parameters fixed: "NAME" or "NAME=VALUE", comma-separated (names as the report
     /// prints them: K, a1, a2, zeta, theta; b0, a0, a1_order, ... for a model; tau).
-    #[arg(long)]
-    pub fix: Option<String>,
+    #[arg(long, value_parser = crate::cmd::parse_word::<Held>)]
+    pub fix: Option<Held>,
     /// Fit parameters a structure holds fixed (comma-separated names).
-    #[arg(long)]
-    pub free: Option<String>,
+    #[arg(long, value_parser = crate::cmd::parse_word::<Names>)]
+    pub free: Option<Names>,
     /// Fit an input delay (seconds, up to --max-delay); a delay written in the structure
     /// (exp(-tau s)) is then fitted from its value.
     #[arg(long)]
@@ -108,8 +102,9 @@ pub struct TimeArgs {
     #[arg(long)]
     pub validate: Option<PathBuf>,
     /// Operating point removal: initial (u[0], median y before the first input change), mean, none.
-    #[arg(long, default_value_t = ident::app::time::TimeRequest::default().offsets)]
-    pub offsets: String,
+    #[arg(long, value_parser = crate::cmd::parse_word::<OffsetMode>,
+          default_value_t = TimeRequest::default().offsets)]
+    pub offsets: OffsetMode,
     /// Do not fit a constant output offset.
     #[arg(long)]
     pub no_offset: bool,
@@ -117,10 +112,11 @@ pub struct TimeArgs {
     /// its first input change, input constant and output steady; else estimate), estimate (the
     /// state a past held input left, fitted with the model: records that start in motion,
     /// mid-transient or on a ramp) or rest (at the operating point).
-    #[arg(long, default_value_t = ident::app::time::TimeRequest::default().initial)]
-    pub initial: String,
+    #[arg(long, value_parser = crate::cmd::parse_word::<InitialState>,
+          default_value_t = TimeRequest::default().initial)]
+    pub initial: InitialState,
     /// Maximum Levenberg-Marquardt iterations.
-    #[arg(long, default_value_t = ident::app::time::TimeRequest::default().max_iterations)]
+    #[arg(long, default_value_t = TimeRequest::default().max_iterations)]
     pub max_iter: usize,
     /// Start from the given structure's values instead of the automatic start.
     #[arg(long)]
@@ -131,19 +127,19 @@ pub struct TimeArgs {
     pub start: Option<String>,
     /// Samples at the start of the estimation part left out of the cost (a transient the model
     /// need not explain).
-    #[arg(long, default_value_t = ident::app::time::TimeRequest::default().skip)]
+    #[arg(long, default_value_t = TimeRequest::default().skip)]
     pub skip: usize,
     /// Lags of the residual whiteness and cross-correlation test (JSON `residual_test`).
-    #[arg(long, default_value_t = ident::app::time::TimeRequest::default().max_lag)]
+    #[arg(long, default_value_t = TimeRequest::default().max_lag)]
     pub max_lag: usize,
     /// The diagnosis's margin (not with --plain): the held-out improvement an effect must bring (fraction of the RMSE).
-    #[arg(long, default_value_t = ident::app::time::TimeRequest::default().margin)]
+    #[arg(long, default_value_t = TimeRequest::default().margin)]
     pub margin: f64,
     /// The diagnosis's evidence (not with --plain): the R^2 a candidate effect needs to be refitted.
-    #[arg(long, default_value_t = ident::app::time::TimeRequest::default().min_r2)]
+    #[arg(long, default_value_t = TimeRequest::default().min_r2)]
     pub min_r2: f64,
     /// The diagnosis's rounds of effects (not with --plain).
-    #[arg(long, default_value_t = ident::app::time::TimeRequest::default().max_rounds)]
+    #[arg(long, default_value_t = TimeRequest::default().max_rounds)]
     pub max_rounds: usize,
     /// Print JSON (docs/design.md §7) instead of text.
     #[arg(long)]
@@ -167,8 +163,28 @@ pub struct TimeArgs {
     pub fleet: super::fleet::FleetArgs,
 }
 
+/// The help of `--structure`: the catalogue's structures ([`Preset`]), `auto`, the general
+/// structure and a transfer function.
+fn structure_help() -> String {
+    let compared: Vec<&str> = ident::diagnose::structures::compared()
+        .map(Preset::name)
+        .collect();
+    let compared = compared.join(", ");
+    format!(
+        "Model structure: {}, auto ({compared}, and feedthrough when the record shows an instant \
+         response, each fitted, the one the data support kept: held-out RMSE, then BIC among \
+         ties within 2%; the table is printed), general (a general transfer function \
+         (b0 + .. + bN s^(N q))/(1 + .. + aD s^(D q)), with an integrator when the data call for \
+         it, its size chosen by held-out error and BIC from a frequency-response start), \
+         general:N/D (that size), or a transfer function such as \
+         \"6.8/(3e-5 s^1.75 + 0.006 s^0.9 + 1)\" used as the start. Other spellings of the \
+         names are taken (second_order, \"second order\")",
+        Preset::described()
+    )
+}
+
 /// The use-case request of `fracid time`'s options (every default is the request's own,
-/// `ident::app::time::TimeRequest::default()`).
+/// `TimeRequest::default()`).
 ///
 /// # Errors
 /// A band that is not two numbers, a `--start` item that is not `NAME=VALUE`.
@@ -186,22 +202,23 @@ pub(crate) fn request(a: &TimeArgs) -> Result<TimeRequest> {
         };
         start.insert(name.trim().to_string(), v);
     }
+    let d = TimeRequest::default();
     Ok(TimeRequest {
         structure: a.structure.clone(),
-        approx: a.approx.clone(),
+        approx: a.approx,
         band: a.band.as_deref().map(ident::app::band).transpose()?,
         order: a.order,
         integrator: a.integrator,
         delay: a.delay,
         max_delay: a.max_delay,
-        fix: a.fix.clone().unwrap_or_default(),
-        free: a.free.clone().unwrap_or_default(),
+        fix: a.fix.clone().unwrap_or(d.fix),
+        free: a.free.clone().unwrap_or(d.free),
         start,
         auto_start: !a.no_auto_start,
         holdout: a.holdout,
-        offsets: a.offsets.clone(),
+        offsets: a.offsets,
         fit_offset: !a.no_offset,
-        initial: a.initial.clone(),
+        initial: a.initial,
         max_iterations: a.max_iter,
         skip: a.skip,
         max_lag: a.max_lag,

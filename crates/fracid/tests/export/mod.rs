@@ -130,24 +130,31 @@ fn bad_requests_exit_2() {
     assert_eq!(o.status.code(), Some(3));
 }
 
+/// The paper's PMSM with a 1 ms delay.
+const PMSM: &str = "6.77/(0.000028 s^1.78 + 0.0064 s^0.89 + 1) exp(-0.001 s)";
+
+/// `fracid tune --json` of [`PMSM`] at crossover `wc` rad/s, 60 degrees of phase margin, sampled
+/// every `dt` s: the report as printed.
+fn tune_report(wc: &str, dt: &str) -> Vec<u8> {
+    let out = fracid(&["tune", PMSM, "--wc", wc, "--pm", "60", "--dt", dt, "--json"]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out.stdout
+}
+
 /// A FOPI as `fracid tune` prints it, and a `fracid tune --json` report, export the controller's
 /// realisation (before: "found 4 of the 19 poles"; the report's plant): the discrete steps match
 /// `tune`'s own realisation in the report for the same `dt`.
 #[test]
 fn a_tuned_controller_exports() {
     let dir = tempfile::tempdir().unwrap();
-    let pmsm = "6.77/(0.000028 s^1.78 + 0.0064 s^0.89 + 1) exp(-0.001 s)";
-    let out = fracid(&[
-        "tune", pmsm, "--wc", "50", "--pm", "60", "--dt", "0.001", "--json",
-    ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let report = tune_report("50", "0.001");
     let rep = dir.path().join("c.json");
-    std::fs::write(&rep, &out.stdout).unwrap();
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    std::fs::write(&rep, &report).unwrap();
+    let v: serde_json::Value = serde_json::from_slice(&report).unwrap();
     let text = v["controller"]["text"].as_str().unwrap().to_string();
     let d = &v["discrete"];
     let from_report = step(
@@ -180,17 +187,9 @@ fn a_tuned_controller_exports() {
 #[test]
 fn the_c_header_steps_like_the_realisation() {
     let dir = tempfile::tempdir().unwrap();
-    let pmsm = "6.77/(0.000028 s^1.78 + 0.0064 s^0.89 + 1) exp(-0.001 s)";
-    let tuned = fracid(&[
-        "tune", pmsm, "--wc", "100", "--pm", "60", "--dt", "1e-3", "--json",
-    ]);
-    assert!(
-        tuned.status.success(),
-        "{}",
-        String::from_utf8_lossy(&tuned.stderr)
-    );
+    let tuned = tune_report("100", "1e-3");
     let c_json = dir.path().join("C.json");
-    std::fs::write(&c_json, &tuned.stdout).unwrap();
+    std::fs::write(&c_json, &tuned).unwrap();
     let header = dir.path().join("ctrl.h");
     let o = fracid(&[
         "export",
@@ -252,7 +251,7 @@ fn the_c_header_steps_like_the_realisation() {
         .collect();
     assert_eq!(u_c.len(), n);
     // the realisation's step in floating point: e = 0.5 rad/s, u in V, raw at 1 mV per LSB
-    let v: serde_json::Value = serde_json::from_slice(&tuned.stdout).unwrap();
+    let v: serde_json::Value = serde_json::from_slice(&tuned).unwrap();
     let unit = step(&v["discrete"], n);
     let e = e_raw as f64 * 0.01;
     for (k, (&uc, &s)) in u_c.iter().zip(&unit).enumerate() {
@@ -267,7 +266,7 @@ fn the_c_header_steps_like_the_realisation() {
     assert!(u_c[n - 1] > u_c[0] + 10.0, "{} -> {}", u_c[0], u_c[n - 1]);
     // a plant is no controller, and a controller needs its sample period: bad input
     for args in [
-        vec!["export", pmsm, "--format", "c"],
+        vec!["export", PMSM, "--format", "c"],
         vec!["export", "0.1 + 20/s^0.9", "--format", "c"],
     ] {
         let o = fracid(&args);

@@ -44,6 +44,16 @@ fn record_rows(keep: impl Iterator<Item = usize>) -> String {
 /// the optimiser's path, not on the reader these tests are about.
 const READER_FIT: [&str; 4] = ["--max-iter", "5", "--structure", "2/(0.01 s^0.9 + 1)"];
 
+/// A PRBS record written by `fracid sim --prbs --dt 1e-3 --t-end 1.5` to `path` (`t,u,y` and a
+/// comment), of sim's default model or of `model`.
+fn sim_record(path: PathBuf, model: Option<&str>) -> PathBuf {
+    let mut args = vec!["sim", "--prbs", "--dt", "1e-3", "--t-end", "1.5"];
+    args.extend(model.map(|m| ["--model", m]).into_iter().flatten());
+    let o = fracid(&[&args[..], &["-o", path.to_str().unwrap()]].concat());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    path
+}
+
 fn write(dir: &tempfile::TempDir, name: &str, text: &str) -> PathBuf {
     let p = dir.path().join(name);
     std::fs::write(&p, text).unwrap();

@@ -11,19 +11,7 @@ fn stdout(o: &std::process::Output) -> String {
 
 /// `a.csv` of the issue: `fracid sim --prbs --dt 1e-3 --t-end 1.5 -o a.csv`.
 pub(crate) fn a_csv(dir: &tempfile::TempDir) -> std::path::PathBuf {
-    let p = dir.path().join("a.csv");
-    let o = fracid(&[
-        "sim",
-        "--prbs",
-        "--dt",
-        "1e-3",
-        "--t-end",
-        "1.5",
-        "-o",
-        p.to_str().unwrap(),
-    ]);
-    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
-    p
+    super::sim_record(dir.path().join("a.csv"), None)
 }
 
 /// A record of `a.csv`'s input with a constant output: single-file `fracid time` fits it and

@@ -4,17 +4,13 @@
 //! a binary stream buffered whole (8), a row with a field too many read shifted (12), fleet
 //! entries that are not files skipped without a word (16).
 
-use super::{stderr, write};
+use super::{fracid, stderr, write};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 /// The `fracid` under test.
 fn bin() -> PathBuf {
     PathBuf::from(env!("CARGO_BIN_EXE_fracid"))
-}
-
-fn run(args: &[&str]) -> Output {
-    Command::new(bin()).args(args).output().unwrap()
 }
 
 /// `fracid args` with its address space limited to `kib` KiB (`ulimit -v`): what it takes
@@ -33,21 +29,7 @@ fn run_within(kib: u64, args: &[&str]) -> Output {
 /// A measured record as `fracid sim` writes it (`t,u,y`, a comment): a PRBS through a plant
 /// that is not sim's default, so a simulation written over it changes it.
 fn record(dir: &Path, name: &str) -> PathBuf {
-    let p = dir.join(name);
-    let o = run(&[
-        "sim",
-        "--prbs",
-        "--dt",
-        "1e-3",
-        "--t-end",
-        "1.5",
-        "--model",
-        "3/(0.02 s^0.8 + 1)",
-        "-o",
-        p.to_str().unwrap(),
-    ]);
-    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
-    p
+    super::sim_record(dir.join(name), Some("3/(0.02 s^0.8 + 1)"))
 }
 
 /// `args` (with `{IN}` and `{OUT}` replaced) refused with exit 2 and words naming both files,
@@ -98,7 +80,7 @@ fn aliases(p: &Path) -> Vec<PathBuf> {
 fn item_1_drive_loop_never_writes_its_record_over_the_controller() {
     let dir = tempfile::tempdir().unwrap();
     let c = dir.path().join("c.json");
-    let o = run(&[
+    let o = fracid(&[
         "tune",
         "6.82/(2.655e-5 s^1.7452 + 0.0059 s^0.92 + 1)",
         "--wc",
@@ -145,7 +127,7 @@ fn item_1_drive_loop_never_writes_its_record_over_the_controller() {
     }
     // the controller and a record beside it: the loop runs
     let rec = dir.path().join("rec.csv");
-    let o = run(&[
+    let o = fracid(&[
         "drive",
         "loop",
         "--port",
@@ -183,7 +165,7 @@ fn item_2_sim_never_writes_over_its_input_record() {
         "--plot",
     );
     // -o and --plot one file
-    let o = run(&[
+    let o = fracid(&[
         "sim",
         "-o",
         dir.path().join("p.svg").to_str().unwrap(),
@@ -200,7 +182,7 @@ fn item_3_export_never_writes_over_its_model_file() {
     let dir = tempfile::tempdir().unwrap();
     let rec = record(dir.path(), "rec.csv");
     let fit = dir.path().join("fit.json");
-    let o = run(&[
+    let o = fracid(&[
         "time",
         "--quiet",
         "--json",
@@ -226,7 +208,7 @@ fn item_3_export_never_writes_over_its_model_file() {
     }
     // another output: written
     let ss = dir.path().join("ss.json");
-    let o = run(&[
+    let o = fracid(&[
         "export",
         fit.to_str().unwrap(),
         "--dt",
@@ -475,7 +457,7 @@ fn item_12_a_row_with_a_field_too_many_or_too_few_is_refused() {
         let mut l: Vec<&str> = lines.clone();
         l[k] = &row;
         let p = write(&dir, name, &(l.join("\n") + "\n"));
-        let o = run(&["time", "--quiet", "--max-iter", "3", p.to_str().unwrap()]);
+        let o = fracid(&["time", "--quiet", "--max-iter", "3", p.to_str().unwrap()]);
         let e = stderr(&o);
         assert_eq!(o.status.code(), Some(2), "{name}: {e}");
         assert!(e.contains(&format!("line {}:", k + 1)), "{name}: {e}");
@@ -491,18 +473,18 @@ fn item_12_a_row_with_a_field_too_many_or_too_few_is_refused() {
         }
     }
     let p = write(&dir, "big.csv", &big);
-    let o = run(&["time", "--quiet", "--max-iter", "1", p.to_str().unwrap()]);
+    let o = fracid(&["time", "--quiet", "--max-iter", "1", p.to_str().unwrap()]);
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert!(stderr(&o).contains("line 20002:"), "{}", stderr(&o));
     // the same for a sim input and a Bode table
-    let o = run(&["sim", "--input", p.to_str().unwrap(), "-o", "/dev/null"]);
+    let o = fracid(&["sim", "--input", p.to_str().unwrap(), "-o", "/dev/null"]);
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     let bode = write(
         &dir,
         "bode.csv",
         "freq_hz,gain_db,phase_deg\n1,16.6,-4\n10,14,-35,7\n100,-3,-120\n",
     );
-    let o = run(&["freq", bode.to_str().unwrap()]);
+    let o = fracid(&["freq", bode.to_str().unwrap()]);
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert!(stderr(&o).contains("line 3:"), "{}", stderr(&o));
 }
@@ -525,7 +507,7 @@ fn item_16_a_fleet_lists_what_it_cannot_read() {
     std::fs::create_dir(d.join("folder.csv")).unwrap();
     for cmd in ["time", "freq"] {
         let out = tempfile::tempdir().unwrap();
-        let o = run(&[
+        let o = fracid(&[
             cmd,
             d.to_str().unwrap(),
             "--out",

@@ -64,6 +64,31 @@ fn run_within(args: &[&str], limit: Duration) -> (Option<i32>, String, Duration)
     (status.and_then(|s| s.code()), err, t0.elapsed())
 }
 
+/// `fracid drive loop --controller CONTROLLER --step 10 --duration 1` on a port that does not
+/// exist (reaching it would be exit 3), given 30 s: the exit code, standard error, the time taken.
+fn loop_without_port(
+    dir: &tempfile::TempDir,
+    controller: &Path,
+) -> (Option<i32>, String, Duration) {
+    run_within(
+        &[
+            "drive",
+            "loop",
+            "--port",
+            "/nonexistent/tty",
+            "--controller",
+            controller.to_str().unwrap(),
+            "--step",
+            "10",
+            "--duration",
+            "1",
+            "-o",
+            dir.path().join("r.csv").to_str().unwrap(),
+        ],
+        Duration::from_secs(30),
+    )
+}
+
 /// Item 4: a controller of 1,600 states (12.8 MB of JSON in the issue) kept `drive loop` busy
 /// 121 s of CPU before the port was even opened. It is refused at once (the drive holds at most
 /// 48 sections), exit 2, in words, before the port (which does not exist here: reaching it
@@ -80,23 +105,7 @@ fn item_4_an_oversized_controller_is_refused_at_once() {
         "big.json",
         &controller_json(&a, &vec![1.0; n], &vec![1.0; n], 0.1),
     );
-    let (code, err, took) = run_within(
-        &[
-            "drive",
-            "loop",
-            "--port",
-            "/nonexistent/tty",
-            "--controller",
-            p.to_str().unwrap(),
-            "--step",
-            "10",
-            "--duration",
-            "1",
-            "-o",
-            dir.path().join("r.csv").to_str().unwrap(),
-        ],
-        Duration::from_secs(30),
-    );
+    let (code, err, took) = loop_without_port(&dir, &p);
     assert_eq!(code, Some(2), "after {took:?}: {err}");
     assert!(took < Duration::from_secs(10), "{took:?}");
     assert!(
@@ -211,23 +220,7 @@ fn item_6_poles_at_minus_one_end_with_an_error_not_a_hang() {
         "m1.json",
         &controller_json(&a, &[-1.0, 0.0, -1.0, 0.0], &[1.0, 0.0, 0.0, -1.0], 1.0),
     );
-    let (code, err, took) = run_within(
-        &[
-            "drive",
-            "loop",
-            "--port",
-            "/nonexistent/tty",
-            "--controller",
-            p.to_str().unwrap(),
-            "--step",
-            "10",
-            "--duration",
-            "1",
-            "-o",
-            dir.path().join("r.csv").to_str().unwrap(),
-        ],
-        Duration::from_secs(30),
-    );
+    let (code, err, took) = loop_without_port(&dir, &p);
     assert_eq!(code, Some(1), "after {took:?}: {err}");
     assert!(took < Duration::from_secs(10), "{took:?}");
     assert!(err.contains("did not converge"), "{err}");

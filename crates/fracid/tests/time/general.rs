@@ -5,81 +5,9 @@
 //! from the reported terms).
 
 use super::{stderr, stdout};
+use crate::exact::{random_binary, simulate, Lcg};
 use crate::fracid;
 use std::fmt::Write as _;
-
-/// `exp(M)` by scaling and squaring with a 20-term Taylor series.
-fn expm(m: &[Vec<f64>]) -> Vec<Vec<f64>> {
-    let n = m.len();
-    let norm: f64 = m
-        .iter()
-        .map(|r| r.iter().map(|v| v.abs()).sum::<f64>())
-        .fold(0.0, f64::max);
-    let s = (norm.max(1e-300).log2().ceil() + 1.0).max(0.0) as i32;
-    let f = 0.5f64.powi(s);
-    let a: Vec<Vec<f64>> = m
-        .iter()
-        .map(|r| r.iter().map(|v| v * f).collect())
-        .collect();
-    let mul = |x: &[Vec<f64>], y: &[Vec<f64>]| -> Vec<Vec<f64>> {
-        (0..n)
-            .map(|i| {
-                (0..n)
-                    .map(|j| (0..n).map(|k| x[i][k] * y[k][j]).sum())
-                    .collect()
-            })
-            .collect()
-    };
-    let mut term: Vec<Vec<f64>> = (0..n)
-        .map(|i| (0..n).map(|j| f64::from(u8::from(i == j))).collect())
-        .collect();
-    let mut sum = term.clone();
-    for k in 1..=20 {
-        term = mul(&term, &a);
-        term.iter_mut()
-            .for_each(|r| r.iter_mut().for_each(|v| *v /= k as f64));
-        for i in 0..n {
-            for j in 0..n {
-                sum[i][j] += term[i][j];
-            }
-        }
-    }
-    for _ in 0..s {
-        sum = mul(&sum, &sum);
-    }
-    sum
-}
-
-/// The exact response of `sum b_k s^k / sum a_k s^k` (ascending powers, proper) to `u` held over
-/// each step of `dt`, from rest.
-fn simulate(b: &[f64], a: &[f64], u: &[f64], dt: f64) -> Vec<f64> {
-    let n = a.len() - 1;
-    let an = a[n];
-    let a: Vec<f64> = a.iter().map(|v| v / an).collect();
-    let mut b: Vec<f64> = b.iter().map(|v| v / an).collect();
-    b.resize(n + 1, 0.0);
-    let d = b[n];
-    let c: Vec<f64> = (0..n).map(|k| b[k] - d * a[k]).collect();
-    let mut m = vec![vec![0.0; n + 1]; n + 1];
-    for i in 0..n - 1 {
-        m[i][i + 1] = dt;
-    }
-    for k in 0..n {
-        m[n - 1][k] = -a[k] * dt;
-    }
-    m[n - 1][n] = dt;
-    let e = expm(&m);
-    let mut x = vec![0.0; n];
-    u.iter()
-        .map(|&uk| {
-            let y = c.iter().zip(&x).map(|(c, x)| c * x).sum::<f64>() + d * uk;
-            x = (0..n)
-                .map(|i| (0..n).map(|j| e[i][j] * x[j]).sum::<f64>() + e[i][n] * uk)
-                .collect();
-            y
-        })
-        .collect()
-}
 
 /// Ascending integer-power coefficients of a JSON term list (orders must be integers).
 fn coefs(terms: &serde_json::Value) -> Vec<f64> {
@@ -116,26 +44,12 @@ fn record_csv(
     seed: u64,
 ) -> std::path::PathBuf {
     let dt = 1e-3;
-    let mut state = seed;
-    let mut next = move || {
-        state = state
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (state >> 11) as f64 / (1u64 << 53) as f64
-    };
-    let mut level = 1.0;
-    let u: Vec<f64> = (0..8000)
-        .map(|_| {
-            if next() < 1.0 / 3.0 {
-                level = -level;
-            }
-            level
-        })
-        .collect();
+    let mut rng = Lcg(seed);
+    let u = random_binary(&mut rng, 8000, 1.0 / 3.0);
     let y = simulate(b, a, &u, dt);
     let mut text = String::from("t,u,y\n");
     for (k, (u, y)) in u.iter().zip(&y).enumerate() {
-        let noise = 0.01 * 3f64.sqrt() * (2.0 * next() - 1.0);
+        let noise = 0.01 * 3f64.sqrt() * (2.0 * rng.uniform() - 1.0);
         writeln!(text, "{:.6},{u},{}", k as f64 * dt, y + noise).unwrap();
     }
     let p = dir.path().join(name);

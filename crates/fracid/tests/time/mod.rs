@@ -544,9 +544,9 @@ fn structure_auto_keeps_the_structure_the_data_support() {
         [
             "pmsm",
             "commensurate",
-            "first order",
-            "second order",
-            "third order",
+            "first-order",
+            "second-order",
+            "third-order",
             "two-mass"
         ]
     );

@@ -6,34 +6,43 @@
 
 use super::observe::{enter, Observe, Stage};
 use super::score::ScoreReport;
-use super::ModelReport;
-use crate::data::Record;
+use super::{Held, ModelReport, Names, Preset, Structure};
+use crate::data::{OffsetMode, Record};
 use crate::diagnose::structures::{diagnose_best_fitting, fit_best, StructureChoice};
 use crate::diagnose::{DiagnoseOptions, Diagnosis};
 use crate::metrics::{residual_test, Fit, ResidualTest};
 use crate::oe::{
-    identify_with_progress, score, FracModel, IdentOptions, Identification, ParamEstimate,
-    StartMode, Validation, ValidationKind,
+    identify_with_progress, score, FracModel, IdentOptions, Identification, InitialState,
+    ParamEstimate, StartMode, Validation, ValidationKind,
 };
 use crate::{Error, Result};
+use fracsim::approx::Method;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
 /// Every option of the time-domain identification, with its default (`Default`, and missing
 /// fields when deserialised). Words are those of the CLI flags and the Python keywords.
 ///
+/// The words the CLI and Python use are the JSON's (`"structure": "second-order"`), read into
+/// enums once ([`super::request::words`]).
+///
 /// ```
-/// let r: ident::app::time::TimeRequest = serde_json::from_str(r#"{"holdout": 0.2}"#).unwrap();
-/// assert_eq!((r.structure.as_str(), r.holdout, r.max_iterations), ("pmsm", Some(0.2), 500));
+/// use ident::app::{time::TimeRequest, Preset, Structure};
+/// let r: TimeRequest = serde_json::from_str(r#"{"holdout": 0.2, "structure": "Second order"}"#).unwrap();
+/// assert_eq!((&r.structure, r.holdout, r.max_iterations), (&Structure::Named(Preset::SecondOrder), Some(0.2), 500));
+/// assert!(serde_json::to_string(&r).unwrap().contains(r#""structure":"second-order""#));
+/// assert!(serde_json::from_str::<TimeRequest>(r#"{"offsets": "median"}"#).is_err());
 /// ```
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct TimeRequest {
-    /// `pmsm`, `commensurate`, `second-order`, `fopdt`, `auto` or a transfer function used as
-    /// the start ([`super::structure`]).
-    pub structure: String,
+    /// A structure of the catalogue ([`super::Preset`]), `auto`, `general`, `general:N/D` or a
+    /// transfer function used as the start.
+    #[serde(with = "super::request::words")]
+    pub structure: Structure,
     /// Approximation of the fractional operators: `refined`, `oustaloup` or `trigeassou`.
-    pub approx: String,
+    #[serde(with = "super::request::words")]
+    pub approx: Method,
     /// Approximation band `(w_b, w_h)` in rad/s (`None`: fracsim's `[1e-6/dt, 30 pi/dt]`).
     pub band: Option<(f64, f64)>,
     /// Approximation order `N` (`None`: fracsim's, 8).
@@ -45,9 +54,11 @@ pub struct TimeRequest {
     /// Largest input delay in seconds (`None`: a fifth of the record, at most 1000 samples).
     pub max_delay: Option<f64>,
     /// Parameters held: `NAME` or `NAME=VALUE`, comma-separated ([`super::fix_free`]).
-    pub fix: String,
+    #[serde(with = "super::request::words")]
+    pub fix: Held,
     /// Parameters a structure holds that are fitted (comma-separated names).
-    pub free: String,
+    #[serde(with = "super::request::words")]
+    pub free: Names,
     /// Start values by parameter name: the fit then starts from them (no automatic start).
     pub start: BTreeMap<String, f64>,
     /// The automatic start from the data (false: the structure's values).
@@ -55,12 +66,14 @@ pub struct TimeRequest {
     /// Fraction held out for validation at the end (`None`: 0.3, or 0 with a validation record).
     pub holdout: Option<f64>,
     /// Operating point removal: `initial`, `mean` or `none`.
-    pub offsets: String,
+    #[serde(with = "super::request::words")]
+    pub offsets: OffsetMode,
     /// Fit a constant output offset.
     pub fit_offset: bool,
     /// Initial state: `auto` (rest when the record rests before its first input change, else
     /// estimated), `estimate` (a past held input, fitted) or `rest`.
-    pub initial: String,
+    #[serde(with = "super::request::words")]
+    pub initial: InitialState,
     /// Maximum Levenberg-Marquardt iterations.
     pub max_iterations: usize,
     /// Samples at the start of the estimation part left out of the cost (a transient the model
@@ -85,21 +98,21 @@ impl Default for TimeRequest {
     fn default() -> Self {
         let d = DiagnoseOptions::default();
         Self {
-            structure: "pmsm".into(),
-            approx: "refined".into(),
+            structure: Structure::Named(Preset::Pmsm),
+            approx: Method::Refined,
             band: None,
             order: None,
             integrator: false,
             delay: false,
             max_delay: None,
-            fix: String::new(),
-            free: String::new(),
+            fix: Held::default(),
+            free: Names::default(),
             start: BTreeMap::new(),
             auto_start: true,
             holdout: None,
-            offsets: "initial".into(),
+            offsets: OffsetMode::Initial,
             fit_offset: true,
-            initial: "auto".into(),
+            initial: InitialState::Auto,
             max_iterations: 500,
             skip: 0,
             max_lag: 25,
@@ -309,7 +322,7 @@ fn run_joint_request(
     first: &str,
     obs: &mut dyn Observe,
 ) -> Result<JointReport> {
-    if super::auto_label(&req.structure).0 {
+    if req.structure.is_auto() {
         return Err(Error::Options(
             "a joint fit takes a named structure (not auto)".into(),
         ));
@@ -403,8 +416,8 @@ pub fn model_and_options(
         Some(d) => d,
         None => super::default_max_delay(duration_s, dt_s),
     };
-    let (mut m, _) = super::structure(&req.structure, max_delay)?;
-    m.approx.method = req.approx.parse()?;
+    let (mut m, _) = req.structure.model(max_delay);
+    m.approx.method = req.approx;
     if let Some(n) = req.order {
         m.approx.order = n;
     }
@@ -412,9 +425,8 @@ pub fn model_and_options(
         fracsim::approx::check_band(lo, hi)?;
         m.approx.band = Some((lo, hi));
     }
-    let (auto, _) = super::auto_label(&req.structure);
     if req.integrator {
-        if auto {
+        if req.structure.is_auto() {
             return Err(Error::Options(
                 "structure auto does not go with the integrator (name a structure)".into(),
             ));
@@ -451,7 +463,7 @@ pub fn model_and_options(
         return Err(Error::Options("max_iterations must be at least 1".into()));
     }
     let mut opts = IdentOptions {
-        offsets: super::offsets(&req.offsets)?,
+        offsets: req.offsets,
         // With a validation record the closed loop still holds out part of the estimation
         // record: its structures and effects are chosen there, never on the estimation error
         // alone, and the validation record stays an independent test of that choice.
@@ -466,7 +478,7 @@ pub fn model_and_options(
         } else {
             StartMode::Given
         },
-        initial: req.initial.parse()?,
+        initial: req.initial,
         ..Default::default()
     };
     opts.fit.lm.max_iterations = req.max_iterations;
@@ -476,18 +488,13 @@ pub fn model_and_options(
 
 /// The general structure's request when `req` names it (`general`, `general:N/D`), with the
 /// request's integrator.
-///
-/// # Errors
-/// [`Error::Options`] for a size not understood.
-fn general_request(req: &TimeRequest) -> Result<Option<crate::diagnose::general::GeneralRequest>> {
-    Ok(crate::diagnose::general::requested(&req.structure)
-        .transpose()?
-        .map(|mut g| {
-            if req.integrator {
-                g.integrator = Some(true);
-            }
-            g
-        }))
+fn general_request(req: &TimeRequest) -> Option<crate::diagnose::general::GeneralRequest> {
+    req.structure.general().map(|mut g| {
+        if req.integrator {
+            g.integrator = Some(true);
+        }
+        g
+    })
 }
 
 static RUNS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
@@ -536,7 +543,7 @@ pub fn diagnose_options(req: &TimeRequest) -> DiagnoseOptions {
 ///     joint: vec![],
 ///     reader_warnings: vec![],
 /// };
-/// let req = time::TimeRequest { structure: "2/(0.2 s + 1)".into(), ..Default::default() };
+/// let req = time::TimeRequest { structure: "2/(0.2 s + 1)".parse().unwrap(), ..Default::default() };
 /// let r = time::run(&req, &data, &mut Quiet).unwrap();
 /// assert!(r.lead.usable && r.lead.fit.validation.unwrap().nrmse_percent > 99.0);
 /// ```
@@ -562,11 +569,11 @@ fn run_request(req: &TimeRequest, data: &TimeData, obs: &mut dyn Observe) -> Res
             rec.len()
         )));
     }
-    let (auto, label) = super::auto_label(&req.structure);
+    let (auto, label) = (req.structure.is_auto(), req.structure.label());
     let sized = sized_general(req, rec, &model, &opts, obs)?;
     let (model, label) = match &sized {
         Some(f) if !req.plain => (f.model.clone(), f.name.clone()),
-        _ => (model, label.to_string()),
+        _ => (model, label),
     };
     let label = label.as_str();
     let (id, auto_choice, diagnosis) = if let Some(f) = sized.filter(|_| req.plain) {
@@ -670,7 +677,7 @@ fn sized_general(
     opts: &IdentOptions,
     obs: &mut dyn Observe,
 ) -> Result<Option<crate::diagnose::general::GeneralFit>> {
-    let Some(g) = general_request(req)? else {
+    let Some(g) = general_request(req) else {
         return Ok(None);
     };
     let n = crate::diagnose::general::search::SHORTLIST;
@@ -1167,7 +1174,7 @@ mod tests {
         assert!(continues(&head, &tail));
         assert!(!continues(&head, &part(cut, 600, 0.0)));
         let req = TimeRequest {
-            structure: "2/(0.2 s + 1)".into(),
+            structure: "2/(0.2 s + 1)".parse().unwrap(),
             plain: true,
             ..Default::default()
         };
@@ -1227,7 +1234,7 @@ mod tests {
     #[test]
     fn the_observer_sees_each_stage_and_can_cancel() {
         let req = TimeRequest {
-            structure: "2/(0.2 s + 1)".into(),
+            structure: "2/(0.2 s + 1)".parse().unwrap(),
             plain: false,
             ..Default::default()
         };
@@ -1253,7 +1260,7 @@ mod tests {
     #[test]
     fn each_models_output_gives_its_stated_figures() {
         let req = TimeRequest {
-            structure: "2/(0.2 s + 1)".into(),
+            structure: "2/(0.2 s + 1)".parse().unwrap(),
             plain: false,
             ..Default::default()
         };
@@ -1290,7 +1297,7 @@ mod tests {
             .collect();
         d.record = Record::from_samples(&late, &y, d.record.dt).unwrap();
         let req = TimeRequest {
-            structure: "2/(0.2 s + 1)".into(),
+            structure: "2/(0.2 s + 1)".parse().unwrap(),
             plain: false,
             ..Default::default()
         };

@@ -40,6 +40,7 @@
 
 pub use super::halving::BEHIND;
 use super::halving::{confirm_halving, Board};
+use crate::catalogue::Preset;
 use crate::data::Record;
 use crate::oe::{identify, FracModel, IdentOptions, Identification};
 use crate::{Error, Result};
@@ -53,7 +54,7 @@ pub const TIE: f64 = 0.02;
 /// One structure's fit and diagnosis.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct StructureScore {
-    /// Its name (`pmsm`, `commensurate`, `first order`, or the user's words, `+ integrator`).
+    /// Its name (a name of the catalogue, [`Preset::name`], or the user's words; `+ integrator`).
     pub name: String,
     /// The fitted linear part (empty when the fit failed).
     pub model: String,
@@ -101,31 +102,25 @@ pub struct StructureChoice {
     pub integer_reference: Option<IntegerReference>,
 }
 
+/// The structures of the catalogue every comparison fits beside the user's, in its order: all but
+/// the feed-through (fitted only when the record shows an instant response, [`with_feedthrough`])
+/// and `fopdt` (the first order is fitted, and a delay is an effect the diagnosis finds).
+pub fn compared() -> impl Iterator<Item = Preset> {
+    Preset::ALL
+        .into_iter()
+        .filter(|p| !matches!(p, Preset::Feedthrough | Preset::Fopdt))
+}
+
 /// The candidate structures for a user's `model` named `label` (see the module documentation).
 pub fn candidates(label: &str, model: &FracModel) -> Vec<(String, FracModel)> {
-    let mut first = FracModel::fopdt(1.0, 0.1, 0.01, 1.0);
-    first.delay = None;
-    first.params.retain(|p| p.name != "tau");
     let mut out = vec![(label.to_string(), model.clone())];
-    for (name, mut m) in [
-        ("pmsm", FracModel::pmsm(1.0, 0.01, 1e-4, 0.9, 0.9)),
-        (
-            "commensurate",
-            FracModel::commensurate(1.0, 0.01, 1e-4, 0.9),
-        ),
-        ("first order", first),
-        ("second order", FracModel::second_order(1.0, 0.01, 1e-4)),
-        (
-            "third order",
-            FracModel::third_order(1.0, 0.0175, 8.75e-5, 1.25e-7),
-        ),
-        ("two-mass", two_mass()),
-    ] {
-        if out.iter().any(|(n, _)| n.eq_ignore_ascii_case(name)) {
+    for p in compared() {
+        if out.iter().any(|(n, _)| n.eq_ignore_ascii_case(p.name())) {
             continue;
         }
+        let mut m = p.model(1.0);
         m.approx = model.approx;
-        out.push((name.to_string(), m));
+        out.push((p.name().to_string(), m));
     }
     if !model.integrator {
         let mut m = model.clone();
@@ -136,17 +131,13 @@ pub fn candidates(label: &str, model: &FracModel) -> Vec<(String, FracModel)> {
 }
 
 /// The two-mass drive train ([`FracModel::two_mass`]) with neutral values (its start comes
-/// from the data, [`crate::oe::init`]): the paper's PMSM orders, a pair at 40 and 30 Hz.
+/// from the data, [`crate::oe::init`]): the catalogue's ([`Preset::TwoMass`]).
 pub fn two_mass() -> FracModel {
-    let inv_w2 = |hz: f64| (2.0 * std::f64::consts::PI * hz).powi(-2);
-    FracModel::two_mass(
-        [1.0, 0.01, 1e-4, 0.9, 0.9],
-        [inv_w2(30.0), inv_w2(40.0), 1e-3, 1.0],
-    )
+    Preset::TwoMass.model(1.0)
 }
 
 /// The candidates `cands` with the feed-through structure ([`FracModel::feedthrough`], named
-/// `feed-through`, with the approximation of `model`) added when the record shows an instant
+/// `feedthrough`, with the approximation of `model`) added when the record shows an instant
 /// response ([`crate::oe::init::feedthrough::instant_response`]: a cheap regression, no
 /// simulation) and no candidate has it already. A record without one keeps its candidates: its
 /// diagnosis costs what it did.
@@ -163,9 +154,9 @@ pub fn with_feedthrough(
             .is_some_and(|r| r.is_feedthrough())
     };
     if !has && shows() {
-        let mut m = FracModel::feedthrough([1.0, 0.01, 1e-4, 0.9, 0.9], 0.0);
+        let mut m = Preset::Feedthrough.model(1.0);
         m.approx = model.approx;
-        cands.push(("feed-through".to_string(), m));
+        cands.push((Preset::Feedthrough.name().to_string(), m));
     }
     cands
 }
@@ -822,7 +813,7 @@ fn is_integer(m: &FracModel) -> bool {
 /// The integer-order model the chosen one is compared with ([`StructureChoice::integer_reference`]).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct IntegerReference {
-    /// Its name in the comparison (`first order`, `second order`, `third order`).
+    /// Its name in the comparison (`first-order`, `second-order`, `third-order`).
     pub name: String,
     /// Its RMSE, on the same data as the chosen one's (held-out, or the estimation part).
     pub rmse: f64,
@@ -1805,13 +1796,13 @@ mod tests {
                 "commensurate".into(),
                 FracModel::commensurate(1.0, 0.01, 1e-4, 0.9),
             ),
-            ("first order".into(), first),
+            ("first-order".into(), first),
             (
-                "second order".into(),
+                "second-order".into(),
                 FracModel::second_order(1.0, 0.01, 1e-4),
             ),
             (
-                "third order".into(),
+                "third-order".into(),
                 FracModel::third_order(1.0, 0.0175, 8.75e-5, 1.25e-7),
             ),
         ]
@@ -1822,27 +1813,27 @@ mod tests {
     /// failed: the reference is the first order, the one usable integer model, not the third.
     #[test]
     fn the_integer_reference_is_a_usable_integer_model() {
-        let mut second = StructureScore::named("second order");
+        let mut second = StructureScore::named("second-order");
         second.failed = Some("numerical breakdown".into());
         let scores = vec![
             row("commensurate", 549.6, &[]),
-            row("first order", 599.2, &[]),
+            row("first-order", 599.2, &[]),
             second,
-            row("third order", 531.1, &["a3 = 7.5e-1 is not determined"]),
+            row("third-order", 531.1, &["a3 = 7.5e-1 is not determined"]),
         ];
         let (words, r) = integer_gain(&cands(), &scores, 0);
         let r = r.expect("a usable integer reference");
-        assert_eq!(r.name, "first order", "{words}");
+        assert_eq!(r.name, "first-order", "{words}");
         assert_eq!(r.rmse, 599.2);
         assert!((r.relative_change - (549.6 / 599.2 - 1.0)).abs() < 1e-12);
-        assert!(words.contains("first order, RMSE 5.9920e2"), "{words}");
-        assert!(!words.contains("third order"), "{words}");
+        assert!(words.contains("first-order, RMSE 5.9920e2"), "{words}");
+        assert!(!words.contains("third-order"), "{words}");
         // No integer model usable: no reference, and the words say so.
         let scores = vec![
             row("commensurate", 549.6, &[]),
-            row("first order", 599.2, &["K not determined"]),
-            row("second order", 540.0, &["the covariance is singular"]),
-            row("third order", 531.1, &["a3 not determined"]),
+            row("first-order", 599.2, &["K not determined"]),
+            row("second-order", 540.0, &["the covariance is singular"]),
+            row("third-order", 531.1, &["a3 not determined"]),
         ];
         let (words, r) = integer_gain(&cands(), &scores, 0);
         assert!(r.is_none(), "{r:?}");

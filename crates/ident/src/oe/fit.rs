@@ -912,6 +912,12 @@ pub struct InitialReport {
     pub reason: String,
 }
 
+impl std::fmt::Display for InitialState {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
 impl std::str::FromStr for InitialState {
     type Err = Error;
     fn from_str(s: &str) -> Result<Self> {
@@ -1440,6 +1446,22 @@ pub fn check_params(params: &[Param]) -> Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn initial_states_round_trip_through_their_words() {
+        for s in [
+            InitialState::Rest,
+            InitialState::Estimate,
+            InitialState::Auto,
+        ] {
+            assert_eq!(s.to_string().parse::<InitialState>().unwrap(), s);
+        }
+        let e = "past".parse::<InitialState>().unwrap_err().to_string();
+        assert!(
+            e.contains("initial state 'past' must be auto, estimate or rest"),
+            "{e}"
+        );
+    }
     use crate::oe::FracModel;
 
     /// The parameters `p` as dual numbers, the derivative taken with respect to `p[j]`.

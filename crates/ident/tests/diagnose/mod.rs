@@ -585,7 +585,7 @@ fn the_effects_do_not_hinge_on_the_structure_named() {
     let id = identify(&rec, &model, &opts).unwrap();
     let d = diagnose_best(
         &rec,
-        "first order",
+        "first-order",
         &model,
         id,
         &opts,
@@ -594,7 +594,7 @@ fn the_effects_do_not_hinge_on_the_structure_named() {
     .unwrap();
     eprintln!("{:#?} | kept {:#?}", d.choice, d.diagnosis.effects);
     let chosen = &d.choice.scores[d.choice.chosen].name;
-    assert_ne!(chosen, "first order");
+    assert_ne!(chosen, "first-order");
     assert_eq!(names(&d.diagnosis), ["coulomb_friction"]);
     assert!(close(param(&d.diagnosis, "coulomb_friction", "Vc"), 0.15));
 }

@@ -115,7 +115,7 @@ fn the_diagnosis_chooses_the_feedthrough() {
         d.diagnosis.final_model
     );
     let chosen = &d.choice.scores[d.choice.chosen];
-    assert_eq!(chosen.name, "feed-through", "{}", d.choice.reason);
+    assert_eq!(chosen.name, "feedthrough", "{}", d.choice.reason);
     assert!(d.diagnosis.effects.is_empty(), "{:?}", d.diagnosis.effects);
     let m = &d.diagnosis.model;
     let dhat = m.params[m.index_of("D").unwrap()].value;
@@ -129,7 +129,7 @@ fn the_diagnosis_chooses_the_feedthrough() {
     let (auto, _) = ident::app::structure("auto", 0.2).unwrap();
     let (best, choice) = fit_best(&rec, &auto, &opts).unwrap();
     assert_eq!(
-        choice.scores[choice.chosen].name, "feed-through",
+        choice.scores[choice.chosen].name, "feedthrough",
         "{}",
         choice.reason
     );
@@ -154,7 +154,7 @@ fn without_an_instant_response_the_structure_is_not_a_candidate() {
     let cands = ident::diagnose::structures::candidates("pmsm", &model);
     let with = ident::diagnose::structures::with_feedthrough(&rec, cands, &model);
     assert_eq!(with.len(), n + 1);
-    assert_eq!(with[n].0, "feed-through");
+    assert_eq!(with[n].0, "feedthrough");
 }
 
 /// The exact sensitivities of the feed-through model (dual numbers through the sampled-data

@@ -312,7 +312,7 @@ fn auto_reduces_the_arms_degenerate_two_mass_screening_fit_at_once() {
         reader_warnings: vec![],
     };
     let auto = TimeRequest {
-        structure: "auto".into(),
+        structure: ident::app::Structure::Auto,
         plain: true,
         ..Default::default()
     };
