@@ -75,11 +75,17 @@ impl Budget {
     /// The budget of an estimation part of `samples` samples with `beside` free parameters
     /// beside the structure (`beside_integrator` with a free integrator), `counted` of them
     /// counted by the fit's length check.
+    ///
+    /// Every free parameter needs [`SAMPLES_PER_PARAM`] samples (as the final model's own
+    /// evaluation asks, the levels included); when that leaves fewer than a first order's two
+    /// coefficients, a first order is still allowed if the fit's length check (`counted` beside
+    /// it) passes.
     pub fn new(samples: usize, beside: usize, beside_integrator: usize, counted: usize) -> Budget {
-        let by_samples = (samples / SAMPLES_PER_PARAM).saturating_sub(counted);
+        let free = MAX_FREE.min(samples / SAMPLES_PER_PARAM);
+        let smallest = 2.min((samples / SAMPLES_PER_PARAM).saturating_sub(counted));
         Budget {
-            plain: MAX_FREE.saturating_sub(beside).min(by_samples),
-            integrator: MAX_FREE.saturating_sub(beside_integrator).min(by_samples),
+            plain: free.saturating_sub(beside).max(smallest),
+            integrator: free.saturating_sub(beside_integrator).max(smallest),
         }
     }
 

@@ -740,11 +740,14 @@ mod tests {
 
     #[test]
     fn the_budget_counts_the_parameters_beside_the_structure() {
-        // 60 estimation samples: 6 parameters counted by the fit's check, the output offset one
+        // 60 estimation samples: 6 parameters, 5 of them beside the structure; a first order
+        // still passes the fit's own check (the output offset and its two coefficients)
         let b = Budget::new(60, 5, 6, 1);
-        assert_eq!((b.plain, b.integrator), (5, 5));
-        assert!(b.allows(Size { num: 1, den: 3 }, false, false));
-        assert!(!b.allows(Size { num: 1, den: 3 }, false, true));
+        assert_eq!((b.plain, b.integrator), (2, 2));
+        assert!(b.allows(Size { num: 0, den: 1 }, false, false));
+        assert!(!b.allows(Size { num: 1, den: 1 }, false, false));
+        // 141 samples: 14 in all, 9 coefficients
+        assert_eq!(Budget::new(141, 5, 6, 1).plain, 9);
         // a long record: at most 16 in all, the offset and four levels beside
         let b = Budget::new(100_000, 5, 6, 1);
         assert_eq!((b.plain, b.integrator), (11, 10));
