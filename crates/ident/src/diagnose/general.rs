@@ -18,9 +18,13 @@
 //!   fitted by output error ([`crate::oe::identify`]), and the size chosen by held-out RMSE, then
 //!   BIC among ties ([`crate::diagnose::structures::TIE`]).
 //!
+//! - [`hook`]: the general structure compared with the named ones in the diagnosis when they
+//!   fit poorly.
+//!
 //! Each coefficient is written `p_k w0^(-k q)` with `w0` the start's characteristic frequency,
 //! so the fitted parameters `p_k` are of order one whatever the time unit and the degree.
 
+pub mod hook;
 pub mod search;
 pub mod start;
 
@@ -36,6 +40,65 @@ pub const MAX_DEN_INTEGER: usize = 12;
 /// The largest denominator degree of a fractional one (each term of a fractional order is
 /// approximated by its own cells: the model grows by 17 states a term).
 pub const MAX_DEN_FRACTIONAL: usize = 4;
+
+/// The most free parameters a fit of the general structure may have, offsets and initial-state
+/// levels included ([`Budget`]).
+pub const MAX_FREE: usize = 16;
+
+/// Estimation samples per free parameter a fit needs at least ([`Budget`]; the fit itself refuses
+/// fewer than 10 per parameter, [`crate::oe::identify`]).
+pub const SAMPLES_PER_PARAM: usize = 10;
+
+/// How many coefficients (plus a searched delay) a size may have: at most [`MAX_FREE`] free
+/// parameters in all, those the fit adds beside the structure included (the output offset, an
+/// integrator's input offset, the initial state's levels, a free order `q`, the template's own
+/// delay), and at least [`SAMPLES_PER_PARAM`] estimation samples for each parameter the fit
+/// counts when it checks the record's length ([`crate::oe::identify`]: the structure's, the
+/// output offset), so that no size is proposed that the fit would refuse or the record cannot
+/// determine, and the search never ends in a refusal where a smaller size fits.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Budget {
+    /// Free parameters of a size without an integrator: `b_0 .. b_num`, `a_1 .. a_den`, a
+    /// searched delay.
+    pub plain: usize,
+    /// The same with a free integrator.
+    pub integrator: usize,
+}
+
+impl Budget {
+    /// No cap.
+    pub const UNLIMITED: Budget = Budget {
+        plain: usize::MAX,
+        integrator: usize::MAX,
+    };
+
+    /// The budget of an estimation part of `samples` samples with `beside` free parameters
+    /// beside the structure (`beside_integrator` with a free integrator), `counted` of them
+    /// counted by the fit's length check.
+    ///
+    /// Every free parameter needs [`SAMPLES_PER_PARAM`] samples (as the final model's own
+    /// evaluation asks, the levels included); when that leaves fewer than a first order's two
+    /// coefficients, a first order is still allowed if the fit's length check (`counted` beside
+    /// it) passes.
+    pub fn new(samples: usize, beside: usize, beside_integrator: usize, counted: usize) -> Budget {
+        let free = MAX_FREE.min(samples / SAMPLES_PER_PARAM);
+        let smallest = 2.min((samples / SAMPLES_PER_PARAM).saturating_sub(counted));
+        Budget {
+            plain: free.saturating_sub(beside).max(smallest),
+            integrator: free.saturating_sub(beside_integrator).max(smallest),
+        }
+    }
+
+    /// Whether `size` (with an integrator, with a searched delay) fits in the budget.
+    pub fn allows(&self, size: Size, integrator: bool, delay: bool) -> bool {
+        let k = size.num + 1 + size.den + usize::from(delay);
+        k <= if integrator {
+            self.integrator
+        } else {
+            self.plain
+        }
+    }
+}
 
 /// A size: numerator degree `num` and denominator degree `den`, in powers of `q`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
@@ -116,6 +179,7 @@ pub fn template() -> FracModel {
         integrator: false,
         b: vec![1.0],
         a: vec![0.01],
+        delay_samples: 0,
         frf_error: f64::NAN,
         criterion: f64::NAN,
     }
@@ -135,6 +199,9 @@ pub struct GeneralStart {
     pub b: Vec<f64>,
     /// `a_1 .. a_den`.
     pub a: Vec<f64>,
+    /// The whole-sample input delay the response calls for ([`start::ranked_delayed`]; 0:
+    /// none).
+    pub delay_samples: usize,
     /// Weighted relative error of the start on the frequency response
     /// (`oe::init::frf_error`).
     pub frf_error: f64,
@@ -143,7 +210,8 @@ pub struct GeneralStart {
 }
 
 impl GeneralStart {
-    /// Its name in reports: `general N/D`, with the order when it is not 1 and `+ integrator`.
+    /// Its name in reports: `general N/D`, with the order when it is not 1, `+ integrator` and
+    /// `+ delay`.
     pub fn name(&self) -> String {
         let q = if (self.q - 1.0).abs() < 1e-12 {
             String::new()
@@ -151,7 +219,12 @@ impl GeneralStart {
             format!(" q={:.3}", self.q)
         };
         let i = if self.integrator { " + integrator" } else { "" };
-        format!("general {}{q}{i}", self.size)
+        let d = if self.delay_samples > 0 {
+            " + delay"
+        } else {
+            ""
+        };
+        format!("general {}{q}{i}{d}", self.size)
     }
 
     /// The characteristic frequency `w0` (rad/s) the coefficients are normalised by: the
@@ -232,6 +305,7 @@ mod tests {
             integrator: true,
             b: vec![2.0, 0.5],
             a: vec![0.01, 1e-4],
+            delay_samples: 0,
             frf_error: 0.0,
             criterion: 0.0,
         };

@@ -744,9 +744,9 @@ fn diagnose_these(
 }
 
 /// One structure's identification (when it succeeded) and diagnosis (`None`: not diagnosed).
-struct Outcome {
-    id: Option<Identification>,
-    diagnosis: Option<Result<super::Diagnosis>>,
+pub(crate) struct Outcome {
+    pub(crate) id: Option<Identification>,
+    pub(crate) diagnosis: Option<Result<super::Diagnosis>>,
 }
 
 impl StructureScore {
@@ -766,7 +766,7 @@ impl StructureScore {
     }
 }
 
-fn score_of(name: &str, o: &Outcome) -> StructureScore {
+pub(crate) fn score_of(name: &str, o: &Outcome) -> StructureScore {
     let mut s = StructureScore::named(name);
     if let Some(id) = &o.id {
         s.model = id.tf.to_string();
@@ -933,7 +933,7 @@ fn far_better(usable: bool, rmse: f64, best_usable: f64) -> bool {
 
 /// The index chosen by the rule of the module documentation, or `None` when no candidate has a
 /// final model.
-fn decide(scores: &[StructureScore]) -> Option<(usize, f64)> {
+pub(crate) fn decide(scores: &[StructureScore]) -> Option<(usize, f64)> {
     let finals: Vec<usize> = (0..scores.len())
         .filter(|&i| scores[i].rmse_after.is_some_and(f64::is_finite))
         .collect();
@@ -1057,7 +1057,7 @@ pub fn diagnose_best_fitting(
         .ok_or_else(|| Error::Numerical("the chosen structure was not diagnosed".into()))??;
     let id =
         o.id.ok_or_else(|| Error::Numerical("the chosen structure has no fit".into()))?;
-    Ok(Diagnosed {
+    let named = Diagnosed {
         id,
         choice: StructureChoice {
             scores,
@@ -1067,7 +1067,10 @@ pub fn diagnose_best_fitting(
             integer_reference,
         },
         diagnosis,
-    })
+    };
+    Ok(super::general::hook::consider(
+        rec, model, opts, dopts, named,
+    ))
 }
 
 /// `opts` with each fit on one thread ([`Par::Seq`]): the candidates share the width side by

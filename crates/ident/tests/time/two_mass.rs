@@ -238,6 +238,12 @@ fn record_input() -> Vec<f64> {
 /// 0.8 times the old choice's 0.0900: the gain that must hold is the resonant structure's, clearly
 /// better than the integer second order with a delay; and the base fit converged with every
 /// free parameter (but a past-input level at its bound) determined.
+///
+/// Since the diagnosis compares the general structure when the named ones fit poorly
+/// (`ident::diagnose::general::hook`: the two-mass's residual is not white), the general
+/// structure's `general 4/4` (two modes with their anti-resonances, free damping each) is
+/// returned: held-out RMSE 0.01228 (measured 2026-12-05), a quarter of the reduced two-mass's
+/// 0.0518, which stays in the comparison. Bound: 0.015 (22% above).
 #[test]
 fn the_flexible_robot_arm_is_diagnosed_as_a_resonant_drive_train() {
     use ident::app::observe::Quiet;
@@ -264,9 +270,20 @@ fn the_flexible_robot_arm_is_diagnosed_as_a_resonant_drive_train() {
         d.structures.reason, r.start.note, r.lead.fit.validation
     );
     assert!(
-        chosen.name.starts_with("two-mass"),
+        chosen.name.starts_with("general "),
         "{}",
         d.structures.reason
+    );
+    let two_mass = d
+        .structures
+        .scores
+        .iter()
+        .find(|s| s.name.starts_with("two-mass"))
+        .expect("the two-mass row");
+    assert!(
+        two_mass.rmse_after.is_some_and(|r| r <= 0.060),
+        "{:?}",
+        two_mass
     );
     assert!(
         r.converged,
@@ -285,8 +302,7 @@ fn the_flexible_robot_arm_is_diagnosed_as_a_resonant_drive_train() {
         );
     }
     let held = r.lead.fit.validation.expect("a held-out part");
-    assert!(held.rmse <= 0.060, "held-out RMSE {}", held.rmse);
-    assert!(held.rmse <= 0.8 * 0.0900, "held-out RMSE {}", held.rmse);
+    assert!(held.rmse <= 0.015, "held-out RMSE {}", held.rmse);
 }
 
 /// `--structure auto` (without the diagnosis) on the robot arm makes the degenerate two-mass fit

@@ -9,14 +9,14 @@
 //! the same split), so the held-out part stays unseen by the start as by the fit.
 
 use super::start::{self, calls_for_integrator};
-use super::{GeneralRequest, GeneralStart};
+use super::{Budget, GeneralRequest, GeneralStart};
 use crate::data::Record;
 use crate::diagnose::structures::{StructureChoice, StructureScore, TIE};
-use crate::oe::{identify, FracModel, IdentOptions, Identification, StartMode};
+use crate::oe::{identify, FracModel, IdentOptions, Identification, InitialState, StartMode};
 use crate::{Error, Result};
 
 /// The most sizes fitted by output error.
-pub const SHORTLIST: usize = 4;
+pub const SHORTLIST: usize = 5;
 
 /// The general structure's fit: the chosen identification, the comparison of the sizes fitted
 /// (in the structure comparison's form), and the chosen structure with its fitted values (no
@@ -46,8 +46,36 @@ fn estimation_part(rec: &Record, opts: &IdentOptions) -> Result<(Vec<f64>, Vec<f
     Ok((u, y))
 }
 
+/// The parameter budget of the general structure on `rec` ([`Budget`]): the free parameters the
+/// fit adds beside the structure are the output offset (`opts.fit_offset`), with an integrator
+/// an input offset as well, the initial state's levels when it is estimated
+/// ([`crate::oe::past_edges`]), a free order, and the template's own free delay.
+fn budget(
+    rec: &Record,
+    template: &FracModel,
+    opts: &IdentOptions,
+    req: &GeneralRequest,
+    samples: usize,
+) -> Budget {
+    let levels = match opts.initial.resolve(rec, opts.offsets) {
+        InitialState::Estimate => crate::oe::past_edges(samples as f64 * rec.dt).len() + 1,
+        _ => 0,
+    };
+    let delay = template.delay.is_some_and(|i| template.params[i].free);
+    let counted = usize::from(opts.fit_offset) + usize::from(req.free_q) + usize::from(delay);
+    let beside = counted + levels;
+    Budget::new(
+        samples,
+        beside,
+        beside + usize::from(opts.fit_offset),
+        counted,
+    )
+}
+
 /// The ranked starts of the general structure on `rec` for `req`, `template` giving the
-/// integrator when the user asked for one.
+/// integrator when the user asked for one and the delay when it has one (else the delay is
+/// searched on the response, [`start::ranked_delayed`]); sizes within the record's
+/// [`budget`].
 fn starts(
     rec: &Record,
     template: &FracModel,
@@ -62,11 +90,15 @@ fn starts(
         None if calls_for_integrator(&frf) => vec![false, true],
         None => vec![false],
     };
-    Ok((start::ranked(&frf, req.size, &integrators)?, how))
+    let budget = budget(rec, template, opts, req, u.len());
+    let search = template.delay.is_none();
+    let ranked = start::ranked_delayed(&frf, rec.dt, req.size, &integrators, budget, search)?;
+    Ok((ranked, how))
 }
 
-/// The start's structure with the template's approximation and delay.
-fn structure(s: &GeneralStart, template: &FracModel, req: &GeneralRequest) -> FracModel {
+/// The start's structure with the template's approximation and delay, or the delay found on
+/// the response (free, from its whole-sample value, within `(0, (2 d + 1) dt)`).
+fn structure(s: &GeneralStart, template: &FracModel, req: &GeneralRequest, dt: f64) -> FracModel {
     let mut m = s.model(req.free_q);
     m.approx = template.approx;
     if let Some(i) = template.delay {
@@ -77,6 +109,9 @@ fn structure(s: &GeneralStart, template: &FracModel, req: &GeneralRequest) -> Fr
         if let Some(j) = m.delay {
             m.params[j].free = p.free;
         }
+    } else if s.delay_samples > 0 {
+        let d = s.delay_samples as f64;
+        m.with_delay(d * dt, (2.0 * d + 1.0) * dt);
     }
     m
 }
@@ -103,7 +138,7 @@ pub fn fit(
     let short: Vec<(GeneralStart, FracModel)> = shortlist(ranked)
         .into_iter()
         .map(|s| {
-            let m = structure(&s, template, req);
+            let m = structure(&s, template, req, rec.dt);
             (s, m)
         })
         .collect();
@@ -157,11 +192,12 @@ pub fn fit(
 }
 
 /// The starts fitted by output error, from the `ranked` ones (best criterion first): the
-/// [`SHORTLIST`]` / 2` best by the criterion, then the smallest ones (fewest coefficients, the
-/// better criterion first among equals) whose error on the response is within
-/// [`SMALL_ENOUGH`] times the best one's, up to [`SHORTLIST`] in all. The criterion's weights
-/// are estimated, so it may favour a size larger than the plant's; the smaller sizes then
-/// compete on held-out data.
+/// [`SHORTLIST`]` / 2` best by the criterion, then the small ones: for each bound of
+/// [`SMALL_COEFFICIENTS`] in turn, the best by the criterion with at most that many
+/// coefficients, not yet picked, whose error on the response is within [`SMALL_ENOUGH`] times
+/// the best one's (or [`SMALL_FLOOR`]'s), up to [`SHORTLIST`] in all. The criterion's weights
+/// are estimated (or, on an ARX model's response, absent), so it may favour a size larger than
+/// the plant's; the smaller sizes then compete on held-out data.
 fn shortlist(ranked: Vec<GeneralStart>) -> Vec<GeneralStart> {
     let best_err = ranked
         .iter()
@@ -169,29 +205,35 @@ fn shortlist(ranked: Vec<GeneralStart>) -> Vec<GeneralStart> {
         .map(|s| s.frf_error)
         .fold(f64::INFINITY, f64::min);
     let coefs = |s: &GeneralStart| s.b.len() + s.a.len() + usize::from(s.q != 1.0);
-    let mut small: Vec<&GeneralStart> = ranked
-        .iter()
-        .skip(SHORTLIST / 2)
-        .filter(|s| s.frf_error <= SMALL_ENOUGH * best_err)
-        .collect();
-    small.sort_by(|a, b| {
-        coefs(a)
-            .cmp(&coefs(b))
-            .then(a.criterion.total_cmp(&b.criterion))
-    });
-    let picks: Vec<GeneralStart> = small
-        .into_iter()
-        .take(SHORTLIST - SHORTLIST / 2)
-        .cloned()
-        .collect();
-    let mut out: Vec<GeneralStart> = ranked.into_iter().take(SHORTLIST / 2).collect();
-    out.extend(picks);
-    out
+    let near = |s: &GeneralStart| s.frf_error <= SMALL_ENOUGH * best_err.max(SMALL_FLOOR);
+    let mut picked: Vec<usize> = (0..ranked.len().min(SHORTLIST / 2)).collect();
+    for bound in SMALL_COEFFICIENTS {
+        if picked.len() >= SHORTLIST {
+            break;
+        }
+        // `ranked` is in the criterion's order: the first that qualifies is the best
+        if let Some(i) = (0..ranked.len())
+            .find(|&i| !picked.contains(&i) && coefs(&ranked[i]) <= bound && near(&ranked[i]))
+        {
+            picked.push(i);
+        }
+    }
+    picked.into_iter().map(|i| ranked[i].clone()).collect()
 }
+
+/// The bounds on the coefficients of the small starts [`shortlist`] adds: a first order (or a
+/// lag with a zero); up to a third order with two zeros (a resonance and an anti-resonance
+/// beside a lag); up to a fifth order with three zeros (two modes).
+pub const SMALL_COEFFICIENTS: [usize; 3] = [3, 6, 9];
 
 /// How much larger than the best one's the response error of a smaller start may be for it to
 /// be fitted too ([`shortlist`]).
 pub const SMALL_ENOUGH: f64 = 3.0;
+
+/// The best response error [`SMALL_ENOUGH`] is taken of at least: on a response with no
+/// variance of its own (an ARX model's, [`start::arx_frf`]) the largest sizes reproduce it to
+/// rounding, and the smaller sizes within 15% of it still compete on held-out data.
+pub const SMALL_FLOOR: f64 = 0.05;
 
 /// The general structure as a candidate of the structure comparison or the diagnosis: the start
 /// the frequency-domain criterion ranks first on `rec` (no output-error fit here: the caller
@@ -206,7 +248,7 @@ pub fn candidate(
     let req = GeneralRequest::default();
     let (ranked, _) = starts(rec, template, opts, &req).ok()?;
     let s = ranked.first()?;
-    let mut m = structure(s, template, &req);
+    let mut m = structure(s, template, &req, rec.dt);
     m.approx = template.approx;
     Some((s.name(), m))
 }

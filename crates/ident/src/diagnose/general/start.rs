@@ -5,6 +5,8 @@
 //! - The response ([`frf`]): periodic averages when the input is periodic
 //!   ([`crate::oe::init::periodic_frf`], inverse-variance weights), Welch's H1 estimate otherwise
 //!   (coherence-chosen frequencies, inverse-variance weights); both with the hold divided out.
+//!   When Welch's has fewer than [`MIN_WELCH_POINTS`] frequencies, or none, an ARX model's
+//!   response ([`arx_frf`]).
 //! - A free integrator is fitted as `G(s) = H(s) s` on the response times `j w` (weights divided
 //!   by `w^2`, the same error), its start then `N/(s D)`.
 //! - Orders: `q = 1` (integer), and for denominators up to [`super::MAX_DEN_FRACTIONAL`] the
@@ -13,8 +15,14 @@
 //!   one (`p -> -conj(p)`: the same `|D(jw)|`) and the numerator refitted by weighted least
 //!   squares with that denominator; a fractional start with a pole outside the stable sector is
 //!   left out.
+//! - Sizes: only those within the record's parameter budget ([`Budget`]).
+//! - Delay ([`ranked_delayed`]): whole-sample input delays `d = 1 ..` [`MAX_DELAY_SAMPLES`] are
+//!   tried on the response advanced by them (`H(jw) e^(j w d dt)`), each with the sizes the
+//!   criterion ranks first without a delay and the smallest ones; the delay whose best fit has
+//!   the lowest criterion (the delay one parameter more) is kept when it beats every fit without
+//!   one, and the sizes are ranked again on that response.
 
-use super::{GeneralStart, Size, MAX_DEN_FRACTIONAL, MAX_DEN_INTEGER};
+use super::{Budget, GeneralStart, Size, MAX_DEN_FRACTIONAL, MAX_DEN_INTEGER};
 use crate::levy;
 use crate::oe::init::{periodic_frf, Frf};
 use crate::{Error, Result};
@@ -40,9 +48,24 @@ pub fn frf(u: &[f64], y: &[f64], dt: f64) -> Result<(Frf, String)> {
             );
             Ok((f, how))
         }
-        Err(_) => crate::oe::init::welch::h1(u, y, dt).or_else(|e| arx_frf(u, y, dt, &e)),
+        Err(_) => match crate::oe::init::welch::h1(u, y, dt) {
+            Ok((f, how)) if f.omega.len() < MIN_WELCH_POINTS => {
+                let few = Error::NotEnoughData(format!(
+                    "{} frequencies only in Welch's estimate, {how}",
+                    f.omega.len()
+                ));
+                arx_frf(u, y, dt, &few).or(Ok((f, how)))
+            }
+            Ok(w) => Ok(w),
+            Err(e) => arx_frf(u, y, dt, &e),
+        },
     }
 }
+
+/// The fewest frequencies of Welch's estimate the sizes are ranked on; with fewer (a record of
+/// a few steps, a short one) the ARX model's response ([`arx_frf`]) is used, when it can be
+/// made.
+pub const MIN_WELCH_POINTS: usize = 16;
 
 /// ARX orders of the fallback response ([`arx_frf`]).
 const ARX_ORDER: usize = 6;
@@ -53,12 +76,13 @@ const ARX_ORDER: usize = 6;
 /// record Welch's estimate cannot be made from (a step test, a short record), `why` its reason.
 ///
 /// # Errors
-/// [`Error::NotEnoughData`] for fewer than `20 (2 n + 2)` samples or a singular regression.
+/// [`Error::NotEnoughData`] for fewer than `10 (2 n + 2)` samples
+/// ([`super::SAMPLES_PER_PARAM`] a coefficient) or a singular regression.
 pub fn arx_frf(u: &[f64], y: &[f64], dt: f64, why: &Error) -> Result<(Frf, String)> {
     let n = u.len().min(y.len());
     let na = ARX_ORDER.min(n / 60).max(1);
     let cols = 2 * na + 2;
-    if n < 20 * cols {
+    if n < super::SAMPLES_PER_PARAM * cols {
         return Err(Error::NotEnoughData(format!(
             "{n} samples: too few for a response ({})",
             why.detail()
@@ -303,6 +327,7 @@ fn stable(
         integrator,
         b,
         a,
+        delay_samples: 0,
         frf_error: err,
         criterion: criterion(err, frf.omega.len(), k),
     })
@@ -418,6 +443,110 @@ fn refit_numerator(
     Some(sol.iter().zip(&scale).map(|(v, s)| v / s).collect())
 }
 
+/// The largest whole-sample input delay searched on the response ([`ranked_delayed`]).
+pub const MAX_DELAY_SAMPLES: usize = 10;
+
+/// The sizes probed at each delay beside the best ranked ones ([`ranked_delayed`]): the first
+/// order, the all-pole second order and a second order with a zero.
+const SMALL_SIZES: [Size; 3] = [
+    Size { num: 0, den: 1 },
+    Size { num: 0, den: 2 },
+    Size { num: 1, den: 2 },
+];
+
+/// The best ranked starts probed at each delay ([`ranked_delayed`]).
+const PROBED: usize = 3;
+
+/// `frf` with a delay of `d` samples of `dt` removed: `H(jw) e^(j w d dt)`.
+pub fn advanced(frf: &Frf, d: usize, dt: f64) -> Frf {
+    let tau = d as f64 * dt;
+    Frf {
+        h: frf
+            .omega
+            .iter()
+            .zip(&frf.h)
+            .map(|(&w, &h)| h * Complex64::from_polar(1.0, w * tau))
+            .collect(),
+        ..frf.clone()
+    }
+}
+
+/// [`ranked`] with the whole-sample input delay the response calls for (see the module
+/// documentation; `search` false: none, the template has its own): the starts of the chosen
+/// delay, each with its `delay_samples` and the delay counted in its criterion.
+///
+/// # Errors
+/// [`Error::NotEnoughData`] when no size gives a stable start at the delay chosen.
+pub fn ranked_delayed(
+    frf: &Frf,
+    dt: f64,
+    fixed: Option<Size>,
+    integrators: &[bool],
+    budget: Budget,
+    search: bool,
+) -> Result<Vec<GeneralStart>> {
+    let undelayed = ranked(frf, fixed, integrators, budget, 0);
+    if !search {
+        return undelayed;
+    }
+    let mut probes: Vec<(Size, bool)> = vec![];
+    if let Ok(r) = &undelayed {
+        for s in r {
+            if probes.len() >= PROBED {
+                break;
+            }
+            if !probes.contains(&(s.size, s.integrator)) {
+                probes.push((s.size, s.integrator));
+            }
+        }
+    }
+    if fixed.is_none() {
+        for &int in integrators {
+            for size in SMALL_SIZES {
+                if !probes.contains(&(size, int)) {
+                    probes.push((size, int));
+                }
+            }
+        }
+    }
+    let mut best = (
+        undelayed
+            .as_ref()
+            .ok()
+            .and_then(|r| r.first())
+            .map_or(f64::INFINITY, |s| s.criterion),
+        0,
+    );
+    for d in 1..=MAX_DELAY_SAMPLES {
+        let f = advanced(frf, d, dt);
+        for &(size, int) in &probes {
+            if !budget.allows(size, int, true) {
+                continue;
+            }
+            if let Some(s) = fit_size(&f, size, int) {
+                let c = delayed(s, d, frf.omega.len()).criterion;
+                if c < best.0 {
+                    best = (c, d);
+                }
+            }
+        }
+    }
+    match best.1 {
+        0 => undelayed,
+        d => ranked(&advanced(frf, d, dt), fixed, integrators, budget, d),
+    }
+}
+
+/// `s` (fitted on the response advanced by `d` samples) with that delay: one parameter more in
+/// its criterion when `d > 0` (`points` complex points).
+fn delayed(mut s: GeneralStart, d: usize, points: usize) -> GeneralStart {
+    s.delay_samples = d;
+    if d > 0 {
+        s.criterion += (2.0 * points as f64).ln();
+    }
+    s
+}
+
 /// The sizes searched: a fixed one, or every denominator degree up to [`MAX_DEN_INTEGER`] with
 /// every numerator degree up to it (one more with an integrator: a feed-through beside it; and
 /// with an integrator the denominator `s` alone, `(b_0 + b_1 s)/s`).
@@ -434,26 +563,45 @@ pub fn sizes(fixed: Option<Size>, integrator: bool) -> Vec<Size> {
     out
 }
 
-/// Every size's best stable start on `frf` for each choice of `integrators`, ranked by
-/// [`criterion`] (best first).
+/// Every size's best stable start on `frf` (the response advanced by `delay` samples, counted
+/// in the criterion, [`delayed`]) for each choice of `integrators`, ranked by [`criterion`] (best
+/// first); a size beyond the `budget` is left out unless it is the `fixed` one.
 ///
 /// # Errors
 /// [`Error::NotEnoughData`] when no size gives a stable start.
-pub fn ranked(frf: &Frf, fixed: Option<Size>, integrators: &[bool]) -> Result<Vec<GeneralStart>> {
+pub fn ranked(
+    frf: &Frf,
+    fixed: Option<Size>,
+    integrators: &[bool],
+    budget: Budget,
+    delay: usize,
+) -> Result<Vec<GeneralStart>> {
     let mut out: Vec<GeneralStart> = vec![];
     for &int in integrators {
         for size in sizes(fixed, int) {
             if fixed.is_none() && size.num > size.den + usize::from(int) {
                 continue;
             }
+            if fixed.is_none() && !budget.allows(size, int, delay > 0) {
+                continue;
+            }
             if let Some(s) = fit_size(frf, size, int) {
-                out.push(s);
+                out.push(delayed(s, delay, frf.omega.len()));
             }
         }
     }
     if out.is_empty() {
+        let within = if budget == Budget::UNLIMITED || fixed.is_some() {
+            String::new()
+        } else {
+            format!(
+                " within the record's parameter budget ({} free parameters, {} with an \
+                 integrator)",
+                budget.plain, budget.integrator
+            )
+        };
         return Err(Error::NotEnoughData(format!(
-            "no size of the general structure gives a stable fit of the response at {} \
+            "no size of the general structure{within} gives a stable fit of the response at {} \
              frequencies",
             frf.omega.len()
         )));
@@ -523,7 +671,7 @@ mod tests {
             .parse()
             .unwrap();
         let frf = frf_of(&g, 0.0);
-        let r = ranked(&frf, None, &[false]).unwrap();
+        let r = ranked(&frf, None, &[false], Budget::UNLIMITED, 0).unwrap();
         // exact data: the sizes that hold the plant tie to rounding; each has its three poles
         let best = &r[0];
         assert_eq!((best.size.den, best.q), (3, 1.0), "{r:?}");
@@ -546,7 +694,64 @@ mod tests {
             (s.b[0] - 2.0).abs() < 1e-9 && (s.b[1] - 0.5).abs() < 1e-9,
             "{s:?}"
         );
-        let r = ranked(&frf, None, &[false, true]).unwrap();
+        let r = ranked(&frf, None, &[false, true], Budget::UNLIMITED, 0).unwrap();
         assert!(r[0].integrator, "{:?}", r[0]);
+    }
+
+    /// A first order behind three samples of delay: the delay is found on the response, the
+    /// first order fits it exactly, and no size beyond the budget is ranked.
+    #[test]
+    fn a_whole_sample_delay_is_found_on_the_response() {
+        let dt = 0.01;
+        let g: fracsim::FracTf = "2/(0.1 s + 1)".parse().unwrap();
+        let mut frf = frf_of(&g, -1.0);
+        frf.h = frf
+            .omega
+            .iter()
+            .zip(&frf.h)
+            .map(|(&w, &h)| h * Complex64::from_polar(1.0, -w * 3.0 * dt))
+            .collect();
+        let budget = Budget {
+            plain: 4,
+            integrator: 4,
+        };
+        let r = ranked_delayed(&frf, dt, None, &[false], budget, true).unwrap();
+        let best = &r[0];
+        // exact data: the sizes that hold the plant tie to rounding; the first order is one
+        assert_eq!(best.delay_samples, 3, "{best:?}");
+        assert!(best.frf_error < 1e-9, "{best:?}");
+        assert!((best.a[0] - 0.1).abs() < 1e-9 && (best.b[0] - 2.0).abs() < 1e-9);
+        let first = r
+            .iter()
+            .find(|s| s.size == Size { num: 0, den: 1 })
+            .unwrap();
+        assert!(first.frf_error < 1e-9, "{first:?}");
+        assert!(r
+            .iter()
+            .all(|s| s.delay_samples == 3 && budget.allows(s.size, false, true)));
+        // without the search the delay is mimicked by a larger size, never exactly
+        let plain = ranked_delayed(&frf, dt, None, &[false], budget, false).unwrap();
+        assert!(plain.iter().all(|s| s.delay_samples == 0));
+        assert!(plain[0].frf_error > 1e3 * best.frf_error, "{:?}", plain[0]);
+        // and a response without a delay keeps none
+        let r = ranked_delayed(&frf_of(&g, -1.0), dt, None, &[false], budget, true).unwrap();
+        assert_eq!(r[0].delay_samples, 0, "{:?}", r[0]);
+    }
+
+    #[test]
+    fn the_budget_counts_the_parameters_beside_the_structure() {
+        // 60 estimation samples: 6 parameters, 5 of them beside the structure; a first order
+        // still passes the fit's own check (the output offset and its two coefficients)
+        let b = Budget::new(60, 5, 6, 1);
+        assert_eq!((b.plain, b.integrator), (2, 2));
+        assert!(b.allows(Size { num: 0, den: 1 }, false, false));
+        assert!(!b.allows(Size { num: 1, den: 1 }, false, false));
+        // 141 samples: 14 in all, 9 coefficients
+        assert_eq!(Budget::new(141, 5, 6, 1).plain, 9);
+        // a long record: at most 16 in all, the offset and four levels beside
+        let b = Budget::new(100_000, 5, 6, 1);
+        assert_eq!((b.plain, b.integrator), (11, 10));
+        assert!(b.allows(Size { num: 4, den: 6 }, false, false));
+        assert!(!b.allows(Size { num: 4, den: 6 }, false, true));
     }
 }
