@@ -438,7 +438,7 @@ def test_fracid_beats_integer_baseline(fracid_bin, name, request):
 
 # With defaults (no flag: the loop closed) fracid's recommended model, scored on the same held-out
 # samples, is at least as good as the best integer baseline on every record but those in XFAIL (the
-# test above, 10 of 13); with --plain (the named structure fitted once) on every record but those in
+# test above, 12 of 13); with --plain (the named structure fitted once) on every record but those in
 # XFAIL_PLAIN (this test). Measured with the loop closed (then `--diagnose`): the records added 2026-12-05 (main e364c0a): low-speed PRBS
 # 5.472 vs 5.769 deg/s (pmsm, the plain fit), closed speed profile 1.836 vs 1.801 (third order;
 # within TOL_RMSE, 1.9% above), TCLab PWM steps 0.3809 vs 1.509 degF (commensurate).
