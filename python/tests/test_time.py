@@ -107,10 +107,12 @@ def test_structure_auto_matches_the_cli(fracid_bin):
     path = Path(__file__).resolve().parents[2] / "data" / "unal_dcmotor" / "DCmotor_prbs_open_exp.csv"
     rows = np.loadtxt(path, delimiter=",", skiprows=1)
     t, u, y = rows[:, 0], rows[:, 1], rows[:, 2]
-    fit = fracid.fit_time(u, y, float(np.mean(np.diff(t))), "auto")
+    # The comparison alone (``plain``): the default would diagnose its choice as well.
+    fit = fracid.fit_time(u, y, float(np.mean(np.diff(t))), "auto", plain=True)
     cli = json.loads(
         subprocess.run(
-            [str(fracid_bin), "time", str(path), "--structure", "auto", "--json", "--quiet"],
+            [str(fracid_bin), "time", str(path), "--structure", "auto", "--plain", "--json",
+             "--quiet"],
             capture_output=True,
             text=True,
             check=True,
