@@ -71,6 +71,7 @@
 //! the one with the lowest BIC among those within 2% of the best held-out RMSE, so that an effect
 //! is not found only because the named structure could not bend like the plant.
 
+pub mod choice;
 pub mod freq;
 pub mod general;
 mod halving;

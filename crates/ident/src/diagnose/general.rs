@@ -16,7 +16,7 @@
 //!   poles reflected into the left half-plane, the numerator refitted).
 //! - [`search`]: the sizes the frequency-domain information criterion ranks first are each
 //!   fitted by output error ([`crate::oe::identify`]), and the size chosen by held-out RMSE, then
-//!   BIC among ties ([`crate::diagnose::structures::TIE`]).
+//!   BIC among ties ([`crate::diagnose::choice::TIE`]).
 //!
 //! - [`hook`]: the general structure compared with the named ones in the diagnosis when they
 //!   fit poorly.

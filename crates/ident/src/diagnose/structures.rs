@@ -39,6 +39,9 @@
 //! [`BEHIND`]): a structure more than 1.1x behind the best after as many kept effects is given no
 //! more rounds (its row shows its model at that point, and the reason names it).
 
+use super::choice::far_better;
+pub(crate) use super::choice::{decide, score_of, Outcome};
+pub use super::choice::{Diagnosed, IntegerReference, StructureChoice, StructureScore, FAR, TIE};
 pub use super::halving::BEHIND;
 use super::halving::{confirm_halving, Board};
 use crate::catalogue::Preset;
@@ -47,62 +50,6 @@ use crate::oe::{identify, FracModel, IdentOptions, Identification};
 use crate::par::Par;
 use crate::{Error, Result};
 use fracsim::modal::RootsCache;
-use serde::Serialize;
-
-/// Relative margin of held-out RMSE within which two structures are ties (2%: about the
-/// standard error of an RMSE ratio over 1000 held-out samples of noise, `1/sqrt(2N)`).
-pub const TIE: f64 = 0.02;
-
-/// One structure's fit and diagnosis.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct StructureScore {
-    /// Its name (a name of the catalogue, [`Preset::name`], or the user's words; `+ integrator`).
-    pub name: String,
-    /// The fitted linear part (empty when the fit failed).
-    pub model: String,
-    /// Why the structure has no result, in one line: its fit failed, or its diagnosis did
-    /// (`None` when neither). Said once: not repeated in `problems`.
-    pub failed: Option<String>,
-    /// Held-out RMSE of the base fit (estimation RMSE without a held-out part).
-    pub rmse: Option<f64>,
-    /// Why the base fit cannot be used (empty when it can, or when there is no base fit: see
-    /// `failed`).
-    pub problems: Vec<String>,
-    /// The effects its diagnosis kept.
-    pub effects: Vec<String>,
-    /// Free parameters of the final model (offsets, initial-state levels and effects included).
-    pub free_params: usize,
-    /// Held-out RMSE of the final model.
-    pub rmse_after: Option<f64>,
-    /// BIC of the final model on the estimation part.
-    pub bic_after: Option<f64>,
-}
-
-/// How far behind the best usable base fit a structure's base fit may be and still be diagnosed:
-/// a structure whose base held-out RMSE (estimation RMSE without a held-out part) exceeds `FAR`
-/// times the best usable one's is not diagnosed (its row shows the base fit only). The effects
-/// are the same for every structure (a delay, friction, an offset helps the best structure as
-/// much), so a structure twice as far from the data is not expected to overtake the best one by its
-/// effects alone; on the real records in `data/` the structures so left out ended at least 4%
-/// behind the chosen one when they were diagnosed anyway.
-pub const FAR: f64 = 2.0;
-
-/// The comparison and its decision.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct StructureChoice {
-    /// Every candidate, the user's first.
-    pub scores: Vec<StructureScore>,
-    /// Index of the chosen one in `scores`.
-    pub chosen: usize,
-    /// Whether the RMSEs compared are held-out ones (on a step test the tail of the response);
-    /// else, with nothing held out, they are of the estimation part.
-    pub held_out: bool,
-    /// The decision in words.
-    pub reason: String,
-    /// The usable integer-order model the chosen one is compared with (`None` when the chosen one
-    /// is itself integer or no integer-order candidate is usable).
-    pub integer_reference: Option<IntegerReference>,
-}
 
 /// The structures of the catalogue every comparison fits beside the user's, in its order: all but
 /// the feed-through (fitted only when the record shows an instant response, [`with_feedthrough`])
@@ -161,17 +108,6 @@ pub fn with_feedthrough(
         cands.push((Preset::Feedthrough.name().to_string(), m));
     }
     cands
-}
-
-/// A diagnosis on the best structure ([`diagnose_best`]).
-#[derive(Debug, Clone)]
-pub struct Diagnosed {
-    /// The identification of the chosen structure (the diagnosis's base model).
-    pub id: Identification,
-    /// The comparison.
-    pub choice: StructureChoice,
-    /// The diagnosis of the chosen structure.
-    pub diagnosis: super::Diagnosis,
 }
 
 /// The LM iterations of a candidate structure's screening fit ([`identify_candidate`]): the
@@ -743,53 +679,6 @@ fn diagnose_these(
         .collect()
 }
 
-/// One structure's identification (when it succeeded) and diagnosis (`None`: not diagnosed).
-pub(crate) struct Outcome {
-    pub(crate) id: Option<Identification>,
-    pub(crate) diagnosis: Option<Result<super::Diagnosis>>,
-}
-
-impl StructureScore {
-    /// A row with nothing measured yet.
-    pub(crate) fn named(name: &str) -> Self {
-        Self {
-            name: name.to_string(),
-            model: String::new(),
-            failed: None,
-            rmse: None,
-            problems: vec![],
-            effects: vec![],
-            free_params: 0,
-            rmse_after: None,
-            bic_after: None,
-        }
-    }
-}
-
-pub(crate) fn score_of(name: &str, o: &Outcome) -> StructureScore {
-    let mut s = StructureScore::named(name);
-    if let Some(id) = &o.id {
-        s.model = id.tf.to_string();
-        s.rmse = Some(id.validation.unwrap_or(id.estimation).rmse);
-        s.problems = id.problems.clone();
-    }
-    match (&o.id, &o.diagnosis) {
-        (Some(id), Some(Ok(d))) => {
-            let n = id.split as f64;
-            let k = d.model.params.iter().filter(|p| p.free).count();
-            let ssr = d.estimation.after.rmse.powi(2) * n;
-            s.effects = d.effects.iter().map(|e| e.name.clone()).collect();
-            s.free_params = k;
-            s.rmse_after = Some(d.after.rmse);
-            s.bic_after = Some(super::bic(ssr, id.split, k));
-        }
-        (Some(_), Some(Err(e))) => s.failed = Some(format!("its diagnosis failed: {e}")),
-        (None, Some(Err(e))) => s.failed = Some(e.to_string()),
-        _ => {}
-    }
-    s
-}
-
 /// The decision in words: the chosen row (with its effects, when diagnosed), the rule, what it
 /// gains over the best integer-order candidate, and what each of the `reduced` candidates
 /// ([`reduce_degenerate`]) lost.
@@ -833,19 +722,6 @@ fn is_integer(m: &FracModel) -> bool {
         .iter()
         .chain(&m.num)
         .all(|(_, o)| o.terms.is_empty() && o.eval(&v).fract() == 0.0)
-}
-
-/// The integer-order model the chosen one is compared with ([`StructureChoice::integer_reference`]).
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct IntegerReference {
-    /// Its name in the comparison (`first-order`, `second-order`, `third-order`).
-    pub name: String,
-    /// Its RMSE, on the same data as the chosen one's (held-out, or the estimation part).
-    pub rmse: f64,
-    /// Whether that is its final model's (diagnosed); else its base fit's.
-    pub diagnosed: bool,
-    /// The chosen model's RMSE relative to it, `rmse_chosen / rmse - 1` (negative: better).
-    pub relative_change: f64,
 }
 
 /// What the chosen model gains over the best integer-order reference on the same held-out data:
@@ -918,53 +794,6 @@ fn integer_gain(
             relative_change: change,
         }),
     )
-}
-
-/// Whether a structure with held-out RMSE `rmse` (its base fit `usable` or not) is among those the
-/// comparison chooses from, `best_usable` the best usable one's RMSE (infinite when none is): a
-/// usable one, or one whose base fit is not usable but more than [`FAR`] times better than every
-/// usable one. Such a fit says that the usable structures do not describe these data (a static
-/// gain that fits the record to its last digit, while a first order's fit stalls 1e15 times
-/// higher): the comparison then ends on it, and its final model's verdict says what is wrong
-/// with it (no dynamics, terms not determined), rather than on a usable model the data refute.
-fn far_better(usable: bool, rmse: f64, best_usable: f64) -> bool {
-    usable || !best_usable.is_finite() || FAR * rmse < best_usable
-}
-
-/// The index chosen by the rule of the module documentation, or `None` when no candidate has a
-/// final model.
-pub(crate) fn decide(scores: &[StructureScore]) -> Option<(usize, f64)> {
-    let finals: Vec<usize> = (0..scores.len())
-        .filter(|&i| scores[i].rmse_after.is_some_and(f64::is_finite))
-        .collect();
-    let best_usable = finals
-        .iter()
-        .filter(|&&i| scores[i].problems.is_empty())
-        .filter_map(|&i| scores[i].rmse_after)
-        .fold(f64::INFINITY, f64::min);
-    let pool: Vec<usize> = finals
-        .into_iter()
-        .filter(|&i| {
-            let r = scores[i].rmse_after.unwrap_or(f64::INFINITY);
-            far_better(scores[i].problems.is_empty(), r, best_usable)
-        })
-        .collect();
-    let best = pool
-        .iter()
-        .filter_map(|&i| scores[i].rmse_after)
-        .fold(f64::INFINITY, f64::min);
-    pool.iter()
-        .copied()
-        .filter(|&i| {
-            scores[i]
-                .rmse_after
-                .is_some_and(|r| r <= (1.0 + TIE) * best)
-        })
-        .min_by(|&a, &b| {
-            let bic = |i: usize| scores[i].bic_after.unwrap_or(f64::INFINITY);
-            bic(a).total_cmp(&bic(b))
-        })
-        .map(|c| (c, best))
 }
 
 /// Fit and diagnose every candidate structure of the user's `model` (named `label`, already

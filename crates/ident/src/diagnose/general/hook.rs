@@ -12,14 +12,15 @@
 //! and predicts the held-out part within [`BEHIND`] of the chosen final model (the successive
 //! halving's margin: a structure further behind after fewer effects is given no more rounds).
 //! The two final models are then compared by the comparison's own rule (held-out RMSE, ties
-//! within [`crate::diagnose::structures::TIE`] decided by the lower BIC, a usable base fit first): the general model is
+//! within [`crate::diagnose::choice::TIE`] decided by the lower BIC, a usable base fit first): the general model is
 //! returned, with its diagnosis and verdict, when it predicts the held-out data better.
 //! Otherwise the named choice stands; its row is added to the comparison either way, and the
 //! reason says what was done.
 
 use super::{fit, GeneralRequest};
 use crate::data::Record;
-use crate::diagnose::structures::{decide, score_of, Diagnosed, Outcome, StructureScore, BEHIND};
+use crate::diagnose::choice::{decide, score_of, Diagnosed, Outcome, StructureScore};
+use crate::diagnose::halving::BEHIND;
 use crate::diagnose::{diagnose, DiagnoseOptions};
 use crate::oe::{FracModel, IdentOptions, Kind};
 use fracsim::modal::RootsCache;

@@ -11,7 +11,7 @@
 use super::start::{self, calls_for_integrator};
 use super::{Budget, GeneralRequest, GeneralStart};
 use crate::data::Record;
-use crate::diagnose::structures::{StructureChoice, StructureScore, TIE};
+use crate::diagnose::choice::{StructureChoice, StructureScore, TIE};
 use crate::oe::{identify, FracModel, IdentOptions, Identification, InitialState, StartMode};
 use crate::{Error, Result};
 
