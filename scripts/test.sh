@@ -23,9 +23,13 @@ bash firmware/test.sh >"$logs/firmware.log" 2>&1 &
 firmware_pid=$!
 
 echo "== cargo test (workspace)"
+# The default members: every crate but the pyo3 extension (the drive's end-to-end tests run there
+# on both firmwares behind the pty: NAME::rust, NAME::c). Every test target (unit tests of each lib
+# and bin, integration tests), then the doc tests; the examples, which no test runs, are not
+# linked here (`cargo clippy --all-targets` compiles and lints them; they took 26 s of CPU here).
 rc=0
-cargo test --no-fail-fast || rc=$?  # the default members: every crate but the pyo3 extension
-# (the drive's end-to-end tests run there on both firmwares behind the pty: NAME::rust, NAME::c)
+cargo test --no-fail-fast --tests || rc=$?
+cargo test --no-fail-fast --doc || rc=$?
 
 echo "== firmware (C): unit tests and shared vectors, 8-bit and 16-bit octets, ASan/UBSan"
 fw_rc=0
