@@ -14,6 +14,10 @@
 #                         dependencies at 3), the artefacts `cargo test` already built
 #   FRACID_BIN            the CLI the agreement tests run (default: built here, target/debug/fracid)
 #   FRACID_VENV           where to make the venv (default: a fresh temporary directory)
+#   FRACID_VENV_READY     1: FRACID_VENV was already made by `python/ci.sh --venv-only DIR` (as
+#                         scripts/test.sh does while the Rust side builds): use it as it is
+#
+# `python/ci.sh --venv-only DIR` makes the venv with the PyPI packages and stops (no wheel, no test).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 ROOT=$PWD
@@ -22,15 +26,30 @@ t0=$SECONDS
 export CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-$ROOT/target}"
 export MATURIN_PEP517_ARGS="${MATURIN_PEP517_ARGS:---profile dev}"
 
+# A fresh venv with the test dependencies from PyPI.
+make_venv() {
+    rm -rf "$1"
+    python3 -m venv "$1"
+    echo "== python: venv $1 ($("$1/bin/python" --version))"
+    "$1/bin/pip" install --quiet --disable-pip-version-check numpy pytest
+    # The optional extras (fracid[scipy], fracid[control], fracid[dask]): their tests skip only
+    # when these cannot be installed.
+    "$1/bin/pip" install --quiet --disable-pip-version-check scipy control "dask[distributed]" \
+        || echo "warning: scipy/control/dask could not be installed: their tests will skip"
+}
+
+if [ "${1:-}" = "--venv-only" ]; then
+    make_venv "${2:?usage: python/ci.sh --venv-only DIR}"
+    echo "   venv ready in $((SECONDS - t0)) s"
+    exit 0
+fi
+
 VENV="${FRACID_VENV:-$(mktemp -d)/venv}"
-rm -rf "$VENV"
-python3 -m venv "$VENV"
-echo "== python: venv $VENV ($("$VENV/bin/python" --version))"
-"$VENV/bin/pip" install --quiet --disable-pip-version-check numpy pytest
-# The optional extras (fracid[scipy], fracid[control], fracid[dask]): their tests skip only when
-# these cannot be installed.
-"$VENV/bin/pip" install --quiet --disable-pip-version-check scipy control "dask[distributed]" \
-    || echo "warning: scipy/control/dask could not be installed: their tests will skip"
+if [ "${FRACID_VENV_READY:-}" = 1 ]; then
+    echo "== python: venv $VENV (made while the Rust side built)"
+else
+    make_venv "$VENV"
+fi
 
 echo "== python: pip install ./python (maturin wheel, $MATURIN_PEP517_ARGS)"
 "$VENV/bin/pip" install --disable-pip-version-check ./python
