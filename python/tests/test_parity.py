@@ -303,12 +303,6 @@ def same_to(a, b, rel, where="report"):
         assert a == b, (where, a, b)
 
 
-@pytest.mark.xfail(
-    reason="regression found at the end of the session that merged faer, the closed-loop "
-    "default and the general structure: `fracid time A --joint B --validate C --structure "
-    "commensurate` exits 2 'starting value 1 of q is outside its range' (issue 47/48 notes)",
-    strict=False,
-)
 def test_a_joint_fit_is_the_same(fracid_bin, tmp_path):
     """`fracid time A --joint B --validate C --json` and `fracid.fit_time_joint`: the same report
     (the records named by path in one, by position in the other)."""

@@ -30,7 +30,7 @@ pub enum Error {
         attempts: u32,
     },
     /// The drive rejected a command.
-    #[error("drive rejected {what}: {code:?} (detail {detail})")]
+    #[error("drive rejected {what}: {}", nak_text(*code, *detail))]
     Nak {
         /// The rejected command.
         what: &'static str,
@@ -79,3 +79,52 @@ pub enum Error {
 
 /// The crate's result type.
 pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+/// A NAK's code and detail in words: a latched fault by its name.
+fn nak_text(code: crate::protocol::NakCode, detail: u16) -> String {
+    use crate::protocol::{spec::fault, NakCode};
+    match code {
+        NakCode::Fault => {
+            let name = match u8::try_from(detail) {
+                Ok(fault::ESTOP) => "emergency stop",
+                Ok(fault::KEEPALIVE) => {
+                    "keepalive expired (the host's KEEPALIVE frames stopped arriving in time)"
+                }
+                Ok(fault::SPEED_LIMIT) => "speed trip",
+                Ok(fault::CURRENT_LIMIT) => "current trip",
+                _ => "unknown fault",
+            };
+            format!("a fault is latched: {name} (fault code {detail}; CONFIGURE clears it)")
+        }
+        NakCode::BadValue => format!("a field out of range (at payload offset {detail})"),
+        other => format!("{other:?} (detail {detail})"),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::protocol::{spec::fault, NakCode};
+
+    #[test]
+    fn a_latched_fault_is_named() {
+        let e = Error::Nak {
+            what: "START_SINE",
+            code: NakCode::Fault,
+            detail: fault::KEEPALIVE.into(),
+        };
+        let text = e.to_string();
+        assert!(
+            text.starts_with("drive rejected START_SINE: a fault is latched: keepalive expired"),
+            "{text}"
+        );
+        let e = Error::Nak {
+            what: "CONFIGURE",
+            code: NakCode::BadValue,
+            detail: 4,
+        };
+        assert!(e
+            .to_string()
+            .ends_with("a field out of range (at payload offset 4)"));
+    }
+}

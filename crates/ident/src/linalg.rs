@@ -8,12 +8,12 @@
 //! boundary as nalgebra's column-major `DMatrix` (the [`crate::lm::Problem`] Jacobian's type) or
 //! as column-major slices, viewed by faer without a copy.
 
-use crate::lm::Mat;
 use faer::linalg::householder::make_householder_in_place;
 use faer::linalg::matmul::matmul;
 use faer::linalg::triangular_solve::solve_upper_triangular_in_place;
 use faer::reborrow::{Reborrow, ReborrowMut};
 use faer::{Accum, ColRef, MatMut, MatRef, Par};
+use nalgebra::DMatrix as Mat; // the LM Jacobian's matrix (`lm::Mat` is this type)
 
 /// faer's view of a column-major `rows x cols` slice.
 fn view(a: &[f64], rows: usize, cols: usize) -> MatRef<'_, f64> {

@@ -91,15 +91,14 @@ pub fn run(a: DemoArgs) -> Result<()> {
     let (sim, true_model) = spawn_drive(&a)?;
 
     // 2. Acquire.
-    let mut client = Client::open(
-        sim.port_path(),
-        ClientConfig {
-            baud: a.baud,
-            clock: sim.virtual_clock(),
-            ..ClientConfig::default()
-        },
-    )
-    .context("cannot open the simulated drive")?;
+    // The link's settings, the same for every session with the drive below.
+    let link = ClientConfig {
+        baud: a.baud,
+        clock: sim.virtual_clock(),
+        ..ClientConfig::default()
+    };
+    let mut client =
+        Client::open(sim.port_path(), link.clone()).context("cannot open the simulated drive")?;
     let hello = client.hello().context("the drive did not answer HELLO")?;
     let cfg = Configure {
         sample_rate_hz: a.sample_rate_hz,
@@ -121,17 +120,8 @@ pub fn run(a: DemoArgs) -> Result<()> {
     // 3b. The tuned loop on the drive (cmd/demo_loop.rs); the drive was kept running for it.
     step("the tuned loop on the drive");
     let model = crate::cmd::demo_loop::model_of(&dir.join("time.json"))?;
-    let tuned = crate::cmd::demo_loop::run(
-        sim.port_path(),
-        ClientConfig {
-            baud: a.baud,
-            clock: sim.virtual_clock(),
-            ..ClientConfig::default()
-        },
-        a.sample_rate_hz,
-        &model,
-        dir,
-    )?;
+    let tuned =
+        crate::cmd::demo_loop::run(sim.port_path(), link.clone(), a.sample_rate_hz, &model, dir)?;
     if let (Some(rec), Some(fig)) = (&tuned.record, &tuned.figure) {
         step(&format!(
             "tuned loop: {} and {}",
@@ -143,16 +133,8 @@ pub fn run(a: DemoArgs) -> Result<()> {
     // 3c. One-button tuning on the same drive (cmd/demo_autotune.rs), told nothing.
     step("autotune on the drive (fracid drive autotune, defaults)");
     let t_auto = Instant::now();
-    let autotune_lines = crate::cmd::demo_autotune::run(
-        sim.port_path(),
-        ClientConfig {
-            baud: a.baud,
-            clock: sim.virtual_clock(),
-            ..ClientConfig::default()
-        },
-        a.sample_rate_hz,
-        dir,
-    )?;
+    let autotune_lines =
+        crate::cmd::demo_autotune::run(sim.port_path(), link, a.sample_rate_hz, dir)?;
     sim.stop();
     step(&format!(
         "autotune: {} in {:.1} s",

@@ -11,6 +11,14 @@ fn stderr(o: &std::process::Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }
 
+/// `fracid drive autotune --port PORT --keepalive-ms 5 EXTRA...`.
+#[cfg(unix)]
+fn autotune(port: &str, extra: &[&str]) -> std::process::Output {
+    let mut args = vec!["drive", "autotune", "--port", port, "--keepalive-ms", "5"];
+    args.extend_from_slice(extra);
+    fracid(&args)
+}
+
 #[cfg(unix)]
 fn sim(coulomb_v: f64) -> drive::sim::DriveSim {
     drive::sim::DriveSim::spawn(drive::sim::SimConfig {
@@ -34,17 +42,7 @@ fn autotune_reports_round_by_round_and_exits_0_for_a_usable_controller() {
     let s = sim(0.28);
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("at");
-    let o = fracid(&[
-        "drive",
-        "autotune",
-        "--port",
-        s.port_path(),
-        "--keepalive-ms",
-        "5",
-        "--json",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    let o = autotune(s.port_path(), &["--json", "--out", out.to_str().unwrap()]);
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
     assert_eq!(v["usable"], true);
@@ -128,17 +126,7 @@ fn autotune_without_a_filter_lowers_the_crossover_for_a_resonance() {
         ..Default::default()
     })
     .unwrap();
-    let o = fracid(&[
-        "drive",
-        "autotune",
-        "--port",
-        s.port_path(),
-        "--keepalive-ms",
-        "5",
-        "--filter",
-        "none",
-        "--json",
-    ]);
+    let o = autotune(s.port_path(), &["--filter", "none", "--json"]);
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
     assert_eq!(v["request"]["filter"], "none");

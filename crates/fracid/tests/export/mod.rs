@@ -4,6 +4,20 @@
 use super::fracid;
 use std::path::Path;
 
+/// `fracid export ARGS... -o OUT`, which must succeed: the text it wrote.
+fn export_to(args: &[&str], out: &Path) -> String {
+    let mut all = vec!["export"];
+    all.extend_from_slice(args);
+    all.extend_from_slice(&["-o", out.to_str().unwrap()]);
+    let o = fracid(&all);
+    assert!(
+        o.status.success(),
+        "{args:?}: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    std::fs::read_to_string(out).unwrap()
+}
+
 fn json_file(p: &Path) -> serde_json::Value {
     serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap()
 }
@@ -46,8 +60,7 @@ fn discrete_export_steps_like_fracid_sim() {
     let dir = tempfile::tempdir().unwrap();
     let model = "6.77/(0.000028 s^1.78 + 0.0064 s^0.89 + 1) exp(-0.00025 s)";
     let out = dir.path().join("ss.json");
-    let o = fracid(&["export", model, "--dt", "1e-4", "-o", out.to_str().unwrap()]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    export_to(&[model, "--dt", "1e-4"], &out);
     let v = json_file(&out);
     assert_eq!(v["time"], "discrete");
     assert_eq!(v["delay_states"], 3); // 2.5 samples: two whole, one for the fraction
@@ -73,18 +86,16 @@ fn discrete_export_steps_like_fracid_sim() {
 fn matlab_script_and_fit_reports() {
     let dir = tempfile::tempdir().unwrap();
     let m = dir.path().join("motor.m");
-    let o = fracid(&[
-        "export",
-        "6.77/(0.0064 s^0.89 + 1) exp(-0.01 s)",
-        "--band",
-        "1e-2,1e5",
-        "--order",
-        "4",
-        "-o",
-        m.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let text = std::fs::read_to_string(&m).unwrap();
+    let text = export_to(
+        &[
+            "6.77/(0.0064 s^0.89 + 1) exp(-0.01 s)",
+            "--band",
+            "1e-2,1e5",
+            "--order",
+            "4",
+        ],
+        &m,
+    );
     assert!(
         text.contains("sys = ss(A, B, C, D, 'InputDelay', tau);"),
         "{text}"
@@ -163,12 +174,7 @@ fn a_tuned_controller_exports() {
     );
     for arg in [text.as_str(), rep.to_str().unwrap()] {
         let o = dir.path().join("x.json");
-        let out = fracid(&["export", arg, "--dt", "0.001", "-o", o.to_str().unwrap()]);
-        assert!(
-            out.status.success(),
-            "{arg}: {}",
-            String::from_utf8_lossy(&out.stderr)
-        );
+        export_to(&[arg, "--dt", "0.001"], &o);
         let e = json_file(&o);
         let s = step(&e, 200);
         for (a, b) in s.iter().zip(&from_report) {
@@ -191,16 +197,7 @@ fn the_c_header_steps_like_the_realisation() {
     let c_json = dir.path().join("C.json");
     std::fs::write(&c_json, &tuned).unwrap();
     let header = dir.path().join("ctrl.h");
-    let o = fracid(&[
-        "export",
-        c_json.to_str().unwrap(),
-        "--format",
-        "c",
-        "-o",
-        header.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let text = std::fs::read_to_string(&header).unwrap();
+    let text = export_to(&[c_json.to_str().unwrap(), "--format", "c"], &header);
     assert!(text.contains("fracid_ctrl_load"), "{text}");
     // the error step, raw speed LSB (10 mrad/s each: 0.5 rad/s), and the samples run
     let (e_raw, n) = (50, 400);

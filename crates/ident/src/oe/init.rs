@@ -98,6 +98,21 @@ pub struct Frf {
     pub periods_available: usize,
 }
 
+#[cfg(test)]
+impl Frf {
+    /// The exact response of `g` at `omega`, equal weights (a test's truth).
+    pub(crate) fn exact(g: &fracsim::FracTf, omega: Vec<f64>) -> Frf {
+        Frf {
+            h: g.bode(&omega),
+            weight: vec![1.0; omega.len()],
+            omega,
+            period: None,
+            periods_averaged: 0,
+            periods_available: 0,
+        }
+    }
+}
+
 /// The smallest period `P` (in samples, `8 <= P <= n/2`) with `u[k + P] = u[k]` for all `k`
 /// (within `1e-9` of the input range), if any.
 pub fn detect_period(u: &[f64]) -> Option<usize> {
@@ -955,22 +970,11 @@ mod tests {
         }
     }
 
-    fn frf_of(g: &FracTf, omega: Vec<f64>) -> Frf {
-        Frf {
-            h: g.bode(&omega),
-            weight: vec![1.0; omega.len()],
-            omega,
-            period: None,
-            periods_averaged: 0,
-            periods_available: 0,
-        }
-    }
-
     #[test]
     fn levy_start_recovers_an_exact_commensurate_response() {
         let g = FracTf::pmsm(6.8, 0.006, 2.7e-5, 0.9, 0.9).unwrap();
         let omega: Vec<f64> = (0..40).map(|i| 10f64.powf(0.5 + i as f64 * 0.08)).collect();
-        let (f, e) = levy_start(&frf_of(&g, omega), true, Par::Seq).unwrap();
+        let (f, e) = levy_start(&Frf::exact(&g, omega), true, Par::Seq).unwrap();
         // Exact data: the grid point q = 0.9 reproduces the response to rounding.
         assert!((f.q - 0.9).abs() < 1e-9, "{f:?}");
         assert!(e < 1e-20, "{e}");

@@ -135,12 +135,14 @@ impl Joint {
     fn of(recs: &[Record], base: &FracModel, opts: &IdentOptions) -> (Self, Vec<f64>, Vec<f64>) {
         let own = |m: &FracModel, i: usize| m.is_initial_state(i) || m.params[i].name == "y_offset";
         let mut params = base.params.clone();
-        // the first record's initial-state levels start afresh like the others' (the start's own
-        // fit may leave one at the very edge of its range, which the joint fit refuses as a start)
+        // the first record's initial-state levels start afresh like the others'; the start's own
+        // fit may leave a parameter at the very edge of its open range (a commensurate order at
+        // 1), which the joint fit would refuse as a start: it starts just inside
         for (i, p) in params.iter_mut().enumerate() {
             if base.is_initial_state(i) {
                 p.value = 0.0;
             }
+            p.value = p.bounds.clamp_inside(p.value);
         }
         let (mut parts, mut ranges, mut u, mut y) = (vec![], vec![], vec![], vec![]);
         for (r, rec) in recs.iter().enumerate() {

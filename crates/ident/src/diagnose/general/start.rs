@@ -615,17 +615,10 @@ mod tests {
     use super::*;
 
     fn frf_of(tf: &fracsim::FracTf, lo_decade: f64) -> Frf {
-        let omega: Vec<f64> = (0..80)
+        let omega = (0..80)
             .map(|i| 10f64.powf(lo_decade + i as f64 / 79.0 * 3.0))
             .collect();
-        Frf {
-            h: tf.bode(&omega),
-            weight: vec![1.0; omega.len()],
-            omega,
-            period: None,
-            periods_averaged: 0,
-            periods_available: 0,
-        }
+        Frf::exact(tf, omega)
     }
 
     /// A step test (four levels) of `y_k = 0.9 y_(k-1) + 0.1 u_(k-1)`: the ARX response (the
