@@ -994,6 +994,24 @@ impl<'a> Ctx<'a> {
     }
 }
 
+/// Held-out RMSEs of two refits of one round within this relative difference are a tie
+/// ([`beats`]): their difference is rounding and the refits' stopping rule, not evidence. Two
+/// one-parameter static input maps on an input of three levels (a saturation, a dead band, a
+/// power law) each fit any map of those levels with the gain: their refits end at the same
+/// model, and which RMSE came out lower in its last bits decided the effect kept.
+pub const REFIT_TIE: f64 = 1e-6;
+
+/// Whether a refit `(score, rank)` beats the round's best so far: a lower held-out RMSE beyond
+/// [`REFIT_TIE`], or within it the effect earlier in the library ([`probes::library`]'s order,
+/// `rank`), so that ties are settled the same way whatever the last bits.
+fn beats(new: (f64, usize), best: (f64, usize)) -> bool {
+    if (new.0 - best.0).abs() <= REFIT_TIE * new.0.abs().max(best.0.abs()) {
+        new.1 < best.1
+    } else {
+        new.0 < best.0
+    }
+}
+
 /// The diagnosis loop's state between rounds ([`diagnose_until`]).
 struct Rounds<'a> {
     ctx: Ctx<'a>,
@@ -1097,10 +1115,18 @@ impl Rounds<'_> {
         let probe = library.iter().find(|p| p.name() == c.name);
         match try_candidate(ctx, &self.st, c, probe.map(|p| p.as_ref())) {
             Ok((ns, k, lead)) => {
-                if best
-                    .as_ref()
-                    .is_none_or(|(b, _, _, _)| ctx.score(&ns) < ctx.score(b))
-                {
+                let rank = |name: &str| {
+                    library
+                        .iter()
+                        .position(|p| p.name() == name)
+                        .unwrap_or(usize::MAX)
+                };
+                if best.as_ref().is_none_or(|(b, bk, _, _)| {
+                    beats(
+                        (ctx.score(&ns), rank(&k.name)),
+                        (ctx.score(b), rank(&bk.name)),
+                    )
+                }) {
                     *best = Some((ns, k, c.key.clone(), lead));
                 }
             }
@@ -1197,6 +1223,27 @@ mod tests {
     use super::*;
     use crate::data::OffsetMode;
     use crate::oe::{identify, IdentOptions, Structure};
+
+    /// A refit beats the round's best by a held-out RMSE lower beyond `REFIT_TIE`; within it
+    /// (a tie) the effect earlier in the library does, whichever came out lower in its last bits.
+    #[test]
+    fn ties_between_refits_go_to_the_effect_earlier_in_the_library() {
+        let (sat, pow) = (8, 10);
+        assert!(beats((0.5, pow), (0.6, sat)));
+        assert!(!beats((0.6, sat), (0.5, pow)));
+        let x = 2.7428e-2;
+        let below = x * (1.0 - 1e-9);
+        assert!(beats((x, sat), (below, pow)));
+        assert!(!beats((below, pow), (x, sat)));
+        assert!(!beats((below, sat), (x, sat)));
+        assert!(beats((x * (1.0 - 1e-5), pow), (x, sat)));
+        let names: Vec<&str> = probes::library().iter().map(|p| p.name()).collect();
+        assert_eq!(
+            (names[sat], names[pow]),
+            ("saturation", "power_law"),
+            "{names:?}"
+        );
+    }
 
     /// A long record for [`lead_screen`]: `6 x 2^14` samples at 1 ms (its estimation part beyond
     /// `4 x 2^14`), a commensurate plant driven by a random binary input (a new level every 20

@@ -359,6 +359,76 @@ pub(crate) fn solve_upper_transposed(r: &Mat<f64>, g: &[f64]) -> Vec<f64> {
     q
 }
 
+/// The relative size under which a column's part outside the span of the columns before it
+/// makes it dependent in [`project_out`]: its columns scaled to unit norm, a part of `1e-10`
+/// is below the accuracy of the sensitivities it is given (a part that rounding alone leaves
+/// from exactly dependent columns is about `1e-16` to `1e-13`).
+pub(crate) const DEPENDENT_PART: f64 = 1e-10;
+
+/// The part of each column of `b` (`m x c`) outside the span of the columns of `a` (`m x n`):
+/// `b - Q Q^T b` for the orthonormal `Q` of `a`'s independent columns. Each column of `a`,
+/// scaled to unit norm, is reflected onto the next row (faer's reflector) unless its part
+/// outside the span of the columns kept before it is under [`DEPENDENT_PART`] (a column of
+/// zeros, or nearly a combination of those): it adds nothing to the span and is skipped.
+///
+/// Computed from the reflectors, not from least-squares coefficients `x` as `b - a x`: with
+/// nearly dependent columns `x` is huge and arbitrary, and `b - a x` loses the digits the
+/// projection needs (or is not finite for a column of zeros), so rounding decided the result.
+pub(crate) fn project_out(a: &Mat<f64>, b: &Mat<f64>) -> Mat<f64> {
+    let (m, n, c) = (a.nrows(), a.ncols(), b.ncols());
+    let mut out = b.clone();
+    let mut q = a.clone();
+    for j in 0..n {
+        let norm = as_faer(&q).col(j).norm_l2();
+        let mut col = q.column_mut(j);
+        if norm > 0.0 && norm.is_finite() {
+            col.iter_mut().for_each(|v| *v /= norm);
+        } else {
+            col.iter_mut().for_each(|v| *v = 0.0);
+        }
+    }
+    let mut qm = MatMut::from_column_major_slice_mut(q.as_mut_slice(), m, n);
+    let mut om = MatMut::from_column_major_slice_mut(out.as_mut_slice(), m, c);
+    let mut tmp = Vec::new();
+    // (column, 1 / tau) of each reflector made; the k-th acts on rows k..m.
+    let mut kept: Vec<(usize, f64)> = vec![];
+    for j in 0..n {
+        let k = kept.len();
+        if k == m {
+            break;
+        }
+        if !(qm.rb().col(j).subrows(k, m - k).norm_l2() > DEPENDENT_PART) {
+            continue;
+        }
+        let info = {
+            let (top, tail) = qm.rb_mut().col_mut(j).split_at_row_mut(k + 1);
+            make_householder_in_place(top.get_mut(k), tail)
+        };
+        // A zero tail: the column is already along row k (no reflection, faer's `tau` infinite).
+        let inv = if info.tau.is_finite() {
+            info.tau.recip()
+        } else {
+            0.0
+        };
+        let (left, right) = qm.rb_mut().split_at_col_mut(j + 1);
+        let v = left.rb().col(j).subrows(k + 1, m - k - 1);
+        reflect(v, inv, right.subrows_mut(k, m - k), &mut tmp);
+        reflect(v, inv, om.rb_mut().subrows_mut(k, m - k), &mut tmp);
+        kept.push((j, inv));
+    }
+    // Q^T b with its first rows (the span's coordinates) zeroed, then Q applied: b - Q Q^T b.
+    for i in 0..kept.len() {
+        for col in 0..c {
+            om[(i, col)] = 0.0;
+        }
+    }
+    for (k, &(j, inv)) in kept.iter().enumerate().rev() {
+        let v = qm.rb().col(j).subrows(k + 1, m - k - 1);
+        reflect(v, inv, om.rb_mut().subrows_mut(k, m - k), &mut tmp);
+    }
+    out
+}
+
 /// `A^T A` (`n x n`) of the column-major `m x n` matrix `a`, by faer's product.
 pub(crate) fn gram(a: &Mat<f64>) -> Mat<f64> {
     let n = a.ncols();
@@ -409,6 +479,64 @@ mod tests {
             assert!((g - x).abs() <= tol, "R[{j},{j}] = {g:e}, nalgebra {x:e}");
         }
         assert!(got[(3, 3)].abs() > 1e-13 * a.column(3).norm());
+    }
+
+    /// [`project_out`] against the projection by nalgebra's SVD (`b - U_k U_k^T b` over the
+    /// singular values above `1e-8` of the largest): on independent columns; with a column of
+    /// zeros, a column repeated and one that is a combination of two others to `1e-15` (the
+    /// span is the independent columns'); and the same matrix with those dependent columns moved
+    /// by rounding-sized noise, which must not move the result (least-squares coefficients on
+    /// them are arbitrary: `b - A x` was).
+    #[test]
+    fn project_out_removes_the_span_of_the_independent_columns() {
+        let mut rnd = uniform(23);
+        let m = 2000;
+        let b = Mat::<f64>::from_fn(m, 2, |_, _| rnd());
+        let reference = |a: &Mat<f64>| {
+            let svd = a.clone().svd(true, false);
+            let u = svd.u.unwrap();
+            let top = svd.singular_values.max();
+            let mut p = b.clone();
+            for (k, s) in svd.singular_values.iter().enumerate() {
+                if *s > 1e-8 * top {
+                    let uk = u.column(k);
+                    for c in 0..2 {
+                        let h = uk.dot(&b.column(c));
+                        p.column_mut(c).axpy(-h, &uk, 1.0);
+                    }
+                }
+            }
+            p
+        };
+        let close = |got: &Mat<f64>, want: &Mat<f64>, what: &str| {
+            let err = (got - want).norm();
+            assert!(err <= 1e-12 * b.norm(), "{what}: |diff| = {err:e}");
+        };
+        let free = Mat::<f64>::from_fn(m, 4, |i, j| rnd() * (j + 1) as f64 + (i % 7) as f64);
+        let got = project_out(&free, &b);
+        close(&got, &reference(&free), "independent");
+        let at = free.transpose() * &got;
+        assert!(
+            at.amax() <= 1e-10 * b.norm() * free.norm(),
+            "not orthogonal"
+        );
+        // Columns 0..4 independent; 4 zeros, 5 = column 1 times 3, 6 = column 0 + column 2
+        // (to 1e-15 of its norm).
+        let noise: Vec<f64> = (0..m).map(|_| rnd()).collect();
+        let dependent = |eps: f64| {
+            Mat::<f64>::from_fn(m, 7, |i, j| match j {
+                0..=3 => free[(i, j)],
+                4 => 0.0,
+                5 => 3.0 * free[(i, 1)] * (1.0 + eps * noise[i]),
+                _ => free[(i, 0)] + free[(i, 2)] + 1e-15 * noise[i] * (1.0 + eps),
+            })
+        };
+        let a = dependent(0.0);
+        let got = project_out(&a, &b);
+        close(&got, &reference(&free), "dependent columns");
+        let moved = project_out(&dependent(1e-14), &b);
+        close(&moved, &got, "dependent columns moved by rounding");
+        assert!(got.iter().all(|v| v.is_finite()));
     }
 
     /// faer's Householder `R` ([`qr_r_in_place`]) against nalgebra's QR, up to the signs of its rows: a tall

@@ -233,33 +233,14 @@ pub fn analyse(e: &[f64], u: &[f64], dt: f64) -> ResidualAnalysis {
 }
 
 /// Least-squares residual of the columns `b` (rows = samples) regressed on `a`; `a` may have no
-/// column (then `b` is returned). Columns are scaled first so that the QR is well conditioned.
+/// column (then `b` is returned). The span of `a`'s independent columns is projected out
+/// ([`crate::linalg::project_out`]): a model's sensitivities may hold a column of zeros or nearly
+/// dependent ones (past-input levels whose response has died out, terms that merged).
 fn project_out(a: &Mat<f64>, b: &Mat<f64>) -> Mat<f64> {
     if a.ncols() == 0 || a.nrows() <= a.ncols() {
         return b.clone();
     }
-    let mut a = a.clone();
-    for c in 0..a.ncols() {
-        let s = (0..a.nrows())
-            .map(|r| a[(r, c)] * a[(r, c)])
-            .sum::<f64>()
-            .sqrt();
-        if s > 0.0 {
-            for r in 0..a.nrows() {
-                a[(r, c)] /= s;
-            }
-        }
-    }
-    let x = crate::lm::lstsq(&a, b);
-    let fitted = &a * &x;
-    let mut out = b.clone();
-    for c in 0..b.ncols() {
-        for r in 0..b.nrows() {
-            let v = b[(r, c)] - fitted[(r, c)];
-            out[(r, c)] = if v.is_finite() { v } else { b[(r, c)] };
-        }
-    }
-    out
+    crate::linalg::project_out(a, b)
 }
 
 /// The fraction `R^2` of the sum of squares of `e` explained by the signature columns `sig`
