@@ -68,22 +68,28 @@ const fn f(
 /// The same subset rose elsewhere (lead 2 / 2, feed-through 2 / 2, diffusion 2 / 2, cell 2 / 2,
 /// in motion 2 right, two-mass at the motor 1 right, diagnosed), not raised here until a second
 /// run confirms them (issue 47's note).
+///
+/// Raised on main ca1a308 (`zoo run --ci` twice, identical case by case): the rises above
+/// confirmed (two-mass at the motor 0/1/1, feed-through 1/2/2, diffusion 1/2/2, lead 0/2/2, cell
+/// 1/2/2, in motion 1/2/1) and saturation back to 0/2/2 (the refits' tie rule `REFIT_TIE` decides
+/// the static maps' exact ties that rounding decided before). Seen once, not raised yet: dead band
+/// exact effects 2, power law exact effects 2.
 pub const FLOORS: &[Floor] = &[
     f(Class::Pmsm, 2, 2, 2),
     f(Class::Integer, 2, 2, 2),
-    f(Class::TwoMassMotor, 0, 0, 1),
+    f(Class::TwoMassMotor, 0, 1, 1),
     f(Class::TwoMassLoad, 2, 2, 2),
     f(Class::MultiMode, 1, 1, 1),
-    f(Class::Feedthrough, 1, 1, 1),
+    f(Class::Feedthrough, 1, 2, 2),
     f(Class::Integrator, 2, 2, 1),
-    f(Class::Diffusion, 1, 1, 1),
-    f(Class::Lead, 0, 1, 1),
-    f(Class::Cell, 1, 1, 1),
+    f(Class::Diffusion, 1, 2, 2),
+    f(Class::Lead, 0, 2, 2),
+    f(Class::Cell, 1, 2, 2),
     f(Class::Delay, 2, 2, 2),
     f(Class::FrictionReversal, 1, 2, 2),
     f(Class::FrictionOneWay, 1, 2, 2),
     f(Class::Deadband, 1, 2, 1),
-    f(Class::Saturation, 0, 1, 1),
+    f(Class::Saturation, 0, 2, 2),
     f(Class::StaticMapTwoLevel, 1, 2, 2),
     f(Class::Offsets, 2, 2, 2),
     f(Class::Periodic, 0, 1, 1),
@@ -93,7 +99,7 @@ pub const FLOORS: &[Floor] = &[
     f(Class::Drift, 1, 2, 2),
     f(Class::TwoEffects, 1, 2, 1),
     f(Class::ClosedLoop, 2, 2, 2),
-    f(Class::InMotion, 1, 1, 1),
+    f(Class::InMotion, 1, 2, 1),
 ];
 
 /// The classes below their floors, one line each (empty: all pass).
