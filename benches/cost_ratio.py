@@ -15,6 +15,7 @@ cases (NNNN_CLASS.csv) the ratio by class.
 import argparse
 import json
 import os
+import re
 import resource
 import statistics
 import subprocess
@@ -22,21 +23,13 @@ import sys
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 
-TIME_RECORDS = [
-    "unal_dcmotor/DCmotor_prbs_open_exp.csv",
-    "unal_dcmotor/DCmotor_step_open_exp.csv",
-    "unal_dcmotor/DCmotor_stairs_closed_exp.csv",
-    "apm_tclab/tclab_step_test.csv",
-    "sysidentpy_motor_generator/motor_generator_steps.csv",
-    "slicot_robot_arm/robot_arm.csv",
-    "unal_undcmotor/DCmotor_prbs_open_low.csv",
-    "unal_undcmotor/DCmotor_profile_closed_exp.csv",
-    "apm_tclab/tclab_pwm_steps.csv",
-    "slicot_cd_player_arm/cd_player_arm.csv",
-    "dmegc_battery/random_current_cycle26.csv",
-    "dmegc_battery/pulse_discharge.csv",
-    "ornl_nissan_leaf_cell/hppc_25c_pulse4.csv",
-]
+def time_records():
+    """The time records of data/: benches/lib.rs's TIME_RECORDS, read from that file (one list)."""
+    with open(os.path.join(HERE, "lib.rs")) as f:
+        text = f.read()
+    body = text[text.index("pub const TIME_RECORDS"):]
+    body = body[: body.index("];")]
+    return re.findall(r'"([^"]+\.csv)"', body)
 
 
 def cpu_children():
@@ -82,7 +75,7 @@ def main():
     ap.add_argument("--json", dest="json_out")
     a = ap.parse_args()
     files = []
-    for f in a.files or [os.path.join(HERE, "..", "data", r) for r in TIME_RECORDS]:
+    for f in a.files or [os.path.join(HERE, "..", "data", r) for r in time_records()]:
         if os.path.isdir(f):
             files += sorted(os.path.join(f, n) for n in os.listdir(f) if n.endswith(".csv"))
         else:
