@@ -1,15 +1,7 @@
 //! `fracid drive autotune` end to end: the CLI against the drive simulator in virtual time (in
 //! this process; the CLI keeps its keepalive on the wall clock every 5 ms).
 
-use super::fracid;
-
-fn stdout(o: &std::process::Output) -> String {
-    String::from_utf8_lossy(&o.stdout).into_owned()
-}
-
-fn stderr(o: &std::process::Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
+use super::{fracid, stderr, stdout};
 
 /// `fracid drive autotune --port PORT --keepalive-ms 5 EXTRA...`.
 #[cfg(unix)]

@@ -1,6 +1,6 @@
 //! `fracid freq`: Table 1 numbers, JSON, plots, bad input.
 
-use super::fracid;
+use super::{fracid, stderr, stdout};
 use std::io::Write;
 use std::path::PathBuf;
 
@@ -25,14 +25,6 @@ fn file_with(dir: &tempfile::TempDir, name: &str, text: &str) -> PathBuf {
         .and_then(|mut f| f.write_all(text.as_bytes()))
         .unwrap();
     p
-}
-
-fn stdout(o: &std::process::Output) -> String {
-    String::from_utf8_lossy(&o.stdout).into_owned()
-}
-
-fn stderr(o: &std::process::Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
 }
 
 /// J of `fracid freq DATA --weights W --q 0.9` (which must succeed).

@@ -7,13 +7,9 @@ mod round3;
 pub(crate) mod round3_drive;
 mod round3_fits;
 
-use super::fracid;
+use super::{fracid, stderr};
 use std::fmt::Write as _;
 use std::path::PathBuf;
-
-fn stderr(o: &std::process::Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
 
 /// A noise-free PRBS record of a first-order model, 600 samples at 1 ms, as `t,u,y` text rows
 /// (one per sample index in `keep`).

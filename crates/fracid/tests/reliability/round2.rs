@@ -2,12 +2,9 @@
 //! (`item_N_...`), each failing on the behaviour the issue found.
 
 use super::{fracid, stderr, write};
+use crate::stdout;
 use std::path::Path;
 use std::process::Command;
-
-fn stdout(o: &std::process::Output) -> String {
-    String::from_utf8_lossy(&o.stdout).into_owned()
-}
 
 /// `a.csv` of the issue: `fracid sim --prbs --dt 1e-3 --t-end 1.5 -o a.csv`.
 pub(crate) fn a_csv(dir: &tempfile::TempDir) -> std::path::PathBuf {

@@ -2,12 +2,8 @@
 //! behaviour the issue found (main, e364c0a).
 
 use super::{fracid, stderr};
+use crate::json;
 use std::fmt::Write as _;
-
-fn json(o: &std::process::Output) -> serde_json::Value {
-    serde_json::from_slice(&o.stdout)
-        .unwrap_or_else(|e| panic!("{e}: {}", String::from_utf8_lossy(&o.stderr)))
-}
 
 /// The repository's UNAL PRBS record with its time column multiplied by `c`.
 fn unal_in_units(dir: &tempfile::TempDir, c: f64) -> std::path::PathBuf {

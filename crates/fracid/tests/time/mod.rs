@@ -1,19 +1,11 @@
 //! `fracid time`: exit codes, JSON keys (docs/design.md §7), the plot, the start report, the UNAL record.
 
-use super::fracid;
+use super::{fracid, stderr, stdout};
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
 mod general;
 mod verdict;
-
-fn stdout(o: &std::process::Output) -> String {
-    String::from_utf8_lossy(&o.stdout).into_owned()
-}
-
-fn stderr(o: &std::process::Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
 
 /// A noise-free PRBS record of `K/(a2 s^(zeta+theta) + a1 s^zeta + 1)` around an operating point:
 /// order 7, 10-sample bits, 3 periods at 1 ms, after 50 samples at rest.

@@ -5,8 +5,9 @@
 //! plausibility rule on a large static gain: ident's `time::records`). Each test failed on main
 //! (e364c0a).
 
-use super::{stderr, stdout};
+use super::stderr;
 use crate::fracid;
+use crate::json;
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
@@ -64,10 +65,6 @@ fn record(
     let p = dir.path().join(name);
     std::fs::write(&p, text).unwrap();
     p
-}
-
-fn json(o: &std::process::Output) -> serde_json::Value {
-    serde_json::from_str(&stdout(o)).unwrap_or_else(|e| panic!("{e}: {}", stderr(o)))
 }
 
 /// A sign-blind sensor (`|y|`) after a delay of 6 samples, 2% noise: the base fit predicts the
