@@ -8,11 +8,15 @@
 //! boundary as nalgebra's column-major `DMatrix` (the [`crate::lm::Problem`] Jacobian's type) or
 //! as column-major slices, viewed by faer without a copy.
 
-use faer::linalg::householder::make_householder_in_place;
+use std::mem::MaybeUninit;
+
+use faer::dyn_stack::{MemStack, StackReq};
+use faer::linalg::householder::{self, make_householder_in_place};
 use faer::linalg::matmul::matmul;
+use faer::linalg::qr::{col_pivoting, no_pivoting};
 use faer::linalg::triangular_solve::solve_upper_triangular_in_place;
 use faer::reborrow::{Reborrow, ReborrowMut};
-use faer::{Accum, ColRef, MatMut, MatRef, Par};
+use faer::{Accum, ColRef, Conj, MatMut, MatRef, Par};
 use nalgebra::DMatrix as Mat; // the LM Jacobian's matrix (`lm::Mat` is this type)
 
 /// faer's view of a column-major `rows x cols` slice.
@@ -23,46 +27,6 @@ fn view(a: &[f64], rows: usize, cols: usize) -> MatRef<'_, f64> {
 /// faer's view of nalgebra's column-major matrix.
 pub(crate) fn as_faer(a: &Mat<f64>) -> MatRef<'_, f64> {
     view(a.as_slice(), a.nrows(), a.ncols())
-}
-
-/// The Householder QR of the column-major `a` in place (`R` in its upper triangle, the
-/// reflectors' tails below), each reflector applied to the columns of `extra` too (which become
-/// `Q^T extra`): faer's reflector ([`make_householder_in_place`], LAPACK's `dlarfg`) applied by
-/// faer's matrix products; `tmp` holds a row.
-///
-/// Not faer's `qr_in_place`: that takes a column whose part below the diagonal is under
-/// `16 (m - k) eps` of its norm (`3e-11` for a block of 8192 rows) for dependent and leaves a
-/// staircase `R` with zeros on its diagonal from there on (its rank estimate). A fit needs the
-/// plain `R` of its `J`: two nearly dependent columns have a pivot of `1e-11` to `1e-13` of
-/// their norm, and their huge standard errors say "not determined" (the fit refused), where a
-/// zero pivot would say "singular covariance" (a warning only).
-/// Returns each reflector's `1 / tau` (0 where there was none).
-fn householder_in_place(
-    mut a: MatMut<'_, f64>,
-    mut extra: MatMut<'_, f64>,
-    tmp: &mut Vec<f64>,
-) -> Vec<f64> {
-    let (m, w) = a.shape();
-    let mut invs = vec![0.0; m.min(w)];
-    for k in 0..m.min(w) {
-        let info = {
-            let (top, tail) = a.rb_mut().col_mut(k).split_at_row_mut(k + 1);
-            make_householder_in_place(top.get_mut(k), tail)
-        };
-        // A zero tail: no reflection (faer's `tau` is then infinite).
-        if !info.tau.is_finite() {
-            continue;
-        }
-        let inv = info.tau.recip();
-        invs[k] = inv;
-        let (left, right) = a.rb_mut().split_at_col_mut(k + 1);
-        let v = left.rb().col(k).subrows(k + 1, m - k - 1);
-        reflect(v, inv, right.subrows_mut(k, m - k), tmp);
-        if extra.ncols() > 0 {
-            reflect(v, inv, extra.rb_mut().subrows_mut(k, m - k), tmp);
-        }
-    }
-    invs
 }
 
 /// `B := (I - [1; v] [1; v]^T / tau) B` with `inv = 1 / tau` (`B` has `1 + v.len()` rows).
@@ -98,15 +62,220 @@ fn reflect(v: ColRef<'_, f64>, inv: f64, b: MatMut<'_, f64>, tmp: &mut Vec<f64>)
     );
 }
 
-/// The scratch of [`householder_in_place`], kept across the many small solves of one search (a
-/// Levy search solves thousands of systems of one size).
+/// The memory of faer's QR ([`factor`]), kept across the many small solves of one search (a
+/// Levy search solves thousands of systems of one size): the matrix as given, the Householder
+/// coefficients, the column permutation, the small matrix `S`, the column scales and faer's
+/// scratch. It grows to the largest system it is given.
 #[derive(Debug, Default)]
 pub(crate) struct LstsqWork {
-    tmp: Vec<f64>,
+    /// `A` as given, for the pivoted factorisation when the plain one took a column for dependent.
+    orig: Vec<f64>,
+    /// The Householder coefficients of the plain or the pivoted QR of `A` (`1 x k`).
+    tau: Vec<f64>,
+    /// Those of the QR of `S` (`1 x k`).
+    tau_s: Vec<f64>,
+    /// `perm[p]` is the column of `A` at position `p` of the pivoted QR; `perm_inv` its inverse.
+    perm: Vec<usize>,
+    perm_inv: Vec<usize>,
+    /// `S = R_p P^T D` (`k x w`, column-major), then its QR.
+    s: Vec<f64>,
+    /// The power of two `D_j` each column was divided by.
+    scale: Vec<f64>,
+    /// faer's scratch.
+    mem: Vec<MaybeUninit<u8>>,
+}
+
+/// How [`factor`] factored `A` (where `Q` is).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Factored {
+    /// faer's plain QR: `Q`'s reflectors below `A`'s diagonal, their coefficients in `tau`.
+    Plain,
+    /// The pivoted QR and the QR of `S`: `Q = Q_p Q_s`, `Q_p`'s reflectors below `A`'s diagonal
+    /// (coefficients in `tau`), `Q_s`'s below `S`'s (in `tau_s`).
+    Pivoted,
+    /// Every column zero: `R = 0`, `Q = I`.
+    Zero,
+    /// An entry not finite: `A` and `extra` set to NaN.
+    NotFinite,
+}
+
+/// The power of two nearest above `norm` (`norm > 0`, finite), within `2^-1020..2^1020` (its
+/// reciprocal finite and normal): dividing by it is exact.
+fn power_of_two(norm: f64) -> f64 {
+    2f64.powi((norm.log2().ceil() as i32).clamp(-1020, 1020))
+}
+
+/// The plain Householder QR `A = Q R` of the column-major `m x w` matrix `a` by faer, `R` into
+/// `a`'s upper triangle (`k = min(m, w)` rows; unique up to the signs of its rows where `A` has
+/// full rank) and `Q^T` applied to `extra` (`m` rows).
+///
+/// faer's plain QR ([`no_pivoting`]) first. It takes a column whose part outside the span of the
+/// ones before it is under `16 (m - k) eps` of its norm (`3e-11` for a block of 8192 rows) for
+/// dependent and leaves a staircase `R` with zeros on its diagonal from there on (its rank
+/// estimate). A fit needs the plain `R` of its `J`: two nearly dependent columns have a pivot of
+/// `1e-11` to `1e-13` of their norm, and their huge standard errors say "not determined" (the
+/// fit refused), where a zero pivot would say "singular covariance" (a warning only). So when
+/// faer's rank is short, `A` is factored again ([`factor_pivoted`]): faer's column-pivoted QR,
+/// which takes no column for dependent, then the plain QR of the small `R_p P^T`.
+fn factor(work: &mut LstsqWork, mut a: MatMut<'_, f64>, extra: MatMut<'_, f64>) -> Factored {
+    let (m, w) = a.shape();
+    let k = m.min(w);
+    if k == 0 {
+        return Factored::Zero;
+    }
+    ensure_scratch(&mut work.mem, m, w, extra.ncols());
+    work.orig.clear();
+    for j in 0..w {
+        match a.rb().col(j).try_as_col_major() {
+            Some(col) => work.orig.extend_from_slice(col.as_slice()),
+            None => work.orig.extend(a.rb().col(j).iter()),
+        }
+    }
+    work.tau.resize(k, 0.0);
+    let info = no_pivoting::factor::qr_in_place(
+        a.rb_mut(),
+        MatMut::from_column_major_slice_mut(&mut work.tau, 1, k),
+        Par::Seq,
+        MemStack::new(&mut work.mem),
+        Default::default(),
+    );
+    if info.rank < k {
+        a.copy_from(MatRef::from_column_major_slice(&work.orig, m, w));
+        return factor_pivoted(work, a, extra);
+    }
+    if extra.ncols() > 0 {
+        householder::apply_block_householder_sequence_transpose_on_the_left_in_place_with_conj(
+            a.rb(),
+            MatRef::from_column_major_slice(&work.tau, 1, k),
+            Conj::Yes,
+            extra,
+            Par::Seq,
+            MemStack::new(&mut work.mem),
+        );
+    }
+    Factored::Plain
+}
+
+/// [`factor`] by two faer factorisations: the column-pivoted QR `A D^-1 P = Q_p R_p`, which takes
+/// no column for dependent, then the plain QR of the small `S = R_p P^T D = Q_s R` (`k x w`),
+/// whose `R` is `A`'s (`A = Q_p S`), with `Q = Q_p Q_s`. On `S` faer's rule (`16 k eps` of a
+/// column's norm, about `3e-14` for eight columns) takes only a part that rounding alone leaves
+/// for dependent.
+///
+/// `D` (powers of two, exact) scales each column to about unit norm first: faer's pivoted QR
+/// divides the whole matrix by its largest column norm, which would flush a column of `1e-200`
+/// beside one of `1e200` to zero.
+fn factor_pivoted(
+    work: &mut LstsqWork,
+    mut a: MatMut<'_, f64>,
+    mut extra: MatMut<'_, f64>,
+) -> Factored {
+    let (m, w) = a.shape();
+    let k = m.min(w);
+    work.scale.clear();
+    let mut nonzero = false;
+    for j in 0..w {
+        let norm = a.rb().col(j).norm_l2();
+        if !norm.is_finite() {
+            a.fill(f64::NAN);
+            extra.fill(f64::NAN);
+            return Factored::NotFinite;
+        }
+        nonzero |= norm > 0.0;
+        let d = if norm > 0.0 { power_of_two(norm) } else { 1.0 };
+        work.scale.push(d);
+        let inv = d.recip();
+        a.rb_mut().col_mut(j).iter_mut().for_each(|v| *v *= inv);
+    }
+    if !nonzero {
+        return Factored::Zero;
+    }
+    work.perm.resize(w, 0);
+    work.perm_inv.resize(w, 0);
+    col_pivoting::factor::qr_in_place(
+        a.rb_mut(),
+        MatMut::from_column_major_slice_mut(&mut work.tau, 1, k),
+        &mut work.perm,
+        &mut work.perm_inv,
+        Par::Seq,
+        MemStack::new(&mut work.mem),
+        Default::default(),
+    );
+    // S = R_p P^T D: position p of R_p is column perm[p] of A.
+    work.s.clear();
+    work.s.resize(k * w, 0.0);
+    let mut sm = MatMut::from_column_major_slice_mut(&mut work.s, k, w);
+    for (p, &j) in work.perm.iter().enumerate() {
+        for i in 0..=p.min(k - 1) {
+            sm[(i, j)] = a[(i, p)] * work.scale[j];
+        }
+    }
+    work.tau_s.resize(k, 0.0);
+    no_pivoting::factor::qr_in_place(
+        sm.rb_mut(),
+        MatMut::from_column_major_slice_mut(&mut work.tau_s, 1, k),
+        Par::Seq,
+        MemStack::new(&mut work.mem),
+        Default::default(),
+    );
+    for j in 0..w {
+        for i in 0..=j.min(k - 1) {
+            a[(i, j)] = sm[(i, j)];
+        }
+    }
+    if extra.ncols() > 0 {
+        let stack = MemStack::new(&mut work.mem);
+        householder::apply_block_householder_sequence_transpose_on_the_left_in_place_with_conj(
+            a.rb(),
+            MatRef::from_column_major_slice(&work.tau, 1, k),
+            Conj::Yes,
+            extra.rb_mut(),
+            Par::Seq,
+            stack,
+        );
+        householder::apply_block_householder_sequence_transpose_on_the_left_in_place_with_conj(
+            sm.rb(),
+            MatRef::from_column_major_slice(&work.tau_s, 1, k),
+            Conj::Yes,
+            extra.subrows_mut(0, k),
+            Par::Seq,
+            stack,
+        );
+    }
+    Factored::Pivoted
+}
+
+/// Grow `mem` to faer's scratch for [`factor`] of an `m x w` matrix with `e` extra columns (and
+/// for forming `Q` in [`thin_qr`]).
+fn ensure_scratch(mem: &mut Vec<MaybeUninit<u8>>, m: usize, w: usize, e: usize) {
+    let k = m.min(w);
+    let req =
+        StackReq::any_of(&[
+            no_pivoting::factor::qr_in_place_scratch::<f64>(m, w, 1, Par::Seq, Default::default()),
+            col_pivoting::factor::qr_in_place_scratch::<usize, f64>(
+                m,
+                w,
+                1,
+                Par::Seq,
+                Default::default(),
+            ),
+            householder::apply_block_householder_sequence_transpose_on_the_left_in_place_scratch::<
+                f64,
+            >(m, 1, e.max(k)),
+            householder::apply_block_householder_sequence_on_the_left_in_place_scratch::<f64>(
+                m,
+                1,
+                e.max(k),
+            ),
+        ]);
+    let bytes = req.unaligned_bytes_required();
+    if mem.len() < bytes {
+        mem.resize(bytes, MaybeUninit::uninit());
+    }
 }
 
 impl LstsqWork {
-    /// The scratch (it grows to the widest system it is given).
+    /// The memory (it grows to the widest system it is given).
     pub(crate) fn new() -> Self {
         Self::default()
     }
@@ -119,7 +288,7 @@ impl LstsqWork {
         debug_assert!(rows >= cols && a.len() == rows * cols);
         let mut am = MatMut::from_column_major_slice_mut(a, rows, cols);
         let mut bm = MatMut::from_column_major_slice_mut(b, rows, 1);
-        householder_in_place(am.rb_mut(), bm.rb_mut(), &mut self.tmp);
+        factor(self, am.rb_mut(), bm.rb_mut());
         for (j, d) in diag.iter_mut().enumerate() {
             *d = am[(j, j)];
         }
@@ -132,8 +301,8 @@ impl LstsqWork {
 }
 
 /// The `R` (`min(rows, w) x w`, upper trapezoidal) of the column-major `rows x w` matrix `a`
-/// (overwritten) by Householder reflections ([`householder_in_place`]). `R` is unique up to the
-/// signs of its rows.
+/// (overwritten) by faer's Householder QR ([`factor`]). `R` is unique up to the signs of its
+/// rows.
 pub(crate) fn qr_r_in_place(
     a: &mut [f64],
     rows: usize,
@@ -147,13 +316,13 @@ pub(crate) fn qr_r_in_place(
     }
     let am = MatMut::from_column_major_slice_mut(a, rows, w);
     let none = MatMut::from_column_major_slice_mut(&mut [], rows, 0);
-    householder_in_place(am, none, &mut work.tmp);
+    factor(work, am, none);
     Mat::<f64>::from_fn(k, w, |i, j| if j >= i { a[j * rows + i] } else { 0.0 })
 }
 
-/// The least-squares solution `X` of `min ||A X - B||` (`A` is `m x n`, `m >= n`) by
-/// Householder QR ([`householder_in_place`]). A zero pivot (dependent columns) gives infinite or
-/// NaN entries, not an error: callers check them.
+/// The least-squares solution `X` of `min ||A X - B||` (`A` is `m x n`, `m >= n`) by faer's
+/// Householder QR ([`factor`]). A zero pivot (dependent columns) gives infinite or NaN entries,
+/// not an error: callers check them.
 pub(crate) fn lstsq(a: &Mat<f64>, b: &Mat<f64>) -> Mat<f64> {
     let (m, n) = (a.nrows(), a.ncols());
     let mut x = Mat::<f64>::zeros(n, b.ncols());
@@ -164,7 +333,7 @@ pub(crate) fn lstsq(a: &Mat<f64>, b: &Mat<f64>) -> Mat<f64> {
     let mut rhs = b.as_slice().to_vec();
     let mut am = MatMut::from_column_major_slice_mut(&mut qr, m, n);
     let mut bm = MatMut::from_column_major_slice_mut(&mut rhs, m, b.ncols());
-    householder_in_place(am.rb_mut(), bm.rb_mut(), &mut Vec::new());
+    factor(&mut LstsqWork::new(), am.rb_mut(), bm.rb_mut());
     solve_upper_triangular_in_place(
         am.rb().subrows(0, n),
         bm.rb_mut().subrows_mut(0, n),
@@ -181,8 +350,8 @@ pub(crate) fn lstsq(a: &Mat<f64>, b: &Mat<f64>) -> Mat<f64> {
 /// The thin QR of the columns `cols` (each of one length `m >= cols.len()`): `cols` become the
 /// orthonormal `Q`, the returned `R` (row-major `c x c`, upper triangular) has `cols_in = Q R`.
 /// `None` when a column's part outside the span of the ones before it is `1e-12` of its norm
-/// or less (or not finite). Householder reflections ([`householder_in_place`]), `Q` formed by
-/// applying them to the leading columns of the identity.
+/// or less (or not finite). faer's Householder QR ([`factor`]), `Q` formed by applying its
+/// reflectors to the leading columns of the identity.
 pub(crate) fn thin_qr(cols: &mut [Vec<f64>]) -> Option<Vec<f64>> {
     let c = cols.len();
     let m = cols.first().map_or(0, Vec::len);
@@ -194,10 +363,13 @@ pub(crate) fn thin_qr(cols: &mut [Vec<f64>]) -> Option<Vec<f64>> {
         .map(|v| v.iter().map(|x| x * x).sum::<f64>().sqrt())
         .collect();
     let mut a: Vec<f64> = cols.iter().flat_map(|v| v.iter().copied()).collect();
-    let mut tmp = Vec::new();
+    let mut work = LstsqWork::new();
     let mut am = MatMut::from_column_major_slice_mut(&mut a, m, c);
     let none = MatMut::from_column_major_slice_mut(&mut [], m, 0);
-    let invs = householder_in_place(am.rb_mut(), none, &mut tmp);
+    let how = factor(&mut work, am.rb_mut(), none);
+    if matches!(how, Factored::Zero | Factored::NotFinite) {
+        return None;
+    }
     let mut r = vec![0.0; c * c];
     for k in 0..c {
         let d = am[(k, k)];
@@ -208,16 +380,32 @@ pub(crate) fn thin_qr(cols: &mut [Vec<f64>]) -> Option<Vec<f64>> {
             r[k * c + j] = am[(k, j)];
         }
     }
-    // Q = H_0 ... H_(c-1) [I; 0], the reflectors applied last to first.
+    // Q [I; 0]: the reflectors applied to the identity's leading columns, last to first (for
+    // the pivoted QR, Q_p [Q_s; 0]).
     let mut q = vec![0.0; m * c];
     let mut qm = MatMut::from_column_major_slice_mut(&mut q, m, c);
     for k in 0..c {
         qm[(k, k)] = 1.0;
     }
-    for k in (0..c).rev() {
-        let v = am.rb().col(k).subrows(k + 1, m - k - 1);
-        reflect(v, invs[k], qm.rb_mut().subrows_mut(k, m - k), &mut tmp);
+    let stack = MemStack::new(&mut work.mem);
+    if how == Factored::Pivoted {
+        householder::apply_block_householder_sequence_on_the_left_in_place_with_conj(
+            MatRef::from_column_major_slice(&work.s, c, c),
+            MatRef::from_column_major_slice(&work.tau_s, 1, c),
+            Conj::No,
+            qm.rb_mut().subrows_mut(0, c),
+            Par::Seq,
+            stack,
+        );
     }
+    householder::apply_block_householder_sequence_on_the_left_in_place_with_conj(
+        am.rb(),
+        MatRef::from_column_major_slice(&work.tau, 1, c),
+        Conj::No,
+        qm.rb_mut(),
+        Par::Seq,
+        stack,
+    );
     for (j, col) in cols.iter_mut().enumerate() {
         col.copy_from_slice(&q[j * m..(j + 1) * m]);
     }

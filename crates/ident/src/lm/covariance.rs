@@ -87,3 +87,71 @@ fn covariance(r: &Mat<f64>, sigma2: f64) -> Option<Vec<f64>> {
         None
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::super::qr::qr_of_jr;
+    use super::super::testproblems::uniform;
+    use super::*;
+    use crate::par::Par;
+
+    /// `sigma2 (J^T J)^-1` by nalgebra's QR of `J` (another library's factorisation): the truth.
+    fn reference(jac: &Mat<f64>, sigma2: f64) -> Mat<f64> {
+        let r = jac.clone().qr().r();
+        let rinv = r.try_inverse().expect("a regular R");
+        &rinv * rinv.transpose() * sigma2
+    }
+
+    /// A tall `J` (three blocks of the blocked QR, where faer's plain QR would take a part under
+    /// `16 m eps = 3e-11` of a column's norm for dependent and shift the columns after it up a
+    /// row) whose column 1 is column 0 plus `1e-12` of another: its pivot stays `1e-12` of its
+    /// norm and column 2 keeps its own, so the covariance is there and
+    /// its standard errors are huge (`~1e12` times the others': "not determined"), as nalgebra's
+    /// QR gives them (to `1e-3` of `sqrt(C_ii C_jj)`: rounding sets the remainder's direction to
+    /// about `eps / 1e-12`). Column 1 exactly twice column 0: the covariance is singular (`None`).
+    #[test]
+    fn nearly_dependent_columns_are_not_determined_and_dependent_ones_singular() {
+        let m = 3 * 8192 + 101;
+        let mut rnd = uniform(29);
+        let base: Vec<[f64; 3]> = (0..m).map(|_| [rnd(), rnd(), rnd()]).collect();
+        let r: Vec<f64> = (0..m).map(|_| rnd()).collect();
+        let sigma2 = 0.25;
+        let near = Mat::<f64>::from_fn(m, 3, |i, j| match j {
+            1 => base[i][0] + 1e-12 * base[i][1],
+            _ => base[i][j],
+        });
+        let (rmat, _) = qr_of_jr(Par::Seq, &near, &r);
+        let norm1 = near.column(1).norm();
+        assert!(rmat[(1, 1)].abs() > 1e-13 * norm1 && rmat[(1, 1)].abs() < 1e-11 * norm1);
+        let norm2 = near.column(2).norm();
+        assert!(
+            rmat[(2, 2)].abs() > 0.5 * norm2,
+            "column 2's pivot {:e}",
+            rmat[(2, 2)]
+        );
+        let (cov, se) = covariance_and_errors(&rmat, sigma2, &[false; 3]);
+        let (cov, se) = (cov.expect("not singular"), se.unwrap());
+        let want = reference(&near, sigma2);
+        for i in 0..3 {
+            for j in 0..3 {
+                let (w, scale) = (want[(i, j)], (want[(i, i)] * want[(j, j)]).sqrt());
+                let got = cov[i * 3 + j];
+                assert!(
+                    (got - w).abs() <= 1e-3 * scale,
+                    "cov[{i},{j}] {got:e} vs {w:e}"
+                );
+            }
+        }
+        assert!(se[0] > 1e9 * se[2] && se[1] > 1e9 * se[2], "{se:?}");
+
+        let exact = Mat::<f64>::from_fn(m, 3, |i, j| match j {
+            1 => 2.0 * base[i][0],
+            _ => base[i][j],
+        });
+        let (rmat, _) = qr_of_jr(Par::Seq, &exact, &r);
+        assert_eq!(
+            covariance_and_errors(&rmat, sigma2, &[false; 3]),
+            (None, None)
+        );
+    }
+}
