@@ -11,12 +11,12 @@
 use std::mem::MaybeUninit;
 
 use faer::dyn_stack::{MemStack, StackReq};
-use faer::linalg::householder::{self, make_householder_in_place};
+use faer::linalg::householder;
 use faer::linalg::matmul::matmul;
 use faer::linalg::qr::{col_pivoting, no_pivoting};
 use faer::linalg::triangular_solve::solve_upper_triangular_in_place;
 use faer::reborrow::{Reborrow, ReborrowMut};
-use faer::{Accum, ColRef, Conj, MatMut, MatRef, Par};
+use faer::{Accum, Conj, MatMut, MatRef, Par};
 use nalgebra::DMatrix as Mat; // the LM Jacobian's matrix (`lm::Mat` is this type)
 
 /// faer's view of a column-major `rows x cols` slice.
@@ -27,39 +27,6 @@ fn view(a: &[f64], rows: usize, cols: usize) -> MatRef<'_, f64> {
 /// faer's view of nalgebra's column-major matrix.
 pub(crate) fn as_faer(a: &Mat<f64>) -> MatRef<'_, f64> {
     view(a.as_slice(), a.nrows(), a.ncols())
-}
-
-/// `B := (I - [1; v] [1; v]^T / tau) B` with `inv = 1 / tau` (`B` has `1 + v.len()` rows).
-fn reflect(v: ColRef<'_, f64>, inv: f64, b: MatMut<'_, f64>, tmp: &mut Vec<f64>) {
-    let c = b.ncols();
-    if c == 0 {
-        return;
-    }
-    let (mut head, mut lower) = b.split_at_row_mut(1);
-    tmp.clear();
-    tmp.extend((0..c).map(|j| head[(0, j)]));
-    let mut t = MatMut::from_column_major_slice_mut(&mut tmp[..], 1, c);
-    // t = B_0 + v^T B_1, then B_0 -= t / tau, B_1 -= v t / tau.
-    matmul(
-        t.rb_mut(),
-        Accum::Add,
-        v.as_mat().transpose(),
-        lower.rb(),
-        1.0,
-        Par::Seq,
-    );
-    for j in 0..c {
-        t[(0, j)] *= -inv;
-        head[(0, j)] += t[(0, j)];
-    }
-    matmul(
-        lower.rb_mut(),
-        Accum::Add,
-        v.as_mat(),
-        t.rb(),
-        1.0,
-        Par::Seq,
-    );
 }
 
 /// The memory of faer's QR ([`factor`]), kept across the many small solves of one search (a
@@ -547,73 +514,80 @@ pub(crate) fn solve_upper_transposed(r: &Mat<f64>, g: &[f64]) -> Vec<f64> {
     q
 }
 
-/// The relative size under which a column's part outside the span of the columns before it
-/// makes it dependent in [`project_out`]: its columns scaled to unit norm, a part of `1e-10`
-/// is below the accuracy of the sensitivities it is given (a part that rounding alone leaves
-/// from exactly dependent columns is about `1e-16` to `1e-13`).
+/// The relative size under which a column's part outside the span of the others makes it
+/// dependent in [`project_out`]: its columns scaled to unit norm, a part of `1e-10` is below the
+/// accuracy of the sensitivities it is given (a part that rounding alone leaves from exactly
+/// dependent columns is about `1e-16` to `1e-13`).
 pub(crate) const DEPENDENT_PART: f64 = 1e-10;
 
 /// The part of each column of `b` (`m x c`) outside the span of the columns of `a` (`m x n`):
-/// `b - Q Q^T b` for the orthonormal `Q` of `a`'s independent columns. Each column of `a`,
-/// scaled to unit norm, is reflected onto the next row (faer's reflector) unless its part
-/// outside the span of the columns kept before it is under [`DEPENDENT_PART`] (a column of
-/// zeros, or nearly a combination of those): it adds nothing to the span and is skipped.
+/// `b - Q Q^T b` for the orthonormal `Q` of `a`'s independent columns. faer's column-pivoted QR
+/// of `a`'s columns scaled to unit norm: its leading pivots above [`DEPENDENT_PART`] are the
+/// independent columns; a column whose part outside their span is under it (a column of zeros,
+/// or nearly a combination of those) adds nothing to the span.
 ///
 /// Computed from the reflectors, not from least-squares coefficients `x` as `b - a x`: with
 /// nearly dependent columns `x` is huge and arbitrary, and `b - a x` loses the digits the
 /// projection needs (or is not finite for a column of zeros), so rounding decided the result.
 pub(crate) fn project_out(a: &Mat<f64>, b: &Mat<f64>) -> Mat<f64> {
     let (m, n, c) = (a.nrows(), a.ncols(), b.ncols());
+    let k = m.min(n);
     let mut out = b.clone();
     let mut q = a.clone();
+    let mut nonzero = false;
     for j in 0..n {
         let norm = as_faer(&q).col(j).norm_l2();
         let mut col = q.column_mut(j);
         if norm > 0.0 && norm.is_finite() {
             col.iter_mut().for_each(|v| *v /= norm);
+            nonzero = true;
         } else {
             col.iter_mut().for_each(|v| *v = 0.0);
         }
     }
+    // (faer's pivoted QR divides by the largest column norm: not by a zero one.)
+    if !nonzero || c == 0 {
+        return out;
+    }
+    let mut work = LstsqWork::new();
+    ensure_scratch(&mut work.mem, m, n, c);
+    work.tau.resize(k, 0.0);
+    work.perm.resize(n, 0);
+    work.perm_inv.resize(n, 0);
     let mut qm = MatMut::from_column_major_slice_mut(q.as_mut_slice(), m, n);
-    let mut om = MatMut::from_column_major_slice_mut(out.as_mut_slice(), m, c);
-    let mut tmp = Vec::new();
-    // (column, 1 / tau) of each reflector made; the k-th acts on rows k..m.
-    let mut kept: Vec<(usize, f64)> = vec![];
-    for j in 0..n {
-        let k = kept.len();
-        if k == m {
-            break;
-        }
-        if !(qm.rb().col(j).subrows(k, m - k).norm_l2() > DEPENDENT_PART) {
-            continue;
-        }
-        let info = {
-            let (top, tail) = qm.rb_mut().col_mut(j).split_at_row_mut(k + 1);
-            make_householder_in_place(top.get_mut(k), tail)
-        };
-        // A zero tail: the column is already along row k (no reflection, faer's `tau` infinite).
-        let inv = if info.tau.is_finite() {
-            info.tau.recip()
-        } else {
-            0.0
-        };
-        let (left, right) = qm.rb_mut().split_at_col_mut(j + 1);
-        let v = left.rb().col(j).subrows(k + 1, m - k - 1);
-        reflect(v, inv, right.subrows_mut(k, m - k), &mut tmp);
-        reflect(v, inv, om.rb_mut().subrows_mut(k, m - k), &mut tmp);
-        kept.push((j, inv));
-    }
+    col_pivoting::factor::qr_in_place(
+        qm.rb_mut(),
+        MatMut::from_column_major_slice_mut(&mut work.tau, 1, k),
+        &mut work.perm,
+        &mut work.perm_inv,
+        Par::Seq,
+        MemStack::new(&mut work.mem),
+        Default::default(),
+    );
+    let rank = (0..k)
+        .take_while(|&i| qm[(i, i)].abs() > DEPENDENT_PART)
+        .count();
     // Q^T b with its first rows (the span's coordinates) zeroed, then Q applied: b - Q Q^T b.
-    for i in 0..kept.len() {
-        for col in 0..c {
-            om[(i, col)] = 0.0;
-        }
-    }
-    for (k, &(j, inv)) in kept.iter().enumerate().rev() {
-        let v = qm.rb().col(j).subrows(k + 1, m - k - 1);
-        reflect(v, inv, om.rb_mut().subrows_mut(k, m - k), &mut tmp);
-    }
+    let tau = MatRef::from_column_major_slice(&work.tau, 1, k);
+    let mut om = MatMut::from_column_major_slice_mut(out.as_mut_slice(), m, c);
+    let stack = MemStack::new(&mut work.mem);
+    householder::apply_block_householder_sequence_transpose_on_the_left_in_place_with_conj(
+        qm.rb(),
+        tau,
+        Conj::Yes,
+        om.rb_mut(),
+        Par::Seq,
+        stack,
+    );
+    om.rb_mut().subrows_mut(0, rank).fill(0.0);
+    householder::apply_block_householder_sequence_on_the_left_in_place_with_conj(
+        qm.rb(),
+        tau,
+        Conj::No,
+        om,
+        Par::Seq,
+        stack,
+    );
     out
 }
 
