@@ -66,6 +66,16 @@ enum Factored {
     NotFinite,
 }
 
+/// How [`factor`] gets `A` back when faer's plain QR took a column for dependent (it has
+/// overwritten `A` by then).
+pub(crate) enum Again<'f> {
+    /// From a copy taken before (a pass over `A` each time).
+    Copy,
+    /// Written again by the caller into the column-major slice it is given: for many small
+    /// solves whose `A` costs less to build again in the rare case than to copy every time.
+    Refill(&'f mut dyn FnMut(&mut [f64])),
+}
+
 /// The power of two nearest above `norm` (`norm > 0`, finite), within `2^-1020..2^1020` (its
 /// reciprocal finite and normal): dividing by it is exact.
 fn power_of_two(norm: f64) -> f64 {
@@ -76,7 +86,7 @@ fn power_of_two(norm: f64) -> f64 {
 /// `a`'s upper triangle (`k = min(m, w)` rows; unique up to the signs of its rows where `A` has
 /// full rank) and `Q^T` applied to `extra` (`m` rows).
 ///
-/// faer's plain QR ([`no_pivoting`]) first. It takes a column whose part outside the span of the
+/// faer's plain QR ([`no_pivoting`]) first (`A` kept or got back as `again` says). It takes a column whose part outside the span of the
 /// ones before it is under `16 (m - k) eps` of its norm (`3e-11` for a block of 8192 rows) for
 /// dependent and leaves a staircase `R` with zeros on its diagonal from there on (its rank
 /// estimate). A fit needs the plain `R` of its `J`: two nearly dependent columns have a pivot of
@@ -84,7 +94,12 @@ fn power_of_two(norm: f64) -> f64 {
 /// fit refused), where a zero pivot would say "singular covariance" (a warning only). So when
 /// faer's rank is short, `A` is factored again ([`factor_pivoted`]): faer's column-pivoted QR,
 /// which takes no column for dependent, then the plain QR of the small `R_p P^T`.
-fn factor(work: &mut LstsqWork, mut a: MatMut<'_, f64>, extra: MatMut<'_, f64>) -> Factored {
+fn factor(
+    work: &mut LstsqWork,
+    mut a: MatMut<'_, f64>,
+    extra: MatMut<'_, f64>,
+    again: Again<'_>,
+) -> Factored {
     let (m, w) = a.shape();
     let k = m.min(w);
     if k == 0 {
@@ -92,10 +107,12 @@ fn factor(work: &mut LstsqWork, mut a: MatMut<'_, f64>, extra: MatMut<'_, f64>) 
     }
     ensure_scratch(&mut work.mem, m, w, extra.ncols());
     work.orig.clear();
-    for j in 0..w {
-        match a.rb().col(j).try_as_col_major() {
-            Some(col) => work.orig.extend_from_slice(col.as_slice()),
-            None => work.orig.extend(a.rb().col(j).iter()),
+    if let Again::Copy = again {
+        for j in 0..w {
+            match a.rb().col(j).try_as_col_major() {
+                Some(col) => work.orig.extend_from_slice(col.as_slice()),
+                None => work.orig.extend(a.rb().col(j).iter()),
+            }
         }
     }
     work.tau.resize(k, 0.0);
@@ -107,6 +124,10 @@ fn factor(work: &mut LstsqWork, mut a: MatMut<'_, f64>, extra: MatMut<'_, f64>) 
         Default::default(),
     );
     if info.rank < k {
+        if let Again::Refill(fill) = again {
+            work.orig.resize(m * w, 0.0);
+            fill(&mut work.orig);
+        }
         a.copy_from(MatRef::from_column_major_slice(&work.orig, m, w));
         return factor_pivoted(work, a, extra);
     }
@@ -250,12 +271,20 @@ impl LstsqWork {
     /// The least-squares solution of `min |A x - b|` into `b[..cols]` (`A` column-major
     /// `b.len() x cols`, `A` and `b` overwritten), and the diagonal of `R` (of either sign)
     /// into `diag` (length `cols`), by which the caller judges the rank. `rows >= cols`.
-    pub(crate) fn solve(&mut self, a: &mut [f64], b: &mut [f64], diag: &mut [f64]) {
+    /// `refill` writes `A` again into the slice it is given (called only when faer's plain QR
+    /// took a column for dependent: [`factor`]).
+    pub(crate) fn solve(
+        &mut self,
+        a: &mut [f64],
+        b: &mut [f64],
+        diag: &mut [f64],
+        refill: &mut dyn FnMut(&mut [f64]),
+    ) {
         let (rows, cols) = (b.len(), diag.len());
         debug_assert!(rows >= cols && a.len() == rows * cols);
         let mut am = MatMut::from_column_major_slice_mut(a, rows, cols);
         let mut bm = MatMut::from_column_major_slice_mut(b, rows, 1);
-        factor(self, am.rb_mut(), bm.rb_mut());
+        factor(self, am.rb_mut(), bm.rb_mut(), Again::Refill(refill));
         for (j, d) in diag.iter_mut().enumerate() {
             *d = am[(j, j)];
         }
@@ -283,7 +312,7 @@ pub(crate) fn qr_r_in_place(
     }
     let am = MatMut::from_column_major_slice_mut(a, rows, w);
     let none = MatMut::from_column_major_slice_mut(&mut [], rows, 0);
-    factor(work, am, none);
+    factor(work, am, none, Again::Copy);
     Mat::<f64>::from_fn(k, w, |i, j| if j >= i { a[j * rows + i] } else { 0.0 })
 }
 
@@ -300,7 +329,7 @@ pub(crate) fn lstsq(a: &Mat<f64>, b: &Mat<f64>) -> Mat<f64> {
     let mut rhs = b.as_slice().to_vec();
     let mut am = MatMut::from_column_major_slice_mut(&mut qr, m, n);
     let mut bm = MatMut::from_column_major_slice_mut(&mut rhs, m, b.ncols());
-    factor(&mut LstsqWork::new(), am.rb_mut(), bm.rb_mut());
+    factor(&mut LstsqWork::new(), am.rb_mut(), bm.rb_mut(), Again::Copy);
     solve_upper_triangular_in_place(
         am.rb().subrows(0, n),
         bm.rb_mut().subrows_mut(0, n),
@@ -333,7 +362,7 @@ pub(crate) fn thin_qr(cols: &mut [Vec<f64>]) -> Option<Vec<f64>> {
     let mut work = LstsqWork::new();
     let mut am = MatMut::from_column_major_slice_mut(&mut a, m, c);
     let none = MatMut::from_column_major_slice_mut(&mut [], m, 0);
-    let how = factor(&mut work, am.rb_mut(), none);
+    let how = factor(&mut work, am.rb_mut(), none, Again::Copy);
     if matches!(how, Factored::Zero | Factored::NotFinite) {
         return None;
     }
