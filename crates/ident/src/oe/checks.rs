@@ -16,8 +16,9 @@ use fracsim::Simulator;
 /// record reached 40% (`tests/time/records.rs`).
 const SETTLED_FRACTION: f64 = 0.5;
 
-/// Input changes smaller than this fraction of the input's range are not excitation.
-const CHANGE_FRACTION: f64 = 1e-6;
+/// Input changes smaller than this fraction of the input's range are not excitation
+/// ([`changes`]): a percent, under any step a test applies and above a logger's last count.
+const CHANGE_FRACTION: f64 = 0.01;
 
 /// The fewest input changes a validation window must hold to score a model on.
 const MIN_VALIDATION_CHANGES: usize = 3;
@@ -38,10 +39,20 @@ const SAME_ORDER: f64 = 1e-6;
 /// spread is not what the data show: the output integrates, or the gain is not identifiable.
 const ABSURD_GAIN_RATIO: f64 = 1e3;
 
-/// Indices `k >= from` where `u[k]` differs from `u[k-1]` by more than `tol`
-/// ([`change_tolerance`]).
-fn changes_from(u: &[f64], tol: f64, from: usize) -> impl Iterator<Item = usize> + '_ {
-    (from.max(1)..u.len()).filter(move |&k| (u[k] - u[k - 1]).abs() > tol)
+/// The input's changes: the indices `k` where `u[k]` has moved by more than `tol`
+/// ([`change_tolerance`]) from its level at the last change counted (`u[0]` at first). A step
+/// is one change however many samples its edge takes, and a logger's flicker of a few counts
+/// on a held level (the battery tester's 0.00/0.01 A at rest) is none.
+fn changes(u: &[f64], tol: f64) -> Vec<usize> {
+    let mut level = u.first().copied().unwrap_or(0.0);
+    let mut out = vec![];
+    for (k, &v) in u.iter().enumerate().skip(1) {
+        if (v - level).abs() > tol {
+            out.push(k);
+            level = v;
+        }
+    }
+    out
 }
 
 /// The smallest input change that counts: [`CHANGE_FRACTION`] of the input's range.
@@ -120,20 +131,11 @@ pub(crate) fn validation_split(
             ),
         )
     };
-    // Enough changes in the validation part are usually found in its first samples, and then
-    // the record has enough in all.
-    let (u, tol) = (&rec.u, change_tolerance(&rec.u));
-    let early = changes_from(u, tol, split + 1)
-        .take(MIN_VALIDATION_CHANGES)
-        .count();
-    let est_changes = changes_from(u, tol, 1)
-        .take_while(|&k| k <= split)
-        .take(MIN_VALIDATION_CHANGES)
-        .count();
-    if early >= MIN_VALIDATION_CHANGES && est_changes >= MIN_VALIDATION_CHANGES {
+    let changes = changes(&rec.u, change_tolerance(&rec.u));
+    let in_val = changes.iter().filter(|&&k| k > split).count();
+    if in_val >= MIN_VALIDATION_CHANGES && changes.len() - in_val >= MIN_VALIDATION_CHANGES {
         return (split, plain(split), None);
     }
-    let changes: Vec<usize> = changes_from(u, tol, 1).collect();
     if changes.len() <= MIN_VALIDATION_CHANGES {
         return response_tail(n, split, holdout, changes.last().copied().unwrap_or(0));
     }
@@ -143,7 +145,6 @@ pub(crate) fn validation_split(
     } else {
         1
     };
-    let in_val = changes.iter().filter(|&&k| k > split).count();
     if in_val >= least && changes.len() - in_val >= MIN_VALIDATION_CHANGES {
         return (split, plain(split), None);
     }

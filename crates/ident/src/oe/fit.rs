@@ -1210,6 +1210,31 @@ impl Scaling {
     }
 }
 
+/// Whether `split` estimation samples can determine the free parameters of `m`: at least 10
+/// samples for each (and 20 in all). Counted as a base fit counts them, so a model's own
+/// evaluation at its values (the diagnosis's final model) passes where its fit did: the output
+/// offset once (`fit_offset` adds it when `m` has none), the initial state's levels not (a base
+/// fit adds them after this check: they take up the record's past, not its excitation).
+///
+/// # Errors
+/// [`Error::NotEnoughData`] saying how many are needed.
+fn enough_samples(m: &FracModel, split: usize, fit_offset: bool) -> Result<()> {
+    let free = m
+        .params
+        .iter()
+        .enumerate()
+        .filter(|&(i, p)| p.free && !m.is_initial_state(i))
+        .count();
+    let n_free = free + usize::from(fit_offset && m.index_of("y_offset").is_none());
+    let need = (10 * n_free).max(20);
+    if split < need {
+        return Err(Error::NotEnoughData(format!(
+            "{split} estimation samples for {n_free} free parameters (need at least {need})"
+        )));
+    }
+    Ok(())
+}
+
 /// [`identify_with_progress`] on the record as it is.
 fn identify_at_scale(
     rec: &Record,
@@ -1225,13 +1250,7 @@ fn identify_at_scale(
     let step_from_rest = opts.offsets == OffsetMode::Initial && rec.starts_with_step();
     let (initial, initial_why) = opts.initial.resolve_why(rec, opts.offsets);
     let mut m = model.clone();
-    let n_free = m.params.iter().filter(|p| p.free).count() + usize::from(opts.fit_offset);
-    let need = (10 * n_free).max(20);
-    if split < need {
-        return Err(Error::NotEnoughData(format!(
-            "{split} estimation samples for {n_free} free parameters (need at least {need})"
-        )));
-    }
+    enough_samples(&m, split, opts.fit_offset)?;
     if !step_from_rest {
         rec.check_excitation(split)?;
     }

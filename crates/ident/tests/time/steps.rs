@@ -121,6 +121,35 @@ fn a_few_steps_are_not_held_out() {
     assert!(err <= 0.10, "frequency-response error {err}");
 }
 
+/// The single step of `a_single_step_stays_in_the_estimation_part` logged with a flicker of one
+/// count (1e-4 of the step, every seventh sample, as a battery tester's 0.00/0.01 A at rest):
+/// still one change, so the step stays in the estimation part and the tail of its response is
+/// held out at the same split. Before, each flicker counted as an input change, and the split
+/// moved before the step (a "PRBS" of 200 changes).
+#[test]
+fn a_loggers_flicker_is_no_input_change() {
+    let n = 1500;
+    let u: Vec<f64> = (0..n)
+        .map(|k| {
+            let flicker = if k % 7 == 3 { 1e-4 } else { 0.0 };
+            if k < 600 {
+                2.0 + flicker
+            } else {
+                3.0 + flicker
+            }
+        })
+        .collect();
+    let rec = Record::from_samples(
+        &u,
+        &noisy(&u, 2).iter().map(|v| v + 1.0).collect::<Vec<_>>(),
+        DT,
+    )
+    .unwrap();
+    let id = identify(&rec, &pmsm(), &IdentOptions::default()).unwrap();
+    assert_eq!(id.validated_by.kind, ValidationKind::ResponseTail);
+    assert_eq!(id.split, 600 + 630);
+}
+
 /// A pulse of 20 samples from rest: fitted, the pulse in the estimation part.
 #[test]
 fn a_pulse_is_fitted() {

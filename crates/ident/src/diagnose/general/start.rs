@@ -10,7 +10,9 @@
 //! - A free integrator is fitted as `G(s) = H(s) s` on the response times `j w` (weights divided
 //!   by `w^2`, the same error), its start then `N/(s D)`.
 //! - Orders: `q = 1` (integer), and for denominators up to [`super::MAX_DEN_FRACTIONAL`] the
-//!   grid `0.1, 0.15, ..., 0.95` refined by steps of 0.01 around the best.
+//!   grid `0.1, 0.15, ..., 0.95` refined by steps of 0.01 around the best, each screened with
+//!   [`SK_SCREEN`] Sanathanan-Koerner iterations; the integer order and the best fractional one
+//!   iterated to convergence ([`fit_size`]).
 //! - Stability: an integer-order start's poles in the right half-plane are reflected into the left
 //!   one (`p -> -conj(p)`: the same `|D(jw)|`) and the numerator refitted by weighted least
 //!   squares with that denominator; a fractional start with a pole outside the stable sector is
@@ -18,7 +20,8 @@
 //! - Sizes: only those within the record's parameter budget ([`Budget`]).
 //! - Delay ([`ranked_delayed`]): whole-sample input delays `d = 1 ..` [`MAX_DELAY_SAMPLES`] are
 //!   tried on the response advanced by them (`H(jw) e^(j w d dt)`), each with the sizes the
-//!   criterion ranks first without a delay and the smallest ones; the delay whose best fit has
+//!   criterion ranks first without a delay and the smallest ones (screened fits only,
+//!   [`Sk::Screened`]); the delay whose best fit has
 //!   the lowest criterion (the delay one parameter more) is kept when it beats every fit without
 //!   one, and the sizes are ranked again on that response.
 
@@ -235,20 +238,26 @@ fn target(frf: &Frf, integrator: bool) -> (Vec<Complex64>, Vec<f64>) {
 /// The best stable start of `size` with or without a free integrator on `frf`: the best order of
 /// the grid by the Levy fit's weighted error, refined, then made stable ([`stable`]); `None` when
 /// no order gives a stable start.
-pub fn fit_size(frf: &Frf, size: Size, integrator: bool) -> Option<GeneralStart> {
+///
+/// The grid and its refinement are screened with [`SK_SCREEN`] Sanathanan-Koerner iterations;
+/// only the two orders kept (the integer one and the best fractional one) are fitted with the
+/// [`Sk`] iterations asked for, so a size costs about a third of the solves of fitting every
+/// order to convergence. The screened error ranks the orders of one size (they differ by the
+/// order alone); the criterion that ranks sizes is the kept fits'.
+pub fn fit_size(frf: &Frf, size: Size, integrator: bool, sk: Sk) -> Option<GeneralStart> {
     let (h, wt) = target(frf, integrator);
     let unknowns = size.num + 1 + size.den;
     if frf.omega.len() < unknowns + 1 {
         return None;
     }
-    let mut raw: Vec<(f64, Vec<f64>, Vec<f64>, f64)> = vec![];
-    let visit = |qs: &[f64], raw: &mut Vec<(f64, Vec<f64>, Vec<f64>, f64)>| {
+    type Raw = (f64, Vec<f64>, Vec<f64>, f64);
+    let visit = |qs: &[f64], sk_iterations: usize, raw: &mut Vec<Raw>| {
         let _ = levy::levy_orders(
             &frf.omega,
             &h,
             (size.num, size.den),
             &wt,
-            SK_ITERATIONS,
+            sk_iterations,
             qs.iter().copied(),
             |q, b, a, e| {
                 if e.is_finite() {
@@ -258,32 +267,58 @@ pub fn fit_size(frf: &Frf, size: Size, integrator: bool) -> Option<GeneralStart>
         );
     };
     let grid = orders(size.den);
-    visit(&grid, &mut raw);
-    // refine around the best fractional order
-    let best_frac = raw
-        .iter()
-        .filter(|r| r.0 < 1.0)
-        .min_by(|a, b| a.3.total_cmp(&b.3))
-        .map(|r| r.0);
-    if let Some(q0) = best_frac {
-        let fine: Vec<f64> = (-4..=4)
-            .filter(|&i| i != 0)
-            .map(|i| q0 + i as f64 * 0.01)
-            .filter(|&q| q > 0.0 && q < 1.0)
-            .collect();
-        visit(&fine, &mut raw);
+    let best_frac = |raw: &[Raw]| {
+        raw.iter()
+            .filter(|r| r.0 < 1.0)
+            .min_by(|a, b| a.3.total_cmp(&b.3))
+            .map(|r| r.0)
+    };
+    let mut kept = vec![1.0];
+    if grid.len() > 1 {
+        let mut screened: Vec<Raw> = vec![];
+        visit(&grid[1..], SK_SCREEN, &mut screened);
+        // refine around the best fractional order
+        if let Some(q0) = best_frac(&screened) {
+            let fine: Vec<f64> = (-4..=4)
+                .filter(|&i| i != 0)
+                .map(|i| q0 + i as f64 * 0.01)
+                .filter(|&q| q > 0.0 && q < 1.0)
+                .collect();
+            visit(&fine, SK_SCREEN, &mut screened);
+        }
+        kept.extend(best_frac(&screened));
     }
-    // Candidates by their raw error: the integer order and the best fractional one, each made
-    // stable; the better stable one is the size's start.
-    raw.sort_by(|a, b| a.3.total_cmp(&b.3));
-    let integer = raw.iter().find(|r| r.0 == 1.0);
-    let fractional = raw.iter().find(|r| r.0 < 1.0);
-    [integer, fractional]
-        .into_iter()
-        .flatten()
-        .filter_map(|(q, b, a, _)| stable(frf, size, *q, integrator, b, a))
+    let mut raw: Vec<Raw> = vec![];
+    visit(&kept, sk.iterations(), &mut raw);
+    // The integer order and the best fractional one, each made stable; the better stable one
+    // is the size's start.
+    raw.into_iter()
+        .filter_map(|(q, b, a, _)| stable(frf, size, q, integrator, &b, &a))
         .min_by(|a, b| a.frf_error.total_cmp(&b.frf_error))
 }
+
+/// The Sanathanan-Koerner iterations of a size's kept orders ([`fit_size`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Sk {
+    /// To convergence ([`SK_ITERATIONS`] at most): a start that is fitted and ranked.
+    Converged,
+    /// [`SK_SCREEN`] only: a delay probed ([`ranked_delayed`]), whose fits serve only to compare
+    /// delays.
+    Screened,
+}
+
+impl Sk {
+    fn iterations(self) -> usize {
+        match self {
+            Sk::Converged => SK_ITERATIONS,
+            Sk::Screened => SK_SCREEN,
+        }
+    }
+}
+
+/// Sanathanan-Koerner iterations of a screening Levy fit ([`fit_size`]): the reweighting that
+/// moves the fit most is the first; two rank a size's orders as the converged fits do.
+const SK_SCREEN: usize = 2;
 
 /// The start `(b, a)` at order `q` made stable: an integer order's right-half-plane poles
 /// reflected and the numerator refitted; a fractional one checked. With its error on `frf` and
@@ -523,7 +558,7 @@ pub fn ranked_delayed(
             if !budget.allows(size, int, true) {
                 continue;
             }
-            if let Some(s) = fit_size(&f, size, int) {
+            if let Some(s) = fit_size(&f, size, int, Sk::Screened) {
                 let c = delayed(s, d, frf.omega.len()).criterion;
                 if c < best.0 {
                     best = (c, d);
@@ -585,7 +620,7 @@ pub fn ranked(
             if fixed.is_none() && !budget.allows(size, int, delay > 0) {
                 continue;
             }
-            if let Some(s) = fit_size(frf, size, int) {
+            if let Some(s) = fit_size(frf, size, int, Sk::Converged) {
                 out.push(delayed(s, delay, frf.omega.len()));
             }
         }
@@ -681,7 +716,7 @@ mod tests {
         let g: fracsim::FracTf = "(0.5 s + 2)/s".parse().unwrap();
         let frf = frf_of(&g, -1.0);
         assert!(calls_for_integrator(&frf));
-        let s = fit_size(&frf, Size { num: 1, den: 0 }, true).unwrap();
+        let s = fit_size(&frf, Size { num: 1, den: 0 }, true, Sk::Converged).unwrap();
         assert!(s.frf_error < 1e-20, "{s:?}");
         assert!(
             (s.b[0] - 2.0).abs() < 1e-9 && (s.b[1] - 0.5).abs() < 1e-9,
