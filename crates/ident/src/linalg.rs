@@ -1,7 +1,10 @@
 //! ident's dense linear algebra, on faer: the Householder QR of a column-major block
 //! ([`qr_r_in_place`]), least squares in reused memory ([`LstsqWork`]) or at once ([`lstsq`]),
-//! Cholesky solves ([`cholesky_solve`]), Gram products ([`gram_add`]) and the inverse of a
-//! triangular factor ([`upper_inverse`]).
+//! the thin QR ([`thin_qr`]), the projection out of a span ([`project_out`]), Cholesky solves
+//! ([`cholesky_solve`]), Gram products ([`gram_add`]) and the inverse of a triangular factor
+//! ([`upper_inverse`]). Every factorisation is faer's: its plain QR, and its column-pivoted QR
+//! where the plain one's rank estimate is short ([`factor`]) or a rank is wanted
+//! ([`project_out`]).
 //!
 //! Every call here is sequential (`Par::Seq`): the matrices are a few columns wide, and the
 //! parallelism over a tall matrix's rows is the caller's ([`crate::par`]). Matrices cross the
