@@ -1,8 +1,9 @@
 //! ident's dense linear algebra, on faer: the Householder QR of a column-major block
 //! ([`qr_r_in_place`]), least squares in reused memory ([`LstsqWork`]) or at once ([`lstsq`]),
 //! the thin QR ([`thin_qr`]), the projection out of a span ([`project_out`]), Cholesky solves
-//! ([`cholesky_solve`]), Gram products ([`gram_add`]) and the inverse of a triangular factor
-//! ([`upper_inverse`]). Every factorisation is faer's: its plain QR, and its column-pivoted QR
+//! ([`cholesky_solve`]), minimum-norm least squares by the SVD ([`svd_solve`]), Gram products
+//! ([`gram_add`]) and the inverse of a triangular factor ([`upper_inverse`]). Every
+//! factorisation is faer's: its SVD, its plain QR, and its column-pivoted QR
 //! where the plain one's rank estimate is short ([`factor`]) or a rank is wanted
 //! ([`project_out`]).
 //!
@@ -552,6 +553,27 @@ pub(crate) fn solve_upper_transposed(r: &Mat<f64>, g: &[f64]) -> Vec<f64> {
 /// dependent columns is about `1e-16` to `1e-13`).
 pub(crate) const DEPENDENT_PART: f64 = 1e-10;
 
+/// The minimum-norm least-squares solution of `min |A x - b|` by faer's thin SVD, the singular
+/// values at or below `eps` taken as zero (a rank-deficient system's pseudo-inverse); `None` when
+/// the SVD does not converge or its solution is not finite.
+pub(crate) fn svd_solve(a: &Mat<f64>, b: &[f64], eps: f64) -> Option<Vec<f64>> {
+    let (m, n) = (a.nrows(), a.ncols());
+    debug_assert_eq!(b.len(), m);
+    let svd = as_faer(a).thin_svd().ok()?;
+    let (u, v, s) = (svd.U(), svd.V(), svd.S().column_vector());
+    let mut x = vec![0.0; n];
+    for k in 0..s.nrows() {
+        if s[k] <= eps {
+            continue;
+        }
+        let c = (0..m).map(|r| u[(r, k)] * b[r]).sum::<f64>() / s[k];
+        for (j, xj) in x.iter_mut().enumerate() {
+            *xj += c * v[(j, k)];
+        }
+    }
+    x.iter().all(|v| v.is_finite()).then_some(x)
+}
+
 /// The part of each column of `b` (`m x c`) outside the span of the columns of `a` (`m x n`):
 /// `b - Q Q^T b` for the orthonormal `Q` of `a`'s independent columns. faer's column-pivoted QR
 /// of `a`'s columns scaled to unit norm: its leading pivots above [`DEPENDENT_PART`] are the
@@ -673,6 +695,46 @@ mod tests {
             assert!((g - x).abs() <= tol, "R[{j},{j}] = {g:e}, nalgebra {x:e}");
         }
         assert!(got[(3, 3)].abs() > 1e-13 * a.column(3).norm());
+    }
+
+    /// [`svd_solve`] against nalgebra's SVD solve (another library's SVD, the same rule for the
+    /// small singular values): a full-rank system, and one with a repeated column and a column
+    /// of zeros, whose minimum-norm solution splits the repeated column's coefficient evenly
+    /// and gives the zero column none.
+    #[test]
+    fn the_svd_solve_is_the_minimum_norm_least_squares_solution() {
+        let mut rnd = uniform(5);
+        let (m, w) = (40, 5);
+        let mut a = Mat::<f64>::from_fn(m, w, |_, _| rnd());
+        let b: Vec<f64> = (0..m).map(|_| rnd()).collect();
+        let want = |a: &Mat<f64>| {
+            let rhs = nalgebra::DVector::from_column_slice(&b);
+            a.clone().svd(true, true).solve(&rhs, 1e-12).unwrap()
+        };
+        let got = svd_solve(&a, &b, 1e-12).unwrap();
+        let full = want(&a);
+        for j in 0..w {
+            assert!(
+                (got[j] - full[j]).abs() <= 1e-12 * full.amax(),
+                "{j}: {got:?} {full}"
+            );
+        }
+        for i in 0..m {
+            a[(i, 3)] = a[(i, 1)];
+            a[(i, 4)] = 0.0;
+        }
+        let got = svd_solve(&a, &b, 1e-12).unwrap();
+        let min_norm = want(&a);
+        for j in 0..w {
+            assert!(
+                (got[j] - min_norm[j]).abs() <= 1e-12 * min_norm.amax(),
+                "{j}: {got:?}"
+            );
+        }
+        assert!(
+            (got[1] - got[3]).abs() <= 1e-12 * got[1].abs() && got[4] == 0.0,
+            "{got:?}"
+        );
     }
 
     /// [`project_out`] against the projection by nalgebra's SVD (`b - U_k U_k^T b` over the

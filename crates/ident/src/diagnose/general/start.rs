@@ -116,11 +116,7 @@ pub fn arx_frf(u: &[f64], y: &[f64], dt: f64, why: &Error) -> Result<(Frf, Strin
     if x.iter().chain(rhs.iter()).any(|v| !v.is_finite()) {
         return Err(bad());
     }
-    let theta = x
-        .try_svd(true, true, 1e-15, 500)
-        .ok_or_else(bad)?
-        .solve(&rhs, 1e-12)
-        .map_err(|_| bad())?;
+    let theta = crate::linalg::svd_solve(&x, rhs.as_slice(), 1e-12).ok_or_else(bad)?;
     let th: Vec<f64> = theta.iter().zip(&scale).map(|(v, s)| v / s).collect();
     let (w_lo, w_hi) = (
         2.0 * std::f64::consts::PI / (n as f64 * dt),
@@ -473,8 +469,7 @@ fn refit_numerator(
     if x.iter().chain(rhs.iter()).any(|v| !v.is_finite()) {
         return None;
     }
-    // an SVD with a bounded number of sweeps (never a loop on a degenerate system)
-    let sol = x.try_svd(true, true, 1e-15, 500)?.solve(&rhs, 1e-14).ok()?;
+    let sol = crate::linalg::svd_solve(&x, rhs.as_slice(), 1e-14)?;
     Some(sol.iter().zip(&scale).map(|(v, s)| v / s).collect())
 }
 
