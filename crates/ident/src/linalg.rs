@@ -182,17 +182,7 @@ fn factor_pivoted(
     if !nonzero {
         return Factored::Zero;
     }
-    work.perm.resize(w, 0);
-    work.perm_inv.resize(w, 0);
-    col_pivoting::factor::qr_in_place(
-        a.rb_mut(),
-        MatMut::from_column_major_slice_mut(&mut work.tau, 1, k),
-        &mut work.perm,
-        &mut work.perm_inv,
-        Par::Seq,
-        MemStack::new(&mut work.mem),
-        Default::default(),
-    );
+    work.pivoted_qr(a.rb_mut(), k);
     // S = R_p P^T D: position p of R_p is column perm[p] of A.
     work.s.clear();
     work.s.resize(k * w, 0.0);
@@ -267,6 +257,23 @@ fn ensure_scratch(mem: &mut Vec<MaybeUninit<u8>>, m: usize, w: usize, e: usize) 
 }
 
 impl LstsqWork {
+    /// faer's column-pivoted QR of `a` in place (`k = min(rows, cols)` reflectors into `tau`, the
+    /// permutation into `perm` and `perm_inv`), in this scratch (`mem` already large enough).
+    fn pivoted_qr(&mut self, a: MatMut<'_, f64>, k: usize) {
+        let w = a.ncols();
+        self.perm.resize(w, 0);
+        self.perm_inv.resize(w, 0);
+        col_pivoting::factor::qr_in_place(
+            a,
+            MatMut::from_column_major_slice_mut(&mut self.tau[..k], 1, k),
+            &mut self.perm,
+            &mut self.perm_inv,
+            Par::Seq,
+            MemStack::new(&mut self.mem),
+            Default::default(),
+        );
+    }
+
     /// The memory (it grows to the widest system it is given).
     pub(crate) fn new() -> Self {
         Self::default()
@@ -606,18 +613,8 @@ pub(crate) fn project_out(a: &Mat<f64>, b: &Mat<f64>) -> Mat<f64> {
     let mut work = LstsqWork::new();
     ensure_scratch(&mut work.mem, m, n, c);
     work.tau.resize(k, 0.0);
-    work.perm.resize(n, 0);
-    work.perm_inv.resize(n, 0);
     let mut qm = MatMut::from_column_major_slice_mut(q.as_mut_slice(), m, n);
-    col_pivoting::factor::qr_in_place(
-        qm.rb_mut(),
-        MatMut::from_column_major_slice_mut(&mut work.tau, 1, k),
-        &mut work.perm,
-        &mut work.perm_inv,
-        Par::Seq,
-        MemStack::new(&mut work.mem),
-        Default::default(),
-    );
+    work.pivoted_qr(qm.rb_mut(), k);
     let rank = (0..k)
         .take_while(|&i| qm[(i, i)].abs() > DEPENDENT_PART)
         .count();
@@ -707,30 +704,23 @@ mod tests {
         let (m, w) = (40, 5);
         let mut a = Mat::<f64>::from_fn(m, w, |_, _| rnd());
         let b: Vec<f64> = (0..m).map(|_| rnd()).collect();
-        let want = |a: &Mat<f64>| {
+        // faer's solution of `a`, checked against nalgebra's
+        let solved = |a: &Mat<f64>| {
             let rhs = nalgebra::DVector::from_column_slice(&b);
-            a.clone().svd(true, true).solve(&rhs, 1e-12).unwrap()
+            let want = a.clone().svd(true, true).solve(&rhs, 1e-12).unwrap();
+            let got = svd_solve(a, &b, 1e-12).unwrap();
+            for j in 0..w {
+                let tol = 1e-12 * want.amax();
+                assert!((got[j] - want[j]).abs() <= tol, "{j}: {got:?} {want}");
+            }
+            got
         };
-        let got = svd_solve(&a, &b, 1e-12).unwrap();
-        let full = want(&a);
-        for j in 0..w {
-            assert!(
-                (got[j] - full[j]).abs() <= 1e-12 * full.amax(),
-                "{j}: {got:?} {full}"
-            );
-        }
+        solved(&a);
         for i in 0..m {
             a[(i, 3)] = a[(i, 1)];
             a[(i, 4)] = 0.0;
         }
-        let got = svd_solve(&a, &b, 1e-12).unwrap();
-        let min_norm = want(&a);
-        for j in 0..w {
-            assert!(
-                (got[j] - min_norm[j]).abs() <= 1e-12 * min_norm.amax(),
-                "{j}: {got:?}"
-            );
-        }
+        let got = solved(&a);
         assert!(
             (got[1] - got[3]).abs() <= 1e-12 * got[1].abs() && got[4] == 0.0,
             "{got:?}"
