@@ -45,9 +45,9 @@ pub const MAX_DEN_FRACTIONAL: usize = 4;
 /// levels included ([`Budget`]).
 pub const MAX_FREE: usize = 16;
 
-/// Estimation samples per free parameter a fit needs at least ([`Budget`]; the fit itself refuses
-/// fewer than 10 per parameter, [`crate::oe::identify`]).
-pub const SAMPLES_PER_PARAM: usize = 10;
+/// Estimation samples per free parameter a fit needs at least ([`Budget`]): the fit's own rule
+/// ([`crate::oe::identify`]).
+pub use crate::oe::SAMPLES_PER_PARAM;
 
 /// How many coefficients (plus a searched delay) a size may have: at most [`MAX_FREE`] free
 /// parameters in all, those the fit adds beside the structure included (the output offset, an

@@ -1210,8 +1210,11 @@ impl Scaling {
     }
 }
 
-/// Whether `split` estimation samples can determine the free parameters of `m`: at least 10
-/// samples for each (and 20 in all). Counted as a base fit counts them, so a model's own
+/// Estimation samples per free parameter a fit needs at least ([`identify`] refuses fewer).
+pub const SAMPLES_PER_PARAM: usize = 10;
+
+/// Whether `split` estimation samples can determine the free parameters of `m`: at least
+/// [`SAMPLES_PER_PARAM`] samples for each (and 20 in all). Counted as a base fit counts them, so a model's own
 /// evaluation at its values (the diagnosis's final model) passes where its fit did: the output
 /// offset once (`fit_offset` adds it when `m` has none), the initial state's levels not (a base
 /// fit adds them after this check: they take up the record's past, not its excitation).
@@ -1226,7 +1229,7 @@ fn enough_samples(m: &FracModel, split: usize, fit_offset: bool) -> Result<()> {
         .filter(|&(i, p)| p.free && !m.is_initial_state(i))
         .count();
     let n_free = free + usize::from(fit_offset && m.index_of("y_offset").is_none());
-    let need = (10 * n_free).max(20);
+    let need = (SAMPLES_PER_PARAM * n_free).max(20);
     if split < need {
         return Err(Error::NotEnoughData(format!(
             "{split} estimation samples for {n_free} free parameters (need at least {need})"

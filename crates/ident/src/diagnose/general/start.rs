@@ -267,14 +267,13 @@ pub fn fit_size(frf: &Frf, size: Size, integrator: bool, sk: Sk) -> Option<Gener
         raw.iter()
             .filter(|r| r.0 < 1.0)
             .min_by(|a, b| a.3.total_cmp(&b.3))
-            .map(|r| r.0)
+            .cloned()
     };
-    let mut kept = vec![1.0];
+    let mut screened: Vec<Raw> = vec![];
     if grid.len() > 1 {
-        let mut screened: Vec<Raw> = vec![];
         visit(&grid[1..], SK_SCREEN, &mut screened);
         // refine around the best fractional order
-        if let Some(q0) = best_frac(&screened) {
+        if let Some((q0, ..)) = best_frac(&screened) {
             let fine: Vec<f64> = (-4..=4)
                 .filter(|&i| i != 0)
                 .map(|i| q0 + i as f64 * 0.01)
@@ -282,10 +281,20 @@ pub fn fit_size(frf: &Frf, size: Size, integrator: bool, sk: Sk) -> Option<Gener
                 .collect();
             visit(&fine, SK_SCREEN, &mut screened);
         }
-        kept.extend(best_frac(&screened));
     }
+    let fractional = best_frac(&screened);
     let mut raw: Vec<Raw> = vec![];
-    visit(&kept, sk.iterations(), &mut raw);
+    match sk {
+        Sk::Converged => {
+            let kept: Vec<f64> = [1.0].into_iter().chain(fractional.map(|r| r.0)).collect();
+            visit(&kept, SK_ITERATIONS, &mut raw);
+        }
+        // the screened fit of the best fractional order is already the one asked for
+        Sk::Screened => {
+            visit(&[1.0], SK_SCREEN, &mut raw);
+            raw.extend(fractional);
+        }
+    }
     // The integer order and the best fractional one, each made stable; the better stable one
     // is the size's start.
     raw.into_iter()
@@ -301,15 +310,6 @@ pub enum Sk {
     /// [`SK_SCREEN`] only: a delay probed ([`ranked_delayed`]), whose fits serve only to compare
     /// delays.
     Screened,
-}
-
-impl Sk {
-    fn iterations(self) -> usize {
-        match self {
-            Sk::Converged => SK_ITERATIONS,
-            Sk::Screened => SK_SCREEN,
-        }
-    }
 }
 
 /// Sanathanan-Koerner iterations of a screening Levy fit ([`fit_size`]): the reweighting that
