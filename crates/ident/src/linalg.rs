@@ -308,13 +308,14 @@ impl LstsqWork {
 }
 
 /// The `R` (`min(rows, w) x w`, upper trapezoidal) of the column-major `rows x w` matrix `a`
-/// (overwritten) by faer's Householder QR ([`factor`]). `R` is unique up to the signs of its
-/// rows.
+/// (overwritten) by faer's Householder QR ([`factor`], `A` got back as `again` says when faer's
+/// plain QR takes a column for dependent). `R` is unique up to the signs of its rows.
 pub(crate) fn qr_r_in_place(
     a: &mut [f64],
     rows: usize,
     w: usize,
     work: &mut LstsqWork,
+    again: Again<'_>,
 ) -> Mat<f64> {
     debug_assert_eq!(a.len(), rows * w);
     let k = rows.min(w);
@@ -323,7 +324,7 @@ pub(crate) fn qr_r_in_place(
     }
     let am = MatMut::from_column_major_slice_mut(a, rows, w);
     let none = MatMut::from_column_major_slice_mut(&mut [], rows, 0);
-    factor(work, am, none, Again::Copy);
+    factor(work, am, none, again);
     Mat::<f64>::from_fn(k, w, |i, j| if j >= i { a[j * rows + i] } else { 0.0 })
 }
 
@@ -554,12 +555,6 @@ pub(crate) fn solve_upper_transposed(r: &Mat<f64>, g: &[f64]) -> Vec<f64> {
     q
 }
 
-/// The relative size under which a column's part outside the span of the others makes it
-/// dependent in [`project_out`]: its columns scaled to unit norm, a part of `1e-10` is below the
-/// accuracy of the sensitivities it is given (a part that rounding alone leaves from exactly
-/// dependent columns is about `1e-16` to `1e-13`).
-pub(crate) const DEPENDENT_PART: f64 = 1e-10;
-
 /// The minimum-norm least-squares solution of `min |A x - b|` by faer's thin SVD, the singular
 /// values at or below `eps` taken as zero (a rank-deficient system's pseudo-inverse); `None` when
 /// the SVD does not converge or its solution is not finite.
@@ -580,6 +575,12 @@ pub(crate) fn svd_solve(a: &Mat<f64>, b: &[f64], eps: f64) -> Option<Vec<f64>> {
     }
     x.iter().all(|v| v.is_finite()).then_some(x)
 }
+
+/// The relative size under which a column's part outside the span of the others makes it
+/// dependent in [`project_out`]: its columns scaled to unit norm, a part of `1e-10` is below the
+/// accuracy of the sensitivities it is given (a part that rounding alone leaves from exactly
+/// dependent columns is about `1e-16` to `1e-13`).
+pub(crate) const DEPENDENT_PART: f64 = 1e-10;
 
 /// The part of each column of `b` (`m x c`) outside the span of the columns of `a` (`m x n`):
 /// `b - Q Q^T b` for the orthonormal `Q` of `a`'s independent columns. faer's column-pivoted QR
@@ -682,7 +683,7 @@ mod tests {
             a[(i, 3)] = a[(i, 2)] + 1e-12 * a[(i, 3)];
         }
         let mut buf = a.as_slice().to_vec();
-        let got = qr_r_in_place(&mut buf, m, w, &mut LstsqWork::new());
+        let got = qr_r_in_place(&mut buf, m, w, &mut LstsqWork::new(), Again::Copy);
         let want = a.clone().qr().r();
         for j in 0..w {
             let (g, x) = (got[(j, j)].abs(), want[(j, j)].abs());
@@ -804,7 +805,7 @@ mod tests {
         let r_of = |a: &Mat<f64>| {
             let (rows, w) = (a.nrows(), a.ncols());
             let mut buf: Vec<f64> = (0..w).flat_map(|j| a.col_as_slice(j).to_vec()).collect();
-            let r = qr_r_in_place(&mut buf, rows, w, &mut LstsqWork::new());
+            let r = qr_r_in_place(&mut buf, rows, w, &mut LstsqWork::new(), Again::Copy);
             assert_eq!((r.nrows(), r.ncols()), (rows.min(w), w));
             for i in 0..r.nrows() {
                 assert!((0..i).all(|j| r[(i, j)] == 0.0));

@@ -3,7 +3,7 @@
 use super::problem::Mat;
 #[allow(unused_imports)] // (doc links)
 use super::Problem;
-use crate::linalg::{self, LstsqWork};
+use crate::linalg::{self, Again, LstsqWork};
 
 /// The covariance and standard errors from the `R` of `J`, with the parameters `held` at a
 /// bound ([`Problem::at_bound`]) fixed there: the covariance of the others is that of the
@@ -29,7 +29,7 @@ pub(super) fn covariance_and_errors(
         let sub = Mat::<f64>::from_fn(rmat.nrows(), nk, |i, j| rmat[(i, kept[j])]);
         let r_sub = if sub.nrows() >= nk {
             let (rows, mut a) = (sub.nrows(), sub.as_slice().to_vec());
-            linalg::qr_r_in_place(&mut a, rows, nk, &mut LstsqWork::new())
+            linalg::qr_r_in_place(&mut a, rows, nk, &mut LstsqWork::new(), Again::Copy)
         } else {
             sub
         };

@@ -4,7 +4,7 @@
 
 use super::passes::JT_R_BLOCK;
 use super::problem::{ColSlices, Mat};
-use crate::linalg::{self, LstsqWork};
+use crate::linalg::{self, Again, LstsqWork};
 use crate::par::{on_row_halves, Par};
 
 /// Rows of `[J r]` factored at a time by [`qr_of_jr`].
@@ -123,7 +123,7 @@ fn tsqr<'a>(col: impl Fn(usize) -> &'a [f64], m: usize, w: usize) -> Mat<f64> {
             a.extend_from_slice(col(j));
             a.extend_from_slice(col(w + j));
         }
-        return linalg::qr_r_in_place(&mut a, ha + hb, w, &mut LstsqWork::new());
+        return linalg::qr_r_in_place(&mut a, ha + hb, w, &mut LstsqWork::new(), Again::Copy);
     }
     let mut top = Mat::<f64>::zeros(0, w);
     let mut a = Vec::with_capacity((QR_BLOCK + w) * w);
@@ -132,12 +132,18 @@ fn tsqr<'a>(col: impl Fn(usize) -> &'a [f64], m: usize, w: usize) -> Mat<f64> {
     while start < m {
         let end = (start + QR_BLOCK).min(m);
         let rows = top.nrows() + end - start;
-        a.clear();
-        for j in 0..w {
-            a.extend_from_slice(top.col_as_slice(j));
-            a.extend_from_slice(&col(j)[start..end]);
-        }
-        top = linalg::qr_r_in_place(&mut a, rows, w, &mut work);
+        // `R` so far stacked on the block, column by column: built here, and again by the
+        // factorisation only in the rare case it needs `A` back (no copy of every block)
+        let mut fill = |dst: &mut [f64]| {
+            for (j, out) in dst.chunks_exact_mut(rows).enumerate() {
+                let (upper, lower) = out.split_at_mut(top.nrows());
+                upper.copy_from_slice(top.col_as_slice(j));
+                lower.copy_from_slice(&col(j)[start..end]);
+            }
+        };
+        a.resize(rows * w, 0.0);
+        fill(&mut a);
+        top = linalg::qr_r_in_place(&mut a, rows, w, &mut work, Again::Refill(&mut fill));
         start = end;
     }
     top
