@@ -5,7 +5,9 @@
 //!
 //! Definitions:
 //! - FRF error: `sqrt(mean_w |G_fit(jw) - G_true(jw)|^2 / |G_true(jw)|^2)` over the band's
-//!   frequencies (`cases::band`); with a sign-blind sensor the sign of `G_fit` that fits better.
+//!   frequencies (`cases::band`); with a sign-blind sensor the sign of `G_fit` that fits better;
+//!   with a power-law input map in the truth and the diagnosis, `G_fit` in the truth's convention
+//!   (the map through 1 at `|u| = 1`, see [`power_law_scale`]).
 //! - Held-out ratio: fracid's held-out RMSE (the report's `fit.validation.rmse`) over the oracle's,
 //!   the RMS of (measured - noise-free truth) on the same samples (`validated_by.first`,
 //!   `split.validation_samples`). 1 is the noise floor.
@@ -101,6 +103,27 @@ impl Fitted {
             den: terms("den")?,
             delay: model.get("delay").and_then(Value::as_f64).unwrap_or(0.0),
         })
+    }
+}
+
+/// The factor that puts a report's linear part in the convention of a truth with a power-law
+/// input map: fracid's map `sign(u) u_ref (|u| / u_ref)^p` is the truth's `sign(u) |u|^p` times
+/// `u_ref^(1 - p)`, so the same input-output model has its numerator that much larger (1 without
+/// a power law in the diagnosis). A truth without the map has no convention to meet: its model is
+/// compared as reported.
+fn power_law_scale(report: &Value) -> f64 {
+    let params = report
+        .pointer("/diagnosis/effects")
+        .and_then(Value::as_array)
+        .and_then(|a| {
+            a.iter()
+                .find(|e| e.get("name").and_then(Value::as_str) == Some("power_law"))
+        })
+        .and_then(|e| e.get("params"));
+    let get = |key: &str| params.and_then(|p| p.get(key)).and_then(Value::as_f64);
+    match (get("exponent"), get("u_ref")) {
+        (Some(p), Some(u_ref)) if u_ref > 0.0 && p.is_finite() => u_ref.powf(1.0 - p),
+        _ => 1.0,
     }
 }
 
@@ -264,7 +287,13 @@ pub fn score(
         .filter(|c| ambiguous.contains(c))
         .cloned()
         .collect();
-    let fitted = report.and_then(Fitted::from_report);
+    let fitted = report.and_then(Fitted::from_report).map(|mut f| {
+        if truth.effects.power_law.is_some() {
+            let scale = report.map_or(1.0, power_law_scale);
+            f.num.iter_mut().for_each(|t| t.coef *= scale);
+        }
+        f
+    });
     let frf = fitted
         .as_ref()
         .and_then(|f| frf_error(&truth.plant, f, &truth.band_omega, truth.effects.abs_sensor));
@@ -376,6 +405,55 @@ mod tests {
             assert!(frf_error(&t.plant, &neg, &t.band_omega, true).unwrap() < 1e-9);
             assert!((frf_error(&t.plant, &neg, &t.band_omega, false).unwrap() - 2.0).abs() < 1e-9);
         }
+    }
+
+    #[test]
+    fn a_power_law_gain_is_compared_in_the_truths_convention() {
+        // fracid's map through u_ref: the same input-output model has the truth's numerator
+        // times u_ref^(p - 1) (u^p = u_ref^(p - 1) * u_ref (u / u_ref)^p).
+        let case = case_of(crate::cases::Class::PowerLaw);
+        let t = &case.truth;
+        let p = t.effects.power_law.unwrap();
+        let u_ref = 2.5_f64;
+        let mut f = as_fitted(&t.plant);
+        f.num.iter_mut().for_each(|x| x.coef *= u_ref.powf(p - 1.0));
+        let mut r = report_of(&f, &["power_law"], &[]);
+        let ok = Row {
+            exit_code: 0,
+            seconds: Some(0.1),
+            error: None,
+        };
+        let frf = |r: &Value| {
+            score(
+                t,
+                &case.y,
+                &case.y_clean,
+                Path::Diagnose,
+                Some(&ok),
+                Some(r),
+            )
+            .frf_error
+            .unwrap()
+        };
+        let e = frf(&r);
+        assert!((e - (u_ref.powf(p - 1.0) - 1.0)).abs() < 1e-9, "{e}");
+        r["diagnosis"]["effects"][0]["params"] = json!({"exponent": p, "u_ref": u_ref});
+        let e = frf(&r);
+        assert!(e < 1e-9, "{e}");
+        // A truth without the map: the model as reported.
+        let lead = case_of(crate::cases::Class::Lead);
+        let exact = report_of(&as_fitted(&lead.truth.plant), &["power_law"], &[]);
+        let mut with_params = exact.clone();
+        with_params["diagnosis"]["effects"][0]["params"] = json!({"exponent": p, "u_ref": u_ref});
+        let o = score(
+            &lead.truth,
+            &lead.y,
+            &lead.y_clean,
+            Path::Diagnose,
+            Some(&ok),
+            Some(&with_params),
+        );
+        assert!(o.frf_error.unwrap() < 1e-9, "{o:?}");
     }
 
     #[test]
