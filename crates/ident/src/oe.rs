@@ -999,7 +999,9 @@ impl FracModel {
             .effects
             .iter()
             .filter(|e| match **e {
-                Effect::InputOffset { c } | Effect::OutputOffset { c } => c == j,
+                Effect::InputOffset { c }
+                | Effect::SensorZero { c }
+                | Effect::OutputOffset { c } => c == j,
                 Effect::Coulomb { vc } => vc == j,
                 Effect::Saturation { level } => level == j,
                 Effect::Deadzone { width } => width == j,
@@ -1113,7 +1115,7 @@ impl FracModel {
         }
         for e in &self.effects {
             match *e {
-                Effect::InputOffset { c } if c == j => f.push(su),
+                Effect::InputOffset { c } | Effect::SensorZero { c } if c == j => f.push(su),
                 Effect::Coulomb { vc } if vc == j => f.push(su),
                 Effect::Saturation { level } if level == j => f.push(su),
                 Effect::Deadzone { width } if width == j => f.push(su),
@@ -1285,7 +1287,7 @@ impl FracModel {
             .iter()
             .filter(|e| e.is_input())
             .map(|e| match *e {
-                Effect::InputOffset { c } => Some(c),
+                Effect::InputOffset { c } | Effect::SensorZero { c } => Some(c),
                 _ => None,
             })
             .collect()

@@ -1051,12 +1051,12 @@ fn final_fit(d: &Diagnosis, base: &ModelFit, dt: f64, file: Option<ScoreReport>)
     let model = match d.model.tf(&values) {
         Ok(tf) => {
             let mut m = ModelReport::from(&tf);
-            m.effects = d
-                .model
-                .effects
-                .iter()
-                .map(|e| e.name().to_string())
-                .collect();
+            // (A sensor's zero is named with its sensor: once.)
+            for e in &d.model.effects {
+                if !m.effects.iter().any(|n| n == e.name()) {
+                    m.effects.push(e.name().to_string());
+                }
+            }
             m
         }
         Err(e) => {

@@ -20,6 +20,14 @@ pub enum Effect {
         /// Parameter index of the offset.
         c: usize,
     },
+    /// The zero of a sign-blind sensor ([`Effect::AbsSensor`]) on the deviation scale: `u + c`
+    /// like an input offset, but not one the plant has (the operating point was read from the
+    /// rectified data, so the deviation scale's zero is not the plant's: `c = u0 - y0 / K` with
+    /// no offset at all); reported as part of the sensor.
+    SensorZero {
+        /// Parameter index of the offset.
+        c: usize,
+    },
     /// Constant output offset: `y + c`.
     OutputOffset {
         /// Parameter index of the offset.
@@ -83,7 +91,7 @@ impl Effect {
     #[inline]
     pub fn input<T: Real>(&self, p: &[T], u: T, y_prev: T, _t: f64) -> T {
         match *self {
-            Effect::InputOffset { c } => u + p[c],
+            Effect::InputOffset { c } | Effect::SensorZero { c } => u + p[c],
             Effect::Coulomb { vc } => u - p[vc] * sign(y_prev),
             Effect::Saturation { level } => {
                 let l = p[level];
@@ -133,7 +141,9 @@ impl Effect {
     /// The indices of its parameters.
     pub fn params(&self) -> Vec<usize> {
         match *self {
-            Effect::InputOffset { c } | Effect::OutputOffset { c } => vec![c],
+            Effect::InputOffset { c } | Effect::SensorZero { c } | Effect::OutputOffset { c } => {
+                vec![c]
+            }
             Effect::Coulomb { vc } => vec![vc],
             Effect::Saturation { level } => vec![level],
             Effect::Deadzone { width } => vec![width],
@@ -148,6 +158,7 @@ impl Effect {
         matches!(
             self,
             Effect::InputOffset { .. }
+                | Effect::SensorZero { .. }
                 | Effect::Coulomb { .. }
                 | Effect::Saturation { .. }
                 | Effect::Deadzone { .. }
@@ -164,7 +175,7 @@ impl Effect {
             Effect::Saturation { .. } => "saturation",
             Effect::Deadzone { .. } => "deadzone",
             Effect::PowerLaw { .. } => "power_law",
-            Effect::AbsSensor => "abs_sensor",
+            Effect::SensorZero { .. } | Effect::AbsSensor => "abs_sensor",
             Effect::Sinusoid { .. } => "periodic",
         }
     }

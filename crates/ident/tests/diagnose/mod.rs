@@ -659,6 +659,13 @@ fn with_the_defaults_a_sign_blind_sensor_alone_is_kept() {
         ..Default::default()
     };
     with_the_defaults_alone_is_kept("abs_sensor", 24, false, hidden, None);
+    // The offset that places the sensor's zero is the sensor's, not an input offset of the
+    // plant (the hidden plant has none): the final model names no input offset.
+    let rec = generate(&input(0.0, false), hidden, 24);
+    let d = run_best(&rec, "pmsm", InitialState::Estimate).diagnosis;
+    let named: Vec<&str> = d.model.effects.iter().map(|e| e.name()).collect();
+    assert!(named.contains(&"abs_sensor"), "{named:?}");
+    assert!(!named.contains(&"input_offset"), "{named:?}");
 }
 
 #[test]

@@ -114,8 +114,8 @@ impl Probe for AbsSensor {
     }
 }
 
-/// Add an input offset `c_u = u0 - y0/K` (the model's zero is then the plant's: `y0 + K (c_u - u0)
-/// = 0` at the operating point).
+/// Add the sensor's zero `c_u = u0 - y0/K` ([`Effect::SensorZero`]: the model's zero is then the
+/// plant's, `y0 + K (c_u - u0) = 0` at the operating point).
 fn with_zero_offset(m: &mut FracModel, u0: f64, y0: f64) {
     let k = m.index_of("K").map_or(0.0, |i| m.params[i].value);
     let c = if k.abs() > 0.0 && k.is_finite() {
@@ -124,7 +124,7 @@ fn with_zero_offset(m: &mut FracModel, u0: f64, y0: f64) {
         0.0
     };
     let i = m.add_param(Param::new("u_offset", c, Bounds::Free));
-    m.effects.insert(0, Effect::InputOffset { c: i });
+    m.effects.insert(0, Effect::SensorZero { c: i });
 }
 
 /// Starts for the refit when the base model could not follow the rectified data (a linear fit of
