@@ -7,7 +7,10 @@
 //! the input (the residual-input cross-correlation: dynamics the model misses), or it is not
 //! white (Ljung-Box at 1%: with white measurement noise, structure the model misses; a short
 //! record's cross-correlation has wide bounds), or its base fit is not usable (no named
-//! structure could be fitted well posed). Only then is the general structure sized by the data
+//! structure could be fitted well posed) and the diagnosis kept no effect (a final model with
+//! effects is not its base fit: its own residual judges it; a sign-blind sensor's or a power
+//! law's base fit is unusable and its final model right, and on the zoo the general structure
+//! was diagnosed on none of the 10 such cases). Only then is the general structure sized by the data
 //! ([`super::fit`], its own pole cache); its chosen size is diagnosed when its base fit is usable
 //! and predicts the held-out part within [`BEHIND`] of the chosen final model (the successive
 //! halving's margin: a structure further behind after fewer effects is given no more rounds).
@@ -26,14 +29,17 @@ use crate::oe::{FracModel, IdentOptions, Kind};
 use fracsim::modal::RootsCache;
 
 /// Why the chosen final model of `d` fits poorly (see the module documentation), or `None`:
-/// its estimation residual depends on the input or is not white, or its base fit is not usable.
+/// its estimation residual depends on the input or is not white, or its base fit is not usable
+/// and no effect was kept.
 pub fn fits_poorly(d: &Diagnosed) -> Option<&'static str> {
     let r = &d.diagnosis.residual_after;
     if !r.independent {
         Some("its residual depends on the input")
     } else if !r.white {
         Some("its residual is not white")
-    } else if !d.choice.scores[d.choice.chosen].problems.is_empty() {
+    } else if !d.choice.scores[d.choice.chosen].problems.is_empty()
+        && d.diagnosis.effects.is_empty()
+    {
         Some("its base fit is not usable")
     } else {
         None
