@@ -1280,49 +1280,62 @@ impl FracModel {
         }
     }
 
-    /// The parameters of the input offsets, in the effects' order, when every input effect is a
-    /// constant input offset (`None` when another input effect acts).
-    fn input_offsets(&self) -> Option<Vec<usize>> {
-        self.effects
-            .iter()
-            .filter(|e| e.is_input())
-            .map(|e| match *e {
-                Effect::InputOffset { c } | Effect::SensorZero { c } => Some(c),
-                _ => None,
-            })
-            .collect()
+    /// Whether the model has input effects and every one is a static map of the held input
+    /// ([`Effect::is_static_input`]): nothing feeds the output back into the input.
+    fn static_input(&self) -> bool {
+        let mut inputs = self.effects.iter().filter(|e| e.is_input()).peekable();
+        inputs.peek().is_some() && inputs.all(Effect::is_static_input)
     }
 
-    /// The input of a model whose only input effects are the constant input offsets `offsets`
-    /// (parameters `c_i`): nothing feeds the output back into the input, so the linear part runs
-    /// in the vectorised kernel on the shifted input `u + sum c_i` (values, rounded as the
-    /// per-sample path rounds them), and the offsets' derivative parts (dual parameters) add
-    /// `sum dc_i` times the value model's response to a unit step from rest: the offsets act
-    /// from `t_0 = 0` (the initial state's past input has none), and `y(u + c)` is linear in `c`.
-    fn shifted_input<T: Real>(
-        &self,
-        offsets: &[usize],
-        p: &[T],
-        u: &[f64],
-        dt: f64,
-    ) -> Result<ShiftedInput<T>> {
+    /// The input of a model whose input effects are static maps of the held input
+    /// ([`FracModel::static_input`]: offsets, saturation, dead zone, power law): nothing feeds
+    /// the output back, so the linear part runs in the vectorised kernel on the mapped input's
+    /// values `map(u0 + u_k) - u0` (rounded as the per-sample path rounds them), and each
+    /// derivative part of the mapped input (the maps' dual parameters) adds the value model's
+    /// response from rest to that part's series: `y` is linear in the input, and the maps act
+    /// from `t_0 = 0` (the initial state's past input has parameters of its own). A part that is
+    /// the same at every sample (an offset's) is that constant times the unit step response.
+    fn mapped_input<T: Real>(&self, p: &[T], u: &[f64], dt: f64) -> Result<MappedInput> {
         let u0 = self.operating_point.u0;
-        let input: Vec<f64> = u
-            .iter()
-            .map(|&uk| offsets.iter().fold(u0 + uk, |a, &c| a + p[c].re()) - u0)
-            .collect();
-        let c = offsets.iter().fold(T::from(0.0), |a, &c| a + p[c]);
-        let dc = c - T::from(c.re());
-        let step = if dc == T::from(0.0) {
-            vec![]
-        } else {
-            let values: Vec<f64> = p.iter().map(|v| v.re()).collect();
-            let mut step = vec![0.0; u.len()];
-            self.simulator::<f64>(&values, dt)?
-                .run_into(&vec![1.0; u.len()], &mut step);
-            step
-        };
-        Ok(ShiftedInput { input, dc, step })
+        let parts = T::derivs_of(()).as_ref().len();
+        let mut input = Vec::with_capacity(u.len());
+        let mut series: Vec<Vec<f64>> = vec![Vec::with_capacity(u.len()); parts];
+        for (k, &uk) in u.iter().enumerate() {
+            let t = k as f64 * dt;
+            let ua = self
+                .effects
+                .iter()
+                .fold(T::from(u0 + uk), |a, e| e.input(p, a, T::from(0.0), t));
+            input.push(ua.re() - u0);
+            for (s, &d) in series.iter_mut().zip(ua.derivs().as_ref()) {
+                s.push(d);
+            }
+        }
+        let values: Vec<f64> = p.iter().map(|v| v.re()).collect();
+        let rest = || self.simulator::<f64>(&values, dt);
+        let mut step: Option<Vec<f64>> = None;
+        let mut responses = vec![];
+        for (r, s) in series.iter().enumerate() {
+            let Some(&first) = s.first() else { continue };
+            if s.iter().all(|&d| d == 0.0) {
+                continue;
+            }
+            let response = if s.iter().all(|&d| d == first) {
+                if step.is_none() {
+                    let mut y = vec![0.0; u.len()];
+                    rest()?.run_into(&vec![1.0; u.len()], &mut y);
+                    step = Some(y);
+                }
+                step.as_ref()
+                    .map_or_else(Vec::new, |y| y.iter().map(|v| first * v).collect())
+            } else {
+                let mut y = vec![0.0; u.len()];
+                rest()?.run_into(s, &mut y);
+                y
+            };
+            responses.push((r, response));
+        }
+        Ok(MappedInput { input, responses })
     }
 
     /// [`Structure::linear_sensitivities`], the levels' free responses from `rest` (the model
@@ -1400,25 +1413,24 @@ impl FracModel {
     }
 }
 
-/// The shifted input of a model with constant input offsets ([`FracModel::shifted_input`]).
-struct ShiftedInput<T> {
-    /// `u + sum c_i` (values).
+/// The mapped input of a model whose input effects are static maps
+/// ([`FracModel::mapped_input`]).
+struct MappedInput {
+    /// `map(u0 + u_k) - u0` (values).
     input: Vec<f64>,
-    /// The derivative parts of `sum c_i` (value 0).
-    dc: T,
-    /// The value model's unit step response from rest (empty when `dc` is 0).
-    step: Vec<f64>,
+    /// Per derivative part with a nonzero series: its index and the value model's response to it.
+    responses: Vec<(usize, Vec<f64>)>,
 }
 
-impl<T: Real> ShiftedInput<T> {
-    /// Add the offsets' derivative parts `dc * step_k` to the outputs `y` of samples
-    /// `k0..k0 + y.len()`.
-    fn add_offset_parts(&self, k0: usize, y: &mut [T]) {
-        if self.step.is_empty() {
-            return;
-        }
-        for (yk, &sk) in y.iter_mut().zip(&self.step[k0..]) {
-            *yk += self.dc * T::from(sk);
+impl MappedInput {
+    /// Add the maps' derivative parts to the outputs `y` of samples `k0..k0 + y.len()`.
+    fn add_parts<T: Real>(&self, k0: usize, y: &mut [T]) {
+        for (r, response) in &self.responses {
+            for (yk, &sk) in y.iter_mut().zip(&response[k0..]) {
+                let mut d = yk.derivs();
+                d.as_mut()[*r] += sk;
+                *yk = T::from_parts(yk.re(), d);
+            }
         }
     }
 }
@@ -1489,12 +1501,14 @@ impl Structure for FracModel {
         yhat: &mut [f64],
         cols: &mut [&mut [f64]],
     ) -> Result<()> {
-        let shift = match self.input_offsets() {
-            None => return parts_through_vec(self, p, u, dt, yhat, cols),
-            Some(offsets) if offsets.is_empty() => None,
-            Some(offsets) => Some(self.shifted_input(&offsets, p, u, dt)?),
+        let mapped = if self.effects.iter().all(|e| !e.is_input()) {
+            None
+        } else if self.static_input() {
+            Some(self.mapped_input(p, u, dt)?)
+        } else {
+            return parts_through_vec(self, p, u, dt, yhat, cols);
         };
-        // As `simulate` without input effects (or with input offsets only, on the shifted
+        // As `simulate` without input effects (or with static input maps only, on the mapped
         // input), a chunk of samples at a time into a small buffer, whose parts go straight to
         // `yhat` and `cols` (no record-long dual output).
         let mut sim = self.sim_at_start(p, dt)?;
@@ -1503,11 +1517,11 @@ impl Structure for FracModel {
         while k0 < u.len() {
             let k1 = (k0 + PARTS_CHUNK).min(u.len());
             let y = &mut buf[..k1 - k0];
-            match &shift {
+            match &mapped {
                 None => sim.run_into(&u[k0..k1], y),
-                Some(sh) => {
-                    sim.run_into(&sh.input[k0..k1], y);
-                    sh.add_offset_parts(k0, y);
+                Some(m) => {
+                    sim.run_into(&m.input[k0..k1], y);
+                    m.add_parts(k0, y);
                 }
             }
             self.output_effects(p, dt, k0, y);
@@ -1519,11 +1533,11 @@ impl Structure for FracModel {
     }
 
     fn simulate<T: Real>(&self, p: &[T], u: &[f64], dt: f64, y: &mut [T]) -> Result<()> {
-        if let Some(offsets) = self.input_offsets().filter(|o| !o.is_empty()) {
-            let sh = self.shifted_input(&offsets, p, u, dt)?;
+        if self.static_input() {
+            let m = self.mapped_input(p, u, dt)?;
             let mut sim = self.sim_at_start(p, dt)?;
-            sim.run_into(&sh.input, y);
-            sh.add_offset_parts(0, y);
+            sim.run_into(&m.input, y);
+            m.add_parts(0, y);
             self.output_effects(p, dt, 0, y);
             return check_output(y, 0);
         }

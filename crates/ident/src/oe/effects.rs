@@ -153,6 +153,12 @@ impl Effect {
         }
     }
 
+    /// Whether this effect is a static map of the held input: an input effect that does not read
+    /// the output (all but Coulomb friction, which feeds the output's sign back).
+    pub fn is_static_input(&self) -> bool {
+        self.is_input() && !matches!(self, Effect::Coulomb { .. })
+    }
+
     /// Whether this effect transforms the input (else the output).
     pub fn is_input(&self) -> bool {
         matches!(

@@ -1637,6 +1637,88 @@ mod tests {
         }
     }
 
+    /// A model whose input effects are static maps (an offset, a power law, a dead zone and a
+    /// saturation, behind an initial state and before an output offset) runs in the kernel on the
+    /// mapped input: its output equals the per-sample path's (the same model with a Coulomb
+    /// friction of level 0 added, which feeds the output back and so is stepped sample by
+    /// sample; to rounding, 1e-12 of the output's scale), in `simulate` and in the chunked
+    /// `simulate_parts` the fit runs, and its dual parts equal central differences of the output
+    /// in each map's parameter and in a plant coefficient (step 1e-6 relative: 1e-5 of the
+    /// column's scale).
+    #[test]
+    fn static_input_maps_in_the_kernel_equal_the_per_sample_path() {
+        use crate::oe::{Bounds, Effect, Structure};
+        let (n, dt) = (3_000, 5e-4);
+        let levels = [1.0, -0.5, 0.3, -0.9, 0.62];
+        let u: Vec<f64> = (0..n).map(|k| levels[(k / 23) % levels.len()]).collect();
+        let mut m = FracModel::pmsm(6.8, 0.006, 2.7e-5, 0.9, 0.8);
+        m.with_past_input(vec![0.01, 0.1], (-5.0, 5.0));
+        m.with_output_offset(0.3);
+        let past = m.past.clone().unwrap().levels;
+        for (i, &l) in past.iter().enumerate() {
+            m.params[l].value = [0.7, -1.1, 0.4][i];
+        }
+        let c = m.add_param(Param::new("u_offset", -0.05, Bounds::Free));
+        let pw = m.add_param(Param::new("map_p", 1.7, Bounds::Free));
+        let dz = m.add_param(Param::new("dz_width", 0.1, Bounds::Free));
+        let sat = m.add_param(Param::new("level", 0.7, Bounds::Free));
+        m.effects.insert(0, Effect::InputOffset { c });
+        m.effects.insert(1, Effect::PowerLaw { p: pw, u_ref: 1.2 });
+        m.effects.insert(2, Effect::Deadzone { width: dz });
+        m.effects.insert(3, Effect::Saturation { level: sat });
+        let mut stepped = m.clone();
+        let vc = stepped.add_param(Param::new("Vc", 0.0, Bounds::Free));
+        stepped.effects.insert(4, Effect::Coulomb { vc });
+        let p = m.values();
+        let run = |m: &FracModel, p: &[f64]| {
+            let mut y = vec![0.0; n];
+            m.simulate(p, &u, dt, &mut y).unwrap();
+            y
+        };
+        let y = run(&m, &p);
+        let want = run(&stepped, &stepped.values());
+        let scale = y.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+        for k in 0..n {
+            assert!(
+                (y[k] - want[k]).abs() <= 1e-12 * scale,
+                "y[{k}]: {} vs {}",
+                y[k],
+                want[k]
+            );
+        }
+        let a1 = m.index_of("a1").unwrap();
+        for j in [c, pw, dz, sat, a1] {
+            let h = 1e-6 * p[j].abs();
+            let at = |v: f64| {
+                let mut q = p.clone();
+                q[j] = v;
+                run(&m, &q)
+            };
+            let (hi, lo) = (at(p[j] + h), at(p[j] - h));
+            let fd: Vec<f64> = (0..n).map(|k| (hi[k] - lo[k]) / (2.0 * h)).collect();
+            let cs = fd.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+            assert!(cs > 0.0, "{}: a zero column", m.params[j].name);
+            let pd = seeded(&p, j);
+            let mut yd = vec![Dual::<1>::cst(0.0); n];
+            m.simulate(&pd, &u, dt, &mut yd).unwrap();
+            let (mut yhat, mut col) = (vec![0.0; n], vec![0.0; n]);
+            m.simulate_parts(&pd, &u, dt, &mut yhat, &mut [&mut col[..]])
+                .unwrap();
+            for k in 0..n {
+                assert!((yd[k].v - y[k]).abs() <= 1e-12 * scale, "value {k}");
+                assert!((yhat[k] - y[k]).abs() <= 1e-12 * scale, "parts' value {k}");
+                for (what, got) in [("simulate", yd[k].d[0]), ("simulate_parts", col[k])] {
+                    assert!(
+                        (got - fd[k]).abs() <= 1e-5 * cs,
+                        "{what} {} sample {k}: {got} vs {}",
+                        m.params[j].name,
+                        fd[k]
+                    );
+                }
+            }
+        }
+    }
+
     /// A seeded generator of uniform numbers in [0, 1) (xorshift64).
     fn xorshift(mut state: u64) -> impl FnMut() -> f64 {
         move || {
