@@ -947,6 +947,7 @@ pub fn pole_residue<T: Real>(
             })
             .collect()
     };
+    let (num, den) = &shared_fractions(num, den);
     let den_ops = approx(den, "denominator coefficient")?;
     let num_ops = approx(num, "numerator coefficient")?;
     let Some(n_max) = den_ops.iter().map(|(_, r)| r.int_order).max() else {
@@ -1007,6 +1008,39 @@ pub fn pole_residue<T: Real>(
         Err(e) => Err(e),
     }
 }
+
+/// The terms `num` and `den` with the orders whose fractional parts agree to [`SAME_FRACTION`]
+/// given the first one's exactly (the value moved, the derivative parts kept): `1.9 - 1` is
+/// `0.8999999999999999`, an ulp from `0.9`, and a numerator's `s^0.9` over a denominator's
+/// `s^1.9` (a feed-through beside an integrator makes them) must share their cells for the
+/// modal form to cancel them; cells an ulp apart leave a numerator pole on a denominator pole,
+/// whose residue is 0/0. Terms without such a pair are returned as they are.
+#[allow(clippy::type_complexity)]
+fn shared_fractions<T: Real>(num: &[(T, T)], den: &[(T, T)]) -> (Vec<(T, T)>, Vec<(T, T)>) {
+    let frac = |o: f64| o - o.floor();
+    let mut seen: Vec<f64> = vec![];
+    let mut fix = |(c, o): &(T, T)| -> (T, T) {
+        let f = frac(o.re());
+        if f == 0.0 {
+            return (*c, *o);
+        }
+        match seen.iter().find(|&&g| (g - f).abs() <= SAME_FRACTION) {
+            Some(&g) if g != f => (*c, *o + (g - f)),
+            Some(_) => (*c, *o),
+            None => {
+                seen.push(f);
+                (*c, *o)
+            }
+        }
+    };
+    let den: Vec<(T, T)> = den.iter().map(&mut fix).collect();
+    let num: Vec<(T, T)> = num.iter().map(&mut fix).collect();
+    (num, den)
+}
+
+/// Fractional parts of orders this close are one ([`shared_fractions`]): some 45 ulps of a
+/// fraction near 1, far below any difference an approximation resolves.
+const SAME_FRACTION: f64 = 1e-14;
 
 /// The pole-residue form on the zeros `roots` of `H` (values): one Newton step in `T` from each
 /// root (exact derivatives of the pole), its residue, the poles of `N_H` that `H` does not cancel,
@@ -1551,6 +1585,54 @@ mod tests {
                 same("weight", c.2, w.2, 1e-9 * w_max);
                 same("d weight", c.3, w.3, 1e-7 * c.3.norm() + 1e-8);
             }
+        }
+    }
+
+    /// A numerator order an integer below a denominator order (`s^0.9` over `s^1.9`, whose
+    /// fractional part `1.9 - 1` rounds to `0.8999999999999999`; a feed-through beside an
+    /// integrator makes them) shares the denominator's cells: the expansion holds and its
+    /// response is `(jw)^a` arithmetic's (exact powers, not the approximation's) to 1% over the
+    /// band's inner decades.
+    #[test]
+    fn orders_an_integer_apart_share_their_cells() {
+        let band = (1e-3, 1e5);
+        for (q, c) in [(0.9, 7.0), (0.6, 2.0), (0.3, 0.5)] {
+            let pr = pole_residue::<f64>(
+                &[(c, q)],
+                &[(1.0, q + 1.0), (1.0, 0.0)],
+                band,
+                &ApproxSpec::default(),
+            )
+            .unwrap_or_else(|e| panic!("{q}: {e}"));
+            for w in [1e-1, 1.0, 10.0, 100.0] {
+                let jw = Complex64::new(0.0, w);
+                let want = c * jw.powf(q) / (jw.powf(q + 1.0) + 1.0);
+                let got = pr.freq_response(w);
+                assert!(
+                    (got - want).norm() <= 0.01 * want.norm(),
+                    "{q} at {w}: {got} vs {want}"
+                );
+            }
+        }
+        // The feed-through structure with a free integrator in series:
+        // (D a2 s^(z+t) + D a1 s^z + K + D) / (s (a2 s^(z+t) + a1 s^z + 1)).
+        let (k, d, a1, a2, z, t) = (-0.175, -0.0408, 176.0, 7759.0, 0.9, 0.9);
+        let pr = pole_residue::<f64>(
+            &[(d * a2, z + t), (d * a1, z), (k + d, 0.0)],
+            &[(a2, z + t + 1.0), (a1, z + 1.0), (1.0, 1.0)],
+            band,
+            &ApproxSpec::default(),
+        )
+        .unwrap();
+        for w in [1e-1, 1.0, 10.0] {
+            let jw = Complex64::new(0.0, w);
+            let inner = a2 * jw.powf(z + t) + a1 * jw.powf(z) + 1.0;
+            let want = (d * inner + k) / (jw * inner);
+            let got = pr.freq_response(w);
+            assert!(
+                (got - want).norm() <= 0.01 * want.norm(),
+                "at {w}: {got} vs {want}"
+            );
         }
     }
 
