@@ -947,7 +947,7 @@ pub fn pole_residue<T: Real>(
             })
             .collect()
     };
-    let (num, den) = &shared_fractions(num, den);
+    let num = &shared_fractions(num, den);
     let den_ops = approx(den, "denominator coefficient")?;
     let num_ops = approx(num, "numerator coefficient")?;
     let Some(n_max) = den_ops.iter().map(|(_, r)| r.int_order).max() else {
@@ -1009,33 +1009,30 @@ pub fn pole_residue<T: Real>(
     }
 }
 
-/// The terms `num` and `den` with the orders whose fractional parts agree to [`SAME_FRACTION`]
-/// given the first one's exactly (the value moved, the derivative parts kept): `1.9 - 1` is
-/// `0.8999999999999999`, an ulp from `0.9`, and a numerator's `s^0.9` over a denominator's
-/// `s^1.9` (a feed-through beside an integrator makes them) must share their cells for the
-/// modal form to cancel them; cells an ulp apart leave a numerator pole on a denominator pole,
-/// whose residue is 0/0. Terms without such a pair are returned as they are.
-#[allow(clippy::type_complexity)]
-fn shared_fractions<T: Real>(num: &[(T, T)], den: &[(T, T)]) -> (Vec<(T, T)>, Vec<(T, T)>) {
+/// The numerator terms `num` with each order whose fractional part agrees with a denominator
+/// order's to [`SAME_FRACTION`] given that one's exactly (the value moved, the derivative parts
+/// kept): `1.9 - 1` is `0.8999999999999999`, an ulp from `0.9`, and a numerator's `s^0.9` over a
+/// denominator's `s^1.9` (a feed-through beside an integrator makes them) must share their cells
+/// for the modal form to cancel them; cells an ulp apart leave a numerator pole on a
+/// denominator pole, whose residue is 0/0. The denominator's terms are left as they are (its
+/// near-equal cells are its own poles, which the pole search handles, or refuses so that a
+/// product is simulated factor by factor); so is a numerator without such a pair.
+fn shared_fractions<T: Real>(num: &[(T, T)], den: &[(T, T)]) -> Vec<(T, T)> {
     let frac = |o: f64| o - o.floor();
-    let mut seen: Vec<f64> = vec![];
-    let mut fix = |(c, o): &(T, T)| -> (T, T) {
-        let f = frac(o.re());
-        if f == 0.0 {
-            return (*c, *o);
-        }
-        match seen.iter().find(|&&g| (g - f).abs() <= SAME_FRACTION) {
-            Some(&g) if g != f => (*c, *o + (g - f)),
-            Some(_) => (*c, *o),
-            None => {
-                seen.push(f);
-                (*c, *o)
+    let fractions: Vec<f64> = den
+        .iter()
+        .map(|(_, o)| frac(o.re()))
+        .filter(|&f| f != 0.0)
+        .collect();
+    num.iter()
+        .map(|&(c, o)| {
+            let f = frac(o.re());
+            match fractions.iter().find(|&&g| (g - f).abs() <= SAME_FRACTION) {
+                Some(&g) if f != 0.0 && g != f => (c, o + (g - f)),
+                _ => (c, o),
             }
-        }
-    };
-    let den: Vec<(T, T)> = den.iter().map(&mut fix).collect();
-    let num: Vec<(T, T)> = num.iter().map(&mut fix).collect();
-    (num, den)
+        })
+        .collect()
 }
 
 /// Fractional parts of orders this close are one ([`shared_fractions`]): some 45 ulps of a
