@@ -998,17 +998,7 @@ impl FracModel {
         let effects = self
             .effects
             .iter()
-            .filter(|e| match **e {
-                Effect::InputOffset { c }
-                | Effect::SensorZero { c }
-                | Effect::OutputOffset { c } => c == j,
-                Effect::Coulomb { vc } => vc == j,
-                Effect::Saturation { level } => level == j,
-                Effect::Deadzone { width } => width == j,
-                Effect::PowerLaw { p, .. } => p == j,
-                Effect::Sinusoid { a, b, .. } => a == j || b == j,
-                _ => false,
-            })
+            .filter(|e| e.params().contains(&j))
             .count();
         let past = self
             .past
@@ -1533,17 +1523,19 @@ impl Structure for FracModel {
     }
 
     fn simulate<T: Real>(&self, p: &[T], u: &[f64], dt: f64, y: &mut [T]) -> Result<()> {
-        if self.static_input() {
-            let m = self.mapped_input(p, u, dt)?;
-            let mut sim = self.sim_at_start(p, dt)?;
+        let mapped = if self.static_input() {
+            Some(self.mapped_input(p, u, dt)?)
+        } else {
+            None
+        };
+        let mut sim = self.sim_at_start(p, dt)?;
+        let (u0, y0) = (self.operating_point.u0, self.operating_point.y0);
+        if let Some(m) = &mapped {
+            // Static input maps only: the linear part runs on the mapped input at once.
             sim.run_into(&m.input, y);
             m.add_parts(0, y);
             self.output_effects(p, dt, 0, y);
-            return check_output(y, 0);
-        }
-        let mut sim = self.sim_at_start(p, dt)?;
-        let (u0, y0) = (self.operating_point.u0, self.operating_point.y0);
-        if self.effects.iter().all(|e| !e.is_input()) {
+        } else if self.effects.iter().all(|e| !e.is_input()) {
             // No input effect: nothing feeds the output back, so the linear part runs on the
             // whole input at once (the vectorised kernel) and the output effects follow.
             sim.run_into(u, y);
