@@ -316,7 +316,8 @@ class Effect(_ToDict):
     ----------
     name : str
         Report name: ``delay``, ``coulomb_friction``, ``input_offset``, ``output_offset``,
-        ``periodic``, ``abs_sensor``, ``saturation``, ``deadzone``, ``power_law``.
+        ``output_drift``, ``periodic``, ``abs_sensor``, ``saturation``, ``deadzone``,
+        ``power_law``.
     params : dict
         Its fitted parameters (e.g. ``{"tau": 0.012}``, ``{"Vc": 0.15}``).
     evidence : str

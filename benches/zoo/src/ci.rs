@@ -74,6 +74,15 @@ const fn f(
 /// 1/2/2, in motion 1/2/1) and saturation back to 0/2/2 (the refits' tie rule `REFIT_TIE` decides
 /// the static maps' exact ties that rounding decided before). Seen once, not raised yet: dead band
 /// exact effects 2, power law exact effects 2.
+///
+/// Moved with the output drift effect (`output_drift`) and the refits' cap counting only the
+/// candidates with evidence (`zoo run --ci` twice, identical case by case): sign-blind sensor
+/// exact effects 0 -> 2 (its floor-level candidate no longer pushed out of the four refits), dead
+/// band and power law exact effects 1 -> 2 (the rises seen before, seen again); saturation's exact
+/// effects lowered 2 -> 1: case 39's PMSM plant has a slow fractional tail that the first order
+/// chosen with its saturation lacks, and the drift stands in for it (held-out RMSE 9.26 -> 3.35,
+/// the oracle's 0.66; right both times). On the 300 cases of seed 44 the saturation class is
+/// unchanged and the drift class's exact effect sets rise 2 -> 8 (issue 47's note).
 pub const FLOORS: &[Floor] = &[
     f(Class::Pmsm, 2, 2, 2),
     f(Class::Integer, 2, 2, 2),
@@ -88,13 +97,13 @@ pub const FLOORS: &[Floor] = &[
     f(Class::Delay, 2, 2, 2),
     f(Class::FrictionReversal, 1, 2, 2),
     f(Class::FrictionOneWay, 1, 2, 2),
-    f(Class::Deadband, 1, 2, 1),
-    f(Class::Saturation, 0, 2, 2),
+    f(Class::Deadband, 1, 2, 2),
+    f(Class::Saturation, 0, 2, 1),
     f(Class::StaticMapTwoLevel, 1, 2, 2),
     f(Class::Offsets, 2, 2, 2),
     f(Class::Periodic, 0, 1, 1),
-    f(Class::AbsSensor, 0, 2, 0),
-    f(Class::PowerLaw, 1, 1, 1),
+    f(Class::AbsSensor, 0, 2, 2),
+    f(Class::PowerLaw, 1, 1, 2),
     f(Class::Quantisation, 1, 2, 2),
     f(Class::Drift, 1, 2, 2),
     f(Class::TwoEffects, 1, 2, 1),

@@ -1078,7 +1078,7 @@ impl FracModel {
     /// The factor parameter `j` takes when the input is scaled by `su` and the output by `sy`
     /// (its unit): `sy/su` for a numerator coefficient, `su` for an input level (input offset,
     /// friction, saturation, dead zone, initial-state level), `sy` for an output one (output
-    /// offset, ripple amplitudes), 1 for denominator coefficients (the denominator's constant
+    /// offset, ripple amplitudes, drift rate), 1 for denominator coefficients (the denominator's constant
     /// is fixed), orders and the delay; `None` when it plays parts of different units.
     pub fn unit_scale(&self, j: usize, su: f64, sy: f64) -> Option<f64> {
         let mut f: Vec<f64> = vec![];
@@ -1111,6 +1111,7 @@ impl FracModel {
                 Effect::Deadzone { width } if width == j => f.push(su),
                 Effect::OutputOffset { c } if c == j => f.push(sy),
                 Effect::Sinusoid { a, b, .. } if a == j || b == j => f.push(sy),
+                Effect::OutputDrift { r } if r == j => f.push(sy),
                 _ => {}
             }
         }

@@ -18,8 +18,10 @@
 //! - A sign-blind sensor is expected as `abs_sensor` when the true output reverses; else inert.
 //! - A periodic disturbance is expected as `periodic` with 3 periods or more in the record, below
 //!   0.4 of the sample rate and at least twice the noise's RMS in amplitude; else either answer.
-//! - A slow drift and quantisation have no effect name in fracid: scored by the held-out error
-//!   alone; keeping `input_offset` for a drift is accepted.
+//! - A slow output drift is expected as `output_drift` when it moves the output by twice the
+//!   noise's RMS or more over the record; through a plant that integrates it is an input offset
+//!   (either answer); keeping `input_offset` for a drift is accepted.
+//! - Quantisation has no effect name in fracid: scored by the held-out error alone.
 //! - `initial_state` is about the record, not the plant: never expected, never spurious.
 //!
 //! A case is identifiable when its band is wide enough and no hidden effect is confounded. Where it
@@ -234,11 +236,20 @@ fn output_effects(f: &Facts<'_>, v: &mut Verdict, speed_reverses: bool) {
         }
     }
     if e.drift_per_s != 0.0 {
-        tolerate(
-            v,
-            "input_offset",
-            "a slow drift: no effect name, scored by the held-out error".into(),
-        );
+        let swing = (e.drift_per_s * f.u.len() as f64 * f.dt).abs();
+        let why = format!("a slow output drift of {swing:.3e} over the record");
+        if f.dc_gain.is_none() {
+            tolerate(
+                v,
+                "output_drift",
+                format!("{why}, through a plant that integrates: an input offset"),
+            );
+        } else if swing >= 2.0 * f.noise_rms {
+            expect(v, "output_drift", why);
+        } else {
+            tolerate(v, "output_drift", format!("{why}, within the noise"));
+        }
+        tolerate(v, "input_offset", String::new());
     }
 }
 

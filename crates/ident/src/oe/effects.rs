@@ -62,6 +62,14 @@ pub enum Effect {
     },
     /// The sensor measures the magnitude: `y -> |y|`.
     AbsSensor,
+    /// A slow output drift, linear in time: `y + r t` (`r` = parameter `r`, output units per
+    /// second; `t` from the record's first sample, so that it is told from the output offset):
+    /// a sensor's or an amplifier's thermal drift, a battery's open-circuit voltage following
+    /// its state of charge over a short record.
+    OutputDrift {
+        /// Parameter index of the rate.
+        r: usize,
+    },
     /// An additive output sinusoid `a cos(2 pi f t) + b sin(2 pi f t)` at a fixed frequency.
     Sinusoid {
         /// Frequency in Hz (fixed).
@@ -129,6 +137,7 @@ impl Effect {
     pub fn output<T: Real>(&self, p: &[T], y: T, t: f64) -> T {
         match *self {
             Effect::OutputOffset { c } => y + p[c],
+            Effect::OutputDrift { r } => y + p[r] * t,
             Effect::AbsSensor => y.abs(),
             Effect::Sinusoid { freq_hz, a, b } => {
                 let w = 2.0 * std::f64::consts::PI * freq_hz * t;
@@ -148,6 +157,7 @@ impl Effect {
             Effect::Saturation { level } => vec![level],
             Effect::Deadzone { width } => vec![width],
             Effect::PowerLaw { p, .. } => vec![p],
+            Effect::OutputDrift { r } => vec![r],
             Effect::AbsSensor => vec![],
             Effect::Sinusoid { a, b, .. } => vec![a, b],
         }
@@ -183,6 +193,7 @@ impl Effect {
             Effect::PowerLaw { .. } => "power_law",
             Effect::SensorZero { .. } | Effect::AbsSensor => "abs_sensor",
             Effect::Sinusoid { .. } => "periodic",
+            Effect::OutputDrift { .. } => "output_drift",
         }
     }
 }

@@ -1,6 +1,6 @@
 //! Score a given model on a record it was not fitted on (MATLAB's `compare`): the plant's
-//! parameters are held, the record's own initial state and output offset are estimated (they
-//! belong to the record, not to the plant), and the simulated output is compared with the measured.
+//! parameters are held, the record's own initial state, output offset and output drift are
+//! estimated (they belong to the record, not to the plant), and the simulated output is compared with the measured.
 
 use super::fit::{fit, past_edges, FitOptions, InitialState, ParamEstimate};
 use super::{FracModel, Structure};
@@ -17,7 +17,7 @@ pub struct Scored {
     pub yhat: Vec<f64>,
     /// The record's operating point.
     pub offsets: Offsets,
-    /// The record's own output offset and initial-state levels (fitted; `at_bound` marks a
+    /// The record's own output offset, drift and initial-state levels (fitted; `at_bound` marks a
     /// level at the edge of its range, also said in the warnings).
     pub record_params: Vec<ParamEstimate>,
     /// Warnings (an input with no excitation: the score says little about the dynamics).
@@ -25,7 +25,7 @@ pub struct Scored {
 }
 
 /// Score `model` (its parameter values as they are) on `rec`: the operating point by `offsets`,
-/// then the record's output offset (when the model has one) and, with
+/// then the record's output offset and drift (when the model has them) and, with
 /// [`InitialState::Estimate`], its initial state as a past held input, fitted with everything
 /// else held; the fit (RMSE, NRMSE) over the whole record.
 ///
@@ -63,9 +63,12 @@ pub fn score(
     }
     let op = rec.offsets(offsets, n);
     m.operating_point = op;
-    if let Some(i) = m.index_of("y_offset") {
-        m.params[i].value = 0.0;
-        m.params[i].free = true;
+    // The record's own: its sensor's offset and drift are not the plant's.
+    for name in ["y_offset", "y_drift"] {
+        if let Some(i) = m.index_of(name) {
+            m.params[i].value = 0.0;
+            m.params[i].free = true;
+        }
     }
     // scored from the state it is fitted from (`identify`)
     let initial = initial.resolve(rec, offsets);

@@ -32,6 +32,8 @@ struct Hidden {
     out_offset: f64,
     /// Output ripple (amplitude, Hz).
     sine: Option<(f64, f64)>,
+    /// Output drift (output units per second, from the first sample).
+    drift: f64,
     /// The sensor measures |speed|.
     abs: bool,
     /// Input clipping level.
@@ -140,7 +142,7 @@ fn generate(u: &[f64], h: Hidden, seed: u64) -> Record {
     let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
     let noise = Normal::new(0.0, 0.02 * sd).unwrap();
     for (m, v) in yc.iter_mut().enumerate() {
-        *v += h.out_offset + noise.sample(&mut rng);
+        *v += h.out_offset + h.drift * m as f64 * DT + noise.sample(&mut rng);
         if let Some((a, f)) = h.sine {
             *v += a * (2.0 * std::f64::consts::PI * f * m as f64 * DT + 0.3).sin();
         }
@@ -650,6 +652,22 @@ fn with_the_defaults_a_periodic_disturbance_alone_is_kept() {
         ..Default::default()
     };
     with_the_defaults_alone_is_kept("periodic", 23, false, hidden, Some(("amplitude", 0.1)));
+}
+
+#[test]
+fn with_the_defaults_an_output_drift_alone_is_kept() {
+    // 0.3 over the 6 s record: 7 noise levels, a seventh of the output's swing.
+    let hidden = Hidden {
+        drift: 0.05,
+        ..Default::default()
+    };
+    with_the_defaults_alone_is_kept(
+        "output_drift",
+        31,
+        false,
+        hidden,
+        Some(("rate_per_s", 0.05)),
+    );
 }
 
 #[test]

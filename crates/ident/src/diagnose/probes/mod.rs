@@ -14,6 +14,7 @@ mod delay;
 mod friction;
 mod initial_state;
 mod input_offset;
+mod output_drift;
 mod output_offset;
 mod periodic;
 mod power_law;
@@ -251,6 +252,7 @@ pub(crate) fn library() -> Vec<Box<dyn Probe>> {
         Box::new(input_offset::InputOffset),
         Box::new(initial_state::InitialState),
         Box::new(output_offset::OutputOffset),
+        Box::new(output_drift::OutputDrift),
         Box::new(periodic::Periodic),
         Box::new(abs_sensor::AbsSensor),
         Box::new(saturation::Saturation),

@@ -41,8 +41,8 @@ impl TimeScale {
     }
 
     /// [`TimeScale::of`] for a model that may carry effects and an initial state (a diagnosis's
-    /// refit, [`fit_in_unit`]): a sinusoid's frequency and the past input's window edges are
-    /// converted with the rest ([`TimeScale::model`]); the other effects are amplitudes.
+    /// refit, [`fit_in_unit`]): a sinusoid's frequency, a drift's rate and the past input's
+    /// window edges are converted with the rest ([`TimeScale::model`]); the other effects are amplitudes.
     fn with_effects(dt: f64, m: &FracModel) -> Option<Self> {
         if (MIN_DT..=MAX_DT).contains(&dt) || !(dt.is_finite() && dt > 0.0) {
             return None;
@@ -123,9 +123,20 @@ impl TimeScale {
             let k = self.c.powf(-dir);
             out.approx.band = Some((lo * k, hi * k));
         }
-        for e in &mut out.effects {
-            if let super::super::Effect::Sinusoid { freq_hz, .. } = e {
-                *freq_hz *= self.c.powf(-dir);
+        for (e, out_e) in m.effects.iter().zip(&mut out.effects) {
+            match (e, out_e) {
+                (_, super::super::Effect::Sinusoid { freq_hz, .. }) => {
+                    *freq_hz *= self.c.powf(-dir);
+                }
+                // A rate per unit of time.
+                (&super::super::Effect::OutputDrift { r }, _) => {
+                    let k = self.c.powf(-dir);
+                    out.params[r].value *= k;
+                    if let Bounds::Interval(lo, hi) = out.params[r].bounds {
+                        out.params[r].bounds = Bounds::Interval(lo * k, hi * k);
+                    }
+                }
+                _ => {}
             }
         }
         if let Some(past) = &mut out.past {
@@ -200,5 +211,34 @@ mod tests {
         // a step within the range is fitted as it is
         let ok = Record::from_samples(&[0.0; 64], &[0.0; 64], 1e-3).unwrap();
         assert!(TimeScale::of(&ok, &m).is_none());
+    }
+
+    #[test]
+    fn a_drift_rate_is_converted_with_the_time_unit() {
+        use super::super::super::{Effect, Param, Structure};
+        let mut m = FracModel::pmsm(6.8, 0.006, 2.7e-5, 0.92, 0.82);
+        let r = m.add_param(Param::new("y_drift", 2.5e3, Bounds::Interval(-1e4, 1e4)));
+        m.effects.push(Effect::OutputDrift { r });
+        let dt = 2e-6;
+        let ts = TimeScale::with_effects(dt, &m).unwrap();
+        let there = ts.model(&m, 1.0);
+        assert!((there.params[r].value - 2.5e3 / ts.c).abs() <= 1e-12);
+        assert_eq!(
+            there.params[r].bounds,
+            Bounds::Interval(-1e4 / ts.c, 1e4 / ts.c)
+        );
+        // the same samples in either unit: the ramp (10 at the end, beside a response of 6.8)
+        // ends at the same value
+        let u: Vec<f64> = (0..2000).map(|k| f64::from((k / 200) % 2 == 0)).collect();
+        let (mut y, mut y2) = (vec![0.0; u.len()], vec![0.0; u.len()]);
+        m.simulate(&m.values(), &u, dt, &mut y).unwrap();
+        there
+            .simulate(&there.values(), &u, dt * ts.c, &mut y2)
+            .unwrap();
+        for (a, b) in y.iter().zip(&y2) {
+            assert!((a - b).abs() <= 1e-9 * (1.0 + a.abs()), "{a} {b}");
+        }
+        let back = ts.model(&there, -1.0);
+        assert!((back.params[r].value - 2.5e3).abs() <= 1e-9);
     }
 }
