@@ -33,6 +33,7 @@
 //! ```
 
 pub(crate) mod checks;
+mod coverage;
 pub(crate) mod effects;
 mod fit;
 pub mod init;

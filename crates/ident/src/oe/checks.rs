@@ -106,8 +106,43 @@ pub struct Validation {
 ///   the state carried over ([`ValidationKind::ResponseTail`]), with a warning that says what it
 ///   checks.
 ///
+/// A held-out part whose input puts [`super::coverage::BEYOND_SHARE`] or more of its power at
+/// frequencies the estimation part does not excite (a sweep's last frequencies) gets a warning
+/// saying that its figure tests the model beyond the band it was fitted on
+/// ([`super::coverage::beyond_estimation_band`]).
+///
 /// Returns `(split, validation, warning)`.
 pub(crate) fn validation_split(
+    rec: &Record,
+    split: usize,
+    holdout: f64,
+) -> (usize, Validation, Option<String>) {
+    let (split, v, warning) = split_by_changes(rec, split, holdout);
+    if v.kind != ValidationKind::HeldOut {
+        return (split, v, warning);
+    }
+    let beyond = super::coverage::beyond_estimation_band(&rec.u[..split], &rec.u[split..], rec.dt)
+        .map(|b| {
+            format!(
+                "the held-out part's input puts {:.0}% of its power at frequencies the estimation \
+                 part hardly excites (it excites about {:.3e} to {:.3e} Hz; beyond, 20 dB below \
+                 its strongest): the held-out figure tests the model beyond the band it was \
+                 fitted on (a sweep holds out its last frequencies); to fit the whole band, \
+                 --holdout 0, and score the model on another record with --validate FILE",
+                100.0 * b.share,
+                b.band_hz.0,
+                b.band_hz.1
+            )
+        });
+    let warning = match (warning, beyond) {
+        (Some(a), Some(b)) => Some(format!("{a}; {b}")),
+        (a, b) => a.or(b),
+    };
+    (split, v, warning)
+}
+
+/// [`validation_split`] by the input's changes alone.
+fn split_by_changes(
     rec: &Record,
     split: usize,
     holdout: f64,

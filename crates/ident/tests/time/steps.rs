@@ -188,3 +188,36 @@ fn a_constant_input_with_a_still_output_is_refused() {
     assert!(!rec.starts_with_step());
     assert!(identify(&rec, &pmsm(), &IdentOptions::default()).is_err());
 }
+
+/// A sine sweep (1 to 400 Hz over 0.3 s) holds its last frequencies in the held-out part: the
+/// fit says its held-out figure tests the model beyond the band it was fitted on. The same plant
+/// under a random binary sequence, whose two parts excite the same band, gets no such warning.
+#[test]
+fn a_sweeps_held_out_part_is_said_to_lie_beyond_the_fitted_band() {
+    let n = 3000;
+    let t_end = n as f64 * DT;
+    let sweep: Vec<f64> = (0..n)
+        .map(|k| {
+            let t = k as f64 * DT;
+            (2.0 * std::f64::consts::PI * (t + 399.0 * t * t / (2.0 * t_end))).sin()
+        })
+        .collect();
+    let beyond = |u: &[f64], seed| {
+        let rec = Record::from_samples(u, &noisy(u, seed), DT).unwrap();
+        let id = identify(&rec, &pmsm(), &IdentOptions::default()).unwrap();
+        assert_eq!(id.validated_by.kind, ValidationKind::HeldOut);
+        id.report
+            .warnings
+            .iter()
+            .any(|w| w.contains("beyond the band it was fitted on"))
+    };
+    assert!(beyond(&sweep, 7));
+    let prbs = fracsim::prbs::Prbs {
+        clock: 1e-3,
+        periods: 3,
+        ..fracsim::prbs::Prbs::paper()
+    }
+    .signal(DT)
+    .unwrap();
+    assert!(!beyond(&prbs[..n], 8));
+}
