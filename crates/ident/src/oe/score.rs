@@ -1,6 +1,7 @@
 //! Score a given model on a record it was not fitted on (MATLAB's `compare`): the plant's
 //! parameters are held, the record's own initial state, output offset and output drift are
-//! estimated (they belong to the record, not to the plant), and the simulated output is compared with the measured.
+//! estimated (they belong to the record, not to the plant), and the simulated output is compared
+//! with the measured.
 
 use super::fit::{fit, past_edges, FitOptions, InitialState, ParamEstimate};
 use super::{FracModel, Structure};
@@ -17,8 +18,8 @@ pub struct Scored {
     pub yhat: Vec<f64>,
     /// The record's operating point.
     pub offsets: Offsets,
-    /// The record's own output offset, drift and initial-state levels (fitted; `at_bound` marks a
-    /// level at the edge of its range, also said in the warnings).
+    /// The record's own output offset, drift and initial-state levels (fitted; `at_bound` marks
+    /// a level at the edge of its range, also said in the warnings).
     pub record_params: Vec<ParamEstimate>,
     /// Warnings (an input with no excitation: the score says little about the dynamics).
     pub warnings: Vec<String>,
@@ -125,4 +126,38 @@ pub fn score(
         record_params,
         warnings,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::oe::{Bounds, Effect, Param};
+
+    /// A model with an output offset and drift, scored on a record whose sensor has its own: the
+    /// record's are fitted (the plant's held), and the score is the noise-free record's.
+    #[test]
+    fn a_record_is_scored_with_its_own_offset_and_drift() {
+        let mut m = FracModel::commensurate(2.0, 0.05, 1e-3, 0.8);
+        let c = m.add_param(Param::new("y_offset", 0.3, Bounds::Free));
+        m.effects.push(Effect::OutputOffset { c });
+        let r = m.add_param(Param::new("y_drift", 0.5, Bounds::Free));
+        m.effects.push(Effect::OutputDrift { r });
+        let u: Vec<f64> = (0..600)
+            .map(|k| if (k / 40) % 2 == 0 { 1.0 } else { -1.0 })
+            .collect();
+        let dt = 1e-3;
+        let mut other = m.values();
+        (other[c], other[r]) = (-0.2, -1.5);
+        let mut y = vec![0.0; u.len()];
+        m.simulate(&other, &u, dt, &mut y).unwrap();
+        let rec = Record::from_samples(&u, &y, dt).unwrap();
+        let s = score(&m, &rec, OffsetMode::None, InitialState::Rest).unwrap();
+        assert!(s.fit.nrmse_percent > 99.99, "{:?}", s.fit);
+        let drift = s
+            .record_params
+            .iter()
+            .find(|p| p.name == "y_drift")
+            .unwrap();
+        assert!((drift.value + 1.5).abs() < 1e-6, "{drift:?}");
+    }
 }
