@@ -14,7 +14,7 @@ use crate::Result;
 pub(super) type Diagnosed = (usize, Result<super::Diagnosis>);
 
 /// A path's value after `r` kept effects, or its last when it ended sooner (`None`: empty).
-fn at_or_last(path: &[f64], r: usize) -> Option<f64> {
+pub(crate) fn at_or_last(path: &[f64], r: usize) -> Option<f64> {
     path.get(r.min(path.len().checked_sub(1)?)).copied()
 }
 
