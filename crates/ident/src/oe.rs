@@ -1079,8 +1079,8 @@ impl FracModel {
     /// The factor parameter `j` takes when the input is scaled by `su` and the output by `sy`
     /// (its unit): `sy/su` for a numerator coefficient, `su` for an input level (input offset,
     /// friction, saturation, dead zone, initial-state level), `sy` for an output one (output
-    /// offset, ripple amplitudes, drift rate), 1 for denominator coefficients (the denominator's constant
-    /// is fixed), orders and the delay; `None` when it plays parts of different units.
+    /// offset, ripple amplitudes, drift rate), 1 for denominator coefficients (the denominator's
+    /// constant is fixed), orders and the delay; `None` when it plays parts of different units.
     pub fn unit_scale(&self, j: usize, su: f64, sy: f64) -> Option<f64> {
         let mut f: Vec<f64> = vec![];
         let has = |e: &Expr| e.terms.iter().any(|&(i, _)| i == j);

@@ -141,8 +141,9 @@ pub(crate) fn validation_split(
     (split, v, warning)
 }
 
-/// [`validation_split`] by the input's changes alone.
-fn split_by_changes(
+/// [`validation_split`] by the input's changes alone, with no test of the held-out part's band
+/// (for a caller that needs the split only).
+pub(crate) fn split_by_changes(
     rec: &Record,
     split: usize,
     holdout: f64,

@@ -10,7 +10,7 @@
 //! same segment length on both parts, so that their bins match): the held-out input's power in
 //! the bins where the estimation part's input power is below [`UNEXCITED`] of its strongest bin.
 
-use num_complex::Complex64;
+use super::init::welch;
 
 /// A bin whose power is below this fraction of the strongest bin's is not excited (20 dB down:
 /// a Hann window's leakage from an excited bin falls below it within a few bins).
@@ -27,15 +27,13 @@ const MIN_SEGMENT: usize = 64;
 /// The longest segment (samples): enough bins to tell a sweep's bands apart.
 const MAX_SEGMENT: usize = 1024;
 
-/// Welch's averaged periodogram of `x` (mean removed, at least `len` samples) on segments of
-/// `len` samples, half overlap, Hann window: `len / 2 + 1` bins, in arbitrary units (only ratios
-/// are used).
+/// Welch's averaged periodogram of `x` (at least `len` samples) on segments of `len` samples,
+/// half overlap, each its mean removed and Hann-windowed as Welch's estimate does
+/// ([`super::init::welch`]): `len / 2 + 1` bins, in arbitrary units (only ratios are used).
 fn welch_power(x: &[f64], len: usize) -> Vec<f64> {
-    let mean = x.iter().sum::<f64>() / x.len() as f64;
-    let window: Vec<f64> = (0..len)
-        .map(|k| 0.5 - 0.5 * (2.0 * std::f64::consts::PI * k as f64 / len as f64).cos())
-        .collect();
+    let window = welch::hann(len);
     let mut power = vec![0.0; len / 2 + 1];
+    let mut seg = vec![0.0; len];
     // Half-overlapping segments, and one ending at the last sample (a sweep's last frequencies
     // are in its last samples).
     let mut starts: Vec<usize> = (0..=x.len() - len).step_by(len / 2).collect();
@@ -43,13 +41,8 @@ fn welch_power(x: &[f64], len: usize) -> Vec<f64> {
         starts.push(x.len() - len);
     }
     for start in starts {
-        let seg: Vec<f64> = x[start..start + len]
-            .iter()
-            .zip(&window)
-            .map(|(v, w)| (v - mean) * w)
-            .collect();
-        let spectrum: Vec<Complex64> = fracsim::fft::rfft(&seg);
-        for (p, c) in power.iter_mut().zip(&spectrum) {
+        welch::windowed(&x[start..start + len], &window, &mut seg);
+        for (p, c) in power.iter_mut().zip(&fracsim::fft::rfft(&seg)) {
             *p += c.norm_sqr();
         }
     }

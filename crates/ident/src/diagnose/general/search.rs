@@ -40,7 +40,7 @@ pub struct GeneralFit {
 /// A holdout out of range.
 fn estimation_part(rec: &Record, opts: &IdentOptions) -> Result<(Vec<f64>, Vec<f64>)> {
     let (split, _, _) =
-        crate::oe::checks::validation_split(rec, rec.split_index(opts.holdout)?, opts.holdout);
+        crate::oe::checks::split_by_changes(rec, rec.split_index(opts.holdout)?, opts.holdout);
     let off = rec.offsets(opts.offsets, split);
     let u = rec.u[..split].iter().map(|v| v - off.u0).collect();
     let y = rec.y[..split].iter().map(|v| v - off.y0).collect();

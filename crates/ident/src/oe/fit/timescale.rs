@@ -12,7 +12,7 @@
 //! the seconds' fit; a final fit in the record's own unit, started at the converted optimum,
 //! gives the covariance and the figures in the record's units.
 
-use super::super::{Bounds, FracModel};
+use super::super::{Bounds, Effect, FracModel, Param};
 use crate::data::Record;
 
 /// The smallest sampling step (in the record's unit) fitted as it is.
@@ -42,7 +42,8 @@ impl TimeScale {
 
     /// [`TimeScale::of`] for a model that may carry effects and an initial state (a diagnosis's
     /// refit, [`fit_in_unit`]): a sinusoid's frequency, a drift's rate and the past input's
-    /// window edges are converted with the rest ([`TimeScale::model`]); the other effects are amplitudes.
+    /// window edges are converted with the rest ([`TimeScale::model`]); the other effects are
+    /// amplitudes.
     fn with_effects(dt: f64, m: &FracModel) -> Option<Self> {
         if (MIN_DT..=MAX_DT).contains(&dt) || !(dt.is_finite() && dt > 0.0) {
             return None;
@@ -105,37 +106,21 @@ impl TimeScale {
         let f = |q: f64| self.c.powf(dir * (q - self.q_ref));
         for (c, o) in m.num.iter().chain(&m.den) {
             if let Some(&(i, _)) = c.terms.first() {
-                let k = f(o.eval(&p));
-                out.params[i].value *= k;
-                if let Bounds::Interval(lo, hi) = out.params[i].bounds {
-                    out.params[i].bounds = Bounds::Interval(lo * k, hi * k);
-                }
+                scale(&mut out.params[i], f(o.eval(&p)));
             }
         }
         if let Some(i) = m.delay {
-            let k = self.c.powf(dir);
-            out.params[i].value *= k;
-            if let Bounds::Interval(lo, hi) = out.params[i].bounds {
-                out.params[i].bounds = Bounds::Interval(lo * k, hi * k);
-            }
+            scale(&mut out.params[i], self.c.powf(dir));
         }
         if let Some((lo, hi)) = m.approx.band {
             let k = self.c.powf(-dir);
             out.approx.band = Some((lo * k, hi * k));
         }
-        for (e, out_e) in m.effects.iter().zip(&mut out.effects) {
-            match (e, out_e) {
-                (_, super::super::Effect::Sinusoid { freq_hz, .. }) => {
-                    *freq_hz *= self.c.powf(-dir);
-                }
+        for e in &mut out.effects {
+            match e {
+                Effect::Sinusoid { freq_hz, .. } => *freq_hz *= self.c.powf(-dir),
                 // A rate per unit of time.
-                (&super::super::Effect::OutputDrift { r }, _) => {
-                    let k = self.c.powf(-dir);
-                    out.params[r].value *= k;
-                    if let Bounds::Interval(lo, hi) = out.params[r].bounds {
-                        out.params[r].bounds = Bounds::Interval(lo * k, hi * k);
-                    }
-                }
+                Effect::OutputDrift { r } => scale(&mut out.params[*r], self.c.powf(-dir)),
                 _ => {}
             }
         }
@@ -143,6 +128,14 @@ impl TimeScale {
             past.edges.iter_mut().for_each(|t| *t *= self.c.powf(dir));
         }
         out
+    }
+}
+
+/// `p`'s value and its range's bounds multiplied by `k` (a change of unit).
+fn scale(p: &mut Param, k: f64) {
+    p.value *= k;
+    if let Bounds::Interval(lo, hi) = p.bounds {
+        p.bounds = Bounds::Interval(lo * k, hi * k);
     }
 }
 
@@ -215,7 +208,7 @@ mod tests {
 
     #[test]
     fn a_drift_rate_is_converted_with_the_time_unit() {
-        use super::super::super::{Effect, Param, Structure};
+        use super::super::super::Structure;
         let mut m = FracModel::pmsm(6.8, 0.006, 2.7e-5, 0.92, 0.82);
         let r = m.add_param(Param::new("y_drift", 2.5e3, Bounds::Interval(-1e4, 1e4)));
         m.effects.push(Effect::OutputDrift { r });

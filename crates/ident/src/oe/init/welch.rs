@@ -72,25 +72,17 @@ pub fn h1_up_to(u: &[f64], y: &[f64], dt: f64, fraction: f64) -> Result<(Frf, St
     }
     let hop = l / 2;
     let segments = (n - l) / hop + 1;
-    let win: Vec<f64> = (0..l)
-        .map(|k| 0.5 - 0.5 * (2.0 * PI * k as f64 / l as f64).cos())
-        .collect();
+    let win = hann(l);
     let top = ((fraction * l as f64 / 2.0).floor() as usize).min(l / 2);
     let mut suu = vec![0.0; top + 1];
     let mut syy = vec![0.0; top + 1];
     let mut syu = vec![Complex64::new(0.0, 0.0); top + 1];
     let mut seg = vec![0.0; l];
-    let windowed = |x: &[f64], out: &mut [f64]| {
-        let mean = x.iter().sum::<f64>() / x.len() as f64;
-        for ((o, &v), &w) in out.iter_mut().zip(x).zip(&win) {
-            *o = (v - mean) * w;
-        }
-    };
     for s in 0..segments {
         let r = s * hop..s * hop + l;
-        windowed(&u[r.clone()], &mut seg);
+        windowed(&u[r.clone()], &win, &mut seg);
         let uf = fracsim::fft::rfft(&seg);
-        windowed(&y[r], &mut seg);
+        windowed(&y[r], &win, &mut seg);
         let yf = fracsim::fft::rfft(&seg);
         for k in 1..=top {
             suu[k] += uf[k].norm_sqr();
@@ -171,6 +163,21 @@ pub fn h1_up_to(u: &[f64], y: &[f64], dt: f64, fraction: f64) -> Result<(Frf, St
         frf.omega.len()
     );
     Ok((frf, how))
+}
+
+/// The Hann window of `l` samples (periodic: `0.5 - 0.5 cos(2 pi k / l)`).
+pub(crate) fn hann(l: usize) -> Vec<f64> {
+    (0..l)
+        .map(|k| 0.5 - 0.5 * (2.0 * PI * k as f64 / l as f64).cos())
+        .collect()
+}
+
+/// The segment `x` with its mean removed, times the window `win`, into `out`.
+pub(crate) fn windowed(x: &[f64], win: &[f64], out: &mut [f64]) {
+    let mean = x.iter().sum::<f64>() / x.len() as f64;
+    for ((o, &v), &w) in out.iter_mut().zip(x).zip(win) {
+        *o = (v - mean) * w;
+    }
 }
 
 #[cfg(test)]
