@@ -1079,8 +1079,9 @@ impl FracModel {
     /// The factor parameter `j` takes when the input is scaled by `su` and the output by `sy`
     /// (its unit): `sy/su` for a numerator coefficient, `su` for an input level (input offset,
     /// friction, saturation, dead zone, initial-state level), `sy` for an output one (output
-    /// offset, ripple amplitudes, drift rate), 1 for denominator coefficients (the denominator's
-    /// constant is fixed), orders and the delay; `None` when it plays parts of different units.
+    /// offset, ripple amplitudes, drift rate; [`Effect::param_scale`]), 1 for denominator
+    /// coefficients (the denominator's constant is fixed), orders, the delay and the power law's
+    /// exponent; `None` when it plays parts of different units.
     pub fn unit_scale(&self, j: usize, su: f64, sy: f64) -> Option<f64> {
         let mut f: Vec<f64> = vec![];
         let has = |e: &Expr| e.terms.iter().any(|&(i, _)| i == j);
@@ -1104,17 +1105,8 @@ impl FracModel {
         if self.is_initial_state(j) {
             f.push(su);
         }
-        for e in &self.effects {
-            match *e {
-                Effect::InputOffset { c } | Effect::SensorZero { c } if c == j => f.push(su),
-                Effect::Coulomb { vc } if vc == j => f.push(su),
-                Effect::Saturation { level } if level == j => f.push(su),
-                Effect::Deadzone { width } if width == j => f.push(su),
-                Effect::OutputOffset { c } if c == j => f.push(sy),
-                Effect::Sinusoid { a, b, .. } if a == j || b == j => f.push(sy),
-                Effect::OutputDrift { r } if r == j => f.push(sy),
-                _ => {}
-            }
+        for e in self.effects.iter().filter(|e| e.params().contains(&j)) {
+            f.push(e.param_scale(su, sy));
         }
         match f.first() {
             None => Some(1.0),

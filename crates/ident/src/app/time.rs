@@ -771,11 +771,25 @@ fn alpha_eta(v: &[(f64, f64, f64)]) -> Vec<AlphaEta> {
         .collect()
 }
 
+/// The report of a fitted model's transfer function `tf` (`spec` at its values): a delay that
+/// ended at the lower edge of its range (`oe::Bounds::at_edge`, under half a percent of the range
+/// above zero: the fit drove it out) is no delay, and the model is written without it.
+fn model_report(mut tf: fracsim::FracTf, spec: &FracModel) -> ModelReport {
+    if let Some(p) = spec.delay.map(|i| &spec.params[i]) {
+        if let crate::oe::Bounds::Interval(lo, hi) = p.bounds {
+            if lo == 0.0 && p.value < 0.5 * hi && p.bounds.at_edge(p.value) {
+                tf.delay = 0.0;
+            }
+        }
+    }
+    ModelReport::from(&tf)
+}
+
 /// The base fit as a [`ModelFit`].
 fn base_fit(id: &Identification, file: Option<ScoreReport>) -> ModelFit {
     let v = super::verdict::verdict(id.problems.clone(), file.as_ref());
     ModelFit {
-        model: ModelReport::from(&id.tf),
+        model: model_report(id.tf.clone(), &id.model),
         params: id.report.params.clone(),
         fit: FitFigures {
             estimation: id.estimation,
@@ -1089,7 +1103,7 @@ fn final_fit(d: &Diagnosis, base: &ModelFit, dt: f64, file: Option<ScoreReport>)
     let mut problems = vec![];
     let model = match d.model.tf(&values) {
         Ok(tf) => {
-            let mut m = ModelReport::from(&tf);
+            let mut m = model_report(tf, &d.model);
             // (A sensor's zero is named with its sensor: once.)
             for e in &d.model.effects {
                 if !m.effects.iter().any(|n| n == e.name()) {
@@ -1180,6 +1194,21 @@ fn estimation_residual_test(id: &Identification, rec: &Record, max_lag: usize) -
 mod tests {
     use super::*;
     use crate::app::observe::{Observe, Stage};
+
+    /// A delay the fit drove to the lower edge of its range is no delay in the report; one inside
+    /// its range is written.
+    #[test]
+    fn a_delay_driven_to_zero_is_not_reported() {
+        let mut m = Preset::FirstOrder.model(0.0);
+        for (tau, kept) in [(6.5e-7, false), (2e-4, true)] {
+            m.with_delay(tau, 1e-3);
+            let tf = m.tf(&m.values()).unwrap();
+            assert_eq!(tf.delay, tau);
+            let r = model_report(tf, &m);
+            assert_eq!(r.delay > 0.0, kept, "tau {tau}: {}", r.text);
+            assert_eq!(r.text.contains("exp"), kept, "{}", r.text);
+        }
+    }
 
     /// An integrator's input offset is named when its drift over the record reaches twice the
     /// estimation RMSE and its value is two standard errors from zero (or has none): on the zoo

@@ -163,6 +163,17 @@ impl Effect {
         }
     }
 
+    /// The scale of its parameters' unit, given the input's `su` and the output's `sy`: an input
+    /// effect's parameters are input levels, an output effect's output levels (a drift's rate,
+    /// per second), the power law's exponent has none.
+    pub fn param_scale(&self, su: f64, sy: f64) -> f64 {
+        match self {
+            Effect::PowerLaw { .. } => 1.0,
+            e if e.is_input() => su,
+            _ => sy,
+        }
+    }
+
     /// Whether this effect is a static map of the held input: an input effect that does not read
     /// the output (all but Coulomb friction, which feeds the output's sign back).
     pub fn is_static_input(&self) -> bool {
