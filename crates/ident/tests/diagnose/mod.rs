@@ -806,3 +806,33 @@ fn a_record_that_only_looks_at_rest_gets_its_initial_state() {
     let d = run_best(&rest, "commensurate", InitialState::Auto).diagnosis;
     assert!(!names(&d).contains(&"initial_state"), "{:?}", names(&d));
 }
+
+/// The benchmark zoo's friction case 0211 (seed 44, `tests/data/README.md`): a first-order drive
+/// `17/(0.065 s + 1)` at 22 ms with Coulomb friction 1.69 at its input, five input levels, 2.3%
+/// noise. The friction signature, regressed on the base fit's residual with the model's
+/// sensitivities projected out, comes out with the wrong sign (the gain fitted without friction
+/// took it up); the refit, not that sign, decides, and keeps the friction with the defaults.
+#[test]
+fn friction_whose_signature_comes_out_with_the_wrong_sign_is_refitted_and_kept() {
+    use ident::app::observe::Quiet;
+    use ident::app::time::{run, TimeData, TimeRequest};
+    let path = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/data/zoo_seed44_0211_friction.csv");
+    let loaded = Record::load(&path, &ident::data::ReadOptions::default()).unwrap();
+    let data = TimeData {
+        record: loaded.record,
+        validation: None,
+        joint: vec![],
+        reader_warnings: vec![],
+    };
+    let r = run(&TimeRequest::default(), &data, &mut Quiet).unwrap();
+    let d = &r.diagnosis.as_ref().expect("a diagnosis").diagnosis;
+    let kept = d
+        .effects
+        .iter()
+        .find(|e| e.name == "coulomb_friction")
+        .unwrap_or_else(|| panic!("friction not kept: {:?} {:?}", names(d), d.rejected));
+    assert!(kept.evidence.contains("wrong sign"), "{}", kept.evidence);
+    let vc = kept.params["Vc"];
+    assert!(vc > 0.3 * 1.69 && vc < 1.5 * 1.69, "Vc = {vc} (truth 1.69)");
+}

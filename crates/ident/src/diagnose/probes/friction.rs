@@ -52,34 +52,44 @@ impl Probe for Friction {
         let Some((r2, beta)) = look.through_model(&x) else {
             return Ok(());
         };
-        if beta[0] <= 0.0 {
-            if r2 >= ctx.opts.min_r2 {
-                found.reject(
-                    "coulomb_friction",
-                    format!(
-                        "the signature fits with the wrong sign (Vc = {:.3e} < 0)",
-                        beta[0]
-                    ),
-                );
-            }
+        // The signature is regressed with the model's sensitivities projected out; the gain
+        // fitted without friction has taken up part of it (friction lowers the response to the
+        // input's swings, which a lower gain mimics), so the coefficient left can come out with
+        // the wrong sign. A signature that strong (its `R^2` at the floor or above) with the
+        // wrong sign is left to the refit, not the sign, to decide: proposed at the floor (the
+        // `R^2` of the wrong sign ranks nothing), started at the coefficient's magnitude.
+        let wrong_sign = beta[0] <= 0.0;
+        if wrong_sign && r2 < ctx.opts.min_r2 {
             return Ok(());
         }
+        let r2 = if wrong_sign { ctx.opts.min_r2 } else { r2 };
         let mut m = st.model.clone();
-        let vc = m.add_param(Param::positive("Vc", beta[0]));
+        let vc = m.add_param(Param::positive("Vc", beta[0].abs()));
         m.effects.insert(0, Effect::Coulomb { vc });
         found.candidates.push(Candidate {
             lead: None,
             name: "coulomb_friction",
             key: "coulomb_friction".into(),
             r2,
-            evidence: format!(
-                "the friction signature G(-sign(y)) (a force opposing the output's sign: Coulomb \
-                 friction on a speed) explains {:.1}% of the residual sum of squares \
-                 (coefficient {:.3e}); model output {}",
-                100.0 * r2,
-                beta[0],
-                mo.describe()
-            ),
+            evidence: if wrong_sign {
+                format!(
+                    "the friction signature G(-sign(y)) fits the residual with the wrong sign \
+                     (coefficient {:.3e}: the gain fitted without friction took it up); refitted \
+                     from Vc = {:.3e}; model output {}",
+                    beta[0],
+                    beta[0].abs(),
+                    mo.describe()
+                )
+            } else {
+                format!(
+                    "the friction signature G(-sign(y)) (a force opposing the output's sign: \
+                     Coulomb friction on a speed) explains {:.1}% of the residual sum of squares \
+                     (coefficient {:.3e}); model output {}",
+                    100.0 * r2,
+                    beta[0],
+                    mo.describe()
+                )
+            },
             starts: vec![m],
         });
         Ok(())
