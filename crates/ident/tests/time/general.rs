@@ -25,14 +25,18 @@ fn response(b: &[f64], a: &[f64], w: f64) -> Complex64 {
 fn record(b: &[f64], a: &[f64], n: usize, dt: f64, hold: u64, noise: f64, seed: u64) -> Record {
     let mut rng = Lcg(seed);
     let u = random_binary(&mut rng, n, 1.0 / hold as f64);
-    let y0 = simulate(b, a, &u, dt);
-    let mean = y0.iter().sum::<f64>() / n as f64;
-    let sd = (y0.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n as f64).sqrt();
-    let y: Vec<f64> = y0
-        .iter()
-        .map(|v| v + noise * sd * 3f64.sqrt() * (2.0 * rng.uniform() - 1.0))
-        .collect();
+    let y = with_noise(&simulate(b, a, &u, dt), noise, &mut rng);
     Record::from_samples(&u, &y, dt).unwrap()
+}
+
+/// `y0` plus uniform noise of `noise` times its standard deviation, drawn from `rng`.
+fn with_noise(y0: &[f64], noise: f64, rng: &mut Lcg) -> Vec<f64> {
+    let n = y0.len() as f64;
+    let mean = y0.iter().sum::<f64>() / n;
+    let sd = (y0.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n).sqrt();
+    y0.iter()
+        .map(|v| v + noise * sd * 3f64.sqrt() * (2.0 * rng.uniform() - 1.0))
+        .collect()
 }
 
 /// The relative frequency-response error `sqrt(sum |G - Ghat|^2 / sum |G|^2)` over 60
@@ -150,15 +154,7 @@ fn integrator_effects(offset: f64) -> (Vec<String>, f64) {
     let mut u = vec![0.0; rest];
     u.extend(random_binary(&mut rng, n - rest, 1.0 / 15.0));
     let seen: Vec<f64> = u.iter().map(|v| v + offset).collect();
-    let y0 = simulate(&b, &a, &seen, dt);
-    let sd = {
-        let m = y0.iter().sum::<f64>() / n as f64;
-        (y0.iter().map(|v| (v - m).powi(2)).sum::<f64>() / n as f64).sqrt()
-    };
-    let y: Vec<f64> = y0
-        .iter()
-        .map(|v| v + 0.01 * sd * 3f64.sqrt() * (2.0 * rng.uniform() - 1.0))
-        .collect();
+    let y = with_noise(&simulate(&b, &a, &seen, dt), 0.01, &mut rng);
     let data = TimeData {
         record: Record::from_samples(&u, &y, dt).unwrap(),
         validation: None,
