@@ -388,15 +388,16 @@ def fit_time(
         Input and output samples, same length, finite.
     dt : float
         Sampling step in seconds.
-    structure : {"pmsm", "commensurate", "first-order", "second-order", "third-order", "two-mass", "feedthrough", "fopdt", "auto", "general"} or str or FracTf
+    structure : {"pmsm", "commensurate", "first-order", "second-order", "third-order", "two-mass", "feedthrough", "fopdt", "cell", "auto", "general"} or str or FracTf
         A name of :func:`structures` (the catalogue ``fracid time --structure`` takes and the
         reports print; ``_`` or a space for ``-`` is taken too).
         ``"pmsm"`` (the default): ``K / (a2 s^(zeta+theta) + a1 s^zeta + 1)``;
         ``"commensurate"``: ``K / (a2 s^(2q) + a1 s^q + 1)``; ``"second-order"``: the integer
         ``K / (a2 s^2 + a1 s + 1)``; ``"feedthrough"``: the pmsm with a direct feed-through,
-        ``D + K / (a2 s^(zeta+theta) + a1 s^zeta + 1)`` (parameter ``D``); ``"fopdt"``: ``K e^(-tau s) / (T s + 1)``; ``"auto"``: pmsm,
-        commensurate, the integer first to third order, two-mass (and feedthrough when the output
-        responds at once to the input) fitted, the one the data support kept
+        ``D + K / (a2 s^(zeta+theta) + a1 s^zeta + 1)`` (parameter ``D``); ``"fopdt"``: ``K e^(-tau s) / (T s + 1)``; ``"cell"``: a battery
+        cell's ``D + Ki/s + K / (a1 s^q + 1)``; ``"auto"``: pmsm,
+        commensurate, the integer first to third order, two-mass (and feedthrough and cell when the
+        output responds at once to the input) fitted, the one the data support kept
         (``structures`` says which and why); a model (text or :class:`FracTf`): every coefficient
         and order fitted, starting from its values.
     validate : (array_like, array_like), optional

@@ -173,7 +173,7 @@ def test_structures_are_one_catalogue_with_its_spellings():
     spelling of a name is sent as the name, and a word that is no structure is a DataError with
     the library's words (no position in a JSON the user never wrote)."""
     names = list(fracid.structures())
-    assert names == COMPARED + ["feedthrough", "fopdt"]
+    assert names == COMPARED + ["feedthrough", "fopdt", "cell"]
     assert all(f'"{n}"' in (fracid.fit_time.__doc__ or "") for n in names)
     truth = fracid.FracTf.parse("2/(0.0001 s^2 + 0.01 s + 1)")
     u, y = record(truth, 0.01, seed=5)

@@ -27,6 +27,8 @@ pub enum Preset {
     Feedthrough,
     /// `K e^(-tau s)/(T s + 1)`.
     Fopdt,
+    /// `D + Ki/s + K/(a1 s^q + 1)` ([`FracModel::cell`]).
+    Cell,
 }
 
 /// One row of the catalogue.
@@ -41,7 +43,7 @@ struct Entry {
 }
 
 /// The catalogue, in the order the help lists it.
-const CATALOGUE: [Entry; 8] = [
+const CATALOGUE: [Entry; 9] = [
     Entry {
         preset: Preset::Pmsm,
         name: "pmsm",
@@ -90,11 +92,18 @@ const CATALOGUE: [Entry; 8] = [
         aliases: &[],
         formula: "K e^(-tau s)/(T s + 1), tau up to the largest delay",
     },
+    Entry {
+        preset: Preset::Cell,
+        name: "cell",
+        aliases: &[],
+        formula: "D + Ki/s + K/(a1 s^q + 1): a battery cell's voltage per current (ohmic drop, \
+                  charge, constant-phase polarisation)",
+    },
 ];
 
 impl Preset {
     /// Every named structure, in the catalogue's order.
-    pub const ALL: [Preset; 8] = [
+    pub const ALL: [Preset; 9] = [
         Preset::Pmsm,
         Preset::Commensurate,
         Preset::FirstOrder,
@@ -103,6 +112,7 @@ impl Preset {
         Preset::TwoMass,
         Preset::Feedthrough,
         Preset::Fopdt,
+        Preset::Cell,
     ];
 
     fn entry(self) -> &'static Entry {
@@ -170,6 +180,7 @@ impl Preset {
             }
             Preset::Feedthrough => FracModel::feedthrough(pmsm, 0.0),
             Preset::Fopdt => FracModel::fopdt(1.0, 0.1, 0.05 * max_delay_s, max_delay_s),
+            Preset::Cell => FracModel::cell(1.0, 1.0, 0.7, 0.0, 0.0),
         }
     }
 }

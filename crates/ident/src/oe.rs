@@ -438,6 +438,10 @@ pub enum Kind {
     /// `K, a1, a2, zeta, theta, D`: `D` started from the output's instant response to the input
     /// steps, the rest as the PMSM on `y - D u` ([`init`]).
     Feedthrough,
+    /// A battery cell's voltage per current [`FracModel::cell`], parameters `K, a1, q, D, Ki`:
+    /// started from the instant response and a regression of the rest on the integrated input
+    /// and trial fractional first orders ([`init`]).
+    Cell,
     /// Anything else: starts from the given values.
     General,
 }
@@ -755,6 +759,57 @@ impl FracModel {
         ];
         m.kind = Kind::Feedthrough;
         m
+    }
+
+    /// A battery cell's terminal voltage per current: an ohmic drop, the charge a capacity
+    /// integrates, and a polarisation with a constant-phase element (the fractional Randles
+    /// circuit, e.g. Zou et al., "A review of fractional-order techniques applied to lithium-ion
+    /// batteries", 2018):
+    ///
+    /// `G(s) = D + Ki/s + K/(a1 s^q + 1)`
+    ///
+    /// (`D = R0`, `Ki = 1/C`, `K = R1`, `a1 = tau^q`, `q` in `(0, 1)`). `D`, `Ki` and `K` are
+    /// unbounded in sign (a discharge current counted positive lowers the voltage). Its transfer
+    /// function is the sum as one fraction over `s (a1 s^q + 1)`,
+    /// `(D a1 s^(1+q) + (D + K) s + Ki a1 s^q + Ki) / (a1 s^(1+q) + s)`, with a free integrator
+    /// ([`FracModel::integrator`]): the input has no operating point and an input offset (a
+    /// current sensor's) is its own parameter, the drift it makes.
+    ///
+    /// ```
+    /// use ident::oe::FracModel;
+    /// let m = FracModel::cell(0.03, 20.0, 0.6, 0.05, 1e-4);
+    /// let tf = m.tf(&m.values()).unwrap();
+    /// let w = 1e-3;
+    /// let want: fracsim::FracTf = "0.05 + 1e-4/s + 0.03/(20 s^0.6 + 1)".parse().unwrap();
+    /// assert!((tf.freq_response(w) - want.freq_response(w)).norm() < 1e-12);
+    /// ```
+    pub fn cell(k: f64, a1: f64, q: f64, d: f64, ki: f64) -> Self {
+        let params = vec![
+            Param::new("K", k, Bounds::Free),
+            Param::positive("a1", a1),
+            Param::new("q", q, Bounds::Interval(0.0, 1.0)),
+            Param::new("D", d, Bounds::Free),
+            Param::new("Ki", ki, Bounds::Free),
+        ];
+        let (ik, ia1, iq, id, iki) = (0, 1, 2, 3, 4);
+        let one_plus_q = Expr {
+            constant: 1.0,
+            terms: vec![(iq, 1.0)],
+            factors: vec![],
+        };
+        Self {
+            params,
+            num: vec![
+                (Expr::p(id).times(&[ia1]), one_plus_q.clone()),
+                (Expr::sum(&[(ik, 1.0), (id, 1.0)]), Expr::cst(1.0)),
+                (Expr::p(iki).times(&[ia1]), Expr::p(iq)),
+                (Expr::p(iki), Expr::cst(0.0)),
+            ],
+            den: vec![(Expr::p(ia1), one_plus_q), (Expr::cst(1.0), Expr::cst(1.0))],
+            kind: Kind::Cell,
+            integrator: true,
+            ..Self::pmsm(1.0, 1.0, 1.0, 1.0, 1.0)
+        }
     }
 
     /// Any fractional transfer function; `free_coefs` and `free_orders` say which of its

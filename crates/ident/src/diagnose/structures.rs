@@ -52,12 +52,13 @@ use crate::{Error, Result};
 use fracsim::modal::RootsCache;
 
 /// The structures of the catalogue every comparison fits beside the user's, in its order: all but
-/// the feed-through (fitted only when the record shows an instant response, [`with_feedthrough`])
-/// and `fopdt` (the first order is fitted, and a delay is an effect the diagnosis finds).
+/// the feed-through and the cell (fitted only when the record shows an instant response,
+/// [`with_feedthrough`]) and `fopdt` (the first order is fitted, and a delay is an effect the
+/// diagnosis finds).
 pub fn compared() -> impl Iterator<Item = Preset> {
     Preset::ALL
         .into_iter()
-        .filter(|p| !matches!(p, Preset::Feedthrough | Preset::Fopdt))
+        .filter(|p| !matches!(p, Preset::Feedthrough | Preset::Fopdt | Preset::Cell))
 }
 
 /// The candidate structures for a user's `model` named `label` (see the module documentation).
@@ -85,27 +86,31 @@ pub fn two_mass() -> FracModel {
     Preset::TwoMass.model(1.0)
 }
 
-/// The candidates `cands` with the feed-through structure ([`FracModel::feedthrough`], named
-/// `feedthrough`, with the approximation of `model`) added when the record shows an instant
-/// response ([`crate::oe::init::feedthrough::instant_response`]: a cheap regression, no
-/// simulation) and no candidate has it already. A record without one keeps its candidates: its
-/// diagnosis costs what it did.
+/// The candidates `cands` with the structures that have a direct feed-through added when the
+/// record shows an instant response ([`crate::oe::init::feedthrough::instant_response`]: a cheap
+/// regression, no simulation): the feed-through ([`FracModel::feedthrough`]) and the cell
+/// ([`FracModel::cell`]: a feed-through beside an integrator, which a cell's voltage has), each
+/// with the approximation of `model` unless a candidate has its kind already. A record without
+/// one keeps its candidates: its diagnosis costs what it did.
 pub fn with_feedthrough(
     rec: &Record,
     mut cands: Vec<(String, FracModel)>,
     model: &FracModel,
 ) -> Vec<(String, FracModel)> {
-    let has = cands
-        .iter()
-        .any(|(_, m)| m.kind == crate::oe::Kind::Feedthrough);
     let shows = || {
         crate::oe::init::feedthrough::instant_response(&rec.u, &rec.y)
             .is_some_and(|r| r.is_feedthrough())
     };
-    if !has && shows() {
-        let mut m = Preset::Feedthrough.model(1.0);
-        m.approx = model.approx;
-        cands.push((Preset::Feedthrough.name().to_string(), m));
+    let missing: Vec<Preset> = [Preset::Feedthrough, Preset::Cell]
+        .into_iter()
+        .filter(|p| !cands.iter().any(|(_, m)| m.kind == p.model(1.0).kind))
+        .collect();
+    if !missing.is_empty() && shows() {
+        for p in missing {
+            let mut m = p.model(1.0);
+            m.approx = model.approx;
+            cands.push((p.name().to_string(), m));
+        }
     }
     cands
 }

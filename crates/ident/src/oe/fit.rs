@@ -1398,7 +1398,7 @@ fn auto_start(
     dt: f64,
     par: Par,
 ) -> Result<init::StartReport> {
-    if !m.integrator || y.len() < 3 {
+    if !m.integrator || m.kind == super::Kind::Cell || y.len() < 3 {
         return init::auto_start(m, u, y, dt, par);
     }
     let mut inner = m.clone();

@@ -20,6 +20,7 @@
 //! search over orders and corner frequencies with the gain by least squares), saying which start
 //! was used and why in a [`StartReport`].
 
+mod cell;
 mod coarse;
 pub mod feedthrough;
 mod two_mass;
@@ -709,6 +710,9 @@ pub fn auto_start(
     }
     if model.kind == Kind::Feedthrough {
         return feedthrough::start(model, u, y, dt, par);
+    }
+    if model.kind == Kind::Cell {
+        return cell::start(model, u, y, dt);
     }
     let mut lin = model.clone();
     lin.effects.clear();

@@ -153,8 +153,9 @@ fn without_an_instant_response_the_structure_is_not_a_candidate() {
     let rec = Record::from_samples(&u, &y, DT).unwrap();
     let cands = ident::diagnose::structures::candidates("pmsm", &model);
     let with = ident::diagnose::structures::with_feedthrough(&rec, cands, &model);
-    assert_eq!(with.len(), n + 1);
+    assert_eq!(with.len(), n + 2);
     assert_eq!(with[n].0, "feedthrough");
+    assert_eq!(with[n + 1].0, "cell");
 }
 
 /// The exact sensitivities of the feed-through model (dual numbers through the sampled-data

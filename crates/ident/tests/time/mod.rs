@@ -1,6 +1,7 @@
 //! Time-domain identification tests (output error, `ident::oe`, `ident::data`, `ident::metrics`).
 
 mod bad_input;
+mod cell;
 mod feedthrough;
 mod general;
 mod held;
