@@ -914,6 +914,11 @@ fn roots_of_h_cached(
     Ok((roots, hinted))
 }
 
+/// Denominator terms under this fraction of the denominator's scale stand for zero (a
+/// coefficient at the floor of a positive parameter's range, 1e-300) and are left out by
+/// [`pole_residue`].
+pub const NOTHING: f64 = 1e-200;
+
 /// The pole-residue form of `sum b_i s^beta_i / sum a_j s^alpha_j` with every operator approximated
 /// as `spec` says over `band` (rad/s).
 ///
@@ -929,7 +934,7 @@ fn roots_of_h_cached(
 /// # Errors
 /// Non-finite terms, an all-zero denominator, an improper model (a numerator integer part above
 /// the denominator's), a denominator that vanishes at high frequency (its highest-order terms
-/// cancel; terms that are each under 1e-13 of the denominator's scale are left out instead),
+/// under 1e-13 of the denominator's scale; terms under [`NOTHING`] of it are left out instead),
 /// more than one free integrator, repeated poles, or an expansion that fails its check.
 pub fn pole_residue<T: Real>(
     num: &[(T, T)],
@@ -976,10 +981,10 @@ pub fn pole_residue<T: Real>(
             .filter(|(_, r)| top(r))
             .map(|(c, r)| (c.re() * r.gain.re()).abs())
             .sum();
-        if top_abs <= 1e-13 * scale && den_ops.len() > 1 {
-            // Terms numerically nothing beside the rest (a coefficient held at its range's
-            // floor, 1e-300, stands for zero): their poles lie beyond any band; the model is
-            // the one without them.
+        if top_abs <= NOTHING * scale && den_ops.len() > 1 {
+            // Terms that stand for zero (a coefficient at its range's floor, 1e-300): the model
+            // is the one without them. A top term that is merely small still makes the model
+            // improper here: the fit is kept away from it rather than led to drop it.
             let rest: Vec<(T, T)> = den
                 .iter()
                 .filter(|(c, _)| c.re() != 0.0)
@@ -1299,7 +1304,8 @@ mod tests {
     /// A highest-order term at 1e-300 (a coefficient held at its range's floor) is no term: the
     /// expansion is the one of the model written without it (the zoo's case 0269 ended its fit
     /// with `a4 = 5e-298` beside `a3 = 2e5`, and every simulation of it failed as "improper"); a
-    /// top group whose terms are large and cancel is still refused.
+    /// top term that is merely tiny (1e-10) and a top group whose terms are large and cancel are
+    /// still refused.
     #[test]
     fn a_top_term_at_its_floor_is_left_out_and_a_cancelling_one_refused() {
         let band = (1e-3, 1e4);
@@ -1313,6 +1319,10 @@ mod tests {
         assert_eq!(format!("{:?}", a.real), format!("{:?}", b.real));
         assert_eq!(a.complex.len(), b.complex.len());
         assert!(!a.real.is_empty() || !a.complex.is_empty());
+        let mut tiny = vec![(1e-10, 4.0)];
+        tiny.extend(without);
+        let e = pole_residue::<f64>(&num, &tiny, band, &spec).unwrap_err();
+        assert!(e.to_string().contains("cancel"), "{e}");
         let cancelling = [(2.0, 2.0), (-2.0, 2.0), (1.0, 1.0), (1.0, 0.0)];
         let e = pole_residue::<f64>(&num, &cancelling, band, &spec).unwrap_err();
         assert!(e.to_string().contains("cancel"), "{e}");
