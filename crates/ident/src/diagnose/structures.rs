@@ -1009,6 +1009,10 @@ fn diagnose_pruned(
         };
     let mut diagnoses = diagnose(&g.ids, &g.caches, &first);
     let skipped = if diagnoses.iter().any(|(_, d)| d.is_ok()) {
+        if effects_carry(&diagnoses) {
+            diagnoses.extend(diagnose(&g.ids, &g.caches, &later));
+            later.clear();
+        }
         later.extend(&g.screened_out);
         later.sort_unstable();
         later
@@ -1021,6 +1025,25 @@ fn diagnose_pruned(
         vec![]
     };
     (diagnoses, skipped)
+}
+
+/// A diagnosis whose effects take its held-out RMSE below this fraction of its base fit's says
+/// that the base fits, every one without those effects, do not rank the structures: a sign-blind
+/// sensor, a saturation or a power law makes every linear fit poor, the right structure's
+/// perhaps the poorest ([`effects_carry`]).
+pub const EFFECTS_CARRY: f64 = 0.5;
+
+/// Whether one of `diagnoses` kept effects that carry the fit ([`EFFECTS_CARRY`]): the
+/// structures the base fits pruned are then diagnosed too (with the successive halving's board,
+/// which gives up those behind after as many effects), not judged on their base fits alone. On
+/// the zoo's sign-blind-sensor case 0193 (a PMSM) every fractional base fit predicted the
+/// held-out part worse than its mean and the third order, diagnosed alone, kept a spurious
+/// power law beside the sensor.
+fn effects_carry(diagnoses: &[(usize, Result<super::Diagnosis>)]) -> bool {
+    diagnoses.iter().any(|(_, d)| {
+        d.as_ref()
+            .is_ok_and(|d| d.after.rmse < EFFECTS_CARRY * d.before.rmse)
+    })
 }
 
 /// The reason's words for the structures left out: not diagnosed (`skipped`), or given no more
