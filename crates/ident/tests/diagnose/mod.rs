@@ -842,7 +842,7 @@ fn friction_whose_signature_comes_out_with_the_wrong_sign_is_refitted_and_kept()
 /// 0.2% noise. Every linear base fit of the rectified output is poor and the fractional ones
 /// predict the held-out part worse than its mean, so the base fits pruned the right structure
 /// and the third order, diagnosed alone, kept a power law beside the sensor (held-out RMSE 0.311,
-/// 13.5x the truth's). The sensor carries the fit (the held-out RMSE falls below half the base
+/// 13.5x the truth's). The sensor carries the fit (the held-out RMSE falls below 3/4 of the base
 /// fit's), so the pruned structures are diagnosed too: the report ends on a fractional structure
 /// with the sensor alone, within 10% of the truth's held-out RMSE (0.023066, the zoo's oracle on
 /// the same samples).
