@@ -807,17 +807,14 @@ fn a_record_that_only_looks_at_rest_gets_its_initial_state() {
     assert!(!names(&d).contains(&"initial_state"), "{:?}", names(&d));
 }
 
-/// The benchmark zoo's friction case 0211 (seed 44, `tests/data/README.md`): a first-order drive
-/// `17/(0.065 s + 1)` at 22 ms with Coulomb friction 1.69 at its input, five input levels, 2.3%
-/// noise. The friction signature, regressed on the base fit's residual with the model's
-/// sensitivities projected out, comes out with the wrong sign (the gain fitted without friction
-/// took it up); the refit, not that sign, decides, and keeps the friction with the defaults.
-#[test]
-fn friction_whose_signature_comes_out_with_the_wrong_sign_is_refitted_and_kept() {
+/// `fracid time FILE` with defaults (the library's use case, `ident::app::time::run`) on the
+/// fixture `name` of `tests/data`.
+fn default_run_on_fixture(name: &str) -> ident::app::time::TimeReport {
     use ident::app::observe::Quiet;
     use ident::app::time::{run, TimeData, TimeRequest};
     let path = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("tests/data/zoo_seed44_0211_friction.csv");
+        .join("tests/data")
+        .join(name);
     let loaded = Record::load(&path, &ident::data::ReadOptions::default()).unwrap();
     let data = TimeData {
         record: loaded.record,
@@ -825,7 +822,17 @@ fn friction_whose_signature_comes_out_with_the_wrong_sign_is_refitted_and_kept()
         joint: vec![],
         reader_warnings: vec![],
     };
-    let r = run(&TimeRequest::default(), &data, &mut Quiet).unwrap();
+    run(&TimeRequest::default(), &data, &mut Quiet).unwrap()
+}
+
+/// The benchmark zoo's friction case 0211 (seed 44, `tests/data/README.md`): a first-order drive
+/// `17/(0.065 s + 1)` at 22 ms with Coulomb friction 1.69 at its input, five input levels, 2.3%
+/// noise. The friction signature, regressed on the base fit's residual with the model's
+/// sensitivities projected out, comes out with the wrong sign (the gain fitted without friction
+/// took it up); the refit, not that sign, decides, and keeps the friction with the defaults.
+#[test]
+fn friction_whose_signature_comes_out_with_the_wrong_sign_is_refitted_and_kept() {
+    let r = default_run_on_fixture("zoo_seed44_0211_friction.csv");
     let d = &r.diagnosis.as_ref().expect("a diagnosis").diagnosis;
     let kept = d
         .effects
@@ -848,18 +855,7 @@ fn friction_whose_signature_comes_out_with_the_wrong_sign_is_refitted_and_kept()
 /// the same samples).
 #[test]
 fn effects_that_carry_the_fit_bring_the_pruned_structures_back() {
-    use ident::app::observe::Quiet;
-    use ident::app::time::{run, TimeData, TimeRequest};
-    let path = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("tests/data/zoo_seed44_0193_abs_sensor.csv");
-    let loaded = Record::load(&path, &ident::data::ReadOptions::default()).unwrap();
-    let data = TimeData {
-        record: loaded.record,
-        validation: None,
-        joint: vec![],
-        reader_warnings: vec![],
-    };
-    let r = run(&TimeRequest::default(), &data, &mut Quiet).unwrap();
+    let r = default_run_on_fixture("zoo_seed44_0193_abs_sensor.csv");
     let dg = r.diagnosis.as_ref().expect("a diagnosis");
     let choice = &dg.structures;
     let chosen = &choice.scores[choice.chosen];
