@@ -4,8 +4,9 @@
 //!
 //! The truth is independent of the identifier's simulator: `R0 u_k` and the integral of the held
 //! input `dt sum_(j<k) u_j / C` exactly, the polarisation as the sum of its Mittag-Leffler step
-//! responses from the input's changes (no rational approximation). The current: a PRBS of order 7 with a 1 s clock, 10 A about a 2 A discharge
-//! (the voltage drifts down as the charge goes), at `dt = 0.1 s`; seeded Gaussian noise of 1 mV.
+//! responses from the input's changes (no rational approximation). The current: a PRBS of order
+//! 7 with a 1 s clock, 10 A about a 2 A discharge (the voltage drifts down as the charge goes),
+//! at `dt = 0.1 s`; seeded Gaussian noise of 1 mV.
 
 use fracsim::prbs::Prbs;
 use fracsim::special::mittag_leffler;
@@ -48,8 +49,8 @@ fn polarisation(u: &[f64]) -> Vec<f64> {
         .collect()
 }
 
-/// The record (current, noisy voltage deviation) and its noise-free voltage.
-fn record(seed: u64) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+/// The record: the current and the noisy voltage deviation.
+fn record(seed: u64) -> (Vec<f64>, Vec<f64>) {
     let u: Vec<f64> = Prbs {
         order: 7,
         clock: 1.0,
@@ -73,7 +74,7 @@ fn record(seed: u64) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
         .collect();
     let e = super::truth::noise(u.len(), SIGMA, seed);
     let y = clean.iter().zip(e).map(|(a, b)| a + b).collect();
-    (u, y, clean)
+    (u, y)
 }
 
 /// The cell structure fitted with its automatic start finds the circuit: `R0`, `1/C` and `R1`
@@ -81,7 +82,7 @@ fn record(seed: u64) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
 /// held-out part to the noise (within 10%); the feed-through structure (no integrator) cannot.
 #[test]
 fn the_cell_structure_finds_the_circuit() {
-    let (u, y, _) = record(11);
+    let (u, y) = record(11);
     let rec = Record::from_samples(&u, &y, DT).unwrap();
     let opts = IdentOptions::default();
     let id = identify(&rec, &Preset::Cell.model(1.0), &opts).unwrap();
@@ -109,7 +110,7 @@ fn the_cell_structure_finds_the_circuit() {
 /// `fracid time FILE`) ends on the cell with no effect.
 #[test]
 fn the_diagnosis_chooses_the_cell() {
-    let (u, y, _) = record(12);
+    let (u, y) = record(12);
     let rec = Record::from_samples(&u, &y, DT).unwrap();
     let (model, _) = ident::app::structure("pmsm", 0.2).unwrap();
     let cands = ident::diagnose::structures::candidates("pmsm", &model);
