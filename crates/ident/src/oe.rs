@@ -483,7 +483,10 @@ pub struct FracModel {
     pub kind: Kind,
     /// The initial state, as a past held input (`None`: the record starts from rest).
     pub past: Option<PastInput>,
-    /// Whether a free integrator `1/s` was put in series ([`FracModel::with_integrator`]).
+    /// Whether the model has a free integrator `1/s`: put in series
+    /// ([`FracModel::with_integrator`]), or beside the rest in the cell structure
+    /// ([`FracModel::cell`], whose start is its own). Either way the input has no operating point
+    /// and an input offset is its own parameter.
     pub integrator: bool,
     /// When not empty, the linear part is the series connection of these factors, each
     /// `(numerator, denominator)` terms, and is simulated factor by factor

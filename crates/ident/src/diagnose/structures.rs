@@ -101,13 +101,13 @@ pub fn with_feedthrough(
         crate::oe::init::feedthrough::instant_response(&rec.u, &rec.y)
             .is_some_and(|r| r.is_feedthrough())
     };
-    let missing: Vec<Preset> = [Preset::Feedthrough, Preset::Cell]
+    let missing: Vec<(Preset, FracModel)> = [Preset::Feedthrough, Preset::Cell]
         .into_iter()
-        .filter(|p| !cands.iter().any(|(_, m)| m.kind == p.model(1.0).kind))
+        .map(|p| (p, p.model(1.0)))
+        .filter(|(_, m)| !cands.iter().any(|(_, c)| c.kind == m.kind))
         .collect();
     if !missing.is_empty() && shows() {
-        for p in missing {
-            let mut m = p.model(1.0);
+        for (p, mut m) in missing {
             m.approx = model.approx;
             cands.push((p.name().to_string(), m));
         }
@@ -976,7 +976,8 @@ fn gathered(based: Vec<Based>, cands: &mut [(String, FracModel)]) -> Gathered {
 
 /// The diagnoses of the structures the base fits do not prune (see [`diagnosis_order`]); the
 /// rest is diagnosed only when none of the first ends with a final model (those screened out
-/// fitted in full first). A diagnosis started early is used when it is needed (the same
+/// fitted in full first), or, but for those screened out, when effects carry the fit
+/// ([`effects_carry`]). A diagnosis started early is used when it is needed (the same
 /// diagnosis), dropped when not. Returns the diagnoses and the structures not diagnosed.
 fn diagnose_pruned(
     rec: &Record,

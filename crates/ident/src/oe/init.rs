@@ -584,6 +584,14 @@ fn candidate_sses(
 /// 3-7% and led its diagnosis astray. A threshold between the two, not a derived constant.
 const MIN_FALLBACK_EXPLAINED: f64 = 0.1;
 
+/// The fit (percent, `100 (1 - sqrt(SSE / SST))`) a squared error `sse` on `y` gives, as the
+/// starts report it (`y`'s sum of squares about its mean computed once).
+pub(super) fn fit_percent_of(y: &[f64]) -> impl Fn(f64) -> f64 {
+    let mean = crate::lm::sum_of(y, |v| v) / y.len().max(1) as f64;
+    let sst = crate::lm::sum_of(y, |v| (v - mean) * (v - mean));
+    move |sse| 100.0 * (1.0 - (sse / sst.max(f64::MIN_POSITIVE)).sqrt())
+}
+
 /// Records of at least this many samples simulate the two Levy candidates on two threads.
 const PARALLEL_CANDIDATE_SAMPLES: usize = 1 << 14;
 
@@ -719,9 +727,7 @@ pub fn auto_start(
     // The part the starts are scored on.
     let scored = n.min(START_SCORE_SAMPLES);
     let (us, ys) = (&u[..scored], &y[..scored]);
-    let mean = crate::lm::sum_of(ys, |v| v) / scored as f64;
-    let sst = crate::lm::sum_of(ys, |v| (v - mean) * (v - mean));
-    let fit_percent = |sse: f64| 100.0 * (1.0 - (sse / sst.max(f64::MIN_POSITIVE)).sqrt());
+    let fit_percent = fit_percent_of(ys);
     let mut report = StartReport::given("");
     let mut chosen: Option<(f64, Vec<f64>)> = None;
     // Why the Levy start is not used, and for the two-mass structure (which has no other start)

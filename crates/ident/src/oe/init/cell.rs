@@ -112,14 +112,12 @@ pub(super) fn start(model: &mut FracModel, u: &[f64], y: &[f64], dt: f64) -> Res
     if ki != 0.0 {
         set("u_offset", kic / ki);
     }
-    let mean = y.iter().sum::<f64>() / n as f64;
-    let sst: f64 = y.iter().map(|v| (v - mean) * (v - mean)).sum();
     let mut report = StartReport::given(&format!(
         "D = {d0:.4e} from the instant response; K, Ki and the input offset regressed on the \
          best of {} trial polarisations (order {q}, tau {:.3e} s)",
         ORDERS.len() * TAUS,
         a1.powf(1.0 / q)
     ));
-    report.fit_percent = Some(100.0 * (1.0 - (sse / sst.max(f64::MIN_POSITIVE)).sqrt()));
+    report.fit_percent = Some(super::fit_percent_of(y)(sse));
     Ok(report)
 }

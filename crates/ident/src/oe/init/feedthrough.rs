@@ -227,10 +227,7 @@ pub(super) fn start(
         ),
         report.fit_percent,
     ) {
-        let ys = &y[..scored];
-        let mean = ys.iter().sum::<f64>() / scored as f64;
-        let sst: f64 = ys.iter().map(|v| (v - mean) * (v - mean)).sum();
-        report.fit_percent = Some(100.0 * (1.0 - (sse / sst.max(f64::MIN_POSITIVE)).sqrt()));
+        report.fit_percent = Some(super::fit_percent_of(&y[..scored])(sse));
     }
     let rest = if sign < 0.0 {
         "D u - y (K < 0)"
