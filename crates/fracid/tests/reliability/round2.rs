@@ -201,18 +201,19 @@ fn item_2_no_small_mat_file_takes_more_than_1_gb() {
         ],
         vec!["freq", "--columns", "t,u,y", four],
         vec!["sim", "--input", four, "--dt", "1e-3", "--u-col", "t"],
-        vec!["time", "--quiet", "--dt", "1e-3", "--max-iter", "2", fit],
-        // the loop closed: every candidate structure and its diagnosis within the same bound
         vec![
             "time",
             "--quiet",
-            "--diagnose",
+            "--plain",
             "--dt",
             "1e-3",
             "--max-iter",
             "2",
             fit,
         ],
+        // the default, the loop closed: every candidate structure and its diagnosis within the
+        // same bound
+        vec!["time", "--quiet", "--dt", "1e-3", "--max-iter", "2", fit],
     ];
     for args in &runs {
         let code = exit_within_1_gib(args);
@@ -227,7 +228,7 @@ fn item_2_no_small_mat_file_takes_more_than_1_gb() {
         stderr(&o)
     );
     // the largest allowed is read whole: n samples, 70% of them for estimation
-    let o = fracid(&["time", "--dt", "1e-3", "--max-iter", "1", fit]);
+    let o = fracid(&["time", "--plain", "--dt", "1e-3", "--max-iter", "1", fit]);
     assert!(
         stdout(&o).contains(&format!("{} estimation", n * 7 / 10)),
         "{}",
