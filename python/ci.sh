@@ -64,5 +64,6 @@ fi
 echo "== python: pytest (installed package)"
 cd python/tests
 "$VENV/bin/python" -c 'import fracid, sys; print("fracid", fracid.__version__, "from", fracid.__file__)'
-"$VENV/bin/pytest" -q
+# The slowest tests named at the end (what to look at when CI nears its budget).
+"$VENV/bin/pytest" -q --durations=8
 echo "== python: done in $((SECONDS - t0)) s"

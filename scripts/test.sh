@@ -27,8 +27,15 @@ echo "== cargo test (workspace)"
 # on both firmwares behind the pty: NAME::rust, NAME::c). Every test target (unit tests of each lib
 # and bin, integration tests), then the doc tests; the examples, which no test runs, are not
 # linked here (`cargo clippy --all-targets` compiles and lints them; they took 26 s of CPU here).
+# cargo-nextest, when the machine has it, runs every binary's tests in one pool of processes (one
+# per test): `cargo test` runs the binaries one after the other, and a binary whose slowest test
+# outlasts the rest of its tests leaves a core idle until it ends. Doc tests are cargo's alone.
 rc=0
-cargo test --no-fail-fast --tests || rc=$?
+if cargo nextest --version >/dev/null 2>&1; then
+    cargo nextest run --no-fail-fast --tests || rc=$?
+else
+    cargo test --no-fail-fast --tests || rc=$?
+fi
 cargo test --no-fail-fast --doc || rc=$?
 
 echo "== firmware (C): unit tests and shared vectors, 8-bit and 16-bit octets, ASan/UBSan"
