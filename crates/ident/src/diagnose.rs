@@ -42,7 +42,11 @@
 //! (default 5%: the standard error of an RMSE ratio over `N` validation samples of noise is about
 //! `1/sqrt(2N)`, 2% for `N = 1000`, so 5% is 2.5 standard errors), (b) BIC
 //! `N ln(SSR/N) + k ln N` on the estimation part falls (the added parameters must pay `ln N` each),
-//! and (c) none of the effect's own parameters ran to a bound. A parameter of the current model
+//! and (c) none of the effect's own parameters ran to a bound, and (d) it pays by the same rules
+//! over the current structure refitted without it from the refit's values (`credited`): a refit
+//! moves the linear part too, and an effect fitted where it does nothing is not credited with the
+//! structure's better optimum (that refit becomes the current model instead, when no effect is
+//! kept in the round). A parameter of the current model
 //! that ran to a bound (the missing effect bent the base fit) is refitted once from a fresh start
 //! of the base parameters (the automatic start); if it stays at its bound the effect is still kept
 //! and the evidence says so (the structure may be short of a term). The report gives each kept
@@ -447,6 +451,10 @@ pub fn find_quantization(y: &[f64]) -> Option<Quantization> {
     })
 }
 
+/// A candidate's rejection, with the current structure refitted without the effect when that
+/// refit, not the effect, made the gain ([`credited`]).
+type Refuted = (RejectedEffect, Option<Box<State>>);
+
 /// Refit a candidate from each of its starts and decide (module documentation, Decision).
 /// Returns the refitted state and the kept effect, or the rejection.
 fn try_candidate(
@@ -454,7 +462,7 @@ fn try_candidate(
     st: &State,
     c: &Candidate,
     probe: Option<&dyn Probe>,
-) -> std::result::Result<(State, KeptEffect, Option<usize>), RejectedEffect> {
+) -> std::result::Result<(State, KeptEffect, Option<usize>), Refuted> {
     let lead_ctx = c.lead.map(|l| ctx.with_lead(l));
     let rctx = lead_ctx.as_ref().unwrap_or(ctx);
     let params_of = |ns: &State, lead: Option<usize>| {
@@ -464,7 +472,7 @@ fn try_candidate(
         }
         params
     };
-    let mut ns = refit_candidate(ctx, rctx, st, c, &params_of)?;
+    let mut ns = refit_candidate(ctx, rctx, st, c, &params_of).map_err(|r| (r, None))?;
     let lead = c.lead.map(|l| longer_lead(ctx, l, &mut ns));
     let longer_ctx = lead
         .filter(|&l| Some(l) != c.lead)
@@ -472,8 +480,76 @@ fn try_candidate(
     let rctx = longer_ctx.as_ref().unwrap_or(rctx);
     let verdict = fresh_if_bent(ctx, rctx, st, &mut ns);
     let params = params_of(&ns, lead);
-    let k = judge(ctx, st, &ns, c, &verdict, params)?;
+    if verdict.pays(ctx) && lead.is_none() {
+        credited(ctx, st, &ns, c, &verdict, &params)?;
+    }
+    let k = judge(ctx, st, &ns, c, &verdict, params).map_err(|r| (r, None))?;
     Ok((ns, k, lead))
+}
+
+/// Whether the gain of refit `ns` over the current model `st` is the effect's: the current
+/// structure refitted without the effect, from the refit's values of its own parameters, must
+/// not come within the margin of it (held-out RMSE and BIC, as any effect is judged). A refit
+/// moves the linear part as well, and can leave a poor optimum of the base fit that the
+/// structure alone reaches from there: an effect fitted inactive (a saturation at the input's
+/// largest level, a power law of exponent 1) then took the credit for the structure's better
+/// fit. Then the effect is rejected, and the refit without it is returned beside the rejection
+/// when it pays over `st` (it becomes the current model when no effect is kept in the round).
+/// Nothing is checked when `ns` does not extend the current model's parameters.
+fn credited(
+    ctx: &Ctx<'_>,
+    st: &State,
+    ns: &State,
+    c: &Candidate,
+    verdict: &Verdict,
+    params: &BTreeMap<String, f64>,
+) -> std::result::Result<(), Refuted> {
+    let nb = st.model.params.len();
+    let extends = ns.model.params.len() >= nb
+        && st
+            .model
+            .params
+            .iter()
+            .zip(&ns.model.params)
+            .all(|(a, b)| a.name == b.name);
+    if !extends {
+        return Ok(());
+    }
+    let mut without = st.model.clone();
+    for (p, v) in without.params.iter_mut().zip(&ns.values) {
+        p.value = p.bounds.clamp_inside(*v);
+    }
+    let Ok(null) = ctx.fit_from(without, &ctx.opts.fit) else {
+        return Ok(());
+    };
+    let own = Verdict::of(ctx, &null, ns);
+    if own.pays(ctx) {
+        return Ok(());
+    }
+    let part = if ns.val.is_some() {
+        "validation"
+    } else {
+        "estimation"
+    };
+    let rejected = RejectedEffect {
+        name: c.name.into(),
+        reason: format!(
+            "{part} RMSE {:.4e} -> {:.4e} ({:+.1}%), but the structure refitted from the refit's \
+             values without the effect reaches {:.4e}: the effect adds {:+.1}% (BIC {:+.1}), \
+             short of the {:.0}% margin; the gain is the structure's (evidence: {})",
+            ctx.score(st),
+            ctx.score(ns),
+            100.0 * verdict.change,
+            ctx.score(&null),
+            100.0 * own.change,
+            own.dbic,
+            100.0 * ctx.opts.margin,
+            c.evidence
+        ),
+        params: params.clone(),
+    };
+    let pays = Verdict::of(ctx, st, &null).pays(ctx);
+    Err((rejected, pays.then(|| Box::new(null))))
 }
 
 /// A candidate's parameters in its report, from its refit and its input advance.
@@ -1060,6 +1136,7 @@ impl Rounds<'_> {
         let mut cands = found.candidates;
         cands.sort_by(|a, b| b.r2.total_cmp(&a.r2));
         let mut best: Option<Best> = None;
+        let mut rebase: Option<State> = None;
         // The cap counts the candidates with evidence: one proposed at the floor (a sign-blind
         // sensor's one-signed data, a delay the orders mimic) has no evidence to be ranked by,
         // so candidates with some would otherwise push it out.
@@ -1096,9 +1173,9 @@ impl Rounds<'_> {
                 self.halted = Some(round);
                 return Ok(false);
             }
-            self.refit(&c, library, &mut best);
+            self.refit(&c, library, (&mut best, &mut rebase));
         }
-        Ok(self.keep(best))
+        Ok(self.keep(best, rebase))
     }
 
     /// The probes' findings on the current model's residual (its tests kept for the report).
@@ -1116,8 +1193,14 @@ impl Rounds<'_> {
     }
 
     /// Refit candidate `c` ([`try_candidate`]): kept as the round's `best` when it is better,
-    /// else its rejection recorded.
-    fn refit(&mut self, c: &Candidate, library: &[Box<dyn Probe>], best: &mut Option<Best>) {
+    /// else its rejection recorded, and the structure's refit without it as the round's
+    /// `rebase` when that made the gain ([`credited`]) and is the best such refit so far.
+    fn refit(
+        &mut self,
+        c: &Candidate,
+        library: &[Box<dyn Probe>],
+        (best, rebase): (&mut Option<Best>, &mut Option<State>),
+    ) {
         let ctx = &self.ctx;
         let probe = library.iter().find(|p| p.name() == c.name);
         match try_candidate(ctx, &self.st, c, probe.map(|p| p.as_ref())) {
@@ -1137,19 +1220,34 @@ impl Rounds<'_> {
                     *best = Some((ns, k, c.key.clone(), lead));
                 }
             }
-            Err(r) => {
+            Err((r, null)) => {
                 if c.r2 <= ctx.opts.min_r2 {
                     self.refuted.push(c.key.clone());
                 }
                 self.rejected.insert(c.key.clone(), r);
+                if let Some(null) = null {
+                    if rebase
+                        .as_ref()
+                        .is_none_or(|b| ctx.score(&null) < ctx.score(b))
+                    {
+                        *rebase = Some(*null);
+                    }
+                }
             }
         }
     }
 
-    /// Add the round's best kept candidate; whether there was one.
-    fn keep(&mut self, best: Option<Best>) -> bool {
+    /// Add the round's best kept candidate, or with none the structure's better refit that a
+    /// rejected candidate's refit led to ([`credited`]); whether the model changed.
+    fn keep(&mut self, best: Option<Best>, rebase: Option<State>) -> bool {
         let Some((ns, k, key, lead)) = best else {
-            return false;
+            let Some(null) = rebase else {
+                return false;
+            };
+            self.st = null;
+            self.path.push(self.ctx.step(&self.st));
+            self.residual_now = None;
+            return true;
         };
         if let Some(l) = lead {
             self.ctx = self.ctx.with_lead(l);

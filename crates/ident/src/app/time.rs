@@ -614,9 +614,10 @@ fn run_request(req: &TimeRequest, data: &TimeData, obs: &mut dyn Observe) -> Res
     let (lead, base, model_is, diagnosis) = match diagnosis {
         Some((d, c)) => {
             let (fin, is, report) = final_model(d, c, &base, req, data, final_file);
-            // With no effect kept the final model is the chosen structure's base fit: when its
-            // own evaluation fails where the base fit's did not, the report leads with the base
-            // fit (the same model, judged on the figures it was fitted with).
+            // With no effect kept the final model is the chosen structure's base fit (or its
+            // refit from a rejected effect's values, `diagnose::credited`): when its own
+            // evaluation fails where the base fit's did not, the report leads with the base fit
+            // (judged on the figures it was fitted with).
             if !fin.usable && report.diagnosis.effects.is_empty() && base.usable {
                 let is = format!(
                     "base: the chosen structure's fit ({}; the diagnosis kept no effect, and \
