@@ -123,34 +123,16 @@ pub fn spectral_peaks(e: &[f64], dt: f64, max: usize) -> Vec<SpectralPeak> {
     if n < 64 || !(dt > 0.0) {
         return vec![];
     }
-    let m = e.iter().sum::<f64>() / n as f64;
-    let x: Vec<f64> = e.iter().map(|v| v - m).collect();
+    let (x, p) = periodogram(e);
     let nb = n / 2;
-    // the periodogram at the n/2 + 1 bins, by FFT (O(n log n); a DFT per bin was O(n^2))
-    let p: Vec<f64> = fracsim::fft::rfft(&x)
-        .iter()
-        .map(|z| z.norm_sqr() / n as f64)
-        .collect();
-    let half = 16usize;
     let mut found = vec![];
     for k in 2..nb.saturating_sub(1) {
         if p[k] < p[k - 1] || p[k] < p[k + 1] {
             continue;
         }
-        let lo = k.saturating_sub(half).max(1);
-        let hi = (k + half).min(nb);
-        let mut nbh: Vec<f64> = (lo..=hi)
-            .filter(|&j| j + 2 < k || j > k + 2)
-            .map(|j| p[j])
-            .collect();
-        if nbh.len() < 8 {
-            continue;
-        }
-        nbh.sort_by(f64::total_cmp);
-        let med = nbh[nbh.len() / 2].max(1e-300);
-        let ratio = p[k] / med;
-        if ratio > PEAK_RATIO {
-            found.push((k, ratio));
+        match neighbour_ratio(&p, k) {
+            Some(ratio) if ratio > PEAK_RATIO => found.push((k, ratio)),
+            _ => {}
         }
     }
     // The strongest `max` by their bin's ratio; only these are refined (each refinement is 33
@@ -192,6 +174,51 @@ pub fn spectral_peaks(e: &[f64], dt: f64, max: usize) -> Vec<SpectralPeak> {
             }
         })
         .collect()
+}
+
+/// `x` with its mean removed, and its periodogram at the `n/2 + 1` bins, by FFT (`O(n log n)`;
+/// a DFT per bin was `O(n^2)`).
+fn periodogram(x: &[f64]) -> (Vec<f64>, Vec<f64>) {
+    let n = x.len();
+    let m = x.iter().sum::<f64>() / n as f64;
+    let x: Vec<f64> = x.iter().map(|v| v - m).collect();
+    let p = fracsim::fft::rfft(&x)
+        .iter()
+        .map(|z| z.norm_sqr() / n as f64)
+        .collect();
+    (x, p)
+}
+
+/// The power of periodogram `p` at bin `k` over the median of its neighbours (16 bins on each
+/// side, the two next to it left out); `None` with fewer than 8 neighbours.
+fn neighbour_ratio(p: &[f64], k: usize) -> Option<f64> {
+    let half = 16usize;
+    let lo = k.saturating_sub(half).max(1);
+    let hi = (k + half).min(p.len().saturating_sub(1));
+    let mut nbh: Vec<f64> = (lo..=hi)
+        .filter(|&j| j + 2 < k || j > k + 2)
+        .map(|j| p[j])
+        .collect();
+    if nbh.len() < 8 {
+        return None;
+    }
+    nbh.sort_by(f64::total_cmp);
+    Some(p[k] / nbh[nbh.len() / 2].max(1e-300))
+}
+
+/// Whether `x` sampled every `dt` seconds has a narrow line at `freq_hz`: the periodogram's
+/// largest bin within one of `freq_hz` exceeds [`PEAK_RATIO`] times the median of its neighbours
+/// (the test [`spectral_peaks`] makes of a residual); the ratio, `None` when there is none.
+pub fn line_at(x: &[f64], dt: f64, freq_hz: f64) -> Option<f64> {
+    let n = x.len();
+    if n < 64 || !(dt > 0.0) {
+        return None;
+    }
+    let (_, p) = periodogram(x);
+    let k = (freq_hz * n as f64 * dt).round() as usize;
+    let top =
+        (k.saturating_sub(1).max(1)..=(k + 1).min(n / 2)).max_by(|&a, &b| p[a].total_cmp(&p[b]))?;
+    neighbour_ratio(&p, top).filter(|&r| r > PEAK_RATIO)
 }
 
 /// Analyse the residual `e` against the input `u` (same length), sampled every `dt` seconds, with
@@ -330,5 +357,45 @@ mod tests {
             &Mat::zeros(2000, 0),
         );
         assert!(r2 > 0.2 && (beta[0] - 0.3).abs() < 0.02, "{r2} {beta:?}");
+    }
+
+    /// A multisine of one period (lines at 7, 19 and 43 Hz, 1.5 s at 1 ms) has a line at each of
+    /// its frequencies and none between them; a PRBS-like input of random levels held 5 samples
+    /// has none at any of those frequencies.
+    #[test]
+    fn a_multisine_has_lines_where_it_excites_and_a_random_input_none() {
+        let dt = 1e-3;
+        let lines = [(7.0, 0.3), (19.0, 1.1), (43.0, 2.0)];
+        let ms: Vec<f64> = (0..1500)
+            .map(|k| {
+                let t = k as f64 * dt;
+                lines
+                    .iter()
+                    .map(|(f, ph)| (2.0 * PI * f * t + ph).sin())
+                    .sum()
+            })
+            .collect();
+        for (f, _) in lines {
+            assert!(line_at(&ms, dt, f).is_some(), "{f} Hz");
+        }
+        for f in [12.0, 31.0, 60.0] {
+            assert!(line_at(&ms, dt, f).is_none(), "{f} Hz");
+        }
+        let mut s = 11u64;
+        let mut level = 0.0;
+        let prbs: Vec<f64> = (0..1500)
+            .map(|k| {
+                if k % 5 == 0 {
+                    s = s
+                        .wrapping_mul(6364136223846793005)
+                        .wrapping_add(1442695040888963407);
+                    level = if (s >> 40) & 1 == 1 { 1.0 } else { -1.0 };
+                }
+                level
+            })
+            .collect();
+        for (f, _) in lines {
+            assert!(line_at(&prbs, dt, f).is_none(), "{f} Hz");
+        }
     }
 }

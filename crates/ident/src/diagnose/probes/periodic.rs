@@ -4,10 +4,11 @@
 //! Signature: a narrow peak of the residual spectrum ([`super::super::residual::spectral_peaks`]),
 //! its cosine and sine columns regressed with the model's sensitivities. A peak at a harmonic of
 //! the input's own period is the excitation (the model misses the response to a repeated
-//! reference), not a disturbance: it is rejected; so is a peak with fewer than [`MIN_PERIODS`]
-//! periods in the estimation part. The input's period is found exactly when the
-//! input repeats sample for sample ([`crate::oe::init::periodic_part`]), else from the input's
-//! autocorrelation ([`input_period`]).
+//! reference), not a disturbance: it is rejected, as is a peak where the input's own spectrum has
+//! a narrow line (a multisine whose period the record does not repeat), and a peak with fewer
+//! than [`MIN_PERIODS`] periods in the estimation part. The input's period is found exactly when
+//! the input repeats sample for sample ([`crate::oe::init::periodic_part`]), else from the
+//! input's autocorrelation ([`input_period`]).
 
 use super::{Candidate, Findings, Look, Probe};
 use crate::oe::{Bounds, Effect, FracModel, Param};
@@ -100,6 +101,20 @@ impl Probe for Periodic {
                     );
                     continue;
                 }
+            }
+            if let Some(ratio) = super::super::residual::line_at(&ctx.u[..s], dt, pk.freq_hz) {
+                found.reject_as(
+                    &key,
+                    "periodic",
+                    format!(
+                        "spectral peak at {:.4} Hz is a line of the input's own spectrum ({ratio:.0} \
+                         times its neighbouring median: a multisine's, or a periodic input's with \
+                         too few periods to be found): the excitation (a model error at that \
+                         frequency), not a disturbance",
+                        pk.freq_hz
+                    ),
+                );
+                continue;
             }
             let periods = pk.freq_hz * s as f64 * dt;
             if periods < MIN_PERIODS {
