@@ -914,6 +914,16 @@ fn roots_of_h_cached(
     Ok((roots, hinted))
 }
 
+/// A denominator whose highest-order terms sum to under 1e-13 of the sum of its terms' sizes is
+/// refused as improper by [`pole_residue`] (its top terms cancel, or are so small that a fit is
+/// kept away from them rather than led to drop them) unless, weighed at the band's upper edge
+/// `w_h` (each term `|c| w_h^(n - n_max)`), they are at least this fraction of the denominator:
+/// its top pole then lies within `w_h / VANISHING` (a thousand times the band's edge), a pole of
+/// the model rather than a term that stands for nothing. The first test alone depends on the
+/// time unit: a fifth order in seconds (`2e-14 s^5` beside `1`, five poles of a few thousand
+/// rad/s) failed it.
+pub const VANISHING: f64 = 1e-3;
+
 /// Denominator terms under this fraction of the denominator's scale stand for zero (a
 /// coefficient at the floor of a positive parameter's range, 1e-300) and are left out by
 /// [`pole_residue`].
@@ -934,7 +944,8 @@ pub const NOTHING: f64 = 1e-200;
 /// # Errors
 /// Non-finite terms, an all-zero denominator, an improper model (a numerator integer part above
 /// the denominator's), a denominator that vanishes at high frequency (its highest-order terms
-/// under 1e-13 of the denominator's scale; terms under [`NOTHING`] of it are left out instead),
+/// under 1e-13 of the denominator's scale, and under [`VANISHING`] of it with each term weighed
+/// at the band's upper edge; terms under [`NOTHING`] of the scale are left out instead),
 /// more than one free integrator, repeated poles, or an expansion that fails its check.
 pub fn pole_residue<T: Real>(
     num: &[(T, T)],
@@ -974,7 +985,15 @@ pub fn pole_residue<T: Real>(
         .iter()
         .map(|(c, r)| (c.re() * r.gain.re()).abs())
         .sum();
-    if !(d.re().abs() > 1e-13 * scale) {
+    // The same terms weighed at the band's upper edge (`|c| w_h^(n - n_max)`): a scale in the
+    // model's own units, by which a denominator of high degree in seconds (`1e-14 s^5` beside
+    // `1`, five poles of a few thousand rad/s) has a top term that matters.
+    let w_h = band.1.abs().max(f64::MIN_POSITIVE);
+    let weighed: f64 = den_ops
+        .iter()
+        .map(|(c, r)| (c.re() * r.gain.re()).abs() * w_h.powi(r.int_order - n_max))
+        .sum();
+    if !(d.re().abs() > 1e-13 * scale) && !(d.re().abs() > VANISHING * weighed) {
         let top = |r: &Rational<T>| r.int_order == n_max;
         let top_abs: f64 = den_ops
             .iter()
@@ -1304,8 +1323,8 @@ mod tests {
     /// A highest-order term at 1e-300 (a coefficient held at its range's floor) is no term: the
     /// expansion is the one of the model written without it (the zoo's case 0269 ended its fit
     /// with `a4 = 5e-298` beside `a3 = 2e5`, and every simulation of it failed as "improper"); a
-    /// top term that is merely tiny (1e-10) and a top group whose terms are large and cancel are
-    /// still refused.
+    /// top term that is merely tiny (1e-10 beside 2e5 s^3: a pole at 2e15 rad/s, 2e11 times the
+    /// band's upper edge) and a top group whose terms are large and cancel are still refused.
     #[test]
     fn a_top_term_at_its_floor_is_left_out_and_a_cancelling_one_refused() {
         let band = (1e-3, 1e4);
@@ -1326,6 +1345,42 @@ mod tests {
         let cancelling = [(2.0, 2.0), (-2.0, 2.0), (1.0, 1.0), (1.0, 0.0)];
         let e = pole_residue::<f64>(&num, &cancelling, band, &spec).unwrap_err();
         assert!(e.to_string().contains("cancel"), "{e}");
+    }
+
+    /// A denominator of high degree in seconds is no vanishing one: the zoo's two-mode case 0029
+    /// (a lag of 27 ms and modes at 87 Hz and 327 Hz, dt 0.22 ms) has `2.1e-14 s^5` beside `1`,
+    /// 2e-14 of the coefficients' sum, and was refused as improper; weighed at the band's upper
+    /// edge its top term dominates, and its five poles are the plant's.
+    #[test]
+    fn a_high_degree_in_seconds_is_not_taken_for_a_vanishing_top_term() {
+        let dt = 2.1905579290911107e-4;
+        let band = (1e-6 / dt, 30.0 * std::f64::consts::PI / dt);
+        let den = [
+            (2.1467101503133472e-14, 5.0),
+            (6.667670008658963e-12, 4.0),
+            (9.748313707886227e-8, 3.0),
+            (1.3782538556488682e-5, 2.0),
+            (2.749854033126512e-2, 1.0),
+            (1.0, 0.0),
+        ];
+        let pr = pole_residue::<f64>(&[(1.15, 0.0)], &den, band, &ApproxSpec::default()).unwrap();
+        assert_eq!((pr.real.len(), pr.complex.len()), (1, 2), "{pr:?}");
+        // the modes' natural frequencies, 87.1 Hz and 326.7 Hz, and the lag's pole, -1/27.1 ms
+        let mut hz: Vec<f64> = pr
+            .complex
+            .iter()
+            .map(|(l, _)| l.val().norm() / (2.0 * std::f64::consts::PI))
+            .collect();
+        hz.sort_by(f64::total_cmp);
+        assert!(
+            (hz[0] - 87.1).abs() < 0.1 && (hz[1] - 326.7).abs() < 0.1,
+            "{hz:?}"
+        );
+        assert!(
+            (pr.real[0].0 * 2.712e-2 + 1.0).abs() < 1e-3,
+            "{:?}",
+            pr.real
+        );
     }
 
     /// Poles found from the poles of a nearby model (the cache's hint) equal the poles found

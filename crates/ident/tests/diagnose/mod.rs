@@ -916,3 +916,53 @@ fn a_residual_peak_on_a_line_of_the_input_is_not_a_disturbance() {
         d.rejected
     );
 }
+
+/// The benchmark zoo's two-mode case 0154 (seed 44, `tests/data/README.md`): a lag of 59 ms and
+/// two modes at the load, 104 Hz and 320 Hz, `4.81/(3.43e-14 s^5 + ... + 1)`, dt 0.19 ms. The
+/// named structures lack a mode and the PMSM kept a delay in its stead (held-out RMSE 1.69x the
+/// truth's); the general structure, compared because the PMSM's residual depends on the input,
+/// could not be fitted at all: every size of five poles was refused as improper, its `s^5`
+/// coefficient 3e-14 of the coefficients' sum in seconds. Weighed in the model's band, the
+/// general structure's five poles are fitted and chosen, with no delay, within 10% of the
+/// truth's held-out RMSE (8.1655e-3, the zoo's oracle on the same samples).
+#[test]
+fn two_modes_are_fitted_by_the_general_structure_not_stood_for_by_a_delay() {
+    let r = default_run_on_fixture("zoo_seed44_0154_multi_mode.csv");
+    let dg = r.diagnosis.as_ref().expect("a diagnosis");
+    let choice = &dg.structures;
+    let chosen = &choice.scores[choice.chosen];
+    assert!(chosen.name.starts_with("general"), "{}", choice.reason);
+    assert!(
+        !names(&dg.diagnosis).contains(&"delay"),
+        "{:?} {}",
+        names(&dg.diagnosis),
+        choice.reason
+    );
+    let held = chosen.rmse_after.unwrap();
+    assert!(held <= 1.1 * 8.1655e-3, "held-out RMSE {held}");
+}
+
+/// The benchmark zoo's two-mode case 0179 (seed 44, `tests/data/README.md`): a lag of 11 ms and
+/// modes at 55 Hz and 121 Hz, `7.90/(1.60e-13 s^5 + ... + 1)`, dt 0.21 ms, a multisine of nine
+/// tones over 0.52 s (not periodic within the record). Welch's estimate has 18 frequencies, most
+/// of them leakage between the tones, and no size's start on it holds the two modes: the
+/// general structure's fits from it ended 7x the truth's held-out RMSE, and the PMSM kept a
+/// delay and a periodic disturbance at a mode's frequency in their stead (4.5x). The sizes
+/// ranked on an ARX model's response are fitted too: a fifth order is chosen, with no effect,
+/// within 10% of the truth's held-out RMSE (7.2610e-2, the zoo's oracle on the same samples).
+#[test]
+fn an_arx_response_gives_the_modes_a_leaky_welch_estimate_misses() {
+    let r = default_run_on_fixture("zoo_seed44_0179_multi_mode.csv");
+    let dg = r.diagnosis.as_ref().expect("a diagnosis");
+    let choice = &dg.structures;
+    let chosen = &choice.scores[choice.chosen];
+    assert!(chosen.name.starts_with("general"), "{}", choice.reason);
+    assert!(
+        names(&dg.diagnosis).is_empty(),
+        "{:?} {}",
+        names(&dg.diagnosis),
+        choice.reason
+    );
+    let held = chosen.rmse_after.unwrap();
+    assert!(held <= 1.1 * 7.2610e-2, "held-out RMSE {held}");
+}

@@ -36,11 +36,24 @@ use num_complex::Complex64;
 /// Sanathanan-Koerner iterations of each Levy fit (they stop sooner once converged).
 const SK_ITERATIONS: usize = 20;
 
-/// The frequency response of deviations `u`, `y` sampled every `dt` seconds, with how it was made.
+/// Which estimate a response is ([`frf`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Source {
+    /// Periodic averages at the harmonics of a periodic input.
+    Periodic,
+    /// Welch's H1 estimate.
+    Welch,
+    /// An ARX model's response ([`arx_frf`]).
+    Arx,
+}
+
+/// The frequency response of deviations `u`, `y` sampled every `dt` seconds, with how it was made
+/// and which estimate it is.
 ///
 /// # Errors
 /// [`Error::NotEnoughData`] when neither estimate can be made.
-pub fn frf(u: &[f64], y: &[f64], dt: f64) -> Result<(Frf, String)> {
+pub fn frf(u: &[f64], y: &[f64], dt: f64) -> Result<(Frf, String, Source)> {
+    let arx = |why: &Error| arx_frf(u, y, dt, why).map(|(f, how)| (f, how, Source::Arx));
     match periodic_frf(u, y, dt) {
         Ok(f) => {
             let how = format!(
@@ -50,7 +63,7 @@ pub fn frf(u: &[f64], y: &[f64], dt: f64) -> Result<(Frf, String)> {
                 f.periods_averaged,
                 f.period.unwrap_or(0)
             );
-            Ok((f, how))
+            Ok((f, how, Source::Periodic))
         }
         Err(_) => match crate::oe::init::welch::h1(u, y, dt) {
             Ok((f, how)) if f.omega.len() < MIN_WELCH_POINTS => {
@@ -58,10 +71,10 @@ pub fn frf(u: &[f64], y: &[f64], dt: f64) -> Result<(Frf, String)> {
                     "{} frequencies only in Welch's estimate, {how}",
                     f.omega.len()
                 ));
-                arx_frf(u, y, dt, &few).or(Ok((f, how)))
+                arx(&few).or(Ok((f, how, Source::Welch)))
             }
-            Ok(w) => Ok(w),
-            Err(e) => arx_frf(u, y, dt, &e),
+            Ok((f, how)) => Ok((f, how, Source::Welch)),
+            Err(e) => arx(&e),
         },
     }
 }
