@@ -898,14 +898,16 @@ fn an_effect_fitted_inactive_is_not_credited_with_the_structures_better_fit() {
     assert!(held <= 1.1 * 0.20429, "held-out RMSE {held}");
 }
 
-/// The benchmark zoo's two-mass case 0099 (seed 44, `tests/data/README.md`): a multisine of one
-/// period, which the record does not repeat, so the input's period is not found. The structures
-/// miss the resonance, and the residual's strongest peaks (115.9 and 184.9 Hz) are the model's
-/// error at lines of the multisine: sinusoids fitted there were kept as periodic disturbances.
-/// They are the excitation, not a disturbance, and are rejected with that reason.
+/// The benchmark zoo's CI case 0027 (seed 4401, `tests/data/README.md`): a two-mass drive under a
+/// multisine whose period (0.224 s) is found only approximately, from the input's
+/// autocorrelation. The structure chosen misses the resonance, and the residual's peak at 112.2
+/// Hz is the model's error at a line of the multisine, 25.1 periods of the approximate period
+/// (not within 0.1 of a harmonic): a sinusoid fitted there was kept as a periodic disturbance.
+/// The input's own spectrum has a narrow line there: the peak is the excitation and is rejected
+/// with that reason.
 #[test]
 fn a_residual_peak_on_a_line_of_the_input_is_not_a_disturbance() {
-    let r = default_run_on_fixture("zoo_seed44_0099_in_motion.csv");
+    let r = default_run_on_fixture("zoo_ci_seed4401_0027_two_mass_motor.csv");
     let d = &r.diagnosis.as_ref().expect("a diagnosis").diagnosis;
     assert!(!names(d).contains(&"periodic"), "kept {:?}", names(d));
     assert!(
