@@ -12,9 +12,10 @@
 //! `S_yu = sum Y conj(U)` over the segments.
 //!
 //! A bin is kept when it lies up to a quarter of the Nyquist frequency, its input power is at
-//! least 1% of the largest (a PRBS's spectral nulls) and its coherence
-//! `g2 = |S_yu|^2 / (S_uu S_yy)` is at least 1/2 (an output signal-to-noise power ratio of at
-//! least 1, the rule of the periodic estimate). Its weight is the inverse variance of the
+//! least a given fraction of the largest ([`h1`]: 1%, a PRBS's spectral nulls; [`h1_coherent`]:
+//! any) and its coherence `g2 = |S_yu|^2 / (S_uu S_yy)` is at least 1/2 (an output
+//! signal-to-noise power ratio of at least 1, the rule of the periodic estimate). Its weight is
+//! the inverse variance of the
 //! estimate, `var H = S_vv / (n_seg S_uu)` with the noise spectrum `S_vv = (1 - g2) S_yy`
 //! smoothed by a running median over 9 bins (a few segments give it few degrees of freedom). The
 //! input is held over each step, so the sampled response is divided by the hold
@@ -34,8 +35,8 @@ pub const MAX_SEGMENT: usize = 1 << 13;
 /// The fewest half-overlapping segments averaged.
 pub const MIN_SEGMENTS: usize = 5;
 
-/// Bins with less input power than this fraction of the largest are left out.
-const MIN_INPUT_POWER: f64 = 0.01;
+/// [`h1`] leaves out bins with less input power than this fraction of the largest.
+pub const MIN_INPUT_POWER: f64 = 0.01;
 
 /// Bins with a coherence below this are left out.
 const MIN_COHERENCE: f64 = 0.5;
@@ -48,16 +49,40 @@ const MIN_COHERENCE: f64 = 0.5;
 /// [`Error::NotEnoughData`] when the record is too short for [`MIN_SEGMENTS`] segments of
 /// [`MIN_SEGMENT`] samples, the input has no power, or fewer than 6 frequencies are kept.
 pub fn h1(u: &[f64], y: &[f64], dt: f64) -> Result<(Frf, String)> {
-    h1_up_to(u, y, dt, MAX_FRACTION_OF_NYQUIST)
+    estimate(u, y, dt, MAX_FRACTION_OF_NYQUIST, MIN_INPUT_POWER)
 }
 
-/// [`h1`] with the bins kept up to `fraction` of the Nyquist frequency (instead of
-/// [`MAX_FRACTION_OF_NYQUIST`]): the two-mass start's fallback looks for resonance peaks up to
-/// half the Nyquist frequency ([`super::two_mass::PEAK_FRACTION_OF_NYQUIST`]).
+/// [`h1`] with the bins chosen by their coherence alone (any input power), up to `fraction` of
+/// the Nyquist frequency (instead of [`MAX_FRACTION_OF_NYQUIST`]: the two-mass start's fallback
+/// looks for resonance peaks up to half of it,
+/// [`super::two_mass::PEAK_FRACTION_OF_NYQUIST`]).
+///
+/// The two-mass start's estimate: an input held over many samples (a PRBS clocked at a tenth of
+/// the motor's time constant or slower, a few levels held for a third of it or longer) has most
+/// of its power below the motor's corner, and at a drive train's resonance, a decade or more
+/// higher, 0.01-1% of its largest; the response there is large and its coherence near 1 (the
+/// zoo's PRBS and multi-level records of a two-mass drive: 0.86-0.99 over their resonance at
+/// 114-126 Hz, input power 0.05-0.9% of the largest), and the 1% rule of [`h1`] left the whole
+/// resonance out. The coherence is the estimate's own test of a bin, and the weight (its inverse
+/// variance, `S_uu` over the noise spectrum) already gives a bin of little input power little
+/// say; a bin with no input power at all is left out.
 ///
 /// # Errors
 /// As [`h1`].
-pub fn h1_up_to(u: &[f64], y: &[f64], dt: f64, fraction: f64) -> Result<(Frf, String)> {
+pub fn h1_coherent(u: &[f64], y: &[f64], dt: f64, fraction: f64) -> Result<(Frf, String)> {
+    estimate(u, y, dt, fraction, 0.0)
+}
+
+/// Welch's estimate with the bins kept up to `fraction` of the Nyquist frequency whose input
+/// power is at least `min_input_power` times the largest (and positive) and whose coherence is
+/// at least [`MIN_COHERENCE`].
+fn estimate(
+    u: &[f64],
+    y: &[f64],
+    dt: f64,
+    fraction: f64,
+    min_input_power: f64,
+) -> Result<(Frf, String)> {
     let n = u.len().min(y.len()).min(MAX_FRF_SAMPLES);
     // Segments of l samples every l/2: (n - l)/(l/2) + 1 >= MIN_SEGMENTS.
     let fits = |l: usize| l <= n && (n - l) / (l / 2) + 1 >= MIN_SEGMENTS;
@@ -104,7 +129,7 @@ pub fn h1_up_to(u: &[f64], y: &[f64], dt: f64, fraction: f64) -> Result<(Frf, St
         coherence: f64,
     }
     let bins: Vec<Bin> = (1..=top)
-        .filter(|&k| suu[k] >= MIN_INPUT_POWER * umax && syy[k] > 0.0)
+        .filter(|&k| suu[k] >= min_input_power * umax && suu[k] > 0.0 && syy[k] > 0.0)
         .map(|k| {
             let coherence = (syu[k].norm_sqr() / (suu[k] * syy[k])).min(1.0);
             Bin {
