@@ -79,6 +79,16 @@ pub fn h1_coherent(u: &[f64], y: &[f64], dt: f64, fraction: f64) -> Result<(Frf,
     estimate(u, y, dt, fraction, LowPower::InCoherentBand)
 }
 
+/// [`h1`] with the bins kept up to `fraction` of the Nyquist frequency (instead of
+/// [`MAX_FRACTION_OF_NYQUIST`]): the two-mass start's fallback looks for resonance peaks up to
+/// half the Nyquist frequency ([`super::two_mass::PEAK_FRACTION_OF_NYQUIST`]) on it.
+///
+/// # Errors
+/// As [`h1`].
+pub fn h1_up_to(u: &[f64], y: &[f64], dt: f64, fraction: f64) -> Result<(Frf, String)> {
+    estimate(u, y, dt, fraction, LowPower::Dropped)
+}
+
 /// The bins around a bin (itself in the middle) whose median coherence decides whether
 /// [`h1_coherent`] keeps a bin of little input power.
 pub const BAND_BINS: usize = 5;
