@@ -1139,6 +1139,19 @@ fn killing_the_drive_mid_run_leaves_a_finished_record() {
     let out = dir.path().join("prbs.csv");
     let mut prbs = drive_cmd(&["prbs", "--periods", "20"], &port, &out);
     wait_rows(&mut prbs, &out, 200);
+    // The port's name held (a slave descriptor of our own, never read): once the simulator is
+    // gone the kernel would give the pty's number to the next one opened, and with the tests
+    // run in parallel another test's simulator then answered at the same path (the client
+    // reconnected to a drive on another run and stopped for that reason instead).
+    let _held = {
+        use std::os::unix::fs::OpenOptionsExt;
+        std::fs::OpenOptions::new()
+            .read(true)
+            .write(true)
+            .custom_flags(libc::O_NOCTTY | libc::O_NONBLOCK)
+            .open(&port)
+            .unwrap()
+    };
     // kill -9 of the simulator: the pty goes away for good
     sim.0.kill().unwrap();
     sim.0.wait().unwrap();

@@ -84,12 +84,12 @@ fn budget(
 /// The ranked starts of the general structure on `rec` for `req`, `template` giving the
 /// integrator when the user asked for one and the delay when it has one (else the delay is
 /// searched on the response, [`start::ranked_delayed`]); sizes within the record's
-/// [`budget`].
+/// [`budget`]; with `arx`, the ranking on an ARX model's response beside Welch's estimate too.
 fn starts(
     rec: &Record,
     template: &FracModel,
     opts: &IdentOptions,
-    req: &GeneralRequest,
+    (req, arx): (&GeneralRequest, bool),
 ) -> Result<Starts> {
     let (u, y) = estimation_part(rec, opts)?;
     let (frf, how, source) = start::frf(&u, &y, rec.dt)?;
@@ -104,7 +104,7 @@ fn starts(
     let ranked = start::ranked_delayed(&frf, rec.dt, req.size, &integrators, budget, search)?;
     // Welch's estimate of a record whose input is not periodic: an ARX model's response ranks
     // the sizes too (see [`fit`]).
-    let second = if source == start::Source::Welch && req.size.is_none() {
+    let second = if arx && source == start::Source::Welch && req.size.is_none() {
         let why = Error::NotEnoughData("beside Welch's estimate".into());
         start::arx_frf(&u, &y, rec.dt, &why)
             .ok()
@@ -169,7 +169,7 @@ pub fn fit(
         ranked,
         how,
         second,
-    } = starts(rec, template, opts, req)?;
+    } = starts(rec, template, opts, (req, true))?;
     let given = IdentOptions {
         start: StartMode::Given,
         ..opts.clone()
@@ -350,7 +350,7 @@ pub fn candidate(
     opts: &IdentOptions,
 ) -> Option<(String, FracModel)> {
     let req = GeneralRequest::default();
-    let ranked = starts(rec, template, opts, &req).ok()?.ranked;
+    let ranked = starts(rec, template, opts, (&req, false)).ok()?.ranked;
     let s = ranked.first()?;
     let mut m = structure(s, template, &req, rec.dt);
     m.approx = template.approx;
