@@ -526,11 +526,7 @@ fn credited(
     if own.pays(ctx) {
         return Ok(());
     }
-    let part = if ns.val.is_some() {
-        "validation"
-    } else {
-        "estimation"
-    };
+    let part = scored_part(ns);
     let rejected = RejectedEffect {
         name: c.name.into(),
         reason: format!(
@@ -641,6 +637,15 @@ fn fresh_if_bent(ctx: &Ctx<'_>, rctx: &Ctx<'_>, st: &State, ns: &mut State) -> V
     verdict
 }
 
+/// The part a refit is scored on ([`Ctx::score`]): the held-out part when there is one.
+fn scored_part(ns: &State) -> &'static str {
+    if ns.val.is_some() {
+        "validation"
+    } else {
+        "estimation"
+    }
+}
+
 /// The decision on candidate `c` refitted as `ns` (module documentation, Decision): the kept
 /// effect, or the rejection with the reason.
 fn judge(
@@ -656,11 +661,7 @@ fn judge(
         reason,
         params,
     };
-    let part = if ns.val.is_some() {
-        "validation"
-    } else {
-        "estimation"
-    };
+    let part = scored_part(ns);
     let gain = format!(
         "{part} RMSE {:.4e} -> {:.4e} ({:+.1}%), BIC {:+.1}; the refit removes {:.1}% of the \
          estimation residual's sum of squares",

@@ -206,19 +206,20 @@ fn neighbour_ratio(p: &[f64], k: usize) -> Option<f64> {
     Some(p[k] / nbh[nbh.len() / 2].max(1e-300))
 }
 
-/// Whether `x` sampled every `dt` seconds has a narrow line at `freq_hz`: the periodogram's
-/// largest bin within one of `freq_hz` exceeds [`PEAK_RATIO`] times the median of its neighbours
-/// (the test [`spectral_peaks`] makes of a residual); the ratio, `None` when there is none.
-pub fn line_at(x: &[f64], dt: f64, freq_hz: f64) -> Option<f64> {
+/// The narrow lines of `x` sampled every `dt` seconds (its periodogram computed once): for a
+/// frequency `freq_hz`, whether the periodogram's largest bin within one of it exceeds
+/// [`PEAK_RATIO`] times the median of its neighbours (the test [`spectral_peaks`] makes of a
+/// residual); the ratio, `None` when there is no line there (or `x` is too short to tell).
+pub fn lines(x: &[f64], dt: f64) -> impl Fn(f64) -> Option<f64> {
     let n = x.len();
-    if n < 64 || !(dt > 0.0) {
-        return None;
+    let p = (n >= 64 && dt > 0.0).then(|| periodogram(x).1);
+    move |freq_hz| {
+        let p = p.as_ref()?;
+        let k = (freq_hz * n as f64 * dt).round() as usize;
+        let top = (k.saturating_sub(1).max(1)..=(k + 1).min(n / 2))
+            .max_by(|&a, &b| p[a].total_cmp(&p[b]))?;
+        neighbour_ratio(p, top).filter(|&r| r > PEAK_RATIO)
     }
-    let (_, p) = periodogram(x);
-    let k = (freq_hz * n as f64 * dt).round() as usize;
-    let top =
-        (k.saturating_sub(1).max(1)..=(k + 1).min(n / 2)).max_by(|&a, &b| p[a].total_cmp(&p[b]))?;
-    neighbour_ratio(&p, top).filter(|&r| r > PEAK_RATIO)
 }
 
 /// Analyse the residual `e` against the input `u` (same length), sampled every `dt` seconds, with
@@ -375,11 +376,12 @@ mod tests {
                     .sum()
             })
             .collect();
+        let in_ms = super::lines(&ms, dt);
         for (f, _) in lines {
-            assert!(line_at(&ms, dt, f).is_some(), "{f} Hz");
+            assert!(in_ms(f).is_some(), "{f} Hz");
         }
         for f in [12.0, 31.0, 60.0] {
-            assert!(line_at(&ms, dt, f).is_none(), "{f} Hz");
+            assert!(in_ms(f).is_none(), "{f} Hz");
         }
         let mut s = 11u64;
         let mut level = 0.0;
@@ -394,8 +396,9 @@ mod tests {
                 level
             })
             .collect();
+        let in_prbs = super::lines(&prbs, dt);
         for (f, _) in lines {
-            assert!(line_at(&prbs, dt, f).is_none(), "{f} Hz");
+            assert!(in_prbs(f).is_none(), "{f} Hz");
         }
     }
 }

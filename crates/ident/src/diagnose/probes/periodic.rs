@@ -76,6 +76,8 @@ impl Probe for Periodic {
         let (s, dt) = (look.s(), ctx.dt);
         let an = &look.analysis;
         let period = input_period(&ctx.u, dt);
+        // The input's lines, its periodogram made for the first peak that needs them.
+        let mut input_lines = None;
         for pk in an.peaks.iter().take(2) {
             let near_kept = st.model.effects.iter().any(|ef| {
                 matches!(ef, Effect::Sinusoid { freq_hz, .. }
@@ -102,7 +104,9 @@ impl Probe for Periodic {
                     continue;
                 }
             }
-            if let Some(ratio) = super::super::residual::line_at(&ctx.u[..s], dt, pk.freq_hz) {
+            let line_at =
+                input_lines.get_or_insert_with(|| super::super::residual::lines(&ctx.u[..s], dt));
+            if let Some(ratio) = line_at(pk.freq_hz) {
                 found.reject_as(
                     &key,
                     "periodic",

@@ -72,7 +72,7 @@ pub fn aperiodic(
         Error::NotEnoughData(s) => s,
         e => e.to_string(),
     };
-    super::welch::h1_coherent(u, y, dt, super::MAX_FRACTION_OF_NYQUIST)
+    super::welch::h1_coherent(u, y, dt)
         .map_err(|e| Error::NotEnoughData(joined(&plain(why), &plain(e))))
 }
 
@@ -942,9 +942,7 @@ mod tests {
                 .filter(|&&o| o > w(90.0) && o < w(130.0))
                 .count()
         };
-        let (coherent, _) =
-            super::super::welch::h1_coherent(&u, &y, 5e-4, super::super::MAX_FRACTION_OF_NYQUIST)
-                .unwrap();
+        let (coherent, _) = super::super::welch::h1_coherent(&u, &y, 5e-4).unwrap();
         eprintln!(
             "bins within 90-130 Hz: {} by the 1% input-power rule, {} by the coherence alone",
             near(&frf),

@@ -51,10 +51,7 @@ pub fn h1(u: &[f64], y: &[f64], dt: f64) -> Result<(Frf, String)> {
     estimate(u, y, dt, MAX_FRACTION_OF_NYQUIST, LowPower::Dropped)
 }
 
-/// [`h1`] with the bins chosen by their coherence alone (any input power), up to `fraction` of
-/// the Nyquist frequency (instead of [`MAX_FRACTION_OF_NYQUIST`]: the two-mass start's fallback
-/// looks for resonance peaks up to half of it,
-/// [`super::two_mass::PEAK_FRACTION_OF_NYQUIST`]).
+/// [`h1`] with the bins of little input power kept inside a coherent band.
 ///
 /// The two-mass start's estimate: an input held over many samples (a PRBS clocked at a tenth of
 /// the motor's time constant or slower, a few levels held for a third of it or longer) has most
@@ -75,8 +72,8 @@ pub fn h1(u: &[f64], y: &[f64], dt: f64) -> Result<(Frf, String)> {
 ///
 /// # Errors
 /// As [`h1`].
-pub fn h1_coherent(u: &[f64], y: &[f64], dt: f64, fraction: f64) -> Result<(Frf, String)> {
-    estimate(u, y, dt, fraction, LowPower::InCoherentBand)
+pub fn h1_coherent(u: &[f64], y: &[f64], dt: f64) -> Result<(Frf, String)> {
+    estimate(u, y, dt, MAX_FRACTION_OF_NYQUIST, LowPower::InCoherentBand)
 }
 
 /// [`h1`] with the bins kept up to `fraction` of the Nyquist frequency (instead of
@@ -150,7 +147,7 @@ fn estimate(
             "the input has no excitation (Welch's estimate)".into(),
         ));
     }
-    let bins = kept_bins(&suu, &syy, &syu, low_power);
+    let bins = kept_bins((&suu, &syy, &syu), umax, low_power);
     // The noise spectrum smoothed by a running median over 9 neighbouring bins.
     let smooth: Vec<f64> = (0..bins.len())
         .map(|i| {
@@ -211,12 +208,15 @@ struct Bin {
 }
 
 /// The bins `1..` of the spectra with input and output power, the input's at least
-/// [`MIN_INPUT_POWER`] of the largest or (`low_power`) the median coherence of the [`BAND_BINS`]
+/// [`MIN_INPUT_POWER`] of the largest (`umax`) or (`low_power`) the median coherence of the [`BAND_BINS`]
 /// bins around at least [`MIN_COHERENCE`] (the coherence rule of each bin itself is applied
 /// later, after the noise is smoothed over its neighbours).
-fn kept_bins(suu: &[f64], syy: &[f64], syu: &[Complex64], low_power: LowPower) -> Vec<Bin> {
+fn kept_bins(
+    (suu, syy, syu): (&[f64], &[f64], &[Complex64]),
+    umax: f64,
+    low_power: LowPower,
+) -> Vec<Bin> {
     let top = suu.len() - 1;
-    let umax = suu.iter().copied().fold(0.0, f64::max);
     let coherence: Vec<f64> = (0..=top)
         .map(|k| {
             if k > 0 && suu[k] > 0.0 && syy[k] > 0.0 {
