@@ -471,8 +471,7 @@ impl<'a> Evidence<'a> {
                 id.report.stop_reason(),
                 id.report.iterations,
             ),
-            evaluated: id.report.iterations == 0
-                && id.report.termination == crate::lm::Termination::MaxIterations,
+            evaluated: id.report.evaluated,
         }
     }
 }

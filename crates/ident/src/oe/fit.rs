@@ -96,6 +96,10 @@ pub struct FitReport {
     pub termination: Termination,
     /// Whether that counts as convergence.
     pub converged: bool,
+    /// Whether the fit was allowed no iteration (`max_iterations` 0): the start evaluated, its
+    /// covariance and figures there, whatever the solver's first test said of it (a start at a
+    /// stationary point ends as [`Termination::SmallGradient`]).
+    pub evaluated: bool,
     /// Wall-clock time of the fit.
     pub elapsed: Duration,
     /// Warnings (parameters at a bound, no covariance).
@@ -830,6 +834,7 @@ impl<S: Structure> FitProblem<'_, S> {
             evaluations: rep.evaluations,
             termination: rep.termination,
             converged: rep.converged,
+            evaluated: self.opts.lm.max_iterations == 0,
             elapsed: t0.elapsed(),
             warnings,
         }

@@ -988,3 +988,21 @@ fn a_two_mass_drive_under_a_slow_binary_input_is_chosen_as_two_mass() {
     let held = chosen.rmse_after.unwrap();
     assert!(held <= 1.1 * 0.051926, "held-out RMSE {held}");
 }
+
+/// The benchmark zoo's dead-band case 0188 (seed 44, `tests/data/README.md`): the diagnosis keeps
+/// a deadzone, and the final model's own verdict evaluates it at its values (no iteration
+/// allowed). Its start is a stationary point, so the solver's first test ends the evaluation as
+/// a small gradient instead of the iteration budget; the verdict took that for a fit that ran
+/// and never moved from its start (with the initial state's undetermined levels making the
+/// covariance singular) and called the model unusable, exit 1.
+#[test]
+fn a_final_model_evaluated_at_a_stationary_point_is_judged_as_evaluated() {
+    let r = default_run_on_fixture("zoo_seed44_0188_deadband.csv");
+    assert!(r.diagnosis.is_some(), "{}", r.model_is);
+    assert!(r.lead.usable, "{:?}", r.lead.problems);
+    assert!(
+        !r.lead.problems.iter().any(|p| p.contains("never moved")),
+        "{:?}",
+        r.lead.problems
+    );
+}
