@@ -65,8 +65,10 @@
 //! An effect the input cannot reveal is reported in [`Diagnosis::ambiguous`], never fitted:
 //! friction when the model speed neither changes sign nor rests between motion (`Vc sign(y)` is
 //! then a constant input offset; signs are counted with a band of three noise levels, so noise
-//! around zero is neither a reversal nor motion); saturation and dead band when the input has two
-//! levels (any static input map is then affine: a gain and an offset); an input offset through a
+//! around zero is neither a reversal nor motion), or when it does not reverse under a two-level
+//! input (it then acts as the input's level says: a gain and an offset); saturation, dead band and
+//! power law when the input has two levels (any static input map is then affine: a gain and an
+//! offset) or one magnitude about zero (`-a, 0, a`: an odd map is a gain); an input offset through a
 //! linear model whose initial state is estimated (it is then an output offset and a shift of the
 //! past input).
 //!

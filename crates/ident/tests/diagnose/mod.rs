@@ -1006,3 +1006,55 @@ fn a_final_model_evaluated_at_a_stationary_point_is_judged_as_evaluated() {
         r.lead.problems
     );
 }
+
+/// A step from rest, two input levels: the speed rests, then moves one way. Friction then acts
+/// exactly while the input is at its second level: a lower gain and an offset give the same
+/// record, so friction is named ambiguous with them, not fitted.
+#[test]
+fn friction_under_a_step_from_rest_is_ambiguous_with_the_gain() {
+    let mut u = vec![0.0; N / 5];
+    u.resize(N, 2.0);
+    let rec = generate(
+        &u,
+        Hidden {
+            coulomb: 0.3,
+            ..Default::default()
+        },
+        13,
+    );
+    let (_, d) = run(&rec, true);
+    assert!(!names(&d).contains(&"coulomb_friction"), "{:?}", names(&d));
+    assert!(
+        d.ambiguous
+            .iter()
+            .any(|a| a.name == "coulomb_friction" && a.confused_with == "gain and offset"),
+        "{:?}",
+        d.ambiguous
+    );
+}
+
+/// Steps to -1, 0 and +1 (one magnitude about zero) through a dead band: an odd input map is a
+/// gain on these levels, so the dead band is named ambiguous with the gain, not fitted.
+#[test]
+fn a_dead_band_under_levels_of_one_magnitude_is_ambiguous_with_the_gain() {
+    let u: Vec<f64> = (0..N)
+        .map(|k| [0.0, 1.0, 0.0, -1.0, 1.0, -1.0, 0.0][(k / (N / 7)).min(6)])
+        .collect();
+    let rec = generate(
+        &u,
+        Hidden {
+            dz: Some(0.3),
+            ..Default::default()
+        },
+        14,
+    );
+    let (_, d) = run(&rec, true);
+    assert!(!names(&d).contains(&"deadzone"), "{:?}", names(&d));
+    assert!(
+        d.ambiguous
+            .iter()
+            .any(|a| a.name == "deadzone" && a.confused_with == "gain and offset"),
+        "{:?}",
+        d.ambiguous
+    );
+}

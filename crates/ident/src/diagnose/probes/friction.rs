@@ -4,7 +4,9 @@
 //! (a speed at rest is neither sign: friction then holds, it does not push). Identifiable when
 //! the data contain what separates it from a constant input offset: speed reversals, or rest
 //! intervals between motion (friction vanishes at rest, an offset does not). Otherwise it is
-//! reported as ambiguous with the input offset, whose own probe tests the alternative.
+//! reported as ambiguous with the input offset, whose own probe tests the alternative; and with
+//! a gain and an offset when the output does not reverse under a two-level input (a step from
+//! rest: the output rests or moves as the input's level says, and so does the friction).
 
 use super::{named, sign_band, Candidate, Findings, Look, Probe};
 use crate::oe::{Effect, FracModel, Param};
@@ -38,6 +40,21 @@ impl Probe for Friction {
                     } else {
                         "negative"
                     },
+                    mo.describe()
+                ),
+            );
+            return Ok(());
+        }
+        let levels = super::input_levels(&look.ua).0.len();
+        if !mo.reverses() && levels <= 2 {
+            found.ambiguous(
+                "coulomb_friction",
+                "gain and offset",
+                format!(
+                    "the input takes {levels} levels and the model output y does not reverse \
+                     ({}): y rests or moves as the input's level says, so Vc sign(y) follows that \
+                     level, a change of the gain and the offset; reversals of y (a zero-mean \
+                     PRBS) separate them",
                     mo.describe()
                 ),
             );

@@ -308,13 +308,12 @@ pub(crate) fn probe_static_map(look: &Look<'_>, found: &mut Findings, sm: &Stati
         return;
     }
     let (levels, umax) = input_levels(&look.ua);
-    if levels <= 2 {
+    if let Some(why) = affine_levels(&levels) {
         found.ambiguous(
             sm.name,
             "gain and offset",
             format!(
-                "the input takes {levels} levels: any static input map is then affine (a gain and \
-                 an offset), so a {} cannot be identified; a multi-level input separates them",
+                "{why}, so a {} cannot be identified; a multi-level input separates them",
                 sm.name
             ),
         );
@@ -357,11 +356,66 @@ pub(crate) fn probe_static_map(look: &Look<'_>, found: &mut Findings, sm: &Stati
     });
 }
 
-/// The distinct levels of the input (to within 1e-9 of its range) and its largest magnitude.
-pub(crate) fn input_levels(ua: &[f64]) -> (usize, f64) {
+/// The distinct levels of the input (to within 1e-9 of its range), ascending, and its largest
+/// magnitude.
+pub(crate) fn input_levels(ua: &[f64]) -> (Vec<f64>, f64) {
     let mut lv: Vec<f64> = ua.to_vec();
     lv.sort_by(f64::total_cmp);
     let range = lv[lv.len() - 1] - lv[0];
     lv.dedup_by(|a, b| (*a - *b).abs() <= 1e-9 * range.max(1e-300));
-    (lv.len(), ua.iter().fold(0.0f64, |m, v| m.max(v.abs())))
+    (lv, ua.iter().fold(0.0f64, |m, v| m.max(v.abs())))
+}
+
+/// Why every odd static map of the input `levels` (ascending, [`input_levels`]) is affine on
+/// them, a gain and an offset the model already has, or `None` when the levels separate it: two
+/// levels or fewer (any map through two points), or one magnitude besides zero (`-a, 0, a`: an
+/// odd map, `f(-v) = -f(v)` as the dead band, the saturation and the power law are, is a gain
+/// there).
+pub(crate) fn affine_levels(levels: &[f64]) -> Option<String> {
+    if levels.len() <= 2 {
+        return Some(format!(
+            "the input takes {} levels: any static input map is then affine (a gain and an offset)",
+            levels.len()
+        ));
+    }
+    let range = levels[levels.len() - 1] - levels[0];
+    let tol = 1e-9 * range.max(1e-300);
+    let mut mags: Vec<f64> = levels
+        .iter()
+        .map(|v| v.abs())
+        .filter(|m| *m > tol)
+        .collect();
+    mags.sort_by(f64::total_cmp);
+    mags.dedup_by(|a, b| (*a - *b).abs() <= tol);
+    (mags.len() <= 1).then(|| {
+        format!(
+            "the input takes the levels -{a:.4e}, 0 and +{a:.4e}: an odd static input map (one \
+             that turns -u into minus its value at u) is then a gain",
+            a = mags.first().copied().unwrap_or(0.0)
+        )
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Two levels, or one magnitude about zero, give every odd map as a gain and an offset; a
+    /// third magnitude, or a level on one side only, separates a map from a gain.
+    #[test]
+    fn odd_maps_are_affine_on_two_levels_and_on_one_magnitude_about_zero() {
+        let levels = |u: &[f64]| input_levels(u).0;
+        assert!(affine_levels(&levels(&[0.0, 2.0, 2.0, 0.0])).is_some());
+        assert!(affine_levels(&levels(&[-1.5, 1.5, 1.5])).is_some());
+        let sym = affine_levels(&levels(&[0.0, 1.102, -1.102, 0.0, 1.102]));
+        assert!(sym.is_some_and(|w| w.contains("a gain")));
+        assert!(affine_levels(&levels(&[0.0, 1.0, 2.0])).is_none());
+        assert!(affine_levels(&levels(&[-1.0, 1.0, 2.0])).is_none());
+        assert!(affine_levels(&levels(&[-2.0, -1.0, 0.0, 1.0, 2.0])).is_none());
+        // a dead band of half width 0.5 on -a, 0, a is the gain (a - 0.5)/a there
+        let dz = |v: f64| v.signum() * (v.abs() - 0.5).max(0.0);
+        let a = 1.102;
+        let g = dz(a) / a;
+        assert!([-a, 0.0, a].iter().all(|&v| (dz(v) - g * v).abs() < 1e-15));
+    }
 }
