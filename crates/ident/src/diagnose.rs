@@ -305,6 +305,21 @@ pub(crate) struct Ctx<'a> {
     opts: &'a DiagnoseOptions,
 }
 
+impl Diagnosis {
+    /// The advance of the recorded input (samples) the diagnosis kept: a `delay` with a negative
+    /// `tau`, a time-stamp skew of the logger. The final model cannot carry it (its delay is
+    /// causal), so its figures are those of the record with the input advanced; `None` when none
+    /// is kept.
+    pub(crate) fn skew_samples(&self, dt: f64) -> Option<usize> {
+        self.effects
+            .iter()
+            .filter(|e| e.name == "delay")
+            .filter_map(|e| e.params.get("tau"))
+            .find(|&&tau| tau < 0.0)
+            .map(|tau| (-tau / dt).round() as usize)
+    }
+}
+
 /// `u` advanced by `lead` samples (`u'_k = u_(k + lead)`, the last value held): the input a kept
 /// time-stamp skew is fitted and scored on, here and in the final model's figures
 /// ([`crate::app::time`]).

@@ -35,6 +35,7 @@
 pub(crate) mod checks;
 mod coverage;
 pub(crate) mod effects;
+pub(crate) mod evaluate;
 mod fit;
 pub mod init;
 mod joint;

@@ -849,7 +849,7 @@ fn final_model(
 ) -> (ModelFit, String, DiagnosisReport) {
     let rec = &data.record;
     let mut fin = final_fit(&d, base, rec.dt, final_file);
-    let skew = skew_samples(&d, rec.dt);
+    let skew = d.skew_samples(rec.dt);
     let advanced = skew.map(|lead| input_advanced(data, lead));
     let fitted_on = advanced.as_ref().unwrap_or(data);
     polish(&mut fin, req, fitted_on);
@@ -879,18 +879,6 @@ fn final_model(
         structures: c,
     };
     (fin, is, report)
-}
-
-/// The advance of the recorded input (samples) the diagnosis kept: a `delay` with a negative
-/// `tau`, a time-stamp skew of the logger ([`crate::diagnose`]). The final model cannot carry it
-/// (its delay is causal), so its figures are those of the record with the input advanced.
-fn skew_samples(d: &Diagnosis, dt: f64) -> Option<usize> {
-    d.effects
-        .iter()
-        .filter(|e| e.name == "delay")
-        .filter_map(|e| e.params.get("tau"))
-        .find(|&&tau| tau < 0.0)
-        .map(|tau| (-tau / dt).round() as usize)
 }
 
 /// `data` with the estimation record's input advanced by `lead` samples (`u'_k = u_(k + lead)`,
@@ -1000,87 +988,65 @@ fn drift_shown(drift: f64, value: f64, std_error: Option<f64>, rmse: f64) -> boo
     not_zero && drift >= DETERMINED_Z * rmse
 }
 
-/// A standard error this many times a parameter's value says the data do not determine it at
-/// all (`oe::checks`' rule for a usable model).
-const UNDETERMINED: f64 = 10.0;
-
 /// The final model with the plant parameters its record does not determine held at their fitted
-/// values, when that is all that stands between it and a usable model: a term whose standard
-/// error is [`UNDETERMINED`] times its value or more (`a2 = 1.5e-8 +- 5.4e-6`) changes nothing the
-/// data can see, so the model does without it, and the parameters left free are judged on their
-/// own covariance. `id` is the final model's own identification at its values ([`own_id`]); it is
-/// returned as it is when nothing is undetermined, when something else is wrong with the model,
-/// or when the parameters left free are not determined either (the model is then refused as it
-/// was). The figures do not move (the same model); the held parameters are `free: false` in the
-/// report with a warning that says so.
+/// values, when that is all that stands between it and a usable model
+/// ([`crate::oe::evaluate::held`]): a term whose standard error is ten times its value or more
+/// (`a2 = 1.5e-8 +- 5.4e-6`) changes nothing the data can see, so the model does without it, and
+/// the parameters left free are judged on their own covariance. `id` is the final model's own
+/// identification at its values ([`own_id`]); it is returned as it is when nothing is
+/// undetermined, when something else is wrong with the model, or when the parameters left free
+/// are not determined either (the model is then refused as it was). The figures do not move (the
+/// same model); the held parameters are `free: false` in the report with a warning that says so.
 fn held_undetermined(
     fin: &mut ModelFit,
     req: &TimeRequest,
     data: &TimeData,
     id: Identification,
 ) -> Identification {
-    let weak: Vec<usize> = id
-        .report
-        .params
-        .iter()
-        .enumerate()
-        .filter(|(i, e)| e.free && !fin.spec.is_initial_state(*i) && e.name != "y_offset")
-        .filter(|(_, e)| {
-            e.std_error
-                .is_some_and(|se| se > UNDETERMINED * e.value.abs())
-        })
-        .map(|(i, _)| i)
-        .collect();
-    let only_weak = id.problems.len() == 1 && id.problems[0].contains("not determined");
-    if weak.is_empty() || !only_weak {
+    let weak = crate::oe::evaluate::undetermined(&id);
+    let Some((spec, held)) = options(req, data)
+        .ok()
+        .and_then(|opts| crate::oe::evaluate::held(&data.record, &fin.spec, &opts, &weak))
+    else {
         return id;
-    }
-    let mut spec = fin.spec.clone();
+    };
+    let names: Vec<String> = weak
+        .iter()
+        .map(|&i| format!("{} = {:.4e}", spec.params[i].name, spec.params[i].value))
+        .collect();
+    fin.warnings.push(format!(
+        "final model: {} not determined by these data (standard error {} times the value or \
+         more) and held at the fitted value(s): {}; the model does not depend on them within what \
+         the record shows, and the parameters left free are determined",
+        if weak.len() == 1 {
+            "1 parameter is"
+        } else {
+            "parameters are"
+        },
+        crate::oe::checks::UNDETERMINED,
+        names.join(", ")
+    ));
     for &i in &weak {
-        spec.params[i].free = false;
+        fin.params[i].free = false;
+        fin.params[i].at_bound = false;
     }
-    match own_id(req, &spec, data) {
-        Ok(held) if held.problems.is_empty() => {
-            let names: Vec<String> = weak
-                .iter()
-                .map(|&i| format!("{} = {:.4e}", spec.params[i].name, spec.params[i].value))
-                .collect();
-            fin.warnings.push(format!(
-                "final model: {} not determined by these data (standard error {UNDETERMINED} \
-                 times the value or more) and held at the fitted value(s): {}; the model does \
-                 not depend on them within what the record shows, and the parameters left free \
-                 are determined",
-                if weak.len() == 1 {
-                    "1 parameter is"
-                } else {
-                    "parameters are"
-                },
-                names.join(", ")
-            ));
-            for &i in &weak {
-                fin.params[i].free = false;
-                fin.params[i].at_bound = false;
-            }
-            fin.spec = spec;
-            held
-        }
-        _ => id,
-    }
+    fin.spec = spec;
+    held
+}
+
+/// The identification options of `req` on `data`'s record.
+fn options(req: &TimeRequest, data: &TimeData) -> Result<crate::oe::IdentOptions> {
+    let rec = &data.record;
+    let duration = rec.t.last().copied().unwrap_or(0.0) - rec.t.first().copied().unwrap_or(0.0);
+    Ok(model_and_options(req, duration, rec.dt, data.validation.is_some())?.1)
 }
 
 /// The identification of a report's model `spec` at its values, with the parameters it was
-/// fitted with free and no iteration: its covariance (standard errors) and its checks at those
-/// values, with the request's operating point, split and initial state.
+/// fitted with free and no iteration ([`crate::oe::evaluate::at_values`]): its covariance
+/// (standard errors) and its checks at those values, with the request's operating point, split
+/// and initial state.
 fn own_id(req: &TimeRequest, spec: &FracModel, data: &TimeData) -> Result<Identification> {
-    let rec = &data.record;
-    let duration = rec.t.last().copied().unwrap_or(0.0) - rec.t.first().copied().unwrap_or(0.0);
-    let (_, mut opts) = model_and_options(req, duration, rec.dt, data.validation.is_some())?;
-    opts.start = StartMode::Given;
-    opts.fit.lm.max_iterations = 0;
-    if spec.past.is_some() && opts.initial == crate::oe::InitialState::Auto {
-        opts.initial = crate::oe::InitialState::Estimate;
-    }
-    crate::oe::identify(rec, spec, &opts)
+    crate::oe::evaluate::at_values(&data.record, spec, &options(req, data)?)
 }
 
 /// The diagnosis's final model as a [`ModelFit`]: the base fit's caveats, then its own

@@ -35,6 +35,12 @@ pub struct StructureScore {
     pub rmse_after: Option<f64>,
     /// BIC of the final model on the estimation part.
     pub bic_after: Option<f64>,
+    /// Why the final model cannot be used, judged at its values by the rules the report judges
+    /// the model it leads with, nothing held ([`judge_finals`]): given when the base fit is not
+    /// usable and the final model could be chosen (empty: it can be used, and is chosen from as a
+    /// usable one).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub problems_after: Option<Vec<String>>,
 }
 
 /// How far behind the best usable base fit a structure's base fit may be and still be diagnosed:
@@ -93,6 +99,7 @@ impl StructureScore {
             free_params: 0,
             rmse_after: None,
             bic_after: None,
+            problems_after: None,
         }
     }
 }
@@ -145,22 +152,69 @@ pub(crate) fn far_better(usable: bool, rmse: f64, best_usable: f64) -> bool {
     usable || !best_usable.is_finite() || FAR * rmse < best_usable
 }
 
+impl StructureScore {
+    /// Whether its base fit is usable, or its final model judged at its values
+    /// ([`judge_finals`]).
+    pub(crate) fn usable(&self) -> bool {
+        self.problems.is_empty() || self.problems_after.as_ref().is_some_and(Vec::is_empty)
+    }
+}
+
+/// The best held-out RMSE among the usable final models of `scores` (infinite when none is).
+fn best_usable(scores: &[StructureScore]) -> f64 {
+    scores
+        .iter()
+        .filter(|s| s.usable())
+        .filter_map(|s| s.rmse_after.filter(|r| r.is_finite()))
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// The final models' own verdicts where they decide the choice ([`decide`]): a structure whose
+/// base fit is not usable (a term the record does not determine, a base fit worse than the
+/// held-out part's mean that its effects mend), whose diagnosis ran to its end, and whose final
+/// model is better than every usable one's by more than the tie, is judged at its values by the
+/// rules the report judges the model it leads with ([`crate::oe::evaluate::problems_at_values`],
+/// on the input advanced by a kept time-stamp skew), nothing held: with no problem it is chosen
+/// from as a usable one. (The report would hold terms the record does not determine; a final
+/// model usable only so, its dynamics held, is no alternative to a usable one: on the zoo a PMSM
+/// with an integrator, every order held, would have won on a record that excites two bins.)
+pub(crate) fn judge_finals(
+    rec: &crate::data::Record,
+    outcomes: &[Outcome],
+    scores: &mut [StructureScore],
+    opts: &crate::oe::IdentOptions,
+) {
+    let best = best_usable(scores);
+    for (s, o) in scores.iter_mut().zip(outcomes) {
+        let Some(Ok(d)) = &o.diagnosis else {
+            continue;
+        };
+        let contends = s.rmse_after.is_some_and(|r| (1.0 + TIE) * r < best);
+        if s.problems.is_empty() || d.halted.is_some() || !contends {
+            continue;
+        }
+        let advanced = d.skew_samples(rec.dt).map(|lead| {
+            let mut r = rec.clone();
+            r.u = super::advanced(&rec.u, lead);
+            r
+        });
+        let on = advanced.as_ref().unwrap_or(rec);
+        s.problems_after = Some(crate::oe::evaluate::problems_at_values(on, &d.model, opts));
+    }
+}
+
 /// The index chosen by the rule of the module documentation, or `None` when no candidate has a
 /// final model.
 pub(crate) fn decide(scores: &[StructureScore]) -> Option<(usize, f64)> {
     let finals: Vec<usize> = (0..scores.len())
         .filter(|&i| scores[i].rmse_after.is_some_and(f64::is_finite))
         .collect();
-    let best_usable = finals
-        .iter()
-        .filter(|&&i| scores[i].problems.is_empty())
-        .filter_map(|&i| scores[i].rmse_after)
-        .fold(f64::INFINITY, f64::min);
+    let best_usable = best_usable(scores);
     let pool: Vec<usize> = finals
         .into_iter()
         .filter(|&i| {
             let r = scores[i].rmse_after.unwrap_or(f64::INFINITY);
-            far_better(scores[i].problems.is_empty(), r, best_usable)
+            far_better(scores[i].usable(), r, best_usable)
         })
         .collect();
     let best = pool

@@ -39,8 +39,8 @@
 //! [`BEHIND`]): a structure more than 1.1x behind the best after as many kept effects is given no
 //! more rounds (its row shows its model at that point, and the reason names it).
 
-use super::choice::far_better;
 pub(crate) use super::choice::{decide, score_of, Outcome};
+use super::choice::{far_better, judge_finals};
 pub use super::choice::{Diagnosed, IntegerReference, StructureChoice, StructureScore, FAR, TIE};
 pub use super::halving::BEHIND;
 use super::halving::{confirm_halving, Board};
@@ -872,6 +872,7 @@ pub fn diagnose_best_fitting(
         .map(|((name, _), o)| score_of(name, o))
         .collect();
     let halved = halve_rows(&mut scores, &outcomes, &cuts, dopts.max_rounds);
+    judge_finals(rec, &outcomes, &mut scores, opts);
     let Some((chosen, best)) = decide(&scores) else {
         return Err(match outcomes.swap_remove(0).diagnosis {
             Some(Err(e)) => e,
@@ -1719,6 +1720,21 @@ mod tests {
                 FracModel::third_order(1.0, 0.0175, 8.75e-5, 1.25e-7),
             ),
         ]
+    }
+
+    /// A final model whose base fit is not usable is chosen from as a usable one when its own
+    /// verdict at its values has no problem, and not when it has one or was not judged.
+    #[test]
+    fn a_final_model_judged_usable_is_chosen_from_as_usable() {
+        let mut mended = row("pmsm", 0.68, &["a1 is not determined"]);
+        let mut scores = |judged: Option<Vec<String>>| {
+            mended.problems_after = judged;
+            vec![row("first-order", 0.92, &[]), mended.clone()]
+        };
+        assert_eq!(decide(&scores(Some(vec![]))).map(|c| c.0), Some(1));
+        assert_eq!(decide(&scores(None)).map(|c| c.0), Some(0));
+        let still = Some(vec!["a1 is not determined".to_string()]);
+        assert_eq!(decide(&scores(still)).map(|c| c.0), Some(0));
     }
 
     /// The motor/generator record's case (session 15): the third order's RMSE is the lowest of

@@ -26,7 +26,7 @@ const MIN_VALIDATION_CHANGES: usize = 3;
 /// A parameter whose standard error is this many times its value is not determined by the data
 /// at all (its one-sigma interval spans ten times the value): the result is not usable. Between
 /// once and this many times, a warning.
-const UNDETERMINED: f64 = 10.0;
+pub(crate) const UNDETERMINED: f64 = 10.0;
 
 /// A fit with a singular covariance and an NRMSE below this (percent: it explains less than a
 /// fifth of the output's variance, `1 - 0.9^2`) is not usable.

@@ -411,6 +411,7 @@ mod tests {
             free_params: 1,
             rmse_after: Some(rmse),
             bic_after: Some(bic),
+            problems_after: None,
         }
     }
 
