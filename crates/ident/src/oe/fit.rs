@@ -384,11 +384,14 @@ struct OeProblem<'a, S: Structure> {
     par: Par,
     /// With held-out blocks ([`FitOptions::held`]): the sample ranges the residual keeps and
     /// the whole Jacobian (after `skip`) its kept rows are copied from.
-    kept: Option<(Vec<(usize, usize)>, Mat<f64>)>,
+    kept: Option<(Ranges, Mat<f64>)>,
 }
 
+/// Sample ranges `start..end`, increasing and disjoint.
+type Ranges = Vec<(usize, usize)>;
+
 /// The ranges of `skip..n` outside the blocks `held` (increasing, disjoint).
-fn kept_ranges(skip: usize, n: usize, held: &[(usize, usize)]) -> Vec<(usize, usize)> {
+fn kept_ranges(skip: usize, n: usize, held: &[(usize, usize)]) -> Ranges {
     let mut out = vec![];
     let mut k = skip;
     for &(a, b) in held {
@@ -1563,6 +1566,28 @@ pub fn check_params(params: &[Param]) -> Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The ranges a fit with held-out blocks keeps: `skip..n` less the blocks (a block reaching
+    /// into the skipped samples or past the end clipped), and what the checks' blocks hold out.
+    #[test]
+    fn kept_ranges_are_the_samples_outside_the_blocks() {
+        assert_eq!(kept_ranges(0, 10, &[]), [(0, 10)]);
+        assert_eq!(
+            kept_ranges(2, 20, &[(0, 3), (5, 8), (18, 25)]),
+            [(3, 5), (8, 18)]
+        );
+        assert_eq!(kept_ranges(0, 10, &[(0, 10)]), []);
+        let blocks = crate::oe::checks::held_blocks(2299, 690).unwrap();
+        assert_eq!(blocks.len(), 10);
+        assert!(blocks.iter().all(|(a, b)| b - a == 69));
+        assert!(blocks[0].0 > 0 && blocks[9].1 < 2299);
+        let opts = FitOptions {
+            held: blocks,
+            ..FitOptions::default()
+        };
+        assert_eq!(counted(2299, &opts), 2299 - 690);
+        assert_eq!(crate::oe::checks::held_blocks(100, 30), None);
+    }
 
     #[test]
     fn initial_states_round_trip_through_their_words() {
