@@ -443,7 +443,8 @@ class TimeFit(_ToDict):
     yhat_base : numpy.ndarray
         The base fit's output (the same as ``yhat`` without the diagnosis).
     split : int
-        Index of the first validation sample.
+        Index of the first validation sample (the record's length when nothing is held out, or
+        when blocks spread over the record are, ``validated_by["blocks"]``).
     model_is : str
         Which model leads, in words.
     base : dict or None
@@ -453,8 +454,10 @@ class TimeFit(_ToDict):
         With ``structure="auto"`` (and no diagnosis): the structures fitted and the choice
         (``scores``, ``chosen``, ``held_out``, ``reason``), as ``fracid time --structure auto``.
     validated_by : dict
-        How the model was validated: ``kind`` (``held_out``, ``response_tail``, ``file``,
-        ``none``), ``first`` (first held-out sample) and ``note`` (in words).
+        How the model was validated: ``kind`` (``held_out``, ``held_out_blocks``,
+        ``response_tail``, ``file``, ``none``), ``first`` (first held-out sample), with
+        ``held_out_blocks`` the ``blocks`` held out (``[start, end)`` pairs: a sweep), and
+        ``note`` (in words).
     offsets : dict
         The operating point removed, ``{"u0": .., "y0": ..}``.
     converged : bool
@@ -559,7 +562,7 @@ class TimeFit(_ToDict):
             validation_file=fit.get("validation_file"),
             yhat=arrays["yhat"],
             yhat_base=arrays["yhat_base"],
-            split=r["split"]["estimation_samples"],
+            split=r["validated_by"]["first"],
             offsets=r["offsets"],
             converged=r["converged"],
             termination=r["termination"],

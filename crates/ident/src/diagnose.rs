@@ -297,6 +297,10 @@ pub(crate) struct Ctx<'a> {
     lead: usize,
     y: Vec<f64>,
     split: usize,
+    /// The held-out blocks ([`crate::oe::ValidationKind::HeldOutBlocks`]; empty: the samples
+    /// after `split` are held out): left out of every refit's cost and scored as the held-out
+    /// part.
+    held: Vec<(usize, usize)>,
     dt: f64,
     u0: f64,
     y0: f64,
@@ -345,10 +349,8 @@ impl Ctx<'_> {
         let mut yhat = vec![0.0; self.u.len()];
         model.simulate(&values, &self.u, self.dt, &mut yhat)?;
         let ya: Vec<f64> = yhat.iter().map(|v| v + self.y0).collect();
-        let s = self.split;
-        let est = Fit::of(&self.rec.y[..s], &ya[..s]);
-        let val = (s < ya.len()).then(|| Fit::of(&self.rec.y[s..], &ya[s..]));
-        let ssr = est.rmse * est.rmse * s as f64;
+        let (est, val) = crate::oe::checks::figures(&self.rec.y, &ya, self.split, &self.held);
+        let ssr = est.rmse * est.rmse * self.estimation_samples() as f64;
         Ok(State {
             model,
             values,
@@ -363,19 +365,25 @@ impl Ctx<'_> {
         st.val.map_or(st.est.rmse, |v| v.rmse)
     }
 
+    /// The samples the fits' cost counts: the first `split` less the held-out blocks'.
+    fn estimation_samples(&self) -> usize {
+        self.split - crate::oe::checks::held_count(&self.held, self.split)
+    }
+
     fn bic(&self, st: &State) -> f64 {
         let k = st.model.params.iter().filter(|p| p.free).count();
-        bic(st.ssr, self.split, k)
+        bic(st.ssr, self.estimation_samples(), k)
     }
 
     /// The point of the path ([`Diagnosis::path`]) at `st`, its BIC computed as the structure
     /// comparison does (from the estimation RMSE).
     fn step(&self, st: &State) -> Step {
         let free_params = st.model.params.iter().filter(|p| p.free).count();
-        let ssr = st.est.rmse.powi(2) * self.split as f64;
+        let n = self.estimation_samples();
+        let ssr = st.est.rmse.powi(2) * n as f64;
         Step {
             rmse: self.score(st),
-            bic: bic(ssr, self.split, free_params),
+            bic: bic(ssr, n, free_params),
             free_params,
         }
     }
@@ -417,8 +425,12 @@ impl Ctx<'_> {
     /// Fit `model` from its values as they are on the estimation part with `opts`.
     fn fit_from(&self, mut model: FracModel, opts: &FitOptions) -> Result<State> {
         let s = self.split;
+        let held = FitOptions {
+            held: self.held.clone(),
+            ..opts.clone()
+        };
         // in a time unit the refit does not depend on, as the base fit ([`crate::oe::identify`])
-        let values = fit_in_unit(&model, &self.u[..s], &self.y[..s], self.dt, opts)?;
+        let values = fit_in_unit(&model, &self.u[..s], &self.y[..s], self.dt, &held)?;
         for (p, v) in model.params.iter_mut().zip(&values) {
             p.value = *v;
         }
@@ -757,7 +769,7 @@ fn keep_ceiling(ctx: &Ctx<'_>, st: &State, c: &Candidate) -> f64 {
     let free = |m: &FracModel| m.params.iter().filter(|p| p.free).count() as f64;
     let dk = c.starts.first().map_or(0.0, free) - free(&st.model);
     let margin = st.val.is_none().then_some(ctx.opts.margin);
-    ceiling(st.ssr, ctx.split, dk, margin)
+    ceiling(st.ssr, ctx.estimation_samples(), dk, margin)
 }
 
 /// Schwarz's (1978) Bayesian information criterion of a least-squares fit with `k` free
@@ -835,7 +847,8 @@ pub const LEAD_SCREEN_GAIN: f64 = 0.01;
 /// for a record too short or whose leading part is not excited like the whole.
 fn lead_screen(ctx: &Ctx<'_>, st: &State, starts: &[FracModel]) -> Option<(usize, (State, f64))> {
     let (s, lead) = (ctx.split, LEAD_SCREEN_SAMPLES);
-    if s < 4 * lead {
+    // (With held-out blocks, the leading part's sums of squares would count different samples.)
+    if s < 4 * lead || !ctx.held.is_empty() {
         return None;
     }
     let sd = |x: &[f64]| {
@@ -1080,6 +1093,7 @@ impl<'a> Ctx<'a> {
             y: rec.y.iter().map(|v| v - y0).collect(),
             lead: 0,
             split: id.split,
+            held: id.validated_by.blocks.clone(),
             dt: rec.dt,
             u0,
             y0,

@@ -9,7 +9,8 @@
 //!   with a power-law input map in the truth and the diagnosis, `G_fit` in the truth's convention
 //!   (the map through 1 at `|u| = 1`, see [`power_law_scale`]).
 //! - Held-out ratio: fracid's held-out RMSE (the report's `fit.validation.rmse`) over the oracle's,
-//!   the RMS of (measured - noise-free truth) on the same samples (`validated_by.first`,
+//!   the RMS of (measured - noise-free truth) on the same samples (`validated_by.blocks` when the
+//!   record was held out in blocks, else `validated_by.first`,
 //!   `split.validation_samples`). 1 is the noise floor.
 //! - Effects kept: the diagnosis's effects, the model's effects and `delay` when the model has one;
 //!   `output_offset` (always fitted) is not counted. Spurious: kept, neither expected nor tolerated;
@@ -247,12 +248,34 @@ pub fn kept_effects(report: &Value) -> Vec<String> {
 
 /// The RMS of `y - y_clean` over `first..first + count`.
 fn oracle(y: &[f64], y_clean: &[f64], first: usize, count: usize) -> Option<f64> {
-    let end = first.checked_add(count)?.min(y.len()).min(y_clean.len());
-    if first >= end {
-        return None;
+    let end = first.checked_add(count)?;
+    oracle_on(y, y_clean, &[(first, end)])
+}
+
+/// [`oracle`] on the held-out blocks `start..end` (`validated_by.blocks` of a record held out
+/// in blocks spread over it, a sweep).
+fn oracle_on(y: &[f64], y_clean: &[f64], blocks: &[(usize, usize)]) -> Option<f64> {
+    let n = y.len().min(y_clean.len());
+    let (mut ss, mut count) = (0.0, 0usize);
+    for &(a, b) in blocks {
+        let b = b.min(n);
+        for k in a.min(b)..b {
+            ss += (y[k] - y_clean[k]).powi(2);
+            count += 1;
+        }
     }
-    let ss: f64 = (first..end).map(|k| (y[k] - y_clean[k]).powi(2)).sum();
-    Some((ss / (end - first) as f64).sqrt())
+    (count > 0).then(|| (ss / count as f64).sqrt())
+}
+
+/// The held-out blocks a report names (`validated_by.blocks`, pairs `[start, end]`); `None`
+/// when it names none (the held-out part is the tail).
+fn held_blocks(report: &Value) -> Option<Vec<(usize, usize)>> {
+    let blocks = report.pointer("/validated_by/blocks")?.as_array()?;
+    let pair = |b: &Value| {
+        let (a, e) = (b.get(0)?.as_u64()?, b.get(1)?.as_u64()?);
+        Some((a as usize, e as usize))
+    };
+    blocks.iter().map(pair).collect()
 }
 
 /// Scores one case on one path: `row` from the fleet summary (None: fracid wrote none), `report`
@@ -306,8 +329,9 @@ pub fn score(
     let count = report
         .and_then(|r| r.pointer("/split/validation_samples"))
         .and_then(Value::as_u64);
-    let oracle_rmse = match (first, count) {
-        (Some(f), Some(c)) => oracle(y, y_clean, f as usize, c as usize),
+    let oracle_rmse = match (report.and_then(held_blocks), first, count) {
+        (Some(blocks), _, _) => oracle_on(y, y_clean, &blocks),
+        (None, Some(f), Some(c)) => oracle(y, y_clean, f as usize, c as usize),
         _ => None,
     };
     let exit_code = row.map(|r| r.exit_code);

@@ -568,8 +568,8 @@ fn fit_text(id: &Identification, rec: &Record) -> String {
         "operating point: u0 = {:.6}, y0 = {:.6}; {} estimation + {} validation samples, dt = {} s",
         id.offsets.u0,
         id.offsets.y0,
-        id.split,
-        rec.len() - id.split,
+        id.validated_by.estimation_samples(id.split),
+        rec.len() - id.validated_by.estimation_samples(id.split),
         rec.dt
     );
     let sr = &id.start_report;

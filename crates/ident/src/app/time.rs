@@ -11,6 +11,7 @@ use crate::data::{OffsetMode, Record};
 use crate::diagnose::structures::{diagnose_best_fitting, fit_best, StructureChoice};
 use crate::diagnose::{DiagnoseOptions, Diagnosis};
 use crate::metrics::{residual_test, Fit, ResidualTest};
+use crate::oe::checks::gather;
 use crate::oe::{
     identify_with_progress, score, FracModel, IdentOptions, Identification, InitialState,
     ParamEstimate, StartMode, Validation, ValidationKind,
@@ -202,9 +203,10 @@ pub struct ModelFit {
 /// The estimation/validation split (docs/design.md §7 `split`).
 #[derive(Debug, Clone, Copy, Serialize)]
 pub struct Split {
-    /// Samples in the estimation part.
+    /// Samples in the estimation part (the fit's cost counts them; with held-out blocks, the
+    /// samples outside the blocks).
     pub estimation_samples: usize,
-    /// Samples held out.
+    /// Samples held out (the tail after the estimation part, or the blocks').
     pub validation_samples: usize,
 }
 
@@ -652,8 +654,8 @@ fn run_request(req: &TimeRequest, data: &TimeData, obs: &mut dyn Observe) -> Res
         offsets: id.offsets,
         initial_state: id.initial.clone(),
         split: Split {
-            estimation_samples: id.split,
-            validation_samples: rec.len() - id.split,
+            estimation_samples: id.validated_by.estimation_samples(id.split),
+            validation_samples: rec.len() - id.validated_by.estimation_samples(id.split),
         },
         validated_by: id.validated_by.clone(),
         iterations: id.report.iterations,
@@ -719,6 +721,7 @@ fn score_validation(
                 kind: ValidationKind::File,
                 first: id.validated_by.first,
                 note: format!("a separate record, {} ({how}){chosen_on}", v.name),
+                blocks: id.validated_by.blocks.clone(),
             };
             let scored = |m: &FracModel| {
                 if goes_on {
@@ -1154,7 +1157,10 @@ fn estimation_residual_test(id: &Identification, rec: &Record, max_lag: usize) -
         .map(|(a, b)| a - b)
         .collect();
     let ud: Vec<f64> = rec.u[..split].iter().map(|v| v - id.offsets.u0).collect();
-    residual_test(&e, &ud, max_lag.min(split.saturating_sub(1)))
+    // (With held-out blocks, the estimation samples between them, joined.)
+    let blocks = &id.validated_by.blocks;
+    let (e, ud) = (gather(&e, blocks).0, gather(&ud, blocks).0);
+    residual_test(&e, &ud, max_lag.min(e.len().saturating_sub(1)))
 }
 
 #[cfg(test)]

@@ -113,13 +113,14 @@ pub(crate) fn score_of(name: &str, o: &Outcome) -> StructureScore {
     }
     match (&o.id, &o.diagnosis) {
         (Some(id), Some(Ok(d))) => {
-            let n = id.split as f64;
+            let ne = id.validated_by.estimation_samples(id.split);
+            let n = ne as f64;
             let k = d.model.params.iter().filter(|p| p.free).count();
             let ssr = d.estimation.after.rmse.powi(2) * n;
             s.effects = d.effects.iter().map(|e| e.name.clone()).collect();
             s.free_params = k;
             s.rmse_after = Some(d.after.rmse);
-            s.bic_after = Some(super::bic(ssr, id.split, k));
+            s.bic_after = Some(super::bic(ssr, ne, k));
         }
         (Some(_), Some(Err(e))) => s.failed = Some(format!("its diagnosis failed: {e}")),
         (None, Some(Err(e))) => s.failed = Some(e.to_string()),

@@ -1230,7 +1230,8 @@ fn base_score(name: &str, f: &Result<Identification>) -> StructureScore {
     let mut s = StructureScore::named(name);
     match f {
         Ok(id) => {
-            let n = id.split as f64;
+            let ne = id.validated_by.estimation_samples(id.split);
+            let n = ne as f64;
             let k = id.model.params.iter().filter(|p| p.free).count();
             let ssr = id.estimation.rmse.powi(2) * n;
             s.model = id.tf.to_string();
@@ -1238,7 +1239,7 @@ fn base_score(name: &str, f: &Result<Identification>) -> StructureScore {
             s.rmse_after = s.rmse;
             s.problems = id.problems.clone();
             s.free_params = k;
-            s.bic_after = Some(super::bic(ssr, id.split, k));
+            s.bic_after = Some(super::bic(ssr, ne, k));
         }
         Err(e) => s.failed = Some(e.to_string()),
     }

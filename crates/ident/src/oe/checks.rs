@@ -6,6 +6,7 @@
 
 use super::{FracModel, Identification};
 use crate::data::Record;
+use crate::metrics::Fit;
 use fracsim::Simulator;
 
 /// A model whose unit step response reaches less than this fraction of its static gain within
@@ -77,6 +78,11 @@ pub enum ValidationKind {
     None,
     /// A separate record (`--validate FILE`), scored by the front end.
     File,
+    /// Short blocks spread over the record held out ([`Validation::blocks`]), each between
+    /// estimation samples: a record whose tail would hold frequencies the rest of it never
+    /// excites (a sweep). One simulation of the whole record; the fit's cost leaves the blocks
+    /// out.
+    HeldOutBlocks,
 }
 
 /// How a fit was validated, and in words ([`validation_split`]).
@@ -84,10 +90,95 @@ pub enum ValidationKind {
 pub struct Validation {
     /// The kind of validation.
     pub kind: ValidationKind,
-    /// The held-out samples `first..len` (none when `first == len`).
+    /// The held-out samples `first..len` (none when `first == len`; `len` with
+    /// [`ValidationKind::HeldOutBlocks`], whose held-out samples are its blocks).
     pub first: usize,
     /// What was validated and how, for the report.
     pub note: String,
+    /// With [`ValidationKind::HeldOutBlocks`], the held-out blocks `start..end` (sample
+    /// indices, increasing, disjoint); empty otherwise.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub blocks: Vec<(usize, usize)>,
+}
+
+impl Validation {
+    /// The estimation part's figures and the held-out part's (`None` when nothing is held out)
+    /// of the output `yhat` against `y` (same length, the whole record), with `split` the first
+    /// sample after the estimation part (the record's length with blocks).
+    pub fn figures(&self, y: &[f64], yhat: &[f64], split: usize) -> (Fit, Option<Fit>) {
+        figures(y, yhat, split, &self.blocks)
+    }
+
+    /// The samples of the first `split` the fit's cost uses: `split` less the blocks'.
+    pub fn estimation_samples(&self, split: usize) -> usize {
+        split - held_count(&self.blocks, split)
+    }
+}
+
+/// [`Validation::figures`] with the blocks `held` (the tail after `split` when empty).
+pub(crate) fn figures(
+    y: &[f64],
+    yhat: &[f64],
+    split: usize,
+    held: &[(usize, usize)],
+) -> (Fit, Option<Fit>) {
+    if held.is_empty() {
+        let out = (split < y.len()).then(|| Fit::of(&y[split..], &yhat[split..]));
+        return (Fit::of(&y[..split], &yhat[..split]), out);
+    }
+    let (ye, yh) = gather(&y[..split], held);
+    let (fe, fh) = gather(&yhat[..split], held);
+    (
+        Fit::of(&ye, &fe),
+        (!yh.is_empty()).then(|| Fit::of(&yh, &fh)),
+    )
+}
+
+/// How many samples below `n` the blocks `held` hold.
+pub(crate) fn held_count(held: &[(usize, usize)], n: usize) -> usize {
+    held.iter().map(|&(a, b)| b.min(n).saturating_sub(a)).sum()
+}
+
+/// `x` parted by the blocks `held`: the samples outside them (in order) and those inside.
+pub(crate) fn gather(x: &[f64], held: &[(usize, usize)]) -> (Vec<f64>, Vec<f64>) {
+    let (mut out, mut inside) = (Vec::with_capacity(x.len()), vec![]);
+    let mut k = 0;
+    for &(a, b) in held {
+        let (a, b) = (a.min(x.len()), b.min(x.len()));
+        out.extend_from_slice(&x[k.min(a)..a]);
+        inside.extend_from_slice(&x[a..b]);
+        k = b;
+    }
+    out.extend_from_slice(&x[k.min(x.len())..]);
+    (out, inside)
+}
+
+/// The number of blocks a record whose tail fails the coverage test holds out
+/// ([`held_blocks`]): each then holds a tenth of the held-out share (3% of the record with the
+/// default 30%) between two stretches of estimation data of more than twice its length, so a
+/// sweep's band in a block is swept just before and just after it in estimation.
+const HELD_BLOCKS: usize = 10;
+
+/// The shortest block (samples): fewer blocks on a short record.
+const MIN_BLOCK: usize = 32;
+
+/// `HELD_BLOCKS` blocks totalling `held` of the `n` samples, each centred in its tenth of the
+/// record (estimation data before the first and after the last); fewer blocks when they would
+/// be shorter than [`MIN_BLOCK`]; `None` when fewer than two fit.
+pub(crate) fn held_blocks(n: usize, held: usize) -> Option<Vec<(usize, usize)>> {
+    let count = HELD_BLOCKS.min(held / MIN_BLOCK);
+    if count < 2 || held >= n {
+        return None;
+    }
+    let len = held / count;
+    let seg = n as f64 / count as f64;
+    let blocks = (0..count)
+        .map(|i| {
+            let a = (i as f64 * seg + 0.5 * (seg - len as f64)).round() as usize;
+            (a, (a + len).min(n))
+        })
+        .collect();
+    Some(blocks)
 }
 
 /// The validation split for `holdout` (`split` = the first held-out sample of the plain split).
@@ -121,24 +212,65 @@ pub(crate) fn validation_split(
     if v.kind != ValidationKind::HeldOut {
         return (split, v, warning);
     }
-    let beyond = super::coverage::beyond_estimation_band(&rec.u[..split], &rec.u[split..], rec.dt)
-        .map(|b| {
-            format!(
-                "the held-out part's input puts {:.0}% of its power at frequencies the estimation \
-                 part hardly excites (it excites about {:.3e} to {:.3e} Hz; beyond, 20 dB below \
-                 its strongest): the held-out figure tests the model beyond the band it was \
-                 fitted on (a sweep holds out its last frequencies); to fit the whole band, \
-                 --holdout 0, and score the model on another record with --validate FILE",
-                100.0 * b.share,
-                b.band_hz.0,
-                b.band_hz.1
-            )
-        });
+    let beyond = super::coverage::beyond_estimation_band(&rec.u[..split], &rec.u[split..], rec.dt);
+    if beyond.is_some() {
+        if let Some(b) = blocked(rec, holdout) {
+            return b;
+        }
+    }
+    let beyond = beyond.map(|b| beyond_warning(&b, "a sweep holds out its last frequencies"));
     let warning = match (warning, beyond) {
         (Some(a), Some(b)) => Some(format!("{a}; {b}")),
         (a, b) => a.or(b),
     };
     (split, v, warning)
+}
+
+/// The warning of a held-out part excited beyond the estimation part's band (`why`: the likely
+/// cause).
+fn beyond_warning(b: &super::coverage::Beyond, why: &str) -> String {
+    format!(
+        "the held-out part's input puts {:.0}% of its power at frequencies the estimation \
+         part hardly excites (it excites about {:.3e} to {:.3e} Hz; beyond, 20 dB below \
+         its strongest): the held-out figure tests the model beyond the band it was \
+         fitted on ({why}); to fit the whole band, --holdout 0, and score the model on another \
+         record with --validate FILE",
+        100.0 * b.share,
+        b.band_hz.0,
+        b.band_hz.1
+    )
+}
+
+/// The validation by blocks ([`held_blocks`]) of a record whose tail holds frequencies its
+/// first part does not excite: the split is the record's length, the blocks are the held-out
+/// part; a warning when the blocks still fail the coverage test. `None` when the record is too
+/// short for two blocks.
+fn blocked(rec: &Record, holdout: f64) -> Option<(usize, Validation, Option<String>)> {
+    let n = rec.len();
+    let held = (holdout * n as f64).round() as usize;
+    let blocks = held_blocks(n, held)?;
+    let (est, inside) = gather(&rec.u, &blocks);
+    let warning = super::coverage::beyond_estimation_band(&est, &inside, rec.dt)
+        .map(|b| beyond_warning(&b, "the held-out blocks"));
+    let list: Vec<String> = blocks.iter().map(|(a, b)| format!("{a}..{b}")).collect();
+    let note = format!(
+        "{} blocks of {} samples held out, spread over the record (samples {}; {:.0}% of the \
+         record): its last {:.0}% holds frequencies the rest does not excite (a sweep), so each \
+         block lies between estimation samples that excite its band; the model is simulated over \
+         the whole record and fitted on the samples outside the blocks",
+        blocks.len(),
+        blocks[0].1 - blocks[0].0,
+        list.join(", "),
+        100.0 * held_count(&blocks, n) as f64 / n as f64,
+        100.0 * holdout
+    );
+    let v = Validation {
+        kind: ValidationKind::HeldOutBlocks,
+        first: n,
+        note,
+        blocks,
+    };
+    Some((n, v, warning))
 }
 
 /// [`validation_split`] by the input's changes alone, with no test of the held-out part's band
@@ -156,6 +288,7 @@ pub(crate) fn split_by_changes(
         kind: ValidationKind::HeldOut,
         first,
         note,
+        blocks: vec![],
     };
     let plain = |first: usize| {
         held_out(
@@ -230,6 +363,7 @@ fn response_tail(
         kind: ValidationKind::ResponseTail,
         first: new,
         note: note.clone(),
+        blocks: vec![],
     };
     (new, v, Some(format!("validation: {note}")))
 }
@@ -243,6 +377,7 @@ fn validation_split_none(n: usize) -> (usize, Validation, Option<String>) {
         kind: ValidationKind::None,
         first: n,
         note,
+        blocks: vec![],
     };
     (n, v, None)
 }

@@ -27,6 +27,11 @@ pub struct FitOptions {
     pub lm: LmOptions,
     /// Leading samples left out of the residual (a start-up transient the model cannot explain).
     pub skip: usize,
+    /// Blocks of samples `start..end` left out of the residual and its Jacobian (held out for
+    /// validation, [`super::ValidationKind::HeldOutBlocks`]): the model is simulated over them,
+    /// its cost counts the other samples only. Empty by default. A fit with blocks runs without
+    /// its leading part first and without variable projection (`lead_first`, `projection`).
+    pub held: Vec<(usize, usize)>,
     /// Whether a fit by variable projection (see [`fit`]) counts the reduced fit's iterations
     /// against `lm.max_iterations`, so that the reduced and the joint fit together take at most
     /// that many (a short screen that means its budget, [`crate::diagnose::START_SCREEN_ITERATIONS`]).
@@ -55,6 +60,7 @@ impl Default for FitOptions {
                 ..LmOptions::default()
             },
             skip: 0,
+            held: vec![],
             shared_budget: false,
             lead_first: true,
             projection: true,
@@ -380,6 +386,37 @@ struct OeProblem<'a, S: Structure> {
     first_ssr: Option<f64>,
     /// On how many threads its Jacobian is computed.
     par: Par,
+    /// With held-out blocks ([`FitOptions::held`]): the sample ranges the residual keeps and
+    /// the whole Jacobian (after `skip`) its kept rows are copied from.
+    kept: Option<(Ranges, Mat<f64>)>,
+}
+
+/// Sample ranges `start..end`, increasing and disjoint.
+type Ranges = Vec<(usize, usize)>;
+
+/// The ranges of `skip..n` outside the blocks `held` (increasing, disjoint).
+fn kept_ranges(skip: usize, n: usize, held: &[(usize, usize)]) -> Ranges {
+    let mut out = vec![];
+    let mut k = skip;
+    for &(a, b) in held {
+        let (a, b) = (a.clamp(k, n), b.clamp(k, n));
+        if a > k {
+            out.push((k, a));
+        }
+        k = k.max(b);
+    }
+    if k < n {
+        out.push((k, n));
+    }
+    out
+}
+
+/// The residuals the fit of `n` samples counts with `opts` (after `skip`, outside the blocks).
+fn counted(n: usize, opts: &FitOptions) -> usize {
+    kept_ranges(opts.skip, n, &opts.held)
+        .iter()
+        .map(|(a, b)| b - a)
+        .sum()
 }
 
 impl<'a, S: Structure> OeProblem<'a, S> {
@@ -408,7 +445,18 @@ impl<'a, S: Structure> OeProblem<'a, S> {
             jac_evals: 0,
             first_ssr: None,
             par,
+            kept: None,
         }
+    }
+
+    /// The same problem with the blocks `held` left out of its residual and Jacobian.
+    fn without(mut self, held: &[(usize, usize)]) -> Self {
+        if !held.is_empty() {
+            let n = self.u.len();
+            let full = Mat::<f64>::zeros(n - self.skip, self.free.len());
+            self.kept = Some((kept_ranges(self.skip, n, held), full));
+        }
+        self
     }
 
     /// The physical parameter values at `theta` (the fixed ones from `base`).
@@ -433,7 +481,10 @@ impl<S: Structure> Problem for OeProblem<'_, S> {
         self.free.len()
     }
     fn n_residuals(&self) -> usize {
-        self.y.len() - self.skip
+        match &self.kept {
+            Some((kept, _)) => kept.iter().map(|(a, b)| b - a).sum(),
+            None => self.y.len() - self.skip,
+        }
     }
     fn at_bound(&self, j: usize, theta_j: f64) -> bool {
         let b = self.s.params()[self.free[j]].bounds;
@@ -457,22 +508,57 @@ impl<S: Structure> Problem for OeProblem<'_, S> {
             Some(jac) => {
                 let (s, base, free, u, dt, skip) =
                     (self.s, &self.base, &self.free, self.u, self.dt, self.skip);
-                let out = (&mut self.yhat[..], jac);
-                jacobian(s, base, free, theta, true, u, dt, skip, out, self.par)?;
+                match &mut self.kept {
+                    None => {
+                        let out = (&mut self.yhat[..], jac);
+                        jacobian(s, base, free, theta, true, u, dt, skip, out, self.par)?;
+                    }
+                    Some((kept, full)) => {
+                        let out = (&mut self.yhat[..], &mut *full);
+                        jacobian(s, base, free, theta, true, u, dt, skip, out, self.par)?;
+                        copy_kept_rows(full, jac, kept, skip);
+                    }
+                }
             }
         }
-        for ((rk, e), y) in r
-            .iter_mut()
-            .zip(&self.yhat[self.skip..])
-            .zip(&self.y[self.skip..])
-        {
-            *rk = e - y;
+        let (yhat, y) = (&self.yhat, self.y);
+        match &self.kept {
+            None => {
+                for ((rk, e), y) in r.iter_mut().zip(&yhat[self.skip..]).zip(&y[self.skip..]) {
+                    *rk = e - y;
+                }
+            }
+            Some((kept, _)) => {
+                let pairs = kept
+                    .iter()
+                    .flat_map(|&(a, b)| yhat[a..b].iter().zip(&y[a..b]));
+                for (rk, (e, y)) in r.iter_mut().zip(pairs) {
+                    *rk = e - y;
+                }
+            }
         }
         let ssr = crate::lm::sumsq(r);
         self.first_ssr.get_or_insert(ssr);
         self.jac_evals += 1;
         (self.progress)(self.jac_evals, (ssr / r.len().max(1) as f64).sqrt());
         Ok(())
+    }
+}
+
+/// The rows of `full` (the Jacobian after `skip`) in the ranges `kept` into `jac`, column by
+/// column.
+fn copy_kept_rows(full: &Mat<f64>, jac: &mut Mat<f64>, kept: &[(usize, usize)], skip: usize) {
+    let (rows, m) = (full.nrows(), jac.nrows());
+    if m == 0 || rows == 0 {
+        return;
+    }
+    let src = full.as_slice().chunks_exact(rows);
+    for (dst, src) in jac.as_mut_slice().chunks_exact_mut(m).zip(src) {
+        let mut o = 0;
+        for &(a, b) in kept {
+            dst[o..o + b - a].copy_from_slice(&src[a - skip..b - skip]);
+            o += b - a;
+        }
     }
 }
 
@@ -603,9 +689,9 @@ pub(super) fn fit_in<S: Structure>(
     progress: &mut dyn FnMut(usize, f64),
 ) -> Result<FitReport> {
     let t0 = Instant::now();
-    let free = check_fit(s, u, y, dt, opts.skip)?;
+    let free = check_fit(s, u, y, dt, opts)?;
     let params = s.params();
-    let m = y.len() - opts.skip;
+    let m = counted(y.len(), opts);
     let base: Vec<f64> = params.iter().map(|p| p.value).collect();
     let theta0 = free
         .iter()
@@ -617,7 +703,7 @@ pub(super) fn fit_in<S: Structure>(
     // A budget of no iteration evaluates the start (its covariance, [`LmOptions::covariance`]):
     // neither the lead part nor the projection moves it.
     let evaluate_only = opts.lm.max_iterations == 0;
-    let lead = if opts.lead_first && !evaluate_only {
+    let lead = if opts.lead_first && !evaluate_only && opts.held.is_empty() {
         lead_part(u, y, opts.skip)
     } else {
         None
@@ -642,7 +728,8 @@ pub(super) fn fit_in<S: Structure>(
         &base,
         &mut *progress,
         opts.lm.par,
-    );
+    )
+    .without(&opts.held);
     let mut from_lead = None;
     if let Some((r, jac_evals, at_start)) = lead_fit {
         prob.jac_evals = jac_evals;
@@ -671,7 +758,7 @@ pub(super) fn fit_in<S: Structure>(
             }
         }
         None => {
-            let projected = (opts.projection && !evaluate_only)
+            let projected = (opts.projection && !evaluate_only && opts.held.is_empty())
                 .then(|| varpro::plan(s, &free))
                 .flatten()
                 .and_then(|plan| varpro::fit(&mut prob, &plan, &start, &lm, opts.shared_budget));
@@ -694,7 +781,7 @@ fn check_fit<S: Structure>(
     u: &[f64],
     y: &[f64],
     dt: f64,
-    skip: usize,
+    opts: &FitOptions,
 ) -> Result<Vec<usize>> {
     if u.len() != y.len() {
         return Err(Error::Data(format!(
@@ -716,7 +803,11 @@ fn check_fit<S: Structure>(
     if free.is_empty() {
         return Err(Error::Options("no free parameter to fit".into()));
     }
-    let m = y.len().saturating_sub(skip);
+    let m = if opts.skip >= y.len() {
+        0
+    } else {
+        counted(y.len(), opts)
+    };
     if m <= free.len() {
         return Err(Error::NotEnoughData(format!(
             "{m} samples for {} free parameters",
@@ -784,7 +875,7 @@ impl<S: Structure> FitProblem<'_, S> {
     /// and standard error (delta method), the warnings.
     fn report(&self, rep: &crate::lm::LmReport, t0: Instant) -> FitReport {
         let (params, free, base) = (self.s.params(), self.free, self.base);
-        let m = self.y.len() - self.opts.skip;
+        let m = counted(self.y.len(), self.opts);
         let mut values = base.to_vec();
         let mut ests: Vec<ParamEstimate> = params
             .iter()
@@ -1293,7 +1384,11 @@ fn identify_at_scale(
     // Only record parameters free (the plant held): their exact estimate as the start.
     held::exact_start(&mut m, u_est, y_est, rec.dt, opts.fit.skip.min(split));
     let start = m.values();
-    let report = fit_in(&m, u_est, y_est, rec.dt, &opts.fit, progress)?;
+    let fit_opts = FitOptions {
+        held: validated_by.blocks.clone(),
+        ..opts.fit.clone()
+    };
+    let report = fit_in(&m, u_est, y_est, rec.dt, &fit_opts, progress)?;
     for (p, v) in m.params.iter_mut().zip(&report.values) {
         p.value = *v;
     }
@@ -1301,8 +1396,7 @@ fn identify_at_scale(
     m.simulate(&report.values, &u, rec.dt, &mut yd)?;
     let mut yhat = yd;
     yhat.iter_mut().for_each(|v| *v += offsets.y0);
-    let estimation = Fit::of(&rec.y[..split], &yhat[..split]);
-    let validation = (split < n).then(|| Fit::of(&rec.y[split..], &yhat[split..]));
+    let (estimation, validation) = validated_by.figures(&rec.y, &yhat, split);
     let tf = m.tf(&report.values)?;
     let alpha_eta = m.alpha_eta(&report.values, rec.dt);
     let mut id = Identification {
@@ -1477,6 +1571,28 @@ pub fn check_params(params: &[Param]) -> Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The ranges a fit with held-out blocks keeps: `skip..n` less the blocks (a block reaching
+    /// into the skipped samples or past the end clipped), and what the checks' blocks hold out.
+    #[test]
+    fn kept_ranges_are_the_samples_outside_the_blocks() {
+        assert_eq!(kept_ranges(0, 10, &[]), [(0, 10)]);
+        assert_eq!(
+            kept_ranges(2, 20, &[(0, 3), (5, 8), (18, 25)]),
+            [(3, 5), (8, 18)]
+        );
+        assert_eq!(kept_ranges(0, 10, &[(0, 10)]), []);
+        let blocks = crate::oe::checks::held_blocks(2299, 690).unwrap();
+        assert_eq!(blocks.len(), 10);
+        assert!(blocks.iter().all(|(a, b)| b - a == 69));
+        assert!(blocks[0].0 > 0 && blocks[9].1 < 2299);
+        let opts = FitOptions {
+            held: blocks,
+            ..FitOptions::default()
+        };
+        assert_eq!(counted(2299, &opts), 2299 - 690);
+        assert_eq!(crate::oe::checks::held_blocks(100, 30), None);
+    }
 
     #[test]
     fn initial_states_round_trip_through_their_words() {

@@ -13,5 +13,6 @@ mod scale;
 mod sensitivity;
 mod starts;
 mod steps;
+mod sweep;
 mod truth;
 mod two_mass;

@@ -47,8 +47,10 @@ pub struct GeneralFit {
 /// # Errors
 /// A holdout out of range.
 fn estimation_part(rec: &Record, opts: &IdentOptions) -> Result<(Vec<f64>, Vec<f64>)> {
+    // (With held-out blocks, the whole record: a start made on the estimation samples
+    // concatenated would see a jump at each block.)
     let (split, _, _) =
-        crate::oe::checks::split_by_changes(rec, rec.split_index(opts.holdout)?, opts.holdout);
+        crate::oe::checks::validation_split(rec, rec.split_index(opts.holdout)?, opts.holdout);
     let off = rec.offsets(opts.offsets, split);
     let u = rec.u[..split].iter().map(|v| v - off.u0).collect();
     let y = rec.y[..split].iter().map(|v| v - off.y0).collect();
@@ -363,13 +365,14 @@ fn score(name: &str, f: &Result<Identification>) -> StructureScore {
     match f {
         Ok(id) => {
             let k = id.model.params.iter().filter(|p| p.free).count();
-            let ssr = id.estimation.rmse.powi(2) * id.split as f64;
+            let n = id.validated_by.estimation_samples(id.split);
+            let ssr = id.estimation.rmse.powi(2) * n as f64;
             s.model = id.tf.to_string();
             s.rmse = Some(id.validation.unwrap_or(id.estimation).rmse);
             s.rmse_after = s.rmse;
             s.problems = id.problems.clone();
             s.free_params = k;
-            s.bic_after = Some(crate::diagnose::bic(ssr, id.split, k));
+            s.bic_after = Some(crate::diagnose::bic(ssr, n, k));
         }
         Err(e) => s.failed = Some(e.to_string()),
     }
