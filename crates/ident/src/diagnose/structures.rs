@@ -44,6 +44,7 @@ pub(crate) use super::choice::{decide, score_of, Outcome};
 pub use super::choice::{Diagnosed, IntegerReference, StructureChoice, StructureScore, FAR, TIE};
 pub use super::halving::BEHIND;
 use super::halving::{confirm_halving, Board};
+use super::Resumable;
 use crate::catalogue::Preset;
 use crate::data::Record;
 use crate::oe::{identify, FracModel, IdentOptions, Identification};
@@ -651,31 +652,34 @@ fn diagnosis_order(ids: &[Result<Identification>], out: &[usize]) -> (Vec<usize>
 }
 
 /// Diagnose the identified structures `which` on all cores, each from its fit's pole cache, on
-/// the successive halving's `board` when given ([`Board`]).
+/// the successive halving's `board` when given ([`Board`]); one given with a halted diagnosis's
+/// [`super::Resume`] goes on from the round it was halted in ([`super::diagnose_from`]: the
+/// same diagnosis as made again from its base fit).
 fn diagnose_these(
     rec: &Record,
     ids: &[Result<Identification>],
     caches: &[Option<RootsCache>],
-    which: &[usize],
+    which: &[(usize, Option<Resumable>)],
     (dopts, board): (&super::DiagnoseOptions, Option<&Board>),
 ) -> Vec<(usize, Result<super::Diagnosis>)> {
-    let todo: Vec<(usize, &Identification)> = which
+    let todo: Vec<(usize, &Identification, Option<&Resumable>)> = which
         .iter()
-        .filter_map(|&i| ids[i].as_ref().ok().map(|id| (i, id)))
+        .filter_map(|(i, r)| ids[*i].as_ref().ok().map(|id| (*i, id, r.as_ref())))
         .collect();
     // Side by side on the width, each diagnosis on one thread of it.
     let mut one = dopts.clone();
     one.fit.lm.par = Par::Seq;
-    let done = dopts.fit.lm.par.each_on_new_threads(&todo, |&(i, id)| {
+    let done = dopts.fit.lm.par.each_on_new_threads(&todo, |&(i, id, from)| {
         let halt = |round, rmse| board.is_some_and(|b| b.halt(i, round, rmse));
+        let from = from.map(|r| &*r.0);
         caches[i]
             .clone()
             .unwrap_or_default()
-            .enter(|| super::diagnose_until(rec, id, &one, &|| false, &halt))
+            .enter(|| super::diagnose_from(rec, id, &one, (&|| false, &halt), from))
     });
     todo.iter()
         .zip(done)
-        .map(|(&(i, _), d)| {
+        .map(|(&(i, _, _), d)| {
             let d = d.unwrap_or_else(|_| {
                 Err(Error::Numerical("a structure's diagnosis panicked".into()))
             });
@@ -848,7 +852,9 @@ pub fn diagnose_best_fitting(
         ..
     } = g;
     let mut diagnoses = diagnoses;
-    let redo = |which: &[usize]| diagnose_these(rec, &ids, &caches, which, (dopts, None));
+    let redo = |which: &[(usize, Option<Resumable>)]| {
+        diagnose_these(rec, &ids, &caches, which, (dopts, None))
+    };
     let cuts = confirm_halving(&ids, &mut diagnoses, &redo);
     let mut outcomes: Vec<Outcome> = ids
         .into_iter()
@@ -990,10 +996,10 @@ fn diagnose_pruned(
     let early = &mut g.early;
     let mut diagnose =
         |ids: &[Result<Identification>], caches: &[Option<RootsCache>], which: &[usize]| {
-            let missing: Vec<usize> = which
+            let missing: Vec<(usize, Option<Resumable>)> = which
                 .iter()
-                .copied()
-                .filter(|&i| early[i].is_none())
+                .filter(|&&i| early[i].is_none())
+                .map(|&i| (i, None))
                 .collect();
             let mut done: Vec<(usize, Result<super::Diagnosis>)> = which
                 .iter()
