@@ -1064,8 +1064,45 @@ pub(crate) fn diagnose_from(
     (stop, halt): (&dyn Fn() -> bool, &dyn Fn(usize, f64) -> bool),
     from: Option<&Resume>,
 ) -> Result<Diagnosis> {
-    let mut ctx = Ctx::of(rec, id, opts)?;
-    let base = ctx.state(id.model.clone(), id.report.values.clone())?;
+    run_from(rec, id, opts, (stop, halt), from).map_err(|(e, _)| e)
+}
+
+/// [`diagnose_until`], and when `stop` gave it up, the state at the start of the round it was
+/// given up in ([`Resume`]): the diagnosis, when needed after all, goes on from there
+/// ([`diagnose_from`]).
+pub(crate) fn diagnose_resumable(
+    rec: &Record,
+    id: &Identification,
+    opts: &DiagnoseOptions,
+    (stop, halt): (&dyn Fn() -> bool, &dyn Fn(usize, f64) -> bool),
+) -> (Result<Diagnosis>, Option<Resumable>) {
+    match run_from(rec, id, opts, (stop, halt), None) {
+        Ok(d) => (Ok(d), None),
+        Err((e, r)) => {
+            let given_up = matches!(e, Error::Cancelled(_));
+            let r = r.filter(|_| given_up);
+            (Err(e), r.map(|r| Resumable(std::sync::Arc::new(r))))
+        }
+    }
+}
+
+/// An error of [`run_from`], with the state at the start of the round it arose in.
+type Interrupted = (Error, Option<Resume>);
+
+/// [`diagnose_from`], its error with the state at the start of the round it arose in. Continued
+/// from `from`, the path up to there is published again (`halt`'s board: the values the rounds
+/// not made again would have published).
+fn run_from(
+    rec: &Record,
+    id: &Identification,
+    opts: &DiagnoseOptions,
+    (stop, halt): (&dyn Fn() -> bool, &dyn Fn(usize, f64) -> bool),
+    from: Option<&Resume>,
+) -> std::result::Result<Diagnosis, Interrupted> {
+    let mut ctx = Ctx::of(rec, id, opts).map_err(|e| (e, None))?;
+    let base = ctx
+        .state(id.model.clone(), id.report.values.clone())
+        .map_err(|e| (e, None))?;
     let Some(r) = from else {
         let run = Rounds {
             st: base.clone(),
@@ -1081,6 +1118,9 @@ pub(crate) fn diagnose_from(
         };
         return run.rounds(0, &base, (stop, halt));
     };
+    for (k, step) in r.path.iter().enumerate().take(r.round) {
+        halt(k, step.rmse);
+    }
     ctx.lead = r.lead;
     ctx.u = r.u.clone();
     let run = Rounds {
@@ -1177,20 +1217,25 @@ type Best = (State, KeptEffect, String, Option<usize>);
 
 impl Rounds<'_> {
     /// The rounds from `first` on, and the diagnosis (`base` the base fit's state); a halted
-    /// diagnosis keeps the state at the start of the round it was halted in ([`Resume`]).
+    /// diagnosis keeps the state at the start of the round it was halted in ([`Resume`]), and
+    /// an error comes with the state at the start of the round it arose in.
     fn rounds(
         mut self,
         first: usize,
         base: &State,
         (stop, halt): (&dyn Fn() -> bool, &dyn Fn(usize, f64) -> bool),
-    ) -> Result<Diagnosis> {
+    ) -> std::result::Result<Diagnosis, Interrupted> {
         let library = probes::library();
         let mut resume = None;
         for round in first..self.ctx.opts.max_rounds {
             let at_start = self.resume(round);
-            if !self.round(round, &library, stop, halt)? {
-                resume = self.halted.map(|_| Resumable(std::sync::Arc::new(at_start)));
-                break;
+            match self.round(round, &library, stop, halt) {
+                Err(e) => return Err((e, Some(at_start))),
+                Ok(true) => {}
+                Ok(false) => {
+                    resume = self.halted.map(|_| Resumable(std::sync::Arc::new(at_start)));
+                    break;
+                }
             }
         }
         let quantization = find_quantization(&self.ctx.rec.y);
@@ -1523,8 +1568,9 @@ mod tests {
         Record::from_samples(&u, &y, dt).unwrap()
     }
 
-    /// A diagnosis halted after its first kept effect and continued from its [`Resume`] is the
-    /// diagnosis run to its end, bit for bit (report, path, final model and output).
+    /// A diagnosis halted after its first kept effect (or given up by `stop`) and continued
+    /// from its [`Resume`] is the diagnosis run to its end, bit for bit (report, path, final
+    /// model and output).
     #[test]
     fn a_halted_diagnosis_continued_is_the_diagnosis_run_to_its_end() {
         let rec = drifting_record();
@@ -1558,6 +1604,26 @@ mod tests {
             assert_eq!(resumed.yhat_after, full.yhat_after);
             assert_eq!(resumed.model.values(), full.model.values());
             assert!(resumed.halted.is_none() && resumed.resume.is_none());
+        }
+        // Given up (`stop`) at its n-th test, round start or refit, and continued: the same.
+        for n in [2, 4, 7] {
+            let calls = std::cell::Cell::new(0);
+            let stop = || {
+                calls.set(calls.get() + 1);
+                calls.get() >= n
+            };
+            let mut cache = fracsim::modal::RootsCache::new();
+            let (d, from) = cache
+                .enter(|| diagnose_resumable(&rec, &id, &dopts, (&stop, &|_, _| false)));
+            assert!(matches!(d, Err(Error::Cancelled(_))), "given up at {n}");
+            let from = from.expect("a diagnosis given up keeps its state");
+            let mut fresh = fracsim::modal::RootsCache::new();
+            let resumed = fresh
+                .enter(|| diagnose_from(&rec, &id, &dopts, (&never, &|_, _| false), Some(&from.0)))
+                .unwrap();
+            let json = |d: &Diagnosis| serde_json::to_string(d).unwrap();
+            assert_eq!(json(&resumed), json(&full), "given up at {n}");
+            assert_eq!(resumed.yhat_after, full.yhat_after);
         }
     }
 
