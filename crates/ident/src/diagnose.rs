@@ -1233,7 +1233,9 @@ impl Rounds<'_> {
                 Err(e) => return Err((e, Some(at_start))),
                 Ok(true) => {}
                 Ok(false) => {
-                    resume = self.halted.map(|_| Resumable(std::sync::Arc::new(at_start)));
+                    resume = self
+                        .halted
+                        .map(|_| Resumable(std::sync::Arc::new(at_start)));
                     break;
                 }
             }
@@ -1593,7 +1595,10 @@ mod tests {
                 .unwrap();
             assert_eq!(halted.halted, Some(at));
             assert_eq!(halted.effects.len(), at);
-            let from = halted.resume.as_ref().expect("a halted diagnosis keeps its state");
+            let from = halted
+                .resume
+                .as_ref()
+                .expect("a halted diagnosis keeps its state");
             let mut fresh = fracsim::modal::RootsCache::new();
             let resumed = fresh
                 .enter(|| diagnose_from(&rec, &id, &dopts, (&never, &|_, _| false), Some(&from.0)))
@@ -1613,8 +1618,8 @@ mod tests {
                 calls.get() >= n
             };
             let mut cache = fracsim::modal::RootsCache::new();
-            let (d, from) = cache
-                .enter(|| diagnose_resumable(&rec, &id, &dopts, (&stop, &|_, _| false)));
+            let (d, from) =
+                cache.enter(|| diagnose_resumable(&rec, &id, &dopts, (&stop, &|_, _| false)));
             assert!(matches!(d, Err(Error::Cancelled(_))), "given up at {n}");
             let from = from.expect("a diagnosis given up keeps its state");
             let mut fresh = fracsim::modal::RootsCache::new();

@@ -434,9 +434,7 @@ impl Shared {
         let _place = self.place();
         let (d, given_up) = std::thread::scope(|scope| {
             scope
-                .spawn(|| {
-                    cache.enter(|| super::diagnose_resumable(rec, id, dopts, (&stop, &halt)))
-                })
+                .spawn(|| cache.enter(|| super::diagnose_resumable(rec, id, dopts, (&stop, &halt))))
                 .join()
                 .unwrap_or_else(|_| {
                     let e = Error::Numerical("a structure's diagnosis panicked".into());
@@ -680,14 +678,18 @@ fn diagnose_these(
     // Side by side on the width, each diagnosis on one thread of it.
     let mut one = dopts.clone();
     one.fit.lm.par = Par::Seq;
-    let done = dopts.fit.lm.par.each_on_new_threads(&todo, |&(i, id, from)| {
-        let halt = |round, rmse| board.is_some_and(|b| b.halt(i, round, rmse));
-        let from = from.map(|r| &*r.0);
-        caches[i]
-            .clone()
-            .unwrap_or_default()
-            .enter(|| super::diagnose_from(rec, id, &one, (&|| false, &halt), from))
-    });
+    let done = dopts
+        .fit
+        .lm
+        .par
+        .each_on_new_threads(&todo, |&(i, id, from)| {
+            let halt = |round, rmse| board.is_some_and(|b| b.halt(i, round, rmse));
+            let from = from.map(|r| &*r.0);
+            caches[i]
+                .clone()
+                .unwrap_or_default()
+                .enter(|| super::diagnose_from(rec, id, &one, (&|| false, &halt), from))
+        });
     todo.iter()
         .zip(done)
         .map(|(&(i, _, _), d)| {
