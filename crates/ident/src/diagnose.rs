@@ -1081,13 +1081,13 @@ pub(crate) fn diagnose_resumable(
         Err((e, r)) => {
             let given_up = matches!(e, Error::Cancelled(_));
             let r = r.filter(|_| given_up);
-            (Err(e), r.map(|r| Resumable(std::sync::Arc::new(r))))
+            (Err(e), r.map(|r| Resumable(std::sync::Arc::from(r))))
         }
     }
 }
 
 /// An error of [`run_from`], with the state at the start of the round it arose in.
-type Interrupted = (Error, Option<Resume>);
+type Interrupted = (Error, Option<Box<Resume>>);
 
 /// [`diagnose_from`], its error with the state at the start of the round it arose in. Continued
 /// from `from`, the path up to there is published again (`halt`'s board: the values the rounds
@@ -1230,7 +1230,7 @@ impl Rounds<'_> {
         for round in first..self.ctx.opts.max_rounds {
             let at_start = self.resume(round);
             match self.round(round, &library, stop, halt) {
-                Err(e) => return Err((e, Some(at_start))),
+                Err(e) => return Err((e, Some(Box::new(at_start)))),
                 Ok(true) => {}
                 Ok(false) => {
                     resume = self

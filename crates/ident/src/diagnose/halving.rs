@@ -14,6 +14,9 @@ use crate::Result;
 /// A structure's index among the candidates and its diagnosis.
 pub(super) type Diagnosed = (usize, Result<super::Diagnosis>);
 
+/// A structure's index among the candidates, with its halted diagnosis's state to go on from.
+pub(super) type Again = (usize, Option<Resumable>);
+
 /// A path's value after `r` kept effects, or its last when it ended sooner (`None`: empty).
 pub(crate) fn at_or_last(path: &[f64], r: usize) -> Option<f64> {
     path.get(r.min(path.len().checked_sub(1)?)).copied()
@@ -121,7 +124,7 @@ fn halving(paths: &[Option<&[f64]>]) -> Vec<Option<usize>> {
 pub(super) fn confirm_halving(
     ids: &[Result<Identification>],
     diagnoses: &mut [Diagnosed],
-    redo: &dyn Fn(&[(usize, Option<Resumable>)]) -> Vec<Diagnosed>,
+    redo: &dyn Fn(&[Again]) -> Vec<Diagnosed>,
 ) -> Vec<Option<usize>> {
     loop {
         let usable = |i: usize| ids[i].as_ref().is_ok_and(|id| id.problems.is_empty());
@@ -136,7 +139,7 @@ pub(super) fn confirm_halving(
         }
         let refs: Vec<Option<&[f64]>> = paths.iter().map(|p| p.as_deref()).collect();
         let cuts = halving(&refs);
-        let again: Vec<(usize, Option<Resumable>)> = diagnoses
+        let again: Vec<Again> = diagnoses
             .iter()
             .filter_map(|(i, d)| match d {
                 Ok(d) if d.halted.is_some() && cuts[*i].is_none() => Some((*i, d.resume.clone())),

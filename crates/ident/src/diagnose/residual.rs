@@ -388,10 +388,7 @@ mod tests {
             .collect();
         let sigs: Vec<Vec<Vec<f64>>> = vec![
             vec![(0..n).map(|k| (17.0 * t(k)).cos()).collect()],
-            vec![
-                (0..n).map(|k| t(k)).collect(),
-                (0..n).map(|_| noise()).collect(),
-            ],
+            vec![(0..n).map(t).collect(), (0..n).map(|_| noise()).collect()],
             vec![(0..n).map(|k| (6.0 * t(k)).sin()).collect()],
         ];
         let once = Projection::of(&sens);
