@@ -262,6 +262,41 @@ pub struct Diagnosis {
     /// `path` up to there is.
     #[serde(skip)]
     pub halted: Option<usize>,
+    /// A halted diagnosis's state at the start of the round it was halted in ([`Resume`]): the
+    /// rest of it, when needed after all, goes on from there ([`diagnose_from`]) instead of
+    /// making the rounds before again. `None` when it ran to its end.
+    #[serde(skip)]
+    pub(crate) resume: Option<Resumable>,
+}
+
+/// What [`Rounds`] holds at the start of a round, with the pole cache entered then
+/// ([`fracsim::modal::RootsCache::entered`]: its hints move the last bits of what the rounds
+/// compute): a halted diagnosis continued from it ([`diagnose_from`]) computes, bit for bit,
+/// what the diagnosis made again from its base fit computes from that round on.
+#[derive(Clone)]
+pub(crate) struct Resume {
+    round: usize,
+    lead: usize,
+    u: Vec<f64>,
+    st: State,
+    kept: Vec<KeptEffect>,
+    rejected: BTreeMap<String, RejectedEffect>,
+    refuted: Vec<String>,
+    ambiguous: Vec<Ambiguity>,
+    path: Vec<Step>,
+    residual_before: Option<ResidualAnalysis>,
+    residual_now: Option<ResidualAnalysis>,
+    cache: fracsim::modal::RootsCache,
+}
+
+/// A [`Resume`] shared by the clones of its diagnosis.
+#[derive(Clone)]
+pub(crate) struct Resumable(std::sync::Arc<Resume>);
+
+impl std::fmt::Debug for Resumable {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "Resumable(round {})", self.0.round)
+    }
 }
 
 /// One point of a diagnosis's [`Diagnosis::path`].
@@ -1046,27 +1081,93 @@ pub(crate) fn diagnose_until(
     stop: &dyn Fn() -> bool,
     halt: &dyn Fn(usize, f64) -> bool,
 ) -> Result<Diagnosis> {
-    let ctx = Ctx::of(rec, id, opts)?;
-    let base = ctx.state(id.model.clone(), id.report.values.clone())?;
-    let mut run = Rounds {
-        st: base.clone(),
-        path: vec![ctx.step(&base)],
-        ctx,
-        kept: vec![],
-        rejected: BTreeMap::new(),
-        refuted: vec![],
-        ambiguous: vec![],
-        halted: None,
-        residual_before: None,
-        residual_now: None,
-    };
-    let library = probes::library();
-    for round in 0..opts.max_rounds {
-        if !run.round(round, &library, stop, halt)? {
-            break;
+    diagnose_from(rec, id, opts, (stop, halt), None)
+}
+
+/// [`diagnose_until`], from the start of the round a halted diagnosis of the same `id` and
+/// `opts` was halted in when `from` is its [`Diagnosis::resume`] (the rounds before are not
+/// made again: the same diagnosis, bit for bit, as made again from the base fit).
+pub(crate) fn diagnose_from(
+    rec: &Record,
+    id: &Identification,
+    opts: &DiagnoseOptions,
+    (stop, halt): (&dyn Fn() -> bool, &dyn Fn(usize, f64) -> bool),
+    from: Option<&Resume>,
+) -> Result<Diagnosis> {
+    run_from(rec, id, opts, (stop, halt), from).map_err(|(e, _)| e)
+}
+
+/// [`diagnose_until`], and when `stop` gave it up, the state at the start of the round it was
+/// given up in ([`Resume`]): the diagnosis, when needed after all, goes on from there
+/// ([`diagnose_from`]).
+pub(crate) fn diagnose_resumable(
+    rec: &Record,
+    id: &Identification,
+    opts: &DiagnoseOptions,
+    (stop, halt): (&dyn Fn() -> bool, &dyn Fn(usize, f64) -> bool),
+) -> (Result<Diagnosis>, Option<Resumable>) {
+    match run_from(rec, id, opts, (stop, halt), None) {
+        Ok(d) => (Ok(d), None),
+        Err((e, r)) => {
+            let given_up = matches!(e, Error::Cancelled(_));
+            let r = r.filter(|_| given_up);
+            (Err(e), r.map(|r| Resumable(std::sync::Arc::from(r))))
         }
     }
-    Ok(run.finish(&base, find_quantization(&rec.y)))
+}
+
+/// An error of [`run_from`], with the state at the start of the round it arose in.
+type Interrupted = (Error, Option<Box<Resume>>);
+
+/// [`diagnose_from`], its error with the state at the start of the round it arose in. Continued
+/// from `from`, the path up to there is published again (`halt`'s board: the values the rounds
+/// not made again would have published).
+fn run_from(
+    rec: &Record,
+    id: &Identification,
+    opts: &DiagnoseOptions,
+    (stop, halt): (&dyn Fn() -> bool, &dyn Fn(usize, f64) -> bool),
+    from: Option<&Resume>,
+) -> std::result::Result<Diagnosis, Interrupted> {
+    let mut ctx = Ctx::of(rec, id, opts).map_err(|e| (e, None))?;
+    let base = ctx
+        .state(id.model.clone(), id.report.values.clone())
+        .map_err(|e| (e, None))?;
+    let Some(r) = from else {
+        let run = Rounds {
+            st: base.clone(),
+            path: vec![ctx.step(&base)],
+            ctx,
+            kept: vec![],
+            rejected: BTreeMap::new(),
+            refuted: vec![],
+            ambiguous: vec![],
+            halted: None,
+            residual_before: None,
+            residual_now: None,
+        };
+        return run.rounds(0, &base, (stop, halt));
+    };
+    for (k, step) in r.path.iter().enumerate().take(r.round) {
+        halt(k, step.rmse);
+    }
+    ctx.lead = r.lead;
+    ctx.u = r.u.clone();
+    let run = Rounds {
+        ctx,
+        st: r.st.clone(),
+        kept: r.kept.clone(),
+        rejected: r.rejected.clone(),
+        refuted: r.refuted.clone(),
+        ambiguous: r.ambiguous.clone(),
+        path: r.path.clone(),
+        halted: None,
+        residual_before: r.residual_before.clone(),
+        residual_now: r.residual_now.clone(),
+    };
+    r.cache
+        .clone()
+        .enter(|| run.rounds(r.round, &base, (stop, halt)))
 }
 
 impl<'a> Ctx<'a> {
@@ -1146,6 +1247,54 @@ struct Rounds<'a> {
 type Best = (State, KeptEffect, String, Option<usize>);
 
 impl Rounds<'_> {
+    /// The rounds from `first` on, and the diagnosis (`base` the base fit's state); a halted
+    /// diagnosis keeps the state at the start of the round it was halted in ([`Resume`]), and
+    /// an error comes with the state at the start of the round it arose in.
+    fn rounds(
+        mut self,
+        first: usize,
+        base: &State,
+        (stop, halt): (&dyn Fn() -> bool, &dyn Fn(usize, f64) -> bool),
+    ) -> std::result::Result<Diagnosis, Interrupted> {
+        let library = probes::library();
+        let mut resume = None;
+        for round in first..self.ctx.opts.max_rounds {
+            let at_start = self.resume(round);
+            match self.round(round, &library, stop, halt) {
+                Err(e) => return Err((e, Some(Box::new(at_start)))),
+                Ok(true) => {}
+                Ok(false) => {
+                    resume = self
+                        .halted
+                        .map(|_| Resumable(std::sync::Arc::new(at_start)));
+                    break;
+                }
+            }
+        }
+        let quantization = find_quantization(&self.ctx.rec.y);
+        let mut d = self.finish(base, quantization);
+        d.resume = resume;
+        Ok(d)
+    }
+
+    /// The state at the start of round `round` ([`Resume`]).
+    fn resume(&self, round: usize) -> Resume {
+        Resume {
+            round,
+            lead: self.ctx.lead,
+            u: self.ctx.u.clone(),
+            st: self.st.clone(),
+            kept: self.kept.clone(),
+            rejected: self.rejected.clone(),
+            refuted: self.refuted.clone(),
+            ambiguous: self.ambiguous.clone(),
+            path: self.path.clone(),
+            residual_before: self.residual_before.clone(),
+            residual_now: self.residual_now.clone(),
+            cache: fracsim::modal::RootsCache::entered(),
+        }
+    }
+
     /// One round: the probes look at the residual, the strong candidates are refitted and the
     /// best kept one is added. Whether the loop goes on (`false`: nothing kept, or halted).
     fn round(
@@ -1354,6 +1503,7 @@ impl Rounds<'_> {
             split: ctx.split,
             path,
             halted,
+            resume: None,
         }
     }
 }
@@ -1420,6 +1570,97 @@ mod tests {
             *v += 0.02 * sd * (-2.0 * a.ln()).sqrt() * (std::f64::consts::TAU * b).cos();
         }
         Record::from_samples(&u, &y, dt).unwrap()
+    }
+
+    /// A record of a commensurate plant whose output drifts (a ramp) and whose input is offset:
+    /// effects the diagnosis keeps one per round.
+    fn drifting_record() -> Record {
+        let (n, dt) = (3000, 1e-3);
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut uniform = move || {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            ((state >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+        };
+        let mut level = 1.0;
+        let u: Vec<f64> = (0..n)
+            .map(|k| {
+                if k % 50 == 0 {
+                    level = 2.0 * uniform() - 1.0;
+                }
+                level
+            })
+            .collect();
+        let truth = FracModel::commensurate(2.0, 0.05, 1e-3, 0.8);
+        let mut y = vec![0.0; n];
+        truth.simulate(&truth.values(), &u, dt, &mut y).unwrap();
+        for (k, v) in y.iter_mut().enumerate() {
+            *v += 0.4 * k as f64 / n as f64 + 0.01 * (uniform() - 0.5);
+        }
+        Record::from_samples(&u, &y, dt).unwrap()
+    }
+
+    /// A diagnosis halted after its first kept effect (or given up by `stop`) and continued
+    /// from its [`Resume`] is the diagnosis run to its end, bit for bit (report, path, final
+    /// model and output).
+    #[test]
+    fn a_halted_diagnosis_continued_is_the_diagnosis_run_to_its_end() {
+        let rec = drifting_record();
+        let opts = IdentOptions {
+            offsets: OffsetMode::None,
+            ..IdentOptions::default()
+        };
+        let id = identify(&rec, &FracModel::commensurate(1.0, 0.05, 1e-3, 0.8), &opts).unwrap();
+        let dopts = DiagnoseOptions::default();
+        let never = || false;
+        let full = fracsim::modal::RootsCache::new()
+            .enter(|| diagnose_until(&rec, &id, &dopts, &never, &|_, _| false))
+            .unwrap();
+        assert!(!full.effects.is_empty(), "{:?}", full.rejected);
+        assert!(full.halted.is_none() && full.resume.is_none());
+        for at in 1..=full.effects.len() {
+            let mut cache = fracsim::modal::RootsCache::new();
+            let halted = cache
+                .enter(|| diagnose_until(&rec, &id, &dopts, &never, &|r, _| r >= at))
+                .unwrap();
+            assert_eq!(halted.halted, Some(at));
+            assert_eq!(halted.effects.len(), at);
+            let from = halted
+                .resume
+                .as_ref()
+                .expect("a halted diagnosis keeps its state");
+            let mut fresh = fracsim::modal::RootsCache::new();
+            let resumed = fresh
+                .enter(|| diagnose_from(&rec, &id, &dopts, (&never, &|_, _| false), Some(&from.0)))
+                .unwrap();
+            let json = |d: &Diagnosis| serde_json::to_string(d).unwrap();
+            assert_eq!(json(&resumed), json(&full), "halted at {at}");
+            assert_eq!(resumed.path, full.path);
+            assert_eq!(resumed.yhat_after, full.yhat_after);
+            assert_eq!(resumed.model.values(), full.model.values());
+            assert!(resumed.halted.is_none() && resumed.resume.is_none());
+        }
+        // Given up (`stop`) at its n-th test, round start or refit, and continued: the same.
+        for n in [2, 4, 7] {
+            let calls = std::cell::Cell::new(0);
+            let stop = || {
+                calls.set(calls.get() + 1);
+                calls.get() >= n
+            };
+            let mut cache = fracsim::modal::RootsCache::new();
+            let (d, from) =
+                cache.enter(|| diagnose_resumable(&rec, &id, &dopts, (&stop, &|_, _| false)));
+            assert!(matches!(d, Err(Error::Cancelled(_))), "given up at {n}");
+            let from = from.expect("a diagnosis given up keeps its state");
+            let mut fresh = fracsim::modal::RootsCache::new();
+            let resumed = fresh
+                .enter(|| diagnose_from(&rec, &id, &dopts, (&never, &|_, _| false), Some(&from.0)))
+                .unwrap();
+            let json = |d: &Diagnosis| serde_json::to_string(d).unwrap();
+            assert_eq!(json(&resumed), json(&full), "given up at {n}");
+            assert_eq!(resumed.yhat_after, full.yhat_after);
+        }
     }
 
     fn diagnosed(rec: &Record) -> Diagnosis {

@@ -1,11 +1,11 @@
 //! ident's dense linear algebra, on faer: the Householder QR of a column-major block
 //! ([`qr_r_in_place`]), least squares in reused memory ([`LstsqWork`]) or at once ([`lstsq`]),
-//! the thin QR ([`thin_qr`]), the projection out of a span ([`project_out`]), Cholesky solves
+//! the thin QR ([`thin_qr`]), the projection out of a span ([`Span`]), Cholesky solves
 //! ([`cholesky_solve`]), minimum-norm least squares by the SVD ([`svd_solve`]), Gram products
 //! ([`gram_add`]) and the inverse of a triangular factor ([`upper_inverse`]). Every
 //! factorisation is faer's: its SVD, its plain QR, and its column-pivoted QR
 //! where the plain one's rank estimate is short ([`factor`]) or a rank is wanted
-//! ([`project_out`]).
+//! ([`Span`]).
 //!
 //! Every call here is sequential (`Par::Seq`): the matrices are a few columns wide, and the
 //! parallelism over a tall matrix's rows is the caller's ([`crate::par`]). Matrices cross the
@@ -577,7 +577,7 @@ pub(crate) fn svd_solve(a: &Mat<f64>, b: &[f64], eps: f64) -> Option<Vec<f64>> {
 }
 
 /// The relative size under which a column's part outside the span of the others makes it
-/// dependent in [`project_out`]: its columns scaled to unit norm, a part of `1e-10` is below the
+/// dependent in [`Span`]: its columns scaled to unit norm, a part of `1e-10` is below the
 /// accuracy of the sensitivities it is given (a part that rounding alone leaves from exactly
 /// dependent columns is about `1e-16` to `1e-13`).
 pub(crate) const DEPENDENT_PART: f64 = 1e-10;
@@ -591,56 +591,94 @@ pub(crate) const DEPENDENT_PART: f64 = 1e-10;
 /// Computed from the reflectors, not from least-squares coefficients `x` as `b - a x`: with
 /// nearly dependent columns `x` is huge and arbitrary, and `b - a x` loses the digits the
 /// projection needs (or is not finite for a column of zeros), so rounding decided the result.
+/// (The diagnosis factors `a` once for many `b`: [`Span`].)
+#[cfg(test)]
 pub(crate) fn project_out(a: &Mat<f64>, b: &Mat<f64>) -> Mat<f64> {
-    let (m, n, c) = (a.nrows(), a.ncols(), b.ncols());
-    let k = m.min(n);
-    let mut out = b.clone();
-    let mut q = a.clone();
-    let mut nonzero = false;
-    for j in 0..n {
-        let norm = as_faer(&q).col(j).norm_l2();
-        let mut col = q.column_mut(j);
-        if norm > 0.0 && norm.is_finite() {
-            col.iter_mut().for_each(|v| *v /= norm);
-            nonzero = true;
-        } else {
-            col.iter_mut().for_each(|v| *v = 0.0);
+    Span::of(a).project_out(b)
+}
+
+/// The span of a matrix's independent columns, factored once ([`Span::of`]) for the
+/// projections of many right-hand sides ([`Span::project_out`], `project_out` of each): the
+/// diagnosis projects a model's sensitivities out of every signature its probes try, and the
+/// factorisation of the sensitivities (the same for all of them) was most of each projection's
+/// cost. The same reflectors applied the same way: each projection is what `project_out`
+/// computed alone, bit for bit.
+pub(crate) struct Span {
+    /// The pivoted QR of the unit-norm columns (reflectors below the diagonal), `m x n`, with
+    /// the coefficients and the rank; `None` when every column is zero (nothing to project).
+    factored: Option<(Mat<f64>, Vec<f64>, usize)>,
+}
+
+impl Span {
+    /// The span of `a`'s independent columns (see `project_out`).
+    pub(crate) fn of(a: &Mat<f64>) -> Self {
+        let (m, n) = (a.nrows(), a.ncols());
+        let k = m.min(n);
+        let mut q = a.clone();
+        let mut nonzero = false;
+        for j in 0..n {
+            let norm = as_faer(&q).col(j).norm_l2();
+            let mut col = q.column_mut(j);
+            if norm > 0.0 && norm.is_finite() {
+                col.iter_mut().for_each(|v| *v /= norm);
+                nonzero = true;
+            } else {
+                col.iter_mut().for_each(|v| *v = 0.0);
+            }
+        }
+        // (faer's pivoted QR divides by the largest column norm: not by a zero one.)
+        if !nonzero {
+            return Span { factored: None };
+        }
+        let mut work = LstsqWork::new();
+        ensure_scratch(&mut work.mem, m, n, 0);
+        work.tau.resize(k, 0.0);
+        let mut qm = MatMut::from_column_major_slice_mut(q.as_mut_slice(), m, n);
+        work.pivoted_qr(qm.rb_mut(), k);
+        let rank = (0..k)
+            .take_while(|&i| qm[(i, i)].abs() > DEPENDENT_PART)
+            .count();
+        Span {
+            factored: Some((q, work.tau, rank)),
         }
     }
-    // (faer's pivoted QR divides by the largest column norm: not by a zero one.)
-    if !nonzero || c == 0 {
-        return out;
+
+    /// `b` with the span projected out (see `project_out`).
+    pub(crate) fn project_out(&self, b: &Mat<f64>) -> Mat<f64> {
+        let mut out = b.clone();
+        let (Some((q, tau, rank)), c) = (&self.factored, b.ncols()) else {
+            return out;
+        };
+        if c == 0 {
+            return out;
+        }
+        let (m, n, k) = (q.nrows(), q.ncols(), tau.len());
+        let mut mem = Vec::new();
+        ensure_scratch(&mut mem, m, n, c);
+        let qm = MatRef::from_column_major_slice(q.as_slice(), m, n);
+        // Q^T b with its first rows (the span's coordinates) zeroed, then Q applied: b - Q Q^T b.
+        let tau = MatRef::from_column_major_slice(tau, 1, k);
+        let mut om = MatMut::from_column_major_slice_mut(out.as_mut_slice(), m, c);
+        let stack = MemStack::new(&mut mem);
+        householder::apply_block_householder_sequence_transpose_on_the_left_in_place_with_conj(
+            qm,
+            tau,
+            Conj::Yes,
+            om.rb_mut(),
+            Par::Seq,
+            stack,
+        );
+        om.rb_mut().subrows_mut(0, *rank).fill(0.0);
+        householder::apply_block_householder_sequence_on_the_left_in_place_with_conj(
+            qm,
+            tau,
+            Conj::No,
+            om,
+            Par::Seq,
+            stack,
+        );
+        out
     }
-    let mut work = LstsqWork::new();
-    ensure_scratch(&mut work.mem, m, n, c);
-    work.tau.resize(k, 0.0);
-    let mut qm = MatMut::from_column_major_slice_mut(q.as_mut_slice(), m, n);
-    work.pivoted_qr(qm.rb_mut(), k);
-    let rank = (0..k)
-        .take_while(|&i| qm[(i, i)].abs() > DEPENDENT_PART)
-        .count();
-    // Q^T b with its first rows (the span's coordinates) zeroed, then Q applied: b - Q Q^T b.
-    let tau = MatRef::from_column_major_slice(&work.tau, 1, k);
-    let mut om = MatMut::from_column_major_slice_mut(out.as_mut_slice(), m, c);
-    let stack = MemStack::new(&mut work.mem);
-    householder::apply_block_householder_sequence_transpose_on_the_left_in_place_with_conj(
-        qm.rb(),
-        tau,
-        Conj::Yes,
-        om.rb_mut(),
-        Par::Seq,
-        stack,
-    );
-    om.rb_mut().subrows_mut(0, rank).fill(0.0);
-    householder::apply_block_householder_sequence_on_the_left_in_place_with_conj(
-        qm.rb(),
-        tau,
-        Conj::No,
-        om,
-        Par::Seq,
-        stack,
-    );
-    out
 }
 
 /// `A^T A` (`n x n`) of the column-major `m x n` matrix `a`, by faer's product.

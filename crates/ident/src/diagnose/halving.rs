@@ -7,11 +7,15 @@
 //! structure's model at its cut. This module knows the diagnoses and their paths only: the
 //! comparison ([`super::structures`]) makes the diagnoses again through the closure it passes.
 
+use super::Resumable;
 use crate::oe::Identification;
 use crate::Result;
 
 /// A structure's index among the candidates and its diagnosis.
 pub(super) type Diagnosed = (usize, Result<super::Diagnosis>);
+
+/// A structure's index among the candidates, with its halted diagnosis's state to go on from.
+pub(super) type Again = (usize, Option<Resumable>);
 
 /// A path's value after `r` kept effects, or its last when it ended sooner (`None`: empty).
 pub(crate) fn at_or_last(path: &[f64], r: usize) -> Option<f64> {
@@ -40,8 +44,8 @@ pub const BEHIND: f64 = 1.1;
 /// refit only when the values published already prove [`BEHIND`]'s rule (another structure's
 /// value after at most as many effects bounds its value after as many from above: a kept
 /// effect lowers the RMSE); [`halving`] applies the rule on the finished paths and
-/// [`super::structures::diagnose_best`] rediagnoses in full any structure halted on a value it
-/// does not confirm.
+/// [`super::structures::diagnose_best`] continues any structure's diagnosis halted on a value it
+/// does not confirm (from the round it was halted in, [`super::Resume`]).
 #[derive(Default)]
 pub(super) struct Board {
     paths: std::sync::Mutex<std::collections::BTreeMap<usize, Vec<f64>>>,
@@ -114,12 +118,13 @@ fn halving(paths: &[Option<&[f64]>]) -> Vec<Option<usize>> {
 /// [`BEHIND`]'s rule applied to the finished `diagnoses` ([`halving`]; among the usable base fits
 /// when one is, as [`super::structures::diagnose_best`]'s decision): where each structure's path is
 /// cut. A diagnosis halted at run time on a value the rule does not confirm (a structure given up
-/// since, or outside the comparison) is made again in full by `redo` (the structures given, their
-/// diagnoses without halting), until every halt is confirmed.
+/// since, or outside the comparison) is made again by `redo` (the structures given, each with its halted
+/// diagnosis's [`super::Resume`]: continued from the start of the round it was halted in, the
+/// rounds before not made again; their diagnoses without halting), until every halt is confirmed.
 pub(super) fn confirm_halving(
     ids: &[Result<Identification>],
     diagnoses: &mut [Diagnosed],
-    redo: &dyn Fn(&[usize]) -> Vec<Diagnosed>,
+    redo: &dyn Fn(&[Again]) -> Vec<Diagnosed>,
 ) -> Vec<Option<usize>> {
     loop {
         let usable = |i: usize| ids[i].as_ref().is_ok_and(|id| id.problems.is_empty());
@@ -134,13 +139,12 @@ pub(super) fn confirm_halving(
         }
         let refs: Vec<Option<&[f64]>> = paths.iter().map(|p| p.as_deref()).collect();
         let cuts = halving(&refs);
-        let again: Vec<usize> = diagnoses
+        let again: Vec<Again> = diagnoses
             .iter()
-            .filter(|(i, d)| {
-                d.as_ref()
-                    .is_ok_and(|d| d.halted.is_some() && cuts[*i].is_none())
+            .filter_map(|(i, d)| match d {
+                Ok(d) if d.halted.is_some() && cuts[*i].is_none() => Some((*i, d.resume.clone())),
+                _ => None,
             })
-            .map(|(i, _)| *i)
             .collect();
         if again.is_empty() {
             return cuts;

@@ -260,15 +260,38 @@ pub fn analyse(e: &[f64], u: &[f64], dt: f64) -> ResidualAnalysis {
     }
 }
 
-/// Least-squares residual of the columns `b` (rows = samples) regressed on `a`; `a` may have no
-/// column (then `b` is returned). The span of `a`'s independent columns is projected out
+/// A model's sensitivity columns factored once ([`crate::linalg::Span`]), to be projected out of
+/// many signatures ([`explained_in`]): a round's probes try dozens against the same model, and
+/// the factorisation was most of each projection's cost. [`Projection::project_out`] is the
+/// least-squares residual of the columns `b` (rows = samples) regressed on them; there may be no
+/// column (then `b` is returned). The span of the independent columns is projected out
 /// ([`crate::linalg::project_out`]): a model's sensitivities may hold a column of zeros or nearly
 /// dependent ones (past-input levels whose response has died out, terms that merged).
-fn project_out(a: &Mat<f64>, b: &Mat<f64>) -> Mat<f64> {
-    if a.ncols() == 0 || a.nrows() <= a.ncols() {
-        return b.clone();
+pub struct Projection {
+    /// The sensitivity columns.
+    cols: usize,
+    /// Their span, `None` when nothing is projected out (no column, or no more rows than
+    /// columns).
+    span: Option<crate::linalg::Span>,
+}
+
+impl Projection {
+    /// The projection out of `a`'s columns.
+    pub fn of(a: &Mat<f64>) -> Self {
+        let none = a.ncols() == 0 || a.nrows() <= a.ncols();
+        Projection {
+            cols: a.ncols(),
+            span: (!none).then(|| crate::linalg::Span::of(a)),
+        }
     }
-    crate::linalg::project_out(a, b)
+
+    /// `b` with the columns projected out.
+    fn project_out(&self, b: &Mat<f64>) -> Mat<f64> {
+        match &self.span {
+            Some(span) => span.project_out(b),
+            None => b.clone(),
+        }
+    }
 }
 
 /// The fraction `R^2` of the sum of squares of `e` explained by the signature columns `sig`
@@ -277,9 +300,15 @@ fn project_out(a: &Mat<f64>, b: &Mat<f64>) -> Mat<f64> {
 /// coefficients, `e_perp` and `S_perp` the parts orthogonal to `sens`. Returns `(R^2, beta)`;
 /// `(0, zeros)` for a degenerate signature.
 pub fn explained(e: &[f64], sig: &[Vec<f64>], sens: &Mat<f64>) -> (f64, Vec<f64>) {
+    explained_in(e, sig, &Projection::of(sens))
+}
+
+/// [`explained`] with the sensitivity columns factored once ([`Projection`]): the same figures,
+/// bit for bit.
+pub fn explained_in(e: &[f64], sig: &[Vec<f64>], sens: &Projection) -> (f64, Vec<f64>) {
     let n = e.len();
     let p = sig.len();
-    if p == 0 || n <= p + sens.ncols() || sig.iter().any(|s| s.len() != n) {
+    if p == 0 || n <= p + sens.cols || sig.iter().any(|s| s.len() != n) {
         return (0.0, vec![0.0; p]);
     }
     let mut b = Mat::<f64>::zeros(n, p + 1);
@@ -289,7 +318,7 @@ pub fn explained(e: &[f64], sig: &[Vec<f64>], sens: &Mat<f64>) -> (f64, Vec<f64>
             b[(r, c + 1)] = s[r];
         }
     }
-    let b = project_out(sens, &b);
+    let b = sens.project_out(&b);
     let ep: Vec<f64> = (0..n).map(|r| b[(r, 0)]).collect();
     let ee: f64 = ep.iter().map(|v| v * v).sum();
     let mut s = Mat::<f64>::zeros(n, p);
@@ -332,6 +361,49 @@ mod tests {
         assert!((normal_tail(2.5758) - 0.005).abs() < 1e-5);
         assert!((chi2_tail(44.314, 25) - 0.01).abs() < 1e-3);
         assert!((chi2_tail(24.337, 25) - 0.5).abs() < 1e-2);
+    }
+
+    /// One [`Projection`] of a model's sensitivities, used for signature after signature, gives
+    /// each the figures [`explained`] gives it alone (bit for bit), with the sensitivities (a
+    /// column of zeros and a dependent one among them) projected out.
+    #[test]
+    fn a_projection_made_once_explains_as_one_made_per_signature() {
+        let n = 400;
+        let mut s = 11u64;
+        let mut noise = move || {
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((s >> 33) as f64 / (1u64 << 31) as f64) - 0.5
+        };
+        let t = |k: usize| k as f64 / n as f64;
+        let sens = Mat::from_fn(n, 4, |k, c| match c {
+            0 => (6.0 * t(k)).sin(),
+            1 => 0.0,
+            2 => 2.0 * (6.0 * t(k)).sin(),
+            _ => t(k) * t(k),
+        });
+        let e: Vec<f64> = (0..n)
+            .map(|k| 0.3 * (6.0 * t(k)).sin() + (17.0 * t(k)).cos() + 0.1 * noise())
+            .collect();
+        let sigs: Vec<Vec<Vec<f64>>> = vec![
+            vec![(0..n).map(|k| (17.0 * t(k)).cos()).collect()],
+            vec![(0..n).map(t).collect(), (0..n).map(|_| noise()).collect()],
+            vec![(0..n).map(|k| (6.0 * t(k)).sin()).collect()],
+        ];
+        let once = Projection::of(&sens);
+        for sig in &sigs {
+            let (r2, beta) = explained_in(&e, sig, &once);
+            let (r2_alone, beta_alone) = explained(&e, sig, &sens);
+            assert_eq!(r2.to_bits(), r2_alone.to_bits());
+            assert_eq!(beta, beta_alone);
+        }
+        // The cosine explains most of what the sensitivities leave; the sine is their span.
+        assert!(explained_in(&e, &sigs[0], &once).0 > 0.9);
+        assert_eq!(explained_in(&e, &sigs[2], &once).0, 0.0);
+        let b = Mat::from_fn(n, 1, |k, _| (6.0 * t(k)).sin() + t(k) * t(k));
+        let out = once.project_out(&b);
+        assert!((0..n).all(|k| out[(k, 0)].abs() < 1e-12), "{}", out[(0, 0)]);
     }
 
     #[test]

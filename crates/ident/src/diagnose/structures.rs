@@ -44,6 +44,7 @@ use super::choice::{far_better, judge_finals};
 pub use super::choice::{Diagnosed, IntegerReference, StructureChoice, StructureScore, FAR, TIE};
 pub use super::halving::BEHIND;
 use super::halving::{confirm_halving, Board};
+use super::Resumable;
 use crate::catalogue::Preset;
 use crate::data::Record;
 use crate::oe::{identify, FracModel, IdentOptions, Identification};
@@ -212,6 +213,8 @@ struct Based {
     fitted: Fitted,
     out: bool,
     early: Option<Result<super::Diagnosis>>,
+    /// The state an early diagnosis was given up at ([`super::Resume`]).
+    given_up: Option<Resumable>,
     /// The reduced structure and the words, when the fit was a degenerate two-mass fit made well
     /// posed ([`reduce_one`]): `fitted` is then the reduced refit.
     reduced: Option<(FracModel, String)>,
@@ -395,14 +398,15 @@ impl Shared {
     /// being fitted) when it is usable and within [`FAR`] of the best usable final base fit so
     /// far, and given up as soon as a better one puts it beyond `FAR` (it is then not diagnosed,
     /// [`diagnosis_order`]). On a thread of its own from the fit's pole cache, as
-    /// [`diagnose_these`]: the same diagnosis, bit for bit.
+    /// [`diagnose_these`]: the same diagnosis, bit for bit. One given up comes with its state
+    /// at the start of the round it was given up in ([`super::diagnose_resumable`]).
     fn diagnose_early(
         &self,
         rec: &Record,
         (i, board): (usize, &Board),
         fitted: &Fitted,
         dopts: &super::DiagnoseOptions,
-    ) -> Option<Result<super::Diagnosis>> {
+    ) -> Option<(Result<super::Diagnosis>, Option<Resumable>)> {
         let (Ok(id), cache) = fitted else {
             return None;
         };
@@ -428,18 +432,19 @@ impl Shared {
         // so that all of them at once went past 1 GB on a 1e6-sample record (reliability round
         // 2, item 2); at most one per core, their results the same whenever they run.
         let _place = self.place();
-        let d = std::thread::scope(|scope| {
+        let (d, given_up) = std::thread::scope(|scope| {
             scope
-                .spawn(|| cache.enter(|| super::diagnose_until(rec, id, dopts, &stop, &halt)))
+                .spawn(|| cache.enter(|| super::diagnose_resumable(rec, id, dopts, (&stop, &halt))))
                 .join()
                 .unwrap_or_else(|_| {
-                    Err(Error::Numerical("a structure's diagnosis panicked".into()))
+                    let e = Error::Numerical("a structure's diagnosis panicked".into());
+                    (Err(e), None)
                 })
         });
         if d.is_err() {
             board.clear(i);
         }
-        Some(d)
+        Some((d, given_up))
     }
 }
 
@@ -537,6 +542,7 @@ fn fit_candidates(
                     fitted: (panicked(), None),
                     out: false,
                     early: None,
+                    given_up: None,
                     reduced: None,
                 })
             })
@@ -579,15 +585,19 @@ fn settle(
     // A degenerate two-mass fit is made well posed here, before its diagnosis (the degenerate
     // fit itself is then never diagnosed).
     let reduced = smallest.or_else(|| reduce_one(rec, &mut fitted, opts));
-    let early = if out {
-        None
+    let (early, given_up) = if out {
+        (None, None)
     } else {
-        shared.diagnose_early(rec, (i, board), &fitted, dopts)
+        match shared.diagnose_early(rec, (i, board), &fitted, dopts) {
+            Some((d, r)) => (Some(d), r),
+            None => (None, None),
+        }
     };
     Based {
         fitted,
         out,
         early,
+        given_up,
         reduced,
     }
 }
@@ -651,31 +661,38 @@ fn diagnosis_order(ids: &[Result<Identification>], out: &[usize]) -> (Vec<usize>
 }
 
 /// Diagnose the identified structures `which` on all cores, each from its fit's pole cache, on
-/// the successive halving's `board` when given ([`Board`]).
+/// the successive halving's `board` when given ([`Board`]); one given with a halted diagnosis's
+/// [`super::Resume`] goes on from the round it was halted in ([`super::diagnose_from`]: the
+/// same diagnosis as made again from its base fit).
 fn diagnose_these(
     rec: &Record,
     ids: &[Result<Identification>],
     caches: &[Option<RootsCache>],
-    which: &[usize],
+    which: &[(usize, Option<Resumable>)],
     (dopts, board): (&super::DiagnoseOptions, Option<&Board>),
 ) -> Vec<(usize, Result<super::Diagnosis>)> {
-    let todo: Vec<(usize, &Identification)> = which
+    let todo: Vec<(usize, &Identification, Option<&Resumable>)> = which
         .iter()
-        .filter_map(|&i| ids[i].as_ref().ok().map(|id| (i, id)))
+        .filter_map(|(i, r)| ids[*i].as_ref().ok().map(|id| (*i, id, r.as_ref())))
         .collect();
     // Side by side on the width, each diagnosis on one thread of it.
     let mut one = dopts.clone();
     one.fit.lm.par = Par::Seq;
-    let done = dopts.fit.lm.par.each_on_new_threads(&todo, |&(i, id)| {
-        let halt = |round, rmse| board.is_some_and(|b| b.halt(i, round, rmse));
-        caches[i]
-            .clone()
-            .unwrap_or_default()
-            .enter(|| super::diagnose_until(rec, id, &one, &|| false, &halt))
-    });
+    let done = dopts
+        .fit
+        .lm
+        .par
+        .each_on_new_threads(&todo, |&(i, id, from)| {
+            let halt = |round, rmse| board.is_some_and(|b| b.halt(i, round, rmse));
+            let from = from.map(|r| &*r.0);
+            caches[i]
+                .clone()
+                .unwrap_or_default()
+                .enter(|| super::diagnose_from(rec, id, &one, (&|| false, &halt), from))
+        });
     todo.iter()
         .zip(done)
-        .map(|(&(i, _), d)| {
+        .map(|(&(i, _, _), d)| {
             let d = d.unwrap_or_else(|_| {
                 Err(Error::Numerical("a structure's diagnosis panicked".into()))
             });
@@ -848,7 +865,9 @@ pub fn diagnose_best_fitting(
         ..
     } = g;
     let mut diagnoses = diagnoses;
-    let redo = |which: &[usize]| diagnose_these(rec, &ids, &caches, which, (dopts, None));
+    let redo = |which: &[(usize, Option<Resumable>)]| {
+        diagnose_these(rec, &ids, &caches, which, (dopts, None))
+    };
     let cuts = confirm_halving(&ids, &mut diagnoses, &redo);
     let mut outcomes: Vec<Outcome> = ids
         .into_iter()
@@ -940,6 +959,8 @@ struct Gathered {
     caches: Vec<Option<RootsCache>>,
     /// A diagnosis started as soon as the base fit was final, when it was not given up.
     early: Vec<Option<Result<super::Diagnosis>>>,
+    /// The state an early diagnosis was given up at, to go on from if it is needed after all.
+    given_up: Vec<Option<Resumable>>,
     /// The candidates screened out (kept as screened, not diagnosed first).
     screened_out: Vec<usize>,
     /// The degenerate two-mass fits made well posed, with the words.
@@ -952,13 +973,15 @@ struct Gathered {
 fn gathered(based: Vec<Based>, cands: &mut [(String, FracModel)]) -> Gathered {
     let screened_out: Vec<usize> = (0..based.len()).filter(|&i| based[i].out).collect();
     let mut early = vec![];
+    let mut given_up = vec![];
     let mut reduced = vec![];
     let (ids, caches): (Vec<Result<Identification>>, Vec<Option<RootsCache>>) = based
         .into_iter()
         .enumerate()
         .map(|(i, b)| {
-            // A diagnosis given up is made again if it is needed after all.
+            // A diagnosis given up goes on from where it was given up if it is needed after all.
             early.push(b.early.filter(|d| !matches!(d, Err(Error::Cancelled(_)))));
+            given_up.push(b.given_up);
             if let Some((model, what)) = b.reduced {
                 cands[i] = (format!("{} (reduced)", cands[i].0), model);
                 reduced.push((i, what));
@@ -970,6 +993,7 @@ fn gathered(based: Vec<Based>, cands: &mut [(String, FracModel)]) -> Gathered {
         ids,
         caches,
         early,
+        given_up,
         screened_out,
         reduced,
     }
@@ -988,13 +1012,13 @@ fn diagnose_pruned(
     (dopts, board): (&super::DiagnoseOptions, &Board),
 ) -> (Vec<(usize, Result<super::Diagnosis>)>, Vec<usize>) {
     let (first, mut later) = diagnosis_order(&g.ids, &g.screened_out);
-    let early = &mut g.early;
+    let (early, given_up) = (&mut g.early, &mut g.given_up);
     let mut diagnose =
         |ids: &[Result<Identification>], caches: &[Option<RootsCache>], which: &[usize]| {
-            let missing: Vec<usize> = which
+            let missing: Vec<(usize, Option<Resumable>)> = which
                 .iter()
-                .copied()
-                .filter(|&i| early[i].is_none())
+                .filter(|&&i| early[i].is_none())
+                .map(|&i| (i, given_up[i].take()))
                 .collect();
             let mut done: Vec<(usize, Result<super::Diagnosis>)> = which
                 .iter()

@@ -21,9 +21,8 @@ mod power_law;
 mod saturation;
 mod skew;
 
-use super::residual::{analyse, explained, ResidualAnalysis};
+use super::residual::{analyse, explained_in, Projection, ResidualAnalysis};
 use super::{Ambiguity, Ctx, KeptEffect, RejectedEffect, State};
-use crate::lm::Mat;
 use crate::oe::{sensitivities, Bounds, Effect, FracModel, Param};
 use crate::Result;
 use std::collections::BTreeMap;
@@ -158,8 +157,9 @@ pub(crate) struct Look<'a> {
     pub ee: f64,
     /// Its tests ([`analyse`]), made once per round for every probe (and the report).
     pub analysis: ResidualAnalysis,
-    /// The current model's output sensitivities on the estimation part.
-    pub sens: Mat<f64>,
+    /// The current model's output sensitivities on the estimation part, factored once for the
+    /// projections of every probe's signatures ([`explained_in`]).
+    pub sens: Projection,
     /// Model output, absolute scale, whole record.
     pub ya: Vec<f64>,
     /// Input, absolute scale, whole record.
@@ -194,7 +194,7 @@ impl<'a> Look<'a> {
             e,
             ee,
             analysis,
-            sens,
+            sens: Projection::of(&sens),
             ya,
             ua,
             noise,
@@ -218,15 +218,15 @@ impl<'a> Look<'a> {
     }
 
     /// The linear part of the current model driven by `x` (whole record, deviation scale), then
-    /// the evidence of that signature: `(R^2, beta)` of [`explained`] on the estimation part.
+    /// the evidence of that signature: `(R^2, beta)` of [`explained_in`] on the estimation part.
     pub fn through_model(&self, x: &[f64]) -> Option<(f64, Vec<f64>)> {
         let g = self.ctx.lin(self.st, x)?;
-        Some(explained(&self.e, &[g[..self.s()].to_vec()], &self.sens))
+        Some(explained_in(&self.e, &[g[..self.s()].to_vec()], &self.sens))
     }
 
     /// The evidence of output-side signature columns (estimation part).
     pub fn direct(&self, cols: &[Vec<f64>]) -> (f64, Vec<f64>) {
-        explained(&self.e, cols, &self.sens)
+        explained_in(&self.e, cols, &self.sens)
     }
 }
 
