@@ -286,7 +286,12 @@ pub fn later(recs: &[Named], prev: &FracModel, target: Target) -> Result<Outcome
         .unwrap_or_default();
     let given = matches!(target, Target::Start(_));
     let start = match target {
-        Target::Diagnosed => r.lead.spec.clone(),
+        // friction an earlier round separated stays: a record that cannot show it (one sign of
+        // speed) leaves it ambiguous, and the joint fit over every record decides its value
+        Target::Diagnosed => match prev.index_of("Vc") {
+            Some(i) => with_friction(&r.lead.spec, prev.params[i].value),
+            None => r.lead.spec.clone(),
+        },
         Target::Friction(vc) => {
             // the value the new record's refit found, if it tried friction
             let tried = r.diagnosis.as_ref().and_then(|d| {
