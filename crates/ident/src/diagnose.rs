@@ -1534,19 +1534,24 @@ mod tests {
         assert!(beats((x, sat), (x * (1.0 - 7e-6), pow)));
     }
 
+    /// Seeded uniform numbers in `(0, 1)` (a 64-bit LCG's top 53 bits): the same record every run.
+    fn uniform_from(seed: u64) -> impl FnMut() -> f64 {
+        let mut state = seed;
+        move || {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            ((state >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+        }
+    }
+
     /// A long record for [`lead_screen`]: `6 x 2^14` samples at 1 ms (its estimation part beyond
     /// `4 x 2^14`), a commensurate plant driven by a random binary input (a new level every 20
     /// samples) that reaches it `delay` whole samples late (the input shifted, so the delay does
     /// not rest on the simulator's own), 2% noise. Seeded: the same record every run.
     fn long_record(delay: usize) -> Record {
         let (n, dt) = (6 * LEAD_SCREEN_SAMPLES, 1e-3);
-        let mut state = 0x9e37_79b9_7f4a_7c15u64;
-        let mut uniform = move || {
-            state = state
-                .wrapping_mul(6_364_136_223_846_793_005)
-                .wrapping_add(1_442_695_040_888_963_407);
-            ((state >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-        };
+        let mut uniform = uniform_from(0x9e37_79b9_7f4a_7c15);
         let mut level = 1.0;
         let u: Vec<f64> = (0..n)
             .map(|k| {
@@ -1576,13 +1581,7 @@ mod tests {
     /// effects the diagnosis keeps one per round.
     fn drifting_record() -> Record {
         let (n, dt) = (3000, 1e-3);
-        let mut state = 0x2545_f491_4f6c_dd1du64;
-        let mut uniform = move || {
-            state = state
-                .wrapping_mul(6_364_136_223_846_793_005)
-                .wrapping_add(1_442_695_040_888_963_407);
-            ((state >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-        };
+        let mut uniform = uniform_from(0x2545_f491_4f6c_dd1d);
         let mut level = 1.0;
         let u: Vec<f64> = (0..n)
             .map(|k| {
