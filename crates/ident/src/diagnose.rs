@@ -402,7 +402,7 @@ impl Ctx<'_> {
 
     /// The samples the fits' cost counts: the first `split` less the held-out blocks'.
     fn estimation_samples(&self) -> usize {
-        self.split - crate::oe::checks::held_count(&self.held, self.split)
+        crate::oe::checks::estimation_samples(self.split, &self.held)
     }
 
     fn bic(&self, st: &State) -> f64 {
@@ -1618,6 +1618,13 @@ mod tests {
             .unwrap();
         assert!(!full.effects.is_empty(), "{:?}", full.rejected);
         assert!(full.halted.is_none() && full.resume.is_none());
+        // Continued from a state, from an empty pole cache of its own.
+        let continued = |from: &Resume| {
+            fracsim::modal::RootsCache::new()
+                .enter(|| diagnose_from(&rec, &id, &dopts, (&never, &|_, _| false), Some(from)))
+                .unwrap()
+        };
+        let json = |d: &Diagnosis| serde_json::to_string(d).unwrap();
         for at in 1..=full.effects.len() {
             let mut cache = fracsim::modal::RootsCache::new();
             let halted = cache
@@ -1629,11 +1636,7 @@ mod tests {
                 .resume
                 .as_ref()
                 .expect("a halted diagnosis keeps its state");
-            let mut fresh = fracsim::modal::RootsCache::new();
-            let resumed = fresh
-                .enter(|| diagnose_from(&rec, &id, &dopts, (&never, &|_, _| false), Some(&from.0)))
-                .unwrap();
-            let json = |d: &Diagnosis| serde_json::to_string(d).unwrap();
+            let resumed = continued(&from.0);
             assert_eq!(json(&resumed), json(&full), "halted at {at}");
             assert_eq!(resumed.path, full.path);
             assert_eq!(resumed.yhat_after, full.yhat_after);
@@ -1652,11 +1655,7 @@ mod tests {
                 cache.enter(|| diagnose_resumable(&rec, &id, &dopts, (&stop, &|_, _| false)));
             assert!(matches!(d, Err(Error::Cancelled(_))), "given up at {n}");
             let from = from.expect("a diagnosis given up keeps its state");
-            let mut fresh = fracsim::modal::RootsCache::new();
-            let resumed = fresh
-                .enter(|| diagnose_from(&rec, &id, &dopts, (&never, &|_, _| false), Some(&from.0)))
-                .unwrap();
-            let json = |d: &Diagnosis| serde_json::to_string(d).unwrap();
+            let resumed = continued(&from.0);
             assert_eq!(json(&resumed), json(&full), "given up at {n}");
             assert_eq!(resumed.yhat_after, full.yhat_after);
         }

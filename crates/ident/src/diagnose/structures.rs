@@ -43,7 +43,7 @@ pub(crate) use super::choice::{decide, score_of, Outcome};
 use super::choice::{far_better, judge_finals};
 pub use super::choice::{Diagnosed, IntegerReference, StructureChoice, StructureScore, FAR, TIE};
 pub use super::halving::BEHIND;
-use super::halving::{confirm_halving, Board};
+use super::halving::{confirm_halving, Again, Board};
 use super::Resumable;
 use crate::catalogue::Preset;
 use crate::data::Record;
@@ -668,7 +668,7 @@ fn diagnose_these(
     rec: &Record,
     ids: &[Result<Identification>],
     caches: &[Option<RootsCache>],
-    which: &[(usize, Option<Resumable>)],
+    which: &[Again],
     (dopts, board): (&super::DiagnoseOptions, Option<&Board>),
 ) -> Vec<(usize, Result<super::Diagnosis>)> {
     let todo: Vec<(usize, &Identification, Option<&Resumable>)> = which
@@ -865,9 +865,7 @@ pub fn diagnose_best_fitting(
         ..
     } = g;
     let mut diagnoses = diagnoses;
-    let redo = |which: &[(usize, Option<Resumable>)]| {
-        diagnose_these(rec, &ids, &caches, which, (dopts, None))
-    };
+    let redo = |which: &[Again]| diagnose_these(rec, &ids, &caches, which, (dopts, None));
     let cuts = confirm_halving(&ids, &mut diagnoses, &redo);
     let mut outcomes: Vec<Outcome> = ids
         .into_iter()
@@ -1015,7 +1013,7 @@ fn diagnose_pruned(
     let (early, given_up) = (&mut g.early, &mut g.given_up);
     let mut diagnose =
         |ids: &[Result<Identification>], caches: &[Option<RootsCache>], which: &[usize]| {
-            let missing: Vec<(usize, Option<Resumable>)> = which
+            let missing: Vec<Again> = which
                 .iter()
                 .filter(|&&i| early[i].is_none())
                 .map(|&i| (i, given_up[i].take()))

@@ -111,7 +111,7 @@ impl Validation {
 
     /// The samples of the first `split` the fit's cost uses: `split` less the blocks'.
     pub fn estimation_samples(&self, split: usize) -> usize {
-        split - held_count(&self.blocks, split)
+        estimation_samples(split, &self.blocks)
     }
 }
 
@@ -132,6 +132,11 @@ pub(crate) fn figures(
         Fit::of(&ye, &fe),
         (!yh.is_empty()).then(|| Fit::of(&yh, &fh)),
     )
+}
+
+/// The samples of the first `split` outside the blocks `held` ([`Validation::estimation_samples`]).
+pub(crate) fn estimation_samples(split: usize, held: &[(usize, usize)]) -> usize {
+    split - held_count(held, split)
 }
 
 /// How many samples below `n` the blocks `held` hold.
@@ -462,17 +467,31 @@ fn singular_and_no_better_than_a_constant(ev: &Evidence<'_>) -> Option<String> {
 fn weak_parameters(ev: &Evidence<'_>) -> (Vec<String>, Vec<String>) {
     let (mut undetermined, mut poor) = (Vec::new(), Vec::new());
     for (i, e) in ev.params.iter().enumerate() {
-        if !e.free || ev.model.is_initial_state(i) || e.name == "y_offset" {
+        if !free_plant(ev.model, i, e) {
             continue;
         }
         let said = |se: f64| format!("{} = {:.4e} +- {se:.2e}", e.name, e.value);
         match e.std_error {
-            Some(se) if se > UNDETERMINED * e.value.abs() => undetermined.push(said(se)),
+            Some(se) if not_determined(e) => undetermined.push(said(se)),
             Some(se) if se > e.value.abs() => poor.push(said(se)),
             _ => {}
         }
     }
     (undetermined, poor)
+}
+
+/// Whether parameter `i` of `model`, estimated as `e`, is a free plant parameter (not one of
+/// the initial state's levels nor the output offset): those the verdict judges determined or
+/// not.
+pub(crate) fn free_plant(model: &FracModel, i: usize, e: &super::ParamEstimate) -> bool {
+    e.free && !model.is_initial_state(i) && e.name != "y_offset"
+}
+
+/// Whether the standard error of `e` is [`UNDETERMINED`] times its value or more: the data do
+/// not determine it at all.
+pub(crate) fn not_determined(e: &super::ParamEstimate) -> bool {
+    e.std_error
+        .is_some_and(|se| se > UNDETERMINED * e.value.abs())
 }
 
 /// "1 parameter is" / "3 parameters are".

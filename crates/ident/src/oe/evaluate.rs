@@ -27,9 +27,8 @@ pub(crate) fn at_values(
     identify(rec, spec, &opts)
 }
 
-/// The free plant parameters of `id` (not the initial state's levels nor the output offset) whose
-/// standard error is [`super::checks::UNDETERMINED`] times their value or more, when the data's
-/// not determining them is `id`'s only problem; else none.
+/// The free plant parameters of `id` the data do not determine ([`super::checks::free_plant`],
+/// [`super::checks::not_determined`]), when that is `id`'s only problem; else none.
 pub(crate) fn undetermined(id: &Identification) -> Vec<usize> {
     let only_weak = id.problems.len() == 1 && id.problems[0].contains("not determined");
     if !only_weak {
@@ -39,10 +38,8 @@ pub(crate) fn undetermined(id: &Identification) -> Vec<usize> {
         .params
         .iter()
         .enumerate()
-        .filter(|(i, e)| e.free && !id.model.is_initial_state(*i) && e.name != "y_offset")
-        .filter(|(_, e)| {
-            e.std_error
-                .is_some_and(|se| se > super::checks::UNDETERMINED * e.value.abs())
+        .filter(|&(i, e)| {
+            super::checks::free_plant(&id.model, i, e) && super::checks::not_determined(e)
         })
         .map(|(i, _)| i)
         .collect()
