@@ -77,6 +77,7 @@
 //! the one with the lowest BIC among those within 2% of the best held-out RMSE, so that an effect
 //! is not found only because the named structure could not bend like the plant.
 
+mod backward;
 pub mod choice;
 pub mod freq;
 pub mod general;
@@ -1441,6 +1442,7 @@ impl Rounds<'_> {
         self.kept.push(k);
         self.st = ns;
         self.path.push(self.ctx.step(&self.st));
+        self.backward();
         self.residual_now = None;
         true
     }
