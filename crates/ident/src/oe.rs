@@ -938,14 +938,25 @@ impl FracModel {
     /// parameters, every other parameter renumbered; beside it, the old index of each parameter
     /// left (`values[kept[i]]` is the new model's parameter `i`).
     pub fn without_effect(&self, k: usize) -> (FracModel, Vec<usize>) {
-        let gone = self.effects[k].params();
+        let mut m = self.clone();
+        let gone = m.effects.remove(k).params();
+        m.without_params(&gone)
+    }
+
+    /// The model without the parameters `gone`, which nothing in it refers to any more (a term or
+    /// an effect removed first), every other parameter renumbered; beside it, the old index of
+    /// each parameter left (`values[kept[i]]` is the new model's parameter `i`).
+    ///
+    /// # Panics
+    /// When a parameter of `gone` is still referred to.
+    pub fn without_params(&self, gone: &[usize]) -> (FracModel, Vec<usize>) {
         let kept: Vec<usize> = (0..self.params.len())
             .filter(|i| !gone.contains(i))
             .collect();
         let to = |i: usize| {
             kept.iter()
                 .position(|&o| o == i)
-                .expect("a parameter of the removed effect referred to elsewhere")
+                .expect("a removed parameter still referred to")
         };
         let expr = |e: &Expr| Expr {
             constant: e.constant,
@@ -965,10 +976,7 @@ impl FracModel {
             .map(|(n, d)| (terms(n), terms(d)))
             .collect();
         m.delay = self.delay.map(to);
-        m.effects = (self.effects.iter().enumerate())
-            .filter(|&(j, _)| j != k)
-            .map(|(_, e)| e.renumbered(to))
-            .collect();
+        m.effects = self.effects.iter().map(|e| e.renumbered(to)).collect();
         if let Some(p) = &mut m.past {
             p.levels = p.levels.iter().map(|&i| to(i)).collect();
         }

@@ -687,7 +687,14 @@ fn sized_general(
     };
     let n = crate::diagnose::general::search::SHORTLIST;
     enter(obs, Stage::Structures { n })?;
-    crate::diagnose::general::fit(rec, model, opts, &g).map(Some)
+    // the plain fit is the answer: its size trimmed; with the diagnosis the size is diagnosed as
+    // chosen ([`crate::diagnose::general::search::Then`])
+    let then = if req.plain {
+        crate::diagnose::general::search::Then::Trimmed
+    } else {
+        crate::diagnose::general::search::Then::AsChosen
+    };
+    crate::diagnose::general::fit(rec, model, opts, (&g, then)).map(Some)
 }
 
 /// The base fit's and the final model's scores on the separate validation record, if one was

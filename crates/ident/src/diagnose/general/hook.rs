@@ -23,6 +23,7 @@
 //! better. Otherwise the named choice stands; its row is added to the comparison either way, and
 //! the reason says what was done.
 
+use super::search::Then;
 use super::{fit, GeneralRequest};
 use crate::data::Record;
 use crate::diagnose::choice::{decide, score_of, Diagnosed, Outcome, StructureScore};
@@ -65,7 +66,14 @@ pub fn consider(
     };
     let chosen = d.choice.chosen;
     let mut roots = RootsCache::new();
-    let g = roots.enter(|| fit(rec, template, opts, &GeneralRequest::default()));
+    let g = roots.enter(|| {
+        fit(
+            rec,
+            template,
+            opts,
+            (&GeneralRequest::default(), Then::AsChosen),
+        )
+    });
     let g = match g {
         Ok(g) => g,
         Err(e) => {
