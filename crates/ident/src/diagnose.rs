@@ -82,6 +82,7 @@ pub mod freq;
 pub mod general;
 mod halving;
 mod probes;
+mod recheck;
 pub mod residual;
 pub mod structures;
 
@@ -1269,6 +1270,17 @@ impl Rounds<'_> {
                         .map(|_| Resumable(std::sync::Arc::new(at_start)));
                     break;
                 }
+            }
+        }
+        if self.halted.is_none() {
+            let dropped = recheck::recheck(&self.ctx, base, &mut self.st, &mut self.kept);
+            if !dropped.is_empty() {
+                for r in dropped {
+                    self.rejected.insert(r.name.clone(), r);
+                }
+                *self.path.last_mut().expect("the path starts at the base fit") =
+                    self.ctx.step(&self.st);
+                self.residual_now = None;
             }
         }
         let quantization = find_quantization(&self.ctx.rec.y);

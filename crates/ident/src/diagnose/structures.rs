@@ -41,7 +41,9 @@
 
 pub(crate) use super::choice::{decide, score_of, Outcome};
 use super::choice::{far_better, judge_finals};
-pub use super::choice::{Diagnosed, IntegerReference, StructureChoice, StructureScore, FAR, TIE};
+pub use super::choice::{
+    Diagnosed, IntegerReference, StructureChoice, StructureScore, BIC_EVEN, FAR, TIE,
+};
 pub use super::halving::BEHIND;
 use super::halving::{confirm_halving, Again, Board};
 use super::Resumable;
@@ -720,15 +722,32 @@ fn reason(
         (true, false) => format!(" with {}", s.effects.join(", ")),
     };
     let (gain, reference) = integer_gain(cands, scores, chosen);
+    let bic = s.bic_after.unwrap_or(f64::NAN);
+    // The lowest BIC among the ties, when another tie's is lower ([`decide`]: fewer effects).
+    let lower = scores
+        .iter()
+        .filter(|t| t.usable() && t.rmse_after.is_some_and(|r| r <= (1.0 + TIE) * best))
+        .filter_map(|t| t.bic_after)
+        .filter(|&b| b < bic)
+        .fold(f64::INFINITY, f64::min);
+    let rule = if lower.is_finite() {
+        format!(
+            "the fewest effects among the ties whose BIC is within {BIC_EVEN} of the lowest \
+             ({bic:.1} against {lower:.1}, {} free parameters)",
+            s.free_params
+        )
+    } else {
+        format!(
+            "the lowest BIC among the ties ({bic:.1}, {} free parameters)",
+            s.free_params
+        )
+    };
     let words = format!(
-        "{} chosen: {} RMSE {:.4e}{with} (best {best:.4e}; ties within {:.0}%), the lowest BIC \
-         among the ties ({:.1}, {} free parameters){gain}",
+        "{} chosen: {} RMSE {:.4e}{with} (best {best:.4e}; ties within {:.0}%), {rule}{gain}",
         s.name,
         if held_out { "held-out" } else { "estimation" },
         s.rmse_after.unwrap_or(f64::NAN),
         100.0 * TIE,
-        s.bic_after.unwrap_or(f64::NAN),
-        s.free_params,
     );
     let reduced: String = reduced
         .iter()
