@@ -116,7 +116,12 @@ pub(crate) fn score_of(name: &str, o: &Outcome) -> StructureScore {
         (Some(id), Some(Ok(d))) => {
             let ne = id.validated_by.estimation_samples(id.split);
             let n = ne as f64;
-            let k = d.model.params.iter().filter(|p| p.free).count();
+            // A kept advance of the input (a time-stamp skew) is chosen from the data like a
+            // parameter, though the model does not carry it: counted as one (a one-sample skew
+            // on a first order tied the general structure's direct term, one parameter more,
+            // on the zoo's feed-through 0055, and won by that parameter's BIC).
+            let k = d.model.params.iter().filter(|p| p.free).count()
+                + usize::from(d.advances_input());
             let ssr = d.estimation.after.rmse.powi(2) * n;
             s.effects = d.effects.iter().map(|e| e.name.clone()).collect();
             s.free_params = k;

@@ -1764,6 +1764,24 @@ mod tests {
         ]
     }
 
+    /// The zoo's integrator 0006 (seed 44): a first order that kept a delay ties the second order
+    /// with none on the held-out part, its BIC lower by less than [`BIC_EVEN`]: the second order
+    /// is chosen; a BIC lower by more, or a tie with no effect on either side, the lowest BIC.
+    #[test]
+    fn a_tie_within_an_even_bic_goes_to_the_fewer_effects() {
+        let tie = |bic_first: f64, effects: &[&str]| {
+            let mut first = row("first-order", 2.1728, &[]);
+            first.bic_after = Some(bic_first);
+            first.effects = effects.iter().map(|e| e.to_string()).collect();
+            let mut second = row("second-order", 2.1652, &[]);
+            second.bic_after = Some(2231.48);
+            decide(&[first, second]).map(|c| c.0)
+        };
+        assert_eq!(tie(2231.48 - 0.5 * BIC_EVEN, &["delay"]), Some(1));
+        assert_eq!(tie(2231.48 - 2.0 * BIC_EVEN, &["delay"]), Some(0));
+        assert_eq!(tie(2231.48 - 0.5 * BIC_EVEN, &[]), Some(0));
+    }
+
     /// A final model whose base fit is not usable is chosen from as a usable one when its own
     /// verdict at its values has no problem, and not when it has one or was not judged.
     #[test]

@@ -1088,3 +1088,48 @@ fn a_structure_whose_effects_mend_its_base_fit_is_chosen_on_its_final_model() {
     );
     assert!(r.lead.usable, "{:?}", r.lead.problems);
 }
+
+/// The benchmark zoo's integrator case 0006 (seed 44, `tests/data/README.md`): `26.4/(s (8.2e-3 s
+/// + 1))` under a sweep, 8.9% noise, no delay. The first order, a pole short, kept a delay of
+/// 7.1 ms in the pole's stead and tied the second order, which needs none, on the held-out part
+/// (0.4% behind it), with a BIC only 1.2 lower; it was chosen by the lower BIC. A BIC difference
+/// under 2 is no evidence: the tie goes to the fewer effects, and the report has no delay, within
+/// 10% of the truth's held-out RMSE (2.16477, the zoo's oracle on the same samples).
+#[test]
+fn a_delay_standing_in_for_a_pole_does_not_win_an_even_tie() {
+    let r = default_run_on_fixture("zoo_seed44_0006_integrator.csv");
+    let dg = r.diagnosis.as_ref().expect("a diagnosis");
+    let choice = &dg.structures;
+    assert!(!names(&dg.diagnosis).contains(&"delay"), "{}", choice.reason);
+    assert!(dg.diagnosis.model.delay.is_none(), "{}", choice.reason);
+    let held = choice.scores[choice.chosen].rmse_after.unwrap();
+    assert!(held <= 1.1 * 2.16477, "held-out RMSE {held}: {}", choice.reason);
+}
+
+/// The benchmark zoo's two-effect case 0172 (seed 44, `tests/data/README.md`): a PMSM with Coulomb
+/// friction 0.106 and an input offset under a sweep, no drift. The first round kept an output
+/// drift (-5.3% held out), the second the friction (-6.5%); once the friction was in, the drift
+/// had shrunk to a third and the model without it was as good. Checked again in the final model,
+/// the drift no longer clears the margin and is dropped: the friction alone is kept, within 10%
+/// of the truth's held-out RMSE (1.47920, the zoo's oracle on the same samples).
+#[test]
+fn a_drift_a_later_effect_takes_up_is_dropped() {
+    let r = default_run_on_fixture("zoo_seed44_0172_two_effects.csv");
+    let dg = r.diagnosis.as_ref().expect("a diagnosis");
+    let d = &dg.diagnosis;
+    assert_eq!(names(d), ["coulomb_friction"], "{:?}", d.rejected);
+    let drift = d
+        .rejected
+        .iter()
+        .find(|e| e.name == "output_drift")
+        .expect("the drift rejected");
+    assert!(
+        drift.reason.contains("once coulomb_friction was added"),
+        "{}",
+        drift.reason
+    );
+    let held = dg.structures.scores[dg.structures.chosen]
+        .rmse_after
+        .unwrap();
+    assert!(held <= 1.1 * 1.4792, "held-out RMSE {held}");
+}
