@@ -1287,8 +1287,10 @@ impl Rounds<'_> {
                 for r in dropped {
                     self.rejected.insert(r.name.clone(), r);
                 }
-                *self.path.last_mut().expect("the path starts at the base fit") =
-                    self.ctx.step(&self.st);
+                *self
+                    .path
+                    .last_mut()
+                    .expect("the path starts at the base fit") = self.ctx.step(&self.st);
                 self.residual_now = None;
             }
         }

@@ -120,8 +120,8 @@ pub(crate) fn score_of(name: &str, o: &Outcome) -> StructureScore {
             // parameter, though the model does not carry it: counted as one (a one-sample skew
             // on a first order tied the general structure's direct term, one parameter more,
             // on the zoo's feed-through 0055, and won by that parameter's BIC).
-            let k = d.model.params.iter().filter(|p| p.free).count()
-                + usize::from(d.advances_input());
+            let k =
+                d.model.params.iter().filter(|p| p.free).count() + usize::from(d.advances_input());
             let ssr = d.estimation.after.rmse.powi(2) * n;
             s.effects = d.effects.iter().map(|e| e.name.clone()).collect();
             s.free_params = k;
@@ -243,9 +243,7 @@ pub(crate) fn decide(scores: &[StructureScore]) -> Option<(usize, f64)> {
         .filter(|&i| !(bic(i) > lowest + BIC_EVEN))
         .min_by(|&a, &b| {
             let effects = |i: usize| scores[i].effects.len();
-            effects(a)
-                .cmp(&effects(b))
-                .then(bic(a).total_cmp(&bic(b)))
+            effects(a).cmp(&effects(b)).then(bic(a).total_cmp(&bic(b)))
         })
         .map(|c| (c, best))
 }

@@ -1100,10 +1100,18 @@ fn a_delay_standing_in_for_a_pole_does_not_win_an_even_tie() {
     let r = default_run_on_fixture("zoo_seed44_0006_integrator.csv");
     let dg = r.diagnosis.as_ref().expect("a diagnosis");
     let choice = &dg.structures;
-    assert!(!names(&dg.diagnosis).contains(&"delay"), "{}", choice.reason);
+    assert!(
+        !names(&dg.diagnosis).contains(&"delay"),
+        "{}",
+        choice.reason
+    );
     assert!(dg.diagnosis.model.delay.is_none(), "{}", choice.reason);
     let held = choice.scores[choice.chosen].rmse_after.unwrap();
-    assert!(held <= 1.1 * 2.16477, "held-out RMSE {held}: {}", choice.reason);
+    assert!(
+        held <= 1.1 * 2.16477,
+        "held-out RMSE {held}: {}",
+        choice.reason
+    );
 }
 
 /// The benchmark zoo's two-effect case 0172 (seed 44, `tests/data/README.md`): a PMSM with Coulomb
@@ -1148,12 +1156,22 @@ fn an_instant_response_is_not_taken_for_a_time_stamp_skew() {
     let r = default_run_on_fixture("zoo_seed44_0055_feedthrough.csv");
     let dg = r.diagnosis.as_ref().expect("a diagnosis");
     let choice = &dg.structures;
-    assert!(!names(&dg.diagnosis).contains(&"delay"), "{}", choice.reason);
     assert!(
-        choice.reason.contains("its output leads the recorded input"),
+        !names(&dg.diagnosis).contains(&"delay"),
+        "{}",
+        choice.reason
+    );
+    assert!(
+        choice
+            .reason
+            .contains("its output leads the recorded input"),
         "{}",
         choice.reason
     );
     let held = choice.scores[choice.chosen].rmse_after.unwrap();
-    assert!(held <= 1.1 * 2.42143, "held-out RMSE {held}: {}", choice.reason);
+    assert!(
+        held <= 1.1 * 2.42143,
+        "held-out RMSE {held}: {}",
+        choice.reason
+    );
 }
