@@ -149,7 +149,7 @@ pub(super) fn recheck(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::oe::{Bounds, Param};
+    use crate::oe::{Bounds, Param, Structure};
 
     /// Removing an effect in the middle of the parameters moves every later index down: the
     /// model without it simulates as the model with it at its neutral value (a drift of 0), and

@@ -1089,12 +1089,13 @@ fn a_structure_whose_effects_mend_its_base_fit_is_chosen_on_its_final_model() {
     assert!(r.lead.usable, "{:?}", r.lead.problems);
 }
 
-/// The benchmark zoo's integrator case 0006 (seed 44, `tests/data/README.md`): `26.4/(s (8.2e-3 s
-/// + 1))` under a sweep, 8.9% noise, no delay. The first order, a pole short, kept a delay of
-/// 7.1 ms in the pole's stead and tied the second order, which needs none, on the held-out part
-/// (0.4% behind it), with a BIC only 1.2 lower; it was chosen by the lower BIC. A BIC difference
-/// under 2 is no evidence: the tie goes to the fewer effects, and the report has no delay, within
-/// 10% of the truth's held-out RMSE (2.16477, the zoo's oracle on the same samples).
+/// The benchmark zoo's integrator case 0006 (seed 44, `tests/data/README.md`): an integrator with
+/// a lag of 8.2 ms, `26.4/(s (8.2e-3 s + 1))`, under a sweep, 8.9% noise, no delay. The first
+/// order, a pole short, kept a delay of 7.1 ms in the pole's stead and tied the second order,
+/// which needs none, on the held-out part (0.4% behind it), with a BIC only 1.2 lower; it was
+/// chosen by the lower BIC. A BIC difference under 2 is no evidence: the tie goes to the fewer
+/// effects, and the report has no delay, within 10% of the truth's held-out RMSE (2.16477, the
+/// zoo's oracle on the same samples).
 #[test]
 fn a_delay_standing_in_for_a_pole_does_not_win_an_even_tie() {
     let r = default_run_on_fixture("zoo_seed44_0006_integrator.csv");
