@@ -74,8 +74,10 @@
 //!
 //! # Structure
 //! [`structures::diagnose_best`] fits the structures that could describe the record and diagnoses
-//! the one with the lowest BIC among those within 2% of the best held-out RMSE, so that an effect
-//! is not found only because the named structure could not bend like the plant.
+//! the one with the lowest BIC among those within 2% of the best held-out RMSE (within
+//! [`choice::BIC_EVEN`] of it, the one with the fewest effects), so that an effect is not found
+//! only because the named structure could not bend like the plant. Once the rounds end, the
+//! effects kept before the last one are checked again in the final model (`recheck`).
 
 pub mod choice;
 pub mod freq;

@@ -20,8 +20,9 @@
 //! and those not usable but more than [`FAR`] times better than every usable one, [`far_better`]),
 //! those whose held-out RMSE (estimation RMSE without a held-out part) is within [`TIE`] of the
 //! best are ties, and the tie with the lowest BIC `N ln(SSR/N) + k ln N` on the estimation part
-//! wins (`k` free parameters, the effects' included): the simpler model unless the richer one
-//! predicts clearly better.
+//! wins (`k` free parameters, the effects' included, a kept advance of the input counted as one):
+//! the simpler model unless the richer one predicts clearly better; among the ties whose BIC is
+//! within [`BIC_EVEN`] of the lowest, the one with the fewest kept effects.
 //!
 //! The base fits prune the comparison, so that a diagnosis costs a few fits: each candidate's base
 //! fit is screened with the refits' budget of LM iterations ([`SCREEN_ITERATIONS`]; a fit that

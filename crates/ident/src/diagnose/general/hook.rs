@@ -7,8 +7,9 @@
 //! the input (the residual-input cross-correlation: dynamics the model misses), or it is not
 //! white (Ljung-Box at 1%: with white measurement noise, structure the model misses; a short
 //! record's cross-correlation has wide bounds), or it kept an advance of the input on a
-//! structure with no feed-through ([`leads_without_feedthrough`]), or its base fit is not usable (no named
-//! structure could be fitted well posed) and the diagnosis kept no effect (a final model with
+//! structure with no feed-through (`leads_without_feedthrough`: a time-stamp skew or an instant
+//! response), or its base fit is not usable (no named structure could be fitted well posed) and
+//! the diagnosis kept no effect (a final model with
 //! effects is not its base fit: its own residual judges it; a sign-blind sensor's or a power
 //! law's base fit is unusable and its final model right, and on the zoo the general structure
 //! was diagnosed on none of the 10 such cases). Only then is the general structure sized by the
