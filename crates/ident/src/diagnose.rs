@@ -79,6 +79,7 @@
 //! only because the named structure could not bend like the plant. Once the rounds end, the
 //! effects kept before the last one are checked again in the final model (`recheck`).
 
+mod backward;
 pub mod choice;
 pub mod freq;
 pub mod general;
@@ -1466,6 +1467,7 @@ impl Rounds<'_> {
         self.kept.push(k);
         self.st = ns;
         self.path.push(self.ctx.step(&self.st));
+        self.backward();
         self.residual_now = None;
         true
     }

@@ -934,6 +934,47 @@ impl FracModel {
         self.past.as_ref().is_some_and(|p| p.levels.contains(&i))
     }
 
+    /// The model without its effect `k` (an index into [`FracModel::effects`]) and that effect's
+    /// parameters, every other parameter renumbered; beside it, the old index of each parameter
+    /// left (`values[kept[i]]` is the new model's parameter `i`).
+    pub fn without_effect(&self, k: usize) -> (FracModel, Vec<usize>) {
+        let gone = self.effects[k].params();
+        let kept: Vec<usize> = (0..self.params.len())
+            .filter(|i| !gone.contains(i))
+            .collect();
+        let to = |i: usize| {
+            kept.iter()
+                .position(|&o| o == i)
+                .expect("a parameter of the removed effect referred to elsewhere")
+        };
+        let expr = |e: &Expr| Expr {
+            constant: e.constant,
+            terms: e.terms.iter().map(|&(i, f)| (to(i), f)).collect(),
+            factors: e.factors.iter().map(|&i| to(i)).collect(),
+        };
+        let terms = |t: &[(Expr, Expr)]| -> Vec<(Expr, Expr)> {
+            t.iter().map(|(c, o)| (expr(c), expr(o))).collect()
+        };
+        let mut m = self.clone();
+        m.params = kept.iter().map(|&o| self.params[o].clone()).collect();
+        m.num = terms(&self.num);
+        m.den = terms(&self.den);
+        m.series = self
+            .series
+            .iter()
+            .map(|(n, d)| (terms(n), terms(d)))
+            .collect();
+        m.delay = self.delay.map(to);
+        m.effects = (self.effects.iter().enumerate())
+            .filter(|&(j, _)| j != k)
+            .map(|(_, e)| e.renumbered(to))
+            .collect();
+        if let Some(p) = &mut m.past {
+            p.levels = p.levels.iter().map(|&i| to(i)).collect();
+        }
+        (m, kept)
+    }
+
     /// Add a fitted constant output offset (returns its parameter index).
     pub fn with_output_offset(&mut self, c: f64) -> usize {
         let i = self.add_param(Param::new("y_offset", c, Bounds::Free));

@@ -163,6 +163,27 @@ impl Effect {
         }
     }
 
+    /// The same effect with each parameter index `i` renumbered to `to(i)`.
+    pub fn renumbered(&self, to: impl Fn(usize) -> usize) -> Self {
+        let mut e = self.clone();
+        match &mut e {
+            Effect::InputOffset { c } | Effect::SensorZero { c } | Effect::OutputOffset { c } => {
+                *c = to(*c)
+            }
+            Effect::Coulomb { vc } => *vc = to(*vc),
+            Effect::Saturation { level } => *level = to(*level),
+            Effect::Deadzone { width } => *width = to(*width),
+            Effect::PowerLaw { p, .. } => *p = to(*p),
+            Effect::OutputDrift { r } => *r = to(*r),
+            Effect::AbsSensor => {}
+            Effect::Sinusoid { a, b, .. } => {
+                *a = to(*a);
+                *b = to(*b);
+            }
+        }
+        e
+    }
+
     /// The scale of its parameters' unit, given the input's `su` and the output's `sy`: an input
     /// effect's parameters are input levels, an output effect's output levels (a drift's rate,
     /// per second), the power law's exponent has none.
@@ -206,5 +227,43 @@ impl Effect {
             Effect::Sinusoid { .. } => "periodic",
             Effect::OutputDrift { .. } => "output_drift",
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Effect;
+    use crate::oe::{FracModel, Param};
+
+    /// A model with a delay, three effects (one of two parameters) and its initial state's levels
+    /// after them, as a diagnosis builds it.
+    fn with_effects(power_law: bool) -> FracModel {
+        let mut m = FracModel::pmsm(6.8, 0.006, 2.7e-5, 0.92, 0.82);
+        m.with_delay(5e-4, 0.01);
+        if power_law {
+            let p = m.add_param(Param::positive("exponent", 1.7));
+            m.effects.push(Effect::PowerLaw { p, u_ref: 3.0 });
+        }
+        let width = m.add_param(Param::positive("width", 0.4));
+        m.effects.push(Effect::Deadzone { width });
+        let a = m.add_param(Param::positive("a", 0.1));
+        let b = m.add_param(Param::positive("b", 0.2));
+        m.effects.push(Effect::Sinusoid { freq_hz: 5.0, a, b });
+        m.with_output_offset(0.3);
+        m
+    }
+
+    #[test]
+    fn a_model_without_an_effect_is_the_model_built_without_it() {
+        let m = with_effects(true);
+        let (without, kept) = m.without_effect(0);
+        assert_eq!(without, with_effects(false));
+        // the exponent (index 6) is gone; every other parameter keeps its order
+        let expected: Vec<usize> = (0..m.params.len()).filter(|&i| i != 6).collect();
+        assert_eq!(kept, expected);
+        let (no_sine, kept) = m.without_effect(2);
+        assert_eq!(no_sine.params.len(), m.params.len() - 2);
+        assert_eq!(no_sine.effects[2], Effect::OutputOffset { c: 8 });
+        assert_eq!(kept[8], 10);
     }
 }

@@ -989,6 +989,25 @@ fn a_two_mass_drive_under_a_slow_binary_input_is_chosen_as_two_mass() {
     assert!(held <= 1.1 * 0.051926, "held-out RMSE {held}");
 }
 
+/// The benchmark zoo's dead-band case 0113 (seed 44, `tests/data/README.md`): a PMSM behind a
+/// dead band under a chirp. The first round keeps a power law (an odd input map that bends the
+/// chirp's small amplitudes down, as a dead band does), the second the dead band, after which the
+/// power law adds nothing: the backward step drops it and says it stood in for the dead band.
+#[test]
+fn an_effect_that_stood_in_for_one_found_later_is_dropped() {
+    let r = default_run_on_fixture("zoo_seed44_0113_deadband.csv");
+    let d = &r.diagnosis.as_ref().expect("a diagnosis").diagnosis;
+    assert_eq!(names(d), ["deadzone"], "{:?}", d.rejected);
+    let dropped = d.rejected.iter().find(|e| e.name == "power_law").unwrap();
+    assert!(
+        dropped.reason.contains("once deadzone was kept"),
+        "{}",
+        dropped.reason
+    );
+    let width = d.effects[0].params["width"];
+    assert!((width - 1.0695).abs() < 0.02, "width {width}");
+}
+
 /// The benchmark zoo's dead-band case 0188 (seed 44, `tests/data/README.md`): the diagnosis keeps
 /// a deadzone, and the final model's own verdict evaluates it at its values (no iteration
 /// allowed). Its start is a stationary point, so the solver's first test ends the evaluation as
