@@ -76,8 +76,7 @@
 //! [`structures::diagnose_best`] fits the structures that could describe the record and diagnoses
 //! the one with the lowest BIC among those within 2% of the best held-out RMSE (within
 //! [`choice::BIC_EVEN`] of it, the one with the fewest effects), so that an effect is not found
-//! only because the named structure could not bend like the plant. Once the rounds end, the
-//! effects kept before the last one are checked again in the final model (`recheck`).
+//! only because the named structure could not bend like the plant.
 
 mod backward;
 pub mod choice;
@@ -85,7 +84,6 @@ pub mod freq;
 pub mod general;
 mod halving;
 mod probes;
-mod recheck;
 pub mod residual;
 pub mod structures;
 
@@ -1282,19 +1280,6 @@ impl Rounds<'_> {
                         .map(|_| Resumable(std::sync::Arc::new(at_start)));
                     break;
                 }
-            }
-        }
-        if self.halted.is_none() {
-            let dropped = recheck::recheck(&self.ctx, base, &mut self.st, &mut self.kept);
-            if !dropped.is_empty() {
-                for r in dropped {
-                    self.rejected.insert(r.name.clone(), r);
-                }
-                *self
-                    .path
-                    .last_mut()
-                    .expect("the path starts at the base fit") = self.ctx.step(&self.st);
-                self.residual_now = None;
             }
         }
         let quantization = find_quantization(&self.ctx.rec.y);

@@ -1134,34 +1134,6 @@ fn a_delay_standing_in_for_a_pole_does_not_win_an_even_tie() {
     );
 }
 
-/// The benchmark zoo's two-effect case 0172 (seed 44, `tests/data/README.md`): a PMSM with Coulomb
-/// friction 0.106 and an input offset under a sweep, no drift. The first round kept an output
-/// drift (-5.3% held out), the second the friction (-6.5%); once the friction was in, the drift
-/// had shrunk to a third and the model without it was as good. Checked again in the final model,
-/// the drift no longer clears the margin and is dropped: the friction alone is kept, within 10%
-/// of the truth's held-out RMSE (1.47920, the zoo's oracle on the same samples).
-#[test]
-fn a_drift_a_later_effect_takes_up_is_dropped() {
-    let r = default_run_on_fixture("zoo_seed44_0172_two_effects.csv");
-    let dg = r.diagnosis.as_ref().expect("a diagnosis");
-    let d = &dg.diagnosis;
-    assert_eq!(names(d), ["coulomb_friction"], "{:?}", d.rejected);
-    let drift = d
-        .rejected
-        .iter()
-        .find(|e| e.name == "output_drift")
-        .expect("the drift rejected");
-    assert!(
-        drift.reason.contains("once coulomb_friction was added"),
-        "{}",
-        drift.reason
-    );
-    let held = dg.structures.scores[dg.structures.chosen]
-        .rmse_after
-        .unwrap();
-    assert!(held <= 1.1 * 1.4792, "held-out RMSE {held}");
-}
-
 /// The benchmark zoo's feed-through case 0055 (seed 44, `tests/data/README.md`): `0.815 + 1.92/
 /// (3.7e-3 s + 1)` under a band-limited multisine, 8.2% noise. The record's feed-through screen
 /// cannot tell an instant response on that input (its lag-0 change is predicted by its past), so
