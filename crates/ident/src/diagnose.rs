@@ -74,8 +74,9 @@
 //!
 //! # Structure
 //! [`structures::diagnose_best`] fits the structures that could describe the record and diagnoses
-//! the one with the lowest BIC among those within 2% of the best held-out RMSE, so that an effect
-//! is not found only because the named structure could not bend like the plant.
+//! the one with the lowest BIC among those within 2% of the best held-out RMSE (within
+//! [`choice::BIC_EVEN`] of it, the one with the fewest effects), so that an effect is not found
+//! only because the named structure could not bend like the plant.
 
 mod backward;
 pub mod choice;
@@ -346,6 +347,13 @@ pub(crate) struct Ctx<'a> {
 }
 
 impl Diagnosis {
+    /// Whether the diagnosis kept an advance of the recorded input ([`Diagnosis::skew_samples`]).
+    pub(crate) fn advances_input(&self) -> bool {
+        self.effects
+            .iter()
+            .any(|e| e.name == "delay" && e.params.get("tau").is_some_and(|&t| t < 0.0))
+    }
+
     /// The advance of the recorded input (samples) the diagnosis kept: a `delay` with a negative
     /// `tau`, a time-stamp skew of the logger. The final model cannot carry it (its delay is
     /// causal), so its figures are those of the record with the input advanced; `None` when none
@@ -412,9 +420,11 @@ impl Ctx<'_> {
     }
 
     /// The point of the path ([`Diagnosis::path`]) at `st`, its BIC computed as the structure
-    /// comparison does (from the estimation RMSE).
+    /// comparison does (from the estimation RMSE; an advance of the input, chosen from the data,
+    /// counted as a parameter).
     fn step(&self, st: &State) -> Step {
-        let free_params = st.model.params.iter().filter(|p| p.free).count();
+        let free_params =
+            st.model.params.iter().filter(|p| p.free).count() + usize::from(self.lead != 0);
         let n = self.estimation_samples();
         let ssr = st.est.rmse.powi(2) * n as f64;
         Step {

@@ -20,8 +20,9 @@
 //! and those not usable but more than [`FAR`] times better than every usable one, [`far_better`]),
 //! those whose held-out RMSE (estimation RMSE without a held-out part) is within [`TIE`] of the
 //! best are ties, and the tie with the lowest BIC `N ln(SSR/N) + k ln N` on the estimation part
-//! wins (`k` free parameters, the effects' included): the simpler model unless the richer one
-//! predicts clearly better.
+//! wins (`k` free parameters, the effects' included, a kept advance of the input counted as one):
+//! the simpler model unless the richer one predicts clearly better; among the ties whose BIC is
+//! within [`BIC_EVEN`] of the lowest, the one with the fewest kept effects.
 //!
 //! The base fits prune the comparison, so that a diagnosis costs a few fits: each candidate's base
 //! fit is screened with the refits' budget of LM iterations ([`SCREEN_ITERATIONS`]; a fit that
@@ -41,7 +42,9 @@
 
 pub(crate) use super::choice::{decide, score_of, Outcome};
 use super::choice::{far_better, judge_finals};
-pub use super::choice::{Diagnosed, IntegerReference, StructureChoice, StructureScore, FAR, TIE};
+pub use super::choice::{
+    Diagnosed, IntegerReference, StructureChoice, StructureScore, BIC_EVEN, FAR, TIE,
+};
 pub use super::halving::BEHIND;
 use super::halving::{confirm_halving, Again, Board};
 use super::Resumable;
@@ -720,15 +723,32 @@ fn reason(
         (true, false) => format!(" with {}", s.effects.join(", ")),
     };
     let (gain, reference) = integer_gain(cands, scores, chosen);
+    let bic = s.bic_after.unwrap_or(f64::NAN);
+    // The lowest BIC among the ties, when another tie's is lower ([`decide`]: fewer effects).
+    let lower = scores
+        .iter()
+        .filter(|t| t.usable() && t.rmse_after.is_some_and(|r| r <= (1.0 + TIE) * best))
+        .filter_map(|t| t.bic_after)
+        .filter(|&b| b < bic)
+        .fold(f64::INFINITY, f64::min);
+    let rule = if lower.is_finite() {
+        format!(
+            "the fewest effects among the ties whose BIC is within {BIC_EVEN} of the lowest \
+             ({bic:.1} against {lower:.1}, {} free parameters)",
+            s.free_params
+        )
+    } else {
+        format!(
+            "the lowest BIC among the ties ({bic:.1}, {} free parameters)",
+            s.free_params
+        )
+    };
     let words = format!(
-        "{} chosen: {} RMSE {:.4e}{with} (best {best:.4e}; ties within {:.0}%), the lowest BIC \
-         among the ties ({:.1}, {} free parameters){gain}",
+        "{} chosen: {} RMSE {:.4e}{with} (best {best:.4e}; ties within {:.0}%), {rule}{gain}",
         s.name,
         if held_out { "held-out" } else { "estimation" },
         s.rmse_after.unwrap_or(f64::NAN),
         100.0 * TIE,
-        s.bic_after.unwrap_or(f64::NAN),
-        s.free_params,
     );
     let reduced: String = reduced
         .iter()
@@ -1743,6 +1763,24 @@ mod tests {
                 FracModel::third_order(1.0, 0.0175, 8.75e-5, 1.25e-7),
             ),
         ]
+    }
+
+    /// The zoo's integrator 0006 (seed 44): a first order that kept a delay ties the second order
+    /// with none on the held-out part, its BIC lower by less than [`BIC_EVEN`]: the second order
+    /// is chosen; a BIC lower by more, or a tie with no effect on either side, the lowest BIC.
+    #[test]
+    fn a_tie_within_an_even_bic_goes_to_the_fewer_effects() {
+        let tie = |bic_first: f64, effects: &[&str]| {
+            let mut first = row("first-order", 2.1728, &[]);
+            first.bic_after = Some(bic_first);
+            first.effects = effects.iter().map(|e| e.to_string()).collect();
+            let mut second = row("second-order", 2.1652, &[]);
+            second.bic_after = Some(2231.48);
+            decide(&[first, second]).map(|c| c.0)
+        };
+        assert_eq!(tie(2231.48 - 0.5 * BIC_EVEN, &["delay"]), Some(1));
+        assert_eq!(tie(2231.48 - 2.0 * BIC_EVEN, &["delay"]), Some(0));
+        assert_eq!(tie(2231.48 - 0.5 * BIC_EVEN, &[]), Some(0));
     }
 
     /// A final model whose base fit is not usable is chosen from as a usable one when its own

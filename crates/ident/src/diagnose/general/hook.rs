@@ -6,8 +6,10 @@
 //! ([`crate::diagnose::residual::analyse`], whatever the noise level): its residual depends on
 //! the input (the residual-input cross-correlation: dynamics the model misses), or it is not
 //! white (Ljung-Box at 1%: with white measurement noise, structure the model misses; a short
-//! record's cross-correlation has wide bounds), or its base fit is not usable (no named
-//! structure could be fitted well posed) and the diagnosis kept no effect (a final model with
+//! record's cross-correlation has wide bounds), or it kept an advance of the input on a
+//! structure with no feed-through (`leads_without_feedthrough`: a time-stamp skew or an instant
+//! response), or its base fit is not usable (no named structure could be fitted well posed) and
+//! the diagnosis kept no effect (a final model with
 //! effects is not its base fit: its own residual judges it; a sign-blind sensor's or a power
 //! law's base fit is unusable and its final model right, and on the zoo the general structure
 //! was diagnosed on none of the 10 such cases). Only then is the general structure sized by the
@@ -18,7 +20,8 @@
 //! base compared with a named final model three effects on was left undiagnosed on the zoo's
 //! power-law case 0269, where its own diagnosis finds the power law). The two final models are
 //! then compared by the comparison's own rule (held-out RMSE, ties within
-//! [`crate::diagnose::choice::TIE`] decided by the lower BIC, a usable base fit first): the
+//! [`crate::diagnose::choice::TIE`] decided by the lower BIC, within
+//! [`crate::diagnose::choice::BIC_EVEN`] of it by the fewer effects, a usable base fit first): the
 //! general model is returned, with its diagnosis and verdict, when it predicts the held-out data
 //! better. Otherwise the named choice stands; its row is added to the comparison either way, and
 //! the reason says what was done.
@@ -45,9 +48,23 @@ pub fn fits_poorly(d: &Diagnosed) -> Option<&'static str> {
         && d.diagnosis.effects.is_empty()
     {
         Some("its base fit is not usable")
+    } else if leads_without_feedthrough(d) {
+        Some("its output leads the recorded input, a time-stamp skew or an instant response it lacks")
     } else {
         None
     }
+}
+
+/// Whether the diagnosis `d` kept an advance of the input (a time-stamp skew: a `delay` with a
+/// negative `tau`) on a structure with no direct feed-through. To a strictly proper model an
+/// output that responds at once to its input looks the same: it moves a sample before the input
+/// the model sees. Where the record's feed-through screen cannot tell
+/// ([`crate::oe::init::feedthrough::instant_response`]: an input whose lag-0 change its past
+/// changes predict, a band-limited sweep or multisine), the structures with a feed-through were
+/// not compared, and the general structure, whose sizes include a direct term, tells the two
+/// apart (the zoo's feed-through 0055 kept a one-sample skew on a first order).
+fn leads_without_feedthrough(d: &Diagnosed) -> bool {
+    d.diagnosis.advances_input() && !matches!(d.id.model.kind, Kind::Feedthrough | Kind::Cell)
 }
 
 /// The diagnosis `d` of the named structures, with the general structure compared when they fit
