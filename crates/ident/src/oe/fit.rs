@@ -1759,12 +1759,13 @@ mod tests {
     }
 
     /// Coulomb friction decided at the sample instant (`sampled`) is the held-sign recursion of
-    /// a first order `K/(T s + 1)` held exactly over each sample, `x_(k+1) = a x_k + (1 - a) K (u_k
-    /// - Vc sign(x_k))`, `a = exp(-dt/T)` (the drive simulator's and the zoo's convention), to
+    /// a first order `K/(T s + 1)` held exactly over each sample,
+    /// `x_(k+1) = a x_k + (1 - a) K (u_k - Vc sign(x_k))`, `a = exp(-dt/T)` (the drive
+    /// simulator's and the zoo's convention), to
     /// rounding (1e-12 of the output's scale); at the interval's middle it is not that recursion
-    /// (the two timings are different models); and behind a sign-blind sensor, `|y|`, the
-    /// friction sees the speed before the sensor: the output is the magnitude of the same model's
-    /// without the sensor.
+    /// (the two timings are different models); and behind a sign-blind sensor, `|y|`, the friction
+    /// sees the speed before the sensor: the output is the magnitude of the same model's without
+    /// the sensor.
     #[test]
     fn friction_decided_at_the_sample_instant_is_the_held_sign_recursion() {
         use crate::oe::{Effect, Structure};
