@@ -90,7 +90,7 @@ pub mod structures;
 use crate::data::Record;
 use crate::metrics::Fit;
 use crate::oe::fit_in_unit;
-use crate::oe::{Bounds, FitOptions, FracModel, Identification, Structure};
+use crate::oe::{Bounds, Effect, FitOptions, FracModel, Identification, Structure};
 use crate::{Error, Result};
 use probes::{Candidate, Findings, Look, Probe};
 use residual::{analyse, ResidualAnalysis};
@@ -931,6 +931,11 @@ fn best_refit(ctx: &Ctx<'_>, starts: &[FracModel]) -> Result<State> {
     // The screen's budget is what it says under variable projection too (the reduced fit's
     // iterations and the joint fit's together).
     short.fit.shared_budget = true;
+    // Nor does the screen give up: the give-up test projects the cost's fall over the
+    // iterations left of the budget it is given, and over the screen's few it would stop every
+    // start still far above the keep ceiling (a friction added at the signature's level before
+    // the gain has made room for it) after two iterations; the rest of the budget judges it.
+    short.fit.lm.give_up = None;
     let screen = Ctx {
         opts: &short,
         ..ctx.clone()
@@ -1037,6 +1042,9 @@ fn describe(m: &FracModel) -> String {
         o.push_str(&format!("; {}", e.name()));
         if !p.is_empty() {
             o.push_str(&format!(" ({})", p.join(", ")));
+        }
+        if matches!(e, Effect::Coulomb { sampled: true, .. }) {
+            o.push_str(" decided at the sample instants");
         }
     }
     o

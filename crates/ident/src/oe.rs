@@ -460,7 +460,7 @@ pub type ExprFactor = (Vec<(Expr, Expr)>, Vec<(Expr, Expr)>);
 /// let mut m = FracModel::pmsm(6.8, 0.006, 2.7e-5, 0.92, 0.82);
 /// m.with_delay(0.0005, 0.01);
 /// let vc = m.add_param(Param::positive("Vc", 0.1));
-/// m.effects.push(Effect::Coulomb { vc });
+/// m.effects.push(Effect::Coulomb { vc, sampled: false });
 /// assert_eq!(m.params.len(), 7);
 /// ```
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -1643,33 +1643,47 @@ impl Structure for FracModel {
             sim.run_into(u, y);
             self.output_effects(p, dt, 0, y);
         } else {
-            // Input effects that depend on the output (friction) see it in the middle of the
-            // hold interval, `y_k + (y_k - y_(k-1))/2`, extrapolated from the output at `t_k`
-            // (known before `u_k` acts when the model has no feed-through); otherwise `y_(k-1)`.
-            let out = |ya: T, t: f64| {
+            // Input effects that depend on the output (friction) see the speed the plant puts
+            // out (the output effects before a sign-blind sensor, which rectifies the speed the
+            // friction acts on): at `t_k` (known before `u_k` acts when the model has no
+            // feed-through) for a friction decided at the sample instant, or extrapolated to the
+            // middle of the hold interval, `y_k + (y_k - y_(k-1))/2`; without the output at
+            // `t_k` (a feed-through), `y_(k-1)`.
+            let sensor = self.effects.iter().position(|e| *e == Effect::AbsSensor);
+            let upto = |ya: T, t: f64, n: usize| {
                 let mut ya = ya;
-                for e in &self.effects {
+                for e in &self.effects[..n] {
                     ya = e.output(p, ya, t);
                 }
                 ya
             };
+            let out = |ya: T, t: f64| upto(ya, t, self.effects.len());
+            let speed = |ya: T, t: f64| upto(ya, t, sensor.unwrap_or(self.effects.len()));
             let mut y_prev = T::from(y0);
             for (k, (yk, &uk)) in y.iter_mut().zip(u).enumerate() {
                 let t = k as f64 * dt;
-                let seen = match sim.next_output() {
+                let (at_sample, middle) = match sim.next_output() {
                     Some(now) if k > 0 => {
-                        let now = out(now + y0, t);
-                        now + (now - y_prev) * 0.5
+                        let now = speed(now + y0, t);
+                        (now, now + (now - y_prev) * 0.5)
                     }
-                    Some(now) => out(now + y0, t),
-                    None => y_prev,
+                    Some(now) => {
+                        let now = speed(now + y0, t);
+                        (now, now)
+                    }
+                    None => (y_prev, y_prev),
                 };
                 let mut ua = T::from(u0 + uk);
                 for e in &self.effects {
+                    let seen = match e {
+                        Effect::Coulomb { sampled: true, .. } => at_sample,
+                        _ => middle,
+                    };
                     ua = e.input(p, ua, seen, t);
                 }
-                let ya = out(sim.step(ua - u0) + y0, t);
-                y_prev = ya;
+                let x = sim.step(ua - u0) + y0;
+                let ya = out(x, t);
+                y_prev = if sensor.is_some() { speed(x, t) } else { ya };
                 *yk = ya - y0;
             }
         }

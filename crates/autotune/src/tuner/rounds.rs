@@ -204,7 +204,13 @@ fn with_friction(m: &FracModel, vc: f64) -> FracModel {
     }
     let mut m = m.clone();
     let i = m.add_param(ident::oe::Param::positive("Vc", vc.max(1e-3)));
-    m.effects.insert(0, ident::oe::Effect::Coulomb { vc: i });
+    m.effects.insert(
+        0,
+        ident::oe::Effect::Coulomb {
+            vc: i,
+            sampled: false,
+        },
+    );
     m
 }
 

@@ -33,11 +33,19 @@ pub enum Effect {
         /// Parameter index of the offset.
         c: usize,
     },
-    /// Coulomb friction as an equivalent input voltage: `u - vc sign(y)`, `y` the model output
-    /// in the middle of the hold interval (see [`super::FracModel`]'s simulation).
+    /// Coulomb friction as an equivalent input voltage: `u - vc sign(y)`, `y` the speed the
+    /// plant puts out (before a sign-blind sensor) over the hold interval (see
+    /// [`super::FracModel`]'s simulation): extrapolated to the interval's middle, the mean sign
+    /// of a friction that acts continuously, or, `sampled`, the output at the interval's start
+    /// (the sample instant), decided there and held like the input, as a simulator that steps
+    /// the mechanics once per sample has it (the drive simulator, the benchmark zoo's truth).
     Coulomb {
         /// Parameter index of `Vc`.
         vc: usize,
+        /// The sign decided at the sample instant and held over the interval (else at the
+        /// interval's middle).
+        #[serde(default)]
+        sampled: bool,
     },
     /// Input clipping: `clamp(u, -level, level)`.
     Saturation {
@@ -100,7 +108,7 @@ impl Effect {
     pub fn input<T: Real>(&self, p: &[T], u: T, y_prev: T, _t: f64) -> T {
         match *self {
             Effect::InputOffset { c } | Effect::SensorZero { c } => u + p[c],
-            Effect::Coulomb { vc } => u - p[vc] * sign(y_prev),
+            Effect::Coulomb { vc, .. } => u - p[vc] * sign(y_prev),
             Effect::Saturation { level } => {
                 let l = p[level];
                 if u.re() > l.re() {
@@ -153,7 +161,7 @@ impl Effect {
             Effect::InputOffset { c } | Effect::SensorZero { c } | Effect::OutputOffset { c } => {
                 vec![c]
             }
-            Effect::Coulomb { vc } => vec![vc],
+            Effect::Coulomb { vc, .. } => vec![vc],
             Effect::Saturation { level } => vec![level],
             Effect::Deadzone { width } => vec![width],
             Effect::PowerLaw { p, .. } => vec![p],

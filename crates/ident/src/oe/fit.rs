@@ -1648,7 +1648,7 @@ mod tests {
         let vc = with_friction.add_param(Param::positive("Vc", 0.05));
         with_friction
             .effects
-            .push(crate::oe::Effect::Coulomb { vc });
+            .push(crate::oe::Effect::Coulomb { vc, sampled: false });
         let mut with_offset = m.clone();
         with_offset.with_integrator();
         let c = with_offset.add_param(Param::new("u_offset", 0.2, crate::oe::Bounds::Free));
@@ -1758,6 +1758,68 @@ mod tests {
         }
     }
 
+    /// Coulomb friction decided at the sample instant (`sampled`) is the held-sign recursion of
+    /// a first order `K/(T s + 1)` held exactly over each sample,
+    /// `x_(k+1) = a x_k + (1 - a) K (u_k - Vc sign(x_k))`, `a = exp(-dt/T)` (the drive
+    /// simulator's and the zoo's convention), to
+    /// rounding (1e-12 of the output's scale); at the interval's middle it is not that recursion
+    /// (the two timings are different models); and behind a sign-blind sensor, `|y|`, the friction
+    /// sees the speed before the sensor: the output is the magnitude of the same model's without
+    /// the sensor.
+    #[test]
+    fn friction_decided_at_the_sample_instant_is_the_held_sign_recursion() {
+        use crate::oe::{Effect, Structure};
+        let (n, dt, k, t, vc) = (600, 0.02, 3.0, 0.05, 0.3);
+        let u: Vec<f64> = (0..n)
+            .map(|i| 1.5 * (2.0 * std::f64::consts::PI * i as f64 / 97.0).sin() - 0.2)
+            .collect();
+        let with = |sampled: bool, sensor: bool| {
+            let mut m =
+                FracModel::from_tf(&format!("{k}/({t} s + 1)").parse().unwrap(), true, false);
+            let i = m.add_param(Param::positive("Vc", vc));
+            m.effects.push(Effect::Coulomb { vc: i, sampled });
+            if sensor {
+                m.effects.push(Effect::AbsSensor);
+            }
+            let mut y = vec![0.0; n];
+            m.simulate(&m.values(), &u, dt, &mut y).unwrap();
+            y
+        };
+        let a = (-dt / t).exp();
+        let mut x = 0.0;
+        let want: Vec<f64> = u
+            .iter()
+            .map(|&uk| {
+                let now = x;
+                let s = if x > 0.0 {
+                    1.0
+                } else if x < 0.0 {
+                    -1.0
+                } else {
+                    0.0
+                };
+                x = a * x + (1.0 - a) * k * (uk - vc * s);
+                now
+            })
+            .collect();
+        let scale = want.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        let sampled = with(true, false);
+        for i in 0..n {
+            assert!((sampled[i] - want[i]).abs() <= 1e-12 * scale, "y[{i}]");
+        }
+        let middle = with(false, false);
+        assert!((0..n).any(|i| (middle[i] - want[i]).abs() > 1e-3 * scale));
+        for timing in [true, false] {
+            let (plain, rectified) = (with(timing, false), with(timing, true));
+            for i in 0..n {
+                assert!(
+                    (rectified[i] - plain[i].abs()).abs() <= 1e-12 * scale,
+                    "|y[{i}]|"
+                );
+            }
+        }
+    }
+
     /// A model whose input effects are static maps (an offset, a power law, a dead zone and a
     /// saturation, behind an initial state and before an output offset) runs in the kernel on the
     /// mapped input: its output equals the per-sample path's (the same model with a Coulomb
@@ -1789,7 +1851,9 @@ mod tests {
         m.effects.insert(3, Effect::Saturation { level: sat });
         let mut stepped = m.clone();
         let vc = stepped.add_param(Param::new("Vc", 0.0, Bounds::Free));
-        stepped.effects.insert(4, Effect::Coulomb { vc });
+        stepped
+            .effects
+            .insert(4, Effect::Coulomb { vc, sampled: false });
         let p = m.values();
         let run = |m: &FracModel, p: &[f64]| {
             let mut y = vec![0.0; n];

@@ -80,9 +80,20 @@ impl Probe for Friction {
             return Ok(());
         }
         let r2 = if wrong_sign { ctx.opts.min_r2 } else { r2 };
-        let mut m = st.model.clone();
-        let vc = m.add_param(Param::positive("Vc", beta[0].abs()));
-        m.effects.insert(0, Effect::Coulomb { vc });
+        // Two starts, the friction's sign over the hold interval taken at its middle (a friction
+        // acting continuously) and at its start (decided at the sample instant and held): the
+        // two discretisations differ by up to a sample's timing at each reversal, which on a
+        // plant fast against the sampling moves the response by more than the friction's own
+        // share; the refit's screen keeps the one the record follows.
+        let starts = [false, true]
+            .into_iter()
+            .map(|sampled| {
+                let mut m = st.model.clone();
+                let vc = m.add_param(Param::positive("Vc", beta[0].abs()));
+                m.effects.insert(0, Effect::Coulomb { vc, sampled });
+                m
+            })
+            .collect();
         found.candidates.push(Candidate {
             lead: None,
             name: "coulomb_friction",
@@ -107,7 +118,7 @@ impl Probe for Friction {
                     mo.describe()
                 )
             },
-            starts: vec![m],
+            starts,
         });
         Ok(())
     }
