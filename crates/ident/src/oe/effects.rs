@@ -178,7 +178,7 @@ impl Effect {
             Effect::InputOffset { c } | Effect::SensorZero { c } | Effect::OutputOffset { c } => {
                 *c = to(*c)
             }
-            Effect::Coulomb { vc } => *vc = to(*vc),
+            Effect::Coulomb { vc, .. } => *vc = to(*vc),
             Effect::Saturation { level } => *level = to(*level),
             Effect::Deadzone { width } => *width = to(*width),
             Effect::PowerLaw { p, .. } => *p = to(*p),
