@@ -243,8 +243,8 @@ mod tests {
     use super::Effect;
     use crate::oe::{FracModel, Param};
 
-    /// A model with a delay, three effects (one of two parameters) and its initial state's levels
-    /// after them, as a diagnosis builds it.
+    /// A model with a delay and four effects after it (one of two parameters), as a diagnosis
+    /// builds it.
     fn with_effects(power_law: bool) -> FracModel {
         let mut m = FracModel::pmsm(6.8, 0.006, 2.7e-5, 0.92, 0.82);
         m.with_delay(5e-4, 0.01);
