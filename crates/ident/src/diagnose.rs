@@ -1556,13 +1556,8 @@ mod tests {
 
     /// Seeded uniform numbers in `(0, 1)` (a 64-bit LCG's top 53 bits): the same record every run.
     fn uniform_from(seed: u64) -> impl FnMut() -> f64 {
-        let mut state = seed;
-        move || {
-            state = state
-                .wrapping_mul(6_364_136_223_846_793_005)
-                .wrapping_add(1_442_695_040_888_963_407);
-            ((state >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-        }
+        let mut next = crate::testdata::lcg(seed);
+        move || ((next() >> 11) as f64 + 0.5) / (1u64 << 53) as f64
     }
 
     /// A long record for [`lead_screen`]: `6 x 2^14` samples at 1 ms (its estimation part beyond

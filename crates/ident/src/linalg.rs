@@ -698,13 +698,8 @@ mod tests {
 
     /// A seeded generator of uniform numbers in [-0.5, 0.5) (a 64-bit LCG).
     fn uniform(seed: u64) -> impl FnMut() -> f64 {
-        let mut state = seed;
-        move || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        }
+        let mut next = crate::testdata::lcg(seed);
+        move || (next() >> 11) as f64 / (1u64 << 53) as f64 - 0.5
     }
 
     /// A nearly dependent column (its part outside the span of the ones before it `1e-12` of its

@@ -13,3 +13,16 @@ pub(crate) fn first_order_held(u: &[f64], dt: f64, tau: f64, gain: f64) -> Vec<f
         })
         .collect()
 }
+
+/// A seeded 64-bit linear congruential generator (Knuth's MMIX constants): each call steps the
+/// state and returns it; the tests map its bits to the numbers they need. The same records every
+/// run, with no random-number crate.
+pub(crate) fn lcg(seed: u64) -> impl FnMut() -> u64 {
+    let mut state = seed;
+    move || {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        state
+    }
+}

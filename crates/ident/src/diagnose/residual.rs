@@ -369,13 +369,8 @@ mod tests {
     #[test]
     fn a_projection_made_once_explains_as_one_made_per_signature() {
         let n = 400;
-        let mut s = 11u64;
-        let mut noise = move || {
-            s = s
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((s >> 33) as f64 / (1u64 << 31) as f64) - 0.5
-        };
+        let mut lcg = crate::testdata::lcg(11);
+        let mut noise = move || ((lcg() >> 33) as f64 / (1u64 << 31) as f64) - 0.5;
         let t = |k: usize| k as f64 / n as f64;
         let sens = Mat::from_fn(n, 4, |k, c| match c {
             0 => (6.0 * t(k)).sin(),
@@ -408,13 +403,10 @@ mod tests {
 
     #[test]
     fn a_sinusoid_in_noise_is_a_peak() {
-        let mut s = 7u64;
+        let mut lcg = crate::testdata::lcg(7);
         let e: Vec<f64> = (0..2000)
             .map(|k| {
-                s = s
-                    .wrapping_mul(6364136223846793005)
-                    .wrapping_add(1442695040888963407);
-                let w = ((s >> 33) as f64 / (1u64 << 31) as f64) - 0.5;
+                let w = ((lcg() >> 33) as f64 / (1u64 << 31) as f64) - 0.5;
                 w + 0.3 * (2.0 * PI * 37.3 * k as f64 * 1e-3).sin()
             })
             .collect();
@@ -455,15 +447,12 @@ mod tests {
         for f in [12.0, 31.0, 60.0] {
             assert!(in_ms(f).is_none(), "{f} Hz");
         }
-        let mut s = 11u64;
+        let mut lcg = crate::testdata::lcg(11);
         let mut level = 0.0;
         let prbs: Vec<f64> = (0..1500)
             .map(|k| {
                 if k % 5 == 0 {
-                    s = s
-                        .wrapping_mul(6364136223846793005)
-                        .wrapping_add(1442695040888963407);
-                    level = if (s >> 40) & 1 == 1 { 1.0 } else { -1.0 };
+                    level = if (lcg() >> 40) & 1 == 1 { 1.0 } else { -1.0 };
                 }
                 level
             })

@@ -301,13 +301,8 @@ mod tests {
     /// with `|arg l| < q pi/2` (quadratic formula), against the argument principle.
     #[test]
     fn commensurate_quadratics_against_matignon() {
-        let mut seed = 12u64;
-        let mut rnd = || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut next = crate::testdata::lcg(12);
+        let mut rnd = || (next() >> 11) as f64 / (1u64 << 53) as f64;
         let mut unstable = 0;
         for _ in 0..400 {
             let q = 0.05 + 1.9 * rnd();

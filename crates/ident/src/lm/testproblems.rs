@@ -5,13 +5,8 @@ use crate::Result;
 
 /// A seeded generator of uniform numbers in [-0.5, 0.5) (a 64-bit LCG).
 pub(super) fn uniform(seed: u64) -> impl FnMut() -> f64 {
-    let mut state = seed;
-    move || {
-        state = state
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-    }
+    let mut next = crate::testdata::lcg(seed);
+    move || (next() >> 11) as f64 / (1u64 << 53) as f64 - 0.5
 }
 
 /// `y = a exp(-b t)` with deterministic "noise", counting Jacobians.

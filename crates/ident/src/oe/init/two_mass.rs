@@ -897,13 +897,8 @@ mod tests {
         noise_std: f64,
     ) -> (Vec<f64>, Vec<f64>) {
         use crate::oe::Structure;
-        let mut state = 7u64;
-        let mut next = || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut lcg = crate::testdata::lcg(7);
+        let mut next = || (lcg() >> 11) as f64 / (1u64 << 53) as f64;
         let mut u = vec![0.0; n];
         for chunk in u.chunks_mut(clock) {
             let b = if next() < 0.5 { -1.0 } else { 1.0 };

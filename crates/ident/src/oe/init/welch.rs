@@ -275,18 +275,9 @@ mod tests {
     #[test]
     fn h1_is_the_response_of_a_known_system() {
         let dt = 1e-3;
-        let mut state = 12345u64;
+        let mut lcg = crate::testdata::lcg(12345);
         let u: Vec<f64> = (0..8192)
-            .map(|_| {
-                state = state
-                    .wrapping_mul(6364136223846793005)
-                    .wrapping_add(1442695040888963407);
-                if state >> 63 == 1 {
-                    1.0
-                } else {
-                    -1.0
-                }
-            })
+            .map(|_| if lcg() >> 63 == 1 { 1.0 } else { -1.0 })
             .collect();
         let mut y = vec![0.0; u.len()];
         for k in 1..u.len() {
@@ -311,13 +302,8 @@ mod tests {
     #[test]
     fn the_coherence_chooses_the_frequencies() {
         let dt = 1e-3;
-        let mut state = 99u64;
-        let mut next = || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
+        let mut lcg = crate::testdata::lcg(99);
+        let mut next = || (lcg() >> 11) as f64 / (1u64 << 53) as f64 - 0.5;
         let u: Vec<f64> = (0..8192)
             .map(|_| if next() > 0.0 { 1.0 } else { -1.0 })
             .collect();
