@@ -330,6 +330,10 @@ class Effect(_ToDict):
         Relative change of the validation RMSE, percent (negative is better).
     bic_change : float
         Change of BIC on the estimation part (negative is better).
+    sampled : bool or None
+        For ``coulomb_friction``: its sign decided at the sample instant and held (``True``) or
+        at the hold interval's middle (``False``); ``None`` for the other effects. ``tune``
+        simulates the loop's friction the same way.
     """
 
     name: str
@@ -339,6 +343,7 @@ class Effect(_ToDict):
     ssr_removed_percent: float
     rmse_change_percent: float
     bic_change: float
+    sampled: Optional[bool] = None
 
 
 @dataclass(frozen=True)

@@ -15,10 +15,12 @@ def _effects(effects: Optional[Iterable[Any]]) -> list:
     out = []
     for e in effects or ():
         if isinstance(e, Mapping):
-            name, params = e["name"], e.get("params", {})
+            name, params, sampled = e["name"], e.get("params", {}), e.get("sampled")
         else:
-            name, params = e.name, e.params
-        out.append((str(name), {str(k): float(v) for k, v in dict(params).items()}))
+            name, params, sampled = e.name, e.params, getattr(e, "sampled", None)
+        out.append(
+            (str(name), {str(k): float(v) for k, v in dict(params).items()}, bool(sampled))
+        )
     return out
 
 

@@ -40,15 +40,15 @@ pub(crate) fn _tune(
     py: Python<'_>,
     model: Bound<'_, PyAny>,
     request: &str,
-    effects: Vec<(String, HashMap<String, f64>)>,
+    effects: Vec<(String, HashMap<String, f64>, bool)>,
 ) -> PyResult<String> {
     let g = model_of(&model)?;
     let req: TuneRequest =
         serde_json::from_str(request).map_err(|e| errors::data(format!("tune request: {e}")))?;
     let mut fx = Vec::new();
-    for (name, params) in &effects {
-        if let Some(e) =
-            InputEffect::from_report(name, |k| params.get(k).copied()).map_err(tune_err)?
+    for (name, params, sampled) in &effects {
+        if let Some(e) = InputEffect::from_report(name, |k| params.get(k).copied(), *sampled)
+            .map_err(tune_err)?
         {
             fx.push(e);
         }

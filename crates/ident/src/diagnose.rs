@@ -166,6 +166,12 @@ pub struct KeptEffect {
     pub rmse_change_percent: f64,
     /// Change of BIC on the estimation part (negative is better).
     pub bic_change: f64,
+    /// For Coulomb friction, whether its sign is decided at the sample instant and held over the
+    /// interval (`true`, as a simulator stepping the mechanics once per sample has it) or taken
+    /// at the interval's middle (`false`, a friction acting continuously); absent for the
+    /// other effects. `fracid tune` simulates the loop's friction the same way.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sampled: Option<bool>,
 }
 
 /// A candidate that was tested and not kept, or could not be tested.
@@ -798,6 +804,15 @@ fn judge(
         ssr_removed_percent: 100.0 * verdict.removed,
         rmse_change_percent: 100.0 * verdict.change,
         bic_change: verdict.dbic,
+        sampled: ns
+            .model
+            .effects
+            .iter()
+            .find_map(|e| match e {
+                Effect::Coulomb { sampled, .. } => Some(*sampled),
+                _ => None,
+            })
+            .filter(|_| c.name == "coulomb_friction"),
     })
 }
 

@@ -82,7 +82,8 @@ pub struct LoopRun {
 
 /// A static effect at the plant's input that `fracid time --diagnose` keeps (ident's
 /// `oe::Effect`, applied in the same order and the same way: to the absolute input, friction with
-/// the output extrapolated to the middle of the hold interval).
+/// the output extrapolated to the middle of the fine step, or decided at the controller's sample
+/// instant and held over its period when the diagnosis found it so).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 #[serde(tag = "name", rename_all = "snake_case")]
 pub enum InputEffect {
@@ -95,6 +96,11 @@ pub enum InputEffect {
     CoulombFriction {
         /// `Vc`, input units.
         vc: f64,
+        /// The sign decided at the controller's sample instant and held over its period (the
+        /// report's `sampled`: a plant whose mechanics step once per sample, as the drive
+        /// simulator's), else from the output at the middle of each fine step (a friction
+        /// acting continuously).
+        sampled: bool,
     },
     /// `clamp(u, -level, level)`.
     Saturation {
@@ -127,12 +133,16 @@ fn sign(x: f64) -> f64 {
 
 impl InputEffect {
     /// The effect of a diagnosis report's kept effect (`name` and its parameters as the report
-    /// names them); `None` for an effect that is not at the input (output offset, sensor, an
-    /// output sinusoid) or the delay (already in the model).
+    /// names them, `sampled` its friction's timing); `None` for an effect that is not at the
+    /// input (output offset, sensor, an output sinusoid) or the delay (already in the model).
     ///
     /// # Errors
     /// A known effect without its parameter, or a non-finite one.
-    pub fn from_report(name: &str, param: impl Fn(&str) -> Option<f64>) -> Result<Option<Self>> {
+    pub fn from_report(
+        name: &str,
+        param: impl Fn(&str) -> Option<f64>,
+        sampled: bool,
+    ) -> Result<Option<Self>> {
         let get = |k: &str| -> Result<f64> {
             match param(k) {
                 Some(v) if v.is_finite() => Ok(v),
@@ -146,7 +156,10 @@ impl InputEffect {
             "input_offset" => Self::InputOffset {
                 u_offset: get("u_offset")?,
             },
-            "coulomb_friction" => Self::CoulombFriction { vc: get("Vc")? },
+            "coulomb_friction" => Self::CoulombFriction {
+                vc: get("Vc")?,
+                sampled,
+            },
             "saturation" => Self::Saturation {
                 level: get("level")?.abs(),
             },
@@ -167,11 +180,14 @@ impl InputEffect {
         }))
     }
 
-    /// The input after the effect, given the output `y` seen.
-    pub fn apply(&self, u: f64, y: f64) -> f64 {
+    /// The input after the effect, given the output seen at the middle of the fine step
+    /// (`y_mid`) and at the controller's last sample instant (`y_sample`).
+    pub fn apply(&self, u: f64, y_mid: f64, y_sample: f64) -> f64 {
         match *self {
             Self::InputOffset { u_offset } => u + u_offset,
-            Self::CoulombFriction { vc } => u - vc * sign(y),
+            Self::CoulombFriction { vc, sampled } => {
+                u - vc * sign(if sampled { y_sample } else { y_mid })
+            }
             Self::Saturation { level } => u.clamp(-level, level),
             Self::Deadzone { width } => {
                 if u.abs() < width {
@@ -276,7 +292,7 @@ pub fn simulate(
     if limit.is_nan() || limit <= 0.0 {
         return invalid("u_limit", format!("{limit} must be positive"));
     }
-    let mut y_prev = 0.0;
+    let (mut y_prev, mut y_sample) = (0.0, 0.0);
     let mut run = LoopRun {
         t: Vec::with_capacity(n),
         r: Vec::with_capacity(n),
@@ -300,6 +316,7 @@ pub fn simulate(
             let v = cc + dc * (r - y_free);
             u = v.clamp(-limit, limit);
             y = if u == v { y_free } else { cp + dp * (u + d) };
+            y_sample = y;
             let e = r - y;
             if u == v {
                 ctrl.advance(e);
@@ -315,7 +332,7 @@ pub fn simulate(
         // the output over the hold interval, extrapolated to its middle (as ident does)
         let seen = if k > 0 { y + 0.5 * (y - y_prev) } else { y };
         y_prev = y;
-        let v = effects.iter().fold(u, |v, e| e.apply(v, seen));
+        let v = effects.iter().fold(u, |v, e| e.apply(v, seen, y_sample));
         plant.advance(v + d);
         if !(y.is_finite() && u.is_finite()) {
             return Err(fracsim::Error::Numerical(format!(

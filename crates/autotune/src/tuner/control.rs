@@ -229,7 +229,12 @@ pub fn design(
     };
     let mut effects = vec![];
     if let Some(vc) = model.param("Vc") {
-        effects.push(InputEffect::CoulombFriction { vc });
+        let sampled = model
+            .spec
+            .effects
+            .iter()
+            .any(|e| matches!(e, ident::oe::Effect::Coulomb { sampled: true, .. }));
+        effects.push(InputEffect::CoulombFriction { vc, sampled });
     }
     if let Some(u_offset) = model.param("u_offset") {
         effects.push(InputEffect::InputOffset { u_offset });

@@ -120,7 +120,10 @@ pub(crate) fn load_model(text: &str) -> Result<(FracTf, Vec<InputEffect>, Vec<St
                 .and_then(|p| p.get(k))
                 .and_then(Value::as_f64)
         };
-        match InputEffect::from_report(name, param).with_context(|| format!("in {text}"))? {
+        let sampled = e.get("sampled").and_then(Value::as_bool).unwrap_or(false);
+        match InputEffect::from_report(name, param, sampled)
+            .with_context(|| format!("in {text}"))?
+        {
             Some(fx) => effects.push(fx),
             None if name == "delay" => {}
             None => left.push(name.to_string()),

@@ -547,6 +547,7 @@ impl Judge<'_> {
             ssr_removed_percent: -100.0 * change,
             rmse_change_percent: 100.0 * ((ssr / ssr_ref.max(1e-300)).sqrt() - 1.0),
             bic_change: daic,
+            sampled: None,
         };
         Some((m, err, kept))
     }
@@ -636,6 +637,7 @@ impl Judge<'_> {
             ssr_removed_percent: 100.0 * (1.0 - ssr / ssr_ref.max(1e-300)),
             rmse_change_percent: 100.0 * ((ssr / ssr_ref.max(1e-300)).sqrt() - 1.0),
             bic_change: daic,
+            sampled: None,
         };
         Ok((m, err, kept))
     }

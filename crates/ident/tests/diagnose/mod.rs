@@ -856,12 +856,14 @@ fn friction_whose_signature_comes_out_with_the_wrong_sign_is_refitted_and_kept()
 /// hold interval ends at 5x the truth's held-out RMSE: its sign changes half a sample earlier at
 /// every reversal, which on a resonance of 2 rad per sample moves the response more than the
 /// noise. The refit, started at both timings, keeps the one the record follows: within 10% of
-/// the truth's held-out RMSE (0.17824, the zoo's oracle on the same samples).
+/// the truth's held-out RMSE (0.17824, the zoo's oracle on the same samples), and the report
+/// says the timing (`sampled`, which `fracid tune` simulates).
 #[test]
 fn friction_decided_at_the_sample_instant_is_fitted_with_that_timing() {
     let r = default_run_on_fixture("zoo_seed44_0011_friction_reversal.csv");
     let dg = r.diagnosis.as_ref().expect("a diagnosis");
     assert_eq!(names(&dg.diagnosis), ["coulomb_friction"]);
+    assert_eq!(dg.diagnosis.effects[0].sampled, Some(true));
     let held = dg.structures.scores[dg.structures.chosen]
         .rmse_after
         .unwrap();

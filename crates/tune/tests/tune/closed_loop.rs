@@ -231,7 +231,10 @@ fn dead_band_and_friction_are_overcome_by_the_integral_action() {
     setup.duration = 0.3;
     let fx = [
         InputEffect::Deadzone { width: 0.05 },
-        InputEffect::CoulombFriction { vc: 0.02 },
+        InputEffect::CoulombFriction {
+            vc: 0.02,
+            sampled: false,
+        },
     ];
     let run = simulate(&g, &c, &setup, &ApproxSpec::default(), &fx).unwrap();
     let lin = simulate(&g, &c, &setup, &ApproxSpec::default(), &[]).unwrap();
@@ -257,11 +260,15 @@ fn an_input_power_law_settles_where_the_map_gives_the_linear_input() {
     let lin = simulate(&g, &c, &setup, &ApproxSpec::default(), &[]).unwrap();
     let u_lin = *lin.u.last().unwrap();
     let u_ref = 4.0 * u_lin.abs();
-    let fx = InputEffect::from_report("power_law", |k| match k {
-        "exponent" => Some(2.0),
-        "u_ref" => Some(u_ref),
-        _ => None,
-    })
+    let fx = InputEffect::from_report(
+        "power_law",
+        |k| match k {
+            "exponent" => Some(2.0),
+            "u_ref" => Some(u_ref),
+            _ => None,
+        },
+        false,
+    )
     .unwrap()
     .unwrap();
     let run = simulate(&g, &c, &setup, &ApproxSpec::default(), &[fx]).unwrap();
@@ -272,5 +279,64 @@ fn an_input_power_law_settles_where_the_map_gives_the_linear_input() {
     assert!((seen / u_lin - 1.0).abs() < 0.02, "{seen} vs {u_lin}");
     // (|u|/u_ref)^2 < |u|/u_ref below u_ref: the loop needs the larger command
     assert!(u_end.abs() > 1.5 * u_lin.abs(), "{u_end} vs {u_lin}");
-    assert!(InputEffect::from_report("power_law", |k| (k == "exponent").then_some(2.0)).is_err());
+    let no_ref = |k: &str| (k == "exponent").then_some(2.0);
+    assert!(InputEffect::from_report("power_law", no_ref, false).is_err());
+}
+
+/// Coulomb friction decided at the controller's sample instant and held over its period (a
+/// friction the diagnosis found the record to follow so, `sampled`): the loop of a first-order
+/// plant and a proportional controller sampled every 10 fine steps is the recursion written here
+/// (the plant's exact held-input step, the sign of the output at the last sample instant), and
+/// differs from the loop with the friction's sign taken at each fine step's middle.
+#[test]
+fn friction_decided_at_the_sample_instant_is_held_over_the_period() {
+    use tune::closed::InputEffect;
+    let (gain, tau, vc) = (2.0, 0.05, 0.4);
+    let g: FracTf = format!("{gain}/({tau} s + 1)").parse().unwrap();
+    let c = Controller {
+        kp: 0.8,
+        ki: 0.0,
+        lambda: 1.0,
+        kd: 0.0,
+        mu: 1.0,
+    };
+    let (h, m) = (1e-4, 10);
+    let setup = LoopSetup {
+        step: 1.0,
+        load: -0.9,
+        t_load: 0.15,
+        duration: 0.3,
+        h,
+        dt: Some(m as f64 * h),
+        u_limit: None,
+    };
+    let run = |sampled| {
+        let fx = [InputEffect::CoulombFriction { vc, sampled }];
+        simulate(&g, &c, &setup, &ApproxSpec::default(), &fx).unwrap()
+    };
+    let (held, mid) = (run(true), run(false));
+    let sign = |v: f64| if v == 0.0 { 0.0 } else { v.signum() };
+    let a = (-h / tau).exp();
+    let (mut x, mut u, mut y_sample, mut worst, mut apart) = (0.0, 0.0, 0.0, 0.0f64, 0.0f64);
+    for (i, (&y_held, &y_mid)) in held.y.iter().zip(&mid.y).enumerate() {
+        let d = if i as f64 * h >= setup.t_load - 0.5 * h {
+            setup.load
+        } else {
+            0.0
+        };
+        if i % m == 0 {
+            (u, y_sample) = (c.kp * (setup.step - x), x);
+        }
+        worst = worst.max((y_held - x).abs());
+        apart = apart.max((y_held - y_mid).abs());
+        x = a * x + (1.0 - a) * gain * (u - vc * sign(y_sample) + d);
+    }
+    assert!(
+        worst < 1e-9,
+        "held friction against the recursion: {worst:e}"
+    );
+    assert!(
+        apart > 1e-3,
+        "the two timings give the same loop: {apart:e}"
+    );
 }
