@@ -726,7 +726,7 @@ fn an_effect_whose_refit_sends_an_order_to_its_bound_is_refitted_from_a_fresh_st
             q: Some(1.0),
             ..Default::default()
         },
-        16,
+        1,
     );
     let (id, d) = run(&rec, true);
     let q = id.report.values[id.model.index_of("q").unwrap()];
@@ -735,19 +735,16 @@ fn an_effect_whose_refit_sends_an_order_to_its_bound_is_refitted_from_a_fresh_st
     assert_eq!(names(&d), ["coulomb_friction"]);
     assert!(close(param(&d, "coulomb_friction", "Vc"), 0.15));
     assert!(falls(&d));
-    // The path this test is for: q was inside before the effect and at its bound after (an
-    // effect the old rule threw away), the evidence then saying so. Since the friction's refit
-    // starts at both timings of its sign (the screen of starts, then the rest of the budget from
-    // the better), this record's refit ends with q inside (0.988): the effect is kept without
-    // the fresh start, and the path is checked only when it is taken.
-    assert!(q < 0.99, "q: {q}");
-    if q_after > 0.995 {
-        let ev = &d.effects[0].evidence;
-        assert!(
-            ev.contains("stayed at a bound when refitted from a fresh start"),
-            "{ev}"
-        );
-    }
+    // The path this test is for: q inside before the effect (0.981 on this noise) and at its
+    // bound after (0.995; an effect the old rule threw away), refitted from a fresh start and
+    // kept, the evidence saying so. (Of 59 noise seeds at this friction, 2 take this path; the
+    // others' refits end with q inside and keep the effect without the fresh start.)
+    assert!(q < 0.99 && q_after > 0.995, "q: base {q}, after {q_after}");
+    let ev = &d.effects[0].evidence;
+    assert!(
+        ev.contains("stayed at a bound when refitted from a fresh start"),
+        "{ev}"
+    );
 }
 
 /// A record of the truth that starts `idle` samples before its first input change (zero input,
