@@ -115,7 +115,8 @@ pub struct TimeArgs {
     #[arg(long, value_parser = crate::cmd::parse_word::<InitialState>,
           default_value_t = TimeRequest::default().initial)]
     pub initial: InitialState,
-    /// Maximum Levenberg-Marquardt iterations.
+    /// Maximum Levenberg-Marquardt iterations of every fit (the diagnosis's refits take at most
+    /// 60, or this when it is smaller).
     #[arg(long, default_value_t = TimeRequest::default().max_iterations)]
     pub max_iter: usize,
     /// Start from the given structure's values instead of the automatic start.

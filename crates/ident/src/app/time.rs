@@ -75,7 +75,8 @@ pub struct TimeRequest {
     /// estimated), `estimate` (a past held input, fitted) or `rest`.
     #[serde(with = "super::request::words")]
     pub initial: InitialState,
-    /// Maximum Levenberg-Marquardt iterations.
+    /// Maximum Levenberg-Marquardt iterations of every fit (the diagnosis's refits take at most
+    /// 60, or this when it is smaller).
     pub max_iterations: usize,
     /// Samples at the start of the estimation part left out of the cost (a transient the model
     /// need not explain).
@@ -515,14 +516,19 @@ fn with_own_poles<R>(f: impl FnOnce() -> R) -> R {
     fracsim::modal::RootsCache::new().enter(f)
 }
 
-/// The diagnosis options of a request.
+/// The diagnosis options of a request: its refits' budget is the diagnosis's own (60 LM
+/// iterations) or the request's `max_iterations` when that is smaller (a cap the user set holds
+/// for every fit).
 pub fn diagnose_options(req: &TimeRequest) -> DiagnoseOptions {
-    DiagnoseOptions {
+    let mut opts = DiagnoseOptions {
         margin: req.margin,
         min_r2: req.min_r2,
         max_rounds: req.max_rounds,
         ..DiagnoseOptions::default()
-    }
+    };
+    let lm = &mut opts.fit.lm;
+    lm.max_iterations = lm.max_iterations.min(req.max_iterations);
+    opts
 }
 
 /// Run the time-domain identification of `req` on `data`: the fit (or, with `structure =
@@ -1206,6 +1212,24 @@ mod tests {
             !drift_shown(4.0, 0.05, Some(0.03), 0.1),
             "within two standard errors"
         );
+    }
+
+    /// A user's iteration cap holds for the diagnosis's refits when it is below their own budget
+    /// (a million-sample record run with `--max-iter 2` refitted each candidate for 60 before).
+    #[test]
+    fn a_smaller_iteration_cap_holds_for_the_diagnosis_refits() {
+        let own = DiagnoseOptions::default().fit.lm.max_iterations;
+        for (cap, refits) in [(2, 2), (own, own), (500, own)] {
+            let req = TimeRequest {
+                max_iterations: cap,
+                ..TimeRequest::default()
+            };
+            assert_eq!(
+                diagnose_options(&req).fit.lm.max_iterations,
+                refits,
+                "{cap}"
+            );
+        }
     }
 
     /// A first-order plant 2/(0.1 s + 1) driven by a square wave, exact for the held input.
