@@ -122,6 +122,21 @@ def test_input_effects_are_simulated():
     assert sat["step_with_effects"]["rise_time"] > lin["step"]["metrics"]["rise_time"]
 
 
+def test_friction_keeps_its_timing_in_the_loop():
+    """A diagnosis's friction keeps its timing (``sampled``): decided at the controller's sample
+    instant and held, it moves the simulated step otherwise than taken at each fine step's
+    middle (the loop itself is checked against a recursion in the tune crate's tests)."""
+
+    def fx(sampled):
+        return [{"name": "coulomb_friction", "params": {"Vc": 0.05}, "sampled": sampled}]
+
+    mid = fracid.tune(PMSM, wc=50, pm=60, flat=True, dt=0.001, effects=fx(False))
+    held = fracid.tune(PMSM, wc=50, pm=60, flat=True, dt=0.001, effects=fx(True))
+    assert mid["effects"] == [{"name": "coulomb_friction", "vc": 0.05, "sampled": False}]
+    assert held["effects"] == [{"name": "coulomb_friction", "vc": 0.05, "sampled": True}]
+    assert held["step_with_effects"] != mid["step_with_effects"]
+
+
 def test_floors_refuse_a_fragile_loop_and_can_be_relaxed(fracid_bin):
     """The design the tuner returned with Ms 18.5 is refused naming the floor, as the CLI does;
     relaxed, it is returned with that Ms (checked here on |1/(1+L)| around the resonance)."""
