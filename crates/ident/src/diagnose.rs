@@ -536,13 +536,33 @@ pub fn find_quantization(y: &[f64]) -> Option<Quantization> {
 /// refit, not the effect, made the gain ([`credited`]).
 type Refuted = (RejectedEffect, Option<Box<State>>);
 
+/// Whether a candidate's gain must be shown to be the effect's ([`try_candidate`]'s call of
+/// [`credited`]), its refit `ns` and its kept effect `k` when it passed the decision.
+type NeedsCredit<'a> = dyn Fn(&State, Option<&KeptEffect>) -> bool + 'a;
+
+/// Whether a candidate's refit that pays must be [`credited`] to its effect: `floor` whether it
+/// was proposed at the evidence floor (its rejection stands in later rounds,
+/// [`Rounds::refuted`]), `best` the round's best kept refit so far and `passed` the candidate's
+/// (both `(held-out RMSE, rank in the library)`, [`beats`]) when the rest of the decision keeps
+/// it. The check only turns a kept candidate into a rejected one, and the refit without the
+/// effect it makes becomes the current model only when the round keeps nothing: so once the
+/// round has a best, a candidate that does not beat it, or is rejected anyway, is not checked
+/// (dropped or rejected, as it would be after the check), and the round keeps what it kept with
+/// every candidate checked. Only the rejections listed can differ: such a candidate is not
+/// listed, or listed with the decision's reason, not the check's.
+fn needs_credit(floor: bool, best: Option<(f64, usize)>, passed: Option<(f64, usize)>) -> bool {
+    floor || best.is_none_or(|b| passed.is_some_and(|p| beats(p, b)))
+}
+
 /// Refit a candidate from each of its starts and decide (module documentation, Decision).
-/// Returns the refitted state and the kept effect, or the rejection.
+/// Returns the refitted state and the kept effect, or the rejection. The refit's gain is
+/// [`credited`] to the effect where `needs` says the round's outcome can depend on it.
 fn try_candidate(
     ctx: &Ctx<'_>,
     st: &State,
     c: &Candidate,
     probe: Option<&dyn Probe>,
+    needs: &NeedsCredit<'_>,
 ) -> std::result::Result<(State, KeptEffect, Option<usize>), Refuted> {
     let lead_ctx = c.lead.map(|l| ctx.with_lead(l));
     let rctx = lead_ctx.as_ref().unwrap_or(ctx);
@@ -561,10 +581,11 @@ fn try_candidate(
     let rctx = longer_ctx.as_ref().unwrap_or(rctx);
     let verdict = fresh_if_bent(ctx, rctx, st, &mut ns);
     let params = params_of(&ns, lead);
-    if verdict.pays(ctx) && lead.is_none() {
+    let judged = judge(ctx, st, &ns, c, &verdict, params.clone());
+    if verdict.pays(ctx) && lead.is_none() && needs(&ns, judged.as_ref().ok()) {
         credited(ctx, st, &ns, c, &verdict, &params)?;
     }
-    let k = judge(ctx, st, &ns, c, &verdict, params).map_err(|r| (r, None))?;
+    let k = judged.map_err(|r| (r, None))?;
     Ok((ns, k, lead))
 }
 
@@ -1421,14 +1442,22 @@ impl Rounds<'_> {
     ) {
         let ctx = &self.ctx;
         let probe = library.iter().find(|p| p.name() == c.name);
-        match try_candidate(ctx, &self.st, c, probe.map(|p| p.as_ref())) {
+        let rank = |name: &str| {
+            library
+                .iter()
+                .position(|p| p.name() == name)
+                .unwrap_or(usize::MAX)
+        };
+        let needs = |ns: &State, k: Option<&KeptEffect>| {
+            needs_credit(
+                c.r2 <= ctx.opts.min_r2,
+                best.as_ref()
+                    .map(|(b, bk, _, _)| (ctx.score(b), rank(&bk.name))),
+                k.map(|k| (ctx.score(ns), rank(&k.name))),
+            )
+        };
+        match try_candidate(ctx, &self.st, c, probe.map(|p| p.as_ref()), &needs) {
             Ok((ns, k, lead)) => {
-                let rank = |name: &str| {
-                    library
-                        .iter()
-                        .position(|p| p.name() == name)
-                        .unwrap_or(usize::MAX)
-                };
                 if best.as_ref().is_none_or(|(b, bk, _, _)| {
                     beats(
                         (ctx.score(&ns), rank(&k.name)),
@@ -1548,6 +1577,27 @@ mod tests {
     use super::*;
     use crate::data::OffsetMode;
     use crate::oe::{identify, IdentOptions, Structure};
+
+    /// A paying refit is checked against the structure refitted without its effect (`credited`)
+    /// only where the round's outcome can depend on the check.
+    #[test]
+    fn a_refit_is_credited_to_its_effect_only_where_the_round_can_depend_on_it() {
+        // no best yet: every paying refit is checked, kept or not (its refit without the
+        // effect may become the current model)
+        assert!(needs_credit(false, None, Some((1.0, 3))));
+        assert!(needs_credit(false, None, None));
+        // a best: only a kept refit that beats it
+        let best = Some((1.0, 3));
+        assert!(needs_credit(false, best, Some((0.9, 5))));
+        assert!(!needs_credit(false, best, Some((1.1, 0))));
+        assert!(!needs_credit(false, best, None));
+        // a tie goes to the effect earlier in the library, as the round decides it
+        assert!(needs_credit(false, best, Some((1.0 + 1e-6, 2))));
+        assert!(!needs_credit(false, best, Some((1.0 - 1e-6, 4))));
+        // a candidate at the evidence floor always: its rejection is remembered
+        assert!(needs_credit(true, best, Some((1.1, 0))));
+        assert!(needs_credit(true, best, None));
+    }
 
     /// A refit beats the round's best by a held-out RMSE lower beyond `REFIT_TIE`; within it
     /// (a tie) the effect earlier in the library does, whichever came out lower in its last bits.
