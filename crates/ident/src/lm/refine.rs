@@ -344,6 +344,8 @@ impl Chord {
             iterations: round + 1,
             evaluations,
             termination: Termination::SmallStatisticalStep,
+            // The rounds end at `RefineOptions::max_rounds`, not at the LM budget.
+            budget_ends: 0,
             converged: true,
             covariance,
             std_errors,

@@ -57,6 +57,14 @@ pub struct LmReport {
     pub evaluations: usize,
     /// Why it stopped.
     pub termination: Termination,
+    /// How many of the LM runs this report sums up ended at their budget
+    /// ([`super::LmOptions::max_iterations`] or `max_evaluations`): 0 or 1 for one run of
+    /// [`super::minimize`], summed where runs are chained (a Gauss-Newton refine handing over, a
+    /// lead fit before the whole record's). A run that ends for any other reason ends where it
+    /// would with a larger budget (the budget enters it only through those two tests and, with
+    /// [`super::LmOptions::give_up`], the give-up test): runs none of which ended at their budget
+    /// and none with a give-up test are what a larger budget makes, bit for bit.
+    pub budget_ends: usize,
     /// `termination.is_converged()`.
     pub converged: bool,
     /// Parameter covariance `sigma^2 (J^T J)^-1`, `sigma^2 = SSR/(m - n)`, row-major `n x n`; `None`

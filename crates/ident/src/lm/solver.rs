@@ -392,6 +392,10 @@ impl Lm {
             iterations: self.iterations,
             evaluations: self.evaluations,
             termination,
+            budget_ends: usize::from(matches!(
+                termination,
+                Termination::MaxIterations | Termination::MaxEvaluations
+            )),
             converged: termination.is_converged(),
             covariance,
             std_errors,
@@ -788,6 +792,30 @@ mod tests {
         // 1e-8: zero-residual problem, LM converges quadratically to the exact minimum.
         assert!((rep.params[0] - 1.0).abs() < 1e-8 && (rep.params[1] - 1.0).abs() < 1e-8);
         assert!(rep.covariance.is_none()); // m == n: no degrees of freedom
+    }
+
+    #[test]
+    fn only_a_run_stopped_by_its_budget_reports_ending_there() {
+        let p0 = [1.0, 1.0];
+        let full = minimize(&mut NoisyExp::new(), &p0, &LmOptions::default()).unwrap();
+        assert_ne!(full.termination, Termination::MaxIterations);
+        assert_eq!(full.budget_ends, 0);
+        let short = LmOptions {
+            max_iterations: 1,
+            ..LmOptions::default()
+        };
+        let rep = minimize(&mut NoisyExp::new(), &p0, &short).unwrap();
+        assert_eq!(rep.termination, Termination::MaxIterations);
+        assert_eq!(rep.budget_ends, 1);
+        // a budget the run did not reach gives the full run, bit for bit
+        let enough = LmOptions {
+            max_iterations: full.iterations + 1,
+            ..LmOptions::default()
+        };
+        let same = minimize(&mut NoisyExp::new(), &p0, &enough).unwrap();
+        assert_eq!(same.budget_ends, 0);
+        assert_eq!(same.params, full.params);
+        assert_eq!(same.iterations, full.iterations);
     }
 
     #[test]

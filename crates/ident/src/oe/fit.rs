@@ -100,6 +100,10 @@ pub struct FitReport {
     pub evaluations: usize,
     /// Why LM stopped.
     pub termination: Termination,
+    /// How many of the fit's LM runs ended at their budget ([`crate::lm::LmReport::budget_ends`],
+    /// summed over the runs: a lead part's, a reduced fit's, the other time unit's): none means
+    /// a larger budget gives this fit, bit for bit.
+    pub budget_ends: usize,
     /// Whether that counts as convergence.
     pub converged: bool,
     /// Whether the fit was allowed no iteration (`max_iterations` 0): the start evaluated, its
@@ -699,7 +703,7 @@ pub(super) fn fit_in<S: Structure>(
         .collect::<Result<Vec<f64>>>()?;
     let mut start = theta0.clone();
     let mut lm = opts.lm.clone();
-    let mut lead_work = (0, 0);
+    let mut lead_work = (0, 0, 0);
     // A budget of no iteration evaluates the start (its covariance, [`LmOptions::covariance`]):
     // neither the lead part nor the projection moves it.
     let evaluate_only = opts.lm.max_iterations == 0;
@@ -733,7 +737,7 @@ pub(super) fn fit_in<S: Structure>(
     let mut from_lead = None;
     if let Some((r, jac_evals, at_start)) = lead_fit {
         prob.jac_evals = jac_evals;
-        lead_work = (r.iterations, r.evaluations + 1);
+        lead_work = (r.iterations, r.evaluations + 1, r.budget_ends);
         start = r.params;
         // Near the optimum already: the whole record's fit starts with the lead's final
         // damping (Gauss-Newton steps), not the damping of a cold start.
@@ -754,6 +758,7 @@ pub(super) fn fit_in<S: Structure>(
                 let mut cold = minimize(&mut prob, &theta0, &opts.lm)?;
                 cold.iterations += rep.iterations;
                 cold.evaluations += rep.evaluations;
+                cold.budget_ends += rep.budget_ends;
                 cold
             }
         }
@@ -770,6 +775,7 @@ pub(super) fn fit_in<S: Structure>(
     };
     rep.iterations += lead_work.0;
     rep.evaluations += lead_work.1;
+    rep.budget_ends += lead_work.2;
     Ok(problem.report(&rep, t0))
 }
 
@@ -924,6 +930,7 @@ impl<S: Structure> FitProblem<'_, S> {
             iterations: rep.iterations,
             evaluations: rep.evaluations,
             termination: rep.termination,
+            budget_ends: rep.budget_ends,
             converged: rep.converged,
             evaluated: self.opts.lm.max_iterations == 0,
             elapsed: t0.elapsed(),
@@ -1197,6 +1204,7 @@ fn identify_afresh(
     id.start_report = there.start_report;
     id.report.iterations += there.report.iterations;
     id.report.evaluations += there.report.evaluations;
+    id.report.budget_ends += there.report.budget_ends;
     Ok(id)
 }
 

@@ -672,6 +672,7 @@ pub(super) fn fit<S: Structure>(
             let mut cold = minimize(prob, theta0, lm)?;
             cold.iterations += rep.iterations;
             cold.evaluations += rep.evaluations;
+            cold.budget_ends += rep.budget_ends;
             Ok(cold)
         })
     } else {
@@ -680,6 +681,7 @@ pub(super) fn fit<S: Structure>(
     if let Ok(rep) = &mut rep {
         rep.iterations += rr.iterations;
         rep.evaluations += rr.evaluations;
+        rep.budget_ends += rr.budget_ends;
     }
     Some(rep)
 }
