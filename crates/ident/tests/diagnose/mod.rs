@@ -846,6 +846,33 @@ fn friction_whose_signature_comes_out_with_the_wrong_sign_is_refitted_and_kept()
     assert!(vc > 0.3 * 1.69 && vc < 1.5 * 1.69, "Vc = {vc} (truth 1.69)");
 }
 
+/// The benchmark zoo's friction case 0286 (seed 44, `tests/data/README.md`): the first order
+/// `2.2107/(0.020776 s + 1)` under a PRBS, Coulomb friction 0.0783 at its input, 1.6% noise. The
+/// friction's refit takes the held-out RMSE 4.7% down, to the truth's (the zoo's oracle 0.091213),
+/// short of the 5% margin: without the friction the gain comes out 10% low. The refit's held-out
+/// residual is white (the noise floor), so half the margin is enough, and the friction is kept.
+#[test]
+fn an_effect_that_reaches_the_noise_floor_is_kept_short_of_the_margin() {
+    let r = default_run_on_fixture("zoo_seed44_0286_friction_reversal.csv");
+    let d = &r.diagnosis.as_ref().expect("a diagnosis").diagnosis;
+    let kept = d
+        .effects
+        .iter()
+        .find(|e| e.name == "coulomb_friction")
+        .unwrap_or_else(|| panic!("friction not kept: {:?} {:?}", names(d), d.rejected));
+    assert!(kept.evidence.contains("noise floor"), "{}", kept.evidence);
+    assert!(
+        kept.rmse_change_percent > -5.0,
+        "{}",
+        kept.rmse_change_percent
+    );
+    let vc = kept.params["Vc"];
+    assert!(
+        vc > 0.5 * 0.0783 && vc < 1.5 * 0.0783,
+        "Vc = {vc} (truth 0.0783)"
+    );
+}
+
 /// The benchmark zoo's friction case 0011 (seed 44, `tests/data/README.md`): the second order
 /// `22.56/(0.006272 s^2 + 0.06134 s + 1)` at 21 ms under a chirp, Coulomb friction 0.292 at its
 /// input decided at each sample instant and held (the zoo's truth simulator, like the drive
