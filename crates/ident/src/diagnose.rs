@@ -42,8 +42,8 @@
 //! (default 5%: the standard error of an RMSE ratio over `N` validation samples of noise is about
 //! `1/sqrt(2N)`, 2% for `N = 1000`, so 5% is 2.5 standard errors), or by half of it when the
 //! refit reaches the noise floor (its held-out residual white at the sample scale, on an output
-//! that is not quantized: its RMSE within
-//! `1/sqrt(N)` of the noise level `sqrt(sum dr^2 / 2N)` its differences give, where a model error
+//! that is not quantized: its RMSE within `1/sqrt(N)` of the noise level `sqrt(sum dr^2 / 2N)`
+//! its differences give, where a model error
 //! slower than the sampling adds to the RMSE and hardly to the differences; what is left of the
 //! margin is then noise no model removes: a friction worth 4.7% on a record whose error was 5%
 //! above its noise), (b) BIC
@@ -51,8 +51,8 @@
 //! and (c) none of the effect's own parameters ran to a bound, and (d) it pays by the same rules
 //! over the current structure refitted without it from the refit's values (`credited`): a refit
 //! moves the linear part too, and an effect fitted where it does nothing is not credited with the
-//! structure's better optimum (that refit becomes the current model instead, when no effect is
-//! kept in the round). A parameter of the current model
+//! structure's better optimum (that refit becomes the current model instead, by the full
+//! margin, when no effect is kept in the round). A parameter of the current model
 //! that ran to a bound (the missing effect bent the base fit) is refitted once from a fresh start
 //! of the base parameters (the automatic start); if it stays at its bound the effect is still kept
 //! and the evidence says so (the structure may be short of a term). The report gives each kept
@@ -646,7 +646,8 @@ fn try_candidate(
 /// structure alone reaches from there: an effect fitted inactive (a saturation at the input's
 /// largest level, a power law of exponent 1) then took the credit for the structure's better
 /// fit. Then the effect is rejected, and the refit without it is returned beside the rejection
-/// when it pays over `st` (it becomes the current model when no effect is kept in the round).
+/// when it pays over `st` by the full margin (it becomes the current model when no effect is kept
+/// in the round).
 /// Nothing is checked when `ns` does not extend the current model's parameters.
 fn credited(
     ctx: &Ctx<'_>,
@@ -696,7 +697,9 @@ fn credited(
         ),
         params: params.clone(),
     };
-    let pays = Verdict::of(ctx, st, &null).pays(ctx);
+    // The structure refitted alone replaces the current model by the full margin: the noise
+    // floor's half ([`Verdict::clears`]) is for an effect, a term its signature proposed.
+    let pays = Verdict::of(ctx, st, &null).pays_in_full(ctx);
     Err((rejected, pays.then(|| Box::new(null))))
 }
 
@@ -1123,6 +1126,11 @@ impl Verdict {
     /// Clears the held-out margin and BIC.
     fn pays(&self, ctx: &Ctx<'_>) -> bool {
         self.clears(ctx) && self.dbic < 0.0
+    }
+
+    /// Clears the whole held-out margin and BIC (the structure's own refit, [`credited`]).
+    fn pays_in_full(&self, ctx: &Ctx<'_>) -> bool {
+        self.change <= -ctx.opts.margin && self.dbic < 0.0
     }
 
     /// Clears the held-out margin: the held-out RMSE falls by it, or by half of it to the noise
