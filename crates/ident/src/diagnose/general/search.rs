@@ -40,6 +40,8 @@ pub struct GeneralFit {
     pub model: FracModel,
     /// The chosen size's name (`general N/D`, ...).
     pub name: String,
+    /// The chosen size's start (its size and integrator), for trimming it later ([`trim`]).
+    pub start: GeneralStart,
 }
 
 /// The estimation part's deviations of `rec` as [`identify`] splits and centres them for `opts`.
@@ -253,7 +255,48 @@ pub fn fit(
         choice,
         model,
         name: s.name(),
+        start: s,
     })
+}
+
+/// `g`, a size kept as chosen ([`Then::AsChosen`]), trimmed as [`Then::Trimmed`] trims a size
+/// ([`trimmed`]), with `g`'s options `opts`: the smaller size and its fit, or `None` when no
+/// smaller size is chosen. The diagnosis trims a size whose diagnosis kept no effect (its final
+/// model is its base fit, and no effect needs a term a smaller size drops:
+/// [`super::hook::consider`]).
+///
+/// # Errors
+/// A smaller size's fit error where it was chosen.
+pub fn trim(rec: &Record, opts: &IdentOptions, g: &GeneralFit) -> Result<Option<GeneralFit>> {
+    let given = IdentOptions {
+        start: StartMode::Given,
+        ..opts.clone()
+    };
+    let (mut scores, mut chosen) = (g.choice.scores.clone(), g.choice.chosen);
+    let at = (g.start.clone(), g.model.clone(), g.id.clone());
+    let (s, model, id) = trimmed(rec, &given, at, (&mut scores, &mut chosen))?;
+    if chosen == g.choice.chosen {
+        return Ok(None);
+    }
+    let reason = format!(
+        "{}; then trimmed to {} (its highest terms dropped while a smaller size was as good, {} \
+         smaller sizes refitted)",
+        g.choice.reason,
+        s.name(),
+        scores.len() - g.choice.scores.len()
+    );
+    Ok(Some(GeneralFit {
+        id,
+        choice: StructureChoice {
+            scores,
+            chosen,
+            reason,
+            ..g.choice.clone()
+        },
+        model,
+        name: s.name(),
+        start: s,
+    }))
 }
 
 /// What follows the choice of a size ([`fit`]).
