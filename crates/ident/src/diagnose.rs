@@ -1141,7 +1141,11 @@ impl Verdict {
     /// is noise no model can remove) with the estimation part agreeing (module documentation,
     /// Decision).
     fn clears(&self, ctx: &Ctx<'_>) -> bool {
-        let m = ctx.opts.margin;
+        self.clears_margin(ctx.opts.margin)
+    }
+
+    /// [`Verdict::clears`] with the margin `m`.
+    fn clears_margin(&self, m: f64) -> bool {
         let half = 0.5 * m;
         // At the floor the estimation part must agree: the refit removes from its sum of squares
         // at least the share half the margin is in RMSE.
@@ -1663,6 +1667,32 @@ impl Rounds<'_> {
 
 #[cfg(test)]
 mod tests {
+    /// The noise floor's half margin (module documentation, Decision): a refit at the floor
+    /// clears it only when the estimation part agrees; the full margin needs no floor.
+    #[test]
+    fn the_noise_floors_half_margin_needs_the_estimation_part_to_agree() {
+        let v = |change: f64, at_floor: bool, removed: f64| super::Verdict {
+            change,
+            at_floor,
+            dbic: -10.0,
+            removed,
+            base_at_bound: vec![],
+            own_at_bound: vec![],
+        };
+        let m = 0.05;
+        // the CI subset's two-mode case 0029: a delay, -3.0% held out, 0.7% of the estimation SS
+        assert!(!v(-0.030, true, 0.007).clears_margin(m));
+        // the zoo's friction 0286: -4.7% held out, 12% of the estimation SS
+        assert!(v(-0.047, true, 0.12).clears_margin(m));
+        assert!(!v(-0.047, false, 0.12).clears_margin(m));
+        // just short of half the margin's share of the sum of squares (4.94%)
+        assert!(!v(-0.047, true, 0.049).clears_margin(m));
+        assert!(v(-0.047, true, 0.0494).clears_margin(m));
+        // less than half the margin held out
+        assert!(!v(-0.024, true, 0.12).clears_margin(m));
+        assert!(v(-0.05, false, 0.0).clears_margin(m));
+    }
+
     use super::*;
     use crate::data::OffsetMode;
     use crate::oe::{identify, IdentOptions, Structure};
