@@ -10,7 +10,8 @@
 //! two-mass drive train (the PMSM times a resonant pair with zeros, [`FracModel::two_mass`]; it
 //! starts from the resonance on the measured frequency response, and a record without a periodic
 //! input or without a resonance drops it at once), and the user's
-//! structure with a free integrator (an output that integrates, such as a position); and, only
+//! structure with a free integrator (an output that integrates, such as a position) and the first
+//! order with one, `K/(s (T s + 1))` (a position behind a motor's lag); and, only
 //! when the record shows an instant response of the output to the input (a cheap regression,
 //! [`with_feedthrough`]), the PMSM with a direct feed-through `D + K/(..)`
 //! ([`FracModel::feedthrough`]). Each is
@@ -80,6 +81,16 @@ pub fn candidates(label: &str, model: &FracModel) -> Vec<(String, FracModel)> {
         let mut m = model.clone();
         m.with_integrator();
         out.push((format!("{label} + integrator"), m));
+        // A position behind a motor's lag, `K/(s (T s + 1))`: the user's fractional structure
+        // with an integrator has a term such a record does not determine, and is not usable
+        // (the zoo's integrator case 0006, fitted instead as a slow second order).
+        let first = Preset::FirstOrder;
+        if !label.eq_ignore_ascii_case(first.name()) {
+            let mut m = first.model(1.0);
+            m.approx = model.approx;
+            m.with_integrator();
+            out.push((format!("{} + integrator", first.name()), m));
+        }
     }
     out
 }
