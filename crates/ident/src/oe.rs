@@ -32,6 +32,7 @@
 //! println!("{} fit {:.1}%", id.tf, id.validation.unwrap().nrmse_percent);
 //! ```
 
+pub(crate) mod band;
 pub(crate) mod checks;
 mod coverage;
 pub(crate) mod effects;

@@ -216,3 +216,49 @@ fn a_written_structure_that_never_moved_from_its_start_exits_1() {
         v["problems"]
     );
 }
+
+/// A single sine into `2/(0.05 s + 1)`, 1% noise: every structure matches the one gain and phase
+/// the record shows, so none is determined: the record excites one band of a sixth of a decade
+/// above the fit's error, fewer than the three the rule asks for (half a decade). The default
+/// run exits 1 with that problem; the same plant under a PRBS does not have it.
+#[test]
+fn a_record_that_excites_one_frequency_is_no_model() {
+    let dir = tempfile::tempdir().unwrap();
+    let (dt, n) = (1e-3, 4000);
+    let g: fracsim::FracTf = "2/(0.05 s + 1)".parse().unwrap();
+    let u: Vec<f64> = (0..n)
+        .map(|k| (std::f64::consts::TAU * 5.0 * k as f64 * dt).sin())
+        .collect();
+    let y = fracsim::lsim(&g, &u, dt, &Default::default()).unwrap();
+    let mut text = String::from("t,u,y\n");
+    for (k, e) in normals(n, 3).iter().enumerate() {
+        writeln!(text, "{:.6},{},{}", k as f64 * dt, u[k], y[k] + 0.01 * e).unwrap();
+    }
+    let p = dir.path().join("sine.csv");
+    std::fs::write(&p, text).unwrap();
+    let o = fracid(&["time", p.to_str().unwrap(), "--json", "--quiet"]);
+    let v = json(&o);
+    assert_eq!(v["usable"], false, "{}", v["problems"]);
+    assert!(
+        v["problems"].to_string().contains("the input excites"),
+        "{}",
+        v["problems"]
+    );
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    let q = record(
+        &dir,
+        "prbs.csv",
+        "2/(0.05 s + 1)",
+        (1e-3, 0.01, 4000),
+        |y| y,
+        (0.01, 3),
+    );
+    let o = fracid(&["time", q.to_str().unwrap(), "--json", "--quiet"]);
+    let v = json(&o);
+    assert!(
+        !v["problems"].to_string().contains("the input excites"),
+        "{}",
+        v["problems"]
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+}

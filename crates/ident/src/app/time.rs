@@ -615,7 +615,7 @@ fn run_request(req: &TimeRequest, data: &TimeData, obs: &mut dyn Observe) -> Res
     let mut id = id;
     let (base_file, final_file) =
         score_validation(req, data, &mut id, &opts, diagnosis.as_ref(), obs)?;
-    let mut base = base_fit(&id, base_file);
+    let mut base = base_fit(&id, base_file, rec);
     base.warnings
         .splice(0..0, data.reader_warnings.iter().cloned());
     let rt = estimation_residual_test(&id, rec, req.max_lag);
@@ -803,8 +803,10 @@ fn model_report(mut tf: fracsim::FracTf, spec: &FracModel) -> ModelReport {
 }
 
 /// The base fit as a [`ModelFit`].
-fn base_fit(id: &Identification, file: Option<ScoreReport>) -> ModelFit {
-    let v = super::verdict::verdict(id.problems.clone(), file.as_ref());
+fn base_fit(id: &Identification, file: Option<ScoreReport>, rec: &Record) -> ModelFit {
+    let mut problems = id.problems.clone();
+    problems.extend(crate::oe::checks::narrow_band(id, rec));
+    let v = super::verdict::verdict(problems, file.as_ref());
     ModelFit {
         model: model_report(id.tf.clone(), &id.model),
         params: id.report.params.clone(),
@@ -955,7 +957,9 @@ fn judge_final(fin: &mut ModelFit, req: &TimeRequest, data: &TimeData) {
             for (p, e) in fin.params.iter_mut().zip(&id.report.params) {
                 p.std_error = e.std_error;
             }
+            let band = crate::oe::checks::narrow_band(&id, &data.record);
             problems.extend(id.problems);
+            problems.extend(band);
         }
         Err(e) => problems.push(format!(
             "the final model cannot be evaluated at its values on this record ({e})"

@@ -694,6 +694,27 @@ fn static_gain_only(ev: &Evidence<'_>, rec: &Record) -> Option<String> {
     })
 }
 
+/// A record whose input excites fewer than [`super::band::FEWEST`] bins (half a decade) where
+/// the model `id`'s response and the output stand 10 dB above its error
+/// ([`super::band::excited_bins`]): the plant is not determined there, and the model is a guess
+/// outside that band however well it predicts the record. Judged on the model a report leads
+/// with and its base fit (`crate::app::time`), not in [`assess`]: a base fit compared without the
+/// record's effects has an error its missing effect swells, and so too few bins (on the zoo's
+/// delay case 0235 every base fit but one had two, their final models many more).
+pub(crate) fn narrow_band(id: &Identification, rec: &Record) -> Option<String> {
+    let bins = super::band::excited_bins(&id.tf, (&rec.u, &rec.y), rec.dt, id.estimation.rmse)?;
+    (bins < super::band::FEWEST).then(|| {
+        format!(
+            "the input excites {bins} frequency band(s) of a sixth of a decade where the model's \
+             response and the output stand 10 dB above its error, fewer than {} (half a decade): \
+             the record \
+             does not determine the plant, and the model is a guess outside that band (a record \
+             with a wider excitation: a PRBS, a sweep, steps)",
+            super::band::FEWEST
+        )
+    })
+}
+
 /// A fit whose free plant parameters all ended where they started (relative change under
 /// `1e-9`) with a singular covariance: the data moved nothing and determine nothing, so its
 /// figures are those of the values given, not a result of these data.

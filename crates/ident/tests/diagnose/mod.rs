@@ -1015,8 +1015,16 @@ fn a_general_size_whose_diagnosis_kept_no_effect_is_trimmed() {
     let r = default_run_on_fixture("zoo_seed44_0183_lead.csv");
     let dg = r.diagnosis.as_ref().expect("a diagnosis");
     let choice = &dg.structures;
-    assert_eq!(choice.scores[choice.chosen].name, "general 1/2", "{}", choice.reason);
-    assert!(choice.reason.contains("trimmed from general 1/4"), "{}", choice.reason);
+    assert_eq!(
+        choice.scores[choice.chosen].name, "general 1/2",
+        "{}",
+        choice.reason
+    );
+    assert!(
+        choice.reason.contains("trimmed from general 1/4"),
+        "{}",
+        choice.reason
+    );
     let m = &dg.diagnosis.model;
     let tf = m.tf(&m.values()).unwrap();
     let truth: fracsim::tf::FracTf = "(2.234364791521463 s + 11.940820098840119)/\
@@ -1240,8 +1248,7 @@ fn a_position_behind_one_lag_is_fitted_with_its_integrator() {
     let dg = r.diagnosis.as_ref().expect("a diagnosis");
     let choice = &dg.structures;
     assert_eq!(
-        choice.scores[choice.chosen].name,
-        "first-order + integrator",
+        choice.scores[choice.chosen].name, "first-order + integrator",
         "{}",
         choice.reason
     );
