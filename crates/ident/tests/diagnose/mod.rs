@@ -178,6 +178,14 @@ fn names(d: &Diagnosis) -> Vec<&str> {
     d.effects.iter().map(|e| e.name.as_str()).collect()
 }
 
+/// The kept effect `name` of `d`, or a panic naming what was kept and rejected.
+fn kept_effect<'a>(d: &'a Diagnosis, name: &str) -> &'a ident::diagnose::KeptEffect {
+    d.effects
+        .iter()
+        .find(|e| e.name == name)
+        .unwrap_or_else(|| panic!("{name} not kept: {:?} {:?}", names(d), d.rejected))
+}
+
 fn param(d: &Diagnosis, effect: &str, p: &str) -> f64 {
     d.effects.iter().find(|e| e.name == effect).unwrap().params[p]
 }
@@ -836,11 +844,7 @@ fn default_run_on_fixture(name: &str) -> ident::app::time::TimeReport {
 fn friction_whose_signature_comes_out_with_the_wrong_sign_is_refitted_and_kept() {
     let r = default_run_on_fixture("zoo_seed44_0211_friction.csv");
     let d = &r.diagnosis.as_ref().expect("a diagnosis").diagnosis;
-    let kept = d
-        .effects
-        .iter()
-        .find(|e| e.name == "coulomb_friction")
-        .unwrap_or_else(|| panic!("friction not kept: {:?} {:?}", names(d), d.rejected));
+    let kept = kept_effect(d, "coulomb_friction");
     assert!(kept.evidence.contains("wrong sign"), "{}", kept.evidence);
     let vc = kept.params["Vc"];
     assert!(vc > 0.3 * 1.69 && vc < 1.5 * 1.69, "Vc = {vc} (truth 1.69)");
@@ -855,11 +859,7 @@ fn friction_whose_signature_comes_out_with_the_wrong_sign_is_refitted_and_kept()
 fn an_effect_that_reaches_the_noise_floor_is_kept_short_of_the_margin() {
     let r = default_run_on_fixture("zoo_seed44_0286_friction_reversal.csv");
     let d = &r.diagnosis.as_ref().expect("a diagnosis").diagnosis;
-    let kept = d
-        .effects
-        .iter()
-        .find(|e| e.name == "coulomb_friction")
-        .unwrap_or_else(|| panic!("friction not kept: {:?} {:?}", names(d), d.rejected));
+    let kept = kept_effect(d, "coulomb_friction");
     assert!(kept.evidence.contains("noise floor"), "{}", kept.evidence);
     assert!(
         kept.rmse_change_percent > -5.0,
