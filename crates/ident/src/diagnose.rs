@@ -295,15 +295,26 @@ pub(crate) struct Resume {
     round: usize,
     lead: usize,
     u: Vec<f64>,
+    found: Found,
+    cache: fracsim::modal::RootsCache,
+}
+
+/// What the rounds have found so far: the current model, the effects kept and judged, the path;
+/// the rounds carry it ([`Rounds`]) and a halted diagnosis resumes from it ([`Resume`]).
+#[derive(Clone)]
+struct Found {
+    /// The current model.
     st: State,
     kept: Vec<KeptEffect>,
     rejected: BTreeMap<String, RejectedEffect>,
+    /// Candidates proposed without a signature that a refit rejected ([`DiagnoseOptions::min_r2`]).
     refuted: Vec<String>,
     ambiguous: Vec<Ambiguity>,
     path: Vec<Step>,
+    /// The residual tests of the base model are round 0's; those of the final model the last
+    /// round's when it kept nothing (each made once, by the round's `Look`).
     residual_before: Option<ResidualAnalysis>,
     residual_now: Option<ResidualAnalysis>,
-    cache: fracsim::modal::RootsCache,
 }
 
 /// A [`Resume`] shared by the clones of its diagnosis.
@@ -1281,36 +1292,32 @@ fn run_from(
         .state(id.model.clone(), id.report.values.clone())
         .map_err(|e| (e, None))?;
     let Some(r) = from else {
-        let run = Rounds {
+        let found = Found {
             st: base.clone(),
             path: vec![ctx.step(&base)],
-            ctx,
             kept: vec![],
             rejected: BTreeMap::new(),
             refuted: vec![],
             ambiguous: vec![],
-            halted: None,
             residual_before: None,
             residual_now: None,
         };
+        let run = Rounds {
+            ctx,
+            found,
+            halted: None,
+        };
         return run.rounds(0, &base, (stop, halt));
     };
-    for (k, step) in r.path.iter().enumerate().take(r.round) {
+    for (k, step) in r.found.path.iter().enumerate().take(r.round) {
         halt(k, step.rmse);
     }
     ctx.lead = r.lead;
     ctx.u = r.u.clone();
     let run = Rounds {
         ctx,
-        st: r.st.clone(),
-        kept: r.kept.clone(),
-        rejected: r.rejected.clone(),
-        refuted: r.refuted.clone(),
-        ambiguous: r.ambiguous.clone(),
-        path: r.path.clone(),
+        found: r.found.clone(),
         halted: None,
-        residual_before: r.residual_before.clone(),
-        residual_now: r.residual_now.clone(),
     };
     r.cache
         .clone()
@@ -1376,19 +1383,8 @@ fn beats(new: (f64, usize), best: (f64, usize)) -> bool {
 /// The diagnosis loop's state between rounds ([`diagnose_until`]).
 struct Rounds<'a> {
     ctx: Ctx<'a>,
-    /// The current model.
-    st: State,
-    kept: Vec<KeptEffect>,
-    rejected: BTreeMap<String, RejectedEffect>,
-    /// Candidates proposed without a signature that a refit rejected ([`DiagnoseOptions::min_r2`]).
-    refuted: Vec<String>,
-    ambiguous: Vec<Ambiguity>,
-    path: Vec<Step>,
+    found: Found,
     halted: Option<usize>,
-    /// The residual tests of the base model are round 0's; those of the final model the last
-    /// round's when it kept nothing (each made once, by the round's `Look`).
-    residual_before: Option<ResidualAnalysis>,
-    residual_now: Option<ResidualAnalysis>,
 }
 
 /// The best kept candidate of a round: its refit, the kept effect, its key and its input advance.
@@ -1431,14 +1427,7 @@ impl Rounds<'_> {
             round,
             lead: self.ctx.lead,
             u: self.ctx.u.clone(),
-            st: self.st.clone(),
-            kept: self.kept.clone(),
-            rejected: self.rejected.clone(),
-            refuted: self.refuted.clone(),
-            ambiguous: self.ambiguous.clone(),
-            path: self.path.clone(),
-            residual_before: self.residual_before.clone(),
-            residual_now: self.residual_now.clone(),
+            found: self.found.clone(),
             cache: fracsim::modal::RootsCache::entered(),
         }
     }
@@ -1456,15 +1445,15 @@ impl Rounds<'_> {
         if stop() {
             return Err(cancelled());
         }
-        if halt(round, self.ctx.score(&self.st)) {
+        if halt(round, self.ctx.score(&self.found.st)) {
             self.halted = Some(round);
             return Ok(false);
         }
         let mut found = self.look(round, library)?;
         if round == 0 {
-            self.ambiguous = std::mem::take(&mut found.ambiguous);
+            self.found.ambiguous = std::mem::take(&mut found.ambiguous);
         }
-        self.rejected.extend(found.rejected);
+        self.found.rejected.extend(found.rejected);
         let mut cands = found.candidates;
         cands.sort_by(|a, b| b.r2.total_cmp(&a.r2));
         let mut best: Option<Best> = None;
@@ -1478,7 +1467,8 @@ impl Rounds<'_> {
             let capped = c.r2 > opts.min_r2 && strong >= opts.max_refits;
             strong += usize::from(c.r2 > opts.min_r2);
             if c.r2 < opts.min_r2 || capped {
-                self.rejected
+                self.found
+                    .rejected
                     .entry(c.key.clone())
                     .or_insert(RejectedEffect {
                         name: c.name.into(),
@@ -1495,13 +1485,13 @@ impl Rounds<'_> {
             // base fit's free orders mimic) is refitted in the first round that proposes it; once
             // a refit has rejected it, a later round (the model with one more effect) does not
             // refit it again, and its rejection stands.
-            if c.r2 <= opts.min_r2 && self.refuted.contains(&c.key) {
+            if c.r2 <= opts.min_r2 && self.found.refuted.contains(&c.key) {
                 continue;
             }
             if stop() {
                 return Err(cancelled());
             }
-            if halt(round, self.ctx.score(&self.st)) {
+            if halt(round, self.ctx.score(&self.found.st)) {
                 self.halted = Some(round);
                 return Ok(false);
             }
@@ -1513,11 +1503,11 @@ impl Rounds<'_> {
     /// The probes' findings on the current model's residual (its tests kept for the report).
     fn look(&mut self, round: usize, library: &[Box<dyn Probe>]) -> Result<Findings> {
         let mut found = Findings::default();
-        let look = Look::new(&self.ctx, &self.st, &self.kept)?;
+        let look = Look::new(&self.ctx, &self.found.st, &self.found.kept)?;
         if round == 0 {
-            self.residual_before = Some(look.analysis.clone());
+            self.found.residual_before = Some(look.analysis.clone());
         }
-        self.residual_now = Some(look.analysis.clone());
+        self.found.residual_now = Some(look.analysis.clone());
         for p in library {
             p.probe(&look, &mut found)?;
         }
@@ -1549,7 +1539,7 @@ impl Rounds<'_> {
                 k.map(|k| (ctx.score(ns), rank(&k.name))),
             )
         };
-        match try_candidate(ctx, &self.st, c, probe.map(|p| p.as_ref()), &needs) {
+        match try_candidate(ctx, &self.found.st, c, probe.map(|p| p.as_ref()), &needs) {
             Ok((ns, k, lead)) => {
                 if best.as_ref().is_none_or(|(b, bk, _, _)| {
                     beats(
@@ -1562,9 +1552,9 @@ impl Rounds<'_> {
             }
             Err((r, null)) => {
                 if c.r2 <= ctx.opts.min_r2 {
-                    self.refuted.push(c.key.clone());
+                    self.found.refuted.push(c.key.clone());
                 }
-                self.rejected.insert(c.key.clone(), r);
+                self.found.rejected.insert(c.key.clone(), r);
                 if let Some(null) = null {
                     if rebase
                         .as_ref()
@@ -1584,21 +1574,21 @@ impl Rounds<'_> {
             let Some(null) = rebase else {
                 return false;
             };
-            self.st = null;
-            self.path.push(self.ctx.step(&self.st));
-            self.residual_now = None;
+            self.found.st = null;
+            self.found.path.push(self.ctx.step(&self.found.st));
+            self.found.residual_now = None;
             return true;
         };
         if let Some(l) = lead {
             self.ctx = self.ctx.with_lead(l);
         }
-        self.rejected.remove(&key);
-        self.rejected.remove(&k.name);
-        self.kept.push(k);
-        self.st = ns;
-        self.path.push(self.ctx.step(&self.st));
+        self.found.rejected.remove(&key);
+        self.found.rejected.remove(&k.name);
+        self.found.kept.push(k);
+        self.found.st = ns;
+        self.found.path.push(self.ctx.step(&self.found.st));
         self.backward();
-        self.residual_now = None;
+        self.found.residual_now = None;
         true
     }
 
@@ -1606,15 +1596,18 @@ impl Rounds<'_> {
     fn finish(self, base: &State, quantization: Option<Quantization>) -> Diagnosis {
         let Rounds {
             ctx,
-            st,
-            kept,
-            rejected,
-            ambiguous,
-            path,
+            found:
+                Found {
+                    st,
+                    kept,
+                    rejected,
+                    ambiguous,
+                    path,
+                    residual_before,
+                    residual_now,
+                    ..
+                },
             halted,
-            residual_before,
-            residual_now,
-            ..
         } = self;
         // Candidates kept in a later round are not rejected.
         let rejected: Vec<RejectedEffect> = rejected

@@ -13,14 +13,15 @@ impl Rounds<'_> {
     /// Drop the earlier kept effects that no longer pay over the current model (module
     /// documentation); the round's point of the path is the model left.
     pub(super) fn backward(&mut self) {
-        while self.kept.len() > 1 {
-            let newest = self.kept.len() - 1;
+        while self.found.kept.len() > 1 {
+            let newest = self.found.kept.len() - 1;
             let mut drop: Option<(usize, State, Verdict)> = None;
             for j in 0..newest {
-                let Some(without) = refit_without(&self.ctx, &self.st, &self.kept[j]) else {
+                let Some(without) = refit_without(&self.ctx, &self.found.st, &self.found.kept[j])
+                else {
                     continue;
                 };
-                let v = Verdict::of(&self.ctx, &without, &self.st);
+                let v = Verdict::of(&self.ctx, &without, &self.found.st);
                 let cheaper = drop
                     .as_ref()
                     .is_none_or(|(_, b, _)| self.ctx.score(&without) < self.ctx.score(b));
@@ -31,19 +32,19 @@ impl Rounds<'_> {
             let Some((j, without, v)) = drop else {
                 return;
             };
-            let k = self.kept.remove(j);
+            let k = self.found.kept.remove(j);
             let reason = format!(
                 "kept in an earlier round, but once {} was kept the model refitted without it \
                  reaches {:.4e} against {:.4e} with it ({:+.1}%, BIC {:+.1}), short of the \
                  {:.0}% margin; it stood in for an effect found later",
-                self.kept[newest - 1].name,
+                self.found.kept[newest - 1].name,
                 self.ctx.score(&without),
-                self.ctx.score(&self.st),
+                self.ctx.score(&self.found.st),
                 100.0 * v.change,
                 v.dbic,
                 100.0 * self.ctx.opts.margin,
             );
-            self.rejected.insert(
+            self.found.rejected.insert(
                 k.name.clone(),
                 RejectedEffect {
                     name: k.name,
@@ -51,9 +52,9 @@ impl Rounds<'_> {
                     params: k.params,
                 },
             );
-            self.st = without;
-            if let Some(last) = self.path.last_mut() {
-                *last = self.ctx.step(&self.st);
+            self.found.st = without;
+            if let Some(last) = self.found.path.last_mut() {
+                *last = self.ctx.step(&self.found.st);
             }
         }
     }
