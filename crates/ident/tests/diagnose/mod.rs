@@ -1025,17 +1025,24 @@ fn a_general_size_whose_diagnosis_kept_no_effect_is_trimmed() {
         "{}",
         choice.reason
     );
-    let m = &dg.diagnosis.model;
-    let tf = m.tf(&m.values()).unwrap();
-    let truth: fracsim::tf::FracTf = "(2.234364791521463 s + 11.940820098840119)/\
-                                      (0.001807056879409209 s^2 + 0.16613470994653742 s + 1)"
-        .parse()
-        .unwrap();
     // the zoo's excited band of this case, 0.83 to 886 rad/s
-    for omega in [0.829, 3.32, 14.8, 47.3, 150.0, 400.0, 885.6] {
-        let (g, want) = (tf.freq_response(omega), truth.freq_response(omega));
+    response_within(
+        &dg.diagnosis.model,
+        "(2.234364791521463 s + 11.940820098840119)/\
+         (0.001807056879409209 s^2 + 0.16613470994653742 s + 1)",
+        &[0.829, 3.32, 14.8, 47.3, 150.0, 400.0, 885.6],
+        0.02,
+    );
+}
+
+/// `m`'s response within `tol` of `truth`'s (relative to it) at each of `omega` (rad/s).
+fn response_within(m: &ident::oe::FracModel, truth: &str, omega: &[f64], tol: f64) {
+    let tf = m.tf(&m.values()).unwrap();
+    let truth: fracsim::tf::FracTf = truth.parse().unwrap();
+    for &w in omega {
+        let (g, want) = (tf.freq_response(w), truth.freq_response(w));
         let e = (g - want).norm() / want.norm();
-        assert!(e < 0.02, "at {omega} rad/s: {g} against {want} ({e})");
+        assert!(e < tol, "at {w} rad/s: {g} against {want} ({e})");
     }
 }
 
@@ -1252,17 +1259,13 @@ fn a_position_behind_one_lag_is_fitted_with_its_integrator() {
         "{}",
         choice.reason
     );
-    let m = &dg.diagnosis.model;
-    let tf = m.tf(&m.values()).unwrap();
-    let truth: fracsim::tf::FracTf = "26.40278798856778/(0.008203809531801673 s^2 + s)"
-        .parse()
-        .unwrap();
     // the zoo's excited band of this case, 2.5 to 45 rad/s
-    for omega in [2.512, 5.024, 10.05, 19.99, 44.93] {
-        let (g, want) = (tf.freq_response(omega), truth.freq_response(omega));
-        let e = (g - want).norm() / want.norm();
-        assert!(e < 0.03, "at {omega} rad/s: {g} against {want} ({e})");
-    }
+    response_within(
+        &dg.diagnosis.model,
+        "26.40278798856778/(0.008203809531801673 s^2 + s)",
+        &[2.512, 5.024, 10.05, 19.99, 44.93],
+        0.03,
+    );
 }
 
 /// The benchmark zoo's feed-through case 0055 (seed 44, `tests/data/README.md`): `0.815 + 1.92/
