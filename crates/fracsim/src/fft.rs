@@ -42,6 +42,16 @@ pub fn dft_at(x: &[f64], w: f64) -> Complex64 {
     )
 }
 
+/// `x` with its mean removed, and its periodogram `|X_m|^2 / n` at the `n/2 + 1` bins of
+/// [`rfft`] (a white sequence of variance `s^2` has `s^2` in every bin on average).
+pub fn periodogram(x: &[f64]) -> (Vec<f64>, Vec<f64>) {
+    let n = x.len();
+    let m = x.iter().sum::<f64>() / n.max(1) as f64;
+    let x: Vec<f64> = x.iter().map(|v| v - m).collect();
+    let p = rfft(&x).iter().map(|z| z.norm_sqr() / n as f64).collect();
+    (x, p)
+}
+
 /// The spectrum of a real record at its `n/2 + 1` non-negative bins:
 /// `X_m = sum_k x_k e^(-j 2 pi m k / n)`, `m = 0..=n/2` (`n = x.len()`), by a real-input FFT
 /// (realfft on rustfft: mixed radix, Rader and Bluestein, so `O(n log n)` for any `n`). Empty for
@@ -150,6 +160,23 @@ mod tests {
             }
         }
         assert!(rfft(&[]).is_empty());
+    }
+
+    /// A sine of amplitude `a` on bin `m` of a record with an offset: the periodogram removes
+    /// the offset and puts `n a^2 / 4` in bin `m`, nothing elsewhere.
+    #[test]
+    fn the_periodogram_of_a_sine_is_one_bin() {
+        let (n, m, a) = (64usize, 5usize, 2.0);
+        let x: Vec<f64> = (0..n)
+            .map(|k| 3.0 + a * (std::f64::consts::TAU * (m * k) as f64 / n as f64).sin())
+            .collect();
+        let (centred, p) = periodogram(&x);
+        assert!(centred.iter().sum::<f64>().abs() < 1e-12);
+        assert_eq!(p.len(), n / 2 + 1);
+        for (k, v) in p.iter().enumerate() {
+            let want = if k == m { n as f64 * a * a / 4.0 } else { 0.0 };
+            assert!((v - want).abs() < 1e-9, "bin {k}: {v} against {want}");
+        }
     }
 
     #[test]

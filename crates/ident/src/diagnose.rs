@@ -1449,12 +1449,12 @@ impl Rounds<'_> {
             self.halted = Some(round);
             return Ok(false);
         }
-        let mut found = self.look(round, library)?;
+        let mut findings = self.look(round, library)?;
         if round == 0 {
-            self.found.ambiguous = std::mem::take(&mut found.ambiguous);
+            self.found.ambiguous = std::mem::take(&mut findings.ambiguous);
         }
-        self.found.rejected.extend(found.rejected);
-        let mut cands = found.candidates;
+        self.found.rejected.extend(findings.rejected);
+        let mut cands = findings.candidates;
         cands.sort_by(|a, b| b.r2.total_cmp(&a.r2));
         let mut best: Option<Best> = None;
         let mut rebase: Option<State> = None;
@@ -1502,16 +1502,16 @@ impl Rounds<'_> {
 
     /// The probes' findings on the current model's residual (its tests kept for the report).
     fn look(&mut self, round: usize, library: &[Box<dyn Probe>]) -> Result<Findings> {
-        let mut found = Findings::default();
+        let mut findings = Findings::default();
         let look = Look::new(&self.ctx, &self.found.st, &self.found.kept)?;
         if round == 0 {
             self.found.residual_before = Some(look.analysis.clone());
         }
         self.found.residual_now = Some(look.analysis.clone());
         for p in library {
-            p.probe(&look, &mut found)?;
+            p.probe(&look, &mut findings)?;
         }
-        Ok(found)
+        Ok(findings)
     }
 
     /// Refit candidate `c` ([`try_candidate`]): kept as the round's `best` when it is better,
@@ -1660,11 +1660,15 @@ impl Rounds<'_> {
 
 #[cfg(test)]
 mod tests {
+    use super::*;
+    use crate::data::OffsetMode;
+    use crate::oe::{identify, IdentOptions, Structure};
+
     /// The noise floor's half margin (module documentation, Decision): a refit at the floor
     /// clears it only when the estimation part agrees; the full margin needs no floor.
     #[test]
     fn the_noise_floors_half_margin_needs_the_estimation_part_to_agree() {
-        let v = |change: f64, at_floor: bool, removed: f64| super::Verdict {
+        let v = |change: f64, at_floor: bool, removed: f64| Verdict {
             change,
             at_floor,
             dbic: -10.0,
@@ -1685,10 +1689,6 @@ mod tests {
         assert!(!v(-0.024, true, 0.12).clears_margin(m));
         assert!(v(-0.05, false, 0.0).clears_margin(m));
     }
-
-    use super::*;
-    use crate::data::OffsetMode;
-    use crate::oe::{identify, IdentOptions, Structure};
 
     /// A paying refit is checked against the structure refitted without its effect (`credited`)
     /// only where the round's outcome can depend on the check.

@@ -50,9 +50,21 @@ fn record(
     .signal(dt)
     .unwrap();
     u.truncate(n);
-    let y = fracsim::lsim(&g, &u, dt, &Default::default()).unwrap();
+    respond(dir, name, (&g, &u, dt), sensor, (sigma, seed))
+}
+
+/// `g`'s response to `u` (sampled every `dt` s) passed through `sensor`, plus seeded Gaussian
+/// noise of standard deviation `sigma`, written with `u` as `t,u,y`.
+fn respond(
+    dir: &tempfile::TempDir,
+    name: &str,
+    (g, u, dt): (&fracsim::FracTf, &[f64], f64),
+    sensor: fn(f64) -> f64,
+    (sigma, seed): (f64, u64),
+) -> PathBuf {
+    let y = fracsim::lsim(g, u, dt, &Default::default()).unwrap();
     let mut text = String::from("t,u,y\n");
-    for (k, e) in normals(n, seed).iter().enumerate() {
+    for (k, e) in normals(u.len(), seed).iter().enumerate() {
         writeln!(
             text,
             "{:.6},{},{}",
@@ -229,13 +241,7 @@ fn a_record_that_excites_one_frequency_is_no_model() {
     let u: Vec<f64> = (0..n)
         .map(|k| (std::f64::consts::TAU * 5.0 * k as f64 * dt).sin())
         .collect();
-    let y = fracsim::lsim(&g, &u, dt, &Default::default()).unwrap();
-    let mut text = String::from("t,u,y\n");
-    for (k, e) in normals(n, 3).iter().enumerate() {
-        writeln!(text, "{:.6},{},{}", k as f64 * dt, u[k], y[k] + 0.01 * e).unwrap();
-    }
-    let p = dir.path().join("sine.csv");
-    std::fs::write(&p, text).unwrap();
+    let p = respond(&dir, "sine.csv", (&g, &u, dt), |y| y, (0.01, 3));
     let o = fracid(&["time", p.to_str().unwrap(), "--json", "--quiet"]);
     let v = json(&o);
     assert_eq!(v["usable"], false, "{}", v["problems"]);

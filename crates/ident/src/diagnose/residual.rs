@@ -123,7 +123,7 @@ pub fn spectral_peaks(e: &[f64], dt: f64, max: usize) -> Vec<SpectralPeak> {
     if n < 64 || !(dt > 0.0) {
         return vec![];
     }
-    let (x, p) = periodogram(e);
+    let (x, p) = fracsim::fft::periodogram(e);
     let nb = n / 2;
     let mut found = vec![];
     for k in 2..nb.saturating_sub(1) {
@@ -176,19 +176,6 @@ pub fn spectral_peaks(e: &[f64], dt: f64, max: usize) -> Vec<SpectralPeak> {
         .collect()
 }
 
-/// `x` with its mean removed, and its periodogram at the `n/2 + 1` bins, by FFT (`O(n log n)`;
-/// a DFT per bin was `O(n^2)`).
-fn periodogram(x: &[f64]) -> (Vec<f64>, Vec<f64>) {
-    let n = x.len();
-    let m = x.iter().sum::<f64>() / n as f64;
-    let x: Vec<f64> = x.iter().map(|v| v - m).collect();
-    let p = fracsim::fft::rfft(&x)
-        .iter()
-        .map(|z| z.norm_sqr() / n as f64)
-        .collect();
-    (x, p)
-}
-
 /// The power of periodogram `p` at bin `k` over the median of its neighbours (16 bins on each
 /// side, the two next to it left out); `None` with fewer than 8 neighbours.
 fn neighbour_ratio(p: &[f64], k: usize) -> Option<f64> {
@@ -212,7 +199,7 @@ fn neighbour_ratio(p: &[f64], k: usize) -> Option<f64> {
 /// residual); the ratio, `None` when there is no line there (or `x` is too short to tell).
 pub fn lines(x: &[f64], dt: f64) -> impl Fn(f64) -> Option<f64> {
     let n = x.len();
-    let p = (n >= 64 && dt > 0.0).then(|| periodogram(x).1);
+    let p = (n >= 64 && dt > 0.0).then(|| fracsim::fft::periodogram(x).1);
     move |freq_hz| {
         let p = p.as_ref()?;
         let k = (freq_hz * n as f64 * dt).round() as usize;

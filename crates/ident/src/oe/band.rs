@@ -5,12 +5,12 @@
 //!
 //! Definition (the benchmark zoo's identifiability rule, `benches/zoo/src/cases/band.rs`, with
 //! the fitted model in the plant's place and the fit's error in the noise's): the input's
-//! periodogram `|U_k|^2` (mean removed) is averaged over log-spaced bins, [`PER_DECADE`] per
+//! periodogram `|U_k|^2 / n` (mean removed, [`fracsim::fft::periodogram`]) is averaged over log-spaced bins, [`PER_DECADE`] per
 //! decade, from the record's lowest frequency `1/(n dt)` to `0.45/dt`. A bin is excited when its
 //! mean input power is within 40 dB of the strongest bin's, and both the mean of
 //! `|G(j w_k)|^2 |U_k|^2` (the model's response to the input) and the mean of the measured
-//! output's periodogram `|Y_k|^2` (mean removed) are at least 10 times the power a white error of
-//! the fit's estimation RMSE `sigma` puts in a bin (`n sigma^2`): 10 dB signal to noise. The
+//! output's periodogram `|Y_k|^2 / n` are at least 10 times the power a white error of
+//! the fit's estimation RMSE `sigma` puts in a bin: 10 dB signal to noise. The
 //! output's own power keeps a model's guess out of the count: a model with an integrator the
 //! plant lacks has a large response at frequencies where the record shows none (the zoo's
 //! in-motion case 0174, not identifiable: six bins by the model's response alone, two by both,
@@ -33,16 +33,6 @@ const TOP_FRACTION: f64 = 0.45;
 /// The fewest excited bins (half a decade) with which a record determines a plant.
 pub const FEWEST: usize = 3;
 
-/// The periodogram `|X_k|^2` of `x` with its mean removed.
-fn periodogram(x: &[f64]) -> Vec<f64> {
-    let mean = x.iter().sum::<f64>() / x.len().max(1) as f64;
-    let centred: Vec<f64> = x.iter().map(|v| v - mean).collect();
-    fracsim::fft::rfft(&centred)
-        .iter()
-        .map(|c| c.norm_sqr())
-        .collect()
-}
-
 /// How many bins of the record `u`, `y` (sampled every `dt` seconds) `tf`'s response and the
 /// output stand 10 dB above a white error of RMSE `sigma` in (see the module documentation);
 /// `None` for a record shorter than 8 samples, an input without power, an output of another
@@ -52,7 +42,10 @@ pub fn excited_bins(tf: &FracTf, (u, y): (&[f64], &[f64]), dt: f64, sigma: f64) 
     if n < 8 || y.len() != n || !(sigma > 0.0 && sigma.is_finite()) {
         return None;
     }
-    let (su, sy) = (periodogram(u), periodogram(y));
+    let (su, sy) = (
+        fracsim::fft::periodogram(u).1,
+        fracsim::fft::periodogram(y).1,
+    );
     let df = 1.0 / (n as f64 * dt);
     let f_top = TOP_FRACTION / dt;
     let bins = ((f_top / df).log10() * PER_DECADE).ceil().max(1.0) as usize;
@@ -80,7 +73,8 @@ pub fn excited_bins(tf: &FracTf, (u, y): (&[f64], &[f64]), dt: f64, sigma: f64) 
     if top <= 0.0 {
         return None;
     }
-    let noise = n as f64 * sigma * sigma;
+    // a white error's periodogram bin, on average
+    let noise = sigma * sigma;
     Some(
         stats
             .iter()

@@ -707,9 +707,8 @@ pub(crate) fn narrow_band(id: &Identification, rec: &Record) -> Option<String> {
         format!(
             "the input excites {bins} frequency band(s) of a sixth of a decade where the model's \
              response and the output stand 10 dB above its error, fewer than {} (half a decade): \
-             the record \
-             does not determine the plant, and the model is a guess outside that band (a record \
-             with a wider excitation: a PRBS, a sweep, steps)",
+             the record does not determine the plant, and the model is a guess outside that band \
+             (a record with a wider excitation: a PRBS, a sweep, steps)",
             super::band::FEWEST
         )
     })
