@@ -1459,7 +1459,11 @@ fn set_initial_state(
             if let (Some(v), Some(p)) = (kept, &m.past) {
                 for (&i, &x) in p.levels.iter().zip(&v) {
                     // (a fit's start inside the range; a model evaluated as it is)
-                    m.params[i].value = if evaluated { x } else { x.clamp(range.0, range.1) };
+                    m.params[i].value = if evaluated {
+                        x
+                    } else {
+                        x.clamp(range.0, range.1)
+                    };
                 }
             }
         }

@@ -837,17 +837,35 @@ fn default_run_on_fixture(name: &str) -> ident::app::time::TimeReport {
 
 /// The benchmark zoo's friction case 0211 (seed 44, `tests/data/README.md`): a first-order drive
 /// `17/(0.065 s + 1)` at 22 ms with Coulomb friction 1.69 at its input, five input levels, 2.3%
-/// noise. The friction signature, regressed on the base fit's residual with the model's
-/// sensitivities projected out, comes out with the wrong sign (the gain fitted without friction
-/// took it up); the refit, not that sign, decides, and keeps the friction with the defaults.
+/// noise: the friction is kept with the defaults, near the truth's.
+#[test]
+fn friction_at_five_input_levels_is_kept() {
+    let r = default_run_on_fixture("zoo_seed44_0211_friction.csv");
+    let d = &r.diagnosis.as_ref().expect("a diagnosis").diagnosis;
+    let vc = kept_effect(d, "coulomb_friction").params["Vc"];
+    assert!(vc > 0.7 * 1.69 && vc < 1.3 * 1.69, "Vc = {vc} (truth 1.69)");
+}
+
+/// The benchmark zoo's friction case 0186 (seed 44, `tests/data/README.md`): the first order
+/// `5.674/(7.02e-3 s + 1)` sampled at 0.4 of its time constant under a PRBS, Coulomb friction
+/// 0.283 at its input, 3.4% noise (RMS 0.856). The friction signature, regressed on the base
+/// fit's residual with the model's sensitivities projected out, comes out with the wrong sign
+/// (the gain fitted without friction took it up); the refit, not that sign, decides, and keeps
+/// the friction with the defaults. The speed's reversals are told from rest with the noise
+/// level of the base fit's residual: the record's first differences, which carry the PRBS's own
+/// steps here, gave 4.97, every sample of the speed looked at rest, and the friction was called
+/// ambiguous with an input offset (the model then 16.5% off the truth's frequency response).
 #[test]
 fn friction_whose_signature_comes_out_with_the_wrong_sign_is_refitted_and_kept() {
-    let r = default_run_on_fixture("zoo_seed44_0211_friction.csv");
+    let r = default_run_on_fixture("zoo_seed44_0186_friction_reversal.csv");
     let d = &r.diagnosis.as_ref().expect("a diagnosis").diagnosis;
     let kept = kept_effect(d, "coulomb_friction");
     assert!(kept.evidence.contains("wrong sign"), "{}", kept.evidence);
     let vc = kept.params["Vc"];
-    assert!(vc > 0.3 * 1.69 && vc < 1.5 * 1.69, "Vc = {vc} (truth 1.69)");
+    assert!(
+        vc > 0.7 * 0.283 && vc < 1.3 * 0.283,
+        "Vc = {vc} (truth 0.283)"
+    );
 }
 
 /// The benchmark zoo's friction case 0286 (seed 44, `tests/data/README.md`): the first order
@@ -883,7 +901,7 @@ fn an_effect_that_reaches_the_noise_floor_is_kept_short_of_the_margin() {
 fn the_final_models_record_parameters_start_from_the_diagnosis_values() {
     let r = default_run_on_fixture("zoo_seed44_0136_friction_reversal.csv");
     let d = &r.diagnosis.as_ref().expect("a diagnosis").diagnosis;
-    assert_eq!(names(d), ["coulomb_friction"]);
+    assert!(names(d).contains(&"coulomb_friction"), "{:?}", names(d));
     assert_eq!(r.initial_state.state, "estimate");
     let (led, after) = (r.lead.fit.estimation.rmse, d.estimation.after.rmse);
     assert!(
