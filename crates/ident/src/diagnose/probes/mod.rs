@@ -124,15 +124,8 @@ impl Motion {
 /// signal's own change between samples is small against the noise at a realistic sampling rate;
 /// a robust scale ignores the jumps).
 pub(crate) fn noise_level(y: &[f64]) -> f64 {
-    let mut d: Vec<f64> = y.windows(2).map(|w| w[1] - w[0]).collect();
-    if d.is_empty() {
-        return 0.0;
-    }
-    d.sort_by(f64::total_cmp);
-    let med = d[d.len() / 2];
-    let mut a: Vec<f64> = d.iter().map(|v| (v - med).abs()).collect();
-    a.sort_by(f64::total_cmp);
-    1.4826 * a[a.len() / 2] / std::f64::consts::SQRT_2
+    let d: Vec<f64> = y.windows(2).map(|w| w[1] - w[0]).collect();
+    robust_scale(&d) / std::f64::consts::SQRT_2
 }
 
 /// A robust scale of `x`: `1.4826 MAD(x)` (the standard deviation of normal samples; a few large
@@ -437,5 +430,33 @@ mod tests {
         let a = 1.102;
         let g = dz(a) / a;
         assert!([-a, 0.0, a].iter().all(|&v| (dz(v) - g * v).abs() < 1e-15));
+    }
+
+    /// The robust scale of normal samples is their standard deviation, and a few large values do
+    /// not move it; the noise level of a fast signal's first differences carries the signal's
+    /// steps, its residual's scale does not.
+    #[test]
+    fn the_noise_is_the_residuals_scale_where_the_signal_steps_between_samples() {
+        use rand::SeedableRng;
+        use rand_distr::{Distribution, Normal};
+        let mut rng = rand::rngs::StdRng::seed_from_u64(7);
+        let normal = Normal::new(0.0, 0.5).unwrap();
+        let mut noise: Vec<f64> = (0..4000).map(|_| normal.sample(&mut rng)).collect();
+        let scale = robust_scale(&noise);
+        assert!((scale - 0.5).abs() < 0.03, "{scale}");
+        for k in (0..4000).step_by(100) {
+            noise[k] += 40.0;
+        }
+        let spiked = robust_scale(&noise);
+        assert!((spiked - scale).abs() < 0.05 * scale, "{spiked} vs {scale}");
+        // a sine of amplitude 10 and 8 samples a period, with that noise: the first differences
+        // see its steps, the residual of the sine does not
+        let y: Vec<f64> = noise
+            .iter()
+            .enumerate()
+            .map(|(k, e)| 10.0 * (std::f64::consts::TAU * k as f64 / 8.0).sin() + e)
+            .collect();
+        assert!(noise_level(&y) > 4.0 * 0.5, "{}", noise_level(&y));
+        assert!(robust_scale(&noise) < 1.2 * 0.5);
     }
 }
