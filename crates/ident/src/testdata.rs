@@ -26,3 +26,18 @@ pub(crate) fn lcg(seed: u64) -> impl FnMut() -> u64 {
         state
     }
 }
+
+/// `n` samples of a seeded random binary sequence of `+-1`, a new level drawn every `hold`
+/// samples (the top bit of [`lcg`]'s state: its low bits cycle with short periods).
+pub(crate) fn random_binary(n: usize, hold: usize, seed: u64) -> Vec<f64> {
+    let mut next = lcg(seed);
+    let mut level = 1.0;
+    (0..n)
+        .map(|k| {
+            if k % hold.max(1) == 0 {
+                level = if next() >> 63 == 0 { 1.0 } else { -1.0 };
+            }
+            level
+        })
+        .collect()
+}

@@ -93,15 +93,7 @@ mod tests {
 
     /// `5/(0.01 s + 1)`'s response to `u` held between samples `dt` apart (exact).
     fn respond(u: &[f64], dt: f64) -> Vec<f64> {
-        let a = (-dt / 0.01f64).exp();
-        let mut y = 0.0;
-        u.iter()
-            .map(|&v| {
-                let out = y;
-                y = a * y + 5.0 * (1.0 - a) * v;
-                out
-            })
-            .collect()
+        crate::testdata::first_order_held(u, dt, 0.01, 5.0)
     }
 
     /// A PRBS-like input excites every bin up to the plant's corner and beyond: many bins; a
@@ -111,19 +103,7 @@ mod tests {
     fn a_broad_input_excites_many_bins_and_a_sine_one() {
         let dt = 1e-3;
         let n = 4000;
-        let mut state = 0x2545_f491u32;
-        let prbs: Vec<f64> = (0..n)
-            .map(|_| {
-                state ^= state << 13;
-                state ^= state >> 17;
-                state ^= state << 5;
-                if state & 1 == 0 {
-                    1.0
-                } else {
-                    -1.0
-                }
-            })
-            .collect();
+        let prbs = crate::testdata::random_binary(n, 1, 0x2545_f491);
         let y = respond(&prbs, dt);
         let wide = excited_bins(&first_order(), (&prbs, &y), dt, 0.05).unwrap();
         assert!(wide >= 10, "{wide}");

@@ -115,21 +115,7 @@ mod tests {
             b.band_hz.0 < 5.0 && (125.0..=150.0).contains(&b.band_hz.1),
             "{b:?}"
         );
-        let mut state = 0x2545_f491_4f6c_dd1d_u64;
-        let prbs: Vec<f64> = (0..n)
-            .map(|k| {
-                if k % 5 == 0 {
-                    state ^= state << 13;
-                    state ^= state >> 7;
-                    state ^= state << 17;
-                }
-                if state & 1 == 0 {
-                    1.0
-                } else {
-                    -1.0
-                }
-            })
-            .collect();
+        let prbs = crate::testdata::random_binary(n, 5, 0x2545_f491_4f6c_dd1d);
         assert_eq!(
             beyond_estimation_band(&prbs[..split], &prbs[split..], dt),
             None
