@@ -13,7 +13,8 @@
 //!   that overflows while the firmware's communication task is stalled, a transmit buffer of a few
 //!   DATA blocks (whole blocks dropped and counted when full);
 //! - faults ([`Faults`]): bit flips, dropped bytes, bursts, whole-frame corruption, a stall, a
-//!   disconnect and reconnect, a drive reset; and one lost answer ([`DriveSim::lose_next_answer`]).
+//!   disconnect and reconnect (with a link, the link is removed while the pty is closed, as an
+//!   unplugged adapter's device node is), a drive reset; and one lost answer ([`DriveSim::lose_next_answer`]).
 //!
 //! Its clock ([`SimClock`]) is the wall clock by default: samples are produced in batches every
 //! ~0.5 ms as their time comes, as a real drive would. In virtual time ([`SimClock::Virtual`]) the

@@ -164,12 +164,34 @@ fn clean_run_is_complete(fw) {
 }
 }
 
+/// A PRBS run under `faults`, checked against the drive's truth. With `link`, the host opens a
+/// symlink that follows the simulator's pty; a watcher then checks that the path is absent while
+/// the port is closed (a freed pty number taken by another process must never be reopened).
 fn faulty_run(fw: FirmwareKind, faults: Faults, link: bool) -> (Acquisition, DriveSim, Client) {
     let dir = tempfile::tempdir().unwrap();
     let link = link.then(|| dir.path().join("drive-tty"));
-    let s = sim(fw, faults, 115_200, link);
+    let s = sim(fw, faults, 115_200, link.clone());
     let mut c = client(s.port_path(), 115_200);
+    let done = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let watcher = link.map(|path| {
+        let done = done.clone();
+        std::thread::spawn(move || {
+            let mut vanished = false;
+            while !done.load(std::sync::atomic::Ordering::Relaxed) {
+                vanished |= std::fs::symlink_metadata(&path).is_err();
+                std::thread::sleep(Duration::from_millis(2));
+            }
+            vanished
+        })
+    });
     let acq = c.run_prbs(&short_prbs(), &mut NullSink).unwrap();
+    done.store(true, std::sync::atomic::Ordering::Relaxed);
+    if let Some(w) = watcher {
+        assert!(
+            w.join().unwrap(),
+            "the port's path stayed while the drive was disconnected"
+        );
+    }
     check_consistent(&acq);
     check_truth(&acq, &s);
     // keep the tempdir alive until the run is over

@@ -221,7 +221,11 @@ impl Firmware {
         }
         if let Some(d) = f.disconnect.filter(|d| !self.fired[1] && n >= d.at_sample) {
             self.fired[1] = true;
-            if self.cfg.link.is_some() {
+            if let Some(link) = &self.cfg.link {
+                // A device unplugged leaves no node behind: the link goes with the pty, so a
+                // host reopening the path waits for this drive and can never open another
+                // process's pty that took the freed number meanwhile.
+                let _ = std::fs::remove_file(link);
                 self.master = None; // closes the pty: the host's port hangs up
                 self.slave = None;
                 self.out_backlog.clear();
