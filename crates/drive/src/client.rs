@@ -1419,6 +1419,10 @@ impl Client {
         let mut last_progress = 0u64;
         // STREAM_END fetched by END_QUERY: one more pass over the inbox, then done.
         let mut end_fetched = false;
+        // the port was reopened (here, or in a KEEPALIVE's or a request's send) and the drive
+        // behind it has not yet said who it is
+        let mut unverified = false;
+        let mut reconnects = self.stats.reconnects;
         loop {
             self.send_stop_request(acq);
             self.keepalive_if_due().map_err(RunFail::Drive)?;
@@ -1431,6 +1435,13 @@ impl Client {
                 .saturating_sub(self.since_last_keepalive());
             self.pump(keepalive_due.min(Duration::from_millis(20)))
                 .map_err(RunFail::Drive)?;
+            unverified |= self.stats.reconnects != reconnects;
+            reconnects = self.stats.reconnects;
+            if unverified {
+                unverified = !self
+                    .same_drive_after_reconnect(boot)
+                    .map_err(RunFail::Drive)?;
+            }
             let ended = self.read_inbox(acq, sink, &mut st, fs, lsb, keep)?;
             if let Some(p) = self.progress.as_mut() {
                 if st.next >= last_progress + 256 || ended {
@@ -1458,6 +1469,36 @@ impl Client {
             }
         }
         Ok(())
+    }
+
+    /// After the port was reopened during a run, no frame is taken before the drive behind it
+    /// says it is the one that started the run (its boot id, by STATUS): a path may lead to another
+    /// device once the first is gone (a pty number or a `/dev/ttyUSB*` name freed and taken again),
+    /// and its samples must never enter this record. Another boot id ends the run as a lost port
+    /// (the frames that came with it are dropped); a drive that reset is told by the same figure.
+    /// False while the drive stays silent (its frames are dropped until it answers; the stream's
+    /// recovery judges the silence).
+    fn same_drive_after_reconnect(&mut self, boot: Option<u16>) -> Result<bool> {
+        let Some(boot) = boot else {
+            return Ok(true);
+        };
+        let status = match self.status() {
+            Ok(s) => s,
+            Err(Error::Timeout { .. }) => {
+                self.inbox.clear();
+                return Ok(false);
+            }
+            Err(e) => return Err(e),
+        };
+        if status.boot_id == boot {
+            return Ok(true);
+        }
+        self.inbox.clear();
+        Err(Error::Io(io::Error::other(format!(
+            "after reconnecting, {} answers with boot id {:#06x} instead of {boot:#06x} (the drive \
+             reset, or the path leads to another device)",
+            self.path, status.boot_id
+        ))))
     }
 
     /// A STOP or ESTOP asked from another thread ([`Client::stop_handle`]), sent now.

@@ -3,7 +3,7 @@
 //! with the other end-to-end tests.
 
 use crate::e2e::{lock, short_prbs, sim};
-use drive::client::{Client, ClientConfig, CsvSink, LazyFile, PrbsTest, SineSweep};
+use drive::client::{Client, ClientConfig, CsvSink, LazyFile, NullSink, PrbsTest, SineSweep};
 use drive::protocol::Configure;
 use drive::sim::{DriveSim, Effects, Faults, FirmwareKind, SimConfig};
 use std::sync::{Arc, Mutex};
@@ -94,6 +94,46 @@ fn a_port_lost_mid_run_still_finishes_the_record() {
     assert!(footer.starts_with(&expected), "{footer}");
     assert!(footer.contains("lost the port"), "{footer}");
     assert_eq!(acq.planned_samples, 100 + 20 * 254);
+}
+
+#[test]
+fn a_path_that_leads_to_another_drive_after_a_reconnect_ends_the_run_as_a_lost_port() {
+    let _g = lock();
+    let dir = tempfile::tempdir().unwrap();
+    let link = dir.path().join("drive-tty");
+    let a = sim(
+        FirmwareKind::Rust,
+        Faults::default(),
+        BAUD,
+        Some(link.clone()),
+    );
+    let other = sim(FirmwareKind::Rust, Faults::default(), BAUD, None);
+    let mut c = client(a.port_path());
+    let a = shared(a);
+    let (a2, other_port) = (a.clone(), other.port_path().to_string());
+    // The drive goes away and its path comes back leading to another drive (a freed device name
+    // taken by the next adapter plugged in).
+    c.set_progress(move |p| {
+        if p.done >= 300 && a2.lock().unwrap().is_some() {
+            kill(&a2);
+            let _ = std::fs::remove_file(&link);
+            std::os::unix::fs::symlink(&other_port, &link).unwrap();
+        }
+    });
+    let acq = c
+        .run_prbs(&short_prbs(), &mut NullSink)
+        .expect("the acquisition survives the port");
+    kill(&a);
+    assert!(acq.port_lost, "{acq:?}");
+    assert!(
+        acq.problems
+            .iter()
+            .any(|p| p.contains("lost the port") && p.contains("boot id")),
+        "{:?}",
+        acq.problems
+    );
+    assert!(acq.index.len() >= 300 && !acq.complete, "{acq:?}");
+    assert_eq!(other.stats().runs_started, 0);
 }
 
 #[test]

@@ -95,6 +95,16 @@ pub(super) struct Firmware {
     quiet_steps: u32,
 }
 
+/// A boot id no other simulator in this or another process is likely to share (std's per-instance
+/// random hash keys; 0 is never used).
+fn fresh_boot_id() -> u16 {
+    use std::hash::{BuildHasher, Hasher};
+    let h = std::collections::hash_map::RandomState::new()
+        .build_hasher()
+        .finish();
+    ((h ^ (h >> 16) ^ (h >> 32) ^ (h >> 48)) as u16).max(1)
+}
+
 impl Firmware {
     pub(super) fn new(
         cfg: SimConfig,
@@ -102,7 +112,11 @@ impl Firmware {
         stats: Arc<Mutex<SimStats>>,
     ) -> Result<Self> {
         let mut rng = StdRng::seed_from_u64(cfg.faults.seed);
-        let boot_id = rng.gen();
+        // The faults' stream stays the seed's (its first draw was the boot id); the boot id is each
+        // simulated drive's own, as a real drive's differs from the next one's: a host that
+        // reopens a path and finds another drive behind it tells them apart by it.
+        let _: u16 = rng.gen();
+        let boot_id = fresh_boot_id();
         let now = Instant::now();
         let c = (cfg.firmware == FirmwareKind::C).then(|| CState {
             eng: crate::cfw::CEngine::new(boot_id, cfg.max_sample_rate_hz),
