@@ -88,6 +88,7 @@
 //! only because the named structure could not bend like the plant.
 
 mod backward;
+mod carry;
 pub mod choice;
 pub mod freq;
 pub mod general;
@@ -365,6 +366,9 @@ pub(crate) struct Ctx<'a> {
     /// part.
     held: Vec<(usize, usize)>,
     dt: f64,
+    /// Effects of another structure's final model offered as starts in the first round
+    /// ([`carry`]).
+    carried: &'a [carry::Carried],
     u0: f64,
     y0: f64,
     /// The base fit's starting values.
@@ -1259,7 +1263,18 @@ pub(crate) fn diagnose_from(
     (stop, halt): (&dyn Fn() -> bool, &dyn Fn(usize, f64) -> bool),
     from: Option<&Resume>,
 ) -> Result<Diagnosis> {
-    run_from(rec, id, opts, (stop, halt), from).map_err(|(e, _)| e)
+    run_from(rec, id, opts, (stop, halt), (from, &[])).map_err(|(e, _)| e)
+}
+
+/// [`diagnose`] with `carried`, effects of another structure's final model, each offered in
+/// the first round as a start of that effect's refit ([`carry`]).
+pub(crate) fn diagnose_carrying(
+    rec: &Record,
+    id: &Identification,
+    opts: &DiagnoseOptions,
+    carried: &[carry::Carried],
+) -> Result<Diagnosis> {
+    run_from(rec, id, opts, (&|| false, &|_, _| false), (None, carried)).map_err(|(e, _)| e)
 }
 
 /// [`diagnose_until`], and when `stop` gave it up, the state at the start of the round it was
@@ -1271,7 +1286,7 @@ pub(crate) fn diagnose_resumable(
     opts: &DiagnoseOptions,
     (stop, halt): (&dyn Fn() -> bool, &dyn Fn(usize, f64) -> bool),
 ) -> (Result<Diagnosis>, Option<Resumable>) {
-    match run_from(rec, id, opts, (stop, halt), None) {
+    match run_from(rec, id, opts, (stop, halt), (None, &[])) {
         Ok(d) => (Ok(d), None),
         Err((e, r)) => {
             let given_up = matches!(e, Error::Cancelled(_));
@@ -1286,15 +1301,16 @@ type Interrupted = (Error, Option<Box<Resume>>);
 
 /// [`diagnose_from`], its error with the state at the start of the round it arose in. Continued
 /// from `from`, the path up to there is published again (`halt`'s board: the values the rounds
-/// not made again would have published).
+/// not made again would have published). `carried` as [`diagnose_carrying`].
 fn run_from(
     rec: &Record,
     id: &Identification,
     opts: &DiagnoseOptions,
     (stop, halt): (&dyn Fn() -> bool, &dyn Fn(usize, f64) -> bool),
-    from: Option<&Resume>,
+    (from, carried): (Option<&Resume>, &[carry::Carried]),
 ) -> std::result::Result<Diagnosis, Interrupted> {
     let mut ctx = Ctx::of(rec, id, opts).map_err(|e| (e, None))?;
+    ctx.carried = carried;
     let base = ctx
         .state(id.model.clone(), id.report.values.clone())
         .map_err(|e| (e, None))?;
@@ -1357,6 +1373,7 @@ impl<'a> Ctx<'a> {
             split: id.split,
             held: id.validated_by.blocks.clone(),
             dt: rec.dt,
+            carried: &[],
             u0,
             y0,
             start: id.start.clone(),
@@ -1462,6 +1479,11 @@ impl Rounds<'_> {
         }
         self.found.rejected.extend(findings.rejected);
         let mut cands = findings.candidates;
+        let forced = if round == 0 {
+            self.offer_carried(&mut cands)
+        } else {
+            vec![]
+        };
         cands.sort_by(|a, b| b.r2.total_cmp(&a.r2));
         let mut best: Option<Best> = None;
         let mut rebase: Option<State> = None;
@@ -1473,7 +1495,7 @@ impl Rounds<'_> {
             let opts = self.ctx.opts;
             let capped = c.r2 > opts.min_r2 && strong >= opts.max_refits;
             strong += usize::from(c.r2 > opts.min_r2);
-            if c.r2 < opts.min_r2 || capped {
+            if (c.r2 < opts.min_r2 || capped) && !forced.contains(&c.key) {
                 self.found
                     .rejected
                     .entry(c.key.clone())
@@ -1505,6 +1527,43 @@ impl Rounds<'_> {
             self.refit(&c, library, (&mut best, &mut rebase));
         }
         Ok(self.keep(best, rebase))
+    }
+
+    /// The carried effects ([`Ctx::carried`]) among the first round's candidates: each a start
+    /// of its effect's refit (the probe's candidate, its starts after it, or a candidate of its
+    /// own when the probe proposed none), refitted whatever its evidence (its keys returned).
+    fn offer_carried(&self, cands: &mut Vec<Candidate>) -> Vec<String> {
+        let mut forced = vec![];
+        for c in self.ctx.carried {
+            let st = &self.found.st;
+            let mut now = st.model.clone();
+            for (p, v) in now.params.iter_mut().zip(&st.values) {
+                p.value = *v;
+            }
+            let start = c.onto(&now);
+            match cands
+                .iter_mut()
+                .find(|k| k.name == c.name && k.lead.is_none())
+            {
+                Some(k) => {
+                    k.starts.insert(0, start);
+                    k.evidence = format!("{}; {}", k.evidence, c.evidence);
+                    forced.push(k.key.clone());
+                }
+                None => {
+                    cands.push(Candidate {
+                        name: c.name,
+                        lead: None,
+                        key: c.name.to_string(),
+                        r2: 0.0,
+                        evidence: c.evidence.clone(),
+                        starts: vec![start],
+                    });
+                    forced.push(c.name.to_string());
+                }
+            }
+        }
+        forced
     }
 
     /// The probes' findings on the current model's residual (its tests kept for the report).

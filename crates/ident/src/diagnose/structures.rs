@@ -924,12 +924,23 @@ pub fn diagnose_best_fitting(
         .collect();
     let halved = halve_rows(&mut scores, &outcomes, &cuts, dopts.max_rounds);
     judge_finals(rec, &outcomes, &mut scores, opts);
-    let Some((chosen, best)) = decide(&scores) else {
+    let Some((mut chosen, mut best)) = decide(&scores) else {
         return Err(match outcomes.swap_remove(0).diagnosis {
             Some(Err(e)) => e,
             _ => Error::Numerical("no structure could be diagnosed".into()),
         });
     };
+    let carried = super::carry::carry(
+        rec,
+        &cands,
+        (&mut outcomes, &mut scores),
+        chosen,
+        (opts, dopts),
+    );
+    if !carried.is_empty() {
+        judge_finals(rec, &outcomes, &mut scores, opts);
+        (chosen, best) = decide(&scores).unwrap_or((chosen, best));
+    }
     let held_out = outcomes[chosen]
         .id
         .as_ref()
@@ -937,6 +948,10 @@ pub fn diagnose_best_fitting(
     let (mut reason, integer_reference) =
         reason(&cands, &scores, chosen, best, held_out, true, &reduced);
     reason.push_str(&left_out(&cands, &skipped, &halved));
+    for w in carried {
+        reason.push_str("; ");
+        reason.push_str(&w);
+    }
     let o = outcomes.swap_remove(chosen);
     let diagnosis = o
         .diagnosis
