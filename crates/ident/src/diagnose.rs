@@ -1212,8 +1212,9 @@ fn remaining_structure(an: &ResidualAnalysis, q: Option<Quantization>) -> Vec<St
     }
     if !an.independent && !at_floor {
         out.push(format!(
-            "the residual depends on the input: {} cross-correlation lags outside +-{:.3}, peak {:.3} at lag {}",
-            an.cross_outside, an.bound, an.cross_peak, an.cross_peak_lag
+            "the residual depends on the input: {} cross-correlation lags outside +-{:.3} ({} \
+             with the input's changes), peak {:.3} at lag {}",
+            an.cross_outside, an.bound, an.change_outside, an.cross_peak, an.cross_peak_lag
         ));
     }
     for p in &an.peaks {

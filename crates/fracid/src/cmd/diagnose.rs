@@ -82,12 +82,13 @@ pub fn text(d: &Diagnosis) -> String {
     let _ = writeln!(
         o,
         "  base residual: Ljung-Box Q = {:.1} ({} lags, p = {:.2e}), {} autocorrelation and {} \
-         cross-correlation lags outside +-{:.3}, {} spectral peak(s)",
+         cross-correlation lags ({} with the input's changes) outside +-{:.3}, {} spectral peak(s)",
         r.ljung_box_q,
         r.lags,
         r.ljung_box_p,
         r.auto_outside,
         r.cross_outside,
+        r.change_outside,
         r.bound,
         r.peaks.len()
     );

@@ -87,7 +87,7 @@ impl Carried {
 /// documentation): each fitted with it from its own start, and one whose fit predicts the
 /// held-out part better than the chosen final model beyond the tie diagnosed again from its base fit with that
 /// fit as the effect's start; its diagnosis replaces its row when its final model is better.
-/// Returns the words for the choice's reason (empty when nothing was diagnosed again); the
+/// Returns the structures diagnosed again, each with the words for the choice's reason; the
 /// caller judges and decides again.
 pub(crate) fn carry(
     rec: &Record,
@@ -95,7 +95,7 @@ pub(crate) fn carry(
     (outcomes, scores): (&mut [Outcome], &mut [StructureScore]),
     chosen: usize,
     (opts, dopts): (&IdentOptions, &DiagnoseOptions),
-) -> Vec<String> {
+) -> Vec<(usize, String)> {
     let Some(Some(Ok(d))) = outcomes.get(chosen).map(|o| &o.diagnosis) else {
         return vec![];
     };
@@ -145,10 +145,13 @@ pub(crate) fn carry(
         let Ok(again) = again else { continue };
         let before = scores[i].rmse_after.unwrap_or(f64::INFINITY);
         if again.after.rmse < before && again.effects.iter().any(|k| k.name == effect.name) {
-            words.push(format!(
-                "{} diagnosed again with {}'s {} (fitted with it from its own start: held-out \
+            words.push((
+                i,
+                format!(
+                    "{} diagnosed again with {}'s {} (fitted with it from its own start: held-out \
                  RMSE {held:.4e}; {:.4e} after its diagnosis)",
-                cands[i].0, cands[chosen].0, effect.name, again.after.rmse
+                    cands[i].0, cands[chosen].0, effect.name, again.after.rmse
+                ),
             ));
             outcomes[i].diagnosis = Some(Ok(again));
             scores[i] = score_of(&cands[i].0, &outcomes[i]);

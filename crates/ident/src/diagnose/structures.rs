@@ -947,8 +947,12 @@ pub fn diagnose_best_fitting(
         .is_some_and(|id| id.validation.is_some());
     let (mut reason, integer_reference) =
         reason(&cands, &scores, chosen, best, held_out, true, &reduced);
+    // a structure diagnosed again is no longer left out
+    let again = |i: &usize| carried.iter().any(|(j, _)| j == i);
+    let skipped: Vec<usize> = skipped.into_iter().filter(|i| !again(i)).collect();
+    let halved: Vec<(usize, usize)> = halved.into_iter().filter(|(i, _)| !again(i)).collect();
     reason.push_str(&left_out(&cands, &skipped, &halved));
-    for w in carried {
+    for (_, w) in carried {
         reason.push_str("; ");
         reason.push_str(&w);
     }

@@ -1163,17 +1163,26 @@ fn an_arx_response_gives_the_modes_a_leaky_welch_estimate_misses() {
 /// its largest: Welch's estimate with the 1% input-power rule left the resonance out, the
 /// two-mass structure had no start ("the sign of the gain is not determined") and a general
 /// 2/3 model was chosen at 5.8x the truth's held-out RMSE. With the bins the coherence trusts
-/// the two-mass start finds the resonance (quartic Levy fit), and the default path chooses the
-/// two-mass structure within 10% of the truth's held-out RMSE (0.051926, the zoo's oracle on the
-/// same samples; measured 0.053715).
+/// the two-mass start finds the resonance (quartic Levy fit), and the two-mass structure fits
+/// within 10% of the truth's held-out RMSE (0.051926, the zoo's oracle on the same samples;
+/// measured 0.053715). Its residual still depends on the input's changes (the two-mass
+/// structure ties its numerator's damping to its denominator's), so the general structure is
+/// compared: its 2/3 size, the truth's own, holds out better (measured 0.052247) and is chosen.
 #[test]
-fn a_two_mass_drive_under_a_slow_binary_input_is_chosen_as_two_mass() {
+fn a_two_mass_drive_under_a_slow_binary_input_has_its_resonance_found() {
     let r = default_run_on_fixture("zoo_seed44_0252_two_mass_motor.csv");
     let choice = &r.diagnosis.as_ref().expect("a diagnosis").structures;
     let chosen = &choice.scores[choice.chosen];
-    assert_eq!(chosen.name, "two-mass", "{}", choice.reason);
+    assert!(
+        ["two-mass", "general 2/3"].contains(&chosen.name.as_str()),
+        "{}",
+        choice.reason
+    );
+    let two_mass = choice.scores.iter().find(|s| s.name == "two-mass").unwrap();
+    let held = two_mass.rmse_after.unwrap();
+    assert!(held <= 1.1 * 0.051926, "two-mass held-out RMSE {held}");
     let held = chosen.rmse_after.unwrap();
-    assert!(held <= 1.1 * 0.051926, "held-out RMSE {held}");
+    assert!(held <= 1.02 * 0.051926, "held-out RMSE {held}");
 }
 
 /// The benchmark zoo's dead-band case 0113 (seed 44, `tests/data/README.md`): a PMSM behind a
