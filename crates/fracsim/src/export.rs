@@ -22,7 +22,10 @@
 //! rounding). An input delay `tau = m T + eps` (`0 <= eps < T`) is exact too (the modified
 //! z-transform): each mode sees `beta0 u_(k-m) + beta1 u_(k-m-1)`, and the past inputs are extra
 //! states, a delay line of `m` (or `m + 1` when `eps > 0`) states placed last, at most
-//! [`MAX_DELAY_STATES`]. A continuous model cannot hold `e^(-tau s)` in `(A, B, C, D)`: its delay
+//! [`MAX_DELAY_STATES`]. A model strictly proper before approximation whose approximation feeds
+//! through (a relative order below 1: `K/(a s^0.3 + 1)`) feeds the input before the instant,
+//! `u_(k-m-1)`, as [`crate::Simulator`] does ([`crate::modal::PoleResidue::strictly_proper`]):
+//! one delay state more, and `D = 0`. A continuous model cannot hold `e^(-tau s)` in `(A, B, C, D)`: its delay
 //! is given beside it ([`StateSpace::input_delay`]; MATLAB's `'InputDelay'`).
 //!
 //! ```
@@ -227,8 +230,11 @@ pub fn discrete(tf: &FracTf, dt: f64, spec: &ApproxSpec) -> Result<StateSpace> {
     let m = samples.floor() as usize;
     let eps = tau - m as f64 * dt;
     let frac = eps > 0.0;
+    // The feed-through of a strictly proper model sees the input before the instant (as
+    // `Simulator`'s): one sample further back.
+    let prev = frac || (pr.strictly_proper && pr.direct != 0.0);
     let (blocks, n_modes) = blocks(&pr);
-    let n_delay = m + usize::from(frac);
+    let n_delay = m + usize::from(prev);
     let n = n_modes + n_delay;
     let mut ss = StateSpace {
         a: DMatrix::zeros(n, n),
@@ -266,8 +272,9 @@ pub fn discrete(tf: &FracTf, dt: f64, spec: &ApproxSpec) -> Result<StateSpace> {
             bl.write_in(&mut ss.a, w(m + 1), beta1);
         }
     }
-    // The feed-through sees u(t_k - tau): u_(k-m-1) when eps > 0, else u_(k-m).
-    match (frac, m) {
+    // The feed-through sees u(t_k - tau): u_(k-m-1) when eps > 0 or the model is strictly
+    // proper (the input before the instant), else u_(k-m).
+    match (prev, m) {
         (true, _) => ss.c[(0, w(m + 1))] = pr.direct,
         (false, 0) => ss.d = pr.direct,
         (false, _) => ss.c[(0, w(m))] = pr.direct,
@@ -524,7 +531,9 @@ mod tests {
         let spec = ApproxSpec::default();
         let u: Vec<f64> = (0..400).map(|k| ((k * 7919) % 13) as f64 - 6.0).collect();
         for (model, states) in [
-            ("6.77/(0.0064 s^0.89 + 1) exp(-0.003 s)", 3),
+            // Strictly proper with a feed-through: the input before the instant, one more.
+            ("6.77/(0.0064 s^0.89 + 1)", 1),
+            ("6.77/(0.0064 s^0.89 + 1) exp(-0.003 s)", 4),
             ("6.77/(0.0064 s^0.89 + 1) exp(-0.0034 s)", 4),
             ("6.77/(0.0064 s^0.89 + 1) exp(-0.0004 s)", 1),
             ("(2 s^0.5 + 1)/(0.0064 s^0.5 + 1) exp(-0.0025 s)", 3),
