@@ -1554,7 +1554,8 @@ fn single_mode(id: &Identification, dt: f64, duration: f64) -> Option<(FracModel
     let mut r = FracModel::from_tf(&tf, true, true);
     r.approx = m.approx;
     let what = format!(
-        "its terms not determined by the record: refitted as one fractional mode          K/(a s^q + 1) ({which}: a = {a:.4e}, q = {q:.4}), which fits as well with every          parameter determined"
+        "its terms not determined by the record: refitted as one fractional mode K/(a s^q + 1) \
+         ({which}: a = {a:.4e}, q = {q:.4}), which fits as well with every parameter determined"
     );
     Some((r, what))
 }

@@ -891,30 +891,30 @@ fn an_effect_that_reaches_the_noise_floor_is_kept_short_of_the_margin() {
     );
 }
 
-/// The benchmark zoo's saturation case 0039 (seed 44, `tests/data/README.md`): the PMSM
-/// `19.491/(8.8298e-7 s^1.9615 + 0.014293 s^0.73645 + 1)` behind a saturation at 0.534, a
-/// staircase input, 6.3% noise. Fitted without the saturation the PMSM leaves four terms
-/// undetermined and is not diagnosed; the first order keeps the saturation and was chosen, its
-/// gain 16.3 (the frequency response 19% off the truth's, the held-out RMSE 1.067x the truth's).
-/// The saturation the first order kept is carried to the richer structures (each fitted with it
-/// from its own start, then diagnosed again): a fractional one with the saturation is chosen,
-/// its gain within 5% of the truth's and its held-out RMSE within 2% of the truth's (1.10942,
-/// the zoo's oracle).
+/// The benchmark zoo's drift case 0171 (seed 44, `tests/data/README.md`): the PMSM
+/// `1.2382/(2.9751e-5 s^1.7707 + 0.034150 s^0.88570 + 1)` at 0.1 ms under a PRBS, its output
+/// drifting by 0.2156 per second, 2.4% noise. Fitted without the drift the PMSM explains the ramp
+/// with a fractional mode slower than the record (gain 681), the drift's signature is left with
+/// 0.3% of its residual, and its diagnosis keeps a delay; the first order keeps the drift and was
+/// chosen, 1.07x the truth's held-out RMSE, its frequency response 11% off. The drift the first
+/// order kept is carried to the richer structures (each fitted with it from its own start, then
+/// diagnosed again): the PMSM with the drift is chosen, its gain within 5% of the truth's, its
+/// held-out RMSE within 2% of the truth's (0.021958, the zoo's oracle).
 #[test]
 fn an_effect_the_chosen_structure_kept_is_carried_to_the_richer_structures() {
-    let r = default_run_on_fixture("zoo_seed44_0039_saturation.csv");
+    let r = default_run_on_fixture("zoo_seed44_0171_drift.csv");
     let dg = r.diagnosis.as_ref().expect("a diagnosis");
-    assert_eq!(names(&dg.diagnosis), ["saturation"]);
+    assert_eq!(names(&dg.diagnosis), ["output_drift"]);
     let chosen = &dg.structures.scores[dg.structures.chosen];
-    assert_ne!(chosen.name, "first-order", "{}", dg.structures.reason);
+    assert_eq!(chosen.name, "pmsm", "{}", dg.structures.reason);
     let held = chosen.rmse_after.unwrap();
-    assert!(held <= 1.02 * 1.10942, "held-out RMSE {held}");
+    assert!(held <= 1.02 * 0.021958, "held-out RMSE {held}");
     let k = r.lead.params.iter().find(|p| p.name == "K").unwrap().value;
-    assert!((k / 19.491 - 1.0).abs() < 0.05, "K = {k} (truth 19.491)");
+    assert!((k / 1.2382 - 1.0).abs() < 0.05, "K = {k} (truth 1.2382)");
     assert!(dg
         .structures
         .reason
-        .contains("diagnosed again with first-order's saturation"));
+        .contains("pmsm diagnosed again with first-order's output_drift"));
 }
 
 /// The benchmark zoo's friction case 0136 (seed 44, `tests/data/README.md`): a first order with
@@ -1280,17 +1280,19 @@ fn a_dead_band_under_levels_of_one_magnitude_is_ambiguous_with_the_gain() {
 /// 1.35x the truth's RMSE. The PMSM's final model, with the saturation, is usable judged at its
 /// values as the report judges the model it leads with (its undetermined terms held), and is
 /// chosen: within 10% of the truth's held-out RMSE (0.67885, the zoo's oracle on the same
-/// samples), with the saturation kept and the final model usable.
+/// samples), with the saturation kept and the final model usable. (A PMSM base fit whose second
+/// term is not determined is refitted as its single fractional mode, usable on its own: that
+/// reduced structure, when it is the one chosen, is the PMSM's own.)
 #[test]
 fn a_structure_whose_effects_mend_its_base_fit_is_chosen_on_its_final_model() {
     let r = default_run_on_fixture("zoo_seed44_0189_saturation.csv");
     let dg = r.diagnosis.as_ref().expect("a diagnosis");
     let choice = &dg.structures;
     let chosen = &choice.scores[choice.chosen];
-    assert!(!chosen.problems.is_empty(), "{}", choice.reason);
-    assert_eq!(
-        chosen.problems_after.as_deref(),
-        Some(&[][..]),
+    assert!(chosen.name.starts_with("pmsm"), "{}", choice.reason);
+    let mended = chosen.problems_after.as_deref() == Some(&[][..]);
+    assert!(
+        chosen.name.ends_with("(reduced)") || (!chosen.problems.is_empty() && mended),
         "{}",
         choice.reason
     );
