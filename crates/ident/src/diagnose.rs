@@ -351,6 +351,17 @@ pub(crate) struct State {
     ssr: f64,
 }
 
+impl State {
+    /// Its model with every parameter at the state's value.
+    fn model_at_values(&self) -> FracModel {
+        let mut model = self.model.clone();
+        for (p, v) in model.params.iter_mut().zip(&self.values) {
+            p.value = *v;
+        }
+        model
+    }
+}
+
 #[derive(Clone)]
 pub(crate) struct Ctx<'a> {
     rec: &'a Record,
@@ -1535,12 +1546,8 @@ impl Rounds<'_> {
     /// own when the probe proposed none), refitted whatever its evidence (its keys returned).
     fn offer_carried(&self, cands: &mut Vec<Candidate>) -> Vec<String> {
         let mut forced = vec![];
+        let now = self.found.st.model_at_values();
         for c in self.ctx.carried {
-            let st = &self.found.st;
-            let mut now = st.model.clone();
-            for (p, v) in now.params.iter_mut().zip(&st.values) {
-                p.value = *v;
-            }
             let start = c.onto(&now);
             match cands
                 .iter_mut()
@@ -1690,10 +1697,7 @@ impl Rounds<'_> {
         let remaining = remaining_structure(&residual_after, quantization);
         let y0 = ctx.y0;
         let ya = |s: &State| s.yhat.iter().map(|v| v + y0).collect::<Vec<f64>>();
-        let mut model = st.model.clone();
-        for (p, v) in model.params.iter_mut().zip(&st.values) {
-            p.value = *v;
-        }
+        let model = st.model_at_values();
         Diagnosis {
             before: base.val.unwrap_or(base.est),
             after: st.val.unwrap_or(st.est),

@@ -610,9 +610,7 @@ fn settle(
     };
     // A degenerate two-mass fit is made well posed here, before its diagnosis (the degenerate
     // fit itself is then never diagnosed).
-    let reduced = smallest
-        .or_else(|| reduce_one(rec, &mut fitted, opts))
-        .or_else(|| reduce_single_mode(rec, &mut fitted, opts));
+    let reduced = smallest.or_else(|| reduce_any(rec, &mut fitted, opts));
     let (early, given_up) = if out {
         (None, None)
     } else {
@@ -1354,8 +1352,7 @@ fn reduce_degenerate(
     let mut out = vec![];
     for i in 0..ids.len() {
         let mut fitted = (std::mem::replace(&mut ids[i], panicked()), caches[i].take());
-        let reduced = reduce_one(rec, &mut fitted, opts)
-            .or_else(|| reduce_single_mode(rec, &mut fitted, opts));
+        let reduced = reduce_any(rec, &mut fitted, opts);
         (ids[i], caches[i]) = fitted;
         if let Some((model, what)) = reduced {
             cands[i] = (format!("{} (reduced)", cands[i].0), model);
@@ -1363,6 +1360,16 @@ fn reduce_degenerate(
         }
     }
     out
+}
+
+/// A degenerate base fit `fitted` made well posed: a two-mass fit ([`reduce_one`]), else a
+/// two-term fit whose second term is not determined ([`reduce_single_mode`]).
+fn reduce_any(
+    rec: &Record,
+    fitted: &mut Fitted,
+    opts: &IdentOptions,
+) -> Option<(FracModel, String)> {
+    reduce_one(rec, fitted, opts).or_else(|| reduce_single_mode(rec, fitted, opts))
 }
 
 /// [`reduce_degenerate`] for one candidate's base fit `fitted`: when it is a degenerate two-mass
