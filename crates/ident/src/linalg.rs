@@ -50,7 +50,8 @@ pub(crate) struct LstsqWork {
     perm_inv: Vec<usize>,
     /// `S = R_p P^T D` (`k x w`, column-major), then its QR.
     s: Vec<f64>,
-    /// The power of two `D_j` each column was divided by.
+    /// The power of two `D_j` each column was multiplied by ([`scale_up`], the plain QR) or
+    /// divided by ([`factor_pivoted`]).
     scale: Vec<f64>,
     /// faer's scratch.
     mem: Vec<MaybeUninit<u8>>,
@@ -84,6 +85,36 @@ pub(crate) enum Again<'f> {
 /// reciprocal finite and normal): dividing by it is exact.
 fn power_of_two(norm: f64) -> f64 {
     2f64.powi((norm.log2().ceil() as i32).clamp(-1020, 1020))
+}
+
+/// The largest entry of a column that [`scale_up`] brings it to: `2^480`, so that the squares of
+/// a column of up to `2^60` rows stay finite.
+const SCALED_MAX: i32 = 480;
+
+/// `A`'s columns multiplied by powers of two `D_j` (exact), each to its largest entry near
+/// `2^`[`SCALED_MAX`], `D` into `scale` (1 for a zero or not finite column).
+///
+/// faer 0.24's Euclidean norm (the Householder reflector's) keeps a third sum of squares of
+/// the entries times `2^-511` against overflow; for entries between about `1e-8` and `1` those
+/// squares are subnormal numbers, which the CPU computes some 40 times slower than normal ones
+/// (measured: 23.5 us for 3500 entries of order 1, 0.62 us for the same entries times
+/// `1e100`). The QR of the scaled matrix is the same factorisation (its reflectors are `A`'s,
+/// `R` is `R D`), its norms fast.
+fn scale_up(scale: &mut Vec<f64>, mut a: MatMut<'_, f64>) {
+    scale.clear();
+    for j in 0..a.ncols() {
+        let largest = a.rb().col(j).iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        let d = if largest > 0.0 && largest.is_finite() {
+            let e = largest.log2().floor() as i32;
+            2f64.powi((SCALED_MAX - e).clamp(-1000, 1000))
+        } else {
+            1.0
+        };
+        scale.push(d);
+        if d != 1.0 {
+            a.rb_mut().col_mut(j).iter_mut().for_each(|v| *v *= d);
+        }
+    }
 }
 
 /// The plain Householder QR `A = Q R` of the column-major `m x w` matrix `a` by faer, `R` into
@@ -120,6 +151,7 @@ fn factor(
         }
     }
     work.tau.resize(k, 0.0);
+    scale_up(&mut work.scale, a.rb_mut());
     let info = no_pivoting::factor::qr_in_place(
         a.rb_mut(),
         MatMut::from_column_major_slice_mut(&mut work.tau, 1, k),
@@ -127,6 +159,15 @@ fn factor(
         MemStack::new(&mut work.mem),
         Default::default(),
     );
+    // R of A D is R D (the reflectors are A's): R's columns back to A's scale, exactly.
+    for (j, &d) in work.scale.iter().enumerate() {
+        let inv = d.recip();
+        a.rb_mut()
+            .col_mut(j)
+            .subrows_mut(0, (j + 1).min(k))
+            .iter_mut()
+            .for_each(|v| *v *= inv);
+    }
     if info.rank < k {
         if let Again::Refill(fill) = again {
             work.orig.resize(m * w, 0.0);
