@@ -194,5 +194,16 @@ fn item_14_a_static_gain_says_so_and_exits_1() {
                 "{path}: {problems}"
             );
         }
+        // Either way the record's own ratio is stated, not the model's G(0) taken for it; the
+        // plain PMSM's G(0) (about 2) is said not to reproduce it.
+        assert!(
+            problems.contains("the output is the input times 3.0000e0 at the same instants"),
+            "{path}: {problems}"
+        );
+        assert_eq!(
+            problems.contains("which this model does not reproduce"),
+            path == "--plain",
+            "{path}: {problems}"
+        );
     }
 }

@@ -679,19 +679,44 @@ fn static_gain_only(ev: &Evidence<'_>, rec: &Record) -> Option<String> {
         (0..m.params.len()).any(|i| m.params[i].free && (shapes(i) || m.delay == Some(i)));
     let dev = dynamics_over_the_band(ev.tf, rec)?;
     (dynamics_free && dev < STATIC_ONLY).then(|| {
+        let g0 = ev.tf.dc_gain();
         format!(
-            "the record shows no dynamics: the fitted model is a static gain G(0) = {:.4e} over \
+            "the record shows no dynamics: the fitted model is a static gain G(0) = {g0:.4e} over \
              the whole band the record covers ({:.3e} to {:.3e} rad/s; its response departs from \
-             G(0) by at most {:.1e} of it), so its orders and coefficients are not determined by \
-             these data (the output is the input times {:.4e}: sample faster, or check that the \
-             output is the plant's)",
-            ev.tf.dc_gain(),
+             G(0) by at most {dev:.1e} of it), so its orders and coefficients are not determined \
+             by these data ({})",
             2.0 * std::f64::consts::PI / (rec.len() as f64 * rec.dt),
             std::f64::consts::PI / rec.dt,
-            dev,
-            ev.tf.dc_gain(),
+            static_ratio_text(g0, rec),
         )
     })
+}
+
+/// What the record itself says of a static gain `g0` fitted to it ([`static_gain_only`]): the
+/// output's least-squares ratio to the input at the same instants (deviations from their means),
+/// and whether the model reproduces it (within 5%). A structure with no instant response (a
+/// strictly proper one) cannot follow an output that moves with the input at once: its `G(0)`
+/// is then off from that ratio.
+fn static_ratio_text(g0: f64, rec: &Record) -> String {
+    let n = rec.len().max(1) as f64;
+    let (mu, my) = (rec.u.iter().sum::<f64>() / n, rec.y.iter().sum::<f64>() / n);
+    let (suy, suu) = rec.u.iter().zip(&rec.y).fold((0.0, 0.0), |(a, b), (u, y)| {
+        (a + (u - mu) * (y - my), b + (u - mu) * (u - mu))
+    });
+    let ratio = suy / suu;
+    let advice = "sample faster, or check that the output is the plant's";
+    if !ratio.is_finite() {
+        return advice.to_string();
+    }
+    if (ratio - g0).abs() <= 0.05 * ratio.abs() {
+        format!("the output is the input times {ratio:.4e} at the same instants: {advice}")
+    } else {
+        format!(
+            "the output is the input times {ratio:.4e} at the same instants, which this model \
+             does not reproduce: its structure has no instant response (try the loop closed, or \
+             --structure feedthrough); else {advice}"
+        )
+    }
 }
 
 /// A record whose input excites fewer than [`super::band::FEWEST`] bins (half a decade) where
