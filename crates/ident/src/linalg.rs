@@ -65,6 +65,12 @@ enum Factored {
     /// The pivoted QR and the QR of `S`: `Q = Q_p Q_s`, `Q_p`'s reflectors below `A`'s diagonal
     /// (coefficients in `tau`), `Q_s`'s below `S`'s (in `tau_s`).
     Pivoted,
+    /// The QR of the columns faer's plain QR kept (`r` of them, first) with the rest after
+    /// them, then the QR of `S` ([`factor_split`]): `Q = Q_1 diag(I_r, Q_2) Q_s`, `Q_1`'s
+    /// reflectors below the diagonal of `A`'s first `r` columns (coefficients `tau[..r]`),
+    /// `Q_2`'s `r2` below that of the block from row and column `r` (`tau[r..r + r2]`), `Q_s`'s
+    /// below `S`'s.
+    Split { r: usize, r2: usize },
     /// Every column zero: `R = 0`, `Q = I`.
     Zero,
     /// An entry not finite: `A` and `extra` set to NaN.
@@ -132,7 +138,7 @@ fn scale_up(scale: &mut Vec<f64>, mut a: MatMut<'_, f64>) {
 fn factor(
     work: &mut LstsqWork,
     mut a: MatMut<'_, f64>,
-    extra: MatMut<'_, f64>,
+    mut extra: MatMut<'_, f64>,
     again: Again<'_>,
 ) -> Factored {
     let (m, w) = a.shape();
@@ -159,23 +165,21 @@ fn factor(
         MemStack::new(&mut work.mem),
         Default::default(),
     );
-    // R of A D is R D (the reflectors are A's): R's columns back to A's scale, exactly.
-    for (j, &d) in work.scale.iter().enumerate() {
-        let inv = d.recip();
-        a.rb_mut()
-            .col_mut(j)
-            .subrows_mut(0, (j + 1).min(k))
-            .iter_mut()
-            .for_each(|v| *v *= inv);
-    }
     if info.rank < k {
+        let kept = kept_columns(a.rb(), info.rank);
         if let Again::Refill(fill) = again {
             work.orig.resize(m * w, 0.0);
             fill(&mut work.orig);
         }
+        if let Some(how) =
+            kept.and_then(|kept| factor_split(work, a.rb_mut(), extra.rb_mut(), &kept))
+        {
+            return how;
+        }
         a.copy_from(MatRef::from_column_major_slice(&work.orig, m, w));
         return factor_pivoted(work, a, extra);
     }
+    unscale_r(a.rb_mut(), &work.scale, k);
     if extra.ncols() > 0 {
         householder::apply_block_householder_sequence_transpose_on_the_left_in_place_with_conj(
             a.rb(),
@@ -187,6 +191,173 @@ fn factor(
         );
     }
     Factored::Plain
+}
+
+/// The upper triangle's columns (`k` rows) divided by the powers of two [`scale_up`] multiplied
+/// them by: `R` of `A D` is `R D`.
+fn unscale_r(mut a: MatMut<'_, f64>, scale: &[f64], k: usize) {
+    for (j, &d) in scale.iter().enumerate() {
+        let inv = d.recip();
+        a.rb_mut()
+            .col_mut(j)
+            .subrows_mut(0, (j + 1).min(k))
+            .iter_mut()
+            .for_each(|v| *v *= inv);
+    }
+}
+
+/// The columns faer's plain QR (unblocked, as [`factor`] calls it) took as independent, read
+/// back from its staircase `R` in `a` by its own rule: column `c`, met at row `p`, counts when
+/// its part outside the span of the ones before it (`|R[p, c]|`) exceeds `16 (m - p) eps` of its
+/// norm. `None` when that count is not faer's `rank` (a rounding of the rule's norm put a column
+/// on the other side: the caller then pivots).
+fn kept_columns(a: MatRef<'_, f64>, rank: usize) -> Option<Vec<bool>> {
+    let (m, w) = a.shape();
+    let size = m.min(w);
+    let mut kept = vec![false; w];
+    let mut row = 0;
+    for (c, kept) in kept.iter_mut().enumerate() {
+        if row >= size {
+            break;
+        }
+        let head = a[(row, c)].abs();
+        let above = (0..row).map(|i| a[(i, c)] * a[(i, c)]).sum::<f64>().sqrt();
+        if head > f64::EPSILON * 16.0 * (m - row) as f64 * head.hypot(above) {
+            *kept = true;
+            row += 1;
+        }
+    }
+    (row == rank).then_some(kept)
+}
+
+/// [`factor`] when faer's plain QR took some columns for dependent, without factoring the whole
+/// of `A` again by the column-pivoted QR (whose norms of entries scaled under 1 run into the
+/// subnormal sums [`scale_up`] avoids): `A P = [A_1 A_2]` with `A_1` the columns `kept` and
+/// `A_2` the others; faer's plain QR of `A_1` (no column dependent now), `Q_1^T A_2`, whose rows
+/// from `r` on (the dependent columns' parts outside `A_1`'s span, tiny but not zero) get faer's
+/// plain QR too; then `R` in `A`'s column order from the QR of the small `S = R_P P^T` (as
+/// [`factor_pivoted`]). `A` is read from `work.orig`; `None` (with `extra` untouched) when the
+/// QR of the kept columns finds one dependent (a rounding of [`kept_columns`]' rule).
+///
+/// The second QR may take a column for dependent in its turn: one zero in `A` (a parameter
+/// the output does not depend on) or whose part outside `A_1`'s span lies within `16 m eps` of
+/// the span of the other dependent ones' parts, themselves at most `16 m eps` of their columns:
+/// its pivot, at most `(16 m eps)^2` of its column (`1e-21` for 8192 rows), is then zero.
+/// (Factoring those parts by the column-pivoted QR instead, which gives such a column a pivot of
+/// rounding's size, moved 8 of the zoo's 300 cases, 4 to a spurious effect; this way 1.)
+fn factor_split(
+    work: &mut LstsqWork,
+    mut a: MatMut<'_, f64>,
+    mut extra: MatMut<'_, f64>,
+    kept: &[bool],
+) -> Option<Factored> {
+    let (m, w) = a.shape();
+    let k = m.min(w);
+    let order: Vec<usize> = (0..w)
+        .filter(|&j| kept[j])
+        .chain((0..w).filter(|&j| !kept[j]))
+        .collect();
+    let r = kept.iter().filter(|&&v| v).count();
+    let orig = MatRef::from_column_major_slice(&work.orig, m, w);
+    for (p, &j) in order.iter().enumerate() {
+        a.rb_mut().col_mut(p).copy_from(orig.col(j));
+    }
+    scale_up(&mut work.scale, a.rb_mut());
+    let (mut first, mut rest) = a.rb_mut().split_at_col_mut(r);
+    let (tau1, tau2) = work.tau.split_at_mut(r);
+    let info = no_pivoting::factor::qr_in_place(
+        first.rb_mut(),
+        MatMut::from_column_major_slice_mut(tau1, 1, r),
+        Par::Seq,
+        MemStack::new(&mut work.mem),
+        Default::default(),
+    );
+    if info.rank < r {
+        return None;
+    }
+    let q1 = |target: MatMut<'_, f64>, mem: &mut Vec<MaybeUninit<u8>>, tau1: &[f64]| {
+        householder::apply_block_householder_sequence_transpose_on_the_left_in_place_with_conj(
+            first.rb(),
+            MatRef::from_column_major_slice(tau1, 1, r),
+            Conj::Yes,
+            target,
+            Par::Seq,
+            MemStack::new(mem),
+        );
+    };
+    q1(rest.rb_mut(), &mut work.mem, tau1);
+    // The dependent columns' parts outside A_1's span, by faer's plain QR: it takes one for
+    // dependent only when it is zero or lies within 16 m eps of the span of the others' (its
+    // pivot then at most (16 m eps)^2 of its column: zero, as a rounding would leave it).
+    let k2 = k - r;
+    let mut r2 = 0;
+    if k2 > 0 {
+        r2 = no_pivoting::factor::qr_in_place(
+            rest.rb_mut().subrows_mut(r, m - r),
+            MatMut::from_column_major_slice_mut(&mut tau2[..k2], 1, k2),
+            Par::Seq,
+            MemStack::new(&mut work.mem),
+            Default::default(),
+        )
+        .rank;
+    }
+    if extra.ncols() > 0 {
+        q1(extra.rb_mut(), &mut work.mem, tau1);
+        if r2 > 0 {
+            householder::apply_block_householder_sequence_transpose_on_the_left_in_place_with_conj(
+                rest.rb().subrows(r, m - r).subcols(0, r2),
+                MatRef::from_column_major_slice(&tau2[..r2], 1, r2),
+                Conj::Yes,
+                extra.rb_mut().subrows_mut(r, m - r),
+                Par::Seq,
+                MemStack::new(&mut work.mem),
+            );
+        }
+    }
+    // S = R_P P^T, R_P's columns back to A's scale.
+    work.s.clear();
+    work.s.resize(k * w, 0.0);
+    let mut sm = MatMut::from_column_major_slice_mut(&mut work.s, k, w);
+    for (p, &j) in order.iter().enumerate() {
+        for i in 0..=p.min(k - 1) {
+            sm[(i, j)] = a[(i, p)] / work.scale[p];
+        }
+    }
+    r_of_s(work, a, extra);
+    Some(Factored::Split { r, r2 })
+}
+
+/// The last step of [`factor_pivoted`] and [`factor_split`]: faer's plain QR of `S` (in
+/// `work.s`, `k x w`), its `R` into `a`'s upper triangle and `Q_s^T` applied to `extra`'s first
+/// `k` rows. On `S` faer's rule (`16 k eps` of a column's norm, about `3e-14` for eight columns)
+/// takes only a part that rounding alone leaves for dependent.
+fn r_of_s(work: &mut LstsqWork, mut a: MatMut<'_, f64>, extra: MatMut<'_, f64>) {
+    let (m, w) = a.shape();
+    let k = m.min(w);
+    let mut sm = MatMut::from_column_major_slice_mut(&mut work.s, k, w);
+    work.tau_s.resize(k, 0.0);
+    no_pivoting::factor::qr_in_place(
+        sm.rb_mut(),
+        MatMut::from_column_major_slice_mut(&mut work.tau_s, 1, k),
+        Par::Seq,
+        MemStack::new(&mut work.mem),
+        Default::default(),
+    );
+    for j in 0..w {
+        for i in 0..=j.min(k - 1) {
+            a[(i, j)] = sm[(i, j)];
+        }
+    }
+    if extra.ncols() > 0 {
+        householder::apply_block_householder_sequence_transpose_on_the_left_in_place_with_conj(
+            sm.rb(),
+            MatRef::from_column_major_slice(&work.tau_s, 1, k),
+            Conj::Yes,
+            extra.subrows_mut(0, k),
+            Par::Seq,
+            MemStack::new(&mut work.mem),
+        );
+    }
 }
 
 /// [`factor`] by two faer factorisations: the column-pivoted QR `A D^-1 P = Q_p R_p`, which takes
@@ -224,6 +395,16 @@ fn factor_pivoted(
         return Factored::Zero;
     }
     work.pivoted_qr(a.rb_mut(), k);
+    if extra.ncols() > 0 {
+        householder::apply_block_householder_sequence_transpose_on_the_left_in_place_with_conj(
+            a.rb(),
+            MatRef::from_column_major_slice(&work.tau, 1, k),
+            Conj::Yes,
+            extra.rb_mut(),
+            Par::Seq,
+            MemStack::new(&mut work.mem),
+        );
+    }
     // S = R_p P^T D: position p of R_p is column perm[p] of A.
     work.s.clear();
     work.s.resize(k * w, 0.0);
@@ -233,38 +414,7 @@ fn factor_pivoted(
             sm[(i, j)] = a[(i, p)] * work.scale[j];
         }
     }
-    work.tau_s.resize(k, 0.0);
-    no_pivoting::factor::qr_in_place(
-        sm.rb_mut(),
-        MatMut::from_column_major_slice_mut(&mut work.tau_s, 1, k),
-        Par::Seq,
-        MemStack::new(&mut work.mem),
-        Default::default(),
-    );
-    for j in 0..w {
-        for i in 0..=j.min(k - 1) {
-            a[(i, j)] = sm[(i, j)];
-        }
-    }
-    if extra.ncols() > 0 {
-        let stack = MemStack::new(&mut work.mem);
-        householder::apply_block_householder_sequence_transpose_on_the_left_in_place_with_conj(
-            a.rb(),
-            MatRef::from_column_major_slice(&work.tau, 1, k),
-            Conj::Yes,
-            extra.rb_mut(),
-            Par::Seq,
-            stack,
-        );
-        householder::apply_block_householder_sequence_transpose_on_the_left_in_place_with_conj(
-            sm.rb(),
-            MatRef::from_column_major_slice(&work.tau_s, 1, k),
-            Conj::Yes,
-            extra.subrows_mut(0, k),
-            Par::Seq,
-            stack,
-        );
-    }
+    r_of_s(work, a, extra);
     Factored::Pivoted
 }
 
@@ -430,14 +580,14 @@ pub(crate) fn thin_qr(cols: &mut [Vec<f64>]) -> Option<Vec<f64>> {
         }
     }
     // Q [I; 0]: the reflectors applied to the identity's leading columns, last to first (for
-    // the pivoted QR, Q_p [Q_s; 0]).
+    // the pivoted QR, Q_p [Q_s; 0]; for the split one, Q_1 diag(I_r, Q_2) [Q_s; 0]).
     let mut q = vec![0.0; m * c];
     let mut qm = MatMut::from_column_major_slice_mut(&mut q, m, c);
     for k in 0..c {
         qm[(k, k)] = 1.0;
     }
     let stack = MemStack::new(&mut work.mem);
-    if how == Factored::Pivoted {
+    if matches!(how, Factored::Pivoted | Factored::Split { .. }) {
         householder::apply_block_householder_sequence_on_the_left_in_place_with_conj(
             MatRef::from_column_major_slice(&work.s, c, c),
             MatRef::from_column_major_slice(&work.tau_s, 1, c),
@@ -447,9 +597,25 @@ pub(crate) fn thin_qr(cols: &mut [Vec<f64>]) -> Option<Vec<f64>> {
             stack,
         );
     }
+    // the reflectors of A (plain, pivoted) or of A's kept columns (split), after those of the
+    // block from row and column r (split)
+    let first = match how {
+        Factored::Split { r, r2 } => {
+            householder::apply_block_householder_sequence_on_the_left_in_place_with_conj(
+                am.rb().subrows(r, m - r).subcols(r, r2),
+                MatRef::from_column_major_slice(&work.tau[r..r + r2], 1, r2),
+                Conj::No,
+                qm.rb_mut().subrows_mut(r, m - r),
+                Par::Seq,
+                stack,
+            );
+            r
+        }
+        _ => c,
+    };
     householder::apply_block_householder_sequence_on_the_left_in_place_with_conj(
-        am.rb(),
-        MatRef::from_column_major_slice(&work.tau, 1, c),
+        am.rb().subcols(0, first),
+        MatRef::from_column_major_slice(&work.tau[..first], 1, first),
         Conj::No,
         qm.rb_mut(),
         Par::Seq,
@@ -748,6 +914,92 @@ mod tests {
     /// and the columns after it keep theirs (nalgebra's `R` the reference). faer's
     /// `qr_in_place` would take the column for dependent and put zeros on the diagonal from
     /// there on.
+    /// A nearly dependent column (`5e-12` outside the span of another, under faer's
+    /// `16 m eps = 2.9e-11`) is split off ([`factor_split`], not the pivoted QR), beside a zero
+    /// column or not: `Q^T b` keeps `b`'s norm and gives `R^T Q^T b = A^T b` (what the LM reads
+    /// its gradient from), the zero column's pivot is 0 and the dependent one's its size; the
+    /// thin QR's `Q` is orthonormal with `Q R = A`.
+    #[test]
+    fn a_nearly_dependent_column_is_split_off_with_q_and_r_exact() {
+        let mut rnd = uniform(23);
+        let m = 8192;
+        let norm = |v: &[f64]| v.iter().map(|x| x * x).sum::<f64>().sqrt();
+        for (w, want) in [
+            (5, Factored::Split { r: 4, r2: 1 }),
+            (6, Factored::Split { r: 4, r2: 1 }),
+            (7, Factored::Split { r: 4, r2: 2 }),
+        ] {
+            let mut a = Mat::<f64>::from_fn(m, w, |_, j| if j == 5 { 0.0 } else { rnd() });
+            for i in 0..m {
+                a[(i, 1)] = a[(i, 3)] + 5e-12 * a[(i, 1)];
+                if w == 7 {
+                    a[(i, 6)] = a[(i, 2)] - 3.0 * a[(i, 0)] + 7e-12 * a[(i, 6)];
+                }
+            }
+            let b: Vec<f64> = (0..m).map(|_| rnd()).collect();
+            let mut buf = a.as_slice().to_vec();
+            let mut qtb = b.clone();
+            let how = factor(
+                &mut LstsqWork::new(),
+                MatMut::from_column_major_slice_mut(&mut buf, m, w),
+                MatMut::from_column_major_slice_mut(&mut qtb, m, 1),
+                Again::Copy,
+            );
+            assert_eq!(how, want, "{w} columns");
+            assert!((norm(&qtb) - norm(&b)).abs() <= 1e-13 * norm(&b));
+            for j in 0..w {
+                let rtq: f64 = (0..=j).map(|i| buf[j * m + i] * qtb[i]).sum();
+                let atb: f64 = (0..m).map(|i| a[(i, j)] * b[i]).sum();
+                let scale = a.column(j).norm() * norm(&b);
+                assert!(
+                    (rtq - atb).abs() <= 1e-13 * scale,
+                    "column {j}: {rtq} vs {atb}"
+                );
+            }
+            for i in 0..w {
+                for j in 0..w {
+                    let rtr: f64 = (0..=i.min(j))
+                        .map(|k| buf[i * m + k] * buf[j * m + k])
+                        .sum();
+                    let ata: f64 = (0..m).map(|k| a[(k, i)] * a[(k, j)]).sum();
+                    let scale = a.column(i).norm() * a.column(j).norm();
+                    assert!((rtr - ata).abs() <= 1e-13 * scale, "{w}: G[{i},{j}]");
+                }
+            }
+            if w > 5 {
+                assert_eq!(buf[5 * m + 5], 0.0);
+                continue;
+            }
+            let mut cols: Vec<Vec<f64>> = (0..w)
+                .map(|j| a.column(j).iter().copied().collect())
+                .collect();
+            let r = thin_qr(&mut cols).expect("pivots above 1e-12 of their columns");
+            for i in 0..w {
+                for j in 0..w {
+                    let qq: f64 = (0..m).map(|k| cols[i][k] * cols[j][k]).sum();
+                    let want = if i == j { 1.0 } else { 0.0 };
+                    assert!((qq - want).abs() < 1e-12, "Q^T Q [{i},{j}] = {qq}");
+                }
+            }
+            for j in 0..w {
+                let worst = (0..m)
+                    .map(|k| {
+                        let qr: f64 = (0..=j).map(|i| cols[i][k] * r[i * w + j]).sum();
+                        (qr - a[(k, j)]).abs()
+                    })
+                    .fold(0.0f64, f64::max);
+                assert!(
+                    worst < 1e-13 * a.column(j).norm(),
+                    "Q R column {j}: {worst:e}"
+                );
+            }
+            // the pivot of the dependent part is its size, not a rounding's zero
+            let pivot = r[w + 1].abs().min(r[3 * w + 3].abs());
+            let col = a.column(3).norm();
+            assert!(pivot > 1e-12 * col && pivot < 2e-11 * col, "{pivot:e}");
+        }
+    }
+
     #[test]
     fn a_nearly_dependent_column_keeps_its_pivot_and_the_later_ones() {
         let mut rnd = uniform(11);
