@@ -3,9 +3,9 @@
 //! the thin QR ([`thin_qr`]), the projection out of a span ([`Span`]), Cholesky solves
 //! ([`cholesky_solve`]), minimum-norm least squares by the SVD ([`svd_solve`]), Gram products
 //! ([`gram_add`]) and the inverse of a triangular factor ([`upper_inverse`]). Every
-//! factorisation is faer's: its SVD, its plain QR, and its column-pivoted QR
-//! where the plain one's rank estimate is short ([`factor`]) or a rank is wanted
-//! ([`Span`]).
+//! factorisation is faer's: its SVD, its plain QR (of the columns it keeps and of the rest's
+//! remainders where its rank estimate is short, [`factor`]), and its column-pivoted QR where
+//! those cannot be told apart or a rank is wanted ([`Span`]).
 //!
 //! Every call here is sequential (`Par::Seq`): the matrices are a few columns wide, and the
 //! parallelism over a tall matrix's rows is the caller's ([`crate::par`]). Matrices cross the
@@ -133,8 +133,10 @@ fn scale_up(scale: &mut Vec<f64>, mut a: MatMut<'_, f64>) {
 /// estimate). A fit needs the plain `R` of its `J`: two nearly dependent columns have a pivot of
 /// `1e-11` to `1e-13` of their norm, and their huge standard errors say "not determined" (the
 /// fit refused), where a zero pivot would say "singular covariance" (a warning only). So when
-/// faer's rank is short, `A` is factored again ([`factor_pivoted`]): faer's column-pivoted QR,
-/// which takes no column for dependent, then the plain QR of the small `R_p P^T`.
+/// faer's rank is short, `A` is factored again: the columns it kept first, the others'
+/// remainders after them ([`factor_split`]), or, when the kept ones cannot be read back, faer's
+/// column-pivoted QR, which takes no column for dependent ([`factor_pivoted`]); then the plain
+/// QR of the small `R_P P^T`. The columns are scaled first ([`scale_up`]).
 fn factor(
     work: &mut LstsqWork,
     mut a: MatMut<'_, f64>,
@@ -909,11 +911,6 @@ mod tests {
         move || (next() >> 11) as f64 / (1u64 << 53) as f64 - 0.5
     }
 
-    /// A nearly dependent column (its part outside the span of the ones before it `1e-12` of its
-    /// norm, as two of a fit's terms can be) in a block of 8192 rows: its pivot is that part,
-    /// and the columns after it keep theirs (nalgebra's `R` the reference). faer's
-    /// `qr_in_place` would take the column for dependent and put zeros on the diagonal from
-    /// there on.
     /// A nearly dependent column (`5e-12` outside the span of another, under faer's
     /// `16 m eps = 2.9e-11`) is split off ([`factor_split`], not the pivoted QR), beside a zero
     /// column or not: `Q^T b` keeps `b`'s norm and gives `R^T Q^T b = A^T b` (what the LM reads
@@ -1000,6 +997,11 @@ mod tests {
         }
     }
 
+    /// A nearly dependent column (its part outside the span of the ones before it `1e-12` of its
+    /// norm, as two of a fit's terms can be) in a block of 8192 rows: its pivot is that part,
+    /// and the columns after it keep theirs (nalgebra's `R` the reference). faer's
+    /// `qr_in_place` would take the column for dependent and put zeros on the diagonal from
+    /// there on.
     #[test]
     fn a_nearly_dependent_column_keeps_its_pivot_and_the_later_ones() {
         let mut rnd = uniform(11);

@@ -201,7 +201,7 @@ fn item_14_a_static_gain_says_so_and_exits_1() {
             "{path}: {problems}"
         );
         assert_eq!(
-            problems.contains("which this model does not reproduce"),
+            problems.contains("which this model does not reproduce: it has no instant response"),
             path == "--plain",
             "{path}: {problems}"
         );

@@ -687,17 +687,17 @@ fn static_gain_only(ev: &Evidence<'_>, rec: &Record) -> Option<String> {
              by these data ({})",
             2.0 * std::f64::consts::PI / (rec.len() as f64 * rec.dt),
             std::f64::consts::PI / rec.dt,
-            static_ratio_text(g0, rec),
+            static_ratio_text(ev.tf, rec),
         )
     })
 }
 
-/// What the record itself says of a static gain `g0` fitted to it ([`static_gain_only`]): the
+/// What the record itself says of a static gain fitted to it ([`static_gain_only`]): the
 /// output's least-squares ratio to the input at the same instants (deviations from their means),
-/// and whether the model reproduces it (within 5%). A structure with no instant response (a
-/// strictly proper one) cannot follow an output that moves with the input at once: its `G(0)`
-/// is then off from that ratio.
-fn static_ratio_text(g0: f64, rec: &Record) -> String {
+/// and whether the model's `G(0)` reproduces it (within 5%). A strictly proper model (no instant
+/// response) cannot follow an output that moves with the input at once: its `G(0)` is then off
+/// from that ratio, and the text says so.
+fn static_ratio_text(tf: &fracsim::FracTf, rec: &Record) -> String {
     let n = rec.len().max(1) as f64;
     let (mu, my) = (rec.u.iter().sum::<f64>() / n, rec.y.iter().sum::<f64>() / n);
     let (suy, suu) = rec.u.iter().zip(&rec.y).fold((0.0, 0.0), |(a, b), (u, y)| {
@@ -708,14 +708,17 @@ fn static_ratio_text(g0: f64, rec: &Record) -> String {
     if !ratio.is_finite() {
         return advice.to_string();
     }
-    if (ratio - g0).abs() <= 0.05 * ratio.abs() {
-        format!("the output is the input times {ratio:.4e} at the same instants: {advice}")
-    } else {
+    let said = format!("the output is the input times {ratio:.4e} at the same instants");
+    if (ratio - tf.dc_gain()).abs() <= 0.05 * ratio.abs() {
+        format!("{said}: {advice}")
+    } else if tf.num_order() < tf.den_order() {
         format!(
-            "the output is the input times {ratio:.4e} at the same instants, which this model \
-             does not reproduce: its structure has no instant response (try the loop closed, or \
-             --structure feedthrough); else {advice}"
+            "{said}, which this model does not reproduce: it has no instant response (the loop \
+             closed compares structures that feed the input through; --structure feedthrough); \
+             else {advice}"
         )
+    } else {
+        format!("{said}, which this model does not reproduce; else {advice}")
     }
 }
 
