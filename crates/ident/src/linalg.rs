@@ -109,7 +109,14 @@ const SCALED_MAX: i32 = 480;
 fn scale_up(scale: &mut Vec<f64>, mut a: MatMut<'_, f64>) {
     scale.clear();
     for j in 0..a.ncols() {
-        let largest = a.rb().col(j).iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        let mut col = a.rb_mut().col_mut(j);
+        // The largest |entry| by its bits (ordered as the values for non-negative numbers):
+        // an integer maximum, which vectorises.
+        let bits = match col.rb().try_as_col_major() {
+            Some(c) => c.as_slice().iter().map(|v| v.abs().to_bits()).max(),
+            None => col.rb().iter().map(|v| v.abs().to_bits()).max(),
+        };
+        let largest = f64::from_bits(bits.unwrap_or(0));
         let d = if largest > 0.0 && largest.is_finite() {
             let e = largest.log2().floor() as i32;
             2f64.powi((SCALED_MAX - e).clamp(-1000, 1000))
@@ -118,7 +125,10 @@ fn scale_up(scale: &mut Vec<f64>, mut a: MatMut<'_, f64>) {
         };
         scale.push(d);
         if d != 1.0 {
-            a.rb_mut().col_mut(j).iter_mut().for_each(|v| *v *= d);
+            match col.rb_mut().try_as_col_major_mut() {
+                Some(c) => c.as_slice_mut().iter_mut().for_each(|v| *v *= d),
+                None => col.iter_mut().for_each(|v| *v *= d),
+            }
         }
     }
 }
