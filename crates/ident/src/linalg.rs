@@ -1007,6 +1007,24 @@ mod tests {
         }
     }
 
+    /// A matrix of zero columns has `R = 0` and one with a NaN a NaN `R`, with no panic on the way
+    /// (faer's plain QR takes every column of either for dependent: the split path with no
+    /// column kept).
+    #[test]
+    fn zero_and_nan_matrices_factor_without_panic() {
+        let (m, w) = (50, 3);
+        let mut zero = vec![0.0; m * w];
+        let r = qr_r_in_place(&mut zero, m, w, &mut LstsqWork::new(), Again::Copy);
+        assert!(r.iter().all(|&v| v == 0.0));
+        let mut nan: Vec<f64> = (0..m * w).map(|i| i as f64).collect();
+        nan[7] = f64::NAN;
+        let r = qr_r_in_place(&mut nan, m, w, &mut LstsqWork::new(), Again::Copy);
+        assert!(r.iter().any(|v| v.is_nan()));
+        let a = Mat::<f64>::zeros(m, w);
+        let x = lstsq(&a, &Mat::<f64>::from_element(m, 1, 1.0));
+        assert!(x.iter().all(|v| !v.is_finite()));
+    }
+
     /// A nearly dependent column (its part outside the span of the ones before it `1e-12` of its
     /// norm, as two of a fit's terms can be) in a block of 8192 rows: its pivot is that part,
     /// and the columns after it keep theirs (nalgebra's `R` the reference). faer's
