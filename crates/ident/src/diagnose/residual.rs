@@ -75,8 +75,12 @@ pub struct ResidualAnalysis {
     /// Cross-correlation lags `-h..=h` of the residual with the input's changes (its first
     /// differences) outside the bound.
     pub change_outside: usize,
-    /// Independent of the input: no more than 1% of the `2h + 1` lags (at least one) outside,
-    /// with the input and with its changes.
+    /// Independent of the input: no more than 1% of the `2h + 1` lags (at least one) outside
+    /// with the input, and one lag more with its changes. Two tests at 1% a lag over 51 lags,
+    /// each allowing one, would take a white residual for dependent about 18% of the time
+    /// (binomial: 9.2% each); allowing the second two brings that to 10.5%. A correct PMSM fit
+    /// of a 1e5-sample record with a white residual (Ljung-Box p = 0.54) had two changes' lags
+    /// out, and brought in the general structure's search: 2.78 s of CPU against 1.14 s.
     pub independent: bool,
     /// Narrow spectral peaks, strongest first (at most 5).
     pub peaks: Vec<SpectralPeak>,
@@ -264,7 +268,7 @@ pub fn analyse(e: &[f64], u: &[f64], dt: f64) -> ResidualAnalysis {
         cross_peak_lag: peak_i as isize - h as isize,
         cross_peak: peak,
         change_outside,
-        independent: cross_outside <= allowed && change_outside <= allowed,
+        independent: cross_outside <= allowed && change_outside <= allowed + 1,
         peaks: spectral_peaks(e, dt, 5),
     }
 }
@@ -428,13 +432,13 @@ mod tests {
         let e: Vec<f64> = (0..n)
             .map(|k| {
                 let du = if k == 0 { 0.0 } else { u[k] - u[k - 1] };
-                x = 0.5 * x + du;
+                x = 0.7 * x + du;
                 x + noise[k]
             })
             .collect();
         let a = analyse(&e, &u, 1e-3);
         assert!(a.cross_outside <= 1, "{a:?}");
-        assert!(a.change_outside >= 2, "{a:?}");
+        assert!(a.change_outside >= 3, "{a:?}");
         assert!(!a.independent);
     }
 
