@@ -249,7 +249,7 @@ fn run_held(tf: &FracTf, u: &[f64], dt: f64, m: usize) -> Result<Vec<f64>> {
     // before the instant, as [`crate::Simulator`] feeds such a model
     // ([`crate::modal::PoleResidue::strictly_proper`]); the shift, one step `h` of each run, is
     // a first-order error the Richardson extrapolation cancels with the scheme's own.
-    let lag = usize::from(tf.num_order() + 1e-9 < tf.den_order());
+    let lag = usize::from(tf.is_strictly_proper());
     let held: Vec<f64> = std::iter::repeat_n(0.0, lag)
         .chain(u.iter().flat_map(|&x| std::iter::repeat_n(x, m)))
         .take(u.len() * m)

@@ -328,6 +328,13 @@ impl FracTf {
         self.num.first().map_or(0.0, |t| t.order)
     }
 
+    /// Strictly proper: the numerator's highest order below the denominator's (by more than
+    /// `1e-9`), so that the output has no instant response to the input (it is continuous where
+    /// a held input steps).
+    pub fn is_strictly_proper(&self) -> bool {
+        self.num_order() + 1e-9 < self.den_order()
+    }
+
     /// Refuse an improper model (numerator order above the denominator's) for simulation: its
     /// response to a held (stepwise) input holds impulses and derivatives of the steps, which no
     /// sampled simulation represents. Its frequency response is fine (the Bode fits may use it).

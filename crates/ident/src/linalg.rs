@@ -930,7 +930,7 @@ mod tests {
     fn a_nearly_dependent_column_is_split_off_with_q_and_r_exact() {
         let mut rnd = uniform(23);
         let m = 8192;
-        let norm = |v: &[f64]| v.iter().map(|x| x * x).sum::<f64>().sqrt();
+        let norm = crate::numeric::norm;
         for (w, want) in [
             (5, Factored::Split { r: 4, r2: 1 }),
             (6, Factored::Split { r: 4, r2: 1 }),

@@ -711,7 +711,7 @@ fn static_ratio_text(tf: &fracsim::FracTf, rec: &Record) -> String {
     let said = format!("the output is the input times {ratio:.4e} at the same instants");
     if (ratio - tf.dc_gain()).abs() <= 0.05 * ratio.abs() {
         format!("{said}: {advice}")
-    } else if tf.num_order() < tf.den_order() {
+    } else if tf.is_strictly_proper() {
         format!(
             "{said}, which this model does not reproduce: it has no instant response (the loop \
              closed compares structures that feed the input through; --structure feedthrough); \
