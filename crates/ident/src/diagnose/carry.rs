@@ -40,15 +40,16 @@ pub(crate) struct Carried {
 }
 
 impl Carried {
-    /// The one effect a final `model` holds beside its output offset (a sensor's zero and its
-    /// rectification count as one), with its parameters at the model's values; `None` for none
-    /// or several (each would be one candidate of its own, and a start holding them all the
-    /// refit of one of them).
-    pub(crate) fn of(model: &FracModel) -> Option<Carried> {
+    /// The one effect a final `model` holds beside its output offset and the effects of the
+    /// structure it was diagnosed from (`base`: an integrating structure's own input offset is
+    /// no effect its diagnosis found), a sensor's zero and its rectification counting as one,
+    /// with its parameters at the model's values; `None` for none or several (each would be one
+    /// candidate of its own, and a start holding them all the refit of one of them).
+    pub(crate) fn of(model: &FracModel, base: &FracModel) -> Option<Carried> {
         let effects: Vec<&Effect> = model
             .effects
             .iter()
-            .filter(|e| !matches!(e, Effect::OutputOffset { .. }))
+            .filter(|e| !matches!(e, Effect::OutputOffset { .. }) && !holds(base, e.name()))
             .collect();
         let name = effects.first()?.name();
         if effects.iter().any(|e| e.name() != name) {
@@ -99,15 +100,24 @@ pub(crate) fn carry(
     let Some(Some(Ok(d))) = outcomes.get(chosen).map(|o| &o.diagnosis) else {
         return vec![];
     };
-    let Some(effect) = Carried::of(&d.model) else {
+    let Some(chosen_base) = outcomes[chosen].id.as_ref() else {
+        return vec![];
+    };
+    let Some(effect) = Carried::of(&d.model, &chosen_base.model) else {
         return vec![];
     };
     let (bar, integrator) = (d.after.rmse, cands[chosen].1.integrator);
     let terms = |m: &FracModel| m.params.iter().filter(|p| p.free).count();
+    // A structure whose base fit holds the effect (an integrating structure's input offset)
+    // or whose diagnosis kept it was fitted with it.
     let richer = |i: usize| {
         i != chosen
             && cands[i].1.integrator == integrator
             && terms(&cands[i].1) > terms(&cands[chosen].1)
+            && !outcomes[i]
+                .id
+                .as_ref()
+                .is_some_and(|b| holds(&b.model, effect.name))
             && !scores[i].effects.iter().any(|e| e == effect.name)
     };
     let richer: Vec<usize> = (0..cands.len()).filter(|&i| richer(i)).collect();
@@ -160,6 +170,11 @@ pub(crate) fn carry(
     words
 }
 
+/// Whether `model` holds an effect named `name`.
+fn holds(model: &FracModel, name: &str) -> bool {
+    model.effects.iter().any(|e| e.name() == name)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -182,7 +197,7 @@ mod tests {
     #[test]
     fn one_effect_is_carried_onto_another_structure_at_its_values() {
         let a = first_order_with(&[("sat_level", 0.55)]);
-        let c = Carried::of(&a).expect("one effect");
+        let c = Carried::of(&a, &first_order_with(&[])).expect("one effect");
         assert_eq!(c.name, "saturation");
         assert_eq!(c.params.len(), 1);
         let b = crate::catalogue::Preset::Pmsm.model(1.0);
@@ -204,8 +219,26 @@ mod tests {
 
     #[test]
     fn no_effect_or_two_effects_are_not_carried() {
-        assert!(Carried::of(&first_order_with(&[])).is_none());
+        let base = first_order_with(&[]);
+        assert!(Carried::of(&base, &base).is_none());
         let two = first_order_with(&[("sat_level", 0.55), ("y_drift", 0.1)]);
-        assert!(Carried::of(&two).is_none());
+        assert!(Carried::of(&two, &base).is_none());
+    }
+
+    #[test]
+    fn an_effect_of_the_structures_own_base_fit_is_not_carried() {
+        // an integrating structure's base fit holds its input offset: no effect was found
+        let mut base = first_order_with(&[]);
+        let c = base.add_param(Param::new("u_offset", 0.1, Bounds::Free));
+        base.effects.push(Effect::InputOffset { c });
+        assert!(Carried::of(&base, &base).is_none());
+        // one effect the diagnosis added beside it is carried alone
+        let mut fin = base.clone();
+        let r = fin.add_param(Param::new("y_drift", 0.2, Bounds::Free));
+        fin.effects.push(Effect::OutputDrift { r });
+        let carried = Carried::of(&fin, &base).expect("the drift");
+        assert_eq!(carried.name, "output_drift");
+        assert_eq!(carried.effects.len(), 1);
+        assert_eq!(carried.params.len(), 1);
     }
 }
