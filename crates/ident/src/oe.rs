@@ -49,7 +49,7 @@ pub(crate) use fit::fit_in_unit;
 pub use fit::{
     check_params, fit, fit_with_progress, identify, identify_with_progress, past_edges,
     sensitivities, FitOptions, FitReport, IdentOptions, Identification, InitialReport,
-    InitialState, ParamEstimate, StartMode, SAMPLES_PER_PARAM,
+    InitialState, LeadPart, ParamEstimate, StartMode, SAMPLES_PER_PARAM,
 };
 pub use init::{StartMethod, StartReport};
 pub use joint::{identify_joint, JointIdentification};

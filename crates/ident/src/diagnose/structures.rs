@@ -51,7 +51,7 @@ use super::halving::{confirm_halving, Again, Board};
 use super::Resumable;
 use crate::catalogue::Preset;
 use crate::data::Record;
-use crate::oe::{identify, FracModel, IdentOptions, Identification};
+use crate::oe::{identify, FracModel, IdentOptions, Identification, LeadPart};
 use crate::par::Par;
 use crate::{Error, Result};
 use fracsim::modal::RootsCache;
@@ -143,7 +143,7 @@ pub const SCREEN_ITERATIONS: usize = 60;
 /// 0271 a first order's screening fit of more than 60 iterations in all was fitted again in full
 /// to the same figures.)
 fn screen_candidate(rec: &Record, model: &FracModel, opts: &IdentOptions) -> (Fitted, bool) {
-    screen_with(rec, model, opts, SCREEN_ITERATIONS)
+    screen_with(rec, model, opts, (SCREEN_ITERATIONS, LeadPart::First))
 }
 
 /// LM iterations of the pre-screen of the user's structure with a free integrator
@@ -158,14 +158,17 @@ pub const PRE_SCREEN_ITERATIONS: usize = 10;
 /// RMSE `user_rmse`, or behind it and not usable ([`pre_screened_out`]), is kept as it is and
 /// screened out (the best usable base fit is at most the user's, so it trails that by twice the
 /// margin at which a screening fit is left out, [`FAR`]); the others go on to [`screen_candidate`]
-/// (from a pole cache of its own, as without the pre-screen).
+/// (from a pole cache of its own, as without the pre-screen). On a long record (one a fit
+/// starts on its leading part, [`LeadPart`]) the pre-screen is the leading part's fit evaluated
+/// on the whole record ([`LeadPart::Only`]): on a 1e6-sample PMSM record the integrator's fit
+/// went on over the whole record after its lead and took a quarter of the default's CPU.
 fn pre_screen(
     rec: &Record,
     model: &FracModel,
     opts: &IdentOptions,
     user_rmse: f64,
 ) -> (Fitted, bool) {
-    let (fitted, full) = screen_with(rec, model, opts, PRE_SCREEN_ITERATIONS);
+    let (fitted, full) = screen_with(rec, model, opts, (PRE_SCREEN_ITERATIONS, LeadPart::Only));
     let hopeless = !full
         && fitted
             .0
@@ -191,12 +194,13 @@ fn pre_screened_out(rmse: f64, usable: bool, user_rmse: f64) -> bool {
     rmse > FAR * FAR * user_rmse || (!usable && rmse > user_rmse)
 }
 
-/// [`screen_candidate`] with `budget` LM iterations.
+/// [`screen_candidate`] with `budget` LM iterations, a long record's leading part used as `lead`
+/// says (unless the options fit the whole record, [`LeadPart::Whole`]).
 fn screen_with(
     rec: &Record,
     model: &FracModel,
     opts: &IdentOptions,
-    budget: usize,
+    (budget, lead): (usize, LeadPart),
 ) -> (Fitted, bool) {
     if opts.fit.lm.max_iterations <= budget
         || opts.fit.lm.max_evaluations != 0
@@ -206,6 +210,9 @@ fn screen_with(
     }
     let mut screen = opts.clone();
     screen.fit.lm.max_iterations = budget;
+    if screen.fit.lead != LeadPart::Whole {
+        screen.fit.lead = lead;
+    }
     match identified(rec, model, &screen) {
         (Ok(id), cache) if id.report.budget_ends == 0 => ((Ok(id), cache), true),
         other => (other, false),
@@ -1913,9 +1920,34 @@ mod tests {
         let whole = identify(&rec, &first, &opts).unwrap();
         assert_eq!(screened.report.values, whole.report.values);
         assert_eq!(screened.report.iterations, whole.report.iterations);
-        let (short, full) = screen_with(&rec, &first, &opts, 1);
+        let (short, full) = screen_with(&rec, &first, &opts, (1, LeadPart::First));
         assert!(!full, "a run ended at a budget of one iteration");
         assert!(short.0.unwrap().report.budget_ends >= 1);
+    }
+
+    /// On a record long enough for a leading part, a lead-only screen ([`pre_screen`]'s) is
+    /// never taken for the full fit, though its fit converged within the budget (the same screen
+    /// fitting the leading part first and then the whole record is the full fit), and its
+    /// figures are the whole record's.
+    #[test]
+    fn a_lead_only_screen_of_a_long_record_is_not_the_full_fit() {
+        let dt = 1e-3;
+        let u: Vec<f64> = (0..100_000)
+            .map(|k| if (k / 89) % 3 == 0 { 1.0 } else { -1.0 })
+            .collect();
+        let y = crate::testdata::first_order_held(&u, dt, 0.05, 2.0);
+        let rec = Record::from_samples(&u, &y, dt).unwrap();
+        let mut first = FracModel::fopdt(1.0, 0.1, 0.01, 1.0);
+        first.delay = None;
+        let opts = IdentOptions::default();
+        let (whole, full) = screen_with(&rec, &first, &opts, (SCREEN_ITERATIONS, LeadPart::First));
+        assert!(full, "the screen fitted the whole record within its budget");
+        let (lead, full) = screen_with(&rec, &first, &opts, (SCREEN_ITERATIONS, LeadPart::Only));
+        assert!(!full, "a lead-only screen is not the full fit");
+        let (whole, lead) = (whole.0.unwrap(), lead.0.unwrap());
+        assert!(lead.report.budget_ends >= 1);
+        assert_eq!(lead.yhat.len(), rec.len());
+        assert!(lead.report.iterations < whole.report.iterations);
     }
 
     /// The pre-screen leaves out a fit far behind the user's, or behind it with problems, and
