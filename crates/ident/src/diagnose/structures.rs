@@ -1898,20 +1898,26 @@ mod tests {
         )));
     }
 
+    /// A record of `n` samples (1 ms) of a first order (time constant 50 ms, gain 2) driven by a
+    /// two-level input held 89 samples, and the first-order structure without a delay.
+    fn first_order_record(n: usize) -> (Record, FracModel) {
+        let dt = 1e-3;
+        let u: Vec<f64> = (0..n)
+            .map(|k| if (k / 89) % 3 == 0 { 1.0 } else { -1.0 })
+            .collect();
+        let y = crate::testdata::first_order_held(&u, dt, 0.05, 2.0);
+        let mut first = FracModel::fopdt(1.0, 0.1, 0.01, 1.0);
+        first.delay = None;
+        (Record::from_samples(&u, &y, dt).unwrap(), first)
+    }
+
     /// A first order fitted to a first-order record converges well inside the screening budget:
     /// none of its LM runs ends there, so the screening fit is the full fit, the same values bit
     /// for bit as the identification with the whole budget; a budget of one iteration ends a run
     /// there and is not taken for the full fit.
     #[test]
     fn a_screening_fit_none_of_whose_runs_reached_its_budget_is_the_full_fit() {
-        let dt = 1e-3;
-        let u: Vec<f64> = (0..3000)
-            .map(|k| if (k / 89) % 3 == 0 { 1.0 } else { -1.0 })
-            .collect();
-        let y = crate::testdata::first_order_held(&u, dt, 0.05, 2.0);
-        let rec = Record::from_samples(&u, &y, dt).unwrap();
-        let mut first = FracModel::fopdt(1.0, 0.1, 0.01, 1.0);
-        first.delay = None;
+        let (rec, first) = first_order_record(3000);
         let opts = IdentOptions::default();
         let (fitted, full) = screen_candidate(&rec, &first, &opts);
         assert!(full, "the screening fit is the full fit");
@@ -1931,14 +1937,7 @@ mod tests {
     /// figures are the whole record's.
     #[test]
     fn a_lead_only_screen_of_a_long_record_is_not_the_full_fit() {
-        let dt = 1e-3;
-        let u: Vec<f64> = (0..100_000)
-            .map(|k| if (k / 89) % 3 == 0 { 1.0 } else { -1.0 })
-            .collect();
-        let y = crate::testdata::first_order_held(&u, dt, 0.05, 2.0);
-        let rec = Record::from_samples(&u, &y, dt).unwrap();
-        let mut first = FracModel::fopdt(1.0, 0.1, 0.01, 1.0);
-        first.delay = None;
+        let (rec, first) = first_order_record(100_000);
         let opts = IdentOptions::default();
         let (whole, full) = screen_with(&rec, &first, &opts, (SCREEN_ITERATIONS, LeadPart::First));
         assert!(full, "the screen fitted the whole record within its budget");
