@@ -1223,8 +1223,8 @@ fn remaining_structure(an: &ResidualAnalysis, q: Option<Quantization>) -> Vec<St
     }
     if !an.independent && !at_floor {
         out.push(format!(
-            "the residual depends on the input: {} cross-correlation lags outside +-{:.3} ({} \
-             with the input's changes), peak {:.3} at lag {}",
+            "the residual depends on the input: {} cross-correlation lags with the prewhitened \
+             input outside +-{:.3} ({} with its changes), peak {:.3} at lag {}",
             an.cross_outside, an.bound, an.change_outside, an.cross_peak, an.cross_peak_lag
         ));
     }

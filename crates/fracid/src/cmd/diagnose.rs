@@ -82,7 +82,8 @@ pub fn text(d: &Diagnosis) -> String {
     let _ = writeln!(
         o,
         "  base residual: Ljung-Box Q = {:.1} ({} lags, p = {:.2e}), {} autocorrelation and {} \
-         cross-correlation lags ({} with the input's changes) outside +-{:.3}, {} spectral peak(s)",
+         cross-correlation lags with the prewhitened input ({} with its changes) outside +-{:.3}, \
+         {} spectral peak(s)",
         r.ljung_box_q,
         r.lags,
         r.ljung_box_p,
