@@ -8,15 +8,17 @@
 //!   of the `chi^2` tail (accurate to about 1e-3 for `h >= 10`, enough for a 1% test).
 //! - Independence from the input: [`crate::metrics::crosscorr`] over `-h..=h` lags, with the
 //!   input prewhitened by its autoregression of order 10 (Box-Jenkins; the lags of a held
-//!   input's raw levels move together) and with its changes (first differences). Under the null the residual is white, so
-//!   the bound holds whatever the other series' own correlation (the variance of a
-//!   cross-correlation of a white series with any independent one is `1/N`); the input's
+//!   input's raw levels move together) and with its changes (first differences). Under the
+//!   null the residual is white, so the bound holds at each lag whatever the other series' own
+//!   correlation (the variance of a cross-correlation of a white series with any independent
+//!   one is `1/N`); the input's
 //!   changes are its innovations for a step-like input (a staircase, steps from rest), whose raw
 //!   levels, each held for many samples, hide a model error that follows every step and dies out
 //!   (a lead the first order lacks: on the zoo's lead case 0033 the raw input's largest
 //!   correlation was 0.025 against a bound of 0.073, its changes' 0.088 with three lags
-//!   outside). The input is prewhitened so, as Ljung's residual test asks (Ljung 1999, §16.6),
-//!   by the one filter that whitens a held input's steps.
+//!   outside). The changes are the input prewhitened by the one filter that whitens a held
+//!   input's steps, the autoregression by one fitted to any input, as Ljung's residual test
+//!   asks (Ljung 1999, §16.6).
 //! - Spectrum: the periodogram `I(f) = |sum_k e_k exp(-j 2 pi f k dt)|^2 / N` at the Fourier
 //!   frequencies; a peak is a bin whose power exceeds [`PEAK_RATIO`] times the median of its
 //!   neighbours. For white noise `I / mean` is `Exp(1)`, its median `ln 2`, so
