@@ -750,7 +750,13 @@ pub(super) fn fit_in<S: Structure>(
     let mut from_lead = None;
     if let Some((r, jac_evals, at_start)) = lead_fit {
         prob.jac_evals = jac_evals;
-        lead_work = (r.iterations, r.evaluations + 1, r.budget_ends);
+        // (the whole record's cost at the start counted where it was computed)
+        let at_start_evaluated = usize::from(opts.lead == LeadPart::First);
+        lead_work = (
+            r.iterations,
+            r.evaluations + at_start_evaluated,
+            r.budget_ends,
+        );
         start = r.params;
         // Near the optimum already: the whole record's fit starts with the lead's final
         // damping (Gauss-Newton steps), not the damping of a cold start.
@@ -857,10 +863,10 @@ struct FitProblem<'a, S: Structure> {
 }
 
 impl<S: Structure> FitProblem<'_, S> {
-    /// The fit of the leading `lead` samples from `theta0`, its Jacobian evaluations and the
-    /// whole record's cost at the start (computed on another thread meanwhile: the fit from the
-    /// lead's optimum is kept only if that optimum does not fit the whole record worse than the
-    /// start did); `None` when the lead's fit fails.
+    /// The fit of the leading `lead` samples from `theta0`, its Jacobian evaluations and, for
+    /// [`LeadPart::First`], the whole record's cost at the start (computed on another thread
+    /// meanwhile: the fit from the lead's optimum is kept only if that optimum does not fit the
+    /// whole record worse than the start did); `None` when the lead's fit fails.
     fn fit_lead(
         &self,
         lead: usize,
@@ -870,9 +876,14 @@ impl<S: Structure> FitProblem<'_, S> {
         let (s, u, y, dt, opts) = (self.s, self.u, self.y, self.dt, self.opts);
         let (free, base) = (self.free, self.base);
         // The whole record's cost at the start beside the lead's fit (from a copy of this
-        // thread's pole cache, as the Jacobian's helper): each on its share of the width.
+        // thread's pole cache, as the Jacobian's helper): each on its share of the width. A
+        // lead-only fit ([`LeadPart::Only`]) does not compare the two.
         let mut roots = RootsCache::entered();
-        let at_start = |_: Par| self.whole_ssr(theta0, &mut roots);
+        let at_start = |_: Par| {
+            (opts.lead == LeadPart::First)
+                .then(|| self.whole_ssr(theta0, &mut roots))
+                .flatten()
+        };
         let lead_fit = |par: Par| {
             let (u, y) = (&u[..lead], &y[..lead]);
             let mut prob = OeProblem::new(s, u, y, dt, opts.skip, free, base, progress, par);
