@@ -38,8 +38,8 @@ impl Rounds<'_> {
                  reaches {:.4e} against {:.4e} with it ({:+.1}%, BIC {:+.1}), short of the \
                  {:.0}% margin; it stood in for an effect found later",
                 self.found.kept[newest - 1].name,
-                self.ctx.score(&without),
-                self.ctx.score(&self.found.st),
+                v.before,
+                v.after,
                 100.0 * v.change,
                 v.dbic,
                 100.0 * self.ctx.opts.margin,
