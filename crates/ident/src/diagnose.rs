@@ -882,7 +882,10 @@ fn judge(
     }
     if !verdict.clears(ctx) {
         let parts = if ctx.tail {
-            format!("neither the {} nor the estimation error falls", scored_part(ns))
+            format!(
+                "neither the {} nor the estimation error falls",
+                scored_part(ns)
+            )
         } else {
             format!("the {part} error does not fall")
         };

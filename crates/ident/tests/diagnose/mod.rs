@@ -846,7 +846,10 @@ fn a_delay_of_a_step_from_rest_is_judged_on_the_estimation_part() {
     let d = &r.diagnosis.as_ref().expect("a diagnosis").diagnosis;
     let k = kept_effect(d, "delay");
     let tau = k.params["tau"];
-    assert!((tau - 0.07673).abs() < 0.1 * 0.07673, "tau = {tau} (truth 0.07673)");
+    assert!(
+        (tau - 0.07673).abs() < 0.1 * 0.07673,
+        "tau = {tau} (truth 0.07673)"
+    );
     assert!(k.evidence.contains("estimation RMSE"), "{}", k.evidence);
     assert!(k.rmse_change_percent < -5.0, "{}", k.rmse_change_percent);
 }
@@ -861,7 +864,10 @@ fn a_drift_of_a_step_test_is_judged_on_its_settled_tail() {
     let d = &r.diagnosis.as_ref().expect("a diagnosis").diagnosis;
     let k = kept_effect(d, "output_drift");
     let rate = k.params["rate_per_s"];
-    assert!((rate - 0.8255).abs() < 0.2 * 0.8255, "rate {rate} (truth 0.8255)");
+    assert!(
+        (rate - 0.8255).abs() < 0.2 * 0.8255,
+        "rate {rate} (truth 0.8255)"
+    );
     assert!(k.evidence.contains("validation RMSE"), "{}", k.evidence);
 }
 
