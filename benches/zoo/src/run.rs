@@ -13,7 +13,7 @@ use serde::{Deserialize, Serialize};
 use serde_json::Value;
 
 use crate::cases::{self, write, Sizing};
-use crate::score::{self, table, Outcome, Row};
+use crate::score::{self, floors, table, Outcome, Row};
 
 /// Errors of a run.
 #[derive(Debug, thiserror::Error)]
@@ -61,6 +61,9 @@ pub struct FleetCost {
 pub struct Results {
     /// The table by class (last row "all").
     pub table: Vec<table::ClassRow>,
+    /// The floors' counts ([`floors::floors`]).
+    #[serde(default)]
+    pub floors: floors::Floors,
     /// Every case on every path.
     pub outcomes: Vec<Outcome>,
     /// Generation wall time [s].
@@ -289,6 +292,7 @@ pub fn run(o: &Options) -> Result<Results, Error> {
     let outcomes = score_all(o, &truths, &[plain_rows, diag_rows])?;
     let results = Results {
         table: table::by_class(&outcomes),
+        floors: floors::floors(&outcomes),
         outcomes,
         generate_s,
         plain,
@@ -343,6 +347,7 @@ pub fn rescore(o: &Options) -> Result<Results, Error> {
         .and_then(|t| serde_json::from_str(&t).ok());
     let results = Results {
         table: table::by_class(&outcomes),
+        floors: floors::floors(&outcomes),
         outcomes,
         generate_s: earlier.as_ref().map_or(0.0, |r| r.generate_s),
         plain: earlier
@@ -365,7 +370,10 @@ pub fn write_results(out: &Path, r: &Results) -> Result<(), Error> {
         let p = out.join(name);
         std::fs::write(&p, text).map_err(io(&p))
     };
-    put("table.md", table::markdown(&r.table))?;
+    put(
+        "table.md",
+        format!("{}\n{}", table::markdown(&r.table), r.floors.markdown()),
+    )?;
     put("table.csv", table::csv(&r.table))?;
     put("cases.csv", table::cases_csv(&r.outcomes))?;
     let json = serde_json::to_string_pretty(r)

@@ -101,6 +101,7 @@ fn main() -> ExitCode {
             }
             let r = run::run(&o).map_err(|e| e.to_string())?;
             print!("{}", zoo::score::table::markdown(&r.table));
+            print!("\n{}", r.floors.markdown());
             eprintln!(
                 "{} cases; generation {:.1} s; plain fleet {:.1} s wall, {} CPU; --diagnose fleet {:.1} s wall, {} CPU; table in {}",
                 r.outcomes.len() / 2,
@@ -121,6 +122,7 @@ fn main() -> ExitCode {
         Cmd::Score { common } => options(common, Some(PathBuf::from("fracid"))).and_then(|o| {
             let r = run::rescore(&o).map_err(|e| e.to_string())?;
             print!("{}", zoo::score::table::markdown(&r.table));
+            print!("\n{}", r.floors.markdown());
             Ok(())
         }),
         Cmd::Generate { common } => {

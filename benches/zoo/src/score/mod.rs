@@ -19,6 +19,7 @@
 //!   not identifiable, a non-zero exit, or a confounded effect named among the diagnosis's
 //!   ambiguous ones and none of them kept.
 
+pub mod floors;
 pub mod table;
 
 use num_complex::Complex64;
