@@ -842,14 +842,7 @@ fn default_run_on_fixture(name: &str) -> ident::app::time::TimeReport {
 /// estimation part it removes half the error, and the tail is predicted no worse.
 #[test]
 fn a_delay_of_a_step_from_rest_is_judged_on_the_estimation_part() {
-    let r = default_run_on_fixture("zoo_seed45_0010_delay.csv");
-    let d = &r.diagnosis.as_ref().expect("a diagnosis").diagnosis;
-    let k = kept_effect(d, "delay");
-    let tau = k.params["tau"];
-    assert!(
-        (tau - 0.07673).abs() < 0.1 * 0.07673,
-        "tau = {tau} (truth 0.07673)"
-    );
+    let k = judged_on_step_test("zoo_seed45_0010_delay.csv", ("delay", "tau"), 0.07673, 0.1);
     assert!(k.evidence.contains("estimation RMSE"), "{}", k.evidence);
     assert!(k.rmse_change_percent < -5.0, "{}", k.rmse_change_percent);
 }
@@ -860,15 +853,37 @@ fn a_delay_of_a_step_from_rest_is_judged_on_the_estimation_part() {
 /// part, and is kept so (judged on the estimation part alone it was rejected at -0.6%).
 #[test]
 fn a_drift_of_a_step_test_is_judged_on_its_settled_tail() {
-    let r = default_run_on_fixture("zoo_seed44_0246_drift.csv");
-    let d = &r.diagnosis.as_ref().expect("a diagnosis").diagnosis;
-    let k = kept_effect(d, "output_drift");
-    let rate = k.params["rate_per_s"];
-    assert!(
-        (rate - 0.8255).abs() < 0.2 * 0.8255,
-        "rate {rate} (truth 0.8255)"
+    let k = judged_on_step_test(
+        "zoo_seed44_0246_drift.csv",
+        ("output_drift", "rate_per_s"),
+        0.8255,
+        0.2,
     );
     assert!(k.evidence.contains("validation RMSE"), "{}", k.evidence);
+}
+
+/// The effect `(name, parameter)` the default run on fixture `file` (a step test: its held-out
+/// part the response's tail) keeps, its parameter within `tolerance` (relative) of `truth`.
+fn judged_on_step_test(
+    file: &str,
+    (name, parameter): (&str, &str),
+    truth: f64,
+    tolerance: f64,
+) -> ident::diagnose::KeptEffect {
+    let r = default_run_on_fixture(file);
+    assert_eq!(
+        r.validated_by.kind,
+        ident::oe::ValidationKind::ResponseTail,
+        "{file}"
+    );
+    let d = &r.diagnosis.as_ref().expect("a diagnosis").diagnosis;
+    let k = kept_effect(d, name).clone();
+    let v = k.params[parameter];
+    assert!(
+        (v - truth).abs() < tolerance * truth,
+        "{file}: {parameter} = {v} (truth {truth})"
+    );
+    k
 }
 
 /// The benchmark zoo's friction case 0211 (seed 44, `tests/data/README.md`): a first-order drive
