@@ -7,22 +7,11 @@ defaults, against that file's integer baseline on fracid's split (scipy), one ma
 
 Nothing is written beside the records (each report goes to standard output)."""
 
-import json
-import subprocess
 import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "python" / "tests"))
 import test_real_records as T  # noqa: E402
-
-
-def report(binary: str, path: Path, *extra: str) -> tuple[dict, int]:
-    p = subprocess.run(
-        [binary, "time", str(path), "--json", *extra],
-        capture_output=True,
-        text=True,
-    )
-    return json.loads(p.stdout), p.returncode
 
 
 def figure(out: dict, code: int) -> str:
@@ -35,8 +24,8 @@ def main() -> None:
     binary = sys.argv[1]
     for name, (rel, _) in T.RECORDS.items():
         path = T.DATA / rel
-        plain = report(binary, path, "--plain")
-        default = report(binary, path)
+        plain = T.run_fracid(binary, path, "--plain")
+        default = T.run_fracid(binary, path)
         n_est, first, _, rmse, kind = T.held_out(default[0])
         best, _ = T.baseline_on_split(name, n_est, first)
         model = default[0]["model_is"].split("(", 1)[-1].rsplit(")", 1)[0]
