@@ -84,15 +84,38 @@ impl Carried {
     }
 }
 
+/// A candidate refitted as a smaller structure before its diagnosis (a two-term fit whose terms
+/// the record did not determine, refitted as its single mode; a degenerate two-mass fit made
+/// well posed): the structure in full, its name, and the fit the reduction was made from. A
+/// base fit that an effect bent (a saturation, a friction) may leave a term undetermined that
+/// the effect, once fitted, determines: the full structure is then the one the effect is
+/// carried to ([`carry`]), where its reduced form would need a delay to stand in for the term
+/// it lost (the zoo's saturation 45/0289, friction 45/0236).
+#[derive(Debug, Clone)]
+pub(crate) struct Unreduced {
+    /// The candidate's name (without "(reduced)").
+    pub name: String,
+    /// The structure in full.
+    pub model: FracModel,
+    /// The fit the reduction was made from: the base of its diagnosis when the effect is
+    /// carried to it.
+    pub id: crate::oe::Identification,
+}
+
 /// The chosen structure's one effect carried to the structures richer than it (module
 /// documentation): each fitted with it from its own start, and one whose fit predicts the
-/// held-out part better than the chosen final model beyond the tie diagnosed again from its base fit with that
-/// fit as the effect's start; its diagnosis replaces its row when its final model is better.
-/// Returns the structures diagnosed again, each with the words for the choice's reason; the
-/// caller judges and decides again.
+/// held-out part better than the chosen final model beyond the tie diagnosed again from its base
+/// fit with that fit as the effect's start; its diagnosis replaces its row when its final model
+/// is better. A candidate that was reduced before its diagnosis (`unreduced`) is carried to in
+/// full, the chosen one too: its row then becomes the full structure's (its name and base fit).
+/// A structure whose diagnosis kept the effect already is carried to only when its final model
+/// is behind the chosen one's beyond the tie (its diagnosis started from a base fit the effect
+/// had bent; the effect fitted from the structure's own start may end elsewhere). Returns the
+/// structures diagnosed again, each with the words for the choice's reason; the caller judges
+/// and decides again.
 pub(crate) fn carry(
     rec: &Record,
-    cands: &[(String, FracModel)],
+    (cands, unreduced): (&mut [(String, FracModel)], &[Option<Unreduced>]),
     (outcomes, scores): (&mut [Outcome], &mut [StructureScore]),
     chosen: usize,
     (opts, dopts): (&IdentOptions, &DiagnoseOptions),
@@ -108,25 +131,33 @@ pub(crate) fn carry(
     };
     let (bar, integrator) = (d.after.rmse, cands[chosen].1.integrator);
     let terms = |m: &FracModel| m.params.iter().filter(|p| p.free).count();
-    // A structure whose base fit holds the effect (an integrating structure's input offset)
-    // or whose diagnosis kept it was fitted with it.
-    let richer = |i: usize| {
-        i != chosen
-            && cands[i].1.integrator == integrator
-            && terms(&cands[i].1) > terms(&cands[chosen].1)
-            && !outcomes[i]
-                .id
-                .as_ref()
-                .is_some_and(|b| holds(&b.model, effect.name))
-            && !scores[i].effects.iter().any(|e| e == effect.name)
-    };
-    let richer: Vec<usize> = (0..cands.len()).filter(|&i| richer(i)).collect();
+    let fewest = terms(&cands[chosen].1);
+    let chosen_name = cands[chosen].0.clone();
     let mut words = vec![];
-    for i in richer {
-        let Some(base) = outcomes[i].id.as_ref() else {
-            continue;
+    for i in 0..cands.len() {
+        let full = unreduced.get(i).and_then(Option::as_ref);
+        let (structure, base) = match full {
+            Some(u) => (&u.model, Some(&u.id)),
+            None => (&cands[i].1, outcomes[i].id.as_ref()),
         };
-        let Ok(fresh) = identify(rec, &effect.onto(&cands[i].1), opts) else {
+        let Some(base) = base else { continue };
+        // A structure whose base fit holds the effect (an integrating structure's input
+        // offset) was fitted with it; one whose diagnosis kept it and ties the chosen one
+        // competes already.
+        let kept = full.is_none()
+            && scores[i].effects.iter().any(|e| e == effect.name)
+            && scores[i]
+                .rmse_after
+                .is_none_or(|r| r <= (1.0 + super::choice::TIE) * bar);
+        if (i == chosen && full.is_none())
+            || structure.integrator != integrator
+            || terms(structure) <= fewest
+            || holds(&base.model, effect.name)
+            || kept
+        {
+            continue;
+        }
+        let Ok(fresh) = identify(rec, &effect.onto(structure), opts) else {
             continue;
         };
         let held = fresh.validation.unwrap_or(fresh.estimation).rmse;
@@ -144,9 +175,8 @@ pub(crate) fn carry(
                 .zip(fresh.report.values.iter().copied())
                 .collect(),
             evidence: format!(
-                "carried from {}'s diagnosis: this structure fitted with it from its own start \
-                 holds out {held:.4e}",
-                cands[chosen].0
+                "carried from {chosen_name}'s diagnosis: this structure fitted with it from its \
+                 own start holds out {held:.4e}"
             ),
             ..effect.clone()
         };
@@ -155,12 +185,19 @@ pub(crate) fn carry(
         let Ok(again) = again else { continue };
         let before = scores[i].rmse_after.unwrap_or(f64::INFINITY);
         if again.after.rmse < before && again.effects.iter().any(|k| k.name == effect.name) {
+            if let Some(u) = full {
+                cands[i] = (u.name.clone(), u.model.clone());
+                outcomes[i].id = Some(u.id.clone());
+            }
             words.push((
                 i,
                 format!(
-                    "{} diagnosed again with {}'s {} (fitted with it from its own start: held-out \
-                 RMSE {held:.4e}; {:.4e} after its diagnosis)",
-                    cands[i].0, cands[chosen].0, effect.name, again.after.rmse
+                    "{} diagnosed again{} with {chosen_name}'s {} (fitted with it from its own \
+                     start: held-out RMSE {held:.4e}; {:.4e} after its diagnosis)",
+                    cands[i].0,
+                    if full.is_some() { " in full" } else { "" },
+                    effect.name,
+                    again.after.rmse
                 ),
             ));
             outcomes[i].diagnosis = Some(Ok(again));

@@ -240,8 +240,10 @@ struct Based {
     /// The state an early diagnosis was given up at ([`super::Resume`]).
     given_up: Option<Resumable>,
     /// The reduced structure and the words, when the fit was a degenerate two-mass fit made well
-    /// posed ([`reduce_one`]): `fitted` is then the reduced refit.
-    reduced: Option<(FracModel, String)>,
+    /// posed ([`reduce_one`]) or a two-term fit refitted as its single mode
+    /// ([`reduce_single_mode`]): `fitted` is then the reduced refit, and the fit it was made
+    /// from is kept ([`super::carry::Unreduced`]).
+    reduced: Option<(FracModel, String, Identification)>,
 }
 
 /// What the candidates' threads share ([`fit_candidates`]): their progress behind one lock, and
@@ -584,6 +586,8 @@ fn settle(
     (i, fitted, full): (usize, Fitted, bool),
     (shared, dopts, board): (&Shared, &super::DiagnoseOptions, &Board),
 ) -> Based {
+    // The fit a reduction is made from (the screening fit here, or the full fit below).
+    let screened = fitted.0.as_ref().ok().cloned();
     let (mut fitted, out, smallest) = if full || no_start(&fitted) {
         (fitted, false, None)
     } else if fitted.0.is_err() {
@@ -617,7 +621,13 @@ fn settle(
     };
     // A degenerate two-mass fit is made well posed here, before its diagnosis (the degenerate
     // fit itself is then never diagnosed).
-    let reduced = smallest.or_else(|| reduce_any(rec, &mut fitted, opts));
+    let reduced = match (smallest, screened) {
+        (Some((model, what)), Some(from)) => Some((model, what, from)),
+        _ => {
+            let from = fitted.0.as_ref().ok().cloned();
+            reduce_any(rec, &mut fitted, opts).zip(from).map(|((m, w), f)| (m, w, f))
+        }
+    };
     let (early, given_up) = if out {
         (None, None)
     } else {
@@ -916,7 +926,8 @@ pub fn diagnose_best_fitting(
     let Gathered {
         ids,
         caches,
-        reduced,
+        mut reduced,
+        unreduced,
         ..
     } = g;
     let mut diagnoses = diagnoses;
@@ -953,11 +964,13 @@ pub fn diagnose_best_fitting(
     };
     let carried = super::carry::carry(
         rec,
-        &cands,
+        (&mut cands, &unreduced),
         (&mut outcomes, &mut scores),
         chosen,
         (opts, dopts),
     );
+    // a structure diagnosed again in full is no longer reduced
+    reduced.retain(|(i, _)| unreduced[*i].is_none() || !carried.iter().any(|(j, _)| j == i));
     if !carried.is_empty() {
         judge_finals(rec, &outcomes, &mut scores, opts);
         (chosen, best) = decide(&scores).unwrap_or((chosen, best));
@@ -1037,6 +1050,8 @@ struct Gathered {
     screened_out: Vec<usize>,
     /// The degenerate two-mass fits made well posed, with the words.
     reduced: Vec<(usize, String)>,
+    /// Each reduced candidate's structure in full and the fit it was reduced from.
+    unreduced: Vec<Option<super::carry::Unreduced>>,
 }
 
 /// The candidates' base fits `based` taken apart ([`Gathered`]): a degenerate two-mass fit made
@@ -1047,6 +1062,7 @@ fn gathered(based: Vec<Based>, cands: &mut [(String, FracModel)]) -> Gathered {
     let mut early = vec![];
     let mut given_up = vec![];
     let mut reduced = vec![];
+    let mut unreduced = vec![];
     let (ids, caches): (Vec<Result<Identification>>, Vec<Option<RootsCache>>) = based
         .into_iter()
         .enumerate()
@@ -1054,8 +1070,18 @@ fn gathered(based: Vec<Based>, cands: &mut [(String, FracModel)]) -> Gathered {
             // A diagnosis given up goes on from where it was given up if it is needed after all.
             early.push(b.early.filter(|d| !matches!(d, Err(Error::Cancelled(_)))));
             given_up.push(b.given_up);
-            if let Some((model, what)) = b.reduced {
-                cands[i] = (format!("{} (reduced)", cands[i].0), model);
+            unreduced.push(None);
+            if let Some((model, what, from)) = b.reduced {
+                let (name, full) = std::mem::replace(
+                    &mut cands[i],
+                    (String::new(), model),
+                );
+                cands[i].0 = format!("{name} (reduced)");
+                unreduced[i] = Some(super::carry::Unreduced {
+                    name,
+                    model: full,
+                    id: from,
+                });
                 reduced.push((i, what));
             }
             b.fitted
@@ -1068,6 +1094,7 @@ fn gathered(based: Vec<Based>, cands: &mut [(String, FracModel)]) -> Gathered {
         given_up,
         screened_out,
         reduced,
+        unreduced,
     }
 }
 
