@@ -184,7 +184,17 @@ pub(crate) fn carry(
             .enter(|| super::diagnose_carrying(rec, base, dopts, std::slice::from_ref(&start)));
         let Ok(again) = again else { continue };
         let before = scores[i].rmse_after.unwrap_or(f64::INFINITY);
-        if again.after.rmse < before && again.effects.iter().any(|k| k.name == effect.name) {
+        // The structure in full takes a reduced row only with a final model usable at its
+        // values (as the choice judges a final model whose base fit is not usable): the row's
+        // reduced diagnosis is otherwise lost to one that cannot be chosen.
+        let usable = || {
+            full.is_none()
+                || crate::oe::evaluate::problems_at_values(rec, &again.model, opts).is_empty()
+        };
+        if again.after.rmse < before
+            && again.effects.iter().any(|k| k.name == effect.name)
+            && usable()
+        {
             if let Some(u) = full {
                 cands[i] = (u.name.clone(), u.model.clone());
                 outcomes[i].id = Some(u.id.clone());

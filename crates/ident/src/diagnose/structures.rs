@@ -625,7 +625,9 @@ fn settle(
         (Some((model, what)), Some(from)) => Some((model, what, from)),
         _ => {
             let from = fitted.0.as_ref().ok().cloned();
-            reduce_any(rec, &mut fitted, opts).zip(from).map(|((m, w), f)| (m, w, f))
+            reduce_any(rec, &mut fitted, opts)
+                .zip(from)
+                .map(|((m, w), f)| (m, w, f))
         }
     };
     let (early, given_up) = if out {
@@ -1072,10 +1074,7 @@ fn gathered(based: Vec<Based>, cands: &mut [(String, FracModel)]) -> Gathered {
             given_up.push(b.given_up);
             unreduced.push(None);
             if let Some((model, what, from)) = b.reduced {
-                let (name, full) = std::mem::replace(
-                    &mut cands[i],
-                    (String::new(), model),
-                );
+                let (name, full) = std::mem::replace(&mut cands[i], (String::new(), model));
                 cands[i].0 = format!("{name} (reduced)");
                 unreduced[i] = Some(super::carry::Unreduced {
                     name,

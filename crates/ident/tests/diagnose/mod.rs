@@ -1414,3 +1414,77 @@ fn an_instant_response_is_not_taken_for_a_time_stamp_skew() {
         choice.reason
     );
 }
+
+/// The value of parameter `name` in the final model of `d`.
+fn final_value(d: &Diagnosis, name: &str) -> f64 {
+    let i = d
+        .model
+        .index_of(name)
+        .unwrap_or_else(|| panic!("no {name} in {}", d.final_model));
+    d.model.params[i].value
+}
+
+/// A static input map behind an input offset (fixture `file`), kept with the defaults: the map
+/// `effect` with its parameter `(name, truth)` and the model's input offset near `offset`, each
+/// within 10%.
+fn off_centre_map_kept(file: &str, effect: (&str, &str, f64), offset: f64) {
+    let (effect, name, truth) = effect;
+    let r = default_run_on_fixture(file);
+    let d = &r.diagnosis.as_ref().expect("a diagnosis").diagnosis;
+    let v = kept_effect(d, effect).params[name];
+    assert!(
+        (v / truth - 1.0).abs() < 0.1,
+        "{file}: {name} = {v} (truth {truth})"
+    );
+    let c = final_value(d, "u_offset");
+    assert!(
+        (c / offset - 1.0).abs() < 0.1,
+        "{file}: u_offset = {c} (truth {offset})"
+    );
+}
+
+/// The benchmark zoo's case 0122 of seed 45 (`tests/data/README.md`): a first order behind
+/// `clamp(u + 0.437, -2.273, 2.273)`, a staircase of 315 samples. Clamped about the input's
+/// zero, the saturation took 75% off the estimation residual and predicted the held-out part 15%
+/// worse (it clips the other side there): it was rejected. Off the centre it is kept.
+#[test]
+fn a_clamp_off_the_inputs_centre_is_kept_with_its_offset() {
+    off_centre_map_kept(
+        "zoo_seed45_0122_two_effects.csv",
+        ("saturation", "level", 2.2735),
+        0.43722,
+    );
+}
+
+/// The benchmark zoo's case 0047 of seed 45: a PMSM behind a dead band of half width 1.961 about
+/// an input offset of -1.743 under a multisine; the dead band about the input's zero was not
+/// found (a friction and a dead band stood in, neither right). Off the centre it is kept.
+#[test]
+fn a_dead_band_off_the_inputs_centre_is_kept_with_its_offset() {
+    off_centre_map_kept(
+        "zoo_seed45_0047_two_effects.csv",
+        ("deadzone", "width", 1.9608),
+        -1.7433,
+    );
+}
+
+/// The benchmark zoo's case 0236 of seed 45: the PMSM `70.49/(5.2546e-3 s^1.1457 + 0.050357
+/// s^0.80235 + 1)` with Coulomb friction 1.147 under a PRBS. Its base fits, bent by the friction,
+/// leave the second term undetermined, and the commensurate structure reduced to one mode was
+/// chosen with the friction and a 0.16 ms delay standing in for that term. Carried to the full
+/// structures, the friction is kept without a delay.
+#[test]
+fn an_effect_is_carried_to_a_reduced_structure_in_full() {
+    let r = default_run_on_fixture("zoo_seed45_0236_friction_reversal.csv");
+    let dg = r.diagnosis.as_ref().expect("a diagnosis");
+    let d = &dg.diagnosis;
+    assert_eq!(names(d), ["coulomb_friction"], "{}", dg.structures.reason);
+    let chosen = &dg.structures.scores[dg.structures.chosen].name;
+    assert!(
+        !chosen.contains("reduced"),
+        "{chosen}: {}",
+        dg.structures.reason
+    );
+    let vc = param(d, "coulomb_friction", "Vc");
+    assert!((vc / 1.1467 - 1.0).abs() < 0.1, "Vc = {vc} (truth 1.147)");
+}

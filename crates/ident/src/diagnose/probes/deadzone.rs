@@ -3,6 +3,7 @@
 //!
 //! Signature: `G (dz_w(u) - u)` over a grid of `w` from 3% to 36% of the largest input
 //! ([`super::probe_static_map`]). Ambiguous with a gain and an offset for a two-level input.
+//! Behind an input offset, about another centre: [`super::off_centre`].
 
 use super::{named, probe_static_map, Findings, Look, Probe, StaticMap};
 use crate::oe::{Bounds, Effect, FracModel};
@@ -36,6 +37,7 @@ impl Probe for Deadzone {
             effect: |width, _| Effect::Deadzone { width },
         };
         probe_static_map(look, found, &spec);
+        super::off_centre::offer(look, found, &spec, look.clips()[1]);
         Ok(())
     }
 

@@ -14,6 +14,7 @@ mod delay;
 mod friction;
 mod initial_state;
 mod input_offset;
+mod off_centre;
 mod output_drift;
 mod output_offset;
 mod periodic;
@@ -181,6 +182,9 @@ pub(crate) struct Look<'a> {
     pub noise: f64,
     /// The model speed's signs, with a band of three noise levels.
     pub motion: Motion,
+    /// The input's best two-sided clips ([`off_centre::clips`]), found once for the clamp's and
+    /// the dead band's probes.
+    clips: std::cell::OnceCell<[Option<off_centre::Clip>; 2]>,
 }
 
 impl<'a> Look<'a> {
@@ -212,7 +216,14 @@ impl<'a> Look<'a> {
             ua,
             noise,
             motion,
+            clips: std::cell::OnceCell::new(),
         })
+    }
+
+    /// The input's best two-sided clip with a positive coefficient (a clamp, `[0]`) and with a
+    /// negative one (a dead band, `[1]`), off the centre ([`off_centre::clips`]).
+    pub(crate) fn clips(&self) -> [Option<off_centre::Clip>; 2] {
+        *self.clips.get_or_init(|| off_centre::clips(self))
     }
 
     /// Estimation samples.

@@ -3,6 +3,7 @@
 //! Signature: `G (clamp(u, -L, L) - u)` over a grid of `L` from 45% to 100% of the largest input
 //! ([`super::probe_static_map`]). With a two-level input any static input map is affine (a gain
 //! and an offset): then it is reported as ambiguous, never fitted.
+//! Behind an input offset, about another centre: [`super::off_centre`].
 
 use super::{named, probe_static_map, Findings, Look, Probe, StaticMap};
 use crate::oe::{Bounds, Effect, FracModel};
@@ -28,6 +29,7 @@ impl Probe for Saturation {
             effect: |level, _| Effect::Saturation { level },
         };
         probe_static_map(look, found, &spec);
+        super::off_centre::offer(look, found, &spec, look.clips()[0]);
         Ok(())
     }
 
