@@ -14,8 +14,9 @@
 //! `(U, D)` is regressed ([`crate::diagnose::residual::explained_in`]) at the cost of two grids:
 //! a positive coefficient is a clamp, a negative one a dead band. The best pair of each sign is
 //! offered ([`offer`]) as a start of the map's refit beside the symmetric one when it explains
-//! more than the symmetric grid's best, and the refit with the lower BIC is the candidate's (the
-//! offset must pay for its parameter: [`crate::diagnose`]'s refit of several starts).
+//! more than the symmetric grid's best; its refit is the candidate's only when it pays over the
+//! symmetric refit, and over the symmetric structure refitted from its values, by the rules an
+//! effect meets (the offset is an effect of its own: [`crate::diagnose`]'s `best_refit`).
 //!
 //! Identifiability: the input must take more distinct levels than the map, its centre, the gain
 //! and the output offset have parameters (four): on fewer, any such map is matched by some
