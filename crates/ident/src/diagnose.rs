@@ -695,22 +695,7 @@ fn credited(
     verdict: &Verdict,
     params: &BTreeMap<String, f64>,
 ) -> std::result::Result<(), Refuted> {
-    let nb = st.model.params.len();
-    let extends = ns.model.params.len() >= nb
-        && st
-            .model
-            .params
-            .iter()
-            .zip(&ns.model.params)
-            .all(|(a, b)| a.name == b.name);
-    if !extends {
-        return Ok(());
-    }
-    let mut without = st.model.clone();
-    for (p, v) in without.params.iter_mut().zip(&ns.values) {
-        p.value = p.bounds.clamp_inside(*v);
-    }
-    let Ok(null) = ctx.fit_from(without, &ctx.opts.fit) else {
+    let Some(null) = refit_at_values(ctx, &st.model, ns) else {
         return Ok(());
     };
     let own = Verdict::of(ctx, &null, ns);
@@ -740,6 +725,26 @@ fn credited(
     // floor's half ([`Verdict::clears`]) is for an effect, a term its signature proposed.
     let pays = Verdict::of(ctx, st, &null).pays_in_full(ctx);
     Err((rejected, pays.then(|| Box::new(null))))
+}
+
+/// The structure `model` refitted from the values of refit `ns`, which extends it (its
+/// parameters, by name, the first of `ns`'s): the refit without what `ns` added. `None` when
+/// `ns` does not extend `model` or the refit fails.
+fn refit_at_values(ctx: &Ctx<'_>, model: &FracModel, ns: &State) -> Option<State> {
+    let extends = ns.model.params.len() >= model.params.len()
+        && model
+            .params
+            .iter()
+            .zip(&ns.model.params)
+            .all(|(a, b)| a.name == b.name);
+    if !extends {
+        return None;
+    }
+    let mut without = model.clone();
+    for (p, v) in without.params.iter_mut().zip(&ns.values) {
+        p.value = p.bounds.clamp_inside(*v);
+    }
+    ctx.fit_from(without, &ctx.opts.fit).ok()
 }
 
 /// A candidate's parameters in its report, from its refit and its input advance.
@@ -1104,18 +1109,8 @@ fn best_refit(ctx: &Ctx<'_>, starts: &[FracModel]) -> Result<State> {
             // ... and over the first refitted from its values (the credit check's rule,
             // [`credited`]): the other start may only have led the shared parameters to a
             // better optimum (a clamp's level: the zoo's 47/0089, its offset -0.1 of 4.2).
-            let prefix = a.model.params.len() <= b.model.params.len()
-                && a.model
-                    .params
-                    .iter()
-                    .zip(&b.model.params)
-                    .all(|(p, q)| p.name == q.name);
-            let mut again = a.model.clone();
-            for (p, v) in again.params.iter_mut().zip(&b.values) {
-                p.value = p.bounds.clamp_inside(*v);
-            }
-            match prefix.then(|| ctx.fit_from(again, &ctx.opts.fit)) {
-                Some(Ok(a2)) if !Verdict::of(ctx, &a2, &b).pays(ctx) => {
+            match refit_at_values(ctx, &a.model, &b) {
+                Some(a2) if !Verdict::of(ctx, &a2, &b).pays(ctx) => {
                     Ok(if a2.ssr < a.ssr { a2 } else { a })
                 }
                 _ => Ok(b),

@@ -187,10 +187,8 @@ pub(crate) fn carry(
         // The structure in full takes a reduced row only with a final model usable at its
         // values (as the choice judges a final model whose base fit is not usable): the row's
         // reduced diagnosis is otherwise lost to one that cannot be chosen.
-        let usable = || {
-            full.is_none()
-                || crate::oe::evaluate::problems_at_values(rec, &again.model, opts).is_empty()
-        };
+        let usable =
+            || full.is_none() || super::choice::final_problems(rec, &again, opts).is_empty();
         if again.after.rmse < before
             && again.effects.iter().any(|k| k.name == effect.name)
             && usable()

@@ -200,14 +200,25 @@ pub(crate) fn judge_finals(
         if s.problems.is_empty() || d.halted.is_some() || !contends {
             continue;
         }
-        let advanced = d.skew_samples(rec.dt).map(|lead| {
-            let mut r = rec.clone();
-            r.u = super::advanced(&rec.u, lead);
-            r
-        });
-        let on = advanced.as_ref().unwrap_or(rec);
-        s.problems_after = Some(crate::oe::evaluate::problems_at_values(on, &d.model, opts));
+        s.problems_after = Some(final_problems(rec, d, opts));
     }
+}
+
+/// Why the final model of diagnosis `d` cannot be used, judged at its values by the rules the
+/// report judges the model it leads with ([`crate::oe::evaluate::problems_at_values`]), on the
+/// input advanced by a kept time-stamp skew, nothing held.
+pub(crate) fn final_problems(
+    rec: &crate::data::Record,
+    d: &super::Diagnosis,
+    opts: &crate::oe::IdentOptions,
+) -> Vec<String> {
+    let advanced = d.skew_samples(rec.dt).map(|lead| {
+        let mut r = rec.clone();
+        r.u = super::advanced(&rec.u, lead);
+        r
+    });
+    let on = advanced.as_ref().unwrap_or(rec);
+    crate::oe::evaluate::problems_at_values(on, &d.model, opts)
 }
 
 /// The index chosen by the rule of the module documentation, or `None` when no candidate has a

@@ -243,8 +243,11 @@ struct Based {
     /// posed ([`reduce_one`]) or a two-term fit refitted as its single mode
     /// ([`reduce_single_mode`]): `fitted` is then the reduced refit, and the fit it was made
     /// from is kept ([`super::carry::Unreduced`]).
-    reduced: Option<(FracModel, String, Identification)>,
+    reduced: Option<Reduction>,
 }
+
+/// A reduction of a candidate's fit: the reduced structure, the words, and the fit it replaced.
+type Reduction = (FracModel, String, Identification);
 
 /// What the candidates' threads share ([`fit_candidates`]): their progress behind one lock, and
 /// one condition variable signalled at every change of it (each wait re-tests its own
@@ -586,8 +589,6 @@ fn settle(
     (i, fitted, full): (usize, Fitted, bool),
     (shared, dopts, board): (&Shared, &super::DiagnoseOptions, &Board),
 ) -> Based {
-    // The fit a reduction is made from (the screening fit here, or the full fit below).
-    let screened = fitted.0.as_ref().ok().cloned();
     let (mut fitted, out, smallest) = if full || no_start(&fitted) {
         (fitted, false, None)
     } else if fitted.0.is_err() {
@@ -613,7 +614,7 @@ fn settle(
                 }
             }
             (Ok(id), _) => match reduce_screened(rec, &id, opts) {
-                Some((fitted, reduced)) => (fitted, false, Some(reduced)),
+                Some((fitted, (model, what))) => (fitted, false, Some((model, what, id))),
                 None => (fresh_fit(rec, m, opts), false, None),
             },
             other => (other, false, None),
@@ -621,15 +622,7 @@ fn settle(
     };
     // A degenerate two-mass fit is made well posed here, before its diagnosis (the degenerate
     // fit itself is then never diagnosed).
-    let reduced = match (smallest, screened) {
-        (Some((model, what)), Some(from)) => Some((model, what, from)),
-        _ => {
-            let from = fitted.0.as_ref().ok().cloned();
-            reduce_any(rec, &mut fitted, opts)
-                .zip(from)
-                .map(|((m, w), f)| (m, w, f))
-        }
-    };
+    let reduced = smallest.or_else(|| reduce_any(rec, &mut fitted, opts));
     let (early, given_up) = if out {
         (None, None)
     } else {
@@ -1387,7 +1380,7 @@ fn reduce_degenerate(
         let mut fitted = (std::mem::replace(&mut ids[i], panicked()), caches[i].take());
         let reduced = reduce_any(rec, &mut fitted, opts);
         (ids[i], caches[i]) = fitted;
-        if let Some((model, what)) = reduced {
+        if let Some((model, what, _)) = reduced {
             cands[i] = (format!("{} (reduced)", cands[i].0), model);
             out.push((i, what));
         }
@@ -1395,25 +1388,22 @@ fn reduce_degenerate(
     out
 }
 
+/// `fitted` replaced by `by`, and the identification it held.
+fn replaced(fitted: &mut Fitted, by: Fitted) -> Option<Identification> {
+    std::mem::replace(fitted, by).0.ok()
+}
+
 /// A degenerate base fit `fitted` made well posed: a two-mass fit ([`reduce_one`]), else a
 /// two-term fit whose second term is not determined ([`reduce_single_mode`]).
-fn reduce_any(
-    rec: &Record,
-    fitted: &mut Fitted,
-    opts: &IdentOptions,
-) -> Option<(FracModel, String)> {
+fn reduce_any(rec: &Record, fitted: &mut Fitted, opts: &IdentOptions) -> Option<Reduction> {
     reduce_one(rec, fitted, opts).or_else(|| reduce_single_mode(rec, fitted, opts))
 }
 
 /// [`reduce_degenerate`] for one candidate's base fit `fitted`: when it is a degenerate two-mass
 /// fit whose reduced refit passes, the refit (and its pole cache) replaces it and the reduced
-/// structure is returned with the words; when the refit does not pass, the fit gets the problem
+/// structure is returned with the words and the fit it replaced; when the refit does not pass, the fit gets the problem
 /// saying which parameters are not determined; otherwise it is left as it is.
-fn reduce_one(
-    rec: &Record,
-    fitted: &mut Fitted,
-    opts: &IdentOptions,
-) -> Option<(FracModel, String)> {
+fn reduce_one(rec: &Record, fitted: &mut Fitted, opts: &IdentOptions) -> Option<Reduction> {
     let Ok(id) = &mut fitted.0 else { return None };
     let (reduced, what) = reduced_two_mass(id)?;
     let mut given = opts.clone();
@@ -1422,8 +1412,7 @@ fn reduce_one(
     let (refit, cache) = fresh_fit(rec, &reduced, &given);
     match refit {
         Ok(r) if r.usable() && determined(&r) && base_rmse(&r) <= (1.0 + TIE) * before => {
-            *fitted = (Ok(r), cache);
-            Some((reduced, what))
+            replaced(fitted, (Ok(r), cache)).map(|from| (reduced, what, from))
         }
         _ => {
             id.problems.push(format!(
@@ -1506,11 +1495,7 @@ const SINGLE_MODE_TIE: f64 = 0.005;
 /// undetermined (a coefficient run to nothing, or two terms at one order), and the comparison then
 /// had no usable fractional structure: the zoo's diffusion cases 0082, 0232 and 0282 were left
 /// to integer or general models 5-8% off the truth's response. Otherwise `fitted` is unchanged.
-fn reduce_single_mode(
-    rec: &Record,
-    fitted: &mut Fitted,
-    opts: &IdentOptions,
-) -> Option<(FracModel, String)> {
+fn reduce_single_mode(rec: &Record, fitted: &mut Fitted, opts: &IdentOptions) -> Option<Reduction> {
     let Ok(id) = &fitted.0 else { return None };
     let undetermined =
         !id.problems.is_empty() && id.problems.iter().all(|p| p.contains("determined"));
@@ -1528,8 +1513,7 @@ fn reduce_single_mode(
                 && determined(&r)
                 && base_rmse(&r) <= (1.0 + SINGLE_MODE_TIE) * before =>
         {
-            *fitted = (Ok(r), cache);
-            Some((reduced, what))
+            replaced(fitted, (Ok(r), cache)).map(|from| (reduced, what, from))
         }
         _ => None,
     }
@@ -2210,7 +2194,7 @@ mod tests {
         set(&mut other, &[("a1", 0.3)]);
         assert!(single_mode(&other, dt, n as f64 * dt).is_none());
         let before = base_rmse(id);
-        let (model, what) = reduce_single_mode(&rec, &mut fitted, &opts).expect("reduced");
+        let (model, what, _) = reduce_single_mode(&rec, &mut fitted, &opts).expect("reduced");
         assert!(what.contains("one fractional mode"), "{what}");
         let r = fitted.0.as_ref().unwrap();
         assert!(r.usable() && determined(r), "{}: {:?}", r.tf, r.problems);

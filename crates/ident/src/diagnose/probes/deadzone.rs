@@ -37,7 +37,7 @@ impl Probe for Deadzone {
             effect: |width, _| Effect::Deadzone { width },
         };
         probe_static_map(look, found, &spec);
-        super::off_centre::offer(look, found, &spec, look.clips()[1]);
+        super::off_centre::offer(look, found, &spec, 1);
         Ok(())
     }
 

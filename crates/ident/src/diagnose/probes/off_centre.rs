@@ -112,17 +112,18 @@ pub(crate) fn clips(look: &Look<'_>) -> [Option<Clip>; 2] {
     })
 }
 
-/// Offer the static map `sm` off the centre (`clip` its best pair of thresholds, [`clips`]):
-/// its start (an input offset `c = (D - U)/2` before the map at `(U + D)/2`) is added to the
-/// symmetric candidate's starts when it explains more than it, or proposed alone when the
-/// symmetric probe proposed none. Nothing when the model has the map or an input offset already.
-pub(crate) fn offer(look: &Look<'_>, found: &mut Findings, sm: &StaticMap, clip: Option<Clip>) {
-    let Some(Clip { r2, upper, lower }) = clip else {
-        return;
-    };
+/// Offer the static map `sm` off the centre, its best pair of thresholds the clip of sign
+/// `sign` ([`Look::clips`]: 0 a clamp, 1 a dead band): its start (an input offset
+/// `c = (D - U)/2` before the map at `(U + D)/2`) is added to the symmetric candidate's starts
+/// when it explains more than it, or proposed alone when the symmetric probe proposed none.
+/// Nothing (and no clip searched) when the model has the map or an input offset already.
+pub(crate) fn offer(look: &Look<'_>, found: &mut Findings, sm: &StaticMap, sign: usize) {
     if look.has(sm.param) || look.has(OFFSET) {
         return;
     }
+    let Some(Clip { r2, upper, lower }) = look.clips()[sign] else {
+        return;
+    };
     let mut m: FracModel = look.st.model.clone();
     let g = m.add_param(Param::new(sm.param, 0.5 * (upper + lower), sm.bounds));
     let c = m.add_param(Param::new(OFFSET, 0.5 * (lower - upper), Bounds::Free));

@@ -29,7 +29,7 @@ impl Probe for Saturation {
             effect: |level, _| Effect::Saturation { level },
         };
         probe_static_map(look, found, &spec);
-        super::off_centre::offer(look, found, &spec, look.clips()[0]);
+        super::off_centre::offer(look, found, &spec, 0);
         Ok(())
     }
 
