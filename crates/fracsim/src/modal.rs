@@ -1405,7 +1405,10 @@ mod tests {
         };
         for w in [1.0, 30.0, 170.0, 410.0, 3e3, 8e3] {
             let (got, want) = (pr.freq_response(w), direct(w));
-            assert!((got - want).norm() <= 1e-9 * want.norm(), "{w}: {got} {want}");
+            assert!(
+                (got - want).norm() <= 1e-9 * want.norm(),
+                "{w}: {got} {want}"
+            );
         }
         check_against(&pr, band, direct).unwrap();
         let mut wrong = pr.clone();

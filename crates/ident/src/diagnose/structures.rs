@@ -57,8 +57,8 @@ use crate::{Error, Result};
 use fracsim::modal::RootsCache;
 
 /// The structures of the catalogue every comparison fits beside the user's, in its order: all but
-/// the feed-through and the cell (fitted only when the record shows an instant response,
-/// [`with_feedthrough`]) and `fopdt` (the first order is fitted, and a delay is an effect the
+/// the feed-through and the cell (fitted only when the record's instant response may be a
+/// feed-through, [`with_feedthrough`]) and `fopdt` (the first order is fitted, and a delay is an effect the
 /// diagnosis finds).
 pub fn compared() -> impl Iterator<Item = Preset> {
     Preset::ALL
@@ -102,26 +102,27 @@ pub fn two_mass() -> FracModel {
 }
 
 /// The candidates `cands` with the structures that have a direct feed-through added when the
-/// record shows an instant response ([`crate::oe::init::feedthrough::instant_response`]: a cheap
-/// regression, no simulation): the feed-through ([`FracModel::feedthrough`]) and the cell
-/// ([`FracModel::cell`]: a feed-through beside an integrator, which a cell's voltage has), each
-/// with the approximation of `model` unless a candidate has its kind already. A record without
-/// one keeps its candidates: its diagnosis costs what it did.
+/// record's instant response may be one ([`crate::oe::init::feedthrough::instant_response`]: a
+/// cheap regression, no simulation; [`crate::oe::init::feedthrough::InstantResponse::may_be_feedthrough`]):
+/// the feed-through ([`FracModel::feedthrough`]) and the cell ([`FracModel::cell`]: a
+/// feed-through beside an integrator, which a cell's voltage has), each with the approximation of
+/// `model` unless a candidate has its kind already. A record without one keeps its candidates: its
+/// diagnosis costs what it did.
 pub fn with_feedthrough(
     rec: &Record,
     mut cands: Vec<(String, FracModel)>,
     model: &FracModel,
 ) -> Vec<(String, FracModel)> {
-    let shows = || {
+    let may = || {
         crate::oe::init::feedthrough::instant_response(&rec.u, &rec.y)
-            .is_some_and(|r| r.is_feedthrough())
+            .is_some_and(|r| r.may_be_feedthrough())
     };
     let missing: Vec<(Preset, FracModel)> = [Preset::Feedthrough, Preset::Cell]
         .into_iter()
         .map(|p| (p, p.model(1.0)))
         .filter(|(_, m)| !cands.iter().any(|(_, c)| c.kind == m.kind))
         .collect();
-    if !missing.is_empty() && shows() {
+    if !missing.is_empty() && may() {
         for (p, mut m) in missing {
             m.approx = model.approx;
             cands.push((p.name().to_string(), m));
