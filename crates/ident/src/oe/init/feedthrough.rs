@@ -139,11 +139,6 @@ pub fn instant_response(u: &[f64], y: &[f64]) -> Option<InstantResponse> {
             ry[k] -= cy * z[k];
         }
     }
-    let sd = |x: &[f64]| {
-        let mean = x.iter().sum::<f64>() / x.len() as f64;
-        (x.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / x.len() as f64).sqrt()
-    };
-    let share_per_unit = sd(&u[..n]) / sd(&y[..n]).max(f64::MIN_POSITIVE);
     let rr = dot(&r0, &r0);
     if !(rr > UNMEASURED * UNMEASURED * dot(x0, x0)) {
         // The lag-0 change is the next lags' (an input smooth at the sampling step): the
@@ -164,10 +159,15 @@ pub fn instant_response(u: &[f64], y: &[f64]) -> Option<InstantResponse> {
     let w11 = dot(&r0[1..], &r0[..m - 1]) / (rr * rr);
     let var = s0 * w2 + 2.0 * s1 * w11;
     let var = if var > 0.0 { var } else { s0 * w2 };
+    let sd = |x: &[f64]| {
+        let mean = x.iter().sum::<f64>() / x.len() as f64;
+        (x.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / x.len() as f64).sqrt()
+    };
+    let share = d.abs() * sd(&u[..n]) / sd(&y[..n]).max(f64::MIN_POSITIVE);
     (d.is_finite() && var.is_finite()).then_some(InstantResponse {
         d,
         std_error: var.sqrt(),
-        share: d.abs() * share_per_unit,
+        share,
     })
 }
 
