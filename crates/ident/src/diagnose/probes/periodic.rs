@@ -5,11 +5,11 @@
 //! its cosine and sine columns regressed with the model's sensitivities. A peak at a harmonic of
 //! the input's own period is the excitation (the model misses the response to a repeated
 //! reference), not a disturbance: it is rejected, as is a peak where the input's own spectrum has
-//! a narrow line (a multisine whose period the record does not repeat), a peak with fewer
-//! than [`MIN_PERIODS`] periods in the estimation part, and one with fewer than [`FEW_PERIODS`]
-//! whose sinusoid explains less than [`FEW_PERIODS_R2`] of the residual. The input's period is found exactly when
-//! the input repeats sample for sample ([`crate::oe::init::periodic_part`]), else from the
-//! input's autocorrelation ([`input_period`]).
+//! a narrow line (a multisine whose period the record does not repeat), a peak with fewer than
+//! [`MIN_PERIODS`] periods in the estimation part, and one with fewer than [`FEW_PERIODS`] whose
+//! sinusoid explains less than [`FEW_PERIODS_R2`] of the residual. The input's period is found
+//! exactly when the input repeats sample for sample ([`crate::oe::init::periodic_part`]), else
+//! from the input's autocorrelation ([`input_period`]).
 
 use super::{Candidate, Findings, Look, Probe};
 use crate::oe::{Bounds, Effect, FracModel, Param};
@@ -26,7 +26,7 @@ const MIN_PERIODS: f64 = 4.0;
 /// Below this many periods (and from [`MIN_PERIODS`]) a peak is taken for a periodic disturbance
 /// only when its sinusoid alone explains [`FEW_PERIODS_R2`] of the residual's sum of squares: the
 /// zoo's case 0192 of seed 46, a sinusoid of 4.9 periods, explains 96.9%; on its 0247 of seed 44 a
-/// peak of fewer than 6 periods explaining 45.7% stood in for a sign-blind sensor's distortion.
+/// peak of 5.1 periods explaining 46% stood in for a sign-blind sensor's distortion.
 const FEW_PERIODS: f64 = 6.0;
 
 /// The share of the residual's sum of squares a peak of fewer than [`FEW_PERIODS`] periods must
