@@ -269,17 +269,13 @@ pub(super) fn start(
 #[cfg(test)]
 mod tests {
     use super::instant_response;
+    use crate::testdata::{first_order_held, lcg};
 
-    /// `y = D u + x` with `x` a first-order lag of `u` (pole 0.9 a sample) and no noise.
+    /// `y = D u + x` with `x` a first-order lag of `u` (pole 0.9 a sample, unit gain, from rest)
+    /// and no noise.
     fn through(u: &[f64], d: f64) -> Vec<f64> {
-        let mut x = 0.0;
-        u.iter()
-            .map(|&v| {
-                let y = d * v + x;
-                x = 0.9 * x + 0.1 * v;
-                y
-            })
-            .collect()
+        let lag = first_order_held(u, 1.0, -1.0 / 0.9_f64.ln(), 1.0);
+        lag.iter().zip(u).map(|(x, v)| d * v + x).collect()
     }
 
     /// A multisine whose fastest line has 200 samples a period: its lag-0 change is the next
@@ -305,15 +301,12 @@ mod tests {
         let prbs: Vec<f64> = (0..n)
             .map(|k| if (k * k % 1009) < 504 { 1.0 } else { -1.0 })
             .collect();
-        let mut y = through(&prbs, 0.0);
         // A little noise, so that the standard error is finite.
-        let mut s = 12345_u64;
-        for v in &mut y {
-            s = s
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            *v += 1e-3 * ((s >> 11) as f64 / (1u64 << 53) as f64 - 0.5);
-        }
+        let mut next = lcg(12345);
+        let y: Vec<f64> = through(&prbs, 0.0)
+            .into_iter()
+            .map(|v| v + 1e-3 * ((next() >> 11) as f64 / (1u64 << 53) as f64 - 0.5))
+            .collect();
         let r = instant_response(&prbs, &y).unwrap();
         assert!(r.std_error.is_finite() && !r.may_be_feedthrough(), "{r:?}");
         let y: Vec<f64> = y.iter().zip(&prbs).map(|(a, b)| a + 0.5 * b).collect();
