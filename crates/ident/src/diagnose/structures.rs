@@ -58,8 +58,8 @@ use fracsim::modal::RootsCache;
 
 /// The structures of the catalogue every comparison fits beside the user's, in its order: all but
 /// the feed-through and the cell (fitted only when the record's instant response may be a
-/// feed-through, [`with_feedthrough`]) and `fopdt` (the first order is fitted, and a delay is an effect the
-/// diagnosis finds).
+/// feed-through, [`with_feedthrough`]) and `fopdt` (the first order is fitted, and a delay is an
+/// effect the diagnosis finds).
 pub fn compared() -> impl Iterator<Item = Preset> {
     Preset::ALL
         .into_iter()
@@ -102,11 +102,12 @@ pub fn two_mass() -> FracModel {
 }
 
 /// The candidates `cands` with the structures that have a direct feed-through added when the
-/// record's instant response may be one ([`crate::oe::init::feedthrough::instant_response`]: a
-/// cheap regression, no simulation; [`crate::oe::init::feedthrough::InstantResponse::may_be_feedthrough`]):
-/// the feed-through ([`FracModel::feedthrough`]) and the cell ([`FracModel::cell`]: a
-/// feed-through beside an integrator, which a cell's voltage has), each with the approximation of
-/// `model` unless a candidate has its kind already. A record without one keeps its candidates: its
+/// record's instant response may be one
+/// ([`crate::oe::init::feedthrough::InstantResponse::may_be_feedthrough`] of
+/// [`crate::oe::init::feedthrough::instant_response`]: a cheap regression, no simulation): the
+/// feed-through ([`FracModel::feedthrough`]) and the cell ([`FracModel::cell`]: a feed-through
+/// beside an integrator, which a cell's voltage has), each with the approximation of `model`
+/// unless a candidate has its kind already. A record without one keeps its candidates: its
 /// diagnosis costs what it did.
 pub fn with_feedthrough(
     rec: &Record,
