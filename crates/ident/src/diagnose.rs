@@ -98,6 +98,7 @@ pub mod choice;
 pub mod freq;
 pub mod general;
 mod halving;
+mod lag;
 mod probes;
 pub mod residual;
 pub mod structures;
@@ -536,7 +537,12 @@ impl Ctx<'_> {
     }
 
     /// Refit `model` (its values are the start) on the estimation part.
-    fn refit(&self, mut model: FracModel) -> Result<State> {
+    fn refit(&self, model: FracModel) -> Result<State> {
+        self.refit_with(model, &self.opts.fit)
+    }
+
+    /// [`Ctx::refit`] with the fit options `opts`.
+    fn refit_with(&self, mut model: FracModel, opts: &FitOptions) -> Result<State> {
         let levels = model
             .past
             .as_ref()
@@ -559,7 +565,7 @@ impl Ctx<'_> {
             }
             p.value = p.bounds.clamp_inside(p.value);
         }
-        self.fit_from(model, &self.opts.fit)
+        self.fit_from(model, opts)
     }
 
     /// Fit `model` from its values as they are on the estimation part with `opts`.
@@ -1751,6 +1757,16 @@ impl Rounds<'_> {
             self.found.residual_now = None;
             return true;
         };
+        if k.name == "delay" && lead.is_none() {
+            if let Some((lag, rejected)) = lag::in_place(&self.ctx, &self.found.st, &ns) {
+                self.found.rejected.insert(key.clone(), rejected);
+                self.found.refuted.push(key);
+                self.found.st = lag;
+                self.found.path.push(self.ctx.step(&self.found.st));
+                self.found.residual_now = None;
+                return true;
+            }
+        }
         if let Some(l) = lead {
             self.ctx = self.ctx.with_lead(l);
         }

@@ -886,6 +886,70 @@ impl FracModel {
         self
     }
 
+    /// Put a first-order lag `1/(T s + 1)` in series with the linear part, `T` a new positive
+    /// parameter started at `t` seconds (returns its index; named `T_lag`, the second `T_lag2`
+    /// and so on): the product becomes a factor
+    /// of [`FracModel::series`] (the linear part so far the first, when there was none) and
+    /// `num`/`den` hold the product multiplied out. `None` (the model unchanged) for the
+    /// feed-through and cell structures, whose linear part is written as a sum.
+    ///
+    /// ```
+    /// use ident::oe::FracModel;
+    /// let mut m = FracModel::pmsm(6.8, 0.006, 2.7e-5, 0.92, 0.82);
+    /// let i = m.with_lag(1e-3).unwrap();
+    /// let p = m.values();
+    /// let (w, tf) = (300.0, m.tf(&p).unwrap());
+    /// let pmsm = fracsim::FracTf::pmsm(6.8, 0.006, 2.7e-5, 0.92, 0.82).unwrap();
+    /// let lag = 1.0 / num_complex::Complex64::new(1.0, w * p[i]);
+    /// assert!((tf.freq_response(w) - pmsm.freq_response(w) * lag).norm() < 1e-12);
+    /// ```
+    pub fn with_lag(&mut self, t: f64) -> Option<usize> {
+        if matches!(self.kind, Kind::Feedthrough | Kind::Cell) {
+            return None;
+        }
+        let n = 1 + self
+            .params
+            .iter()
+            .filter(|p| p.name.starts_with("T_lag"))
+            .count();
+        let name = if n == 1 {
+            "T_lag".to_string()
+        } else {
+            format!("T_lag{n}")
+        };
+        let it = self.add_param(Param::positive(&name, t));
+        if self.series.is_empty() {
+            // The first factor without the integrator, which the simulation adds to it.
+            let lowered = if self.integrator { 1.0 } else { 0.0 };
+            let den = self
+                .den
+                .iter()
+                .map(|(c, o)| {
+                    let mut o = o.clone();
+                    o.constant -= lowered;
+                    (c.clone(), o)
+                })
+                .collect();
+            self.series.push((self.num.clone(), den));
+        }
+        self.series.push((
+            vec![(Expr::cst(1.0), Expr::cst(0.0))],
+            vec![
+                (Expr::p(it), Expr::cst(1.0)),
+                (Expr::cst(1.0), Expr::cst(0.0)),
+            ],
+        ));
+        let mut den = Vec::with_capacity(2 * self.den.len());
+        for (c, o) in &self.den {
+            let mut raised = o.clone();
+            raised.constant += 1.0;
+            den.push((c.clone().times(&[it]), raised));
+            den.push((c.clone(), o.clone()));
+        }
+        self.den = den;
+        Some(it)
+    }
+
     /// Estimate the initial state as a past held input on windows ending `edges` seconds before
     /// the first sample ([`PastInput`]): the levels `u_past0 ..`, input deviations kept within
     /// `range` (a past the input could have had: see [`past_range`]), start at 0; levels already
