@@ -888,10 +888,10 @@ impl FracModel {
 
     /// Put a first-order lag `1/(T s + 1)` in series with the linear part, `T` a new positive
     /// parameter started at `t` seconds (returns its index; named `T_lag`, the second `T_lag2`
-    /// and so on): the product becomes a factor
-    /// of [`FracModel::series`] (the linear part so far the first, when there was none) and
-    /// `num`/`den` hold the product multiplied out. `None` (the model unchanged) for the
-    /// feed-through and cell structures, whose linear part is written as a sum.
+    /// and so on): the lag becomes a factor of [`FracModel::series`] (the linear part so far the
+    /// first, when there was none) and `num`/`den` hold the product multiplied out. `None` (the
+    /// model unchanged) for the feed-through and cell structures, whose linear part is written as
+    /// a sum.
     ///
     /// ```
     /// use ident::oe::FracModel;
