@@ -1642,7 +1642,7 @@ impl Rounds<'_> {
             }
             self.refit(&c, library, (&mut best, &mut rebase));
         }
-        Ok(self.keep(best, rebase))
+        Ok(self.keep(best, rebase, library))
     }
 
     /// The carried effects ([`Ctx::carried`]) among the first round's candidates: each a start
@@ -1746,26 +1746,31 @@ impl Rounds<'_> {
     }
 
     /// Add the round's best kept candidate, or with none the structure's better refit that a
-    /// rejected candidate's refit led to ([`credited`]); whether the model changed.
-    fn keep(&mut self, best: Option<Best>, rebase: Option<State>) -> bool {
+    /// rejected candidate's refit led to ([`credited`]); a model its probe puts in the kept
+    /// candidate's place ([`Probe::in_place_of`]) instead of it. Whether the model changed.
+    fn keep(
+        &mut self,
+        best: Option<Best>,
+        rebase: Option<State>,
+        library: &[Box<dyn Probe>],
+    ) -> bool {
         let Some((ns, k, key, lead)) = best else {
             let Some(null) = rebase else {
                 return false;
             };
-            self.found.st = null;
-            self.found.path.push(self.ctx.step(&self.found.st));
-            self.found.residual_now = None;
+            self.move_to(null);
             return true;
         };
-        if k.name == "delay" && lead.is_none() {
-            if let Some((lag, rejected)) = lag::in_place(&self.ctx, &self.found.st, &ns) {
-                self.found.rejected.insert(key.clone(), rejected);
-                self.found.refuted.push(key);
-                self.found.st = lag;
-                self.found.path.push(self.ctx.step(&self.found.st));
-                self.found.residual_now = None;
-                return true;
-            }
+        let probe = library.iter().find(|p| p.name() == k.name);
+        // (Not for an advanced input: the other model would be of the record as recorded.)
+        let instead = probe
+            .filter(|_| lead.is_none())
+            .and_then(|p| p.in_place_of(&self.ctx, &self.found.st, &ns));
+        if let Some((other, rejected)) = instead {
+            self.found.rejected.insert(key.clone(), rejected);
+            self.found.refuted.push(key);
+            self.move_to(other);
+            return true;
         }
         if let Some(l) = lead {
             self.ctx = self.ctx.with_lead(l);
@@ -1778,6 +1783,13 @@ impl Rounds<'_> {
         self.backward();
         self.found.residual_now = None;
         true
+    }
+
+    /// Make `st`, a model with no effect more, the current one (a step of the path).
+    fn move_to(&mut self, st: State) {
+        self.found.st = st;
+        self.found.path.push(self.ctx.step(&self.found.st));
+        self.found.residual_now = None;
     }
 
     /// The diagnosis from the base model `base` to the current one.

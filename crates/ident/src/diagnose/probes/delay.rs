@@ -6,6 +6,7 @@
 //! two samples); it then ranks last and the held-out margin and BIC decide.
 
 use super::{named, Candidate, Findings, Look, Probe};
+use crate::diagnose::{Ctx, RejectedEffect, State};
 use crate::oe::FracModel;
 use crate::Result;
 use std::collections::BTreeMap;
@@ -114,6 +115,15 @@ impl Probe for Delay {
 
     fn params(&self, model: &FracModel, values: &[f64]) -> BTreeMap<String, f64> {
         named(model, values, &[("tau", "tau")])
+    }
+
+    fn in_place_of(
+        &self,
+        ctx: &Ctx<'_>,
+        before: &State,
+        kept: &State,
+    ) -> Option<(State, RejectedEffect)> {
+        crate::diagnose::lag::in_place(ctx, before, kept)
     }
 }
 

@@ -265,6 +265,18 @@ pub(crate) trait Probe {
     fn probe(&self, look: &Look<'_>, found: &mut Findings) -> Result<()>;
     /// The effect's fitted parameters in a model that has it.
     fn params(&self, model: &FracModel, values: &[f64]) -> BTreeMap<String, f64>;
+    /// Another model that takes the place of `kept`, the round's kept refit with this effect of
+    /// the current model `before`, and the effect's rejection: a delay's lag
+    /// ([`super::lag::in_place`]). Default: none.
+    fn in_place_of(
+        &self,
+        ctx: &Ctx<'_>,
+        before: &State,
+        kept: &State,
+    ) -> Option<(State, RejectedEffect)> {
+        let _ = (ctx, before, kept);
+        None
+    }
 }
 
 /// The effect library, in the order the probes run.
