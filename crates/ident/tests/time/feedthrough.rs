@@ -158,6 +158,33 @@ fn without_an_instant_response_the_structure_is_not_a_candidate() {
     assert_eq!(with[n + 1].0, "cell");
 }
 
+/// An input smooth at the sampling step (a multisine: its lag-0 change is the next lags') does
+/// not measure the instant response, so the comparison fits the feed-through structure and lets
+/// the held-out error decide; not the cell, whose integrator and input offset would stand for a
+/// drift where nothing says a feed-through is there. Whatever the output: the screen's verdict
+/// rests on the input alone.
+#[test]
+fn a_smooth_input_admits_the_feedthrough_alone() {
+    let u: Vec<f64> = (0..3000)
+        .map(|k| {
+            let t = k as f64 * DT;
+            (2.0 * std::f64::consts::PI * 3.0 * t).sin()
+                + 0.4 * (2.0 * std::f64::consts::PI * 11.0 * t + 0.3).sin()
+        })
+        .collect();
+    let r = instant_response(&u, &u).unwrap();
+    assert!(r.unmeasured() && !r.may_be_feedthrough(), "{r:?}");
+    let (model, _) = ident::app::structure("pmsm", 0.2).unwrap();
+    for y in [u.clone(), u.iter().map(|v| 0.5 * v * v).collect()] {
+        let rec = Record::from_samples(&u, &y, DT).unwrap();
+        let cands = ident::diagnose::structures::candidates("pmsm", &model);
+        let n = cands.len();
+        let with = ident::diagnose::structures::with_feedthrough(&rec, cands, &model);
+        let added: Vec<&str> = with[n..].iter().map(|(s, _)| s.as_str()).collect();
+        assert_eq!(added, ["feedthrough"]);
+    }
+}
+
 /// The exact sensitivities of the feed-through model (dual numbers through the sampled-data
 /// path) against central differences of its simulation, `D` among them; and `d yhat/d D` is the
 /// input itself (the output is `D u` plus a part free of `D`), to rounding.

@@ -71,6 +71,12 @@ impl InstantResponse {
     pub fn may_be_feedthrough(&self) -> bool {
         self.d.abs() >= MAYBE_Z * self.std_error && self.share >= MIN_SHARE
     }
+
+    /// Whether the record does not measure it: the input is smooth at the sampling step (its
+    /// lag-0 change is the next lags', [`UNMEASURED`]), as a multisine or a sweep.
+    pub fn unmeasured(&self) -> bool {
+        !self.std_error.is_finite()
+    }
 }
 
 /// The instant response of `y` to `u` (same sampling; deviations or not: the differences remove
