@@ -907,19 +907,58 @@ impl FracModel {
         if matches!(self.kind, Kind::Feedthrough | Kind::Cell) {
             return None;
         }
+        let it = self.add_param(Param::positive(&self.next_name("T_lag"), t));
+        self.with_all_pole_factor(&[(Some(it), 1.0), (None, 0.0)]);
+        Some(it)
+    }
+
+    /// Put a resonant pair `1/(a s^2 + b s + 1)` in series with the linear part (a mode the
+    /// structure lacks: `a = 1/w_n^2`, `b = 2 zeta/w_n`), `a` and `b` new positive parameters
+    /// started at the values given (returns their indices; named `a_mode`, `b_mode`, the second
+    /// `a_mode2`, `b_mode2` and so on), as [`FracModel::with_lag`] puts a lag. `None` (the model
+    /// unchanged) for the feed-through and cell structures.
+    ///
+    /// ```
+    /// use ident::oe::FracModel;
+    /// let mut m = FracModel::pmsm(6.8, 0.006, 2.7e-5, 0.92, 0.82);
+    /// let (ia, ib) = m.with_mode(1e-6, 4e-4).unwrap();
+    /// let p = m.values();
+    /// let (w, tf) = (300.0, m.tf(&p).unwrap());
+    /// let pmsm = fracsim::FracTf::pmsm(6.8, 0.006, 2.7e-5, 0.92, 0.82).unwrap();
+    /// let mode = 1.0 / num_complex::Complex64::new(1.0 - p[ia] * w * w, p[ib] * w);
+    /// assert!((tf.freq_response(w) - pmsm.freq_response(w) * mode).norm() < 1e-12);
+    /// ```
+    pub fn with_mode(&mut self, a: f64, b: f64) -> Option<(usize, usize)> {
+        if matches!(self.kind, Kind::Feedthrough | Kind::Cell) {
+            return None;
+        }
+        let ia = self.add_param(Param::positive(&self.next_name("a_mode"), a));
+        let ib = self.add_param(Param::positive(&self.next_name("b_mode"), b));
+        self.with_all_pole_factor(&[(Some(ia), 2.0), (Some(ib), 1.0), (None, 0.0)]);
+        Some((ia, ib))
+    }
+
+    /// `stem` for the first parameter so named, then `stem2`, `stem3` and so on.
+    fn next_name(&self, stem: &str) -> String {
         let n = 1 + self
             .params
             .iter()
-            .filter(|p| p.name.starts_with("T_lag"))
+            .filter(|p| p.name.starts_with(stem))
             .count();
-        let name = if n == 1 {
-            "T_lag".to_string()
+        if n == 1 {
+            stem.to_string()
         } else {
-            format!("T_lag{n}")
-        };
-        let it = self.add_param(Param::positive(&name, t));
+            format!("{stem}{n}")
+        }
+    }
+
+    /// Put the all-pole factor `1/sum_k c_k s^(n_k)` in series with the linear part, each term
+    /// `(c_k, n_k)` a parameter's index (`None`: the constant 1) and an integer order: the factor
+    /// joins [`FracModel::series`] (the linear part so far the first, without the integrator,
+    /// which the simulation adds to it, when there was none) and `den` holds the product
+    /// multiplied out.
+    fn with_all_pole_factor(&mut self, factor: &[(Option<usize>, f64)]) {
         if self.series.is_empty() {
-            // The first factor without the integrator, which the simulation adds to it.
             let lowered = if self.integrator { 1.0 } else { 0.0 };
             let den = self
                 .den
@@ -932,22 +971,27 @@ impl FracModel {
                 .collect();
             self.series.push((self.num.clone(), den));
         }
+        let coef = |k: Option<usize>| k.map_or(Expr::cst(1.0), Expr::p);
         self.series.push((
             vec![(Expr::cst(1.0), Expr::cst(0.0))],
-            vec![
-                (Expr::p(it), Expr::cst(1.0)),
-                (Expr::cst(1.0), Expr::cst(0.0)),
-            ],
+            factor
+                .iter()
+                .map(|&(k, n)| (coef(k), Expr::cst(n)))
+                .collect(),
         ));
-        let mut den = Vec::with_capacity(2 * self.den.len());
+        let mut den = Vec::with_capacity(factor.len() * self.den.len());
         for (c, o) in &self.den {
-            let mut raised = o.clone();
-            raised.constant += 1.0;
-            den.push((c.clone().times(&[it]), raised));
-            den.push((c.clone(), o.clone()));
+            for &(k, n) in factor {
+                let mut raised = o.clone();
+                raised.constant += n;
+                let c = match k {
+                    Some(i) => c.clone().times(&[i]),
+                    None => c.clone(),
+                };
+                den.push((c, raised));
+            }
         }
         self.den = den;
-        Some(it)
     }
 
     /// Estimate the initial state as a past held input on windows ending `edges` seconds before
