@@ -996,23 +996,28 @@ fn a_delay_standing_in_for_a_mode_above_the_band_gives_way_to_it() {
     let why = dg.diagnosis.rejected.iter().find(|e| e.name == "delay");
     let why = why.expect("the delay rejected");
     assert!(why.reason.contains("resonant pair"), "{}", why.reason);
-    let truth: fracsim::FracTf = "6.337609/(8.667193e-12 s^5 + 1.800032e-9 s^4 + 1.772091e-6 s^3 \
-                                  + 1.1293608e-4 s^2 + 0.04354680 s + 1)"
-        .parse()
-        .unwrap();
-    let fit: fracsim::FracTf = r.lead.model.text.parse().unwrap();
-    // The RMS of the relative error over the zoo's excited band (rad/s), the zoo's measure.
+    let truth =
+        "6.337609/(8.667193e-12 s^5 + 1.800032e-9 s^4 + 1.772091e-6 s^3 + 1.1293608e-4 s^2 \
+                 + 0.04354680 s + 1)";
     let band = [
         5.151, 10.30, 15.45, 20.61, 28.22, 41.00, 61.38, 92.15, 135.7, 199.7, 294.4,
     ];
-    let sum: f64 = band
+    let e = frf_error(&r.lead.model.text, truth, &band);
+    assert!(e < 0.05, "{:.1}% off: {}", 100.0 * e, r.lead.model.text);
+}
+
+/// The benchmark zoo's measure of a model's frequency-response error: the RMS over `band_omega`
+/// (rad/s) of the relative error of `fit` against `truth` (both transfer functions as text).
+fn frf_error(fit: &str, truth: &str, band_omega: &[f64]) -> f64 {
+    let fit: fracsim::FracTf = fit.parse().unwrap();
+    let truth: fracsim::FracTf = truth.parse().unwrap();
+    let sum: f64 = band_omega
         .iter()
         .map(|&w| {
             ((fit.freq_response(w) - truth.freq_response(w)) / truth.freq_response(w)).norm_sqr()
         })
         .sum();
-    let e = (sum / band.len() as f64).sqrt();
-    assert!(e < 0.05, "{:.1}% off: {}", 100.0 * e, r.lead.model.text);
+    (sum / band_omega.len() as f64).sqrt()
 }
 
 /// The benchmark zoo's delay case 0010 of seed 45 (`tests/data/README.md`): a step from rest
@@ -1368,15 +1373,17 @@ fn no_delay_and_within_the_oracle(fixture: &str, oracle: f64) -> ident::app::tim
 /// of them leakage between the tones, and no size's start on it holds the two modes: the
 /// general structure's fits from it ended 7x the truth's held-out RMSE, and the PMSM kept a
 /// delay and a periodic disturbance at a mode's frequency in their stead (4.5x). The sizes
-/// ranked on an ARX model's response are fitted too: a fifth order is chosen, with no effect,
-/// within 10% of the truth's held-out RMSE (7.2610e-2, the zoo's oracle on the same samples).
+/// ranked on an ARX model's response are fitted too, and a fifth order holds both modes (the
+/// third order with the resonant pair that takes a kept delay's place holds them too): the
+/// model chosen keeps no effect, predicts within 10% of the truth's held-out RMSE (7.2610e-2,
+/// the zoo's oracle on the same samples) and its response is within 1% of the truth's over the
+/// band (the zoo's measure: 0.06-0.09% measured).
 #[test]
 fn an_arx_response_gives_the_modes_a_leaky_welch_estimate_misses() {
     let r = default_run_on_fixture("zoo_seed44_0179_multi_mode.csv");
     let dg = r.diagnosis.as_ref().expect("a diagnosis");
     let choice = &dg.structures;
     let chosen = &choice.scores[choice.chosen];
-    assert!(chosen.name.starts_with("general"), "{}", choice.reason);
     assert!(
         names(&dg.diagnosis).is_empty(),
         "{:?} {}",
@@ -1385,6 +1392,14 @@ fn an_arx_response_gives_the_modes_a_leaky_welch_estimate_misses() {
     );
     let held = chosen.rmse_after.unwrap();
     assert!(held <= 1.1 * 7.2610e-2, "held-out RMSE {held}");
+    let truth =
+        "7.896742/(1.600870e-13 s^5 + 6.494160e-11 s^4 + 1.201670e-7 s^3 + 2.378875e-5 s^2 \
+                 + 0.01240847 s + 1)";
+    let band = [
+        48.45, 66.35, 96.40, 144.3, 216.7, 319.1, 469.5, 692.2, 1011.7,
+    ];
+    let e = frf_error(&r.lead.model.text, truth, &band);
+    assert!(e < 0.01, "{:.2}% off: {}", 100.0 * e, r.lead.model.text);
 }
 
 /// The benchmark zoo's two-mass case 0252 (seed 44, `tests/data/README.md`): a drive train
