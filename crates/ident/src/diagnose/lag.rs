@@ -107,7 +107,7 @@ fn mode_charge(ctx: &Ctx<'_>) -> f64 {
 /// (its phase `-b w` as `w -> 0`), must reach for the pair to stand for the delay. A pair with
 /// far less has dropped the delay's lag rather than carried it: its fit is bought elsewhere, by a
 /// sharp peak where the input has no power (an autotune PRBS clocked at 3 ms, a pair at 330 Hz
-/// with damping 0.007 at the input's spectral null: `b` 0.1% of `tau`; on the benchmark zoo the
+/// with damping 0.007 at the input's spectral null: `b` under 1% of `tau`; on the benchmark zoo the
 /// pairs that stood for a delay had `b` 10% to 107% of it), and whether the delay is needed is the
 /// backward step's question, not this one's.
 const LAG_SHARE: f64 = 0.05;
