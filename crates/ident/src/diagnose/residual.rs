@@ -372,7 +372,9 @@ impl Projection {
 /// (each of `e.len()` rows) after the model's sensitivity columns `sens` are projected out of
 /// both: `R^2 = 1 - ||e_perp - S_perp beta||^2 / ||e_perp||^2` with `beta` the least-squares
 /// coefficients, `e_perp` and `S_perp` the parts orthogonal to `sens`. Returns `(R^2, beta)`;
-/// `(0, zeros)` for a degenerate signature.
+/// a column with nothing left once `sens` is projected out (a past-input level whose response
+/// died out before the record, a column the model's sensitivities already hold) takes no part,
+/// its coefficient 0; `(0, zeros)` when no column is left.
 pub fn explained(e: &[f64], sig: &[Vec<f64>], sens: &Mat<f64>) -> (f64, Vec<f64>) {
     explained_in(e, sig, &Projection::of(sens))
 }
@@ -395,29 +397,25 @@ pub fn explained_in(e: &[f64], sig: &[Vec<f64>], sens: &Projection) -> (f64, Vec
     let b = sens.project_out(&b);
     let ep: Vec<f64> = (0..n).map(|r| b[(r, 0)]).collect();
     let ee: f64 = ep.iter().map(|v| v * v).sum();
-    let mut s = Mat::<f64>::zeros(n, p);
-    let mut scale = vec![0.0; p];
-    for c in 0..p {
-        scale[c] = (0..n)
-            .map(|r| b[(r, c + 1)] * b[(r, c + 1)])
-            .sum::<f64>()
-            .sqrt();
-        if !(scale[c] > 1e-12 * (ee.sqrt() + 1e-300)) {
-            return (0.0, vec![0.0; p]);
-        }
-        for r in 0..n {
-            s[(r, c)] = b[(r, c + 1)] / scale[c];
-        }
-    }
-    if ee <= 0.0 {
+    let scale: Vec<f64> = (0..p)
+        .map(|c| (0..n).map(|r| b[(r, c + 1)].powi(2)).sum::<f64>().sqrt())
+        .collect();
+    let live: Vec<usize> = (0..p)
+        .filter(|&c| scale[c] > 1e-12 * (ee.sqrt() + 1e-300))
+        .collect();
+    if live.is_empty() || ee <= 0.0 {
         return (0.0, vec![0.0; p]);
     }
+    let s = Mat::<f64>::from_fn(n, live.len(), |r, j| b[(r, live[j] + 1)] / scale[live[j]]);
     let rhs = Mat::<f64>::from_fn(n, 1, |r, _| ep[r]);
     let x = crate::lm::lstsq(&s, &rhs);
     let fitted = &s * &x;
     let rr: f64 = (0..n).map(|r| (ep[r] - fitted[(r, 0)]).powi(2)).sum();
     let r2 = (1.0 - rr / ee).clamp(0.0, 1.0);
-    let beta = (0..p).map(|c| x[(c, 0)] / scale[c]).collect();
+    let mut beta = vec![0.0; p];
+    for (j, &c) in live.iter().enumerate() {
+        beta[c] = x[(j, 0)] / scale[c];
+    }
     if r2.is_finite() {
         (r2, beta)
     } else {
@@ -473,6 +471,36 @@ mod tests {
         let b = Mat::from_fn(n, 1, |k, _| (6.0 * t(k)).sin() + t(k) * t(k));
         let out = once.project_out(&b);
         assert!((0..n).all(|k| out[(k, 0)].abs() < 1e-12), "{}", out[(0, 0)]);
+    }
+
+    /// A signature of several columns, one of which has nothing left once the sensitivities are
+    /// projected out (a past-input level whose response died out before the record: zeros, or
+    /// the sensitivities' own span), is judged on the columns that are left: the same `R^2` as
+    /// those columns alone, the dead column's coefficient 0. (The whole signature was called
+    /// degenerate, `R^2 = 0`: the initial-state probe saw 0.0% of a residual its live levels
+    /// explain 63% of, and an input offset or a dead band took the state's place.)
+    #[test]
+    fn a_dead_column_leaves_the_live_columns_explanation() {
+        let n = 300;
+        let mut lcg = crate::testdata::lcg(5);
+        let mut noise = move || ((lcg() >> 33) as f64 / (1u64 << 31) as f64) - 0.5;
+        let t = |k: usize| k as f64 / n as f64;
+        let sens = Mat::from_fn(n, 1, |k, _| t(k));
+        let decay: Vec<f64> = (0..n).map(|k| (-20.0 * t(k)).exp()).collect();
+        let e: Vec<f64> = (0..n).map(|k| 2.0 * decay[k] + 0.05 * noise()).collect();
+        let live = vec![decay.clone()];
+        let (r2_live, beta_live) = explained(&e, &live, &sens);
+        assert!(r2_live > 0.9, "{r2_live}");
+        for dead in [
+            vec![0.0; n],
+            (0..n).map(|k| 3.0 * t(k)).collect::<Vec<f64>>(),
+        ] {
+            let (r2, beta) = explained(&e, &[decay.clone(), dead], &sens);
+            assert!((r2 - r2_live).abs() < 1e-12, "{r2} against {r2_live}");
+            assert!((beta[0] - beta_live[0]).abs() < 1e-9 * beta_live[0].abs());
+            assert_eq!(beta[1], 0.0);
+        }
+        assert_eq!(explained(&e, &[vec![0.0; n]], &sens), (0.0, vec![0.0]));
     }
 
     /// A model error that follows every step of a staircase and dies out (a lead the model

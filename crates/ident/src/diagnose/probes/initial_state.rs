@@ -22,9 +22,12 @@
 //! level is the step itself) and with a free integrator (a held past input would integrate
 //! without end).
 //!
-//! Identifiability: with an output offset fitted, the last (oldest) level is an input offset
-//! through a linear model (`K p - p G 1`), so the two are one candidate here: when this one is
-//! kept, an input offset is reported as ambiguous with it (the input-offset probe).
+//! Identifiability: with an output offset fitted, the levels all alike are an input offset
+//! through a linear model started from rest (`K p - p G 1`), a step at the first sample, so the
+//! two are one candidate here: the input-offset probe leaves that step to this one ([`asks`]),
+//! and once this one is kept it reports an input offset as not tested (or ambiguous with the
+//! output offset). A level the model no longer feels (its response died out before the record)
+//! takes no part in the regression ([`crate::diagnose::residual::explained_in`]).
 
 use super::{named, Candidate, Findings, Look, Probe};
 use crate::oe::{past_edges, past_range, FracModel, Structure};
@@ -32,6 +35,15 @@ use crate::Result;
 use std::collections::BTreeMap;
 
 pub(crate) struct InitialState;
+
+/// Whether this probe asks whether the record was at rest: the model was fitted from the rest
+/// the record's idle start suggests (no estimated initial state), not through a free integrator,
+/// and the record is not a step at the first sample. The input-offset probe leaves the step from
+/// the first sample to it then.
+pub(super) fn asks(look: &Look<'_>) -> bool {
+    let (rec, m) = (look.ctx.rec, &look.st.model);
+    m.past.is_none() && !m.integrator && rec.rests_until().is_some() && !rec.starts_with_step()
+}
 
 impl Probe for InitialState {
     fn name(&self) -> &'static str {

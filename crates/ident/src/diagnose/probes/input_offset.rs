@@ -5,9 +5,15 @@
 //!
 //! Identifiability: through a linear model whose initial state is estimated (a past held input),
 //! an input offset over the record is exactly an output offset `K c_u` plus a shift of the past
-//! levels, so the data cannot tell them apart. It is told apart when the model starts from rest,
-//! integrates (a constant input is then a drift), or has a nonlinear effect that acts after it
-//! (friction's sign, a clamp, a dead band, a sign-blind sensor).
+//! levels, so the data cannot tell them apart. Through a linear model fitted from the rest the
+//! record shows before its first input change, an input offset is invisible where it was there
+//! before the record (the rest is then at `u0 + c_u`): what the signature finds is the step
+//! response from the first sample, `c_u G 1`, which with the output offset fitted is exactly the
+//! state a past input `-c_u` held until the first sample leaves: the record was not at rest at
+//! its start (a step logged from its first sample, the input before it another level), which is
+//! the initial-state probe's question, asked there. It is told apart when the model integrates
+//! (a constant input is then a drift) or has a nonlinear effect that acts after it (friction's
+//! sign, a clamp, a dead band, a sign-blind sensor).
 
 use super::{named, Candidate, Findings, Look, Probe};
 use crate::oe::{Bounds, Effect, FracModel, Param};
@@ -30,6 +36,16 @@ impl Probe for InputOffset {
             && m.effects
                 .iter()
                 .all(|e| matches!(e, Effect::OutputOffset { .. } | Effect::Sinusoid { .. }));
+        if linear && look.has("y_offset") && super::initial_state::asks(look) {
+            found.reject(
+                "input_offset",
+                "not tested: through the linear model fitted from rest, a constant input offset \
+                 is a step at the first sample, with the output offset the state a past input \
+                 held until then leaves: the initial state's question (initial_state)"
+                    .into(),
+            );
+            return Ok(());
+        }
         if m.past.is_some() && linear {
             let why =
                 "with the initial state estimated, a constant input offset through the linear \
