@@ -36,13 +36,34 @@ use std::collections::BTreeMap;
 
 pub(crate) struct InitialState;
 
-/// Whether this probe asks whether the record was at rest: the model was fitted from the rest
-/// the record's idle start suggests (no estimated initial state), not through a free integrator,
-/// and the record is not a step at the first sample. The input-offset probe leaves the step from
-/// the first sample to it then.
+/// Whether this probe asks whether the record was at rest ([`not_asked`] says why not): the
+/// input-offset probe leaves the step from the first sample to it then.
 pub(super) fn asks(look: &Look<'_>) -> bool {
+    not_asked(look).is_none()
+}
+
+/// Why this probe does not ask whether the record was at rest: `Some(None)` when there is nothing
+/// to say (only the rest the record's idle start suggests is questioned, the rule of
+/// `InitialState::Auto`: a record that moves from its first sample was fitted from rest only
+/// because the user said so, and a model with an estimated state has one already), `Some(Some(
+/// reason))` when it is not tested for `reason`; `None` when it asks.
+fn not_asked(look: &Look<'_>) -> Option<Option<&'static str>> {
     let (rec, m) = (look.ctx.rec, &look.st.model);
-    m.past.is_none() && !m.integrator && rec.rests_until().is_some() && !rec.starts_with_step()
+    if m.past.is_some() || rec.rests_until().is_none() {
+        return Some(None);
+    }
+    if m.integrator {
+        return Some(Some(
+            "not tested: through a free integrator a held past input would integrate without end",
+        ));
+    }
+    if rec.starts_with_step() {
+        return Some(Some(
+            "not tested: a step at the first sample is the step from the input 0 before the \
+             record (a past input level is the step itself)",
+        ));
+    }
+    None
 }
 
 impl Probe for InitialState {
@@ -52,28 +73,10 @@ impl Probe for InitialState {
 
     fn probe(&self, look: &Look<'_>, found: &mut Findings) -> Result<()> {
         let (ctx, st) = (look.ctx, look.st);
-        // Only the rest the record's idle start suggests is questioned (the rule of
-        // `InitialState::Auto`); a record that moves from its first sample was fitted from rest
-        // only because the user said so, and a model with an estimated state has one already.
-        if st.model.past.is_some() || ctx.rec.rests_until().is_none() {
-            return Ok(());
-        }
-        if st.model.integrator {
-            found.reject(
-                "initial_state",
-                "not tested: through a free integrator a held past input would integrate without \
-                 end"
-                .into(),
-            );
-            return Ok(());
-        }
-        if ctx.rec.starts_with_step() {
-            found.reject(
-                "initial_state",
-                "not tested: a step at the first sample is the step from the input 0 before the \
-                 record (a past input level is the step itself)"
-                    .into(),
-            );
+        if let Some(why) = not_asked(look) {
+            if let Some(why) = why {
+                found.reject("initial_state", why.into());
+            }
             return Ok(());
         }
         let s = look.s();
