@@ -165,8 +165,29 @@ fn floors_of(f: &Floors, integral: bool, c: &Controller, m: &LoopMetrics) -> Res
 /// `w <= omega_l` (on the analysis's refined grid, each local peak refined by golden section).
 pub(crate) fn bounds_met(p: &Plant, spec: &Spec, c: &Controller) -> Result<(), String> {
     let grid = crate::analysis::loop_grid(p, c, spec.wc);
+    bounds_on(p, spec, c, |lo, hi, f| band_peak(&grid, lo, hi, f))
+}
+
+/// The bounds at their bands' own edges, `omega_h` and `omega_l`: a necessary condition of
+/// [`bounds_met`] (its bands include their edges) at two evaluations of the loop, checked before
+/// a candidate's full analysis. The verdict is the same; a candidate refused here is refused for
+/// its bound, where the full check would name the first of its failures.
+pub(crate) fn bounds_met_at_edges(p: &Plant, spec: &Spec, c: &Controller) -> Result<(), String> {
+    bounds_on(p, spec, c, |lo, hi, f| {
+        let edge = if lo > 0.0 { lo } else { hi };
+        (edge, f(edge))
+    })
+}
+
+/// Each bound checked on the peak `peak(lo, hi, f)` gives over its band.
+fn bounds_on(
+    p: &Plant,
+    spec: &Spec,
+    c: &Controller,
+    peak: impl Fn(f64, f64, &dyn Fn(f64) -> f64) -> (f64, f64),
+) -> Result<(), String> {
     if let Some(b) = spec.t_high {
-        let (w, v) = band_peak(&grid, b.omega, f64::INFINITY, |w| t_db(p, c, w));
+        let (w, v) = peak(b.omega, f64::INFINITY, &|w| t_db(p, c, w));
         if v > b.db {
             return Err(format!(
                 "|T| = {v:.2} dB at {w:.4} rad/s > {} dB (asked above {} rad/s)",
@@ -175,7 +196,7 @@ pub(crate) fn bounds_met(p: &Plant, spec: &Spec, c: &Controller) -> Result<(), S
         }
     }
     if let Some(b) = spec.s_low {
-        let (w, v) = band_peak(&grid, 0.0, b.omega, |w| s_db(p, c, w));
+        let (w, v) = peak(0.0, b.omega, &|w| s_db(p, c, w));
         if v > b.db {
             return Err(format!(
                 "|S| = {v:.2} dB at {w:.4} rad/s > {} dB (asked below {} rad/s)",
