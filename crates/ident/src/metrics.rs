@@ -194,10 +194,8 @@ mod tests {
     #[test]
     fn correlations_of_a_delayed_copy_peak_at_the_delay() {
         // A deterministic pseudo-random sequence (LCG) so the test needs no RNG.
-        let mut lcg = crate::testdata::lcg(12345);
-        let u: Vec<f64> = (0..2000)
-            .map(|_| ((lcg() >> 33) as f64 / (1u64 << 31) as f64) - 0.5)
-            .collect();
+        let mut uniform = crate::testdata::uniform(12345);
+        let u: Vec<f64> = (0..2000).map(|_| uniform()).collect();
         let e: Vec<f64> = (0..u.len())
             .map(|k| if k >= 3 { u[k - 3] } else { 0.0 })
             .collect();

@@ -27,6 +27,12 @@ pub(crate) fn lcg(seed: u64) -> impl FnMut() -> u64 {
     }
 }
 
+/// A seeded uniform number in `[-0.5, 0.5)` at each call: the top 31 bits of [`lcg`]'s state.
+pub(crate) fn uniform(seed: u64) -> impl FnMut() -> f64 {
+    let mut lcg = lcg(seed);
+    move || ((lcg() >> 33) as f64 / (1u64 << 31) as f64) - 0.5
+}
+
 /// `n` samples of a seeded random binary sequence of `+-1`, a new level drawn every `hold`
 /// samples (the top bit of [`lcg`]'s state: its low bits cycle with short periods).
 pub(crate) fn random_binary(n: usize, hold: usize, seed: u64) -> Vec<f64> {

@@ -441,8 +441,7 @@ mod tests {
     #[test]
     fn a_projection_made_once_explains_as_one_made_per_signature() {
         let n = 400;
-        let mut lcg = crate::testdata::lcg(11);
-        let mut noise = move || ((lcg() >> 33) as f64 / (1u64 << 31) as f64) - 0.5;
+        let mut noise = crate::testdata::uniform(11);
         let t = |k: usize| k as f64 / n as f64;
         let sens = Mat::from_fn(n, 4, |k, c| match c {
             0 => (6.0 * t(k)).sin(),
@@ -482,8 +481,7 @@ mod tests {
     #[test]
     fn a_dead_column_leaves_the_live_columns_explanation() {
         let n = 300;
-        let mut lcg = crate::testdata::lcg(5);
-        let mut noise = move || ((lcg() >> 33) as f64 / (1u64 << 31) as f64) - 0.5;
+        let mut noise = crate::testdata::uniform(5);
         let t = |k: usize| k as f64 / n as f64;
         let sens = Mat::from_fn(n, 1, |k, _| t(k));
         let decay: Vec<f64> = (0..n).map(|k| (-20.0 * t(k)).exp()).collect();
@@ -511,10 +509,8 @@ mod tests {
     fn an_error_after_each_step_depends_on_the_inputs_changes() {
         let n = 2000;
         let u = crate::testdata::random_binary(n, 100, 5);
-        let mut lcg = crate::testdata::lcg(2);
-        let noise: Vec<f64> = (0..n)
-            .map(|_| 3.46 * (((lcg() >> 33) as f64 / (1u64 << 31) as f64) - 0.5))
-            .collect();
+        let mut uniform = crate::testdata::uniform(2);
+        let noise: Vec<f64> = (0..n).map(|_| 3.46 * uniform()).collect();
         let quiet = analyse(&noise, &u, 1e-3);
         assert!(quiet.independent, "{quiet:?}");
         let mut x = 0.0;
@@ -545,8 +541,7 @@ mod tests {
     #[test]
     fn white_residuals_are_seldom_taken_for_dependent() {
         let (n, trials): (usize, usize) = (1000, 300);
-        let mut lcg = crate::testdata::lcg(11);
-        let mut uniform = move || ((lcg() >> 33) as f64 / (1u64 << 31) as f64) - 0.5;
+        let mut uniform = crate::testdata::uniform(11);
         for hold in [1, 20] {
             let (mut dependent, mut missed) = (0, 0);
             for _ in 0..trials {
@@ -573,10 +568,10 @@ mod tests {
 
     #[test]
     fn a_sinusoid_in_noise_is_a_peak() {
-        let mut lcg = crate::testdata::lcg(7);
+        let mut uniform = crate::testdata::uniform(7);
         let e: Vec<f64> = (0..2000)
             .map(|k| {
-                let w = ((lcg() >> 33) as f64 / (1u64 << 31) as f64) - 0.5;
+                let w = uniform();
                 w + 0.3 * (2.0 * PI * 37.3 * k as f64 * 1e-3).sin()
             })
             .collect();
